@@ -1,0 +1,3 @@
+from snakebot.cli import main
+
+main()

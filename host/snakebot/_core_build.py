@@ -1,0 +1,45 @@
+"""Build script for ``snakebot._core``: the portable C core, compiled for the host.
+
+Every ``firmware/core/*.c`` is compiled in, and every ``firmware/core/*.h`` may publish
+part of itself to Python by fencing plain declarations between ``/* cffi:begin */`` and
+``/* cffi:end */``. The cdef is therefore read from the very headers the firmware
+compiles against, so the two builds cannot drift apart.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from cffi import FFI
+
+CORE_DIR = Path(__file__).resolve().parents[2] / "firmware" / "core"
+FENCE = re.compile(r"/\* cffi:begin \*/(.*?)/\* cffi:end \*/", re.S)
+
+
+def published_declarations(header: Path) -> str:
+    """The cffi-visible part of one header (empty if it publishes nothing)."""
+    return "\n".join(block.strip() for block in FENCE.findall(header.read_text()))
+
+
+def _relative(path: Path) -> str:
+    # setuptools insists on paths relative to the project root.
+    return str(path.relative_to(CORE_DIR.parents[1]))
+
+
+headers = sorted(CORE_DIR.glob("*.h"))
+sources = sorted(CORE_DIR.glob("*.c"))
+
+ffibuilder = FFI()
+ffibuilder.cdef("\n".join(filter(None, (published_declarations(h) for h in headers))))
+ffibuilder.set_source(
+    "snakebot._core",
+    "\n".join(f'#include "{h.name}"' for h in headers),
+    sources=[_relative(s) for s in sources],
+    include_dirs=[_relative(CORE_DIR)],
+    extra_compile_args=["-std=c99", "-O2", "-Wall", "-Wextra", "-Wno-unused-parameter"],
+    libraries=["m"],
+)
+
+if __name__ == "__main__":
+    ffibuilder.compile(verbose=True)

@@ -1,0 +1,102 @@
+#include "dxl_parser.h"
+
+/* Compile-time checks: the storage holds the ring twice, and a window of a whole packet
+ * starting at any slot stays inside it. */
+typedef char dxl_parser_storage_check[
+    (sizeof(((dxl_parser *)0)->storage) == DXL_PARSER_STORAGE
+     && DXL_PARSER_STORAGE == 2 * DXL_PARSER_RING && DXL_PARSER_RING == 256
+     && DXL_MAX_PACKET < DXL_PARSER_RING) ? 1 : -1];
+
+/* The i-th unconsumed byte (i < count <= DXL_MAX_PACKET < DXL_PARSER_RING). */
+static uint8_t at(const dxl_parser *p, uint16_t i)
+{
+    return p->storage[(uint8_t)(p->start + i)];
+}
+
+static void drop(dxl_parser *p, uint16_t n)
+{
+    p->start = (uint8_t)(p->start + n);
+    p->count = (uint16_t)(p->count - n);
+}
+
+void dxl_parser_reset(dxl_parser *p)
+{
+    p->start = 0;
+    p->count = 0;
+}
+
+bool dxl_parser_feed(dxl_parser *p, uint8_t byte)
+{
+    if (p->count >= DXL_MAX_PACKET) {
+        return false;
+    }
+    uint8_t slot = (uint8_t)(p->start + p->count);
+    p->storage[slot] = byte;
+    p->storage[slot + DXL_PARSER_RING] = byte;
+    p->count++;
+    return true;
+}
+
+uint16_t dxl_parser_pending(const dxl_parser *p)
+{
+    return p->count;
+}
+
+/* Fill *ev for the candidate at the front of the buffer (raw_len <= count). */
+static void report(const dxl_parser *p, dxl_event *ev, uint8_t kind, uint16_t raw_len)
+{
+    const uint8_t *raw = &p->storage[p->start]; /* start + raw_len <= 255 + 250 < 512 */
+    ev->kind = kind;
+    ev->id = raw[2];
+    ev->code = kind == DXL_EVENT_BAD_LENGTH ? 0 : raw[4];
+    ev->nparams = kind == DXL_EVENT_PACKET ? (uint8_t)(raw[3] - 2u) : 0;
+    ev->params = kind == DXL_EVENT_PACKET ? &raw[5] : NULL;
+    ev->raw = raw;
+    ev->raw_len = raw_len;
+}
+
+bool dxl_parser_poll(dxl_parser *p, dxl_event *ev)
+{
+    /* (1) find FF FF at the front; keep a lone trailing FF */
+    while (p->count >= 2 && !(at(p, 0) == DXL_HEADER_BYTE && at(p, 1) == DXL_HEADER_BYTE)) {
+        drop(p, 1);
+    }
+    if (p->count < 2) {
+        if (p->count == 1 && at(p, 0) != DXL_HEADER_BYTE) {
+            drop(p, 1);
+        }
+        return false;
+    }
+    /* (2) in a run of FFs, the last two are the header */
+    while (p->count >= 3 && at(p, 2) == DXL_HEADER_BYTE) {
+        drop(p, 1);
+    }
+    if (p->count < 4) {
+        return false;
+    }
+    /* (3) a possible length? */
+    uint8_t len = at(p, 3);
+    if (len < DXL_MIN_LEN_FIELD || len > DXL_MAX_LEN_FIELD) {
+        report(p, ev, DXL_EVENT_BAD_LENGTH, 4);
+        drop(p, 1);
+        return true;
+    }
+    uint16_t total = (uint16_t)(len + 4u);
+    if (p->count < total) {
+        return false;
+    }
+    /* (4) the checksum, over ID .. last param */
+    uint8_t sum = 0;
+    for (uint16_t i = 2; i + 1u < total; i++) {
+        sum = (uint8_t)(sum + at(p, i));
+    }
+    uint8_t expected = (uint8_t)~sum;
+    if (expected != at(p, (uint16_t)(total - 1u))) {
+        report(p, ev, DXL_EVENT_BAD_CHECKSUM, total);
+        drop(p, 1);
+        return true;
+    }
+    report(p, ev, DXL_EVENT_PACKET, total);
+    drop(p, total);
+    return true;
+}

@@ -1,0 +1,67 @@
+"""Dynamixel Protocol 1.0, as the AX-12 servos and the CM-530 controller speak it.
+
+Build packets with the instruction builders, find them in a byte stream with
+``PacketParser``, and look registers up in ``ControlTable``. See protocol/README.md.
+"""
+
+from snakebot.protocol.control_table import ControlTable, ControlTableError, Entry
+from snakebot.protocol.errors import (
+    CorruptPacket,
+    DxlTimeout,
+    ErrorFlags,
+    PacketArgumentError,
+    ProtocolError,
+    ServoError,
+)
+from snakebot.protocol.instructions import (
+    BROADCAST_ID,
+    MAX_ID,
+    MAX_PACKET_LEN,
+    MAX_PARAMS,
+    Instruction,
+    action,
+    bulk_read,
+    checksum,
+    encode_packet,
+    ping,
+    read,
+    reg_write,
+    reset,
+    status,
+    sync_write,
+    write,
+)
+from snakebot.protocol.packet import Packet, Rejected
+from snakebot.protocol.parser import PacketParser, decode
+
+__all__ = [
+    "BROADCAST_ID",
+    "MAX_ID",
+    "MAX_PACKET_LEN",
+    "MAX_PARAMS",
+    "ControlTable",
+    "ControlTableError",
+    "CorruptPacket",
+    "DxlTimeout",
+    "Entry",
+    "ErrorFlags",
+    "Instruction",
+    "Packet",
+    "PacketArgumentError",
+    "PacketParser",
+    "ProtocolError",
+    "Rejected",
+    "ServoError",
+    "action",
+    "bulk_read",
+    "checksum",
+    "decode",
+    "encode_packet",
+    "ping",
+    "read",
+    "reg_write",
+    "reset",
+    "status",
+    "sync_write",
+    "write",
+]

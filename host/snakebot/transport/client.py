@@ -1,0 +1,496 @@
+"""A Protocol 1.0 master on a serial port: one instruction out, at most one status back.
+
+What makes a transaction trustworthy on a real bus:
+
+* The input is flushed before each instruction, so bytes left over from earlier traffic
+  are never read as this reply.
+* On a one-wire (half-duplex) adapter the host hears its own instruction. That echo is
+  recognised by comparing it with the bytes just sent and is skipped; with echo on,
+  anything heard *before* the echo is older than the instruction and is discarded too.
+  An echoed READ therefore never passes for the servo's reply (it has the same shape as
+  one: READ's code 0x02 reads as the "angle limit" error bit, its two parameters as data).
+* A status packet from an earlier, timed-out transaction that arrives late is discarded
+  unless it comes from the addressed ID with the parameter length this instruction
+  expects.
+* Timed-out and corrupt replies are retried; a reply with error bits raises
+  :class:`ServoError` at once, carrying the flags. A wrong value is never returned:
+  after the last attempt the caller gets :class:`DxlTimeout` or :class:`CorruptPacket`.
+* Broadcast instructions and SYNC_WRITE get no reply and are not waited for; nor are
+  instructions that the servo's Status Return Level tells it not to answer.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import TracebackType
+
+import serial
+
+from snakebot import protocol
+from snakebot.protocol import (
+    BROADCAST_ID,
+    CorruptPacket,
+    DxlTimeout,
+    Instruction,
+    Packet,
+    PacketParser,
+    ProtocolError,
+    Rejected,
+    ServoError,
+)
+from snakebot.transport import settings
+from snakebot.transport.ports import open_port
+from snakebot.transport.settings import EchoSetting
+from snakebot.transport.timing import DEFAULT_BAUDRATE, STATUS_OVERHEAD, BusTiming
+
+STATUS_RETURN_LEVEL_ADDR = 16
+"""AX-12 control-table address of Status Return Level (0: PING only, 1: +READ, 2: all)."""
+
+MODEL_NUMBER_ADDR = 0
+"""AX-12 control-table address of the 2-byte model number (12 for AX-12A, 300 for AX-12W)."""
+
+DEFAULT_STATUS_RETURN_LEVEL = 2
+"""Factory setting: every instruction addressed to one servo is answered."""
+
+RECENT_SENDS = 8
+"""How many earlier instructions are remembered, so that their late echoes are recognised."""
+
+_NEEDS_LEVEL = {
+    Instruction.PING: 0,
+    Instruction.READ: 1,
+    Instruction.WRITE: 2,
+    Instruction.REG_WRITE: 2,
+    Instruction.ACTION: 2,
+    Instruction.RESET: 2,
+}
+
+
+def _instruction_name(code: int) -> str:
+    try:
+        return Instruction(code).name
+    except ValueError:
+        return f"instruction 0x{code:02X}"
+
+
+@dataclass
+class _Attempt:
+    """What one attempt heard besides the reply it was waiting for."""
+
+    echo_seen: bool = False
+    echo: Packet | None = None  # the packet taken for our echo (identical to the instruction)
+    rejected: list[Rejected] = field(default_factory=list)
+    wrong_shape: list[Packet] = field(default_factory=list)
+    stale: int = 0
+
+
+class DxlClient:
+    """A Protocol 1.0 client for Dynamixel AX-12 servos (and any device speaking 1.0).
+
+    ``port`` is a device path or pyserial URL (opened here, closed by :meth:`close`) or an
+    open ``serial.Serial`` (used as is and left open). Keywords not given fall back to the
+    environment (``SNAKEBOT_RETRIES``, ``SNAKEBOT_LATENCY_MS``, ``SNAKEBOT_MARGIN_MS``,
+    ``SNAKEBOT_RETURN_DELAY_US``, ``SNAKEBOT_ECHO``) and then to the named defaults in
+    :mod:`snakebot.transport.settings` and :mod:`snakebot.transport.timing`.
+
+    ``echo``: True for a bus that echoes every instruction, False for one that never
+    does, "auto" to find out from the first answered transaction. If that first exchange
+    is ambiguous (the only packet heard equals the instruction) "auto" sends one
+    broadcast PING, which no device answers, and waits at least ``echo_probe_s`` for
+    its echo. Until it has decided, a packet identical to the instruction is never taken
+    for the reply.
+    ``status_return_level``: what every servo is assumed to be set to (default 2);
+    change one servo's with :meth:`set_status_return_level`. Writes to address 16 made
+    through this client update it automatically.
+
+    Transactions from several threads are serialised. The client sets the port's read
+    timeout itself, so a port handed in should not be read by anyone else meanwhile.
+    """
+
+    def __init__(
+        self,
+        port: str | serial.SerialBase,
+        baudrate: int | None = None,
+        *,
+        retries: int | None = None,
+        return_delay_us: float | None = None,
+        latency_s: float | None = None,
+        margin_s: float | None = None,
+        echo: EchoSetting | None = None,
+        echo_probe_s: float | None = None,
+        status_return_level: int = DEFAULT_STATUS_RETURN_LEVEL,
+    ) -> None:
+        self.retries = settings.resolve_retries(retries)
+        echo_setting = settings.resolve_echo(echo)
+        self.echo_probe_s = settings.resolve_echo_probe_s(echo_probe_s)
+        timing_kwargs = {
+            "return_delay_us": settings.resolve_return_delay_us(return_delay_us),
+            "latency_s": settings.resolve_latency_s(latency_s),
+            "margin_s": settings.resolve_margin_s(margin_s),
+        }
+        self._default_level = _check_level(status_return_level)
+        self._levels: dict[int, int] = {}
+        if isinstance(port, str):
+            self._port = open_port(port, baudrate or DEFAULT_BAUDRATE, timeout=0)
+            self._owns_port = True
+        else:
+            self._port = port
+            self._owns_port = False
+            if baudrate is not None and port.baudrate != baudrate:
+                port.baudrate = baudrate
+        self.timing = BusTiming(baudrate=int(self._port.baudrate), **timing_kwargs)
+        # None: not known yet ("auto" before the first answered transaction).
+        self._echo: bool | None = None if echo_setting == "auto" else bool(echo_setting)
+        self._parser = PacketParser()
+        self._recent: deque[bytes] = deque(maxlen=RECENT_SENDS)
+        self._read_timeout: float | None = None
+        self._lock = threading.RLock()  # one transaction on the wire at a time
+
+    # -- the port -----------------------------------------------------------------------
+
+    @property
+    def port(self) -> serial.SerialBase:
+        """The underlying pyserial port."""
+        return self._port
+
+    @property
+    def baudrate(self) -> int:
+        return self.timing.baudrate
+
+    @property
+    def echo(self) -> bool | None:
+        """Whether the bus echoes instructions: True, False, or None while "auto" has not
+        decided yet."""
+        return self._echo
+
+    def close(self) -> None:
+        """Close the port if this client opened it."""
+        if self._owns_port:
+            self._port.close()
+
+    def __enter__(self) -> DxlClient:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    # -- Status Return Level --------------------------------------------------------------
+
+    def status_return_level(self, servo_id: int) -> int:
+        """The Status Return Level this client assumes for ``servo_id``."""
+        return self._levels.get(servo_id, self._default_level)
+
+    def set_status_return_level(self, servo_id: int, level: int) -> None:
+        """Tell the client what ``servo_id`` is set to (broadcast ID: every servo). This
+        does not write the servo; write address 16 for that."""
+        level = _check_level(level)
+        if servo_id == BROADCAST_ID:
+            self._default_level = level
+            self._levels.clear()
+        else:
+            self._levels[servo_id] = level
+
+    def _answers(self, servo_id: int, code: int) -> bool:
+        if servo_id == BROADCAST_ID:
+            return False
+        return self.status_return_level(servo_id) >= _NEEDS_LEVEL.get(code, 3)
+
+    def _after_write(self, servo_id: int, address: int, data: bytes) -> None:
+        if address <= STATUS_RETURN_LEVEL_ADDR < address + len(data):
+            level = data[STATUS_RETURN_LEVEL_ADDR - address]
+            if level <= 2:
+                self.set_status_return_level(servo_id, level)
+
+    # -- transactions ---------------------------------------------------------------------
+
+    def send(self, packet: bytes) -> None:
+        """Put an instruction on the bus and wait for no reply (broadcast, SYNC_WRITE, or a
+        servo whose Status Return Level says it will not answer)."""
+        packet = bytes(packet)
+        with self._lock:
+            self._port.reset_input_buffer()
+            self._port.write(packet)
+            self._recent.append(packet)
+
+    def transact(
+        self,
+        packet: bytes,
+        expect_id: int,
+        expect_params_len: int,
+        *,
+        check: bool = True,
+        retries: int | None = None,
+    ) -> Packet:
+        """Send ``packet`` and return the status packet from ``expect_id`` carrying
+        ``expect_params_len`` parameter bytes.
+
+        Retries timed-out or corrupt replies (``retries`` overrides the client's count)
+        and then raises :class:`DxlTimeout` or :class:`CorruptPacket`. A reply with error
+        bits raises :class:`ServoError` at once unless ``check`` is False.
+        """
+        packet = bytes(packet)
+        if len(packet) < 6 or packet[:2] != b"\xff\xff":
+            raise ProtocolError(f"not an instruction packet: {packet.hex(' ')}")
+        tries = 1 + (self.retries if retries is None else settings.resolve_retries(retries))
+        timeout = self.timing.reply_timeout_s(len(packet), expect_params_len)
+        attempts: list[_Attempt] = []
+        with self._lock:
+            for _ in range(tries):
+                reply, attempt = self._attempt(packet, expect_id, expect_params_len, timeout)
+                if reply is None and self._echo is None and attempt.echo is not None:
+                    reply = self._settle_echo(attempt.echo, expect_id, expect_params_len)
+                if reply is not None:
+                    if check and reply.code:
+                        raise ServoError(reply.id, reply.code)
+                    return reply
+                attempts.append(attempt)
+        raise self._failure(packet, expect_id, expect_params_len, timeout, attempts)
+
+    def _attempt(
+        self, packet: bytes, expect_id: int, expect_len: int, timeout: float
+    ) -> tuple[Packet | None, _Attempt]:
+        port = self._port
+        parser = self._parser
+        seen = _Attempt()
+        echo = self._echo
+        port.reset_input_buffer()
+        parser.reset()
+        port.write(packet)
+        deadline = time.monotonic() + timeout
+        status_len = STATUS_OVERHEAD + expect_len
+        data = b""
+        while True:
+            for event in parser.feed(data):
+                if isinstance(event, Rejected):
+                    seen.rejected.append(event)
+                    continue
+                raw = event.encode()
+                if echo is not False and not seen.echo_seen and raw == packet:
+                    seen.echo_seen = True
+                    seen.echo = event
+                    continue
+                if echo is True and not seen.echo_seen:
+                    seen.stale += 1  # heard before our own instruction: older than it
+                    continue
+                if echo is not False and raw in self._recent:
+                    seen.stale += 1  # the late echo of an earlier instruction
+                    continue
+                if event.id != expect_id:
+                    seen.stale += 1
+                    continue
+                if len(event.params) != expect_len:
+                    seen.wrong_shape.append(event)
+                    continue
+                if echo is None:
+                    self._echo = seen.echo_seen
+                self._recent.append(packet)
+                return event, seen
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                self._recent.append(packet)
+                return None, seen
+            want = status_len - parser.pending
+            if echo is True and not seen.echo_seen:
+                want += len(packet)  # a lower bound, so read() returns as soon as it can
+            want = max(1, want, port.in_waiting)
+            if self._read_timeout is None or abs(self._read_timeout - remaining) > 1e-4:
+                port.timeout = self._read_timeout = remaining
+            data = port.read(want)
+
+    def _settle_echo(self, heard: Packet, expect_id: int, expect_len: int) -> Packet | None:
+        """Decide an ambiguous first transaction in "auto" echo mode.
+
+        The only packet heard was identical to the instruction: either the bus echoes
+        and the servo was silent, or the bus does not echo and the servo's status happens
+        to equal the instruction (PING answered with the input-voltage bit, for one).
+        A broadcast PING, which no device answers, tells the two apart: only an echo
+        brings it back. Returns the packet if it was the servo's reply, else None.
+        """
+        probe = protocol.ping(BROADCAST_ID)
+        port = self._port
+        port.reset_input_buffer()
+        self._parser.reset()
+        port.write(probe)
+        self._recent.append(probe)
+        wait = max(self.timing.reply_timeout_s(len(probe), 0), self.echo_probe_s)
+        deadline = time.monotonic() + wait
+        heard_probe = False
+        while not heard_probe:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                break
+            port.timeout = self._read_timeout = remaining
+            data = port.read(max(len(probe), port.in_waiting))
+            heard_probe = any(
+                isinstance(event, Packet) and event.encode() == probe
+                for event in self._parser.feed(data)
+            )
+        self._echo = heard_probe
+        if heard_probe or heard.id != expect_id or len(heard.params) != expect_len:
+            return None
+        return heard
+
+    def _failure(
+        self,
+        packet: bytes,
+        expect_id: int,
+        expect_len: int,
+        timeout: float,
+        attempts: list[_Attempt],
+    ) -> ProtocolError:
+        """The error for a transaction whose every attempt failed: corrupt if any attempt
+        heard a damaged or misshapen reply, else a timeout."""
+        what = f"{_instruction_name(packet[4])} to servo {expect_id}"
+        tries = len(attempts)
+        tried = f"{tries} attempt{'s' if tries != 1 else ''}"
+        last = attempts[-1]
+        misshapen = [p for a in attempts for p in a.wrong_shape]
+        damaged = [r for a in attempts for r in a.rejected]
+        if misshapen:
+            bad = misshapen[-1]
+            flags = f" with error bits: {bad.error.describe()}" if bad.code else ""
+            return CorruptPacket(
+                f"servo {expect_id} answered {what} with {len(bad.params)} data bytes where "
+                f"{expect_len} were expected{flags} ({tried}): check that only one device "
+                "has this ID and that the address and length are valid for it"
+            )
+        if damaged:
+            hit = sum(1 for a in attempts if a.rejected)
+            return CorruptPacket(
+                f"corrupt reply to {what} at {self.baudrate} baud (damaged packets in {hit} "
+                f"of {tried}, e.g. {damaged[-1].data.hex(' ')}): check the cable and "
+                "connectors, that every device on the bus uses this baud rate, and that no "
+                "two share an ID"
+            )
+        if self._echo is None and last.echo_seen:
+            echo_hint = (
+                "; the only packet heard was identical to the instruction, which auto echo "
+                "detection took for an echo: if this bus does not echo, pass echo=False "
+                "(SNAKEBOT_ECHO=off)"
+            )
+        elif self._echo is True and not last.echo_seen:
+            echo_hint = (
+                "; the instruction's echo was not heard either: if this adapter does not "
+                "echo, pass echo=False (SNAKEBOT_ECHO=off)"
+            )
+        else:
+            echo_hint = ""
+        return DxlTimeout(
+            f"no reply to {what} within {timeout * 1e3:.1f} ms at {self.baudrate} baud "
+            f"({tried}). Check that the servos are powered (USB does not power them), that "
+            f"the baud rate matches the servo's (AX-12 factory setting: 1000000), that a "
+            f"servo with ID {expect_id} is on the bus (scan for it), and, on a slow USB "
+            f"adapter, raise SNAKEBOT_LATENCY_MS{echo_hint}"
+        )
+
+    def _exchange(self, packet: bytes, servo_id: int, expect_len: int) -> Packet | None:
+        """Transact if ``servo_id`` will answer this instruction, else just send."""
+        if self._answers(servo_id, packet[4]):
+            return self.transact(packet, servo_id, expect_len)
+        self.send(packet)
+        return None
+
+    # -- instructions ---------------------------------------------------------------------
+
+    def ping(self, servo_id: int, *, check: bool = True, retries: int | None = None) -> Packet:
+        """PING ``servo_id`` and return its status packet (``.error`` holds its flags).
+
+        With ``check=False`` a servo in alarm is reported, not raised; ``retries=0`` suits
+        a bus scan, where most IDs are expected to be silent.
+        """
+        _require_device(servo_id, "PING")
+        return self.transact(protocol.ping(servo_id), servo_id, 0, check=check, retries=retries)
+
+    def read(self, servo_id: int, address: int, length: int) -> bytes:
+        """READ ``length`` bytes of ``servo_id``'s control table from ``address``."""
+        _require_device(servo_id, "READ")
+        if self.status_return_level(servo_id) < 1:
+            raise ProtocolError(
+                f"servo {servo_id} is set to Status Return Level 0, so it never answers "
+                "READ: write 1 or 2 to its address 16, then call set_status_return_level"
+            )
+        packet = protocol.read(servo_id, address, length)
+        return self.transact(packet, servo_id, length).params
+
+    def read_u8(self, servo_id: int, address: int) -> int:
+        """READ one byte."""
+        return self.read(servo_id, address, 1)[0]
+
+    def read_u16(self, servo_id: int, address: int) -> int:
+        """READ a 2-byte little-endian word (e.g. Present Position at 36)."""
+        return int.from_bytes(self.read(servo_id, address, 2), "little")
+
+    def model_number(self, servo_id: int) -> int:
+        """The servo's model number (12 for an AX-12A, 300 for an AX-12W)."""
+        return self.read_u16(servo_id, MODEL_NUMBER_ADDR)
+
+    def write(self, servo_id: int, address: int, data: bytes) -> None:
+        """WRITE ``data`` at ``address`` (waits for the status if the servo sends one)."""
+        data = bytes(data)
+        packet = protocol.write(servo_id, address, data)
+        wait = self._answers(servo_id, Instruction.WRITE)
+        if address <= STATUS_RETURN_LEVEL_ADDR < address + len(data):
+            # Whether this very write is answered depends on the level before and after.
+            wait = wait and data[STATUS_RETURN_LEVEL_ADDR - address] >= 2
+        if wait:
+            self.transact(packet, servo_id, 0)
+        else:
+            self.send(packet)
+        self._after_write(servo_id, address, data)
+
+    def write_u8(self, servo_id: int, address: int, value: int) -> None:
+        """WRITE one byte."""
+        self.write(servo_id, address, _encode_uint(value, 1))
+
+    def write_u16(self, servo_id: int, address: int, value: int) -> None:
+        """WRITE a 2-byte little-endian word (e.g. Goal Position at 30)."""
+        self.write(servo_id, address, _encode_uint(value, 2))
+
+    def reg_write(self, servo_id: int, address: int, data: bytes) -> None:
+        """REG_WRITE: stage ``data`` at ``address`` until :meth:`action`."""
+        self._exchange(protocol.reg_write(servo_id, address, bytes(data)), servo_id, 0)
+
+    def action(self, servo_id: int = BROADCAST_ID) -> None:
+        """ACTION: apply staged REG_WRITEs (broadcast by default, so no reply)."""
+        self._exchange(protocol.action(servo_id), servo_id, 0)
+
+    def reset(self, servo_id: int) -> None:
+        """RESET ``servo_id`` to factory defaults (ID 1, 1 Mbps, Status Return Level 2)."""
+        _require_device(servo_id, "RESET")
+        self._exchange(protocol.reset(servo_id), servo_id, 0)
+        self._levels.pop(servo_id, None)
+        self._levels[1] = DEFAULT_STATUS_RETURN_LEVEL
+
+    def sync_write(self, address: int, length: int, data: Mapping[int, bytes]) -> None:
+        """SYNC_WRITE ``length`` bytes at ``address`` to each servo in ``data`` (no reply)."""
+        self.send(protocol.sync_write(address, length, data))
+        for servo_id, chunk in data.items():
+            self._after_write(servo_id, address, bytes(chunk))
+
+
+def _require_device(servo_id: int, what: str) -> None:
+    if servo_id == BROADCAST_ID:
+        raise ProtocolError(
+            f"{what} cannot go to the broadcast ID {BROADCAST_ID}: no servo answers a "
+            "broadcast; address one servo ID (0-253)"
+        )
+
+
+def _check_level(level: int) -> int:
+    if level not in (0, 1, 2):
+        raise ValueError(f"Status Return Level must be 0, 1 or 2, got {level!r}")
+    return level
+
+
+def _encode_uint(value: int, size: int) -> bytes:
+    if not isinstance(value, int) or not 0 <= value < 1 << (8 * size):
+        raise ValueError(f"value must be an integer 0..{(1 << (8 * size)) - 1}, got {value!r}")
+    return value.to_bytes(size, "little")

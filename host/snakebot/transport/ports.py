@@ -1,0 +1,75 @@
+"""Opening a serial port by device path or pyserial URL, with errors a person can act on.
+
+Every snakebot command that talks to hardware opens its port here, so a missing
+adapter, a permission problem or a typo in a URL reads the same everywhere. Anything
+``serial.serial_for_url`` accepts works: ``/dev/ttyUSB0``, ``COM3``, ``loop://``,
+``socket://host:port``, ``spy://...``, and schemes that other packages register (the
+emulator adds ``sim://`` through :func:`register_handler_package`).
+"""
+
+from __future__ import annotations
+
+import errno
+import sys
+
+import serial
+
+from snakebot.transport.errors import PortError
+from snakebot.transport.timing import DEFAULT_BAUDRATE
+
+if sys.platform.startswith("linux"):
+    _PERMISSION_FIX = (
+        "add your user to the dialout group (sudo usermod -aG dialout $USER, then log out "
+        "and back in) or check the device's permissions with ls -l"
+    )
+else:
+    _PERMISSION_FIX = "check that your user may open the device"
+
+
+def register_handler_package(package: str) -> None:
+    """Let ``serial_for_url`` find ``<package>.protocol_<scheme>`` modules (idempotent)."""
+    if package not in serial.protocol_handler_packages:
+        serial.protocol_handler_packages.append(package)
+
+
+def _explain(url: str, exc: BaseException) -> str:
+    code = getattr(exc, "errno", None)
+    text = str(exc)
+    if code == errno.ENOENT or "No such file" in text:
+        return (
+            f"serial port {url} does not exist: check that the adapter is plugged in and "
+            "use the right name (on Linux, ls /dev/ttyUSB* /dev/ttyACM*; on Windows, COMn)"
+        )
+    if code in (errno.EACCES, errno.EPERM) or "Permission denied" in text:
+        return f"no permission to open serial port {url}: {_PERMISSION_FIX}"
+    if code == errno.EBUSY or "busy" in text.lower() or "exclusively lock" in text:
+        return (
+            f"serial port {url} is in use by another program: close it (a terminal, "
+            "another snakebot, the ROBOTIS tools) and try again"
+        )
+    if "Connection refused" in text or code == errno.ECONNREFUSED:
+        return f"nothing is listening at {url}: start the server first or check host and port"
+    return f"could not open serial port {url}: {text}"
+
+
+def open_port(
+    url: str, baudrate: int = DEFAULT_BAUDRATE, timeout: float | None = None
+) -> serial.SerialBase:
+    """Open ``url`` (device path or pyserial URL) at ``baudrate``, 8N1, with read ``timeout``
+    in seconds (None blocks). Raises :class:`PortError` naming the port and the fix."""
+    if not url:
+        raise PortError(url, "no serial port given: pass a device (/dev/ttyUSB0) or a URL")
+    try:
+        return serial.serial_for_url(url, baudrate=baudrate, timeout=timeout)
+    except ValueError as exc:
+        if "protocol" in str(exc) and "://" in url:
+            scheme = url.split("://", 1)[0]
+            raise PortError(
+                url,
+                f"unknown port scheme {scheme}:// in {url}: use a device path or one of "
+                "loop://, socket://host:port, spy://, rfc2217://, or sim:// once the "
+                "emulator is installed",
+            ) from exc
+        raise PortError(url, f"cannot use serial port {url}: {exc}") from exc
+    except (serial.SerialException, OSError) as exc:
+        raise PortError(url, _explain(url, exc)) from exc

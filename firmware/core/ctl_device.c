@@ -1,0 +1,669 @@
+#include "ctl_device.h"
+
+#include "crc32.h"
+#include "dxl_packet.h"
+#include "play_safety.h"
+
+/* ---- register descriptors (from the generated X-macros) ---------------------------- */
+
+typedef struct {
+    uint8_t addr; /* register address, or offset in a servo record */
+    uint8_t size;
+    uint8_t access;
+    uint8_t is_signed;
+    int32_t min; /* write range (not checked for 4-byte registers: full range) */
+    int32_t max;
+    int32_t def;
+} field;
+
+#define FIELD(a, s, acc, lo, hi, sg, dflt) {a, s, acc, sg, (int32_t)(lo), (int32_t)(hi), (int32_t)(dflt)},
+static const field registers[] = {CTL_REGISTERS(FIELD)};
+static const field servo_fields[] = {CTL_SERVO_FIELDS(FIELD)};
+#undef FIELD
+#define N_REGISTERS (sizeof registers / sizeof registers[0])
+#define N_SERVO_FIELDS (sizeof servo_fields / sizeof servo_fields[0])
+
+#define WINDOW_END (CTL_SERVO_WINDOW + CTL_SERVO_RECORDS * CTL_SERVO_RECORD_SIZE)
+#define UPLOAD_FLAGS                                                                 \
+    (CTL_ERROR_FLAGS_UPLOAD_LENGTH | CTL_ERROR_FLAGS_UPLOAD_CRC |                     \
+     CTL_ERROR_FLAGS_UPLOAD_LAYOUT | CTL_ERROR_FLAGS_UPLOAD_TOO_BIG)
+
+static uint32_t get_le(const uint8_t *p, uint8_t size)
+{
+    uint32_t v = 0;
+    for (uint8_t i = size; i > 0; i--) v = (v << 8) | p[i - 1];
+    return v;
+}
+
+static void put_le(uint8_t *p, uint8_t size, uint32_t v)
+{
+    for (uint8_t i = 0; i < size; i++) {
+        p[i] = (uint8_t)(v & 0xFFu);
+        v >>= 8;
+    }
+}
+
+static uint32_t reg(const ctl_device *d, uint8_t addr, uint8_t size)
+{
+    return get_le(d->regs + addr, size);
+}
+
+static void set_reg(ctl_device *d, uint8_t addr, uint8_t size, uint32_t v)
+{
+    put_le(d->regs + addr, size, v);
+}
+
+static int32_t as_value(uint32_t raw, const field *f)
+{
+    if (f->is_signed && f->size < 4) {
+        uint32_t sign = 1u << (8u * f->size - 1u);
+        return (int32_t)(raw ^ sign) - (int32_t)sign;
+    }
+    return (int32_t)raw;
+}
+
+static bool in_range(const field *f, uint32_t raw)
+{
+    if (f->size >= 4) return true;
+    int32_t v = as_value(raw, f);
+    return v >= f->min && v <= f->max;
+}
+
+/* ---- roster and servo window --------------------------------------------------------- */
+
+static uint8_t joint_count(const ctl_device *d)
+{
+    return (uint8_t)reg(d, CTL_JOINT_COUNT, 1);
+}
+
+static void sync_bus_roster(ctl_device *d)
+{
+    uint8_t ids[CTL_MAX_JOINTS];
+    uint8_t n = joint_count(d);
+    for (uint8_t k = 0; k < n; k++) ids[k] = d->roster[k].id;
+    bus_set_roster(&d->bus, ids, n);
+}
+
+static uint16_t last_goal(const ctl_device *d, uint8_t id)
+{
+    for (uint8_t j = 0; j < play_out_count(&d->player); j++) {
+        if (play_out_id(&d->player, j) == id) return play_out_goal(&d->player, j);
+    }
+    return 0;
+}
+
+/* The 21 bytes of roster joint k as the servo window shows them. */
+static void record_read(const ctl_device *d, uint8_t k, uint8_t *rec)
+{
+    const play_joint *j = &d->roster[k];
+    for (uint8_t i = 0; i < CTL_SERVO_RECORD_SIZE; i++) rec[i] = 0;
+    rec[CTL_REC_ID] = j->id;
+    rec[CTL_REC_REVERSE] = j->reverse;
+    put_le(rec + CTL_REC_ZERO_TICK, 2, j->zero);
+    put_le(rec + CTL_REC_MIN_TICK, 2, j->min);
+    put_le(rec + CTL_REC_MAX_TICK, 2, j->max);
+    if (k >= joint_count(d)) return;
+    put_le(rec + CTL_REC_GOAL_POSITION, 2, last_goal(d, j->id));
+    const bus_servo *s = bus_servo_at(&d->bus, k);
+    if (s == NULL) return;
+    put_le(rec + CTL_REC_PRESENT_POSITION, 2, s->position);
+    put_le(rec + CTL_REC_PRESENT_SPEED, 2, s->speed);
+    put_le(rec + CTL_REC_PRESENT_LOAD, 2, s->load);
+    rec[CTL_REC_PRESENT_VOLTAGE] = s->voltage;
+    rec[CTL_REC_PRESENT_TEMPERATURE] = s->temperature;
+    rec[CTL_REC_SERVO_ERROR] = s->error;
+    rec[CTL_REC_ERROR_COUNT] = s->error_count;
+    rec[CTL_REC_TIMEOUT_COUNT] = s->timeout_count;
+}
+
+static void record_write(ctl_device *d, uint8_t k, const uint8_t *rec)
+{
+    play_joint *j = &d->roster[k];
+    j->id = rec[CTL_REC_ID];
+    j->reverse = rec[CTL_REC_REVERSE];
+    j->zero = (uint16_t)get_le(rec + CTL_REC_ZERO_TICK, 2);
+    j->min = (uint16_t)get_le(rec + CTL_REC_MIN_TICK, 2);
+    j->max = (uint16_t)get_le(rec + CTL_REC_MAX_TICK, 2);
+}
+
+static void roster_defaults(ctl_device *d)
+{
+    uint8_t rec[CTL_SERVO_RECORD_SIZE] = {0};
+    for (size_t i = 0; i < N_SERVO_FIELDS; i++) {
+        put_le(rec + servo_fields[i].addr, servo_fields[i].size, (uint32_t)servo_fields[i].def);
+    }
+    for (uint8_t k = 0; k < CTL_MAX_JOINTS; k++) record_write(d, k, rec);
+}
+
+/* ---- state changes --------------------------------------------------------------------- */
+
+static uint8_t state(const ctl_device *d)
+{
+    return d->regs[CTL_STATE];
+}
+
+static void set_state(ctl_device *d, uint8_t s)
+{
+    d->regs[CTL_STATE] = s;
+}
+
+static void raise_flags(ctl_device *d, uint16_t flags)
+{
+    set_reg(d, CTL_ERROR_FLAGS, 2, reg(d, CTL_ERROR_FLAGS, 2) | flags);
+}
+
+static bool moving(const ctl_device *d)
+{
+    return state(d) == CTL_STATE_PLAYING || state(d) == CTL_STATE_SERPENOID;
+}
+
+static void enter_safe(ctl_device *d, uint16_t faults)
+{
+    raise_flags(d, faults);
+    if (state(d) == CTL_STATE_SAFE) return;
+    play_stop(&d->player);
+    set_state(d, CTL_STATE_SAFE);
+    if (reg(d, CTL_SAFE_ACTION, 1) == CTL_SAFE_ACTION_TORQUE_OFF) {
+        bus_request_torque(&d->bus, BUS_TORQUE_OFF);
+    }
+}
+
+static void stop_motion(ctl_device *d)
+{
+    if (moving(d)) set_state(d, CTL_STATE_IDLE);
+    play_stop(&d->player);
+}
+
+static void defaults(ctl_device *d)
+{
+    for (size_t i = 0; i < CTL_CONTROL_TABLE_BYTES; i++) d->regs[i] = 0;
+    for (size_t i = 0; i < N_REGISTERS; i++) {
+        const field *f = &registers[i];
+        if (f->size <= 4 && (f->access & CTL_ACCESS_R) != 0) {
+            put_le(d->regs + f->addr, f->size, (uint32_t)f->def);
+        }
+    }
+    roster_defaults(d);
+    play_stop(&d->player);
+    d->staged_end = 0;
+}
+
+/* Mirror the active table's header into the registers, and the roster from it. */
+static void show_table(ctl_device *d, const gt_info *info, uint32_t crc)
+{
+    set_reg(d, CTL_TABLE_SIZE, 2, info->size);
+    set_reg(d, CTL_TABLE_CRC, 4, crc);
+    set_reg(d, CTL_TABLE_JOINTS, 1, info->joint_count);
+    set_reg(d, CTL_TABLE_FLAGS, 1, info->flags);
+    set_reg(d, CTL_TABLE_FRAMES, 2, info->frame_count);
+    set_reg(d, CTL_TABLE_PERIOD, 2, info->frame_period_ms);
+    set_reg(d, CTL_LOOP, 1, (info->flags & GT_FLAG_LOOP) ? 1u : 0u);
+    set_reg(d, CTL_JOINT_COUNT, 1, info->joint_count);
+    for (uint8_t j = 0; j < info->joint_count; j++) {
+        d->roster[j].id = gt_joint_id(d->active, info, j);
+        d->roster[j].min = gt_joint_min(d->active, info, j);
+        d->roster[j].max = gt_joint_max(d->active, info, j);
+    }
+    sync_bus_roster(d);
+}
+
+static bool activate(ctl_device *d, const uint8_t *table, size_t len, uint32_t crc)
+{
+    gt_info info;
+    if (len == 0 || len > CTL_MAX_TABLE_BYTES || gt_validate(table, len, &info) != GT_OK) {
+        return false;
+    }
+    stop_motion(d);
+    for (size_t i = 0; i < len; i++) d->active[i] = table[i];
+    d->active_len = (uint16_t)len;
+    d->table_changed = 1;
+    show_table(d, &info, crc);
+    return true;
+}
+
+static uint16_t upload_flag(uint8_t result)
+{
+    switch (result) {
+    case GT_ERR_TRUNCATED:
+    case GT_ERR_TRAILING:
+    case CTL_UPLOAD_RESULT_BAD_LENGTH:
+    case CTL_UPLOAD_RESULT_INCOMPLETE: return CTL_ERROR_FLAGS_UPLOAD_LENGTH;
+    case GT_ERR_CRC:
+    case CTL_UPLOAD_RESULT_TRANSFER_CRC: return CTL_ERROR_FLAGS_UPLOAD_CRC;
+    case GT_ERR_TOO_BIG: return CTL_ERROR_FLAGS_UPLOAD_TOO_BIG;
+    default: return CTL_ERROR_FLAGS_UPLOAD_LAYOUT;
+    }
+}
+
+static void commit(ctl_device *d)
+{
+    uint32_t len = reg(d, CTL_UPLOAD_LENGTH, 2);
+    uint32_t crc = reg(d, CTL_UPLOAD_CRC, 4);
+    gt_info info;
+    uint8_t result;
+    if (len == 0 || len > CTL_MAX_TABLE_BYTES) {
+        result = CTL_UPLOAD_RESULT_BAD_LENGTH;
+    } else if (len > d->staged_end) {
+        result = CTL_UPLOAD_RESULT_INCOMPLETE;
+    } else if (crc32_compute(d->staging, len) != crc) {
+        result = CTL_UPLOAD_RESULT_TRANSFER_CRC;
+    } else {
+        result = (uint8_t)gt_validate(d->staging, len, &info);
+    }
+    set_reg(d, CTL_ERROR_FLAGS, 2, reg(d, CTL_ERROR_FLAGS, 2) & ~(uint32_t)UPLOAD_FLAGS);
+    if (result == GT_OK) activate(d, d->staging, len, crc);
+    else raise_flags(d, upload_flag(result));
+    d->regs[CTL_UPLOAD_RESULT] = result;
+}
+
+static bool roster_ok(const ctl_device *d)
+{
+    uint8_t n = joint_count(d);
+    if (n == 0) return false;
+    for (uint8_t k = 0; k < n; k++) {
+        if (d->roster[k].min > d->roster[k].max) return false;
+    }
+    return true;
+}
+
+static void command(ctl_device *d, uint8_t cmd, uint32_t now_ms)
+{
+    bool started = false;
+    switch (cmd) {
+    case CTL_COMMAND_PLAY:
+        if (state(d) == CTL_STATE_SAFE || d->active_len == 0) break;
+        started = play_start_table(&d->player, d->active, d->active_len, now_ms);
+        if (started) set_state(d, CTL_STATE_PLAYING);
+        break;
+    case CTL_COMMAND_SERPENOID:
+        if (state(d) == CTL_STATE_SAFE || !roster_ok(d)) break;
+        started = play_start_serpenoid(&d->player, joint_count(d), now_ms);
+        if (started) set_state(d, CTL_STATE_SERPENOID);
+        break;
+    case CTL_COMMAND_STOP: stop_motion(d); return;
+    case CTL_COMMAND_CLEAR:
+        set_reg(d, CTL_ERROR_FLAGS, 2, 0);
+        bus_clear_faults(&d->bus);
+        if (state(d) == CTL_STATE_SAFE) set_state(d, CTL_STATE_IDLE);
+        return;
+    default: return;
+    }
+    if (!started) {
+        raise_flags(d, CTL_ERROR_FLAGS_REFUSED);
+        return;
+    }
+    d->last_link_ms = now_ms;
+    bus_request_torque(&d->bus, BUS_TORQUE_ON);
+}
+
+/* ---- WRITE ------------------------------------------------------------------------------ */
+
+static const field *register_at(uint8_t addr)
+{
+    for (size_t i = 0; i < N_REGISTERS; i++) {
+        if (addr >= registers[i].addr && addr < registers[i].addr + registers[i].size) {
+            return &registers[i];
+        }
+    }
+    return NULL;
+}
+
+/* The byte at addr after the write of data[0..n) at start. */
+static uint8_t byte_after(const ctl_device *d, uint16_t addr, uint8_t start, const uint8_t *data,
+                          size_t n)
+{
+    return (addr >= start && addr < start + n) ? data[addr - start] : d->regs[addr];
+}
+
+static uint32_t value_after(const ctl_device *d, uint8_t addr, uint8_t size, uint8_t start,
+                            const uint8_t *data, size_t n)
+{
+    uint8_t bytes[4] = {0};
+    for (uint8_t i = 0; i < size && i < 4; i++) {
+        bytes[i] = byte_after(d, (uint16_t)(addr + i), start, data, n);
+    }
+    return get_le(bytes, size);
+}
+
+/* Check the servo-window part of a write; the record k as it would become goes to rec. */
+static bool check_record(const ctl_device *d, uint8_t slot, uint8_t page, uint8_t start,
+                         const uint8_t *data, size_t n, uint8_t *rec)
+{
+    uint16_t base = (uint16_t)(CTL_SERVO_WINDOW + slot * CTL_SERVO_RECORD_SIZE);
+    record_read(d, (uint8_t)(page * CTL_SERVO_RECORDS + slot), rec);
+    bool touched[CTL_SERVO_RECORD_SIZE] = {false};
+    for (uint8_t i = 0; i < CTL_SERVO_RECORD_SIZE; i++) {
+        uint16_t addr = (uint16_t)(base + i);
+        if (addr >= start && addr < start + n) {
+            rec[i] = data[addr - start];
+            touched[i] = true;
+        }
+    }
+    for (size_t f = 0; f < N_SERVO_FIELDS; f++) {
+        const field *sf = &servo_fields[f];
+        bool hit = false;
+        for (uint8_t i = 0; i < sf->size; i++) hit = hit || touched[sf->addr + i];
+        if (!hit) continue;
+        if ((sf->access & CTL_ACCESS_W) == 0) return false;
+        if (!in_range(sf, get_le(rec + sf->addr, sf->size))) return false;
+    }
+    return true;
+}
+
+/* Servo Page as an index that is always in bounds (its range check keeps it so anyway). */
+static uint8_t safe_page(uint8_t page)
+{
+    return page < CTL_MAX_JOINTS / CTL_SERVO_RECORDS ? page : 0;
+}
+
+static uint8_t write_window(ctl_device *d, uint8_t start, const uint8_t *data, size_t n, bool apply)
+{
+    uint8_t page = safe_page(byte_after(d, CTL_SERVO_PAGE, start, data, n));
+    for (uint8_t slot = 0; slot < CTL_SERVO_RECORDS; slot++) {
+        uint16_t base = (uint16_t)(CTL_SERVO_WINDOW + slot * CTL_SERVO_RECORD_SIZE);
+        if (base >= start + n || base + CTL_SERVO_RECORD_SIZE <= start) continue;
+        uint8_t rec[CTL_SERVO_RECORD_SIZE];
+        if (!check_record(d, slot, page, start, data, n, rec)) return DXL_ERR_RANGE;
+        if (apply) record_write(d, (uint8_t)(page * CTL_SERVO_RECORDS + slot), rec);
+    }
+    return 0;
+}
+
+/* Range-check then apply a write of data[0..n) at start: all of it, or nothing. */
+static uint8_t write_bytes(ctl_device *d, uint8_t start, const uint8_t *data, size_t n,
+                           uint32_t now_ms)
+{
+    if (n == 0 || start + n > CTL_CONTROL_TABLE_BYTES) return DXL_ERR_RANGE;
+    uint16_t end = (uint16_t)(start + n);
+    uint32_t offset = value_after(d, CTL_UPLOAD_OFFSET, 2, start, data, n);
+    /* every byte must belong to a writable register or the servo window; each register
+     * touched is range-checked as it would become (so a write of half a register is too) */
+    for (uint16_t a = start; a < end; a++) {
+        if (a >= CTL_SERVO_WINDOW && a < WINDOW_END) continue;
+        const field *f = register_at((uint8_t)a);
+        if (f == NULL || (f->access & CTL_ACCESS_W) == 0) return DXL_ERR_RANGE;
+        if (f->addr == CTL_UPLOAD_DATA) {
+            if (offset + (a - CTL_UPLOAD_DATA) >= CTL_MAX_TABLE_BYTES) {
+                raise_flags(d, CTL_ERROR_FLAGS_UPLOAD_LENGTH);
+                return DXL_ERR_RANGE;
+            }
+        } else if ((a == f->addr || a == start) &&
+                   !in_range(f, value_after(d, f->addr, f->size, start, data, n))) {
+            return DXL_ERR_RANGE;
+        }
+    }
+    if (write_window(d, start, data, n, false) != 0) return DXL_ERR_RANGE;
+
+    /* apply */
+    uint8_t cmd = 0;
+    bool do_commit = false;
+    for (uint16_t a = start; a < end; a++) {
+        uint8_t v = data[a - start];
+        if (a >= CTL_SERVO_WINDOW && a < WINDOW_END) continue;
+        if (a >= CTL_UPLOAD_DATA && a < CTL_UPLOAD_DATA + CTL_UPLOAD_DATA_SIZE) {
+            d->staging[offset + (a - CTL_UPLOAD_DATA)] = v;
+        } else if (a == CTL_COMMAND) {
+            cmd = v;
+        } else if (a == CTL_UPLOAD_COMMIT) {
+            do_commit = v == 1;
+        } else {
+            d->regs[a] = v;
+        }
+    }
+    if (start + n > CTL_UPLOAD_DATA && start < CTL_UPLOAD_DATA + CTL_UPLOAD_DATA_SIZE) {
+        uint16_t lo = start > CTL_UPLOAD_DATA ? start : CTL_UPLOAD_DATA;
+        uint16_t window_end = CTL_UPLOAD_DATA + CTL_UPLOAD_DATA_SIZE;
+        uint16_t hi = end < window_end ? end : window_end;
+        uint16_t chunk_start = (uint16_t)(offset + (lo - CTL_UPLOAD_DATA));
+        uint16_t chunk_end = (uint16_t)(offset + (hi - CTL_UPLOAD_DATA));
+        if (chunk_start == 0) d->staged_end = chunk_end;
+        else if (chunk_end > d->staged_end) d->staged_end = chunk_end;
+    }
+    write_window(d, start, data, n, true);
+    sync_bus_roster(d);
+    if (do_commit) commit(d);
+    if (cmd != 0) command(d, cmd, now_ms);
+    return 0;
+}
+
+/* ---- READ ------------------------------------------------------------------------------- */
+
+static void refresh(ctl_device *d)
+{
+    set_reg(d, CTL_PLAY_FRAME, 2, play_frame_index(&d->player));
+    set_reg(d, CTL_BUS_READS, 2, bus_reads(&d->bus));
+    set_reg(d, CTL_BUS_TIMEOUTS, 2, bus_timeouts(&d->bus));
+    set_reg(d, CTL_BUS_ERRORS, 2, bus_errors(&d->bus));
+}
+
+static void read_bytes(ctl_device *d, uint8_t start, uint8_t n, uint8_t *out)
+{
+    refresh(d);
+    uint8_t page = safe_page(d->regs[CTL_SERVO_PAGE]);
+    uint8_t rec[CTL_SERVO_RECORD_SIZE];
+    int16_t shown = -1;
+    for (uint16_t i = 0; i < n; i++) {
+        uint16_t a = (uint16_t)(start + i);
+        if (a >= CTL_SERVO_WINDOW && a < WINDOW_END) {
+            uint8_t slot = (uint8_t)((a - CTL_SERVO_WINDOW) / CTL_SERVO_RECORD_SIZE);
+            if (shown != slot) {
+                record_read(d, (uint8_t)(page * CTL_SERVO_RECORDS + slot), rec);
+                shown = slot;
+            }
+            out[i] = rec[(a - CTL_SERVO_WINDOW) % CTL_SERVO_RECORD_SIZE];
+        } else {
+            out[i] = d->regs[a];
+        }
+    }
+}
+
+/* RESET: registers and roster to their defaults, motion stopped, errors cleared; the
+ * active table stays (and the roster follows it again). */
+static void reset_device(ctl_device *d)
+{
+    defaults(d);
+    bus_clear_faults(&d->bus);
+    if (d->active_len > 0) {
+        gt_info info;
+        if (gt_validate(d->active, d->active_len, &info) == GT_OK) {
+            show_table(d, &info, crc32_compute(d->active, d->active_len));
+        }
+    }
+    sync_bus_roster(d);
+}
+
+/* ---- packets ----------------------------------------------------------------------------- */
+
+static size_t reply(uint8_t *out, size_t cap, uint8_t id, uint8_t error, size_t ndata)
+{
+    /* the data is already at out + 5 */
+    if (cap < ndata + 6) return 0;
+    out[0] = DXL_HEADER_BYTE;
+    out[1] = DXL_HEADER_BYTE;
+    out[2] = id;
+    out[3] = (uint8_t)(ndata + 2);
+    out[4] = error;
+    out[5 + ndata] = dxl_checksum(out + 2, ndata + 3);
+    return ndata + 6;
+}
+
+static void sync_write(ctl_device *d, const uint8_t *p, size_t n, uint32_t now_ms)
+{
+    if (n < 2 || p[1] == 0) return;
+    size_t block = (size_t)p[1] + 1u;
+    if ((n - 2) % block != 0) return;
+    for (size_t at = 2; at + block <= n; at += block) {
+        if (p[at] == d->regs[CTL_ID]) {
+            write_bytes(d, p[0], p + at + 1, p[1], now_ms);
+            return;
+        }
+    }
+}
+
+size_t ctl_handle_packet(ctl_device *d, uint8_t id, uint8_t instruction, const uint8_t *params,
+                         size_t nparams, uint32_t now_ms, uint8_t *out, size_t cap)
+{
+    uint8_t me = d->regs[CTL_ID];
+    bool broadcast = id == DXL_BROADCAST_ID;
+    if (!broadcast && id != me) return 0;
+    d->last_link_ms = now_ms;
+    uint8_t level = d->regs[CTL_STATUS_RETURN_LEVEL];
+    uint8_t error = 0;
+    size_t ndata = 0;
+    bool answer = !broadcast && level >= 2;
+    switch (instruction) {
+    case DXL_INST_PING:
+        answer = !broadcast;
+        break;
+    case DXL_INST_READ:
+        answer = !broadcast && level >= 1;
+        if (nparams != 2) {
+            error = DXL_ERR_INSTRUCTION;
+        } else if (params[1] == 0 || (size_t)params[0] + params[1] > CTL_CONTROL_TABLE_BYTES ||
+                   params[1] > DXL_MAX_PARAMS) {
+            error = DXL_ERR_RANGE;
+        } else if (answer) {
+            if (cap < (size_t)params[1] + 6) return 0;
+            read_bytes(d, params[0], params[1], out + 5);
+            ndata = params[1];
+        }
+        break;
+    case DXL_INST_WRITE:
+        error = nparams < 2 ? DXL_ERR_INSTRUCTION
+                            : write_bytes(d, params[0], params + 1, nparams - 1, now_ms);
+        break;
+    case DXL_INST_SYNC_WRITE:
+        if (broadcast) sync_write(d, params, nparams, now_ms);
+        return 0;
+    case DXL_INST_RESET: {
+        size_t n = answer ? reply(out, cap, me, 0, 0) : 0;
+        reset_device(d);
+        return n;
+    }
+    default:
+        error = DXL_ERR_INSTRUCTION;
+        break;
+    }
+    return answer ? reply(out, cap, me, error, ndata) : 0;
+}
+
+/* ---- public ---------------------------------------------------------------------------- */
+
+size_t ctl_device_size(void)
+{
+    return sizeof(ctl_device);
+}
+
+void ctl_init(ctl_device *d)
+{
+    play_init(&d->player);
+    bus_init(&d->bus);
+    dxl_parser_reset(&d->pc);
+    defaults(d);
+    d->last_link_ms = 0;
+    d->active_len = 0;
+    d->out_count = 0;
+    d->table_changed = 0;
+}
+
+bool ctl_load_table(ctl_device *d, const uint8_t *table, size_t len)
+{
+    if (len == 0 || len > CTL_MAX_TABLE_BYTES) return false;
+    return activate(d, table, len, crc32_compute(table, len));
+}
+
+bool ctl_pc_feed(ctl_device *d, uint8_t byte)
+{
+    return dxl_parser_feed(&d->pc, byte);
+}
+
+bool ctl_pc_poll(ctl_device *d, uint32_t now_ms, uint8_t *out, size_t cap, size_t *out_len)
+{
+    dxl_event ev;
+    *out_len = 0;
+    if (!dxl_parser_poll(&d->pc, &ev)) return false;
+    if (ev.kind == DXL_EVENT_PACKET) {
+        set_reg(d, CTL_PC_PACKETS, 2, reg(d, CTL_PC_PACKETS, 2) + 1u);
+        *out_len = ctl_handle_packet(d, ev.id, ev.code, ev.params, ev.nparams, now_ms, out, cap);
+    } else {
+        set_reg(d, CTL_PC_ERRORS, 2, reg(d, CTL_PC_ERRORS, 2) + 1u);
+    }
+    return true;
+}
+
+void ctl_tick(ctl_device *d, uint32_t now_ms)
+{
+    uint8_t errors[CTL_MAX_JOINTS];
+    uint8_t missed[CTL_MAX_JOINTS];
+    uint8_t n = bus_roster_count(&d->bus);
+    for (uint8_t k = 0; k < n; k++) {
+        const bus_servo *s = bus_servo_at(&d->bus, k);
+        errors[k] = s->error;
+        missed[k] = s->missed;
+    }
+    uint16_t faults = play_safety_check(errors, missed, n, d->regs[CTL_SERVO_ERROR_MASK],
+                                        d->regs[CTL_BUS_LOSS_LIMIT], moving(d),
+                                        now_ms - d->last_link_ms, d->regs[CTL_LINK_TIMEOUT]);
+    if (faults != 0) enter_safe(d, faults);
+
+    play_params params;
+    params.speed_scale = (uint16_t)reg(d, CTL_SPEED_SCALE, 2);
+    params.steering = (int16_t)reg(d, CTL_STEERING_OFFSET, 2);
+    params.loop = d->regs[CTL_LOOP];
+    params.amp_mrad = (uint16_t)reg(d, CTL_SERP_AMPLITUDE, 2);
+    params.omega_mrad_s = (int16_t)reg(d, CTL_SERP_OMEGA, 2);
+    params.delta_mrad = (int16_t)reg(d, CTL_SERP_DELTA, 2);
+    params.phi0_mrad = (int16_t)reg(d, CTL_SERP_PHI0, 2);
+    d->out_count = play_tick(&d->player, &params, d->roster, joint_count(d), now_ms);
+    if (moving(d) && play_mode(&d->player) == PLAY_MODE_IDLE) set_state(d, CTL_STATE_IDLE);
+    refresh(d);
+    bus_begin_tick(&d->bus);
+}
+
+size_t ctl_bus_next(ctl_device *d, uint8_t *out, size_t cap, uint8_t *reply_len)
+{
+    bus_txn txn;
+    const play_state *p = &d->player;
+    size_t n = bus_next(&d->bus, p->out_id, p->out_goal, p->out_speed, d->out_count, out, cap,
+                        &txn);
+    *reply_len = n > 0 ? txn.reply_len : 0;
+    return n;
+}
+
+bool ctl_bus_rx(ctl_device *d, const uint8_t *data, size_t len)
+{
+    return bus_rx(&d->bus, data, len);
+}
+
+void ctl_bus_rx_done(ctl_device *d)
+{
+    bus_rx_done(&d->bus);
+}
+
+uint8_t ctl_state(const ctl_device *d)
+{
+    return state(d);
+}
+
+uint16_t ctl_error_flags(const ctl_device *d)
+{
+    return (uint16_t)reg(d, CTL_ERROR_FLAGS, 2);
+}
+
+uint8_t ctl_id(const ctl_device *d)
+{
+    return d->regs[CTL_ID];
+}
+
+bool ctl_table_changed(ctl_device *d)
+{
+    bool changed = d->table_changed != 0;
+    d->table_changed = 0;
+    return changed;
+}
+
+const uint8_t *ctl_active_table(const ctl_device *d, size_t *len)
+{
+    *len = d->active_len;
+    return d->active_len ? d->active : NULL;
+}

@@ -1,0 +1,95 @@
+/* The controller as a Protocol 1.0 device on the PC link, and the glue of the control
+ * loop: control table (protocol/controller.md), upload and commit, commands, safety,
+ * player and bus master. The app owns one ctl_device (size: ctl_device_size(), about
+ * 5.5 KB: the 2 KB staging area and the 2 KB active table are inside) and only moves
+ * bytes:
+ *
+ *     ctl_init(&ctl);                       // once; then maybe ctl_load_table() from flash
+ *     // PC link, for each received byte (main loop draining the USART3 RX ring):
+ *     ctl_pc_feed(&ctl, byte);
+ *     while (ctl_pc_poll(&ctl, now_ms, tx, sizeof tx, &n)) if (n) pc_send(tx, n);
+ *     // every control tick:
+ *     ctl_tick(&ctl, now_ms);
+ *     while ((n = ctl_bus_next(&ctl, tx, sizeof tx, &reply_len)) > 0) {
+ *         bus_send(tx, n);
+ *         if (reply_len) { receive with timeout, handing bytes to ctl_bus_rx() until it
+ *                          returns true; then ctl_bus_rx_done(); }
+ *     }
+ *     if (ctl_table_changed(&ctl)) persist ctl_active_table(&ctl, &len) to flash;
+ */
+#ifndef SNAKEBOT_CTL_DEVICE_H
+#define SNAKEBOT_CTL_DEVICE_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "bus_master.h"
+#include "ctl_table.h"
+#include "dxl_parser.h"
+#include "gt_table.h"
+#include "play_player.h"
+
+/* cffi:begin */
+/* Buffer sizes the app needs: a PC-link reply (a status packet of up to 244 bytes of
+ * data) and a bus packet (SYNC_WRITE of 4 bytes to 18 servos: 8 + 5 * 18). */
+#define CTL_PC_REPLY_MAX 250
+#define CTL_BUS_TX_MAX 98
+
+typedef struct ctl_device ctl_device;
+
+/* Bytes to allocate for a ctl_device. */
+size_t ctl_device_size(void);
+/* Factory state: registers at their defaults, no table, idle. */
+void ctl_init(ctl_device *d);
+/* Make table[0..len) the active table without an upload (e.g. one kept in flash);
+ * false, and nothing changed, if it does not validate. */
+bool ctl_load_table(ctl_device *d, const uint8_t *table, size_t len);
+
+/* PC link: one received byte (false: the parser is full, poll first). */
+bool ctl_pc_feed(ctl_device *d, uint8_t byte);
+/* Handle the next parsed packet, if any (false: none left). *out_len = bytes of the
+ * status packet to send back (0: no reply). */
+bool ctl_pc_poll(ctl_device *d, uint32_t now_ms, uint8_t *out, size_t cap, size_t *out_len);
+/* Handle one instruction packet (any ID: others are ignored); returns the reply's length
+ * in out (0: no reply). */
+size_t ctl_handle_packet(ctl_device *d, uint8_t id, uint8_t instruction, const uint8_t *params,
+                         size_t nparams, uint32_t now_ms, uint8_t *out, size_t cap);
+
+/* Control tick: safety checks, the player, then the bus schedule for this tick. */
+void ctl_tick(ctl_device *d, uint32_t now_ms);
+/* Next bus packet of this tick (0: done); *reply_len = bytes of the awaited status
+ * packet, 0 if none. */
+size_t ctl_bus_next(ctl_device *d, uint8_t *out, size_t cap, uint8_t *reply_len);
+/* Bytes received from the bus for the awaited reply; true once it is complete. */
+bool ctl_bus_rx(ctl_device *d, const uint8_t *data, size_t len);
+/* End of the reply window (after the reply, or at the timeout). */
+void ctl_bus_rx_done(ctl_device *d);
+
+/* State (CTL_STATE_*) and Error Flags (CTL_ERROR_FLAGS_*). */
+uint8_t ctl_state(const ctl_device *d);
+uint16_t ctl_error_flags(const ctl_device *d);
+/* The controller's current ID on the PC link. */
+uint8_t ctl_id(const ctl_device *d);
+/* True once after each commit or load that changed the active table. */
+bool ctl_table_changed(ctl_device *d);
+/* The active table's bytes (NULL and *len = 0 if none). */
+const uint8_t *ctl_active_table(const ctl_device *d, size_t *len);
+/* cffi:end */
+
+struct ctl_device {
+    uint8_t regs[CTL_CONTROL_TABLE_BYTES]; /* the stored registers (windows excluded) */
+    play_joint roster[CTL_MAX_JOINTS];
+    play_state player;
+    bus_master bus;
+    dxl_parser pc;
+    uint32_t last_link_ms;
+    uint16_t staged_end;    /* staging bytes written since the upload began at offset 0 */
+    uint16_t active_len;    /* 0: no active table */
+    uint8_t out_count;      /* goals to send this tick */
+    uint8_t table_changed;
+    uint8_t staging[CTL_MAX_TABLE_BYTES];
+    uint8_t active[CTL_MAX_TABLE_BYTES];
+};
+
+#endif

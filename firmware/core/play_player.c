@@ -1,0 +1,192 @@
+#include "play_player.h"
+
+#include "play_fixed.h"
+
+/* 2^48 binary angle per (mrad/s * ms): 2^48 / (2 pi 10^6). */
+#define BAM48_PER_MRAD_S_MS 44798134LL
+#define BAM48_MASK ((1ULL << 48) - 1u)
+
+size_t play_state_size(void)
+{
+    return sizeof(play_state);
+}
+
+void play_init(play_state *p)
+{
+    play_state zero = {0};
+    *p = zero;
+}
+
+bool play_start_table(play_state *p, const uint8_t *table, size_t len, uint32_t now_ms)
+{
+    gt_info info;
+    if (gt_validate(table, len, &info) != GT_OK) {
+        p->mode = PLAY_MODE_IDLE;
+        return false;
+    }
+    p->table = table;
+    p->info = info;
+    p->mode = PLAY_MODE_TABLE;
+    p->finished = 0;
+    p->frame = 0;
+    p->offset_q8 = 0;
+    p->last_ms = now_ms;
+    return true;
+}
+
+bool play_start_serpenoid(play_state *p, uint8_t count, uint32_t now_ms)
+{
+    if (count == 0 || count > GT_MAX_JOINTS) {
+        p->mode = PLAY_MODE_IDLE;
+        return false;
+    }
+    p->table = NULL;
+    p->mode = PLAY_MODE_SERPENOID;
+    p->finished = 0;
+    p->phase = 0;
+    p->last_ms = now_ms;
+    return true;
+}
+
+void play_stop(play_state *p)
+{
+    p->mode = PLAY_MODE_IDLE;
+}
+
+static uint16_t clamp_tick(int32_t v, uint16_t lo, uint16_t hi)
+{
+    if (v > (int32_t)hi) v = hi;
+    if (v < (int32_t)lo) v = lo;
+    return (uint16_t)v;
+}
+
+static int32_t steer(const play_params *params, const play_joint *roster, uint8_t roster_count,
+                     uint8_t j)
+{
+    bool reverse = j < roster_count && roster[j].reverse;
+    return reverse ? -(int32_t)params->steering : params->steering;
+}
+
+static uint32_t elapsed(play_state *p, uint32_t now_ms)
+{
+    uint32_t dt = now_ms - p->last_ms; /* wraps correctly */
+    p->last_ms = now_ms;
+    return dt > PLAY_MAX_STEP_MS ? PLAY_MAX_STEP_MS : dt;
+}
+
+static uint8_t tick_table(play_state *p, const play_params *params, const play_joint *roster,
+                          uint8_t roster_count, uint32_t dt)
+{
+    const gt_info *info = &p->info;
+    uint32_t span = (uint32_t)info->frame_period_ms * 256u; /* one frame, ms * 256 */
+    uint16_t frames = info->frame_count;
+    uint16_t last = (uint16_t)(frames - 1u);
+
+    p->offset_q8 += dt * params->speed_scale;
+    uint32_t steps = p->offset_q8 / span;
+    p->offset_q8 %= span;
+    if (params->loop) {
+        p->frame = (uint16_t)(((uint32_t)p->frame + steps) % frames);
+    } else if ((uint32_t)p->frame + steps >= last) {
+        p->frame = last;
+        p->offset_q8 = 0;
+        p->finished = 1;
+        p->mode = PLAY_MODE_IDLE;
+    } else {
+        p->frame = (uint16_t)(p->frame + steps);
+    }
+    uint16_t next = p->frame == last ? (params->loop ? 0 : last) : (uint16_t)(p->frame + 1u);
+
+    for (uint8_t j = 0; j < info->joint_count; j++) {
+        int64_t a = gt_frame(p->table, info, p->frame, j);
+        int64_t b = gt_frame(p->table, info, next, j);
+        /* round((a * span + (b - a) * offset) / span), halves up; the numerator is >= 0 */
+        int64_t num = a * span + (b - a) * (int64_t)p->offset_q8 + span / 2u;
+        int32_t goal = (int32_t)(num / span) + steer(params, roster, roster_count, j);
+        uint32_t step = (uint32_t)(b > a ? b - a : a - b);
+        /* ticks/s * 256 = step / (period / scale) * 1000 * 256 / 256 */
+        uint32_t rate = (uint32_t)(((uint64_t)step * 1000u * params->speed_scale) /
+                                   info->frame_period_ms);
+        p->out_id[j] = gt_joint_id(p->table, info, j);
+        p->out_goal[j] = clamp_tick(goal, gt_joint_min(p->table, info, j),
+                                    gt_joint_max(p->table, info, j));
+        p->out_speed[j] = play_speed_units(rate);
+    }
+    p->out_count = info->joint_count;
+    return p->out_count;
+}
+
+static uint8_t tick_serpenoid(play_state *p, const play_params *params, const play_joint *roster,
+                              uint8_t roster_count, uint32_t dt)
+{
+    int64_t inc = (int64_t)params->omega_mrad_s * (int64_t)dt * params->speed_scale *
+                  BAM48_PER_MRAD_S_MS;
+    /* inc / 256, rounded, as a 48-bit wrap-around step */
+    uint64_t mag = ((uint64_t)(inc < 0 ? -inc : inc) + 128u) >> 8;
+    p->phase = (inc < 0 ? p->phase - mag : p->phase + mag) & BAM48_MASK;
+
+    uint8_t count = roster_count > GT_MAX_JOINTS ? GT_MAX_JOINTS : roster_count;
+    uint32_t base = (uint32_t)(p->phase >> 16);
+    uint32_t delta = play_mrad_to_bam(params->delta_mrad);
+    for (uint8_t k = 0; k < count; k++) {
+        const play_joint *jt = &roster[k];
+        uint32_t theta = base + delta * k;
+        int32_t angle = play_serp_ticks(params->amp_mrad, params->phi0_mrad, theta);
+        int32_t goal = (int32_t)jt->zero + (jt->reverse ? -angle : angle) +
+                       steer(params, roster, roster_count, k);
+        uint16_t lo = jt->min > 1023u ? 1023u : jt->min;
+        uint16_t hi = jt->max > 1023u ? 1023u : jt->max;
+        p->out_id[k] = jt->id;
+        p->out_goal[k] = clamp_tick(goal, lo, hi < lo ? lo : hi);
+        p->out_speed[k] = play_speed_units(
+            play_serp_rate_q8(params->amp_mrad, params->omega_mrad_s, params->speed_scale, theta));
+    }
+    p->out_count = count;
+    return count;
+}
+
+uint8_t play_tick(play_state *p, const play_params *params, const play_joint *roster,
+                  uint8_t roster_count, uint32_t now_ms)
+{
+    uint32_t dt = elapsed(p, now_ms);
+    if (p->mode == PLAY_MODE_TABLE) return tick_table(p, params, roster, roster_count, dt);
+    if (p->mode == PLAY_MODE_SERPENOID) {
+        return tick_serpenoid(p, params, roster, roster_count, dt);
+    }
+    return 0;
+}
+
+uint8_t play_mode(const play_state *p)
+{
+    return p->mode;
+}
+
+bool play_finished(const play_state *p)
+{
+    return p->finished != 0;
+}
+
+uint16_t play_frame_index(const play_state *p)
+{
+    return p->frame;
+}
+
+uint8_t play_out_count(const play_state *p)
+{
+    return p->out_count;
+}
+
+uint8_t play_out_id(const play_state *p, uint8_t j)
+{
+    return j < p->out_count ? p->out_id[j] : 0;
+}
+
+uint16_t play_out_goal(const play_state *p, uint8_t j)
+{
+    return j < p->out_count ? p->out_goal[j] : 0;
+}
+
+uint16_t play_out_speed(const play_state *p, uint8_t j)
+{
+    return j < p->out_count ? p->out_speed[j] : 0;
+}

@@ -1,0 +1,35 @@
+"""The host's view of the snakebot controller (the CM-530 firmware as a Protocol 1.0
+device): register names, addresses and value meanings from ``protocol/controller.json``.
+
+    from snakebot.controller import load, State, Command
+    table = load()
+    table.register("Speed Scale").address      # 16
+"""
+
+from __future__ import annotations
+
+from enum import IntEnum, IntFlag
+
+from snakebot.controller.table import Controller, ControllerTableError, Register, load
+from snakebot.controller.upload import chunk_writes, commit_write
+
+_enums = load().enums
+State = IntEnum("State", _enums["State"])
+Command = IntEnum("Command", _enums["Command"])
+SafeAction = IntEnum("SafeAction", _enums["Safe Action"])
+UploadResult = IntEnum("UploadResult", _enums["Upload Result"])
+ControllerErrors = IntFlag("ControllerErrors", _enums["Error Flags"])
+
+__all__ = [
+    "Command",
+    "Controller",
+    "ControllerErrors",
+    "ControllerTableError",
+    "Register",
+    "SafeAction",
+    "State",
+    "UploadResult",
+    "chunk_writes",
+    "commit_write",
+    "load",
+]

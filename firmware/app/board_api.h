@@ -1,0 +1,15 @@
+/* What every board provides (firmware/boards/<board>/board.c). Board facts that are plain
+ * numbers (pins, memory, baud rates) live as macros in that board's board.h. */
+#ifndef SNAKEBOT_BOARD_API_H
+#define SNAKEBOT_BOARD_API_H
+
+#include "hal_clock.h"
+
+/* Bring up the clock tree; the result holds the frequencies really in effect. */
+hal_clocks_t board_clock_init(void);
+
+/* Enable the peripheral clocks, remaps and pin modes the firmware uses (the Dynamixel
+ * bus, the PC link). The direction pins are configured by the USART driver. */
+void board_pins_init(void);
+
+#endif

@@ -1,0 +1,53 @@
+/* ROBOTIS CM-530: STM32F103RE (512 KB flash, 64 KB RAM), 8 MHz crystal.
+ * Sources: ROBOTIS e-Manual and example code; see /work/shared/docs/hardware.md. The memory
+ * layout must agree with cm530.ld. */
+#ifndef SNAKEBOT_BOARD_H
+#define SNAKEBOT_BOARD_H
+
+#include "hal_regs.h"
+
+#define BOARD_NAME "cm530"
+
+/* Clock: HSE 8 MHz x9 = 72 MHz; APB1 36 MHz (USART3), APB2 72 MHz (USART1). */
+#define BOARD_HSE_HZ 8000000UL
+#define BOARD_PLL_MUL 9U
+
+/* Memory. The ROBOTIS bootloader owns 0x08000000-0x08002FFF and jumps to BOARD_APP_BASE. */
+#define BOARD_APP_BASE 0x08003000UL
+#define BOARD_RAM_SIZE (64UL * 1024UL)
+#define BOARD_FLASH_PAGE_SIZE 2048UL
+/* The last 32 KB of flash keep the committed gait table (kept out of the image by cm530.ld). */
+#define BOARD_HAS_FLASH_STORE 1
+#define BOARD_STORE_BASE 0x08078000UL
+#define BOARD_STORE_SIZE (32UL * 1024UL)
+
+/* Dynamixel bus: USART1 remapped to PB6 (TX) / PB7 (RX), half duplex through a buffer:
+ * PB4 high enables the transmitter, PB5 high the receiver. */
+#define BOARD_BUS_USART HAL_USART1_BASE
+#define BOARD_BUS_IRQ HAL_IRQ_USART1
+#define BOARD_BUS_ON_APB2 1
+#define BOARD_BUS_BAUD 1000000UL
+#define BOARD_BUS_TX_ENABLE_PIN {HAL_GPIOB_BASE, 4}
+#define BOARD_BUS_RX_ENABLE_PIN {HAL_GPIOB_BASE, 5}
+
+/* PC link: USART3 on PB10 (TX) / PB11 (RX), through the board's USB-serial port. */
+#define BOARD_PC_USART HAL_USART3_BASE
+#define BOARD_PC_IRQ HAL_IRQ_USART3
+#define BOARD_PC_ON_APB2 0
+#define BOARD_PC_BAUD 57600UL
+
+/* Ring sizes (powers of two). A whole Protocol 1.0 packet is at most 250 bytes. */
+#define BOARD_BUS_RX_RING 512
+#define BOARD_BUS_TX_RING 512
+#define BOARD_PC_RX_RING 512
+#define BOARD_PC_TX_RING 512
+
+/* Independent watchdog timeout (LSI-based, approximate). */
+#define BOARD_WATCHDOG_MS 500UL
+
+/* Control tick: player, safety and one bus schedule (SYNC_WRITE + one telemetry READ). */
+#define BOARD_CONTROL_TICK_MS 10U
+/* The bus master's reply window: BUS_SUGGESTED_TIMEOUT_US (AX-12 default return delay). */
+#define BOARD_BUS_REPLY_TIMEOUT_US 1500UL
+
+#endif

@@ -1,0 +1,109 @@
+"""Helpers shared by the firmware tests: building the images once per session, reading
+their symbols and sections with the ARM binutils, and a Protocol 1.0 client on the
+emulated PC link with time limits fit for a loaded machine."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from snakebot.paths import REPO_ROOT
+from snakebot.transport import DxlClient
+
+BUILD = REPO_ROOT / "build"
+QEMU_DIR = BUILD / "qemu"
+CM530_DIR = BUILD / "cm530"
+APP_BASE = 0x08003000
+STUB_BASE = 0x08000000
+CONTROLLER_ID = 200
+PC_BAUD = 57600
+
+# Replies come within a millisecond or two; the margin only matters on a machine so busy
+# that QEMU is descheduled, and for the tests that wait for an answer that must not come.
+CLIENT_MARGIN_S = 0.5
+
+
+def build_firmware() -> str:
+    """Run `make -C firmware` (does nothing when up to date); returns its output."""
+    if shutil.which("arm-none-eabi-gcc") is None:
+        pytest.fail("arm-none-eabi-gcc missing: run `make setup`")
+    done = subprocess.run(
+        ["make", "-C", str(REPO_ROOT / "firmware"), "--no-print-directory", "all"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    if done.returncode != 0:
+        pytest.fail(f"firmware build failed:\n{done.stdout}\n{done.stderr}")
+    return done.stdout
+
+
+def symbols(elf: Path) -> dict[str, int]:
+    """Symbol name -> address, from arm-none-eabi-nm."""
+    out = subprocess.run(
+        ["arm-none-eabi-nm", str(elf)], capture_output=True, text=True, check=True
+    ).stdout
+    table = {}
+    for line in out.splitlines():
+        parts = line.split()
+        if len(parts) == 3:
+            table[parts[2]] = int(parts[0], 16)
+    return table
+
+
+def sections(elf: Path) -> dict[str, tuple[int, int]]:
+    """Section name -> (address, size), from arm-none-eabi-size -A."""
+    out = subprocess.run(
+        ["arm-none-eabi-size", "-A", "-d", str(elf)], capture_output=True, text=True, check=True
+    ).stdout
+    table = {}
+    for line in out.splitlines():
+        parts = line.split()
+        if len(parts) == 3 and parts[0].startswith("."):
+            table[parts[0]] = (int(parts[2]), int(parts[1]))
+    return table
+
+
+def client(port: str) -> DxlClient:
+    """A Protocol 1.0 client on the emulated PC link (a pty path)."""
+    return DxlClient(port, PC_BAUD, margin_s=CLIENT_MARGIN_S, echo=False)
+
+
+HAL_DIR = REPO_ROOT / "firmware" / "hal"
+
+HAL_IO_CALLBACKS = """
+extern "Python+C" uint32_t hal_io_read32(uint32_t addr);
+extern "Python+C" void hal_io_write32(uint32_t addr, uint32_t value);
+extern "Python+C" uint16_t hal_io_read16(uint32_t addr);
+extern "Python+C" void hal_io_write16(uint32_t addr, uint16_t value);
+"""
+
+
+def build_hal_host(
+    name: str, sources: list[str], headers: list[str], cdef: str, tmpdir: Path, defines=()
+):
+    """Compile HAL drivers for the host with -DHAL_HOST_TEST: every register access goes
+    to the four hal_io_* callbacks, which the test implements in Python (a register model
+    of the peripheral). Returns the compiled module (``.ffi``, ``.lib``)."""
+    import importlib.util
+
+    from cffi import FFI
+
+    ffi = FFI()
+    ffi.cdef(cdef + HAL_IO_CALLBACKS)
+    ffi.set_source(
+        name,
+        "\n".join(f'#include "{h}"' for h in ("hal_io.h", *headers)),
+        sources=[str(HAL_DIR / s) for s in sources],
+        include_dirs=[str(HAL_DIR)],
+        define_macros=[("HAL_HOST_TEST", None), *defines],
+        extra_compile_args=["-std=c99", "-Wall", "-Wextra"],
+    )
+    library = ffi.compile(tmpdir=str(tmpdir))
+    spec = importlib.util.spec_from_file_location(name, library)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

@@ -1,0 +1,353 @@
+"""The flash-programming driver (firmware/hal/hal_flash.c), compiled for the host and run
+against a register model of the STM32F1 flash controller (FPEC, PM0075): QEMU has no
+flash controller, so this is where the driver's logic is proven. The model behaves like
+the chip where the driver depends on it: the controller starts locked and opens only to
+KEY1 then KEY2, BSY stays set for a while after each operation, programming a half-word
+that is not erased sets PGERR and changes nothing, protected pages set WRPRTERR."""
+
+from __future__ import annotations
+
+import pytest
+from firmware_support import build_hal_host
+from hypothesis import given
+from hypothesis import strategies as st
+
+FLASH_R = 0x40022000
+ACR, KEYR, SR, CR, AR = (FLASH_R + o for o in (0x00, 0x04, 0x0C, 0x10, 0x14))
+KEY1, KEY2 = 0x45670123, 0xCDEF89AB
+SR_BSY, SR_PGERR, SR_WRPRTERR, SR_EOP = 1 << 0, 1 << 2, 1 << 4, 1 << 5
+CR_PG, CR_PER, CR_STRT, CR_LOCK = 1 << 0, 1 << 1, 1 << 6, 1 << 7
+
+BASE = 0x08078000  # the CM-530's table store
+PAGE = 2048
+PAGES = 4
+BUSY_POLLS = 500  # the driver's poll bound for these tests (the firmware's is 2 000 000)
+
+OK, RANGE, LOCKED, TIMEOUT, PROGRAM, WRPROT, VERIFY = range(7)
+
+CDEF = """
+typedef struct { uint32_t base; uint32_t size; uint32_t page_size; } hal_flash_region_t;
+int hal_flash_erase(const hal_flash_region_t *r, uint32_t offset, uint32_t len);
+int hal_flash_write(const hal_flash_region_t *r, uint32_t offset, const uint8_t *data,
+                    uint32_t len);
+"""
+
+
+class FlashModel:
+    """The FPEC's registers and PAGES pages of flash at BASE."""
+
+    def __init__(self, busy_reads: int = 3) -> None:
+        self.mem = bytearray(b"\xa5" * (PAGE * PAGES))  # old content, not erased
+        self.cr = CR_LOCK
+        self.sr = 0
+        self.ar = 0
+        self.key_step = 0
+        self.key_fault = False  # a wrong key locks the FPEC until reset
+        self.busy_reads = busy_reads
+        self.busy_left = 0
+        self.stuck_busy = False
+        self.protected_pages: set[int] = set()
+        self.weak_cells: set[int] = set()  # half-word offsets that never take a value
+        self.unexpected: list[str] = []
+        self.writes = 0  # register and flash writes, for "touched nothing" checks
+
+    # -- helpers --------------------------------------------------------------------------
+    def start(self) -> None:
+        self.busy_left = self.busy_reads
+
+    def locked(self) -> bool:
+        return bool(self.cr & CR_LOCK)
+
+    def in_flash(self, addr: int) -> bool:
+        return BASE <= addr < BASE + len(self.mem)
+
+    # -- bus ----------------------------------------------------------------------------
+    def read32(self, addr: int) -> int:
+        if addr == SR:
+            if self.stuck_busy or self.busy_left > 0:
+                self.busy_left = max(0, self.busy_left - 1)
+                return self.sr | SR_BSY
+            if self.sr & SR_BSY:
+                self.sr &= ~SR_BSY
+            return self.sr
+        if addr == CR:
+            return self.cr
+        if addr == AR:
+            return self.ar
+        self.unexpected.append(f"read32 {addr:#x}")
+        return 0
+
+    def write32(self, addr: int, value: int) -> None:
+        self.writes += 1
+        if addr == KEYR:
+            if self.key_fault:
+                return
+            if self.key_step == 0 and value == KEY1:
+                self.key_step = 1
+            elif self.key_step == 1 and value == KEY2:
+                self.key_step = 0
+                self.cr &= ~CR_LOCK
+            else:
+                self.key_fault = True
+                self.cr |= CR_LOCK
+            return
+        if addr == SR:
+            self.sr &= ~(value & (SR_PGERR | SR_WRPRTERR | SR_EOP))
+            return
+        if addr == AR:
+            self.ar = value
+            return
+        if addr == CR:
+            if self.locked():
+                return  # CR is write-protected while locked
+            if self.busy_left:
+                self.unexpected.append("CR written while busy")
+            self.cr = value & (CR_PG | CR_PER | CR_STRT | CR_LOCK)
+            if self.cr & CR_STRT:
+                self.cr &= ~CR_STRT
+                if self.cr & CR_PER:
+                    self.erase(self.ar)
+            return
+        self.unexpected.append(f"write32 {addr:#x}")
+
+    def erase(self, addr: int) -> None:
+        self.start()
+        if not self.in_flash(addr):
+            self.unexpected.append(f"erase outside the store: {addr:#x}")
+            return
+        page = (addr - BASE) // PAGE
+        if page in self.protected_pages:
+            self.sr |= SR_WRPRTERR
+            return
+        self.mem[page * PAGE : (page + 1) * PAGE] = b"\xff" * PAGE
+        self.sr |= SR_EOP
+
+    def read16(self, addr: int) -> int:
+        if not self.in_flash(addr) or addr & 1:
+            self.unexpected.append(f"read16 {addr:#x}")
+            return 0
+        off = addr - BASE
+        return self.mem[off] | self.mem[off + 1] << 8
+
+    def write16(self, addr: int, value: int) -> None:
+        self.writes += 1
+        if not self.in_flash(addr) or addr & 1:
+            self.unexpected.append(f"write16 {addr:#x}")
+            return
+        if not (self.cr & CR_PG) or self.locked():
+            self.unexpected.append(f"flash written without PG at {addr:#x}")
+            return
+        self.start()
+        off = addr - BASE
+        if off // PAGE in self.protected_pages:
+            self.sr |= SR_WRPRTERR
+            return
+        if self.read16(addr) != 0xFFFF and value != 0:
+            self.sr |= SR_PGERR
+            return
+        if off in self.weak_cells:
+            return
+        self.mem[off] = value & 0xFF
+        self.mem[off + 1] = value >> 8
+        self.sr |= SR_EOP
+
+
+class QemuLikeModel(FlashModel):
+    """QEMU's stm32vldiscovery: the flash interface is an unimplemented device (reads 0,
+    writes ignored) and flash is ROM."""
+
+    def read32(self, addr: int) -> int:
+        return 0
+
+    def write32(self, addr: int, value: int) -> None:
+        self.writes += 1
+
+    def write16(self, addr: int, value: int) -> None:
+        self.writes += 1
+
+
+_model: list[FlashModel] = []
+
+
+@pytest.fixture(scope="module")
+def hal(tmp_path_factory):
+    mod = build_hal_host(
+        "_hal_flash_host",
+        ["hal_flash.c"],
+        ["hal_flash.h"],
+        CDEF,
+        tmp_path_factory.mktemp("hal_flash"),
+        defines=[("HAL_FLASH_BUSY_POLLS", str(BUSY_POLLS))],
+    )
+
+    @mod.ffi.def_extern()
+    def hal_io_read32(addr):
+        return _model[-1].read32(addr)
+
+    @mod.ffi.def_extern()
+    def hal_io_write32(addr, value):
+        _model[-1].write32(addr, value)
+
+    @mod.ffi.def_extern()
+    def hal_io_read16(addr):
+        return _model[-1].read16(addr)
+
+    @mod.ffi.def_extern()
+    def hal_io_write16(addr, value):
+        _model[-1].write16(addr, value)
+
+    return mod
+
+
+@pytest.fixture
+def model():
+    m = FlashModel()
+    _model.append(m)
+    yield m
+    _model.remove(m)
+    assert m.unexpected == []
+
+
+def region(hal, base=BASE, size=PAGE * PAGES, page=PAGE):
+    r = hal.ffi.new("hal_flash_region_t *")
+    r.base, r.size, r.page_size = base, size, page
+    return r
+
+
+def write(hal, r, offset, data: bytes) -> int:
+    return hal.lib.hal_flash_write(r, offset, hal.ffi.from_buffer(data), len(data))
+
+
+def test_erase_then_write_reads_back(hal, model):
+    r = region(hal)
+    data = bytes(range(200))
+    assert hal.lib.hal_flash_erase(r, 0, len(data)) == OK
+    assert write(hal, r, 0, data) == OK
+    assert model.mem[: len(data)] == data
+    assert model.mem[len(data) : PAGE] == b"\xff" * (PAGE - len(data))
+    assert model.locked() and not model.cr & (CR_PG | CR_PER)
+
+
+def test_erase_touches_exactly_the_overlapping_pages(hal, model):
+    r = region(hal)
+    assert hal.lib.hal_flash_erase(r, PAGE - 10, 20) == OK  # straddles pages 0 and 1
+    assert model.mem[: 2 * PAGE] == b"\xff" * (2 * PAGE)
+    assert model.mem[2 * PAGE :] == b"\xa5" * (2 * PAGE)
+    assert model.locked()
+
+
+def test_odd_length_pads_with_erased_byte(hal, model):
+    r = region(hal)
+    assert hal.lib.hal_flash_erase(r, 0, PAGE) == OK
+    assert write(hal, r, 4, b"\x01\x02\x03") == OK
+    assert model.mem[:8] == b"\xff\xff\xff\xff\x01\x02\x03\xff"
+
+
+def test_programming_unerased_flash_fails_and_changes_nothing(hal, model):
+    r = region(hal)
+    assert write(hal, r, 0, b"\x12\x34") == PROGRAM
+    assert model.mem[:2] == b"\xa5\xa5"
+    assert model.locked() and not model.cr & CR_PG
+    assert model.sr & (SR_PGERR | SR_WRPRTERR) == 0  # flags cleared for the next caller
+
+
+def test_write_protected_page_is_reported(hal, model):
+    r = region(hal)
+    model.protected_pages.add(1)
+    assert hal.lib.hal_flash_erase(r, 0, 2 * PAGE) == WRPROT
+    assert model.mem[:PAGE] == b"\xff" * PAGE  # page 0 was erased before the failure
+    assert model.mem[PAGE : 2 * PAGE] == b"\xa5" * PAGE
+    assert model.locked()
+
+
+def test_stuck_busy_times_out_instead_of_hanging(hal, model):
+    r = region(hal)
+    model.stuck_busy = True
+    assert hal.lib.hal_flash_erase(r, 0, PAGE) == TIMEOUT
+    assert model.locked()
+
+
+def test_a_cell_that_does_not_take_the_value_fails_verification(hal, model):
+    r = region(hal)
+    model.weak_cells.add(6)
+    assert hal.lib.hal_flash_erase(r, 0, PAGE) == OK
+    assert write(hal, r, 0, bytes(16)) == VERIFY
+
+
+def test_refused_unlock_is_reported(hal, model):
+    r = region(hal)
+    model.key_fault = True
+    assert hal.lib.hal_flash_erase(r, 0, PAGE) == LOCKED
+    assert model.mem == b"\xa5" * len(model.mem)
+
+
+def test_stale_error_flags_are_not_blamed_on_the_next_operation(hal, model):
+    r = region(hal)
+    model.sr = SR_PGERR | SR_WRPRTERR
+    assert hal.lib.hal_flash_erase(r, 0, PAGE) == OK
+    assert write(hal, r, 0, b"ok") == OK
+
+
+@pytest.mark.parametrize(
+    ("offset", "length", "reg"),
+    [
+        (PAGE * PAGES, 2, {}),  # past the end
+        (PAGE * PAGES - 2, 4, {}),  # runs past the end
+        (PAGE * PAGES - 1, 1, {}),  # odd offset
+        (0, 2, {"base": BASE + 2}),  # region not page-aligned
+        (0, 2, {"size": PAGE + 2}),  # region size not whole pages
+        (0, 2, {"page": 3000}),  # page size not a power of two
+    ],
+)
+def test_out_of_range_requests_touch_nothing(hal, model, offset, length, reg):
+    r = region(hal, **reg)
+    assert write(hal, r, offset, b"\x00" * length) == RANGE
+    assert hal.lib.hal_flash_erase(r, offset + (offset & 1), length + 2) == RANGE
+    assert model.writes == 0
+
+
+def test_odd_length_whose_pad_byte_leaves_the_region_is_refused(hal, model):
+    r = region(hal)
+    assert write(hal, r, PAGE * PAGES - 2, b"\x00\x01\x02") == RANGE
+    assert write(hal, r, PAGE * PAGES - 2, b"\x00") == PROGRAM  # inside; just not erased
+
+
+def test_under_qemu_every_write_ends_in_a_verify_error(hal):
+    m = QemuLikeModel()
+    _model.append(m)
+    try:
+        r = region(hal)
+        assert hal.lib.hal_flash_erase(r, 0, PAGE) == VERIFY  # ROM still holds 0xA5
+        assert write(hal, r, 0, b"\x00\x01") == VERIFY
+    finally:
+        _model.remove(m)
+
+
+@given(
+    chunks=st.lists(
+        st.tuples(st.integers(0, 300), st.binary(min_size=1, max_size=64)),
+        min_size=1,
+        max_size=6,
+    )
+)
+def test_any_writes_into_erased_flash_read_back(hal, chunks):
+    m = FlashModel(busy_reads=1)
+    _model.append(m)
+    try:
+        r = region(hal)
+        assert hal.lib.hal_flash_erase(r, 0, PAGE * PAGES) == OK
+        expected = bytearray(b"\xff" * (PAGE * PAGES))
+        offset = 0
+        for gap, data in chunks:  # one after another, never overlapping
+            offset += 2 * gap
+            padded = data + (b"\xff" if len(data) & 1 else b"")
+            if offset + len(padded) > PAGE * PAGES:
+                break
+            assert write(hal, r, offset, data) == OK
+            expected[offset : offset + len(padded)] = padded
+            offset += len(padded)
+        assert m.mem == expected
+        assert m.locked()
+        assert m.unexpected == []
+    finally:
+        _model.remove(m)

@@ -1,0 +1,346 @@
+/* Geometry of the wheeled chains and the minimum-slip body velocity (docs/models.md).
+ *
+ * Every wheel i has a position W_i, a rolling direction t_i and a normal n_i = J t_i
+ * (J: rotation by +90 degrees). Its velocity is linear in the body velocity
+ * xi = (dx, dy, dtheta) of the reference point p and in the joint velocities:
+ *   v_i = (dx, dy) + dtheta J (W_i - p) + sum_j dphi_j J (W_i - P_j)
+ * over the joints j that carry wheel i (P_j: the joint's position). Since
+ * n.(J d) = t.d and t.(J d) = -n.d, the normal and tangential speeds are
+ *   n_i.v_i = n_i.(dx, dy) + dtheta t_i.(W_i - p) + sum_j dphi_j t_i.(W_i - P_j)
+ *   t_i.v_i = t_i.(dx, dy) - dtheta n_i.(W_i - p) - sum_j dphi_j n_i.(W_i - P_j). */
+#include "kin_core.h"
+#include "kin_geom.h"
+
+#include <math.h>
+
+#define RCOND_SINGULAR 1e-10
+
+int kin_check_robot(const kin_robot *rb, int32_t *joints)
+{
+    if (rb == NULL) {
+        return KIN_EINVAL;
+    }
+    if (!isfinite(rb->l) || !(rb->l > 0.0) || !isfinite(rb->c_n) || !(rb->c_n > 0.0)
+        || !isfinite(rb->c_t) || !(rb->c_t >= 0.0)) {
+        return KIN_EGEOMETRY;
+    }
+    int32_t count;
+    if (rb->kind == KIN_SNAKE) {
+        if (rb->links < 2 || rb->links > KIN_MAX_LINKS) {
+            return KIN_EGEOMETRY;
+        }
+        count = rb->links - 1;
+    } else if (rb->kind == KIN_TRIDENT) {
+        if (!isfinite(rb->r) || !(rb->r >= 0.0) || !isfinite(rb->alpha[0])
+            || !isfinite(rb->alpha[1]) || !isfinite(rb->alpha[2])) {
+            return KIN_EGEOMETRY;
+        }
+        count = 3;
+    } else {
+        return KIN_EGEOMETRY;
+    }
+    if (joints != NULL) {
+        *joints = count;
+    }
+    return KIN_OK;
+}
+
+int kin_wheel_count(const kin_robot *rb)
+{
+    if (kin_check_robot(rb, NULL) != KIN_OK) {
+        return 0;
+    }
+    return rb->kind == KIN_SNAKE ? rb->links : 3;
+}
+
+static int finite_vec(const double *v, int32_t n)
+{
+    for (int32_t i = 0; i < n; i++) {
+        if (!isfinite(v[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+int kin_geom_rows(const kin_robot *rb, const double *q, const double *dphi, kin_wheel_rows *w)
+{
+    int32_t joints;
+    int rc = kin_check_robot(rb, &joints);
+    if (rc != KIN_OK) {
+        return rc;
+    }
+    if (q == NULL || w == NULL) {
+        return KIN_EINVAL;
+    }
+    if (!finite_vec(q, 3 + joints) || (dphi != NULL && !finite_vec(dphi, joints))) {
+        return KIN_ENONFINITE;
+    }
+    const double px = q[0], py = q[1], theta = q[2];
+    const double *phi = q + 3;
+    if (rb->kind == KIN_SNAKE) {
+        /* Joint k (0-based) sits at the far end of link k: jx[k], jy[k]. */
+        double jx[KIN_MAX_JOINTS], jy[KIN_MAX_JOINTS];
+        double psi = theta, ax = px, ay = py;
+        w->count = rb->links;
+        for (int32_t k = 0; k < rb->links; k++) {
+            if (k > 0) {
+                psi += phi[k - 1];
+            }
+            const double tx = cos(psi), ty = sin(psi);
+            const double wx = ax + rb->l * tx, wy = ay + rb->l * ty;
+            double nd = 0.0, td = 0.0;
+            for (int32_t j = 0; j < k && dphi != NULL; j++) {
+                const double dx = wx - jx[j], dy = wy - jy[j];
+                nd += dphi[j] * (tx * dx + ty * dy);
+                td -= dphi[j] * (-ty * dx + tx * dy);
+            }
+            w->px[k] = wx;
+            w->py[k] = wy;
+            w->tx[k] = tx;
+            w->ty[k] = ty;
+            w->n_theta[k] = tx * (wx - px) + ty * (wy - py);
+            w->t_theta[k] = -(-ty * (wx - px) + tx * (wy - py));
+            w->n_joint[k] = nd;
+            w->t_joint[k] = td;
+            ax += 2.0 * rb->l * tx;
+            ay += 2.0 * rb->l * ty;
+            if (k < KIN_MAX_JOINTS) {
+                jx[k] = ax;
+                jy[k] = ay;
+            }
+        }
+    } else {
+        w->count = 3;
+        for (int32_t i = 0; i < 3; i++) {
+            const double mu = theta + rb->alpha[i], nu = mu + phi[i];
+            const double ax = px + rb->r * cos(mu), ay = py + rb->r * sin(mu);
+            const double tx = cos(nu), ty = sin(nu);
+            const double wx = ax + rb->l * tx, wy = ay + rb->l * ty;
+            w->px[i] = wx;
+            w->py[i] = wy;
+            w->tx[i] = tx;
+            w->ty[i] = ty;
+            w->n_theta[i] = tx * (wx - px) + ty * (wy - py);
+            w->t_theta[i] = -(-ty * (wx - px) + tx * (wy - py));
+            /* W - A = l t: normal part l dphi, tangential part 0. */
+            w->n_joint[i] = dphi != NULL ? rb->l * dphi[i] : 0.0;
+            w->t_joint[i] = 0.0;
+        }
+    }
+    return KIN_OK;
+}
+
+int kin_wheels(const kin_robot *rb, const double *q, double *pos, double *dir)
+{
+    kin_wheel_rows w;
+    int rc = kin_geom_rows(rb, q, NULL, &w);
+    if (rc != KIN_OK) {
+        return rc;
+    }
+    for (int32_t i = 0; i < w.count; i++) {
+        if (pos != NULL) {
+            pos[2 * i] = w.px[i];
+            pos[2 * i + 1] = w.py[i];
+        }
+        if (dir != NULL) {
+            dir[2 * i] = w.tx[i];
+            dir[2 * i + 1] = w.ty[i];
+        }
+    }
+    return KIN_OK;
+}
+
+int kin_wheel_speeds(const kin_robot *rb, const double *q, const double *qdot, double *normal,
+                     double *tangent)
+{
+    kin_wheel_rows w;
+    if (qdot == NULL) {
+        return KIN_EINVAL;
+    }
+    int rc = kin_geom_rows(rb, q, qdot + 3, &w);
+    if (rc != KIN_OK) {
+        return rc;
+    }
+    if (!finite_vec(qdot, 3)) {
+        return KIN_ENONFINITE;
+    }
+    for (int32_t i = 0; i < w.count; i++) {
+        const double vn = -w.ty[i] * qdot[0] + w.tx[i] * qdot[1] + w.n_theta[i] * qdot[2]
+                          + w.n_joint[i];
+        const double vt = w.tx[i] * qdot[0] + w.ty[i] * qdot[1] + w.t_theta[i] * qdot[2]
+                          + w.t_joint[i];
+        if (normal != NULL) {
+            normal[i] = vn;
+        }
+        if (tangent != NULL) {
+            tangent[i] = vt;
+        }
+    }
+    return KIN_OK;
+}
+
+/* min ||M x - b|| for an m x 3 matrix (m <= 2 KIN_MAX_WHEELS) by Householder QR.
+ * Writes x and the reciprocal 1-norm condition number of R. The columns must already
+ * be in comparable units (the caller scales the rotation column by a body length):
+ * they are deliberately NOT equilibrated by their own norms, since that would hide a
+ * column that is small only through cancellation (a straight snake's longitudinal
+ * direction), where the solution has lost its accuracy. */
+static void lsq3(double m[][3], double *b, int32_t rows, double x[3], double *rcond)
+{
+    x[0] = x[1] = x[2] = 0.0;
+    *rcond = 0.0;
+    for (int32_t k = 0; k < 3; k++) {
+        double norm = 0.0;
+        for (int32_t i = k; i < rows; i++) {
+            norm += m[i][k] * m[i][k];
+        }
+        norm = sqrt(norm);
+        if (!(norm > 0.0)) {
+            return;
+        }
+        const double alpha = m[k][k] > 0.0 ? -norm : norm;
+        /* v = column k below the diagonal, minus alpha e_k; |v|^2 = 2 norm (norm + |m_kk|) */
+        m[k][k] -= alpha;
+        const double vnorm2 = 2.0 * norm * (norm + fabs(m[k][k] + alpha));
+        for (int32_t j = k + 1; j < 3; j++) {
+            double dot = 0.0;
+            for (int32_t i = k; i < rows; i++) {
+                dot += m[i][k] * m[i][j];
+            }
+            const double f = 2.0 * dot / vnorm2;
+            for (int32_t i = k; i < rows; i++) {
+                m[i][j] -= f * m[i][k];
+            }
+        }
+        double dot = 0.0;
+        for (int32_t i = k; i < rows; i++) {
+            dot += m[i][k] * b[i];
+        }
+        const double f = 2.0 * dot / vnorm2;
+        for (int32_t i = k; i < rows; i++) {
+            b[i] -= f * m[i][k];
+        }
+        m[k][k] = alpha;
+    }
+    /* R = upper triangle of m[0..2]; its inverse, for the condition number. */
+    const double r00 = m[0][0], r01 = m[0][1], r02 = m[0][2];
+    const double r11 = m[1][1], r12 = m[1][2], r22 = m[2][2];
+    const double i00 = 1.0 / r00, i11 = 1.0 / r11, i22 = 1.0 / r22;
+    const double i01 = -r01 * i00 * i11, i12 = -r12 * i11 * i22;
+    const double i02 = -(r01 * i12 + r02 * i22) * i00;
+    const double n_r = fmax(fabs(r00), fmax(fabs(r01) + fabs(r11), fabs(r02) + fabs(r12) + fabs(r22)));
+    const double n_i = fmax(fabs(i00), fmax(fabs(i01) + fabs(i11), fabs(i02) + fabs(i12) + fabs(i22)));
+    const double rc = 1.0 / (n_r * n_i);
+    if (!isfinite(rc)) {
+        return;
+    }
+    *rcond = rc;
+    const double z2 = b[2] * i22;
+    const double z1 = (b[1] - r12 * z2) * i11;
+    const double z0 = (b[0] - r01 * z1 - r02 * z2) * i00;
+    x[0] = z0;
+    x[1] = z1;
+    x[2] = z2;
+}
+
+int kin_geom_solve(const kin_robot *rb, const kin_wheel_rows *w, double *xi, double *slip,
+                   double *rcond)
+{
+    double m[2 * KIN_MAX_WHEELS][3];
+    double b[2 * KIN_MAX_WHEELS];
+    int32_t rows = 0;
+    const double wn = sqrt(rb->c_n), wt = sqrt(rb->c_t);
+    /* Unknowns (dx, dy, L dtheta): L, the farthest wheel's distance from the reference
+     * point, makes the rotation column a speed like the others. */
+    double len = rb->l;
+    for (int32_t i = 0; i < w->count; i++) {
+        len = fmax(len, hypot(w->n_theta[i], w->t_theta[i]));
+    }
+    for (int32_t i = 0; i < w->count; i++) {
+        m[rows][0] = -w->ty[i] * wn;
+        m[rows][1] = w->tx[i] * wn;
+        m[rows][2] = w->n_theta[i] / len * wn;
+        b[rows++] = -w->n_joint[i] * wn;
+        if (wt > 0.0) {
+            m[rows][0] = w->tx[i] * wt;
+            m[rows][1] = w->ty[i] * wt;
+            m[rows][2] = w->t_theta[i] / len * wt;
+            b[rows++] = -w->t_joint[i] * wt;
+        }
+    }
+    double x[3], rc;
+    int at_rest = 1;
+    for (int32_t i = 0; i < rows; i++) {
+        at_rest = at_rest && b[i] == 0.0;
+    }
+    lsq3(m, b, rows, x, &rc);
+    if (rcond != NULL) {
+        *rcond = rc;
+    }
+    if (rc < RCOND_SINGULAR) {
+        /* Joints at rest: nothing pushes the body, which stays still even where the
+         * axles leave it free (a straight snake). Otherwise the motion is undetermined. */
+        xi[0] = xi[1] = xi[2] = 0.0;
+        if (slip != NULL) {
+            for (int32_t i = 0; i < w->count; i++) {
+                slip[i] = 0.0;
+            }
+        }
+        return at_rest ? KIN_OK : KIN_ESINGULAR;
+    }
+    xi[0] = x[0];
+    xi[1] = x[1];
+    xi[2] = x[2] / len;
+    if (slip != NULL) {
+        for (int32_t i = 0; i < w->count; i++) {
+            slip[i] = -w->ty[i] * xi[0] + w->tx[i] * xi[1] + w->n_theta[i] * xi[2]
+                      + w->n_joint[i];
+        }
+    }
+    return KIN_OK;
+}
+
+int kin_body_velocity(const kin_robot *rb, const double *q, const double *dphi, double *xi,
+                      double *slip, double *rcond)
+{
+    kin_wheel_rows w;
+    if (dphi == NULL || xi == NULL) {
+        return KIN_EINVAL;
+    }
+    int rc = kin_geom_rows(rb, q, dphi, &w);
+    if (rc != KIN_OK) {
+        return rc;
+    }
+    return kin_geom_solve(rb, &w, xi, slip, rcond);
+}
+
+const char *kin_strerror(int code)
+{
+    switch (code) {
+    case KIN_OK:
+        return "success";
+    case KIN_EINVAL:
+        return "invalid argument (null pointer, size out of range or bad option)";
+    case KIN_EGEOMETRY:
+        return "invalid robot geometry (lengths must be positive, 2 to 16 snake links)";
+    case KIN_ESINGULAR:
+        return "singular configuration: the wheel axles meet in one point or are all "
+               "parallel, so the body velocity is not determined";
+    case KIN_EINADMISSIBLE:
+        return "the joint motion crosses a singular configuration in a direction the "
+               "wheels cannot follow without slipping";
+    case KIN_ESTEPSIZE:
+        return "the adaptive step size fell below its minimum (the motion is too abrupt "
+               "or singular there)";
+    case KIN_EMAXSTEPS:
+        return "the step budget ran out before the end time";
+    case KIN_ENONFINITE:
+        return "a non-finite number (NaN or infinity) appeared";
+    case KIN_EUNSUPPORTED:
+        return "no vector-field model for this robot (only the 3-link snake and the trident "
+               "have one)";
+    default:
+        return "unknown kinematic-core status";
+    }
+}

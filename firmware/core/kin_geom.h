@@ -1,0 +1,24 @@
+/* Internal to the kinematic core: per-wheel rows of the slip equations. */
+#ifndef SNAKEBOT_KIN_GEOM_H
+#define SNAKEBOT_KIN_GEOM_H
+
+#include "kin_core.h"
+
+/* Wheel i: position (px, py), rolling direction (tx, ty), and the coefficients of its
+ * normal / tangential speed: n.v = n.(dx, dy) + n_theta dtheta + n_joint, where n_joint
+ * (t_joint) is the joint velocities' contribution. */
+typedef struct {
+    int32_t count;
+    double px[KIN_MAX_WHEELS], py[KIN_MAX_WHEELS];
+    double tx[KIN_MAX_WHEELS], ty[KIN_MAX_WHEELS];
+    double n_theta[KIN_MAX_WHEELS], t_theta[KIN_MAX_WHEELS];
+    double n_joint[KIN_MAX_WHEELS], t_joint[KIN_MAX_WHEELS];
+} kin_wheel_rows;
+
+/* Fill the rows at q for joint velocities dphi (NULL: zero). */
+int kin_geom_rows(const kin_robot *rb, const double *q, const double *dphi, kin_wheel_rows *w);
+/* Solve the minimum-slip problem for those rows (see kin_body_velocity). */
+int kin_geom_solve(const kin_robot *rb, const kin_wheel_rows *w, double *xi, double *slip,
+                   double *rcond);
+
+#endif

@@ -1,0 +1,382 @@
+/* Whole trajectories in one call: joint schedules (the body follows through the
+ * minimum-slip model) and field-driven systems (qdot = sum_i u_i(t) g_i(q)).
+ *
+ * Singular configurations under a joint schedule. Where the wheel axles are concurrent
+ * (the 3-link snake's line phi1 = phi2, c_t = 0) the body velocity is 0/0: a serpenoid
+ * crosses that line with the one admissible joint velocity, so along the trajectory the
+ * body velocity is a smooth function of time with a removable singularity, but
+ * evaluating it within ~1e-8 of the crossing loses all accuracy. There, and only there,
+ * the right-hand side is extrapolated in time at fixed pose from four well-conditioned
+ * neighbours t +- e, t +- 2e (Richardson: error e^4 f''''/6, e = 1e-4 of the schedule's
+ * time scale). A genuine pole (an inadmissible crossing) is told apart by its
+ * differences growing, not shrinking, towards t, and reported as KIN_EINADMISSIBLE. */
+#include "kin_core.h"
+#include "kin_fields.h"
+#include "kin_geom.h"
+#include "kin_ode.h"
+
+#include <math.h>
+
+#define TWO_PI 6.283185307179586
+/* Below this conditioning the direct solve is not trusted to ~1e-8: extrapolate. */
+#define RCOND_FALLBACK 1e-8
+#define FALLBACK_EPS 1e-4
+#define FALLBACK_TRIES 5
+
+/* ---- schedules ---- */
+
+static int schedule_check(const kin_schedule *s, int32_t joints)
+{
+    if (s == NULL || s->joints != joints || joints < 1 || joints > KIN_MAX_JOINTS) {
+        return KIN_EINVAL;
+    }
+    if (s->type == KIN_SCHED_SINES) {
+        if (!isfinite(s->omega)) {
+            return KIN_ENONFINITE;
+        }
+        for (int32_t j = 0; j < joints; j++) {
+            if (!isfinite(s->offset[j]) || !isfinite(s->rate[j]) || !isfinite(s->amp[j])
+                || !isfinite(s->phase[j])) {
+                return KIN_ENONFINITE;
+            }
+        }
+        return KIN_OK;
+    }
+    if (s->type == KIN_SCHED_TABLE) {
+        if (s->samples == NULL || s->rows < 1 || !(s->dt > 0.0) || !isfinite(s->dt)) {
+            return KIN_EINVAL;
+        }
+        for (int32_t i = 0; i < s->rows * joints; i++) {
+            if (!isfinite(s->samples[i])) {
+                return KIN_ENONFINITE;
+            }
+        }
+        return KIN_OK;
+    }
+    return KIN_EINVAL;
+}
+
+static double segment_of(const kin_schedule *s, double t)
+{
+    return s->type == KIN_SCHED_TABLE ? floor(t / s->dt) : 0.0;
+}
+
+/* Evaluate the schedule; a table uses segment `seg` (its linear extension around it). */
+static void schedule_at(const kin_schedule *s, double seg, double t, double *phi, double *dphi)
+{
+    const int32_t n = s->joints;
+    if (s->type == KIN_SCHED_SINES) {
+        for (int32_t j = 0; j < n; j++) {
+            const double arg = s->omega * t + s->phase[j];
+            phi[j] = s->offset[j] + s->rate[j] * t + s->amp[j] * sin(arg);
+            dphi[j] = s->rate[j] + s->amp[j] * s->omega * cos(arg);
+        }
+        return;
+    }
+    const double rows = (double)s->rows;
+    int32_t r0, r1;
+    int hold = 0;
+    if (s->loop) {
+        double m = fmod(seg, rows);
+        if (m < 0.0) {
+            m += rows;
+        }
+        r0 = (int32_t)m;
+        if (r0 >= s->rows) {
+            r0 = s->rows - 1;
+        }
+        r1 = r0 + 1 < s->rows ? r0 + 1 : 0;
+    } else if (seg < 0.0) {
+        r0 = r1 = 0;
+        hold = 1;
+    } else if (seg >= rows - 1.0) {
+        r0 = r1 = s->rows - 1;
+        hold = 1;
+    } else {
+        r0 = (int32_t)seg;
+        r1 = r0 + 1;
+    }
+    const double *a = s->samples + (size_t)r0 * (size_t)n;
+    const double *b = s->samples + (size_t)r1 * (size_t)n;
+    const double frac = (t - seg * s->dt) / s->dt;
+    for (int32_t j = 0; j < n; j++) {
+        const double slope = hold ? 0.0 : (b[j] - a[j]) / s->dt;
+        phi[j] = a[j] + (hold ? 0.0 : frac * (b[j] - a[j]));
+        dphi[j] = slope;
+    }
+}
+
+int kin_schedule_eval(const kin_schedule *s, double t, double *phi, double *dphi)
+{
+    if (s == NULL || phi == NULL || dphi == NULL || !isfinite(t)) {
+        return KIN_EINVAL;
+    }
+    int rc = schedule_check(s, s->joints);
+    if (rc != KIN_OK) {
+        return rc;
+    }
+    schedule_at(s, segment_of(s, t), t, phi, dphi);
+    return KIN_OK;
+}
+
+/* ---- joint-driven body motion ---- */
+
+typedef struct {
+    const kin_robot *rb;
+    const kin_schedule *s;
+    int32_t joints;
+    double seg;
+    double tscale;
+    kin_stats *stats;
+} joint_ctx;
+
+static int joint_rates(joint_ctx *c, double t, const double *pose, double *xi, double *slip,
+                       double *rcond)
+{
+    double q[KIN_MAX_STATE], dphi[KIN_MAX_JOINTS];
+    kin_wheel_rows w;
+    q[0] = pose[0];
+    q[1] = pose[1];
+    q[2] = pose[2];
+    schedule_at(c->s, c->seg, t, q + 3, dphi);
+    int rc = kin_geom_rows(c->rb, q, dphi, &w);
+    if (rc != KIN_OK) {
+        return rc;
+    }
+    rc = kin_geom_solve(c->rb, &w, xi, slip, rcond);
+    if (*rcond < c->stats->min_rcond) {
+        c->stats->min_rcond = *rcond;
+    }
+    return rc;
+}
+
+static double norm3(const double *v)
+{
+    return sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+}
+
+/* Body velocity (and slip) at t, extrapolating in time near a singular configuration. */
+static int joint_rates_robust(joint_ctx *c, double t, const double *pose, double *xi,
+                              double *slip)
+{
+    double rcond;
+    int rc = joint_rates(c, t, pose, xi, slip, &rcond);
+    if (rc == KIN_OK && rcond >= RCOND_FALLBACK) {
+        return KIN_OK;
+    }
+    if (rc != KIN_OK && rc != KIN_ESINGULAR) {
+        return rc;
+    }
+    c->stats->fallbacks++;
+    const int32_t wheels = kin_wheel_count(c->rb);
+    static const double offsets[4] = {-2.0, -1.0, 1.0, 2.0};
+    double e = FALLBACK_EPS * c->tscale;
+    for (int32_t attempt = 0; attempt < FALLBACK_TRIES; attempt++, e *= 4.0) {
+        double x[4][3], s[4][KIN_MAX_WHEELS];
+        int ok = 1;
+        for (int32_t k = 0; k < 4 && ok; k++) {
+            rc = joint_rates(c, t + offsets[k] * e, pose, x[k], s[k], &rcond);
+            ok = rc == KIN_OK && rcond >= RCOND_FALLBACK;
+        }
+        if (!ok) {
+            continue;
+        }
+        double d1[3], d2[3], scale = 0.0;
+        for (int32_t i = 0; i < 3; i++) {
+            d1[i] = x[2][i] - x[1][i];
+            d2[i] = x[3][i] - x[0][i];
+            xi[i] = (4.0 * (x[1][i] + x[2][i]) - (x[0][i] + x[3][i])) / 6.0;
+        }
+        for (int32_t k = 0; k < 4; k++) {
+            scale = fmax(scale, norm3(x[k]));
+        }
+        /* Smooth: |d1| ~ |d2| / 2 or less. Pole c / (t' - t): |d1| ~ 2 |d2|. */
+        if (norm3(d1) > norm3(d2) && norm3(d1) > 1e-6 * scale) {
+            c->stats->t_fail = t;
+            return KIN_EINADMISSIBLE;
+        }
+        if (slip != NULL) {
+            for (int32_t i = 0; i < wheels; i++) {
+                slip[i] = (4.0 * (s[1][i] + s[2][i]) - (s[0][i] + s[3][i])) / 6.0;
+            }
+        }
+        return KIN_OK;
+    }
+    c->stats->t_fail = t;
+    return KIN_ESINGULAR;
+}
+
+static int joint_rhs(void *ctx, double t, const double *y, double *dy)
+{
+    return joint_rates_robust((joint_ctx *)ctx, t, y, dy, NULL);
+}
+
+static int check_span(double t0, double t1, int32_t n_out, const double *out)
+{
+    if (out == NULL || n_out < 2 || !isfinite(t0) || !isfinite(t1) || !(t1 >= t0)) {
+        return KIN_EINVAL;
+    }
+    return KIN_OK;
+}
+
+static void stats_start(kin_stats *st, double t0)
+{
+    st->steps = st->rejected = st->evals = st->fallbacks = 0;
+    st->min_rcond = 1.0;
+    st->t_fail = t0;
+}
+
+int kin_integrate_joints(const kin_robot *rb, const kin_schedule *s, const double *pose0,
+                         double t0, double t1, int32_t n_out, const kin_options *opt,
+                         double *out, double *slip, kin_stats *stats)
+{
+    kin_stats local;
+    kin_stats *st = stats != NULL ? stats : &local;
+    int32_t joints;
+    int rc = kin_check_robot(rb, &joints);
+    if (rc != KIN_OK) {
+        return rc;
+    }
+    if (pose0 == NULL || (rc = check_span(t0, t1, n_out, out)) != KIN_OK
+        || (rc = schedule_check(s, joints)) != KIN_OK) {
+        return rc;
+    }
+    if (!isfinite(pose0[0]) || !isfinite(pose0[1]) || !isfinite(pose0[2])) {
+        return KIN_ENONFINITE;
+    }
+    stats_start(st, t0);
+    joint_ctx c = {rb, s, joints, segment_of(s, t0), 1.0, st};
+    if (s->type == KIN_SCHED_TABLE) {
+        c.tscale = s->dt;
+    } else if (s->omega != 0.0) {
+        c.tscale = TWO_PI / fabs(s->omega);
+    }
+    kin_ode ode;
+    if ((rc = kin_ode_init(&ode, 3, joint_rhs, &c, opt, st)) != KIN_OK) {
+        return rc;
+    }
+    const int32_t width = 3 + joints;
+    const int32_t wheels = kin_wheel_count(rb);
+    double y[3] = {pose0[0], pose0[1], pose0[2]};
+    double t = t0;
+    for (int32_t k = 0; k < n_out; k++) {
+        const double tk = k == n_out - 1 ? t1 : t0 + (t1 - t0) * (double)k / (double)(n_out - 1);
+        while (t < tk) {
+            double seg = segment_of(s, t), end = tk;
+            if (s->type == KIN_SCHED_TABLE) {
+                double knot = (seg + 1.0) * s->dt;
+                if (knot - t <= 1e-12 * s->dt) { /* t sits on a knot: rounding put it left */
+                    seg += 1.0;
+                    knot = (seg + 1.0) * s->dt;
+                }
+                if (knot < end) {
+                    end = knot;
+                }
+            }
+            if (seg != c.seg) {
+                c.seg = seg;
+                kin_ode_reset(&ode);
+            }
+            if ((rc = kin_ode_advance(&ode, y, t, end)) != KIN_OK) {
+                return rc;
+            }
+            t = end;
+        }
+        double *row = out + (size_t)k * (size_t)width;
+        double dphi[KIN_MAX_JOINTS], xi[3];
+        row[0] = y[0];
+        row[1] = y[1];
+        row[2] = y[2];
+        schedule_at(s, c.seg, tk, row + 3, dphi);
+        if (slip != NULL) {
+            rc = joint_rates_robust(&c, tk, y, xi, slip + (size_t)k * (size_t)wheels);
+            if (rc != KIN_OK) {
+                return rc;
+            }
+        }
+    }
+    return KIN_OK;
+}
+
+/* ---- field-driven systems ---- */
+
+typedef struct {
+    const kin_robot *rb;
+    const kin_inputs *u;
+    int32_t inputs;
+    int32_t n;
+    double corners[9];
+} field_ctx;
+
+static int field_rhs(void *ctx, double t, const double *y, double *dy)
+{
+    const field_ctx *c = (const field_ctx *)ctx;
+    double u[KIN_MAX_INPUTS];
+    const double sn = sin(c->u->omega * t), cs = cos(c->u->omega * t);
+    const double sn2 = 2.0 * sn * cs, cs2 = cs * cs - sn * sn;
+    for (int32_t i = 0; i < c->inputs; i++) {
+        u[i] = c->u->c[i] + c->u->a[i] * sn + c->u->b[i] * cs + c->u->a2[i] * sn2
+               + c->u->b2[i] * cs2;
+    }
+    return kin_fields_velocity_unchecked(c->rb, c->corners, c->u->form, c->n, c->inputs, y, u,
+                                         dy);
+}
+
+int kin_integrate_fields(const kin_robot *rb, const kin_inputs *u, const double *q0,
+                         double t0, double t1, int32_t n_out, const kin_options *opt,
+                         double *out, kin_stats *stats)
+{
+    kin_stats local;
+    kin_stats *st = stats != NULL ? stats : &local;
+    int32_t fields, inputs, joints;
+    int rc = kin_field_count(rb, &fields, &inputs);
+    if (rc != KIN_OK || (rc = kin_check_robot(rb, &joints)) != KIN_OK) {
+        return rc;
+    }
+    if (u == NULL || q0 == NULL || (rc = check_span(t0, t1, n_out, out)) != KIN_OK) {
+        return rc == KIN_OK ? KIN_EINVAL : rc;
+    }
+    if (u->form != KIN_FORM_BODY && u->form != KIN_FORM_WORLD) {
+        return KIN_EINVAL;
+    }
+    if (!isfinite(u->omega)) {
+        return KIN_ENONFINITE;
+    }
+    for (int32_t i = 0; i < inputs; i++) {
+        if (!isfinite(u->c[i]) || !isfinite(u->a[i]) || !isfinite(u->b[i])
+            || !isfinite(u->a2[i]) || !isfinite(u->b2[i])) {
+            return KIN_ENONFINITE;
+        }
+    }
+    const int32_t n = 3 + joints;
+    for (int32_t i = 0; i < n; i++) {
+        if (!isfinite(q0[i])) {
+            return KIN_ENONFINITE;
+        }
+    }
+    stats_start(st, t0);
+    field_ctx c = {rb, u, inputs, n, {0.0}};
+    kin_fields_corners(rb, c.corners);
+    kin_ode ode;
+    if ((rc = kin_ode_init(&ode, n, field_rhs, &c, opt, st)) != KIN_OK) {
+        return rc;
+    }
+    double y[KIN_MAX_STATE];
+    for (int32_t i = 0; i < n; i++) {
+        y[i] = q0[i];
+    }
+    double t = t0;
+    for (int32_t k = 0; k < n_out; k++) {
+        const double tk = k == n_out - 1 ? t1 : t0 + (t1 - t0) * (double)k / (double)(n_out - 1);
+        if (tk > t) {
+            if ((rc = kin_ode_advance(&ode, y, t, tk)) != KIN_OK) {
+                return rc;
+            }
+            t = tk;
+        }
+        for (int32_t i = 0; i < n; i++) {
+            out[(size_t)k * (size_t)n + (size_t)i] = y[i];
+        }
+    }
+    return KIN_OK;
+}

@@ -1,0 +1,31 @@
+/* Internal to the kinematic core: a generic ODE stepper (fixed-step RK4 and adaptive
+ * Dormand-Prince 5(4) with FSAL and error control) over a right-hand-side callback.
+ * Not published to Python; the kin_integrate_* functions drive it. */
+#ifndef SNAKEBOT_KIN_ODE_H
+#define SNAKEBOT_KIN_ODE_H
+
+#include "kin_core.h"
+
+typedef int (*kin_rhs_fn)(void *ctx, double t, const double *y, double *dy);
+
+typedef struct {
+    int32_t n;            /* state dimension, <= KIN_MAX_STATE */
+    kin_rhs_fn f;
+    void *ctx;
+    kin_options opt;      /* validated copy, defaults filled in */
+    kin_stats *stats;     /* never NULL once initialised */
+    double h;             /* DOPRI5: the step to try next (0 = choose one) */
+    int32_t budget;       /* steps left (accepted + rejected) */
+    int32_t have_k1;      /* DOPRI5 FSAL: k1 holds f(t, y) for the current (t, y) */
+    double k1[KIN_MAX_STATE];
+} kin_ode;
+
+/* Validate options and prepare; stats must not be NULL. */
+int kin_ode_init(kin_ode *ode, int32_t n, kin_rhs_fn f, void *ctx, const kin_options *opt,
+                 kin_stats *stats);
+/* Forget the cached derivative (call when the right-hand side changes discontinuously). */
+void kin_ode_reset(kin_ode *ode);
+/* Advance y in place from t to t_end (t_end > t). */
+int kin_ode_advance(kin_ode *ode, double *y, double t, double t_end);
+
+#endif

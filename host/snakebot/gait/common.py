@@ -1,0 +1,146 @@
+"""What every gait generator shares: the result type, the gait table it becomes, and
+the body motion predicted from the continuous gait and from the table as written."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from snakebot.core import lib
+from snakebot.errors import SnakebotError
+from snakebot.gaittable import GaitTable, max_frames
+from snakebot.kinematics import (
+    KinematicsError,
+    Options,
+    Table,
+    Trajectory,
+    integrate_joints,
+)
+from snakebot.robots import Robot
+
+#: Accuracy of every prediction (Dormand-Prince 5(4)).
+PREDICT_OPTIONS = Options("dopri5", rtol=1e-10, atol=1e-12)
+#: Rolling friction used for the table prediction when the ideal model (c_t = 0) is
+#: singular on the rounded table (a crossing of the 3-link snake's singular line that
+#: rounding to ticks has made slightly inadmissible).
+REGULARISING_CT = 1e-3
+PATH_POINTS = 300
+
+
+class GaitError(SnakebotError):
+    """A gait that cannot be generated as asked; the message says what to change."""
+
+
+def motion(traj: Trajectory) -> dict[str, float]:
+    """Body displacement over the trajectory: (dx, dy) in the start pose's frame, dtheta."""
+    start, end = traj.q[0], traj.q[-1]
+    c, s = math.cos(start[2]), math.sin(start[2])
+    dx, dy = end[0] - start[0], end[1] - start[1]
+    return {"dx": float(c * dx + s * dy), "dy": float(-s * dx + c * dy),
+            "dtheta": float(end[2] - start[2])}
+
+
+def path(traj: Trajectory, points: int = PATH_POINTS) -> dict[str, list[float]]:
+    """At most ``points`` samples of the body pose, for plots."""
+    idx = np.unique(np.linspace(0, len(traj.t) - 1, min(points, len(traj.t))).round().astype(int))
+    return {"t": traj.t[idx].round(6).tolist(), "x": traj.q[idx, 0].round(9).tolist(),
+            "y": traj.q[idx, 1].round(9).tolist(), "theta": traj.q[idx, 2].round(9).tolist()}
+
+
+def frame_budget(robot: Robot, frames: int, hint: str) -> None:
+    """GaitError if ``frames`` frames do not fit the controller's table."""
+    most = max_frames(robot.n_joints)
+    if frames > most:
+        raise GaitError(f"the gait needs {frames} frames but the controller holds at most "
+                        f"{most} for {robot.n_joints} joints: {hint}")
+    if frames < 2:
+        raise GaitError(f"the gait has only {frames} frame: raise the rate or the duration")
+
+
+def predict_table(robot: Robot, ticks: np.ndarray, period_s: float, loop: bool,
+                  pose0: tuple[float, float, float] = (0.0, 0.0, 0.0)
+                  ) -> tuple[Trajectory, dict[str, Any]]:
+    """Body motion from the table as the controller plays it: ticks back to angles,
+    linear between frames, a loop wrapping to frame 0; one pass."""
+    angles = robot.ticks_to_angles(ticks)
+    frames = len(ticks)
+    duration = period_s * (frames if loop else frames - 1)
+    samples = max(2, min(4 * frames + 1, 4001))
+    schedule = Table(angles, period_s, loop)
+    note: dict[str, Any] = {"c_t": robot.c_t}
+    try:
+        traj = integrate_joints(robot, schedule, duration, pose0=pose0, samples=samples,
+                                options=PREDICT_OPTIONS)
+    except KinematicsError as exc:
+        # Near an inadmissible crossing the ideal body velocity has a pole: the step
+        # size collapses or the crossing is reported. Real wheels slip a little there.
+        singular = (lib.KIN_ESINGULAR, lib.KIN_EINADMISSIBLE, lib.KIN_ESTEPSIZE)
+        if robot.c_t > 0 or exc.code not in singular:
+            raise
+        c_t = REGULARISING_CT * robot.c_n
+        traj = integrate_joints(robot, schedule, duration, pose0=pose0, samples=samples,
+                                options=PREDICT_OPTIONS, c_t=c_t)
+        note = {"c_t": c_t, "note": "the ideal model (c_t = 0) is singular on the rounded "
+                f"table; predicted with rolling friction c_t = {c_t:g}"}
+    return traj, note
+
+
+@dataclass
+class Gait:
+    """A generated gait: frames in ticks plus everything known about it."""
+
+    robot: Robot
+    kind: str
+    parameters: dict[str, Any]
+    period_ms: int
+    loop: bool
+    ticks: np.ndarray  # (frames, joints)
+    predicted: dict[str, float]
+    table: dict[str, Any]
+    path: dict[str, list[float]]
+    table_path: dict[str, list[float]]
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def duration_s(self) -> float:
+        frames = len(self.ticks)
+        return self.period_ms / 1000.0 * (frames if self.loop else frames - 1)
+
+    def summary(self) -> dict[str, Any]:
+        """The JSON-able description printed by ``--json`` and stored as metadata."""
+        return {
+            "gait": self.kind,
+            "robot": self.robot.name,
+            "robot_source": self.robot.source,
+            "joints": [{"name": j.name, "servo_id": j.servo_id, "zero_tick": j.zero_tick,
+                        "sign": j.sign} for j in self.robot.joints],
+            "parameters": self.parameters,
+            "frames": len(self.ticks),
+            "frame_period_ms": self.period_ms,
+            "loop": self.loop,
+            "duration_s": round(self.duration_s, 6),
+            "predicted": self.predicted,
+            "table": self.table,
+            **self.extra,
+        }
+
+    def metadata(self) -> dict[str, Any]:
+        return {**self.summary(), "path": self.path, "table_path": self.table_path}
+
+    def gait_table(self) -> GaitTable:
+        return GaitTable(self.robot.servo_ids, self.period_ms, self.loop,
+                         self.robot.tick_limits, self.ticks.astype(np.uint16), self.metadata())
+
+
+def period_ms_for(rate_hz: float) -> int:
+    """Frame period in whole milliseconds for a frame rate."""
+    if not rate_hz > 0 or not math.isfinite(rate_hz):
+        raise GaitError(f"--rate must be a positive frame rate in Hz, not {rate_hz}")
+    period = round(1000.0 / rate_hz)
+    if not 1 <= period <= 65535:
+        raise GaitError(f"--rate {rate_hz} Hz gives a frame period of {period} ms: use a rate "
+                        "between 0.016 and 1000 Hz")
+    return period

@@ -1,0 +1,103 @@
+"""The bridge to the C kinematic core: robot structs, options, and status codes turned
+into exceptions that say what went wrong and what to do."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from snakebot.core import ffi, lib
+from snakebot.errors import SnakebotError
+from snakebot.robots import Robot
+
+FORMS = {"body": lib.KIN_FORM_BODY, "world": lib.KIN_FORM_WORLD}
+METHODS = {"rk4": lib.KIN_RK4, "dopri5": lib.KIN_DOPRI5}
+
+_HINTS = {
+    lib.KIN_ESINGULAR: "move the joints away from that configuration, or give the wheels "
+    "some rolling friction (friction.c_t > 0 in the robot file) so the motion is defined",
+    lib.KIN_EINADMISSIBLE: "change the joint motion so it crosses the singular configuration "
+    "with the admissible joint velocity, or give the wheels rolling friction (c_t > 0)",
+    lib.KIN_ESTEPSIZE: "loosen the tolerance, or check the motion for a singular configuration",
+    lib.KIN_EMAXSTEPS: "shorten the time span or loosen the tolerance",
+    lib.KIN_ENONFINITE: "check the inputs for NaN or infinity",
+    lib.KIN_EUNSUPPORTED: "use snake3 or trident, or drive the joints instead (gait serpenoid)",
+    lib.KIN_EGEOMETRY: "fix the robot description's lengths and link count",
+    lib.KIN_EINVAL: "this is a bug in the caller: report it",
+}
+
+
+class KinematicsError(SnakebotError):
+    """A status from the C kinematic core; ``code`` is the KIN_* value."""
+
+    def __init__(self, code: int, context: str = "") -> None:
+        self.code = code
+        text = ffi.string(lib.kin_strerror(code)).decode()
+        where = f" ({context})" if context else ""
+        hint = _HINTS.get(code)
+        super().__init__(f"{text}{where}" + (f": {hint}" if hint else ""))
+
+
+class SingularConfiguration(KinematicsError):
+    """The configuration is singular (KIN_ESINGULAR) or crossed inadmissibly."""
+
+
+def check(code: int, context: str = "") -> None:
+    """Raise the exception for a C status code (nothing for KIN_OK)."""
+    if code == lib.KIN_OK:
+        return
+    if code in (lib.KIN_ESINGULAR, lib.KIN_EINADMISSIBLE):
+        raise SingularConfiguration(code, context)
+    raise KinematicsError(code, context)
+
+
+def c_robot(robot: Robot, c_t: float | None = None) -> Any:
+    """A ``kin_robot`` struct for the robot (optionally overriding its c_t)."""
+    rb = ffi.new("kin_robot *")
+    rb.kind = lib.KIN_SNAKE if robot.kind == "snake" else lib.KIN_TRIDENT
+    rb.links = robot.links if robot.kind == "snake" else 0
+    rb.l = robot.l
+    rb.r = robot.r
+    for i, a in enumerate(robot.alphas[:3]):
+        rb.alpha[i] = a
+    rb.c_n = robot.c_n
+    rb.c_t = robot.c_t if c_t is None else c_t
+    check(lib.kin_check_robot(rb, ffi.NULL), f"robot {robot.name}")
+    return rb
+
+
+@dataclass(frozen=True)
+class Options:
+    """Integrator settings: ``method`` "dopri5" (adaptive, rtol/atol) or "rk4" (step h)."""
+
+    method: str = "dopri5"
+    rtol: float = 1e-9
+    atol: float = 1e-12
+    h: float = 0.0
+    h_min: float = 0.0
+    max_steps: int = 0
+
+    def to_c(self) -> Any:
+        if self.method not in METHODS:
+            raise KinematicsError(lib.KIN_EINVAL, f"unknown method {self.method!r}: "
+                                  f"use one of {', '.join(METHODS)}")
+        opt = ffi.new("kin_options *")
+        opt.method = METHODS[self.method]
+        opt.h, opt.rtol, opt.atol, opt.h_min = self.h, self.rtol, self.atol, self.h_min
+        opt.max_steps = self.max_steps
+        return opt
+
+
+def as_doubles(values: Any, length: int, what: str) -> np.ndarray:
+    """A contiguous float64 copy with exactly ``length`` entries (ValueError otherwise)."""
+    arr = np.ascontiguousarray(values, dtype=np.float64).reshape(-1)
+    if arr.size != length:
+        raise ValueError(f"{what} needs {length} values, got {arr.size}")
+    return arr
+
+
+def dptr(arr: np.ndarray) -> Any:
+    """A ``double *`` into a contiguous float64 numpy array."""
+    return ffi.cast("double *", ffi.from_buffer(arr))

@@ -1,0 +1,206 @@
+"""Reading robot descriptions from TOML, with errors that name the key and its line.
+
+Schema (see the built-in files beside this module for complete examples)::
+
+    name = "snake5"
+    kind = "snake"                # or "trident"
+    description = "..."           # optional
+    [geometry]                    # snake: links (>= 2), half_link (l > 0)
+                                  # trident: base_radius, arm_length, alphas_deg (3 angles)
+    [friction]                    # c_n > 0, c_t >= 0 (optional; defaults 1 and 0)
+    [servo]                       # model ("AX-12A" or "AX-12W"), max_speed_rpm (optional)
+    [[joints]]                    # one per actuated joint, in order phi_1, phi_2, ...
+    name, servo_id (0-253), zero_tick (0-1023), sign (1 or -1), min_deg, max_deg
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from snakebot.robots.model import SERVO_MAX_RPM, TICK_MAX, TICK_MIN, Joint, Robot, RobotError
+
+BUILTIN_ROBOTS = ("snake3", "trident", "snake5")
+MAX_LINKS = 16  # the C core's fixed buffers (KIN_MAX_LINKS)
+
+_ARRAY_HEADER = re.compile(r"^\s*\[\[\s*([A-Za-z0-9_.\-]+)\s*\]\]")
+_TABLE_HEADER = re.compile(r"^\s*\[\s*([A-Za-z0-9_.\-]+)\s*\]")
+_KEY_LINE = re.compile(r'^\s*"?([A-Za-z0-9_\-]+)"?\s*=')
+
+
+def _key_lines(text: str) -> dict[tuple[str, ...], int]:
+    """Map key paths such as ("joints", "2", "sign") or ("geometry",) to 1-based lines."""
+    lines: dict[tuple[str, ...], int] = {}
+    table: tuple[str, ...] = ()
+    counts: dict[str, int] = {}
+    for number, line in enumerate(text.splitlines(), start=1):
+        if m := _ARRAY_HEADER.match(line):
+            name = m.group(1)
+            index = counts.get(name, 0)
+            counts[name] = index + 1
+            table = (name, str(index))
+            lines.setdefault(table, number)
+            lines.setdefault((name,), number)
+        elif m := _TABLE_HEADER.match(line):
+            table = tuple(m.group(1).split("."))
+            lines.setdefault(table, number)
+        elif m := _KEY_LINE.match(line):
+            lines.setdefault((*table, m.group(1)), number)
+    return lines
+
+
+class _Reader:
+    """Typed access to the parsed TOML that raises ``RobotError`` naming key and line."""
+
+    def __init__(self, data: dict[str, Any], text: str, source: str) -> None:
+        self.data = data
+        self.lines = _key_lines(text)
+        self.source = source
+
+    def where(self, path: tuple[str, ...]) -> str:
+        for n in range(len(path), 0, -1):
+            if path[:n] in self.lines:
+                return f"{self.source}, line {self.lines[path[:n]]}"
+        return self.source
+
+    def fail(self, path: tuple[str, ...], problem: str) -> RobotError:
+        key = ".".join(p if not p.isdigit() else f"[{p}]" for p in path).replace(".[", "[")
+        return RobotError(f"{self.where(path)}: key '{key}' {problem}")
+
+    def get(self, path: tuple[str, ...], kind: type | tuple[type, ...], default: Any = ...) -> Any:
+        node: Any = self.data
+        for part in path:
+            if isinstance(node, list):
+                node = node[int(part)]
+            elif isinstance(node, dict) and part in node:
+                node = node[part]
+            elif default is not ...:
+                return default
+            else:
+                raise self.fail(path, "is missing: add it (see the built-in robot files)")
+        kinds = kind if isinstance(kind, tuple) else (kind,)
+        if float in kinds and isinstance(node, int) and not isinstance(node, bool):
+            node = float(node)
+        if isinstance(node, bool) and bool not in kinds or not isinstance(node, kinds):
+            names = " or ".join(k.__name__ for k in kinds).replace("str", "a string")
+            raise self.fail(path, f"must be {names}, not {node!r}")
+        return node
+
+    def number(self, path: tuple[str, ...], low: float | None = None, default: Any = ...,
+               strictly: bool = False) -> float:
+        value = self.get(path, float, default)
+        if low is not None and (value < low or (strictly and value == low)):
+            relation = ">" if strictly else ">="
+            raise self.fail(path, f"must be {relation} {low}, not {value}")
+        if not math.isfinite(value):
+            raise self.fail(path, f"must be a finite number, not {value}")
+        return value
+
+    def integer(self, path: tuple[str, ...], low: int, high: int) -> int:
+        value = self.get(path, int)
+        if not low <= value <= high:
+            raise self.fail(path, f"must be between {low} and {high}, not {value}")
+        return value
+
+
+def _joint(reader: _Reader, index: int) -> Joint:
+    base = ("joints", str(index))
+    sign = reader.get((*base, "sign"), int)
+    if sign not in (1, -1):
+        raise reader.fail((*base, "sign"), f"must be 1 or -1, not {sign}")
+    low = reader.number((*base, "min_deg"))
+    high = reader.number((*base, "max_deg"))
+    if low >= high:
+        raise reader.fail((*base, "max_deg"), f"must be greater than min_deg ({low}), not {high}")
+    joint = Joint(
+        name=reader.get((*base, "name"), str, f"phi{index + 1}"),
+        servo_id=reader.integer((*base, "servo_id"), 0, 253),
+        zero_tick=reader.integer((*base, "zero_tick"), TICK_MIN, TICK_MAX),
+        sign=sign,
+        min_rad=math.radians(low),
+        max_rad=math.radians(high),
+    )
+    for key, tick in (("min_deg", joint.angle_to_tick(joint.min_rad)),
+                      ("max_deg", joint.angle_to_tick(joint.max_rad))):
+        if not TICK_MIN <= tick <= TICK_MAX:
+            raise reader.fail(
+                (*base, key),
+                f"maps to tick {tick}, outside the servo's 0-1023: narrow the limit or move "
+                "zero_tick",
+            )
+    return joint
+
+
+def parse_robot(text: str, source: str = "<robot>") -> Robot:
+    """Build a ``Robot`` from TOML text; ``source`` names it in error messages."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise RobotError(f"{source}: not valid TOML ({exc}): fix the syntax there") from None
+    reader = _Reader(data, text, source)
+    kind = reader.get(("kind",), str)
+    if kind not in ("snake", "trident"):
+        raise reader.fail(("kind",), f'must be "snake" or "trident", not {kind!r}')
+    joints_raw = reader.get(("joints",), list)
+    joints = tuple(_joint(reader, i) for i in range(len(joints_raw)))
+    ids = [j.servo_id for j in joints]
+    for i, sid in enumerate(ids):
+        if sid in ids[:i]:
+            raise reader.fail(("joints", str(i), "servo_id"),
+                              f"{sid} is used twice: give each joint its own servo ID")
+
+    model = reader.get(("servo", "model"), str, "AX-12A")
+    if model not in SERVO_MAX_RPM and "max_speed_rpm" not in data.get("servo", {}):
+        raise reader.fail(("servo", "model"), f"{model!r} is unknown: use one of "
+                          f"{', '.join(SERVO_MAX_RPM)} or give servo.max_speed_rpm")
+    rpm = reader.number(("servo", "max_speed_rpm"), 0.0, SERVO_MAX_RPM.get(model, 0.0),
+                        strictly=True)
+    common: dict[str, Any] = dict(
+        name=reader.get(("name",), str),
+        kind=kind,
+        joints=joints,
+        servo_model=model,
+        max_speed_rad_s=rpm * 2.0 * math.pi / 60.0,
+        c_n=reader.number(("friction", "c_n"), 0.0, 1.0, strictly=True),
+        c_t=reader.number(("friction", "c_t"), 0.0, 0.0),
+        description=reader.get(("description",), str, ""),
+        source=source,
+    )
+    if kind == "snake":
+        links = reader.integer(("geometry", "links"), 2, MAX_LINKS)
+        if len(joints) != links - 1:
+            raise reader.fail(("joints",), f"has {len(joints)} entries but a {links}-link snake "
+                              f"has {links - 1} joints: add or remove [[joints]] tables")
+        return Robot(l=reader.number(("geometry", "half_link"), 0.0, strictly=True), links=links,
+                     **common)
+    alphas = reader.get(("geometry", "alphas_deg"), list)
+    if len(alphas) != 3 or not all(isinstance(a, int | float) for a in alphas):
+        raise reader.fail(("geometry", "alphas_deg"), f"must be 3 angles in degrees, not {alphas}")
+    if len(joints) != 3:
+        raise reader.fail(("joints",), f"has {len(joints)} entries but a trident has 3 joints")
+    return Robot(
+        l=reader.number(("geometry", "arm_length"), 0.0, strictly=True),
+        r=reader.number(("geometry", "base_radius"), 0.0),
+        alphas=tuple(math.radians(float(a)) for a in alphas),
+        links=4,
+        **common,
+    )
+
+
+def load_robot(name_or_path: str | Path) -> Robot:
+    """A built-in robot by name (``snake3``, ``trident``, ``snake5``) or a TOML file path."""
+    text_name = str(name_or_path)
+    if text_name in BUILTIN_ROBOTS:
+        text = resources.files("snakebot.robots").joinpath(f"{text_name}.toml").read_text()
+        return parse_robot(text, source=text_name)
+    path = Path(name_or_path)
+    if not path.is_file():
+        raise RobotError(
+            f"no robot {text_name!r}: give a built-in name ({', '.join(BUILTIN_ROBOTS)}) "
+            "or the path of a robot .toml file"
+        )
+    return parse_robot(path.read_text(), source=str(path))

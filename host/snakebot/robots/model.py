@@ -1,0 +1,116 @@
+"""Robot descriptions as plain data: geometry, friction, and one ``Joint`` per servo."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from snakebot.errors import SnakebotError
+
+#: AX-12 position units: 0..1023 over 300 degrees, 512 = centre.
+TICKS_PER_RAD = 1023.0 / math.radians(300.0)
+TICK_MIN = 0
+TICK_MAX = 1023
+
+#: No-load maximum joint speed per servo model (ROBOTIS e-Manual): AX-12A 59 rpm at 12 V,
+#: AX-12W 54 rpm in joint mode.
+SERVO_MAX_RPM = {"AX-12A": 59.0, "AX-12W": 54.0}
+
+
+class RobotError(SnakebotError):
+    """A robot description that cannot be used (file missing, malformed, inconsistent)."""
+
+
+@dataclass(frozen=True)
+class Joint:
+    """One actuated joint: the servo driving it and how its ticks map to the angle."""
+
+    name: str
+    servo_id: int
+    zero_tick: int  # tick value at phi = 0
+    sign: int  # +1: ticks grow with phi; -1: the servo is mounted the other way round
+    min_rad: float
+    max_rad: float
+
+    def angle_to_tick(self, phi: float) -> int:
+        return int(round(self.zero_tick + self.sign * phi * TICKS_PER_RAD))
+
+    def tick_to_angle(self, tick: float) -> float:
+        return (tick - self.zero_tick) / (self.sign * TICKS_PER_RAD)
+
+    @property
+    def tick_range(self) -> tuple[int, int]:
+        """(min_tick, max_tick) covering the joint's allowed angles."""
+        a, b = self.angle_to_tick(self.min_rad), self.angle_to_tick(self.max_rad)
+        return (min(a, b), max(a, b))
+
+
+@dataclass(frozen=True)
+class Robot:
+    """A wheeled snake (``kind == "snake"``) or trident (``kind == "trident"``).
+
+    Snake: ``links`` links of length ``2 * l``, a wheel at each link's middle.
+    Trident: base radius ``r``, arm length ``l``, arm corners at ``alphas`` (radians).
+    """
+
+    name: str
+    kind: Literal["snake", "trident"]
+    joints: tuple[Joint, ...]
+    servo_model: str
+    max_speed_rad_s: float
+    l: float  # noqa: E741 - the thesis's symbol: half-link (snake) or arm length (trident)
+    r: float = 0.0
+    alphas: tuple[float, ...] = ()
+    links: int = 0
+    c_n: float = 1.0
+    c_t: float = 0.0
+    description: str = ""
+    source: str = field(default="", compare=False)  # file it came from
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.joints)
+
+    @property
+    def n_wheels(self) -> int:
+        return self.links if self.kind == "snake" else 3
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        """Names of the state coordinates q = (x, y, theta, phi_1, ...)."""
+        return ("x", "y", "theta") + tuple(j.name for j in self.joints)
+
+    @property
+    def servo_ids(self) -> tuple[int, ...]:
+        return tuple(j.servo_id for j in self.joints)
+
+    @property
+    def tick_limits(self) -> tuple[tuple[int, int], ...]:
+        return tuple(j.tick_range for j in self.joints)
+
+    def angles_to_ticks(self, phi: np.ndarray) -> np.ndarray:
+        """Joint angles (radians, last axis = joints) to AX-12 goal ticks (int64, rounded)."""
+        phi = np.asarray(phi, dtype=float)
+        if phi.shape[-1:] != (self.n_joints,):
+            raise RobotError(
+                f"{self.name} has {self.n_joints} joints but got angles of shape {phi.shape}: "
+                "give one angle per joint in the last axis"
+            )
+        zero = np.array([j.zero_tick for j in self.joints], dtype=float)
+        sign = np.array([j.sign for j in self.joints], dtype=float)
+        return np.rint(zero + sign * phi * TICKS_PER_RAD).astype(np.int64)
+
+    def ticks_to_angles(self, ticks: np.ndarray) -> np.ndarray:
+        """AX-12 ticks (last axis = joints) to joint angles in radians."""
+        ticks = np.asarray(ticks, dtype=float)
+        if ticks.shape[-1:] != (self.n_joints,):
+            raise RobotError(
+                f"{self.name} has {self.n_joints} joints but got ticks of shape {ticks.shape}: "
+                "give one tick value per joint in the last axis"
+            )
+        zero = np.array([j.zero_tick for j in self.joints], dtype=float)
+        sign = np.array([j.sign for j in self.joints], dtype=float)
+        return (ticks - zero) / (sign * TICKS_PER_RAD)

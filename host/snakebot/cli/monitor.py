@@ -1,0 +1,65 @@
+"""`snakebot monitor`: watch the controller and its servos live."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+import time
+
+import click
+
+from snakebot.cli.controller_link import controller_options, open_controller
+from snakebot.controller.monitor import render, sample
+
+CLEAR_BELOW = "\x1b[J"
+
+
+def _cursor_up(lines: int) -> str:
+    return f"\x1b[{lines}F" if lines else ""
+
+
+@click.command("monitor")
+@controller_options
+@click.option("--duration", type=click.FloatRange(min=0), default=None,
+              help="Stop after this many seconds (default: until Ctrl-C).")
+@click.option("--interval", type=click.FloatRange(min=0.02), default=0.5, show_default=True,
+              help="Seconds between samples.")
+def monitor(port: str, baud: int, controller_id: int, as_json: bool, duration: float | None,
+            interval: float) -> None:
+    """Show the controller's state and error flags, and each roster servo's position,
+    load, voltage, temperature and errors, as the controller last read them.
+
+    On a terminal the table refreshes in place; otherwise (or with --json, one JSON
+    record per line: JSON Lines) every sample is printed after the last.
+    """
+    live = sys.stdout.isatty() and not as_json
+    shown = 0
+    with open_controller(port, baud, controller_id) as ctl:
+        ctl.identify()
+        t0 = time.monotonic()
+        next_at = t0
+        try:
+            while True:
+                s = sample(ctl, t0)
+                if as_json:
+                    click.echo(json.dumps(s.as_record()))
+                else:
+                    lines = render(s)
+                    if live:  # lines cut to the width, so none wraps and the count holds
+                        width = max(20, shutil.get_terminal_size().columns - 1)
+                        lines = [line[:width] for line in lines]
+                        click.echo(_cursor_up(shown) + CLEAR_BELOW + "\n".join(lines))
+                        shown = len(lines)
+                    else:
+                        click.echo("\n".join(lines) + "\n")
+                next_at += interval
+                now = time.monotonic()
+                if duration is not None and next_at - t0 > duration:
+                    break
+                if next_at > now:
+                    time.sleep(next_at - now)
+                else:
+                    next_at = now  # the link is slower than the interval: no catching up
+        except KeyboardInterrupt:
+            pass

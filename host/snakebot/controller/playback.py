@@ -1,0 +1,230 @@
+"""Starting and stopping the controller's gaits: the stored table, or the serpenoid that
+the firmware computes on line.
+
+    status = play(ctl, speed=1.5, steer=math.radians(10))
+    status = serpenoid(ctl, SerpenoidSettings(amplitude=0.5, omega=3.14, delta=2.09))
+    status = stop(ctl, clear=True)
+
+Values are given in the user's units (a speed factor, radians, rad/s) and converted to
+the registers' (1/256, position ticks, milliradians); a value the control table would
+refuse is refused here first, with the range in the user's units. After the command
+the controller's State is read back: a gait that did not start is an error naming why.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import Any
+
+from snakebot.controller import words
+from snakebot.controller.client import ControllerClient, RosterEntry
+from snakebot.controller.errors import ControllerError
+from snakebot.robots import Robot
+
+SPEED_ONE = 256
+"""Speed Scale for normal speed (the register is in 1/256)."""
+
+TICKS_PER_RAD = 1023.0 / math.radians(300.0)
+"""AX-12 position ticks per radian (Steering Offset is in ticks)."""
+
+MRAD_PER_RAD = 1000.0
+
+FINISH_GRACE_S = 0.05
+"""A table played once may already be over when the State is read back: it counts as
+played if its duration (at the chosen speed) is shorter than the time since the command
+plus this."""
+
+
+@dataclass(frozen=True)
+class SerpenoidSettings:
+    """The on-line serpenoid: joint k follows A sin(omega t + k delta) + phi0 (radians)."""
+
+    amplitude: float
+    omega: float
+    delta: float
+    offset: float = 0.0
+
+
+def _fmt_angle(rad: float, rate: bool = False) -> str:
+    unit = "rad/s" if rate else "rad"
+    dunit = "deg/s" if rate else "deg"
+    return f"{rad:.4g} {unit} ({math.degrees(rad):.4g} {dunit})"
+
+
+def _raw(ctl: ControllerClient, register: str, value: float, scale: float, what: str,
+         rate: bool = False, angle: bool = True) -> int:
+    """``value`` (user units) as the register's integer, or ControllerError with the
+    range in user units."""
+    reg = ctl.table.register(register)
+    raw = int(round(value * scale))
+    if reg.accepts(raw):
+        return raw
+    low, high = reg.value_range()
+    if angle:
+        shown = f"{what} {_fmt_angle(value, rate)}"
+        span = f"{_fmt_angle(low / scale, rate)} .. {_fmt_angle(high / scale, rate)}"
+    else:
+        shown, span = f"{what} {value:g}", f"{low / scale:.4g} .. {high / scale:.4g}"
+    unit = f", in {reg.unit}" if reg.unit else ""
+    return _refuse(f"{shown} is outside what the controller takes: {span} "
+                   f"(its {reg.name} register takes {low}..{high}{unit})")
+
+
+def _refuse(message: str) -> int:
+    raise ControllerError(message + "; nothing was changed")
+
+
+def speed_scale(ctl: ControllerClient, speed: float) -> int:
+    """Speed Scale for a speed factor (1 = as generated)."""
+    return _raw(ctl, "Speed Scale", speed, SPEED_ONE, "--speed", angle=False)
+
+
+def steering_offset(ctl: ControllerClient, steer: float) -> int:
+    """Steering Offset in ticks for an angle in radians added to every joint."""
+    return _raw(ctl, "Steering Offset", steer, TICKS_PER_RAD, "--steer")
+
+
+def _status(ctl: ControllerClient, regs: dict[str, int]) -> dict[str, Any]:
+    """The controller's state after a command, for printing and --json."""
+    return {
+        "state": words.state_name(regs["State"], ctl.table),
+        "error_flags": words.flag_names(regs["Error Flags"], ctl.table),
+        "speed": regs["Speed Scale"] / SPEED_ONE,
+        "steer_rad": regs["Steering Offset"] / TICKS_PER_RAD,
+        "steering_offset_ticks": regs["Steering Offset"],
+        "loop": bool(regs["Loop"]),
+        "joint_count": regs["Joint Count"],
+        "table": {
+            "bytes": regs["Table Size"],
+            "crc": f"0x{regs['Table CRC']:08x}",
+            "joints": regs["Table Joints"],
+            "frames": regs["Table Frames"],
+            "period_ms": regs["Table Period"],
+        },
+        "serpenoid": {
+            "amplitude_rad": regs["Serp Amplitude"] / MRAD_PER_RAD,
+            "omega_rad_s": regs["Serp Omega"] / MRAD_PER_RAD,
+            "delta_rad": regs["Serp Delta"] / MRAD_PER_RAD,
+            "offset_rad": regs["Serp Phi0"] / MRAD_PER_RAD,
+        },
+    }
+
+
+def _ready(ctl: ControllerClient, regs: dict[str, int]) -> None:
+    """ControllerError if the controller is in the safe state."""
+    if words.state_name(regs["State"], ctl.table) == "SAFE":
+        flags = regs["Error Flags"]
+        raise ControllerError(
+            "the controller is in the safe state and starts nothing: "
+            f"{words.describe_flags(flags, ctl.table)}. {words.safe_fix(flags, ctl.table)}"
+            "; then leave the safe state with `snakebot stop --clear`"
+        )
+
+
+def _start(ctl: ControllerClient, before: dict[str, int], command: str, want: str,
+           finished_ok: float | None = None) -> dict[str, Any]:
+    sent = time.monotonic()
+    ctl.command(command)
+    after = ctl.read_all()
+    state = words.state_name(after["State"], ctl.table)
+    if state == want:
+        return _status(ctl, after)
+    refused_bit = ctl.table.enums["Error Flags"]["REFUSED"]
+    newly_refused = after["Error Flags"] & refused_bit and not before["Error Flags"] & refused_bit
+    if (state == "IDLE" and not newly_refused and finished_ok is not None
+            and finished_ok <= time.monotonic() - sent + FINISH_GRACE_S):
+        return _status(ctl, after)  # a short table played once is already over
+    raise ControllerError(
+        f"the controller did not start ({command} left it {state}; error flags: "
+        f"{words.describe_flags(after['Error Flags'], ctl.table)}): check its state with "
+        "`snakebot monitor`"
+    )
+
+
+def play(ctl: ControllerClient, *, loop: bool | None = None, speed: float = 1.0,
+         steer: float = 0.0) -> dict[str, Any]:
+    """Play the active table from its first frame. ``loop``: None keeps the table's own
+    setting. ``speed``: factor on the table's time; ``steer``: radians added to every
+    joint (negated for reversed joints)."""
+    values = {
+        "Speed Scale": speed_scale(ctl, speed),
+        "Steering Offset": steering_offset(ctl, steer),
+    }
+    ctl.identify()
+    before = ctl.read_all()
+    _ready(ctl, before)
+    if before["Table Size"] == 0:
+        raise ControllerError(
+            "the controller has no gait table to play: generate one with `snakebot gait ...` "
+            "and upload it with `snakebot upload GAIT --port ...`"
+        )
+    values["Loop"] = (before["Table Flags"] & 1) if loop is None else int(loop)
+    ctl.write(values)
+    once_s = None
+    if not values["Loop"]:
+        once_s = (before["Table Frames"] - 1) * before["Table Period"] / 1000.0
+        once_s *= SPEED_ONE / values["Speed Scale"]
+    return _start(ctl, before, "PLAY", "PLAYING", finished_ok=once_s)
+
+
+def roster_from_robot(robot: Robot) -> list[RosterEntry]:
+    """The controller's roster for ``robot``: IDs, directions, zero ticks and limits."""
+    return [
+        RosterEntry(
+            id=j.servo_id,
+            reverse=j.sign < 0,
+            zero_tick=j.zero_tick,
+            min_tick=j.tick_range[0],
+            max_tick=j.tick_range[1],
+        )
+        for j in robot.joints
+    ]
+
+
+def serpenoid(ctl: ControllerClient, settings: SerpenoidSettings, *, speed: float = 1.0,
+              steer: float = 0.0, roster: Iterable[RosterEntry] | None = None
+              ) -> dict[str, Any]:
+    """Start the firmware's serpenoid on the roster (``roster`` replaces it first)."""
+    values = {
+        "Serp Amplitude": _raw(ctl, "Serp Amplitude", settings.amplitude, MRAD_PER_RAD,
+                               "--amplitude"),
+        "Serp Omega": _raw(ctl, "Serp Omega", settings.omega, MRAD_PER_RAD, "--omega",
+                           rate=True),
+        "Serp Delta": _raw(ctl, "Serp Delta", settings.delta, MRAD_PER_RAD, "--delta"),
+        "Serp Phi0": _raw(ctl, "Serp Phi0", settings.offset, MRAD_PER_RAD, "--offset"),
+        "Speed Scale": speed_scale(ctl, speed),
+        "Steering Offset": steering_offset(ctl, steer),
+    }
+    ctl.identify()
+    before = ctl.read_all()
+    _ready(ctl, before)
+    if roster is not None:
+        ctl.set_roster(roster)
+        before = ctl.read_all()
+    if before["Joint Count"] == 0:
+        raise ControllerError(
+            "the controller's roster is empty, so the serpenoid has no joints to drive: "
+            "pass --robot NAME (snake3, snake5, trident or a robot file), or upload a gait "
+            "table for the robot first"
+        )
+    bad = [j for j in ctl.roster(before["Joint Count"]) if j.min_tick > j.max_tick]
+    if bad:
+        raise ControllerError(
+            f"roster joint {bad[0].joint} (servo {bad[0].id}) has Min Tick {bad[0].min_tick} "
+            f"above Max Tick {bad[0].max_tick}: pass --robot NAME to set the roster again"
+        )
+    ctl.write(values)
+    return _start(ctl, before, "SERPENOID", "SERPENOID")
+
+
+def stop(ctl: ControllerClient, *, clear: bool = False) -> dict[str, Any]:
+    """Stop the gait (servos hold their last goal); ``clear`` also clears Error Flags and
+    leaves the safe state."""
+    ctl.identify()
+    ctl.command("STOP")
+    if clear:
+        ctl.command("CLEAR")
+    return _status(ctl, ctl.read_all())

@@ -1,0 +1,128 @@
+"""The controller's numbers in words: states, Error Flags, Upload Result, and the AX-12
+direction-and-magnitude values it mirrors. Names come from controller.json; the
+sentences (what happened, and what to do) are written here once."""
+
+from __future__ import annotations
+
+from snakebot.controller.table import Controller, load
+from snakebot.protocol import ErrorFlags
+
+FLAG_MEANINGS: dict[str, str] = {
+    "UPLOAD_LENGTH": "the last upload's length was wrong or not all of it arrived",
+    "UPLOAD_CRC": "the last upload arrived damaged: its CRC-32 did not match",
+    "UPLOAD_LAYOUT": "the last uploaded table failed the controller's layout checks",
+    "UPLOAD_TOO_BIG": "the last uploaded table was too big for the controller",
+    "SERVO_ERROR": "a servo reported an error in Servo Error Mask (overload or overheating "
+    "by default)",
+    "BUS_LOSS": "a roster servo stopped answering telemetry reads",
+    "LINK_LOSS": "the PC link went quiet for longer than Link Timeout while moving",
+    "REFUSED": "a command could not run (no table, empty roster, or the safe state)",
+}
+
+SAFE_FIXES: dict[str, str] = {
+    "SERVO_ERROR": "let the servos cool down or free the jammed joint (see `snakebot monitor`)",
+    "BUS_LOSS": "check the servos' power (USB does not power them), cables and IDs",
+    "LINK_LOSS": "keep the PC link open while the robot moves, or raise Link Timeout",
+}
+
+# What each Upload Result means, and what to do about it.
+UPLOAD_RESULTS: dict[str, tuple[str, str]] = {
+    "BAD_LENGTH": (
+        "the commit gave a length the controller cannot hold",
+        "regenerate the table with `snakebot gait` so it fits (at most 2048 bytes)",
+    ),
+    "INCOMPLETE": (
+        "fewer bytes reached the controller than the table holds (chunks were lost)",
+        "check the USB cable and upload again",
+    ),
+    "TRANSFER_CRC": (
+        "the bytes that reached the controller differ from the file (lost or damaged chunks)",
+        "check the USB cable and upload again",
+    ),
+    "TRUNCATED": ("the table is shorter than its header says", ""),
+    "BAD_MAGIC": ("the data does not start with SNKG", ""),
+    "BAD_VERSION": ("the table's layout version is not one the firmware knows", ""),
+    "BAD_JOINT_COUNT": ("the joint count is 0 or above 18", ""),
+    "BAD_FLAGS": ("unknown flag bits or a reserved byte that is not 0", ""),
+    "BAD_PERIOD": ("the frame period is 0", ""),
+    "BAD_FRAME_COUNT": ("the table has no frames", ""),
+    "TOO_BIG": ("the table needs more than 2048 bytes", ""),
+    "TRAILING_BYTES": ("there are bytes after the last frame", ""),
+    "CRC_MISMATCH": ("the table's own CRC does not match its bytes", ""),
+    "BAD_JOINT_ID": ("a servo ID above 253 or used twice", ""),
+    "BAD_LIMITS": ("a joint's min tick above its max", ""),
+    "FRAME_OUT_OF_LIMITS": ("a frame value outside its joint's limits", ""),
+    "NONE": ("no table has been committed since the controller started", ""),
+}
+
+LAYOUT_FIX = (
+    "the file passed snakebot's own checks, so the firmware and this snakebot disagree: "
+    "flash the firmware built from this snakebot (`make firmware`, `snakebot flash`) and "
+    "regenerate the table with `snakebot gait`"
+)
+
+RETRYABLE_RESULTS = frozenset({"INCOMPLETE", "TRANSFER_CRC"})
+"""Commit failures that a clean resend can cure (the wire, not the table, was at fault)."""
+
+
+def _name(enum: str, value: int, ctl: Controller | None = None) -> str:
+    for name, code in (ctl or load()).enums[enum].items():
+        if code == value:
+            return name
+    return f"UNKNOWN({value})"
+
+
+def state_name(value: int, ctl: Controller | None = None) -> str:
+    """IDLE, PLAYING, SERPENOID or SAFE."""
+    return _name("State", value, ctl)
+
+
+def upload_result_name(value: int, ctl: Controller | None = None) -> str:
+    return _name("Upload Result", value, ctl)
+
+
+def flag_names(value: int, ctl: Controller | None = None) -> list[str]:
+    """The set Error Flags bits by name, lowest bit first."""
+    flags = (ctl or load()).enums["Error Flags"]
+    names = [name for name, bit in sorted(flags.items(), key=lambda kv: kv[1]) if value & bit]
+    unknown = value & ~sum(flags.values())
+    if unknown:
+        names.append(f"UNKNOWN(0x{unknown:04X})")
+    return names
+
+
+def describe_flags(value: int, ctl: Controller | None = None) -> str:
+    """Error Flags in words: "BUS_LOSS (a roster servo stopped answering ...)"; "none"."""
+    names = flag_names(value, ctl)
+    if not names:
+        return "none"
+    return "; ".join(f"{n} ({FLAG_MEANINGS[n]})" if n in FLAG_MEANINGS else n for n in names)
+
+
+def safe_fix(value: int, ctl: Controller | None = None) -> str:
+    """What to do about the safe-state causes among the flags."""
+    fixes = [SAFE_FIXES[n] for n in flag_names(value, ctl) if n in SAFE_FIXES]
+    return "; ".join(fixes) or "find what stopped the robot (see `snakebot monitor`)"
+
+
+def upload_result_reason(value: int, ctl: Controller | None = None) -> tuple[str, str, str]:
+    """(name, what happened, what to do) for an Upload Result code."""
+    name = upload_result_name(value, ctl)
+    what, fix = UPLOAD_RESULTS.get(name, (f"result code {value}", ""))
+    return name, what, fix or LAYOUT_FIX
+
+
+def servo_error_words(value: int) -> str:
+    """An AX-12 error byte in words ("no error", "overheating, overload")."""
+    return ErrorFlags(value).describe()
+
+
+def servo_error_names(value: int) -> list[str]:
+    return [flag.name or str(int(flag)) for flag in ErrorFlags if value & flag]
+
+
+def signed_ax12(value: int) -> int:
+    """An AX-12 speed or load word (bits 0-9 magnitude, bit 10 set = clockwise) as a signed
+    number: counter-clockwise positive, clockwise negative."""
+    magnitude = value & 0x3FF
+    return -magnitude if value & 0x400 else magnitude

@@ -105,6 +105,9 @@ class DxlClient:
     ``status_return_level``: what every servo is assumed to be set to (default 2);
     change one servo's with :meth:`set_status_return_level`. Writes to address 16 made
     through this client update it automatically.
+    ``status_return_level_address``: where the devices on this port keep their Status
+    Return Level (16 on AX servos); None for a device whose address 16 means something
+    else, such as the snakebot controller, so writes there are not taken for it.
 
     Transactions from several threads are serialised. The client sets the port's read
     timeout itself, so a port handed in should not be read by anyone else meanwhile.
@@ -122,6 +125,7 @@ class DxlClient:
         echo: EchoSetting | None = None,
         echo_probe_s: float | None = None,
         status_return_level: int = DEFAULT_STATUS_RETURN_LEVEL,
+        status_return_level_address: int | None = STATUS_RETURN_LEVEL_ADDR,
     ) -> None:
         self.retries = settings.resolve_retries(retries)
         echo_setting = settings.resolve_echo(echo)
@@ -133,6 +137,7 @@ class DxlClient:
         }
         self._default_level = _check_level(status_return_level)
         self._levels: dict[int, int] = {}
+        self._level_address = status_return_level_address
         if isinstance(port, str):
             self._port = open_port(port, baudrate or DEFAULT_BAUDRATE, timeout=0)
             self._owns_port = True
@@ -203,11 +208,17 @@ class DxlClient:
             return False
         return self.status_return_level(servo_id) >= _NEEDS_LEVEL.get(code, 3)
 
+    def _level_written(self, address: int, data: bytes) -> int | None:
+        """The Status Return Level a WRITE of ``data`` at ``address`` sets, if it sets one."""
+        where = self._level_address
+        if where is None or not address <= where < address + len(data):
+            return None
+        return data[where - address]
+
     def _after_write(self, servo_id: int, address: int, data: bytes) -> None:
-        if address <= STATUS_RETURN_LEVEL_ADDR < address + len(data):
-            level = data[STATUS_RETURN_LEVEL_ADDR - address]
-            if level <= 2:
-                self.set_status_return_level(servo_id, level)
+        level = self._level_written(address, data)
+        if level is not None and level <= 2:
+            self.set_status_return_level(servo_id, level)
 
     # -- transactions ---------------------------------------------------------------------
 
@@ -437,9 +448,10 @@ class DxlClient:
         data = bytes(data)
         packet = protocol.write(servo_id, address, data)
         wait = self._answers(servo_id, Instruction.WRITE)
-        if address <= STATUS_RETURN_LEVEL_ADDR < address + len(data):
+        level = self._level_written(address, data)
+        if level is not None:
             # Whether this very write is answered depends on the level before and after.
-            wait = wait and data[STATUS_RETURN_LEVEL_ADDR - address] >= 2
+            wait = wait and level >= 2
         if wait:
             self.transact(packet, servo_id, 0)
         else:

@@ -1,0 +1,179 @@
+"""The firmware image: read a raw ``.bin``, check it fits the CM-530's application area
+and looks like an image linked for it, and compute the bootloader's checksum.
+
+The board facts come from the linker script ``firmware/boards/cm530/cm530.ld`` (the one
+source of the memory layout): the application starts at the FLASH region's origin
+(0x08003000, after the 12 KB ROBOTIS bootloader) and may run to the end of flash (the
+end of the last flash region, 0x08080000), so the bootloader accepts at most 500 KB.
+Our own firmware stops short of that (the gait-table store lives in the last 32 KB), but
+another application may use the whole area. When the linker script is not there (snakebot
+installed without its repository) the numbers in :data:`FALLBACK_LAYOUT` are used.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+from snakebot.flash.errors import ImageError
+from snakebot.paths import REPO_ROOT
+
+BOARD_LINKER_SCRIPT = REPO_ROOT / "firmware" / "boards" / "cm530" / "cm530.ld"
+
+FLASH_BASE = 0x08000000
+"""Where STM32 flash is mapped; regions from here up to SRAM_BASE are flash."""
+
+SRAM_BASE = 0x20000000
+
+
+@dataclass(frozen=True)
+class BoardLayout:
+    """Where an application image goes on the board, and where its stack may point."""
+
+    app_base: int  # first flash address of the application (the vector table)
+    flash_end: int  # one past the last flash address
+    ram_base: int
+    ram_end: int  # one past the last RAM address
+    source: str  # where these numbers came from
+
+    @property
+    def app_size(self) -> int:
+        """The most bytes the bootloader can take (the application area)."""
+        return self.flash_end - self.app_base
+
+
+FALLBACK_LAYOUT = BoardLayout(
+    app_base=0x08003000,
+    flash_end=0x08080000,  # STM32F103RE: 512 KB of flash
+    ram_base=SRAM_BASE,
+    ram_end=SRAM_BASE + 64 * 1024,
+    source="built-in CM-530 figures (cm530.ld not found)",
+)
+
+_REGION = re.compile(
+    r"^\s*(\w+)\s*\(([a-z!]*)\)\s*:\s*ORIGIN\s*=\s*(0x[0-9a-fA-F]+|\d+)\s*,"
+    r"\s*LENGTH\s*=\s*(0x[0-9a-fA-F]+|\d+)\s*([KM]?)",
+    re.MULTILINE,
+)
+
+
+def _number(text: str, suffix: str = "") -> int:
+    value = int(text, 0)
+    return value * {"": 1, "K": 1024, "M": 1024 * 1024}[suffix]
+
+
+def board_layout(linker_script: Path = BOARD_LINKER_SCRIPT) -> BoardLayout:
+    """The CM-530 layout read from its linker script's MEMORY regions (FLASH, RAM, and any
+    other flash region such as the gait-table store); the fallback if the file is absent."""
+    try:
+        text = linker_script.read_text()
+    except OSError:
+        return FALLBACK_LAYOUT
+    regions = {
+        name: (_number(origin), _number(length, suffix))
+        for name, _attrs, origin, length, suffix in _REGION.findall(text)
+    }
+    if "FLASH" not in regions or "RAM" not in regions:
+        raise ImageError(
+            f"{linker_script} has no FLASH and RAM regions in its MEMORY block: "
+            "fix the linker script"
+        )
+    flash_ends = [o + n for o, n in regions.values() if FLASH_BASE <= o < SRAM_BASE]
+    ram_origin, ram_length = regions["RAM"]
+    return BoardLayout(
+        app_base=regions["FLASH"][0],
+        flash_end=max(flash_ends),
+        ram_base=ram_origin,
+        ram_end=ram_origin + ram_length,
+        source=str(linker_script),
+    )
+
+
+def checksum(data: bytes) -> int:
+    """The ROBOTIS loader's checksum: the low byte of the sum of all bytes."""
+    return sum(data) & 0xFF
+
+
+def _format_hint(path: Path, what: str) -> str:
+    return (
+        f"{path} is {what}, but the ROBOTIS bootloader takes the raw binary image: give "
+        "the .bin (make firmware writes build/cm530/firmware.bin; for another build, "
+        "arm-none-eabi-objcopy -O binary firmware.elf firmware.bin)"
+    )
+
+
+def _looks_like_intel_hex(data: bytes) -> bool:
+    head = data[:64]
+    return head.startswith(b":") and re.fullmatch(rb":[0-9A-Fa-f]+\r?\n[\s\S]*", head) is not None
+
+
+def load_image(
+    path: str | Path, layout: BoardLayout | None = None, *, check_vectors: bool = True
+) -> bytes:
+    """Read the raw image at ``path`` and check it can go through the bootloader.
+
+    Refuses a missing or empty file, an ELF or Intel HEX file (with the command that makes
+    the .bin), an image bigger than the application area, and, unless ``check_vectors`` is
+    False, an image whose vector table does not fit the board (initial stack pointer in
+    RAM, reset handler a Thumb address inside the application area): that is an image
+    linked for another address, which the bootloader would store but never start.
+    """
+    path = Path(path)
+    layout = layout or board_layout()
+    if path.suffix.lower() in (".hex", ".ihex"):
+        raise ImageError(_format_hint(path, "an Intel HEX file"))
+    if path.suffix.lower() in (".elf", ".axf", ".out"):
+        raise ImageError(_format_hint(path, "an ELF file"))
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise ImageError(
+            f"firmware image {path} not found: build it with make firmware (it writes "
+            "build/cm530/firmware.bin) or give the path of a .bin file"
+        ) from None
+    except IsADirectoryError:
+        raise ImageError(f"{path} is a directory: give the firmware's .bin file") from None
+    except OSError as exc:
+        raise ImageError(f"cannot read firmware image {path}: {exc.strerror or exc}") from exc
+    if not data:
+        raise ImageError(
+            f"firmware image {path} is empty: rebuild it (make firmware) and check the build log"
+        )
+    if data.startswith(b"\x7fELF"):
+        raise ImageError(_format_hint(path, "an ELF file"))
+    if _looks_like_intel_hex(data):
+        raise ImageError(_format_hint(path, "an Intel HEX file"))
+    if len(data) > layout.app_size:
+        raise ImageError(
+            f"firmware image {path} is {len(data)} bytes, more than the {layout.app_size} "
+            f"bytes ({layout.app_size // 1024} KB) of the CM-530's application area "
+            f"0x{layout.app_base:08X}-0x{layout.flash_end - 1:08X}: make the firmware smaller"
+        )
+    if check_vectors:
+        _check_vectors(path, data, layout)
+    return data
+
+
+def _check_vectors(path: Path, data: bytes, layout: BoardLayout) -> None:
+    if len(data) < 8:
+        raise ImageError(
+            f"firmware image {path} is only {len(data)} bytes, too short to hold a Cortex-M "
+            "vector table: give the .bin of a real build (or pass --force for raw data)"
+        )
+    sp = int.from_bytes(data[0:4], "little")
+    reset = int.from_bytes(data[4:8], "little")
+    if not layout.ram_base < sp <= layout.ram_end:
+        raise ImageError(
+            f"firmware image {path} starts with stack pointer 0x{sp:08X}, outside the "
+            f"CM-530's RAM 0x{layout.ram_base:08X}-0x{layout.ram_end:08X}: this is not a "
+            "Cortex-M image for this board (pass --force to flash it anyway)"
+        )
+    entry = reset & ~1
+    if not (reset & 1 and layout.app_base <= entry < layout.app_base + len(data)):
+        raise ImageError(
+            f"firmware image {path} has its reset handler at 0x{reset:08X}, not a Thumb "
+            f"address inside the image at 0x{layout.app_base:08X}: it was linked for "
+            "another address (the bootloader starts the application at "
+            f"0x{layout.app_base:08X}; build with boards/cm530/cm530.ld, or pass --force)"
+        )

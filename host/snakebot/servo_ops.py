@@ -1,0 +1,435 @@
+"""Servo chores on a Dynamixel bus (what people used Dynamixel Wizard for): find servos,
+identify them, read and write registers by name, change a servo's ID or baud rate.
+
+Each operation takes a :class:`~snakebot.transport.DxlClient` (or, for a scan over several
+baud rates, an open port) and returns plain data; ``snakebot bus`` prints it. Registers
+come from ``protocol/ax12.json`` through :class:`~snakebot.protocol.ControlTable`: no
+address is written here.
+
+Values are checked before anything is sent: a read-only register, a value outside the
+register's documented range, or an ID that is already taken is refused with a sentence
+saying why and what to do instead.
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+
+import serial
+
+from snakebot import protocol
+from snakebot.errors import SnakebotError
+from snakebot.protocol import (
+    BROADCAST_ID,
+    MAX_ID,
+    ControlTable,
+    ControlTableError,
+    DxlTimeout,
+    Entry,
+    ErrorFlags,
+)
+from snakebot.transport import DxlClient
+
+BASE_MODEL = "AX-12A"
+"""The table used to check names and ranges before a servo has been asked its model
+(the AX-12 family shares addresses and ranges; only some defaults differ)."""
+
+SERVO_CLOCK_HZ = 2_000_000
+"""AX-12 baud rate = SERVO_CLOCK_HZ / (Baud Rate register + 1)."""
+
+BAUD_TOLERANCE = 0.03
+"""How far the servo's rate may be from the one asked for (the AX-12 manual's UART margin)."""
+
+COMMON_BAUDS = (1_000_000, 500_000, 400_000, 250_000, 200_000, 117_647, 57_142, 9_615)
+"""The rates the AX-12 e-Manual tabulates (registers 1, 3, 4, 7, 9, 16, 34, 207)."""
+
+SETTLE_S = 0.01
+"""Pause after an ID or baud change before the servo is addressed anew (it stores the
+new value in EEPROM)."""
+
+
+class BusCommandError(SnakebotError):
+    """A servo chore that cannot be done as asked; the message says why and what to do."""
+
+
+@dataclass(frozen=True)
+class ServoInfo:
+    """One servo found on the bus."""
+
+    id: int
+    baud: int
+    model_number: int | None  # None when it answers PING but not READ
+    model: str | None  # None when ax12.json does not know the model number
+    firmware: int | None
+    error: ErrorFlags  # the error bits of its PING reply
+
+    @property
+    def label(self) -> str:
+        """The model in words: "AX-12A", "model 29", or "a device that answers PING only"."""
+        if self.model_number is None:
+            return "a device that answers PING only (Status Return Level 0?)"
+        return self.model or f"model {self.model_number}"
+
+    def as_dict(self) -> dict[str, object]:
+        return {
+            "id": self.id,
+            "baud": self.baud,
+            "model_number": self.model_number,
+            "model": self.model,
+            "firmware": self.firmware,
+            "error": int(self.error),
+            "error_text": self.error.describe(),
+        }
+
+
+def _base() -> ControlTable:
+    return ControlTable.for_model(BASE_MODEL)
+
+
+def model_name(number: int) -> str | None:
+    """The model called ``number`` in ax12.json (12: "AX-12A"), or None."""
+    try:
+        return ControlTable.for_model_number(number).model
+    except ControlTableError:
+        return None
+
+
+# -- register names and values ------------------------------------------------------------
+
+
+def _squash(text: str) -> str:
+    return re.sub(r"[\s_\-]+", "", text).lower()
+
+
+def resolve_register(name_or_address: str, table: ControlTable | None = None) -> Entry:
+    """The register called ``name_or_address``: a name from ax12.json in any case, with
+    spaces, '-' or '_' ("goal-position"), or the decimal or 0x address where it starts."""
+    table = table or _base()
+    text = name_or_address.strip()
+    if re.fullmatch(r"\d+|0[xX][0-9a-fA-F]+", text):
+        address = int(text, 0)
+        entry = table.by_address(address)
+        if entry is None:
+            starts = ", ".join(f"{e.address} {e.name}" for e in table)
+            raise BusCommandError(
+                f"no {table.model} register starts at address {address}: registers start at "
+                f"{starts}"
+            )
+        return entry
+    wanted = _squash(text)
+    for entry in table:
+        if _squash(entry.name) == wanted:
+            return entry
+    names = ", ".join(e.name.lower().replace(" ", "-") for e in table)
+    raise BusCommandError(
+        f"{table.model} has no register {name_or_address!r}: use a name ({names}) or an address"
+    )
+
+
+def write_range(entry: Entry) -> tuple[int, int]:
+    """The values ``entry`` accepts: its documented range, else the whole field."""
+    low = 0 if entry.min is None else entry.min
+    high = (1 << (8 * entry.size)) - 1 if entry.max is None else entry.max
+    return low, high
+
+
+def check_write(entry: Entry, value: int) -> None:
+    """Refuse a write the servo would reject, before it is sent."""
+    if not entry.writable:
+        raise BusCommandError(
+            f"{entry.name} (address {entry.address}) is read-only: the servo only reports it"
+        )
+    low, high = write_range(entry)
+    if not low <= value <= high:
+        extra = f" ({entry.note})" if entry.note else ""
+        raise BusCommandError(
+            f"{entry.name} takes {low}-{high}, not {value}{extra}"
+        )
+
+
+_SCALED_UNIT = re.compile(r"^(\d+(?:\.\d+)?)\s+([^\s(]+)")
+_FRACTION_UNIT = re.compile(r"^1/(\d+) of (.+)$")
+
+
+def decode(entry: Entry, value: int) -> dict[str, object]:
+    """``value`` of ``entry`` in words: its unit and, where the unit has a scale, the
+    physical value; direction-bit registers split into magnitude and direction."""
+    out: dict[str, object] = {
+        "name": entry.name, "address": entry.address, "size": entry.size, "value": value,
+        "access": entry.access, "area": entry.area,
+    }
+    magnitude = value
+    if "bit 10 = direction" in entry.note and (not entry.writable or value > 0x3FF):
+        magnitude = value & 0x3FF
+        out["direction"] = "CW" if value & 0x400 else "CCW"
+        out["magnitude"] = magnitude
+    unit = entry.unit
+    if (m := _SCALED_UNIT.match(unit)) is not None:
+        out["physical"] = round(magnitude * float(m.group(1)), 3)
+        out["unit"] = m.group(2)
+    elif (m := _FRACTION_UNIT.match(unit)) is not None:
+        out["physical"] = round(magnitude * 100 / int(m.group(1)), 1)
+        out["unit"] = f"% of {m.group(2)}"
+    elif unit:
+        out["unit"] = unit
+    return out
+
+
+def describe_value(decoded: dict[str, object]) -> str:
+    """A decoded value as text: "512 (150.016 deg)", "1124 (100 CW, 9.8 % of ...)"."""
+    parts = []
+    if decoded.get("magnitude"):
+        parts.append(f"{decoded['magnitude']} {decoded['direction']}")
+    if "physical" in decoded:
+        parts.append(f"{decoded['physical']:g} {decoded['unit']}")
+    elif "unit" in decoded:
+        parts.append(str(decoded["unit"]))
+    return f"{decoded['value']}" + (f" ({', '.join(parts)})" if parts else "")
+
+
+# -- identification and scanning -----------------------------------------------------------
+
+
+def identify(client: DxlClient, servo_id: int, *, retries: int | None = None) -> ServoInfo | None:
+    """PING ``servo_id`` and read its model and firmware; None if it does not answer."""
+    try:
+        reply = client.ping(servo_id, check=False, retries=retries)
+    except DxlTimeout:
+        return None
+    base = _base()
+    start = base.by_name("Model Number").address
+    fw = base.by_name("Firmware Version")
+    try:
+        data = client.read(servo_id, start, fw.address + fw.size - start)
+    except DxlTimeout:  # answers PING only: Status Return Level 0
+        return ServoInfo(servo_id, client.baudrate, None, None, None, reply.error)
+    number = int.from_bytes(data[:2], "little")
+    return ServoInfo(
+        id=servo_id,
+        baud=client.baudrate,
+        model_number=number,
+        model=model_name(number),
+        firmware=data[fw.address - start],
+        error=reply.error,
+    )
+
+
+def scan(
+    port: serial.SerialBase,
+    ids: Iterable[int],
+    bauds: Sequence[int],
+    *,
+    on_baud: Callable[[int], None] = lambda _: None,
+) -> list[ServoInfo]:
+    """PING every ID in ``ids`` at each rate in ``bauds`` (one try each: silent IDs are
+    the rule) and identify those that answer."""
+    found: list[ServoInfo] = []
+    ids = list(ids)
+    for baud in bauds:
+        on_baud(baud)
+        client = DxlClient(port, baud)
+        for servo_id in ids:
+            info = identify(client, servo_id, retries=0)
+            if info is not None:
+                found.append(info)
+    return found
+
+
+def parse_ids(text: str) -> list[int]:
+    """"0-253", "1,2,5-7" -> the IDs, in order, each once; refuses IDs outside 0-253."""
+    ids: list[int] = []
+    for part in text.split(","):
+        part = part.strip()
+        if not part:
+            continue
+        m = re.fullmatch(r"(\d+)(?:\s*-\s*(\d+))?", part)
+        if m is None:
+            raise BusCommandError(f"cannot read the ID range {text!r}: write e.g. 0-253 or 1,2,5-7")
+        low = int(m.group(1))
+        high = int(m.group(2)) if m.group(2) else low
+        if low > high or high > MAX_ID:
+            raise BusCommandError(
+                f"ID range {part!r} is not within 0-{MAX_ID} (low to high); "
+                f"{BROADCAST_ID} is the broadcast ID, never a servo's"
+            )
+        ids += [i for i in range(low, high + 1) if i not in ids]
+    if not ids:
+        raise BusCommandError(f"no IDs in {text!r}: write e.g. 0-253 or 1,2,5-7")
+    return ids
+
+
+def parse_bauds(text: str) -> list[int]:
+    """"1000000,57600" -> rates; "common" -> :data:`COMMON_BAUDS`."""
+    if text.strip().lower() == "common":
+        return list(COMMON_BAUDS)
+    try:
+        bauds = [int(float(b)) for b in text.split(",") if b.strip()]
+    except ValueError:
+        bauds = []
+    if not bauds or any(b <= 0 for b in bauds):
+        raise BusCommandError(
+            f"cannot read the baud rates {text!r}: write e.g. 1000000,57600 or common"
+        )
+    return bauds
+
+
+# -- reading and writing registers ------------------------------------------------------
+
+
+def servo_table(client: DxlClient, servo_id: int) -> ControlTable:
+    """The control table of the servo at ``servo_id``, from its Model Number."""
+    address = _base().by_name("Model Number").address
+    number = client.read_u16(servo_id, address)
+    try:
+        return ControlTable.for_model_number(number)
+    except ControlTableError:
+        known = ", ".join(f"{ControlTable.for_model(m).model_number} ({m})"
+                          for m in ControlTable.models())
+        raise BusCommandError(
+            f"servo {servo_id} reports model number {number}, which snakebot has no control "
+            f"table for (known: {known}): its registers may sit elsewhere, so nothing was "
+            "read or written by name"
+        ) from None
+
+
+def read_registers(
+    client: DxlClient, servo_id: int, entries: Sequence[Entry]
+) -> tuple[ControlTable, list[dict[str, object]]]:
+    """Read ``entries`` (all registers if empty) in one READ; decoded, in address order."""
+    table = servo_table(client, servo_id)
+    chosen = sorted({table.by_name(e.name) for e in entries} or set(table),
+                    key=lambda e: e.address)
+    start = chosen[0].address
+    end = max(e.address + e.size for e in chosen)
+    data = client.read(servo_id, start, end - start)
+    values = []
+    for entry in chosen:
+        offset = entry.address - start
+        raw = int.from_bytes(data[offset : offset + entry.size], "little")
+        values.append(decode(entry, raw))
+    return table, values
+
+
+def write_register(client: DxlClient, servo_id: int, entry: Entry, value: int) -> int | None:
+    """Write ``value`` to ``entry`` after checking it; returns the value read back (None if
+    the servo's Status Return Level does not answer READs)."""
+    check_write(entry, value)
+    table = servo_table(client, servo_id)
+    entry = table.by_name(entry.name)
+    client.write(servo_id, entry.address, value.to_bytes(entry.size, "little"))
+    if client.status_return_level(servo_id) < 1:
+        return None
+    return int.from_bytes(client.read(servo_id, entry.address, entry.size), "little")
+
+
+# -- ID and baud rate ---------------------------------------------------------------------
+
+
+def _send_and_settle(client: DxlClient, packet: bytes) -> None:
+    """Send an EEPROM change without waiting for its status (which may come from the new
+    ID or at the old rate), let the reply pass, and discard it."""
+    client.send(packet)
+    time.sleep(client.timing.reply_timeout_s(len(packet), 0) + SETTLE_S)
+    client.port.reset_input_buffer()
+
+
+def set_id(client: DxlClient, old: int, new: int) -> ServoInfo:
+    """Give the servo at ``old`` the ID ``new``; refuses an ID another device answers to.
+    Returns the servo as found at its new ID."""
+    for what, servo_id in (("current", old), ("new", new)):
+        if not 0 <= servo_id <= MAX_ID:
+            raise BusCommandError(
+                f"the {what} ID {servo_id} is not a servo ID: use 0-{MAX_ID} "
+                f"({BROADCAST_ID} is broadcast)"
+            )
+    if old == new:
+        raise BusCommandError(f"servo {old} already has ID {new}: nothing to do")
+    check_write(_base().by_name("ID"), new)
+    if identify(client, old) is None:
+        raise BusCommandError(
+            f"no servo answers at ID {old} at {client.baudrate} baud: check the ID and baud "
+            "rate with snakebot bus scan"
+        )
+    taken = identify(client, new)
+    if taken is not None:
+        raise BusCommandError(
+            f"ID {new} is already taken on this bus ({taken.label} answers there): two "
+            "servos with one ID garble each other's replies. Pick a free ID (snakebot bus "
+            "scan lists the IDs in use)"
+        )
+    address = servo_table(client, old).by_name("ID").address
+    _send_and_settle(client, protocol.write(old, address, bytes([new])))
+    moved = identify(client, new)
+    if moved is None:
+        still = identify(client, old) is not None
+        raise BusCommandError(
+            f"servo {old} did not take ID {new}"
+            + (
+                ": it still answers at its old ID, so it refused the write (is its EEPROM "
+                "locked? Lock is cleared by a power cycle)"
+                if still
+                else " and no longer answers at either ID: scan the bus (snakebot bus scan)"
+            )
+        )
+    return moved
+
+
+def baud_register(bps: float) -> int:
+    """The Baud Rate register value whose rate (2,000,000 / (value + 1)) is within
+    :data:`BAUD_TOLERANCE` of ``bps``."""
+    if bps > 0:
+        value = round(SERVO_CLOCK_HZ / bps - 1)
+        if 0 <= value <= 254 and abs(baud_from_register(value) - bps) <= BAUD_TOLERANCE * bps:
+            return value
+    raise BusCommandError(
+        f"an AX-12 cannot run at {bps:g} bit/s: its rate is 2,000,000 / (n + 1) for a "
+        "Baud Rate register value n of 0-254, e.g. 1000000 (n=1), 500000 (3), 400000 (4), "
+        "250000 (7), 200000 (9), 117647 (16), 57142 (34), 9615 (207)"
+    )
+
+
+def baud_from_register(value: int) -> float:
+    """The AX-12's bit rate for Baud Rate register ``value``."""
+    return SERVO_CLOCK_HZ / (value + 1)
+
+
+@dataclass(frozen=True)
+class BaudChange:
+    """The outcome of :func:`set_baud`."""
+
+    id: int
+    register: int
+    servo_baud: float  # what the servo now runs at
+    host_baud: int  # the rate the host reopened at to check
+    verified: bool
+
+
+def set_baud(client: DxlClient, servo_id: int, register: int, host_baud: int) -> BaudChange:
+    """Write Baud Rate ``register`` to ``servo_id``, then reopen the port at ``host_baud``
+    and PING the servo there. Raises :class:`BusCommandError` if it does not answer."""
+    entry = _base().by_name("Baud Rate")
+    check_write(entry, register)
+    if identify(client, servo_id) is None:
+        raise BusCommandError(
+            f"no servo answers at ID {servo_id} at {client.baudrate} baud: find it first "
+            "(snakebot bus scan --bauds common)"
+        )
+    old_baud = client.baudrate
+    address = servo_table(client, servo_id).by_name("Baud Rate").address
+    _send_and_settle(client, protocol.write(servo_id, address, bytes([register])))
+    if identify(DxlClient(client.port, host_baud), servo_id) is not None:
+        return BaudChange(servo_id, register, baud_from_register(register), host_baud, True)
+    still = identify(DxlClient(client.port, old_baud), servo_id) is not None
+    raise BusCommandError(
+        f"servo {servo_id} does not answer at {host_baud} baud after the change"
+        + (
+            f": it still answers at {old_baud}, so it refused the write (is its EEPROM "
+            "locked? Lock is cleared by a power cycle)"
+            if still
+            else f" nor at {old_baud}: find it with snakebot bus scan --ids {servo_id} "
+            "--bauds common"
+        )
+    )

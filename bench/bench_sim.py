@@ -1,0 +1,177 @@
+"""Benchmarks of the emulated Dynamixel bus, each a ratio measured in this run.
+
+1. Real-time factor of the emulated 5-link robot (snake5: four AX-12A on one bus) with
+   the host as bus master at a 100 Hz control loop, in process (sim://): bus seconds
+   emulated per wall second. Goal: at least 200x. Two loads: goals only (one SYNC_WRITE
+   per tick, as when a gait is played straight onto the servos) and goals plus a READ
+   of every servo's present position per tick.
+2. The rate the pseudo-terminal transport allows: READ transactions per second through
+   `snakebot sim bus --pty` (a separate process, as a user runs it), against the rate
+   the wire itself allows at 1 Mbps with Return Delay Time 0 (16 bytes = 160 us).
+3. snakebot's client against ROBOTIS's dynamixel-sdk on the same pty, same run:
+   transactions per second of each (goal: snakebot at least 2x).
+
+    .venv/bin/python bench/bench_sim.py [--quick]
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+
+import snakesim  # noqa: F401  (registers sim://)
+from snakebot.transport import DxlClient
+
+CONTROL_HZ = 100
+WIRE_READ_S = 16 * 10 / 1_000_000  # READ of 2 bytes: 8 + 8 bytes at 10 us
+
+
+def rtf(seconds: float, reads: bool) -> tuple[float, float]:
+    """Bus seconds per wall second and per CPU second of this process, for a
+    ``seconds``-long 100 Hz loop driving snake5's joints along a travelling sine."""
+    with DxlClient("sim://?robot=snake5&return_delay=0", latency_s=0.0) as c:
+        bus = c.port.bus
+        ids = [s.id for s in bus.servos]
+        ticks = int(seconds * CONTROL_HZ)
+        wall0, cpu0 = time.perf_counter(), time.process_time()
+        for k in range(ticks):
+            t = k / CONTROL_HZ
+            goals = {
+                sid: (512 + round(150 * math.sin(2 * math.pi * 0.5 * t + j * math.pi / 2)))
+                for j, sid in enumerate(ids)
+            }
+            c.sync_write(30, 2, {sid: g.to_bytes(2, "little") for sid, g in goals.items()})
+            if reads:
+                for sid in ids:
+                    c.read_u16(sid, 36)
+            bus.run_until((k + 1) / CONTROL_HZ)
+        wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
+        return bus.now / wall, bus.now / cpu
+
+
+def best_rtf(seconds: float, reads: bool, rounds: int = 3) -> tuple[float, float]:
+    results = [rtf(seconds, reads) for _ in range(rounds)]
+    return max(r[0] for r in results), max(r[1] for r in results)
+
+
+def start_server() -> tuple[subprocess.Popen[str], str]:
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "snakebot",
+            "sim",
+            "bus",
+            "--robot",
+            "snake5",
+            "--pty",
+            "--return-delay",
+            "0",
+            "--json",
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    assert proc.stdout is not None
+    return proc, json.loads(proc.stdout.readline())["device"]
+
+
+def snakebot_rate(device: str, n: int) -> float:
+    with DxlClient(device, latency_s=0.002) as c:
+        c.read_u16(10, 36)
+        start = time.perf_counter()
+        for _ in range(n):
+            c.read_u16(10, 36)
+        return n / (time.perf_counter() - start)
+
+
+def sdk_rate(device: str, n: int) -> float:
+    import dynamixel_sdk as sdk
+
+    port = sdk.PortHandler(device)
+    handler = sdk.PacketHandler(1.0)
+    if not (port.openPort() and port.setBaudRate(1_000_000)):
+        raise RuntimeError(f"dynamixel-sdk cannot open {device}")
+    try:
+        handler.read2ByteTxRx(port, 10, 36)
+        failures = 0
+        start = time.perf_counter()
+        for _ in range(n):
+            _, result, _ = handler.read2ByteTxRx(port, 10, 36)
+            failures += result != sdk.COMM_SUCCESS
+        rate = n / (time.perf_counter() - start)
+    finally:
+        port.closePort()
+    if failures:
+        print(f"   (dynamixel-sdk: {failures} of {n} transactions failed)")
+    return rate
+
+
+def main() -> int:
+    quick = "--quick" in sys.argv
+    seconds = 5 if quick else 20
+    n = 300 if quick else 1000
+    rounds = 5
+    print(
+        f"== machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} "
+        "(wall-clock figures suffer on a loaded machine; CPU-time ones much less)"
+    )
+
+    print(
+        f"== 1. snake5 at {CONTROL_HZ} Hz, host as master, in process "
+        f"({seconds} s of bus time, best of 3)"
+    )
+    for label, reads, span in (
+        ("goals only (SYNC_WRITE per tick):  ", False, seconds),
+        ("goals + 4 position READs per tick: ", True, seconds / 5),
+    ):
+        wall, cpu = best_rtf(span, reads)
+        print(
+            f"   {label} {wall:6.1f} x real time by the wall clock, {cpu:6.1f} x per CPU "
+            f"second (goal 200 x: ratios {wall / 200:.2f}, {cpu / 200:.2f})"
+        )
+
+    print(
+        f"== 2 and 3. READ transactions over a pty served by `snakebot sim bus` "
+        f"({n} per client, in {rounds} alternating rounds, best round)"
+    )
+    proc, device = start_server()
+    try:
+        with DxlClient("sim://?robot=snake5&return_delay=0", latency_s=0.0) as c:
+            start = time.perf_counter()
+            for _ in range(n):
+                c.read_u16(10, 36)
+            in_process = n / (time.perf_counter() - start)
+        ours = theirs = 0.0
+        for _ in range(rounds):
+            ours = max(ours, snakebot_rate(device, n // rounds))
+            theirs = max(theirs, sdk_rate(device, n // rounds))
+        wire = 1 / WIRE_READ_S
+        print(f"   wire limit at 1 Mbps, delay 0:        {wire:7.0f} /s")
+        print(
+            f"   snakebot client, sim:// in process:   {in_process:7.0f} /s "
+            f"({in_process / wire:.2f} x the wire: in process the bus is not tied to the clock)"
+        )
+        print(
+            f"   snakebot client over the pty:         {ours:7.0f} /s "
+            f"({ours / wire:.2f} x the wire)"
+        )
+        print(
+            f"   dynamixel-sdk over the same pty:      {theirs:7.0f} /s "
+            f"({theirs / wire:.2f} x the wire)"
+        )
+        print(f"   snakebot / dynamixel-sdk:             {ours / theirs:7.2f} x (goal 2 x)")
+    finally:
+        proc.send_signal(2)
+        proc.wait(timeout=10)
+        assert proc.stdout is not None
+        proc.stdout.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

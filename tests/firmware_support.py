@@ -67,6 +67,23 @@ def sections(elf: Path) -> dict[str, tuple[int, int]]:
     return table
 
 
+HEALTHY_TIMEOUT_SHARE = 0.05
+"""The share of telemetry READs that may go unanswered in a healthy emulated run.
+
+The firmware in QEMU waits BOARD_BUS_REPLY_TIMEOUT_US (30 ms) for an emulated servo that
+answers from a Python thread; on a busy machine that thread is now and then descheduled
+for longer, and a READ times out although nothing is wrong. A dead servo, a wrong baud
+rate or a bus that drops replies shows up as most READs timing out, far above this."""
+
+MIN_HEALTHY_READS = 10
+
+
+def assert_healthy_bus(reads: int, timeouts: int) -> None:
+    """The controller polled its servos, and (almost) every telemetry READ was answered."""
+    assert reads >= MIN_HEALTHY_READS, f"only {reads} telemetry reads"
+    assert timeouts <= HEALTHY_TIMEOUT_SHARE * reads, f"{timeouts} of {reads} reads timed out"
+
+
 def client(port: str) -> DxlClient:
     """A Protocol 1.0 client on the emulated PC link (a pty path)."""
     return DxlClient(port, PC_BAUD, margin_s=CLIENT_MARGIN_S, echo=False)

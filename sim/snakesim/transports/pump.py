@@ -77,7 +77,7 @@ class Pump:
                 # has arrived (bytes go over in bursts, as from a USB adapter)
                 upcoming = [
                     t
-                    for t in (bus.next_master_arrival(), bus.next_event_time())
+                    for t in (bus.next_master_arrival(1 << 20), bus.next_event_time())
                     if t is not None
                 ]
             if out and not self._send(out):
@@ -112,7 +112,7 @@ class Pump:
                     # are out, so the bus may run that far ahead of the wall clock: the
                     # servos take the instruction at once and the reply is scheduled
                     # without another wake-up. (A later write starts at most that late.)
-                    pass  # TEMP no lookahead
+                    bus.run_until(bus.master_tx_done)
 
 
 class ServerThread:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import errno
 import os
 import socket
+import subprocess
 import sys
 import tty
 
@@ -101,3 +102,17 @@ def test_registered_handler_package_serves_its_scheme(tmp_path, monkeypatch):
         assert port.read(3) == b"abc"
     finally:
         port.close()
+
+
+def test_sim_urls_open_without_importing_the_emulator_first():
+    # A fresh interpreter, so nothing else in the test session has imported snakesim.
+    code = (
+        "import sys\n"
+        "from snakebot.transport import DxlClient\n"
+        "assert 'snakesim' not in sys.modules\n"
+        "with DxlClient('sim://?robot=snake5') as c:\n"
+        "    print(c.model_number(10))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=60, check=True)
+    assert out.stdout.strip() == "12"  # an AX-12A answered on the emulated bus

@@ -32,6 +32,13 @@ def register_handler_package(package: str) -> None:
         serial.protocol_handler_packages.append(package)
 
 
+EMULATOR_HANDLER_PACKAGE = "snakesim.urlhandler"
+"""Where the emulator's ``sim://`` handler lives. pyserial imports it only when a sim://
+URL is opened, so every ``--port`` reaches the emulated robot at no start-up cost."""
+
+register_handler_package(EMULATOR_HANDLER_PACKAGE)
+
+
 def _explain(url: str, exc: BaseException) -> str:
     code = getattr(exc, "errno", None)
     text = str(exc)

@@ -24,42 +24,23 @@ def main() -> None:
     """
 
 
-# Command registration: one line per command module.
-from snakebot.cli.demo import demo  # noqa: E402
-
-main.add_command(demo)
-from snakebot.cli.sim import sim  # noqa: E402
-
-main.add_command(sim)
-from snakebot.cli.flash import flash_command  # noqa: E402
-
-main.add_command(flash_command)
-from snakebot.cli.sim_bootloader import bootloader  # noqa: E402
-
-sim.add_command(bootloader)
+# Command registration: each command lives in its own module. Imported here, after
+# `main` exists, because the `sim` subcommands attach to the `sim` group.
 from snakebot.cli.bus import bus  # noqa: E402
-
-main.add_command(bus)
-from snakebot.cli.model import model  # noqa: E402
-
-main.add_command(model)
+from snakebot.cli.demo import demo  # noqa: E402
+from snakebot.cli.flash import flash_command  # noqa: E402
 from snakebot.cli.gait import gait  # noqa: E402
-
-main.add_command(gait)
+from snakebot.cli.model import model  # noqa: E402
+from snakebot.cli.monitor import monitor  # noqa: E402
+from snakebot.cli.playback import play, serpenoid, stop  # noqa: E402
+from snakebot.cli.sim import sim  # noqa: E402
+from snakebot.cli.sim_bootloader import bootloader  # noqa: E402
+from snakebot.cli.sim_predict import predict  # noqa: E402
+from snakebot.cli.sim_serve import serve  # noqa: E402
 from snakebot.cli.upload import upload  # noqa: E402
 
-main.add_command(upload)
-from snakebot.cli.playback import play, serpenoid, stop  # noqa: E402
-
-main.add_command(play)
-main.add_command(stop)
-main.add_command(serpenoid)
-from snakebot.cli.monitor import monitor  # noqa: E402
-
-main.add_command(monitor)
-from snakebot.cli.sim_predict import predict  # noqa: E402
-
-sim.add_command(predict)
-from snakebot.cli.sim_serve import serve  # noqa: E402
-
-sim.add_command(serve)
+for command in (model, gait, sim, upload, play, stop, serpenoid, monitor, bus, flash_command,
+                demo):
+    main.add_command(command)
+for command in (predict, serve, bootloader):
+    sim.add_command(command)

@@ -4,9 +4,12 @@ emulated PC link with time limits fit for a loaded machine."""
 
 from __future__ import annotations
 
+import contextlib
 import shutil
 import subprocess
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any, TypeVar
 
 import pytest
 
@@ -124,3 +127,90 @@ def build_hal_host(
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+M = TypeVar("M")
+
+
+class RegisterModels:
+    """Which register model answers the accesses of a HAL built by
+    :func:`build_hal_on_models`: the one most recently put in :meth:`use`."""
+
+    def __init__(self) -> None:
+        self._stack: list[Any] = []
+
+    @property
+    def current(self) -> Any:
+        return self._stack[-1]
+
+    @contextlib.contextmanager
+    def use(self, model: M) -> Iterator[M]:
+        """Let ``model`` answer the driver's register accesses inside the block."""
+        self._stack.append(model)
+        try:
+            yield model
+        finally:
+            self._stack.remove(model)
+
+
+def build_hal_on_models(
+    name: str,
+    sources: list[str],
+    headers: list[str],
+    cdef: str,
+    tmpdir: Path,
+    models: RegisterModels,
+    *,
+    defines=(),
+    io16: bool = False,
+):
+    """:func:`build_hal_host`, with the hal_io_* callbacks going to ``models.current``
+    (its ``read32``/``write32``, and ``read16``/``write16`` with ``io16``; without it a
+    16-bit access fails the test)."""
+    mod = build_hal_host(name, sources, headers, cdef, tmpdir, defines)
+
+    @mod.ffi.def_extern()
+    def hal_io_read32(addr):
+        return models.current.read32(addr)
+
+    @mod.ffi.def_extern()
+    def hal_io_write32(addr, value):
+        models.current.write32(addr, value)
+
+    @mod.ffi.def_extern()
+    def hal_io_read16(addr):
+        if not io16:
+            raise AssertionError("no 16-bit accesses expected")
+        return models.current.read16(addr)
+
+    @mod.ffi.def_extern()
+    def hal_io_write16(addr, value):
+        if not io16:
+            raise AssertionError("no 16-bit accesses expected")
+        models.current.write16(addr, value)
+
+    return mod
+
+
+def hal_fixture(
+    name: str,
+    sources: list[str],
+    headers: list[str],
+    cdef: str,
+    models: RegisterModels,
+    *,
+    defines=(),
+    io16: bool = False,
+):
+    """A module-scoped ``hal`` fixture: the drivers built once by
+    :func:`build_hal_on_models`, answered by ``models``. Use as
+    ``hal = hal_fixture(...)`` at the top level of a test module."""
+
+    @pytest.fixture(scope="module", name="hal")
+    def hal(tmp_path_factory):
+        tmpdir = tmp_path_factory.mktemp(name.strip("_"))
+        return build_hal_on_models(
+            name, sources, headers, cdef, tmpdir, models, defines=defines, io16=io16
+        )
+
+    return hal

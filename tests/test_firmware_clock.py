@@ -5,8 +5,7 @@ unimplemented RCC reads 0) it still returns, on the bare HSI, instead of hanging
 
 from __future__ import annotations
 
-import pytest
-from firmware_support import build_hal_host
+from firmware_support import RegisterModels, hal_fixture
 
 RCC_CR, RCC_CFGR = 0x40021000, 0x40021004
 FLASH_ACR = 0x40022000
@@ -80,46 +79,23 @@ class RccModel:
             raise AssertionError(f"write of {addr:#x}")
 
 
-_model: list[RccModel] = []
+MODELS = RegisterModels()
 
 
-@pytest.fixture(scope="module")
-def hal(tmp_path_factory):
-    mod = build_hal_host(
-        "_hal_clock_host",
-        ["hal_clock.c"],
-        ["hal_clock.h"],
-        CDEF,
-        tmp_path_factory.mktemp("hal_clock"),
-        defines=[("HAL_CLOCK_READY_POLLS", str(POLLS))],
-    )
-
-    @mod.ffi.def_extern()
-    def hal_io_read32(addr):
-        return _model[-1].read32(addr)
-
-    @mod.ffi.def_extern()
-    def hal_io_write32(addr, value):
-        _model[-1].write32(addr, value)
-
-    @mod.ffi.def_extern()
-    def hal_io_read16(addr):
-        raise AssertionError("no 16-bit accesses expected")
-
-    @mod.ffi.def_extern()
-    def hal_io_write16(addr, value):
-        raise AssertionError("no 16-bit accesses expected")
-
-    return mod
+hal = hal_fixture(
+    "_hal_clock_host",
+    ["hal_clock.c"],
+    ["hal_clock.h"],
+    CDEF,
+    MODELS,
+    defines=[("HAL_CLOCK_READY_POLLS", str(POLLS))],
+)
 
 
 def run(hal, model: RccModel):
-    _model.append(model)
-    try:
+    with MODELS.use(model):
         c = hal.lib.hal_clock_init(8_000_000, 9)
         return (c.sysclk_hz, c.hclk_hz, c.pclk1_hz, c.pclk2_hz, c.source)
-    finally:
-        _model.remove(model)
 
 
 def pllmul(cfgr: int) -> int:

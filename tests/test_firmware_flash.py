@@ -8,7 +8,7 @@ that is not erased sets PGERR and changes nothing, protected pages set WRPRTERR.
 from __future__ import annotations
 
 import pytest
-from firmware_support import build_hal_host
+from firmware_support import RegisterModels, hal_fixture
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -166,45 +166,24 @@ class QemuLikeModel(FlashModel):
         self.writes += 1
 
 
-_model: list[FlashModel] = []
+MODELS = RegisterModels()
 
 
-@pytest.fixture(scope="module")
-def hal(tmp_path_factory):
-    mod = build_hal_host(
-        "_hal_flash_host",
-        ["hal_flash.c"],
-        ["hal_flash.h"],
-        CDEF,
-        tmp_path_factory.mktemp("hal_flash"),
-        defines=[("HAL_FLASH_BUSY_POLLS", str(BUSY_POLLS))],
-    )
-
-    @mod.ffi.def_extern()
-    def hal_io_read32(addr):
-        return _model[-1].read32(addr)
-
-    @mod.ffi.def_extern()
-    def hal_io_write32(addr, value):
-        _model[-1].write32(addr, value)
-
-    @mod.ffi.def_extern()
-    def hal_io_read16(addr):
-        return _model[-1].read16(addr)
-
-    @mod.ffi.def_extern()
-    def hal_io_write16(addr, value):
-        _model[-1].write16(addr, value)
-
-    return mod
+hal = hal_fixture(
+    "_hal_flash_host",
+    ["hal_flash.c"],
+    ["hal_flash.h"],
+    CDEF,
+    MODELS,
+    defines=[("HAL_FLASH_BUSY_POLLS", str(BUSY_POLLS))],
+    io16=True,
+)
 
 
 @pytest.fixture
 def model():
-    m = FlashModel()
-    _model.append(m)
-    yield m
-    _model.remove(m)
+    with MODELS.use(FlashModel()) as m:
+        yield m
     assert m.unexpected == []
 
 
@@ -313,14 +292,10 @@ def test_odd_length_whose_pad_byte_leaves_the_region_is_refused(hal, model):
 
 
 def test_under_qemu_every_write_ends_in_a_verify_error(hal):
-    m = QemuLikeModel()
-    _model.append(m)
-    try:
+    with MODELS.use(QemuLikeModel()):
         r = region(hal)
         assert hal.lib.hal_flash_erase(r, 0, PAGE) == VERIFY  # ROM still holds 0xA5
         assert write(hal, r, 0, b"\x00\x01") == VERIFY
-    finally:
-        _model.remove(m)
 
 
 @given(
@@ -331,9 +306,7 @@ def test_under_qemu_every_write_ends_in_a_verify_error(hal):
     )
 )
 def test_any_writes_into_erased_flash_read_back(hal, chunks):
-    m = FlashModel(busy_reads=1)
-    _model.append(m)
-    try:
+    with MODELS.use(FlashModel(busy_reads=1)) as m:
         r = region(hal)
         assert hal.lib.hal_flash_erase(r, 0, PAGE * PAGES) == OK
         expected = bytearray(b"\xff" * (PAGE * PAGES))
@@ -349,5 +322,3 @@ def test_any_writes_into_erased_flash_read_back(hal, chunks):
         assert m.mem == expected
         assert m.locked()
         assert m.unexpected == []
-    finally:
-        _model.remove(m)

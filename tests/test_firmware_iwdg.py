@@ -5,7 +5,7 @@ it picks give the requested timeout (at the nominal 40 kHz LSI) to within one co
 from __future__ import annotations
 
 import pytest
-from firmware_support import build_hal_host
+from firmware_support import RegisterModels, hal_fixture
 
 IWDG = 0x40003000
 KR, PR, RLR, SR = IWDG, IWDG + 4, IWDG + 8, IWDG + 12
@@ -49,40 +49,16 @@ class IwdgModel:
         return self.rlr * (4 << self.pr) / LSI_HZ * 1000
 
 
-_model: list[IwdgModel] = []
+MODELS = RegisterModels()
 
 
-@pytest.fixture(scope="module")
-def hal(tmp_path_factory):
-    mod = build_hal_host(
-        "_hal_iwdg_host", ["hal_iwdg.c"], ["hal_iwdg.h"], CDEF, tmp_path_factory.mktemp("iwdg")
-    )
-
-    @mod.ffi.def_extern()
-    def hal_io_read32(addr):
-        return _model[-1].read32(addr)
-
-    @mod.ffi.def_extern()
-    def hal_io_write32(addr, value):
-        _model[-1].write32(addr, value)
-
-    @mod.ffi.def_extern()
-    def hal_io_read16(addr):
-        raise AssertionError("no 16-bit accesses expected")
-
-    @mod.ffi.def_extern()
-    def hal_io_write16(addr, value):
-        raise AssertionError("no 16-bit accesses expected")
-
-    return mod
+hal = hal_fixture("_hal_iwdg_host", ["hal_iwdg.c"], ["hal_iwdg.h"], CDEF, MODELS)
 
 
 @pytest.fixture
 def model():
-    m = IwdgModel()
-    _model.append(m)
-    yield m
-    _model.remove(m)
+    with MODELS.use(IwdgModel()) as m:
+        yield m
 
 
 @pytest.mark.parametrize("timeout_ms", [1, 100, 409, 410, 500, 1000, 5000, 26000])

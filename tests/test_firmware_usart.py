@@ -12,7 +12,7 @@ once), so it is proven here; the QEMU behaviour is modelled too, for the polled 
 from __future__ import annotations
 
 import pytest
-from firmware_support import build_hal_host
+from firmware_support import RegisterModels, hal_fixture
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -136,36 +136,16 @@ class UsartModel:
         )
 
 
-_model: list[UsartModel] = []
+MODELS = RegisterModels()
 
 
-@pytest.fixture(scope="module")
-def hal(tmp_path_factory):
-    mod = build_hal_host(
-        "_hal_usart_host",
-        ["hal_usart.c", "hal_gpio.c"],
-        ["hal_usart.h"],
-        CDEF,
-        tmp_path_factory.mktemp("hal_usart"),
-    )
-
-    @mod.ffi.def_extern()
-    def hal_io_read32(addr):
-        return _model[-1].read32(addr)
-
-    @mod.ffi.def_extern()
-    def hal_io_write32(addr, value):
-        _model[-1].write32(addr, value)
-
-    @mod.ffi.def_extern()
-    def hal_io_read16(addr):
-        raise AssertionError("no 16-bit accesses expected")
-
-    @mod.ffi.def_extern()
-    def hal_io_write16(addr, value):
-        raise AssertionError("no 16-bit accesses expected")
-
-    return mod
+hal = hal_fixture(
+    "_hal_usart_host",
+    ["hal_usart.c", "hal_gpio.c"],
+    ["hal_usart.h"],
+    CDEF,
+    MODELS,
+)
 
 
 class Bus:
@@ -217,10 +197,8 @@ class Bus:
 
 @pytest.fixture
 def model():
-    m = UsartModel()
-    _model.append(m)
-    yield m
-    _model.remove(m)
+    with MODELS.use(UsartModel()) as m:
+        yield m
 
 
 def test_init_sets_baud_and_leaves_the_line_receiving(hal, model):
@@ -310,9 +288,7 @@ def test_overrun_is_counted(hal, model):
 
 @given(chunks=st.lists(st.binary(min_size=1, max_size=20), min_size=1, max_size=6))
 def test_any_sequence_of_sends_reaches_the_wire_intact(hal, chunks):
-    m = UsartModel()
-    _model.append(m)
-    try:
+    with MODELS.use(UsartModel()) as m:
         bus = Bus(hal, m)
         sent = b""
         for chunk in chunks:
@@ -323,16 +299,12 @@ def test_any_sequence_of_sends_reaches_the_wire_intact(hal, chunks):
         assert bytes(m.heard) == sent
         assert m.violations == []
         assert bus.done() and m.pins == {TXEN: 0, RXEN: 1}
-    finally:
-        _model.remove(m)
 
 
 def test_qemu_style_usart_is_driven_by_the_main_loop(hal):
     """QEMU 7.2: TXE and TC always set, no transmit interrupts. hal_usart_service()
     must send everything and turn the line back by itself."""
-    m = UsartModel(instant=True)
-    _model.append(m)
-    try:
+    with MODELS.use(UsartModel(instant=True)) as m:
         bus = Bus(hal, m)
         packet = bytes(range(40))
         assert bus.send(packet)
@@ -342,5 +314,3 @@ def test_qemu_style_usart_is_driven_by_the_main_loop(hal):
         assert [b for b, _ in m.wire] == list(packet)
         assert all(pins == {TXEN: 1, RXEN: 0} for _, pins in m.wire)
         assert bus.done() and m.pins == {TXEN: 0, RXEN: 1}
-    finally:
-        _model.remove(m)

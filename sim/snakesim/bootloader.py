@@ -45,12 +45,9 @@ import os
 import select
 import threading
 import time
-import tty
 from dataclasses import dataclass, field
-from pathlib import Path
-from types import TracebackType
 
-from snakesim.errors import SimError
+from snakesim.transports.base import RawPty, Server
 from snakesim.transports.pty import tty_baudrate
 
 PC_LINK_BAUD = 57600
@@ -268,7 +265,7 @@ class Bootloader:
         return f"\r\nSize: {len(data)}\r\nChecksum: {total:02X}\r\n{PROMPT}".encode()
 
 
-class BootloaderPty:
+class BootloaderPty(Server):
     """Serves a :class:`Bootloader` on a new pseudo-terminal from a background thread.
 
         with BootloaderPty(Bootloader()) as server:
@@ -291,11 +288,11 @@ class BootloaderPty:
         self.bootloader = bootloader or Bootloader()
         self.reset_after_s = reset_after_s
         self.pace = pace
-        self.link = Path(link) if link else None
+        self._pty = RawPty(link)
+        self.link = self._pty.link
         self.device = ""
         self.dropped = 0  # bytes received at a wrong baud rate
         self.error: BaseException | None = None
-        self._master = self._slave = -1
         self._wake_r = self._wake_w = -1
         self._thread: threading.Thread | None = None
         self._lock = threading.Lock()
@@ -312,17 +309,7 @@ class BootloaderPty:
         return self._thread is not None and self._thread.is_alive()
 
     def start(self) -> BootloaderPty:
-        self._master, self._slave = os.openpty()
-        tty.setraw(self._slave)
-        os.set_blocking(self._master, False)
-        self.device = os.ttyname(self._slave)
-        if self.link is not None:
-            if self.link.exists() and not self.link.is_symlink():
-                self.close()
-                raise SimError(f"{self.link} exists and is not a symlink: choose another path")
-            if self.link.is_symlink():
-                self.link.unlink()
-            self.link.symlink_to(self.device)
+        self.device = self._pty.open()
         self._wake_r, self._wake_w = os.pipe()
         now = time.monotonic()
         if self.reset_after_s is None:
@@ -352,7 +339,7 @@ class BootloaderPty:
         view = memoryview(data)
         while view:
             try:
-                view = view[os.write(self._master, view) :]
+                view = view[os.write(self._pty.master, view) :]
             except BlockingIOError:
                 return  # the client is not reading: the rest is lost, as on a real line
             except OSError as exc:
@@ -386,21 +373,21 @@ class BootloaderPty:
                 credit = min(PACE_BLOCK, credit + (now - credit_t) / byte_s)
                 credit_t = now
                 if credit >= PACE_BLOCK:
-                    watch.append(self._master)
+                    watch.append(self._pty.master)
                 else:
                     wait = min(wait, (PACE_BLOCK - credit) * byte_s)
             else:
-                watch.append(self._master)
+                watch.append(self._pty.master)
             try:
                 ready, _, _ = select.select(watch, [], [], wait)
             except (OSError, ValueError):
                 return
             if self._wake_r in ready and b"x" in os.read(self._wake_r, 64):
                 return
-            if self._master not in ready:
+            if self._pty.master not in ready:
                 continue
             try:
-                data = os.read(self._master, int(credit) if self.pace else 4096)
+                data = os.read(self._pty.master, int(credit) if self.pace else 4096)
             except BlockingIOError:
                 continue
             except OSError as exc:
@@ -408,7 +395,7 @@ class BootloaderPty:
                     continue  # no client has the device open right now
                 raise
             credit -= len(data)
-            baud = tty_baudrate(self._slave)
+            baud = tty_baudrate(self._pty.slave)
             with self._lock:
                 if baud is not None and baud != PC_LINK_BAUD:
                     self.dropped += len(data)
@@ -422,20 +409,8 @@ class BootloaderPty:
                 os.write(self._wake_w, b"x")
             self._thread.join(5.0)
             self._thread = None
-        for fd in (self._master, self._slave, self._wake_r, self._wake_w):
+        self._pty.close()
+        for fd in (self._wake_r, self._wake_w):
             if fd >= 0:
                 os.close(fd)
-        self._master = self._slave = self._wake_r = self._wake_w = -1
-        if self.link is not None and self.link.is_symlink():
-            self.link.unlink()
-
-    def __enter__(self) -> BootloaderPty:
-        return self.start() if self._thread is None else self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
+        self._wake_r = self._wake_w = -1

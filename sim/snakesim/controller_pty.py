@@ -30,15 +30,14 @@ import os
 import select
 import sys
 import time
-import tty
 from collections.abc import Callable
-from types import TracebackType
 
 from snakebot.core import ffi, lib
 from snakesim.bus import Bus
 from snakesim.clock import byte_time
 from snakesim.errors import SimError
 from snakesim.options import SimOptions
+from snakesim.transports.base import RawPty, ThreadedServer
 from snakesim.transports.pump import ServerThread
 
 TICK_MS = 10
@@ -266,7 +265,7 @@ class ControllerDevice:
         return b"" if ptr == ffi.NULL else bytes(ffi.buffer(ptr, size[0]))
 
 
-class ControllerPty:
+class ControllerPty(ThreadedServer):
     """Serves a :class:`ControllerDevice` on a new pseudo-terminal from a thread.
 
     ``robot`` (a built-in name or TOML path) or ``servo_ids`` put emulated AX-12s on the
@@ -299,30 +298,17 @@ class ControllerPty:
         self.host_packets: list[bytes] = []
         """Every packet the host sent, as it sent it (before the line filter)."""
         self.device = ""
-        self._master = self._slave = -1
+        self._pty = RawPty()
         self._thread: ServerThread | None = None
         self._stopped = False
 
     # -- life cycle -------------------------------------------------------------------------
 
     def start(self) -> ControllerPty:
-        self._master, self._slave = os.openpty()
-        tty.setraw(self._slave)
-        os.set_blocking(self._master, False)
-        self.device = os.ttyname(self._slave)
+        self.device = self._pty.open()
         self._thread = ServerThread(f"snakesim-controller {self.device}")
         self._thread.start(self._serve)
         return self
-
-    @property
-    def lock(self) -> object:
-        """Hold this to look at or change the device (or the filter) while it serves."""
-        assert self._thread is not None, "start() first"
-        return self._thread.lock
-
-    @property
-    def running(self) -> bool:
-        return self._thread is not None and self._thread.alive
 
     @property
     def error(self) -> BaseException | None:
@@ -331,24 +317,8 @@ class ControllerPty:
 
     def close(self) -> None:
         self._stopped = True
-        if self._thread is not None:
-            self._thread.stop()
-            self._thread = None
-        for fd in (self._master, self._slave):
-            if fd >= 0:
-                os.close(fd)
-        self._master = self._slave = -1
-
-    def __enter__(self) -> ControllerPty:
-        return self.start() if self._thread is None else self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
+        self._stop_thread()
+        self._pty.close()
 
     # -- looking in ---------------------------------------------------------------------------
 
@@ -365,7 +335,7 @@ class ControllerPty:
     def _serve(self) -> None:
         assert self._thread is not None
         thread = self._thread
-        master, wake = self._master, thread.wake_fd
+        master, wake = self._pty.master, thread.wake_fd
         t0 = time.monotonic()
         framer = Framer()
         to_device = PacedWire(self.baudrate)

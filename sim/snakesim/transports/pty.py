@@ -16,12 +16,9 @@ import fcntl
 import os
 import sys
 import termios
-import tty
-from pathlib import Path
-from types import TracebackType
 
 from snakesim.bus import Bus
-from snakesim.errors import SimError
+from snakesim.transports.base import RawPty, ThreadedServer
 from snakesim.transports.pump import Pump, ServerThread
 
 _TCGETS2 = 0x802C542A  # Linux: struct termios2 with the exact speeds
@@ -47,7 +44,7 @@ def tty_baudrate(fd: int) -> int | None:
     return None
 
 
-class PtyServer:
+class PtyServer(ThreadedServer):
     """Serves ``bus`` on a new pseudo-terminal from a background thread.
 
     ``link``: also make a symlink at this path to the device (removed on close).
@@ -64,34 +61,23 @@ class PtyServer:
         speed: float = 1.0,
     ) -> None:
         self.bus = bus
-        self.link = Path(link) if link else None
+        self._pty = RawPty(link, link_advice="choose another --link path")
+        self.link = self._pty.link
         self.follow_baud = follow_baud
         self.speed = speed
-        self._master = self._slave = -1
         self._thread: ServerThread | None = None
         self._pump: Pump | None = None
         self.device = ""
 
     def start(self) -> PtyServer:
         """Create the pseudo-terminal and start serving; returns self."""
-        self._master, self._slave = os.openpty()
-        tty.setraw(self._slave)  # no echo, no line editing: bytes pass untouched
-        os.set_blocking(self._master, False)
-        self.device = os.ttyname(self._slave)
-        if self.link is not None:
-            if self.link.is_symlink() or self.link.exists():
-                if not self.link.is_symlink():
-                    self.close()
-                    raise SimError(
-                        f"{self.link} exists and is not a symlink: choose another --link path"
-                    )
-                self.link.unlink()
-            self.link.symlink_to(self.device)
+        pty = self._pty
+        self.device = pty.open()
         self._thread = ServerThread(f"snakesim-pty {self.device}")
-        baud = (lambda: tty_baudrate(self._slave)) if self.follow_baud else None
+        baud = (lambda: tty_baudrate(pty.slave)) if self.follow_baud else None
         self._pump = Pump(
             self.bus,
-            self._master,
+            pty.master,
             lock=self._thread.lock,
             wake_fd=self._thread.wake_fd,
             baudrate=baud,
@@ -100,37 +86,9 @@ class PtyServer:
         self._thread.start(self._pump.run)
         return self
 
-    @property
-    def lock(self) -> object:
-        """Hold this while touching the bus from another thread."""
-        assert self._thread is not None
-        return self._thread.lock
-
-    @property
-    def running(self) -> bool:
-        return self._thread is not None and self._thread.alive
-
     def close(self) -> None:
         """Stop serving and remove the device (and the link)."""
         if self._pump is not None:
             self._pump.stopped = True
-        if self._thread is not None:
-            self._thread.stop()
-            self._thread = None
-        for fd in (self._master, self._slave):
-            if fd >= 0:
-                os.close(fd)
-        self._master = self._slave = -1
-        if self.link is not None and self.link.is_symlink():
-            self.link.unlink()
-
-    def __enter__(self) -> PtyServer:
-        return self.start() if self._thread is None else self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
+        self._stop_thread()
+        self._pty.close()

@@ -17,17 +17,17 @@ import select
 import socket
 import time
 from pathlib import Path
-from types import TracebackType
 
 from snakesim.bus import Bus
 from snakesim.errors import SimError
+from snakesim.transports.base import ThreadedServer
 from snakesim.transports.pump import Pump, ServerThread
 
 CONNECT_TIMEOUT_S = 10.0
 """How long a connecting server keeps trying to reach a listening QEMU."""
 
 
-class UnixSocketServer:
+class UnixSocketServer(ThreadedServer):
     """Serves ``bus`` on the Unix socket ``path`` from a background thread."""
 
     def __init__(
@@ -60,16 +60,6 @@ class UnixSocketServer:
         self._thread = ServerThread(f"snakesim-unix {self.path}")
         self._thread.start(self._serve)
         return self
-
-    @property
-    def lock(self) -> object:
-        """Hold this while touching the bus from another thread."""
-        assert self._thread is not None
-        return self._thread.lock
-
-    @property
-    def running(self) -> bool:
-        return self._thread is not None and self._thread.alive
 
     def _dial(self) -> socket.socket | None:
         deadline = time.monotonic() + CONNECT_TIMEOUT_S
@@ -122,22 +112,9 @@ class UnixSocketServer:
         """Stop serving, close the socket and remove its file."""
         if self._pump is not None:
             self._pump.stopped = True
-        if self._thread is not None:
-            self._thread.stop()
-            self._thread = None
+        self._stop_thread()
         if self._listener is not None:
             self._listener.close()
             self._listener = None
             if self.path.is_socket():
                 self.path.unlink()
-
-    def __enter__(self) -> UnixSocketServer:
-        return self.start() if self._thread is None else self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()

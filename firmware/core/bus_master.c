@@ -35,7 +35,17 @@ void bus_set_roster(bus_master *b, const uint8_t *ids, uint8_t count)
     }
     b->count = count;
     if (b->next >= count) b->next = 0;
-    if (b->awaiting != NO_READ && b->awaiting >= count) b->awaiting = NO_READ;
+    /* A READ in flight whose servo has left its slot ends here, counted as unanswered
+     * (against no servo): its reply, if it still comes, must not be filed under another. */
+    if (b->awaiting != NO_READ &&
+        (b->awaiting >= count || b->ids[b->awaiting] != b->awaiting_id)) {
+        if (!b->taken) {
+            b->timeouts++;
+            if (b->corrupt) b->errors++;
+        }
+        b->awaiting = NO_READ;
+        b->rx_len = 0;
+    }
 }
 
 void bus_request_torque(bus_master *b, uint8_t request)

@@ -4,11 +4,11 @@ PYTHON      ?= python3
 VENV        := .venv
 PY          := $(VENV)/bin/python
 PIP         := $(PY) -m pip
-APT_PACKAGES := gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm
+APT_PACKAGES := gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm clang libclang-rt-14-dev
 CORE_FILES  := $(wildcard firmware/core/*.c firmware/core/*.h)
 PORT        ?=
 
-.PHONY: help setup system-packages python-env core firmware test lint bench demo flash clean
+.PHONY: help setup system-packages python-env core firmware test lint bench demo flash clean fuzz
 
 help:
 	@echo "make demo      run the main job on the emulated robot (does its own set-up)"
@@ -16,6 +16,7 @@ help:
 	@echo "make setup     install system packages, create .venv, install snakebot"
 	@echo "make firmware  cross-compile the firmware (arm-none-eabi-gcc)"
 	@echo "make bench     run the benchmarks"
+	@echo "make fuzz FUZZ_SECONDS=60   fuzz the parser and the PC link (libFuzzer, clang)"
 	@echo "make lint      ruff"
 	@echo "make flash PORT=/dev/ttyUSB0   flash the CM-530 through the ROBOTIS bootloader"
 
@@ -53,6 +54,11 @@ firmware: system-packages
 test: setup firmware
 	$(PY) -m ruff check .
 	$(PY) -m pytest
+
+# Each fuzz target runs FUZZ_SECONDS (fuzz/Makefile: regress, minimize, seeds).
+FUZZ_SECONDS ?= 60
+fuzz: system-packages
+	$(MAKE) -C fuzz run FUZZ_SECONDS=$(FUZZ_SECONDS) PYTHON=$(PYTHON)
 
 lint: python-env
 	$(PY) -m ruff check .

@@ -1,0 +1,814 @@
+/* libFuzzer target: the controller's PC-link device and control loop
+ * (firmware/core/ctl_device.c with the parser, gait tables, player, safety and bus master
+ * behind it), driven the way the firmware's main loop drives it.
+ *
+ * The input is a program: each step takes an opcode byte and its operands from the
+ * input (missing bytes read as 0). Steps: raw bytes on the PC link; a well-formed packet
+ * (right checksum) with any ID, instruction and parameters; register and servo-window
+ * WRITEs; a gait table built from the input and uploaded chunk by chunk as the host does
+ * (optionally damaged or cut short) and committed; a commit of whatever is staged with its
+ * true CRC (so gait-table validation sees arbitrary bytes); commands; RESET; the passage of
+ * time and a control tick; the device's next bus packet; the reply to the READ in flight
+ * (correct, damaged, echoed, garbage, or none), possibly after PC packets changed the
+ * roster; a whole tick's bus schedule; a playback register; a power cycle (the table the
+ * store kept is loaded again, or rejected if its bytes went bad) (speed, steering, serpenoid, safety settings).
+ * fuzz/seeds.py writes seed programs in this language (fuzz/corpus/fuzz_pclink/seed-*). PC packets, ticks and bus transactions interleave freely, as they do
+ * in the firmware's main loop.
+ *
+ * Invariants, checked after every step (violations abort, which libFuzzer reports):
+ *  - every reply is one well-formed status packet from the controller's ID at the time
+ *    the packet arrived, within the caller's buffer; nothing answers a broadcast or
+ *    another ID; Status Return Level is honoured; READ returns the length asked for;
+ *  - PC Packets + PC Errors count every parser event exactly once;
+ *  - the active table always validates and its registers (size, CRC) describe it; it
+ *    never disappears, and it changes only by a commit that reported OK with exactly the
+ *    staged bytes;
+ *  - State always says what the player is doing;
+ *  - every bus packet is a well-formed instruction; a READ is the telemetry READ of one
+ *    servo with the right reply length; goals go out only after a tick that was moving,
+ *    each within the limits in force for its joint at that tick (the table header's in
+ *    table mode, the roster's in serpenoid mode) and never past 1023; entering SAFE with
+ *    Safe Action TORQUE_OFF sends the broadcast torque-off next;
+ *  - each telemetry READ the device sends ends as exactly one read or one timeout, and a
+ *    correct reply is taken as a read with its values mirrored in that servo's slot; no
+ *    slot ever shows what another servo said (the roster may change mid-READ);
+ *  - every loop in the harness is bounded (a stuck parser or bus schedule aborts). */
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "crc32.h"
+#include "ctl_device.h"
+#include "dxl_packet.h"
+#include "dxl_parser.h"
+#include "gt_table.h"
+
+#define CHECK(cond)                                                                   \
+    do {                                                                              \
+        if (!(cond)) {                                                                \
+            fprintf(stderr, "invariant failed at %s:%d: %s\n", __FILE__, __LINE__, #cond); \
+            abort();                                                                  \
+        }                                                                             \
+    } while (0)
+
+#define MAX_STEPS 400
+#define NO_READ 0xFFu
+
+/* ---- the input --------------------------------------------------------------------------- */
+
+typedef struct {
+    const uint8_t *p;
+    size_t n;
+} src;
+
+static uint8_t u8(src *s)
+{
+    if (s->n == 0) return 0;
+    s->n--;
+    return *s->p++;
+}
+
+static uint16_t u16(src *s)
+{
+    uint16_t lo = u8(s);
+    return (uint16_t)(lo | ((uint16_t)u8(s) << 8));
+}
+
+static void bytes(src *s, uint8_t *out, size_t n)
+{
+    for (size_t i = 0; i < n; i++) out[i] = u8(s);
+}
+
+/* ---- the world around the device ----------------------------------------------------------- */
+
+static ctl_device *d;
+static uint32_t now_ms;
+
+/* What the last control tick decided, for checking the goals sent after it. */
+static struct {
+    bool valid;          /* a tick has happened since the goals were last sent */
+    bool moving;         /* the state was PLAYING or SERPENOID when the tick began */
+    bool entered_safe;   /* the tick entered SAFE with Safe Action TORQUE_OFF */
+    bool pc_since;       /* a PC packet was handled since the tick */
+    uint8_t count;
+    uint8_t id[CTL_MAX_JOINTS];
+    uint16_t lo[CTL_MAX_JOINTS];
+    uint16_t hi[CTL_MAX_JOINTS];
+} tick;
+
+static uint16_t reg16(uint8_t addr)
+{
+    return (uint16_t)(d->regs[addr] | (d->regs[addr + 1] << 8));
+}
+
+static uint32_t reg32(uint8_t addr)
+{
+    return (uint32_t)d->regs[addr] | ((uint32_t)d->regs[addr + 1] << 8) |
+           ((uint32_t)d->regs[addr + 2] << 16) | ((uint32_t)d->regs[addr + 3] << 24);
+}
+
+/* ---- invariants ---------------------------------------------------------------------------- */
+
+/* One well-formed packet filling buf[0..n), returned as an event. */
+static dxl_event parse_one(const uint8_t *buf, size_t n, dxl_parser *p)
+{
+    dxl_event ev;
+    dxl_parser_reset(p);
+    CHECK(n >= 6 && n <= DXL_MAX_PACKET);
+    for (size_t i = 0; i < n; i++) CHECK(dxl_parser_feed(p, buf[i]));
+    CHECK(dxl_parser_poll(p, &ev));
+    CHECK(ev.kind == DXL_EVENT_PACKET);
+    CHECK(ev.raw_len == n);
+    CHECK(dxl_parser_pending(p) == 0);
+    return ev;
+}
+
+static void check_reply(const uint8_t *out, size_t n, size_t cap, uint8_t from_id)
+{
+    if (n == 0) return;
+    CHECK(n <= cap && n <= CTL_PC_REPLY_MAX);
+    dxl_parser p;
+    dxl_event ev = parse_one(out, n, &p);
+    CHECK(ev.id == from_id && from_id <= DXL_MAX_ID);
+    CHECK((ev.code & 0x80u) == 0); /* only defined error bits */
+}
+
+static struct {
+    uint16_t len;
+    uint8_t bytes[CTL_MAX_TABLE_BYTES];
+} snapshot, flash; /* the active table as last seen; what the app would have persisted */
+
+static void take_snapshot(void)
+{
+    snapshot.len = d->active_len;
+    memcpy(snapshot.bytes, d->active, d->active_len);
+}
+
+static void check_state(void)
+{
+    uint8_t state = ctl_state(d);
+    uint8_t mode = play_mode(&d->player);
+    CHECK(state <= CTL_STATE_SAFE);
+    CHECK((state == CTL_STATE_PLAYING) == (mode == PLAY_MODE_TABLE));
+    CHECK((state == CTL_STATE_SERPENOID) == (mode == PLAY_MODE_SERPENOID));
+    if (state == CTL_STATE_PLAYING) CHECK(d->active_len > 0);
+    CHECK((ctl_error_flags(d) & 0xFF00u) == 0);
+    CHECK(d->regs[CTL_JOINT_COUNT] <= CTL_MAX_JOINTS);
+    CHECK(bus_roster_count(&d->bus) == d->regs[CTL_JOINT_COUNT]);
+    CHECK(d->staged_end <= CTL_MAX_TABLE_BYTES);
+}
+
+/* The active table after any step: valid, described by its registers, and changed only
+ * by a successful commit of exactly the staged bytes. */
+static void check_table(void)
+{
+    if (d->active_len > 0) {
+        gt_info info;
+        CHECK(d->active_len <= CTL_MAX_TABLE_BYTES);
+        CHECK(gt_validate(d->active, d->active_len, &info) == GT_OK);
+        CHECK(reg16(CTL_TABLE_SIZE) == d->active_len);
+        CHECK(reg32(CTL_TABLE_CRC) == crc32_compute(d->active, d->active_len));
+        CHECK(d->regs[CTL_TABLE_JOINTS] == info.joint_count);
+        CHECK(reg16(CTL_TABLE_FRAMES) == info.frame_count);
+    } else {
+        CHECK(reg16(CTL_TABLE_SIZE) == 0);
+    }
+    bool changed = d->active_len != snapshot.len ||
+                   memcmp(d->active, snapshot.bytes, d->active_len) != 0;
+    if (snapshot.len > 0) CHECK(d->active_len > 0); /* a table is never lost */
+    if (changed) {
+        CHECK(d->regs[CTL_UPLOAD_RESULT] == GT_OK);
+        CHECK(memcmp(d->active, d->staging, d->active_len) == 0);
+        CHECK(reg16(CTL_UPLOAD_LENGTH) == d->active_len);
+        CHECK(ctl_table_changed(d)); /* and the app is told to persist it */
+        take_snapshot();
+        flash = snapshot; /* as the firmware's store_save() does */
+    }
+}
+
+static void check_bus(void);
+
+static void check_all(void)
+{
+    check_state();
+    check_table();
+    check_bus();
+}
+
+/* ---- the PC link ---------------------------------------------------------------------------- */
+
+/* Poll after every byte, as the firmware's pclink does; check replies and counters. */
+static void pc_bytes(const uint8_t *buf, size_t n, size_t *last_reply_len)
+{
+    uint8_t out[CTL_PC_REPLY_MAX];
+    for (size_t i = 0; i < n; i++) {
+        CHECK(ctl_pc_feed(d, buf[i])); /* never full when polled after every byte */
+        for (unsigned rounds = 0;; rounds++) {
+            CHECK(rounds <= DXL_MAX_PACKET + 1u);
+            uint16_t packets = reg16(CTL_PC_PACKETS);
+            uint16_t errors = reg16(CTL_PC_ERRORS);
+            uint8_t id_before = ctl_id(d);
+            size_t cap = sizeof out;
+            size_t got = 0xDEAD;
+            if (!ctl_pc_poll(d, now_ms, out, cap, &got)) {
+                CHECK(got == 0);
+                break;
+            }
+            check_reply(out, got, cap, id_before);
+            tick.pc_since = true;
+            if (last_reply_len != NULL) *last_reply_len = got;
+            uint16_t dp = (uint16_t)(reg16(CTL_PC_PACKETS) - packets);
+            uint16_t de = (uint16_t)(reg16(CTL_PC_ERRORS) - errors);
+            bool reset_to_defaults = reg16(CTL_PC_PACKETS) == 0 && reg16(CTL_PC_ERRORS) == 0;
+            CHECK((dp == 1 && de == 0) || (dp == 0 && de == 1) || reset_to_defaults);
+            check_all();
+        }
+    }
+}
+
+/* A well-formed packet; checks whether and how it was answered. */
+static void pc_packet(uint8_t id, uint8_t inst, const uint8_t *params, size_t nparams)
+{
+    uint8_t pkt[DXL_MAX_PACKET];
+    size_t n = dxl_encode(pkt, sizeof pkt, id, inst, params, nparams);
+    if (n == 0) return;
+    /* The host pauses before a transaction; after 100 ms of silence the firmware drops a
+     * partial packet (pclink.c), so the packet is parsed from a clean start. */
+    if (dxl_parser_pending(&d->pc) > 0) dxl_parser_reset(&d->pc);
+    uint8_t me = ctl_id(d);
+    uint8_t level = d->regs[CTL_STATUS_RETURN_LEVEL];
+    size_t reply_len = SIZE_MAX; /* no event at all would leave this */
+    pc_bytes(pkt, n, &reply_len);
+    CHECK(reply_len != SIZE_MAX); /* a well-formed packet is always parsed */
+    bool to_me = id == me;
+    if (!to_me) {
+        CHECK(reply_len == 0); /* broadcast or another device: silence */
+        return;
+    }
+    switch (inst) {
+    case DXL_INST_PING: CHECK(reply_len == 6); break;
+    case DXL_INST_READ:
+        if (level == 0) CHECK(reply_len == 0);
+        else if (nparams == 2 && params[1] > 0 && params[0] + params[1] <= 256 &&
+                 params[1] <= DXL_MAX_PARAMS)
+            CHECK(reply_len == params[1] + 6u);
+        else CHECK(reply_len == 6); /* the error status */
+        break;
+    case DXL_INST_SYNC_WRITE: CHECK(reply_len == 0); break;
+    default: CHECK(reply_len == (level >= 2 ? 6 : 0)); break;
+    }
+}
+
+static void write_to_me(uint8_t addr, const uint8_t *data, size_t n)
+{
+    uint8_t params[1 + DXL_MAX_PARAMS];
+    if (n > DXL_MAX_PARAMS - 1) n = DXL_MAX_PARAMS - 1;
+    params[0] = addr;
+    memcpy(params + 1, data, n);
+    pc_packet(ctl_id(d), DXL_INST_WRITE, params, n + 1);
+}
+
+/* ---- gait tables ------------------------------------------------------------------------------ */
+
+static void put16(uint8_t *p, uint16_t v)
+{
+    p[0] = (uint8_t)v;
+    p[1] = (uint8_t)(v >> 8);
+}
+
+/* A valid table from the input: joints 1..18, frames within the 2 KB, unique IDs. */
+static size_t make_table(src *s, uint8_t *t)
+{
+    uint8_t joints = (uint8_t)(u8(s) % CTL_MAX_JOINTS + 1u);
+    size_t per_frame = 2u * joints;
+    size_t room = (CTL_MAX_TABLE_BYTES - GT_HEADER_SIZE - (size_t)GT_JOINT_SIZE * joints) /
+                  per_frame;
+    uint16_t frames = (uint16_t)(u8(s) % (room < 40 ? room : 40) + 1u);
+    uint16_t period = (uint16_t)(u16(s) % 1000u + 1u);
+    uint8_t flags = u8(s) & GT_FLAG_LOOP;
+    memset(t, 0, GT_HEADER_SIZE);
+    t[0] = 'S';
+    t[1] = 'N';
+    t[2] = 'K';
+    t[3] = 'G';
+    t[4] = GT_VERSION;
+    t[5] = joints;
+    t[6] = flags;
+    put16(t + 8, period);
+    put16(t + 10, frames);
+    uint16_t lo[CTL_MAX_JOINTS];
+    uint16_t hi[CTL_MAX_JOINTS];
+    uint8_t first_id = u8(s);
+    for (uint8_t j = 0; j < joints; j++) {
+        uint8_t *rec = t + GT_HEADER_SIZE + GT_JOINT_SIZE * j;
+        uint16_t a = u16(s) % 1024u;
+        uint16_t b = u16(s) % 1024u;
+        lo[j] = a < b ? a : b;
+        hi[j] = a < b ? b : a;
+        rec[0] = (uint8_t)((first_id + j) % (GT_MAX_ID + 1u));
+        rec[1] = 0;
+        put16(rec + 2, lo[j]);
+        put16(rec + 4, hi[j]);
+    }
+    uint8_t *f = t + GT_HEADER_SIZE + GT_JOINT_SIZE * joints;
+    for (uint16_t k = 0; k < frames; k++) {
+        for (uint8_t j = 0; j < joints; j++) {
+            uint16_t span = (uint16_t)(hi[j] - lo[j] + 1u);
+            put16(f, (uint16_t)(lo[j] + u16(s) % span));
+            f += 2;
+        }
+    }
+    size_t len = (size_t)(f - t);
+    uint32_t crc = gt_crc(t, len);
+    t[12] = (uint8_t)crc;
+    t[13] = (uint8_t)(crc >> 8);
+    t[14] = (uint8_t)(crc >> 16);
+    t[15] = (uint8_t)(crc >> 24);
+    gt_info info;
+    CHECK(gt_validate(t, len, &info) == GT_OK); /* the harness builds valid tables */
+    return len;
+}
+
+static void commit_with(uint16_t len, uint32_t crc)
+{
+    uint8_t c[7];
+    put16(c, len);
+    c[2] = (uint8_t)crc;
+    c[3] = (uint8_t)(crc >> 8);
+    c[4] = (uint8_t)(crc >> 16);
+    c[5] = (uint8_t)(crc >> 24);
+    c[6] = 1;
+    write_to_me(CTL_UPLOAD_LENGTH, c, sizeof c);
+}
+
+/* Upload as the host does: 64-byte chunks at Upload Offset, then the commit. Faults from
+ * the input: a chunk skipped or damaged, the upload cut after some chunk, a wrong CRC; or
+ * a table damaged before it is sent (header, limits, IDs, frames), with its own CRC made
+ * right again or not, and sent correctly: then the commit must report exactly what
+ * gt_validate finds, and only a table that still validates may become active. */
+static void upload(src *s)
+{
+    static uint8_t t[CTL_MAX_TABLE_BYTES];
+    size_t len = make_table(s, t);
+    uint8_t fault = u8(s);
+    uint8_t where = u8(s);
+    uint8_t flip = (uint8_t)(u8(s) | 1u);
+    int expect = GT_OK;
+    if (fault == 5 || fault == 6) {
+        t[where % len] ^= flip;
+        if (fault == 6) { /* the table's own CRC agrees with the damage */
+            uint32_t crc = gt_crc(t, len);
+            t[12] = (uint8_t)crc;
+            t[13] = (uint8_t)(crc >> 8);
+            t[14] = (uint8_t)(crc >> 16);
+            t[15] = (uint8_t)(crc >> 24);
+        }
+        gt_info info;
+        expect = gt_validate(t, len, &info);
+    }
+    size_t chunks = (len + CTL_UPLOAD_WINDOW - 1) / CTL_UPLOAD_WINDOW;
+    size_t victim = where % chunks;
+    for (size_t k = 0; k < chunks; k++) {
+        uint8_t data[2 + CTL_UPLOAD_WINDOW];
+        size_t at = k * CTL_UPLOAD_WINDOW;
+        size_t n = len - at < CTL_UPLOAD_WINDOW ? len - at : CTL_UPLOAD_WINDOW;
+        put16(data, (uint16_t)at);
+        memcpy(data + 2, t + at, n);
+        if (k == victim && fault == 1) continue;                 /* chunk lost */
+        if (k == victim && fault == 2) data[2 + where % n] ^= 0x10; /* chunk damaged */
+        if (k == victim && fault == 3) return;                   /* upload cut here */
+        write_to_me(CTL_UPLOAD_OFFSET, data, n + 2);
+    }
+    uint32_t crc = crc32_compute(t, len);
+    if (fault == 4) crc ^= 1u;
+    commit_with((uint16_t)len, crc);
+    if (fault == 5 || fault == 6) {
+        CHECK(d->regs[CTL_UPLOAD_RESULT] == expect);
+        if (expect != GT_OK) CHECK(memcmp(d->active, t, len) != 0 || d->active_len != len);
+    }
+    bool sound = fault == 0 || fault > 6 || ((fault == 5 || fault == 6) && expect == GT_OK);
+    if (sound) {
+        /* a whole, correct upload to a listening controller always lands */
+        CHECK(d->regs[CTL_UPLOAD_RESULT] == GT_OK);
+        CHECK(d->active_len == len && memcmp(d->active, t, len) == 0);
+    }
+    if (fault == 1 || fault == 2 || fault == 4) {
+        /* a damaged upload is refused (CRC-32 catches the flipped bit), a lost chunk only
+         * passes if the staging area already held those very bytes */
+        CHECK(d->regs[CTL_UPLOAD_RESULT] != GT_OK || memcmp(d->staging, t, len) == 0);
+        if (fault != 1) CHECK(d->regs[CTL_UPLOAD_RESULT] != GT_OK);
+    }
+}
+
+/* ---- time, ticks and the bus ------------------------------------------------------------------- */
+
+static void do_tick(uint32_t dt)
+{
+    now_ms += dt;
+    uint8_t before = ctl_state(d);
+    ctl_tick(d, now_ms);
+    uint8_t after = ctl_state(d);
+    const play_state *p = &d->player;
+    tick.valid = true;
+    tick.pc_since = false;
+    tick.moving = before == CTL_STATE_PLAYING || before == CTL_STATE_SERPENOID;
+    tick.entered_safe = before != CTL_STATE_SAFE && after == CTL_STATE_SAFE &&
+                        d->regs[CTL_SAFE_ACTION] == CTL_SAFE_ACTION_TORQUE_OFF;
+    tick.count = d->out_count;
+    CHECK(tick.count <= CTL_MAX_JOINTS);
+    if (!tick.moving) CHECK(tick.count == 0);
+    bool table_mode = before == CTL_STATE_PLAYING;
+    gt_info info;
+    if (table_mode) CHECK(gt_validate(d->active, d->active_len, &info) == GT_OK);
+    for (uint8_t j = 0; j < tick.count; j++) {
+        tick.id[j] = p->out_id[j];
+        if (table_mode) {
+            CHECK(p->table == d->active); /* the player reads the active table itself */
+            CHECK(tick.count == info.joint_count);
+            CHECK(tick.id[j] == gt_joint_id(d->active, &info, j));
+            tick.lo[j] = gt_joint_min(d->active, &info, j);
+            tick.hi[j] = gt_joint_max(d->active, &info, j);
+        } else {
+            const play_joint *r = &d->roster[j];
+            CHECK(tick.id[j] == r->id);
+            tick.lo[j] = r->min > 1023u ? 1023u : r->min;
+            tick.hi[j] = r->max > 1023u ? 1023u : r->max;
+            if (tick.hi[j] < tick.lo[j]) tick.hi[j] = tick.lo[j]; /* min > max: pinned */
+        }
+    }
+}
+
+static void check_goals(const dxl_event *ev)
+{
+    CHECK(tick.valid && tick.moving);
+    CHECK(ev->nparams == 2u + 5u * tick.count);
+    for (uint8_t j = 0; j < tick.count; j++) {
+        const uint8_t *b = ev->params + 2 + 5 * j;
+        uint16_t goal = (uint16_t)(b[1] | (b[2] << 8));
+        CHECK(b[0] == tick.id[j]);
+        CHECK(goal <= 1023u);
+        CHECK(goal >= tick.lo[j] && goal <= tick.hi[j]);
+    }
+    tick.valid = false; /* one goals packet per tick */
+}
+
+/* How the bus answers the awaited READ: always read whole from the input, whatever the
+ * device sends (so a program's later steps do not shift with the device's behaviour). */
+typedef struct {
+    uint8_t how;      /* 0 silence, 1 reply, 2 echo + reply, 3 damaged, 4 other servo, 5 raw */
+    uint8_t data[8];  /* the telemetry block */
+    uint8_t error;
+    uint8_t flip_at;  /* damaged: which byte (from the ID on) and which bit */
+    uint8_t flip_bit;
+    uint8_t pieces;   /* how the bytes are split into UART reads */
+    uint8_t raw_len;
+    uint8_t raw[64];
+} bus_answer_t;
+
+static void read_answer(src *s, bus_answer_t *a)
+{
+    a->how = u8(s) % 6u;
+    bytes(s, a->data, sizeof a->data);
+    a->error = u8(s) & 0x7Fu;
+    a->flip_at = u8(s);
+    a->flip_bit = u8(s) % 8u;
+    a->pieces = u8(s);
+    a->raw_len = u8(s) % (uint8_t)sizeof a->raw;
+    bytes(s, a->raw, a->raw_len);
+}
+
+/* The bytes that come back for the READ `read`. */
+static size_t make_reply(const bus_answer_t *a, const dxl_event *read, uint8_t *rx, size_t cap,
+                         int *damaged_at)
+{
+    size_t n = 0;
+    *damaged_at = -1;
+    switch (a->how) {
+    case 0: return 0; /* silence: a timeout */
+    case 1:           /* the reply */
+    case 2:           /* the echo of the READ, then the reply (one-wire adapter) */
+        if (a->how == 2) {
+            memcpy(rx, read->raw, read->raw_len);
+            n = read->raw_len;
+        }
+        return n + dxl_status(rx + n, cap - n, read->id, a->error, a->data, sizeof a->data);
+    case 3: /* the reply with one bit flipped */
+        n = dxl_status(rx, cap, read->id, a->error, a->data, sizeof a->data);
+        *damaged_at = (int)(2u + a->flip_at % (n - 2));
+        rx[*damaged_at] ^= (uint8_t)(1u << a->flip_bit);
+        return n;
+    case 4: /* a reply from another servo */
+        return dxl_status(rx, cap, (uint8_t)(read->id ^ 1u), a->error, a->data, sizeof a->data);
+    default: /* whatever the input says */
+        memcpy(rx, a->raw, a->raw_len);
+        return a->raw_len;
+    }
+}
+
+/* The READ in flight, as the harness knows it. */
+static struct {
+    bool pending;
+    dxl_event ev;             /* the READ (raw points into `raw`) */
+    uint8_t raw[8];
+    uint8_t slot;
+    uint16_t reads_issued;    /* telemetry READs the device has sent (wraps) */
+    uint8_t slot_id[CTL_MAX_JOINTS];    /* per roster slot: the servo of the reply taken */
+    uint16_t slot_pos[CTL_MAX_JOINTS];  /* and the position it carried */
+} rd;
+
+/* The telemetry reply a receiver finds first in rx[0..n) for servo `id`: the earliest
+ * complete 14-byte status packet from it with the right length and checksum. */
+static const uint8_t *find_reply(const uint8_t *rx, size_t n, uint8_t id)
+{
+    for (size_t i = 0; i + BUS_REPLY_BYTES <= n; i++) {
+        const uint8_t *w = rx + i;
+        if (w[0] == 0xFF && w[1] == 0xFF && w[2] == id && w[3] == BUS_TELEMETRY_LENGTH + 2 &&
+            dxl_checksum(w + 2, BUS_REPLY_BYTES - 3) == w[BUS_REPLY_BYTES - 1])
+            return w;
+    }
+    return NULL;
+}
+
+/* The device's next bus packet, checked; a READ stays in flight for bus_answer(). */
+static void bus_send(void)
+{
+    uint8_t tx[CTL_BUS_TX_MAX + 8];
+    uint8_t reply_len = 0xEE;
+    memset(tx, 0xCC, sizeof tx);
+    size_t n = ctl_bus_next(d, tx, CTL_BUS_TX_MAX, &reply_len);
+    bool torque_off_due = tick.entered_safe && !tick.pc_since; /* a command may change it */
+    tick.entered_safe = false;
+    rd.pending = false; /* the device closed any READ before sending again */
+    if (n == 0) {
+        CHECK(reply_len == 0);
+        CHECK(!torque_off_due);
+        return;
+    }
+    CHECK(n <= CTL_BUS_TX_MAX);
+    CHECK(tx[n] == 0xCC); /* nothing written past the packet */
+    dxl_parser p;
+    dxl_event ev = parse_one(tx, n, &p);
+    if (torque_off_due) {
+        CHECK(ev.id == DXL_BROADCAST_ID && ev.code == DXL_INST_WRITE && ev.nparams == 2);
+        CHECK(ev.params[0] == 24 && ev.params[1] == 0); /* AX-12 Torque Enable = 0 */
+    }
+    if (ev.code == DXL_INST_SYNC_WRITE) {
+        CHECK(ev.id == DXL_BROADCAST_ID && reply_len == 0);
+        CHECK(ev.nparams >= 2 && ev.params[1] > 0 && (ev.nparams - 2) % (ev.params[1] + 1u) == 0);
+        if (ev.params[0] == 30) check_goals(&ev); /* AX-12 Goal Position */
+        else CHECK(ev.params[0] == 24 && ev.params[1] == 1); /* torque on */
+        return;
+    }
+    if (ev.code == DXL_INST_WRITE) {
+        CHECK(ev.id == DXL_BROADCAST_ID && reply_len == 0);
+        CHECK(ev.params[0] == 24); /* only torque off is written this way */
+        return;
+    }
+    /* the telemetry READ */
+    CHECK(ev.code == DXL_INST_READ && ev.id <= DXL_MAX_ID && n == sizeof rd.raw);
+    CHECK(ev.nparams == 2 && ev.params[0] == BUS_TELEMETRY_ADDRESS &&
+          ev.params[1] == BUS_TELEMETRY_LENGTH);
+    CHECK(reply_len == BUS_REPLY_BYTES);
+    CHECK(d->bus.awaiting != NO_READ && d->bus.awaiting < bus_roster_count(&d->bus));
+    CHECK(d->bus.ids[d->bus.awaiting] == ev.id);
+    memcpy(rd.raw, tx, n);
+    rd.ev = ev;
+    rd.ev.raw = rd.raw;
+    rd.ev.params = rd.raw + 5;
+    rd.slot = d->bus.awaiting;
+    rd.pending = true;
+    rd.reads_issued++;
+}
+
+/* The answer to the READ in flight (whatever happened on the PC link meanwhile), then the
+ * end of its reply window. */
+static void bus_answer(const bus_answer_t *a)
+{
+    if (!rd.pending) {
+        ctl_bus_rx_done(d); /* a window with nothing awaited: harmless */
+        return;
+    }
+    rd.pending = false;
+    bool same = d->bus.awaiting == rd.slot && d->bus.ids[rd.slot] == rd.ev.id; /* still awaited */
+    uint16_t reads = bus_reads(&d->bus);
+    uint16_t timeouts = bus_timeouts(&d->bus);
+    uint16_t errors = bus_errors(&d->bus);
+
+    uint8_t rx[96];
+    int damaged_at;
+    size_t got = make_reply(a, &rd.ev, rx, sizeof rx, &damaged_at);
+    bool correct = a->how == 1 || a->how == 2;
+    /* in pieces, as the UART delivers them */
+    size_t at = 0;
+    bool done = false;
+    for (unsigned k = 0; at < got && !done; k++) {
+        size_t piece = (a->pieces + 7u * k) % 16u + 1u;
+        if (piece > got - at) piece = got - at;
+        done = ctl_bus_rx(d, rx + at, piece);
+        at += piece;
+    }
+    ctl_bus_rx_done(d);
+    CHECK(d->bus.awaiting == NO_READ);
+    uint16_t dr = (uint16_t)(bus_reads(&d->bus) - reads);
+    uint16_t dt = (uint16_t)(bus_timeouts(&d->bus) - timeouts);
+    if (!same) {
+        CHECK(dr == 0 && dt == 0); /* the READ was closed already; nothing is filed now */
+        return;
+    }
+    CHECK(dr + dt == 1); /* exactly one outcome per READ */
+    CHECK(done == (dr == 1));
+    if (correct) CHECK(done);
+    if (damaged_at >= 0) {
+        /* a damaged reply is never taken; past its header it counts as a bus error too */
+        CHECK(dt == 1);
+        CHECK((uint16_t)(bus_errors(&d->bus) - errors) == (damaged_at >= 4 ? 1u : 0u));
+    }
+    if (correct) {
+        const bus_servo *sv = bus_servo_at(&d->bus, rd.slot);
+        uint16_t pos = (uint16_t)(a->data[0] | (a->data[1] << 8));
+        CHECK(sv != NULL && sv->missed == 0 && sv->position == pos && sv->error == a->error);
+    }
+    if (dr == 1) { /* what was taken is a real reply of this servo, in the bytes given */
+        const uint8_t *w = find_reply(rx, at, rd.ev.id);
+        const bus_servo *sv = bus_servo_at(&d->bus, rd.slot);
+        CHECK(w != NULL && sv != NULL);
+        CHECK(sv->position == (uint16_t)(w[5] | (w[6] << 8)) && sv->error == w[4]);
+        rd.slot_id[rd.slot] = rd.ev.id;
+        rd.slot_pos[rd.slot] = sv->position;
+    } else {
+        CHECK(find_reply(rx, at, rd.ev.id) == NULL || !same); /* a good reply is never missed */
+    }
+}
+
+/* Every READ the device sent ends as one read or one timeout (or is still in flight), and
+ * each roster slot's mirror holds what its own servo last said. */
+static void check_bus(void)
+{
+    const bus_master *b = &d->bus;
+    bool open = b->awaiting != NO_READ && !b->taken;
+    CHECK((uint16_t)(bus_reads(b) + bus_timeouts(b) + (open ? 1u : 0u)) == rd.reads_issued);
+    for (uint8_t k = 0; k < b->count; k++) {
+        const bus_servo *sv = &b->servo[k];
+        if (sv->fresh) CHECK(rd.slot_id[k] == b->ids[k] && sv->position == rd.slot_pos[k]);
+    }
+}
+
+/* ---- power ------------------------------------------------------------------------------------ */
+
+/* The MCU resets: a fresh device (zeroed RAM) that loads what the store kept, as main()
+ * does. With `damage` odd, one byte of the stored table went bad: it must not load. */
+static void power_cycle(uint8_t damage, uint8_t where, uint8_t flip)
+{
+    bool bad = (damage & 1u) != 0 && flash.len > 0;
+    if (bad) flash.bytes[where % flash.len] ^= (uint8_t)(flip | 1u);
+    memset(d, 0, sizeof *d);
+    ctl_init(d);
+    bool loaded = flash.len > 0 && ctl_load_table(d, flash.bytes, flash.len);
+    CHECK(loaded == (flash.len > 0 && !bad)); /* a whole table always comes back */
+    if (loaded) {
+        CHECK(d->active_len == flash.len && memcmp(d->active, flash.bytes, flash.len) == 0);
+        CHECK(ctl_table_changed(d));
+    } else {
+        CHECK(d->active_len == 0);
+        flash.len = 0; /* the store is empty now */
+    }
+    take_snapshot();
+    memset(&tick, 0, sizeof tick);
+    memset(&rd, 0, sizeof rd);
+}
+
+/* ---- the program ------------------------------------------------------------------------------- */
+
+static void step(src *s)
+{
+    uint8_t op = u8(s) % 15u;
+    uint8_t buf[256];
+    switch (op) {
+    case 0: { /* raw bytes */
+        size_t n = u8(s);
+        bytes(s, buf, n);
+        pc_bytes(buf, n, NULL);
+        break;
+    }
+    case 1: { /* any well-formed packet */
+        uint8_t sel = u8(s);
+        uint8_t id = sel < 160 ? ctl_id(d) : sel < 200 ? DXL_BROADCAST_ID : u8(s);
+        if (id == 0xFF) id = DXL_BROADCAST_ID;
+        uint8_t inst = u8(s);
+        static const uint8_t common[] = {DXL_INST_PING, DXL_INST_READ, DXL_INST_WRITE,
+                                         DXL_INST_SYNC_WRITE, DXL_INST_RESET,
+                                         DXL_INST_REG_WRITE};
+        if (inst < 200) inst = common[inst % sizeof common];
+        size_t n = u8(s) % 80u;
+        bytes(s, buf, n);
+        pc_packet(id, inst, buf, n);
+        break;
+    }
+    case 2: { /* a WRITE of registers */
+        uint8_t addr = u8(s);
+        size_t n = u8(s) % 12u + 1u;
+        bytes(s, buf, n);
+        write_to_me(addr, buf, n);
+        break;
+    }
+    case 3: { /* a roster record in the servo window */
+        uint8_t data[1 + CTL_SERVO_RECORD_SIZE];
+        uint8_t slot = u8(s) % CTL_SERVO_RECORDS;
+        data[0] = u8(s) % 3u; /* Servo Page, written in the same packet */
+        bytes(s, data + 1, 8);
+        put16(data + 1 + CTL_REC_ZERO_TICK, u16(s) % 1024u);
+        put16(data + 1 + CTL_REC_MIN_TICK, u16(s) % 1024u);
+        put16(data + 1 + CTL_REC_MAX_TICK, u16(s) % 1024u);
+        data[1 + CTL_REC_REVERSE] &= 1u;
+        if (slot == 0) {
+            write_to_me(CTL_SERVO_PAGE, data, 1 + 8);
+        } else {
+            write_to_me(CTL_SERVO_PAGE, data, 1);
+            write_to_me((uint8_t)(CTL_SERVO_WINDOW + slot * CTL_SERVO_RECORD_SIZE), data + 1, 8);
+        }
+        break;
+    }
+    case 4: upload(s); break;
+    case 5: { /* commit whatever is staged, with its true CRC */
+        uint16_t len = (uint16_t)(u16(s) % (CTL_MAX_TABLE_BYTES + 8u));
+        uint32_t crc = len <= CTL_MAX_TABLE_BYTES ? crc32_compute(d->staging, len) : 0;
+        commit_with(len, crc);
+        break;
+    }
+    case 6: { /* a command */
+        uint8_t cmd = u8(s) % 5u;
+        write_to_me(CTL_COMMAND, &cmd, 1);
+        break;
+    }
+    case 7: { /* a joint count, or a small roster for the serpenoid */
+        uint8_t n = u8(s) % (CTL_MAX_JOINTS + 1u);
+        write_to_me(CTL_JOINT_COUNT, &n, 1);
+        break;
+    }
+    case 8: pc_packet(ctl_id(d), DXL_INST_RESET, NULL, 0); break;
+    case 9: { /* time passes: a control tick */
+        uint8_t sel = u8(s);
+        uint32_t dt = sel < 200 ? sel % 40u : sel < 250 ? u16(s) : (uint32_t)u16(s) << 16;
+        do_tick(dt);
+        break;
+    }
+    case 10: bus_send(); break;
+    case 11: { /* the rest of this tick's bus schedule, every READ answered at once */
+        bus_answer_t a;
+        read_answer(s, &a);
+        for (unsigned k = 0; k < 4; k++) { /* at most torque, goals, READ */
+            bus_send();
+            bus_answer(&a);
+        }
+        CHECK(d->bus.step == 3); /* the schedule always ends */
+        break;
+    }
+    case 13: { /* the reply (or silence) for the READ in flight */
+        bus_answer_t a;
+        read_answer(s, &a);
+        bus_answer(&a);
+        break;
+    }
+    case 12: { /* a playback register, with a value in or near its range */
+        static const uint8_t knobs[] = {CTL_SPEED_SCALE, CTL_STEERING_OFFSET, CTL_LOOP,
+                                        CTL_SERP_AMPLITUDE, CTL_SERP_OMEGA, CTL_SERP_DELTA,
+                                        CTL_SERP_PHI0, CTL_SAFE_ACTION, CTL_BUS_LOSS_LIMIT,
+                                        CTL_SERVO_ERROR_MASK, CTL_LINK_TIMEOUT};
+        uint8_t addr = knobs[u8(s) % sizeof knobs];
+        uint8_t v[2];
+        put16(v, u16(s));
+        bool one_byte = addr == CTL_LOOP || (addr >= CTL_SAFE_ACTION && addr <= CTL_LINK_TIMEOUT);
+        write_to_me(addr, v, one_byte ? 1 : 2);
+        break;
+    }
+    case 14: { /* operands read in order (argument evaluation order is unspecified) */
+        uint8_t damage = u8(s);
+        uint8_t where = u8(s);
+        power_cycle(damage, where, u8(s));
+        break;
+    }
+    default: CHECK(0);
+    }
+    check_all();
+}
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    src s = {data, size};
+    d = malloc(ctl_device_size()); /* exact size: ASan catches a write past the end */
+    CHECK(d != NULL && ctl_device_size() == sizeof(ctl_device));
+    memset(d, 0, sizeof *d); /* the MCU's .bss */
+    ctl_init(d);
+    now_ms = (uint32_t)u16(&s) << 16; /* any starting time, including near the wrap */
+    memset(&tick, 0, sizeof tick);
+    memset(&rd, 0, sizeof rd);
+    snapshot.len = 0;
+    flash.len = 0;
+    check_all();
+    for (unsigned k = 0; k < MAX_STEPS && s.n > 0; k++) step(&s);
+    free(d);
+    return 0;
+}

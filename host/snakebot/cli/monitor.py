@@ -13,6 +13,9 @@ from snakebot.cli.controller_link import controller_options, open_controller
 from snakebot.controller.monitor import render, sample
 
 CLEAR_BELOW = "\x1b[J"
+GRID_SLACK = 1e-9
+"""Lets a --duration that is a whole number of intervals count as one (0.3 / 0.1 is
+2.9999999999999996 in floating point)."""
 
 
 def _cursor_up(lines: int) -> str:
@@ -38,7 +41,7 @@ def monitor(port: str, baud: int, controller_id: int, as_json: bool, duration: f
     with open_controller(port, baud, controller_id) as ctl:
         ctl.identify()
         t0 = time.monotonic()
-        next_at = t0
+        taken = 0
         try:
             while True:
                 s = sample(ctl, t0)
@@ -53,13 +56,13 @@ def monitor(port: str, baud: int, controller_id: int, as_json: bool, duration: f
                         shown = len(lines)
                     else:
                         click.echo("\n".join(lines) + "\n")
-                next_at += interval
-                now = time.monotonic()
-                if duration is not None and next_at - t0 > duration:
+                taken += 1
+                # Sample k is due at t0 + k * interval, counted on an integer grid: comparing
+                # accumulated float times would drop the last sample at random.
+                if duration is not None and taken > duration / interval + GRID_SLACK:
                     break
-                if next_at > now:
-                    time.sleep(next_at - now)
-                else:
-                    next_at = now  # the link is slower than the interval: no catching up
+                wait = t0 + taken * interval - time.monotonic()
+                if wait > 0:
+                    time.sleep(wait)  # a link slower than the interval samples back to back
         except KeyboardInterrupt:
             pass

@@ -9,7 +9,11 @@
    `snakebot sim bus --pty` (a separate process, as a user runs it), against the rate
    the wire itself allows at 1 Mbps with Return Delay Time 0 (16 bytes = 160 us).
 3. snakebot's client against ROBOTIS's dynamixel-sdk on the same pty, same run:
-   transactions per second of each (goal: snakebot at least 2x).
+   transactions per second of each (goal: snakebot at least 2x). Also measured in the
+   same run, on the same pty: the server's floor, a bare loop of os.write and os.read
+   with no serial library and no parsing, which a client can at best match. A client
+   near the floor is bound by the server (whose bus clock follows the wall clock), not
+   by its own code.
 
     .venv/bin/python bench/bench_sim.py [--quick]
 """
@@ -19,11 +23,15 @@ from __future__ import annotations
 import json
 import math
 import os
+import select
 import subprocess
 import sys
+import termios
 import time
+import tty
 
 import snakesim  # noqa: F401  (registers sim://)
+from snakebot import protocol
 from snakebot.transport import DxlClient
 
 CONTROL_HZ = 100
@@ -89,6 +97,43 @@ def snakebot_rate(device: str, n: int) -> float:
         return n / (time.perf_counter() - start)
 
 
+def floor_rate(device: str, n: int, spin: bool) -> float:
+    """READs per second of a bare loop on the pty at 1 Mbps: write the instruction, wait
+    for the 8 status bytes (in ``select``, or ``spin``: polling a non-blocking read, as
+    dynamixel-sdk does), nothing else: no serial library, no flush, no parsing."""
+    packet = protocol.read(10, 36, 2)
+    fd = os.open(device, os.O_RDWR | os.O_NOCTTY | (os.O_NONBLOCK if spin else 0))
+    try:
+        tty.setraw(fd)
+        attrs = termios.tcgetattr(fd)
+        attrs[4] = attrs[5] = termios.B1000000
+        termios.tcsetattr(fd, termios.TCSANOW, attrs)
+        termios.tcflush(fd, termios.TCIFLUSH)
+
+        def transaction() -> None:
+            os.write(fd, packet)
+            got = 0
+            deadline = time.monotonic() + 1.0
+            while got < 8:
+                if time.monotonic() > deadline:
+                    raise RuntimeError(f"no reply from {device}")
+                if spin:
+                    try:
+                        got += len(os.read(fd, 8 - got))
+                    except BlockingIOError:
+                        pass
+                elif select.select([fd], [], [], 1.0)[0]:
+                    got += len(os.read(fd, 8 - got))
+
+        transaction()
+        start = time.perf_counter()
+        for _ in range(n):
+            transaction()
+        return n / (time.perf_counter() - start)
+    finally:
+        os.close(fd)
+
+
 def sdk_rate(device: str, n: int) -> float:
     import dynamixel_sdk as sdk
 
@@ -146,8 +191,10 @@ def main() -> int:
             for _ in range(n):
                 c.read_u16(10, 36)
             in_process = n / (time.perf_counter() - start)
-        ours = theirs = 0.0
+        ours = theirs = floor = 0.0
         for _ in range(rounds):
+            for spin in (False, True):
+                floor = max(floor, floor_rate(device, n // rounds, spin))
             ours = max(ours, snakebot_rate(device, n // rounds))
             theirs = max(theirs, sdk_rate(device, n // rounds))
         wire = 1 / WIRE_READ_S
@@ -157,14 +204,22 @@ def main() -> int:
             f"({in_process / wire:.2f} x the wire: in process the bus is not tied to the clock)"
         )
         print(
+            f"   the server's floor (bare loop, faster of select and polling): {floor:7.0f} /s "
+            f"({floor / wire:.2f} x the wire)"
+        )
+        print(
             f"   snakebot client over the pty:         {ours:7.0f} /s "
-            f"({ours / wire:.2f} x the wire)"
+            f"({ours / wire:.2f} x the wire, {ours / floor:.2f} x the floor)"
         )
         print(
             f"   dynamixel-sdk over the same pty:      {theirs:7.0f} /s "
-            f"({theirs / wire:.2f} x the wire)"
+            f"({theirs / wire:.2f} x the wire, {theirs / floor:.2f} x the floor)"
         )
         print(f"   snakebot / dynamixel-sdk:             {ours / theirs:7.2f} x (goal 2 x)")
+        print(
+            f"   (a client can at best match the floor: over this server, at most "
+            f"{floor / theirs:.2f} x dynamixel-sdk)"
+        )
     finally:
         proc.send_signal(2)
         proc.wait(timeout=10)

@@ -36,18 +36,19 @@ GOAL = 200.0
 CONTROL_HZ = 100
 
 
-def with_world(table, robot) -> tuple[float, float]:  # noqa: ANN001
-    """Emulated seconds per wall second, and per CPU second of this process, of one
-    pass, world included."""
+def with_world(table, robot) -> tuple[float, float, float]:  # noqa: ANN001
+    """Emulated seconds of one pass, world included, per wall second of the play as
+    ``play`` times it, and per CPU second and per wall second of the whole ``play``
+    call (which also encodes the packets)."""
     with DxlClient(sim_url(robot, ideal=False), echo=False) as client:
         bus = client.port.bus
         move_to_start(client, bus, robot, table.frames[0])
-        cpu0 = time.process_time()
+        cpu0, wall0 = time.process_time(), time.perf_counter()
         record, _, wall = play(client, bus, robot, table, ideal=False,
                                world_hz=CONTROL_HZ)
-        cpu = time.process_time() - cpu0
+        cpu, outer = time.process_time() - cpu0, time.perf_counter() - wall0
         emulated = float(record.t[-1])
-        return emulated / wall, emulated / cpu if cpu > 0 else float("inf")
+        return emulated / wall, emulated / cpu if cpu > 0 else float("inf"), emulated / outer
 
 
 def without_world(table, robot) -> float:  # noqa: ANN001
@@ -82,18 +83,20 @@ def main() -> int:
     print(f"== snake5 serpenoid, {table.frame_count} frames every {table.frame_period_ms} ms "
           f"({seconds:.1f} s of bus time per pass), host as master at {CONTROL_HZ} Hz, "
           f"best of {rounds}")
-    best_world = best_bus = best_cpu = 0.0
+    best_world = best_bus = best_cpu = best_outer = 0.0
     for _ in range(rounds):  # alternate, so load from other processes hits both alike
-        wall_rtf, cpu_rtf = with_world(table, robot)
+        wall_rtf, cpu_rtf, outer_rtf = with_world(table, robot)
         best_world = max(best_world, wall_rtf)
         best_cpu = max(best_cpu, cpu_rtf)
+        best_outer = max(best_outer, outer_rtf)
         best_bus = max(best_bus, without_world(table, robot))
     print(f"   bus + servos only (reference):        {best_bus:7.1f} x real time")
     print(f"   bus + servos + world (body, slip):    {best_world:7.1f} x real time "
           f"(goal {GOAL:.0f} x: ratio {best_world / GOAL:.2f})")
     print(f"   the world keeps {best_world / best_bus:.2f} of the bus-only speed")
-    print(f"   (per CPU second of this process, world included: {best_cpu:.1f} x; the wall "
-          "figure is lower when other processes share the cores)")
+    print(f"   (the whole play call, which also encodes the packets: {best_cpu:.1f} x per CPU "
+          f"second of this process, {best_outer:.1f} x by the wall clock; the wall figures "
+          "are lower when other processes share the cores)")
     print("GOAL MET" if best_world >= GOAL else "BELOW GOAL")
     return 0
 

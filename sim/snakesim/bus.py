@@ -29,7 +29,8 @@ import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
-from snakesim.clock import byte_time
+from snakebot.protocol import BROADCAST_ID, Packet
+from snakesim.clock import BITS_PER_BYTE
 from snakesim.faults import FaultConfig, FaultInjector
 from snakesim.receiver import ServoReceiver
 from snakesim.servo import VirtualServo
@@ -53,7 +54,7 @@ class _Transmission:
         self.source = source
         self.start = start
         self.baud = baud
-        self.period = byte_time(baud)
+        self.period = BITS_PER_BYTE / baud  # clock.byte_time
         self.data = data
         self.end = start + len(data) * self.period
 
@@ -114,6 +115,37 @@ class _Receiver:
         self.baud = baud
         self.parser = ServoReceiver()
         self.last_t = -math.inf
+
+
+class Schedule:
+    """A call repeated on the bus clock (:meth:`Bus.every`): the ``n``-th at
+    ``first + n * period``, until :meth:`cancel`."""
+
+    __slots__ = ("bus", "period", "fn", "first", "count", "cancelled")
+
+    def __init__(
+        self, bus: Bus, period: float, fn: Callable[[float], object], first: float
+    ) -> None:
+        self.bus = bus
+        self.period = period
+        self.fn = fn
+        self.first = first
+        self.count = 0
+        self.cancelled = False
+
+    def tick(self, t: float) -> None:
+        if self.cancelled:
+            return
+        self.fn(t)
+        self.count += 1
+        if not self.cancelled:
+            self.bus.at(self.first + self.count * self.period, self.tick)
+
+    def cancel(self) -> None:
+        """No more calls (also when called from the schedule's own call)."""
+        if not self.cancelled:
+            self.cancelled = True
+            self.bus._unschedule(self.tick)
 
 
 @dataclass
@@ -181,6 +213,9 @@ class Bus:
         self._servo_tx_free: dict[int, float] = {}
         self._receivers: dict[float, _Receiver] = {}
         self._groups: list[tuple[_Receiver, list[VirtualServo]]] | None = None
+        self._others: dict[int, tuple[list[VirtualServo], list[VirtualServo]]] = {}
+        self._by_id: dict[int, VirtualServo] | None = None  # the first servo with each ID
+        self._indexed = 0  # how many servos the index was built from
         for s in self.servos:
             s.on_link_change = self._link_changed
         if supply_v is not None:
@@ -203,10 +238,13 @@ class Bus:
         servo.on_link_change = self._link_changed
         self.servos.append(servo)
         self._groups = None
+        self._by_id = None
         return servo
 
     def _link_changed(self, _servo: VirtualServo) -> None:
-        self._groups = None  # a servo changed baud rate or lost/regained power
+        # a servo changed baud rate or ID, or lost/regained power
+        self._groups = None
+        self._by_id = None
 
     def _listeners(self) -> list[tuple[_Receiver, list[VirtualServo]]]:
         """The powered servos grouped by baud rate, each group with its shared parser."""
@@ -222,14 +260,27 @@ class Bus:
                     rx = self._receivers[baud] = _Receiver(baud)
                 groups.append((rx, members))
             self._groups = groups
+            # each servo's group without it: who hears what the servo sends
+            self._others = {
+                id(s): (members, [o for o in members if o is not s])
+                for _, members in groups
+                for s in members
+            }
         return self._groups
 
     def servo(self, servo_id: int) -> VirtualServo:
         """The (first) servo answering to ``servo_id``."""
-        for s in self.servos:
-            if s.id == servo_id:
-                return s
-        raise KeyError(f"no servo with ID {servo_id} on the bus")
+        by_id = self._by_id
+        if by_id is None or self._indexed != len(self.servos):
+            by_id = {}
+            for s in self.servos:
+                by_id.setdefault(s.id, s)
+            self._by_id = by_id
+            self._indexed = len(self.servos)
+        try:
+            return by_id[servo_id]
+        except KeyError:
+            raise KeyError(f"no servo with ID {servo_id} on the bus") from None
 
     def set_supply(self, volts: float) -> None:
         """Set the supply voltage every servo sees (from now on)."""
@@ -244,20 +295,22 @@ class Bus:
 
     def every(
         self, period: float, fn: Callable[[float], object], start: float | None = None
-    ) -> None:
+    ) -> Schedule:
         """Call ``fn(t)`` at ``start`` (default: now) and every ``period`` seconds after,
-        in time order with the bus's own events: how a world steps with the servos."""
+        in time order with the bus's own events: how a world steps with the servos.
+        Returns the schedule, to :meth:`Schedule.cancel` it."""
         if not period > 0:
             raise ValueError("period must be positive")
-        first = self.now if start is None else start
-        count = [0]
+        schedule = Schedule(self, period, fn, self.now if start is None else start)
+        self.at(schedule.first, schedule.tick)
+        return schedule
 
-        def tick(t: float) -> None:
-            fn(t)
-            count[0] += 1
-            self.at(first + count[0] * period, tick)
-
-        self.at(first, tick)
+    def _unschedule(self, fn: Callable) -> None:
+        """Drop the pending events that would call ``fn``."""
+        kept = [e for e in self._events if e[2] != fn]
+        if len(kept) != len(self._events):
+            heapq.heapify(kept)
+            self._events[:] = kept
 
     def next_event_time(self) -> float | None:
         """When the next scheduled event happens (None if none)."""
@@ -395,6 +448,8 @@ class Bus:
 
     def master_flush_input(self) -> None:
         """Discard what has reached the master (bytes still on the wire will arrive)."""
+        if not self._master_rx:
+            return
         now = self.now
         for h in self._master_rx:
             h.pos = max(h.pos, h.count_by(now))
@@ -409,32 +464,50 @@ class Bus:
             self.faults.corrupt(data)
         tx = _Transmission(source, start, baud, data)
         now = self.now
-        wire = [w for w in self._wire if w.end > now]
-        for other in wire:
-            if other.end > tx.start and other.start < tx.end:
-                self._collide(other, tx)
+        wire = []  # what is still on the wire, oldest first
+        for other in self._wire:
+            if other.end > now:
+                wire.append(other)
+                if other.end > tx.start and other.start < tx.end:
+                    self._collide(other, tx)
         wire.append(tx)
         self._wire = wire
         # the master hears servos and noise, and its own bytes when the line echoes
         if source is not MASTER or self.echo:
-            self._master_rx.append(_Heard.of(tx, self.baudrate))
+            if baud == self.baudrate:
+                self._master_rx.append(_Heard(data, tx.start, tx.period))
+            else:
+                self._master_rx.append(_Heard.of(tx, self.baudrate))
         # the servos hear everything but their own voice
-        for rx, members in self._listeners():
-            if source in members:
-                if len(members) == 1:
+        groups = self._groups
+        if groups is None:
+            groups = self._listeners()
+        own = None
+        if source is not MASTER and source is not NOISE:
+            own = self._others.get(id(source))
+        events = self._events
+        for rx, members in groups:
+            if own is not None and members is own[0]:
+                members = own[1]
+                if not members:
                     continue
-                members = [s for s in members if s is not source]
-            heard = _Heard.of(tx, rx.baud)
+            if tx.baud == rx.baud:
+                heard = _Heard(data, tx.start, tx.period)
+            else:
+                heard = _Heard.of(tx, rx.baud)
             hd = heard.data
             n = len(hd)
             if n >= 6 and hd[0] == 0xFF and hd[1] == 0xFF and hd[2] != 0xFF and hd[3] + 4 == n:
-                ends = (n,)  # one whole frame, the usual case
+                ends: Iterable[int] = (n,)  # one whole frame, the usual case
             else:
                 ends = frame_ends(hd)
             i0 = 0
             for end in ends:
                 if end > i0:
-                    self.at(heard.arrival(end - 1), self._deliver, (rx, heard, i0, end, members))
+                    job = (rx, heard, i0, end, members)
+                    heapq.heappush(
+                        events, (heard.arrival(end - 1), next(self._seq), self._deliver, job)
+                    )
                 i0 = end
         if source is MASTER:
             self.stats.instructions += 1
@@ -456,14 +529,15 @@ class Bus:
         if parser.pending and heard.arrival(i0) - rx.last_t > INTER_BYTE_GAP_S:
             parser.reset()
         rx.last_t = t
-        events = parser.feed(bytes(heard.data[i0:i1]))
-        if not events:
-            return
-        for event in events:
+        for event in parser.feed(heard.data[i0:i1]):  # a slice is a copy
+            # a packet for one ID concerns only the servos with that ID (the others
+            # ignore it); every servo looks at a damaged one
+            target = event.id if type(event) is Packet else BROADCAST_ID
             for s in members:
-                reply = s.receive(event, t)
-                if reply is not None:
-                    self._reply(s, reply, t)
+                if target == BROADCAST_ID or s.id == target:
+                    reply = s.receive(event, t)
+                    if reply is not None:
+                        self._reply(s, reply, t)
 
     def _reply(self, servo: VirtualServo, reply: tuple[bytes, float], t: float) -> None:
         faults = self.faults

@@ -76,13 +76,17 @@ class RegisterFile:
         if e.size == 2:
             self.image[e.address + 1] = (value >> 8) & 0xFF
 
+    def value_range(self, entry: Entry) -> tuple[int, int]:
+        """The values a write may store in ``entry``: (lowest, highest)."""
+        return self._ranges[entry.name]
+
     def read(self, address: int, length: int) -> bytes | None:
         """``length`` bytes from ``address``, or None if that runs off the table."""
         if length < 1 or address + length > self.table.size:
             return None
         return bytes(self.image[address : address + length])
 
-    def _layout(self, address: int, length: int, locked: bool) -> tuple[Entry, ...] | None:
+    def layout(self, address: int, length: int, locked: bool) -> tuple[Entry, ...] | None:
         """The registers a write of ``length`` bytes at ``address`` covers exactly, or
         None if it touches bytes outside the table, reserved or read-only addresses,
         part of a register, or (``locked``) anything but Torque Enable..Torque Limit."""
@@ -119,7 +123,7 @@ class RegisterFile:
         outside Torque Enable..Torque Limit. No bits (0) means the write is legal
         as far as the table goes; the servo adds its own rules (angle limits, wheel mode).
         """
-        layout = self._layout(address, len(data), locked)
+        layout = self.layout(address, len(data), locked)
         if layout is None:
             return _RANGE, []
         values: list[tuple[Entry, int]] = []

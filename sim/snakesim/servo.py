@@ -93,13 +93,75 @@ _SHADOWS = {
     "ID": "_id",
 }
 
+# The registers a READ sees refreshed from the physics (the three two-byte ones first).
+_PRESENT = (
+    "Present Position",
+    "Present Speed",
+    "Present Load",
+    "Present Voltage",
+    "Present Temperature",
+    "Moving",
+)
+
+# Registers that what _derive computes depends on (link timing, wheel mode, the voltage
+# alarm); Moving Speed, the most written, only changes the speed setting.
 _DERIVED_FROM = {
     "Baud Rate",
     "Return Delay Time",
     "CW Angle Limit",
     "CCW Angle Limit",
-    "Moving Speed",
+    "Min Voltage Limit",
+    "Max Voltage Limit",
 }
+
+
+class _WritePlan:
+    """How a write of one length at one address lands in the control table, worked out
+    once per shape: per register its offset in the data, width and range (``fields``);
+    the shadows it refreshes (attribute, index of the value); the indexes of the
+    registers the servo checks itself (-1: not in this write); and what it sets off."""
+
+    __slots__ = (
+        "address", "fields", "shadows", "goal", "speed", "cw", "ccw", "eeprom_bytes",
+        "clears_alarms", "derive", "relinks",
+    )
+
+    def __init__(self, regs: RegisterFile, address: int, entries: tuple[Entry, ...]) -> None:
+        self.address = address
+        self.fields = tuple(
+            (e.address - address, e.size == 2, *regs.value_range(e)) for e in entries
+        )
+        self.shadows = tuple(
+            (_SHADOWS[e.name], i) for i, e in enumerate(entries) if e.name in _SHADOWS
+        )
+        names = [e.name for e in entries]
+
+        def index(name: str) -> int:
+            return names.index(name) if name in names else -1
+
+        self.goal = index("Goal Position")
+        self.speed = index("Moving Speed")
+        # a write of one register alone checks against the limits already stored
+        self.cw = index("CW Angle Limit") if len(entries) > 1 else -1
+        self.ccw = index("CCW Angle Limit") if len(entries) > 1 else -1
+        self.eeprom_bytes = sum(e.size for e in entries if e.area == "EEPROM")
+        """How many of the written bytes are EEPROM (they come first)."""
+        self.clears_alarms = "Torque Limit" in names
+        self.derive = any(name in _DERIVED_FROM for name in names)
+        self.relinks = "ID" in names or "Baud Rate" in names
+        """Whether the write may change what the bus knows the servo by."""
+
+
+_BAD_WRITE = _WritePlan.__new__(_WritePlan)
+"""The plan of a write the table refuses (RANGE)."""
+
+
+_AMBIENT_C = motor.AMBIENT_C
+_exp = math.exp
+
+_SPEED_SETTINGS = tuple(motor.speed_setting(value) for value in range(motor.DIRECTION_BIT))
+"""``motor.speed_setting`` of every Moving Speed magnitude (the value's low ten bits, all
+the setting depends on), worked out once."""
 
 
 def baud_from_register(value: int) -> float:
@@ -137,12 +199,26 @@ class VirtualServo:
         self.supply_v = self.spec.nominal_voltage
         self.external_torque = 0.0
         """Torque the outside world applies, N m (+ turns toward larger positions)."""
-        goal = self.regs.entry("Goal Position")
+        regs = self.regs
+        goal, speed = regs.entry("Goal Position"), regs.entry("Moving Speed")
         self._goal_addr = goal.address
-        self._goal_max = goal.max if goal.max is not None else 0xFFFF
+        self._goal_max = regs.value_range(goal)[1]
+        self._speed_max = regs.value_range(speed)[1]
+        # what the hot path in _write_at takes for granted
+        assert regs.value_range(goal)[0] == regs.value_range(speed)[0] == 0
+        for locked in (False, True):
+            assert regs.layout(goal.address, 4, locked) == (goal, speed), "control table changed"
+        present = [self.regs.entry(name) for name in _PRESENT]
+        assert [e.size for e in present] == [2, 2, 2, 1, 1, 1], "control table changed"
+        self._present_addr = tuple(e.address for e in present)
+        spec = self.spec
+        self._stall = spec.stall_torque_nm
+        self._moving_load = spec.moving_load
+        self._stall_rise = spec.stall_rise_c
+        self._thermal_tau = spec.thermal_tau_s
         self.on_eeprom_change: Callable[[VirtualServo], None] | None = None
         self.on_link_change: Callable[[VirtualServo], None] | None = None
-        """Called when what the bus needs to know changes: baud rate, power."""
+        """Called when what the bus needs to know changes: baud rate, power, ID."""
         self.pos = float(position)
         self.vel = 0.0
         self.temp = motor.AMBIENT_C
@@ -151,7 +227,8 @@ class VirtualServo:
         self.moving = False
         self.overload = False
         self.latched = 0
-        self._pending: list[tuple[Entry, int]] | None = None
+        self._pending: tuple[_WritePlan, bytes, list[int]] | None = None
+        self._plans: dict[int, _WritePlan] = {}
         self._vmax = self.spec.max_speed(self.supply_v)
         self._vmax_wheel = self.spec.max_speed(self.supply_v, wheel=True)
         self._shadow_all()
@@ -172,17 +249,17 @@ class VirtualServo:
         self.return_delay_s = self._return_delay_reg * 2e-6
         """Return Delay Time in seconds (2 us per unit)."""
         self.wheel_mode = self._cw_limit == 0 and self._ccw_limit == 0
-        self._speed_setting = motor.speed_setting(self._moving_speed)
+        self._speed_setting = _SPEED_SETTINGS[self._moving_speed & 1023]
         tenths = round(self.supply_v * 10)
         self._voltage_bad = not self._min_voltage <= tenths <= self._max_voltage
 
     def set_register(self, name: str, value: int) -> None:
         """Store ``value`` in register ``name`` directly, as a factory or a test would
         (no range check, no status packet), keeping the servo's view of it current."""
-        old_baud = self.baudrate
+        link = self.baudrate, self._id
         self.regs.set(name, value)
         self._shadow_all()
-        if self.baudrate != old_baud:
+        if (self.baudrate, self._id) != link:
             self._link_changed()
 
     # -- identity and settings ------------------------------------------------------------
@@ -267,57 +344,61 @@ class VirtualServo:
         self.external_torque = float(torque_nm)
 
     def _step(self, dt: float) -> None:
-        spec = self.spec
         if not self.powered:
             self.vel = 0.0
             self.moving = False
             self.overload = False
             self.load_fraction = 0.0
-            self.temp = motor.thermal_step(self.temp, 0.0, dt, spec)
+            self.temp = motor.thermal_step(self.temp, 0.0, dt, self.spec)
             return
         limit = self._torque_limit
         torque_on = self._torque_enable == 1 and limit > 0
-        stall = spec.stall_torque_nm
-        available = stall * limit / 1023.0
-        load = self.external_torque
-        if load < 0.0:
-            load = -load
-        overload = torque_on and load > available
+        external = self.external_torque
+        if external:
+            stall = self._stall
+            available = stall * limit / 1023.0
+            load = -external if external < 0.0 else external
+            overload = torque_on and load > available
+            scale = 1.0 - load / stall
+        else:  # the same numbers with no load: nothing to scale by, no overload
+            load = available = scale = 0.0
+            overload = False
         old = self.pos
         new = old
         moving = False
+        wheel = self.wheel_mode
         if torque_on and not overload:
-            scale = 1.0 - load / stall if load else 1.0
-            if self.wheel_mode:
+            if wheel:
                 value = self._moving_speed
-                v = (value & 1023) / 1023.0 * self._vmax_wheel * scale
+                v = (value & 1023) / 1023.0 * self._vmax_wheel
+                if external:
+                    v *= scale
                 if value & motor.DIRECTION_BIT:
                     v = -v
                 new = (old + v * dt) % motor.TICKS_PER_REV
                 moving = v != 0.0
+            elif self.ideal:
+                new = float(self._goal)
             else:
                 goal = self._goal
-                if self.ideal:
-                    new = float(goal)
-                else:
-                    low = goal - self._cw_margin
-                    high = goal + self._ccw_margin
-                    if old < low or old > high:
-                        vmax = self._vmax * scale
-                        speed = self._speed_setting
-                        step = (vmax if speed > vmax else speed) * dt
-                        if old < low:
-                            new = old + step
-                            if new >= low:
-                                new = float(low)
-                        else:
-                            new = old - step
-                            if new <= high:
-                                new = float(high)
-                        moving = not low <= new <= high
+                low = goal - self._cw_margin
+                high = goal + self._ccw_margin
+                if old < low or old > high:
+                    vmax = self._vmax * scale if external else self._vmax
+                    speed = self._speed_setting
+                    step = (vmax if speed > vmax else speed) * dt
+                    if old < low:
+                        new = old + step
+                        if new >= low:
+                            new = float(low)
+                    else:
+                        new = old - step
+                        if new <= high:
+                            new = float(high)
+                    moving = not low <= new <= high
         self.pos = new
         delta = new - old
-        if self.wheel_mode and abs(delta) > motor.TICKS_PER_REV / 2:
+        if wheel and abs(delta) > motor.TICKS_PER_REV / 2:
             delta -= motor.TICKS_PER_REV if delta > 0 else -motor.TICKS_PER_REV
         self.vel = delta / dt
         self.moving = moving
@@ -325,15 +406,17 @@ class VirtualServo:
         if not torque_on:
             fraction = 0.0
         elif overload:
-            fraction = available / stall
+            fraction = available / self._stall
+        elif external:
+            fraction = load / self._stall + (self._moving_load if delta else 0.0)
         else:
-            fraction = load / stall + (spec.moving_load if delta else 0.0)
+            fraction = self._moving_load if delta else 0.0
         self.load_fraction = fraction if fraction < 1.0 else 1.0
-        self.load_cw = self.external_torque > 0 if self.external_torque else delta < 0
+        self.load_cw = external > 0 if external else delta < 0
         temp = self.temp
-        if fraction or temp != motor.AMBIENT_C:
-            steady = motor.AMBIENT_C + spec.stall_rise_c * fraction * fraction
-            temp = self.temp = steady + (temp - steady) * math.exp(-dt / spec.thermal_tau_s)
+        if fraction or temp != _AMBIENT_C:
+            steady = _AMBIENT_C + self._stall_rise * fraction * fraction
+            temp = self.temp = steady + (temp - steady) * _exp(-dt / self._thermal_tau)
         if overload or self._voltage_bad or temp >= self._temp_limit + 0.5:
             conditions = self._conditions()
             if conditions & self._shutdown:
@@ -357,13 +440,20 @@ class VirtualServo:
             self.overload = False
 
     def _refresh_present(self) -> None:
-        regs = self.regs
-        regs.set("Present Position", self.present_position)
-        regs.set("Present Speed", motor.speed_register(self.vel))
-        regs.set("Present Load", motor.load_register(self.load_fraction, self.load_cw))
-        regs.set("Present Voltage", max(0, min(255, round(self.supply_v * 10))))
-        regs.set("Present Temperature", max(0, min(255, round(self.temp))))
-        regs.set("Moving", int(self.moving))
+        image = self.regs.image
+        position, speed, load, voltage, temperature, moving = self._present_addr
+        value = self.present_position
+        image[position] = value & 0xFF
+        image[position + 1] = value >> 8
+        value = motor.speed_register(self.vel)
+        image[speed] = value & 0xFF
+        image[speed + 1] = value >> 8
+        value = motor.load_register(self.load_fraction, self.load_cw)
+        image[load] = value & 0xFF
+        image[load + 1] = value >> 8
+        image[voltage] = max(0, min(255, round(self.supply_v * 10)))
+        image[temperature] = max(0, min(255, round(self.temp)))
+        image[moving] = int(self.moving)
 
     @property
     def errors(self) -> ErrorFlags:
@@ -409,8 +499,8 @@ class VirtualServo:
                 flags = _INSTRUCTION
             else:
                 flags = 0
-                pending, self._pending = self._pending, None
-                self._commit(pending)
+                (plan, staged, values), self._pending = self._pending, None
+                self._commit(plan, staged, values)
                 self.regs.set("Registered", 0)
         else:
             flags = _INSTRUCTION  # BULK_READ included: not an AX-12 instruction
@@ -444,83 +534,100 @@ class VirtualServo:
             return _RANGE, b""
         return 0, data
 
-    def _check(self, address: int, data: bytes) -> tuple[int, list[tuple[Entry, int]]]:
-        flags, values = self.regs.check_write(address, data, locked=self._lock == 1)
-        if flags:
-            return flags, values
-        cw, ccw = self._cw_limit, self._ccw_limit
-        if len(values) > 1:
-            for entry, value in values:
-                if entry.name == "CW Angle Limit":
-                    cw = value
-                elif entry.name == "CCW Angle Limit":
-                    ccw = value
-        if cw or ccw:  # joint mode
-            for entry, value in values:
-                name = entry.name
-                if name == "Goal Position" and not cw <= value <= ccw:
-                    return _ANGLE, []
-                if name == "Moving Speed" and value > 1023:
-                    return _RANGE, []
-        return 0, values
+    def _plan(self, address: int, length: int) -> _WritePlan:
+        """The plan of a write of ``length`` bytes at ``address`` in the present Lock
+        state, cached under ``address << 9 | length << 1 | locked``."""
+        locked = self._lock == 1
+        key = address << 9 | length << 1 | locked
+        plan = self._plans.get(key)
+        if plan is None:
+            entries = self.regs.layout(address, length, locked)
+            plan = _BAD_WRITE if entries is None else _WritePlan(self.regs, address, entries)
+            self._plans[key] = plan
+        return plan
 
     def _write(self, params: bytes, *, registered: bool) -> int:
         if len(params) < 2:
             return _RANGE
-        return self._write_at(params[0], params[1:], registered=registered)
+        return self._write_at(params[0], params[1:], registered)
 
-    def _write_at(self, address: int, data: bytes, *, registered: bool) -> int:
-        if address == self._goal_addr and len(data) == 2 and not registered:
-            # The hot path (every SYNC_WRITE of goals), the same rules as below.
-            value = data[0] | data[1] << 8
-            if value > self._goal_max:
+    def _write_at(self, address: int, data: bytes, registered: bool) -> int:
+        """Check a write (the table's rules, ``RegisterFile.check_write``, then the
+        servo's own: in joint mode a goal within the angle limits, those this write sets
+        if it sets both registers or more, and Moving Speed at most 1023), then store it
+        or, ``registered``, stage it for ACTION; return the error bits."""
+        n = len(data)
+        if address == self._goal_addr and (n == 2 or n == 4) and not registered:
+            # The hot path (every SYNC_WRITE of goals, with or without Moving Speed):
+            # the same rules and effects as the general path below.
+            goal = data[0] | data[1] << 8
+            speed = data[2] | data[3] << 8 if n == 4 else 0
+            if goal > self._goal_max or speed > self._speed_max:
                 return _RANGE
-            if (self._cw_limit or self._ccw_limit) and not (
-                self._cw_limit <= value <= self._ccw_limit
-            ):
-                return _ANGLE
-            image = self.regs.image
-            image[address] = data[0]
-            image[address + 1] = data[1]
-            self._goal = value
+            cw, ccw = self._cw_limit, self._ccw_limit
+            if cw or ccw:  # joint mode
+                if not cw <= goal <= ccw:
+                    return _ANGLE
+                if speed > 1023:
+                    return _RANGE
+            self.regs.image[address : address + n] = data
+            self._goal = goal
+            if n == 4:
+                self._moving_speed = speed
+                self._speed_setting = _SPEED_SETTINGS[speed & 1023]
             if self._torque_enable != 1:
                 self.regs.set("Torque Enable", 1)  # a goal switches the torque on
                 self._torque_enable = 1
             return 0
-        flags, values = self._check(address, data)
-        if flags:
-            return flags
+        plan = self._plans.get(address << 9 | len(data) << 1 | (self._lock == 1))
+        if plan is None:
+            plan = self._plan(address, len(data))
+        if plan is _BAD_WRITE:
+            return _RANGE
+        values = []
+        for offset, wide, low, high in plan.fields:
+            value = data[offset] | data[offset + 1] << 8 if wide else data[offset]
+            if not low <= value <= high:
+                return _RANGE
+            values.append(value)
+        goal, speed = plan.goal, plan.speed
+        if goal >= 0 or speed >= 0:
+            cw = self._cw_limit if plan.cw < 0 else values[plan.cw]
+            ccw = self._ccw_limit if plan.ccw < 0 else values[plan.ccw]
+            if cw or ccw:  # joint mode
+                if goal >= 0 and not cw <= values[goal] <= ccw:
+                    return _ANGLE
+                if speed >= 0 and values[speed] > 1023:
+                    return _RANGE
         if registered:
-            self._pending = values
+            self._pending = (plan, data, values)
             self.regs.set("Registered", 1)
         else:
-            self._commit(values)
+            self._commit(plan, data, values)
         return 0
 
-    def _commit(self, values: list[tuple[Entry, int]]) -> None:
-        regs = self.regs
-        eeprom = derive = False
-        for entry, value in values:
-            name = entry.name
-            if entry.area == "EEPROM" and regs.get(name) != value:
-                eeprom = True
-            regs.set(name, value)
-            attr = _SHADOWS.get(name)
-            if attr is not None:
-                setattr(self, attr, value)
-            if name == "Goal Position":
-                if self._torque_enable != 1:
-                    regs.set("Torque Enable", 1)  # a goal switches the torque on
-                    self._torque_enable = 1
-            elif name == "Torque Limit":
-                self.latched = 0
-            elif name in _DERIVED_FROM:
-                derive = True
-        if derive:
-            old_baud = self.baudrate
+    def _commit(self, plan: _WritePlan, data: bytes, values: list[int]) -> None:
+        """Store checked ``data`` (``values``: the registers it holds, in address order)
+        and do what the registers written set off."""
+        image = self.regs.image
+        start = plan.address
+        link = (self.baudrate, self._id) if plan.relinks else None
+        n = plan.eeprom_bytes
+        eeprom = n > 0 and image[start : start + n] != data[:n]
+        image[start : start + len(data)] = data
+        for attr, i in plan.shadows:
+            setattr(self, attr, values[i])
+        if plan.goal >= 0 and self._torque_enable != 1:
+            self.regs.set("Torque Enable", 1)  # a goal switches the torque on
+            self._torque_enable = 1
+        if plan.clears_alarms:
+            self.latched = 0
+        if plan.derive:
             self._derive()
-            if self.baudrate != old_baud:
-                self._link_changed()
+        elif plan.speed >= 0:  # all that _derive would change
+            self._speed_setting = _SPEED_SETTINGS[self._moving_speed & 1023]
+        if link is not None and (self.baudrate, self._id) != link:
+            self._link_changed()
         if eeprom and self.on_eeprom_change is not None:
             self.on_eeprom_change(self)
 
@@ -532,27 +639,27 @@ class VirtualServo:
         n = len(params)
         if length == 0 or (n - 2) % block:
             return  # malformed: a real servo cannot find its slice either
-        for i in range(2, n, block):
-            if params[i] == my_id:
-                flags = self._write_at(address, params[i + 1 : i + block], registered=False)
-                if flags:
-                    self._alarm(flags)
-                return
+        k = params[2::block].find(my_id)  # the first block that names this servo
+        if k >= 0:
+            i = 2 + k * block
+            flags = self._write_at(address, params[i + 1 : i + block], False)
+            if flags:
+                self._alarm(flags)
 
     def factory_reset(self) -> None:
         """RESET: every register back to its factory value (ID 1, 1 Mbps), as at power-on."""
-        old_baud = self.baudrate
+        link = self.baudrate, self._id
         self.regs.image[:] = self.table.default_image()
         self._power_on_ram()
         if self.on_eeprom_change is not None:
             self.on_eeprom_change(self)
-        if self.baudrate != old_baud:
+        if (self.baudrate, self._id) != link:
             self._link_changed()
 
     def load_eeprom(self, data: bytes) -> None:
         """Restore a saved EEPROM image, then re-run the power-on RAM set-up."""
-        old_baud = self.baudrate
+        link = self.baudrate, self._id
         self.regs.load_eeprom(data)
         self._power_on_ram()
-        if self.baudrate != old_baud:
+        if (self.baudrate, self._id) != link:
             self._link_changed()

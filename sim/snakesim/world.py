@@ -168,13 +168,11 @@ class World:
         self._slip: list[np.ndarray] = []
         self._reg: list[np.ndarray] = []
         self._count = 0  # samples integrated so far
-        bus.every(self.period, self._sample, start=self.start_time)
+        self._schedule = bus.every(self.period, self._sample, start=self.start_time)
 
     # -- sampling -------------------------------------------------------------------------
 
     def _sample(self, t: float) -> None:
-        if not self._running:
-            return
         row = []
         for s in self._servos:
             s.advance(t)
@@ -186,6 +184,7 @@ class World:
     def stop(self) -> None:
         """Stop sampling (what was sampled stays in the record)."""
         self.flush()
+        self._schedule.cancel()
         self._running = False
 
     @property

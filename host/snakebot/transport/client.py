@@ -152,6 +152,8 @@ class DxlClient:
         self._parser = PacketParser()
         self._recent: deque[bytes] = deque(maxlen=RECENT_SENDS)
         self._read_timeout: float | None = None
+        self._timeouts: dict[tuple[int, int], float] = {}
+        self._timeouts_for: BusTiming | None = None
         self._lock = threading.RLock()  # one transaction on the wire at a time
 
     # -- the port -----------------------------------------------------------------------
@@ -251,7 +253,7 @@ class DxlClient:
         if len(packet) < 6 or packet[:2] != b"\xff\xff":
             raise ProtocolError(f"not an instruction packet: {packet.hex(' ')}")
         tries = 1 + (self.retries if retries is None else settings.resolve_retries(retries))
-        timeout = self.timing.reply_timeout_s(len(packet), expect_params_len)
+        timeout = self._reply_timeout(len(packet), expect_params_len)
         attempts: list[_Attempt] = []
         with self._lock:
             for _ in range(tries):
@@ -264,6 +266,18 @@ class DxlClient:
                     return reply
                 attempts.append(attempt)
         raise self._failure(packet, expect_id, expect_params_len, timeout, attempts)
+
+    def _reply_timeout(self, tx_len: int, params_len: int) -> float:
+        """``self.timing.reply_timeout_s``, remembered per packet shape."""
+        timing = self.timing
+        if timing is not self._timeouts_for:
+            self._timeouts = {}
+            self._timeouts_for = timing
+        key = (tx_len, params_len)
+        timeout = self._timeouts.get(key)
+        if timeout is None:
+            timeout = self._timeouts[key] = timing.reply_timeout_s(tx_len, params_len)
+        return timeout
 
     def _attempt(
         self, packet: bytes, expect_id: int, expect_len: int, timeout: float
@@ -279,21 +293,22 @@ class DxlClient:
         status_len = STATUS_OVERHEAD + expect_len
         data = b""
         while True:
-            for event in parser.feed(data):
+            for event in parser.feed(data) if data else ():
                 if isinstance(event, Rejected):
                     seen.rejected.append(event)
                     continue
-                raw = event.encode()
-                if echo is not False and not seen.echo_seen and raw == packet:
-                    seen.echo_seen = True
-                    seen.echo = event
-                    continue
-                if echo is True and not seen.echo_seen:
-                    seen.stale += 1  # heard before our own instruction: older than it
-                    continue
-                if echo is not False and raw in self._recent:
-                    seen.stale += 1  # the late echo of an earlier instruction
-                    continue
+                if echo is not False:
+                    raw = event.encode()
+                    if not seen.echo_seen and raw == packet:
+                        seen.echo_seen = True
+                        seen.echo = event
+                        continue
+                    if echo is True and not seen.echo_seen:
+                        seen.stale += 1  # heard before our own instruction: older than it
+                        continue
+                    if raw in self._recent:
+                        seen.stale += 1  # the late echo of an earlier instruction
+                        continue
                 if event.id != expect_id:
                     seen.stale += 1
                     continue
@@ -308,13 +323,15 @@ class DxlClient:
             if remaining <= 0:
                 self._recent.append(packet)
                 return None, seen
+            # Read exactly what completes the reply (and our echo, if the line echoes and
+            # it has not been heard yet): one read when all goes well. What arrives
+            # beyond that is flushed before the next instruction.
             want = status_len - parser.pending
             if echo is True and not seen.echo_seen:
-                want += len(packet)  # a lower bound, so read() returns as soon as it can
-            want = max(1, want, port.in_waiting)
+                want += len(packet)
             if self._read_timeout is None or abs(self._read_timeout - remaining) > 1e-4:
                 port.timeout = self._read_timeout = remaining
-            data = port.read(want)
+            data = port.read(want if want > 1 else 1)
 
     def _settle_echo(self, heard: Packet, expect_id: int, expect_len: int) -> Packet | None:
         """Decide an ambiguous first transaction in "auto" echo mode.

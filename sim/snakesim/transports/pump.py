@@ -3,15 +3,21 @@
 The bus clock follows the wall clock (``snakesim.clock.WallClockPacer``): bytes read
 from the client go on the wire at the moment they arrive, and bytes for the client are
 handed over when the emulated wire has delivered them, so a client's reply timeouts
-mean what they do on real hardware. Between events the thread sleeps in ``select``.
+mean what they do on real hardware. Between events the thread sleeps in ``select``;
+as the kernel wakes sleepers late (Linux by its 50 us timer slack, which the thread
+lowers, and a virtual machine by tens of microseconds more), it sleeps short by the
+lateness it has seen and polls the last stretch, so bytes go out on time.
 """
 
 from __future__ import annotations
 
+import ctypes
 import errno
 import os
 import select
+import sys
 import threading
+import time
 from collections.abc import Callable
 
 from snakesim.bus import Bus
@@ -21,6 +27,30 @@ IDLE_WAKE_S = 0.05
 """Longest sleep when the bus has nothing scheduled (it keeps the clock moving)."""
 
 READ_CHUNK = 4096
+
+MAX_WAKE_LATENESS_S = 0.0002
+"""The most a pump sleeps short of a deadline (and polls instead) to make up for the
+kernel waking it late."""
+
+LATENESS_SMOOTHING = 0.1
+"""Weight of the newest measurement in the running average of that lateness."""
+
+TIMER_SLACK_NS = 1000
+"""How late (at most, nanoseconds) the kernel may wake a server thread for its own
+convenience; Linux's default, 50 us, would delay every paced reply by that much."""
+
+_PR_SET_TIMERSLACK = 29  # linux/prctl.h
+
+
+def precise_timers() -> None:
+    """Ask Linux to wake the calling thread close to the times it sleeps until (its
+    timer slack down to :data:`TIMER_SLACK_NS`); elsewhere, or if that fails, nothing."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_TIMERSLACK, TIMER_SLACK_NS, 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
 
 
 class Pump:
@@ -46,6 +76,28 @@ class Pump:
         self.pacer = WallClockPacer(speed)
         self.stopped = False
         self.overruns = 0
+        self._late = 0.0  # how late the kernel wakes this thread, on average (seconds)
+
+    def _sleep(self, fds: list[int], delay: float) -> list[int]:
+        """Wait until one of ``fds`` is readable (return those) or ``delay`` seconds
+        have passed (return []). Kernels wake a sleeper tens of microseconds late, which
+        would deliver every paced byte that late: so sleep short by the lateness seen so
+        far and poll the rest of the way."""
+        early = min(self._late, delay)
+        start = time.monotonic()
+        ready, _, _ = select.select(fds, [], [], delay - early)
+        if ready:
+            return ready
+        now = time.monotonic()
+        late = min(now - start - (delay - early), MAX_WAKE_LATENESS_S)
+        self._late += (late - self._late) * LATENESS_SMOOTHING
+        deadline = start + delay
+        while now < deadline:
+            ready, _, _ = select.select(fds, [], [], 0)
+            if ready:
+                return ready
+            now = time.monotonic()
+        return []
 
     def _send(self, data: bytes) -> bool:
         """Hand ``data`` to the client; False when the stream has ended."""
@@ -69,24 +121,24 @@ class Pump:
         pacer = self.pacer
         with self.lock:
             pacer.anchor(bus.now)
+        precise_timers()
         while not self.stopped:
             with self.lock:
                 bus.run_until(pacer.now())
                 out = bus.master_read(1 << 20)
+            if out and not self._send(out):  # first the client, then the bookkeeping
+                return
+            with self.lock:
                 # wake for the next event, or when everything on its way to the client
                 # has arrived (bytes go over in bursts, as from a USB adapter)
-                upcoming = [
-                    t
-                    for t in (bus.next_master_arrival(1 << 20), bus.next_event_time())
-                    if t is not None
-                ]
-            if out and not self._send(out):
-                return
+                arrival = bus.next_master_arrival(1 << 20)
+                event = bus.next_event_time()
             wait = IDLE_WAKE_S
-            if upcoming:
-                wait = min(wait, pacer.wall_delay(min(upcoming)))
+            if arrival is not None or event is not None:
+                upcoming = min(t for t in (arrival, event) if t is not None)
+                wait = min(wait, pacer.wall_delay(upcoming))
             try:
-                ready, _, _ = select.select([self.fd, self.wake_fd], [], [], wait)
+                ready = self._sleep([self.fd, self.wake_fd], wait)
             except (OSError, ValueError):
                 return
             if self.wake_fd in ready:

@@ -21,20 +21,7 @@
 #define BOARD_STORE_BASE 0x08078000UL
 #define BOARD_STORE_SIZE (32UL * 1024UL)
 
-/* Dynamixel bus: USART1 remapped to PB6 (TX) / PB7 (RX), half duplex through a buffer:
- * PB4 high enables the transmitter, PB5 high the receiver. */
-#define BOARD_BUS_USART HAL_USART1_BASE
-#define BOARD_BUS_IRQ HAL_IRQ_USART1
-#define BOARD_BUS_ON_APB2 1
-#define BOARD_BUS_BAUD 1000000UL
-#define BOARD_BUS_TX_ENABLE_PIN {HAL_GPIOB_BASE, 4}
-#define BOARD_BUS_RX_ENABLE_PIN {HAL_GPIOB_BASE, 5}
-
-/* PC link: USART3 on PB10 (TX) / PB11 (RX), through the board's USB-serial port. */
-#define BOARD_PC_USART HAL_USART3_BASE
-#define BOARD_PC_IRQ HAL_IRQ_USART3
-#define BOARD_PC_ON_APB2 0
-#define BOARD_PC_BAUD 57600UL
+#include "cm530_io.h" /* bus and PC-link USARTs and pins */
 
 /* Ring sizes (powers of two). A whole Protocol 1.0 packet is at most 250 bytes. */
 #define BOARD_BUS_RX_RING 512

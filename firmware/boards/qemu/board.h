@@ -29,17 +29,8 @@
 /* No flash controller in QEMU: the committed table lives in RAM only. */
 #define BOARD_HAS_FLASH_STORE 0
 
-#define BOARD_BUS_USART HAL_USART1_BASE
-#define BOARD_BUS_IRQ HAL_IRQ_USART1
-#define BOARD_BUS_ON_APB2 1
-#define BOARD_BUS_BAUD 1000000UL
-#define BOARD_BUS_TX_ENABLE_PIN {HAL_GPIOB_BASE, 4}
-#define BOARD_BUS_RX_ENABLE_PIN {HAL_GPIOB_BASE, 5}
-
-#define BOARD_PC_USART HAL_USART3_BASE
-#define BOARD_PC_IRQ HAL_IRQ_USART3
-#define BOARD_PC_ON_APB2 0
-#define BOARD_PC_BAUD 57600UL
+/* The CM-530's USARTs and pins: QEMU has its USARTs at the same addresses. */
+#include "../cm530/cm530_io.h"
 
 #define BOARD_BUS_RX_RING 128
 #define BOARD_BUS_TX_RING 128

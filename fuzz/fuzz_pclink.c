@@ -46,13 +46,7 @@
 #include "dxl_parser.h"
 #include "gt_table.h"
 
-#define CHECK(cond)                                                                   \
-    do {                                                                              \
-        if (!(cond)) {                                                                \
-            fprintf(stderr, "invariant failed at %s:%d: %s\n", __FILE__, __LINE__, #cond); \
-            abort();                                                                  \
-        }                                                                             \
-    } while (0)
+#include "fuzz_check.h"
 
 #define MAX_STEPS 400
 #define NO_READ 0xFFu

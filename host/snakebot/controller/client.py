@@ -116,8 +116,10 @@ class ControllerClient:
         **link_options: Any,
     ) -> ControllerClient:
         """Open ``port`` (device path or URL). The PC link never echoes, so the client is
-        told so (``echo=False``) unless ``link_options`` say otherwise."""
+        told so (``echo=False``) unless ``link_options`` say otherwise; and the
+        controller's address 16 is Speed Scale, not a servo's Status Return Level."""
         link_options.setdefault("echo", False)
+        link_options.setdefault("status_return_level_address", None)
         link = DxlClient(port, baudrate, **link_options)
         return cls(link, controller_id, port_name=port)
 

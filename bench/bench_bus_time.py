@@ -4,7 +4,7 @@ Each control tick the firmware's bus master sends one SYNC_WRITE of goal positio
 moving speeds (addresses 30-33) to the whole roster, then one telemetry READ (addresses
 36-43) of the next servo, round robin, and waits for its status packet. Here the
 firmware's own bus master (``firmware/core/bus_master.c`` through ``snakebot._core``)
-produces the packets, and they go onto the emulated bus (``snakesim.bus``) with virtual
+produces the packets, and they go onto the emulated bus (``snakebot.sim.bus``) with virtual
 AX-12As on its virtual clock, which times every byte at 10 bits at the servos' baud rate
 and honours their Return Delay Time. Measured: from the first byte of the tick's
 SYNC_WRITE to the last byte of the status packet, averaged over the ticks of two rounds
@@ -22,8 +22,8 @@ import sys
 
 from snakebot import protocol
 from snakebot.core import ffi, lib
-from snakesim.bus import Bus
-from snakesim.servo import VirtualServo
+from snakebot.sim.bus import Bus
+from snakebot.sim.servo import VirtualServo
 
 BAUD = 1_000_000
 BITS_PER_BYTE = 10
@@ -55,8 +55,9 @@ class FirmwareBusMaster:
         start = bus.now
         wire = 0
         while True:
-            n = lib.bus_next(self.b, self.ids, self.goals, self.speeds, self.count, self.out,
-                             256, self.txn)
+            n = lib.bus_next(
+                self.b, self.ids, self.goals, self.speeds, self.count, self.out, 256, self.txn
+            )
             if n == 0:
                 break
             packet = bytes(ffi.buffer(self.out, n))
@@ -117,7 +118,7 @@ def observed_in_qemu(seconds: float = 2.0) -> tuple[int, float, float] | None:
     from snakebot.controller.uploader import upload_gait
     from snakebot.gait import serpenoid
     from snakebot.robots import load_robot
-    from snakesim.serve import DEFAULT_FIRMWARE, EmulatedRobot
+    from snakebot.sim.serve import DEFAULT_FIRMWARE, EmulatedRobot
 
     if shutil.which("qemu-system-arm") is None or not DEFAULT_FIRMWARE.is_file():
         return None
@@ -144,31 +145,41 @@ def observed_in_qemu(seconds: float = 2.0) -> tuple[int, float, float] | None:
 
 
 def main() -> int:
-    print(f"bus time per {1000 * TICK_S:.0f} ms control tick at {BAUD // 1000} kbps: firmware "
-          "bus master (C) on the emulated bus, vs the wire limit")
-    print(f"{'servos':>6} {'RDT us':>6} {'bytes':>5} {'measured us':>11} {'wire limit us':>13} "
-          f"{'ratio':>6} {'tick %':>6}")
+    print(
+        f"bus time per {1000 * TICK_S:.0f} ms control tick at {BAUD // 1000} kbps: firmware "
+        "bus master (C) on the emulated bus, vs the wire limit"
+    )
+    print(
+        f"{'servos':>6} {'RDT us':>6} {'bytes':>5} {'measured us':>11} {'wire limit us':>13} "
+        f"{'ratio':>6} {'tick %':>6}"
+    )
     ok = True
     for count in ROSTERS:
         limit, limit_bytes = wire_limit_s(count)
         for rdt in RETURN_DELAYS_US:
             t, size = measure(count, rdt)
             ratio = t / limit
-            print(f"{count:>6} {rdt:>6} {size:>5} {1e6 * t:>11.1f} {1e6 * limit:>13.1f} "
-                  f"{ratio:>6.3f} {100 * t / TICK_S:>5.1f}%")
+            print(
+                f"{count:>6} {rdt:>6} {size:>5} {1e6 * t:>11.1f} {1e6 * limit:>13.1f} "
+                f"{ratio:>6.3f} {100 * t / TICK_S:>5.1f}%"
+            )
             ok &= size == limit_bytes and t < TICK_S
-    print("ratio = measured / wire limit; with RDT 0 it is the bus's own overhead (none: the "
-          "master sends back to back), with 500 us the servo's wait before it answers.")
+    print(
+        "ratio = measured / wire limit; with RDT 0 it is the bus's own overhead (none: the "
+        "master sends back to back), with 500 us the servo's wait before it answers."
+    )
     seen = observed_in_qemu()
     if seen is None:
         print("(QEMU cross-check skipped: no qemu-system-arm or no build/qemu/firmware.elf)")
     else:
         count, per_tick, rate = seen
         _, expected = wire_limit_s(count)
-        print(f"cross-check, the firmware in QEMU playing on {count} emulated servos: "
-              f"{per_tick:.1f} bytes on the bus per control tick (the C bus master above "
-              f"gives {expected} for {count}; ratio {per_tick / expected:.3f}), "
-              f"{rate:.0f} ticks per second of bus time")
+        print(
+            f"cross-check, the firmware in QEMU playing on {count} emulated servos: "
+            f"{per_tick:.1f} bytes on the bus per control tick (the C bus master above "
+            f"gives {expected} for {count}; ratio {per_tick / expected:.3f}), "
+            f"{rate:.0f} ticks per second of bus time"
+        )
         ok &= abs(per_tick - expected) <= 0.05 * expected
     return 0 if ok else 1
 

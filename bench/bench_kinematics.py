@@ -107,16 +107,20 @@ def snake5_scipy():
 def main() -> int:
     print(f"10 s trajectories, Dormand-Prince 5(4) at rtol {RTOL:g}, atol {ATOL:g} on both sides")
     ratios = []
-    for name, c_func, py_func in (("trident periodic inputs (h1 loop)", trident_c, trident_scipy),
-                                  ("5-link serpenoid (minimum slip)", snake5_c, snake5_scipy)):
+    for name, c_func, py_func in (
+        ("trident periodic inputs (h1 loop)", trident_c, trident_scipy),
+        ("5-link serpenoid (minimum slip)", snake5_c, snake5_scipy),
+    ):
         reference = c_func(1e-13, 1e-14)
         t_c, final_c, t_py, final_py = best_times(c_func, py_func)
         err_c = float(np.abs(final_c - reference).max())
         err_py = float(np.abs(final_py - reference).max())
         ratio = t_py / t_c
         ratios.append(ratio)
-        print(f"{name}:\n  C core {t_c * 1e3:8.3f} ms (error {err_c:.1e})   scipy+numpy "
-              f"{t_py * 1e3:8.1f} ms (error {err_py:.1e})   speed ratio {ratio:7.0f}x")
+        print(
+            f"{name}:\n  C core {t_c * 1e3:8.3f} ms (error {err_c:.1e})   scipy+numpy "
+            f"{t_py * 1e3:8.1f} ms (error {err_py:.1e})   speed ratio {ratio:7.0f}x"
+        )
         if max(err_c, err_py) > 1e-5:
             print("  accuracy check FAILED: the two sides disagree with the reference")
             return 1

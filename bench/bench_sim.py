@@ -30,7 +30,7 @@ import termios
 import time
 import tty
 
-import snakesim  # noqa: F401  (registers sim://)
+import snakebot.transport.ports  # noqa: F401  (registers sim://)
 from snakebot import protocol
 from snakebot.transport import DxlClient
 

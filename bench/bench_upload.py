@@ -27,7 +27,7 @@ from snakebot.controller.client import ControllerClient
 from snakebot.controller.transfer import stream_writes
 from snakebot.controller.uploader import upload_gait
 from snakebot.gaittable import GaitTable, max_frames
-from snakesim.controller_pty import ControllerPty
+from snakebot.sim.controller_pty import ControllerPty
 
 BAUD = 57600
 WIRE_BYTES_PER_S = BAUD / 10
@@ -73,17 +73,27 @@ def main() -> int:
             pipelined = upload_rate(ctl, table, window=8)
             stop_and_wait = upload_rate(ctl, table, window=1)
     frac = pipelined / WIRE_BYTES_PER_S
-    print(f"table: {table.size} bytes, PC link {BAUD} baud = {WIRE_BYTES_PER_S:.0f} bytes/s "
-          f"of wire; ceiling through the 64-byte window {100 * CEILING:.1f} %")
-    print(f"line (PING stream, same relay):  {line:7.0f} bytes/s = "
-          f"{100 * line / WIRE_BYTES_PER_S:5.1f} % of the wire")
-    print(f"upload, stop-and-wait:           {stop_and_wait:7.0f} bytes/s = "
-          f"{100 * stop_and_wait / WIRE_BYTES_PER_S:5.1f} % of the wire")
-    print(f"upload, as shipped (window 8):   {pipelined:7.0f} bytes/s = "
-          f"{100 * frac:5.1f} % of the wire")
-    print(f"ratio upload / wire capacity: {frac:.3f} (goal >= {GOAL}); "
-          f"upload / measured line: {pipelined / line:.3f}; "
-          f"vs stop-and-wait: {pipelined / stop_and_wait:.2f}x")
+    print(
+        f"table: {table.size} bytes, PC link {BAUD} baud = {WIRE_BYTES_PER_S:.0f} bytes/s "
+        f"of wire; ceiling through the 64-byte window {100 * CEILING:.1f} %"
+    )
+    print(
+        f"line (PING stream, same relay):  {line:7.0f} bytes/s = "
+        f"{100 * line / WIRE_BYTES_PER_S:5.1f} % of the wire"
+    )
+    print(
+        f"upload, stop-and-wait:           {stop_and_wait:7.0f} bytes/s = "
+        f"{100 * stop_and_wait / WIRE_BYTES_PER_S:5.1f} % of the wire"
+    )
+    print(
+        f"upload, as shipped (window 8):   {pipelined:7.0f} bytes/s = "
+        f"{100 * frac:5.1f} % of the wire"
+    )
+    print(
+        f"ratio upload / wire capacity: {frac:.3f} (goal >= {GOAL}); "
+        f"upload / measured line: {pipelined / line:.3f}; "
+        f"vs stop-and-wait: {pipelined / stop_and_wait:.2f}x"
+    )
     print("GOAL MET" if frac >= GOAL else "BELOW GOAL")
     return 0
 

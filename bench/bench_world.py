@@ -18,12 +18,11 @@ import os
 import sys
 import time
 
-import snakesim  # noqa: F401  (registers sim://)
+import snakebot.transport.ports  # noqa: F401  (registers sim://)
 from snakebot.gait import serpenoid
 from snakebot.protocol import sync_write
 from snakebot.robots import load_robot
-from snakebot.transport import DxlClient
-from snakesim.predict import (
+from snakebot.sim.predict import (
     GOAL_POSITION_ADDR,
     frame_speeds,
     move_to_start,
@@ -31,6 +30,7 @@ from snakesim.predict import (
     sim_url,
     sync_blocks,
 )
+from snakebot.transport import DxlClient
 
 GOAL = 200.0
 CONTROL_HZ = 100
@@ -44,8 +44,7 @@ def with_world(table, robot) -> tuple[float, float, float]:  # noqa: ANN001
         bus = client.port.bus
         move_to_start(client, bus, robot, table.frames[0])
         cpu0, wall0 = time.process_time(), time.perf_counter()
-        record, _, wall = play(client, bus, robot, table, ideal=False,
-                               world_hz=CONTROL_HZ)
+        record, _, wall = play(client, bus, robot, table, ideal=False, world_hz=CONTROL_HZ)
         cpu, outer = time.process_time() - cpu0, time.perf_counter() - wall0
         emulated = float(record.t[-1])
         return emulated / wall, emulated / cpu if cpu > 0 else float("inf"), emulated / outer
@@ -57,8 +56,10 @@ def without_world(table, robot) -> float:  # noqa: ANN001
         bus = client.port.bus
         move_to_start(client, bus, robot, table.frames[0])
         goals, speeds = frame_speeds(table.frames, table.frame_period_ms, table.loop)
-        packets = [sync_write(GOAL_POSITION_ADDR, 4, block)
-                   for block in sync_blocks(robot.servo_ids, goals, speeds)]
+        packets = [
+            sync_write(GOAL_POSITION_ADDR, 4, block)
+            for block in sync_blocks(robot.servo_ids, goals, speeds)
+        ]
         period = table.frame_period_ms / 1000.0
         ids = robot.servo_ids
         wall0 = time.perf_counter()
@@ -75,14 +76,15 @@ def without_world(table, robot) -> float:  # noqa: ANN001
 def main() -> int:
     rounds = 3 if "--quick" in sys.argv else 10
     robot = load_robot("snake5")
-    gait = serpenoid(robot, math.radians(30), math.pi, math.pi / 2, cycles=1,
-                     rate_hz=CONTROL_HZ)
+    gait = serpenoid(robot, math.radians(30), math.pi, math.pi / 2, cycles=1, rate_hz=CONTROL_HZ)
     table = gait.gait_table()
     seconds = table.frame_count * table.frame_period_ms / 1000.0
     print(f"== machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}")
-    print(f"== snake5 serpenoid, {table.frame_count} frames every {table.frame_period_ms} ms "
-          f"({seconds:.1f} s of bus time per pass), host as master at {CONTROL_HZ} Hz, "
-          f"best of {rounds}")
+    print(
+        f"== snake5 serpenoid, {table.frame_count} frames every {table.frame_period_ms} ms "
+        f"({seconds:.1f} s of bus time per pass), host as master at {CONTROL_HZ} Hz, "
+        f"best of {rounds}"
+    )
     best_world = best_bus = best_cpu = best_outer = 0.0
     for _ in range(rounds):  # alternate, so load from other processes hits both alike
         wall_rtf, cpu_rtf, outer_rtf = with_world(table, robot)
@@ -91,12 +93,16 @@ def main() -> int:
         best_outer = max(best_outer, outer_rtf)
         best_bus = max(best_bus, without_world(table, robot))
     print(f"   bus + servos only (reference):        {best_bus:7.1f} x real time")
-    print(f"   bus + servos + world (body, slip):    {best_world:7.1f} x real time "
-          f"(goal {GOAL:.0f} x: ratio {best_world / GOAL:.2f})")
+    print(
+        f"   bus + servos + world (body, slip):    {best_world:7.1f} x real time "
+        f"(goal {GOAL:.0f} x: ratio {best_world / GOAL:.2f})"
+    )
     print(f"   the world keeps {best_world / best_bus:.2f} of the bus-only speed")
-    print(f"   (the whole play call, which also encodes the packets: {best_cpu:.1f} x per CPU "
-          f"second of this process, {best_outer:.1f} x by the wall clock; the wall figures "
-          "are lower when other processes share the cores)")
+    print(
+        f"   (the whole play call, which also encodes the packets: {best_cpu:.1f} x per CPU "
+        f"second of this process, {best_outer:.1f} x by the wall clock; the wall figures "
+        "are lower when other processes share the cores)"
+    )
     print("GOAL MET" if best_world >= GOAL else "BELOW GOAL")
     return 0
 

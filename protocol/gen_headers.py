@@ -23,7 +23,7 @@ BASE_MODEL = "AX-12A"
 
 
 def macro(name: str) -> str:
-    """"CW Compliance Margin" -> "CW_COMPLIANCE_MARGIN"."""
+    """ "CW Compliance Margin" -> "CW_COMPLIANCE_MARGIN"."""
     return re.sub(r"[^A-Z0-9]+", "_", name.upper()).strip("_")
 
 
@@ -58,8 +58,9 @@ def render(doc: dict) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--check", action="store_true",
-                        help="only compare; exit 1 if the header is out of date")
+    parser.add_argument(
+        "--check", action="store_true", help="only compare; exit 1 if the header is out of date"
+    )
     args = parser.parse_args(argv)
     text = render(json.loads(SOURCE.read_text()))
     current = HEADER.read_text() if HEADER.exists() else None

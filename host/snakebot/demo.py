@@ -2,7 +2,7 @@
 
 1. Generate a serpenoid gait table for the robot (:func:`snakebot.gait.serpenoid`) and
    write it under ``out/``.
-2. Start the emulated robot (:class:`snakesim.serve.EmulatedRobot`): the firmware image
+2. Start the emulated robot (:class:`snakebot.sim.serve.EmulatedRobot`): the firmware image
    under ``qemu-system-arm``, its Dynamixel bus on the emulated AX-12s, its PC link on a
    pseudo-terminal, and the world that moves the body from the servos' positions.
 3. Upload the table over the PC link (:func:`snakebot.controller.uploader.upload_gait`),
@@ -51,9 +51,9 @@ from snakebot.gait.common import PREDICT_OPTIONS
 from snakebot.gaittable import GaitTable, write_gait
 from snakebot.kinematics import Table, integrate_joints
 from snakebot.robots import Robot, load_robot
+from snakebot.sim.serve import PC_LINK_MARGIN_S, EmulatedRobot, ServeInfo
+from snakebot.sim.world import WorldRecord
 from snakebot.transport.settings import resolve_margin_s
-from snakesim.serve import PC_LINK_MARGIN_S, EmulatedRobot, ServeInfo
-from snakesim.world import WorldRecord
 
 FRAME_POLL_S = 0.1
 """Seconds between reads of the controller's Play Frame during playback."""
@@ -105,16 +105,19 @@ class DemoSettings:
 # -- the firmware's timeline --------------------------------------------------------------
 
 
-def table_phase(angles: np.ndarray, goal_t: np.ndarray, goal_angles: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray]:
+def table_phase(
+    angles: np.ndarray, goal_t: np.ndarray, goal_angles: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Where in the looping table (fractional frames since PLAY, unwrapped) the firmware's
     goals were at each sample, from the first sample whose goals changed (PLAY) on: the
     nearest point of the table's path (linear between frames) a little ahead of the
     previous one. Returns (times, phases); phases never decrease."""
     changed = np.flatnonzero(np.abs(goal_angles - goal_angles[0]).max(axis=1) > 0)
     if not len(changed):
-        raise DemoError("the servos never got a goal from the firmware: is the robot's bus "
-                        "connected? (check `snakebot monitor`)")
+        raise DemoError(
+            "the servos never got a goal from the firmware: is the robot's bus "
+            "connected? (check `snakebot monitor`)"
+        )
     begin = int(changed[0])
     steps = np.arange(PHASE_SEARCH_FRAMES[0], PHASE_SEARCH_FRAMES[1], PHASE_STEP_FRAMES)
     phases = np.empty(len(goal_t) - begin)
@@ -144,26 +147,45 @@ def commanded(angles: np.ndarray, phase: np.ndarray) -> np.ndarray:
 
 def _motion(q_end: np.ndarray) -> dict[str, float]:
     dx, dy, dth = (float(v) for v in q_end[:3])
-    return {"dx": dx, "dy": dy, "dtheta": dth, "distance": math.hypot(dx, dy),
-            "direction_deg": math.degrees(math.atan2(dy, dx)), "turn_deg": math.degrees(dth)}
+    return {
+        "dx": dx,
+        "dy": dy,
+        "dtheta": dth,
+        "distance": math.hypot(dx, dy),
+        "direction_deg": math.degrees(math.atan2(dy, dx)),
+        "turn_deg": math.degrees(dth),
+    }
 
 
 def _relative(pose0: np.ndarray, poses: np.ndarray) -> np.ndarray:
     """Poses in the frame of ``pose0`` (x forward along its heading)."""
     c, s = math.cos(pose0[2]), math.sin(pose0[2])
     d = poses[:, :2] - pose0[:2]
-    return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1],
-                            poses[:, 2] - pose0[2]])
+    return np.column_stack(
+        [c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], poses[:, 2] - pose0[2]]
+    )
 
 
-def predicted_motion(robot: Robot, angles: np.ndarray, period_s: float, cycles: int,
-                     delay_s: float = 0.0, samples: int = 2) -> np.ndarray:
+def predicted_motion(
+    robot: Robot,
+    angles: np.ndarray,
+    period_s: float,
+    cycles: int,
+    delay_s: float = 0.0,
+    samples: int = 2,
+) -> np.ndarray:
     """Body poses (x, y, theta) over ``cycles`` whole cycles of the looping table, the joints
     delayed by ``delay_s``, from the origin; ``samples`` rows evenly in time."""
     period = len(angles) * period_s
     t0 = period - delay_s  # the joints at window start are where the table was delay_s ago
-    traj = integrate_joints(robot, Table(angles, period_s, True), t0 + cycles * period, t0=t0,
-                            samples=samples, options=PREDICT_OPTIONS)
+    traj = integrate_joints(
+        robot,
+        Table(angles, period_s, True),
+        t0 + cycles * period,
+        t0=t0,
+        samples=samples,
+        options=PREDICT_OPTIONS,
+    )
     return traj.q[:, :3]
 
 
@@ -222,8 +244,15 @@ def _interp_rows(t: np.ndarray, ts: np.ndarray, rows: np.ndarray) -> np.ndarray:
     return np.column_stack([np.interp(t, ts, rows[:, j]) for j in range(rows.shape[1])])
 
 
-def compare(robot: Robot, table: GaitTable, record: WorldRecord, goal_t: np.ndarray,
-            goal_ticks: np.ndarray, warmup_cycles: int, cycles: int) -> Comparison:
+def compare(
+    robot: Robot,
+    table: GaitTable,
+    record: WorldRecord,
+    goal_t: np.ndarray,
+    goal_ticks: np.ndarray,
+    warmup_cycles: int,
+    cycles: int,
+) -> Comparison:
     """The body's motion over ``cycles`` cycles of the table after ``warmup_cycles`` (as the
     firmware's goals went through them), emulated (the world's record) beside predicted
     (the table, linear between frames), with the servo lag that explains the difference
@@ -236,8 +265,10 @@ def compare(robot: Robot, table: GaitTable, record: WorldRecord, goal_t: np.ndar
     phase_t, phase = table_phase(angles, goal_t, goal_angles)
     target_a, target_b = warmup_cycles * frames, (warmup_cycles + cycles) * frames
     if phase[-1] < target_b:
-        raise DemoError(f"the firmware played {phase[-1] / frames:.2f} cycles, fewer than the "
-                        f"{warmup_cycles + cycles} asked for: play longer")
+        raise DemoError(
+            f"the firmware played {phase[-1] / frames:.2f} cycles, fewer than the "
+            f"{warmup_cycles + cycles} asked for: play longer"
+        )
     t_a = float(np.interp(target_a, phase, phase_t))
     t_b = float(np.interp(target_b, phase, phase_t))
     inside = (record.t >= t_a) & (record.t <= t_b)
@@ -245,8 +276,9 @@ def compare(robot: Robot, table: GaitTable, record: WorldRecord, goal_t: np.ndar
     measured = record.phi[inside]
 
     def cmd(delay: float) -> np.ndarray:  # the firmware's goals, ``delay`` seconds ago
-        return np.column_stack([np.interp(t - delay, goal_t, goal_angles[:, j])
-                                for j in range(goal_angles.shape[1])])
+        return np.column_stack(
+            [np.interp(t - delay, goal_t, goal_angles[:, j]) for j in range(goal_angles.shape[1])]
+        )
 
     plain = cmd(0.0)
     lags = np.arange(LAG_SEARCH_S[0], LAG_SEARCH_S[1] + LAG_STEP_S / 2, LAG_STEP_S)
@@ -272,8 +304,11 @@ def compare(robot: Robot, table: GaitTable, record: WorldRecord, goal_t: np.ndar
     sensitivity = 0.0
     one_cycle = np.linspace(0.0, frames, 20 * frames, endpoint=False)
     for d in SENSITIVITY_DELAYS_S:
-        deviation = float(np.abs(commanded(angles, one_cycle)
-                                 - commanded(angles, one_cycle - d * rate / period_s)).max())
+        deviation = float(
+            np.abs(
+                commanded(angles, one_cycle) - commanded(angles, one_cycle - d * rate / period_s)
+            ).max()
+        )
         if deviation > 0:
             sensitivity = max(sensitivity, shift(d) / deviation)
     return Comparison(
@@ -315,19 +350,34 @@ def plot_demo(robot: Robot, comparison: Comparison, out: Path) -> Path:
     ax_path.set_aspect("equal", adjustable="datalim")
     ax_path.set_xlabel("x (m, along the head's heading at the start)")
     ax_path.set_ylabel("y (m)")
-    ax_path.set_title(f"{robot.name}: body path over the measured cycles\n"
-                      f"difference {100 * comparison.difference_m:.1f} cm "
-                      f"(servo lag {1000 * comparison.lag_s:.0f} ms)")
+    ax_path.set_title(
+        f"{robot.name}: body path over the measured cycles\n"
+        f"difference {100 * comparison.difference_m:.1f} cm "
+        f"(servo lag {1000 * comparison.lag_s:.0f} ms)"
+    )
     ax_path.legend(fontsize="small")
     ax_path.grid(alpha=0.3)
     t = comparison.joint_t - comparison.window_s[0]
     colours = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown"]
     for j, joint in enumerate(robot.joints):
         c = colours[j % len(colours)]
-        ax_joints.plot(t, np.degrees(comparison.joint_commanded[:, j]), "--", color=c,
-                       linewidth=1, label=f"{joint.name} commanded")
-        ax_joints.plot(t, np.degrees(comparison.joint_measured[:, j]), "-", color=c,
-                       linewidth=1.5, alpha=0.7, label=f"{joint.name} measured")
+        ax_joints.plot(
+            t,
+            np.degrees(comparison.joint_commanded[:, j]),
+            "--",
+            color=c,
+            linewidth=1,
+            label=f"{joint.name} commanded",
+        )
+        ax_joints.plot(
+            t,
+            np.degrees(comparison.joint_measured[:, j]),
+            "-",
+            color=c,
+            linewidth=1.5,
+            alpha=0.7,
+            label=f"{joint.name} measured",
+        )
     ax_joints.set_xlabel("time since the measured cycles began (s)")
     ax_joints.set_ylabel("joint angle (deg)")
     ax_joints.set_title("joint angles: commanded by the firmware vs the servos' positions")
@@ -375,9 +425,11 @@ def _monitor_line(s: Sample) -> str:
     servos = "  ".join(f"{j.id}:{j.position:4d}" for j in s.servos)
     loads = max((abs(r) for r in (_signed(j.load) for j in s.servos)), default=0)
     errors = ",".join(c["error_flags"]) or "none"
-    return (f"  t={s.t:5.2f} s  {c['state']:<8} frame {c['play_frame']:3d}  positions {servos}"
-            f"  max load {100 * loads / 1023:4.1f} %  bus reads {c['bus_reads']}  "
-            f"timeouts {c['bus_timeouts']}  errors {errors}")
+    return (
+        f"  t={s.t:5.2f} s  {c['state']:<8} frame {c['play_frame']:3d}  positions {servos}"
+        f"  max load {100 * loads / 1023:4.1f} %  bus reads {c['bus_reads']}  "
+        f"timeouts {c['bus_timeouts']}  errors {errors}"
+    )
 
 
 def _signed(value: int) -> int:
@@ -393,46 +445,72 @@ def run_demo(settings: DemoSettings | None = None, say: Say = print) -> DemoResu
     out_dir = Path(settings.out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
 
-    gait = serpenoid(robot, settings.amplitude, settings.omega, settings.delta, cycles=1,
-                     rate_hz=settings.rate_hz, loop=True)
+    gait = serpenoid(
+        robot,
+        settings.amplitude,
+        settings.omega,
+        settings.delta,
+        cycles=1,
+        rate_hz=settings.rate_hz,
+        loop=True,
+    )
     table = gait.gait_table()
     gait_file = out_dir / "demo.gait"
     write_gait(gait_file, table)
     cycle_s = len(table.frames) * table.frame_period_ms / 1000.0
-    say(f"1. gait: serpenoid for {robot.name}, A = {math.degrees(settings.amplitude):.0f} deg, "
+    say(
+        f"1. gait: serpenoid for {robot.name}, A = {math.degrees(settings.amplitude):.0f} deg, "
         f"omega = {math.degrees(gait.parameters['omega_rad_s']):.1f} deg/s, "
         f"delta = {math.degrees(settings.delta):.0f} deg: {len(table.frames)} frames every "
-        f"{table.frame_period_ms} ms ({cycle_s:.2f} s a cycle, looping) -> {gait_file}")
+        f"{table.frame_period_ms} ms ({cycle_s:.2f} s a cycle, looping) -> {gait_file}"
+    )
 
     emulated = EmulatedRobot(robot, settings.firmware)
     try:
         info: ServeInfo = emulated.start()
-        say(f"2. emulated {robot.name} running: firmware {info.firmware} in QEMU (pid "
+        say(
+            f"2. emulated {robot.name} running: firmware {info.firmware} in QEMU (pid "
             f"{info.qemu_pid}), servos {', '.join(map(str, info.servo_ids))} on the emulated "
-            f"bus, PC link {info.pc_link}")
+            f"bus, PC link {info.pc_link}"
+        )
         margin = max(resolve_margin_s(), PC_LINK_MARGIN_S)
         with ControllerClient.open(info.pc_link, margin_s=margin) as ctl:
             report = upload_gait(ctl, table, allow_new_servos=True)
-            say(f"3. upload: {report.summary()}; the controller's CRC 0x{report.crc:08x} "
-                "matches the file (QEMU does not pace the PC link at its baud rate)")
+            say(
+                f"3. upload: {report.summary()}; the controller's CRC 0x{report.crc:08x} "
+                "matches the file (QEMU does not pace the PC link at its baud rate)"
+            )
             total = settings.warmup_cycles + settings.cycles
-            say(f"4. play: {total} cycles ({settings.warmup_cycles} to settle, "
-                f"{settings.cycles} measured), monitoring:")
+            say(
+                f"4. play: {total} cycles ({settings.warmup_cycles} to settle, "
+                f"{settings.cycles} measured), monitoring:"
+            )
             monitor = _play(ctl, len(table.frames), total, say)
             stop(ctl)
         record = emulated.record()
         goal_t, goal_ticks = emulated.goals()
     finally:
         emulated.stop()
-    comparison = compare(robot, table, record, goal_t, goal_ticks, settings.warmup_cycles,
-                         settings.cycles)
+    comparison = compare(
+        robot, table, record, goal_t, goal_ticks, settings.warmup_cycles, settings.cycles
+    )
     png = plot_demo(robot, comparison, out_dir / "demo.png")
-    return DemoResult(settings, info.as_dict(), gait_file, gait.summary(), report, comparison,
-                      png, time.monotonic() - began, monitor)
+    return DemoResult(
+        settings,
+        info.as_dict(),
+        gait_file,
+        gait.summary(),
+        report,
+        comparison,
+        png,
+        time.monotonic() - began,
+        monitor,
+    )
 
 
-def _play(ctl: ControllerClient, frames_per_cycle: int, cycles: int, say: Say
-          ) -> list[dict[str, Any]]:
+def _play(
+    ctl: ControllerClient, frames_per_cycle: int, cycles: int, say: Say
+) -> list[dict[str, Any]]:
     """Play the uploaded table in a loop until the firmware's Play Frame has gone through
     ``cycles`` cycles, printing a monitor line every second; returns the monitor records."""
     status = play(ctl, loop=True)
@@ -458,9 +536,11 @@ def _play(ctl: ControllerClient, frames_per_cycle: int, cycles: int, say: Say
                 raise DemoError("the controller stopped playing: " + render(s)[1])
             next_monitor += MONITOR_EVERY_S
         if now > deadline:
-            raise DemoError(f"the firmware played {played} frames in {now - t0:.0f} s, far "
-                            "slower than real time: the machine is overloaded; run the demo "
-                            "again when it is quieter")
+            raise DemoError(
+                f"the firmware played {played} frames in {now - t0:.0f} s, far "
+                "slower than real time: the machine is overloaded; run the demo "
+                "again when it is quieter"
+            )
     return monitor
 
 
@@ -471,9 +551,11 @@ def summary_lines(result: DemoResult) -> list[str]:
     n = result.settings.cycles
 
     def where(m: dict[str, float]) -> str:
-        return (f"{100 * m['distance']:6.1f} cm towards {m['direction_deg']:+6.1f} deg "
-                f"(dx {100 * m['dx']:+6.1f} cm, dy {100 * m['dy']:+6.1f} cm), "
-                f"heading turned {m['turn_deg']:+6.1f} deg")
+        return (
+            f"{100 * m['distance']:6.1f} cm towards {m['direction_deg']:+6.1f} deg "
+            f"(dx {100 * m['dx']:+6.1f} cm, dy {100 * m['dy']:+6.1f} cm), "
+            f"heading turned {m['turn_deg']:+6.1f} deg"
+        )
 
     return [
         f"5. over the {n} measured cycles (x = forward along the head link's heading at the "
@@ -482,9 +564,11 @@ def summary_lines(result: DemoResult) -> list[str]:
         f"   predicted: {where(p)}",
         f"   difference {100 * c.difference_m:.1f} cm "
         f"({100 * c.difference_m / max(p['distance'], 1e-12):.0f} % of the predicted distance), "
-        + (f"within the {100 * c.tolerance_m:.1f} cm the servo lag explains"
-           if c.within_tolerance else
-           f"MORE than the {100 * c.tolerance_m:.1f} cm the servo lag explains"),
+        + (
+            f"within the {100 * c.tolerance_m:.1f} cm the servo lag explains"
+            if c.within_tolerance
+            else f"MORE than the {100 * c.tolerance_m:.1f} cm the servo lag explains"
+        ),
         f"   reason: servo lag. The servos trail the commanded joints by "
         f"{1000 * c.lag_s:.0f} ms (largest joint error {math.degrees(c.tracking_max_rad):.1f}"
         f" deg, rms {math.degrees(c.tracking_rms_rad):.1f} deg); a delay that long moves the "

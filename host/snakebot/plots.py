@@ -41,19 +41,24 @@ def plot_gait(table: GaitTable, out: str | Path) -> Path:
     names = [j.get("name", f"joint {i + 1}") for i, j in enumerate(meta.get("joints", []))]
     for j in range(values.shape[1]):
         name = names[j] if j < len(names) else f"joint {j + 1}"
-        axes[0].plot(times, values[:, j], marker=".", markersize=3,
-                     label=f"{name} (ID {table.joint_ids[j]})")
+        axes[0].plot(
+            times, values[:, j], marker=".", markersize=3, label=f"{name} (ID {table.joint_ids[j]})"
+        )
     axes[0].set_xlabel("time (s)")
     axes[0].set_ylabel(label)
     title = f"{meta.get('gait', 'gait')} on {meta.get('robot', '?')}"
-    axes[0].set_title(f"{title}: {table.frame_count} frames every {table.frame_period_ms} ms"
-                      + (", loop" if table.loop else ""))
+    axes[0].set_title(
+        f"{title}: {table.frame_count} frames every {table.frame_period_ms} ms"
+        + (", loop" if table.loop else "")
+    )
     axes[0].legend(fontsize="small")
     axes[0].grid(alpha=0.3)
     if has_path:
         ax = axes[1]
-        for key, style, text in (("path", "-", "continuous gait"),
-                                 ("table_path", "--", "table as written")):
+        for key, style, text in (
+            ("path", "-", "continuous gait"),
+            ("table_path", "--", "table as written"),
+        ):
             if key in meta:
                 ax.plot(meta[key]["x"], meta[key]["y"], style, label=text)
         p = meta["path"]
@@ -61,9 +66,12 @@ def plot_gait(table: GaitTable, out: str | Path) -> Path:
         if p["theta"]:  # an arrow along the final heading, a tenth of the path's extent
             size = 0.1 * max(np.ptp(p["x"]), np.ptp(p["y"]), 1e-9)
             end = p["theta"][-1]
-            ax.annotate("", xy=(p["x"][-1] + size * math.cos(end),
-                                p["y"][-1] + size * math.sin(end)),
-                        xytext=(p["x"][-1], p["y"][-1]), arrowprops={"arrowstyle": "->"})
+            ax.annotate(
+                "",
+                xy=(p["x"][-1] + size * math.cos(end), p["y"][-1] + size * math.sin(end)),
+                xytext=(p["x"][-1], p["y"][-1]),
+                arrowprops={"arrowstyle": "->"},
+            )
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel("x")
         ax.set_ylabel("y")

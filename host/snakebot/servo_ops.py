@@ -145,9 +145,7 @@ def check_write(entry: Entry, value: int) -> None:
     low, high = write_range(entry)
     if not low <= value <= high:
         extra = f" ({entry.note})" if entry.note else ""
-        raise BusCommandError(
-            f"{entry.name} takes {low}-{high}, not {value}{extra}"
-        )
+        raise BusCommandError(f"{entry.name} takes {low}-{high}, not {value}{extra}")
 
 
 _SCALED_UNIT = re.compile(r"^(\d+(?:\.\d+)?)\s+([^\s(]+)")
@@ -158,8 +156,12 @@ def decode(entry: Entry, value: int) -> dict[str, object]:
     """``value`` of ``entry`` in words: its unit and, where the unit has a scale, the
     physical value; direction-bit registers split into magnitude and direction."""
     out: dict[str, object] = {
-        "name": entry.name, "address": entry.address, "size": entry.size, "value": value,
-        "access": entry.access, "area": entry.area,
+        "name": entry.name,
+        "address": entry.address,
+        "size": entry.size,
+        "value": value,
+        "access": entry.access,
+        "area": entry.area,
     }
     magnitude = value
     if "bit 10 = direction" in entry.note and (not entry.writable or value > 0x3FF):
@@ -239,7 +241,7 @@ def scan(
 
 
 def parse_ids(text: str) -> list[int]:
-    """"0-253", "1,2,5-7" -> the IDs, in order, each once; refuses IDs outside 0-253."""
+    """ "0-253", "1,2,5-7" -> the IDs, in order, each once; refuses IDs outside 0-253."""
     ids: list[int] = []
     for part in text.split(","):
         part = part.strip()
@@ -262,7 +264,7 @@ def parse_ids(text: str) -> list[int]:
 
 
 def parse_bauds(text: str) -> list[int]:
-    """"1000000,57600" -> rates; "common" -> :data:`COMMON_BAUDS`."""
+    """ "1000000,57600" -> rates; "common" -> :data:`COMMON_BAUDS`."""
     if text.strip().lower() == "common":
         return list(COMMON_BAUDS)
     try:
@@ -286,8 +288,9 @@ def servo_table(client: DxlClient, servo_id: int) -> ControlTable:
     try:
         return ControlTable.for_model_number(number)
     except ControlTableError:
-        known = ", ".join(f"{ControlTable.for_model(m).model_number} ({m})"
-                          for m in ControlTable.models())
+        known = ", ".join(
+            f"{ControlTable.for_model(m).model_number} ({m})" for m in ControlTable.models()
+        )
         raise BusCommandError(
             f"servo {servo_id} reports model number {number}, which snakebot has no control "
             f"table for (known: {known}): its registers may sit elsewhere, so nothing was "
@@ -300,8 +303,7 @@ def read_registers(
 ) -> tuple[ControlTable, list[dict[str, object]]]:
     """Read ``entries`` (all registers if empty) in one READ; decoded, in address order."""
     table = servo_table(client, servo_id)
-    chosen = sorted({table.by_name(e.name) for e in entries} or set(table),
-                    key=lambda e: e.address)
+    chosen = sorted({table.by_name(e.name) for e in entries} or set(table), key=lambda e: e.address)
     start = chosen[0].address
     end = max(e.address + e.size for e in chosen)
     data = client.read(servo_id, start, end - start)

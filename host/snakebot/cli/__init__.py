@@ -39,8 +39,7 @@ from snakebot.cli.sim_predict import predict  # noqa: E402
 from snakebot.cli.sim_serve import serve  # noqa: E402
 from snakebot.cli.upload import upload  # noqa: E402
 
-for command in (model, gait, sim, upload, play, stop, serpenoid, monitor, bus, flash_command,
-                demo):
+for command in (model, gait, sim, upload, play, stop, serpenoid, monitor, bus, flash_command, demo):
     main.add_command(command)
 for command in (predict, serve, bootloader):
     sim.add_command(command)

@@ -23,10 +23,17 @@ PORT_HELP = (
 def bus_options(func: Callable[..., Any]) -> Callable[..., Any]:
     """--port, --baud and --json, shared by every bus command."""
 
-    @click.option("--port", "-p", required=True, envvar="SNAKEBOT_BUS_PORT", show_envvar=True,
-                  help=PORT_HELP)
-    @click.option("--baud", "-b", type=click.IntRange(min=1), default=DEFAULT_BAUDRATE,
-                  show_default=True, help="Bit rate of the bus (AX-12 factory setting: 1000000).")
+    @click.option(
+        "--port", "-p", required=True, envvar="SNAKEBOT_BUS_PORT", show_envvar=True, help=PORT_HELP
+    )
+    @click.option(
+        "--baud",
+        "-b",
+        type=click.IntRange(min=1),
+        default=DEFAULT_BAUDRATE,
+        show_default=True,
+        help="Bit rate of the bus (AX-12 factory setting: 1000000).",
+    )
     @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
@@ -69,10 +76,14 @@ def bus() -> None:
 
 @bus.command("scan")
 @bus_options
-@click.option("--ids", default="0-253", show_default=True,
-              help="IDs to try, e.g. 0-253 or 1,2,5-7.")
-@click.option("--bauds", help="Rates to try instead of --baud, comma-separated, or "
-              "'common' for the AX-12's usual ones (1000000 ... 9615).")
+@click.option(
+    "--ids", default="0-253", show_default=True, help="IDs to try, e.g. 0-253 or 1,2,5-7."
+)
+@click.option(
+    "--bauds",
+    help="Rates to try instead of --baud, comma-separated, or "
+    "'common' for the AX-12's usual ones (1000000 ... 9615).",
+)
 def scan_command(port: str, baud: int, as_json: bool, ids: str, bauds: str | None) -> None:
     """Find the servos on the bus: PING every ID, and report each one's model and
     firmware version.
@@ -92,9 +103,16 @@ def scan_command(port: str, baud: int, as_json: bool, ids: str, bauds: str | Non
     with open_port(port, rates[0], timeout=0) as link:
         found = servo_ops.scan(link, id_list, rates, on_baud=on_baud)
     if as_json:
-        click.echo(json.dumps({
-            "port": port, "ids": id_list, "bauds": rates, "found": [s.as_dict() for s in found],
-        }))
+        click.echo(
+            json.dumps(
+                {
+                    "port": port,
+                    "ids": id_list,
+                    "bauds": rates,
+                    "found": [s.as_dict() for s in found],
+                }
+            )
+        )
         return
     if found:
         click.echo(HEADER)
@@ -121,9 +139,16 @@ def ping_command(port: str, baud: int, as_json: bool, ids: tuple[int, ...]) -> N
     found = [info for info in results.values() if info is not None]
     missing = [servo_id for servo_id, info in results.items() if info is None]
     if as_json:
-        click.echo(json.dumps({
-            "port": port, "baud": baud, "found": [s.as_dict() for s in found], "missing": missing,
-        }))
+        click.echo(
+            json.dumps(
+                {
+                    "port": port,
+                    "baud": baud,
+                    "found": [s.as_dict() for s in found],
+                    "missing": missing,
+                }
+            )
+        )
     elif found:
         click.echo(HEADER)
         for info in found:
@@ -198,10 +223,17 @@ def write_command(
         back = servo_ops.write_register(client, servo_id, entry, number)
     decoded = servo_ops.decode(entry, number)
     if as_json:
-        click.echo(json.dumps({
-            "id": servo_id, "register": entry.name, "address": entry.address, "value": number,
-            "read_back": back,
-        }))
+        click.echo(
+            json.dumps(
+                {
+                    "id": servo_id,
+                    "register": entry.name,
+                    "address": entry.address,
+                    "value": number,
+                    "read_back": back,
+                }
+            )
+        )
         return
     text = f"servo {servo_id}: {entry.name} ({entry.address}) = {servo_ops.describe_value(decoded)}"
     if back is not None:
@@ -226,16 +258,23 @@ def set_id_command(port: str, baud: int, as_json: bool, old_id: int, new_id: int
     """
     with DxlClient(port, baud) as client:
         info = servo_ops.set_id(client, old_id, new_id)
-    _emit(as_json, {"old_id": old_id, "new_id": new_id, "servo": info.as_dict()},
-          f"servo {old_id} is now ID {new_id} ({info.label}), and answers there.")
+    _emit(
+        as_json,
+        {"old_id": old_id, "new_id": new_id, "servo": info.as_dict()},
+        f"servo {old_id} is now ID {new_id} ({info.label}), and answers there.",
+    )
 
 
 @bus.command("set-baud")
 @bus_options
 @click.argument("servo_id", metavar="ID", type=click.IntRange(0, servo_ops.MAX_ID))
 @click.argument("rate", required=False, type=click.FloatRange(min=1))
-@click.option("--value", "register", type=click.IntRange(0, 254),
-              help="Give the Baud Rate register value n instead of RATE.")
+@click.option(
+    "--value",
+    "register",
+    type=click.IntRange(0, 254),
+    help="Give the Baud Rate register value n instead of RATE.",
+)
 def set_baud_command(
     port: str, baud: int, as_json: bool, servo_id: int, rate: float | None, register: int | None
 ) -> None:
@@ -263,8 +302,13 @@ def set_baud_command(
         change = servo_ops.set_baud(client, servo_id, register, host_baud)
     _emit(
         as_json,
-        {"id": servo_id, "register": change.register, "servo_baud": change.servo_baud,
-         "host_baud": change.host_baud, "verified": change.verified},
+        {
+            "id": servo_id,
+            "register": change.register,
+            "servo_baud": change.servo_baud,
+            "host_baud": change.host_baud,
+            "verified": change.verified,
+        },
         f"servo {servo_id} now runs at {change.servo_baud:.0f} bit/s (Baud Rate register "
         f"{change.register}: 2,000,000 / ({change.register} + 1)) and answers at "
         f"{change.host_baud} baud. Reopen the port at the new rate to reach it: "

@@ -15,20 +15,38 @@ from snakebot.controller.client import PC_LINK_BAUD, ControllerClient
 PORT_HELP = (
     "The controller's PC link: the CM-530's USB-serial device (/dev/ttyUSB0, COM3), a "
     "pyserial URL, or the pseudo-terminal of the emulated controller (QEMU or "
-    "`python -m snakesim.controller_pty`)."
+    "`python -m snakebot.sim.controller_pty`)."
 )
 
 
 def controller_options(func: Callable[..., Any]) -> Callable[..., Any]:
     """--port, --baud, --id and --json."""
 
-    @click.option("--port", "-p", required=True, envvar="SNAKEBOT_CONTROLLER_PORT",
-                  show_envvar=True, help=PORT_HELP)
-    @click.option("--baud", "-b", type=click.IntRange(min=1), default=PC_LINK_BAUD,
-                  show_default=True, help="Bit rate of the PC link (the firmware's: 57600).")
-    @click.option("--id", "controller_id", type=click.IntRange(0, 253),
-                  default=load().default_id, show_default=True, envvar="SNAKEBOT_CONTROLLER_ID",
-                  help="The controller's Protocol 1.0 ID on the PC link.")
+    @click.option(
+        "--port",
+        "-p",
+        required=True,
+        envvar="SNAKEBOT_CONTROLLER_PORT",
+        show_envvar=True,
+        help=PORT_HELP,
+    )
+    @click.option(
+        "--baud",
+        "-b",
+        type=click.IntRange(min=1),
+        default=PC_LINK_BAUD,
+        show_default=True,
+        help="Bit rate of the PC link (the firmware's: 57600).",
+    )
+    @click.option(
+        "--id",
+        "controller_id",
+        type=click.IntRange(0, 253),
+        default=load().default_id,
+        show_default=True,
+        envvar="SNAKEBOT_CONTROLLER_ID",
+        help="The controller's Protocol 1.0 ID on the PC link.",
+    )
     @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:

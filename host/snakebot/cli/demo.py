@@ -20,25 +20,74 @@ def _sigterm(signum: int, frame: FrameType | None) -> None:
 
 
 @click.command()
-@click.option("--robot", "-r", default="snake5", show_default=True,
-              help="The snake to emulate: snake5, snake3 or a robot TOML file.")
-@click.option("--amplitude", "-A", type=ANGLE, default="30deg", show_default=True,
-              help="Serpenoid amplitude (rad, or deg with 'deg').")
-@click.option("--omega", "-w", type=ANGLE, default="180deg", show_default=True,
-              help="Serpenoid temporal frequency (rad/s, or deg/s with 'deg').")
-@click.option("--delta", "-d", type=ANGLE, default="90deg", show_default=True,
-              help="Serpenoid phase step between joints (rad or deg).")
-@click.option("--cycles", type=click.IntRange(1, 20), default=3, show_default=True,
-              help="Gait cycles measured (after one cycle to settle).")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path),
-              default=Path("out"), show_default=True,
-              help="Directory for the gait table and the PNG.")
-@click.option("--firmware", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Firmware image for QEMU (default build/qemu/firmware.elf).")
-@click.option("--json", "as_json", is_flag=True,
-              help="Print the results as one JSON object instead of the report.")
-def demo(robot: str, amplitude: float, omega: float, delta: float, cycles: int,
-         out_dir: Path, firmware: Path | None, as_json: bool) -> None:
+@click.option(
+    "--robot",
+    "-r",
+    default="snake5",
+    show_default=True,
+    help="The snake to emulate: snake5, snake3 or a robot TOML file.",
+)
+@click.option(
+    "--amplitude",
+    "-A",
+    type=ANGLE,
+    default="30deg",
+    show_default=True,
+    help="Serpenoid amplitude (rad, or deg with 'deg').",
+)
+@click.option(
+    "--omega",
+    "-w",
+    type=ANGLE,
+    default="180deg",
+    show_default=True,
+    help="Serpenoid temporal frequency (rad/s, or deg/s with 'deg').",
+)
+@click.option(
+    "--delta",
+    "-d",
+    type=ANGLE,
+    default="90deg",
+    show_default=True,
+    help="Serpenoid phase step between joints (rad or deg).",
+)
+@click.option(
+    "--cycles",
+    type=click.IntRange(1, 20),
+    default=3,
+    show_default=True,
+    help="Gait cycles measured (after one cycle to settle).",
+)
+@click.option(
+    "--out",
+    "out_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("out"),
+    show_default=True,
+    help="Directory for the gait table and the PNG.",
+)
+@click.option(
+    "--firmware",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="Firmware image for QEMU (default build/qemu/firmware.elf).",
+)
+@click.option(
+    "--json",
+    "as_json",
+    is_flag=True,
+    help="Print the results as one JSON object instead of the report.",
+)
+def demo(
+    robot: str,
+    amplitude: float,
+    omega: float,
+    delta: float,
+    cycles: int,
+    out_dir: Path,
+    firmware: Path | None,
+    as_json: bool,
+) -> None:
     """Run the whole chain on the emulated 5-link robot and report what it did.
 
     It generates a serpenoid gait table, starts the emulated robot (the real controller
@@ -48,14 +97,23 @@ def demo(robot: str, amplitude: float, omega: float, delta: float, cycles: int,
     It writes OUT/demo.gait and OUT/demo.png (paths and joint angles) and leaves nothing
     running, also when interrupted. `make demo` builds everything first and runs this.
     """
-    settings = DemoSettings(robot=robot, amplitude=amplitude, omega=omega, delta=delta,
-                            cycles=cycles, out_dir=out_dir, firmware=firmware)
+    settings = DemoSettings(
+        robot=robot,
+        amplitude=amplitude,
+        omega=omega,
+        delta=delta,
+        cycles=cycles,
+        out_dir=out_dir,
+        firmware=firmware,
+    )
     previous = signal.signal(signal.SIGTERM, _sigterm)
     try:
         result = run_demo(settings, say=(lambda _line: None) if as_json else click.echo)
     except KeyboardInterrupt:
-        click.echo("interrupted: the emulated robot (QEMU, the bus) was stopped; nothing is "
-                   "left running", err=True)
+        click.echo(
+            "interrupted: the emulated robot (QEMU, the bus) was stopped; nothing is left running",
+            err=True,
+        )
         raise SystemExit(EXIT_INTERRUPTED) from None
     finally:
         signal.signal(signal.SIGTERM, previous)

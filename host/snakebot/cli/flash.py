@@ -37,26 +37,52 @@ class _LazyBar:
 
 @click.command("flash")
 @click.argument("firmware", type=click.Path(dir_okay=False, path_type=str))
-@click.option("--port", "-p", required=True, envvar="SNAKEBOT_PORT", show_envvar=True,
-              help="The CM-530's PC link: its USB-serial device (/dev/ttyUSB0, COM3) or a "
-              "pyserial URL.")
-@click.option("--no-go", is_flag=True,
-              help="Leave the board in the bootloader after a verified upload instead of "
-              "starting the new firmware (send GO later, or press RESET).")
-@click.option("--no-checksum-byte", is_flag=True,
-              help="Send only the image, without the trailing checksum byte that RoboPlus "
-              "Terminal appends (the low byte of the sum of the image's bytes).")
-@click.option("--reset-timeout", type=click.FloatRange(min=0.1), metavar="SECONDS",
-              help="How long to wait for you to press RESET (default 20, or "
-              "SNAKEBOT_FLASH_RESET_TIMEOUT_S).")
-@click.option("--force", is_flag=True,
-              help="Flash even if the image's vector table does not look like a CM-530 "
-              "application linked at 0x08003000.")
-@click.option("--json", "as_json", is_flag=True,
-              help="Print the result as one JSON object on stdout (messages go to stderr).")
+@click.option(
+    "--port",
+    "-p",
+    required=True,
+    envvar="SNAKEBOT_PORT",
+    show_envvar=True,
+    help="The CM-530's PC link: its USB-serial device (/dev/ttyUSB0, COM3) or a pyserial URL.",
+)
+@click.option(
+    "--no-go",
+    is_flag=True,
+    help="Leave the board in the bootloader after a verified upload instead of "
+    "starting the new firmware (send GO later, or press RESET).",
+)
+@click.option(
+    "--no-checksum-byte",
+    is_flag=True,
+    help="Send only the image, without the trailing checksum byte that RoboPlus "
+    "Terminal appends (the low byte of the sum of the image's bytes).",
+)
+@click.option(
+    "--reset-timeout",
+    type=click.FloatRange(min=0.1),
+    metavar="SECONDS",
+    help="How long to wait for you to press RESET (default 20, or SNAKEBOT_FLASH_RESET_TIMEOUT_S).",
+)
+@click.option(
+    "--force",
+    is_flag=True,
+    help="Flash even if the image's vector table does not look like a CM-530 "
+    "application linked at 0x08003000.",
+)
+@click.option(
+    "--json",
+    "as_json",
+    is_flag=True,
+    help="Print the result as one JSON object on stdout (messages go to stderr).",
+)
 def flash_command(
-    firmware: str, port: str, no_go: bool, no_checksum_byte: bool,
-    reset_timeout: float | None, force: bool, as_json: bool,
+    firmware: str,
+    port: str,
+    no_go: bool,
+    no_checksum_byte: bool,
+    reset_timeout: float | None,
+    force: bool,
+    as_json: bool,
 ) -> None:
     """Flash FIRMWARE (a raw .bin) onto the CM-530 through its ROBOTIS bootloader.
 
@@ -89,15 +115,17 @@ def flash_command(
     try:
         with open_port(port, PC_LINK_BAUD, timeout=0) as link:
             result = flash(
-                link, image, checksum_byte=not no_checksum_byte, go=not no_go,
-                timeouts=timeouts, say=say, progress=bar.update,
+                link,
+                image,
+                checksum_byte=not no_checksum_byte,
+                go=not no_go,
+                timeouts=timeouts,
+                say=say,
+                progress=bar.update,
             )
     finally:
         bar.close()
-    say(
-        f"Wrote {result.bytes_sent} bytes in {result.seconds:.2f} s "
-        f"({result.kbit_s:.1f} kbit/s)"
-    )
+    say(f"Wrote {result.bytes_sent} bytes in {result.seconds:.2f} s ({result.kbit_s:.1f} kbit/s)")
     say(f"Checksum verified (0x{result.reported_checksum:02X}, {result.checksum_meaning})")
     if result.started:
         said = last_line(result.go_reply)
@@ -105,18 +133,23 @@ def flash_command(
     else:
         say("Left the board in the bootloader (--no-go): press RESET or send GO to start it.")
     if as_json:
-        click.echo(json.dumps({
-            "firmware": firmware,
-            "port": port,
-            "image_bytes": result.image_size,
-            "bytes_sent": result.bytes_sent,
-            "checksum_byte": result.checksum_byte,
-            "checksum": result.reported_checksum,
-            "checksum_meaning": result.checksum_meaning,
-            "seconds": round(result.seconds, 4),
-            "send_seconds": round(result.send_seconds, 4),
-            "kbit_s": round(result.kbit_s, 2),
-            "started": result.started,
-            "banner": result.banner.decode("latin-1"),
-            "go_reply": result.go_reply.decode("latin-1"),
-        }), file=sys.stdout)
+        click.echo(
+            json.dumps(
+                {
+                    "firmware": firmware,
+                    "port": port,
+                    "image_bytes": result.image_size,
+                    "bytes_sent": result.bytes_sent,
+                    "checksum_byte": result.checksum_byte,
+                    "checksum": result.reported_checksum,
+                    "checksum_meaning": result.checksum_meaning,
+                    "seconds": round(result.seconds, 4),
+                    "send_seconds": round(result.send_seconds, 4),
+                    "kbit_s": round(result.kbit_s, 2),
+                    "started": result.started,
+                    "banner": result.banner.decode("latin-1"),
+                    "go_reply": result.go_reply.decode("latin-1"),
+                }
+            ),
+            file=sys.stdout,
+        )

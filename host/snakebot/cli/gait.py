@@ -29,28 +29,40 @@ def gait() -> None:
 def _write(g: Gait, out: Path, as_json: bool) -> None:
     table = g.gait_table()
     write_gait(out, table)
-    summary = {"file": str(out), "metadata_file": str(sidecar_path(out)),
-               "bytes": table.size, **g.summary()}
+    summary = {
+        "file": str(out),
+        "metadata_file": str(sidecar_path(out)),
+        "bytes": table.size,
+        **g.summary(),
+    }
     if as_json:
         click.echo(json.dumps(summary, indent=2))
         return
-    click.echo(f"wrote {out} ({table.frame_count} frames x {table.joint_count} joints every "
-               f"{table.frame_period_ms} ms, {'loop' if table.loop else 'played once'}, "
-               f"{table.size} bytes) and {sidecar_path(out)}")
+    click.echo(
+        f"wrote {out} ({table.frame_count} frames x {table.joint_count} joints every "
+        f"{table.frame_period_ms} ms, {'loop' if table.loop else 'played once'}, "
+        f"{table.size} bytes) and {sidecar_path(out)}"
+    )
     _print_motion(summary)
 
 
 def _print_motion(meta: dict[str, Any]) -> None:
     def line(label: str, m: dict[str, Any]) -> None:
-        click.echo(f"  {label:34} dx = {m['dx']: .6f}  dy = {m['dy']: .6f}  "
-                   f"dtheta = {m['dtheta']: .6f} rad")
+        click.echo(
+            f"  {label:34} dx = {m['dx']: .6f}  dy = {m['dy']: .6f}  "
+            f"dtheta = {m['dtheta']: .6f} rad"
+        )
 
-    click.echo(f"predicted body motion over {meta.get('duration_s', 0):.3f} s "
-               "(start pose frame, reference point):")
+    click.echo(
+        f"predicted body motion over {meta.get('duration_s', 0):.3f} s "
+        "(start pose frame, reference point):"
+    )
     line("continuous gait:", meta["predicted"])
     line("table as written (ticks, linear):", meta["table"])
-    for key, label in (("second_order", "bracket prediction tau X(q0):"),
-                       ("first_order", "first order tau X(q0):")):
+    for key, label in (
+        ("second_order", "bracket prediction tau X(q0):"),
+        ("first_order", "first order tau X(q0):"),
+    ):
         if key in meta:
             line(label, meta[key])
     if "note" in meta["table"]:
@@ -60,20 +72,49 @@ def _print_motion(meta: dict[str, Any]) -> None:
 @gait.command("serpenoid")
 @click.argument("robot", metavar="ROBOT")
 @click.option("--amplitude", "-A", type=ANGLE, required=True, help="A (rad or deg)")
-@click.option("--omega", "-w", type=ANGLE, required=True, help="W: temporal frequency "
-              "(rad/s, or deg/s with 'deg')")
-@click.option("--delta", "-d", type=ANGLE, required=True,
-              help="D: phase shift between consecutive joints (rad or deg)")
-@click.option("--offset", type=ANGLE, default=0.0, show_default=True,
-              help="P0: offset added to every joint (turns the snake)")
-@click.option("--cycles", type=float, required=True,
-              help="C: number of cycles; a whole number makes a looping table")
+@click.option(
+    "--omega",
+    "-w",
+    type=ANGLE,
+    required=True,
+    help="W: temporal frequency (rad/s, or deg/s with 'deg')",
+)
+@click.option(
+    "--delta",
+    "-d",
+    type=ANGLE,
+    required=True,
+    help="D: phase shift between consecutive joints (rad or deg)",
+)
+@click.option(
+    "--offset",
+    type=ANGLE,
+    default=0.0,
+    show_default=True,
+    help="P0: offset added to every joint (turns the snake)",
+)
+@click.option(
+    "--cycles",
+    type=float,
+    required=True,
+    help="C: number of cycles; a whole number makes a looping table",
+)
 @click.option("--rate", type=float, default=50.0, show_default=True, help=RATE_HELP)
-@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path),
-              required=True, help=OUT_HELP)
+@click.option(
+    "--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True, help=OUT_HELP
+)
 @click.option("--json", "as_json", is_flag=True, help="print the summary as JSON")
-def serpenoid_command(robot: str, amplitude: float, omega: float, delta: float, offset: float,
-                      cycles: float, rate: float, output: Path, as_json: bool) -> None:
+def serpenoid_command(
+    robot: str,
+    amplitude: float,
+    omega: float,
+    delta: float,
+    offset: float,
+    cycles: float,
+    rate: float,
+    output: Path,
+    as_json: bool,
+) -> None:
     """A serpenoid gait: phi_k(t) = A sin(W t + (k-1) D) + P0 on every joint k.
 
     ROBOT is a snake (snake3, snake5, or a .toml file). W is adjusted slightly so the
@@ -83,37 +124,79 @@ def serpenoid_command(robot: str, amplitude: float, omega: float, delta: float, 
 
     Example: snakebot gait serpenoid snake5 -A 30deg -w 180deg -d 90deg --cycles 2 -o s.gait
     """
-    g = serpenoid(load_robot(robot), amplitude, omega, delta, offset=offset, cycles=cycles,
-                  rate_hz=rate)
+    g = serpenoid(
+        load_robot(robot), amplitude, omega, delta, offset=offset, cycles=cycles, rate_hz=rate
+    )
     _write(g, output, as_json)
 
 
 @gait.command("field")
 @click.argument("robot", metavar="ROBOT")
-@click.option("--field", "expression", required=True, metavar="EXPR",
-              help="a field or a combination: g1, h1, 2*g1-h3, (2*g1-h3)/2, g3+2*h1")
-@click.option("--duration", type=float, help="T: follow EXPR for T units of its flow "
-              "parameter (the motion of T * EXPR to first order); the gait itself runs as "
-              "fast as the servos allow")
+@click.option(
+    "--field",
+    "expression",
+    required=True,
+    metavar="EXPR",
+    help="a field or a combination: g1, h1, 2*g1-h3, (2*g1-h3)/2, g3+2*h1",
+)
+@click.option(
+    "--duration",
+    type=float,
+    help="T: follow EXPR for T units of its flow "
+    "parameter (the motion of T * EXPR to first order); the gait itself runs as "
+    "fast as the servos allow",
+)
 @click.option("--periods", type=int, help="K: number of input loops (bracket terms only)")
-@click.option("--amplitude", "-A", type=ANGLE,
-              help="loop amplitude A (each loop moves pi A^2 along its bracket)")
-@click.option("--omega", "-w", type=ANGLE, help="loop frequency (rad/s); default: as fast "
-              "as the servos allow, at least 16 frames per loop")
-@click.option("--tolerance", type=float, help="largest relative error per loop against the "
-              "bracket prediction; picks A (default 0.05 unless --amplitude is given)")
-@click.option("--start", type=ANGLES, metavar="PHI1,...", help="joint angles at the start "
-              "(default: the thesis's pi/3,-pi/3 for the 3-link snake, 0 for the trident)")
-@click.option("--form", type=click.Choice(["body", "world"]),
-              help="trident: body- (default) or world-velocity inputs")
+@click.option(
+    "--amplitude",
+    "-A",
+    type=ANGLE,
+    help="loop amplitude A (each loop moves pi A^2 along its bracket)",
+)
+@click.option(
+    "--omega",
+    "-w",
+    type=ANGLE,
+    help="loop frequency (rad/s); default: as fast "
+    "as the servos allow, at least 16 frames per loop",
+)
+@click.option(
+    "--tolerance",
+    type=float,
+    help="largest relative error per loop against the "
+    "bracket prediction; picks A (default 0.05 unless --amplitude is given)",
+)
+@click.option(
+    "--start",
+    type=ANGLES,
+    metavar="PHI1,...",
+    help="joint angles at the start "
+    "(default: the thesis's pi/3,-pi/3 for the 3-link snake, 0 for the trident)",
+)
+@click.option(
+    "--form",
+    type=click.Choice(["body", "world"]),
+    help="trident: body- (default) or world-velocity inputs",
+)
 @click.option("--rate", type=float, default=50.0, show_default=True, help=RATE_HELP)
-@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path),
-              required=True, help=OUT_HELP)
+@click.option(
+    "--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True, help=OUT_HELP
+)
 @click.option("--json", "as_json", is_flag=True, help="print the summary as JSON")
-def field_command(robot: str, expression: str, duration: float | None, periods: int | None,
-                  amplitude: float | None, omega: float | None, tolerance: float | None,
-                  start: list[float] | None, form: str | None, rate: float, output: Path,
-                  as_json: bool) -> None:
+def field_command(
+    robot: str,
+    expression: str,
+    duration: float | None,
+    periods: int | None,
+    amplitude: float | None,
+    omega: float | None,
+    tolerance: float | None,
+    start: list[float] | None,
+    form: str | None,
+    rate: float,
+    output: Path,
+    as_json: bool,
+) -> None:
     """A gait that follows a control vector field or a combination of fields and Lie
     brackets (snake3, trident).
 
@@ -125,26 +208,43 @@ def field_command(robot: str, expression: str, duration: float | None, periods: 
 
     Example: snakebot gait field trident --field 2*g1-h3 --duration 0.2 --tolerance 0.2 -o x.gait
     """
-    g = field_gait(load_robot(robot), expression, duration=duration, periods=periods,
-                   amplitude=amplitude, omega=omega, tolerance=tolerance,
-                   start=tuple(start) if start else None, form=form, rate_hz=rate)
+    g = field_gait(
+        load_robot(robot),
+        expression,
+        duration=duration,
+        periods=periods,
+        amplitude=amplitude,
+        omega=omega,
+        tolerance=tolerance,
+        start=tuple(start) if start else None,
+        form=form,
+        rate_hz=rate,
+    )
     _write(g, output, as_json)
 
 
 @gait.command("show")
 @click.argument("file", type=click.Path(exists=True, dir_okay=False, path_type=Path))
-@click.option("--plot", type=click.Path(dir_okay=False, path_type=Path),
-              help="also write a PNG of the joint angles and the predicted body path")
+@click.option(
+    "--plot",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="also write a PNG of the joint angles and the predicted body path",
+)
 @click.option("--json", "as_json", is_flag=True, help="print the summary as JSON")
 def show(file: Path, plot: Path | None, as_json: bool) -> None:
     """Summarise a gait table file (and its FILE.json metadata), optionally as a plot."""
     table = read_gait(file)
     meta = table.metadata
     summary = {
-        "file": str(file), "bytes": table.size, "crc32": f"0x{table.crc:08X}",
-        "joint_ids": list(table.joint_ids), "limits": [list(x) for x in table.limits],
-        "frames": table.frame_count, "frame_period_ms": table.frame_period_ms,
-        "loop": table.loop, "duration_s": table.duration_ms / 1000.0,
+        "file": str(file),
+        "bytes": table.size,
+        "crc32": f"0x{table.crc:08X}",
+        "joint_ids": list(table.joint_ids),
+        "limits": [list(x) for x in table.limits],
+        "frames": table.frame_count,
+        "frame_period_ms": table.frame_period_ms,
+        "loop": table.loop,
+        "duration_s": table.duration_ms / 1000.0,
         **{k: v for k, v in meta.items() if k not in ("path", "table_path", "joints")},
     }
     if plot is not None:
@@ -155,15 +255,19 @@ def show(file: Path, plot: Path | None, as_json: bool) -> None:
         click.echo(json.dumps(summary, indent=2))
         return
     click.echo(f"{file}: {table.size} bytes, table CRC {summary['crc32']}")
-    click.echo(f"  {table.frame_count} frames every {table.frame_period_ms} ms "
-               f"({'loop' if table.loop else 'played once'}, {table.duration_ms / 1000:.3f} s)")
+    click.echo(
+        f"  {table.frame_count} frames every {table.frame_period_ms} ms "
+        f"({'loop' if table.loop else 'played once'}, {table.duration_ms / 1000:.3f} s)"
+    )
     for jid, (lo, hi) in zip(table.joint_ids, table.limits, strict=True):
         column = table.frames[:, list(table.joint_ids).index(jid)]
-        click.echo(f"  servo {jid}: ticks {int(column.min())}..{int(column.max())} "
-                   f"(limits {lo}..{hi})")
+        click.echo(
+            f"  servo {jid}: ticks {int(column.min())}..{int(column.max())} (limits {lo}..{hi})"
+        )
     if "gait" in meta:
-        params = ", ".join(f"{k} = {_short(v)}" for k, v in meta.get("parameters", {}).items()
-                           if k != "segments")
+        params = ", ".join(
+            f"{k} = {_short(v)}" for k, v in meta.get("parameters", {}).items() if k != "segments"
+        )
         click.echo(f"  {meta['gait']} gait for {meta.get('robot', '?')}: {params}")
     if "predicted" in meta and "table" in meta:
         _print_motion(meta)
@@ -179,5 +283,3 @@ def _short(value: Any) -> str:
     if isinstance(value, dict):
         return "{" + ", ".join(f"{k}: {_short(v)}" for k, v in value.items()) + "}"
     return str(value)
-
-

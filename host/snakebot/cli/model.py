@@ -30,32 +30,54 @@ def info(robot: str, as_json: bool) -> None:
     """
     rb = load_robot(robot)
     data: dict[str, Any] = {
-        "robot": rb.name, "kind": rb.kind, "description": rb.description, "source": rb.source,
-        "geometry": ({"links": rb.links, "half_link": rb.l} if rb.kind == "snake" else
-                     {"base_radius": rb.r, "arm_length": rb.l,
-                      "alphas_deg": [math.degrees(a) for a in rb.alphas]}),
+        "robot": rb.name,
+        "kind": rb.kind,
+        "description": rb.description,
+        "source": rb.source,
+        "geometry": (
+            {"links": rb.links, "half_link": rb.l}
+            if rb.kind == "snake"
+            else {
+                "base_radius": rb.r,
+                "arm_length": rb.l,
+                "alphas_deg": [math.degrees(a) for a in rb.alphas],
+            }
+        ),
         "friction": {"c_n": rb.c_n, "c_t": rb.c_t},
         "servo": {"model": rb.servo_model, "max_speed_rad_s": rb.max_speed_rad_s},
-        "joints": [{"name": j.name, "servo_id": j.servo_id, "zero_tick": j.zero_tick,
-                    "sign": j.sign, "min_deg": math.degrees(j.min_rad),
-                    "max_deg": math.degrees(j.max_rad), "ticks": list(j.tick_range)}
-                   for j in rb.joints],
+        "joints": [
+            {
+                "name": j.name,
+                "servo_id": j.servo_id,
+                "zero_tick": j.zero_tick,
+                "sign": j.sign,
+                "min_deg": math.degrees(j.min_rad),
+                "max_deg": math.degrees(j.max_rad),
+                "ticks": list(j.tick_range),
+            }
+            for j in rb.joints
+        ],
     }
     if as_json:
         click.echo(json.dumps(data, indent=2))
         return
     click.echo(f"{rb.name}: {rb.description or rb.kind} ({rb.source})")
-    geometry = ", ".join(f"{k} = {v:g}" if not isinstance(v, list) else
-                         f"{k} = ({', '.join(f'{a:g}' for a in v)})"
-                         for k, v in data["geometry"].items())
+    geometry = ", ".join(
+        f"{k} = {v:g}" if not isinstance(v, list) else f"{k} = ({', '.join(f'{a:g}' for a in v)})"
+        for k, v in data["geometry"].items()
+    )
     click.echo(f"  geometry: {geometry}")
-    click.echo(f"  friction: c_n = {rb.c_n:g}, c_t = {rb.c_t:g}"
-               + ("  (ideal wheels)" if rb.c_t == 0 else ""))
+    click.echo(
+        f"  friction: c_n = {rb.c_n:g}, c_t = {rb.c_t:g}"
+        + ("  (ideal wheels)" if rb.c_t == 0 else "")
+    )
     click.echo(f"  servo: {rb.servo_model}, max {rb.max_speed_rad_s:.2f} rad/s")
     for j in data["joints"]:
-        click.echo(f"  {j['name']}: ID {j['servo_id']}, zero tick {j['zero_tick']}, sign "
-                   f"{j['sign']:+d}, {j['min_deg']:g}..{j['max_deg']:g} deg "
-                   f"(ticks {j['ticks'][0]}..{j['ticks'][1]})")
+        click.echo(
+            f"  {j['name']}: ID {j['servo_id']}, zero tick {j['zero_tick']}, sign "
+            f"{j['sign']:+d}, {j['min_deg']:g}..{j['max_deg']:g} deg "
+            f"(ticks {j['ticks'][0]}..{j['ticks'][1]})"
+        )
 
 
 def _fmt(values: np.ndarray) -> str:
@@ -64,18 +86,30 @@ def _fmt(values: np.ndarray) -> str:
 
 @model.command("fields")
 @click.argument("robot", metavar="ROBOT")
-@click.option("--at", "at", type=ANGLES, metavar="Q1,Q2,...",
-              help="the configuration q = x,y,theta,phi1,...; each a number, a pi expression "
-              "or a 'deg' value, e.g. 0,0,0,pi/3,-pi/3 or 0,0,0,60deg,-60deg")
-@click.option("--form", type=click.Choice(["body", "world"]),
-              help="trident only: body-velocity inputs (default, the thesis's system (18)) "
-              "or world-velocity inputs (system (11)); they differ in the brackets")
+@click.option(
+    "--at",
+    "at",
+    type=ANGLES,
+    metavar="Q1,Q2,...",
+    help="the configuration q = x,y,theta,phi1,...; each a number, a pi expression "
+    "or a 'deg' value, e.g. 0,0,0,pi/3,-pi/3 or 0,0,0,60deg,-60deg",
+)
+@click.option(
+    "--form",
+    type=click.Choice(["body", "world"]),
+    help="trident only: body-velocity inputs (default, the thesis's system (18)) "
+    "or world-velocity inputs (system (11)); they differ in the brackets",
+)
 @click.option("--json", "as_json", is_flag=True, help="print JSON instead of text")
-@click.option("--symbolic", is_flag=True,
-              help="print the fields as expressions (sympy) instead of values at q; "
-              "--at is then not needed (the 3-link snake takes about 20 s to simplify)")
-def fields_command(robot: str, at: list[float] | None, form: str | None, as_json: bool,
-                   symbolic: bool) -> None:
+@click.option(
+    "--symbolic",
+    is_flag=True,
+    help="print the fields as expressions (sympy) instead of values at q; "
+    "--at is then not needed (the 3-link snake takes about 20 s to simplify)",
+)
+def fields_command(
+    robot: str, at: list[float] | None, form: str | None, as_json: bool, symbolic: bool
+) -> None:
     """The control vector fields g1.. and their Lie brackets h1.. at a configuration,
     with the rank at each step of the filtration (the growth vector), det G* and whether
     q is singular.
@@ -100,14 +134,17 @@ def fields_command(robot: str, at: list[float] | None, form: str | None, as_json
     if len(at) != n:
         raise click.BadParameter(
             f"{rb.name} has {n} coordinates ({', '.join(rb.state_names)}): give {n} values, "
-            f"got {len(at)}", param_hint="--at")
+            f"got {len(at)}",
+            param_hint="--at",
+        )
     fs = fields(rb, np.array(at), form)
     data = {
         "robot": rb.name,
         "form": used_form,
         "q": [float(v) for v in at],
-        "fields": None if fs.values is None else {
-            name: (fs[name] + 0.0).tolist() for name in fs.names},
+        "fields": None
+        if fs.values is None
+        else {name: (fs[name] + 0.0).tolist() for name in fs.names},
         "growth": None if fs.growth is None else list(fs.growth),
         "det": fs.det,
         "singular": fs.singular,
@@ -121,13 +158,17 @@ def fields_command(robot: str, at: list[float] | None, form: str | None, as_json
     click.echo(f"{rb.name} ({inputs} inputs) at q = {_fmt(np.array(at))}")
     click.echo(f"  coordinates: ({', '.join(rb.state_names)})")
     if fs.values is None:
-        click.echo(f"  singular: yes (det B = {fs.det_b:.3g}): the 3-link snake's fields are "
-                   "undefined where phi1 = phi2")
+        click.echo(
+            f"  singular: yes (det B = {fs.det_b:.3g}): the 3-link snake's fields are "
+            "undefined where phi1 = phi2"
+        )
         return
     for name in fs.names:
         click.echo(f"  {name:3} = {_fmt(fs[name])}")
-    click.echo(f"  growth vector: {fs.growth}   det G* = {fs.det:.9g}   singular: "
-               f"{'yes' if fs.singular else 'no'}")
+    click.echo(
+        f"  growth vector: {fs.growth}   det G* = {fs.det:.9g}   singular: "
+        f"{'yes' if fs.singular else 'no'}"
+    )
 
 
 def _print_symbolic(rb: Any, form: str, as_json: bool) -> None:
@@ -136,9 +177,18 @@ def _print_symbolic(rb: Any, form: str, as_json: bool) -> None:
     ex = field_expressions(rb, form if rb.kind == "trident" else "body")
     names = [str(s) for s in ex.model.q]
     if as_json:
-        click.echo(json.dumps({
-            "robot": rb.name, "form": form, "coordinates": names, "frame": ex.frame,
-            "fields": {k: [str(c) for c in v] for k, v in ex.components.items()}}, indent=2))
+        click.echo(
+            json.dumps(
+                {
+                    "robot": rb.name,
+                    "form": form,
+                    "coordinates": names,
+                    "frame": ex.frame,
+                    "fields": {k: [str(c) for c in v] for k, v in ex.components.items()},
+                },
+                indent=2,
+            )
+        )
         return
     params = ", ".join(str(p) for p in ex.model.params if p.name in ("l", "r"))
     click.echo(f"{rb.name} fields ({form} inputs), symbolic in {params}; x, y in {ex.frame}")

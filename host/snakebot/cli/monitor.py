@@ -24,12 +24,22 @@ def _cursor_up(lines: int) -> str:
 
 @click.command("monitor")
 @controller_options
-@click.option("--duration", type=click.FloatRange(min=0), default=None,
-              help="Stop after this many seconds (default: until Ctrl-C).")
-@click.option("--interval", type=click.FloatRange(min=0.02), default=0.5, show_default=True,
-              help="Seconds between samples.")
-def monitor(port: str, baud: int, controller_id: int, as_json: bool, duration: float | None,
-            interval: float) -> None:
+@click.option(
+    "--duration",
+    type=click.FloatRange(min=0),
+    default=None,
+    help="Stop after this many seconds (default: until Ctrl-C).",
+)
+@click.option(
+    "--interval",
+    type=click.FloatRange(min=0.02),
+    default=0.5,
+    show_default=True,
+    help="Seconds between samples.",
+)
+def monitor(
+    port: str, baud: int, controller_id: int, as_json: bool, duration: float | None, interval: float
+) -> None:
     """Show the controller's state and error flags, and each roster servo's position,
     load, voltage, temperature and errors, as the controller last read them.
 

@@ -14,10 +14,14 @@ from snakebot.cli.params import ANGLE
 from snakebot.controller import playback
 from snakebot.robots import load_robot
 
-SPEED_HELP = ("Playback speed factor: 1 as generated, 2 twice as fast (0.004..4; the "
-              "controller's Speed Scale).")
-STEER_HELP = ("Angle added to every joint, e.g. 10deg or 0.17 (radians unless suffixed with "
-              "deg; up to about 150deg). Steers a snake by bending it.")
+SPEED_HELP = (
+    "Playback speed factor: 1 as generated, 2 twice as fast (0.004..4; the "
+    "controller's Speed Scale)."
+)
+STEER_HELP = (
+    "Angle added to every joint, e.g. 10deg or 0.17 (radians unless suffixed with "
+    "deg; up to about 150deg). Steers a snake by bending it."
+)
 
 
 def _emit(status: dict[str, Any], as_json: bool, text: str) -> None:
@@ -30,12 +34,22 @@ def _steer_words(status: dict[str, Any]) -> str:
 
 @click.command("play")
 @controller_options
-@click.option("--loop/--once", default=None,
-              help="Loop the table, or play it once and stop (default: as the table says).")
+@click.option(
+    "--loop/--once",
+    default=None,
+    help="Loop the table, or play it once and stop (default: as the table says).",
+)
 @click.option("--speed", type=float, default=1.0, show_default=True, help=SPEED_HELP)
 @click.option("--steer", type=ANGLE, default=0.0, help=STEER_HELP)
-def play(port: str, baud: int, controller_id: int, as_json: bool, loop: bool | None,
-         speed: float, steer: float) -> None:
+def play(
+    port: str,
+    baud: int,
+    controller_id: int,
+    as_json: bool,
+    loop: bool | None,
+    speed: float,
+    steer: float,
+) -> None:
     """Play the controller's gait table from its first frame.
 
     Upload a table first (`snakebot upload`). Speed and steering apply at once and can
@@ -45,17 +59,22 @@ def play(port: str, baud: int, controller_id: int, as_json: bool, loop: bool | N
         status = playback.play(ctl, loop=loop, speed=speed, steer=steer)
     t = status["table"]
     how = "looping" if status["loop"] else "once"
-    _emit(status, as_json,
-          f"{status['state']}: the table ({t['frames']} frames x {t['joints']} joints every "
-          f"{t['period_ms']} ms, {how}) at {status['speed']:.2f}x speed, "
-          f"{_steer_words(status)}. Stop it with `snakebot stop --port {port}`.")
+    _emit(
+        status,
+        as_json,
+        f"{status['state']}: the table ({t['frames']} frames x {t['joints']} joints every "
+        f"{t['period_ms']} ms, {how}) at {status['speed']:.2f}x speed, "
+        f"{_steer_words(status)}. Stop it with `snakebot stop --port {port}`.",
+    )
 
 
 @click.command("stop")
 @controller_options
-@click.option("--clear", is_flag=True,
-              help="Also clear the error flags and leave the safe state (after fixing what "
-              "caused it).")
+@click.option(
+    "--clear",
+    is_flag=True,
+    help="Also clear the error flags and leave the safe state (after fixing what caused it).",
+)
 def stop(port: str, baud: int, controller_id: int, as_json: bool, clear: bool) -> None:
     """Stop the controller's gait; the servos hold their last position."""
     with open_controller(port, baud, controller_id) as ctl:
@@ -66,22 +85,51 @@ def stop(port: str, baud: int, controller_id: int, as_json: bool, clear: bool) -
 
 @click.command("serpenoid")
 @controller_options
-@click.option("--amplitude", "-A", type=ANGLE, required=True,
-              help="Wave amplitude A, e.g. 30deg or 0.5 (radians unless suffixed with deg).")
-@click.option("--omega", "-w", type=ANGLE, required=True,
-              help="Angular frequency omega in rad/s, or deg/s with a deg suffix "
-              "(e.g. pi or 180deg); negative runs the wave backwards.")
-@click.option("--delta", "-d", type=ANGLE, required=True,
-              help="Phase step from one joint to the next, e.g. 2*pi/3 or 120deg.")
-@click.option("--offset", type=ANGLE, default=0.0,
-              help="Offset phi0 added to the wave (steers), e.g. 5deg.")
+@click.option(
+    "--amplitude",
+    "-A",
+    type=ANGLE,
+    required=True,
+    help="Wave amplitude A, e.g. 30deg or 0.5 (radians unless suffixed with deg).",
+)
+@click.option(
+    "--omega",
+    "-w",
+    type=ANGLE,
+    required=True,
+    help="Angular frequency omega in rad/s, or deg/s with a deg suffix "
+    "(e.g. pi or 180deg); negative runs the wave backwards.",
+)
+@click.option(
+    "--delta",
+    "-d",
+    type=ANGLE,
+    required=True,
+    help="Phase step from one joint to the next, e.g. 2*pi/3 or 120deg.",
+)
+@click.option(
+    "--offset", type=ANGLE, default=0.0, help="Offset phi0 added to the wave (steers), e.g. 5deg."
+)
 @click.option("--steer", type=ANGLE, default=0.0, help=STEER_HELP)
 @click.option("--speed", type=float, default=1.0, show_default=True, help=SPEED_HELP)
-@click.option("--robot", help="Set the controller's roster (servo IDs, directions, zero "
-              "ticks, limits) from this robot first: snake3, snake5, trident or a .toml file.")
-def serpenoid(port: str, baud: int, controller_id: int, as_json: bool, amplitude: float,
-              omega: float, delta: float, offset: float, steer: float, speed: float,
-              robot: str | None) -> None:
+@click.option(
+    "--robot",
+    help="Set the controller's roster (servo IDs, directions, zero "
+    "ticks, limits) from this robot first: snake3, snake5, trident or a .toml file.",
+)
+def serpenoid(
+    port: str,
+    baud: int,
+    controller_id: int,
+    as_json: bool,
+    amplitude: float,
+    omega: float,
+    delta: float,
+    offset: float,
+    steer: float,
+    speed: float,
+    robot: str | None,
+) -> None:
     """Run the serpenoid gait computed on line by the controller's firmware:
 
     \b
@@ -98,10 +146,13 @@ def serpenoid(port: str, baud: int, controller_id: int, as_json: bool, amplitude
     with open_controller(port, baud, controller_id) as ctl:
         status = playback.serpenoid(ctl, settings, speed=speed, steer=steer, roster=roster)
     s = status["serpenoid"]
-    _emit(status, as_json,
-          f"{status['state']} on {status['joint_count']} joints: A = "
-          f"{math.degrees(s['amplitude_rad']):.1f} deg, omega = "
-          f"{math.degrees(s['omega_rad_s']):.1f} deg/s, delta = "
-          f"{math.degrees(s['delta_rad']):.1f} deg, phi0 = {math.degrees(s['offset_rad']):.1f} "
-          f"deg, {status['speed']:.2f}x speed, {_steer_words(status)}. "
-          f"Stop it with `snakebot stop --port {port}`.")
+    _emit(
+        status,
+        as_json,
+        f"{status['state']} on {status['joint_count']} joints: A = "
+        f"{math.degrees(s['amplitude_rad']):.1f} deg, omega = "
+        f"{math.degrees(s['omega_rad_s']):.1f} deg/s, delta = "
+        f"{math.degrees(s['delta_rad']):.1f} deg, phi0 = {math.degrees(s['offset_rad']):.1f} "
+        f"deg, {status['speed']:.2f}x speed, {_steer_words(status)}. "
+        f"Stop it with `snakebot stop --port {port}`.",
+    )

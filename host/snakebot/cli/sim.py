@@ -16,10 +16,10 @@ from urllib.parse import urlencode
 
 import click
 
-import snakesim  # noqa: F401  (registers sim:// for every snakebot --port)
-from snakesim.errors import SimOptionError
-from snakesim.options import SimOptions
-from snakesim.transports import PtyServer, UnixSocketServer
+import snakebot.transport.ports  # noqa: F401  (registers sim://)
+from snakebot.sim.errors import SimOptionError
+from snakebot.sim.options import SimOptions
+from snakebot.sim.transports import PtyServer, UnixSocketServer
 
 
 @click.group()

@@ -10,7 +10,7 @@ from types import FrameType
 
 import click
 
-from snakesim.bootloader import (
+from snakebot.sim.bootloader import (
     DEFAULT_SILENCE_S,
     PC_LINK_BAUD,
     Bootloader,
@@ -20,30 +20,64 @@ from snakesim.bootloader import (
 
 
 @click.command("bootloader")
-@click.option("--pty", "use_pty", is_flag=True, default=True,
-              help="Serve on a new pseudo-terminal and print its device path (the default "
-              "and only transport).")
-@click.option("--link", metavar="PATH",
-              help="Also create a symlink PATH to the device, e.g. /tmp/ttyCM530.")
-@click.option("--reset-after", type=click.FloatRange(min=0), metavar="SECONDS",
-              help="Stay silent (running the application) for SECONDS, then reset, as when "
-              "you press RESET; default: reset at once.")
-@click.option("--silence", type=click.FloatRange(min=0.001), default=DEFAULT_SILENCE_S,
-              show_default=True, metavar="SECONDS",
-              help="Silence that ends an image being loaded.")
-@click.option("--no-pace", is_flag=True,
-              help="Take bytes as fast as they come instead of at 57600 baud.")
-@click.option("--sum-excludes-last", is_flag=True,
-              help="Report the sum of all received bytes but the last (the checksum byte).")
+@click.option(
+    "--pty",
+    "use_pty",
+    is_flag=True,
+    default=True,
+    help="Serve on a new pseudo-terminal and print its device path (the default "
+    "and only transport).",
+)
+@click.option(
+    "--link", metavar="PATH", help="Also create a symlink PATH to the device, e.g. /tmp/ttyCM530."
+)
+@click.option(
+    "--reset-after",
+    type=click.FloatRange(min=0),
+    metavar="SECONDS",
+    help="Stay silent (running the application) for SECONDS, then reset, as when "
+    "you press RESET; default: reset at once.",
+)
+@click.option(
+    "--silence",
+    type=click.FloatRange(min=0.001),
+    default=DEFAULT_SILENCE_S,
+    show_default=True,
+    metavar="SECONDS",
+    help="Silence that ends an image being loaded.",
+)
+@click.option(
+    "--no-pace", is_flag=True, help="Take bytes as fast as they come instead of at 57600 baud."
+)
+@click.option(
+    "--sum-excludes-last",
+    is_flag=True,
+    help="Report the sum of all received bytes but the last (the checksum byte).",
+)
 @click.option("--mute", is_flag=True, help="Fault: never answer '#'.")
 @click.option("--no-ready", is_flag=True, help="Fault: never answer the load command.")
-@click.option("--corrupt", is_flag=True,
-              help="Fault: flip one bit of each stored image (the checksum will not match).")
-@click.option("--json", "as_json", is_flag=True,
-              help="Print one JSON line with the device, then one per image on exit.")
+@click.option(
+    "--corrupt",
+    is_flag=True,
+    help="Fault: flip one bit of each stored image (the checksum will not match).",
+)
+@click.option(
+    "--json",
+    "as_json",
+    is_flag=True,
+    help="Print one JSON line with the device, then one per image on exit.",
+)
 def bootloader(
-    use_pty: bool, link: str | None, reset_after: float | None, silence: float, no_pace: bool,
-    sum_excludes_last: bool, mute: bool, no_ready: bool, corrupt: bool, as_json: bool,
+    use_pty: bool,
+    link: str | None,
+    reset_after: float | None,
+    silence: float,
+    no_pace: bool,
+    sum_excludes_last: bool,
+    mute: bool,
+    no_ready: bool,
+    corrupt: bool,
+    as_json: bool,
 ) -> None:
     """Serve an emulated CM-530 bootloader until interrupted (Ctrl-C).
 

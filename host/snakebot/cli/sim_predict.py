@@ -10,31 +10,51 @@ from typing import Any
 
 import click
 
-import snakesim  # noqa: F401  (registers sim://)
-from snakesim.predict import DEFAULT_WORLD_HZ, predict_gait
+import snakebot.transport.ports  # noqa: F401  (registers sim://)
+from snakebot.sim.predict import DEFAULT_WORLD_HZ, predict_gait
 
 
 def _motion(label: str, m: dict[str, Any]) -> str:
-    return (f"  {label:12} dx = {m['dx']: .6f}  dy = {m['dy']: .6f}  "
-            f"dtheta = {m['dtheta']: .6f} rad")
+    return f"  {label:12} dx = {m['dx']: .6f}  dy = {m['dy']: .6f}  dtheta = {m['dtheta']: .6f} rad"
 
 
 @click.command("predict")
-@click.argument("gait_file", metavar="GAIT",
-                type=click.Path(exists=True, dir_okay=False, path_type=Path))
-@click.option("--robot", "-r", help="robot to emulate: snake3, trident, snake5 or a robot "
-              "TOML file (default: the one named in GAIT.json)")
-@click.option("--ideal", is_flag=True, help="ideal servos that reach every goal at once: the "
-              "emulated path then equals the table's prediction")
-@click.option("--world-rate", type=float, default=DEFAULT_WORLD_HZ, show_default=True,
-              help="how often (Hz, bus time) the world samples modelled servos; at least "
-              "once per frame")
-@click.option("--plot", type=click.Path(dir_okay=False, path_type=Path),
-              help="write a PNG of the emulated and predicted body paths and the joints' "
-              "tracking")
+@click.argument(
+    "gait_file", metavar="GAIT", type=click.Path(exists=True, dir_okay=False, path_type=Path)
+)
+@click.option(
+    "--robot",
+    "-r",
+    help="robot to emulate: snake3, trident, snake5 or a robot "
+    "TOML file (default: the one named in GAIT.json)",
+)
+@click.option(
+    "--ideal",
+    is_flag=True,
+    help="ideal servos that reach every goal at once: the "
+    "emulated path then equals the table's prediction",
+)
+@click.option(
+    "--world-rate",
+    type=float,
+    default=DEFAULT_WORLD_HZ,
+    show_default=True,
+    help="how often (Hz, bus time) the world samples modelled servos; at least once per frame",
+)
+@click.option(
+    "--plot",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="write a PNG of the emulated and predicted body paths and the joints' tracking",
+)
 @click.option("--json", "as_json", is_flag=True, help="print the report as JSON")
-def predict(gait_file: Path, robot: str | None, ideal: bool, world_rate: float,
-            plot: Path | None, as_json: bool) -> None:
+def predict(
+    gait_file: Path,
+    robot: str | None,
+    ideal: bool,
+    world_rate: float,
+    plot: Path | None,
+    as_json: bool,
+) -> None:
     """Play the gait table GAIT on the emulated robot and compare the body's path with
     the prediction integrated from the same table.
 
@@ -57,7 +77,7 @@ def predict(gait_file: Path, robot: str | None, ideal: bool, world_rate: float,
     result = predict_gait(gait_file, robot, ideal=ideal, world_hz=world_rate)
     summary = result.summary()
     if plot is not None:
-        from snakesim.predict_plot import plot_prediction
+        from snakebot.sim.predict_plot import plot_prediction
 
         summary["plot"] = str(plot_prediction(result, plot))
     if as_json:
@@ -65,24 +85,35 @@ def predict(gait_file: Path, robot: str | None, ideal: bool, world_rate: float,
         return
     diff = summary["difference"]
     em = summary["emulated"]
-    click.echo(f"played {gait_file} on the emulated {summary['robot']} "
-               f"({summary['servos']} servos, host as bus master): {summary['frames']} "
-               f"frames every {summary['frame_period_ms']} ms, "
-               f"{'one loop' if summary['loop'] else 'once'}, {summary['duration_s']:.3f} s")
+    click.echo(
+        f"played {gait_file} on the emulated {summary['robot']} "
+        f"({summary['servos']} servos, host as bus master): {summary['frames']} "
+        f"frames every {summary['frame_period_ms']} ms, "
+        f"{'one loop' if summary['loop'] else 'once'}, {summary['duration_s']:.3f} s"
+    )
     click.echo("body motion (start pose frame, reference point):")
     click.echo(_motion("emulated:", em))
     click.echo(_motion("predicted:", summary["predicted"]))
     click.echo(_motion("difference:", diff))
-    click.echo(f"  paths differ by at most {diff['path_max']:.3g} in position and "
-               f"{diff['heading_max']:.3g} rad in heading")
-    click.echo(f"joint tracking error: max {math.degrees(diff['joint_max_rad']):.3f} deg, "
-               f"rms {math.degrees(diff['joint_rms_rad']):.3f} deg")
-    click.echo(f"wheel slip: at most {em['slip_max']:.3g} per second sideways "
-               f"(c_t = {em['c_t']:g})")
+    click.echo(
+        f"  paths differ by at most {diff['path_max']:.3g} in position and "
+        f"{diff['heading_max']:.3g} rad in heading"
+    )
+    click.echo(
+        f"joint tracking error: max {math.degrees(diff['joint_max_rad']):.3f} deg, "
+        f"rms {math.degrees(diff['joint_rms_rad']):.3f} deg"
+    )
+    click.echo(
+        f"wheel slip: at most {em['slip_max']:.3g} per second sideways (c_t = {em['c_t']:g})"
+    )
     if em["regularised_intervals"]:
-        click.echo(f"  {em['regularised_intervals']} interval(s) crossed a singular "
-                   f"configuration and were integrated with c_t = {em['fallback_c_t']:g}")
-    click.echo(f"ran {summary['realtime_factor']:.0f}x faster than real time "
-               f"({summary['duration_s']:.3f} s emulated in {summary['wall_s']:.3f} s)")
+        click.echo(
+            f"  {em['regularised_intervals']} interval(s) crossed a singular "
+            f"configuration and were integrated with c_t = {em['fallback_c_t']:g}"
+        )
+    click.echo(
+        f"ran {summary['realtime_factor']:.0f}x faster than real time "
+        f"({summary['duration_s']:.3f} s emulated in {summary['wall_s']:.3f} s)"
+    )
     if plot is not None:
         click.echo(f"plot written to {summary['plot']}")

@@ -11,28 +11,51 @@ from types import FrameType
 
 import click
 
-from snakesim.errors import SimError
-from snakesim.serve import DEFAULT_FIRMWARE, EmulatedRobot
+from snakebot.sim.errors import SimError
+from snakebot.sim.serve import DEFAULT_FIRMWARE, EmulatedRobot
 
 
 @click.command("serve")
-@click.option("--robot", "-r", default="snake5", show_default=True,
-              help="Robot to emulate: snake3, trident, snake5 or a robot TOML file (its "
-              "servo IDs, zero ticks and body).")
-@click.option("--firmware", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help=f"Firmware for QEMU: the qemu board's application ELF (default "
-              f"{DEFAULT_FIRMWARE.parent.name}/{DEFAULT_FIRMWARE.name} under build/; the boot "
-              "stub beside it goes in front) or a whole-flash .bin image.")
-@click.option("--sim-options", metavar="QUERY", default="",
-              help="Emulator options as in a sim:// URL, e.g. 'corrupt=0.001&seed=3' or "
-              "'brownout=10@5+1' (see `snakebot sim bus --help`).")
-@click.option("--report", type=click.FloatRange(min=0), default=5.0, show_default=True,
-              help="Seconds between lines giving the body's pose in the world (0: never).")
-@click.option("--json", "as_json", is_flag=True,
-              help="Print JSON lines: first where everything is (pc_link, bus_socket, "
-              "qemu_pid, ...), then the body's pose.")
-def serve(robot: str, firmware: Path | None, sim_options: str, report: float,
-          as_json: bool) -> None:
+@click.option(
+    "--robot",
+    "-r",
+    default="snake5",
+    show_default=True,
+    help="Robot to emulate: snake3, trident, snake5 or a robot TOML file (its "
+    "servo IDs, zero ticks and body).",
+)
+@click.option(
+    "--firmware",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help=f"Firmware for QEMU: the qemu board's application ELF (default "
+    f"{DEFAULT_FIRMWARE.parent.name}/{DEFAULT_FIRMWARE.name} under build/; the boot "
+    "stub beside it goes in front) or a whole-flash .bin image.",
+)
+@click.option(
+    "--sim-options",
+    metavar="QUERY",
+    default="",
+    help="Emulator options as in a sim:// URL, e.g. 'corrupt=0.001&seed=3' or "
+    "'brownout=10@5+1' (see `snakebot sim bus --help`).",
+)
+@click.option(
+    "--report",
+    type=click.FloatRange(min=0),
+    default=5.0,
+    show_default=True,
+    help="Seconds between lines giving the body's pose in the world (0: never).",
+)
+@click.option(
+    "--json",
+    "as_json",
+    is_flag=True,
+    help="Print JSON lines: first where everything is (pc_link, bus_socket, "
+    "qemu_pid, ...), then the body's pose.",
+)
+def serve(
+    robot: str, firmware: Path | None, sim_options: str, report: float, as_json: bool
+) -> None:
     """Run the controller firmware in QEMU on the emulated robot until Ctrl-C.
 
     The firmware's Dynamixel bus (USART1) drives the robot's emulated AX-12s over a Unix
@@ -62,18 +85,25 @@ def serve(robot: str, firmware: Path | None, sim_options: str, report: float,
         if as_json:
             click.echo(json.dumps({"event": "serving", **info.as_dict()}))
         else:
-            click.echo(f"emulated {info.robot}: firmware {info.firmware} in QEMU "
-                       f"(pid {info.qemu_pid})")
-            click.echo(f"PC link (USART3): {info.pc_link}  ({info.baudrate} baud, controller "
-                       f"ID {info.controller_id}): snakebot monitor --port {info.pc_link}")
-            click.echo(f"bus (USART1): emulated servos {', '.join(map(str, info.servo_ids))} "
-                       f"on {info.bus_socket}")
+            click.echo(
+                f"emulated {info.robot}: firmware {info.firmware} in QEMU (pid {info.qemu_pid})"
+            )
+            click.echo(
+                f"PC link (USART3): {info.pc_link}  ({info.baudrate} baud, controller "
+                f"ID {info.controller_id}): snakebot monitor --port {info.pc_link}"
+            )
+            click.echo(
+                f"bus (USART1): emulated servos {', '.join(map(str, info.servo_ids))} "
+                f"on {info.bus_socket}"
+            )
             click.echo("Ctrl-C stops.")
         wait = report if report > 0 else 0.5
         while not stop.wait(wait):
             if not emulated.running:
-                raise SimError("QEMU or the emulated bus stopped unexpectedly: "
-                               f"{emulated.qemu.log().strip() or 'no message'}")
+                raise SimError(
+                    "QEMU or the emulated bus stopped unexpectedly: "
+                    f"{emulated.qemu.log().strip() or 'no message'}"
+                )
             if report > 0:
                 _pose(emulated, as_json)
         _pose(emulated, as_json, final=True)
@@ -90,9 +120,20 @@ def _pose(emulated: EmulatedRobot, as_json: bool, final: bool = False) -> None:
     x, y, theta = (float(v) for v in record.pose[-1])
     t = float(record.t[-1])
     if as_json:
-        click.echo(json.dumps({"event": "stopped" if final else "pose", "t": round(t, 3),
-                               "x": round(x, 6), "y": round(y, 6), "theta": round(theta, 6)}))
+        click.echo(
+            json.dumps(
+                {
+                    "event": "stopped" if final else "pose",
+                    "t": round(t, 3),
+                    "x": round(x, 6),
+                    "y": round(y, 6),
+                    "theta": round(theta, 6),
+                }
+            )
+        )
     else:
         what = "stopped; body at" if final else "world:"
-        click.echo(f"{what} t = {t:7.2f} s  x = {100 * x:+7.1f} cm  y = {100 * y:+7.1f} cm  "
-                   f"heading {math.degrees(theta):+6.1f} deg")
+        click.echo(
+            f"{what} t = {t:7.2f} s  x = {100 * x:+7.1f} cm  y = {100 * y:+7.1f} cm  "
+            f"heading {math.degrees(theta):+6.1f} deg"
+        )

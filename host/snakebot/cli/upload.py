@@ -17,11 +17,15 @@ from snakebot.gaittable import read_gait
 @click.command("upload")
 @click.argument("gait", type=click.Path(dir_okay=False, path_type=Path))
 @controller_options
-@click.option("--new-servos", is_flag=True,
-              help="Accept servos the controller's roster does not list (the table's servos "
-              "become the roster).")
-def upload(gait: Path, port: str, baud: int, controller_id: int, as_json: bool,
-           new_servos: bool) -> None:
+@click.option(
+    "--new-servos",
+    is_flag=True,
+    help="Accept servos the controller's roster does not list (the table's servos "
+    "become the roster).",
+)
+def upload(
+    gait: Path, port: str, baud: int, controller_id: int, as_json: bool, new_servos: bool
+) -> None:
     """Upload the gait table GAIT (a .gait file from `snakebot gait`) to the controller.
 
     Before anything is sent, the table is checked against what the controller takes and
@@ -46,8 +50,9 @@ def upload(gait: Path, port: str, baud: int, controller_id: int, as_json: bool,
         if not show_bar:
             return
         if bar is None:
-            bar = click.progressbar(length=total, label=f"Uploading {gait.name}", file=err,
-                                    show_pos=True)
+            bar = click.progressbar(
+                length=total, label=f"Uploading {gait.name}", file=err, show_pos=True
+            )
             bar.__enter__()
         bar.update(done - bar.pos)
 
@@ -56,13 +61,13 @@ def upload(gait: Path, port: str, baud: int, controller_id: int, as_json: bool,
         if bar is not None:
             bar.__exit__(None, None, None)
             bar = None
-        click.echo(f"{why}: sending the table again (attempt {attempt} of {attempts})",
-                   err=True)
+        click.echo(f"{why}: sending the table again (attempt {attempt} of {attempts})", err=True)
 
     try:
         with open_controller(port, baud, controller_id) as ctl:
-            report = upload_gait(ctl, table, allow_new_servos=new_servos,
-                                 on_progress=on_progress, on_retry=on_retry)
+            report = upload_gait(
+                ctl, table, allow_new_servos=new_servos, on_progress=on_progress, on_retry=on_retry
+            )
     finally:
         if bar is not None:
             bar.__exit__(None, None, None)
@@ -83,11 +88,15 @@ def _print(report: UploadReport, gait: Path, port: str, as_json: bool) -> None:
     if report.attempts > 1:
         click.echo(f"(took {report.attempts} attempts: see the messages above)")
     if not report.roster_before:
-        click.echo("note: the controller knew no servos before (empty roster); the table's "
-                   "servos are its roster now.")
+        click.echo(
+            "note: the controller knew no servos before (empty roster); the table's "
+            "servos are its roster now."
+        )
     if report.new_servos:
         ids = ", ".join(str(i) for i in report.new_servos)
         click.echo(f"note: servo {ids} joined the roster (it had {report.roster_before}).")
     if report.playback_stopped:
-        click.echo("note: the commit stopped the gait that was running; start the new table "
-                   f"with `snakebot play --port {port}`.")
+        click.echo(
+            "note: the commit stopped the gait that was running; start the new table "
+            f"with `snakebot play --port {port}`."
+        )

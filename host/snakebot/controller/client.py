@@ -213,8 +213,10 @@ class ControllerClient:
         """WRITE registers by name; each value is range-checked first (ControllerTableError
         names the range), and adjacent registers go out in one packet, in address order."""
         encoded = sorted(
-            ((reg.address, reg.encode(int(value))) for reg, value in
-             ((self.table.register(n), v) for n, v in values.items())),
+            (
+                (reg.address, reg.encode(int(value)))
+                for reg, value in ((self.table.register(n), v) for n, v in values.items())
+            ),
         )
         run_start, run = -1, b""
         for address, data in encoded:
@@ -298,8 +300,7 @@ class ControllerClient:
         shown_page = -1
         for joint, entry in enumerate(entries):
             page, slot = self.table.servo_page(joint)
-            values = (entry.id, int(entry.reverse), entry.zero_tick, entry.min_tick,
-                      entry.max_tick)
+            values = (entry.id, int(entry.reverse), entry.zero_tick, entry.min_tick, entry.max_tick)
             data = b"".join(f.encode(v) for f, v in zip(fields, values, strict=True))
             address = self.table.servo_address(slot, ROSTER_FIELDS[0])
             if page != shown_page:

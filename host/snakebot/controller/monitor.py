@@ -110,8 +110,9 @@ def render(s: Sample) -> list[str]:
         f"{c['bus_reads']} reads, {c['bus_timeouts']} timeouts, {c['bus_errors']} damaged",
     ]
     if not s.servos:
-        lines.append("no servos in the roster (upload a gait table, or start the serpenoid "
-                     "with --robot)")
+        lines.append(
+            "no servos in the roster (upload a gait table, or start the serpenoid with --robot)"
+        )
         return lines
     lines.append(HEADER)
     for j in s.servos:

@@ -54,8 +54,15 @@ def _fmt_angle(rad: float, rate: bool = False) -> str:
     return f"{rad:.4g} {unit} ({math.degrees(rad):.4g} {dunit})"
 
 
-def _raw(ctl: ControllerClient, register: str, value: float, scale: float, what: str,
-         rate: bool = False, angle: bool = True) -> int:
+def _raw(
+    ctl: ControllerClient,
+    register: str,
+    value: float,
+    scale: float,
+    what: str,
+    rate: bool = False,
+    angle: bool = True,
+) -> int:
     """``value`` (user units) as the register's integer, or ControllerError with the
     range in user units."""
     reg = ctl.table.register(register)
@@ -69,8 +76,10 @@ def _raw(ctl: ControllerClient, register: str, value: float, scale: float, what:
     else:
         shown, span = f"{what} {value:g}", f"{low / scale:.4g} .. {high / scale:.4g}"
     unit = f", in {reg.unit}" if reg.unit else ""
-    return _refuse(f"{shown} is outside what the controller takes: {span} "
-                   f"(its {reg.name} register takes {low}..{high}{unit})")
+    return _refuse(
+        f"{shown} is outside what the controller takes: {span} "
+        f"(its {reg.name} register takes {low}..{high}{unit})"
+    )
 
 
 def _refuse(message: str) -> int:
@@ -124,8 +133,13 @@ def _ready(ctl: ControllerClient, regs: dict[str, int]) -> None:
         )
 
 
-def _start(ctl: ControllerClient, before: dict[str, int], command: str, want: str,
-           finished_ok: float | None = None) -> dict[str, Any]:
+def _start(
+    ctl: ControllerClient,
+    before: dict[str, int],
+    command: str,
+    want: str,
+    finished_ok: float | None = None,
+) -> dict[str, Any]:
     sent = time.monotonic()
     ctl.command(command)
     after = ctl.read_all()
@@ -134,8 +148,12 @@ def _start(ctl: ControllerClient, before: dict[str, int], command: str, want: st
         return _status(ctl, after)
     refused_bit = ctl.table.enums["Error Flags"]["REFUSED"]
     newly_refused = after["Error Flags"] & refused_bit and not before["Error Flags"] & refused_bit
-    if (state == "IDLE" and not newly_refused and finished_ok is not None
-            and finished_ok <= time.monotonic() - sent + FINISH_GRACE_S):
+    if (
+        state == "IDLE"
+        and not newly_refused
+        and finished_ok is not None
+        and finished_ok <= time.monotonic() - sent + FINISH_GRACE_S
+    ):
         return _status(ctl, after)  # a short table played once is already over
     raise ControllerError(
         f"the controller did not start ({command} left it {state}; error flags: "
@@ -144,8 +162,9 @@ def _start(ctl: ControllerClient, before: dict[str, int], command: str, want: st
     )
 
 
-def play(ctl: ControllerClient, *, loop: bool | None = None, speed: float = 1.0,
-         steer: float = 0.0) -> dict[str, Any]:
+def play(
+    ctl: ControllerClient, *, loop: bool | None = None, speed: float = 1.0, steer: float = 0.0
+) -> dict[str, Any]:
     """Play the active table from its first frame. ``loop``: None keeps the table's own
     setting. ``speed``: factor on the table's time; ``steer``: radians added to every
     joint (negated for reversed joints)."""
@@ -184,15 +203,20 @@ def roster_from_robot(robot: Robot) -> list[RosterEntry]:
     ]
 
 
-def serpenoid(ctl: ControllerClient, settings: SerpenoidSettings, *, speed: float = 1.0,
-              steer: float = 0.0, roster: Iterable[RosterEntry] | None = None
-              ) -> dict[str, Any]:
+def serpenoid(
+    ctl: ControllerClient,
+    settings: SerpenoidSettings,
+    *,
+    speed: float = 1.0,
+    steer: float = 0.0,
+    roster: Iterable[RosterEntry] | None = None,
+) -> dict[str, Any]:
     """Start the firmware's serpenoid on the roster (``roster`` replaces it first)."""
     values = {
-        "Serp Amplitude": _raw(ctl, "Serp Amplitude", settings.amplitude, MRAD_PER_RAD,
-                               "--amplitude"),
-        "Serp Omega": _raw(ctl, "Serp Omega", settings.omega, MRAD_PER_RAD, "--omega",
-                           rate=True),
+        "Serp Amplitude": _raw(
+            ctl, "Serp Amplitude", settings.amplitude, MRAD_PER_RAD, "--amplitude"
+        ),
+        "Serp Omega": _raw(ctl, "Serp Omega", settings.omega, MRAD_PER_RAD, "--omega", rate=True),
         "Serp Delta": _raw(ctl, "Serp Delta", settings.delta, MRAD_PER_RAD, "--delta"),
         "Serp Phi0": _raw(ctl, "Serp Phi0", settings.offset, MRAD_PER_RAD, "--offset"),
         "Speed Scale": speed_scale(ctl, speed),

@@ -142,8 +142,11 @@ def _old_table_words(after: dict[str, int] | None, before: dict[str, int]) -> st
         return (
             "The controller only replaces its table after checking the whole new one, so it "
             "still has its previous table"
-            + (" (none)" if before["Table Size"] == 0 else
-               f" ({before['Table Size']} bytes, CRC 0x{before['Table CRC']:08x})")
+            + (
+                " (none)"
+                if before["Table Size"] == 0
+                else f" ({before['Table Size']} bytes, CRC 0x{before['Table CRC']:08x})"
+            )
             + " unless the commit got through complete; `snakebot monitor` shows which."
         )
     if after["Table Size"] == 0:
@@ -239,8 +242,7 @@ def upload_gait(
         f"upload failed after {attempts} attempt{'s' if attempts != 1 else ''}: {why}. "
         + (_flags_words(ctl, after) if after else "")
         + "Check the USB cable and that nothing else uses the port, then upload again "
-        "(SNAKEBOT_UPLOAD_RETRIES sets the attempts). "
-        + _old_table_words(after, before)
+        "(SNAKEBOT_UPLOAD_RETRIES sets the attempts). " + _old_table_words(after, before)
     )
 
 

@@ -39,30 +39,43 @@ def motion(traj: Trajectory) -> dict[str, float]:
     start, end = traj.q[0], traj.q[-1]
     c, s = math.cos(start[2]), math.sin(start[2])
     dx, dy = end[0] - start[0], end[1] - start[1]
-    return {"dx": float(c * dx + s * dy), "dy": float(-s * dx + c * dy),
-            "dtheta": float(end[2] - start[2])}
+    return {
+        "dx": float(c * dx + s * dy),
+        "dy": float(-s * dx + c * dy),
+        "dtheta": float(end[2] - start[2]),
+    }
 
 
 def path(traj: Trajectory, points: int = PATH_POINTS) -> dict[str, list[float]]:
     """At most ``points`` samples of the body pose, for plots."""
     idx = np.unique(np.linspace(0, len(traj.t) - 1, min(points, len(traj.t))).round().astype(int))
-    return {"t": traj.t[idx].round(6).tolist(), "x": traj.q[idx, 0].round(9).tolist(),
-            "y": traj.q[idx, 1].round(9).tolist(), "theta": traj.q[idx, 2].round(9).tolist()}
+    return {
+        "t": traj.t[idx].round(6).tolist(),
+        "x": traj.q[idx, 0].round(9).tolist(),
+        "y": traj.q[idx, 1].round(9).tolist(),
+        "theta": traj.q[idx, 2].round(9).tolist(),
+    }
 
 
 def frame_budget(robot: Robot, frames: int, hint: str) -> None:
     """GaitError if ``frames`` frames do not fit the controller's table."""
     most = max_frames(robot.n_joints)
     if frames > most:
-        raise GaitError(f"the gait needs {frames} frames but the controller holds at most "
-                        f"{most} for {robot.n_joints} joints: {hint}")
+        raise GaitError(
+            f"the gait needs {frames} frames but the controller holds at most "
+            f"{most} for {robot.n_joints} joints: {hint}"
+        )
     if frames < 2:
         raise GaitError(f"the gait has only {frames} frame: raise the rate or the duration")
 
 
-def predict_table(robot: Robot, ticks: np.ndarray, period_s: float, loop: bool,
-                  pose0: tuple[float, float, float] = (0.0, 0.0, 0.0)
-                  ) -> tuple[Trajectory, dict[str, Any]]:
+def predict_table(
+    robot: Robot,
+    ticks: np.ndarray,
+    period_s: float,
+    loop: bool,
+    pose0: tuple[float, float, float] = (0.0, 0.0, 0.0),
+) -> tuple[Trajectory, dict[str, Any]]:
     """Body motion from the table as the controller plays it: ticks back to angles,
     linear between frames, a loop wrapping to frame 0; one pass."""
     angles = robot.ticks_to_angles(ticks)
@@ -72,8 +85,9 @@ def predict_table(robot: Robot, ticks: np.ndarray, period_s: float, loop: bool,
     schedule = Table(angles, period_s, loop)
     note: dict[str, Any] = {"c_t": robot.c_t}
     try:
-        traj = integrate_joints(robot, schedule, duration, pose0=pose0, samples=samples,
-                                options=PREDICT_OPTIONS)
+        traj = integrate_joints(
+            robot, schedule, duration, pose0=pose0, samples=samples, options=PREDICT_OPTIONS
+        )
     except KinematicsError as exc:
         # Near an inadmissible crossing the ideal body velocity has a pole: the step
         # size collapses or the crossing is reported. Real wheels slip a little there.
@@ -81,10 +95,20 @@ def predict_table(robot: Robot, ticks: np.ndarray, period_s: float, loop: bool,
         if robot.c_t > 0 or exc.code not in singular:
             raise
         c_t = REGULARISING_CT * robot.c_n
-        traj = integrate_joints(robot, schedule, duration, pose0=pose0, samples=samples,
-                                options=PREDICT_OPTIONS, c_t=c_t)
-        note = {"c_t": c_t, "note": "the ideal model (c_t = 0) is singular on the rounded "
-                f"table; predicted with rolling friction c_t = {c_t:g}"}
+        traj = integrate_joints(
+            robot,
+            schedule,
+            duration,
+            pose0=pose0,
+            samples=samples,
+            options=PREDICT_OPTIONS,
+            c_t=c_t,
+        )
+        note = {
+            "c_t": c_t,
+            "note": "the ideal model (c_t = 0) is singular on the rounded "
+            f"table; predicted with rolling friction c_t = {c_t:g}",
+        }
     return traj, note
 
 
@@ -115,8 +139,10 @@ class Gait:
             "gait": self.kind,
             "robot": self.robot.name,
             "robot_source": self.robot.source,
-            "joints": [{"name": j.name, "servo_id": j.servo_id, "zero_tick": j.zero_tick,
-                        "sign": j.sign} for j in self.robot.joints],
+            "joints": [
+                {"name": j.name, "servo_id": j.servo_id, "zero_tick": j.zero_tick, "sign": j.sign}
+                for j in self.robot.joints
+            ],
             "parameters": self.parameters,
             "frames": len(self.ticks),
             "frame_period_ms": self.period_ms,
@@ -131,8 +157,14 @@ class Gait:
         return {**self.summary(), "path": self.path, "table_path": self.table_path}
 
     def gait_table(self) -> GaitTable:
-        return GaitTable(self.robot.servo_ids, self.period_ms, self.loop,
-                         self.robot.tick_limits, self.ticks.astype(np.uint16), self.metadata())
+        return GaitTable(
+            self.robot.servo_ids,
+            self.period_ms,
+            self.loop,
+            self.robot.tick_limits,
+            self.ticks.astype(np.uint16),
+            self.metadata(),
+        )
 
 
 def period_ms_for(rate_hz: float) -> int:
@@ -141,6 +173,8 @@ def period_ms_for(rate_hz: float) -> int:
         raise GaitError(f"--rate must be a positive frame rate in Hz, not {rate_hz}")
     period = round(1000.0 / rate_hz)
     if not 1 <= period <= 65535:
-        raise GaitError(f"--rate {rate_hz} Hz gives a frame period of {period} ms: use a rate "
-                        "between 0.016 and 1000 Hz")
+        raise GaitError(
+            f"--rate {rate_hz} Hz gives a frame period of {period} ms: use a rate "
+            "between 0.016 and 1000 Hz"
+        )
     return period

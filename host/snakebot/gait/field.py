@@ -81,15 +81,15 @@ def _index(name: str) -> int:
     return int(name[1:]) - 1
 
 
-def plan_block(model: str, combo: dict[str, float], eps: float, form: str | None,
-               inputs: int) -> list[Segment]:
+def plan_block(
+    model: str, combo: dict[str, float], eps: float, form: str | None, inputs: int
+) -> list[Segment]:
     """The segments of one block realising eps * X (normalised time)."""
     zero = (0.0,) * inputs
     segments: list[Segment] = []
     direct = [combo.get(f"g{i + 1}", 0.0) for i in range(inputs)]
     if any(direct):
-        segments.append(Segment("direct", Inputs(tuple(direct), form=form, omega=1.0), eps,
-                                False))
+        segments.append(Segment("direct", Inputs(tuple(direct), form=form, omega=1.0), eps, False))
     for name, coef in combo.items():
         if not name.startswith("h"):
             continue
@@ -122,13 +122,15 @@ def _run(robot: Robot, segments: list[Segment], q0: np.ndarray) -> np.ndarray:
     """Final state after the segments, at normalised speed."""
     q = q0
     for seg in segments:
-        q = integrate_fields(robot, seg.inputs, seg.length, q0=q, samples=2,
-                             options=PREDICT_OPTIONS).q[-1]
+        q = integrate_fields(
+            robot, seg.inputs, seg.length, q0=q, samples=2, options=PREDICT_OPTIONS
+        ).q[-1]
     return q
 
 
-def block_error(robot: Robot, model: str, combo: dict[str, float], eps: float,
-                form: str | None, q0: np.ndarray) -> tuple[float, np.ndarray]:
+def block_error(
+    robot: Robot, model: str, combo: dict[str, float], eps: float, form: str | None, q0: np.ndarray
+) -> tuple[float, np.ndarray]:
     """Relative error of one block against eps X(q0), and the block's motion."""
     inputs = 2 if model == "snake3" else 3
     f = fields(robot, q0, form)
@@ -139,15 +141,18 @@ def block_error(robot: Robot, model: str, combo: dict[str, float], eps: float,
 
 def _joint_speeds(robot: Robot, traj: Trajectory, inputs: Inputs, t0: float) -> np.ndarray:
     u = inputs.at(traj.t - t0)
-    return np.array([field_velocity(robot, q, ui, inputs.form)[3:] for q, ui in zip(
-        traj.q, u, strict=True)])
+    return np.array(
+        [field_velocity(robot, q, ui, inputs.form)[3:] for q, ui in zip(traj.q, u, strict=True)]
+    )
 
 
-def _timed(robot: Robot, seg: Segment, q0: np.ndarray, dt: float, omega: float | None
-           ) -> tuple[Segment, int]:
+def _timed(
+    robot: Robot, seg: Segment, q0: np.ndarray, dt: float, omega: float | None
+) -> tuple[Segment, int]:
     """The segment sped up to the servos' limit: (real-time segment, frames it spans)."""
-    probe = integrate_fields(robot, seg.inputs, seg.length, q0=q0, samples=257,
-                             options=PREDICT_OPTIONS)
+    probe = integrate_fields(
+        robot, seg.inputs, seg.length, q0=q0, samples=257, options=PREDICT_OPTIONS
+    )
     peak = float(np.abs(_joint_speeds(robot, probe, seg.inputs, 0.0)).max())
     fastest = SPEED_MARGIN * robot.max_speed_rad_s / peak if peak > 0 else 1.0
     if seg.loop:
@@ -159,33 +164,55 @@ def _timed(robot: Robot, seg: Segment, q0: np.ndarray, dt: float, omega: float |
         frames = max(1, math.ceil(seg.length / (fastest * dt) - 1e-9))
     speed = seg.length / (frames * dt)  # normalised time per second
     k = seg.inputs
-    scaled = Inputs(tuple(speed * v for v in k.c), tuple(speed * v for v in k.a),
-                    tuple(speed * v for v in k.b), speed * k.omega, k.form,
-                    tuple(speed * v for v in k.a2), tuple(speed * v for v in k.b2))
+    scaled = Inputs(
+        tuple(speed * v for v in k.c),
+        tuple(speed * v for v in k.a),
+        tuple(speed * v for v in k.b),
+        speed * k.omega,
+        k.form,
+        tuple(speed * v for v in k.a2),
+        tuple(speed * v for v in k.b2),
+    )
     return replace(seg, inputs=scaled, length=frames * dt), frames
 
 
-def field_gait(robot: Robot, expression: str | dict[str, float], *, duration: float | None = None,
-               periods: int | None = None, amplitude: float | None = None,
-               omega: float | None = None, tolerance: float | None = None,
-               start: tuple[float, ...] | None = None, form: str | None = None,
-               rate_hz: float = 50.0) -> Gait:
+def field_gait(
+    robot: Robot,
+    expression: str | dict[str, float],
+    *,
+    duration: float | None = None,
+    periods: int | None = None,
+    amplitude: float | None = None,
+    omega: float | None = None,
+    tolerance: float | None = None,
+    start: tuple[float, ...] | None = None,
+    form: str | None = None,
+    rate_hz: float = 50.0,
+) -> Gait:
     """A gait following the field combination ``expression`` (see the module doc)."""
     model = field_model(robot)
     form = form or default_form(robot)
     c_form = None if robot.kind != "trident" else form
-    combo = (parse_field_expression(expression, FIELD_NAMES[model])
-             if isinstance(expression, str) else dict(expression))
-    text = expression if isinstance(expression, str) else " + ".join(
-        f"{v:g}*{k}" for k, v in combo.items())
+    combo = (
+        parse_field_expression(expression, FIELD_NAMES[model])
+        if isinstance(expression, str)
+        else dict(expression)
+    )
+    text = (
+        expression
+        if isinstance(expression, str)
+        else " + ".join(f"{v:g}*{k}" for k, v in combo.items())
+    )
     brackets = [n for n in combo if n.startswith("h")]
     if (duration is None) == (periods is None):
         raise GaitError("give exactly one of --duration T or --periods K")
     if duration is not None and not (duration > 0 and math.isfinite(duration)):
         raise GaitError(f"--duration must be positive, not {duration}")
     if periods is not None and (periods < 1 or not brackets):
-        raise GaitError("--periods K needs K >= 1 and a bracket term (h...) in --field: "
-                        "a direct field is followed for --duration T")
+        raise GaitError(
+            "--periods K needs K >= 1 and a bracket term (h...) in --field: "
+            "a direct field is followed for --duration T"
+        )
     if amplitude is not None and not amplitude > 0:
         raise GaitError(f"--amplitude must be positive, not {amplitude}")
     if tolerance is not None and not 0 < tolerance < 1:
@@ -193,8 +220,9 @@ def field_gait(robot: Robot, expression: str | dict[str, float], *, duration: fl
     if omega is not None and not omega > 0:
         raise GaitError(f"--omega must be positive, not {omega}")
     if amplitude is not None and tolerance is not None:
-        raise GaitError("give --amplitude or --tolerance, not both: the tolerance picks the "
-                        "amplitude")
+        raise GaitError(
+            "give --amplitude or --tolerance, not both: the tolerance picks the amplitude"
+        )
     period_ms = period_ms_for(rate_hz)
     dt = period_ms / 1000.0
     if start is None:
@@ -204,8 +232,10 @@ def field_gait(robot: Robot, expression: str | dict[str, float], *, duration: fl
     q0 = np.r_[0.0, 0.0, 0.0, np.asarray(start, dtype=float)]
     at_start = fields(robot, q0, c_form)
     if at_start.singular:
-        raise GaitError(f"the start configuration {np.round(start, 4).tolist()} is singular "
-                        f"for {robot.name}: choose another --start")
+        raise GaitError(
+            f"the start configuration {np.round(start, 4).tolist()} is singular "
+            f"for {robot.name}: choose another --start"
+        )
     x0 = sum(coef * at_start[name] for name, coef in combo.items())
 
     # Block size eps and count K.
@@ -214,8 +244,10 @@ def field_gait(robot: Robot, expression: str | dict[str, float], *, duration: fl
     if not brackets:
         eps, count, err = float(duration), 1, 0.0
     else:
+
         def eps_of(a: float) -> float:
             return math.pi * a * a if order == 2 else math.pi * a**3 / 2.0
+
         if amplitude is not None:
             eps0 = eps_of(amplitude)
             count = periods if periods is not None else max(1, round(duration / eps0))
@@ -245,7 +277,8 @@ def field_gait(robot: Robot, expression: str | dict[str, float], *, duration: fl
                 raise GaitError(
                     f"cannot follow {text} to within {tol:g}: {count} blocks of loops (the most "
                     f"a gait table of {robot.n_joints} joints holds) still err by {err:.3g}: "
-                    "loosen --tolerance or shorten --duration")
+                    "loosen --tolerance or shorten --duration"
+                )
 
     block = plan_block(model, combo, eps, c_form, inputs)
     timed: list[Segment] = []
@@ -254,8 +287,11 @@ def field_gait(robot: Robot, expression: str | dict[str, float], *, duration: fl
         s, frames = _timed(robot, seg, q0, dt, omega)
         timed.append(s)
         total_frames += frames
-    frame_budget(robot, count * total_frames + 1,
-                 "loosen --tolerance, raise --amplitude, or shorten --duration/--periods")
+    frame_budget(
+        robot,
+        count * total_frames + 1,
+        "loosen --tolerance, raise --amplitude, or shorten --duration/--periods",
+    )
 
     # The whole gait, segment after segment, sampled DENSE times per frame.
     t_all, q_all, dphi_all = [np.zeros(1)], [q0[None, :]], [np.zeros((1, robot.n_joints))]
@@ -263,8 +299,15 @@ def field_gait(robot: Robot, expression: str | dict[str, float], *, duration: fl
     for _ in range(count):
         for seg in timed:
             steps = round(seg.length / dt)
-            traj = integrate_fields(robot, seg.inputs, t + seg.length, q0=q, t0=t,
-                                    samples=DENSE * steps + 1, options=PREDICT_OPTIONS)
+            traj = integrate_fields(
+                robot,
+                seg.inputs,
+                t + seg.length,
+                q0=q,
+                t0=t,
+                samples=DENSE * steps + 1,
+                options=PREDICT_OPTIONS,
+            )
             speeds = _joint_speeds(robot, traj, seg.inputs, t)
             t_all.append(traj.t[1:])
             q_all.append(traj.q[1:])
@@ -287,29 +330,59 @@ def field_gait(robot: Robot, expression: str | dict[str, float], *, duration: fl
     tau = count * eps
     predicted_q = tau * x0
     parameters = {
-        "field": text, "coefficients": combo, "form": form,
-        "start_rad": [float(v) for v in start], "blocks": count, "block_eps": eps,
-        "flow_parameter": tau, "block_relative_error": err, "rate_hz": 1000.0 / period_ms,
-        "segments": [{"term": s.term, "frames": round(s.length / dt),
-                      "omega_rad_s": s.inputs.omega if s.loop else None,
-                      "amplitude": _amplitude(seg) if seg.loop else None}
-                     for s, seg in zip(timed, block, strict=True)],
+        "field": text,
+        "coefficients": combo,
+        "form": form,
+        "start_rad": [float(v) for v in start],
+        "blocks": count,
+        "block_eps": eps,
+        "flow_parameter": tau,
+        "block_relative_error": err,
+        "rate_hz": 1000.0 / period_ms,
+        "segments": [
+            {
+                "term": s.term,
+                "frames": round(s.length / dt),
+                "omega_rad_s": s.inputs.omega if s.loop else None,
+                "amplitude": _amplitude(seg) if seg.loop else None,
+            }
+            for s, seg in zip(timed, block, strict=True)
+        ],
     }
     extra = {
         "state_names": list(robot.state_names),
         "final_q": states[-1].tolist(),
         "moved_q": moved.tolist(),
         ("second_order" if brackets else "first_order"): {
-            "dx": float(predicted_q[0]), "dy": float(predicted_q[1]),
-            "dtheta": float(predicted_q[2]), "q": predicted_q.tolist(),
-            "formula": (f"{tau:.6g} * ({text}) at the start configuration" + (
-                "; each loop moves pi A^2 [g_i, g_j] (second order) or "
-                "-pi A^2 B / 2 [g_i, [g_i, g_j]] (third order)" if brackets else "")),
+            "dx": float(predicted_q[0]),
+            "dy": float(predicted_q[1]),
+            "dtheta": float(predicted_q[2]),
+            "q": predicted_q.tolist(),
+            "formula": (
+                f"{tau:.6g} * ({text}) at the start configuration"
+                + (
+                    "; each loop moves pi A^2 [g_i, g_j] (second order) or "
+                    "-pi A^2 B / 2 [g_i, [g_i, g_j]] (third order)"
+                    if brackets
+                    else ""
+                )
+            ),
         },
     }
     predicted = {"dx": float(moved[0]), "dy": float(moved[1]), "dtheta": float(moved[2])}
-    return Gait(robot, "field", parameters, period_ms, loop, ticks, predicted,
-                {**motion(table_traj), **note}, path(traj), path(table_traj), extra)
+    return Gait(
+        robot,
+        "field",
+        parameters,
+        period_ms,
+        loop,
+        ticks,
+        predicted,
+        {**motion(table_traj), **note},
+        path(traj),
+        path(table_traj),
+        extra,
+    )
 
 
 def _amplitude(seg: Segment) -> float:

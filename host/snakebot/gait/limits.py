@@ -14,8 +14,14 @@ class GaitLimitError(SnakebotError):
     """A gait leaves a joint's range or exceeds the servo's speed; nothing was written."""
 
 
-def check_motion(robot: Robot, t: np.ndarray, phi: np.ndarray, dphi: np.ndarray | None,
-                 what: str = "the gait", check_range: bool = True) -> None:
+def check_motion(
+    robot: Robot,
+    t: np.ndarray,
+    phi: np.ndarray,
+    dphi: np.ndarray | None,
+    what: str = "the gait",
+    check_range: bool = True,
+) -> None:
     """Raise GaitLimitError at the first sample (by time) outside a limit.
 
     ``t``: sample times (s); ``phi``: joint angles (samples x joints, rad); ``dphi``:
@@ -25,28 +31,43 @@ def check_motion(robot: Robot, t: np.ndarray, phi: np.ndarray, dphi: np.ndarray 
     for j, joint in enumerate(robot.joints):
         low = np.flatnonzero(phi[:, j] < joint.min_rad - 1e-12) if check_range else []
         high = np.flatnonzero(phi[:, j] > joint.max_rad + 1e-12) if check_range else []
-        for idx, bound, word in ((low, joint.min_rad, "below its minimum"),
-                                 (high, joint.max_rad, "above its maximum")):
+        for idx, bound, word in (
+            (low, joint.min_rad, "below its minimum"),
+            (high, joint.max_rad, "above its maximum"),
+        ):
             if len(idx):
                 k = int(idx[0])
-                problems.append((float(t[k]), (
-                    f"joint {joint.name} (servo {joint.servo_id}) reaches "
-                    f"{math.degrees(phi[k, j]):.1f} deg at t = {t[k]:.3f} s, {word} of "
-                    f"{math.degrees(bound):.1f} deg")))
+                problems.append(
+                    (
+                        float(t[k]),
+                        (
+                            f"joint {joint.name} (servo {joint.servo_id}) reaches "
+                            f"{math.degrees(phi[k, j]):.1f} deg at t = {t[k]:.3f} s, {word} of "
+                            f"{math.degrees(bound):.1f} deg"
+                        ),
+                    )
+                )
         if dphi is not None:
             fast = np.flatnonzero(np.abs(dphi[:, j]) > vmax * (1 + 1e-9))
             if fast.size:
                 k = int(fast[0])
-                problems.append((float(t[k]), (
-                    f"joint {joint.name} (servo {joint.servo_id}) moves at "
-                    f"{abs(dphi[k, j]):.2f} rad/s at t = {t[k]:.3f} s, above the "
-                    f"{robot.servo_model}'s maximum of {vmax:.2f} rad/s")))
+                problems.append(
+                    (
+                        float(t[k]),
+                        (
+                            f"joint {joint.name} (servo {joint.servo_id}) moves at "
+                            f"{abs(dphi[k, j]):.2f} rad/s at t = {t[k]:.3f} s, above the "
+                            f"{robot.servo_model}'s maximum of {vmax:.2f} rad/s"
+                        ),
+                    )
+                )
     if problems:
         problems.sort(key=lambda p: p[0])
         more = f" (and {len(problems) - 1} more violations)" if len(problems) > 1 else ""
         raise GaitLimitError(
             f"{what} is outside {robot.name}'s limits: {problems[0][1]}{more}. Reduce the "
-            "amplitude or offset (range) or the frequency (speed); no file was written")
+            "amplitude or offset (range) or the frequency (speed); no file was written"
+        )
 
 
 def check_ticks(robot: Robot, ticks: np.ndarray, period_s: float, loop: bool) -> None:
@@ -60,9 +81,15 @@ def check_ticks(robot: Robot, ticks: np.ndarray, period_s: float, loop: bool) ->
             k = int(bad[0])
             raise GaitLimitError(
                 f"frame {k} (t = {t[k]:.3f} s) sets joint {robot.joints[j].name} to tick "
-                f"{int(ticks[k, j])}, outside its limits {lo}..{hi}; no file was written")
+                f"{int(ticks[k, j])}, outside its limits {lo}..{hi}; no file was written"
+            )
     following = np.roll(phi, -1, axis=0) if loop else phi[1:]
     speed = (following - phi[: len(following)]) / period_s
-    check_motion(robot, t[: len(following)], phi[: len(following)], speed,
-                 what="the gait table (rounded to ticks, played frame to frame)",
-                 check_range=False)
+    check_motion(
+        robot,
+        t[: len(following)],
+        phi[: len(following)],
+        speed,
+        what="the gait table (rounded to ticks, played frame to frame)",
+        check_range=False,
+    )

@@ -25,15 +25,30 @@ from snakebot.kinematics import Sines, integrate_joints
 from snakebot.robots import Robot
 
 
-def serpenoid(robot: Robot, amplitude: float, omega: float, delta: float, *,
-              offset: float = 0.0, cycles: float = 1.0, rate_hz: float = 50.0,
-              loop: bool | None = None) -> Gait:
+def serpenoid(
+    robot: Robot,
+    amplitude: float,
+    omega: float,
+    delta: float,
+    *,
+    offset: float = 0.0,
+    cycles: float = 1.0,
+    rate_hz: float = 50.0,
+    loop: bool | None = None,
+) -> Gait:
     """A serpenoid gait for a snake robot (checked against its limits)."""
     if robot.kind != "snake":
-        raise GaitError(f"{robot.name} is a {robot.kind}: the serpenoid gait drives a chain "
-                        "of links; use `snakebot gait field` for it")
-    for name, value in (("amplitude", amplitude), ("omega", omega), ("delta", delta),
-                        ("offset", offset), ("cycles", cycles)):
+        raise GaitError(
+            f"{robot.name} is a {robot.kind}: the serpenoid gait drives a chain "
+            "of links; use `snakebot gait field` for it"
+        )
+    for name, value in (
+        ("amplitude", amplitude),
+        ("omega", omega),
+        ("delta", delta),
+        ("offset", offset),
+        ("cycles", cycles),
+    ):
         if not math.isfinite(value):
             raise GaitError(f"--{name} must be a finite number, not {value}")
     if amplitude <= 0 or omega == 0 or cycles <= 0:
@@ -46,8 +61,9 @@ def serpenoid(robot: Robot, amplitude: float, omega: float, delta: float, *,
         raise GaitError(f"a looping table needs a whole number of cycles, not {cycles}")
     steps = round(cycles * 2 * math.pi / abs(omega) / dt)
     if steps < 2:
-        raise GaitError("the gait is shorter than two frames: raise --rate or --cycles, or "
-                        "lower --omega")
+        raise GaitError(
+            "the gait is shorter than two frames: raise --rate or --cycles, or lower --omega"
+        )
     frames = steps if loop else steps + 1
     frame_budget(robot, frames, "lower --rate or --cycles (or raise --omega)")
     omega_used = math.copysign(2 * math.pi * cycles / (steps * dt), omega)
@@ -56,19 +72,36 @@ def serpenoid(robot: Robot, amplitude: float, omega: float, delta: float, *,
 
     dense = np.linspace(0.0, duration, 16 * steps + 1)
     args = omega_used * dense[:, None] + np.array(schedule.phase)
-    check_motion(robot, dense, amplitude * np.sin(args) + offset,
-                 amplitude * omega_used * np.cos(args))
+    check_motion(
+        robot, dense, amplitude * np.sin(args) + offset, amplitude * omega_used * np.cos(args)
+    )
     t_frames = np.arange(frames) * dt
     phi = amplitude * np.sin(omega_used * t_frames[:, None] + np.array(schedule.phase)) + offset
     ticks = robot.angles_to_ticks(phi)
     check_ticks(robot, ticks, dt, loop)
 
-    traj = integrate_joints(robot, schedule, duration, samples=min(8 * steps + 1, 4001),
-                            options=PREDICT_OPTIONS)
+    traj = integrate_joints(
+        robot, schedule, duration, samples=min(8 * steps + 1, 4001), options=PREDICT_OPTIONS
+    )
     table_traj, note = predict_table(robot, ticks, dt, loop)
     parameters = {
-        "amplitude_rad": amplitude, "omega_rad_s": omega_used, "omega_requested_rad_s": omega,
-        "delta_rad": delta, "offset_rad": offset, "cycles": cycles, "rate_hz": 1000.0 / period_ms,
+        "amplitude_rad": amplitude,
+        "omega_rad_s": omega_used,
+        "omega_requested_rad_s": omega,
+        "delta_rad": delta,
+        "offset_rad": offset,
+        "cycles": cycles,
+        "rate_hz": 1000.0 / period_ms,
     }
-    return Gait(robot, "serpenoid", parameters, period_ms, loop, ticks, motion(traj),
-                {**motion(table_traj), **note}, path(traj), path(table_traj))
+    return Gait(
+        robot,
+        "serpenoid",
+        parameters,
+        period_ms,
+        loop,
+        ticks,
+        motion(traj),
+        {**motion(table_traj), **note},
+        path(traj),
+        path(table_traj),
+    )

@@ -22,16 +22,20 @@ class InputError(SnakebotError):
 
 
 def _number(node: ast.AST, text: str) -> float:
-    if isinstance(node, ast.Constant) and isinstance(node.value, int | float) \
-            and not isinstance(node.value, bool):
+    if (
+        isinstance(node, ast.Constant)
+        and isinstance(node.value, int | float)
+        and not isinstance(node.value, bool)
+    ):
         return float(node.value)
     if isinstance(node, ast.Name) and node.id in _CONSTANTS:
         return _CONSTANTS[node.id]
     if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub | ast.UAdd):
         value = _number(node.operand, text)
         return -value if isinstance(node.op, ast.USub) else value
-    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Add | ast.Sub | ast.Mult |
-                                                  ast.Div | ast.Pow):
+    if isinstance(node, ast.BinOp) and isinstance(
+        node.op, ast.Add | ast.Sub | ast.Mult | ast.Div | ast.Pow
+    ):
         a, b = _number(node.left, text), _number(node.right, text)
         try:
             if isinstance(node.op, ast.Add):
@@ -45,8 +49,10 @@ def _number(node: ast.AST, text: str) -> float:
             return a**b
         except (ZeroDivisionError, OverflowError) as exc:
             raise InputError(f"cannot compute {text!r} ({exc})") from None
-    raise InputError(f"cannot read {text!r}: use a number, pi, + - * / and an optional "
-                      "'deg' suffix (e.g. 0.5, pi/3, -60deg)")
+    raise InputError(
+        f"cannot read {text!r}: use a number, pi, + - * / and an optional "
+        "'deg' suffix (e.g. 0.5, pi/3, -60deg)"
+    )
 
 
 def parse_number(text: str) -> float:
@@ -54,8 +60,7 @@ def parse_number(text: str) -> float:
     try:
         tree = ast.parse(text.strip(), mode="eval")
     except SyntaxError:
-        raise InputError(f"cannot read {text!r}: use a number or an expression like pi/3"
-                          ) from None
+        raise InputError(f"cannot read {text!r}: use a number or an expression like pi/3") from None
     value = _number(tree.body, text)
     if not math.isfinite(value):
         raise InputError(f"{text!r} is not a finite number")
@@ -78,8 +83,9 @@ def parse_angles(text: str, count: int | None = None, what: str = "values") -> l
         raise InputError(f"{what} {text!r} has an empty entry: separate values with commas")
     values = [parse_angle(p) for p in parts]
     if count is not None and len(values) != count:
-        raise InputError(f"{what} needs {count} comma-separated values, got {len(values)} "
-                          f"in {text!r}")
+        raise InputError(
+            f"{what} needs {count} comma-separated values, got {len(values)} in {text!r}"
+        )
     return values
 
 
@@ -106,15 +112,18 @@ def _combination(node: ast.AST, text: str) -> dict[str, float]:
                 raise InputError(f"in {text!r}: divide only by a non-zero number")
             return {k: v / b[""] for k, v in a.items()}
         if not (a_const or b_const):
-            raise InputError(f"in {text!r}: fields can only be scaled by numbers, not "
-                              "multiplied together")
+            raise InputError(
+                f"in {text!r}: fields can only be scaled by numbers, not multiplied together"
+            )
         scale, combo = (a.get("", 0.0), b) if a_const else (b.get("", 0.0), a)
         return {k: scale * v for k, v in combo.items()}
     try:
         return {"": _number(node, text)}
     except InputError:
-        raise InputError(f"cannot read field expression {text!r}: write a combination of "
-                          "fields like g1, 2*g1-h3 or (2*g1-h3)/2") from None
+        raise InputError(
+            f"cannot read field expression {text!r}: write a combination of "
+            "fields like g1, 2*g1-h3 or (2*g1-h3)/2"
+        ) from None
 
 
 def parse_field_expression(text: str, names: tuple[str, ...]) -> dict[str, float]:
@@ -125,13 +134,16 @@ def parse_field_expression(text: str, names: tuple[str, ...]) -> dict[str, float
         raise InputError(f"cannot read field expression {text!r}: write e.g. 2*g1-h3") from None
     combo = _combination(tree.body, text)
     if combo.get("", 0.0) != 0.0:
-        raise InputError(f"{text!r} adds a plain number to fields: write only fields and "
-                          "their multiples")
+        raise InputError(
+            f"{text!r} adds a plain number to fields: write only fields and their multiples"
+        )
     combo.pop("", None)
     unknown = sorted(set(combo) - set(names))
     if unknown:
-        raise InputError(f"{text!r} uses {', '.join(unknown)}, which this robot does not have: "
-                          f"use {', '.join(names)}")
+        raise InputError(
+            f"{text!r} uses {', '.join(unknown)}, which this robot does not have: "
+            f"use {', '.join(names)}"
+        )
     combo = {k: v for k, v in combo.items() if v != 0.0}
     if not combo:
         raise InputError(f"{text!r} is the zero field: nothing to follow")

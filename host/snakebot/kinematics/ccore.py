@@ -81,8 +81,9 @@ class Options:
 
     def to_c(self) -> Any:
         if self.method not in METHODS:
-            raise KinematicsError(lib.KIN_EINVAL, f"unknown method {self.method!r}: "
-                                  f"use one of {', '.join(METHODS)}")
+            raise KinematicsError(
+                lib.KIN_EINVAL, f"unknown method {self.method!r}: use one of {', '.join(METHODS)}"
+            )
         opt = ffi.new("kin_options *")
         opt.method = METHODS[self.method]
         opt.h, opt.rtol, opt.atol, opt.h_min = self.h, self.rtol, self.atol, self.h_min

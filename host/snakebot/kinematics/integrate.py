@@ -31,11 +31,16 @@ class Sines:
     rate: tuple[float, ...] = ()
 
     @classmethod
-    def serpenoid(cls, joints: int, amplitude: float, omega: float, delta: float,
-                  offset: float = 0.0) -> Sines:
+    def serpenoid(
+        cls, joints: int, amplitude: float, omega: float, delta: float, offset: float = 0.0
+    ) -> Sines:
         """phi_k = A sin(omega t + (k - 1) delta) + phi_0 (Hirose's discrete serpenoid)."""
-        return cls(omega, (amplitude,) * joints, tuple(k * delta for k in range(joints)),
-                   (offset,) * joints)
+        return cls(
+            omega,
+            (amplitude,) * joints,
+            tuple(k * delta for k in range(joints)),
+            (offset,) * joints,
+        )
 
 
 @dataclass(frozen=True)
@@ -69,8 +74,13 @@ class Inputs:
         """Input values at times t, shape (len(t), inputs)."""
         wt = self.omega * np.asarray(t, dtype=float)[:, None]
         k = self.coefficients
-        return (k("c") + k("a") * np.sin(wt) + k("b") * np.cos(wt) + k("a2") * np.sin(2 * wt)
-                + k("b2") * np.cos(2 * wt))
+        return (
+            k("c")
+            + k("a") * np.sin(wt)
+            + k("b") * np.cos(wt)
+            + k("a2") * np.sin(2 * wt)
+            + k("b2") * np.cos(2 * wt)
+        )
 
 
 @dataclass(frozen=True)
@@ -100,8 +110,9 @@ def _c_schedule(robot: Robot, schedule: Sines | Table) -> tuple[Any, list[Any]]:
         for name in ("amp", "phase", "offset", "rate"):
             values = getattr(schedule, name) or (0.0,) * n
             if len(values) != n:
-                raise ValueError(f"Sines.{name} needs {n} values for {robot.name}, "
-                                 f"got {len(values)}")
+                raise ValueError(
+                    f"Sines.{name} needs {n} values for {robot.name}, got {len(values)}"
+                )
             arr = getattr(s, name)
             for j, v in enumerate(values):
                 arr[j] = v
@@ -126,8 +137,13 @@ def _times(t0: float, t1: float, samples: int) -> np.ndarray:
 
 
 def _stats(st: Any) -> dict[str, float]:
-    return {"steps": st.steps, "rejected": st.rejected, "evals": st.evals,
-            "fallbacks": st.fallbacks, "min_rcond": st.min_rcond}
+    return {
+        "steps": st.steps,
+        "rejected": st.rejected,
+        "evals": st.evals,
+        "fallbacks": st.fallbacks,
+        "min_rcond": st.min_rcond,
+    }
 
 
 def schedule_eval(robot: Robot, schedule: Sines | Table, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -138,10 +154,18 @@ def schedule_eval(robot: Robot, schedule: Sines | Table, t: float) -> tuple[np.n
     return phi, dphi
 
 
-def integrate_joints(robot: Robot, schedule: Sines | Table, t1: float, *, t0: float = 0.0,
-                     pose0: tuple[float, float, float] = (0.0, 0.0, 0.0), samples: int = 2,
-                     options: Options | None = None, c_t: float | None = None,
-                     with_slip: bool = False) -> Trajectory:
+def integrate_joints(
+    robot: Robot,
+    schedule: Sines | Table,
+    t1: float,
+    *,
+    t0: float = 0.0,
+    pose0: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    samples: int = 2,
+    options: Options | None = None,
+    c_t: float | None = None,
+    with_slip: bool = False,
+) -> Trajectory:
     """Body pose from t0 to t1 with the joints following ``schedule``; ``samples`` evenly
     spaced output rows (t0 and t1 included)."""
     if samples < 2:
@@ -153,15 +177,32 @@ def integrate_joints(robot: Robot, schedule: Sines | Table, t1: float, *, t0: fl
     slip = np.empty((samples, robot.n_wheels)) if with_slip else None
     st = ffi.new("kin_stats *")
     p0 = as_doubles(pose0, 3, "pose0")
-    code = lib.kin_integrate_joints(rb, s, dptr(p0), t0, t1, samples, opt, dptr(out),
-                                    dptr(slip) if slip is not None else ffi.NULL, st)
+    code = lib.kin_integrate_joints(
+        rb,
+        s,
+        dptr(p0),
+        t0,
+        t1,
+        samples,
+        opt,
+        dptr(out),
+        dptr(slip) if slip is not None else ffi.NULL,
+        st,
+    )
     check(code, f"{robot.name}, joint schedule, at t = {st.t_fail:.6g} s")
     return Trajectory(_times(t0, t1, samples), out, slip, _stats(st))
 
 
-def integrate_fields(robot: Robot, inputs: Inputs, t1: float, *, q0: np.ndarray | None = None,
-                     t0: float = 0.0, samples: int = 2, options: Options | None = None
-                     ) -> Trajectory:
+def integrate_fields(
+    robot: Robot,
+    inputs: Inputs,
+    t1: float,
+    *,
+    q0: np.ndarray | None = None,
+    t0: float = 0.0,
+    samples: int = 2,
+    options: Options | None = None,
+) -> Trajectory:
     """The field-driven system from q0 (default 0) at t0 to t1; ``samples`` evenly spaced
     output rows (t0 and t1 included)."""
     field_model(robot)
@@ -175,15 +216,17 @@ def integrate_fields(robot: Robot, inputs: Inputs, t1: float, *, q0: np.ndarray 
     for name in ("c", "a", "b", "a2", "b2"):
         values = getattr(inputs, name) or (0.0,) * m
         if len(values) != m:
-            raise KinematicsError(lib.KIN_EINVAL, f"{robot.name} has {m} inputs: Inputs.{name} "
-                                  f"has {len(values)}")
+            raise KinematicsError(
+                lib.KIN_EINVAL, f"{robot.name} has {m} inputs: Inputs.{name} has {len(values)}"
+            )
         arr = getattr(u, name)
         for i, v in enumerate(values):
             arr[i] = v
     qa = as_doubles(np.zeros(n) if q0 is None else q0, n, "q0")
     out = np.empty((samples, n))
     st = ffi.new("kin_stats *")
-    code = lib.kin_integrate_fields(c_robot(robot), u, dptr(qa), t0, t1, samples,
-                                    (options or Options()).to_c(), dptr(out), st)
+    code = lib.kin_integrate_fields(
+        c_robot(robot), u, dptr(qa), t0, t1, samples, (options or Options()).to_c(), dptr(out), st
+    )
     check(code, f"{robot.name}, field inputs, at t = {st.t_fail:.6g} s")
     return Trajectory(_times(t0, t1, samples), out, None, _stats(st))

@@ -56,8 +56,11 @@ def default_form(robot: Robot) -> str:
 def _c_form(robot: Robot, form: str | None) -> int:
     if robot.kind != "trident":
         if form not in (None, "joint"):
-            raise KinematicsError(lib.KIN_EINVAL, f"{robot.name}'s inputs are its joint "
-                                  "velocities: --form body|world applies to the trident only")
+            raise KinematicsError(
+                lib.KIN_EINVAL,
+                f"{robot.name}'s inputs are its joint "
+                "velocities: --form body|world applies to the trident only",
+            )
         return lib.KIN_FORM_BODY
     form = form or "body"
     if form not in FORMS:
@@ -94,16 +97,18 @@ class BodyVelocity:
     rcond: float
 
 
-def body_velocity(robot: Robot, q: np.ndarray, dphi: np.ndarray,
-                  c_t: float | None = None) -> BodyVelocity:
+def body_velocity(
+    robot: Robot, q: np.ndarray, dphi: np.ndarray, c_t: float | None = None
+) -> BodyVelocity:
     """The minimum-slip body velocity for joint velocities dphi at q."""
     qa = as_doubles(q, 3 + robot.n_joints, "q")
     da = as_doubles(dphi, robot.n_joints, "dphi")
     xi = np.empty(3)
     slip = np.empty(robot.n_wheels)
     rcond = ffi.new("double *")
-    code = lib.kin_body_velocity(c_robot(robot, c_t), dptr(qa), dptr(da), dptr(xi), dptr(slip),
-                                 rcond)
+    code = lib.kin_body_velocity(
+        c_robot(robot, c_t), dptr(qa), dptr(da), dptr(xi), dptr(slip), rcond
+    )
     check(code, f"{robot.name} at q = {np.array2string(qa, precision=4)}")
     return BodyVelocity(xi, slip, float(rcond[0]))
 
@@ -162,14 +167,19 @@ def fields(robot: Robot, q: np.ndarray, form: str | None = None) -> FieldSet:
     return FieldSet(robot.name, form_name, qa, names, out, float(det[0]), False)
 
 
-def field_velocity(robot: Robot, q: np.ndarray, u: np.ndarray, form: str | None = None
-                   ) -> np.ndarray:
+def field_velocity(
+    robot: Robot, q: np.ndarray, u: np.ndarray, form: str | None = None
+) -> np.ndarray:
     """qdot = sum_i u_i g_i(q)."""
     field_model(robot)
     n = 3 + robot.n_joints
     m = 2 if robot.kind == "snake" else 3
     qa, ua = as_doubles(q, n, "q"), as_doubles(u, m, "u")
     qdot = np.empty(n)
-    check(lib.kin_field_velocity(c_robot(robot), _c_form(robot, form), dptr(qa), dptr(ua),
-                                 dptr(qdot)), f"{robot.name} at q = {qa}")
+    check(
+        lib.kin_field_velocity(
+            c_robot(robot), _c_form(robot, form), dptr(qa), dptr(ua), dptr(qdot)
+        ),
+        f"{robot.name} at q = {qa}",
+    )
     return qdot

@@ -140,8 +140,9 @@ def bulk_read(requests: Iterable[tuple[int, int, int]]) -> bytes:
         if _device_id(device) in seen:
             raise PacketArgumentError(f"servo {device} appears twice in one BULK_READ")
         seen.add(device)
-        params += bytes((_byte("read length", length, 1, MAX_PARAMS), device,
-                         _byte("address", address)))
+        params += bytes(
+            (_byte("read length", length, 1, MAX_PARAMS), device, _byte("address", address))
+        )
     if len(params) == 1:
         raise PacketArgumentError("BULK_READ needs at least one (id, address, length)")
     return encode_packet(BROADCAST_ID, Instruction.BULK_READ, bytes(params))

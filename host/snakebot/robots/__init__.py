@@ -1,8 +1,8 @@
 """Robot descriptions: built-in ``snake3``, ``trident`` and ``snake5``, or a user's TOML file.
 
-    robot = load_robot("snake5")         # a built-in, by name
-    robot = load_robot("my_robot.toml")  # or a file (see the built-ins for the schema)
-    robot.angles_to_ticks(phi)           # joint angles (rad) -> AX-12 ticks
+robot = load_robot("snake5")         # a built-in, by name
+robot = load_robot("my_robot.toml")  # or a file (see the built-ins for the schema)
+robot.angles_to_ticks(phi)           # joint angles (rad) -> AX-12 ticks
 """
 
 from __future__ import annotations

@@ -90,8 +90,13 @@ class _Reader:
             raise self.fail(path, f"must be {names}, not {node!r}")
         return node
 
-    def number(self, path: tuple[str, ...], low: float | None = None, default: Any = ...,
-               strictly: bool = False) -> float:
+    def number(
+        self,
+        path: tuple[str, ...],
+        low: float | None = None,
+        default: Any = ...,
+        strictly: bool = False,
+    ) -> float:
         value = self.get(path, float, default)
         if low is not None and (value < low or (strictly and value == low)):
             relation = ">" if strictly else ">="
@@ -124,8 +129,10 @@ def _joint(reader: _Reader, index: int) -> Joint:
         min_rad=math.radians(low),
         max_rad=math.radians(high),
     )
-    for key, tick in (("min_deg", joint.angle_to_tick(joint.min_rad)),
-                      ("max_deg", joint.angle_to_tick(joint.max_rad))):
+    for key, tick in (
+        ("min_deg", joint.angle_to_tick(joint.min_rad)),
+        ("max_deg", joint.angle_to_tick(joint.max_rad)),
+    ):
         if not TICK_MIN <= tick <= TICK_MAX:
             raise reader.fail(
                 (*base, key),
@@ -150,15 +157,21 @@ def parse_robot(text: str, source: str = "<robot>") -> Robot:
     ids = [j.servo_id for j in joints]
     for i, sid in enumerate(ids):
         if sid in ids[:i]:
-            raise reader.fail(("joints", str(i), "servo_id"),
-                              f"{sid} is used twice: give each joint its own servo ID")
+            raise reader.fail(
+                ("joints", str(i), "servo_id"),
+                f"{sid} is used twice: give each joint its own servo ID",
+            )
 
     model = reader.get(("servo", "model"), str, "AX-12A")
     if model not in SERVO_MAX_RPM and "max_speed_rpm" not in data.get("servo", {}):
-        raise reader.fail(("servo", "model"), f"{model!r} is unknown: use one of "
-                          f"{', '.join(SERVO_MAX_RPM)} or give servo.max_speed_rpm")
-    rpm = reader.number(("servo", "max_speed_rpm"), 0.0, SERVO_MAX_RPM.get(model, 0.0),
-                        strictly=True)
+        raise reader.fail(
+            ("servo", "model"),
+            f"{model!r} is unknown: use one of "
+            f"{', '.join(SERVO_MAX_RPM)} or give servo.max_speed_rpm",
+        )
+    rpm = reader.number(
+        ("servo", "max_speed_rpm"), 0.0, SERVO_MAX_RPM.get(model, 0.0), strictly=True
+    )
     common: dict[str, Any] = dict(
         name=reader.get(("name",), str),
         kind=kind,
@@ -173,10 +186,14 @@ def parse_robot(text: str, source: str = "<robot>") -> Robot:
     if kind == "snake":
         links = reader.integer(("geometry", "links"), 2, MAX_LINKS)
         if len(joints) != links - 1:
-            raise reader.fail(("joints",), f"has {len(joints)} entries but a {links}-link snake "
-                              f"has {links - 1} joints: add or remove [[joints]] tables")
-        return Robot(l=reader.number(("geometry", "half_link"), 0.0, strictly=True), links=links,
-                     **common)
+            raise reader.fail(
+                ("joints",),
+                f"has {len(joints)} entries but a {links}-link snake "
+                f"has {links - 1} joints: add or remove [[joints]] tables",
+            )
+        return Robot(
+            l=reader.number(("geometry", "half_link"), 0.0, strictly=True), links=links, **common
+        )
     alphas = reader.get(("geometry", "alphas_deg"), list)
     if len(alphas) != 3 or not all(isinstance(a, int | float) for a in alphas):
         raise reader.fail(("geometry", "alphas_deg"), f"must be 3 angles in degrees, not {alphas}")

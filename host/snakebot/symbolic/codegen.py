@@ -38,16 +38,19 @@ class _Printer(C99CodePrinter):
         return super()._print_Pow(expr)
 
 
-def _trig_of_corners(model: SymbolicModel, exprs: list[sp.Expr]
-                     ) -> tuple[list[sp.Expr], tuple[sp.Symbol, ...]]:
+def _trig_of_corners(
+    model: SymbolicModel, exprs: list[sp.Expr]
+) -> tuple[list[sp.Expr], tuple[sp.Symbol, ...]]:
     """Body-form trident: rewrite cos(phi_i) as cos(nu_i) cos(alpha_i) + sin(nu_i) sin(alpha_i)
     (nu_i = alpha_i + phi_i, whose sine and cosine are needed anyway) with the corner
     angles' cosines and sines as inputs: three fewer libm calls per evaluation."""
     phis, alphas = model.q[3:], model.params[2:]
     cos_a = sp.symbols("cos_alpha1:4", real=True)
     sin_a = sp.symbols("sin_alpha1:4", real=True)
-    rewrite = {sp.cos(p): sp.cos(a + p) * ca + sp.sin(a + p) * sa
-               for p, a, ca, sa in zip(phis, alphas, cos_a, sin_a, strict=True)}
+    rewrite = {
+        sp.cos(p): sp.cos(a + p) * ca + sp.sin(a + p) * sa
+        for p, a, ca, sa in zip(phis, alphas, cos_a, sin_a, strict=True)
+    }
     return [e.subs(rewrite) for e in exprs], (*cos_a, *sin_a)
 
 
@@ -65,8 +68,9 @@ def _c_function(name: str, model: SymbolicModel, names: tuple[str, ...]) -> tupl
         signature = f"void {name}(double l, const double *q, double *out)"
         bound = {params[0]: None}
     else:
-        signature = (f"void {name}(double r, double l, const double *alpha, const double *q, "
-                     "double *out)")
+        signature = (
+            f"void {name}(double r, double l, const double *alpha, const double *q, double *out)"
+        )
         bound = {params[0]: None, params[1]: None}
     used = set().union(*(e.free_symbols for _, e in temps), *(e.free_symbols for e in reduced))
     lines = [signature, "{"]
@@ -93,16 +97,23 @@ def _functions() -> list[tuple[str, str, str]]:
     out = []
     s3 = snake3()
     for suffix, names in (("g", s3.inputs), ("all", tuple(s3.fields))):
-        doc = (f"3-link snake, half-link l, q = (x, y, theta, phi1, phi2): writes "
-               f"{', '.join(names)} (5 components each) to out.")
+        doc = (
+            f"3-link snake, half-link l, q = (x, y, theta, phi1, phi2): writes "
+            f"{', '.join(names)} (5 components each) to out."
+        )
         out.append((doc, *_c_function(f"kin_gen_snake3_{suffix}", s3, names)))
     for form in ("body", "world"):
         tri = trident(form)
         for suffix, names in (("g", tri.inputs), ("all", tuple(tri.fields))):
-            corners = ("alpha = (alpha1..3, cos alpha1..3, sin alpha1..3)" if form == "body"
-                       else "alpha = (alpha1..3)")
-            doc = (f"Trident, {form}-velocity inputs, q = (x, y, theta, phi1..3), {corners}: "
-                   f"writes {', '.join(names)} (6 components each) to out.")
+            corners = (
+                "alpha = (alpha1..3, cos alpha1..3, sin alpha1..3)"
+                if form == "body"
+                else "alpha = (alpha1..3)"
+            )
+            doc = (
+                f"Trident, {form}-velocity inputs, q = (x, y, theta, phi1..3), {corners}: "
+                f"writes {', '.join(names)} (6 components each) to out."
+            )
             out.append((doc, *_c_function(f"kin_gen_trident_{form}_{suffix}", tri, names)))
     return out
 
@@ -129,8 +140,11 @@ def generate() -> dict[str, str]:
 
 def stale_files(directory: Path = CORE_DIR) -> list[str]:
     """Names of generated files that differ from what generate() gives now."""
-    return [name for name, text in generate().items()
-            if not (directory / name).is_file() or (directory / name).read_text() != text]
+    return [
+        name
+        for name, text in generate().items()
+        if not (directory / name).is_file() or (directory / name).read_text() != text
+    ]
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -38,8 +38,10 @@ def field_expressions(robot: Robot, form: str = "body") -> Expressions:
             subs[sym] = _angle(value)
     else:
         subs[model.q[2]] = sp.Integer(0)
-        frame = ("link 1's frame (these are the fields at theta = 0; at any theta, "
-                 "(dx, dy) = R(theta) (x, y), the rest unchanged)")
+        frame = (
+            "link 1's frame (these are the fields at theta = 0; at any theta, "
+            "(dx, dy) = R(theta) (x, y), the rest unchanged)"
+        )
     components = {}
     for name, vec in model.fields.items():
         components[name] = [sp.factor(sp.trigsimp(sp.together(c.subs(subs)))) for c in vec]

@@ -32,7 +32,7 @@ def register_handler_package(package: str) -> None:
         serial.protocol_handler_packages.append(package)
 
 
-EMULATOR_HANDLER_PACKAGE = "snakesim.urlhandler"
+EMULATOR_HANDLER_PACKAGE = "snakebot.sim.urlhandler"
 """Where the emulator's ``sim://`` handler lives. pyserial imports it only when a sim://
 URL is opened, so every ``--port`` reaches the emulated robot at no start-up cost."""
 

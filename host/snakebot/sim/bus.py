@@ -1,0 +1,560 @@
+"""The emulated Dynamixel line: one master, several virtual servos, one wire.
+
+Everything happens on the bus's virtual clock (:attr:`Bus.now`, seconds), which moves
+only when :meth:`Bus.run_until` (or a transport on the bus's behalf) moves it:
+
+* A transmission occupies the wire for 10 bits a byte at its sender's baud rate. Each
+  receiver hears it at its own rate: the same bytes when the rates agree, and what a
+  UART sampling at the wrong rate makes of it otherwise (``snakebot.sim.uart``), which is
+  how a servo left on another baud rate hears garbage.
+* Servos that share a baud rate hear the same bytes, so they share one receiver
+  (``snakebot.sim.receiver``: byte by byte, a damaged frame dropped whole); a packet is
+  handed to every servo when its last byte has arrived, and the status packet goes out
+  Return Delay Time later. A gap of more than 100 ms inside a packet makes the servos
+  drop it.
+* Two drivers on the wire at once (two servos with one ID, a servo answering while the
+  master still talks, a noise burst) garble every byte slot they share.
+* With ``echo`` on, the master hears its own instruction, as on a one-wire adapter.
+* Faults (``snakebot.sim.faults``) are injected from a seed, reproducibly.
+
+A world (body kinematics) steps on the same clock: register a callback with
+:meth:`Bus.every` and read the servos' present positions in it (:meth:`Bus.positions`).
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+
+from snakebot.protocol import BROADCAST_ID, Packet
+from snakebot.sim.clock import BITS_PER_BYTE
+from snakebot.sim.faults import FaultConfig, FaultInjector
+from snakebot.sim.receiver import ServoReceiver
+from snakebot.sim.servo import VirtualServo
+from snakebot.sim.uart import resample, same_baud
+
+INTER_BYTE_GAP_S = 0.1
+"""A pause longer than this inside a packet makes a servo drop the partial packet."""
+
+MASTER = "master"
+NOISE = "noise"
+
+_EPS = 1e-12
+
+
+class _Transmission:
+    """Bytes one driver puts on the wire, back to back from ``start``."""
+
+    __slots__ = ("source", "start", "period", "baud", "data", "end")
+
+    def __init__(self, source: object, start: float, baud: float, data: bytearray) -> None:
+        self.source = source
+        self.start = start
+        self.baud = baud
+        self.period = BITS_PER_BYTE / baud  # clock.byte_time
+        self.data = data
+        self.end = start + len(data) * self.period
+
+
+class _Heard:
+    """What one receiver hears of one transmission: byte i is complete at
+    ``start + (i + 1) * period`` (same rate: shares the transmission's bytes, so later
+    damage from a collision is heard too) or at ``times[i]`` (resampled)."""
+
+    __slots__ = ("data", "start", "period", "times", "pos")
+
+    def __init__(
+        self,
+        data: bytearray | bytes,
+        start: float,
+        period: float,
+        times: list[float] | None = None,
+    ) -> None:
+        self.data = data
+        self.start = start
+        self.period = period
+        self.times = times
+        self.pos = 0
+
+    @classmethod
+    def of(cls, tx: _Transmission, rx_baud: float) -> _Heard:
+        if tx.baud == rx_baud or same_baud(tx.baud, rx_baud):
+            return cls(tx.data, tx.start, tx.period)
+        pairs = resample(bytes(tx.data), tx.baud, rx_baud)
+        return cls(
+            bytes(b for _, b in pairs), tx.start, tx.period, [tx.start + t for t, _ in pairs]
+        )
+
+    def arrival(self, i: int) -> float:
+        if self.times is None:
+            return self.start + (i + 1) * self.period
+        return self.times[i]
+
+    def count_by(self, t: float) -> int:
+        """How many bytes are complete at time ``t``."""
+        n = len(self.data)
+        if self.times is None:
+            k = math.floor((t - self.start) / self.period + 1e-6)
+            return 0 if k < 0 else (k if k < n else n)
+        k = self.pos
+        while k < n and self.times[k] <= t + _EPS:
+            k += 1
+        return k
+
+
+class _Receiver:
+    """The servos that share one baud rate, and the receive state they share (they hear
+    the same bytes, so they find the same packets)."""
+
+    __slots__ = ("baud", "parser", "last_t")
+
+    def __init__(self, baud: float) -> None:
+        self.baud = baud
+        self.parser = ServoReceiver()
+        self.last_t = -math.inf
+
+
+class Schedule:
+    """A call repeated on the bus clock (:meth:`Bus.every`): the ``n``-th at
+    ``first + n * period``, until :meth:`cancel`."""
+
+    __slots__ = ("bus", "period", "fn", "first", "count", "cancelled")
+
+    def __init__(
+        self, bus: Bus, period: float, fn: Callable[[float], object], first: float
+    ) -> None:
+        self.bus = bus
+        self.period = period
+        self.fn = fn
+        self.first = first
+        self.count = 0
+        self.cancelled = False
+
+    def tick(self, t: float) -> None:
+        if self.cancelled:
+            return
+        self.fn(t)
+        self.count += 1
+        if not self.cancelled:
+            self.bus.at(self.first + self.count * self.period, self.tick)
+
+    def cancel(self) -> None:
+        """No more calls (also when called from the schedule's own call)."""
+        if not self.cancelled:
+            self.cancelled = True
+            self.bus._unschedule(self.tick)
+
+
+@dataclass
+class BusStats:
+    """Counters of what happened on the wire."""
+
+    master_bytes_out: int = 0
+    master_bytes_in: int = 0
+    instructions: int = 0
+    replies: int = 0
+    collisions: int = 0
+
+
+def frame_ends(data: bytes | bytearray) -> list[int]:
+    """Where the packets in ``data`` end, by header and LEN alone: the points at which a
+    receiver's parser is fed, so each packet is handled when its last byte arrives."""
+    ends = []
+    i, n = 0, len(data)
+    while i < n:
+        j = data.find(b"\xff\xff", i)
+        if j < 0:
+            break
+        while j + 2 < n and data[j + 2] == 0xFF:
+            j += 1
+        if j + 3 >= n:
+            break
+        end = j + 4 + data[j + 3]
+        if end >= n:
+            break
+        ends.append(end)
+        i = end
+    ends.append(n)
+    return ends
+
+
+class Bus:
+    """A Dynamixel line with virtual servos on a virtual clock; the host is the master.
+
+    ``baudrate`` is the master's UART rate (the servos each have their own, from their
+    Baud Rate register). ``echo``: the master hears its own instructions.
+    """
+
+    def __init__(
+        self,
+        servos: Iterable[VirtualServo] = (),
+        *,
+        baudrate: float = 1_000_000,
+        echo: bool = False,
+        faults: FaultConfig | None = None,
+        supply_v: float | None = None,
+    ) -> None:
+        self.now = 0.0
+        self.servos: list[VirtualServo] = list(servos)
+        self.baudrate = baudrate
+        self.echo = echo
+        self.fault_config = faults or FaultConfig()
+        self.faults = FaultInjector(self.fault_config)
+        self._corrupting = self.fault_config.corrupt > 0
+        self.stats = BusStats()
+        self._events: list[tuple[float, int, Callable, object]] = []
+        self._seq = itertools.count()
+        self._wire: list[_Transmission] = []
+        self._master_rx: list[_Heard] = []
+        self._master_tx_free = 0.0
+        self._servo_tx_free: dict[int, float] = {}
+        self._receivers: dict[float, _Receiver] = {}
+        self._groups: list[tuple[_Receiver, list[VirtualServo]]] | None = None
+        self._others: dict[int, tuple[list[VirtualServo], list[VirtualServo]]] = {}
+        self._by_id: dict[int, VirtualServo] | None = None  # the first servo with each ID
+        self._indexed = 0  # how many servos the index was built from
+        for s in self.servos:
+            s.on_link_change = self._link_changed
+        if supply_v is not None:
+            self.set_supply(supply_v)
+        for b in self.fault_config.brownouts:
+            victims = [s for s in self.servos if s.id == b.servo_id]
+            for s in victims:
+                self.at(b.start_s, lambda t, s=s: s.power_off(t))
+                self.at(b.start_s + b.duration_s, lambda t, s=s: s.power_on(t))
+        noise = self.faults.next_noise(0.0)
+        if noise is not None:
+            self.at(noise[0], self._noise_burst, noise[1])
+
+    # -- set-up ---------------------------------------------------------------------------
+
+    def add(self, servo: VirtualServo) -> VirtualServo:
+        """Put another servo on the line."""
+        servo.advance(self.now)
+        servo.t = self.now
+        servo.on_link_change = self._link_changed
+        self.servos.append(servo)
+        self._groups = None
+        self._by_id = None
+        return servo
+
+    def _link_changed(self, _servo: VirtualServo) -> None:
+        # a servo changed baud rate or ID, or lost/regained power
+        self._groups = None
+        self._by_id = None
+
+    def _listeners(self) -> list[tuple[_Receiver, list[VirtualServo]]]:
+        """The powered servos grouped by baud rate, each group with its shared parser."""
+        if self._groups is None:
+            by_baud: dict[float, list[VirtualServo]] = {}
+            for s in self.servos:
+                if s.powered:
+                    by_baud.setdefault(s.baudrate, []).append(s)
+            groups = []
+            for baud, members in by_baud.items():
+                rx = self._receivers.get(baud)
+                if rx is None:
+                    rx = self._receivers[baud] = _Receiver(baud)
+                groups.append((rx, members))
+            self._groups = groups
+            # each servo's group without it: who hears what the servo sends
+            self._others = {
+                id(s): (members, [o for o in members if o is not s])
+                for _, members in groups
+                for s in members
+            }
+        return self._groups
+
+    def servo(self, servo_id: int) -> VirtualServo:
+        """The (first) servo answering to ``servo_id``."""
+        by_id = self._by_id
+        if by_id is None or self._indexed != len(self.servos):
+            by_id = {}
+            for s in self.servos:
+                by_id.setdefault(s.id, s)
+            self._by_id = by_id
+            self._indexed = len(self.servos)
+        try:
+            return by_id[servo_id]
+        except KeyError:
+            raise KeyError(f"no servo with ID {servo_id} on the bus") from None
+
+    def set_supply(self, volts: float) -> None:
+        """Set the supply voltage every servo sees (from now on)."""
+        for s in self.servos:
+            s.set_supply(self.now, volts)
+
+    # -- the clock ------------------------------------------------------------------------
+
+    def at(self, t: float, fn: Callable, arg: object = None) -> None:
+        """Call ``fn(t)`` (or ``fn(t, arg)`` when ``arg`` is given) at bus time ``t``."""
+        heapq.heappush(self._events, (t, next(self._seq), fn, arg))
+
+    def every(
+        self, period: float, fn: Callable[[float], object], start: float | None = None
+    ) -> Schedule:
+        """Call ``fn(t)`` at ``start`` (default: now) and every ``period`` seconds after,
+        in time order with the bus's own events: how a world steps with the servos.
+        Returns the schedule, to :meth:`Schedule.cancel` it."""
+        if not period > 0:
+            raise ValueError("period must be positive")
+        schedule = Schedule(self, period, fn, self.now if start is None else start)
+        self.at(schedule.first, schedule.tick)
+        return schedule
+
+    def _unschedule(self, fn: Callable) -> None:
+        """Drop the pending events that would call ``fn``."""
+        kept = [e for e in self._events if e[2] != fn]
+        if len(kept) != len(self._events):
+            heapq.heapify(kept)
+            self._events[:] = kept
+
+    def next_event_time(self) -> float | None:
+        """When the next scheduled event happens (None if none)."""
+        return self._events[0][0] if self._events else None
+
+    def run_until(self, t: float) -> None:
+        """Run every event up to bus time ``t`` and leave the clock at ``t``."""
+        events = self._events
+        while events and events[0][0] <= t:
+            et, _, fn, arg = heapq.heappop(events)
+            if et > self.now:
+                self.now = et
+            if arg is None:
+                fn(self.now)
+            else:
+                fn(self.now, arg)
+        if t > self.now:
+            self.now = t
+
+    def advance(self, dt: float) -> None:
+        """Run the bus for ``dt`` seconds."""
+        self.run_until(self.now + dt)
+
+    def run_until_master_data(self, deadline: float, count: int = 1) -> bool:
+        """Run until ``count`` bytes for the master have arrived or ``deadline`` passes;
+        return whether any have. What a blocking read does in virtual time."""
+        events = self._events
+        while True:
+            available = self.master_in_waiting()
+            if available >= count:
+                return True
+            t_byte = self.next_master_arrival(count - available)
+            t_event = events[0][0] if events else math.inf
+            if t_byte is not None and t_byte <= self.now:
+                break  # cannot happen (arrived bytes are counted); never spin on it
+            if t_byte is not None and t_byte <= t_event:
+                if t_byte > deadline:
+                    break
+                self.run_until(t_byte)
+                continue
+            if t_event > deadline:
+                break
+            self.run_until(t_event)
+        if deadline != math.inf:
+            self.run_until(deadline)
+        return self.master_in_waiting() > 0
+
+    # -- the world's view ------------------------------------------------------------------
+
+    def positions(self, ids: Iterable[int] | None = None) -> list[float]:
+        """Present positions (ticks, unrounded) now, for ``ids`` in order or every servo."""
+        servos = self.servos if ids is None else [self.servo(i) for i in ids]
+        now = self.now
+        for s in servos:
+            s.advance(now)
+        return [s.pos for s in servos]
+
+    # -- the master's side ----------------------------------------------------------------
+
+    def master_write(self, data: bytes) -> None:
+        """The master sends ``data`` (starting now, or when its UART is free)."""
+        if not data:
+            return
+        start = self.now if self.now > self._master_tx_free else self._master_tx_free
+        tx = self._transmit(MASTER, start, self.baudrate, bytearray(data))
+        self._master_tx_free = tx.end
+        self.stats.master_bytes_out += len(data)
+
+    @property
+    def master_tx_done(self) -> float:
+        """When the master's UART will have sent everything it was given."""
+        return self._master_tx_free
+
+    def master_in_waiting(self) -> int:
+        """Bytes that have reached the master and not been read."""
+        streams = self._master_rx
+        if not streams:
+            return 0
+        now = self.now
+        if len(streams) == 1:
+            h = streams[0]
+            return h.count_by(now) - h.pos
+        return sum(h.count_by(now) - h.pos for h in streams)
+
+    def next_master_arrival(self, count: int = 1) -> float | None:
+        """When ``count`` more bytes still on their way will have reached the master (the
+        last of them, if fewer are on their way); None if none are on their way."""
+        streams = self._master_rx
+        if not streams:
+            return None
+        now = self.now
+        if len(streams) == 1:
+            h = streams[0]
+            last = len(h.data) - 1
+            k = h.count_by(now)
+            if k > last:
+                return None
+            i = k + count - 1
+            return h.arrival(i if i < last else last)
+        times = []
+        for h in streams:
+            k = h.count_by(now)
+            times += [h.arrival(i) for i in range(k, min(len(h.data), k + count))]
+        if not times:
+            return None
+        times.sort()
+        return times[min(count, len(times)) - 1]
+
+    def master_read(self, size: int) -> bytes:
+        """Up to ``size`` bytes that have reached the master, oldest first."""
+        streams = self._master_rx
+        if not streams or size <= 0:
+            return b""
+        now = self.now
+        if len(streams) == 1:
+            h = streams[0]
+            k = min(h.count_by(now), h.pos + size)
+            out = bytes(h.data[h.pos : k])
+            h.pos = k
+            if k >= len(h.data):
+                streams.clear()
+        else:
+            # several streams (a collision, noise, echo): merge what has arrived by time
+            arrived = sorted(
+                (h.arrival(i), n, i)
+                for n, h in enumerate(streams)
+                for i in range(h.pos, h.count_by(now))
+            )[:size]
+            out = bytes(streams[n].data[i] for _, n, i in arrived)
+            for _, n, i in arrived:
+                streams[n].pos = i + 1
+            self._master_rx = [h for h in streams if h.pos < len(h.data)]
+        self.stats.master_bytes_in += len(out)
+        return out
+
+    def master_flush_input(self) -> None:
+        """Discard what has reached the master (bytes still on the wire will arrive)."""
+        if not self._master_rx:
+            return
+        now = self.now
+        for h in self._master_rx:
+            h.pos = max(h.pos, h.count_by(now))
+        self._master_rx = [h for h in self._master_rx if h.pos < len(h.data)]
+
+    # -- the wire -------------------------------------------------------------------------
+
+    def _transmit(
+        self, source: object, start: float, baud: float, data: bytearray
+    ) -> _Transmission:
+        if self._corrupting:
+            self.faults.corrupt(data)
+        tx = _Transmission(source, start, baud, data)
+        now = self.now
+        wire = []  # what is still on the wire, oldest first
+        for other in self._wire:
+            if other.end > now:
+                wire.append(other)
+                if other.end > tx.start and other.start < tx.end:
+                    self._collide(other, tx)
+        wire.append(tx)
+        self._wire = wire
+        # the master hears servos and noise, and its own bytes when the line echoes
+        if source is not MASTER or self.echo:
+            if baud == self.baudrate:
+                self._master_rx.append(_Heard(data, tx.start, tx.period))
+            else:
+                self._master_rx.append(_Heard.of(tx, self.baudrate))
+        # the servos hear everything but their own voice
+        groups = self._groups
+        if groups is None:
+            groups = self._listeners()
+        own = None
+        if source is not MASTER and source is not NOISE:
+            own = self._others.get(id(source))
+        events = self._events
+        for rx, members in groups:
+            if own is not None and members is own[0]:
+                members = own[1]
+                if not members:
+                    continue
+            if tx.baud == rx.baud:
+                heard = _Heard(data, tx.start, tx.period)
+            else:
+                heard = _Heard.of(tx, rx.baud)
+            hd = heard.data
+            n = len(hd)
+            if n >= 6 and hd[0] == 0xFF and hd[1] == 0xFF and hd[2] != 0xFF and hd[3] + 4 == n:
+                ends: Iterable[int] = (n,)  # one whole frame, the usual case
+            else:
+                ends = frame_ends(hd)
+            i0 = 0
+            for end in ends:
+                if end > i0:
+                    job = (rx, heard, i0, end, members)
+                    heapq.heappush(
+                        events, (heard.arrival(end - 1), next(self._seq), self._deliver, job)
+                    )
+                i0 = end
+        if source is MASTER:
+            self.stats.instructions += 1
+        return tx
+
+    def _collide(self, a: _Transmission, b: _Transmission) -> None:
+        lo = max(a.start, b.start)
+        hi = min(a.end, b.end)
+        self.stats.collisions += 1
+        for tx in (a, b):
+            i0 = max(0, math.floor((lo - tx.start) / tx.period))
+            i1 = min(len(tx.data), math.ceil((hi - tx.start) / tx.period))
+            for i in range(i0, i1):
+                tx.data[i] = self.faults.collision_byte()
+
+    def _deliver(self, t: float, job: tuple) -> None:
+        rx, heard, i0, i1, members = job
+        parser = rx.parser
+        if parser.pending and heard.arrival(i0) - rx.last_t > INTER_BYTE_GAP_S:
+            parser.reset()
+        rx.last_t = t
+        for event in parser.feed(heard.data[i0:i1]):  # a slice is a copy
+            # a packet for one ID concerns only the servos with that ID (the others
+            # ignore it); every servo looks at a damaged one
+            target = event.id if type(event) is Packet else BROADCAST_ID
+            for s in members:
+                if target == BROADCAST_ID or s.id == target:
+                    reply = s.receive(event, t)
+                    if reply is not None:
+                        self._reply(s, reply, t)
+
+    def _reply(self, servo: VirtualServo, reply: tuple[bytes, float], t: float) -> None:
+        faults = self.faults
+        if faults.drop_reply():
+            return
+        packet, baud = reply
+        start = t + servo.return_delay_s + faults.reply_delay()
+        key = id(servo)
+        free = self._servo_tx_free.get(key, 0.0)
+        if free > start:
+            start = free
+        tx = self._transmit(servo, start, baud, bytearray(packet))
+        self._servo_tx_free[key] = tx.end
+        self.stats.replies += 1
+
+    def _noise_burst(self, t: float, data: bytes) -> None:
+        self._transmit(NOISE, t, self.baudrate, bytearray(data))
+        nxt = self.faults.next_noise(t)
+        if nxt is not None:
+            self.at(nxt[0], self._noise_burst, nxt[1])

@@ -1,0 +1,410 @@
+"""The emulated robot with its real firmware: QEMU, the emulated servo bus and the world.
+
+:class:`EmulatedRobot` starts, in this order,
+
+1. the robot's virtual AX-12s on an emulated bus (:mod:`snakebot.sim.bus`), served on a Unix
+   socket in a private work directory (:class:`~snakebot.sim.transports.unixsock.UnixSocketServer`,
+   the bus clock tied to the wall clock);
+2. the world (:class:`snakebot.sim.world.World`): the body on the floor, sampling the servos
+   every 10 ms of bus time from the moment the firmware connects;
+3. ``qemu-system-arm`` running the firmware (:class:`snakebot.sim.qemu.QemuFirmware`) with
+   USART1, the Dynamixel bus, connected to that socket and USART3, the PC link, on a
+   pseudo-terminal that host tools open like the CM-530's USB-serial port;
+
+and waits until the firmware answers PING on the PC link. :meth:`EmulatedRobot.stop`
+(also on leaving a ``with`` block) stops QEMU (QMP quit, then SIGTERM, then SIGKILL),
+then the bus server, and removes the work directory; QEMU also dies with the thread that
+started it, so even a killed host leaves no emulator behind.
+
+::
+
+    with EmulatedRobot("snake5") as robot:          # build/qemu/firmware.elf
+        print(robot.info.pc_link)                   # /dev/pts/N, 57600 baud, ID 200
+        ...                                         # snakebot upload/play/monitor --port
+        print(robot.record().displacement())        # how far the body went
+
+The firmware may be given as the application ELF (``build/qemu/firmware.elf``, linked
+at 0x08003000: the boot stub from the same directory is put in front of it, as the
+CM-530's bootloader sits in front of the application) or as a whole-flash raw image
+(``build/qemu/flash.bin``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import struct
+import tempfile
+import time
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+import numpy as np
+
+from snakebot.protocol import DxlTimeout, ProtocolError
+from snakebot.robots import Robot, load_robot
+from snakebot.sim.bus import Bus
+from snakebot.sim.errors import SimError
+from snakebot.sim.options import SimOptions
+from snakebot.sim.qemu import REPO_ROOT, Endpoint, QemuFirmware
+from snakebot.sim.servo import VirtualServo
+from snakebot.sim.transports.unixsock import UnixSocketServer
+from snakebot.sim.world import World, WorldRecord
+from snakebot.transport import DxlClient
+
+DEFAULT_FIRMWARE = REPO_ROOT / "build" / "qemu" / "firmware.elf"
+"""The qemu board's application image, as ``make firmware`` builds it."""
+
+FLASH_BASE = 0x08000000
+FLASH_SIZE = 128 * 1024  # stm32vldiscovery (STM32F100RB)
+APP_BASE = 0x08003000
+"""Where the application starts (after the boot stub), as on the CM-530."""
+
+CONTROLLER_ID = 200
+"""The firmware's Protocol 1.0 ID on the PC link (factory default)."""
+
+PC_LINK_BAUD = 57600
+
+BOOT_TIMEOUT_S = 20.0
+"""How long :meth:`EmulatedRobot.start` waits for the firmware to answer on the PC link."""
+
+BOOT_PING_MARGIN_S = 0.2
+"""Reply margin of the boot-time PINGs (QEMU may be descheduled on a busy machine)."""
+
+PC_LINK_MARGIN_S = 0.5
+"""Reply margin for programs driving the emulated PC link: QEMU answers within a
+millisecond or two, unless the host deschedules it for a while on a busy machine."""
+
+
+class ServeError(SimError):
+    """The emulated robot could not be started as asked (the message says how to fix it)."""
+
+
+@dataclass(frozen=True)
+class ServeInfo:
+    """Where to reach the running emulated robot."""
+
+    pc_link: str
+    """The firmware's PC link (USART3): a pseudo-terminal, 57600 baud, controller ID 200."""
+    bus_socket: str
+    """The Unix socket carrying USART1 to the emulated servos."""
+    qemu_pid: int
+    robot: str
+    servo_ids: tuple[int, ...]
+    firmware: str
+    controller_id: int = CONTROLLER_ID
+    baudrate: int = PC_LINK_BAUD
+
+    def as_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["servo_ids"] = list(self.servo_ids)
+        return out
+
+
+# -- the flash image ----------------------------------------------------------------------
+
+
+def _elf_segments(path: Path) -> list[tuple[int, bytes]]:
+    """(load address, bytes) of each loadable segment with file contents of a 32-bit
+    little-endian ARM ELF, or ServeError naming what is wrong with the file."""
+    data = path.read_bytes()
+    if data[:4] != b"\x7fELF" or len(data) < 52:
+        raise ServeError(
+            f"{path} is not an ELF file: give build/qemu/firmware.elf or a raw flash image (.bin)"
+        )
+    if data[4] != 1 or data[5] != 1:
+        raise ServeError(f"{path} is not a 32-bit little-endian ELF: is it an ARM firmware?")
+    machine = struct.unpack_from("<H", data, 18)[0]
+    if machine != 40:  # EM_ARM
+        raise ServeError(
+            f"{path} is an ELF for machine {machine}, not ARM: build the "
+            "firmware with `make firmware`"
+        )
+    (phoff,) = struct.unpack_from("<I", data, 28)
+    phentsize, phnum = struct.unpack_from("<HH", data, 42)
+    segments = []
+    for i in range(phnum):
+        p_type, p_offset, _vaddr, p_paddr, p_filesz = struct.unpack_from(
+            "<IIIII", data, phoff + i * phentsize
+        )
+        if p_type == 1 and p_filesz:  # PT_LOAD with contents (its load address: p_paddr)
+            segments.append((p_paddr, data[p_offset : p_offset + p_filesz]))
+    if not segments:
+        raise ServeError(f"{path} has nothing to load: rebuild it with `make firmware`")
+    return segments
+
+
+def flash_image(firmware: str | os.PathLike[str], out: str | os.PathLike[str]) -> Path:
+    """The whole-flash raw image QEMU boots, written to ``out``.
+
+    ``firmware`` is a raw image (``.bin``: copied as it is, loaded at 0x08000000) or an
+    ELF. An ELF whose code starts at the application base (0x08003000) gets the boot stub
+    (``stub.elf`` beside it, else the default build's) put in front, as ``make firmware``
+    lays out ``flash.bin``; the gap is erased flash (0xFF)."""
+    src = Path(firmware)
+    if not src.is_file():
+        where = DEFAULT_FIRMWARE.relative_to(REPO_ROOT)
+        hint = (
+            "run `make firmware` to build it"
+            if src == DEFAULT_FIRMWARE
+            else f"check the path; `make firmware` builds {where}"
+        )
+        raise ServeError(f"firmware image {src} not found: {hint}")
+    dest = Path(out)
+    if src.read_bytes()[:4] != b"\x7fELF":
+        shutil.copyfile(src, dest)
+        return dest
+    segments = _elf_segments(src)
+    if min(addr for addr, _ in segments) >= APP_BASE:
+        stub = next(
+            (
+                p
+                for p in (src.parent / "stub.elf", DEFAULT_FIRMWARE.parent / "stub.elf")
+                if p.is_file()
+            ),
+            None,
+        )
+        if stub is None:
+            raise ServeError(
+                f"{src} is an application image but no boot stub (stub.elf) was "
+                "found beside it: run `make firmware`"
+            )
+        segments = _elf_segments(stub) + segments
+    image = bytearray(b"\xff" * FLASH_SIZE)
+    end = 0
+    for addr, blob in segments:
+        start = addr - FLASH_BASE
+        if start < 0 or start + len(blob) > FLASH_SIZE:
+            raise ServeError(
+                f"{src}: a segment at 0x{addr:08x} ({len(blob)} bytes) is outside "
+                "the emulated board's 128 KB flash: build it for the qemu board "
+                "(`make firmware` builds build/qemu/firmware.elf)"
+            )
+        image[start : start + len(blob)] = blob
+        end = max(end, start + len(blob))
+    dest.write_bytes(bytes(image[:end]))
+    return dest
+
+
+class GoalLog:
+    """Each servo's Goal Position register (the last goal the master sent it), sampled on
+    the bus clock every ``period`` seconds from ``start``, like the world's samples."""
+
+    def __init__(self, bus: Bus, ids: tuple[int, ...], period: float, start: float) -> None:
+        self._servos = [bus.servo(i) for i in ids]
+        self._start = start
+        self._t: list[float] = []
+        self._rows: list[list[int]] = []
+        bus.every(period, self._sample, start=start)
+
+    def _sample(self, t: float) -> None:
+        self._t.append(t - self._start)
+        self._rows.append([s.regs.get("Goal Position") for s in self._servos])
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """(times in seconds since ``start``, goals: rows x servos)."""
+        t = np.asarray(self._t, dtype=float)
+        rows = np.asarray(self._rows, dtype=float).reshape(len(self._t), len(self._servos))
+        return t, rows
+
+
+# -- the emulated robot -------------------------------------------------------------------
+
+
+class EmulatedRobot:
+    """The robot's emulated servos and body, driven by the real firmware under QEMU.
+
+    ``robot``: a built-in name or a robot TOML file (or a :class:`Robot`). ``firmware``:
+    the image to run (default ``build/qemu/firmware.elf``). ``sim_query``: extra emulator
+    options as in a ``sim://`` URL (``corrupt=0.001&seed=3``; see ``snakebot sim bus
+    --help``). ``world_period``: seconds of bus time between the world's samples.
+    """
+
+    def __init__(
+        self,
+        robot: str | Robot = "snake5",
+        firmware: str | os.PathLike[str] | None = None,
+        *,
+        sim_query: str = "",
+        world_period: float = 0.01,
+    ) -> None:
+        self.robot = robot if isinstance(robot, Robot) else load_robot(robot)
+        self.firmware = Path(firmware) if firmware is not None else DEFAULT_FIRMWARE
+        self.sim_query = sim_query
+        self.world_period = world_period
+        self._workdir: str | None = None
+        self._server: UnixSocketServer | None = None
+        self._qemu: QemuFirmware | None = None
+        self._world: World | None = None
+        self._bus: Bus | None = None
+        self._goals: GoalLog | None = None
+        self._info: ServeInfo | None = None
+
+    # -- lifecycle ------------------------------------------------------------------------
+
+    def start(self, boot_timeout: float = BOOT_TIMEOUT_S) -> ServeInfo:
+        """Start the bus, the world and QEMU; return once the firmware answers PING."""
+        if self._info is not None:
+            return self._info
+        self._workdir = tempfile.mkdtemp(prefix="snakebot-serve-")
+        try:
+            image = flash_image(self.firmware, Path(self._workdir) / "flash.bin")
+            options = SimOptions.from_query(self.sim_query)
+            if options.robot or options.ids:
+                raise ServeError(
+                    "the robot's servos come from --robot: leave robot= and ids= "
+                    "out of the emulator options"
+                )
+            source = self.robot.source or self.robot.name
+            self._bus = replace(options, robot=source).build_bus()
+            sock = Path(self._workdir) / "bus.sock"
+            self._server = UnixSocketServer(self._bus, sock).start()
+            with self._server.lock:  # type: ignore[attr-defined]
+                self._world = World(self._bus, self.robot, period=self.world_period)
+                self._goals = GoalLog(
+                    self._bus, self.robot.servo_ids, self.world_period, self._world.start_time
+                )
+            self._qemu = QemuFirmware(image, bus=Endpoint.unix_client(sock))
+            ports = self._qemu.start()
+            self._wait_for_boot(ports.pc_link, boot_timeout)
+            assert self._qemu.pid is not None
+            self._info = ServeInfo(
+                pc_link=ports.pc_link,
+                bus_socket=str(sock),
+                qemu_pid=self._qemu.pid,
+                robot=self.robot.name,
+                servo_ids=tuple(self.robot.servo_ids),
+                firmware=str(self.firmware),
+            )
+        except BaseException:
+            self.stop()
+            raise
+        return self._info
+
+    def _wait_for_boot(self, pc_link: str, timeout: float) -> None:
+        assert self._qemu is not None
+        deadline = time.monotonic() + timeout
+        with DxlClient(pc_link, PC_LINK_BAUD, margin_s=BOOT_PING_MARGIN_S, echo=False) as c:
+            while True:
+                try:
+                    c.ping(CONTROLLER_ID, retries=0)
+                    return
+                except (DxlTimeout, ProtocolError):
+                    pass
+                if not self._qemu.running:
+                    raise ServeError(
+                        f"QEMU exited while the firmware booted: "
+                        f"{self._qemu.log().strip() or 'no output'}"
+                    )
+                if time.monotonic() > deadline:
+                    raise ServeError(
+                        f"the firmware did not answer PING (ID {CONTROLLER_ID}) on its PC link "
+                        f"within {timeout:.0f} s: is {self.firmware} the qemu board's image "
+                        "(`make firmware`)? QEMU said: "
+                        f"{self._qemu.log().strip() or 'nothing'}"
+                    )
+
+    def stop(self) -> None:
+        """Stop QEMU, then the bus server and the world; remove the work directory.
+        Idempotent; also runs when ``start`` fails half-way."""
+        if self._qemu is not None:
+            self._qemu.stop()
+        if self._server is not None:
+            self._server.close()
+        if self._world is not None and self._world.running:
+            with contextlib.suppress(Exception):  # the record stays; stopping must not fail
+                self._world.stop()
+        if self._workdir is not None:
+            shutil.rmtree(self._workdir, ignore_errors=True)
+            self._workdir = None
+        self._info = None
+
+    def __enter__(self) -> EmulatedRobot:
+        self.start()
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.stop()
+
+    # -- while it runs --------------------------------------------------------------------
+
+    @property
+    def info(self) -> ServeInfo:
+        if self._info is None:
+            raise ServeError("the emulated robot is not running: call start() first")
+        return self._info
+
+    @property
+    def running(self) -> bool:
+        """QEMU and the bus server are both alive."""
+        return bool(self._qemu and self._qemu.running and self._server and self._server.running)
+
+    @property
+    def qemu(self) -> QemuFirmware:
+        if self._qemu is None:
+            raise ServeError("the emulated robot is not running: call start() first")
+        return self._qemu
+
+    @property
+    def lock(self) -> Any:
+        """Hold this while touching the bus, its servos or the world from another thread."""
+        if self._server is None:
+            raise ServeError("the emulated robot is not running: call start() first")
+        return self._server.lock
+
+    @property
+    def bus(self) -> Bus:
+        if self._bus is None:
+            raise ServeError("the emulated robot is not running: call start() first")
+        return self._bus
+
+    @property
+    def world(self) -> World:
+        if self._world is None:
+            raise ServeError("the emulated robot is not running: call start() first")
+        return self._world
+
+    def now(self) -> float:
+        """The bus clock (seconds), which the world's sample times count from its start."""
+        with self.lock:
+            return self.bus.now
+
+    def world_time(self) -> float:
+        """Seconds of world time now (the time axis of :meth:`record`)."""
+        with self.lock:
+            return self.bus.now - self.world.start_time
+
+    def positions(self) -> list[float]:
+        """The servos' present positions (ticks), in the robot's joint order."""
+        with self.lock:
+            return self.bus.positions(self.robot.servo_ids)
+
+    def servo(self, servo_id: int) -> VirtualServo:
+        return self.bus.servo(servo_id)
+
+    def record(self) -> WorldRecord:
+        """What the world has seen so far (the body pose, joint angles, slip)."""
+        with self.lock:
+            return self.world.record()
+
+    def goals(self) -> tuple[np.ndarray, np.ndarray]:
+        """The goal positions the firmware has sent the servos (ticks, one column per
+        joint) at the world's sample times (seconds of world time): what it commanded."""
+        if self._goals is None:
+            raise ServeError("the emulated robot is not running: call start() first")
+        with self.lock:
+            return self._goals.arrays()
+
+    def push(self, servo_id: int, torque_nm: float) -> None:
+        """From now on the outside world pushes servo ``servo_id``'s horn with
+        ``torque_nm`` (more than the servo can hold: it reports OVERLOAD)."""
+        with self.lock:
+            self.bus.servo(servo_id).set_external_torque(self.bus.now, torque_nm)

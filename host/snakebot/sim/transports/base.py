@@ -1,0 +1,106 @@
+"""What the emulator's servers share: a raw pseudo-terminal that may carry a symlink
+(:class:`RawPty`), and the start/close life cycle, usable as a context manager
+(:class:`Server`, :class:`ThreadedServer`)."""
+
+from __future__ import annotations
+
+import os
+import tty
+from pathlib import Path
+from types import TracebackType
+from typing import Self
+
+from snakebot.sim.errors import SimError
+from snakebot.sim.transports.pump import ServerThread
+
+
+class RawPty:
+    """A pseudo-terminal pair for a server: the slave in raw mode (no echo, no line
+    editing: bytes pass untouched), the master non-blocking.
+
+    ``link``: on :meth:`open`, also make a symlink at this path to the device (replacing
+    an old symlink, never a real file: ``link_advice`` then ends the error); :meth:`close`
+    removes it. The server keeps the slave open itself, so clients may open and close the
+    device as often as they like.
+    """
+
+    def __init__(
+        self,
+        link: str | os.PathLike[str] | None = None,
+        *,
+        link_advice: str = "choose another path",
+    ) -> None:
+        self.link = Path(link) if link else None
+        self.link_advice = link_advice
+        self.master = self.slave = -1
+        self.device = ""
+
+    def open(self) -> str:
+        """Create the pseudo-terminal (and the link); returns the device path."""
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.slave)
+        os.set_blocking(self.master, False)
+        self.device = os.ttyname(self.slave)
+        if self.link is not None:
+            if self.link.exists() and not self.link.is_symlink():
+                self.close()
+                raise SimError(f"{self.link} exists and is not a symlink: {self.link_advice}")
+            if self.link.is_symlink():
+                self.link.unlink()
+            self.link.symlink_to(self.device)
+        return self.device
+
+    def close(self) -> None:
+        """Close both ends and remove the link (if it is still a symlink)."""
+        for fd in (self.master, self.slave):
+            if fd >= 0:
+                os.close(fd)
+        self.master = self.slave = -1
+        if self.link is not None and self.link.is_symlink():
+            self.link.unlink()
+
+
+class Server:
+    """A server that :meth:`start` sets serving on ``_thread`` and :meth:`close` stops.
+    ``with server:`` starts it unless it was started already, and closes it at the end."""
+
+    _thread: object | None = None
+
+    def start(self) -> Self:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+    def __enter__(self) -> Self:
+        return self.start() if self._thread is None else self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+
+class ThreadedServer(Server):
+    """A :class:`Server` whose thread is a :class:`ServerThread`."""
+
+    _thread: ServerThread | None = None
+
+    @property
+    def lock(self) -> object:
+        """Hold this while touching what the server serves from another thread."""
+        assert self._thread is not None, "start() first"
+        return self._thread.lock
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.alive
+
+    def _stop_thread(self) -> None:
+        """Wake the serving thread, wait for it, and forget it."""
+        if self._thread is not None:
+            self._thread.stop()
+            self._thread = None

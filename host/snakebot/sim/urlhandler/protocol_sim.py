@@ -1,0 +1,256 @@
+"""``sim://``: a pyserial port whose far end is an emulated Dynamixel bus.
+
+    port = serial.serial_for_url("sim://?robot=snake5&echo=1&corrupt=0.01", baudrate=1000000)
+
+Anything that takes a pyserial URL reaches the emulator unchanged. Options are listed
+in ``snakebot.sim.options.OPTIONS``. ``sim://NAME?...`` names the bus: it lives as long as
+the process, so a later ``sim://NAME`` finds the servos as they were left (settings,
+positions), like a robot that stayed powered; one port at a time may have it open.
+
+Time: by default the bus runs as fast as possible. A blocking read runs the bus's
+virtual clock forward until the bytes it waits for have arrived or its timeout has
+passed in bus time; a non-blocking read (or ``in_waiting``) lets the bus run to its
+next happening, so a polling client is not left waiting. A read that times out with
+nothing at all still takes its timeout in wall time, so a client retrying on the wall
+clock does not race the bus clock ahead. With ``realtime=1`` the bus clock follows the
+wall clock instead.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from urllib.parse import urlsplit
+
+from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes
+
+from snakebot.errors import SnakebotError
+from snakebot.sim.bus import Bus
+from snakebot.sim.clock import WallClockPacer
+from snakebot.sim.options import URL_FORM, SimOptions
+
+POLL_HORIZON_S = 0.1
+"""A non-blocking read lets the bus run at most this far ahead to find the next byte."""
+
+BLOCKING_SLICE_S = 0.1
+"""A read with no timeout waits in slices of this much bus (and wall) time."""
+
+_named: dict[str, tuple[SimOptions, Bus]] = {}
+_in_use: set[str] = set()
+_registry_lock = threading.Lock()
+
+
+def named_bus(name: str) -> Bus | None:
+    """The bus opened earlier as ``sim://NAME`` (None if there is none)."""
+    with _registry_lock:
+        entry = _named.get(name)
+    return entry[1] if entry else None
+
+
+def forget_named_buses() -> None:
+    """Drop every named bus (tests use this for a clean slate)."""
+    with _registry_lock:
+        _named.clear()
+        _in_use.clear()
+
+
+class Serial(SerialBase):
+    """A serial port onto an emulated bus; the host is the bus master."""
+
+    def __init__(self, *args: object, **kwargs: object) -> None:
+        self.bus: Bus | None = None
+        self.options: SimOptions | None = None
+        self._name = ""
+        self._lock = threading.RLock()
+        self._pacer: WallClockPacer | None = None
+        super().__init__(*args, **kwargs)
+
+    # -- opening --------------------------------------------------------------------------
+
+    def open(self) -> None:
+        if self.is_open:
+            raise SerialException("Port is already open.")
+        if self._port is None:
+            raise SerialException("Port must be configured before it can be used.")
+        self.bus, self.options, self._name = self._attach(self.port)
+        if self.options.realtime:
+            self._pacer = WallClockPacer()
+            self._pacer.anchor(self.bus.now)
+        self.is_open = True
+        self._reconfigure_port()
+        self.reset_input_buffer()
+
+    def _attach(self, url: str) -> tuple[Bus, SimOptions, str]:
+        parts = urlsplit(url)
+        if parts.scheme != "sim":
+            raise SerialException(f"expected {URL_FORM}, not {url!r}")
+        try:
+            options = SimOptions.from_query(parts.query)
+            name = parts.netloc + parts.path.strip("/")
+            if not name:
+                return options.build_bus(self._baudrate), options, ""
+            with _registry_lock:
+                if name in _in_use:
+                    raise SerialException(
+                        f"sim://{name} is already open: close the other port first (one "
+                        "master per bus), or use another name"
+                    )
+                entry = _named.get(name)
+                if entry is None:
+                    entry = _named[name] = (options, options.build_bus(self._baudrate))
+                elif parts.query and entry[0] != options:
+                    raise SerialException(
+                        f"sim://{name} already exists with other options: open it as "
+                        f"sim://{name} without options, or use another name"
+                    )
+                _in_use.add(name)
+            return entry[1], entry[0], name
+        except SnakebotError as exc:  # a bad option, a robot file or state file that fails
+            raise SerialException(str(exc)) from exc
+
+    def close(self) -> None:
+        if self.is_open and self._name:
+            with _registry_lock:
+                _in_use.discard(self._name)
+        self.is_open = False
+        super().close()
+
+    def _reconfigure_port(self) -> None:
+        if not self.is_open or self.bus is None:
+            return
+        if not (isinstance(self._baudrate, (int, float)) and self._baudrate > 0):
+            raise ValueError(f"invalid baudrate: {self._baudrate!r}")
+        with self._lock:
+            self.bus.baudrate = self._baudrate
+
+    # -- time -----------------------------------------------------------------------------
+
+    def _sync(self) -> None:
+        if self._pacer is not None:
+            self.bus.run_until(self._pacer.now())
+
+    def _poll_step(self) -> None:
+        """Nothing for us yet: let the bus run to its next happening, if one is near."""
+        bus = self.bus
+        times = [t for t in (bus.next_master_arrival(), bus.next_event_time()) if t is not None]
+        if times and min(times) <= bus.now + POLL_HORIZON_S:
+            bus.run_until(min(times))
+
+    # -- the data path --------------------------------------------------------------------
+
+    @property
+    def in_waiting(self) -> int:
+        if not self.is_open:
+            raise PortNotOpenError()
+        with self._lock:
+            self._sync()
+            n = self.bus.master_in_waiting()
+            if n == 0 and self._pacer is None:
+                self._poll_step()
+                n = self.bus.master_in_waiting()
+            return n
+
+    def read(self, size: int = 1) -> bytes:
+        if not self.is_open:
+            raise PortNotOpenError()
+        if size <= 0:
+            return b""
+        if self._pacer is not None:
+            return self._read_realtime(size)
+        with self._lock:
+            bus = self.bus
+            out = bytearray(bus.master_read(size))
+            timeout = self._timeout
+            if len(out) >= size:
+                return bytes(out)
+            if timeout == 0:
+                for _ in range(size - len(out)):
+                    before = bus.now
+                    self._poll_step()
+                    out += bus.master_read(size - len(out))
+                    if len(out) >= size or bus.now == before:
+                        break
+                return bytes(out)
+            blocking = timeout is None
+            deadline = bus.now + (BLOCKING_SLICE_S if blocking else timeout)
+            while len(out) < size and self.is_open:
+                if bus.run_until_master_data(deadline, size - len(out)):
+                    got = bus.master_read(size - len(out))
+                    out += got
+                    if got:
+                        continue
+                if not blocking:
+                    break
+                time.sleep(BLOCKING_SLICE_S)  # nothing on its way: wait like a real port
+                deadline = bus.now + BLOCKING_SLICE_S
+        if not out and timeout:
+            time.sleep(timeout)  # a timeout costs its time, or a retrying client spins
+        return bytes(out)
+
+    def _read_realtime(self, size: int) -> bytes:
+        timeout = self._timeout
+        wall_deadline = math.inf if timeout is None else time.monotonic() + timeout
+        out = bytearray()
+        while self.is_open:
+            with self._lock:
+                self._sync()
+                out += self.bus.master_read(size - len(out))
+                nxt = self.bus.next_master_arrival()
+                wait = self._pacer.wall_delay(nxt) if nxt is not None else BLOCKING_SLICE_S
+            if len(out) >= size or timeout == 0:
+                break
+            remaining = wall_deadline - time.monotonic()
+            if remaining <= 0:
+                break
+            time.sleep(min(max(wait, 0.0), remaining, BLOCKING_SLICE_S))
+        return bytes(out)
+
+    def write(self, data: bytes) -> int:
+        if not self.is_open:
+            raise PortNotOpenError()
+        data = to_bytes(data)
+        with self._lock:
+            self._sync()
+            self.bus.master_write(data)
+        return len(data)
+
+    def reset_input_buffer(self) -> None:
+        if not self.is_open:
+            raise PortNotOpenError()
+        with self._lock:
+            self._sync()
+            self.bus.master_flush_input()
+
+    def reset_output_buffer(self) -> None:
+        if not self.is_open:
+            raise PortNotOpenError()
+
+    @property
+    def out_waiting(self) -> int:
+        return 0
+
+    def _update_break_state(self) -> None:
+        pass
+
+    def _update_rts_state(self) -> None:
+        pass
+
+    def _update_dtr_state(self) -> None:
+        pass
+
+    @property
+    def cts(self) -> bool:
+        return True
+
+    @property
+    def dsr(self) -> bool:
+        return True
+
+    @property
+    def ri(self) -> bool:
+        return False
+
+    @property
+    def cd(self) -> bool:
+        return True

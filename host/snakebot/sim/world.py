@@ -1,0 +1,323 @@
+"""The world: the robot's body on the floor, moved by its virtual servos.
+
+The servos' present positions (ticks, through each joint's zero tick and sign) are the
+joint angles; the kinematic core's minimum-slip model (``snakebot.kinematics``, in C)
+turns the joint motion into body motion. The world samples the positions every
+``period`` seconds of bus time (:meth:`snakebot.sim.bus.Bus.every`), takes the joints as
+moving linearly between samples, and integrates the body over the samples in batches:
+one C call per batch of intervals (the core steps each interval separately, so the
+kinks between intervals cost no accuracy), never a Python loop per step.
+
+Wheels: the robot's own rolling friction ``c_t`` (0 for ideal wheels). Ideal wheels make
+the 3-link snake's body velocity infinite where a gait played from rounded ticks crosses
+the singular line phi1 = phi2 off its admissible direction. There the world integrates
+that one interval again with a little rolling friction (``REGULARISING_CT * c_n``, as
+real wheels have and as the gait's table prediction falls back to), so the body stays
+finite and the wheels slip instead; the record marks the intervals that needed it, and
+the slip is recorded for every sample: each wheel's sideways (normal) speed.
+
+    world = World(bus, robot)          # samples from now, every 10 ms of bus time
+    bus.run_until(bus.now + 2.0)       # ... while a master drives the servos
+    rec = world.record()               # t, pose (x, y, theta), phi, slip
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from snakebot.core import lib
+from snakebot.errors import SnakebotError
+from snakebot.gait.common import PREDICT_OPTIONS, REGULARISING_CT
+from snakebot.kinematics import KinematicsError, Options, Table, integrate_joints
+from snakebot.robots import Robot
+from snakebot.sim.bus import Bus
+
+DEFAULT_PERIOD_S = 0.01
+"""How often the world samples the servos: 100 Hz of bus time."""
+
+DEFAULT_BATCH = 256
+"""Samples integrated per C call (fewer when the pose is asked for sooner)."""
+
+SINGULAR_CODES = (lib.KIN_ESINGULAR, lib.KIN_EINADMISSIBLE, lib.KIN_ESTEPSIZE)
+"""Core statuses of a motion that ideal wheels cannot follow (a singular crossing)."""
+
+
+class WorldError(SnakebotError):
+    """The world cannot move the body as the servos ask (see the message for the fix)."""
+
+
+def fallback_c_t(robot: Robot, c_t: float) -> float | None:
+    """The rolling friction for intervals where ``c_t`` makes the motion singular:
+    a small one if the wheels are ideal, none (the error stands) otherwise."""
+    return REGULARISING_CT * robot.c_n if c_t == 0 else None
+
+
+@dataclass(frozen=True)
+class WorldRecord:
+    """What the world saw: ``t[k]`` (seconds since the world started), the body pose
+    ``pose[k] = (x, y, theta)`` (reference point and heading of link 1 / the base),
+    the joint angles ``phi[k]`` (radians), each wheel's normal slip speed ``slip[k]``
+    (length units per second, in the middle of the interval ending at ``t[k]``), and
+    ``regularised[k]``: that interval needed the fallback rolling friction."""
+
+    t: np.ndarray
+    pose: np.ndarray
+    phi: np.ndarray
+    slip: np.ndarray
+    regularised: np.ndarray
+    c_t: float
+    fallback_c_t: float | None
+
+    @property
+    def q(self) -> np.ndarray:
+        """Full states (x, y, theta, phi...) per sample."""
+        return np.hstack([self.pose, self.phi])
+
+    def displacement(self) -> dict[str, float]:
+        """Final minus first pose: (dx, dy) in the first pose's frame, and dtheta."""
+        start, end = self.pose[0], self.pose[-1]
+        c, s = np.cos(start[2]), np.sin(start[2])
+        dx, dy = end[0] - start[0], end[1] - start[1]
+        return {
+            "dx": float(c * dx + s * dy),
+            "dy": float(-s * dx + c * dy),
+            "dtheta": float(end[2] - start[2]),
+        }
+
+    def slip_max(self) -> float:
+        """Largest sideways slip speed of any wheel at any sample."""
+        return float(np.abs(self.slip).max()) if self.slip.size else 0.0
+
+    def slip_distance(self) -> np.ndarray:
+        """Per wheel, the distance slid sideways (integral of |slip speed|, trapezoid over
+        the samples: an estimate as good as the sampling)."""
+        if len(self.t) < 2:
+            return np.zeros(self.slip.shape[1])
+        speed = np.abs(self.slip)
+        return ((speed[1:] + speed[:-1]) * 0.5 * np.diff(self.t)[:, None]).sum(axis=0)
+
+
+def integrate_samples(
+    robot: Robot, angles: np.ndarray, period: float, pose0: np.ndarray, c_t: float, options: Options
+) -> tuple[np.ndarray, np.ndarray]:
+    """Body states at joint samples ``angles`` (rows every ``period``, linear in between)
+    from ``pose0``, in one C call: q (rows x (3 + joints); the angles are the samples
+    themselves) and each wheel's slip speed in the middle of the interval ending at each
+    row (zeros for row 0). Mid-interval, because at a sample the joint velocity jumps."""
+    n = len(angles)
+    traj = integrate_joints(
+        robot,
+        Table(angles, period),
+        (n - 1) * period,
+        pose0=tuple(pose0),
+        samples=2 * n - 1,
+        options=options,
+        c_t=c_t,
+        with_slip=True,
+    )
+    assert traj.slip is not None
+    q = traj.q[::2].copy()
+    q[:, 3:] = angles
+    slip = np.vstack([np.zeros((1, traj.slip.shape[1])), traj.slip[1::2]])
+    return q, slip
+
+
+class World:
+    """The body of ``robot`` driven by the servos on ``bus``.
+
+    Sampling starts at bus time ``start`` (default: now) and repeats every ``period``
+    seconds until :meth:`stop`. ``pose`` is the body pose at the first sample. ``c_t``
+    overrides the wheels' rolling friction (default: the robot's); ``options`` the
+    integrator (default: the gait predictions' Dormand-Prince settings).
+    ``regularise=False`` turns the singular-crossing fallback off: such a crossing then
+    raises :class:`WorldError` (from the bus call that ran the sample, or from
+    :meth:`record`). The servos are looked up by ID once, here.
+    """
+
+    def __init__(
+        self,
+        bus: Bus,
+        robot: Robot,
+        *,
+        period: float = DEFAULT_PERIOD_S,
+        start: float | None = None,
+        pose: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        c_t: float | None = None,
+        options: Options | None = None,
+        batch: int = DEFAULT_BATCH,
+        regularise: bool = True,
+    ) -> None:
+        if not period > 0:
+            raise WorldError(f"the world's sampling period must be positive, not {period}")
+        if batch < 1:
+            raise WorldError(f"batch must be at least 1 sample, not {batch}")
+        ids = robot.servo_ids
+        missing = [i for i in ids if all(s.id != i for s in bus.servos)]
+        if missing:
+            raise WorldError(
+                f"{robot.name} drives servos {list(ids)} but the bus has no servo with ID "
+                f"{', '.join(map(str, missing))}: build the bus for this robot "
+                f"(sim://?robot={robot.source or robot.name})"
+            )
+        self.bus = bus
+        self.robot = robot
+        self.period = float(period)
+        self.c_t = robot.c_t if c_t is None else float(c_t)
+        if self.c_t < 0:
+            raise WorldError(f"rolling friction c_t must be >= 0, not {self.c_t}")
+        self.fallback_c_t = fallback_c_t(robot, self.c_t) if regularise else None
+        self.options = options or PREDICT_OPTIONS
+        self.batch = batch
+        self.start_time = bus.now if start is None else float(start)
+        self._servos = [bus.servo(i) for i in ids]
+        self._running = True
+        self._pending: list[list[float]] = []  # tick rows not integrated yet
+        self._last_ticks: list[float] | None = None  # the last integrated sample
+        self._pose = np.array(pose, dtype=float)
+        self._q: list[np.ndarray] = []
+        self._slip: list[np.ndarray] = []
+        self._reg: list[np.ndarray] = []
+        self._count = 0  # samples integrated so far
+        self._schedule = bus.every(self.period, self._sample, start=self.start_time)
+
+    # -- sampling -------------------------------------------------------------------------
+
+    def _sample(self, t: float) -> None:
+        row = []
+        for s in self._servos:
+            s.advance(t)
+            row.append(s.pos)
+        self._pending.append(row)
+        if len(self._pending) >= self.batch:
+            self.flush()
+
+    def stop(self) -> None:
+        """Stop sampling (what was sampled stays in the record)."""
+        self.flush()
+        self._schedule.cancel()
+        self._running = False
+
+    @property
+    def running(self) -> bool:
+        return self._running
+
+    # -- integration ----------------------------------------------------------------------
+
+    def flush(self) -> None:
+        """Integrate the body over every sample taken so far."""
+        pending = self._pending
+        if not pending:
+            return
+        self._pending = []
+        robot = self.robot
+        if self._last_ticks is None:  # the very first sample: the body is where it starts
+            angles = robot.ticks_to_angles(np.asarray(pending[0], dtype=float))
+            self._append(
+                np.concatenate([self._pose, angles])[None, :],
+                np.zeros((1, robot.n_wheels)),
+                np.zeros(1, dtype=bool),
+            )
+            self._last_ticks = pending[0]
+            pending = pending[1:]
+            if not pending:
+                return
+        angles = robot.ticks_to_angles(np.asarray([self._last_ticks, *pending], dtype=float))
+        try:
+            q, slip = self._integrate(angles, self.c_t)
+            reg = np.zeros(len(pending), dtype=bool)
+        except KinematicsError as exc:
+            if self.fallback_c_t is None or exc.code not in SINGULAR_CODES:
+                raise self._error(0, len(pending), exc) from exc
+            q, slip, reg = self._interval_by_interval(angles)
+        self._append(q, slip, reg)
+        self._pose = q[-1, :3].copy()
+        self._last_ticks = pending[-1]
+
+    def _integrate(
+        self, angles: np.ndarray, c_t: float, pose: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """States and slips at rows 1.. of ``angles`` (rows every period, linear in
+        between), starting from the current pose; one C call."""
+        q, slip = integrate_samples(
+            self.robot, angles, self.period, self._pose if pose is None else pose, c_t, self.options
+        )
+        return q[1:], slip[1:]
+
+    def _interval_by_interval(
+        self, angles: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The batch again one interval at a time, with the fallback friction on the
+        intervals where the ideal wheels are singular."""
+        qs, slips, reg = [], [], []
+        pose = self._pose
+        for i in range(len(angles) - 1):
+            pair = angles[i : i + 2]
+            try:
+                q, slip = self._integrate(pair, self.c_t, pose)
+                reg.append(False)
+            except KinematicsError as exc:
+                if exc.code not in SINGULAR_CODES:
+                    raise self._error(i, 1, exc) from exc
+                try:
+                    q, slip = self._integrate(pair, self.fallback_c_t or 0.0, pose)
+                except KinematicsError as exc2:
+                    raise self._error(i, 1, exc2) from exc2
+                reg.append(True)
+            qs.append(q)
+            slips.append(slip)
+            pose = q[-1, :3]
+        return np.vstack(qs), np.vstack(slips), np.array(reg, dtype=bool)
+
+    def _error(self, first: int, count: int, exc: KinematicsError) -> WorldError:
+        t_a = (self._count - 1 + first) * self.period
+        return WorldError(
+            f"the body cannot follow the servos between {t_a:.3f} s and "
+            f"{t_a + count * self.period:.3f} s of world time: {exc}"
+        )
+
+    def _append(self, q: np.ndarray, slip: np.ndarray, reg: np.ndarray) -> None:
+        self._q.append(q)
+        self._slip.append(slip)
+        self._reg.append(reg)
+        self._count += len(q)
+
+    # -- results --------------------------------------------------------------------------
+
+    @property
+    def pose(self) -> np.ndarray:
+        """The body pose (x, y, theta) at the latest sample."""
+        self.flush()
+        return self._pose.copy()
+
+    @property
+    def samples(self) -> int:
+        """Samples taken so far."""
+        return self._count + len(self._pending)
+
+    def record(self) -> WorldRecord:
+        """Everything sampled so far (integrating what is pending first)."""
+        self.flush()
+        robot = self.robot
+        if not self._q:
+            return WorldRecord(
+                np.empty(0),
+                np.empty((0, 3)),
+                np.empty((0, robot.n_joints)),
+                np.empty((0, robot.n_wheels)),
+                np.empty(0, dtype=bool),
+                self.c_t,
+                self.fallback_c_t,
+            )
+        q = np.vstack(self._q)
+        t = np.arange(len(q)) * self.period
+        return WorldRecord(
+            t,
+            q[:, :3],
+            q[:, 3:],
+            np.vstack(self._slip),
+            np.concatenate(self._reg),
+            self.c_t,
+            self.fallback_c_t,
+        )

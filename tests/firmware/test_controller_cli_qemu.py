@@ -1,0 +1,128 @@
+"""The controller commands against the real firmware image under QEMU: its PC link
+(USART3) on a pseudo-terminal, its Dynamixel bus (USART1) on a Unix socket served by
+the emulated snake5 servos. Upload, play, monitor, serpenoid and stop, byte for byte
+through the code that runs on the CM-530."""
+
+from __future__ import annotations
+
+import json
+import time
+import zlib
+
+import pytest
+from controller_cli_support import cli, cli_json, save, wave_table
+from firmware_support import CONTROLLER_ID, QEMU_DIR, assert_healthy_bus, build_firmware, client
+
+from snakebot.protocol import DxlTimeout
+from snakebot.sim.options import SimOptions
+from snakebot.sim.qemu import Endpoint, QemuFirmware
+from snakebot.sim.transports.unixsock import UnixSocketServer
+
+pytestmark = pytest.mark.qemu
+
+# QEMU shares a loaded machine with other tests: allow for it being descheduled.
+ENV = {"SNAKEBOT_MARGIN_MS": "300"}
+
+
+@pytest.fixture(scope="module")
+def firmware(tmp_path_factory):
+    build_firmware()
+    sock = tmp_path_factory.mktemp("bus") / "bus.sock"
+    bus = SimOptions(robot="snake5").build_bus()
+    with (
+        UnixSocketServer(bus, sock) as server,
+        QemuFirmware(QEMU_DIR / "flash.bin", bus=Endpoint.unix_client(sock)) as fw,
+    ):
+        port = fw.ports.pc_link
+        with client(port) as c:  # wait for the image to boot
+            deadline = time.monotonic() + 20
+            while True:
+                try:
+                    c.ping(CONTROLLER_ID, retries=0)
+                    break
+                except DxlTimeout:
+                    if time.monotonic() > deadline:
+                        raise
+        yield port
+        assert server.running
+
+
+def records(port: str, duration: float, interval: float = 0.1) -> list[dict]:
+    result = cli(
+        "monitor",
+        "--port",
+        port,
+        "--json",
+        "--duration",
+        str(duration),
+        "--interval",
+        str(interval),
+        env=ENV,
+    )
+    assert result.exit_code == 0, result.output
+    return [json.loads(line) for line in result.stdout.splitlines()]
+
+
+def test_upload_play_monitor_stop_on_the_firmware(firmware, tmp_path):
+    path = save(wave_table(), tmp_path)
+    crc = zlib.crc32(path.read_bytes())
+    report = cli_json("upload", path, "--port", firmware, env=ENV)
+    assert report["crc"] == f"0x{crc:08x}" and report["attempts"] == 1
+    assert report["bytes"] == path.stat().st_size
+
+    played = cli_json("play", "--port", firmware, "--speed", "2", env=ENV)
+    assert played["state"] == "PLAYING" and played["speed"] == 2.0
+    assert played["table"]["crc"] == f"0x{crc:08x}"
+
+    time.sleep(0.2)  # a telemetry round over the emulated bus
+    samples = records(firmware, duration=0.5)
+    assert len(samples) >= 3
+    for sample in samples:
+        c = sample["controller"]
+        assert c["state"] == "PLAYING" and c["error_flags"] == []
+        assert c["table_crc"] == f"0x{crc:08x}"
+        assert [s["id"] for s in sample["servos"]] == [10, 11, 15, 16]
+    frames = [s["controller"]["play_frame"] for s in samples]
+    assert len(set(frames)) > 1  # the firmware is playing through the table
+    last = samples[-1]["servos"]
+    assert all(s["voltage_v"] == 12.0 for s in last)
+    assert_healthy_bus(
+        samples[-1]["controller"]["bus_reads"], samples[-1]["controller"]["bus_timeouts"]
+    )
+    assert len({s["position"] for s in last}) > 1  # the servos follow the wave
+
+    stopped = cli_json("stop", "--port", firmware, env=ENV)
+    assert stopped["state"] == "IDLE"
+
+
+def test_serpenoid_on_the_firmware(firmware, tmp_path):
+    status = cli_json(
+        "serpenoid",
+        "--port",
+        firmware,
+        "--robot",
+        "snake5",
+        "-A",
+        "25deg",
+        "-w",
+        "180deg",
+        "-d",
+        "90deg",
+        env=ENV,
+    )
+    assert status["state"] == "SERPENOID" and status["joint_count"] == 4
+    samples = records(firmware, duration=0.4)
+    goals = [s["servos"][0]["goal"] for s in samples]
+    assert len(set(goals)) > 1
+    assert all(s["controller"]["state"] == "SERPENOID" for s in samples)
+    assert cli_json("stop", "--port", firmware, env=ENV)["state"] == "IDLE"
+
+
+def test_unknown_servos_and_bad_values_are_refused_by_the_firmware_side(firmware, tmp_path):
+    snake5 = save(wave_table(), tmp_path, "snake5.gait")
+    assert cli("upload", snake5, "--port", firmware, env=ENV).exit_code == 0  # the roster
+    path = save(wave_table(ids=(1, 2, 3, 4)), tmp_path)
+    result = cli("upload", path, "--port", firmware, env=ENV)
+    assert result.exit_code == 2 and "does not have" in result.stderr
+    result = cli("play", "--port", firmware, "--speed", "8", env=ENV)
+    assert result.exit_code == 2 and "--speed 8 is outside" in result.stderr

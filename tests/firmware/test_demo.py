@@ -1,0 +1,84 @@
+"""`snakebot demo --json`: the whole chain on the real firmware in QEMU, as `make demo`
+runs it (a subprocess): the snake advances, the PNG is written, nothing is left running."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import zlib
+
+import pytest
+from firmware_support import build_firmware
+
+pytestmark = [pytest.mark.qemu, pytest.mark.slow]
+
+DEMO_TIMEOUT_S = 300.0  # the demo takes ~15 s; a loaded machine may be much slower
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def test_demo_json_reports_the_snake_advancing_and_writes_the_png(tmp_path):
+    build_firmware()
+    out = tmp_path / "out"
+    done = subprocess.run(
+        [sys.executable, "-m", "snakebot", "demo", "--json", "--cycles", "2", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=DEMO_TIMEOUT_S,
+        check=False,
+        env={**os.environ, "SNAKEBOT_MARGIN_MS": "300"},
+    )
+    assert done.returncode == 0, done.stderr
+    result = json.loads(done.stdout)
+
+    emulated, predicted = result["emulated"], result["predicted"]
+    assert predicted["dx"] > 0.1  # the gait is one that goes somewhere: 10+ cm in 2 cycles
+    assert emulated["dx"] > 0.5 * predicted["dx"]
+    assert result["difference_m"] == pytest.approx(
+        ((emulated["dx"] - predicted["dx"]) ** 2 + (emulated["dy"] - predicted["dy"]) ** 2) ** 0.5,
+        abs=1e-5,
+    )
+    assert result["reason"] == "servo lag"
+    assert result["upload"]["crc"] == f"0x{zlib.crc32((out / 'demo.gait').read_bytes()):08x}"
+    assert result["monitor"]
+    assert all(m["controller"]["state"] == "PLAYING" for m in result["monitor"])
+
+    png = out / "demo.png"
+    assert result["png"] == str(png)
+    assert png.read_bytes()[:8] == PNG_MAGIC and png.stat().st_size > 10_000
+
+    with pytest.raises(ProcessLookupError):  # QEMU was stopped and reaped
+        os.kill(result["qemu_pid"], 0)
+
+
+def test_ctrl_c_stops_the_demo_and_leaves_nothing_running(tmp_path):
+    build_firmware()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "snakebot", "demo", "--out", str(tmp_path)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    qemu_pid = None
+    try:
+        assert proc.stdout is not None
+        for line in proc.stdout:  # until it plays
+            found = re.search(r"QEMU \(pid (\d+)\)", line)
+            if found:
+                qemu_pid = int(found.group(1))
+            if "monitoring" in line:
+                break
+        assert qemu_pid is not None
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=30)
+        assert proc.returncode == 130
+        assert "nothing is left running" in err
+        with pytest.raises(ProcessLookupError):
+            os.kill(qemu_pid, 0)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()

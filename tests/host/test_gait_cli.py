@@ -1,0 +1,104 @@
+"""`snakebot gait ...` from the command line: files written (or not), JSON, plots."""
+
+import json
+import math
+
+import pytest
+from click.testing import CliRunner
+
+from snakebot.cli import main
+from snakebot.gaittable import read_gait
+
+
+def run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=False)
+
+
+def test_serpenoid_writes_table_and_reports_both_predictions(tmp_path):
+    out = tmp_path / "walk.gait"
+    result = run(
+        "gait",
+        "serpenoid",
+        "snake5",
+        "--amplitude",
+        "30deg",
+        "--omega",
+        "180deg",
+        "--delta",
+        "pi/2",
+        "--cycles",
+        "2",
+        "--rate",
+        "50",
+        "-o",
+        out,
+        "--json",
+    )
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.output)
+    assert set(data["predicted"]) == {"dx", "dy", "dtheta"}
+    assert {"dx", "dy", "dtheta"} <= set(data["table"])
+    assert data["parameters"]["amplitude_rad"] == math.radians(30)
+    table = read_gait(out)
+    assert table.frame_count == data["frames"] == 200 and table.loop
+    assert table.metadata["gait"] == "serpenoid"
+    assert (tmp_path / "walk.gait.json").is_file()
+
+
+def test_field_bracket_gait_reports_the_second_order_prediction(tmp_path):
+    out = tmp_path / "h1.gait"
+    result = run(
+        "gait",
+        "field",
+        "trident",
+        "--field",
+        "h1",
+        "--periods",
+        "2",
+        "--amplitude",
+        "0.05",
+        "-o",
+        out,
+        "--json",
+    )
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.output)
+    expected = 2 * math.pi * 0.05**2  # two loops of pi A^2 along h1 = (0, 0, 0, 1, 1, 1)
+    assert data["second_order"]["q"][3] == pytest.approx(expected, rel=1e-12)
+    assert abs(data["moved_q"][3] - expected) < 0.05 * expected
+
+
+def test_limit_violation_writes_nothing(tmp_path):
+    out = tmp_path / "fast.gait"
+    result = run(
+        "gait", "serpenoid", "snake5", "-A", "1", "-w", "10", "-d", "1", "--cycles", "1", "-o", out
+    )
+    assert result.exit_code == 2
+    assert "error: the gait is outside snake5's limits: joint phi1 (servo 10)" in result.output
+    assert "rad/s" in result.output and "no file was written" in result.output
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_show_summarises_and_plots(tmp_path):
+    out = tmp_path / "w.gait"
+    run(
+        "gait",
+        "serpenoid",
+        "snake3",
+        "-A",
+        "0.5",
+        "-w",
+        "2",
+        "-d",
+        "pi/2",
+        "--cycles",
+        "1",
+        "-o",
+        out,
+    )
+    result = run("gait", "show", out, "--plot", tmp_path / "w.png")
+    assert result.exit_code == 0, result.output
+    assert "serpenoid gait for snake3" in result.output and "continuous gait:" in result.output
+    assert (tmp_path / "w.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    data = json.loads(run("gait", "show", out, "--json").output)
+    assert data["robot"] == "snake3" and data["joint_ids"] == [1, 2]

@@ -1,0 +1,75 @@
+"""`snakebot model ...` from the command line."""
+
+import json
+import math
+
+import numpy as np
+import sympy as sp
+from click.testing import CliRunner
+
+from snakebot.cli import main
+
+
+def run(*args):
+    return CliRunner().invoke(main, list(args), catch_exceptions=False)
+
+
+def test_fields_json_at_the_thesis_q0():
+    result = run("model", "fields", "snake3", "--at", "0,0,0,pi/3,-60deg", "--json")
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.output)
+    assert data["robot"] == "snake3" and data["singular"] is False
+    assert list(data["fields"]) == ["g1", "g2", "h1", "h2", "h3"]
+    np.testing.assert_allclose(
+        data["fields"]["h3"], [8 * math.sqrt(3) / 27, -4 / 9, 2 / 9, 0, 0], atol=1e-9
+    )
+    assert data["growth"] == [2, 3, 5]
+    assert data["q"][4] == -math.pi / 3
+
+
+def test_fields_text_and_singular_point():
+    result = run("model", "fields", "trident", "--at", "0,0,0,0,0,0")
+    assert result.exit_code == 0
+    assert "growth vector: (3, 6)" in result.output and "det G* = 2.59807621" in result.output
+    singular = json.loads(
+        run("model", "fields", "snake3", "--at", "0,0,0,0.2,0.2", "--json").output
+    )
+    assert singular["singular"] is True and singular["fields"] is None
+
+
+def test_wrong_arguments_are_clear():
+    result = run("model", "fields", "snake3", "--at", "0,0,0,1")
+    assert result.exit_code == 2 and "give 5 values, got 4" in result.output
+    result = run("model", "fields", "snake5", "--at", "0,0,0,0,0,0,0")
+    assert result.exit_code == 2 and "error:" in result.output and "5-link" in result.output
+    result = run("model", "fields", "snake3", "--at", "0,0,0,1,x")
+    assert result.exit_code == 2 and "cannot read 'x'" in result.output
+
+
+def test_symbolic_trident_expressions_evaluate_to_the_corrected_h2():
+    data = json.loads(
+        run("model", "fields", "trident", "--at", "0,0,0,0,0,0", "--symbolic", "--json").output
+    )
+    names = sp.symbols("x y theta phi1 phi2 phi3")
+    subs = {**{s: 0 for s in names}, sp.Symbol("r"): 1, sp.Symbol("l"): 1}
+    h2 = [float(sp.sympify(e).subs(subs)) for e in data["fields"]["h2"]]
+    np.testing.assert_allclose(h2, [0, -1, 0, -1, 2, -1], atol=1e-12)
+
+
+def test_malformed_robot_file_names_key_and_line(tmp_path):
+    bad = tmp_path / "bad.toml"
+    joint = "[[joints]]\nservo_id = {}\nzero_tick = 512\nsign = 1\nmin_deg = -9\nmax_deg = 9\n"
+    bad.write_text(
+        'name = "b"\nkind = "snake"\n[geometry]\nlinks = 3\nhalf_link = "long"\n'
+        + joint.format(1)
+        + joint.format(2)
+    )
+    result = run("model", "info", str(bad))
+    assert result.exit_code == 2
+    assert f"error: {bad}, line 5: key 'geometry.half_link'" in result.output
+
+
+def test_info_json():
+    data = json.loads(run("model", "info", "snake5", "--json").output)
+    assert [j["servo_id"] for j in data["joints"]] == [10, 11, 15, 16]
+    assert data["friction"]["c_t"] > 0

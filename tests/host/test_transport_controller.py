@@ -1,0 +1,31 @@
+"""DxlClient against the snakebot controller, whose address 16 is not Status Return Level.
+
+The controller's real C device logic (snakebot._core) runs behind a real pseudo-terminal.
+"""
+
+from snakebot.controller import load
+from snakebot.controller.client import ControllerClient
+from snakebot.sim.controller_pty import ControllerPty
+from snakebot.transport import DxlClient
+
+CONTROLLER_ID = 200
+
+
+def test_a_controller_register_at_address_16_is_not_taken_for_status_return_level():
+    speed_scale = load().register("Speed Scale")
+    assert speed_scale.address == 16  # the clash this test is about
+    with (
+        ControllerPty(robot="snake5") as server,
+        DxlClient(server.device, 57600, echo=False, status_return_level_address=None) as client,
+    ):
+        client.write_u16(CONTROLLER_ID, speed_scale.address, 1)  # 1/256 x: low byte 1
+        # Still treated as answering everything: the READ is sent and answered.
+        assert client.read_u16(CONTROLLER_ID, speed_scale.address) == 1
+        assert client.status_return_level(CONTROLLER_ID) == 2
+
+
+def test_the_controller_client_does_not_track_address_16():
+    with ControllerPty(robot="snake5") as server, ControllerClient.open(server.device) as ctl:
+        ctl.link.write_u16(CONTROLLER_ID, load().register("Speed Scale").address, 1)
+        assert ctl.link.status_return_level(CONTROLLER_ID) == 2
+        assert ctl.read_block(16, 2) == b"\x01\x00"

@@ -1,0 +1,1108 @@
+"""Fault campaigns: the real controller firmware (QEMU) driving the emulated robot while
+faults are injected from a seed, and what the controller promises checked throughout.
+
+    python -m tools.campaigns                        # every campaign, a table of results
+    python -m tools.campaigns --only corrupt-1pct --seed 7 --json
+
+Each campaign boots ``build/qemu/flash.bin`` (``make firmware``) with USART1 on an
+emulated bus of three AX-12s and USART3 on a pseudo-terminal, uploads a gait table whose
+frames sit on the joint limits and plays it with a steering offset that pushes every goal
+past a limit (so the clamp is what keeps the servos inside), then injects its fault for a
+few seconds of bus time. What it checks, in every campaign:
+
+limits
+    every goal position the firmware writes on the bus (read from its bytes before the
+    bus damages them) lies within the table's limits for that joint;
+alive
+    the controller answers every PING (the client retries twice); it never reboots (its
+    SysTick uptime, read from RAM through QEMU, only grows); its control loop never stalls
+    (the bus-packet counter in RAM grows between samples); no bus packet or PC reply was
+    ever refused for want of buffer room;
+table
+    the committed table is never lost or damaged: Table Size and Table CRC, and the CRC of
+    the active table's bytes read back from the emulated RAM, equal the committed file's;
+counted
+    every fault the controller can see shows up in its counters, read the way
+    ``snakebot monitor`` reads them (:func:`snakebot.controller.monitor.sample`): each
+    telemetry READ the firmware sent ends as exactly one Bus Read or Bus Timeout, no more
+    Bus Reads than intact replies came back, no fewer Bus Timeouts than were lost, no more
+    Bus Errors than damaged replies were heard; plus each campaign's own (BUS_LOSS for a
+    long brown-out, PC Errors equal to the rejections the noise must cause, INCOMPLETE
+    for every cut upload).
+
+The watchdog: QEMU does not model the STM32's IWDG (see firmware/boards/qemu/board.h),
+so it cannot fire here. What it guards against (a main loop that stops feeding it for
+500 ms) is checked directly instead: the loop's progress counter, PING, and the longest
+silence between the firmware's bus packets while the roster is polled (``max_bus_gap_ms``,
+reported; the control tick is 10 ms).
+
+Reproducibility: the faults are drawn from streams seeded by ``--seed``
+(:mod:`snakebot.sim.faults`; the PC-link noise from its own stream), so a seed fixes which
+byte of the wire's traffic is hit, which reply is dropped, what noise is sent. The bus
+runs on the wall clock against QEMU, so how many bytes flow in a campaign (and therefore
+the counts) varies by a few percent from run to run and machine to machine; the checks
+hold in every run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import random
+import re
+import subprocess
+import sys
+import tempfile
+import time
+import zlib
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from snakebot import protocol
+from snakebot.controller import Command, ControllerErrors, State, UploadResult, load
+from snakebot.controller.client import ControllerClient
+from snakebot.controller.errors import ControllerError
+from snakebot.controller.monitor import Sample, sample
+from snakebot.controller.upload import chunk_writes, commit_write
+from snakebot.gaittable import GaitTable
+from snakebot.paths import REPO_ROOT
+from snakebot.protocol import Instruction, Packet, PacketParser, ProtocolError
+from snakebot.sim.bus import Bus
+from snakebot.sim.errors import SimError
+from snakebot.sim.faults import FaultConfig
+from snakebot.sim.qemu import Endpoint, QemuFirmware
+from snakebot.sim.servo import VirtualServo
+from snakebot.sim.transports.unixsock import UnixSocketServer
+
+BUILD = REPO_ROOT / "build" / "qemu"
+IMAGE = BUILD / "flash.bin"
+MAP_FILE = BUILD / "firmware.map"
+CORE_DIR = REPO_ROOT / "firmware" / "core"
+
+IDS = (1, 2, 3)
+LIMITS = ((300, 724), (320, 700), (300, 724))
+FRAMES = np.array([[724, 320, 724], [300, 700, 300], [512, 510, 512], [700, 330, 650]], np.uint16)
+PERIOD_MS = 150
+STEERING = 150  # ticks added to every goal: half the goals would leave the limits unclamped
+CONTROLLER_ID = 200
+PC_BAUD = 57600
+MARGIN_S = 0.3  # the PC-link client's allowance beyond the wire time (QEMU may be slow)
+SAMPLE_S = 0.1  # how often the watch loop looks
+STALL_MS = 100  # ten control ticks without a bus packet while the roster is polled
+GOAL_POSITION = 30
+TORQUE_ENABLE = 24
+TELEMETRY_PARAMS = 8
+CTL = load()
+
+
+def _reg(name: str) -> int:
+    return CTL.register(name).address
+
+
+# -- what the firmware puts on the bus, and what comes back -----------------------------------
+
+
+@dataclass
+class Tap:
+    """Counts the firmware's bus traffic: its own bytes (before any damage) and the bytes
+    that reach it, transaction by transaction."""
+
+    limits: dict[int, tuple[int, int]]
+    goal_packets: int = 0
+    goals: int = 0
+    goals_outside: int = 0
+    torque_on: int = 0
+    torque_off: int = 0
+    reads_sent: int = 0
+    reads_answered: int = 0  # an intact reply of the right shape reached the firmware
+    reads_damaged: int = 0  # a damaged reply from the addressed servo reached it
+    unanswered: Counter = field(default_factory=Counter)  # per servo ID
+    max_gap_s: float = 0.0
+    _sent: PacketParser = field(default_factory=PacketParser)
+    _pending: int | None = None  # ID of the READ in flight
+    _rx: bytearray = field(default_factory=bytearray)  # what reached the firmware since
+    _prelude: bytearray = field(default_factory=bytearray)  # heard since the last packet
+    _last_t: float | None = None
+    outside_examples: list[tuple[int, int]] = field(default_factory=list)
+
+    def _close_read(self) -> None:
+        """Judge the READ in flight by the bytes that may have reached the firmware in its
+        reply window: an intact status packet of its servo with the telemetry block
+        anywhere in them is an answer; otherwise a damaged one (right header, ID and
+        length, wrong checksum) makes it a damaged reply, and nothing at all a lost one.
+        The window is taken as wide as it can be, so these are upper bounds on the reads
+        and damaged replies the firmware can count."""
+        sid = self._pending
+        if sid is None:
+            return
+        rx, n = bytes(self._rx), TELEMETRY_PARAMS + 6
+        answered = damaged = False
+        for i in range(len(rx) - n + 1):
+            w = rx[i : i + n]
+            if w[:4] != bytes([0xFF, 0xFF, sid, TELEMETRY_PARAMS + 2]):
+                continue
+            if protocol.checksum(w[2:-1]) == w[-1]:
+                answered = True
+                break
+            damaged = True
+        if answered:
+            self.reads_answered += 1
+        else:
+            self.unanswered[sid] += 1
+            self.reads_damaged += damaged
+        self._pending = None
+        self._rx.clear()
+
+    def sent(self, t: float, data: bytes) -> None:
+        if self._last_t is not None:
+            self.max_gap_s = max(self.max_gap_s, t - self._last_t)
+        self._last_t = t
+        for event in self._sent.feed(data):
+            if not isinstance(event, Packet):
+                continue
+            self._close_read()
+            prelude = bytes(self._prelude)
+            self._prelude.clear()
+            p = event.params
+            if event.code == Instruction.SYNC_WRITE and p[:2] == bytes([GOAL_POSITION, 4]):
+                self.goal_packets += 1
+                for k in range(2, len(p) - 4, 5):
+                    sid, goal = p[k], p[k + 1] | p[k + 2] << 8
+                    lo, hi = self.limits.get(sid, (0, 1023))
+                    self.goals += 1
+                    if not lo <= goal <= hi:
+                        self.goals_outside += 1
+                        self.outside_examples.append((sid, goal))
+            elif event.code == Instruction.SYNC_WRITE and p[:1] == bytes([TORQUE_ENABLE]):
+                self.torque_on += 1
+            elif event.code == Instruction.WRITE and p[:2] == bytes([TORQUE_ENABLE, 0]):
+                self.torque_off += 1
+            elif event.code == Instruction.READ:
+                self.reads_sent += 1
+                # The firmware empties its receiver just before it sends, so what reached
+                # the bus side since the previous packet may still count for this READ.
+                self._pending = event.id
+                self._rx[:] = prelude
+
+    def heard(self, data: bytes) -> None:
+        (self._rx if self._pending is not None else self._prelude).extend(data)
+
+    def quiet(self) -> None:
+        """The bus is idle now: the READ in flight, if any, is over; gaps restart."""
+        self._close_read()
+        self._last_t = None
+
+    def restart_gaps(self) -> None:
+        """Measure the longest silence between packets from now on."""
+        self._last_t = None
+
+
+class TappedBus(Bus):
+    """The emulated bus, with the firmware's side of the wire counted by a :class:`Tap`."""
+
+    def __init__(self, tap: Tap, *args: Any, **kwargs: Any) -> None:
+        self.tap = tap
+        super().__init__(*args, **kwargs)
+
+    def master_write(self, data: bytes) -> None:
+        self.tap.sent(self.now, bytes(data))  # before the wire can damage it
+        super().master_write(data)
+
+    def master_read(self, size: int) -> bytes:
+        out = super().master_read(size)
+        if out:
+            self.tap.heard(out)
+        return out
+
+
+# -- the firmware's RAM, through QEMU -----------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class RamMap:
+    """Where the firmware keeps what the campaigns read back (from the linker map, and a
+    probe compiled for the Cortex-M3 for the layout of ``ctl_device``)."""
+
+    ticks_ms: int
+    busport_stats: int
+    pclink_stats: int
+    ctl: int
+    ctl_size: int
+    active_offset: int
+    active_len_offset: int
+
+    @classmethod
+    def from_build(cls, map_file: Path = MAP_FILE) -> RamMap:
+        text = map_file.read_text()
+        found: dict[tuple[str, str], tuple[int, int]] = {}
+        pattern = r"^ \.bss\.(\w+)\s+(0x[0-9a-f]+)\s+(0x[0-9a-f]+)\s+(\S+)"
+        for m in re.finditer(pattern, text, re.M):
+            found[(m[1], Path(m[4]).stem)] = (int(m[2], 16), int(m[3], 16))
+
+        def where(name: str, obj: str) -> tuple[int, int]:
+            try:
+                return found[(name, obj)]
+            except KeyError:
+                raise SimError(
+                    f"{name} ({obj}.c) is not in {map_file}: rebuild the firmware with "
+                    "`make firmware`"
+                ) from None
+
+        ctl, ctl_size = where("ctl", "main")
+        active, active_len, size = _ctl_layout()
+        if size != ctl_size:
+            raise SimError(f"ctl_device is {size} bytes in the probe, {ctl_size} in the map")
+        return cls(
+            ticks_ms=where("ticks_ms", "hal_systick")[0],
+            busport_stats=where("stats", "busport")[0],
+            pclink_stats=where("stats", "pclink")[0],
+            ctl=ctl,
+            ctl_size=ctl_size,
+            active_offset=active,
+            active_len_offset=active_len,
+        )
+
+
+def _ctl_layout() -> tuple[int, int, int]:
+    """offsetof(ctl_device, active), offsetof(..., active_len), sizeof(ctl_device) on the
+    Cortex-M3, from a probe compiled with the firmware's compiler."""
+    source = (
+        '#include <stddef.h>\n#include "ctl_device.h"\n'
+        "const unsigned int snakebot_probe[3] = {offsetof(ctl_device, active), "
+        "offsetof(ctl_device, active_len), sizeof(ctl_device)};\n"
+    )
+    with tempfile.TemporaryDirectory(prefix="snakebot.sim-probe-") as tmp:
+        c, o, b = (Path(tmp) / n for n in ("probe.c", "probe.o", "probe.bin"))
+        c.write_text(source)
+        try:
+            subprocess.run(
+                [
+                    "arm-none-eabi-gcc",
+                    "-mcpu=cortex-m3",
+                    "-mthumb",
+                    "-std=c99",
+                    "-Os",
+                    f"-I{CORE_DIR}",
+                    "-c",
+                    str(c),
+                    "-o",
+                    str(o),
+                ],
+                check=True,
+                capture_output=True,
+                text=True,
+            )
+            subprocess.run(
+                ["arm-none-eabi-objcopy", "-O", "binary", "-j", ".rodata", str(o), str(b)],
+                check=True,
+                capture_output=True,
+                text=True,
+            )
+        except (OSError, subprocess.CalledProcessError) as exc:
+            raise SimError(
+                f"cannot compile the layout probe with arm-none-eabi-gcc ({exc}): run `make setup`"
+            ) from exc
+        words = np.frombuffer(b.read_bytes()[:12], "<u4")
+        return int(words[0]), int(words[1]), int(words[2])
+
+
+def read_ram(fw: QemuFirmware, address: int, length: int) -> bytes:
+    """``length`` bytes of the emulated machine's memory (whole words are read)."""
+    first = address & ~3
+    words = (address + length - first + 3) // 4
+    text = fw.monitor(f"xp /{words}wx {first:#x}")
+    values = [
+        int(v, 16)
+        for line in text.splitlines()
+        if ":" in line
+        for v in line.split(":", 1)[1].split()
+    ]
+    raw = b"".join(v.to_bytes(4, "little") for v in values)
+    return raw[address - first : address - first + length]
+
+
+# -- one campaign's rig -----------------------------------------------------------------------
+
+
+class CampaignFailed(SimError):
+    """A campaign could not run (not: an invariant failed; that is a result)."""
+
+
+@dataclass
+class Health:
+    """What the watch loop saw."""
+
+    pings: int = 0
+    ping_failures: int = 0
+    reboots: int = 0
+    stalls: int = 0
+    samples: int = 0
+    safe_entries: int = 0
+    recoveries: int = 0
+    flags_seen: int = 0
+    servo_goals_outside: int = 0  # goals the servos took that the firmware never sent
+    table_checks: int = 0
+    table_failures: list[str] = field(default_factory=list)
+
+
+class Rig:
+    """QEMU running the firmware, wired to a tapped emulated bus; a controller client on
+    the PC link; the firmware's RAM within reach. Use as a context manager."""
+
+    def __init__(self, faults: FaultConfig, workdir: Path) -> None:
+        self.tap = Tap(dict(zip(IDS, LIMITS, strict=True)))
+        self.bus = TappedBus(self.tap, [VirtualServo(i) for i in IDS], faults=faults)
+        self.server = UnixSocketServer(self.bus, workdir / "bus.sock")
+        self.fw = QemuFirmware(IMAGE, bus=Endpoint.unix_client(workdir / "bus.sock"))
+        self.ram = RamMap.from_build()
+        self.health = Health()
+        self.ctl: ControllerClient | None = None
+        self.committed: tuple[int, int] | None = None  # (size, CRC) of the table on board
+        self._uptime = -1
+        self._progress: tuple[int, int] | None = None  # (bus packets, uptime) at last change
+        self.polling = False  # the roster is polled: the bus must keep moving
+        self.last_polled: Sample | None = None  # the last look with the roster in place
+        self._last_state = State.IDLE
+
+    def __enter__(self) -> Rig:
+        self.server.start()
+        try:
+            self.fw.start()
+            self.ctl = ControllerClient.open(
+                self.fw.ports.pc_link, PC_BAUD, CONTROLLER_ID, margin_s=MARGIN_S, retries=2
+            )
+            deadline = time.monotonic() + 10
+            while not self._answers():
+                if time.monotonic() > deadline:
+                    raise CampaignFailed(f"the firmware never answered PING: {self.fw.log()}")
+                time.sleep(0.05)
+        except BaseException:
+            self.__exit__(None, None, None)
+            raise
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.ctl is not None:
+            self.ctl.close()
+        self.fw.stop()
+        self.server.close()
+
+    def _answers(self) -> bool:
+        try:
+            self.ctl.link.ping(CONTROLLER_ID, retries=0)
+            return True
+        except ProtocolError:
+            return False
+
+    # -- the PC link ------------------------------------------------------------------------
+
+    def write(self, values: dict[str, int]) -> None:
+        self.ctl.write(values)
+
+    def command(self, cmd: Command) -> None:
+        self.ctl.write({"Command": int(cmd)})
+
+    def upload(self, blob: bytes, *, commit: bool = True) -> int:
+        """The upload sequence; returns Upload Result (after the commit) or -1."""
+        for address, data in chunk_writes(blob, controller=CTL):
+            self.ctl.write_block(address, data)
+        if not commit:
+            return -1
+        self.ctl.write_block(*commit_write(blob, CTL))
+        result = self.ctl.read("Upload Result")["Upload Result"]
+        if result == UploadResult.OK:
+            self.committed = (len(blob), zlib.crc32(blob))
+        return result
+
+    # -- looking ----------------------------------------------------------------------------
+
+    def ram_probe(self) -> dict[str, int]:
+        ticks = int.from_bytes(read_ram(self.fw, self.ram.ticks_ms, 4), "little")
+        bp = read_ram(self.fw, self.ram.busport_stats, 6)
+        pc = read_ram(self.fw, self.ram.pclink_stats, 4)
+        return {
+            "uptime_ms": ticks,
+            "bus_packets": int.from_bytes(bp[0:2], "little"),
+            "bus_reply_timeouts": int.from_bytes(bp[2:4], "little"),
+            "bus_refused": int.from_bytes(bp[4:6], "little"),
+            "pc_gap_resets": int.from_bytes(pc[0:2], "little"),
+            "pc_tx_dropped": int.from_bytes(pc[2:4], "little"),
+        }
+
+    def active_table(self) -> bytes:
+        base = self.ram.ctl
+        n = int.from_bytes(read_ram(self.fw, base + self.ram.active_len_offset, 2), "little")
+        return read_ram(self.fw, base + self.ram.active_offset, n) if n else b""
+
+    def check_table(self, where: str) -> None:
+        """The committed table, as the registers describe it and as RAM holds it."""
+        if self.committed is None:
+            return
+        self.health.table_checks += 1
+        size, crc = self.committed
+        regs = self.ctl.read("Table Size", "Table CRC")
+        ram = self.active_table()
+        if (regs["Table Size"], regs["Table CRC"]) != (size, crc):
+            self.health.table_failures.append(
+                f"{where}: registers say {regs['Table Size']} bytes CRC {regs['Table CRC']:#x}, "
+                f"committed {size} bytes CRC {crc:#x}"
+            )
+        if (len(ram), zlib.crc32(ram)) != (size, crc):
+            self.health.table_failures.append(
+                f"{where}: RAM holds {len(ram)} bytes CRC {zlib.crc32(ram):#x}, "
+                f"committed {size} bytes CRC {crc:#x}"
+            )
+
+    def check_alive(self) -> None:
+        h = self.health
+        h.pings += 1
+        try:
+            self.ctl.link.ping(CONTROLLER_ID)
+        except ProtocolError:
+            h.ping_failures += 1
+        probe = self.ram_probe()
+        packets, uptime = probe["bus_packets"], probe["uptime_ms"]
+        if uptime < self._uptime:
+            h.reboots += 1
+        self._uptime = uptime
+        if not self.polling or self._progress is None or packets != self._progress[0]:
+            self._progress = (packets, uptime)
+        elif uptime - self._progress[1] >= STALL_MS:
+            h.stalls += 1  # ticks due, and not one bus packet
+            self._progress = (packets, uptime)
+
+    def look(self) -> Sample:
+        """One look as ``snakebot monitor`` takes it, plus the servos' own goals."""
+        s = sample(self.ctl)
+        h = self.health
+        h.samples += 1
+        h.flags_seen |= s.registers["Error Flags"]
+        if s.servos:
+            self.last_polled = s
+        state = s.registers["State"]
+        if state == State.SAFE and self._last_state != State.SAFE:
+            h.safe_entries += 1
+        self._last_state = state
+        with self.server.lock:
+            goals = [self.bus.servo(i).regs.get("Goal Position") for i in IDS]
+        for goal, (lo, hi) in zip(goals, LIMITS, strict=True):
+            h.servo_goals_outside += not lo <= goal <= hi
+        return s
+
+    def watch(self, seconds: float, on_look: Callable[[Sample], None] | None = None) -> None:
+        """Look, check life and the table, and let ``on_look`` act, for ``seconds``."""
+        end = time.monotonic() + seconds
+        while True:
+            self.check_alive()
+            s = self.look()
+            if on_look is not None:
+                on_look(s)
+            if time.monotonic() >= end:
+                break
+            time.sleep(SAMPLE_S)
+        self.check_table("while playing")
+
+    def operator(self, recover_after_s: float = 0.3) -> Callable[[Sample], None]:
+        """What a person at ``snakebot monitor`` would do: when the controller has gone
+        SAFE, wait a little, CLEAR and PLAY again."""
+        since: list[float] = []
+
+        def act(s: Sample) -> None:
+            if s.registers["State"] != State.SAFE:
+                since.clear()
+                return
+            if not since:
+                since.append(time.monotonic())
+            elif time.monotonic() - since[0] >= recover_after_s:
+                self.command(Command.CLEAR)
+                self.command(Command.PLAY)
+                self.health.recoveries += 1
+                since.clear()
+
+        return act
+
+    def freeze(self) -> Sample:
+        """Stop and empty the roster so the bus goes quiet; the last look."""
+        self.command(Command.STOP)
+        self.polling = False
+        self.write({"Joint Count": 0})
+        time.sleep(0.15)  # past the last reply window (30 ms) and a few ticks
+        with self.server.lock:
+            self.tap.quiet()
+        self.check_alive()
+        return self.look()
+
+    def started_polling(self) -> None:
+        """The roster is set: from now on the bus must carry a READ every tick."""
+        with self.server.lock:
+            self.tap.restart_gaps()
+        self.polling = True
+
+
+# -- the campaigns ---------------------------------------------------------------------------------
+
+
+@dataclass
+class Outcome:
+    """One campaign's result: what was injected, what was counted, what held."""
+
+    name: str
+    seed: int
+    description: str
+    seconds: float = 0.0
+    counts: dict[str, int | float] = field(default_factory=dict)
+    checks: dict[str, bool] = field(default_factory=dict)
+    problems: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return all(self.checks.values())
+
+    @property
+    def command(self) -> str:
+        return f"python -m tools.campaigns --only {self.name} --seed {self.seed}"
+
+    def check(self, name: str, held: bool, why: str = "") -> None:
+        self.checks[name] = self.checks.get(name, True) and bool(held)
+        if not held:
+            self.problems.append(f"{name}: {why}" if why else name)
+
+    def as_record(self) -> dict[str, Any]:
+        return {
+            "name": self.name,
+            "seed": self.seed,
+            "description": self.description,
+            "command": self.command,
+            "ok": self.ok,
+            "seconds": round(self.seconds, 1),
+            "counts": self.counts,
+            "checks": self.checks,
+            "problems": self.problems,
+        }
+
+
+def gait_table() -> bytes:
+    return GaitTable(IDS, PERIOD_MS, True, LIMITS, FRAMES, {"campaign": "limits"}).encode()
+
+
+def big_table() -> bytes:
+    """A second, longer table (ten upload chunks) for the upload campaign."""
+    t = np.linspace(0, 2 * np.pi, 100, endpoint=False)
+    frames = np.stack([512 + 150 * np.sin(t + k) for k in range(len(IDS))], axis=1)
+    return GaitTable(IDS, 40, True, LIMITS, frames.round().astype(np.uint16), {}).encode()
+
+
+def _start(rig: Rig, out: Outcome) -> None:
+    """Upload the table, steer it against the limits, play."""
+    result = rig.upload(gait_table())
+    if result != UploadResult.OK:
+        raise CampaignFailed(f"the campaign's own table was refused: Upload Result {result}")
+    rig.started_polling()
+    rig.write({"Steering Offset": STEERING})
+    rig.command(Command.PLAY)
+    rig.check_table("after commit")
+
+
+def _common_checks(rig: Rig, out: Outcome, last: Sample) -> None:
+    """The invariants every campaign checks; fills the common counts."""
+    tap, h, r = rig.tap, rig.health, last.registers
+    ram = rig.ram_probe()
+    out.counts.update(
+        goal_packets=tap.goal_packets,
+        goals=tap.goals,
+        goals_outside_limits=tap.goals_outside,
+        servo_goals_outside_limits=h.servo_goals_outside,
+        reads_sent=tap.reads_sent,
+        reads_answered=tap.reads_answered,
+        reads_damaged=tap.reads_damaged,
+        bus_reads=r["Bus Reads"],
+        bus_timeouts=r["Bus Timeouts"],
+        bus_errors=r["Bus Errors"],
+        pc_packets=r["PC Packets"],
+        pc_errors=r["PC Errors"],
+        pings=h.pings,
+        ping_failures=h.ping_failures,
+        reboots=h.reboots,
+        loop_stalls=h.stalls,
+        safe_entries=h.safe_entries,
+        recoveries=h.recoveries,
+        uptime_ms=ram["uptime_ms"],
+        max_bus_gap_ms=round(tap.max_gap_s * 1000, 1),
+        table_checks=h.table_checks,
+        corrupted_bytes=rig.bus.faults.corrupted_bytes,
+        dropped_replies=rig.bus.faults.dropped_replies,
+    )
+    out.counts["error_flags_seen"] = h.flags_seen
+    # READs whose reply did come, but after the firmware's reply window (a busy host)
+    out.counts["late_replies"] = r["Bus Timeouts"] - (tap.reads_sent - tap.reads_answered)
+    out.check(
+        "limits", tap.goals_outside == 0, f"goals outside the limits: {tap.outside_examples[:5]}"
+    )
+    out.check("limits", tap.goal_packets > 0, "no goals were sent at all")
+    out.check("alive", h.ping_failures == 0, f"{h.ping_failures} PINGs unanswered")
+    out.check("alive", h.reboots == 0, f"the firmware rebooted {h.reboots} times")
+    out.check("alive", h.stalls == 0, f"the control loop stalled in {h.stalls} samples")
+    out.check(
+        "alive", ram["bus_refused"] == 0 and ram["pc_tx_dropped"] == 0, f"buffers overflowed: {ram}"
+    )
+    out.check("table", not h.table_failures, "; ".join(h.table_failures[:3]))
+    out.check("table", h.table_checks > 0, "the table was never checked")
+    accounted = r["Bus Reads"] + r["Bus Timeouts"]
+    lost = tap.reads_sent - tap.reads_answered
+    out.check(
+        "counted",
+        accounted == tap.reads_sent,
+        f"{tap.reads_sent} READs sent, {accounted} counted as read or timed out",
+    )
+    out.check(
+        "counted",
+        r["Bus Reads"] <= tap.reads_answered,
+        f"{r['Bus Reads']} Bus Reads but only {tap.reads_answered} intact replies",
+    )
+    out.check(
+        "counted",
+        r["Bus Timeouts"] >= lost,
+        f"{lost} READs lost their reply, Bus Timeouts says {r['Bus Timeouts']}",
+    )
+    out.check(
+        "counted",
+        r["Bus Errors"] <= tap.reads_damaged,
+        f"{r['Bus Errors']} Bus Errors, {tap.reads_damaged} damaged replies heard",
+    )
+    polled = rig.last_polled
+    if polled is not None and all(j.timeout_count < 255 for j in polled.servos):
+        # the registers, then the servo window a moment later: at most a READ or two apart
+        per_servo = sum(j.timeout_count for j in polled.servos)
+        then = polled.registers["Bus Timeouts"]
+        out.check(
+            "counted",
+            then <= per_servo <= then + 2,
+            f"per-servo Timeout Counts sum to {per_servo}, Bus Timeouts was {then}",
+        )
+
+
+def _play_under(seconds: float, recover: bool = True) -> Callable[[Rig, Outcome], None]:
+    """A campaign body: play for ``seconds`` with the fault on, an operator recovering
+    from SAFE."""
+
+    def body(rig: Rig, out: Outcome) -> None:
+        _start(rig, out)
+        rig.watch(seconds, rig.operator() if recover else None)
+
+    return body
+
+
+def _clean(rig: Rig, out: Outcome) -> None:
+    _play_under(3.0)(rig, out)
+
+
+def _after_clean(rig: Rig, out: Outcome, last: Sample) -> None:
+    """Nothing is lost or damaged in a healthy run. A reply that reaches the firmware
+    after its 30 ms window (a busy host) is rightly a Bus Timeout: reported as late."""
+    r, tap = last.registers, rig.tap
+    out.check(
+        "counted",
+        tap.reads_answered == tap.reads_sent and r["Bus Errors"] == 0 and r["PC Errors"] == 0,
+        f"a healthy run lost {tap.reads_sent - tap.reads_answered} replies and counted "
+        f"{r['Bus Errors']} bus errors, {r['PC Errors']} PC errors",
+    )
+    out.check("alive", rig.health.safe_entries == 0, "a healthy run went SAFE")
+
+
+def _after_corrupt(rig: Rig, out: Outcome, last: Sample) -> None:
+    lost = rig.tap.reads_sent - rig.tap.reads_answered
+    out.counts["reads_lost"] = lost
+    if rig.bus.faults.corrupted_bytes > 50:
+        out.check(
+            "counted",
+            last.registers["Bus Timeouts"] > 0,
+            "bytes were corrupted but no READ ever timed out",
+        )
+
+
+def _after_drop(rig: Rig, out: Outcome, last: Sample) -> None:
+    dropped = rig.bus.faults.dropped_replies
+    out.check(
+        "counted",
+        last.registers["Bus Timeouts"] >= dropped,
+        f"{dropped} replies dropped, Bus Timeouts {last.registers['Bus Timeouts']}",
+    )
+    out.check("counted", dropped > 0, "the campaign dropped nothing")
+
+
+def _brownout(duration_s: float) -> Callable[[Rig, Outcome], None]:
+    def body(rig: Rig, out: Outcome) -> None:
+        _start(rig, out)
+        rig.watch(0.5, rig.operator())
+        rng = random.Random(f"{out.seed}/brownout")
+        start = 0.1 + rng.uniform(0.0, 0.2)
+        victim = rig.bus.servo(2)
+        with rig.server.lock:
+            t0 = rig.bus.now + start
+            rig.bus.at(t0, victim.power_off)
+            rig.bus.at(t0 + duration_s, victim.power_on)
+            before = rig.tap.unanswered[2]
+        out.counts["brownout_ms"] = round(duration_s * 1000)
+        recover_wait = start + duration_s + 0.2  # the operator waits for the servo to be back
+        rig.watch(start + duration_s + 1.5, rig.operator(recover_wait))
+        with rig.server.lock:
+            out.counts["servo2_reads_unanswered"] = rig.tap.unanswered[2] - before
+            unanswered_total = rig.tap.unanswered[2]
+            position = rig.bus.positions([2])[0]
+        s = rig.look()
+        counted = next(j.timeout_count for j in s.servos if j.id == 2)
+        out.counts["servo2_timeout_count"] = counted
+        out.check(
+            "counted",
+            counted >= min(unanswered_total, 255),
+            f"servo 2 missed {unanswered_total} READs, its Timeout Count says {counted}",
+        )
+        # over one whole cycle of the gait, servo 2 sweeps its range again
+        seen = [position]
+        for _ in range(int(len(FRAMES) * PERIOD_MS / 50) + 2):
+            time.sleep(0.05)
+            with rig.server.lock:
+                seen.append(rig.bus.positions([2])[0])
+        sweep = max(seen) - min(seen)
+        out.counts["servo2_sweep_after_ticks"] = round(sweep)
+        out.check(
+            "recovered", sweep > 50, f"servo 2 swept only {sweep:.0f} ticks after it came back"
+        )
+
+    return body
+
+
+def _after_brownout(long: bool) -> Callable[[Rig, Outcome, Sample], None]:
+    def check(rig: Rig, out: Outcome, last: Sample) -> None:
+        unanswered = out.counts["servo2_reads_unanswered"]
+        out.check("counted", unanswered > 0, "no READ of servo 2 went unanswered")
+        if long:
+            out.check(
+                "counted",
+                rig.health.flags_seen & ControllerErrors.BUS_LOSS,
+                "the brown-out never raised BUS_LOSS",
+            )
+            out.check("counted", rig.health.safe_entries >= 1, "the controller never went SAFE")
+            out.check("counted", rig.tap.torque_off >= 1, "no torque-off was sent on SAFE")
+        else:
+            out.check("alive", rig.health.safe_entries == 0, "a short brown-out tripped SAFE")
+
+    return check
+
+
+def _pc_noise(rig: Rig, out: Outcome) -> None:
+    """Noise bursts on the PC link while the table plays; each is followed at once by a
+    PING, or first by a pause (the firmware drops a partial packet after 100 ms)."""
+    _start(rig, out)
+    rng = random.Random(f"{out.seed}/pc-noise")
+    ctl = rig.ctl
+    link = ctl.link
+    base = ctl.read("PC Packets", "PC Errors")
+    model = PacketParser()
+    expected = Counter()
+    predicted_wrong = 0
+    bursts = noise_bytes = answered = 0
+    for _ in range(40):
+        size = rng.randint(1, 24)
+        if rng.random() < 0.5:
+            noise = bytes(rng.getrandbits(8) for _ in range(size))
+        else:  # FF-rich: fake headers and length bytes
+            noise = bytes(
+                rng.choice((0xFF, 0xFF, 0x00, CONTROLLER_ID, 0x02, 0x04, 0xF0)) for _ in range(size)
+            )
+        bursts += 1
+        noise_bytes += len(noise)
+        link.port.write(noise)
+        expected.update(type(e).__name__ for e in model.feed(noise))
+        if rng.random() < 0.4:
+            time.sleep(0.15)  # past PCLINK_GAP_MS: the firmware drops what it holds
+            model.reset()
+        ping = protocol.ping(CONTROLLER_ID)
+        events = model.feed(ping)
+        expected.update(type(e).__name__ for e in events)
+        will_answer = any(isinstance(e, Packet) and e.encode() == ping for e in events)
+        try:
+            link.transact(ping, CONTROLLER_ID, 0, retries=0)
+            did_answer = True
+        except ProtocolError:
+            did_answer = False
+        answered += did_answer
+        predicted_wrong += did_answer != will_answer
+        if not did_answer:
+            model.reset()  # the client waited past the firmware's 100 ms gap
+        rig.check_alive()  # its PING is one more packet, parsed from a clean state
+        expected["Packet"] += 1
+    time.sleep(0.15)  # nothing left pending
+    after = ctl.read("PC Packets", "PC Errors")
+    expected["Packet"] += 1  # this READ itself
+    got_packets = (after["PC Packets"] - base["PC Packets"]) & 0xFFFF
+    got_errors = (after["PC Errors"] - base["PC Errors"]) & 0xFFFF
+    out.counts.update(
+        noise_bursts=bursts,
+        noise_bytes=noise_bytes,
+        pings_through_noise=answered,
+        pc_errors_expected=expected["Rejected"],
+        pc_errors_counted=got_errors,
+        pc_packets_expected=expected["Packet"],
+        pc_packets_counted=got_packets,
+    )
+    out.check(
+        "counted",
+        got_errors == expected["Rejected"],
+        f"PC Errors grew by {got_errors}, the noise must cause {expected['Rejected']}",
+    )
+    out.check(
+        "counted",
+        got_packets == expected["Packet"],
+        f"PC Packets grew by {got_packets}, expected {expected['Packet']}",
+    )
+    out.check(
+        "counted",
+        predicted_wrong == 0,
+        f"{predicted_wrong} PINGs answered otherwise than the parser rule predicts",
+    )
+    out.check("counted", answered > 0, "no PING got through the noise")
+    rig.watch(0.3, rig.operator())
+
+
+def _upload_cut(rig: Rig, out: Outcome) -> None:
+    """While table A plays, an upload of table B is cut after every chunk (and in the
+    middle of every chunk's packet) and committed anyway; then B is uploaded whole."""
+    _start(rig, out)
+    ctl = rig.ctl
+    b = big_table()
+    chunks = chunk_writes(b, controller=CTL)
+    out.counts["table_b_chunks"] = len(chunks)
+    refused = incomplete_flag = still_playing = 0
+    for cut in range(len(chunks)):
+        for mid in (False, True):
+            for address, data in chunks[:cut]:
+                ctl.write_block(address, data)
+            if mid:
+                address, data = chunks[cut]
+                packet = protocol.write(CONTROLLER_ID, address, data)
+                ctl.link.port.write(packet[: len(packet) // 2])  # the cable is pulled
+                time.sleep(0.15)
+            ctl.write_block(*commit_write(b, CTL))
+            regs = ctl.read("Upload Result", "Error Flags", "State")
+            refused += regs["Upload Result"] == UploadResult.INCOMPLETE
+            incomplete_flag += bool(regs["Error Flags"] & ControllerErrors.UPLOAD_LENGTH)
+            still_playing += regs["State"] == State.PLAYING
+            rig.check_alive()
+            rig.check_table(f"after a cut at chunk {cut}{' (mid-packet)' if mid else ''}")
+    cuts = 2 * len(chunks)
+    out.counts.update(
+        cuts=cuts,
+        commits_refused_incomplete=refused,
+        upload_length_flag_set=incomplete_flag,
+        kept_playing=still_playing,
+    )
+    out.check("table", refused == cuts, f"{cuts - refused} cut uploads were not INCOMPLETE")
+    out.check("counted", incomplete_flag == cuts, "UPLOAD_LENGTH was not raised for every cut")
+    out.check("table", still_playing == cuts, "a refused commit stopped the playing table")
+    # the whole table B now lands, and plays
+    result = rig.upload(b)
+    out.check("table", result == UploadResult.OK, f"the whole table B was refused: {result}")
+    rig.check_table("after the whole upload")
+    rig.command(Command.PLAY)
+    rig.watch(0.5, rig.operator())
+
+
+@dataclass(frozen=True)
+class Campaign:
+    name: str
+    description: str
+    faults: Callable[[int], FaultConfig]
+    body: Callable[[Rig, Outcome], None]
+    after: Callable[[Rig, Outcome, Sample], None] | None = None
+
+
+def _corrupt(p: float) -> Callable[[int], FaultConfig]:
+    return lambda seed: FaultConfig(seed=seed, corrupt=p)
+
+
+CAMPAIGNS: dict[str, Campaign] = {
+    c.name: c
+    for c in (
+        Campaign(
+            "clean",
+            "no faults: the healthy baseline (no reply lost, no error counted)",
+            lambda s: FaultConfig(seed=s),
+            _clean,
+            _after_clean,
+        ),
+        Campaign(
+            "corrupt-0.1pct",
+            "each byte on the servo bus has one bit flipped w.p. 0.1 %",
+            _corrupt(0.001),
+            _play_under(4.0),
+            _after_corrupt,
+        ),
+        Campaign(
+            "corrupt-1pct",
+            "each byte on the servo bus has one bit flipped w.p. 1 %",
+            _corrupt(0.01),
+            _play_under(4.0),
+            _after_corrupt,
+        ),
+        Campaign(
+            "corrupt-5pct",
+            "each byte on the servo bus has one bit flipped w.p. 5 %",
+            _corrupt(0.05),
+            _play_under(4.0),
+            _after_corrupt,
+        ),
+        Campaign(
+            "drop-10pct",
+            "each servo status packet is lost w.p. 10 %",
+            lambda s: FaultConfig(seed=s, drop=0.10),
+            _play_under(4.0),
+            _after_drop,
+        ),
+        Campaign(
+            "brownout-short",
+            "servo 2 loses power for 60 ms (fewer misses than "
+            "Bus Loss Limit) and comes back with its RAM reset",
+            lambda s: FaultConfig(seed=s),
+            _brownout(0.06),
+            _after_brownout(False),
+        ),
+        Campaign(
+            "brownout-long",
+            "servo 2 loses power for 600 ms and comes back with its RAM "
+            "reset; the operator CLEARs and PLAYs again",
+            lambda s: FaultConfig(seed=s),
+            _brownout(0.6),
+            _after_brownout(True),
+        ),
+        Campaign(
+            "pc-noise",
+            "40 bursts of noise on the PC link (random and FF-rich, 1-24 "
+            "bytes), each followed by a PING at once or after a pause",
+            lambda s: FaultConfig(seed=s),
+            _pc_noise,
+        ),
+        Campaign(
+            "upload-cut",
+            "an upload of a 10-chunk table cut after every chunk and in "
+            "the middle of every chunk's packet, committed anyway, while another plays",
+            lambda s: FaultConfig(seed=s),
+            _upload_cut,
+        ),
+    )
+}
+
+
+def run(name: str, seed: int = 1) -> Outcome:
+    """Run one campaign; its Outcome says what was counted and which checks held."""
+    try:
+        campaign = CAMPAIGNS[name]
+    except KeyError:
+        raise CampaignFailed(
+            f"no campaign {name!r}: choose one of {', '.join(CAMPAIGNS)}"
+        ) from None
+    if not IMAGE.is_file():
+        raise CampaignFailed(f"{IMAGE} not found: build the firmware with `make firmware`")
+    out = Outcome(name, seed, campaign.description)
+    t0 = time.monotonic()
+    with tempfile.TemporaryDirectory(prefix="snakebot.sim-campaign-") as tmp:
+        with Rig(campaign.faults(seed), Path(tmp)) as rig:
+            try:
+                campaign.body(rig, out)
+                last = rig.freeze()
+            except ControllerError as exc:
+                out.check("alive", False, f"the campaign lost the controller: {exc}")
+                out.seconds = time.monotonic() - t0
+                return out
+            rig.check_table("at the end")
+            _common_checks(rig, out, last)
+            if campaign.after is not None:
+                campaign.after(rig, out, last)
+    out.seconds = time.monotonic() - t0
+    return out
+
+
+# -- the command line ----------------------------------------------------------------------------
+
+_COLUMNS = (
+    ("campaign", lambda o: o.name),
+    (
+        "goals (out of limits)",
+        lambda o: f"{o.counts.get('goals', 0)} ({o.counts.get('goals_outside_limits', 0)})",
+    ),
+    (
+        "READs sent/answered",
+        lambda o: f"{o.counts.get('reads_sent', 0)}/{o.counts.get('reads_answered', 0)}",
+    ),
+    (
+        "Bus Reads/Timeouts/Errors",
+        lambda o: (
+            f"{o.counts.get('bus_reads', 0)}/"
+            f"{o.counts.get('bus_timeouts', 0)}/{o.counts.get('bus_errors', 0)}"
+        ),
+    ),
+    (
+        "PINGs (failed)",
+        lambda o: f"{o.counts.get('pings', 0)} ({o.counts.get('ping_failures', 0)})",
+    ),
+    ("SAFE", lambda o: str(o.counts.get("safe_entries", 0))),
+    ("result", lambda o: "ok" if o.ok else "FAIL: " + "; ".join(o.problems)),
+)
+
+
+def render(outcomes: list[Outcome]) -> str:
+    rows = [[h for h, _ in _COLUMNS]] + [[f(o) for _, f in _COLUMNS] for o in outcomes]
+    widths = [max(len(r[i]) for r in rows) for i in range(len(_COLUMNS))]
+    return "\n".join(
+        "  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m tools.campaigns",
+        description="Fault campaigns: the controller firmware under QEMU drives three "
+        "emulated AX-12s while faults are injected from a seed; checks that goals stay "
+        "within the joint limits, the controller keeps answering, the committed table "
+        "survives, and every fault is counted. Needs `make firmware` first.",
+    )
+    parser.add_argument(
+        "--only",
+        action="append",
+        metavar="NAME",
+        choices=list(CAMPAIGNS),
+        help="run this campaign (repeatable); default: all of them, namely " + ", ".join(CAMPAIGNS),
+    )
+    parser.add_argument("--seed", type=int, default=1, help="seed of the faults (default 1)")
+    parser.add_argument("--json", action="store_true", help="one JSON record per campaign")
+    args = parser.parse_args(argv)
+    outcomes = []
+    for name in args.only or list(CAMPAIGNS):
+        try:
+            outcome = run(name, args.seed)
+        except SimError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+        outcomes.append(outcome)
+        if args.json:
+            print(json.dumps(outcome.as_record()), flush=True)
+        else:
+            print(
+                f"{name}: {'ok' if outcome.ok else 'FAILED'} ({outcome.seconds:.1f} s)",
+                file=sys.stderr,
+                flush=True,
+            )
+    if not args.json:
+        print(render(outcomes))
+    return 0 if all(o.ok for o in outcomes) else 1
+
+
+if __name__ == "__main__":
+    with contextlib.suppress(KeyboardInterrupt):
+        sys.exit(main())

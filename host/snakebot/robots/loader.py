@@ -9,6 +9,9 @@ Schema (see the built-in files beside this module for complete examples)::
                                   # trident: base_radius, arm_length, alphas_deg (3 angles)
     [friction]                    # c_n > 0, c_t >= 0 (optional; defaults 1 and 0)
     [servo]                       # model ("AX-12A" or "AX-12W"), max_speed_rpm (optional)
+    [physics]                     # optional; the physics world needs it: unit_m (> 0), and
+                                  # link_mass_kg, wheel_radius_m, wheel_mass_kg, mu,
+                                  # rolling_damping (PHYSICS_DEFAULTS when left out)
     [[joints]]                    # one per actuated joint, in order phi_1, phi_2, ...
     name, servo_id (0-253), zero_tick (0-1023), sign (1 or -1), min_deg, max_deg
 """
@@ -22,10 +25,27 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from snakebot.robots.model import SERVO_MAX_RPM, TICK_MAX, TICK_MIN, Joint, Robot, RobotError
+from snakebot.robots.model import (
+    SERVO_MAX_RPM,
+    TICK_MAX,
+    TICK_MIN,
+    Joint,
+    Physics,
+    Robot,
+    RobotError,
+)
 
 BUILTIN_ROBOTS = ("snake3", "trident", "snake5")
 MAX_LINKS = 16  # the C core's fixed buffers (KIN_MAX_LINKS)
+
+PHYSICS_DEFAULTS: dict[str, float] = {
+    "link_mass_kg": 0.08,  # an AX-12A (55 g) with its brackets and wheel axle
+    "wheel_radius_m": 0.02,
+    "wheel_mass_kg": 0.01,
+    "mu": 0.8,  # rubber on a hard floor
+    "rolling_damping": 1e-5,
+}
+"""``[physics]`` values a robot may leave out; ``unit_m`` has no default."""
 
 _ARRAY_HEADER = re.compile(r"^\s*\[\[\s*([A-Za-z0-9_.\-]+)\s*\]\]")
 _TABLE_HEADER = re.compile(r"^\s*\[\s*([A-Za-z0-9_.\-]+)\s*\]")
@@ -142,6 +162,16 @@ def _joint(reader: _Reader, index: int) -> Joint:
     return joint
 
 
+def _physics(reader: _Reader) -> Physics | None:
+    if "physics" not in reader.data:
+        return None
+    values = {
+        key: reader.number(("physics", key), 0.0, default, strictly=key != "rolling_damping")
+        for key, default in PHYSICS_DEFAULTS.items()
+    }
+    return Physics(unit_m=reader.number(("physics", "unit_m"), 0.0, strictly=True), **values)
+
+
 def parse_robot(text: str, source: str = "<robot>") -> Robot:
     """Build a ``Robot`` from TOML text; ``source`` names it in error messages."""
     try:
@@ -181,6 +211,7 @@ def parse_robot(text: str, source: str = "<robot>") -> Robot:
         c_n=reader.number(("friction", "c_n"), 0.0, 1.0, strictly=True),
         c_t=reader.number(("friction", "c_t"), 0.0, 0.0),
         description=reader.get(("description",), str, ""),
+        physics=_physics(reader),
         source=source,
     )
     if kind == "snake":

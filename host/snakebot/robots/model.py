@@ -49,6 +49,23 @@ class Joint:
 
 
 @dataclass(frozen=True)
+class Physics:
+    """What the physics world needs beyond the geometry (the robot TOML's ``[physics]``
+    table). ``unit_m``: metres per length unit of ``[geometry]`` (1 for a robot measured
+    in metres; a dimensionless thesis robot gets the size a lab would build). Masses in
+    kg, the wheel radius in metres; ``mu`` is the wheel-floor friction coefficient (it
+    holds the wheels sideways); ``rolling_damping`` (N m s/rad) resists each wheel's spin.
+    """
+
+    unit_m: float
+    link_mass_kg: float
+    wheel_radius_m: float
+    wheel_mass_kg: float
+    mu: float
+    rolling_damping: float
+
+
+@dataclass(frozen=True)
 class Robot:
     """A wheeled snake (``kind == "snake"``) or trident (``kind == "trident"``).
 
@@ -68,6 +85,7 @@ class Robot:
     c_n: float = 1.0
     c_t: float = 0.0
     description: str = ""
+    physics: Physics | None = None  # None: the TOML has no [physics] table
     source: str = field(default="", compare=False)  # file it came from
 
     @property

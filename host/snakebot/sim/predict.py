@@ -40,7 +40,8 @@ from snakebot.kinematics import KinematicsError, Table, Trajectory, integrate_jo
 from snakebot.protocol import sync_write
 from snakebot.robots import Robot, RobotError, load_robot
 from snakebot.sim.bus import Bus
-from snakebot.sim.world import DEFAULT_BATCH, SINGULAR_CODES, World, WorldRecord, fallback_c_t
+from snakebot.sim.physics.select import DEFAULT_WORLD, make_world, record_extras, world_of
+from snakebot.sim.world import DEFAULT_BATCH, SINGULAR_CODES, WorldRecord, fallback_c_t
 from snakebot.transport import DxlClient
 
 GOAL_POSITION_ADDR = 30
@@ -100,6 +101,7 @@ class Prediction:
         err = self.joint_error
         pred_slip = self.predicted.slip
         out: dict[str, Any] = {
+            "world": world_of(self.emulated),
             "gait": self.gait,
             "robot": self.robot.name,
             "servos": "ideal" if self.ideal else self.robot.servo_model,
@@ -116,6 +118,7 @@ class Prediction:
                 "slip_max": self.emulated.slip_max(),
                 "slip_distance": [float(v) for v in self.emulated.slip_distance()],
                 "samples": len(self.emulated.t),
+                **record_extras(self.emulated),
             },
             "predicted": {
                 **pr,
@@ -243,6 +246,8 @@ def play(
     ideal: bool,
     world_hz: float = DEFAULT_WORLD_HZ,
     batch: int = DEFAULT_BATCH,
+    world: str = DEFAULT_WORLD,
+    mu: float | None = None,
 ) -> tuple[WorldRecord, float, float]:
     """Play ``table`` once from the servos' current state (``ideal``: they are ideal
     servos, so the world samples at the frame instants); returns the world's record,
@@ -262,13 +267,13 @@ def play(
     duration = writes * period
     wall0 = time.perf_counter()
     start = bus.now
-    world = World(bus, robot, period=world_period, start=start, batch=batch)
+    body = make_world(world, bus, robot, period=world_period, start=start, batch=batch, mu=mu)
     for k, packet in enumerate(packets):
         bus.run_until(start + k * period)
         client.send(packet)  # SYNC_WRITE: no reply to wait for
     bus.run_until(start + duration + 0.5 * world_period)
-    world.stop()
-    record = world.record()
+    body.stop()
+    record = body.record()
     wall = time.perf_counter() - wall0
     expected = writes * per_frame + 1
     if len(record.t) != expected:  # pragma: no cover - a clock bug, not a user error
@@ -323,20 +328,33 @@ def predict_gait(
     ideal: bool = False,
     world_hz: float = DEFAULT_WORLD_HZ,
     batch: int = DEFAULT_BATCH,
+    world: str = DEFAULT_WORLD,
+    mu: float | None = None,
 ) -> Prediction:
     """Play a gait table (a file or a ``GaitTable``) on an emulated robot and compare.
-    ``batch``: samples the world integrates per C call (results do not depend on it)."""
+    ``batch``: samples the world integrates per C call (results do not depend on it);
+    ``world``: "kinematic" or "mujoco" (``mu``: its wheel-floor friction)."""
     table = gait if isinstance(gait, GaitTable) else read_gait(gait)
     name = "<table>" if isinstance(gait, GaitTable) else str(gait)
     chosen = resolve_robot(table, robot)
     if table.frame_count < 2:
         raise PredictError("the table has a single frame: nothing moves; give it two or more")
+    if ideal and world != "kinematic":
+        raise PredictError(f"ideal servos have no torque: drop --ideal for the {world} world")
     client = DxlClient(sim_url(chosen, ideal), echo=False)
     try:
         bus: Bus = client.port.bus
         move_to_start(client, bus, chosen, table.frames[0])
         record, world_period, wall = play(
-            client, bus, chosen, table, ideal=ideal, world_hz=world_hz, batch=batch
+            client,
+            bus,
+            chosen,
+            table,
+            ideal=ideal,
+            world_hz=world_hz,
+            batch=batch,
+            world=world,
+            mu=mu,
         )
     finally:
         client.close()

@@ -27,6 +27,9 @@ What it does, as the ROBOTIS manuals describe (the choices they leave open are m
 
 Motion and heat follow ``snakebot.sim.motor``. ``ideal=True`` makes motion instant (the
 position is the goal), for comparing the emulated world with a prediction exactly.
+A physics world may own the motion instead (``world_driven``): it reads the controller's
+registers (:meth:`VirtualServo.controller`) and reports position, speed and load back
+(:meth:`VirtualServo.set_motion`); the servo keeps its heat, alarms and protocol.
 """
 
 from __future__ import annotations
@@ -80,6 +83,9 @@ _SHADOWS = {
     "Torque Limit": "_torque_limit",
     "CW Compliance Margin": "_cw_margin",
     "CCW Compliance Margin": "_ccw_margin",
+    "CW Compliance Slope": "_cw_slope",
+    "CCW Compliance Slope": "_ccw_slope",
+    "Punch": "_punch",
     "CW Angle Limit": "_cw_limit",
     "CCW Angle Limit": "_ccw_limit",
     "Temperature Limit": "_temp_limit",
@@ -208,6 +214,8 @@ class VirtualServo:
         self.supply_v = self.spec.nominal_voltage
         self.external_torque = 0.0
         """Torque the outside world applies, N m (+ turns toward larger positions)."""
+        self.world_driven = False
+        """True while a physics world owns the motion (see :meth:`set_motion`)."""
         regs = self.regs
         goal, speed = regs.entry("Goal Position"), regs.entry("Moving Speed")
         self._goal_addr = goal.address
@@ -352,7 +360,71 @@ class VirtualServo:
         self.advance(t)
         self.external_torque = float(torque_nm)
 
+    def controller(self) -> tuple[float, ...]:
+        """What the servo's position controller works from, for a physics world:
+        (goal, Moving Speed setting in ticks/s (inf: no limit), torque on (0/1), Torque
+        Limit, CW margin, CCW margin, CW slope, CCW slope, Punch, supply volts, wheel mode
+        (0/1), raw Moving Speed). Torque is off while unpowered."""
+        on = 1.0 if self.powered and self._torque_enable == 1 and self._torque_limit > 0 else 0.0
+        return (
+            float(self._goal),
+            self._speed_setting,
+            on,
+            float(self._torque_limit),
+            float(self._cw_margin),
+            float(self._ccw_margin),
+            float(self._cw_slope),
+            float(self._ccw_slope),
+            float(self._punch),
+            self.supply_v,
+            1.0 if self.wheel_mode else 0.0,
+            float(self._moving_speed),
+        )
+
+    def set_motion(
+        self,
+        t: float,
+        pos: float,
+        vel: float,
+        load_fraction: float,
+        load_cw: bool,
+        moving: bool,
+        overload: bool,
+    ) -> None:
+        """A physics world's report at bus time ``t``: position (ticks), speed (ticks/s),
+        load (fraction of stall torque, ``load_cw``: pushing toward smaller positions),
+        whether it moves, whether the load exceeds what it may give. Heat and alarms
+        follow from them as for the servo's own motion."""
+        self.world_driven = True
+        self.advance(t)
+        self.pos = pos
+        self.vel = vel
+        self.load_fraction = load_fraction if load_fraction < 1.0 else 1.0
+        self.load_cw = load_cw
+        self.moving = moving
+        self.overload = overload and self.powered
+        if self.overload:
+            conditions = self._conditions()
+            if conditions & self._shutdown:
+                self._alarm(conditions)
+
+    def _heat(self, fraction: float, dt: float) -> None:
+        temp = self.temp
+        if fraction or temp != _AMBIENT_C:
+            steady = _AMBIENT_C + self._stall_rise * fraction * fraction
+            temp = self.temp = steady + (temp - steady) * _exp(-dt / self._thermal_tau)
+        if self.overload or self._voltage_bad or temp >= self._temp_limit + 0.5:
+            conditions = self._conditions()
+            if conditions & self._shutdown:
+                self._alarm(conditions)
+
     def _step(self, dt: float) -> None:
+        if self.world_driven:  # the world set the motion; heat and alarms stay ours
+            if self.powered:
+                self._heat(self.load_fraction, dt)
+            else:
+                self.temp = motor.thermal_step(self.temp, 0.0, dt, self.spec)
+            return
         if not self.powered:
             self.vel = 0.0
             self.moving = False
@@ -422,14 +494,7 @@ class VirtualServo:
             fraction = self._moving_load if delta else 0.0
         self.load_fraction = fraction if fraction < 1.0 else 1.0
         self.load_cw = external > 0 if external else delta < 0
-        temp = self.temp
-        if fraction or temp != _AMBIENT_C:
-            steady = _AMBIENT_C + self._stall_rise * fraction * fraction
-            temp = self.temp = steady + (temp - steady) * _exp(-dt / self._thermal_tau)
-        if overload or self._voltage_bad or temp >= self._temp_limit + 0.5:
-            conditions = self._conditions()
-            if conditions & self._shutdown:
-                self._alarm(conditions)
+        self._heat(fraction, dt)
 
     def _conditions(self) -> int:
         flags = _VOLTAGE if self._voltage_bad else 0

@@ -124,6 +124,19 @@ def integrate_samples(
     return q, slip
 
 
+def require_servos(bus: Bus, robot: Robot) -> tuple[int, ...]:
+    """The robot's servo IDs, once checked to be on the bus (a world drives them all)."""
+    ids = robot.servo_ids
+    missing = [i for i in ids if all(s.id != i for s in bus.servos)]
+    if missing:
+        raise WorldError(
+            f"{robot.name} drives servos {list(ids)} but the bus has no servo with ID "
+            f"{', '.join(map(str, missing))}: build the bus for this robot "
+            f"(sim://?robot={robot.source or robot.name})"
+        )
+    return ids
+
+
 class World:
     """The body of ``robot`` driven by the servos on ``bus``.
 
@@ -153,14 +166,7 @@ class World:
             raise WorldError(f"the world's sampling period must be positive, not {period}")
         if batch < 1:
             raise WorldError(f"batch must be at least 1 sample, not {batch}")
-        ids = robot.servo_ids
-        missing = [i for i in ids if all(s.id != i for s in bus.servos)]
-        if missing:
-            raise WorldError(
-                f"{robot.name} drives servos {list(ids)} but the bus has no servo with ID "
-                f"{', '.join(map(str, missing))}: build the bus for this robot "
-                f"(sim://?robot={robot.source or robot.name})"
-            )
+        ids = require_servos(bus, robot)
         self.bus = bus
         self.robot = robot
         self.period = float(period)

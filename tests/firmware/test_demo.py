@@ -41,7 +41,13 @@ def test_demo_json_reports_the_snake_advancing_and_writes_the_png(tmp_path):
         ((emulated["dx"] - predicted["dx"]) ** 2 + (emulated["dy"] - predicted["dy"]) ** 2) ** 0.5,
         abs=1e-5,
     )
-    assert result["reason"] == "servo lag"
+    # the demo's default world is the physics: the prediction's own model is not the judge
+    assert result["world"] == "mujoco"
+    assert result["reason"] == "servo lag and physics"
+    physics = result["physics"]
+    free = physics["predicted_free_wheels"]  # the kinematic model for the twin's free wheels
+    assert physics["difference_free_wheels_m"] < 0.1 * free["distance"]
+    assert sum(physics["energy_j"]) > 0
     assert result["upload"]["crc"] == f"0x{zlib.crc32((out / 'demo.gait').read_bytes()):08x}"
     assert result["monitor"]
     assert all(m["controller"]["state"] == "PLAYING" for m in result["monitor"])

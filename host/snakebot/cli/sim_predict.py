@@ -11,6 +11,7 @@ from typing import Any
 import click
 
 import snakebot.transport.ports  # noqa: F401  (registers sim://)
+from snakebot.sim.physics.select import DEFAULT_WORLD, WORLDS
 from snakebot.sim.predict import DEFAULT_WORLD_HZ, predict_gait
 
 
@@ -42,6 +43,20 @@ def _motion(label: str, m: dict[str, Any]) -> str:
     help="how often (Hz, bus time) the world samples modelled servos; at least once per frame",
 )
 @click.option(
+    "--world",
+    type=click.Choice(WORLDS),
+    default=DEFAULT_WORLD,
+    show_default=True,
+    help="kinematic: the minimum-slip wheel model moves the body from the servos' "
+    "positions; mujoco: the body has mass, its wheels can slip and the servos run out of "
+    "torque (the robot TOML's [physics] table).",
+)
+@click.option(
+    "--mu",
+    type=click.FloatRange(min=0, min_open=True),
+    help="With --world mujoco: the wheel-floor friction coefficient (default: the robot's).",
+)
+@click.option(
     "--plot",
     type=click.Path(dir_okay=False, path_type=Path),
     help="write a PNG of the emulated and predicted body paths and the joints' tracking",
@@ -52,6 +67,8 @@ def predict(
     robot: str | None,
     ideal: bool,
     world_rate: float,
+    world: str,
+    mu: float | None,
     plot: Path | None,
     as_json: bool,
 ) -> None:
@@ -61,7 +78,9 @@ def predict(
     The host is the bus master, as with a USB2Dynamixel adapter and no controller: it
     puts the virtual servos at the first frame, then sends one SYNC_WRITE per frame
     (goal = the next frame, moving speed = what covers the step in one frame period).
-    The servos' present positions drive the body through the minimum-slip wheel model.
+    The servos' present positions drive the body through the minimum-slip wheel model,
+    or, with --world mujoco, the servos drive a body with mass on wheels that can slip,
+    and the report adds each wheel's sideways slip, each joint's energy and peak load.
     Everything runs on the emulator's clock, many times faster than real time.
 
     The report gives the body's displacement (in the start pose's frame) emulated and
@@ -74,7 +93,7 @@ def predict(
       snakebot gait serpenoid snake5 -A 30deg -w 180deg -d 90deg --cycles 1 -o s.gait
       snakebot sim predict s.gait --plot s.png
     """
-    result = predict_gait(gait_file, robot, ideal=ideal, world_hz=world_rate)
+    result = predict_gait(gait_file, robot, ideal=ideal, world_hz=world_rate, world=world, mu=mu)
     summary = result.summary()
     if plot is not None:
         from snakebot.sim.predict_plot import plot_prediction
@@ -86,7 +105,7 @@ def predict(
     diff = summary["difference"]
     em = summary["emulated"]
     click.echo(
-        f"played {gait_file} on the emulated {summary['robot']} "
+        f"played {gait_file} on the emulated {summary['robot']} in the {world} world "
         f"({summary['servos']} servos, host as bus master): {summary['frames']} "
         f"frames every {summary['frame_period_ms']} ms, "
         f"{'one loop' if summary['loop'] else 'once'}, {summary['duration_s']:.3f} s"
@@ -103,9 +122,18 @@ def predict(
         f"joint tracking error: max {math.degrees(diff['joint_max_rad']):.3f} deg, "
         f"rms {math.degrees(diff['joint_rms_rad']):.3f} deg"
     )
-    click.echo(
-        f"wheel slip: at most {em['slip_max']:.3g} per second sideways (c_t = {em['c_t']:g})"
-    )
+    friction = f"c_t = {em['c_t']:g}" if em["c_t"] is not None else f"mu = {em['mu']:g}"
+    click.echo(f"wheel slip: at most {em['slip_max']:.3g} per second sideways ({friction})")
+    if "energy_j" in em:
+        click.echo(
+            "physics: energy per joint "
+            + ", ".join(f"{e:.3g}" for e in em["energy_j"])
+            + " J; peak load "
+            + ", ".join(f"{100 * v:.0f}" for v in em["peak_load"])
+            + " % of stall; slid sideways "
+            + ", ".join(f"{v:.3g}" for v in em["slip_distance"])
+            + " per wheel"
+        )
     if em["regularised_intervals"]:
         click.echo(
             f"  {em['regularised_intervals']} interval(s) crossed a singular "

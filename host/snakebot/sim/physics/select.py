@@ -30,15 +30,17 @@ def make_world(
     start: float | None = None,
     batch: int | None = None,
     mu: float | None = None,
+    keep: int | None = None,
 ) -> Any:
     """A world of kind ``name`` on ``bus`` sampling every ``period`` from ``start``.
-    ``batch`` tunes the kinematic world, ``mu`` the physics one (each ignores the other)."""
+    ``batch`` tunes the kinematic world, ``mu`` and ``keep`` (samples kept) the physics
+    one (each ignores the other's)."""
     if check_world(name) == "kinematic":
         extra = {} if batch is None else {"batch": batch}
         return World(bus, robot, period=period, start=start, **extra)
     from snakebot.sim.physics.world import PhysicsWorld
 
-    return PhysicsWorld(bus, robot, period=period, start=start, mu=mu)
+    return PhysicsWorld(bus, robot, period=period, start=start, mu=mu, keep=keep)
 
 
 def world_of(record: WorldRecord) -> str:

@@ -24,6 +24,7 @@ backwards).
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
@@ -91,9 +92,10 @@ class PhysicsWorld:
 
     Sampling starts at bus time ``start`` (default: now), every ``period`` seconds until
     :meth:`stop`; the control period and the MuJoCo step are at most ``control_period``
-    and ``timestep``, shortened to divide the sampling period. ``pose`` is the
-    body pose at the start (robot units, radians); the joints start where the servos
-    are. ``mu`` overrides the wheel-floor friction coefficient of the robot's
+    and ``timestep``, shortened to divide the sampling period. ``keep``: how many of the
+    latest samples the record keeps (default all; a server that runs for days keeps
+    few). ``pose`` is the body pose at the start (robot units, radians); the joints
+    start where the servos are. ``mu`` overrides the wheel-floor friction coefficient of the robot's
     ``[physics]`` table.
     """
 
@@ -108,6 +110,7 @@ class PhysicsWorld:
         mu: float | None = None,
         timestep: float = TIMESTEP_S,
         control_period: float = CONTROL_PERIOD_S,
+        keep: int | None = None,
     ) -> None:
         mujoco = _mujoco()
         if not min(period, timestep, control_period) > 0:
@@ -152,8 +155,8 @@ class PhysicsWorld:
         self._energy = np.zeros(n)
         self._stalled = [0.0] * n
         self._moving = [False] * n
-        self._t: list[float] = []
-        self._rows: list[list[float]] = []
+        self._t: deque[float] = deque(maxlen=keep)
+        self._rows: deque[list[float]] = deque(maxlen=keep)
         self._steps = 0
         self._running = True
         self._vel = np.zeros(6)
@@ -283,7 +286,7 @@ class PhysicsWorld:
     def record(self) -> PhysicsRecord:
         """Everything sampled so far."""
         n, w = self.robot.n_joints, self.robot.n_wheels
-        rows = np.array(self._rows, dtype=float).reshape(-1, 3 + 3 * n + w)
+        rows = np.array(list(self._rows), dtype=float).reshape(-1, 3 + 3 * n + w)
         cols = np.cumsum([3, n, w, n])
         pose, phi, slip, torque, load = np.split(rows, cols, axis=1)
         return PhysicsRecord(

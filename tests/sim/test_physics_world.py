@@ -104,10 +104,9 @@ def test_low_lateral_friction_makes_the_wheels_slip(grippy, slippery):
 
 
 def test_energy_is_non_negative_and_the_report_is_finite(grippy, slippery):
-    # what the motors put in, all told, is what friction takes out: positive. On grippy
-    # wheels every joint works; on slippery ones a joint may be driven backwards by the
-    # others and give some back, so only the total must be positive there.
-    assert np.all(grippy.emulated.energy > 0.0)
+    # what the motors put in, all told, is what friction and the gears' braking take out
+    # (the body starts and ends nearly at rest): positive. One joint may be driven
+    # backwards by the others and give some back, so only the total must be positive.
     for result in (grippy, slippery):
         rec = result.emulated
         assert rec.energy.sum() > 0.0

@@ -24,11 +24,11 @@ from xml.etree import ElementTree as ET
 from snakebot.robots import Physics, Robot, RobotError
 from snakebot.sim.physics.actuator import ARMATURE_KG_M2, Actuator
 
-TIMESTEP_S = 0.004
+TIMESTEP_S = 0.005
 """MuJoCo's step: fine enough that the distance a gait covers no longer depends on it
 (tests/sim/test_physics_world.py checks the convergence at this step)."""
 
-CONTROL_PERIOD_S = 0.004
+CONTROL_PERIOD_S = 0.01
 """How often the world sets each servo's drive from its registers and reports the joint
 back: between, MuJoCo runs the drive as a linear law (the AX-12's own loop is faster)."""
 
@@ -96,11 +96,24 @@ def _wheel(parent: ET.Element, name: str, x: float, phys: Physics) -> None:
         size=_fmt(phys.wheel_radius_m, WHEEL_WIDTH_M / 2),
         zaxis="0 1 0",
         mass=_fmt(phys.wheel_mass_kg),
+        contype="0",
+        conaffinity="0",
+        rgba="0.15 0.15 0.15 1",
+    )
+    # The floor touches a sphere of the wheel's radius: one contact point under the axle
+    # (a flat cylinder gives two, at twice the cost), the same point a thin tyre touches
+    # at, since the robot cannot roll sideways.
+    ET.SubElement(
+        body,
+        "geom",
+        type="sphere",
+        size=_fmt(phys.wheel_radius_m),
+        mass="0",
         contype="1",
         conaffinity="0",
         condim="3",
         friction=_fmt(phys.mu, 0.005, 0.0001),
-        rgba="0.15 0.15 0.15 1",
+        group="3",
     )
 
 

@@ -157,10 +157,12 @@ class PhysicsWorld:
         self._moving = [False] * n
         self._t: deque[float] = deque(maxlen=keep)
         self._rows: deque[list[float]] = deque(maxlen=keep)
-        self._steps = 0
+        self._ticks = 0
         self._running = True
-        self._vel = np.zeros(6)
-        self._report(self.start_time)
+        self._joints = list(
+            zip(self._servos, self._signs, self._zeros, self._qadr, self._dadr, strict=True)
+        )
+        self._root = int(m.body_rootid[self._wheels[0]])
         self._schedule = bus.every(self.control_period, self._tick, start=self.start_time)
 
     # -- stepping -------------------------------------------------------------------------
@@ -171,41 +173,47 @@ class PhysicsWorld:
         d = self.data
         return d.actuator_force - self.actuator.damping * d.qvel[self._dadr]
 
-    def _report(self, t: float) -> None:
-        """Tell every servo its joint's state at bus time ``t``, then record if due."""
-        d = self.data
-        qpos, qvel = d.qpos, d.qvel
+    def _tick(self, t: float) -> None:
+        """At bus time ``t``: bring the physics from the last tick to ``t`` under the
+        drive set then, report the joints to the servos (and record, if a sample is
+        due), and set every motor's drive from its servo's registers as they are now."""
+        if not self._running:
+            return
+        m, d = self.model, self.data
+        qvel = d.qvel
+        period = self.control_period
+        if self._ticks:
+            # energy: the motors' power (the drive in force during each step, the speed
+            # at its end; the implicit integrator's own reading of the step)
+            step, dadr, damping = self._mj.mj_step, self._dadr, self.actuator.damping
+            dt = self.timestep
+            for _ in range(self.substeps):
+                step(m, d)
+                w = qvel[dadr]
+                self._energy += (d.actuator_force - damping * w) * w * dt
         torque = self._motor_torque()
-        stall = self.actuator.stall_nm
-        for k, servo in enumerate(self._servos):
-            sign = self._signs[k]
+        if self._ticks % self.steps_per_sample == 0:
+            self._sample(t, torque)
+        self._ticks += 1
+        act = self.actuator
+        qpos = d.qpos
+        bias, limits = m.actuator_biasprm, m.actuator_forcerange
+        stall_nm = act.stall_nm
+        stalled_speed = STALLED_FRACTION * act.no_load_rad_s
+        for k, (servo, sign, zero, qa, da) in enumerate(self._joints):
+            pos = zero + sign * qpos[qa] * TICKS_PER_RAD
+            w = qvel[da]
+            tau = torque[k]
             servo.set_motion(
                 t,
-                self._zeros[k] + sign * qpos[self._qadr[k]] * TICKS_PER_RAD,
-                sign * qvel[self._dadr[k]] * TICKS_PER_RAD,
-                abs(torque[k]) / stall,
-                torque[k] * sign < 0,
+                pos,
+                sign * w * TICKS_PER_RAD,
+                abs(tau) / stall_nm,
+                tau * sign < 0,
                 self._moving[k],
                 self._stalled[k] >= OVERLOAD_HOLD_S,
             )
-        if self._steps % self.steps_per_sample == 0:
-            self._sample(t, torque)
-
-    def _tick(self, t: float) -> None:
-        """Set every servo's drive from its registers, step the physics one control
-        period, and report the result to the servos."""
-        if not self._running:
-            return
-        act = self.actuator
-        m, d = self.model, self.data
-        qpos, qvel = d.qpos, d.qvel
-        bias, limits = m.actuator_biasprm, m.actuator_forcerange
-        period = self.control_period
-        stalled_speed = STALLED_FRACTION * act.no_load_rad_s
-        for k, servo in enumerate(self._servos):
-            sign, zero = self._signs[k], self._zeros[k]
             ctrl = servo.controller()
-            pos = zero + sign * qpos[self._qadr[k]] * TICKS_PER_RAD
             gain, target, offset, cap, cut = act.drive(ctrl, pos)
             stall = act.stall_at(ctrl[9])
             # duty = gain * (target - ticks) + offset, ticks = zero + sign * TICKS_PER_RAD * q,
@@ -213,41 +221,35 @@ class PhysicsWorld:
             bias[k, 0] = sign * stall * (gain * (target - zero) + offset)
             bias[k, 1] = -stall * gain * TICKS_PER_RAD
             limits[k, 0], limits[k, 1] = -stall * cap, stall * cap
-            slow = abs(qvel[self._dadr[k]]) < stalled_speed
+            slow = abs(w) < stalled_speed
             self._stalled[k] = self._stalled[k] + period if cut and slow else 0.0
             self._moving[k] = gain != 0.0 or offset != 0.0
-        step = self._mj.mj_step
-        damping = act.damping
-        dt = self.timestep
-        dadr = self._dadr
-        energy = self._energy
-        for _ in range(self.substeps):
-            step(m, d)
-            w = qvel[dadr]
-            energy += (d.actuator_force - damping * w) * w * dt
-        self._steps += 1
-        self._report(t + period)
 
     def _sample(self, t: float, torque: np.ndarray) -> None:
         d = self.data
         q = d.qpos
         if not np.isfinite(q).all() or not np.isfinite(d.qvel).all():
             self._fail(t, "the simulation blew up (a position or speed is not finite)")
-        wheel_z = d.xpos[self._wheels, 2]
-        if wheel_z.min() < self._min_wheel_z:
+        wheels = self._wheels
+        centre = d.xpos[wheels]
+        if centre[:, 2].min() < self._min_wheel_z:
             self._fail(t, "a wheel sank deep into the floor")
+        # each wheel centre's velocity along its axle (body y axis), from the bodies'
+        # com-based velocities (the robot is one tree rooted at the base). The robot
+        # stays level, so only the turn about z carries the centre sideways:
+        # v + w x r with w = (0, 0, wz) + spin along the axle (which moves no centre)
+        cvel = d.cvel[wheels]
+        r = centre - d.subtree_com[self._root]
+        axle = d.xmat[wheels][:, 1::3]  # row-major 3x3: the body's y axis is column 1
+        vx = cvel[:, 3] - cvel[:, 2] * r[:, 1]
+        vy = cvel[:, 4] + cvel[:, 2] * r[:, 0]
+        slip = (vx * axle[:, 0] + vy * axle[:, 1]) / self.unit
         unit = self.unit
-        slip = []
-        vel = self._vel
-        for b in self._wheels:
-            self._mj.mj_objectVelocity(self.model, d, self._mj.mjtObj.mjOBJ_BODY, b, vel, 0)
-            axle = d.xmat[b].reshape(3, 3)[:, 1]
-            slip.append(float(vel[3:] @ axle) / unit)
         row = [q[0] / unit, q[1] / unit, q[3]]
         row += [q[a] for a in self._qadr]
-        row += slip
-        row += list(torque)
-        row += list(np.abs(torque) / self.actuator.stall_nm)
+        row += slip.tolist()
+        row += torque.tolist()
+        row += (np.abs(torque) / self.actuator.stall_nm).tolist()
         self._t.append(t - self.start_time)
         self._rows.append(row)
 

@@ -24,7 +24,7 @@ from xml.etree import ElementTree as ET
 from snakebot.robots import Physics, Robot, RobotError
 from snakebot.sim.physics.actuator import ARMATURE_KG_M2, Actuator
 
-TIMESTEP_S = 0.005
+TIMESTEP_S = 0.01
 """MuJoCo's step: fine enough that the distance a gait covers no longer depends on it
 (tests/sim/test_physics_world.py checks the convergence at this step)."""
 

@@ -144,7 +144,8 @@ class PhysicsWorld:
         self._qadr = [int(m.jnt_qposadr[j]) for j in jid]
         self._dadr = [int(m.jnt_dofadr[j]) for j in jid]
         self._wheels = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n) for n in names.wheels]
-        self._min_wheel_z = PENETRATION_LIMIT * phys.wheel_radius_m
+        # the base slides in z from the wheels' resting height (their radius)
+        self._min_z = (PENETRATION_LIMIT - 1.0) * phys.wheel_radius_m
         d = self.data
         d.qpos[0], d.qpos[1], d.qpos[3] = pose[0] * self.unit, pose[1] * self.unit, pose[2]
         for k, servo in enumerate(self._servos):
@@ -159,10 +160,15 @@ class PhysicsWorld:
         self._rows: deque[list[float]] = deque(maxlen=keep)
         self._ticks = 0
         self._running = True
-        self._joints = list(
-            zip(self._servos, self._signs, self._zeros, self._qadr, self._dadr, strict=True)
-        )
+        self._joints = list(zip(self._servos, self._signs, self._zeros, strict=True))
         self._root = int(m.body_rootid[self._wheels[0]])
+        # what a sample keeps: x, y, theta and the joints; per wheel its turn rate and
+        # velocity (x, y) about the root's centre of mass, its centre (x, y), its axle
+        w = np.array(self._wheels)
+        self._qsel = np.array([0, 1, 3, *self._qadr])
+        self._cvel_idx = (6 * w[:, None] + [2, 3, 4]).ravel()
+        self._xpos_idx = (3 * w[:, None] + [0, 1]).ravel()
+        self._axle_idx = (9 * w[:, None] + [1, 4]).ravel()  # row-major 3x3: column 1
         self._schedule = bus.every(self.control_period, self._tick, start=self.start_time)
 
     # -- stepping -------------------------------------------------------------------------
@@ -196,14 +202,17 @@ class PhysicsWorld:
             self._sample(t, torque)
         self._ticks += 1
         act = self.actuator
-        qpos = d.qpos
-        bias, limits = m.actuator_biasprm, m.actuator_forcerange
         stall_nm = act.stall_nm
         stalled_speed = STALLED_FRACTION * act.no_load_rad_s
-        for k, (servo, sign, zero, qa, da) in enumerate(self._joints):
-            pos = zero + sign * qpos[qa] * TICKS_PER_RAD
-            w = qvel[da]
-            tau = torque[k]
+        # plain floats from here on: numpy scalars are slow one at a time
+        angles = d.qpos[self._qadr].tolist()
+        speeds = qvel[self._dadr].tolist()
+        torques = torque.tolist()
+        constant, slope, low, high = [], [], [], []
+        for k, (servo, sign, zero) in enumerate(self._joints):
+            pos = zero + sign * angles[k] * TICKS_PER_RAD
+            w = speeds[k]
+            tau = torques[k]
             servo.set_motion(
                 t,
                 pos,
@@ -218,40 +227,43 @@ class PhysicsWorld:
             stall = act.stall_at(ctrl[9])
             # duty = gain * (target - ticks) + offset, ticks = zero + sign * TICKS_PER_RAD * q,
             # as a joint torque (sign * stall * duty) affine in the joint angle q
-            bias[k, 0] = sign * stall * (gain * (target - zero) + offset)
-            bias[k, 1] = -stall * gain * TICKS_PER_RAD
-            limits[k, 0], limits[k, 1] = -stall * cap, stall * cap
+            constant.append(sign * stall * (gain * (target - zero) + offset))
+            slope.append(-stall * gain * TICKS_PER_RAD)
+            low.append(-stall * cap)
+            high.append(stall * cap)
             slow = abs(w) < stalled_speed
             self._stalled[k] = self._stalled[k] + period if cut and slow else 0.0
             self._moving[k] = gain != 0.0 or offset != 0.0
+        bias = m.actuator_biasprm
+        bias[:, 0] = constant
+        bias[:, 1] = slope
+        limits = m.actuator_forcerange
+        limits[:, 0] = low
+        limits[:, 1] = high
 
     def _sample(self, t: float, torque: np.ndarray) -> None:
+        """Check the physics is sane and keep what the record is made of (raw: the record
+        works the slip out for all samples at once)."""
         d = self.data
         q = d.qpos
-        if not np.isfinite(q).all() or not np.isfinite(d.qvel).all():
+        z = q[2]  # the robot stays level: every wheel centre sinks with the base
+        if not math.isfinite(q.sum() + d.qvel.sum()):
             self._fail(t, "the simulation blew up (a position or speed is not finite)")
-        wheels = self._wheels
-        centre = d.xpos[wheels]
-        if centre[:, 2].min() < self._min_wheel_z:
-            self._fail(t, "a wheel sank deep into the floor")
-        # each wheel centre's velocity along its axle (body y axis), from the bodies'
-        # com-based velocities (the robot is one tree rooted at the base). The robot
-        # stays level, so only the turn about z carries the centre sideways:
-        # v + w x r with w = (0, 0, wz) + spin along the axle (which moves no centre)
-        cvel = d.cvel[wheels]
-        r = centre - d.subtree_com[self._root]
-        axle = d.xmat[wheels][:, 1::3]  # row-major 3x3: the body's y axis is column 1
-        vx = cvel[:, 3] - cvel[:, 2] * r[:, 1]
-        vy = cvel[:, 4] + cvel[:, 2] * r[:, 0]
-        slip = (vx * axle[:, 0] + vy * axle[:, 1]) / self.unit
-        unit = self.unit
-        row = [q[0] / unit, q[1] / unit, q[3]]
-        row += [q[a] for a in self._qadr]
-        row += slip.tolist()
-        row += torque.tolist()
-        row += (np.abs(torque) / self.actuator.stall_nm).tolist()
+        if z < self._min_z:
+            self._fail(t, "the wheels sank deep into the floor")
         self._t.append(t - self.start_time)
-        self._rows.append(row)
+        self._rows.append(
+            np.concatenate(
+                (
+                    q[self._qsel],
+                    d.cvel.ravel()[self._cvel_idx],
+                    d.xpos.ravel()[self._xpos_idx],
+                    d.subtree_com[self._root, :2],
+                    d.xmat.ravel()[self._axle_idx],
+                    torque,
+                )
+            )
+        )
 
     def _fail(self, t: float, what: str) -> None:
         self.stop()
@@ -288,19 +300,30 @@ class PhysicsWorld:
     def record(self) -> PhysicsRecord:
         """Everything sampled so far."""
         n, w = self.robot.n_joints, self.robot.n_wheels
-        rows = np.array(list(self._rows), dtype=float).reshape(-1, 3 + 3 * n + w)
-        cols = np.cumsum([3, n, w, n])
-        pose, phi, slip, torque, load = np.split(rows, cols, axis=1)
+        rows = np.array(list(self._rows), dtype=float).reshape(-1, 3 + n + 7 * w + 2 + n)
+        cols = np.cumsum([3 + n, 3 * w, 2 * w, 2, 2 * w])
+        state, cvel, centre, com, axle, torque = np.split(rows, cols, axis=1)
+        # each wheel centre's velocity along its axle, from the com-based velocities (the
+        # robot is one tree rooted at the base): v + w x r. The robot stays level, so of
+        # w only the turn about z moves a centre sideways (the spin is along the axle).
+        cvel = cvel.reshape(len(rows), w, 3)
+        centre = centre.reshape(len(rows), w, 2)
+        axle = axle.reshape(len(rows), w, 2)
+        r = centre - com[:, None, :]
+        vx = cvel[:, :, 1] - cvel[:, :, 0] * r[:, :, 1]
+        vy = cvel[:, :, 2] + cvel[:, :, 0] * r[:, :, 0]
+        slip = (vx * axle[:, :, 0] + vy * axle[:, :, 1]) / self.unit
+        pose = state[:, :3] / [self.unit, self.unit, 1.0]
         return PhysicsRecord(
             np.array(self._t),
             pose,
-            phi,
+            state[:, 3:],
             slip,
             np.zeros(len(rows), dtype=bool),
             self.robot.c_t,
             None,
             torque,
-            load,
+            np.abs(torque) / self.actuator.stall_nm,
             np.array(self._energy),
             self.mu,
             self.timestep,

@@ -52,6 +52,7 @@ from snakebot.gaittable import GaitTable, write_gait
 from snakebot.kinematics import Table, integrate_joints
 from snakebot.robots import Robot, load_robot
 from snakebot.sim.physics.select import record_extras, world_of
+from snakebot.sim.physics.video import check_video_path, write_video
 from snakebot.sim.serve import PC_LINK_MARGIN_S, EmulatedRobot, ServeInfo
 from snakebot.sim.world import WorldRecord
 from snakebot.transport.settings import resolve_margin_s
@@ -104,6 +105,8 @@ class DemoSettings:
     world: str = "mujoco"
     """The emulated world: "mujoco" (the physics, so the prediction is checked against
     something other than itself) or "kinematic" (the model the prediction uses)."""
+    video: Path | None = None
+    """Where to write a GIF/MP4 of the emulated robot seen from above (None: none)."""
 
 
 # -- the firmware's timeline --------------------------------------------------------------
@@ -492,6 +495,8 @@ def run_demo(settings: DemoSettings | None = None, say: Say = print) -> DemoResu
     The emulated robot is always stopped, also on Ctrl-C."""
     settings = settings or DemoSettings()
     began = time.monotonic()
+    if settings.video is not None:
+        check_video_path(settings.video)
     robot = load_robot(settings.robot)
     out_dir = Path(settings.out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -548,6 +553,9 @@ def run_demo(settings: DemoSettings | None = None, say: Say = print) -> DemoResu
     if world_of(record) != "kinematic":
         comparison.physics = physics_effects(robot, table, record, comparison, settings.cycles)
     png = plot_demo(robot, comparison, out_dir / "demo.png")
+    if settings.video is not None:
+        say(f"   writing the video {settings.video} ...")
+        write_video(settings.video, robot, {f"emulated ({settings.world})": record})
     return DemoResult(
         settings,
         info.as_dict(),

@@ -4,14 +4,12 @@ and the errors for robots and options it cannot use."""
 from __future__ import annotations
 
 import json
-import math
 
 import pytest
 from click.testing import CliRunner
+from physics_support import snake5_serpenoid_file
 
 from snakebot.cli import main
-from snakebot.gait import serpenoid
-from snakebot.gaittable import write_gait
 from snakebot.robots import load_robot
 from snakebot.transport import DxlClient
 
@@ -22,10 +20,7 @@ SNAKE5 = load_robot("snake5")
 
 @pytest.fixture(scope="module")
 def gait_file(tmp_path_factory):
-    path = tmp_path_factory.mktemp("gait") / "s5.gait"
-    gait = serpenoid(SNAKE5, math.radians(30), math.pi, math.pi / 2, cycles=1, rate_hz=50)
-    write_gait(path, gait.gait_table())
-    return path
+    return snake5_serpenoid_file(tmp_path_factory.mktemp("gait"))
 
 
 def predict_json(*args):

@@ -8,10 +8,9 @@ import math
 
 import pytest
 from click.testing import CliRunner
+from physics_support import snake5_serpenoid_file
 
 from snakebot.cli import main
-from snakebot.gait import serpenoid
-from snakebot.gaittable import write_gait
 from snakebot.robots import load_robot
 from snakebot.sim.physics.thesis import RUNS, thesis_table
 
@@ -66,10 +65,7 @@ def test_thesis_json_runs_both_worlds_and_writes_a_png_per_run(tmp_path):
 
 
 def test_friction_study_climbs_to_the_free_wheel_prediction(tmp_path):
-    robot = load_robot("snake5")
-    gait = serpenoid(robot, math.radians(30), math.pi, math.pi / 2, cycles=1, rate_hz=50)
-    path = tmp_path / "s5.gait"
-    write_gait(path, gait.gait_table())
+    path = snake5_serpenoid_file(tmp_path)
     png = tmp_path / "friction.png"
     result = invoke(
         "sim", "friction", str(path), "--mu", "0.05,0.5,10", "--plot", str(png), "--json"
@@ -86,10 +82,7 @@ def test_friction_study_climbs_to_the_free_wheel_prediction(tmp_path):
 
 
 def test_friction_refuses_bad_coefficients(tmp_path):
-    robot = load_robot("snake5")
-    gait = serpenoid(robot, math.radians(30), math.pi, math.pi / 2, cycles=1, rate_hz=50)
-    path = tmp_path / "s5.gait"
-    write_gait(path, gait.gait_table())
+    path = snake5_serpenoid_file(tmp_path)
     result = invoke("sim", "friction", str(path), "--mu", "0.1,-2")
     assert result.exit_code == 2
     assert result.output.startswith("error: --mu '0.1,-2': give positive numbers")

@@ -12,8 +12,8 @@ import math
 
 import numpy as np
 import pytest
+from physics_support import snake5_serpenoid
 
-from snakebot.gait import serpenoid
 from snakebot.protocol import ErrorFlags
 from snakebot.robots import RobotError, load_robot, parse_robot
 from snakebot.sim.physics import PhysicsError, PhysicsWorld
@@ -31,9 +31,7 @@ PRESENT_LOAD = 40
 
 @pytest.fixture(scope="module")
 def s5_table():
-    """snake5's serpenoid: A = 30 deg, 1 cycle of 2 s, 50 frames a second."""
-    gait = serpenoid(SNAKE5, math.radians(30), math.pi, math.pi / 2, cycles=1, rate_hz=50)
-    return gait.gait_table()
+    return snake5_serpenoid()
 
 
 @pytest.fixture(scope="module")

@@ -82,6 +82,11 @@ def _sigterm(signum: int, frame: FrameType | None) -> None:
     "against physics; kinematic: the body follows the prediction's own model.",
 )
 @click.option(
+    "--video",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write a GIF (or MP4, with ffmpeg) of the emulated robot seen from above.",
+)
+@click.option(
     "--json",
     "as_json",
     is_flag=True,
@@ -96,6 +101,7 @@ def demo(
     out_dir: Path,
     firmware: Path | None,
     world: str,
+    video: Path | None,
     as_json: bool,
 ) -> None:
     """Run the whole chain on the emulated 5-link robot and report what it did.
@@ -116,6 +122,7 @@ def demo(
         out_dir=out_dir,
         firmware=firmware,
         world=world,
+        video=video,
     )
     previous = signal.signal(signal.SIGTERM, _sigterm)
     try:

@@ -12,6 +12,7 @@ import click
 
 import snakebot.transport.ports  # noqa: F401  (registers sim://)
 from snakebot.sim.physics.select import DEFAULT_WORLD, WORLDS
+from snakebot.sim.physics.video import StateMotion, check_video_path, write_video
 from snakebot.sim.predict import DEFAULT_WORLD_HZ, predict_gait
 
 
@@ -61,6 +62,12 @@ def _motion(label: str, m: dict[str, Any]) -> str:
     type=click.Path(dir_okay=False, path_type=Path),
     help="write a PNG of the emulated and predicted body paths and the joints' tracking",
 )
+@click.option(
+    "--video",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="write a GIF (or an MP4, with ffmpeg) of the emulated robot seen from above, "
+    "the predicted one beside it",
+)
 @click.option("--json", "as_json", is_flag=True, help="print the report as JSON")
 def predict(
     gait_file: Path,
@@ -70,6 +77,7 @@ def predict(
     world: str,
     mu: float | None,
     plot: Path | None,
+    video: Path | None,
     as_json: bool,
 ) -> None:
     """Play the gait table GAIT on the emulated robot and compare the body's path with
@@ -93,8 +101,23 @@ def predict(
       snakebot gait serpenoid snake5 -A 30deg -w 180deg -d 90deg --cycles 1 -o s.gait
       snakebot sim predict s.gait --plot s.png
     """
+    if video is not None:
+        check_video_path(video)
     result = predict_gait(gait_file, robot, ideal=ideal, world_hz=world_rate, world=world, mu=mu)
     summary = result.summary()
+    if video is not None:
+        click.echo("writing the video ...", err=True)
+        summary["video"] = str(
+            write_video(
+                video,
+                result.robot,
+                {
+                    f"emulated ({world})": result.emulated,
+                    "predicted": StateMotion.of_states(result.predicted.t, result.predicted.q),
+                },
+                f"{gait_file.name} on {result.robot.name}",
+            )
+        )
     if plot is not None:
         from snakebot.sim.predict_plot import plot_prediction
 
@@ -145,3 +168,5 @@ def predict(
     )
     if plot is not None:
         click.echo(f"plot written to {summary['plot']}")
+    if video is not None:
+        click.echo(f"video written to {summary['video']}")

@@ -9,6 +9,7 @@ from pathlib import Path
 import click
 
 from snakebot.errors import SnakebotError
+from snakebot.sim.physics.video import check_video_path, write_video
 
 
 def _floats(text: str) -> tuple[float, ...]:
@@ -44,8 +45,16 @@ def _floats(text: str) -> tuple[float, ...]:
     type=click.FloatRange(min=0, min_open=True),
     help="Wheel-floor friction coefficient in the physics world (default: the robot's).",
 )
+@click.option(
+    "--video",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write a GIF (or MP4, with ffmpeg) per run, seen from above, both worlds "
+    "overlaid: FILE for one run, FILE's name with -NAME added for several.",
+)
 @click.option("--json", "as_json", is_flag=True, help='Print {"runs": [...]} as JSON.')
-def thesis(out_dir: Path, only: tuple[str, ...], mu: float | None, as_json: bool) -> None:
+def thesis(
+    out_dir: Path, only: tuple[str, ...], mu: float | None, video: Path | None, as_json: bool
+) -> None:
     """Rerun the thesis's chapter 4 simulations in the kinematic and the MuJoCo world.
 
     \b
@@ -65,14 +74,22 @@ def thesis(out_dir: Path, only: tuple[str, ...], mu: float | None, as_json: bool
     from snakebot.sim.physics.plots import plot_thesis_run
     from snakebot.sim.physics.thesis import RUNS, run_thesis
 
-    out_dir.mkdir(parents=True, exist_ok=True)
     runs = [r for r in RUNS if not only or r.name in only]
+    if video is not None:
+        check_video_path(video)
+    out_dir.mkdir(parents=True, exist_ok=True)
     summaries = []
     for i, run in enumerate(runs, start=1):
         click.echo(f"[{i}/{len(runs)}] {run.name} on {run.robot} ...", err=as_json, nl=False)
         result = run_thesis(run, mu=mu)
         summary = result.summary()
         summary["png"] = str(plot_thesis_run(result, out_dir / f"{run.name}.png"))
+        if video is not None:
+            name = video if len(runs) == 1 else video.with_stem(f"{video.stem}-{run.name}")
+            motions = {world: p.emulated for world, p in result.worlds.items()}
+            summary["video"] = str(
+                write_video(name, result.robot, motions, f"thesis run {run.name}")
+            )
         summaries.append(summary)
         click.echo(" done", err=as_json)
         if not as_json:
@@ -95,7 +112,7 @@ def _run_lines(s: dict) -> list[str]:
             lines.append(f"  {world:10}: {state(s[world])}")
     if s["clipped_frames"]:
         lines.append(f"  {s['clipped_frames']} of {s['frames']} frames clipped at the joint limits")
-    lines.append(f"  wrote {s['png']}")
+    lines.append(f"  wrote {s['png']}" + (f" and {s['video']}" if "video" in s else ""))
     return lines
 
 

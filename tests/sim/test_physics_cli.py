@@ -93,3 +93,49 @@ def test_sim_url_world_option_lets_the_physics_move_the_servos():
 def test_sim_url_world_option_errors(query, message):
     with pytest.raises(Exception, match=message):
         DxlClient(f"sim://?{query}", echo=False)
+
+
+def test_dynamixel_sdk_over_a_pty_reads_the_physics(tmp_path):
+    """`sim bus --world mujoco` in real time: a third-party client sees the servo move
+    with the physics (speed and load on the way, at the goal afterwards)."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    import dynamixel_sdk as sdk
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "snakebot", "sim", "bus", "--robot", "snake5"]
+        + ["--world", "mujoco", "--return-delay", "0", "--json"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        info = json.loads(proc.stdout.readline())
+        assert "world=mujoco" in info["url"]
+        port = sdk.PortHandler(info["device"])
+        assert port.openPort() and port.setBaudRate(1_000_000)
+        ph = sdk.PacketHandler(1.0)
+        try:
+            result, error = ph.write2ByteTxRx(port, 10, 30, 700)
+            assert result == sdk.COMM_SUCCESS and error == 0
+            time.sleep(0.1)
+            speed, result, _ = ph.read2ByteTxRx(port, 10, 38)
+            load, _, _ = ph.read2ByteTxRx(port, 10, 40)
+            assert result == sdk.COMM_SUCCESS
+            assert speed & 1023 > 100 and load & 1023 > 0
+            time.sleep(1.5)
+            position, result, _ = ph.read2ByteTxRx(port, 10, 36)
+            assert result == sdk.COMM_SUCCESS and abs(position - 700) <= 2
+        finally:
+            port.closePort()
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=10) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        proc.stdout.close()
+        proc.stderr.close()

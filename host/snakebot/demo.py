@@ -469,6 +469,7 @@ class DemoResult:
             "cycles": {"warmup": self.settings.warmup_cycles, "measured": self.settings.cycles},
             **self.comparison.as_dict(),
             "png": str(self.png),
+            **({"video": str(self.settings.video)} if self.settings.video else {}),
             "monitor": self.monitor,
             "seconds": round(self.seconds, 2),
         }
@@ -495,11 +496,11 @@ def run_demo(settings: DemoSettings | None = None, say: Say = print) -> DemoResu
     The emulated robot is always stopped, also on Ctrl-C."""
     settings = settings or DemoSettings()
     began = time.monotonic()
-    if settings.video is not None:
-        check_video_path(settings.video)
     robot = load_robot(settings.robot)
     out_dir = Path(settings.out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    if settings.video is not None:
+        check_video_path(settings.video)
 
     gait = serpenoid(
         robot,
@@ -660,5 +661,11 @@ def summary_lines(result: DemoResult) -> list[str]:
         f"   the firmware played at {c.playback_rate:.2f}x wall-clock speed (its clock in QEMU);"
         " the motion per cycle does not depend on it.",
         f"6. wrote {result.png} (body path: emulated vs predicted; joint angles: commanded vs "
-        f"measured) and {result.gait_file}; took {result.seconds:.1f} s; nothing left running.",
+        f"measured){_video_words(result)} and {result.gait_file}; took {result.seconds:.1f} s; "
+        "nothing left running.",
     ]
+
+
+def _video_words(result: DemoResult) -> str:
+    video = result.settings.video
+    return f", {video} (the robot seen from above)" if video is not None else ""

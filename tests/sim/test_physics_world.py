@@ -186,3 +186,20 @@ def load_robot_text(name):
     from importlib import resources
 
     return resources.files("snakebot.robots").joinpath(f"{name}.toml").read_text()
+
+
+def no_load_speed(voltage):
+    """Present Speed (ticks/s) of a servo swinging its link freely at ``voltage``."""
+    with DxlClient(f"sim://?robot=snake5&world=mujoco&voltage={voltage}", echo=False) as c:
+        bus = c.port.bus
+        c.write_u16(16, GOAL_POSITION, 800)  # the tail joint: the lightest load
+        bus.run_until(bus.now + 0.15)
+        return bus.servo(16).vel
+
+
+def test_the_motor_speed_scales_with_the_supply_voltage():
+    fast, slow = no_load_speed(12.0), no_load_speed(8.0)
+    assert slow / fast == pytest.approx(8.0 / 12.0, rel=0.1)
+    # and it runs near the AX-12A's no-load 59 rpm, less what the link's load takes
+    rpm = fast / (1023 / 300) / 6
+    assert 40 < rpm <= 59

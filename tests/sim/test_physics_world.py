@@ -141,6 +141,8 @@ def test_present_load_and_overload_come_from_the_physics(bus_client):
     servo = bus.servo(sid)
     assert ErrorFlags.OVERLOAD in servo.errors
     assert servo.regs.get("Torque Limit") == 0  # the factory Shutdown cuts the torque
+    bus.run_until(bus.now + 0.05)
+    assert servo.load_fraction == 0.0  # a servo that drives nothing has no load
     world.stop()
 
 

@@ -156,6 +156,7 @@ class PhysicsWorld:
         self._energy = np.zeros(n)
         self._stalled = [0.0] * n
         self._moving = [False] * n
+        self._on = [False] * n
         self._t: deque[float] = deque(maxlen=keep)
         self._rows: deque[list[float]] = deque(maxlen=keep)
         self._ticks = 0
@@ -213,16 +214,20 @@ class PhysicsWorld:
             pos = zero + sign * angles[k] * TICKS_PER_RAD
             w = speeds[k]
             tau = torques[k]
+            # a servo with its torque off drives nothing and reports no load (the gear
+            # train still brakes the joint: that stays in the physics)
+            on = self._on[k]
             servo.set_motion(
                 t,
                 pos,
                 sign * w * TICKS_PER_RAD,
-                abs(tau) / stall_nm,
-                tau * sign < 0,
+                abs(tau) / stall_nm if on else 0.0,
+                on and tau * sign < 0,
                 self._moving[k],
                 self._stalled[k] >= OVERLOAD_HOLD_S,
             )
             ctrl = servo.controller()
+            self._on[k] = ctrl[2] != 0.0
             gain, target, offset, cap, cut = act.drive(ctrl, pos)
             stall = act.stall_at(ctrl[9])
             # duty = gain * (target - ticks) + offset, ticks = zero + sign * TICKS_PER_RAD * q,

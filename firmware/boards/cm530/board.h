@@ -1,5 +1,5 @@
 /* ROBOTIS CM-530: STM32F103RE (512 KB flash, 64 KB RAM), 8 MHz crystal.
- * Sources: ROBOTIS e-Manual and example code; see /work/shared/docs/hardware.md. The memory
+ * Sources: ROBOTIS e-Manual and example code; docs/hardware.md has the wiring. The memory
  * layout must agree with cm530.ld. */
 #ifndef SNAKEBOT_BOARD_H
 #define SNAKEBOT_BOARD_H

@@ -95,8 +95,8 @@ class PhysicsWorld:
     and ``timestep``, shortened to divide the sampling period. ``keep``: how many of the
     latest samples the record keeps (default all; a server that runs for days keeps
     few). ``pose`` is the body pose at the start (robot units, radians); the joints
-    start where the servos are. ``mu`` overrides the wheel-floor friction coefficient of the robot's
-    ``[physics]`` table.
+    start where the servos are. ``mu`` overrides the wheel-floor friction coefficient of
+    the robot's ``[physics]`` table.
     """
 
     def __init__(
@@ -158,7 +158,7 @@ class PhysicsWorld:
         self._moving = [False] * n
         self._on = [False] * n
         self._t: deque[float] = deque(maxlen=keep)
-        self._rows: deque[list[float]] = deque(maxlen=keep)
+        self._rows: deque[np.ndarray] = deque(maxlen=keep)
         self._ticks = 0
         self._running = True
         self._joints = list(zip(self._servos, self._signs, self._zeros, strict=True))
@@ -274,7 +274,8 @@ class PhysicsWorld:
         self.stop()
         raise PhysicsError(
             f"{what} at {t - self.start_time:.3f} s of world time: the run is stopped; "
-            "try a smaller --timestep or gentler gains (a smaller gait amplitude)"
+            "check the robot's [physics] table (masses, wheel radius, mu) for values far "
+            "from a real robot's, or play a gentler gait"
         )
 
     def stop(self) -> None:

@@ -143,6 +143,7 @@ class PhysicsWorld:
         jid = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in names.joints]
         self._qadr = [int(m.jnt_qposadr[j]) for j in jid]
         self._dadr = [int(m.jnt_dofadr[j]) for j in jid]
+        self._qadr_np, self._dadr_np = np.array(self._qadr), np.array(self._dadr)
         self._wheels = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n) for n in names.wheels]
         # the base slides in z from the wheels' resting height (their radius)
         self._min_z = (PENETRATION_LIMIT - 1.0) * phys.wheel_radius_m
@@ -178,7 +179,7 @@ class PhysicsWorld:
         """Each motor's torque at its joint now (N m, + in the joint's direction): the
         drive less the back-EMF braking."""
         d = self.data
-        return d.actuator_force - self.actuator.damping * d.qvel[self._dadr]
+        return d.actuator_force - self.actuator.damping * d.qvel[self._dadr_np]
 
     def _tick(self, t: float) -> None:
         """At bus time ``t``: bring the physics from the last tick to ``t`` under the
@@ -192,13 +193,15 @@ class PhysicsWorld:
         if self._ticks:
             # energy: the motors' power (the drive in force during each step, the speed
             # at its end; the implicit integrator's own reading of the step)
-            step, dadr, damping = self._mj.mj_step, self._dadr, self.actuator.damping
+            step, dadr, damping = self._mj.mj_step, self._dadr_np, self.actuator.damping
             dt = self.timestep
             for _ in range(self.substeps):
                 step(m, d)
                 w = qvel[dadr]
-                self._energy += (d.actuator_force - damping * w) * w * dt
-        torque = self._motor_torque()
+                torque = d.actuator_force - damping * w
+                self._energy += torque * w * dt
+        else:
+            torque = self._motor_torque()
         if self._ticks % self.steps_per_sample == 0:
             self._sample(t, torque)
         self._ticks += 1
@@ -206,8 +209,8 @@ class PhysicsWorld:
         stall_nm = act.stall_nm
         stalled_speed = STALLED_FRACTION * act.no_load_rad_s
         # plain floats from here on: numpy scalars are slow one at a time
-        angles = d.qpos[self._qadr].tolist()
-        speeds = qvel[self._dadr].tolist()
+        angles = d.qpos[self._qadr_np].tolist()
+        speeds = qvel[self._dadr_np].tolist()
         torques = torque.tolist()
         constant, slope, low, high = [], [], [], []
         for k, (servo, sign, zero) in enumerate(self._joints):

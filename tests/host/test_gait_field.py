@@ -47,6 +47,17 @@ def test_tolerance_is_met_for_a_combination():
     assert _table_speeds(gait) <= TRIDENT.max_speed_rad_s
 
 
+def test_every_block_of_the_written_gait_meets_the_tolerance():
+    # A direct segment before each loop: the loops must still start at phase 0, as the
+    # block the tolerance was measured on did (they used to start mid-phase).
+    gait = field_gait(TRIDENT, "h3+g3", form="world", duration=0.3, tolerance=0.05)
+    first = gait.parameters["block_relative_error"]
+    assert gait.parameters["blocks"] > 1
+    assert first <= 0.05
+    assert gait.parameters["block_errors_max"] <= 0.05
+    assert gait.parameters["block_errors_max"] == pytest.approx(first, rel=0.2)
+
+
 def test_snake3_bracket_gait_loops_in_joint_space():
     gait = field_gait(SNAKE3, "h1", periods=3, amplitude=0.15)
     assert gait.loop  # the joints return: the table can repeat

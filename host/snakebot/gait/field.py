@@ -133,14 +133,27 @@ def block_error(
 ) -> tuple[float, np.ndarray]:
     """Relative error of one block against eps X(q0), and the block's motion."""
     inputs = 2 if model == "snake3" else 3
+    moved = _run(robot, plan_block(model, combo, eps, form, inputs), q0) - q0
+    return _relative_error(robot, combo, eps, form, q0, moved), moved
+
+
+def _relative_error(
+    robot: Robot,
+    combo: dict[str, float],
+    eps: float,
+    form: str | None,
+    q0: np.ndarray,
+    moved: np.ndarray,
+) -> float:
+    """|moved - eps X(q0)| / |eps X(q0)|: how far a block from q0 missed its target."""
     f = fields(robot, q0, form)
     target = eps * sum(coef * f[name] for name, coef in combo.items())
-    moved = _run(robot, plan_block(model, combo, eps, form, inputs), q0) - q0
-    return float(np.linalg.norm(moved - target) / np.linalg.norm(target)), moved
+    return float(np.linalg.norm(moved - target) / np.linalg.norm(target))
 
 
-def _joint_speeds(robot: Robot, traj: Trajectory, inputs: Inputs, t0: float) -> np.ndarray:
-    u = inputs.at(traj.t - t0)
+def _joint_speeds(robot: Robot, traj: Trajectory, inputs: Inputs) -> np.ndarray:
+    """Joint velocities along a segment's trajectory (its own clock, from 0)."""
+    u = inputs.at(traj.t)
     return np.array(
         [field_velocity(robot, q, ui, inputs.form)[3:] for q, ui in zip(traj.q, u, strict=True)]
     )
@@ -153,7 +166,7 @@ def _timed(
     probe = integrate_fields(
         robot, seg.inputs, seg.length, q0=q0, samples=257, options=PREDICT_OPTIONS
     )
-    peak = float(np.abs(_joint_speeds(robot, probe, seg.inputs, 0.0)).max())
+    peak = float(np.abs(_joint_speeds(robot, probe, seg.inputs)).max())
     fastest = SPEED_MARGIN * robot.max_speed_rad_s / peak if peak > 0 else 1.0
     if seg.loop:
         speed = omega if omega is not None else fastest
@@ -296,24 +309,28 @@ def field_gait(
     # The whole gait, segment after segment, sampled DENSE times per frame.
     t_all, q_all, dphi_all = [np.zeros(1)], [q0[None, :]], [np.zeros((1, robot.n_joints))]
     t, q = 0.0, q0
+    block_errors = []
     for _ in range(count):
+        q_block = q
         for seg in timed:
             steps = round(seg.length / dt)
+            # Each segment's inputs run on its own clock from 0, as block_error simulated
+            # them: a loop must start at phase 0 wherever it falls in the gait.
             traj = integrate_fields(
                 robot,
                 seg.inputs,
-                t + seg.length,
+                seg.length,
                 q0=q,
-                t0=t,
                 samples=DENSE * steps + 1,
                 options=PREDICT_OPTIONS,
             )
-            speeds = _joint_speeds(robot, traj, seg.inputs, t)
-            t_all.append(traj.t[1:])
+            speeds = _joint_speeds(robot, traj, seg.inputs)
+            t_all.append(t + traj.t[1:])
             q_all.append(traj.q[1:])
             dphi_all.append(speeds[1:])
             dphi_all[0] = speeds[:1] if len(t_all) == 2 else dphi_all[0]
             t, q = t + seg.length, traj.q[-1]
+        block_errors.append(_relative_error(robot, combo, eps, c_form, q_block, q - q_block))
     times, states, dphi = np.concatenate(t_all), np.vstack(q_all), np.vstack(dphi_all)
     check_motion(robot, times, states[:, 3:], dphi)
 
@@ -338,6 +355,7 @@ def field_gait(
         "block_eps": eps,
         "flow_parameter": tau,
         "block_relative_error": err,
+        "block_errors_max": max(block_errors),
         "rate_hz": 1000.0 / period_ms,
         "segments": [
             {

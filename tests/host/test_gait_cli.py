@@ -2,12 +2,16 @@
 
 import json
 import math
+from importlib import resources
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
 from snakebot.cli import main
 from snakebot.gaittable import read_gait
+from snakebot.robots import load_robot
+from snakebot.robots.model import TICKS_PER_RAD
 
 
 def run(*args):
@@ -102,3 +106,30 @@ def test_show_summarises_and_plots(tmp_path):
     assert (tmp_path / "w.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     data = json.loads(run("gait", "show", out, "--json").output)
     assert data["robot"] == "snake3" and data["joint_ids"] == [1, 2]
+
+
+def test_serpenoid_reproduces_the_thesis_example_with_its_own_phase(tmp_path):
+    # phi1 = cos(-2 pi^2/3 t + pi^2), phi2 = cos(-2 pi^2/3 t - 2 pi^2), with cos x =
+    # sin(x + pi/2). Its joints reach 6.6 rad/s: the robot's servos are given that speed.
+    snake3 = resources.files("snakebot.robots").joinpath("snake3.toml").read_text()
+    robot = tmp_path / "fast3.toml"
+    robot.write_text(snake3.replace('model = "AX-12A"', 'model = "AX-12A"\nmax_speed_rpm = 70'))
+    out = tmp_path / "thesis.gait"
+    result = run(
+        "gait",
+        "serpenoid",
+        robot,
+        *("-A", "1", "-w", "-2*pi**2/3", "-d", "-3*pi**2", "--phase", "pi**2+pi/2"),
+        *("--cycles", "1", "-o", out, "--json"),
+    )
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.output)
+    omega = data["parameters"]["omega_rad_s"]
+    assert omega == pytest.approx(-2 * math.pi**2 / 3, rel=0.01)
+    table = read_gait(out)
+    t = np.arange(len(table.frames)) * table.frame_period_ms / 1000
+    phi = np.c_[np.cos(omega * t + math.pi**2), np.cos(omega * t - 2 * math.pi**2)]
+    angles = load_robot(robot).ticks_to_angles(table.frames)
+    np.testing.assert_allclose(angles, phi, atol=1.0 / TICKS_PER_RAD)
+    # The example moves the snake; the "pi" reading of its phase (antiphase) does not.
+    assert math.hypot(data["predicted"]["dx"], data["predicted"]["dy"]) > 0.1

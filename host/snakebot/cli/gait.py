@@ -94,6 +94,13 @@ def _print_motion(meta: dict[str, Any]) -> None:
     help="P0: offset added to every joint (turns the snake)",
 )
 @click.option(
+    "--phase",
+    type=ANGLE,
+    default=0.0,
+    show_default=True,
+    help="S: start phase of joint 1 at t = 0 (rad or deg; pi expressions work)",
+)
+@click.option(
     "--cycles",
     type=float,
     required=True,
@@ -110,12 +117,13 @@ def serpenoid_command(
     omega: float,
     delta: float,
     offset: float,
+    phase: float,
     cycles: float,
     rate: float,
     output: Path,
     as_json: bool,
 ) -> None:
-    """A serpenoid gait: phi_k(t) = A sin(W t + (k-1) D) + P0 on every joint k.
+    """A serpenoid gait: phi_k(t) = A sin(W t + (k-1) D + S) + P0 on every joint k.
 
     ROBOT is a snake (snake3, snake5, or a .toml file). W is adjusted slightly so the
     gait spans a whole number of frames (the summary shows the value used). The summary
@@ -123,9 +131,20 @@ def serpenoid_command(
     written (rounded to ticks, interpolated linearly as the controller plays it).
 
     Example: snakebot gait serpenoid snake5 -A 30deg -w 180deg -d 90deg --cycles 2 -o s.gait
+
+    The thesis's example phi1 = cos(-2 pi^2/3 t + pi^2), phi2 = cos(-2 pi^2/3 t - 2 pi^2)
+    (cos x = sin(x + pi/2)) is
+    -A 1 -w "-2*pi**2/3" -d "-3*pi**2" --phase "pi**2+pi/2" --cycles 1.
     """
     g = serpenoid(
-        load_robot(robot), amplitude, omega, delta, offset=offset, cycles=cycles, rate_hz=rate
+        load_robot(robot),
+        amplitude,
+        omega,
+        delta,
+        offset=offset,
+        phase=phase,
+        cycles=cycles,
+        rate_hz=rate,
     )
     _write(g, output, as_json)
 

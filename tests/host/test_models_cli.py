@@ -73,3 +73,14 @@ def test_info_json():
     data = json.loads(run("model", "info", "snake5", "--json").output)
     assert [j["servo_id"] for j in data["joints"]] == [10, 11, 15, 16]
     assert data["friction"]["c_t"] > 0
+
+
+def test_growth_near_the_singular_line_and_the_folded_singularity():
+    near = run("model", "fields", "snake3", "--at", "0,0,0,0.3,0.294")
+    assert near.exit_code == 0, near.output
+    assert "growth vector: (2, 3, 5)" in near.output and "condition number" in near.output
+    data = json.loads(run("model", "fields", "snake3", "--at", "0,0,0,0.3,0.294", "--json").output)
+    assert data["growth"] == [2, 3, 5] and data["condition"] > 1e6
+    folded = run("model", "fields", "snake3", "--at", "0,0,0,pi,0.3")
+    assert folded.exit_code == 0 and "singular: yes" in folded.output
+    assert "phi1 = +-pi" in folded.output and "here phi1 = phi2" not in folded.output

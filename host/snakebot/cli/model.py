@@ -11,6 +11,7 @@ import numpy as np
 
 from snakebot.cli.params import ANGLES
 from snakebot.kinematics import default_form, field_model, fields
+from snakebot.kinematics.model import singular_reason
 from snakebot.robots import load_robot
 
 
@@ -114,6 +115,12 @@ def fields_command(
     with the rank at each step of the filtration (the growth vector), det G* and whether
     q is singular.
 
+    det G* (the fields side by side) is printed from its closed form: l^6 / det B^4 for
+    the 3-link snake (det B = 4 l sin((phi1-phi2)/2) cos(phi1/2) cos(phi2/2), zero where
+    phi1 = phi2 or a joint is at +-pi), 3 sqrt(3) r^2 / (2 l^6) for the trident. It is
+    never zero where the fields exist, so the growth vector is exact however near the
+    singular set q is; the condition number of G* (unit columns) beside it says how near.
+
     ROBOT is snake3 or trident (or a file describing a 3-link snake or a trident):
     fields are defined where the non-slip constraints determine the body's motion.
     Brackets follow [X, Y] = DY X - DX Y; fields come in the thesis's order
@@ -147,10 +154,13 @@ def fields_command(
         else {name: (fs[name] + 0.0).tolist() for name in fs.names},
         "growth": None if fs.growth is None else list(fs.growth),
         "det": fs.det,
+        "condition": fs.condition,
         "singular": fs.singular,
     }
     if kind == "snake3":
         data["det_b"] = fs.det_b
+        if fs.singular:
+            data["singular_where"] = singular_reason(rb, np.array(at))
     if as_json:
         click.echo(json.dumps(data, indent=2))
         return
@@ -160,14 +170,14 @@ def fields_command(
     if fs.values is None:
         click.echo(
             f"  singular: yes (det B = {fs.det_b:.3g}): the 3-link snake's fields are "
-            "undefined where phi1 = phi2"
+            f"undefined where det B = 0; here {data['singular_where']}"
         )
         return
     for name in fs.names:
         click.echo(f"  {name:3} = {_fmt(fs[name])}")
     click.echo(
-        f"  growth vector: {fs.growth}   det G* = {fs.det:.9g}   singular: "
-        f"{'yes' if fs.singular else 'no'}"
+        f"  growth vector: {fs.growth}   det G* = {fs.det:.9g}   condition number "
+        f"{fs.condition:.3g}   singular: {'yes' if fs.singular else 'no'}"
     )
 
 

@@ -40,8 +40,12 @@ def test_fields_text_and_singular_point():
 def test_wrong_arguments_are_clear():
     result = run("model", "fields", "snake3", "--at", "0,0,0,1")
     assert result.exit_code == 2 and "give 5 values, got 4" in result.output
-    result = run("model", "fields", "snake5", "--at", "0,0,0,0,0,0,0")
-    assert result.exit_code == 2 and "error:" in result.output and "5-link" in result.output
+    result = run("model", "fields", "snake5", "--at", "0,0,0,0,0,0,0", "--depth", "9")
+    assert (
+        result.exit_code == 2 and "error:" in result.output and "between 1 and 8" in result.output
+    )
+    result = run("model", "fields", "trident", "--at", "0,0,0,0,0,0", "--depth", "3")
+    assert result.exit_code == 2 and "--depth applies to snakes and the car" in result.output
     result = run("model", "fields", "snake3", "--at", "0,0,0,1,x")
     assert result.exit_code == 2 and "cannot read 'x'" in result.output
 
@@ -84,3 +88,27 @@ def test_growth_near_the_singular_line_and_the_folded_singularity():
     folded = run("model", "fields", "snake3", "--at", "0,0,0,pi,0.3")
     assert folded.exit_code == 0 and "singular: yes" in folded.output
     assert "phi1 = +-pi" in folded.output and "here phi1 = phi2" not in folded.output
+
+
+def test_five_link_fields_text_and_json():
+    at = "0,0,0,0.3,-0.2,0.4,0.1"
+    text = run("model", "fields", "snake5", "--at", at)
+    assert text.exit_code == 0, text.output
+    assert "[g1,[g1,g2]]" in text.output and "growth vector: (2, 3, 5)" in text.output
+    data = json.loads(run("model", "fields", "snake5", "--at", at, "--depth", "4", "--json").output)
+    assert data["growth"] == [2, 3, 5, 6] and data["depth"] == 4 and not data["singular"]
+    assert len(data["fields"]) == 8 and data["condition"] > 1
+    straight = json.loads(
+        run("model", "fields", "snake5", "--at", "0,0,0,0,0,0,0", "--json").output
+    )
+    assert straight["singular"] and straight["singular_where"] == "phi1 = phi2"
+
+
+def test_car_fields_and_growth():
+    result = run("model", "fields", "car", "--at", "0,0,pi/6,0.3")
+    assert result.exit_code == 0, result.output
+    assert "R = [S,D]" in result.output and "T = [[S,D],D]" in result.output
+    assert "growth vector: (2, 3, 4)" in result.output
+    data = json.loads(run("model", "fields", "car", "--at", "0,0,0,0", "--json").output)
+    np.testing.assert_allclose(data["fields"]["T"], [0, 1, 0, 0], atol=1e-15)
+    assert data["aliases"] == {"R": "[S,D]", "T": "[[S,D],D]"}

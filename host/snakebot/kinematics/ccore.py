@@ -23,7 +23,8 @@ _HINTS = {
     lib.KIN_ESTEPSIZE: "loosen the tolerance, or check the motion for a singular configuration",
     lib.KIN_EMAXSTEPS: "shorten the time span or loosen the tolerance",
     lib.KIN_ENONFINITE: "check the inputs for NaN or infinity",
-    lib.KIN_EUNSUPPORTED: "use snake3 or trident, or drive the joints instead (gait serpenoid)",
+    lib.KIN_EUNSUPPORTED: "use snake3 or trident here, or drive the joints instead "
+    "(gait serpenoid)",
     lib.KIN_EGEOMETRY: "fix the robot description's lengths and link count",
     lib.KIN_EINVAL: "this is a bug in the caller: report it",
 }
@@ -55,6 +56,12 @@ def check(code: int, context: str = "") -> None:
 
 def c_robot(robot: Robot, c_t: float | None = None) -> Any:
     """A ``kin_robot`` struct for the robot (optionally overriding its c_t)."""
+    if robot.kind not in ("snake", "trident"):
+        raise KinematicsError(
+            lib.KIN_EUNSUPPORTED,
+            f"{robot.name} is a {robot.kind}: only its control fields are modelled "
+            "(snakebot model fields); gaits and the emulator drive snakes and tridents",
+        )
     rb = ffi.new("kin_robot *")
     rb.kind = lib.KIN_SNAKE if robot.kind == "snake" else lib.KIN_TRIDENT
     rb.links = robot.links if robot.kind == "snake" else 0

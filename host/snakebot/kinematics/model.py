@@ -47,10 +47,12 @@ def field_model(robot: Robot) -> str:
         return "trident"
     if robot.links == 3:
         return "snake3"
+    what = f"a {robot.links}-link snake" if robot.kind == "snake" else f"a {robot.kind}"
     raise KinematicsError(
         lib.KIN_EUNSUPPORTED,
-        f"{robot.name} is a {robot.links}-link snake: with more than 3 wheels the non-slip "
-        "constraints over-determine the body, so there are no control vector fields",
+        f"{robot.name} is {what}: its two control fields and their brackets come from "
+        "`snakebot model fields` (kinematics.lie); field-driven integration and "
+        "`gait field` cover the 3-link snake and the trident",
     )
 
 

@@ -120,9 +120,10 @@ def trident(form: str = "body") -> SymbolicModel:
 
 
 def model_for(kind: str, links: int = 3, form: str = "body") -> SymbolicModel:
-    """The symbolic model for a robot kind; only the 3-link snake and the trident have one."""
+    """The symbolic model for a robot kind: the 3-link snake and the trident (other
+    snakes' fields are computed numerically with exact derivatives: kinematics.lie)."""
     if kind == "trident":
         return trident(form)
     if kind == "snake" and links == 3:
         return snake3()
-    raise ValueError(f"no control vector fields for a {links}-link snake")
+    raise ValueError(f"no symbolic model for a {links}-link {kind}: see kinematics.lie")

@@ -9,7 +9,6 @@ from typing import Any
 
 import numpy as np
 
-from snakebot.core import lib
 from snakebot.errors import SnakebotError
 from snakebot.gaittable import GaitTable, max_frames
 from snakebot.kinematics import (
@@ -19,13 +18,15 @@ from snakebot.kinematics import (
     Trajectory,
     integrate_joints,
 )
+from snakebot.kinematics.ccore import SINGULAR_CODES
 from snakebot.robots import Robot
 
 #: Accuracy of every prediction (Dormand-Prince 5(4)).
 PREDICT_OPTIONS = Options("dopri5", rtol=1e-10, atol=1e-12)
-#: Rolling friction used for the table prediction when the ideal model (c_t = 0) is
-#: singular on the rounded table (a crossing of the 3-link snake's singular line that
-#: rounding to ticks has made slightly inadmissible).
+#: Rolling friction (times c_n) for the frame intervals where the ideal model (c_t = 0)
+#: is singular on the rounded table (a crossing of the 3-link snake's singular line that
+#: rounding to ticks has made slightly inadmissible); only those intervals get it, as in
+#: the emulator's world.
 REGULARISING_CT = 1e-3
 PATH_POINTS = 300
 
@@ -69,6 +70,89 @@ def frame_budget(robot: Robot, frames: int, hint: str) -> None:
         raise GaitError(f"the gait has only {frames} frame: raise the rate or the duration")
 
 
+@dataclass(frozen=True)
+class TableMotion:
+    """One pass of a table's joint motion and the body's: ``trajectory`` samples every
+    ``period / per_interval`` (slip with it); ``regularised[i]``: frame interval i needed
+    the rolling friction ``fallback_c_t`` (ideal wheels singular there)."""
+
+    trajectory: Trajectory
+    regularised: np.ndarray
+    c_t: float
+    fallback_c_t: float | None
+
+    def note(self) -> dict[str, Any]:
+        """The JSON note of the table prediction: c_t and where it was regularised."""
+        count = int(self.regularised.sum())
+        out: dict[str, Any] = {"c_t": self.c_t, "regularised_intervals": count}
+        if count:
+            out["note"] = (
+                f"the ideal model (c_t = 0) is singular on {count} of the rounded table's "
+                f"{len(self.regularised)} frame intervals; they were predicted with rolling "
+                f"friction c_t = {self.fallback_c_t:g}, as the emulator does"
+            )
+        return out
+
+
+def table_motion(
+    robot: Robot,
+    angles: np.ndarray,
+    period_s: float,
+    loop: bool,
+    *,
+    per_interval: int = 1,
+    pose0: tuple[float, float, float] = (0.0, 0.0, 0.0),
+) -> TableMotion:
+    """The body's motion over one pass of a table as the controller plays it (angles
+    linear between frames, a loop wrapping to frame 0): the one place the table becomes a
+    prediction (``gait``, ``sim predict``). Where ideal wheels are singular on a frame
+    interval, that interval alone gets the rolling friction ``REGULARISING_CT * c_n``."""
+    points = np.vstack([angles, angles[:1]]) if loop else np.asarray(angles, dtype=float)
+    intervals = len(points) - 1
+    fallback = REGULARISING_CT * robot.c_n if robot.c_t == 0 else None
+
+    def run(rows: np.ndarray, c_t: float, pose: tuple[float, float, float]) -> Trajectory:
+        return integrate_joints(
+            robot,
+            Table(rows, period_s),
+            (len(rows) - 1) * period_s,
+            pose0=pose,
+            samples=(len(rows) - 1) * per_interval + 1,
+            options=PREDICT_OPTIONS,
+            c_t=c_t,
+            with_slip=True,
+        )
+
+    try:
+        traj = run(points, robot.c_t, pose0)
+        return TableMotion(traj, np.zeros(intervals, dtype=bool), robot.c_t, fallback)
+    except KinematicsError as exc:
+        if fallback is None or exc.code not in SINGULAR_CODES:
+            raise
+    # Near an inadmissible crossing the ideal body velocity has a pole: the step size
+    # collapses or the crossing is reported. Real wheels slip a little there.
+    qs, slips, reg, rconds = [np.r_[pose0, points[0]][None, :]], [], [], []
+    pose = pose0
+    for i in range(intervals):
+        try:
+            part = run(points[i : i + 2], robot.c_t, pose)
+            reg.append(False)
+        except KinematicsError as exc:
+            if exc.code not in SINGULAR_CODES:
+                raise
+            part = run(points[i : i + 2], fallback, pose)
+            reg.append(True)
+        assert part.slip is not None
+        qs.append(part.q[1:])
+        slips.append(part.slip if i == 0 else part.slip[1:])
+        rconds.append(part.stats["min_rcond"])
+        pose = tuple(float(v) for v in part.q[-1, :3])  # type: ignore[assignment]
+    q = np.vstack(qs)
+    t = np.arange(len(q)) * (period_s / per_interval)
+    traj = Trajectory(t, q, np.vstack(slips), {"min_rcond": float(min(rconds))})
+    return TableMotion(traj, np.array(reg, dtype=bool), robot.c_t, fallback)
+
+
 def predict_table(
     robot: Robot,
     ticks: np.ndarray,
@@ -76,40 +160,18 @@ def predict_table(
     loop: bool,
     pose0: tuple[float, float, float] = (0.0, 0.0, 0.0),
 ) -> tuple[Trajectory, dict[str, Any]]:
-    """Body motion from the table as the controller plays it: ticks back to angles,
-    linear between frames, a loop wrapping to frame 0; one pass."""
-    angles = robot.ticks_to_angles(ticks)
-    frames = len(ticks)
-    duration = period_s * (frames if loop else frames - 1)
-    samples = max(2, min(4 * frames + 1, 4001))
-    schedule = Table(angles, period_s, loop)
-    note: dict[str, Any] = {"c_t": robot.c_t}
-    try:
-        traj = integrate_joints(
-            robot, schedule, duration, pose0=pose0, samples=samples, options=PREDICT_OPTIONS
-        )
-    except KinematicsError as exc:
-        # Near an inadmissible crossing the ideal body velocity has a pole: the step
-        # size collapses or the crossing is reported. Real wheels slip a little there.
-        singular = (lib.KIN_ESINGULAR, lib.KIN_EINADMISSIBLE, lib.KIN_ESTEPSIZE)
-        if robot.c_t > 0 or exc.code not in singular:
-            raise
-        c_t = REGULARISING_CT * robot.c_n
-        traj = integrate_joints(
-            robot,
-            schedule,
-            duration,
-            pose0=pose0,
-            samples=samples,
-            options=PREDICT_OPTIONS,
-            c_t=c_t,
-        )
-        note = {
-            "c_t": c_t,
-            "note": "the ideal model (c_t = 0) is singular on the rounded "
-            f"table; predicted with rolling friction c_t = {c_t:g}",
-        }
-    return traj, note
+    """Body motion from the table as the controller plays it (``table_motion``: ticks
+    back to angles, linear between frames, a loop wrapping to frame 0; one pass)."""
+    per_interval = 4 if len(ticks) <= 1000 else 1
+    played = table_motion(
+        robot,
+        robot.ticks_to_angles(ticks),
+        period_s,
+        loop,
+        per_interval=per_interval,
+        pose0=pose0,
+    )
+    return played.trajectory, played.note()
 
 
 @dataclass

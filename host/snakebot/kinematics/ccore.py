@@ -30,6 +30,11 @@ _HINTS = {
 }
 
 
+#: Core statuses of a joint motion that ideal wheels cannot follow (a singular crossing:
+#: reported, or the step size collapsing at the pole of the body velocity).
+SINGULAR_CODES = (lib.KIN_ESINGULAR, lib.KIN_EINADMISSIBLE, lib.KIN_ESTEPSIZE)
+
+
 class KinematicsError(SnakebotError):
     """A status from the C kinematic core; ``code`` is the KIN_* value."""
 

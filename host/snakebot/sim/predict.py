@@ -34,13 +34,13 @@ import numpy as np
 
 from snakebot.core import lib
 from snakebot.errors import SnakebotError
-from snakebot.gait.common import PREDICT_OPTIONS, motion
+from snakebot.gait.common import TableMotion, motion, table_motion
 from snakebot.gaittable import GaitTable, read_gait
-from snakebot.kinematics import KinematicsError, Table, Trajectory, integrate_joints
+from snakebot.kinematics import KinematicsError, Trajectory
 from snakebot.protocol import sync_write
 from snakebot.robots import Robot, RobotError, load_robot
 from snakebot.sim.bus import Bus
-from snakebot.sim.world import DEFAULT_BATCH, SINGULAR_CODES, World, WorldRecord, fallback_c_t
+from snakebot.sim.world import DEFAULT_BATCH, World, WorldRecord
 from snakebot.transport import DxlClient
 
 GOAL_POSITION_ADDR = 30
@@ -70,8 +70,15 @@ class Prediction:
     world_period_s: float
     emulated: WorldRecord
     predicted: Trajectory
-    predicted_c_t: float
+    played: TableMotion
     wall_s: float
+
+    @property
+    def predicted_c_t(self) -> float:
+        """The rolling friction of the prediction: the robot's, or the fallback where
+        ideal wheels were singular on some frame interval."""
+        p = self.played
+        return p.fallback_c_t if p.regularised.any() and p.fallback_c_t else p.c_t
 
     @property
     def duration_s(self) -> float:
@@ -121,6 +128,7 @@ class Prediction:
                 **pr,
                 "slip_max": float(np.abs(pred_slip).max()) if pred_slip is not None else 0.0,
                 "c_t": self.predicted_c_t,
+                "regularised_intervals": int(self.played.regularised.sum()),
                 "source": "integrated from the table's frames (ticks to angles, linear in "
                 "between, as the controller plays them)",
             },
@@ -276,44 +284,30 @@ def play(
     return record, world_period, wall
 
 
-def predict_table(robot: Robot, table: GaitTable, samples: int) -> tuple[Trajectory, float]:
+def predict_table(robot: Robot, table: GaitTable, samples: int) -> tuple[Trajectory, TableMotion]:
     """The body path integrated straight from the table, as the gait's ``table`` figure
-    is (ticks to angles, linear in between, the robot's c_t, or a small one over the
-    whole table if ideal wheels are singular on it), at ``samples`` evenly spaced times
-    over one pass (slip: mid-interval, as the world records it); returns the trajectory
-    and the c_t used."""
-    angles = robot.ticks_to_angles(table.frames)
-    period = table.frame_period_ms / 1000.0
-    frames = table.frame_count
-    duration = period * (frames if table.loop else frames - 1)
-    schedule = Table(angles, period, table.loop)
-    c_t = robot.c_t
-
-    def run(c_t: float) -> Trajectory:
-        return integrate_joints(
-            robot,
-            schedule,
-            duration,
-            samples=2 * samples - 1,
-            options=PREDICT_OPTIONS,
-            c_t=c_t,
-            with_slip=True,
-        )
-
+    is (``table_motion``: ticks to angles, linear in between, the robot's c_t, and a small
+    one on just the frame intervals where ideal wheels are singular, as the world does),
+    at ``samples`` evenly spaced times over one pass (slip: mid-interval, as the world
+    records it); returns the trajectory and the table motion it came from."""
+    intervals = table.frame_count if table.loop else table.frame_count - 1
+    per_sample, rest = divmod(samples - 1, intervals)
+    if rest or per_sample < 1:  # pragma: no cover - the world samples whole frames
+        raise PredictError(f"{samples} samples do not divide the table's {intervals} intervals")
     try:
-        try:
-            traj = run(c_t)
-        except KinematicsError as exc:
-            fallback = fallback_c_t(robot, c_t)
-            if fallback is None or exc.code not in SINGULAR_CODES:
-                raise
-            c_t = fallback
-            traj = run(c_t)
+        played = table_motion(
+            robot,
+            robot.ticks_to_angles(table.frames),
+            table.frame_period_ms / 1000.0,
+            table.loop,
+            per_interval=2 * per_sample,
+        )
     except KinematicsError as exc:
         raise PredictError(f"cannot predict the table's motion: {exc}") from exc
+    traj = played.trajectory
     assert traj.slip is not None
     slip = np.vstack([np.zeros((1, traj.slip.shape[1])), traj.slip[1::2]])
-    return Trajectory(traj.t[::2], traj.q[::2], slip, traj.stats), c_t
+    return Trajectory(traj.t[::2], traj.q[::2], slip, traj.stats), played
 
 
 def predict_gait(
@@ -340,7 +334,5 @@ def predict_gait(
         )
     finally:
         client.close()
-    predicted, predicted_c_t = predict_table(chosen, table, len(record.t))
-    return Prediction(
-        name, chosen, table, ideal, world_period, record, predicted, predicted_c_t, wall
-    )
+    predicted, played = predict_table(chosen, table, len(record.t))
+    return Prediction(name, chosen, table, ideal, world_period, record, predicted, played, wall)

@@ -133,3 +133,35 @@ def test_serpenoid_reproduces_the_thesis_example_with_its_own_phase(tmp_path):
     np.testing.assert_allclose(angles, phi, atol=1.0 / TICKS_PER_RAD)
     # The example moves the snake; the "pi" reading of its phase (antiphase) does not.
     assert math.hypot(data["predicted"]["dx"], data["predicted"]["dy"]) > 0.1
+
+
+def test_near_singular_gaits_warn_in_text_and_json(tmp_path):
+    # The trident driven by its joints is singular where its axles meet in a point,
+    # e.g. near phi = (45, 60, -60) degrees.
+    args = ("gait", "field", "trident", "--field", "g1", "--duration", "0.2")
+    start = ("--start", "45deg,60deg,-60deg", "-o", tmp_path / "t.gait")
+    data = json.loads(run(*args, *start, "--json").output)
+    (warning,) = data["warnings"]
+    assert warning["kind"] == "near_singular" and warning["trajectory"] == "table as written"
+    assert warning["condition"] > 1 / warning["threshold_rcond"]
+    text = CliRunner().invoke(main, [str(a) for a in (*args, *start)])
+    assert text.exit_code == 0 and "warning: the table as written passes near a singular" in (
+        text.stderr
+    )
+    # an ordinary 5-link serpenoid stays well clear
+    far = run(
+        *("gait", "serpenoid", "snake5", "-A", "30deg", "-w", "180deg", "-d", "90deg"),
+        *("--cycles", "1", "-o", tmp_path / "s5.gait", "--json"),
+    )
+    assert json.loads(far.output)["warnings"] == []
+
+
+def test_sim_predict_warns_on_the_singular_crossing(tmp_path):
+    out = tmp_path / "s3.gait"
+    run(*("gait", "serpenoid", "snake3", "-A", "40deg", "-w", "3", "-d", "90deg"),
+        *("--cycles", "1", "-o", out))  # fmt: skip
+    data = json.loads(run("sim", "predict", out, "--ideal", "--json").output)
+    (warning,) = data["warnings"]
+    assert warning["condition"] > 1000
+    text = CliRunner().invoke(main, ["sim", "predict", str(out), "--ideal"])
+    assert "warning: the prediction from the table passes near a singular" in text.stderr

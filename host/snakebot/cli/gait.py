@@ -23,7 +23,12 @@ def gait() -> None:
 
     Every generated gait is checked against the robot's joint limits and its servos'
     maximum speed before anything is written. Angles are radians unless suffixed
-    with 'deg' (rates: rad/s, or deg/s with 'deg'); pi expressions work: pi/4."""
+    with 'deg' (rates: rad/s, or deg/s with 'deg'); pi expressions work: pi/4.
+
+    A gait whose joint motion passes near a singular configuration (wheel axles
+    meeting in one point or all parallel: the wheel model's condition number above
+    100, reciprocal below 0.01) gets a warning on stderr and in the JSON "warnings":
+    its predicted body motion there is hypersensitive to rounding and friction."""
 
 
 def _write(g: Gait, out: Path, as_json: bool) -> None:
@@ -67,6 +72,8 @@ def _print_motion(meta: dict[str, Any]) -> None:
             line(label, meta[key])
     if "note" in meta["table"]:
         click.echo(f"  note: {meta['table']['note']}")
+    for warning in meta.get("warnings", []):
+        click.echo(f"warning: {warning['message']}", err=True)
 
 
 @gait.command("serpenoid")

@@ -67,7 +67,11 @@ def predict(
     The report gives the body's displacement (in the start pose's frame) emulated and
     predicted, their difference, the joints' tracking error and the wheels' slip.
     Modelled AX-12s lag their goals a little; with --ideal the two paths agree to the
-    integrator's accuracy.
+    integrator's accuracy. Where ideal wheels are singular on a frame interval (a
+    rounded crossing of the 3-link snake's phi1 = phi2), that interval alone gets a
+    little rolling friction, in the prediction as in the emulator; a prediction passing
+    near a singular configuration (condition number above 100) is warned about, on
+    stderr and in the JSON "warnings".
 
     \b
     Example:
@@ -117,3 +121,5 @@ def predict(
     )
     if plot is not None:
         click.echo(f"plot written to {summary['plot']}")
+    for warning in summary["warnings"]:
+        click.echo(f"warning: {warning['message']}", err=True)

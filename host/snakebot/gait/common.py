@@ -29,6 +29,12 @@ PREDICT_OPTIONS = Options("dopri5", rtol=1e-10, atol=1e-12)
 #: the emulator's world.
 REGULARISING_CT = 1e-3
 PATH_POINTS = 300
+#: How near a joint-driven trajectory may come to a singular configuration before the
+#: tools warn: the minimum-slip problem's reciprocal condition number (the core's rcond:
+#: 1 well posed, 0 singular; axles concurrent or all parallel) dropping below this, i.e.
+#: a condition number above 100. There the predicted body motion is hypersensitive to
+#: rounding, timing and wheel friction. Ordinary snake5 serpenoids stay above 0.03.
+NEAR_SINGULAR_RCOND = 1e-2
 
 
 class GaitError(SnakebotError):
@@ -56,6 +62,35 @@ def path(traj: Trajectory, points: int = PATH_POINTS) -> dict[str, list[float]]:
         "y": traj.q[idx, 1].round(9).tolist(),
         "theta": traj.q[idx, 2].round(9).tolist(),
     }
+
+
+def singularity_warnings(trajectories: dict[str, Trajectory]) -> list[dict[str, Any]]:
+    """A warning (JSON-able) for each joint-driven trajectory that passes within
+    NEAR_SINGULAR_RCOND of a singular configuration, worst first."""
+    out = []
+    for name, traj in trajectories.items():
+        rcond = float(traj.stats.get("min_rcond", 1.0))
+        if rcond >= NEAR_SINGULAR_RCOND:
+            continue
+        condition = 1.0 / rcond if rcond > 0 else None  # None: through one, exactly
+        nearness = (
+            f"near a singular configuration (condition number {condition:.3g}, above "
+            f"{1 / NEAR_SINGULAR_RCOND:g})"
+            if condition is not None
+            else "through a singular configuration"
+        )
+        out.append(
+            {
+                "kind": "near_singular",
+                "trajectory": name,
+                "min_rcond": rcond,
+                "condition": condition,
+                "threshold_rcond": NEAR_SINGULAR_RCOND,
+                "message": f"the {name} passes {nearness}: its predicted body motion is "
+                "hypersensitive to rounding, timing and wheel friction",
+            }
+        )
+    return sorted(out, key=lambda w: w["min_rcond"])
 
 
 def frame_budget(robot: Robot, frames: int, hint: str) -> None:
@@ -189,6 +224,7 @@ class Gait:
     path: dict[str, list[float]]
     table_path: dict[str, list[float]]
     extra: dict[str, Any] = field(default_factory=dict)
+    warnings: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def duration_s(self) -> float:
@@ -212,6 +248,7 @@ class Gait:
             "duration_s": round(self.duration_s, 6),
             "predicted": self.predicted,
             "table": self.table,
+            "warnings": self.warnings,
             **self.extra,
         }
 

@@ -35,6 +35,7 @@ from snakebot.gait.common import (
     path,
     period_ms_for,
     predict_table,
+    singularity_warnings,
 )
 from snakebot.gait.limits import check_motion, check_ticks
 from snakebot.gait.values import parse_field_expression
@@ -400,6 +401,9 @@ def field_gait(
         path(traj),
         path(table_traj),
         extra,
+        # the field-driven path has no wheel problem to condition; the table is played
+        # through the joints, as the robot will
+        singularity_warnings({"table as written": table_traj}),
     )
 
 

@@ -19,6 +19,7 @@ from snakebot.gait.common import (
     path,
     period_ms_for,
     predict_table,
+    singularity_warnings,
 )
 from snakebot.gait.limits import check_motion, check_ticks
 from snakebot.kinematics import Sines, integrate_joints
@@ -107,4 +108,5 @@ def serpenoid(
         {**motion(table_traj), **note},
         path(traj),
         path(table_traj),
+        warnings=singularity_warnings({"continuous gait": traj, "table as written": table_traj}),
     )

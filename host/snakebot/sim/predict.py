@@ -34,7 +34,7 @@ import numpy as np
 
 from snakebot.core import lib
 from snakebot.errors import SnakebotError
-from snakebot.gait.common import TableMotion, motion, table_motion
+from snakebot.gait.common import TableMotion, motion, singularity_warnings, table_motion
 from snakebot.gaittable import GaitTable, read_gait
 from snakebot.kinematics import KinematicsError, Trajectory
 from snakebot.protocol import sync_write
@@ -145,6 +145,7 @@ class Prediction:
             },
             "realtime_factor": self.realtime_factor,
             "wall_s": self.wall_s,
+            "warnings": singularity_warnings({"prediction from the table": self.predicted}),
         }
         meta_table = self.table.metadata.get("table")
         if isinstance(meta_table, dict):

@@ -170,7 +170,8 @@ def serpenoid_command(
     type=float,
     help="T: follow EXPR for T units of its flow "
     "parameter (the motion of T * EXPR to first order); the gait itself runs as "
-    "fast as the servos allow",
+    "fast as the servos allow. Default for combinations with brackets: 1, or the "
+    "longest the table holds at the --tolerance (the summary's flow_parameter)",
 )
 @click.option("--periods", type=int, help="K: number of input loops (bracket terms only)")
 @click.option(
@@ -233,6 +234,10 @@ def field_command(
     shrinks about linearly with A), so --tolerance picks A and the number of loops.
 
     Example: snakebot gait field trident --field 2*g1-h3 --duration 0.2 --tolerance 0.2 -o x.gait
+
+    The thesis's combinations (2*g1-h3, g3+2*h1, g2+h2/2, g1-h3 for the trident) work
+    as they are: without --duration the tolerance (default 0.05) sets the loop size and
+    the gait follows the field for as long as the table allows, up to 1 unit.
     """
     g = field_gait(
         load_robot(robot),

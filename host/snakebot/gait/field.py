@@ -60,6 +60,9 @@ MIN_FRAMES_PER_PERIOD = 16
 #: Tolerance used when neither --amplitude nor --tolerance is given.
 DEFAULT_TOLERANCE = 0.05
 DENSE = 4  # integration samples per frame for the limit checks
+#: Flow parameter a gait with brackets follows for when no --duration or --periods is
+#: given (fewer blocks if the table cannot hold them; the summary gives the value used).
+AUTO_FLOW = 1.0
 
 
 @dataclass(frozen=True)
@@ -218,8 +221,13 @@ def field_gait(
         else " + ".join(f"{v:g}*{k}" for k, v in combo.items())
     )
     brackets = [n for n in combo if n.startswith("h")]
-    if (duration is None) == (periods is None):
-        raise GaitError("give exactly one of --duration T or --periods K")
+    if duration is not None and periods is not None:
+        raise GaitError("give one of --duration T or --periods K, not both")
+    auto = duration is None and periods is None  # the longest the accuracy allows
+    if auto and not brackets:
+        raise GaitError(f"{text} has no bracket term: give --duration T to follow it for")
+    if auto and amplitude is not None:
+        raise GaitError("with --amplitude, give --duration T or --periods K too")
     if duration is not None and not (duration > 0 and math.isfinite(duration)):
         raise GaitError(f"--duration must be positive, not {duration}")
     if periods is not None and (periods < 1 or not brackets):
@@ -273,14 +281,14 @@ def field_gait(
             # Fewest frames a block can take: each loop is sampled by a minimum of frames.
             block_frames = MIN_FRAMES_PER_PERIOD * len(brackets) + (len(combo) > len(brackets))
             most_blocks = max(1, (max_frames(robot.n_joints) - 1) // block_frames)
-            eps = eps_of(0.3) if periods is not None else duration
+            eps = eps_of(0.3) if duration is None else duration
             count = periods or 1
             for _ in range(16):
                 err = block_error(robot, model, combo, eps, c_form, q0)[0]
                 if err <= tol:
                     break
                 shrink = min(0.5, 0.8 * (tol / err) ** exponent)
-                if periods is not None:
+                if duration is None:
                     eps *= shrink
                 elif count >= most_blocks:
                     break
@@ -288,10 +296,14 @@ def field_gait(
                     count = min(most_blocks, max(count + 1, math.ceil(count / shrink)))
                     eps = duration / count
             if err > tol:
+                # the error scales as eps^(1/exponent): the duration that would meet tol
+                fits = count * eps * 0.8 * (tol / err) ** exponent
                 raise GaitError(
-                    f"cannot follow {text} to within {tol:g}: {count} blocks of loops (the most "
-                    f"a gait table of {robot.n_joints} joints holds) still err by {err:.3g}: "
-                    "loosen --tolerance or shorten --duration"
+                    f"cannot follow {text} to within {tol:g} for --duration {duration:g}: "
+                    f"{count} blocks of loops (the most a gait table of {robot.n_joints} "
+                    f"joints holds) still err by {err:.3g}: shorten --duration to about "
+                    f"{fits:.3g}, loosen --tolerance to {err:.2g}, or leave --duration out "
+                    "to get the longest motion that meets the tolerance"
                 )
 
     block = plan_block(model, combo, eps, c_form, inputs)
@@ -301,6 +313,10 @@ def field_gait(
         s, frames = _timed(robot, seg, q0, dt, omega)
         timed.append(s)
         total_frames += frames
+    if auto:
+        # As many blocks as reach AUTO_FLOW, or as the table holds.
+        fit = max(1, (max_frames(robot.n_joints) - 1) // total_frames)
+        count = max(1, min(fit, math.ceil(AUTO_FLOW / eps - 1e-9)))
     frame_budget(
         robot,
         count * total_frames + 1,

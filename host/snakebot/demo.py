@@ -47,7 +47,7 @@ from snakebot.controller.playback import play, stop
 from snakebot.controller.uploader import UploadReport, upload_gait
 from snakebot.errors import SnakebotError
 from snakebot.gait import serpenoid
-from snakebot.gait.common import PREDICT_OPTIONS
+from snakebot.gait.common import PREDICT_OPTIONS, motion_frame
 from snakebot.gaittable import GaitTable, write_gait
 from snakebot.kinematics import Table, integrate_joints
 from snakebot.robots import Robot, load_robot
@@ -158,7 +158,7 @@ def _motion(q_end: np.ndarray) -> dict[str, float]:
 
 
 def _relative(pose0: np.ndarray, poses: np.ndarray) -> np.ndarray:
-    """Poses in the frame of ``pose0`` (x forward along its heading)."""
+    """Poses in the frame of ``pose0`` (+x along its heading: gait.common.motion_frame)."""
     c, s = math.cos(pose0[2]), math.sin(pose0[2])
     d = poses[:, :2] - pose0[:2]
     return np.column_stack(
@@ -348,7 +348,7 @@ def plot_demo(robot: Robot, comparison: Comparison, out: Path) -> Path:
     ax_path.plot(em[:, 0], em[:, 1], "-", color="tab:red", label="emulated (firmware in QEMU)")
     ax_path.plot([0], [0], "o", color="black", label="start")
     ax_path.set_aspect("equal", adjustable="datalim")
-    ax_path.set_xlabel("x (m, along the head's heading at the start)")
+    ax_path.set_xlabel("x (m, along link 1 from the tail towards the head, at the start)")
     ax_path.set_ylabel("y (m)")
     ax_path.set_title(
         f"{robot.name}: body path over the measured cycles\n"
@@ -558,8 +558,8 @@ def summary_lines(result: DemoResult) -> list[str]:
         )
 
     return [
-        f"5. over the {n} measured cycles (x = forward along the head link's heading at the "
-        "start, angles counter-clockwise):",
+        f"5. over the {n} measured cycles "
+        f"({motion_frame(load_robot(result.settings.robot))}; angles counter-clockwise):",
         f"   emulated : {where(e)}",
         f"   predicted: {where(p)}",
         f"   difference {100 * c.difference_m:.1f} cm "

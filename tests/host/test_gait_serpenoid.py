@@ -84,3 +84,14 @@ def test_refusals():
         serpenoid(SNAKE5, 0.3, 2 * math.pi, 1.0, cycles=5, rate_hz=100)
     with pytest.raises(GaitError, match="positive"):
         serpenoid(SNAKE5, -0.3, 1.0, 1.0, cycles=1)
+
+
+@pytest.mark.parametrize("robot", ["snake3", "snake5"])
+def test_positive_delta_and_omega_move_the_snake_head_first(robot):
+    # link 1's heading points from its free end (the tail) along the body to the head
+    snake = load_robot(robot)
+    gait = serpenoid(snake, 0.5, 2.0, 1.2, cycles=1)
+    assert gait.predicted["dx"] > 0
+    assert "from the tail end (x, y) towards the head" in gait.summary()["frame"]
+    backwards = serpenoid(snake, 0.5, 2.0, -1.2, cycles=1)
+    assert backwards.predicted["dx"] < 0

@@ -58,10 +58,8 @@ def _print_motion(meta: dict[str, Any]) -> None:
             f"dtheta = {m['dtheta']: .6f} rad"
         )
 
-    click.echo(
-        f"predicted body motion over {meta.get('duration_s', 0):.3f} s "
-        "(start pose frame, reference point):"
-    )
+    frame = meta.get("frame", "start pose frame")
+    click.echo(f"predicted body motion over {meta.get('duration_s', 0):.3f} s ({frame}):")
     line("continuous gait:", meta["predicted"])
     line("table as written (ticks, linear):", meta["table"])
     for key, label in (

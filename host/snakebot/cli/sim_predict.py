@@ -64,7 +64,8 @@ def predict(
     The servos' present positions drive the body through the minimum-slip wheel model.
     Everything runs on the emulator's clock, many times faster than real time.
 
-    The report gives the body's displacement (in the start pose's frame) emulated and
+    The report gives the body's displacement (in the start pose's frame: for a snake,
+    +x along link 1 from the tail end (x, y) towards the head) emulated and
     predicted, their difference, the joints' tracking error and the wheels' slip.
     Modelled AX-12s lag their goals a little; with --ideal the two paths agree to the
     integrator's accuracy. Where ideal wheels are singular on a frame interval (a
@@ -95,7 +96,7 @@ def predict(
         f"frames every {summary['frame_period_ms']} ms, "
         f"{'one loop' if summary['loop'] else 'once'}, {summary['duration_s']:.3f} s"
     )
-    click.echo("body motion (start pose frame, reference point):")
+    click.echo(f"body motion ({summary['frame']}):")
     click.echo(_motion("emulated:", em))
     click.echo(_motion("predicted:", summary["predicted"]))
     click.echo(_motion("difference:", diff))

@@ -41,8 +41,23 @@ class GaitError(SnakebotError):
     """A gait that cannot be generated as asked; the message says what to change."""
 
 
+def motion_frame(robot: Robot) -> str:
+    """How to read a displacement (dx, dy, dtheta): the frame of the start pose.
+
+    A snake's reference point (x, y) is the free end of link 1 and theta is link 1's
+    heading, which points along the body: link 1 is the tail and link N's free end the
+    head. A serpenoid with delta, omega > 0 moves the snake head first, towards +x."""
+    if robot.kind == "snake":
+        return (
+            "start frame: +x along link 1's heading, from the tail end (x, y) towards the "
+            "head; delta, omega > 0 move the snake head first, towards +x"
+        )
+    return "start frame: +x along the base's heading, (x, y) at its centre"
+
+
 def motion(traj: Trajectory) -> dict[str, float]:
-    """Body displacement over the trajectory: (dx, dy) in the start pose's frame, dtheta."""
+    """Body displacement over the trajectory: (dx, dy) in the start pose's frame
+    (motion_frame), dtheta."""
     start, end = traj.q[0], traj.q[-1]
     c, s = math.cos(start[2]), math.sin(start[2])
     dx, dy = end[0] - start[0], end[1] - start[1]
@@ -246,6 +261,7 @@ class Gait:
             "frame_period_ms": self.period_ms,
             "loop": self.loop,
             "duration_s": round(self.duration_s, 6),
+            "frame": motion_frame(self.robot),
             "predicted": self.predicted,
             "table": self.table,
             "warnings": self.warnings,

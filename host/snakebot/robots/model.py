@@ -53,7 +53,8 @@ class Robot:
     """A wheeled snake (``kind == "snake"``), trident (``kind == "trident"``) or car
     (``kind == "car"``).
 
-    Snake: ``links`` links of length ``2 * l``, a wheel at each link's middle.
+    Snake: ``links`` links of length ``2 * l``, a wheel at each link's middle; link 1's
+    free end (the reference point) is the tail, link N's the head.
     Trident: base radius ``r``, arm length ``l``, arm corners at ``alphas`` (radians).
     Car (the thesis's first chapter): wheelbase ``l``; its one joint is the steering
     angle Phi, and the drive is an input, not a joint. It has a field model only

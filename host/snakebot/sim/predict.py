@@ -34,7 +34,13 @@ import numpy as np
 
 from snakebot.core import lib
 from snakebot.errors import SnakebotError
-from snakebot.gait.common import TableMotion, motion, singularity_warnings, table_motion
+from snakebot.gait.common import (
+    TableMotion,
+    motion,
+    motion_frame,
+    singularity_warnings,
+    table_motion,
+)
 from snakebot.gaittable import GaitTable, read_gait
 from snakebot.kinematics import KinematicsError, Trajectory
 from snakebot.protocol import sync_write
@@ -114,6 +120,7 @@ class Prediction:
             "frame_period_ms": self.table.frame_period_ms,
             "loop": self.table.loop,
             "duration_s": round(self.duration_s, 9),
+            "frame": motion_frame(self.robot),
             "world_period_s": self.world_period_s,
             "emulated": {
                 **em,

@@ -165,3 +165,22 @@ def test_sim_predict_warns_on_the_singular_crossing(tmp_path):
     assert warning["condition"] > 1000
     text = CliRunner().invoke(main, ["sim", "predict", str(out), "--ideal"])
     assert "warning: the prediction from the table passes near a singular" in text.stderr
+
+
+def test_gait_plot_draws_time_series_beside_the_path(tmp_path):
+    from matplotlib.image import imread
+
+    png = tmp_path / "f.png"
+    result = run(
+        *("gait", "field", "trident", "--field", "g1", "--duration", "0.3"),
+        *("-o", tmp_path / "f.gait", "--plot", png, "--json"),
+    )
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.output)["plot"] == str(png)
+    # three panels (joints, x/y/theta against t, path) at 100 dpi
+    assert imread(png).shape[:2] == (450, 1600)
+    bare = read_gait(tmp_path / "f.gait")
+    bare.metadata.clear()  # without the predicted motion only the joints are drawn
+    from snakebot.plots import plot_gait
+
+    assert imread(plot_gait(bare, tmp_path / "bare.png")).shape[:2] == (450, 700)

@@ -31,7 +31,15 @@ def gait() -> None:
     its predicted body motion there is hypersensitive to rounding and friction."""
 
 
-def _write(g: Gait, out: Path, as_json: bool) -> None:
+PLOT_OPTION = click.option(
+    "--plot",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="also write a PNG: each joint, and x, y, theta of the predicted body, against "
+    "time (as the thesis's figures), beside the body's path",
+)
+
+
+def _write(g: Gait, out: Path, as_json: bool, plot: Path | None = None) -> None:
     table = g.gait_table()
     write_gait(out, table)
     summary = {
@@ -40,6 +48,10 @@ def _write(g: Gait, out: Path, as_json: bool) -> None:
         "bytes": table.size,
         **g.summary(),
     }
+    if plot is not None:
+        from snakebot.plots import plot_gait
+
+        summary["plot"] = str(plot_gait(table, plot))
     if as_json:
         click.echo(json.dumps(summary, indent=2))
         return
@@ -49,6 +61,8 @@ def _write(g: Gait, out: Path, as_json: bool) -> None:
         f"{table.size} bytes) and {sidecar_path(out)}"
     )
     _print_motion(summary)
+    if plot is not None:
+        click.echo(f"plot written to {summary['plot']}")
 
 
 def _print_motion(meta: dict[str, Any]) -> None:
@@ -115,6 +129,7 @@ def _print_motion(meta: dict[str, Any]) -> None:
 @click.option(
     "--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True, help=OUT_HELP
 )
+@PLOT_OPTION
 @click.option("--json", "as_json", is_flag=True, help="print the summary as JSON")
 def serpenoid_command(
     robot: str,
@@ -126,6 +141,7 @@ def serpenoid_command(
     cycles: float,
     rate: float,
     output: Path,
+    plot: Path | None,
     as_json: bool,
 ) -> None:
     """A serpenoid gait: phi_k(t) = A sin(W t + (k-1) D + S) + P0 on every joint k.
@@ -151,7 +167,7 @@ def serpenoid_command(
         cycles=cycles,
         rate_hz=rate,
     )
-    _write(g, output, as_json)
+    _write(g, output, as_json, plot)
 
 
 @gait.command("field")
@@ -207,6 +223,7 @@ def serpenoid_command(
 @click.option(
     "--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True, help=OUT_HELP
 )
+@PLOT_OPTION
 @click.option("--json", "as_json", is_flag=True, help="print the summary as JSON")
 def field_command(
     robot: str,
@@ -220,6 +237,7 @@ def field_command(
     form: str | None,
     rate: float,
     output: Path,
+    plot: Path | None,
     as_json: bool,
 ) -> None:
     """A gait that follows a control vector field or a combination of fields and Lie
@@ -249,7 +267,7 @@ def field_command(
         form=form,
         rate_hz=rate,
     )
-    _write(g, output, as_json)
+    _write(g, output, as_json, plot)
 
 
 @gait.command("show")

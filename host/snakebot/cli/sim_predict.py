@@ -59,8 +59,9 @@ def predict(
     the prediction integrated from the same table.
 
     The host is the bus master, as with a USB2Dynamixel adapter and no controller: it
-    puts the virtual servos at the first frame, then sends one SYNC_WRITE per frame
-    (goal = the next frame, moving speed = what covers the step in one frame period).
+    puts the virtual servos at the first frame, then runs the controller's own gait
+    player (the firmware's C, in process) every 10 ms control tick and sends its goals
+    (interpolated between frames) and moving speeds in one SYNC_WRITE per tick.
     The servos' present positions drive the body through the minimum-slip wheel model.
     Everything runs on the emulator's clock, many times faster than real time.
 

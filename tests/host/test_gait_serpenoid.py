@@ -95,3 +95,17 @@ def test_positive_delta_and_omega_move_the_snake_head_first(robot):
     assert "from the tail end (x, y) towards the head" in gait.summary()["frame"]
     backwards = serpenoid(snake, 0.5, 2.0, -1.2, cycles=1)
     assert backwards.predicted["dx"] < 0
+
+
+def test_a_near_circular_four_link_gait_on_ideal_wheels_warns():
+    # delta = -0.006: the joints almost equal, the axles almost concurrent; ideal wheels
+    # make the predicted motion absurd there (metres from a 30-degree wiggle)
+    from dataclasses import replace
+
+    four = replace(SNAKE5, name="snake4", links=4, joints=SNAKE5.joints[:3], c_t=0.0)
+    gait = serpenoid(four, math.radians(30), math.pi, -0.006, cycles=1)
+    kinds = {w["trajectory"]: w for w in gait.warnings}
+    assert set(kinds) == {"continuous gait", "table as written"}
+    assert kinds["continuous gait"]["condition"] > 1e5
+    steady = serpenoid(replace(four, c_t=0.01), math.radians(30), math.pi, -0.006, cycles=1)
+    assert steady.warnings == []

@@ -99,6 +99,37 @@ def test_five_link_bracket_matches_a_finite_difference_jacobian():
     np.testing.assert_allclose(lie_fields(model, q, 2)["[g1,g2]"], expected, atol=1e-6)
 
 
+@settings(max_examples=60)
+@given(
+    st.integers(3, 9),
+    st.floats(-1.2, 1.2),
+    st.floats(-9, -1),  # log10 of the distance from phi1 = phi2
+    st.sampled_from([-1.0, 1.0]),
+    st.floats(-math.pi, math.pi),
+)
+def test_growth_to_depth_3_is_exact_however_near_the_singular_set(links, p1, log_gap, sign, theta):
+    others = np.linspace(0.4, -0.3, links - 3)
+    q = np.r_[0.1, 0.2, theta, p1, p1 + sign * 10**log_gap, others]
+    lf = lie_fields(lie_model(snake(links)), q, 3)
+    assert not lf.singular
+    assert lf.growth == (2, 3, 5) and lf.ranks_reliable
+    assert lf.condition > 1 / 10**log_gap  # it reports the nearness
+
+
+def test_deeper_ranks_are_flagged_where_double_precision_cannot_decide():
+    q = np.array([0, 0, 0, 0.3, 0.35, -0.2, 0.4])
+    clear = lie_fields(lie_model(SNAKE5), q, 5)
+    assert clear.growth == (2, 3, 5, 6, 7) and clear.ranks_reliable
+    for gap in (1e-1, 1e-2, 1e-3):  # trusted, and right
+        q[4] = 0.3 + gap
+        near = lie_fields(lie_model(SNAKE5), q, 5)
+        assert near.ranks_reliable and near.growth == (2, 3, 5, 6, 7)
+    for gap in (1e-4, 1e-6, 1e-9):  # the deeper brackets have lost their digits
+        q[4] = 0.3 + gap
+        near = lie_fields(lie_model(SNAKE5), q, 5)
+        assert not near.ranks_reliable and near.growth[:3] == (2, 3, 5)
+
+
 def test_n_link_growth_vectors():
     q4 = np.array([0, 0, 0.2, 0.6, -0.3, 0.4])
     assert lie_fields(lie_model(snake(4)), q4, 4).growth == (2, 3, 5, 6)  # all of R^6

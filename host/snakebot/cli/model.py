@@ -146,9 +146,12 @@ def fields_command(
     do what the N wheel constraints then require. Its brackets (and the car's, or the
     3-link snake's with --depth) are a Lyndon basis named by their expressions,
     e.g. [g1,[g1,g2]] and [[g1,g2],g2] (= -h3 for 3 links), computed to any --depth
-    from exact derivatives; the growth vector is then a numeric rank of the unit
-    columns, with its condition number. The car (thesis, chapter 1) has q =
-    (x, y, theta, Phi), steering S, drive D, R = [S,D], T = [R,D]: growth (2, 3, 4).
+    from exact derivatives. Their growth vector is exact to depth 3 (snakes: the
+    first five coordinates are the 3-link snake's, whose det G* is never zero; the car:
+    det(S, D, R, T) = -1/(L^2 cos^4 Phi)); deeper ranks are numeric, with the condition
+    number, and flagged where double precision cannot decide them. The car (thesis,
+    chapter 1) has q = (x, y, theta, Phi), steering S, drive D, R = [S,D],
+    T = [R,D]: growth (2, 3, 4).
 
     Example: snakebot model fields snake3 --at 0,0,0,pi/3,-pi/3
     """
@@ -234,6 +237,8 @@ def _print_lie(rb: Any, lf: LieFields, as_json: bool) -> None:
         "depths": dict(zip(lf.names, lf.depths, strict=True)),
         "aliases": {v: k for k, v in lf.aliases.items()},
         "growth": None if lf.growth is None else list(lf.growth),
+        "growth_exact_to_depth": len(lf.exact),
+        "growth_reliable": lf.ranks_reliable,
         "condition": lf.condition,
         "singular": lf.singular,
     }
@@ -258,7 +263,16 @@ def _print_lie(rb: Any, lf: LieFields, as_json: bool) -> None:
     width = max(len(label) for label in labels)
     for name, label in zip(lf.names, labels, strict=True):
         click.echo(f"  {label:{width}} = {_fmt(lf[name])}")
-    click.echo(f"  growth vector: {lf.growth}   condition number {lf.condition:.3g}   singular: no")
+    exact = len(lf.exact)
+    click.echo(
+        f"  growth vector: {lf.growth} (exact to depth {exact})   condition number "
+        f"{lf.condition:.3g}   singular: no"
+    )
+    if not lf.ranks_reliable:
+        click.echo(
+            f"  warning: past depth {exact} the ranks are numeric, and at this condition "
+            "number double precision cannot decide them (q is too near the singular set)"
+        )
 
 
 def _print_symbolic(rb: Any, form: str, as_json: bool) -> None:

@@ -37,6 +37,13 @@ from snakebot.robots import Robot
 
 #: Rank tolerance on unit-normalised columns (singular values below count as zero).
 RANK_TOL = 1e-9
+#: Past the exact depths the ranks are numeric, and near the singular set the brackets
+#: lose their digits (each depth solves the constraints again, whose conditioning goes
+#: as 1 / det B): they are not trusted where the condition number exceeds this, or where
+#: a snake's |det B| / l (sin p1 - sin p2 + sin(p1 - p2)) is below UNRELIABLE_DET (the
+#: 5-link snake's depth-4 rank comes out wrong at 2e-4 and right at 2e-3).
+UNRELIABLE_CONDITION = 1e12
+UNRELIABLE_DET = 1e-3
 #: Reciprocal condition of the constraints' unknown block below which q is singular.
 SINGULAR_RCOND = 1e-12
 MAX_DEPTH = 8
@@ -61,13 +68,21 @@ class LieModel:
     depends: tuple[int, ...]
     build: Callable[[list[Jet]], list[list[Jet]] | None]
     aliases: dict[str, str]
+    #: Fields whose first len(basis) coordinates form a matrix with a closed-form
+    #: determinant that is non-zero wherever the fields exist, and the growth vector
+    #: they give exactly (the ranks at depths 1 .. len(exact)).
+    basis: tuple[str, ...]
+    exact: tuple[int, ...]
+    #: How far q is from the singular set, in the units of UNRELIABLE_DET.
+    clearance: Callable[[np.ndarray], float] = lambda q: math.inf
 
 
 @dataclass(frozen=True)
 class LieFields:
     """Fields and brackets at q: ``names`` (inputs, then brackets by depth),
     ``depths``, ``values`` (fields x coordinates; None where singular); ``aliases`` maps
-    a bracket expression to the name shown instead (the car's R, T)."""
+    a bracket expression to the name shown instead (the car's R, T); ``basis`` and
+    ``exact`` as in LieModel."""
 
     robot: str
     q: np.ndarray
@@ -75,6 +90,10 @@ class LieFields:
     depths: tuple[int, ...]
     values: np.ndarray | None
     aliases: dict[str, str]
+    basis: tuple[str, ...] = ()
+    exact: tuple[int, ...] = ()
+    basis_values: np.ndarray | None = None  # the basis fields (rows), at any depth asked
+    clearance: float = math.inf  # LieModel.clearance at q
 
     @property
     def singular(self) -> bool:
@@ -85,31 +104,72 @@ class LieFields:
             raise KeyError(f"the fields are undefined at q = {self.q}")
         return self.values[self.names.index(self.aliases.get(name, name))]
 
-    def _singular_values(self, depth: int) -> np.ndarray:
+    def _residual(self, depth: int) -> np.ndarray:
+        """Unit columns of the fields up to ``depth`` outside the basis, with the basis's
+        part removed (the Schur complement on the coordinates past the basis's): their
+        rank is what the fields add to the basis's."""
         assert self.values is not None
-        cols = self.values[[i for i, d in enumerate(self.depths) if d <= depth]]
-        unit = cols / np.maximum(np.linalg.norm(cols, axis=1), 1e-300)[:, None]
-        return np.linalg.svd(unit, compute_uv=False)
+        span = len(self.basis)
+        assert self.basis_values is not None
+        top = self.basis_values[:, :span].T  # invertible, exactly
+        low = self.basis_values[:, span:].T
+        extra = [
+            self.values[i]
+            for i, d in enumerate(self.depths)
+            if d <= depth and self.names[i] not in self.basis
+        ]
+        if not extra or span == self.values.shape[1]:
+            return np.zeros((0, 0))
+        cols = np.array(extra).T
+        rest = cols[span:] - low @ np.linalg.solve(top, cols[:span])
+        return rest / np.maximum(np.linalg.norm(cols, axis=0), 1e-300)
 
     @property
     def growth(self) -> tuple[int, ...] | None:
-        """Rank of Delta_1 .. Delta_depth (numeric, on unit columns; see condition)."""
+        """Rank of Delta_1 .. Delta_depth. Up to len(exact) the ranks are exact (a
+        closed-form determinant, see lie_model); beyond, the basis's rank plus the
+        numeric rank (unit columns, RANK_TOL) of what the deeper brackets add."""
         if self.values is None:
             return None
-        return tuple(
-            int(np.count_nonzero(self._singular_values(k) > RANK_TOL))
-            for k in range(1, max(self.depths) + 1)
-        )
+        ranks = []
+        for k in range(1, max(self.depths) + 1):
+            if k <= len(self.exact):
+                ranks.append(self.exact[k - 1])
+                continue
+            rest = self._residual(k)
+            sv = np.linalg.svd(rest, compute_uv=False) if rest.size else np.zeros(0)
+            ranks.append(len(self.basis) + int(np.count_nonzero(sv > RANK_TOL)))
+        return tuple(ranks)
+
+    @property
+    def ranks_reliable(self) -> bool | None:
+        """False where some rank is numeric (past the exact depths) and the condition
+        number exceeds UNRELIABLE_CONDITION: near the singular set, double precision
+        cannot decide it."""
+        if self.values is None:
+            return None
+        if max(self.depths) <= len(self.exact):
+            return True
+        return (self.condition or 0.0) < UNRELIABLE_CONDITION and (self.clearance >= UNRELIABLE_DET)
 
     @property
     def condition(self) -> float | None:
-        """Largest over smallest non-zero singular value of the unit columns at the last
-        depth: how near the rank decision is to changing."""
+        """How near the ranks are to changing: the condition number of the basis's block
+        (unit columns; exact rank, but it says how near q is to the singular set) or, if
+        larger, the largest over the smallest kept singular value of what the deeper
+        brackets add."""
         if self.values is None:
             return None
-        s = self._singular_values(max(self.depths))
-        kept = s[s > RANK_TOL]
-        return float(kept[0] / kept[-1])
+        assert self.basis_values is not None
+        top = self.basis_values[:, : len(self.basis)].T
+        worst = float(np.linalg.cond(top / np.linalg.norm(top, axis=0)))
+        rest = self._residual(max(self.depths))
+        if rest.size:
+            sv = np.linalg.svd(rest, compute_uv=False)
+            kept = sv[sv > RANK_TOL]
+            if kept.size:
+                worst = max(worst, float(kept[0] / kept[-1]))
+        return worst
 
 
 def lyndon_words(letters: int, depth: int) -> list[tuple[int, ...]]:
@@ -172,13 +232,24 @@ def lie_fields(model: LieModel, q: np.ndarray, depth: int = 3) -> LieFields:
             f"variables, more than this tool computes: ask for depth {most} or less"
         )
     q = np.asarray(q, dtype=float)
+    asked = depth
+    depth = max(depth, len(model.exact))  # the exact basis's brackets are needed anyway
     words = lyndon_words(len(model.inputs), depth)
     names = tuple(model.aliases.get(n, n) for n in (_name(w, model.inputs) for w in words))
     depths = tuple(len(w) for w in words)
+    shown = [i for i, d in enumerate(depths) if d <= asked]
     space = JetSpace(len(model.depends), depth - 1)
     base = model.build([space.variable(k, q[v]) for k, v in enumerate(model.depends)])
     if base is None:
-        return LieFields(model.robot, q, names, depths, None, model.aliases)
+        return LieFields(
+            model.robot,
+            q,
+            tuple(names[i] for i in shown),
+            tuple(depths[i] for i in shown),
+            None,
+            model.aliases,
+        )
+
     memo: dict[tuple[int, ...], list[Jet]] = {(i,): f for i, f in enumerate(base)}
     for w in words:
         if len(w) == 1:
@@ -189,7 +260,18 @@ def lie_fields(model: LieModel, q: np.ndarray, depth: int = 3) -> LieFields:
             [j.truncate(keep) for j in memo[u]], [j.truncate(keep) for j in memo[v]], model.depends
         )
     values = np.array([[j.value for j in memo[w]] for w in words])
-    return LieFields(model.robot, q, names, depths, values, model.aliases)
+    return LieFields(
+        model.robot,
+        q,
+        tuple(names[i] for i in shown),
+        tuple(depths[i] for i in shown),
+        values[shown],
+        model.aliases,
+        model.basis,
+        model.exact[:asked],
+        values[[names.index(n) for n in model.basis]],
+        model.clearance(q),
+    )
 
 
 def _snake(robot: Robot) -> Callable[[list[Jet]], list[list[Jet]] | None]:
@@ -258,11 +340,34 @@ def lie_model(robot: Robot) -> LieModel:
     """The jet model of an N-link snake (N >= 3) or a car."""
     names = robot.state_names
     if robot.kind == "car":
+        # det(S, D, R, T) = -1 / (L^2 cos^4 Phi): never zero where D exists.
         aliases = {"[S,D]": "R", "[[S,D],D]": "T"}
-        return LieModel(robot.name, names, ("S", "D"), (2, 3), _car(robot), aliases)
+        basis = ("S", "D", "R", "T")
+        return LieModel(
+            robot.name, names, ("S", "D"), (2, 3), _car(robot), aliases, basis, (2, 3, 4)
+        )
     if robot.kind == "snake" and robot.links >= 3:
+        # The first five coordinates (x, y, theta, phi1, phi2) of the fields and their
+        # brackets are the 3-link snake's (the first three wheels fix the body from
+        # dphi1, dphi2), so the fields to depth 3 there have det = -det G* = -l^6/det B^4
+        # ([[g1,g2],g2] = -h3): growth (2, 3, 5) exactly, for every N.
         depends = tuple(range(2, 3 + robot.n_joints))
-        return LieModel(robot.name, names, ("g1", "g2"), depends, _snake(robot), {})
+        basis = ("g1", "g2", "[g1,g2]", "[g1,[g1,g2]]", "[[g1,g2],g2]")
+
+        def clearance(q: np.ndarray) -> float:
+            return abs(math.sin(q[3]) - math.sin(q[4]) + math.sin(q[3] - q[4]))
+
+        return LieModel(
+            robot.name,
+            names,
+            ("g1", "g2"),
+            depends,
+            _snake(robot),
+            {},
+            basis,
+            (2, 3, 5),
+            clearance,
+        )
     raise LieError(
         f"{robot.name} has no field model here: jets cover snakes of 3 to 16 links and the car"
     )

@@ -161,6 +161,8 @@ def test_car_fields_are_the_thesis_s(theta, steer, wheelbase):
         lf["T"], [-math.sin(theta) * sec2, math.cos(theta) * sec2, 0, 0], rtol=1e-12, atol=1e-12
     )
     assert lf["[S,D]"] is not None and lf.growth == (2, 3, 4)
+    frame = np.array([lf[n] for n in ("S", "D", "R", "T")]).T
+    assert np.linalg.det(frame) == pytest.approx(sec2**2, rel=1e-9)  # the exact criterion
 
 
 def test_car_is_singular_with_the_wheels_across():

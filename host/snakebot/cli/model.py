@@ -148,7 +148,7 @@ def fields_command(
     e.g. [g1,[g1,g2]] and [[g1,g2],g2] (= -h3 for 3 links), computed to any --depth
     from exact derivatives. Their growth vector is exact to depth 3 (snakes: the
     first five coordinates are the 3-link snake's, whose det G* is never zero; the car:
-    det(S, D, R, T) = -1/(L^2 cos^4 Phi)); deeper ranks are numeric, with the condition
+    det(S, D, R, T) = 1/(L^2 cos^4 Phi)); deeper ranks are numeric, with the condition
     number, and flagged where double precision cannot decide them. The car (thesis,
     chapter 1) has q = (x, y, theta, Phi), steering S, drive D, R = [S,D],
     T = [R,D]: growth (2, 3, 4).

@@ -340,7 +340,7 @@ def lie_model(robot: Robot) -> LieModel:
     """The jet model of an N-link snake (N >= 3) or a car."""
     names = robot.state_names
     if robot.kind == "car":
-        # det(S, D, R, T) = -1 / (L^2 cos^4 Phi): never zero where D exists.
+        # det(S, D, R, T) = 1 / (L^2 cos^4 Phi): never zero where D exists.
         aliases = {"[S,D]": "R", "[[S,D],D]": "T"}
         basis = ("S", "D", "R", "T")
         return LieModel(

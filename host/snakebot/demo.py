@@ -47,9 +47,8 @@ from snakebot.controller.playback import play, stop
 from snakebot.controller.uploader import UploadReport, upload_gait
 from snakebot.errors import SnakebotError
 from snakebot.gait import serpenoid
-from snakebot.gait.common import PREDICT_OPTIONS, motion_frame
+from snakebot.gait.common import motion_frame, table_motion
 from snakebot.gaittable import GaitTable, write_gait
-from snakebot.kinematics import Table, integrate_joints
 from snakebot.robots import Robot, load_robot
 from snakebot.sim.serve import PC_LINK_MARGIN_S, EmulatedRobot, ServeInfo
 from snakebot.sim.world import WorldRecord
@@ -175,18 +174,20 @@ def predicted_motion(
     samples: int = 2,
 ) -> np.ndarray:
     """Body poses (x, y, theta) over ``cycles`` whole cycles of the looping table, the joints
-    delayed by ``delay_s``, from the origin; ``samples`` rows evenly in time."""
-    period = len(angles) * period_s
-    t0 = period - delay_s  # the joints at window start are where the table was delay_s ago
-    traj = integrate_joints(
+    delayed by ``delay_s``, from the origin (``gait.common.table_motion``, the prediction
+    ``gait`` and ``sim predict`` make); at least ``samples`` rows evenly in time."""
+    per_interval = max(1, math.ceil((samples - 1) / (cycles * len(angles))))
+    played = table_motion(
         robot,
-        Table(angles, period_s, True),
-        t0 + cycles * period,
-        t0=t0,
-        samples=samples,
-        options=PREDICT_OPTIONS,
+        angles,
+        period_s,
+        True,
+        per_interval=per_interval,
+        # the joints at window start are where the table was delay_s ago
+        start_s=len(angles) * period_s - delay_s,
+        passes=cycles,
     )
-    return traj.q[:, :3]
+    return played.trajectory.q[:, :3]
 
 
 @dataclass

@@ -152,48 +152,58 @@ def table_motion(
     *,
     per_interval: int = 1,
     pose0: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    start_s: float = 0.0,
+    passes: int = 1,
 ) -> TableMotion:
-    """The body's motion over one pass of a table as the controller plays it (angles
-    linear between frames, a loop wrapping to frame 0): the one place the table becomes a
-    prediction (``gait``, ``sim predict``). Where ideal wheels are singular on a frame
-    interval, that interval alone gets the rolling friction ``REGULARISING_CT * c_n``."""
-    points = np.vstack([angles, angles[:1]]) if loop else np.asarray(angles, dtype=float)
-    intervals = len(points) - 1
+    """The body's motion over a table as the controller plays it (angles linear between
+    frames, a loop wrapping to frame 0): the one place a table becomes a prediction
+    (``gait``, ``sim predict``, the demo). One pass from its first frame, or for a loop
+    ``passes`` passes from table time ``start_s``. Where ideal wheels are singular on a
+    frame period of it, that period alone gets the rolling friction
+    ``REGULARISING_CT * c_n``. Times in the trajectory count from ``start_s``."""
+    angles = np.asarray(angles, dtype=float)
+    if not loop and (passes != 1 or start_s != 0.0):
+        raise ValueError("a table played once has one pass, from its first frame")
+    schedule = Table(angles, period_s, loop)
+    intervals = (len(angles) if loop else len(angles) - 1) * passes
     fallback = REGULARISING_CT * robot.c_n if robot.c_t == 0 else None
 
-    def run(rows: np.ndarray, c_t: float, pose: tuple[float, float, float]) -> Trajectory:
+    def run(a: int, b: int, c_t: float, pose: tuple[float, float, float]) -> Trajectory:
+        """Frame periods a .. b (counted from start_s)."""
         return integrate_joints(
             robot,
-            Table(rows, period_s),
-            (len(rows) - 1) * period_s,
+            schedule,
+            start_s + b * period_s,
+            t0=start_s + a * period_s,
             pose0=pose,
-            samples=(len(rows) - 1) * per_interval + 1,
+            samples=(b - a) * per_interval + 1,
             options=PREDICT_OPTIONS,
             c_t=c_t,
             with_slip=True,
         )
 
     try:
-        traj = run(points, robot.c_t, pose0)
-        return TableMotion(traj, np.zeros(intervals, dtype=bool), robot.c_t, fallback)
+        traj = run(0, intervals, robot.c_t, pose0)
+        relative = Trajectory(traj.t - start_s, traj.q, traj.slip, traj.stats)
+        return TableMotion(relative, np.zeros(intervals, dtype=bool), robot.c_t, fallback)
     except KinematicsError as exc:
         if fallback is None or exc.code not in SINGULAR_CODES:
             raise
     # Near an inadmissible crossing the ideal body velocity has a pole: the step size
     # collapses or the crossing is reported. Real wheels slip a little there.
-    qs, slips, reg, rconds = [np.r_[pose0, points[0]][None, :]], [], [], []
+    qs, slips, reg, rconds = [], [], [], []
     pose = pose0
     for i in range(intervals):
         try:
-            part = run(points[i : i + 2], robot.c_t, pose)
+            part = run(i, i + 1, robot.c_t, pose)
             reg.append(False)
         except KinematicsError as exc:
             if exc.code not in SINGULAR_CODES:
                 raise
-            part = run(points[i : i + 2], fallback, pose)
+            part = run(i, i + 1, fallback, pose)
             reg.append(True)
         assert part.slip is not None
-        qs.append(part.q[1:])
+        qs.append(part.q if i == 0 else part.q[1:])
         slips.append(part.slip if i == 0 else part.slip[1:])
         rconds.append(part.stats["min_rcond"])
         pose = tuple(float(v) for v in part.q[-1, :3])  # type: ignore[assignment]

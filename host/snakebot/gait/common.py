@@ -130,16 +130,23 @@ class TableMotion:
     regularised: np.ndarray
     c_t: float
     fallback_c_t: float | None
+    #: Where some interval was regularised: how far the end position and heading move
+    #: with a tenth of the fallback friction (0 otherwise).
+    fallback_spread: float = 0.0
+    fallback_spread_theta: float = 0.0
 
     def note(self) -> dict[str, Any]:
         """The JSON note of the table prediction: c_t and where it was regularised."""
         count = int(self.regularised.sum())
         out: dict[str, Any] = {"c_t": self.c_t, "regularised_intervals": count}
         if count:
+            out["fallback_spread"] = self.fallback_spread
             out["note"] = (
                 f"the ideal model (c_t = 0) is singular on {count} of the rounded table's "
                 f"{len(self.regularised)} frame intervals; they were predicted with rolling "
-                f"friction c_t = {self.fallback_c_t:g}, as the emulator does"
+                f"friction c_t = {self.fallback_c_t:g}, as the emulator does (a tenth of "
+                f"it moves the end by {self.fallback_spread:.3g} and the heading by "
+                f"{self.fallback_spread_theta:.3g} rad)"
             )
         return out
 
@@ -191,26 +198,34 @@ def table_motion(
             raise
     # Near an inadmissible crossing the ideal body velocity has a pole: the step size
     # collapses or the crossing is reported. Real wheels slip a little there.
-    qs, slips, reg, rconds = [], [], [], []
-    pose = pose0
-    for i in range(intervals):
-        try:
-            part = run(i, i + 1, robot.c_t, pose)
-            reg.append(False)
-        except KinematicsError as exc:
-            if exc.code not in SINGULAR_CODES:
-                raise
-            part = run(i, i + 1, fallback, pose)
-            reg.append(True)
-        assert part.slip is not None
-        qs.append(part.q if i == 0 else part.q[1:])
-        slips.append(part.slip if i == 0 else part.slip[1:])
-        rconds.append(part.stats["min_rcond"])
-        pose = tuple(float(v) for v in part.q[-1, :3])  # type: ignore[assignment]
-    q = np.vstack(qs)
-    t = np.arange(len(q)) * (period_s / per_interval)
-    traj = Trajectory(t, q, np.vstack(slips), {"min_rcond": float(min(rconds))})
-    return TableMotion(traj, np.array(reg, dtype=bool), robot.c_t, fallback)
+
+    def piecewise(friction: float) -> tuple[Trajectory, np.ndarray]:
+        qs, slips, reg, rconds = [], [], [], []
+        pose = pose0
+        for i in range(intervals):
+            try:
+                part = run(i, i + 1, robot.c_t, pose)
+                reg.append(False)
+            except KinematicsError as exc:
+                if exc.code not in SINGULAR_CODES:
+                    raise
+                part = run(i, i + 1, friction, pose)
+                reg.append(True)
+            assert part.slip is not None
+            qs.append(part.q if i == 0 else part.q[1:])
+            slips.append(part.slip if i == 0 else part.slip[1:])
+            rconds.append(part.stats["min_rcond"])
+            pose = tuple(float(v) for v in part.q[-1, :3])  # type: ignore[assignment]
+        q = np.vstack(qs)
+        t = np.arange(len(q)) * (period_s / per_interval)
+        traj = Trajectory(t, q, np.vstack(slips), {"min_rcond": float(min(rconds))})
+        return traj, np.array(reg, dtype=bool)
+
+    traj, reg = piecewise(fallback)
+    # How much the arbitrary friction decides: the end pose again with a tenth of it.
+    tenth = piecewise(fallback / 10)[0].q[-1, :3] - traj.q[-1, :3]
+    spread = float(np.hypot(tenth[0], tenth[1]))
+    return TableMotion(traj, reg, robot.c_t, fallback, spread, float(abs(tenth[2])))
 
 
 def predict_table(

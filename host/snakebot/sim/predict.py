@@ -138,6 +138,7 @@ class Prediction:
                 "slip_max": float(np.abs(pred_slip).max()) if pred_slip is not None else 0.0,
                 "c_t": self.predicted_c_t,
                 "regularised_intervals": int(self.played.regularised.sum()),
+                "fallback_spread": self.played.fallback_spread,
                 "source": "integrated from the table's frames (ticks to angles, linear in "
                 "between, as the controller plays them)",
             },

@@ -112,3 +112,13 @@ def test_car_fields_and_growth():
     data = json.loads(run("model", "fields", "car", "--at", "0,0,0,0", "--json").output)
     np.testing.assert_allclose(data["fields"]["T"], [0, 1, 0, 0], atol=1e-15)
     assert data["aliases"] == {"R": "[S,D]", "T": "[[S,D],D]"}
+
+
+def test_the_car_has_fields_but_no_gaits(tmp_path):
+    for args in (
+        ("gait", "serpenoid", "car", "-A", "0.3", "-w", "1", "-d", "1", "--cycles", "1"),
+        ("gait", "field", "car", "--field", "S", "--duration", "0.1"),
+    ):
+        result = run(*args, "-o", tmp_path / "car.gait")
+        assert result.exit_code == 2 and "snakebot model fields car" in result.output
+        assert not (tmp_path / "car.gait").exists()

@@ -40,9 +40,13 @@ def serpenoid(
 ) -> Gait:
     """A serpenoid gait for a snake robot (checked against its limits)."""
     if robot.kind != "snake":
+        other = (
+            "use `snakebot gait field` for it"
+            if robot.kind == "trident"
+            else f"its control fields are in `snakebot model fields {robot.name}`"
+        )
         raise GaitError(
-            f"{robot.name} is a {robot.kind}: the serpenoid gait drives a chain "
-            "of links; use `snakebot gait field` for it"
+            f"{robot.name} is a {robot.kind}: the serpenoid gait drives a chain of links; " + other
         )
     for name, value in (
         ("amplitude", amplitude),

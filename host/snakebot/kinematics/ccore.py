@@ -46,6 +46,15 @@ class KinematicsError(SnakebotError):
         super().__init__(f"{text}{where}" + (f": {hint}" if hint else ""))
 
 
+class UnsupportedModel(KinematicsError):
+    """A model the C core does not have for this robot (KIN_EUNSUPPORTED); the message
+    says where the robot's model is."""
+
+    def __init__(self, message: str) -> None:
+        self.code = lib.KIN_EUNSUPPORTED
+        SnakebotError.__init__(self, message)
+
+
 class SingularConfiguration(KinematicsError):
     """The configuration is singular (KIN_ESINGULAR) or crossed inadmissibly."""
 
@@ -62,10 +71,10 @@ def check(code: int, context: str = "") -> None:
 def c_robot(robot: Robot, c_t: float | None = None) -> Any:
     """A ``kin_robot`` struct for the robot (optionally overriding its c_t)."""
     if robot.kind not in ("snake", "trident"):
-        raise KinematicsError(
-            lib.KIN_EUNSUPPORTED,
+        raise UnsupportedModel(
             f"{robot.name} is a {robot.kind}: only its control fields are modelled "
-            "(snakebot model fields); gaits and the emulator drive snakes and tridents",
+            f"(snakebot model fields {robot.name}); gaits and the emulator drive snakes "
+            "and tridents"
         )
     rb = ffi.new("kin_robot *")
     rb.kind = lib.KIN_SNAKE if robot.kind == "snake" else lib.KIN_TRIDENT

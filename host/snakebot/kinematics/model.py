@@ -12,6 +12,7 @@ from snakebot.core import ffi, lib
 from snakebot.kinematics.ccore import (
     FORMS,
     KinematicsError,
+    UnsupportedModel,
     as_doubles,
     c_robot,
     check,
@@ -48,11 +49,10 @@ def field_model(robot: Robot) -> str:
     if robot.links == 3:
         return "snake3"
     what = f"a {robot.links}-link snake" if robot.kind == "snake" else f"a {robot.kind}"
-    raise KinematicsError(
-        lib.KIN_EUNSUPPORTED,
-        f"{robot.name} is {what}: its two control fields and their brackets come from "
-        "`snakebot model fields` (kinematics.lie); field-driven integration and "
-        "`gait field` cover the 3-link snake and the trident",
+    raise UnsupportedModel(
+        f"{robot.name} is {what}: its two control fields and their brackets are in "
+        f"`snakebot model fields {robot.name}`; field-driven integration and `gait field` "
+        "cover the 3-link snake and the trident"
     )
 
 

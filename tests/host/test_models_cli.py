@@ -122,3 +122,15 @@ def test_the_car_has_fields_but_no_gaits(tmp_path):
         result = run(*args, "-o", tmp_path / "car.gait")
         assert result.exit_code == 2 and "snakebot model fields car" in result.output
         assert not (tmp_path / "car.gait").exists()
+
+
+def test_joint_driven_singularity_of_the_trident_is_named():
+    at = "0,0,0,45deg,60deg,-60deg"  # the three axles meet in one point
+    text = run("model", "fields", "trident", "--at", at)
+    assert "growth vector: (3, 6)" in text.output
+    assert "warning: driven by its joints" in text.output and "singular" in text.output
+    data = json.loads(run("model", "fields", "trident", "--at", at, "--json").output)
+    assert data["joint_driven"]["near_singular"] and data["joint_driven"]["rcond"] < 1e-12
+    clear = json.loads(run("model", "fields", "trident", "--at", "0,0,0,0,0,0", "--json").output)
+    assert not clear["joint_driven"]["near_singular"]
+    assert "warning" not in run("model", "fields", "trident", "--at", "0,0,0,0,0,0").output

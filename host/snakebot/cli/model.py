@@ -10,7 +10,8 @@ import click
 import numpy as np
 
 from snakebot.cli.params import ANGLES
-from snakebot.kinematics import default_form, field_model, fields
+from snakebot.gait.common import NEAR_SINGULAR_RCOND
+from snakebot.kinematics import body_velocity, default_form, field_model, fields
 from snakebot.kinematics.lie import LieFields, lie_fields, lie_model
 from snakebot.kinematics.model import singular_reason
 from snakebot.robots import load_robot
@@ -197,6 +198,7 @@ def fields_command(
         "det": fs.det,
         "condition": fs.condition,
         "singular": fs.singular,
+        "joint_driven": _joint_driven(rb, np.array(at)),
     }
     if kind == "snake3":
         data["det_b"] = fs.det_b
@@ -220,6 +222,27 @@ def fields_command(
         f"  growth vector: {fs.growth}   det G* = {fs.det:.9g}   condition number "
         f"{fs.condition:.3g}   singular: {'yes' if fs.singular else 'no'}"
     )
+    _echo_joint_driven(data["joint_driven"])
+
+
+def _joint_driven(rb: Any, q: np.ndarray) -> dict[str, Any] | None:
+    """How well the joints, driven as the servos drive them, determine the body at q:
+    the minimum-slip wheel model's reciprocal condition number (None for the car)."""
+    if rb.kind not in ("snake", "trident"):
+        return None
+    rcond = body_velocity(rb, q, np.zeros(rb.n_joints)).rcond
+    return {"rcond": rcond, "near_singular": rcond < NEAR_SINGULAR_RCOND}
+
+
+def _echo_joint_driven(data: dict[str, Any] | None) -> None:
+    if data is None or not data["near_singular"]:
+        return
+    where = (
+        "at a singular configuration (the wheel axles meet in one point or are parallel)"
+        if data["rcond"] == 0
+        else f"near a singular configuration (condition number {1 / data['rcond']:.3g})"
+    )
+    click.echo(f"  warning: driven by its joints, as the servos drive it, q is {where}")
 
 
 def _print_lie(rb: Any, lf: LieFields, as_json: bool) -> None:
@@ -241,6 +264,7 @@ def _print_lie(rb: Any, lf: LieFields, as_json: bool) -> None:
         "growth_reliable": lf.ranks_reliable,
         "condition": lf.condition,
         "singular": lf.singular,
+        "joint_driven": _joint_driven(rb, lf.q),
     }
     if lf.singular and rb.kind == "snake":
         data["singular_where"] = singular_reason(rb, lf.q)
@@ -273,6 +297,7 @@ def _print_lie(rb: Any, lf: LieFields, as_json: bool) -> None:
             f"  warning: past depth {exact} the ranks are numeric, and at this condition "
             "number double precision cannot decide them (q is too near the singular set)"
         )
+    _echo_joint_driven(data["joint_driven"])
 
 
 def _print_symbolic(rb: Any, form: str, as_json: bool) -> None:

@@ -174,3 +174,15 @@ def test_depth_is_bounded():
         lie_fields(lie_model(SNAKE5), np.array([0, 0, 0, 0.3, -0.2, 0, 0]), 9)
     with pytest.raises(LieError, match="ask for depth 5 or less"):
         lie_fields(lie_model(snake(16)), np.r_[0, 0, 0, np.linspace(0.3, -0.3, 15)], 6)
+
+
+def test_car_jets_equal_the_sympy_model():
+    from snakebot.symbolic.models import car as sym_car
+
+    model = sym_car()
+    q = (0.3, -0.4, 0.9, -0.6)
+    subs = dict(zip(model.q, q, strict=True)) | {model.params[0]: CAR.l}
+    lf = lie_fields(lie_model(CAR), np.array(q), 3)
+    for name in ("S", "D", "R", "T"):
+        exact = np.array([float(c.subs(subs)) for c in model.fields[name]])
+        np.testing.assert_allclose(lf[name], exact, rtol=1e-12, atol=1e-15)

@@ -134,3 +134,9 @@ def test_joint_driven_singularity_of_the_trident_is_named():
     clear = json.loads(run("model", "fields", "trident", "--at", "0,0,0,0,0,0", "--json").output)
     assert not clear["joint_driven"]["near_singular"]
     assert "warning" not in run("model", "fields", "trident", "--at", "0,0,0,0,0,0").output
+
+
+def test_symbolic_car_is_the_thesis_s():
+    data = json.loads(run("model", "fields", "car", "--symbolic", "--json").output)
+    assert data["fields"]["R"] == ["0", "0", "1/(L*cos(Phi)**2)", "0"]
+    assert data["fields"]["T"][:2] == ["-sin(theta)/(L*cos(Phi)**2)", "cos(theta)/(L*cos(Phi)**2)"]

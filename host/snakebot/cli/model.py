@@ -158,15 +158,20 @@ def fields_command(
     """
     rb = load_robot(robot)
     jets = rb.kind == "car" or (rb.kind == "snake" and (rb.links != 3 or depth is not None))
-    if symbolic and jets:
-        raise click.UsageError("--symbolic is available for snake3 and the trident (no --depth)")
+    if symbolic and (depth is not None or rb.kind == "snake" and rb.links != 3):
+        raise click.UsageError(
+            "--symbolic is available for snake3, the trident and the car (no --depth)"
+        )
     if depth is not None and not jets:
         raise click.UsageError(
             "--depth applies to snakes and the car: the trident's filtration is complete "
             "at depth 2 (growth (3, 6))"
         )
+    if symbolic:
+        _print_symbolic(rb, form or default_form(rb), as_json)
+        return
     n = len(rb.state_names)
-    if not symbolic and at is None:
+    if at is None:
         raise click.UsageError("give the configuration with --at (or ask for --symbolic)")
     if at is not None and len(at) != n:
         raise click.BadParameter(
@@ -182,10 +187,6 @@ def fields_command(
         return
     kind = field_model(rb)
     used_form = form or default_form(rb)
-    if symbolic:
-        _print_symbolic(rb, used_form, as_json)
-        return
-    assert at is not None
     fs = fields(rb, np.array(at), form)
     data = {
         "robot": rb.name,
@@ -319,8 +320,9 @@ def _print_symbolic(rb: Any, form: str, as_json: bool) -> None:
             )
         )
         return
-    params = ", ".join(str(p) for p in ex.model.params if p.name in ("l", "r"))
-    click.echo(f"{rb.name} fields ({form} inputs), symbolic in {params}; x, y in {ex.frame}")
+    params = ", ".join(str(p) for p in ex.model.params if p.name in ("l", "r", "L"))
+    inputs = "steering S, drive D" if rb.kind == "car" else f"{form} inputs"
+    click.echo(f"{rb.name} fields ({inputs}), symbolic in {params}; x, y in {ex.frame}")
     for field_name, comps in ex.components.items():
         click.echo(f"{field_name}:")
         for coord, expr in zip(names, comps, strict=True):

@@ -47,9 +47,8 @@ from snakebot.controller.playback import play, stop
 from snakebot.controller.uploader import UploadReport, upload_gait
 from snakebot.errors import SnakebotError
 from snakebot.gait import serpenoid
-from snakebot.gait.common import PREDICT_OPTIONS
+from snakebot.gait.common import motion_frame, table_motion
 from snakebot.gaittable import GaitTable, write_gait
-from snakebot.kinematics import Table, integrate_joints
 from snakebot.robots import Robot, load_robot
 from snakebot.sim.physics.select import record_extras, world_of
 from snakebot.sim.physics.video import check_video_path, write_video
@@ -165,7 +164,7 @@ def _motion(q_end: np.ndarray) -> dict[str, float]:
 
 
 def _relative(pose0: np.ndarray, poses: np.ndarray) -> np.ndarray:
-    """Poses in the frame of ``pose0`` (x forward along its heading)."""
+    """Poses in the frame of ``pose0`` (+x along its heading: gait.common.motion_frame)."""
     c, s = math.cos(pose0[2]), math.sin(pose0[2])
     d = poses[:, :2] - pose0[:2]
     return np.column_stack(
@@ -182,18 +181,20 @@ def predicted_motion(
     samples: int = 2,
 ) -> np.ndarray:
     """Body poses (x, y, theta) over ``cycles`` whole cycles of the looping table, the joints
-    delayed by ``delay_s``, from the origin; ``samples`` rows evenly in time."""
-    period = len(angles) * period_s
-    t0 = period - delay_s  # the joints at window start are where the table was delay_s ago
-    traj = integrate_joints(
+    delayed by ``delay_s``, from the origin (``gait.common.table_motion``, the prediction
+    ``gait`` and ``sim predict`` make); at least ``samples`` rows evenly in time."""
+    per_interval = max(1, math.ceil((samples - 1) / (cycles * len(angles))))
+    played = table_motion(
         robot,
-        Table(angles, period_s, True),
-        t0 + cycles * period,
-        t0=t0,
-        samples=samples,
-        options=PREDICT_OPTIONS,
+        angles,
+        period_s,
+        True,
+        per_interval=per_interval,
+        # the joints at window start are where the table was delay_s ago
+        start_s=len(angles) * period_s - delay_s,
+        passes=cycles,
     )
-    return traj.q[:, :3]
+    return played.trajectory.q[:, :3]
 
 
 @dataclass
@@ -401,7 +402,7 @@ def plot_demo(robot: Robot, comparison: Comparison, out: Path) -> Path:
     ax_path.plot(em[:, 0], em[:, 1], "-", color="tab:red", label="emulated (firmware in QEMU)")
     ax_path.plot([0], [0], "o", color="black", label="start")
     ax_path.set_aspect("equal", adjustable="datalim")
-    ax_path.set_xlabel("x (m, along the head's heading at the start)")
+    ax_path.set_xlabel("x (m, along link 1 from the tail towards the head, at the start)")
     ax_path.set_ylabel("y (m)")
     ax_path.set_title(
         f"{robot.name}: body path over the measured cycles\n"
@@ -640,8 +641,8 @@ def summary_lines(result: DemoResult) -> list[str]:
         )
 
     return [
-        f"5. over the {n} measured cycles (x = forward along the head link's heading at the "
-        "start, angles counter-clockwise):",
+        f"5. over the {n} measured cycles "
+        f"({motion_frame(load_robot(result.settings.robot))}; angles counter-clockwise):",
         f"   emulated : {where(e)}",
         f"   predicted: {where(p)}",
         f"   difference {100 * c.difference_m:.1f} cm "

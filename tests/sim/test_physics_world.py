@@ -37,7 +37,8 @@ def s5_table():
 @pytest.fixture(scope="module")
 def kinematic_free_wheels(s5_table):
     """The kinematic prediction for the physics twin's free-spinning wheels (c_t = 0)."""
-    traj, _ = predict_table(dataclasses.replace(SNAKE5, c_t=0.0), s5_table, 11)
+    intervals = s5_table.frame_count if s5_table.loop else s5_table.frame_count - 1
+    traj, _ = predict_table(dataclasses.replace(SNAKE5, c_t=0.0), s5_table, intervals + 1)
     return traj.q[-1, :2] - traj.q[0, :2]
 
 

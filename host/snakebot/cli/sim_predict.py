@@ -84,17 +84,23 @@ def predict(
     the prediction integrated from the same table.
 
     The host is the bus master, as with a USB2Dynamixel adapter and no controller: it
-    puts the virtual servos at the first frame, then sends one SYNC_WRITE per frame
-    (goal = the next frame, moving speed = what covers the step in one frame period).
+    puts the virtual servos at the first frame, then runs the controller's own gait
+    player (the firmware's C, in process) every 10 ms control tick and sends its goals
+    (interpolated between frames) and moving speeds in one SYNC_WRITE per tick.
     The servos' present positions drive the body through the minimum-slip wheel model,
     or, with --world mujoco, the servos drive a body with mass on wheels that can slip,
     and the report adds each wheel's sideways slip, each joint's energy and peak load.
     Everything runs on the emulator's clock, many times faster than real time.
 
-    The report gives the body's displacement (in the start pose's frame) emulated and
+    The report gives the body's displacement (in the start pose's frame: for a snake,
+    +x along link 1 from the tail end (x, y) towards the head) emulated and
     predicted, their difference, the joints' tracking error and the wheels' slip.
     Modelled AX-12s lag their goals a little; with --ideal the two paths agree to the
-    integrator's accuracy.
+    integrator's accuracy. Where ideal wheels are singular on a frame interval (a
+    rounded crossing of the 3-link snake's phi1 = phi2), that interval alone gets a
+    little rolling friction, in the prediction as in the emulator; a prediction passing
+    near a singular configuration (condition number above 100) is warned about, on
+    stderr and in the JSON "warnings".
 
     \b
     Example:
@@ -133,7 +139,7 @@ def predict(
         f"frames every {summary['frame_period_ms']} ms, "
         f"{'one loop' if summary['loop'] else 'once'}, {summary['duration_s']:.3f} s"
     )
-    click.echo("body motion (start pose frame, reference point):")
+    click.echo(f"body motion ({summary['frame']}):")
     click.echo(_motion("emulated:", em))
     click.echo(_motion("predicted:", summary["predicted"]))
     click.echo(_motion("difference:", diff))
@@ -170,3 +176,5 @@ def predict(
         click.echo(f"plot written to {summary['plot']}")
     if video is not None:
         click.echo(f"video written to {summary['video']}")
+    for warning in summary["warnings"]:
+        click.echo(f"warning: {warning['message']}", err=True)

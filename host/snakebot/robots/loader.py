@@ -3,10 +3,11 @@
 Schema (see the built-in files beside this module for complete examples)::
 
     name = "snake5"
-    kind = "snake"                # or "trident"
+    kind = "snake"                # or "trident", or "car"
     description = "..."           # optional
     [geometry]                    # snake: links (>= 2), half_link (l > 0)
                                   # trident: base_radius, arm_length, alphas_deg (3 angles)
+                                  # car: wheelbase (L > 0); one joint, the steering angle
     [friction]                    # c_n > 0, c_t >= 0 (optional; defaults 1 and 0)
     [servo]                       # model ("AX-12A" or "AX-12W"), max_speed_rpm (optional)
     [physics]                     # optional; the physics world needs it: unit_m (> 0), and
@@ -35,7 +36,7 @@ from snakebot.robots.model import (
     RobotError,
 )
 
-BUILTIN_ROBOTS = ("snake3", "trident", "snake5")
+BUILTIN_ROBOTS = ("snake3", "trident", "snake5", "car")
 MAX_LINKS = 16  # the C core's fixed buffers (KIN_MAX_LINKS)
 
 PHYSICS_DEFAULTS: dict[str, float] = {
@@ -180,8 +181,8 @@ def parse_robot(text: str, source: str = "<robot>") -> Robot:
         raise RobotError(f"{source}: not valid TOML ({exc}): fix the syntax there") from None
     reader = _Reader(data, text, source)
     kind = reader.get(("kind",), str)
-    if kind not in ("snake", "trident"):
-        raise reader.fail(("kind",), f'must be "snake" or "trident", not {kind!r}')
+    if kind not in ("snake", "trident", "car"):
+        raise reader.fail(("kind",), f'must be "snake", "trident" or "car", not {kind!r}')
     joints_raw = reader.get(("joints",), list)
     joints = tuple(_joint(reader, i) for i in range(len(joints_raw)))
     ids = [j.servo_id for j in joints]
@@ -225,6 +226,12 @@ def parse_robot(text: str, source: str = "<robot>") -> Robot:
         return Robot(
             l=reader.number(("geometry", "half_link"), 0.0, strictly=True), links=links, **common
         )
+    if kind == "car":
+        if len(joints) != 1:
+            raise reader.fail(
+                ("joints",), f"has {len(joints)} entries but a car has 1 joint (its steering)"
+            )
+        return Robot(l=reader.number(("geometry", "wheelbase"), 0.0, strictly=True), **common)
     alphas = reader.get(("geometry", "alphas_deg"), list)
     if len(alphas) != 3 or not all(isinstance(a, int | float) for a in alphas):
         raise reader.fail(("geometry", "alphas_deg"), f"must be 3 angles in degrees, not {alphas}")

@@ -67,14 +67,19 @@ class Physics:
 
 @dataclass(frozen=True)
 class Robot:
-    """A wheeled snake (``kind == "snake"``) or trident (``kind == "trident"``).
+    """A wheeled snake (``kind == "snake"``), trident (``kind == "trident"``) or car
+    (``kind == "car"``).
 
-    Snake: ``links`` links of length ``2 * l``, a wheel at each link's middle.
+    Snake: ``links`` links of length ``2 * l``, a wheel at each link's middle; link 1's
+    free end (the reference point) is the tail, link N's the head.
     Trident: base radius ``r``, arm length ``l``, arm corners at ``alphas`` (radians).
+    Car (the thesis's first chapter): wheelbase ``l``; its one joint is the steering
+    angle Phi, and the drive is an input, not a joint. It has a field model only
+    (``snakebot model fields``), no wheel-by-wheel model in the C core.
     """
 
     name: str
-    kind: Literal["snake", "trident"]
+    kind: Literal["snake", "trident", "car"]
     joints: tuple[Joint, ...]
     servo_model: str
     max_speed_rad_s: float
@@ -94,7 +99,7 @@ class Robot:
 
     @property
     def n_wheels(self) -> int:
-        return self.links if self.kind == "snake" else 3
+        return {"snake": self.links, "trident": 3, "car": 4}[self.kind]
 
     @property
     def state_names(self) -> tuple[str, ...]:

@@ -1,21 +1,22 @@
 """Play a gait table on the emulated robot, with the host as bus master, and compare the
 body's path with the prediction integrated from the same table.
 
-What is played, as a PC with a USB2Dynamixel adapter (and no controller) would: the host
-puts the servos at the table's first frame, then at every frame time t_k = k * period it
-sends one SYNC_WRITE of Goal Position and Moving Speed (addresses 30-33) to every joint,
-through snakebot's ``DxlClient`` on a ``sim://`` port. The goal is the next frame, and
-the speed is the one that covers the step to it in one frame period (rounded up, at
-least 16 units, exactly as the controller's player computes it: ``play_speed_units``
-from the C core), so a servo that keeps up arrives at each frame on time. A looping table
-wraps from its last frame to frame 0; one pass is played.
+What is played is what the controller sends: the host puts the servos at the table's
+first frame, then runs the controller's own gait player (``play_player.c``, compiled into
+``snakebot._core``) one control tick at a time (``TICK_MS``, as the firmware's main loop)
+and sends each tick's outputs in one SYNC_WRITE of Goal Position and Moving Speed
+(addresses 30-33) through snakebot's ``DxlClient`` on a ``sim://`` port: the goal
+interpolated linearly in ticks between frames, the speed that of the frame step (at least
+16 units). A looping table wraps from its last frame to frame 0; one pass is played.
 
-The world (:mod:`snakebot.sim.world`) samples the servos and moves the body. With ideal
-servos (instant motion) it samples at the frame instants, where the servos sit exactly on
-the frames, so the emulated path is the table prediction (``Gait.table``: ticks back to
-angles, linear in between) up to the integrator's tolerance. With modelled AX-12s it
-samples at least ``world_hz`` times a second and the servos' lag shows up as joint
-tracking error and as a different body path.
+The world (:mod:`snakebot.sim.world`) samples the servos and moves the body, starting one
+tick after the first write, so each of its samples sees the goals of the tick one tick
+earlier. With ideal servos (instant motion) it samples at the frame instants, where the
+servos then sit exactly on the frames (when the frame period is a whole number of ticks),
+so the emulated path is the table prediction (``gait.common.table_motion``, the same
+function the gait's ``table`` figure comes from) up to the integrator's tolerance. With
+modelled AX-12s it samples at least ``world_hz`` times a second and the servos' lag shows
+up as joint tracking error and as a different body path.
 
 Everything runs on the bus's virtual clock: as fast as the computer allows, and the
 result reports how many times faster than real time that was.
@@ -32,16 +33,23 @@ from urllib.parse import urlencode
 
 import numpy as np
 
-from snakebot.core import lib
+from snakebot.core import ffi, lib
 from snakebot.errors import SnakebotError
-from snakebot.gait.common import PREDICT_OPTIONS, motion
+from snakebot.gait.common import (
+    TableMotion,
+    motion,
+    motion_frame,
+    singularity_warnings,
+    table_motion,
+)
 from snakebot.gaittable import GaitTable, read_gait
-from snakebot.kinematics import KinematicsError, Table, Trajectory, integrate_joints
+from snakebot.kinematics import KinematicsError, Trajectory
 from snakebot.protocol import sync_write
 from snakebot.robots import Robot, RobotError, load_robot
 from snakebot.sim.bus import Bus
+from snakebot.sim.controller_pty import TICK_MS
 from snakebot.sim.physics.select import DEFAULT_WORLD, make_world, record_extras, world_of
-from snakebot.sim.world import DEFAULT_BATCH, SINGULAR_CODES, WorldRecord, fallback_c_t
+from snakebot.sim.world import DEFAULT_BATCH, WorldRecord
 from snakebot.transport import DxlClient
 
 GOAL_POSITION_ADDR = 30
@@ -71,8 +79,15 @@ class Prediction:
     world_period_s: float
     emulated: WorldRecord
     predicted: Trajectory
-    predicted_c_t: float
+    played: TableMotion
     wall_s: float
+
+    @property
+    def predicted_c_t(self) -> float:
+        """The rolling friction of the prediction: the robot's, or the fallback where
+        ideal wheels were singular on some frame interval."""
+        p = self.played
+        return p.fallback_c_t if p.regularised.any() and p.fallback_c_t else p.c_t
 
     @property
     def duration_s(self) -> float:
@@ -109,6 +124,7 @@ class Prediction:
             "frame_period_ms": self.table.frame_period_ms,
             "loop": self.table.loop,
             "duration_s": round(self.duration_s, 9),
+            "frame": motion_frame(self.robot),
             "world_period_s": self.world_period_s,
             "emulated": {
                 **em,
@@ -124,6 +140,8 @@ class Prediction:
                 **pr,
                 "slip_max": float(np.abs(pred_slip).max()) if pred_slip is not None else 0.0,
                 "c_t": self.predicted_c_t,
+                "regularised_intervals": int(self.played.regularised.sum()),
+                "fallback_spread": self.played.fallback_spread,
                 "source": "integrated from the table's frames (ticks to angles, linear in "
                 "between, as the controller plays them)",
             },
@@ -140,6 +158,7 @@ class Prediction:
             },
             "realtime_factor": self.realtime_factor,
             "wall_s": self.wall_s,
+            "warnings": singularity_warnings({"prediction from the table": self.predicted}),
         }
         meta_table = self.table.metadata.get("table")
         if isinstance(meta_table, dict):
@@ -177,32 +196,48 @@ def resolve_robot(table: GaitTable, robot: str | Robot | None) -> Robot:
     return chosen
 
 
-def frame_speeds(frames: np.ndarray, period_ms: int, loop: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Goals and Moving Speeds of the writes: write k (at k * period) sends frame k + 1
-    (frame 0 after the last, for a loop) at the speed that covers the step in one
-    period, as the controller's player computes it."""
-    frames = np.asarray(frames, dtype=np.int64)
-    nxt = np.roll(frames, -1, axis=0) if loop else frames[1:]
-    cur = frames if loop else frames[:-1]
-    steps = np.abs(nxt - cur)
-    speeds = np.array(
-        [[lib.play_speed_units(int(s) * 1000 * 256 // period_ms) for s in row] for row in steps],
-        dtype=np.int64,
-    ).reshape(steps.shape)
-    return nxt, speeds
+class TablePlayer:
+    """The controller's gait player (C, ``play_*``) on one table, ticked from Python."""
 
+    def __init__(self, table: GaitTable) -> None:
+        self._data = ffi.new("uint8_t[]", table.encode())  # the player keeps a pointer
+        self._mem = ffi.new("uint8_t[]", lib.play_state_size())
+        self._state = ffi.cast("play_state *", self._mem)
+        self._params = ffi.new("play_params *")
+        self._params.speed_scale = 256  # as written
+        self._params.loop = int(table.loop)
+        self._roster = ffi.new("play_joint[]", 1)  # table mode: limits come from the table
+        lib.play_init(self._state)
+        if not lib.play_start_table(self._state, self._data, table.size, 0):
+            raise PredictError("the controller's player refuses the table: it does not validate")
 
-def sync_blocks(
-    ids: tuple[int, ...], goals: np.ndarray, speeds: np.ndarray
-) -> list[dict[int, bytes]]:
-    """One SYNC_WRITE payload (ID -> goal, speed little-endian) per write."""
-    return [
-        {
-            sid: int(g).to_bytes(2, "little") + int(v).to_bytes(2, "little")
-            for sid, g, v in zip(ids, grow, vrow, strict=True)
+    def tick(self, now_ms: int) -> dict[int, tuple[int, int]]:
+        """The outputs after a control tick at ``now_ms``: servo ID -> (goal, speed)."""
+        count = lib.play_tick(self._state, self._params, self._roster, 0, now_ms)
+        p = self._state
+        return {
+            lib.play_out_id(p, j): (lib.play_out_goal(p, j), lib.play_out_speed(p, j))
+            for j in range(count)
         }
-        for grow, vrow in zip(goals, speeds, strict=True)
-    ]
+
+
+def player_writes(table: GaitTable) -> tuple[float, list[dict[int, bytes]]]:
+    """The SYNC_WRITE blocks (servo ID -> goal, speed little-endian) the controller sends
+    over one pass of the table, one per control tick from t = 0 to the pass's end, and
+    the tick period in seconds."""
+    period_ms = table.frame_period_ms
+    pass_ms = period_ms * (table.frame_count if table.loop else table.frame_count - 1)
+    player = TablePlayer(table)
+    blocks = []
+    for n in range(math.ceil(pass_ms / TICK_MS) + 1):
+        outputs = player.tick(min(n * TICK_MS, pass_ms))
+        blocks.append(
+            {
+                sid: goal.to_bytes(2, "little") + speed.to_bytes(2, "little")
+                for sid, (goal, speed) in outputs.items()
+            }
+        )
+    return TICK_MS / 1000.0, blocks
 
 
 def sim_url(robot: Robot, ideal: bool) -> str:
@@ -257,69 +292,57 @@ def play(
     period = table.frame_period_ms / 1000.0
     per_frame = 1 if ideal else max(1, math.ceil(period * world_hz - 1e-9))
     world_period = period / per_frame
-    goals, speeds = frame_speeds(table.frames, table.frame_period_ms, table.loop)
+    tick, blocks = player_writes(table)
     # the packets are known before the play starts: encode them once, as a host loop should
-    packets = [
-        sync_write(GOAL_POSITION_ADDR, 4, block)
-        for block in sync_blocks(robot.servo_ids, goals, speeds)
-    ]
-    writes = len(packets)
-    duration = writes * period
+    packets = [(n, sync_write(GOAL_POSITION_ADDR, 4, b)) for n, b in enumerate(blocks) if b]
+    intervals = table.frame_count if table.loop else table.frame_count - 1
+    duration = intervals * period
     start = bus.now
-    # built before the clock starts: MuJoCo's model compiles once, outside the play
-    body = make_world(world, bus, robot, period=world_period, start=start, batch=batch, mu=mu)
+    # One tick late: a sample at t sees the goals sent at t - tick (the world samples
+    # before a write due at the same instant), so its samples at the frame instants see
+    # the frames themselves. Built before the clock starts: MuJoCo's model compiles once,
+    # outside the play.
+    body = make_world(
+        world, bus, robot, period=world_period, start=start + tick, batch=batch, mu=mu
+    )
     wall0 = time.perf_counter()
-    for k, packet in enumerate(packets):
-        bus.run_until(start + k * period)
+    for n, packet in packets:
+        bus.run_until(start + min(n * tick, duration))
         client.send(packet)  # SYNC_WRITE: no reply to wait for
-    bus.run_until(start + duration + 0.5 * world_period)
+    bus.run_until(start + tick + duration + 0.5 * world_period)
     body.stop()
     record = body.record()
     wall = time.perf_counter() - wall0
-    expected = writes * per_frame + 1
+    expected = intervals * per_frame + 1
     if len(record.t) != expected:  # pragma: no cover - a clock bug, not a user error
         raise PredictError(f"the world took {len(record.t)} samples, expected {expected}")
     return record, world_period, wall
 
 
-def predict_table(robot: Robot, table: GaitTable, samples: int) -> tuple[Trajectory, float]:
+def predict_table(robot: Robot, table: GaitTable, samples: int) -> tuple[Trajectory, TableMotion]:
     """The body path integrated straight from the table, as the gait's ``table`` figure
-    is (ticks to angles, linear in between, the robot's c_t, or a small one over the
-    whole table if ideal wheels are singular on it), at ``samples`` evenly spaced times
-    over one pass (slip: mid-interval, as the world records it); returns the trajectory
-    and the c_t used."""
-    angles = robot.ticks_to_angles(table.frames)
-    period = table.frame_period_ms / 1000.0
-    frames = table.frame_count
-    duration = period * (frames if table.loop else frames - 1)
-    schedule = Table(angles, period, table.loop)
-    c_t = robot.c_t
-
-    def run(c_t: float) -> Trajectory:
-        return integrate_joints(
-            robot,
-            schedule,
-            duration,
-            samples=2 * samples - 1,
-            options=PREDICT_OPTIONS,
-            c_t=c_t,
-            with_slip=True,
-        )
-
+    is (``table_motion``: ticks to angles, linear in between, the robot's c_t, and a small
+    one on just the frame intervals where ideal wheels are singular, as the world does),
+    at ``samples`` evenly spaced times over one pass (slip: mid-interval, as the world
+    records it); returns the trajectory and the table motion it came from."""
+    intervals = table.frame_count if table.loop else table.frame_count - 1
+    per_sample, rest = divmod(samples - 1, intervals)
+    if rest or per_sample < 1:  # pragma: no cover - the world samples whole frames
+        raise PredictError(f"{samples} samples do not divide the table's {intervals} intervals")
     try:
-        try:
-            traj = run(c_t)
-        except KinematicsError as exc:
-            fallback = fallback_c_t(robot, c_t)
-            if fallback is None or exc.code not in SINGULAR_CODES:
-                raise
-            c_t = fallback
-            traj = run(c_t)
+        played = table_motion(
+            robot,
+            robot.ticks_to_angles(table.frames),
+            table.frame_period_ms / 1000.0,
+            table.loop,
+            per_interval=2 * per_sample,
+        )
     except KinematicsError as exc:
         raise PredictError(f"cannot predict the table's motion: {exc}") from exc
+    traj = played.trajectory
     assert traj.slip is not None
     slip = np.vstack([np.zeros((1, traj.slip.shape[1])), traj.slip[1::2]])
-    return Trajectory(traj.t[::2], traj.q[::2], slip, traj.stats), c_t
+    return Trajectory(traj.t[::2], traj.q[::2], slip, traj.stats), played
 
 
 def predict_gait(
@@ -359,7 +382,5 @@ def predict_gait(
         )
     finally:
         client.close()
-    predicted, predicted_c_t = predict_table(chosen, table, len(record.t))
-    return Prediction(
-        name, chosen, table, ideal, world_period, record, predicted, predicted_c_t, wall
-    )
+    predicted, played = predict_table(chosen, table, len(record.t))
+    return Prediction(name, chosen, table, ideal, world_period, record, predicted, played, wall)

@@ -27,10 +27,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from snakebot.core import lib
 from snakebot.errors import SnakebotError
 from snakebot.gait.common import PREDICT_OPTIONS, REGULARISING_CT
 from snakebot.kinematics import KinematicsError, Options, Table, integrate_joints
+from snakebot.kinematics.ccore import SINGULAR_CODES
 from snakebot.robots import Robot
 from snakebot.sim.bus import Bus
 
@@ -39,9 +39,6 @@ DEFAULT_PERIOD_S = 0.01
 
 DEFAULT_BATCH = 256
 """Samples integrated per C call (fewer when the pose is asked for sooner)."""
-
-SINGULAR_CODES = (lib.KIN_ESINGULAR, lib.KIN_EINADMISSIBLE, lib.KIN_ESTEPSIZE)
-"""Core statuses of a motion that ideal wheels cannot follow (a singular crossing)."""
 
 
 class WorldError(SnakebotError):

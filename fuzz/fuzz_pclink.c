@@ -223,6 +223,23 @@ static void pc_bytes(const uint8_t *buf, size_t n, size_t *last_reply_len)
     }
 }
 
+/* Whether a good packet starts inside pkt (after its header) and ends before pkt does:
+ * the PC link does not wait on what may be a false header, so it takes that one first
+ * (dxl_parser_skip_to_hidden) and drops the start of pkt. */
+static bool hides_packet(const uint8_t *pkt, size_t n)
+{
+    for (size_t i = 1; i + 4 < n; i++) {
+        if (pkt[i] != DXL_HEADER_BYTE || pkt[i + 1] != DXL_HEADER_BYTE ||
+            pkt[i + 2] == DXL_HEADER_BYTE || pkt[i + 3] < DXL_MIN_LEN_FIELD ||
+            pkt[i + 3] > DXL_MAX_LEN_FIELD) {
+            continue;
+        }
+        size_t end = i + pkt[i + 3] + 4u;
+        if (end < n && dxl_checksum(pkt + i + 2, end - i - 3) == pkt[end - 1]) return true;
+    }
+    return false;
+}
+
 /* A well-formed packet; checks whether and how it was answered. */
 static void pc_packet(uint8_t id, uint8_t inst, const uint8_t *params, size_t nparams)
 {
@@ -235,6 +252,10 @@ static void pc_packet(uint8_t id, uint8_t inst, const uint8_t *params, size_t np
     uint8_t me = ctl_id(d);
     uint8_t level = d->regs[CTL_STATUS_RETURN_LEVEL];
     size_t reply_len = SIZE_MAX; /* no event at all would leave this */
+    if (hides_packet(pkt, n)) {
+        pc_bytes(pkt, n, NULL); /* the hidden one is taken first: nothing to predict */
+        return;
+    }
     pc_bytes(pkt, n, &reply_len);
     CHECK(reply_len != SIZE_MAX); /* a well-formed packet is always parsed */
     bool to_me = id == me;

@@ -581,7 +581,14 @@ bool ctl_pc_poll(ctl_device *d, uint32_t now_ms, uint8_t *out, size_t cap, size_
 {
     dxl_event ev;
     *out_len = 0;
-    if (!dxl_parser_poll(&d->pc, &ev)) return false;
+    if (!dxl_parser_poll(&d->pc, &ev)) {
+        /* A false header (noise, a damaged LEN) must not hold back the host's packets
+         * behind it until its LEN is made up: the host would wait in vain, and a trickle
+         * of noise keeps the line from ever going quiet for the gap reset. */
+        if (!dxl_parser_skip_to_hidden(&d->pc)) return false;
+        set_reg(d, CTL_PC_ERRORS, 2, reg(d, CTL_PC_ERRORS, 2) + 1u);
+        return true;
+    }
     if (ev.kind == DXL_EVENT_PACKET) {
         set_reg(d, CTL_PC_PACKETS, 2, reg(d, CTL_PC_PACKETS, 2) + 1u);
         *out_len = ctl_handle_packet(d, ev.id, ev.code, ev.params, ev.nparams, now_ms, out, cap);

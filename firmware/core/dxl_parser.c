@@ -17,12 +17,14 @@ static void drop(dxl_parser *p, uint16_t n)
 {
     p->start = (uint8_t)(p->start + n);
     p->count = (uint16_t)(p->count - n);
+    p->hunted = p->hunted > n ? (uint16_t)(p->hunted - n) : 0u;
 }
 
 void dxl_parser_reset(dxl_parser *p)
 {
     p->start = 0;
     p->count = 0;
+    p->hunted = 0;
 }
 
 bool dxl_parser_feed(dxl_parser *p, uint8_t byte)
@@ -99,4 +101,40 @@ bool dxl_parser_poll(dxl_parser *p, dxl_event *ev)
     report(p, ev, DXL_EVENT_PACKET, total);
     drop(p, total);
     return true;
+}
+
+/* A whole packet with a good checksum starts at i and ends at or before count. */
+static bool good_packet_at(const dxl_parser *p, uint16_t i, uint16_t *end)
+{
+    if (at(p, i) != DXL_HEADER_BYTE || at(p, (uint16_t)(i + 1u)) != DXL_HEADER_BYTE ||
+        at(p, (uint16_t)(i + 2u)) == DXL_HEADER_BYTE) {
+        return false;
+    }
+    uint8_t len = at(p, (uint16_t)(i + 3u));
+    if (len < DXL_MIN_LEN_FIELD || len > DXL_MAX_LEN_FIELD) {
+        return false;
+    }
+    *end = (uint16_t)(i + len + 4u);
+    if (*end > p->count || *end <= p->hunted) {
+        return false; /* not complete yet, or already checked and found bad */
+    }
+    uint8_t sum = 0;
+    for (uint16_t k = (uint16_t)(i + 2u); k + 1u < *end; k++) {
+        sum = (uint8_t)(sum + at(p, k));
+    }
+    uint8_t expected = (uint8_t)~sum;
+    return expected == at(p, (uint16_t)(*end - 1u));
+}
+
+bool dxl_parser_skip_to_hidden(dxl_parser *p)
+{
+    uint16_t end;
+    for (uint16_t i = 1; i + 4u <= p->count; i++) {
+        if (good_packet_at(p, i, &end)) {
+            drop(p, i);
+            return true;
+        }
+    }
+    p->hunted = p->count;
+    return false;
 }

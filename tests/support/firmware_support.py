@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import shutil
 import subprocess
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, TypeVar
@@ -14,6 +15,7 @@ from typing import Any, TypeVar
 import pytest
 
 from snakebot.paths import REPO_ROOT
+from snakebot.protocol import DxlTimeout
 from snakebot.transport import DxlClient
 
 BUILD = REPO_ROOT / "build"
@@ -90,6 +92,19 @@ def assert_healthy_bus(reads: int, timeouts: int) -> None:
 def client(port: str) -> DxlClient:
     """A Protocol 1.0 client on the emulated PC link (a pty path)."""
     return DxlClient(port, PC_BAUD, margin_s=CLIENT_MARGIN_S, echo=False)
+
+
+def wait_for_boot(port: str, timeout: float = 20.0) -> None:
+    """Wait until the firmware answers PING on its PC link (DxlTimeout after ``timeout``)."""
+    with client(port) as c:
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                c.ping(CONTROLLER_ID, retries=0)
+                return
+            except DxlTimeout:
+                if time.monotonic() > deadline:
+                    raise
 
 
 HAL_DIR = REPO_ROOT / "firmware" / "hal"

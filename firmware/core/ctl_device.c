@@ -382,15 +382,18 @@ static uint8_t write_bytes(ctl_device *d, uint8_t start, const uint8_t *data, si
         if (a >= CTL_SERVO_WINDOW && a < WINDOW_END) continue;
         const field *f = register_at((uint8_t)a);
         if (f == NULL || (f->access & CTL_ACCESS_W) == 0) return DXL_ERR_RANGE;
+        /* the register's bytes this write touches are a..last: one check covers them */
+        uint16_t f_end = (uint16_t)(f->addr + f->size);
+        uint16_t last = (uint16_t)((f_end < end ? f_end : end) - 1u);
         if (f->addr == CTL_UPLOAD_DATA) {
-            if (offset + (a - CTL_UPLOAD_DATA) >= CTL_MAX_TABLE_BYTES) {
+            if (offset + (last - CTL_UPLOAD_DATA) >= CTL_MAX_TABLE_BYTES) {
                 raise_flags(d, CTL_ERROR_FLAGS_UPLOAD_LENGTH);
                 return DXL_ERR_RANGE;
             }
-        } else if ((a == f->addr || a == start) &&
-                   !in_range(f, value_after(d, f->addr, f->size, start, data, n))) {
+        } else if (!in_range(f, value_after(d, f->addr, f->size, start, data, n))) {
             return DXL_ERR_RANGE;
         }
+        a = last;
     }
     if (write_window(d, start, data, n, false) != 0) return DXL_ERR_RANGE;
 

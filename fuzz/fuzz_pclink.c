@@ -140,8 +140,7 @@ static struct {
 static struct {
     bool known;
     uint32_t crc;
-    uint8_t joints;
-    uint16_t frames;
+    gt_info info;
 } facts;
 
 static void take_snapshot(void)
@@ -174,17 +173,14 @@ static void check_table(void)
     if (d->active_len > 0) {
         CHECK(d->active_len <= CTL_MAX_TABLE_BYTES);
         if (changed || !facts.known) {
-            gt_info info;
-            CHECK(gt_validate(d->active, d->active_len, &info) == GT_OK);
+            CHECK(gt_validate(d->active, d->active_len, &facts.info) == GT_OK);
             facts.crc = crc32_compute(d->active, d->active_len);
-            facts.joints = info.joint_count;
-            facts.frames = info.frame_count;
             facts.known = true;
         }
         CHECK(reg16(CTL_TABLE_SIZE) == d->active_len);
         CHECK(reg32(CTL_TABLE_CRC) == facts.crc);
-        CHECK(d->regs[CTL_TABLE_JOINTS] == facts.joints);
-        CHECK(reg16(CTL_TABLE_FRAMES) == facts.frames);
+        CHECK(d->regs[CTL_TABLE_JOINTS] == facts.info.joint_count);
+        CHECK(reg16(CTL_TABLE_FRAMES) == facts.info.frame_count);
     } else {
         CHECK(reg16(CTL_TABLE_SIZE) == 0);
     }
@@ -455,8 +451,9 @@ static void do_tick(uint32_t dt)
     CHECK(tick.count <= CTL_MAX_JOINTS);
     if (!tick.moving) CHECK(tick.count == 0);
     bool table_mode = before == CTL_STATE_PLAYING;
-    gt_info info;
-    if (table_mode) CHECK(gt_validate(d->active, d->active_len, &info) == GT_OK);
+    /* check_all() after the last step validated the active table and kept what it found */
+    if (table_mode) CHECK(facts.known && d->active_len == snapshot.len);
+    const gt_info info = facts.info;
     for (uint8_t j = 0; j < tick.count; j++) {
         tick.id[j] = p->out_id[j];
         if (table_mode) {

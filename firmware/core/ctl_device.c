@@ -207,18 +207,15 @@ static void show_table(ctl_device *d, const gt_info *info, uint32_t crc)
     sync_bus_roster(d);
 }
 
-static bool activate(ctl_device *d, const uint8_t *table, size_t len, uint32_t crc)
+/* Make table[0..len) active; `info` is what gt_validate found for it. */
+static void activate(ctl_device *d, const uint8_t *table, size_t len, uint32_t crc,
+                     const gt_info *info)
 {
-    gt_info info;
-    if (len == 0 || len > CTL_MAX_TABLE_BYTES || gt_validate(table, len, &info) != GT_OK) {
-        return false;
-    }
     stop_motion(d);
     for (size_t i = 0; i < len; i++) d->active[i] = table[i];
     d->active_len = (uint16_t)len;
     d->table_changed = 1;
-    show_table(d, &info, crc);
-    return true;
+    show_table(d, info, crc);
 }
 
 static uint16_t upload_flag(uint8_t result)
@@ -251,7 +248,7 @@ static void commit(ctl_device *d)
         result = (uint8_t)gt_validate(d->staging, len, &info);
     }
     set_reg(d, CTL_ERROR_FLAGS, 2, reg(d, CTL_ERROR_FLAGS, 2) & ~(uint32_t)UPLOAD_FLAGS);
-    if (result == GT_OK) activate(d, d->staging, len, crc);
+    if (result == GT_OK) activate(d, d->staging, len, crc, &info); /* validated above */
     else raise_flags(d, upload_flag(result));
     d->regs[CTL_UPLOAD_RESULT] = result;
 }
@@ -572,7 +569,10 @@ void ctl_init(ctl_device *d)
 bool ctl_load_table(ctl_device *d, const uint8_t *table, size_t len)
 {
     if (len == 0 || len > CTL_MAX_TABLE_BYTES) return false;
-    return activate(d, table, len, crc32_compute(table, len));
+    gt_info info;
+    if (gt_validate(table, len, &info) != GT_OK) return false;
+    activate(d, table, len, crc32_compute(table, len), &info);
+    return true;
 }
 
 bool ctl_pc_feed(ctl_device *d, uint8_t byte)

@@ -27,6 +27,12 @@ pytestmark = [pytest.mark.qemu, pytest.mark.timeout(300)]
 ENV = {"SNAKEBOT_MARGIN_MS": "300"}  # QEMU shares a loaded machine
 SYNC_WRITE_HEAD = bytes([0xFF, 0xFF, 0xFE])
 TICK_S = 0.010  # BOARD_CONTROL_TICK_MS
+FILL_TIMEOUT_S = 30.0  # replies leave at 57600 baud: about 4 s fill the terminal
+FLOOD_S = 3.0  # how long the goals are watched with the terminal full
+MAX_GAP_S = 0.25
+"""The longest pause between goal writes allowed while flooded. A blocked QEMU stops the
+goals for seconds (the issue saw their age grow to 3.9 s); on the shared 2-core machine
+QEMU and the emulator's threads are now and then descheduled for 100-150 ms, flood or not."""
 
 
 class GoalTimes:
@@ -114,11 +120,11 @@ def test_a_trickle_of_false_headers_does_not_lock_the_link(robot, tmp_path):
 
 
 def test_an_unread_read_flood_does_not_stop_the_control_loop(robot, tmp_path):
-    """A client sends READs of 100 bytes as fast as the link takes them and reads nothing:
-    the terminal fills within a second. The goals must keep the cadence they have on a
-    quiet link (10 ms ticks; measured first, since a loaded machine slows QEMU), because
-    the firmware drops replies it cannot send and the emulator drops what the terminal
-    cannot take; and the link answers again afterwards."""
+    """A client sends READs of 100 bytes as fast as the link takes them and reads nothing,
+    until the terminal is full (replies then have nowhere to go) and for 3 s more. The
+    goals must keep the cadence they have on a quiet link (10 ms ticks; measured first,
+    since a loaded machine slows QEMU), because the firmware drops replies it cannot send
+    and the emulator drops what the terminal cannot take; the link answers afterwards."""
     fw, server, goals = robot
     path = save(wave_table(), tmp_path)
     cli_json("upload", path, "--port", fw.ports.pc_link, env=ENV)
@@ -136,29 +142,37 @@ def test_an_unread_read_flood_does_not_stop_the_control_loop(robot, tmp_path):
     assert quiet_rate > 0.5 / TICK_S, f"only {quiet_rate:.0f} goal writes/s on a quiet link"
 
     request = read(CONTROLLER_ID, 0, 100)
-    with second_writer(fw.ports.pc_link) as fd:
-        t0 = bus_now()
-        end = time.monotonic() + 4.0
-        sent = 0
-        while time.monotonic() < end:
+    sent = 0
+
+    def flood(fd: int, until) -> None:
+        nonlocal sent
+        while not until():
             try:
                 sent += os.write(fd, request * 8)
             except BlockingIOError:
                 time.sleep(0.001)
+
+    with second_writer(fw.ports.pc_link) as fd:
+        # The terminal takes some 20 KB before it is full: only then could anything stall.
+        give_up = time.monotonic() + FILL_TIMEOUT_S
+        flood(fd, lambda: fw.dropped("pc") > 0 or time.monotonic() > give_up)
+        assert fw.dropped("pc") > 0, "the terminal never filled: the flood tested nothing"
+        t0 = bus_now()
+        end = time.monotonic() + FLOOD_S
+        flood(fd, lambda: time.monotonic() > end)
         t1 = bus_now()
         termios.tcflush(fd, termios.TCOFLUSH)  # READs still queued in the terminal
     dropped = fw.dropped("pc")
-    assert dropped > 0, "the terminal never filled: the flood did not test anything"
     times = goals.between(t0, t1)
     gaps = [b - a for a, b in zip(times, times[1:], strict=False)]
     rate = len(times) / (t1 - t0)
     summary = (
         f"{sent} bytes of READs sent, {dropped} reply bytes dropped at the terminal; "
-        f"{rate:.0f} goal writes/s (quiet: {quiet_rate:.0f}), longest gap "
+        f"with it full, {rate:.0f} goal writes/s (quiet: {quiet_rate:.0f}), longest gap "
         f"{max(gaps, default=t1 - t0) * 1000:.0f} ms"
     )
     assert rate >= 0.8 * quiet_rate, summary
-    assert max(gaps) < 0.1, summary
+    assert max(gaps) < MAX_GAP_S, summary
     with client(fw.ports.pc_link) as c:  # once the replies still queued are out
         deadline = time.monotonic() + 10
         while True:

@@ -72,7 +72,14 @@ from snakebot.controller.monitor import Sample, sample
 from snakebot.controller.upload import chunk_writes, commit_write
 from snakebot.gaittable import GaitTable
 from snakebot.paths import REPO_ROOT
-from snakebot.protocol import Instruction, Packet, PacketParser, ProtocolError
+from snakebot.protocol import (
+    MAX_PACKET_LEN,
+    Instruction,
+    Packet,
+    PacketParser,
+    ProtocolError,
+    Rejected,
+)
 from snakebot.sim.bus import Bus
 from snakebot.sim.errors import SimError
 from snakebot.sim.faults import FaultConfig
@@ -99,6 +106,7 @@ GOAL_POSITION = 30
 TORQUE_ENABLE = 24
 TELEMETRY_PARAMS = 8
 CTL = load()
+MAX_LEN_FIELD = MAX_PACKET_LEN - 4  # the largest LEN byte a packet can carry
 
 
 def _reg(name: str) -> int:
@@ -796,6 +804,50 @@ def _after_brownout(long: bool) -> Callable[[Rig, Outcome, Sample], None]:
     return check
 
 
+class PcLinkModel:
+    """The controller's PC link as the firmware parses it, for predicting what noise does:
+    the shared resynchronisation rule (:class:`snakebot.protocol.PacketParser`), and after
+    each byte the firmware's extra step (``dxl_parser_skip_to_hidden``): while a candidate
+    is incomplete, the first later ``FF FF`` that starts a complete packet with a good
+    checksum among the bytes held back wins, and what lay before it is one rejection."""
+
+    def __init__(self) -> None:
+        self.parser = PacketParser()
+        self.held = b""  # the parser's pending bytes (the last ``pending`` bytes fed)
+
+    def reset(self) -> None:
+        self.parser.reset()
+        self.held = b""
+
+    def _feed(self, data: bytes) -> list[Packet | Rejected]:
+        events = self.parser.feed(data)
+        pending = self.parser.pending
+        self.held = (self.held + data)[len(self.held) + len(data) - pending :] if pending else b""
+        return events
+
+    def _hidden(self) -> int | None:
+        held = self.held
+        for i in range(1, len(held) - 3):
+            if held[i] != 0xFF or held[i + 1] != 0xFF or held[i + 2] == 0xFF:
+                continue
+            end = i + held[i + 3] + 4
+            if 2 <= held[i + 3] <= MAX_LEN_FIELD and end <= len(held):
+                if protocol.checksum(held[i + 2 : end - 1]) == held[end - 1]:
+                    return i
+        return None
+
+    def feed(self, data: bytes) -> list[Packet | Rejected]:
+        events: list[Packet | Rejected] = []
+        for byte in data:
+            events += self._feed(bytes([byte]))
+            while self.parser.pending and (i := self._hidden()) is not None:
+                events.append(Rejected("hidden", self.held[:i]))
+                rest = self.held[i:]
+                self.reset()
+                events += self._feed(rest)
+        return events
+
+
 def _pc_noise(rig: Rig, out: Outcome) -> None:
     """Noise bursts on the PC link while the table plays; each is followed at once by a
     PING, or first by a pause (the firmware drops a partial packet after 100 ms)."""
@@ -804,7 +856,7 @@ def _pc_noise(rig: Rig, out: Outcome) -> None:
     ctl = rig.ctl
     link = ctl.link
     base = ctl.read("PC Packets", "PC Errors")
-    model = PacketParser()
+    model = PcLinkModel()
     expected = Counter()
     predicted_wrong = 0
     bursts = noise_bytes = answered = 0

@@ -28,6 +28,8 @@
 #define BOARD_BUS_TX_RING 512
 #define BOARD_PC_RX_RING 512
 #define BOARD_PC_TX_RING 512
+/* The USART's own baud timing paces the PC link's transmitter. */
+#define BOARD_PACE_PC_TX 0
 
 /* Independent watchdog timeout (LSI-based, approximate). */
 #define BOARD_WATCHDOG_MS 500UL

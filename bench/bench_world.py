@@ -23,6 +23,7 @@ from snakebot.gait import serpenoid
 from snakebot.protocol import sync_write
 from snakebot.robots import load_robot
 from snakebot.sim.predict import (
+    GOAL_BLOCK,
     GOAL_POSITION_ADDR,
     frame_speeds,
     move_to_start,
@@ -57,7 +58,7 @@ def without_world(table, robot) -> float:  # noqa: ANN001
         move_to_start(client, bus, robot, table.frames[0])
         goals, speeds = frame_speeds(table.frames, table.frame_period_ms, table.loop)
         packets = [
-            sync_write(GOAL_POSITION_ADDR, 4, block)
+            sync_write(GOAL_POSITION_ADDR, GOAL_BLOCK, block)
             for block in sync_blocks(robot.servo_ids, goals, speeds)
         ]
         period = table.frame_period_ms / 1000.0

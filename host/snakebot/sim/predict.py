@@ -32,6 +32,7 @@ from urllib.parse import urlencode
 
 import numpy as np
 
+from snakebot import devices
 from snakebot.core import lib
 from snakebot.errors import SnakebotError
 from snakebot.gait.common import PREDICT_OPTIONS, motion
@@ -43,11 +44,16 @@ from snakebot.sim.bus import Bus
 from snakebot.sim.world import DEFAULT_BATCH, SINGULAR_CODES, World, WorldRecord, fallback_c_t
 from snakebot.transport import DxlClient
 
-GOAL_POSITION_ADDR = 30
-"""Goal Position (2 bytes) then Moving Speed (2 bytes): one 4-byte SYNC_WRITE block."""
-PRESENT_POSITION_ADDR = 36
+_AX12 = devices.ax12()
+_GOAL = _AX12.register("Goal Position")
+_SPEED = _AX12.register("Moving Speed")
+_PRESENT = _AX12.register("Present Position")
+assert _SPEED.address == _GOAL.end  # one SYNC_WRITE block sets both
+GOAL_POSITION_ADDR = _GOAL.address
+GOAL_BLOCK = _GOAL.size + _SPEED.size
+"""Goal Position then Moving Speed: the bytes of one SYNC_WRITE block."""
 START_SPEED = 200
-"""Moving Speed (0.111 rpm units, about 22 rpm) for the move to the first frame."""
+"""Moving Speed (about 22 rpm) for the move to the first frame."""
 START_SETTLE_S = 0.1
 """Extra bus time allowed for the move to the first frame."""
 START_TOLERANCE_TICKS = 1
@@ -194,12 +200,14 @@ def sync_blocks(
 ) -> list[dict[int, bytes]]:
     """One SYNC_WRITE payload (ID -> goal, speed little-endian) per write."""
     return [
-        {
-            sid: int(g).to_bytes(2, "little") + int(v).to_bytes(2, "little")
-            for sid, g, v in zip(ids, grow, vrow, strict=True)
-        }
+        {sid: _goal_block(int(g), int(v)) for sid, g, v in zip(ids, grow, vrow, strict=True)}
         for grow, vrow in zip(goals, speeds, strict=True)
     ]
+
+
+def _goal_block(goal: int, speed: int) -> bytes:
+    """Goal Position and Moving Speed as one SYNC_WRITE block."""
+    return goal.to_bytes(_GOAL.size, "little") + speed.to_bytes(_SPEED.size, "little")
 
 
 def sim_url(robot: Robot, ideal: bool) -> str:
@@ -214,19 +222,17 @@ def move_to_start(client: DxlClient, bus: Bus, robot: Robot, first: np.ndarray) 
     servos' Present Position over the bus."""
     ids = robot.servo_ids
     client.sync_write(
-        GOAL_POSITION_ADDR,
-        4,
-        {
-            sid: int(g).to_bytes(2, "little") + START_SPEED.to_bytes(2, "little")
-            for sid, g in zip(ids, first, strict=True)
-        },
+        _GOAL.address,
+        GOAL_BLOCK,
+        {sid: _goal_block(int(g), START_SPEED) for sid, g in zip(ids, first, strict=True)},
     )
     here = np.array(bus.positions(ids))
     distance = float(np.abs(here - first).max())
-    ticks_per_s = START_SPEED * 0.111 * 6.0 * 1023.0 / 300.0
+    ticks_per_deg = _AX12.require_position().scale.per_unit("deg")
+    ticks_per_s = _SPEED.to_units(START_SPEED, "deg/s") * ticks_per_deg
     bus.run_until(bus.now + distance / ticks_per_s + START_SETTLE_S)
     for sid, goal in zip(ids, first, strict=True):
-        present = client.read_u16(sid, PRESENT_POSITION_ADDR)
+        present = client.read_u16(sid, _PRESENT.address)
         if abs(present - int(goal)) > START_TOLERANCE_TICKS:
             raise PredictError(
                 f"servo {sid} stopped at {present} ticks, not at the first frame's {int(goal)}: "
@@ -255,7 +261,7 @@ def play(
     goals, speeds = frame_speeds(table.frames, table.frame_period_ms, table.loop)
     # the packets are known before the play starts: encode them once, as a host loop should
     packets = [
-        sync_write(GOAL_POSITION_ADDR, 4, block)
+        sync_write(GOAL_POSITION_ADDR, GOAL_BLOCK, block)
         for block in sync_blocks(robot.servo_ids, goals, speeds)
     ]
     writes = len(packets)

@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+from snakebot import devices
 from snakebot.protocol import (
     BROADCAST_ID,
     ControlTable,
@@ -173,9 +174,12 @@ _SPEED_SETTINGS = tuple(motor.speed_setting(value) for value in range(motor.DIRE
 the setting depends on), worked out once."""
 
 
+_BAUD = devices.ax12().require_baud()
+
+
 def baud_from_register(value: int) -> float:
-    """Bits per second for a Baud Rate register value: 2 000 000 / (value + 1)."""
-    return 2_000_000 / (value + 1)
+    """Bits per second for a Baud Rate register value (the AX-12's baud formula)."""
+    return _BAUD.rate(value)
 
 
 class VirtualServo:

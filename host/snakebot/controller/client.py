@@ -21,7 +21,7 @@ from dataclasses import asdict, dataclass
 from types import TracebackType
 from typing import Any
 
-from snakebot import protocol
+from snakebot import devices, protocol
 from snakebot.controller.errors import ControllerError, ControllerLinkError, NotAController
 from snakebot.controller.table import Controller, Register, load
 from snakebot.protocol import CorruptPacket, DxlTimeout, ErrorFlags, ServoError
@@ -116,10 +116,10 @@ class ControllerClient:
         **link_options: Any,
     ) -> ControllerClient:
         """Open ``port`` (device path or URL). The PC link never echoes, so the client is
-        told so (``echo=False``) unless ``link_options`` say otherwise; and the
-        controller's address 16 is Speed Scale, not a servo's Status Return Level."""
+        told so (``echo=False``) unless ``link_options`` say otherwise; and the device
+        there is the controller (its Status Return Level is not where a servo's is)."""
         link_options.setdefault("echo", False)
-        link_options.setdefault("status_return_level_address", None)
+        link_options.setdefault("device", devices.controller())
         link = DxlClient(port, baudrate, **link_options)
         return cls(link, controller_id, port_name=port)
 

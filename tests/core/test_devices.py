@@ -164,3 +164,12 @@ def test_broken_descriptions_are_refused(broken, registers, extra, problem):
     broken({"X": _doc(registers, **extra)})
     with pytest.raises(DeviceError, match=problem):
         devices.load("X")
+
+
+def test_spans_cover_consecutive_registers():
+    goal, speed = AX.register("Goal Position"), AX.register("Moving Speed")
+    assert AX.span("Goal Position", "Moving Speed") == (goal.address, goal.size + speed.size)
+    first, length = AX.span("Present Position", "Present Temperature")
+    assert AX.covering(first + length - 1).name == "Present Temperature"
+    with pytest.raises(DeviceError, match="does not come after"):
+        AX.span("Present Speed", "Present Position")

@@ -119,10 +119,3 @@ def servo_error_words(value: int) -> str:
 
 def servo_error_names(value: int) -> list[str]:
     return [flag.name or str(int(flag)) for flag in ErrorFlags if value & flag]
-
-
-def signed_ax12(value: int) -> int:
-    """An AX-12 speed or load word (bits 0-9 magnitude, bit 10 set = clockwise) as a signed
-    number: counter-clockwise positive, clockwise negative."""
-    magnitude = value & 0x3FF
-    return -magnitude if value & 0x400 else magnitude

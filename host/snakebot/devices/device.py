@@ -134,6 +134,14 @@ class Device:
         """The register called ``name`` (case-insensitive), e.g. "Goal Position"."""
         return find(self.registers, name, f"{self.name} has no register")
 
+    def span(self, first: str, last: str) -> tuple[int, int]:
+        """(address, length) of the bytes from register ``first`` through ``last``, for a
+        READ or SYNC_WRITE that covers several registers at once."""
+        start, end = self.register(first).address, self.register(last).end
+        if end <= start:
+            raise DeviceError(f"{self.name}: {last} does not come after {first}")
+        return start, end - start
+
     def at(self, address: int) -> Register | None:
         """The register starting at ``address``, or None (reserved or mid-register)."""
         for reg in self.registers:

@@ -48,10 +48,8 @@ _AX12 = devices.ax12()
 _GOAL = _AX12.register("Goal Position")
 _SPEED = _AX12.register("Moving Speed")
 _PRESENT = _AX12.register("Present Position")
-assert _SPEED.address == _GOAL.end  # one SYNC_WRITE block sets both
-GOAL_POSITION_ADDR = _GOAL.address
-GOAL_BLOCK = _GOAL.size + _SPEED.size
-"""Goal Position then Moving Speed: the bytes of one SYNC_WRITE block."""
+GOAL_POSITION_ADDR, GOAL_BLOCK = _AX12.span(_GOAL.name, _SPEED.name)
+"""Goal Position then Moving Speed: where one SYNC_WRITE block goes, and its bytes."""
 START_SPEED = 200
 """Moving Speed (about 22 rpm) for the move to the first frame."""
 START_SETTLE_S = 0.1

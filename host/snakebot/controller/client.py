@@ -78,15 +78,18 @@ class JointRecord:
         return asdict(self)
 
 
+_POSITION = devices.ax12().require_position()
+
+
 @dataclass(frozen=True)
 class RosterEntry:
     """What the roster needs to know about one joint (written through the servo window)."""
 
     id: int
     reverse: bool = False
-    zero_tick: int = 512
-    min_tick: int = 0
-    max_tick: int = 1023
+    zero_tick: int = _POSITION.centre
+    min_tick: int = _POSITION.range[0]
+    max_tick: int = _POSITION.range[1]
 
 
 class ControllerClient:

@@ -40,7 +40,10 @@ SPEED_UNIT_RPM = _SPEED.scale.factor_in("rpm")
 """Moving Speed and Present Speed unit."""
 DIRECTION_BIT = 1 << _SPEED.encoding.direction_bit
 """The direction bit of speed and load values: set = CW (toward smaller positions)."""
-_MAGNITUDE = DIRECTION_BIT - 1
+SPEED_MAX = DIRECTION_BIT - 1
+"""The largest speed magnitude (and joint-mode Moving Speed)."""
+TORQUE_FULL = _AX12.register("Torque Limit").value_range()[1]
+"""Torque Limit (and load magnitude) at the full stall torque."""
 AMBIENT_C = 25.0
 
 
@@ -88,13 +91,13 @@ def speed_setting(moving_speed: int) -> float:
 
 def speed_register(ticks_per_s: float) -> int:
     """Present Speed encoding of a signed speed (ticks/s; negative = CW)."""
-    magnitude = min(_MAGNITUDE, round(abs(ticks_per_s) / (SPEED_UNIT_RPM * TICKS_PER_S_PER_RPM)))
+    magnitude = min(SPEED_MAX, round(abs(ticks_per_s) / (SPEED_UNIT_RPM * TICKS_PER_S_PER_RPM)))
     return _SPEED.raw(-magnitude if ticks_per_s < 0 else magnitude)
 
 
 def load_register(fraction: float, cw: bool) -> int:
     """Present Load encoding of a fraction of the stall torque, pushing CW or CCW."""
-    magnitude = min(_MAGNITUDE, abs(_LOAD.from_units(100.0 * fraction)))
+    magnitude = min(SPEED_MAX, abs(_LOAD.from_units(100.0 * fraction)))
     return _LOAD.raw(-magnitude if cw else magnitude)
 
 

@@ -262,7 +262,7 @@ class VirtualServo:
         self.return_delay_s = self._return_delay_reg * 2e-6
         """Return Delay Time in seconds (2 us per unit)."""
         self.wheel_mode = self._cw_limit == 0 and self._ccw_limit == 0
-        self._speed_setting = _SPEED_SETTINGS[self._moving_speed & 1023]
+        self._speed_setting = _SPEED_SETTINGS[self._moving_speed & motor.SPEED_MAX]
         tenths = round(self.supply_v * 10)
         self._voltage_bad = not self._min_voltage <= tenths <= self._max_voltage
 
@@ -369,7 +369,7 @@ class VirtualServo:
         external = self.external_torque
         if external:
             stall = self._stall
-            available = stall * limit / 1023.0
+            available = stall * limit / motor.TORQUE_FULL
             load = -external if external < 0.0 else external
             overload = torque_on and load > available
             scale = 1.0 - load / stall
@@ -383,7 +383,7 @@ class VirtualServo:
         if torque_on and not overload:
             if wheel:
                 value = self._moving_speed
-                v = (value & 1023) / 1023.0 * self._vmax_wheel
+                v = (value & motor.SPEED_MAX) / motor.SPEED_MAX * self._vmax_wheel
                 if external:
                     v *= scale
                 if value & motor.DIRECTION_BIT:
@@ -581,13 +581,13 @@ class VirtualServo:
             if cw or ccw:  # joint mode
                 if not cw <= goal <= ccw:
                     return _ANGLE
-                if speed > 1023:
+                if speed > motor.SPEED_MAX:
                     return _RANGE
             self.regs.image[address : address + n] = data
             self._goal = goal
             if n == 4:
                 self._moving_speed = speed
-                self._speed_setting = _SPEED_SETTINGS[speed & 1023]
+                self._speed_setting = _SPEED_SETTINGS[speed & motor.SPEED_MAX]
             if self._torque_enable != 1:
                 self.regs.set("Torque Enable", 1)  # a goal switches the torque on
                 self._torque_enable = 1
@@ -610,7 +610,7 @@ class VirtualServo:
             if cw or ccw:  # joint mode
                 if goal >= 0 and not cw <= values[goal] <= ccw:
                     return _ANGLE
-                if speed >= 0 and values[speed] > 1023:
+                if speed >= 0 and values[speed] > motor.SPEED_MAX:
                     return _RANGE
         if registered:
             self._pending = (plan, data, values)
@@ -638,7 +638,7 @@ class VirtualServo:
         if plan.derive:
             self._derive()
         elif plan.speed >= 0:  # all that _derive would change
-            self._speed_setting = _SPEED_SETTINGS[self._moving_speed & 1023]
+            self._speed_setting = _SPEED_SETTINGS[self._moving_speed & motor.SPEED_MAX]
         if link is not None and (self.baudrate, self._id) != link:
             self._link_changed()
         if eeprom and self.on_eeprom_change is not None:

@@ -1,4 +1,4 @@
-"""The controller's control table: controller.json is consistent, the generated C header
+"""The controller's control table: its description is consistent, the generated C header
 is up to date, and the C core and the Python view agree on every address."""
 
 from __future__ import annotations

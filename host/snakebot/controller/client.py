@@ -4,7 +4,7 @@
     with ControllerClient.open("/dev/ttyUSB0") as ctl:     # 57600 baud, ID 200
         ctl.identify()                                      # NotAController if it is not one
         print(ctl.read("State", "Error Flags"))             # {"State": 0, "Error Flags": 0}
-        ctl.write({"Speed Scale": 512})                     # range-checked from controller.json
+        ctl.write({"Speed Scale": 512})                     # range-checked by its description
 
 Every transaction goes through :class:`snakebot.transport.DxlClient` (timeouts from the
 wire, retries, stale-reply handling). Its READ/WRITE helpers are not used: they track an

@@ -1,5 +1,5 @@
 """The controller's numbers in words: states, Error Flags, Upload Result, and the AX-12
-direction-and-magnitude values it mirrors. Names come from controller.json; the
+direction-and-magnitude values it mirrors. Names come from the controller's description; the
 sentences (what happened, and what to do) are written here once."""
 
 from __future__ import annotations

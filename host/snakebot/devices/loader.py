@@ -1,8 +1,9 @@
 """Reading the device descriptions shipped in ``snakebot/devices/data/*.json``.
 
-One file per device, in one schema (``data/README.md``). A variant names the device it
-is ``based_on`` and gives only what differs: its model number, description, ``defaults``
-by register name, extra ``scales`` and registers to ``add``. Files are read with
+One file per device, in one schema (protocol/README.md, "Device descriptions"). A
+variant names the device it is ``based_on`` and gives only what differs: its model
+number, description, ``defaults`` by register name, extra ``scales`` and registers to
+``add``. Files are read with
 :mod:`importlib.resources`, so an installed wheel works the same as a checkout.
 """
 

@@ -24,7 +24,15 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(ROOT / "host"))
 
-from snakebot.devices import Device, Encoding, Register, conversion, load, names  # noqa: E402
+from snakebot.devices import (  # noqa: E402
+    Device,
+    Encoding,
+    Register,
+    conversion,
+    load,
+    names,
+    source,
+)
 
 AX12_HEADER = ROOT / "firmware" / "core" / "ax12_table.h"
 CTL_HEADER = ROOT / "firmware" / "core" / "ctl_table.h"
@@ -44,8 +52,7 @@ def macro(name: str) -> str:
 
 
 def _source(device: Device) -> str:
-    stem = re.sub(r"[^a-z0-9]+", "", device.name.lower())
-    return f"{DATA}/{stem}.json"
+    return f"{DATA}/{source(device.name)}"
 
 
 def _family(base: str) -> list[Device]:

@@ -158,6 +158,26 @@ def _doc(registers, **extra):
         ([{"address": 2, "size": 1, "name": "A", "access": "RW", "max": 3, "default": 4}], {}, "4"),
         ([{"address": 2, "size": 1, "name": "A", "access": "R", "encoding": "bcd"}], {}, "bcd"),
         ([], {"status_return_level": "Status Return Level"}, "no register"),
+        (
+            [{"address": 2, "size": 2, "name": "G", "access": "RW", "min": 0, "max": 10}],
+            {"position": {"register": "G", "centre": 5}},
+            "a scale",
+        ),
+        (
+            [
+                {
+                    "address": 2,
+                    "size": 2,
+                    "name": "G",
+                    "access": "RW",
+                    "min": 0,
+                    "max": 10,
+                    "scale": {"unit": "deg", "factor": 1},
+                }
+            ],
+            {"position": {"register": "G", "centre": 11}},
+            "centre in its range",
+        ),
     ],
 )
 def test_broken_descriptions_are_refused(broken, registers, extra, problem):

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from snakebot.devices.device import Baud, Device, Position, ServoWindow
 from snakebot.devices.errors import DeviceError
-from snakebot.devices.loader import by_model_number, load, names
+from snakebot.devices.loader import by_model_number, load, names, source
 from snakebot.devices.register import Register
 from snakebot.devices.units import Encoding, Scale, conversion
 
@@ -57,4 +57,5 @@ __all__ = [
     "conversion",
     "load",
     "names",
+    "source",
 ]

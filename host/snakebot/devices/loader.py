@@ -50,6 +50,11 @@ def names(kind: str | None = None) -> tuple[str, ...]:
     return tuple(n for n in sorted(_documents()) if kind is None or load(n).kind == kind)
 
 
+def source(name: str) -> str:
+    """The file name of device ``name``'s description (in ``snakebot/devices/data``)."""
+    return _documents()[load(name).name][0]
+
+
 def load(name: str) -> Device:
     """The device called ``name`` (case-insensitive): "AX-12A", "controller", ..."""
     for known in _documents():
@@ -93,12 +98,17 @@ def _merged(name: str) -> dict[str, Any]:
 
 
 def _scale(file: str, spec: object, scales: dict[str, Scale]) -> Scale | None:
+    """A register's scale: none, a name from ``scales``, or one written inline."""
     if spec is None:
         return None
     if isinstance(spec, str):
         if spec not in scales:
             raise DeviceError(f'{file}: unknown scale {spec!r}: define it under "scales"')
         return scales[spec]
+    return _inline_scale(file, spec)
+
+
+def _inline_scale(file: str, spec: object) -> Scale:
     if isinstance(spec, dict) and set(spec) == {"unit", "factor"}:
         return Scale(str(spec["unit"]), exact(spec["factor"]), shown(spec["factor"]))
     raise DeviceError(f'{file}: a scale is a name or {{"unit", "factor"}}, not {spec!r}')
@@ -167,12 +177,14 @@ def _check(file: str, device: Device) -> None:
         end = reg.end
 
 
-def _build_uncached(name: str) -> Device:
+@cache
+def _build(name: str) -> Device:
+    """The device called exactly ``name``, built once."""
     file, _ = _documents()[name]
     doc = _merged(name)
     try:
         servo = _build(doc["servo_model"]) if doc.get("servo_model") else None
-        scales = {k: _scale(file, v, {}) for k, v in doc.get("scales", {}).items()}
+        scales = {k: _inline_scale(file, v) for k, v in doc.get("scales", {}).items()}
         if servo is not None:  # the controller speaks in its servos' units
             scales = {**servo.scales, **scales}
         registers = [_register(file, r, scales, servo) for r in doc["registers"]]
@@ -193,7 +205,7 @@ def _build_uncached(name: str) -> Device:
             description=doc.get("description", ""),
             table_size=doc["table_size"],
             registers=tuple(sorted(registers, key=lambda r: r.address)),
-            scales=scales,  # type: ignore[arg-type]
+            scales=scales,
             eeprom_end=doc.get("eeprom_end"),
             status_return_level=doc.get("status_return_level"),
             baud=None
@@ -224,12 +236,12 @@ def _build_uncached(name: str) -> Device:
         raise DeviceError(f"{file}: missing or malformed {exc}: fix the file") from exc
     if device.status_return_level is not None:
         device.register(device.status_return_level)
-    if device.position is not None and device.position.register.scale is None:
-        raise DeviceError(f"{file}: the position register has no scale")
+    goal = device.position
+    if goal is not None:
+        low, high = goal.register.value_range()
+        if goal.register.scale is None or not low <= goal.centre <= high:
+            raise DeviceError(
+                f"{file}: the position needs a register with a scale and a centre in its range"
+            )
     _check(file, device)
     return device
-
-
-@cache
-def _build(name: str) -> Device:
-    return _build_uncached(name)

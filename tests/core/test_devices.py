@@ -193,3 +193,13 @@ def test_spans_cover_consecutive_registers():
     assert AX.covering(first + length - 1).name == "Present Temperature"
     with pytest.raises(DeviceError, match="does not come after"):
         AX.span("Present Speed", "Present Position")
+
+
+def test_the_servo_window_speaks_in_the_servos_ticks_and_units():
+    fields = {f.name: f for f in CTL.servo_window.fields}
+    position = AX.require_position()
+    assert fields["Zero Tick"].default == position.centre
+    assert (fields["Min Tick"].default, fields["Max Tick"].default) == position.range
+    assert fields["Max Tick"].value_range() == position.range
+    assert fields["Present Speed"].encoding is AX.register("Present Speed").encoding
+    assert fields["Present Load"].scale == AX.register("Present Load").scale

@@ -23,7 +23,7 @@ from snakebot.devices.units import Encoding, Scale, exact, shown
 SCHEMA = 1
 _REGISTER_KEYS = {
     "address", "offset", "size", "name", "access", "default", "min", "max", "area", "scale",
-    "encoding", "description", "emulator_default", "enum", "mirrors",
+    "encoding", "description", "emulator_default", "enum", "mirrors", "ticks",
 }  # fmt: skip
 
 
@@ -128,19 +128,27 @@ def _register(
         raise DeviceError(
             f"{file}: {raw['name']}: encoding {raw['encoding']!r} is not one of {known}"
         ) from None
+    low, high, default = raw.get("min"), raw.get("max"), raw.get("default")
+    if ("mirrors" in raw or "ticks" in raw) and servo is None:
+        raise DeviceError(f"{file}: {raw['name']} refers to a servo, but no servo_model is set")
     if "mirrors" in raw:  # a servo-window field: unit and encoding are the servo's
-        if servo is None:
-            raise DeviceError(f"{file}: {raw['name']} mirrors a servo, but no servo_model is set")
         mirrored = servo.register(raw["mirrors"])
         scale, encoding = mirrored.scale, mirrored.encoding
+    if "ticks" in raw:  # a servo position tick: the servo's range, its centre or an end
+        position = servo.require_position()
+        (low, high), scale = position.range, position.scale
+        ends = {"centre": position.centre, "min": low, "max": high}
+        if raw["ticks"] not in ends:
+            raise DeviceError(f"{file}: {raw['name']}: ticks is one of {', '.join(ends)}")
+        default = ends[raw["ticks"]]
     return Register(
         address=raw["address"] if "address" in raw else raw["offset"],
         size=raw["size"],
         name=raw["name"],
         access=raw["access"],
-        default=raw.get("default"),
-        min=raw.get("min"),
-        max=raw.get("max"),
+        default=default,
+        min=low,
+        max=high,
         area=raw.get("area"),
         scale=scale,
         encoding=encoding,

@@ -5,8 +5,9 @@ sources outside the device descriptions (host/snakebot/devices), their generator
 The facts looked for come from the descriptions themselves (every servo's scales, its
 position and speed units in other units, the baud clock, the fixed-point constants the
 generator emits), so a new device widens the net by itself. Only code is read: comments,
-docstrings and message strings may explain a fact in words. Tests are not scanned: they
-pin the facts on purpose, as an independent check of the data.
+docstrings and message strings may explain a fact in words. The tests' support modules
+are scanned; the tests themselves are not: they pin facts on purpose, as an
+independent check of the data.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from protocol_support import gen_headers
 from snakebot import devices
 from snakebot.paths import REPO_ROOT
 
-PYTHON_ROOTS = ("host", "tools", "bench")
+PYTHON_ROOTS = ("host", "tools", "bench", "tests/support")
 C_ROOTS = ("firmware", "fuzz")
 EXCLUDED = (
     "host/snakebot/devices/",
@@ -68,17 +69,16 @@ def facts() -> dict[str, object]:
             f = float(scale.factor)
             if len(f"{f:.6g}".replace(".", "").strip("0")) <= 2:
                 continue  # 0.1 V, 2 us, 4.5 mA: too round to tell from any other number
-            floats[f] = f"{dev.name} {key} factor"
-            floats[1 / f] = f"{dev.name} per-{key} factor"
+            floats.setdefault(f, f"{dev.name} {key} factor")
+            floats.setdefault(1 / f, f"{dev.name} per-{key} factor")
         pos = dev.require_position()
         for unit in ("deg", "rad"):
-            floats[pos.scale.factor_in(unit)] = f"{dev.name} {unit} per tick"
-            floats[pos.scale.per_unit(unit)] = f"{dev.name} ticks per {unit}"
-        speed = dev.scale("speed")
-        floats[speed.factor_in("deg/s") * pos.scale.per_unit("deg")] = (
-            f"{dev.name} ticks/s per unit"
-        )
-        floats[devices.conversion("rpm", "deg/s") * pos.scale.per_unit("deg")] = "ticks/s per rpm"
+            floats.setdefault(pos.scale.factor_in(unit), f"{dev.name} {unit} per tick")
+            floats.setdefault(pos.scale.per_unit(unit), f"{dev.name} ticks per {unit}")
+        speed_ticks = dev.scale("speed").factor_in("deg/s") * pos.scale.per_unit("deg")
+        floats.setdefault(speed_ticks, f"{dev.name} ticks/s per speed unit")
+        rpm_ticks = devices.conversion("rpm", "deg/s") * pos.scale.per_unit("deg")
+        floats.setdefault(rpm_ticks, f"{dev.name} ticks/s per rpm")
     ax = devices.ax12()
     low, high = ax.require_position().range
     ints = {high: "the AX-12 position/speed full scale"}

@@ -40,9 +40,6 @@ BASE_MODEL = "AX-12A"
 """The table used to check names and ranges before a servo has been asked its model
 (the AX-12 family shares addresses and ranges; only some defaults differ)."""
 
-BAUD_TOLERANCE = 0.03
-"""How far the servo's rate may be from the one asked for (the AX-12 manual's UART margin)."""
-
 COMMON_REGISTERS = (1, 3, 4, 7, 9, 16, 34, 207)
 """The Baud Rate values the AX-12 e-Manual tabulates."""
 
@@ -384,8 +381,8 @@ COMMON_BAUDS = tuple(int(_baud().rate(n)) for n in COMMON_REGISTERS)
 
 def baud_register(bps: float) -> int:
     """The Baud Rate register value whose rate (the device's baud formula) is within
-    :data:`BAUD_TOLERANCE` of ``bps``."""
-    value = _baud().value_for(bps, BAUD_TOLERANCE)
+    the servo's UART tolerance of ``bps``."""
+    value = _baud().value_for(bps)
     if value is not None:
         return value
     examples = ", ".join(

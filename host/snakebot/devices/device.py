@@ -26,11 +26,13 @@ def find(registers: tuple[Register, ...], name: str, missing: str) -> Register:
 @dataclass(frozen=True)
 class Baud:
     """The bit rate each Baud Rate register value selects: ``clock_hz / (value + 1)``,
-    except the values in ``fixed``, which name their rate outright."""
+    except the values in ``fixed``, which name their rate outright. ``tolerance``: how
+    far (a fraction) the device's rate may be from the host's and still be understood."""
 
     register: Register
     clock_hz: int
     fixed: dict[int, int] = field(default_factory=dict)
+    tolerance: float = 0.0
 
     def rate(self, value: int) -> float:
         """The bit rate of register ``value``; DeviceError outside the register's range."""
@@ -44,11 +46,13 @@ class Baud:
         low, high = self.register.value_range()
         return range(low, high + 1)
 
-    def value_for(self, bps: float, tolerance: float) -> int | None:
-        """The register value whose rate is within ``tolerance`` (a fraction) of ``bps``,
-        the nearest if several are; None if none is."""
+    def value_for(self, bps: float, tolerance: float | None = None) -> int | None:
+        """The register value whose rate is within ``tolerance`` (a fraction; the
+        device's own by default) of ``bps``, the nearest if several are; None if none is."""
         if bps <= 0:
             return None
+        if tolerance is None:
+            tolerance = self.tolerance
         best = min(self.values(), key=lambda v: abs(self.rate(v) - bps))
         return best if abs(self.rate(best) - bps) <= tolerance * bps else None
 

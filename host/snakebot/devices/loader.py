@@ -222,6 +222,7 @@ def _build(name: str) -> Device:
                 by_name[baud["register"]],
                 baud["clock_hz"],
                 {int(k): v for k, v in baud.get("fixed", {}).items()},
+                baud["tolerance"],
             ),
             position=None
             if position is None

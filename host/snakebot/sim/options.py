@@ -74,15 +74,11 @@ def _int(name: str, text: str, low: int, high: int) -> int:
     return int(value)
 
 
-BAUD_TOLERANCE = 0.03
-"""How far a servo's rate may be from the one asked for (the AX-12 manual's UART margin)."""
-
-
 def servo_baud_register(bps: float) -> int:
     """The Baud Rate register value whose rate (the AX-12's baud formula) comes within
-    :data:`BAUD_TOLERANCE` of ``bps``."""
+    the AX-12's UART tolerance of ``bps``."""
     baud = devices.ax12().require_baud()
-    value = baud.value_for(bps, BAUD_TOLERANCE)
+    value = baud.value_for(bps)
     if value is not None:
         return value
     raise SimOptionError(

@@ -31,9 +31,13 @@ import time
 import tty
 
 import snakebot.transport.ports  # noqa: F401  (registers sim://)
-from snakebot import protocol
+from snakebot import devices, protocol
 from snakebot.transport import DxlClient
 
+AX12 = devices.ax12()
+GOAL = AX12.register("Goal Position")
+PRESENT = AX12.register("Present Position")
+CENTRE = AX12.require_position().centre
 CONTROL_HZ = 100
 WIRE_READ_S = 16 * 10 / 1_000_000  # READ of 2 bytes: 8 + 8 bytes at 10 us
 
@@ -49,13 +53,13 @@ def rtf(seconds: float, reads: bool) -> tuple[float, float]:
         for k in range(ticks):
             t = k / CONTROL_HZ
             goals = {
-                sid: (512 + round(150 * math.sin(2 * math.pi * 0.5 * t + j * math.pi / 2)))
+                sid: (CENTRE + round(150 * math.sin(2 * math.pi * 0.5 * t + j * math.pi / 2)))
                 for j, sid in enumerate(ids)
             }
-            c.sync_write(30, 2, {sid: g.to_bytes(2, "little") for sid, g in goals.items()})
+            c.sync_write(GOAL.address, GOAL.size, {sid: GOAL.encode(g) for sid, g in goals.items()})
             if reads:
                 for sid in ids:
-                    c.read_u16(sid, 36)
+                    c.read_u16(sid, PRESENT.address)
             bus.run_until((k + 1) / CONTROL_HZ)
         wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
         return bus.now / wall, bus.now / cpu
@@ -90,10 +94,10 @@ def start_server() -> tuple[subprocess.Popen[str], str]:
 
 def snakebot_rate(device: str, n: int) -> float:
     with DxlClient(device, latency_s=0.002) as c:
-        c.read_u16(10, 36)
+        c.read_u16(10, PRESENT.address)
         start = time.perf_counter()
         for _ in range(n):
-            c.read_u16(10, 36)
+            c.read_u16(10, PRESENT.address)
         return n / (time.perf_counter() - start)
 
 
@@ -101,7 +105,7 @@ def floor_rate(device: str, n: int, spin: bool) -> float:
     """READs per second of a bare loop on the pty at 1 Mbps: write the instruction, wait
     for the 8 status bytes (in ``select``, or ``spin``: polling a non-blocking read, as
     dynamixel-sdk does), nothing else: no serial library, no flush, no parsing."""
-    packet = protocol.read(10, 36, 2)
+    packet = protocol.read(10, PRESENT.address, PRESENT.size)
     fd = os.open(device, os.O_RDWR | os.O_NOCTTY | (os.O_NONBLOCK if spin else 0))
     try:
         tty.setraw(fd)
@@ -142,11 +146,11 @@ def sdk_rate(device: str, n: int) -> float:
     if not (port.openPort() and port.setBaudRate(1_000_000)):
         raise RuntimeError(f"dynamixel-sdk cannot open {device}")
     try:
-        handler.read2ByteTxRx(port, 10, 36)
+        handler.read2ByteTxRx(port, 10, PRESENT.address)
         failures = 0
         start = time.perf_counter()
         for _ in range(n):
-            _, result, _ = handler.read2ByteTxRx(port, 10, 36)
+            _, result, _ = handler.read2ByteTxRx(port, 10, PRESENT.address)
             failures += result != sdk.COMM_SUCCESS
         rate = n / (time.perf_counter() - start)
     finally:
@@ -189,7 +193,7 @@ def main() -> int:
         with DxlClient("sim://?robot=snake5&return_delay=0", latency_s=0.0) as c:
             start = time.perf_counter()
             for _ in range(n):
-                c.read_u16(10, 36)
+                c.read_u16(10, PRESENT.address)
             in_process = n / (time.perf_counter() - start)
         ours = theirs = floor = 0.0
         for _ in range(rounds):

@@ -24,6 +24,7 @@ from snakebot.gait import serpenoid
 from snakebot.protocol import sync_write
 from snakebot.robots import load_robot
 from snakebot.sim.predict import (
+    GOAL_BLOCK,
     GOAL_POSITION_ADDR,
     move_to_start,
     play,
@@ -56,7 +57,7 @@ def without_world(table, robot) -> float:  # noqa: ANN001
         bus = client.port.bus
         move_to_start(client, bus, robot, table.frames[0])
         period, blocks = player_writes(table)
-        packets = [sync_write(GOAL_POSITION_ADDR, 4, block) for block in blocks]
+        packets = [sync_write(GOAL_POSITION_ADDR, GOAL_BLOCK, block) for block in blocks]
         ids = robot.servo_ids
         wall0 = time.perf_counter()
         start = bus.now

@@ -465,8 +465,8 @@ static void do_tick(uint32_t dt)
         } else {
             const play_joint *r = &d->roster[j];
             CHECK(tick.id[j] == r->id);
-            tick.lo[j] = r->min > 1023u ? 1023u : r->min;
-            tick.hi[j] = r->max > 1023u ? 1023u : r->max;
+            tick.lo[j] = r->min > AX12_POSITION_MAX ? AX12_POSITION_MAX : r->min;
+            tick.hi[j] = r->max > AX12_POSITION_MAX ? AX12_POSITION_MAX : r->max;
             if (tick.hi[j] < tick.lo[j]) tick.hi[j] = tick.lo[j]; /* min > max: pinned */
         }
     }
@@ -480,7 +480,7 @@ static void check_goals(const dxl_event *ev)
         const uint8_t *b = ev->params + 2 + 5 * j;
         uint16_t goal = (uint16_t)(b[1] | (b[2] << 8));
         CHECK(b[0] == tick.id[j]);
-        CHECK(goal <= 1023u);
+        CHECK(goal <= AX12_POSITION_MAX);
         CHECK(goal >= tick.lo[j] && goal <= tick.hi[j]);
     }
     tick.valid = false; /* one goals packet per tick */

@@ -64,7 +64,7 @@ from typing import Any
 
 import numpy as np
 
-from snakebot import protocol
+from snakebot import devices, protocol
 from snakebot.controller import Command, ControllerErrors, State, UploadResult, load
 from snakebot.controller.client import ControllerClient
 from snakebot.controller.errors import ControllerError
@@ -102,11 +102,14 @@ PC_BAUD = 57600
 MARGIN_S = 0.3  # the PC-link client's allowance beyond the wire time (QEMU may be slow)
 SAMPLE_S = 0.1  # how often the watch loop looks
 STALL_MS = 100  # ten control ticks without a bus packet while the roster is polled
-GOAL_POSITION = 30
-TORQUE_ENABLE = 24
-TELEMETRY_PARAMS = 8
 CTL = load()
 MAX_LEN_FIELD = MAX_PACKET_LEN - 4  # the largest LEN byte a packet can carry
+_AX12 = devices.ax12()
+GOAL_POSITION, GOAL_BLOCK = _AX12.span("Goal Position", "Moving Speed")
+"""What the firmware's goal SYNC_WRITE sets per servo: Goal Position and Moving Speed."""
+TORQUE_ENABLE = _AX12.register("Torque Enable").address
+_, TELEMETRY_PARAMS = _AX12.span("Present Position", "Present Temperature")
+"""The telemetry READ's length."""
 
 
 def _reg(name: str) -> int:
@@ -178,11 +181,11 @@ class Tap:
             prelude = bytes(self._prelude)
             self._prelude.clear()
             p = event.params
-            if event.code == Instruction.SYNC_WRITE and p[:2] == bytes([GOAL_POSITION, 4]):
+            if event.code == Instruction.SYNC_WRITE and p[:2] == bytes([GOAL_POSITION, GOAL_BLOCK]):
                 self.goal_packets += 1
-                for k in range(2, len(p) - 4, 5):
+                for k in range(2, len(p) - GOAL_BLOCK, GOAL_BLOCK + 1):
                     sid, goal = p[k], p[k + 1] | p[k + 2] << 8
-                    lo, hi = self.limits.get(sid, (0, 1023))
+                    lo, hi = self.limits.get(sid, _AX12.require_position().range)
                     self.goals += 1
                     if not lo <= goal <= hi:
                         self.goals_outside += 1

@@ -41,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from snakebot.controller import load as load_controller
 from snakebot.controller.client import ControllerClient
 from snakebot.controller.monitor import Sample, render, sample
 from snakebot.controller.playback import play, stop
@@ -479,17 +480,14 @@ class DemoResult:
 def _monitor_line(s: Sample) -> str:
     c = s.controller_record()
     servos = "  ".join(f"{j.id}:{j.position:4d}" for j in s.servos)
-    loads = max((abs(r) for r in (_signed(j.load) for j in s.servos)), default=0)
+    load = load_controller().servo_field("Present Load")
+    loads = max((abs(load.to_units(j.load)) for j in s.servos), default=0.0)
     errors = ",".join(c["error_flags"]) or "none"
     return (
         f"  t={s.t:5.2f} s  {c['state']:<8} frame {c['play_frame']:3d}  positions {servos}"
-        f"  max load {100 * loads / 1023:4.1f} %  bus reads {c['bus_reads']}  "
+        f"  max load {loads:4.1f} %  bus reads {c['bus_reads']}  "
         f"timeouts {c['bus_timeouts']}  errors {errors}"
     )
-
-
-def _signed(value: int) -> int:
-    return -(value & 1023) if value & 1024 else value & 1023
 
 
 def run_demo(settings: DemoSettings | None = None, say: Say = print) -> DemoResult:

@@ -2,18 +2,18 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
 
+from snakebot import devices
 from snakebot.errors import SnakebotError
 
-#: AX-12 position units: 0..1023 over 300 degrees, 512 = centre.
-TICKS_PER_RAD = 1023.0 / math.radians(300.0)
-TICK_MIN = 0
-TICK_MAX = 1023
+_POSITION = devices.ax12().require_position()
+#: AX-12 position units, from its device description (the AX-12 family shares them).
+TICKS_PER_RAD = _POSITION.ticks_per_rad
+TICK_MIN, TICK_MAX = _POSITION.range
 
 #: No-load maximum joint speed per servo model (ROBOTIS e-Manual): AX-12A 59 rpm at 12 V,
 #: AX-12W 54 rpm in joint mode.

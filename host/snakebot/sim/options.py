@@ -10,10 +10,11 @@ import math
 from dataclasses import dataclass, field, replace
 from urllib.parse import parse_qsl
 
+from snakebot import devices
 from snakebot.sim.bus import Bus
 from snakebot.sim.errors import SimOptionError
 from snakebot.sim.faults import Brownout, FaultConfig
-from snakebot.sim.servo import VirtualServo, baud_from_register
+from snakebot.sim.servo import VirtualServo
 
 URL_FORM = "sim://[NAME][?robot=NAME|ids=1,2,3][&option=value...]"
 
@@ -80,14 +81,15 @@ def _int(name: str, text: str, low: int, high: int) -> int:
 
 
 def servo_baud_register(bps: float) -> int:
-    """The Baud Rate register value for ``bps`` (2 000 000 / (value + 1)), if one comes
-    within 3 % (the UART tolerance the AX-12 manual quotes)."""
-    value = round(2_000_000 / bps - 1)
-    if 0 <= value <= 254 and abs(baud_from_register(value) - bps) <= 0.03 * bps:
+    """The Baud Rate register value whose rate (the AX-12's baud formula) comes within
+    the AX-12's UART tolerance of ``bps``."""
+    baud = devices.ax12().require_baud()
+    value = baud.value_for(bps)
+    if value is not None:
         return value
     raise SimOptionError(
-        f"an AX-12 cannot run at {bps:g} bit/s: its rate is 2000000/(n+1) for n = 0..254 "
-        "(e.g. 1000000, 500000, 400000, 250000, 200000, 117647, 57142, 9615)"
+        f"an AX-12 cannot run at {bps:g} bit/s: its rate is {baud.describe()} "
+        "(e.g. 1000000 or 57142)"
     )
 
 

@@ -33,6 +33,7 @@ from urllib.parse import urlencode
 
 import numpy as np
 
+from snakebot import devices
 from snakebot.core import ffi, lib
 from snakebot.errors import SnakebotError
 from snakebot.gait.common import (
@@ -52,11 +53,14 @@ from snakebot.sim.physics.select import DEFAULT_WORLD, make_world, record_extras
 from snakebot.sim.world import DEFAULT_BATCH, WorldRecord
 from snakebot.transport import DxlClient
 
-GOAL_POSITION_ADDR = 30
-"""Goal Position (2 bytes) then Moving Speed (2 bytes): one 4-byte SYNC_WRITE block."""
-PRESENT_POSITION_ADDR = 36
+_AX12 = devices.ax12()
+_GOAL = _AX12.register("Goal Position")
+_SPEED = _AX12.register("Moving Speed")
+_PRESENT = _AX12.register("Present Position")
+GOAL_POSITION_ADDR, GOAL_BLOCK = _AX12.span(_GOAL.name, _SPEED.name)
+"""Goal Position then Moving Speed: where one SYNC_WRITE block goes, and its bytes."""
 START_SPEED = 200
-"""Moving Speed (0.111 rpm units, about 22 rpm) for the move to the first frame."""
+"""Moving Speed (about 22 rpm) for the move to the first frame."""
 START_SETTLE_S = 0.1
 """Extra bus time allowed for the move to the first frame."""
 START_TOLERANCE_TICKS = 1
@@ -231,13 +235,13 @@ def player_writes(table: GaitTable) -> tuple[float, list[dict[int, bytes]]]:
     blocks = []
     for n in range(math.ceil(pass_ms / TICK_MS) + 1):
         outputs = player.tick(min(n * TICK_MS, pass_ms))
-        blocks.append(
-            {
-                sid: goal.to_bytes(2, "little") + speed.to_bytes(2, "little")
-                for sid, (goal, speed) in outputs.items()
-            }
-        )
+        blocks.append({sid: _goal_block(goal, speed) for sid, (goal, speed) in outputs.items()})
     return TICK_MS / 1000.0, blocks
+
+
+def _goal_block(goal: int, speed: int) -> bytes:
+    """Goal Position and Moving Speed as one SYNC_WRITE block."""
+    return goal.to_bytes(_GOAL.size, "little") + speed.to_bytes(_SPEED.size, "little")
 
 
 def sim_url(robot: Robot, ideal: bool) -> str:
@@ -252,19 +256,17 @@ def move_to_start(client: DxlClient, bus: Bus, robot: Robot, first: np.ndarray) 
     servos' Present Position over the bus."""
     ids = robot.servo_ids
     client.sync_write(
-        GOAL_POSITION_ADDR,
-        4,
-        {
-            sid: int(g).to_bytes(2, "little") + START_SPEED.to_bytes(2, "little")
-            for sid, g in zip(ids, first, strict=True)
-        },
+        _GOAL.address,
+        GOAL_BLOCK,
+        {sid: _goal_block(int(g), START_SPEED) for sid, g in zip(ids, first, strict=True)},
     )
     here = np.array(bus.positions(ids))
     distance = float(np.abs(here - first).max())
-    ticks_per_s = START_SPEED * 0.111 * 6.0 * 1023.0 / 300.0
+    ticks_per_deg = _AX12.require_position().scale.per_unit("deg")
+    ticks_per_s = _SPEED.to_units(START_SPEED, "deg/s") * ticks_per_deg
     bus.run_until(bus.now + distance / ticks_per_s + START_SETTLE_S)
     for sid, goal in zip(ids, first, strict=True):
-        present = client.read_u16(sid, PRESENT_POSITION_ADDR)
+        present = client.read_u16(sid, _PRESENT.address)
         if abs(present - int(goal)) > START_TOLERANCE_TICKS:
             raise PredictError(
                 f"servo {sid} stopped at {present} ticks, not at the first frame's {int(goal)}: "
@@ -294,7 +296,9 @@ def play(
     world_period = period / per_frame
     tick, blocks = player_writes(table)
     # the packets are known before the play starts: encode them once, as a host loop should
-    packets = [(n, sync_write(GOAL_POSITION_ADDR, 4, b)) for n, b in enumerate(blocks) if b]
+    packets = [
+        (n, sync_write(GOAL_POSITION_ADDR, GOAL_BLOCK, b)) for n, b in enumerate(blocks) if b
+    ]
     intervals = table.frame_count if table.loop else table.frame_count - 1
     duration = intervals * period
     start = bus.now

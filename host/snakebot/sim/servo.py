@@ -37,6 +37,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+from snakebot import devices
 from snakebot.protocol import (
     BROADCAST_ID,
     ControlTable,
@@ -179,9 +180,12 @@ _SPEED_SETTINGS = tuple(motor.speed_setting(value) for value in range(motor.DIRE
 the setting depends on), worked out once."""
 
 
+_BAUD = devices.ax12().require_baud()
+
+
 def baud_from_register(value: int) -> float:
-    """Bits per second for a Baud Rate register value: 2 000 000 / (value + 1)."""
-    return 2_000_000 / (value + 1)
+    """Bits per second for a Baud Rate register value (the AX-12's baud formula)."""
+    return _BAUD.rate(value)
 
 
 class VirtualServo:
@@ -266,7 +270,7 @@ class VirtualServo:
         self.return_delay_s = self._return_delay_reg * 2e-6
         """Return Delay Time in seconds (2 us per unit)."""
         self.wheel_mode = self._cw_limit == 0 and self._ccw_limit == 0
-        self._speed_setting = _SPEED_SETTINGS[self._moving_speed & 1023]
+        self._speed_setting = _SPEED_SETTINGS[self._moving_speed & motor.SPEED_MAX]
         tenths = round(self.supply_v * 10)
         self._voltage_bad = not self._min_voltage <= tenths <= self._max_voltage
 
@@ -437,7 +441,7 @@ class VirtualServo:
         external = self.external_torque
         if external:
             stall = self._stall
-            available = stall * limit / 1023.0
+            available = stall * limit / motor.TORQUE_FULL
             load = -external if external < 0.0 else external
             overload = torque_on and load > available
             scale = 1.0 - load / stall
@@ -451,7 +455,7 @@ class VirtualServo:
         if torque_on and not overload:
             if wheel:
                 value = self._moving_speed
-                v = (value & 1023) / 1023.0 * self._vmax_wheel
+                v = (value & motor.SPEED_MAX) / motor.SPEED_MAX * self._vmax_wheel
                 if external:
                     v *= scale
                 if value & motor.DIRECTION_BIT:
@@ -642,13 +646,13 @@ class VirtualServo:
             if cw or ccw:  # joint mode
                 if not cw <= goal <= ccw:
                     return _ANGLE
-                if speed > 1023:
+                if speed > motor.SPEED_MAX:
                     return _RANGE
             self.regs.image[address : address + n] = data
             self._goal = goal
             if n == 4:
                 self._moving_speed = speed
-                self._speed_setting = _SPEED_SETTINGS[speed & 1023]
+                self._speed_setting = _SPEED_SETTINGS[speed & motor.SPEED_MAX]
             if self._torque_enable != 1:
                 self.regs.set("Torque Enable", 1)  # a goal switches the torque on
                 self._torque_enable = 1
@@ -671,7 +675,7 @@ class VirtualServo:
             if cw or ccw:  # joint mode
                 if goal >= 0 and not cw <= values[goal] <= ccw:
                     return _ANGLE
-                if speed >= 0 and values[speed] > 1023:
+                if speed >= 0 and values[speed] > motor.SPEED_MAX:
                     return _RANGE
         if registered:
             self._pending = (plan, data, values)
@@ -699,7 +703,7 @@ class VirtualServo:
         if plan.derive:
             self._derive()
         elif plan.speed >= 0:  # all that _derive would change
-            self._speed_setting = _SPEED_SETTINGS[self._moving_speed & 1023]
+            self._speed_setting = _SPEED_SETTINGS[self._moving_speed & motor.SPEED_MAX]
         if link is not None and (self.baudrate, self._id) != link:
             self._link_changed()
         if eeprom and self.on_eeprom_change is not None:

@@ -178,6 +178,17 @@ def baud_from_register(value: int) -> float:
     return 2_000_000 / (value + 1)
 
 
+def sync_write_shape(params: bytes) -> tuple[int, int] | None:
+    """(start address, bytes per servo block: ID + data) of SYNC_WRITE parameters, or
+    None when they cannot be split into whole blocks."""
+    if len(params) < 2:
+        return None
+    address, length = params[0], params[1]
+    if length == 0 or (len(params) - 2) % (length + 1):
+        return None
+    return address, length + 1
+
+
 class VirtualServo:
     """One emulated servo. The bus feeds it packets (:meth:`receive`) and asks it where it
     is (:meth:`advance`, :attr:`present_position`); times are bus seconds."""
@@ -641,19 +652,26 @@ class VirtualServo:
             self.on_eeprom_change(self)
 
     def _sync_write(self, params: bytes, my_id: int) -> None:
-        if len(params) < 2:
-            return
-        address, length = params[0], params[1]
-        block = length + 1
-        n = len(params)
-        if length == 0 or (n - 2) % block:
+        shape = sync_write_shape(params)
+        if shape is None:
             return  # malformed: a real servo cannot find its slice either
+        address, block = shape
         k = params[2::block].find(my_id)  # the first block that names this servo
         if k >= 0:
             i = 2 + k * block
-            flags = self._write_at(address, params[i + 1 : i + block], False)
-            if flags:
-                self._alarm(flags)
+            self._write_block(address, params[i + 1 : i + block])
+
+    def _write_block(self, address: int, data: bytes) -> None:
+        flags = self._write_at(address, data, False)
+        if flags:
+            self._alarm(flags)
+
+    def sync_write_block(self, address: int, data: bytes, t: float) -> None:
+        """This servo's block of a broadcast SYNC_WRITE heard at bus time ``t`` (the bus
+        parses the packet once and hands each servo named in it its own block)."""
+        if self.powered:
+            self.advance(t)
+            self._write_block(address, data)
 
     def factory_reset(self) -> None:
         """RESET: every register back to its factory value (ID 1, 1 Mbps), as at power-on."""

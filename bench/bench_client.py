@@ -53,15 +53,13 @@ def serve() -> None:
             pending += os.read(master, 64)
         except OSError:
             return  # the benchmark has gone
-        start = pending.find(REQUEST)
-        if start < 0:
-            pending = pending[-len(REQUEST) :]
-            continue
-        release = clock() + WIRE_S
-        pending = pending[start + len(REQUEST) :]
-        while clock() < release:
-            pass
-        os.write(master, REPLY)
+        while (start := pending.find(REQUEST)) >= 0:  # every READ heard, in order
+            release = clock() + WIRE_S
+            pending = pending[start + len(REQUEST) :]
+            while clock() < release:
+                pass
+            os.write(master, REPLY)
+        pending = pending[-(len(REQUEST) - 1) :]  # what may begin the next READ
 
 
 def bare_rate(device: str, n: int, spin: bool) -> float:
@@ -96,7 +94,9 @@ def bare_rate(device: str, n: int, spin: bool) -> float:
 
 
 def client_rate(device: str, n: int) -> float:
-    with DxlClient(device, BAUD, latency_s=0.002, return_delay_us=0) as c:
+    # a generous allowance: on a loaded machine the fake servo may be descheduled for a
+    # while, which must cost a slow round, not a failure (the rate does not depend on it)
+    with DxlClient(device, BAUD, latency_s=0.1, return_delay_us=0) as c:
         c.read_u16(SERVO_ID, ADDRESS)
         start = time.perf_counter()
         for _ in range(n):

@@ -459,21 +459,30 @@ class VirtualServo:
             self.latched |= shut
             self.overload = False
 
-    def _refresh_present(self) -> None:
+    def _refresh_present(self, first: int = 0, end: int = 1 << 16) -> None:
+        """Bring the present-state registers that overlap addresses ``first``..``end - 1``
+        (default: all of them) up to date from the physics; a READ refreshes only what
+        it reads."""
         image = self.regs.image
         position, speed, load, voltage, temperature, moving = self._present_addr
-        value = self.present_position
-        image[position] = value & 0xFF
-        image[position + 1] = value >> 8
-        value = motor.speed_register(self.vel)
-        image[speed] = value & 0xFF
-        image[speed + 1] = value >> 8
-        value = motor.load_register(self.load_fraction, self.load_cw)
-        image[load] = value & 0xFF
-        image[load + 1] = value >> 8
-        image[voltage] = max(0, min(255, round(self.supply_v * 10)))
-        image[temperature] = max(0, min(255, round(self.temp)))
-        image[moving] = int(self.moving)
+        if first < position + 2 and position < end:
+            value = self.present_position
+            image[position] = value & 0xFF
+            image[position + 1] = value >> 8
+        if first < speed + 2 and speed < end:
+            value = motor.speed_register(self.vel)
+            image[speed] = value & 0xFF
+            image[speed + 1] = value >> 8
+        if first < load + 2 and load < end:
+            value = motor.load_register(self.load_fraction, self.load_cw)
+            image[load] = value & 0xFF
+            image[load + 1] = value >> 8
+        if first <= voltage < end:
+            image[voltage] = max(0, min(255, round(self.supply_v * 10)))
+        if first <= temperature < end:
+            image[temperature] = max(0, min(255, round(self.temp)))
+        if first <= moving < end:
+            image[moving] = int(self.moving)
 
     @property
     def errors(self) -> ErrorFlags:
@@ -548,8 +557,9 @@ class VirtualServo:
     def _read(self, params: bytes) -> tuple[int, bytes]:
         if len(params) != 2:
             return _RANGE, b""
-        self._refresh_present()
-        data = self.regs.read(params[0], params[1])
+        address, length = params[0], params[1]
+        self._refresh_present(address, address + length)
+        data = self.regs.read(address, length)
         if data is None:
             return _RANGE, b""
         return 0, data

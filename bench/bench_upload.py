@@ -59,17 +59,21 @@ def line_capacity(ctl: ControllerClient) -> float:
     best = 0.0
     for _ in range(3):
         result = stream_writes(ctl.link, ctl.id, [ping] * PINGS, window=16)
-        assert result.complete, result
-        best = max(best, PINGS * len(ping) / result.seconds)
+        if result.complete:  # a round that lost replies (a starved relay) does not count
+            best = max(best, PINGS * len(ping) / result.seconds)
     return best
 
 
 def upload_rate(ctl: ControllerClient, table: GaitTable, window: int) -> float:
-    """Median table bytes per second of the whole upload command."""
+    """Median table bytes per second of the whole upload command (an upload that needed
+    a second attempt, as on a loaded machine, counts with its full time)."""
     rates = []
     for _ in range(RUNS):
         report = upload_gait(ctl, table, window=window)
-        assert report.attempts == 1 and report.paced
+        if not report.paced:
+            raise SystemExit("the relay did not pace the line: no share of the wire to give")
+        if report.attempts > 1:
+            print(f"   (an upload of {table.size} bytes took {report.attempts} attempts)")
         rates.append(report.bytes_per_s)
     return statistics.median(rates)
 
@@ -82,8 +86,12 @@ def stream_rate(ctl: ControllerClient, table: GaitTable, window: int) -> float:
     rates = []
     for _ in range(RUNS):
         result = stream_writes(ctl.link, ctl.id, packets, window)
-        assert result.complete, result
-        rates.append(len(data) / result.seconds)
+        if result.complete:
+            rates.append(len(data) / result.seconds)
+        else:
+            print(f"   (a chunk stream was not completely acknowledged: {result})")
+    if not rates:
+        raise SystemExit("no chunk stream got through")
     return statistics.median(rates)
 
 

@@ -224,6 +224,8 @@ class Bus:
         self.fault_config = faults or FaultConfig()
         self.faults = FaultInjector(self.fault_config)
         self._corrupting = self.fault_config.corrupt > 0
+        config = self.fault_config
+        self._reply_faults = bool(config.drop or config.delay_s or config.jitter_s)
         self.stats = BusStats()
         self._events: list[tuple[float, int, Callable, object]] = []
         self._seq = itertools.count()
@@ -352,10 +354,13 @@ class Bus:
         return whether any have. What a blocking read does in virtual time."""
         events = self._events
         while True:
-            available = self.master_in_waiting()
-            if available >= count:
-                return True
-            t_byte = self.next_master_arrival(count - available)
+            if self._master_rx:
+                available = self.master_in_waiting()
+                if available >= count:
+                    return True
+                t_byte = self.next_master_arrival(count - available)
+            else:
+                t_byte = None  # nothing on its way to the master yet
             t_event = events[0][0] if events else math.inf
             if t_byte is not None and t_byte <= self.now:
                 break  # cannot happen (arrived bytes are counted); never spin on it
@@ -598,11 +603,13 @@ class Bus:
                     s.sync_write_block(address, params[i + 1 : i + block], t)
 
     def _reply(self, servo: VirtualServo, reply: tuple[bytes, float], t: float) -> None:
-        faults = self.faults
-        if faults.drop_reply():
-            return
         packet, baud = reply
-        start = t + servo.return_delay_s + faults.reply_delay()
+        start = t + servo.return_delay_s
+        if self._reply_faults:
+            faults = self.faults
+            if faults.drop_reply():
+                return
+            start += faults.reply_delay()
         key = id(servo)
         free = self._servo_tx_free.get(key, 0.0)
         if free > start:

@@ -43,8 +43,8 @@ from snakebot.protocol import (
     Instruction,
     Packet,
     Rejected,
-    status,
 )
+from snakebot.protocol.instructions import frame
 from snakebot.sim import motor
 from snakebot.sim.errors import SimOptionError
 from snakebot.sim.registers import RegisterFile
@@ -538,7 +538,7 @@ class VirtualServo:
         reply = None
         if target != BROADCAST_ID and self._answers(code):
             error = flags | self._conditions() | self.latched
-            reply = (status(self._id if code != _RESET else my_id, error, data), baud)
+            reply = (frame(self._id if code != _RESET else my_id, error, data), baud)
         if code == _RESET:
             self.factory_reset()
         return reply
@@ -552,7 +552,7 @@ class VirtualServo:
         if not self._answers(data[4]):
             return None
         error = _CHECKSUM | self._conditions() | self.latched
-        return status(self._id, error), self.baudrate
+        return frame(self._id, error), self.baudrate
 
     def _read(self, params: bytes) -> tuple[int, bytes]:
         if len(params) != 2:

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import statistics
 import sys
+import time
 
 import numpy as np
 
@@ -30,6 +31,7 @@ from snakebot.controller.client import ControllerClient
 from snakebot.controller.transfer import stream_writes
 from snakebot.controller.upload import chunk_writes, commit_write
 from snakebot.controller.uploader import upload_gait
+from snakebot.errors import SnakebotError
 from snakebot.gaittable import GaitTable, max_frames
 from snakebot.protocol import Instruction
 from snakebot.sim.controller_pty import ControllerPty, is_commit, is_upload_chunk
@@ -41,6 +43,7 @@ GOAL = 0.85
 CEILING = 64 / 73
 RUNS = 5
 PINGS = 200
+SETTLE_S = 0.5
 SMALL_FRAMES = (10, 60)
 
 
@@ -63,7 +66,16 @@ def line_capacity(ctl: ControllerClient) -> float:
         result = stream_writes(ctl.link, ctl.id, [ping] * PINGS, window=16)
         if result.complete:  # a round that lost replies (a starved relay) does not count
             best = max(best, PINGS * len(ping) / result.seconds)
+        else:
+            settle(ctl)
     return best
+
+
+def settle(ctl: ControllerClient) -> None:
+    """After a stream that gave up, let what is still in flight arrive and drop it, so
+    that the next exchange does not hear it."""
+    time.sleep(SETTLE_S)
+    ctl.link.port.reset_input_buffer()
 
 
 def upload_rate(ctl: ControllerClient, table: GaitTable, window: int) -> float:
@@ -71,12 +83,19 @@ def upload_rate(ctl: ControllerClient, table: GaitTable, window: int) -> float:
     a second attempt, as on a loaded machine, counts with its full time)."""
     rates = []
     for _ in range(RUNS):
-        report = upload_gait(ctl, table, window=window)
+        try:
+            report = upload_gait(ctl, table, window=window)
+        except SnakebotError as exc:  # e.g. a relay starved on a loaded machine
+            print(f"   (an upload of {table.size} bytes failed: {exc})")
+            settle(ctl)
+            continue
         if not report.paced:
             raise SystemExit("the relay did not pace the line: no share of the wire to give")
         if report.attempts > 1:
             print(f"   (an upload of {table.size} bytes took {report.attempts} attempts)")
         rates.append(report.bytes_per_s)
+    if not rates:
+        raise SystemExit(f"no upload of {table.size} bytes got through")
     return statistics.median(rates)
 
 
@@ -92,6 +111,7 @@ def stream_rate(ctl: ControllerClient, table: GaitTable, window: int) -> float:
             rates.append(len(data) / result.seconds)
         else:
             print(f"   (a chunk stream was not completely acknowledged: {result})")
+            settle(ctl)
     if not rates:
         raise SystemExit("no chunk stream got through")
     return statistics.median(rates)
@@ -118,6 +138,19 @@ def exchange_floor(packets: list[bytes]) -> int:
     return total + (STATUS_OVERHEAD if streaming else 0)
 
 
+def upload_exchanges(server: ControllerPty, ctl: ControllerClient, table: GaitTable) -> int:
+    """:func:`exchange_floor` of one more upload like the others (a roster to check),
+    from the packets the controller received."""
+    for _ in range(3):
+        first = len(server.host_packets)
+        try:
+            if upload_gait(ctl, table, window=8).attempts == 1:
+                return exchange_floor(server.host_packets[first:])
+        except SnakebotError:
+            settle(ctl)
+    raise SystemExit("no clean upload to count the exchanges of")
+
+
 def percent(rate: float) -> str:
     return f"{rate:7.0f} bytes/s = {100 * rate / WIRE_BYTES_PER_S:5.1f} % of the wire"
 
@@ -129,9 +162,7 @@ def main() -> int:
         with ControllerClient.open(server.device, BAUD) as ctl:
             line = line_capacity(ctl)
             pipelined = upload_rate(ctl, table, window=8)
-            first = len(server.host_packets)  # one more, as the others (a roster to check)
-            upload_gait(ctl, table, window=8)
-            floor = table.size / exchange_floor(server.host_packets[first:])
+            floor = table.size / upload_exchanges(server, ctl, table)
             stream = stream_rate(ctl, table, window=8)
             stop_and_wait = upload_rate(ctl, table, window=1)
             smalls = [(t.size, upload_rate(ctl, t, window=8)) for t in small]

@@ -23,9 +23,10 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import termios
 import time
 import tty
+
+from ptyfloor import bare_rate
 
 from snakebot import protocol
 from snakebot.transport import DxlClient
@@ -62,37 +63,6 @@ def serve() -> None:
         pending = pending[-(len(REQUEST) - 1) :]  # what may begin the next READ
 
 
-def bare_rate(device: str, n: int, spin: bool) -> float:
-    """READs per second of a bare loop on the pty: write the instruction, then read the
-    status packet blocking (``spin``: polling a non-blocking read)."""
-    fd = os.open(device, os.O_RDWR | os.O_NOCTTY | (os.O_NONBLOCK if spin else 0))
-    try:
-        tty.setraw(fd)
-        attrs = termios.tcgetattr(fd)
-        attrs[4] = attrs[5] = termios.B1000000
-        termios.tcsetattr(fd, termios.TCSANOW, attrs)
-        termios.tcflush(fd, termios.TCIFLUSH)
-
-        def transaction() -> None:
-            os.write(fd, REQUEST)
-            got = 0
-            deadline = time.monotonic() + 1.0
-            while got < len(REPLY):
-                try:
-                    got += len(os.read(fd, len(REPLY) - got))
-                except BlockingIOError:
-                    if time.monotonic() > deadline:
-                        raise RuntimeError(f"no reply from {device}") from None
-
-        transaction()
-        start = time.perf_counter()
-        for _ in range(n):
-            transaction()
-        return n / (time.perf_counter() - start)
-    finally:
-        os.close(fd)
-
-
 def client_rate(device: str, n: int) -> float:
     # a generous allowance: on a loaded machine the fake servo may be descheduled for a
     # while, which must cost a slow round, not a failure (the rate does not depend on it)
@@ -124,7 +94,7 @@ def main() -> int:
         bare = ours = 0.0
         for _ in range(rounds):  # alternate, so load from other processes hits both alike
             for spin in (False, True):
-                bare = max(bare, bare_rate(device, n // rounds, spin))
+                bare = max(bare, bare_rate(device, REQUEST, len(REPLY), n // rounds, spin))
             ours = max(ours, client_rate(device, n // rounds))
     finally:
         proc.kill()

@@ -24,12 +24,11 @@ from __future__ import annotations
 import json
 import math
 import os
-import select
 import subprocess
 import sys
-import termios
 import time
-import tty
+
+from ptyfloor import bare_rate
 
 import snakebot.transport.ports  # noqa: F401  (registers sim://)
 from snakebot import protocol
@@ -99,40 +98,8 @@ def snakebot_rate(device: str, n: int) -> float:
 
 
 def floor_rate(device: str, n: int, spin: bool) -> float:
-    """READs per second of a bare loop on the pty at 1 Mbps: write the instruction, wait
-    for the 8 status bytes (in ``select``, or ``spin``: polling a non-blocking read, as
-    dynamixel-sdk does), nothing else: no serial library, no flush, no parsing."""
-    packet = protocol.read(10, 36, 2)
-    fd = os.open(device, os.O_RDWR | os.O_NOCTTY | (os.O_NONBLOCK if spin else 0))
-    try:
-        tty.setraw(fd)
-        attrs = termios.tcgetattr(fd)
-        attrs[4] = attrs[5] = termios.B1000000
-        termios.tcsetattr(fd, termios.TCSANOW, attrs)
-        termios.tcflush(fd, termios.TCIFLUSH)
-
-        def transaction() -> None:
-            os.write(fd, packet)
-            got = 0
-            deadline = time.monotonic() + 1.0
-            while got < 8:
-                if time.monotonic() > deadline:
-                    raise RuntimeError(f"no reply from {device}")
-                if spin:
-                    try:
-                        got += len(os.read(fd, 8 - got))
-                    except BlockingIOError:
-                        pass
-                elif select.select([fd], [], [], 1.0)[0]:
-                    got += len(os.read(fd, 8 - got))
-
-        transaction()
-        start = time.perf_counter()
-        for _ in range(n):
-            transaction()
-        return n / (time.perf_counter() - start)
-    finally:
-        os.close(fd)
+    """READs per second of a bare write/read loop on the pty (ptyfloor.bare_rate)."""
+    return bare_rate(device, protocol.read(10, 36, 2), 8, n, spin)
 
 
 def sdk_rate(device: str, n: int) -> float:

@@ -199,3 +199,13 @@ def test_a_packet_for_one_id_is_handled_by_that_servo_alone(monkeypatch):
     heard.clear()
     exchange(bus, P.write(P.BROADCAST_ID, 25, b"\x01"))
     assert heard == list(range(1, 19))
+
+
+def test_a_packet_sent_before_an_id_change_lands_reaches_the_servo_by_its_new_id():
+    bus = make_bus(1, 2)
+    # both go out back to back: the READ is on the wire before the WRITE has landed
+    bus.master_write(P.write(1, 3, b"\x07"))  # servo 1 becomes servo 7
+    bus.master_write(P.read(7, 36, 2))
+    bus.run_until(bus.now + 0.01)
+    events = PacketParser().feed(bus.master_read(1 << 16))
+    assert [(e.id, len(e.params)) for e in events if isinstance(e, Packet)] == [(7, 0), (7, 2)]

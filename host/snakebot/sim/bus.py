@@ -125,16 +125,25 @@ class _Receiver:
 class _Group:
     """The powered servos at one baud rate: their shared receiver, the servos in bus
     order, and an index of them by ID (several when IDs collide), so a packet for one
-    ID costs the same however many servos share the line."""
+    ID costs the same however many servos share the line.
 
-    __slots__ = ("rx", "members", "by_id")
+    Packets already on their way keep the group they were sent to, as its servos were
+    listening then; but a servo answers to the ID it has when a packet lands, so the
+    index is rebuilt when IDs have changed since (``epoch``: the bus's count of link
+    changes it was built at)."""
 
-    def __init__(self, rx: _Receiver, members: list[VirtualServo]) -> None:
+    __slots__ = ("rx", "members", "by_id", "epoch")
+
+    def __init__(self, rx: _Receiver, members: list[VirtualServo], epoch: int) -> None:
         self.rx = rx
         self.members = members
+        self.reindex(epoch)
+
+    def reindex(self, epoch: int) -> None:
         self.by_id: dict[int, list[VirtualServo]] = {}
-        for s in members:
+        for s in self.members:
             self.by_id.setdefault(s.id, []).append(s)
+        self.epoch = epoch
 
 
 class Schedule:
@@ -235,6 +244,7 @@ class Bus:
         self._servo_tx_free: dict[int, float] = {}
         self._receivers: dict[float, _Receiver] = {}
         self._groups: list[_Group] | None = None
+        self._link_epoch = 0  # link changes so far (_Group.epoch)
         self._by_id: dict[int, VirtualServo] | None = None  # the first servo with each ID
         self._indexed = 0  # how many servos the index was built from
         for s in self.servos:
@@ -266,6 +276,7 @@ class Bus:
         # a servo changed baud rate or ID, or lost/regained power
         self._groups = None
         self._by_id = None
+        self._link_epoch += 1
 
     def _listeners(self) -> list[_Group]:
         """The powered servos grouped by baud rate, each group with its shared parser."""
@@ -279,7 +290,7 @@ class Bus:
                 rx = self._receivers.get(baud)
                 if rx is None:
                     rx = self._receivers[baud] = _Receiver(baud)
-                groups.append(_Group(rx, members))
+                groups.append(_Group(rx, members, self._link_epoch))
             self._groups = groups
         return self._groups
 
@@ -536,6 +547,8 @@ class Bus:
 
     def _deliver(self, t: float, job: tuple) -> None:
         group, heard, i0, i1, source = job
+        if group.epoch != self._link_epoch:
+            group.reindex(self._link_epoch)
         rx = group.rx
         parser = rx.parser
         if parser.pending and heard.arrival(i0) - rx.last_t > INTER_BYTE_GAP_S:
@@ -563,6 +576,8 @@ class Bus:
             ):
                 return
         for event in parser.feed(data[i0:i1]):  # a slice is a copy
+            if group.epoch != self._link_epoch:  # the packet before changed an ID
+                group.reindex(self._link_epoch)
             # a packet for one ID concerns only the servos with that ID (the others
             # ignore it); every servo looks at a damaged one
             if type(event) is not Packet:

@@ -47,8 +47,8 @@ from snakebot.protocol import (
     Instruction,
     Packet,
     Rejected,
-    status,
 )
+from snakebot.protocol.instructions import frame
 from snakebot.sim import motor
 from snakebot.sim.errors import SimOptionError
 from snakebot.sim.registers import RegisterFile
@@ -186,6 +186,17 @@ _BAUD = devices.ax12().require_baud()
 def baud_from_register(value: int) -> float:
     """Bits per second for a Baud Rate register value (the AX-12's baud formula)."""
     return _BAUD.rate(value)
+
+
+def sync_write_shape(params: bytes) -> tuple[int, int] | None:
+    """(start address, bytes per servo block: ID + data) of SYNC_WRITE parameters, or
+    None when they cannot be split into whole blocks."""
+    if len(params) < 2:
+        return None
+    address, length = params[0], params[1]
+    if length == 0 or (len(params) - 2) % (length + 1):
+        return None
+    return address, length + 1
 
 
 class VirtualServo:
@@ -517,21 +528,30 @@ class VirtualServo:
             self.latched |= shut
             self.overload = False
 
-    def _refresh_present(self) -> None:
+    def _refresh_present(self, first: int = 0, end: int = 1 << 16) -> None:
+        """Bring the present-state registers that overlap addresses ``first``..``end - 1``
+        (default: all of them) up to date from the physics; a READ refreshes only what
+        it reads."""
         image = self.regs.image
         position, speed, load, voltage, temperature, moving = self._present_addr
-        value = self.present_position
-        image[position] = value & 0xFF
-        image[position + 1] = value >> 8
-        value = motor.speed_register(self.vel)
-        image[speed] = value & 0xFF
-        image[speed + 1] = value >> 8
-        value = motor.load_register(self.load_fraction, self.load_cw)
-        image[load] = value & 0xFF
-        image[load + 1] = value >> 8
-        image[voltage] = max(0, min(255, round(self.supply_v * 10)))
-        image[temperature] = max(0, min(255, round(self.temp)))
-        image[moving] = int(self.moving)
+        if first < position + 2 and position < end:
+            value = self.present_position
+            image[position] = value & 0xFF
+            image[position + 1] = value >> 8
+        if first < speed + 2 and speed < end:
+            value = motor.speed_register(self.vel)
+            image[speed] = value & 0xFF
+            image[speed + 1] = value >> 8
+        if first < load + 2 and load < end:
+            value = motor.load_register(self.load_fraction, self.load_cw)
+            image[load] = value & 0xFF
+            image[load + 1] = value >> 8
+        if first <= voltage < end:
+            image[voltage] = max(0, min(255, round(self.supply_v * 10)))
+        if first <= temperature < end:
+            image[temperature] = max(0, min(255, round(self.temp)))
+        if first <= moving < end:
+            image[moving] = int(self.moving)
 
     @property
     def errors(self) -> ErrorFlags:
@@ -587,7 +607,7 @@ class VirtualServo:
         reply = None
         if target != BROADCAST_ID and self._answers(code):
             error = flags | self._conditions() | self.latched
-            reply = (status(self._id if code != _RESET else my_id, error, data), baud)
+            reply = (frame(self._id if code != _RESET else my_id, error, data), baud)
         if code == _RESET:
             self.factory_reset()
         return reply
@@ -601,13 +621,14 @@ class VirtualServo:
         if not self._answers(data[4]):
             return None
         error = _CHECKSUM | self._conditions() | self.latched
-        return status(self._id, error), self.baudrate
+        return frame(self._id, error), self.baudrate
 
     def _read(self, params: bytes) -> tuple[int, bytes]:
         if len(params) != 2:
             return _RANGE, b""
-        self._refresh_present()
-        data = self.regs.read(params[0], params[1])
+        address, length = params[0], params[1]
+        self._refresh_present(address, address + length)
+        data = self.regs.read(address, length)
         if data is None:
             return _RANGE, b""
         return 0, data
@@ -710,19 +731,26 @@ class VirtualServo:
             self.on_eeprom_change(self)
 
     def _sync_write(self, params: bytes, my_id: int) -> None:
-        if len(params) < 2:
-            return
-        address, length = params[0], params[1]
-        block = length + 1
-        n = len(params)
-        if length == 0 or (n - 2) % block:
+        shape = sync_write_shape(params)
+        if shape is None:
             return  # malformed: a real servo cannot find its slice either
+        address, block = shape
         k = params[2::block].find(my_id)  # the first block that names this servo
         if k >= 0:
             i = 2 + k * block
-            flags = self._write_at(address, params[i + 1 : i + block], False)
-            if flags:
-                self._alarm(flags)
+            self._write_block(address, params[i + 1 : i + block])
+
+    def _write_block(self, address: int, data: bytes) -> None:
+        flags = self._write_at(address, data, False)
+        if flags:
+            self._alarm(flags)
+
+    def sync_write_block(self, address: int, data: bytes, t: float) -> None:
+        """This servo's block of a broadcast SYNC_WRITE heard at bus time ``t`` (the bus
+        parses the packet once and hands each servo named in it its own block)."""
+        if self.powered:
+            self.advance(t)
+            self._write_block(address, data)
 
     def factory_reset(self) -> None:
         """RESET: every register back to its factory value (ID 1, 1 Mbps), as at power-on."""

@@ -21,6 +21,7 @@ What makes a transaction trustworthy on a real bus:
 
 from __future__ import annotations
 
+import functools
 import threading
 import time
 from collections import deque
@@ -44,6 +45,7 @@ from snakebot.protocol import (
     ServoError,
 )
 from snakebot.transport import settings
+from snakebot.transport.portio import PortIO
 from snakebot.transport.ports import open_port
 from snakebot.transport.settings import EchoSetting
 from snakebot.transport.timing import DEFAULT_BAUDRATE, STATUS_OVERHEAD, BusTiming
@@ -142,6 +144,7 @@ class DxlClient:
             self._owns_port = False
             if baudrate is not None and port.baudrate != baudrate:
                 port.baudrate = baudrate
+        self._io = PortIO(self._port)
         self.timing = BusTiming(baudrate=int(self._port.baudrate), **timing_kwargs)
         # None: not known yet ("auto" before the first answered transaction).
         self._echo: bool | None = None if echo_setting == "auto" else bool(echo_setting)
@@ -282,9 +285,10 @@ class DxlClient:
         parser = self._parser
         seen = _Attempt()
         echo = self._echo
+        io = self._io
         port.reset_input_buffer()
         parser.reset()
-        port.write(packet)
+        io.write(packet)
         deadline = time.monotonic() + timeout
         status_len = STATUS_OVERHEAD + expect_len
         data = b""
@@ -325,9 +329,7 @@ class DxlClient:
             want = status_len - parser.pending
             if echo is True and not seen.echo_seen:
                 want += len(packet)
-            if self._read_timeout is None or abs(self._read_timeout - remaining) > 1e-4:
-                port.timeout = self._read_timeout = remaining
-            data = port.read(want if want > 1 else 1)
+            data = io.read(want if want > 1 else 1, remaining)
 
     def _settle_echo(self, heard: Packet, expect_id: int, expect_len: int) -> Packet | None:
         """Decide an ambiguous first transaction in "auto" echo mode.
@@ -442,8 +444,7 @@ class DxlClient:
                 "READ: write 1 or 2 to its Status Return Level, then call "
                 "set_status_return_level"
             )
-        packet = protocol.read(servo_id, address, length)
-        return self.transact(packet, servo_id, length).params
+        return self.transact(_read_packet(servo_id, address, length), servo_id, length).params
 
     def read_u8(self, servo_id: int, address: int) -> int:
         """READ one byte."""
@@ -500,6 +501,13 @@ class DxlClient:
         self.send(protocol.sync_write(address, length, data))
         for servo_id, chunk in data.items():
             self._after_write(servo_id, address, bytes(chunk))
+
+
+@functools.lru_cache(maxsize=1024)
+def _read_packet(servo_id: int, address: int, length: int) -> bytes:
+    """``protocol.read``, built once per (ID, address, length): a control loop reads the
+    same registers of the same servos over and over."""
+    return protocol.read(servo_id, address, length)
 
 
 def _require_device(servo_id: int, what: str) -> None:

@@ -252,3 +252,25 @@ def test_a_table_of_another_search_is_not_resumed(tmp_path):
     assert result.exit_code == 2 and "holds another search" in result.stderr
     with open(out, newline="") as fh:
         assert {r["cycles"] for r in csv.DictReader(fh)} == {"3.0"}
+
+
+class StopsAfterOneBatch(InlineRunner):
+    """This process's runner, interrupted (as by Ctrl-C) after its first batch."""
+
+    def run(self, settings, batches):
+        for i, rows in super().run(settings, batches):
+            yield i, rows
+            raise KeyboardInterrupt
+
+
+def test_an_interrupted_search_keeps_its_finished_runs_and_resumes(tmp_path):
+    out = tmp_path / "runs.parquet"
+    settings = Settings("snake5", "kinematic", 3, 50)
+    space = Space.parse(("A=10deg:50deg:20", "delta=10deg:150deg:20", "omega=360deg"))
+    with pytest.raises(KeyboardInterrupt):
+        Search(Request(settings, space, output=out), StopsAfterOneBatch()).run()
+    kept = read_results(out)
+    assert 0 < len(kept) < 400
+    outcome = Search(Request(settings, space, output=out), InlineRunner()).run()
+    assert (outcome.reused, outcome.evaluated) == (len(kept), 400 - len(kept))
+    assert len(read_results(out)) == 400

@@ -245,6 +245,15 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, monkeypatch, args, message):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_robot_without_a_chain_of_links_is_refused():
+    result = run("gait", "search", "trident", *GRID)
+    assert result.exit_code == 2
+    assert result.stderr == (
+        "error: trident is a trident: the search tries serpenoid gaits, which drive a chain "
+        "of links; give a snake (snake3, snake5 or a .toml)\n"
+    )
+
+
 def test_a_table_of_another_search_is_not_resumed(tmp_path):
     out = tmp_path / "runs.csv"
     assert search(*GRID, "-o", out, "--workers", 1).exit_code == 0

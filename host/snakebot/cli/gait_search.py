@@ -14,7 +14,16 @@ import click
 from snakebot.gait import serpenoid
 from snakebot.gaittable import write_gait
 from snakebot.robots import load_robot
-from snakebot.search import METHODS, OBJECTIVES, Request, Search, Settings, Space, make_runner
+from snakebot.search import (
+    METHODS,
+    OBJECTIVES,
+    Request,
+    Search,
+    SearchError,
+    Settings,
+    Space,
+    make_runner,
+)
 from snakebot.search.results import check_path
 from snakebot.search.search import Outcome
 from snakebot.sim.physics.select import WORLDS
@@ -120,6 +129,11 @@ def search_command(
     if best_path is None and output is not None:
         best_path = output.with_name(output.stem + ".best.gait")
     robot_obj = load_robot(robot)
+    if robot_obj.kind != "snake":
+        raise SearchError(
+            f"{robot_obj.name} is a {robot_obj.kind}: the search tries serpenoid gaits, which "
+            "drive a chain of links; give a snake (snake3, snake5 or a .toml)"
+        )
     settings = Settings(robot_obj.source or robot, world, cycles, rate)
     request = Request(
         settings, Space.parse(params, robust), objective, method, samples, seed, output

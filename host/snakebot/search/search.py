@@ -28,6 +28,7 @@ from snakebot.search.results import (
 )
 from snakebot.search.runner import Runner, batches_of
 from snakebot.search.space import SearchError, Space
+from snakebot.sim.physics.select import check_world
 
 OBJECTIVES = {
     "distance": ("distance_per_cycle", 1.0),
@@ -66,6 +67,7 @@ class Request:
             raise SearchError(
                 f"unknown objective {self.objective!r}: use one of {', '.join(OBJECTIVES)}"
             )
+        check_world(self.settings.world)
         if self.method not in METHODS:
             raise SearchError(f"unknown method {self.method!r}: use one of {', '.join(METHODS)}")
         if self.objective == "efficiency" and self.settings.world != "mujoco":

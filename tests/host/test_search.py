@@ -283,3 +283,11 @@ def test_an_interrupted_search_keeps_its_finished_runs_and_resumes(tmp_path):
     outcome = Search(Request(settings, space, output=out), InlineRunner()).run()
     assert (outcome.reused, outcome.evaluated) == (len(kept), 400 - len(kept))
     assert len(read_results(out)) == 400
+
+
+def test_the_pareto_front_keeps_the_points_nothing_beats_on_both():
+    from snakebot.search.plot import _front
+
+    cost = np.array([1.0, 2.0, 2.0, 3.0, 0.5, 4.0])
+    gain = np.array([1.0, 3.0, 2.0, 2.5, 0.2, 3.5])
+    assert _front(cost, gain).tolist() == [4, 0, 1, 5]

@@ -1,6 +1,7 @@
 """Pictures of a search (matplotlib, Agg): a heat map of the score over the first two
 varied parameters (the best over the others), or, with a single varied parameter or a
-sampled search, the objective against the slide (or the energy) with the Pareto front."""
+sampled search, distance (or speed) against its cost, the slide (kinematic world) or the
+motors' energy (physics world), with the Pareto front."""
 
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ def plot_search(outcome: Outcome, request: Request, out: Path) -> Path:
     if request.method == "grid" and len(varied) >= 2:
         _heat_map(fig, ax, outcome, request, metric, sense)
     else:
-        _pareto(ax, outcome, request, metric)
+        _pareto(ax, outcome, request)
     ax.set_title(
         f"{request.settings.robot}, {request.settings.world} world: {request.objective}"
         f" ({request.method}, {len(outcome.candidates)} candidates)"
@@ -61,14 +62,10 @@ def _heat_map(
     ax.set_ylabel(f"{b.name} ({ANGLE_UNITS.get(b.name, '')})")
 
 
-def _pareto(ax: Axes, outcome: Outcome, request: Request, metric: str) -> None:
-    other = (
-        "energy_j"
-        if request.settings.world == "mujoco" and metric != "energy_j"
-        else "slip_per_cycle"
-    )
-    if metric == "slip_ratio":
-        metric, other = "distance_per_cycle", "slip_per_cycle"
+def _pareto(ax: Axes, outcome: Outcome, request: Request) -> None:
+    # the trade-off behind every objective: how far (or how fast) against what it costs
+    metric = "speed" if request.objective == "speed" else "distance_per_cycle"
+    other = "energy_j" if request.settings.world == "mujoco" else "slip_per_cycle"
     ok = [r for r in outcome.rows if r["status"] == "ok"]
     x = np.array([float(r[other]) for r in ok])
     y = np.array([float(r[metric]) for r in ok])

@@ -71,6 +71,20 @@ def test_space_rejects_bad_parameters(params, message):
         Space.parse(params)
 
 
+@pytest.mark.parametrize(
+    ("robust", "message"),
+    [
+        ("mass=0:2:3", "mass must be positive"),
+        ("mu=-1:1:3", "mu must be positive"),
+        ("c_t=-0.1:0.1:3", "c_t must be zero or more"),
+        ("gravity=1:2:2", "unknown robustness parameter 'gravity'"),
+    ],
+)
+def test_space_rejects_bad_robustness_values(robust, message):
+    with pytest.raises(SearchError, match=message):
+        Space.parse(("A=1", "omega=1", "delta=1:2:2"), (robust,))
+
+
 # -- one run -----------------------------------------------------------------------------
 
 

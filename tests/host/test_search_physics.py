@@ -77,3 +77,14 @@ def test_an_efficiency_search_over_friction_keeps_each_floor_and_the_worst(tmp_p
     best = summary["best"]
     mine = [r for r in rows if r["amplitude"] == pytest.approx(best["parameters"]["amplitude"])]
     assert best["efficiency"] == pytest.approx(min(r["efficiency"] for r in mine))
+
+
+def test_a_heavier_robot_costs_more_energy_for_the_same_gait():
+    settings = Settings("snake5", "mujoco", 2, 50)
+    runs = [evaluate(settings, {**POINT, "offset": 0.0, "mass": m}) for m in (0.5, 1.0, 3.0)]
+    assert all(r["status"] == "ok" for r in runs)
+    energy = [r["energy_j"] for r in runs]
+    assert energy[0] < energy[1] < energy[2]
+    # a factor of 1 is the robot as described
+    plain = evaluate(settings, {**POINT, "offset": 0.0})
+    assert runs[1]["energy_j"] == pytest.approx(plain["energy_j"])

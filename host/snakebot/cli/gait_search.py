@@ -47,7 +47,8 @@ PATH = click.Path(dir_okay=False, path_type=Path)
     multiple=True,
     metavar="NAME=LOW:HIGH:COUNT",
     help="run every candidate over these values and score its worst: mu (alias "
-    "friction.lateral, mujoco world) or c_t (alias friction.rolling, kinematic world)",
+    "friction.lateral) or mass (a factor on every link's and wheel's mass) in the mujoco "
+    "world, c_t (alias friction.rolling) in the kinematic world. Repeat for several",
 )
 @click.option(
     "--objective",

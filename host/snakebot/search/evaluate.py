@@ -25,6 +25,7 @@ from snakebot.gait.serpenoid import SerpenoidFrames, serpenoid_frames
 from snakebot.gaittable import GaitTable
 from snakebot.kinematics import KinematicsError, Options, Table, integrate_joints
 from snakebot.robots import Robot, load_robot
+from snakebot.search.space import SearchError
 from snakebot.sim.world import SINGULAR_CODES, fallback_c_t
 
 METRICS = (
@@ -100,6 +101,24 @@ def _kinematic(robot: Robot, f: SerpenoidFrames, c_t: float) -> dict[str, float]
     return motion(traj) | {"slip": slid, "energy_j": math.nan}
 
 
+def _heavier(robot: Robot, factor: float) -> Robot:
+    """``robot`` with every link and wheel ``factor`` times as heavy (the physics world's
+    body; the servos are the same)."""
+    from snakebot.sim.physics.mjcf import physics_of
+
+    if not factor > 0:
+        raise SearchError(f"a mass factor must be positive, not {factor}")
+    phys = physics_of(robot)
+    return replace(
+        robot,
+        physics=replace(
+            phys,
+            link_mass_kg=phys.link_mass_kg * factor,
+            wheel_mass_kg=phys.wheel_mass_kg * factor,
+        ),
+    )
+
+
 def _physics(robot: Robot, f: SerpenoidFrames, mu: float | None) -> dict[str, float]:
     # imported here: the kinematic world needs neither MuJoCo nor the emulated bus
     from snakebot.sim.predict import move_to_start, play, sim_url
@@ -124,13 +143,15 @@ def _physics(robot: Robot, f: SerpenoidFrames, mu: float | None) -> dict[str, fl
 
 def evaluate(settings: Settings, point: dict[str, float]) -> dict[str, Any]:
     """One run: ``point`` holds the serpenoid parameters and the robustness values (mu,
-    c_t); the row adds the status, the reason of a failure and METRICS (NaN if failed)."""
+    mass, c_t); the row adds the status, the reason of a failure and METRICS (NaN if failed)."""
     row: dict[str, Any] = dict(point)
     row.update({m: math.nan for m in METRICS})
     try:
         robot = _robot(settings.robot)
         if "c_t" in point:
             robot = replace(robot, c_t=point["c_t"])
+        if "mass" in point:
+            robot = _heavier(robot, point["mass"])
         f = _frames(robot, settings, point)
         if settings.world == "kinematic":
             raw = _kinematic(robot, f, robot.c_t)

@@ -26,12 +26,14 @@ GAIT_PARAMETERS = {
 
 ROBUST_PARAMETERS = {
     "mu": ("mu", "friction.lateral"),
+    "mass": ("mass",),
     "c_t": ("c_t", "friction.rolling"),
 }
-"""What a candidate's robustness is tried over: the wheel-floor friction coefficient of the
-physics world (``mu``) and the rolling friction ratio of the kinematic world (``c_t``)."""
+"""What a candidate's robustness is tried over: the wheel-floor friction coefficient
+(``mu``) and a factor on every link's and wheel's mass (``mass``) in the physics world,
+the rolling friction ratio of the kinematic world (``c_t``)."""
 
-ROBUST_WORLD = {"mu": "mujoco", "c_t": "kinematic"}
+ROBUST_WORLD = {"mu": "mujoco", "mass": "mujoco", "c_t": "kinematic"}
 
 REQUIRED = ("amplitude", "omega", "delta")
 DEFAULTS = {"offset": 0.0}
@@ -142,6 +144,11 @@ class Space:
             axis = parse_axis(text, robust=True)
             if axis.name in rob:
                 raise SearchError(f"--robust {axis.name} is given twice: give it once")
+            if axis.low < 0 or (axis.low == 0 and axis.name != "c_t"):
+                raise SearchError(
+                    f"--robust {text!r}: {axis.name} must be "
+                    + ("zero or more" if axis.name == "c_t" else "positive")
+                )
             rob[axis.name] = axis
         return cls(tuple(axes[n] for n in GAIT_PARAMETERS), tuple(rob.values()))
 

@@ -32,6 +32,7 @@ from snakebot.cli.flash import flash_command  # noqa: E402
 from snakebot.cli.gait import gait  # noqa: E402
 from snakebot.cli.model import model  # noqa: E402
 from snakebot.cli.monitor import monitor  # noqa: E402
+from snakebot.cli.plan import plan_command  # noqa: E402
 from snakebot.cli.playback import play, serpenoid, stop  # noqa: E402
 from snakebot.cli.sim import sim  # noqa: E402
 from snakebot.cli.sim_bootloader import bootloader  # noqa: E402
@@ -40,6 +41,8 @@ from snakebot.cli.sim_serve import serve  # noqa: E402
 from snakebot.cli.upload import upload  # noqa: E402
 
 for command in (model, gait, sim, upload, play, stop, serpenoid, monitor, bus, flash_command, demo):
+    main.add_command(command)
+for command in (plan_command,):
     main.add_command(command)
 for command in (predict, serve, bootloader):
     sim.add_command(command)

@@ -36,6 +36,7 @@ from snakebot.cli.plan import plan_command  # noqa: E402
 from snakebot.cli.playback import play, serpenoid, stop  # noqa: E402
 from snakebot.cli.sim import sim  # noqa: E402
 from snakebot.cli.sim_bootloader import bootloader  # noqa: E402
+from snakebot.cli.sim_goto import goto  # noqa: E402
 from snakebot.cli.sim_predict import predict  # noqa: E402
 from snakebot.cli.sim_serve import serve  # noqa: E402
 from snakebot.cli.upload import upload  # noqa: E402
@@ -44,5 +45,5 @@ for command in (model, gait, sim, upload, play, stop, serpenoid, monitor, bus, f
     main.add_command(command)
 for command in (plan_command,):
     main.add_command(command)
-for command in (predict, serve, bootloader):
+for command in (predict, serve, bootloader, goto):
     sim.add_command(command)

@@ -263,14 +263,28 @@ def _segments(robot: Robot, route: Route, ticks: np.ndarray, period_s: float) ->
 
 
 def loop_target(
-    robot: Robot, start: np.ndarray, hub: np.ndarray, target: np.ndarray, k: int
+    robot: Robot,
+    start: np.ndarray,
+    hub: np.ndarray,
+    target: np.ndarray,
+    k: int,
+    *,
+    entered: bool = False,
 ) -> np.ndarray:
-    """What one of k loops through ``hub`` must move the body by."""
-    enter = path_motion(robot, ramp(start, hub)) if not np.allclose(start, hub) else np.zeros(3)
-    leave = path_motion(robot, ramp(hub, start)) if not np.allclose(start, hub) else np.zeros(3)
+    """What each of k loops through ``hub`` must move the body by so that (the move from
+    ``start`` to the hub unless already ``entered``,) the loops and the move back to
+    ``start`` end at ``target``."""
+    moves = not np.allclose(start, hub)
+    enter = path_motion(robot, ramp(start, hub)) if moves and not entered else np.zeros(3)
+    leave = path_motion(robot, ramp(hub, start)) if moves else np.zeros(3)
     middle = se2.compose(se2.compose(se2.inverse(enter), target), se2.inverse(leave))
     middle[2] = (middle[2] + math.pi) % (2 * math.pi) - math.pi
     return se2.root(middle, k)
+
+
+def solve_accuracy(robot: Robot, tol: Tolerance) -> float:
+    """The scaled residual a loop fit must reach: a tenth of the tolerance."""
+    return 0.1 * min(tol.position / body_length(robot), tol.heading)
 
 
 def loop_counts(robot: Robot, target: np.ndarray, most: int) -> list[int]:
@@ -309,7 +323,7 @@ def solve_route(
 ) -> Route:
     """The route (hub, loop, count) whose continuous joint path reaches ``target``."""
     scale = body_length(robot)
-    accuracy = 0.1 * min(tol.position / scale, tol.heading)
+    accuracy = solve_accuracy(robot, tol)
     for h in [hub] if hub is not None else hubs(robot, start):
         transition = len(ramp(start, h)) - 1
         most = (max_frames(robot.n_joints) - 1 - 2 * transition) // FRAMES

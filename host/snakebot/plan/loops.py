@@ -18,7 +18,8 @@ over ``HARMONICS`` harmonics per joint: it starts and ends at the hub, the b ter
 its centre (the serpenoid's steering offset), the a terms open it. ``solve_loop`` finds
 coefficients whose loop moves the body by a wanted pose (nonlinear least squares,
 scipy's trust-region reflective solver), keeping every frame inside the joint limits and
-away from singular configurations (where the integration fails).
+away from singular configurations (the wheel model's reciprocal condition number
+above the tools' warning threshold).
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from snakebot.errors import SnakebotError
+from snakebot.gait.common import NEAR_SINGULAR_RCOND
 from snakebot.kinematics import KinematicsError, Options, Table, integrate_joints
 from snakebot.robots import Robot
 
@@ -76,9 +78,16 @@ def loop_angles(hub: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
 
 def path_motion(robot: Robot, angles: np.ndarray, options: Options = SOLVE_OPTIONS) -> np.ndarray:
     """Body displacement (start frame) while the joints follow ``angles`` frame to frame."""
+    return _integrate(robot, angles, options)[0]
+
+
+def _integrate(
+    robot: Robot, angles: np.ndarray, options: Options = SOLVE_OPTIONS
+) -> tuple[np.ndarray, float]:
+    """The displacement and the path's least reciprocal condition number."""
     rows = len(angles) - 1
     traj = integrate_joints(robot, Table(angles, 1.0), float(rows), samples=2, options=options)
-    return traj.q[-1, :3] - traj.q[0, :3]
+    return traj.q[-1, :3] - traj.q[0, :3], float(traj.stats.get("min_rcond", 1.0))
 
 
 def limits(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
@@ -112,10 +121,12 @@ def solve_loop(
         angles = loop_angles(hub, p)
         outside = np.maximum(angles - hi, 0.0).sum() + np.maximum(lo - angles, 0.0).sum()
         try:
-            moved = path_motion(robot, angles)
+            moved, rcond = _integrate(robot, angles)
         except KinematicsError:
-            return np.r_[np.full(3, FAILED), 10.0 * outside]
-        return np.r_[(moved - wanted) * weights, 10.0 * outside]
+            return np.r_[np.full(3, FAILED), 10.0 * outside, FAILED]
+        # near a singular configuration the motion is hypersensitive to rounding: keep off
+        near = max(0.0, NEAR_SINGULAR_RCOND - rcond) / NEAR_SINGULAR_RCOND
+        return np.r_[(moved - wanted) * weights, 10.0 * outside, near]
 
     best = None
     for guess in guesses:

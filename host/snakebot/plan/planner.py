@@ -22,6 +22,7 @@ reaches within the table's size raises ``Unreachable``."""
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -311,7 +312,7 @@ def validate_start(robot: Robot, start: np.ndarray) -> None:
         )
 
 
-def solve_route(
+def routes(
     robot: Robot,
     start: np.ndarray,
     target: np.ndarray,
@@ -320,8 +321,9 @@ def solve_route(
     count: int | None = None,
     hub: np.ndarray | None = None,
     previous: np.ndarray | None = None,
-) -> Route:
-    """The route (hub, loop, count) whose continuous joint path reaches ``target``."""
+) -> Iterator[Route]:
+    """Routes (hub, loop, count) whose joint path as planned reaches ``target``: each
+    hub in turn, each loop count to try."""
     scale = body_length(robot)
     accuracy = solve_accuracy(robot, tol)
     for h in [hub] if hub is not None else hubs(robot, start):
@@ -337,13 +339,32 @@ def solve_route(
                 break
             loop = solve_loop(robot, h, wanted, scale, guesses(robot, previous), accuracy)
             if loop is not None:
-                return Route(robot, start, loop, k)
-    raise Unreachable(
+                yield Route(robot, start, loop, k)
+
+
+def unreachable(robot: Robot, target: np.ndarray) -> Unreachable:
+    return Unreachable(
         f"no plan for {robot.name} reaches x = {target[0]:.4g}, y = {target[1]:.4g}, "
         f"theta = {math.degrees(target[2]):.1f} deg inside its joint limits and servo speed "
         f"within a table of {max_frames(robot.n_joints)} frames: choose a nearer target (or "
         "go in steps with several plans); no file was written"
     )
+
+
+def solve_route(
+    robot: Robot,
+    start: np.ndarray,
+    target: np.ndarray,
+    tol: Tolerance,
+    *,
+    count: int | None = None,
+    hub: np.ndarray | None = None,
+    previous: np.ndarray | None = None,
+) -> Route:
+    """The first route that reaches ``target`` as planned, or Unreachable."""
+    for route in routes(robot, start, target, tol, count=count, hub=hub, previous=previous):
+        return route
+    raise unreachable(robot, target)
 
 
 def make_plan(
@@ -362,8 +383,35 @@ def make_plan(
     phi0 = default_start(robot) if start is None else np.asarray(start, dtype=float)
     validate_start(robot, phi0)
     tol = Tolerance.for_target(robot, goal, tolerance, heading_tolerance)
+    best: Plan | None = None
+    for route in routes(robot, phi0, goal, tol):
+        plan = _table_plan(robot, goal, tol, phi0, route)
+        if best is None or plan.error[0] / tol.position < best.error[0] / tol.position:
+            best = plan
+        if plan.within:
+            break
+    if best is None:
+        raise unreachable(robot, goal)
+    plan = best
+    gait = plan.gait
+    if not plan.within:
+        d, h = plan.error
+        raise Unreachable(
+            f"the best plan for {robot.name} ends {d:.3g} from the target and "
+            f"{math.degrees(h):.2f} deg off its heading, outside the tolerance "
+            f"({tol.position:.3g}, {math.degrees(tol.heading):.2f} deg): loosen --tolerance "
+            "or choose another target; no file was written"
+        )
+    gait.extra.update(plan.summary())
+    return plan
+
+
+def _table_plan(
+    robot: Robot, goal: np.ndarray, tol: Tolerance, phi0: np.ndarray, route: Route
+) -> Plan:
+    """The route as a table: rounded, timed, its played motion checked; the rounding
+    error fed back into the loop's aim up to CORRECTIONS times."""
     aim = goal.copy()
-    route = solve_route(robot, phi0, aim, tol)
     for _ in range(CORRECTIONS + 1):
         frames = route.frames()
         period_ms = frame_period_ms(robot, frames)
@@ -388,20 +436,10 @@ def make_plan(
                 previous=route.loop.coefficients,
             )
         except Unreachable:
-            break  # the last table stands; the check below names its error
+            break  # the last table stands
     continuous = Trajectory(np.arange(len(frames)) * dt, np.c_[np.zeros((len(frames), 3)), frames])
     gait = _gait(robot, route, ticks, period_ms, played.trajectory, continuous, played.note())
-    plan = Plan(robot, goal, tol, route, gait, reached, _segments(robot, route, ticks, dt))
-    if not plan.within:
-        d, h = plan.error
-        raise Unreachable(
-            f"the best plan for {robot.name} ends {d:.3g} from the target and "
-            f"{math.degrees(h):.2f} deg off its heading, outside the tolerance "
-            f"({tol.position:.3g}, {math.degrees(tol.heading):.2f} deg): loosen --tolerance "
-            "or choose another target; no file was written"
-        )
-    gait.extra.update(plan.summary())
-    return plan
+    return Plan(robot, goal, tol, route, gait, reached, _segments(robot, route, ticks, dt))
 
 
 def _gait(

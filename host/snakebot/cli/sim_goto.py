@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -66,13 +68,14 @@ def goto(
     from snakebot.robots import load_robot
 
     chosen = load_robot(robot)
-    with click.progressbar(length=1, label="segments", file=click.get_text_stream("stderr")) as bar:
+    bar = click.progressbar(length=1, label="segments", file=sys.stderr)
 
-        def progress(done: int, total: int) -> None:
-            bar.length = total
-            bar.update(1)
+    def progress(done: int, total: int) -> None:
+        bar.length = total
+        bar.update(1)
 
-        try:
+    try:
+        with bar if not as_json else contextlib.nullcontext():
             result = run_goto(
                 chosen,
                 target,
@@ -81,11 +84,11 @@ def goto(
                 ideal=ideal,
                 tolerance=tolerance,
                 heading_tolerance=heading_tolerance,
-                progress=progress if not as_json else None,
+                progress=None if as_json else progress,
             )
-        except Unreachable as exc:
-            unreachable(exc)
-            return
+    except Unreachable as exc:
+        unreachable(exc)
+        return
     summary = result.summary()
     if plot is not None:
         from snakebot.plan.goto_plot import plot_goto

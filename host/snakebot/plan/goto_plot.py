@@ -10,6 +10,10 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from snakebot.plan.goto import GotoResult
+from snakebot.plan.planner import body_length
+
+ARROW_BODIES = 0.1
+"""Heading arrows a tenth of a body length long."""
 
 
 def plot_goto(result: GotoResult, out: str | Path) -> Path:
@@ -31,7 +35,7 @@ def plot_goto(result: GotoResult, out: str | Path) -> Path:
             label=text,
             angles="xy",
             scale_units="xy",
-            scale=4.0 / max(result.tolerance.position * 50, 1e-9),
+            scale=1.0 / (ARROW_BODIES * body_length(result.robot)),
         )
     d, h = result.error
     ax.set_title(

@@ -43,6 +43,8 @@ SOLVE_OPTIONS = Options("dopri5", rtol=1e-7, atol=1e-10)
 LIMIT_MARGIN = 0.03
 #: Residual of a loop that cannot be integrated (through a singular configuration).
 FAILED = 10.0
+#: Passes of the single-tick search over a rounded loop's frames.
+REFINE_PASSES = 6
 #: Solver budget per attempt (function evaluations).
 MAX_EVALS = 80
 
@@ -148,3 +150,47 @@ def solve_loop(
         return None
     angles = loop_angles(hub, best.x)
     return Loop(np.asarray(hub, dtype=float), best.x, path_motion(robot, angles))
+
+
+def refine_ticks(
+    robot: Robot, ticks: np.ndarray, wanted: np.ndarray, scale: float, accuracy: float
+) -> tuple[np.ndarray, float]:
+    """The loop rounded to ticks, nudged frame by frame by single ticks until the loop as
+    played moves the body by ``wanted`` to within ``accuracy`` (scaled as in
+    ``solve_loop``), or no single tick helps; returns the ticks and their error.
+
+    Rounding moves each frame by up to half a tick, and near the 3-link snake's singular
+    line a loop's motion is so sensitive to its frames that this alone can move it by a
+    tenth of a body length; the same sensitivity lets single ticks steer it back. The
+    first and last frames (the hub) stay."""
+    weights = np.array([1.0 / scale, 1.0 / scale, 1.0])
+    limits_t = np.array(robot.tick_limits)
+    t = np.array(ticks, dtype=np.int64)
+
+    def error(candidate: np.ndarray) -> float:
+        try:
+            moved = path_motion(robot, robot.ticks_to_angles(candidate))
+        except KinematicsError:
+            return math.inf
+        return float(np.linalg.norm((moved - wanted) * weights))
+
+    best = error(t)
+    for _ in range(REFINE_PASSES):
+        if best <= accuracy:
+            break
+        improved = False
+        for i in range(1, len(t) - 1):
+            for j in range(t.shape[1]):
+                for step in (1, -1):
+                    value = t[i, j] + step
+                    if not limits_t[j, 0] <= value <= limits_t[j, 1]:
+                        continue
+                    t[i, j] = value
+                    e = error(t)
+                    if e < best:
+                        best, improved = e, True
+                        break
+                    t[i, j] = value - step
+        if not improved:
+            break
+    return t, best

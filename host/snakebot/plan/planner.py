@@ -41,6 +41,7 @@ from snakebot.plan.loops import (
     PlanError,
     limits,
     path_motion,
+    refine_ticks,
     solve_loop,
 )
 from snakebot.robots import TICKS_PER_RAD, Robot
@@ -57,8 +58,8 @@ STEP_BODIES = 0.08
 STEP_TURN = 0.25
 #: Largest joint step per frame (rad) on the moves between start and hub.
 TRANSITION_STEP = 0.08
-#: Rounds of feeding the table's rounding error back into the target.
-CORRECTIONS = 3
+#: Share of the tolerance a refined loop's error may use, divided among the loops.
+REFINE_SHARE = 0.3
 
 
 class Unreachable(PlanError):
@@ -409,37 +410,38 @@ def make_plan(
 def _table_plan(
     robot: Robot, goal: np.ndarray, tol: Tolerance, phi0: np.ndarray, route: Route
 ) -> Plan:
-    """The route as a table: rounded, timed, its played motion checked; the rounding
-    error fed back into the loop's aim up to CORRECTIONS times."""
-    aim = goal.copy()
-    for _ in range(CORRECTIONS + 1):
-        frames = route.frames()
-        period_ms = frame_period_ms(robot, frames)
-        dt = period_ms / 1000.0
-        ticks = robot.angles_to_ticks(frames)
-        check_ticks(robot, ticks, dt, False)
-        played = table_motion(robot, robot.ticks_to_angles(ticks), dt, False, per_interval=2)
-        reached = played.trajectory.q[-1, :3]
-        d, h = pose_error(reached, goal)
-        if d <= tol.position and abs(h) <= tol.heading:
-            break
-        # the rounding moved the end by roughly a fixed error: aim that much the other way
-        aim = se2.compose(aim, se2.relative(reached, goal))
-        try:
-            route = solve_route(
-                robot,
-                phi0,
-                aim,
-                tol,
-                count=route.count,
-                hub=route.loop.hub,
-                previous=route.loop.coefficients,
-            )
-        except Unreachable:
-            break  # the last table stands
-    continuous = Trajectory(np.arange(len(frames)) * dt, np.c_[np.zeros((len(frames), 3)), frames])
-    gait = _gait(robot, route, ticks, period_ms, played.trajectory, continuous, played.note())
+    """The route as a table, re-planned loop by loop on the ticks as played: the moves to
+    and from the hub rounded, then each loop rounded and refined tick by tick
+    (``refine_ticks``) to its share of what is left of the way (the k-th root, as at the
+    start), so each loop corrects what rounding did to the ones before; timed, and its
+    motion as played checked."""
+    enter = robot.angles_to_ticks(route.enter)
+    leave = robot.angles_to_ticks(route.leave)
+    back = se2.inverse(_ticks_motion(robot, leave))
+    scale = body_length(robot)
+    accuracy = REFINE_SHARE * min(tol.position / scale, tol.heading)
+    pose = _ticks_motion(robot, enter)
+    loop = robot.angles_to_ticks(route.loop.angles())
+    rows = [enter]
+    for i in range(route.count):
+        wanted = se2.root(se2.compose(se2.relative(pose, goal), back), route.count - i)
+        loop, _ = refine_ticks(robot, loop, wanted, scale, accuracy)
+        pose = se2.compose(pose, _ticks_motion(robot, loop))
+        rows.append(loop[1:])
+    rows.append(leave[1:])
+    ticks = np.vstack(rows)
+    period_ms = frame_period_ms(robot, robot.ticks_to_angles(ticks))
+    dt = period_ms / 1000.0
+    check_ticks(robot, ticks, dt, False)
+    played = table_motion(robot, robot.ticks_to_angles(ticks), dt, False, per_interval=2)
+    reached = played.trajectory.q[-1, :3]
+    gait = _gait(robot, route, ticks, period_ms, played.trajectory, played.note())
     return Plan(robot, goal, tol, route, gait, reached, _segments(robot, route, ticks, dt))
+
+
+def _ticks_motion(robot: Robot, ticks: np.ndarray) -> np.ndarray:
+    """Body motion over frames given in ticks (none for a single frame)."""
+    return path_motion(robot, robot.ticks_to_angles(ticks)) if len(ticks) > 1 else np.zeros(3)
 
 
 def _gait(
@@ -448,7 +450,6 @@ def _gait(
     ticks: np.ndarray,
     period_ms: int,
     table_traj: Trajectory,
-    joints: Trajectory,
     note: dict[str, Any],
 ) -> Gait:
     moved = motion(table_traj)

@@ -82,14 +82,19 @@ def default_start(robot: Robot) -> np.ndarray:
     return np.zeros(robot.n_joints)
 
 
+#: The 3-link snake's hubs (phi1 > phi2 side), best first: from (0.5, -1.4) small loops
+#: move it along all six signed directions of x, y, theta (a survey at 0.05 body
+#: lengths and 0.08 rad per loop); the others each reach some of them.
+SNAKE3_HUBS = ((0.5, -1.4), (1.4, -0.5), (-0.3, -1.3), (1.3, 0.3), (math.pi / 3, -math.pi / 3))
+
+
 def hubs(robot: Robot, start: np.ndarray) -> list[np.ndarray]:
-    """Hub configurations to try, the start first. The 3-link snake's loops stay on the
-    start's side of the singular line; hubs near either end of it reach the sideways
-    targets the symmetric hub cannot."""
+    """Hub configurations to try, the start first (no moves to and from a hub). The
+    3-link snake's loops stay on the start's side of its singular line phi1 = phi2."""
     out = [start]
     if robot.kind == "snake" and robot.n_joints == 2:
         side = 1.0 if start[0] >= start[1] else -1.0
-        out += [side * np.array(h) for h in ((1.0, -0.2), (0.2, -1.0), (math.pi / 3, -math.pi / 3))]
+        out += [side * np.array(h) for h in SNAKE3_HUBS]
     elif robot.kind == "trident":
         out += [np.full(robot.n_joints, 0.3), np.full(robot.n_joints, -0.3)]
     lo, hi = limits(robot)

@@ -161,7 +161,7 @@ def refine_ticks(
 
     Rounding moves each frame by up to half a tick, and near the 3-link snake's singular
     line a loop's motion is so sensitive to its frames that this alone can move it by a
-    tenth of a body length; the same sensitivity lets single ticks steer it back. The
+    tenth of a body length; the same sensitivity lets a few ticks steer it back. The
     first and last frames (the hub) stay."""
     weights = np.array([1.0 / scale, 1.0 / scale, 1.0])
     limits_t = np.array(robot.tick_limits)
@@ -181,7 +181,7 @@ def refine_ticks(
         improved = False
         for i in range(1, len(t) - 1):
             for j in range(t.shape[1]):
-                for step in (1, -1):
+                for step in (1, -1, 2, -2, 4, -4):
                     value = t[i, j] + step
                     if not limits_t[j, 0] <= value <= limits_t[j, 1]:
                         continue

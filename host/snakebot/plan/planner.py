@@ -427,10 +427,19 @@ def _table_plan(
     accuracy = REFINE_SHARE * min(tol.position / scale, tol.heading)
     pose = _ticks_motion(robot, enter)
     loop = robot.angles_to_ticks(route.loop.angles())
+    coefficients = route.loop.coefficients
     rows = [enter]
     for i in range(route.count):
         wanted = se2.root(se2.compose(se2.relative(pose, goal), back), route.count - i)
-        loop, _ = refine_ticks(robot, loop, wanted, scale, accuracy)
+        loop, err = refine_ticks(robot, loop, wanted, scale, accuracy)
+        if err > accuracy:  # too far for a few ticks: fit the loop again, then round
+            fit = solve_loop(robot, route.loop.hub, wanted, scale, [coefficients], accuracy)
+            if fit is not None:
+                again, err_again = refine_ticks(
+                    robot, robot.angles_to_ticks(fit.angles()), wanted, scale, accuracy
+                )
+                if err_again < err:
+                    loop, coefficients = again, fit.coefficients
         pose = se2.compose(pose, _ticks_motion(robot, loop))
         rows.append(loop[1:])
     rows.append(leave[1:])

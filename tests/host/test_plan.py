@@ -48,7 +48,7 @@ def within(reached, target):
 
 CASES = [
     (name, target)
-    for name, seed in (("trident", 11), ("snake5", 13))
+    for name, seed in (("trident", 11), ("snake3", 12), ("snake5", 13))
     for target in targets(name, seed, 3)
 ]
 
@@ -69,9 +69,9 @@ def test_random_target_reached_as_planned_and_as_played(tmp_path, robot_name, ta
     # the table respects the joint limits and the servos' speed as the controller plays it
     robot = load_robot(robot_name)
     table = read_gait(out)
+    for j, (lo, hi) in enumerate(robot.tick_limits):  # the joint range in whole ticks
+        assert lo <= table.frames[:, j].min() and table.frames[:, j].max() <= hi
     angles = robot.ticks_to_angles(table.frames)
-    for j, joint in enumerate(robot.joints):
-        assert joint.min_rad <= angles[:, j].min() and angles[:, j].max() <= joint.max_rad
     step = np.abs(np.diff(angles, axis=0)).max() / (table.frame_period_ms / 1000.0)
     assert step <= robot.max_speed_rad_s
     # the loops are there: the segments add up to the whole table
@@ -82,22 +82,6 @@ def test_random_target_reached_as_planned_and_as_played(tmp_path, robot_name, ta
     em = json.loads(played.output)["emulated"]
     ok, d, h = within((em["dx"], em["dy"], em["dtheta"]), target)
     assert ok, (d, h)
-
-
-@pytest.mark.parametrize("target", targets("snake3", 12, 3))
-def test_snake3_plan_written_only_when_it_ends_within_the_tolerance(tmp_path, target):
-    """The 3-link snake's loops are third order and pass near its singular line, so the
-    fit does not reach every target (see the report); but a plan that is written ends
-    within the tolerance as played, and a refusal is exit 1 with nothing written."""
-    out = tmp_path / "plan.gait"
-    result = run("plan", "snake3", "--to", ",".join(f"{v:.6f}" for v in target), "-o", out)
-    if result.exit_code == 1:
-        assert result.output.startswith("error: ") and not out.exists()
-        return
-    assert result.exit_code == 0, result.output
-    played = run("sim", "predict", out, "--ideal", "--json")
-    em = json.loads(played.output)["emulated"]
-    assert within((em["dx"], em["dy"], em["dtheta"]), target)[0]
 
 
 def test_unreachable_target_exits_1_and_writes_nothing(tmp_path):

@@ -1,5 +1,6 @@
 """snakebot sim goto: closed loop on the emulated robot (modelled AX-12s that lag, the
-kinematic world) ends within the tolerance at seeded random targets."""
+kinematic world) ends within the tolerance at seeded random targets, one per robot
+family."""
 
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ def run(*args):
 @pytest.mark.parametrize(
     ("robot_name", "target"),
     [("trident", t) for t in targets("trident", 21, 1)]
+    + [("snake3", t) for t in targets("snake3", 22, 1)]
     + [("snake5", t) for t in targets("snake5", 23, 1)],
 )
 def test_closed_loop_reaches_random_target(tmp_path, robot_name, target):

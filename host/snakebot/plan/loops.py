@@ -38,7 +38,7 @@ FRAMES = 24
 """Frames per loop: fine enough that the played polygon is a smooth loop."""
 HARMONICS = 2
 #: Accuracy of the integrations inside the solver (the plan's check uses the gait's).
-SOLVE_OPTIONS = Options("dopri5", rtol=1e-7, atol=1e-10)
+SOLVE_OPTIONS = Options("dopri5", rtol=1e-6, atol=1e-9)
 #: How far inside each joint limit a loop stays (radians): room for rounding to ticks.
 LIMIT_MARGIN = 0.03
 #: Residual of a loop that cannot be integrated (through a singular configuration).
@@ -46,7 +46,7 @@ FAILED = 10.0
 #: Passes of the single-tick search over a rounded loop's frames.
 REFINE_PASSES = 6
 #: Solver budget per attempt (function evaluations).
-MAX_EVALS = 80
+MAX_EVALS = 40
 
 
 class PlanError(SnakebotError):
@@ -175,13 +175,14 @@ def refine_ticks(
         return float(np.linalg.norm((moved - wanted) * weights))
 
     best = error(t)
+    steps: tuple[int, ...] = (1, -1)
     for _ in range(REFINE_PASSES):
         if best <= accuracy:
             break
         improved = False
         for i in range(1, len(t) - 1):
             for j in range(t.shape[1]):
-                for step in (1, -1, 2, -2, 4, -4):
+                for step in steps:
                     value = t[i, j] + step
                     if not limits_t[j, 0] <= value <= limits_t[j, 1]:
                         continue
@@ -192,5 +193,7 @@ def refine_ticks(
                         break
                     t[i, j] = value - step
         if not improved:
-            break
+            if len(steps) > 2:
+                break
+            steps = (1, -1, 2, -2, 4, -4)  # stuck: try longer strides once more
     return t, best

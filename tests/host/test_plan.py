@@ -117,3 +117,19 @@ def test_root_composes_back_to_the_pose():
     for k in (1, 3, 10):
         assert np.allclose(se2.power(se2.root(g, k), k), g)
     assert np.allclose(se2.relative(g, g), 0.0)
+
+
+def test_plan_uploads_and_plays_on_the_controller(controller, tmp_path):
+    """The plan is a table the controller takes and plays once (its C device logic
+    behind a pty, driving snake5's emulated servos)."""
+    from controller_cli_support import cli_json
+
+    out = tmp_path / "plan.gait"
+    target = targets("snake5", 41, 1)[0]
+    result = run("plan", "snake5", "--to", ",".join(f"{v:.6f}" for v in target), "-o", out)
+    assert result.exit_code == 0, result.output
+    uploaded = cli_json("upload", out, "--port", controller.device)
+    assert uploaded["bytes"] == out.stat().st_size and uploaded["loop"] is False
+    assert controller.active_table() == out.read_bytes()
+    played = cli_json("play", "--port", controller.device)
+    assert played["state"] == "PLAYING" and played["loop"] is False

@@ -5,11 +5,10 @@ rest from there.
 The host is the bus master (as in ``sim predict``): the servos go to the start
 configuration, then each segment (the move to the hub, each loop, the move back) is a
 small gait table played by the controller's own player, one SYNC_WRITE per control
-tick, while one world samples the servos for the whole run. After each loop the
-remaining displacement (pose now -> target) is split over the loops still to come and
-the loop is fitted again, warm-started from the last one; after the move back, if the
-body is still outside the tolerance, a fresh plan starts from where it is (up to
-``ROUNDS`` plans in all)."""
+tick, while one world samples the servos for the whole run. Before each loop the
+remaining displacement (pose now -> target) is split over the loops it still needs
+and the loop is fitted again, warm-started from the last one; loops go on until the
+move back would end within the tolerance (see ``_follow``)."""
 
 from __future__ import annotations
 
@@ -24,16 +23,16 @@ from snakebot.gait.common import path as sample_path
 from snakebot.gaittable import GaitTable
 from snakebot.kinematics import Trajectory
 from snakebot.plan import se2
-from snakebot.plan.loops import PlanError
+from snakebot.plan.loops import PlanError, path_motion
 from snakebot.plan.planner import (
     DEFAULT_HEADING_TOLERANCE,
     DEFAULT_TOLERANCE,
     Route,
     Tolerance,
-    Unreachable,
     body_length,
     default_start,
     frame_period_ms,
+    loop_counts,
     loop_target,
     pose_dict,
     pose_error,
@@ -57,8 +56,11 @@ from snakebot.sim.world import World
 from snakebot.transport import DxlClient
 
 WORLDS = ("kinematic", "mujoco")
-#: Plans in all (the first and the fresh ones after it) before giving up.
-ROUNDS = 3
+#: The closed loop runs at most this many times the planned loops.
+LOOPS_FACTOR = 3
+#: Loops go on until leaving would end within this share of the tolerance (if they
+#: run out first, the end is still judged against the whole tolerance).
+STOP_SHARE = 0.5
 
 
 class GotoError(SnakebotError):
@@ -185,16 +187,7 @@ def goto(
         tick = TICK_MS / 1000.0
         w = make_world(world, bus, robot, 1.0 / world_hz, bus.now + tick)
         runner = Runner(client, bus, robot, w)
-        pose = np.zeros(3)
-        for round_no in range(ROUNDS):
-            pose = _follow(runner, route, goal, tol, period_ms, pose, segments, progress)
-            d, h = pose_error(pose, goal)
-            if (d <= tol.position and abs(h) <= tol.heading) or round_no == ROUNDS - 1:
-                break
-            try:
-                route = solve_route(robot, phi0, se2.relative(pose, goal), tol)
-            except Unreachable:
-                break
+        pose = _follow(runner, route, goal, tol, period_ms, segments, progress)
         w.stop()
         record = w.record()
     finally:
@@ -209,36 +202,28 @@ def _follow(
     goal: np.ndarray,
     tol: Tolerance,
     period_ms: int,
-    pose: np.ndarray,
     segments: list[dict[str, Any]],
     progress: Any,
 ) -> np.ndarray:
-    """Play one route, re-fitting its loop after every loop from the pose the world
-    reports; returns the pose at the end."""
+    """Play the route in closed loop; returns the pose at the end.
+
+    After the move to the hub, loops go on while leaving now (the move back to the
+    start) would end outside the tolerance, up to ``LOOPS_FACTOR`` times the planned
+    count. Before each loop the pose the world reports sets what is left, and the loop
+    is fitted again to its share of it: the k-th root with k the nominal loop count for
+    what is left (at least 2, so a loop never aims at all of it and a loop that moved
+    more or less than the model said is made up for by the next)."""
     robot = runner.robot
     loop = route.loop
-    pieces = route.pieces()
-    total = len(pieces)
-    loops_left = route.count
-    for index, (kind, _) in enumerate(pieces):
-        if kind == "loop":
-            # the rest: this loop and those after it, then the move back to the start
-            wanted = loop_target(
-                robot, route.start, loop.hub, se2.relative(pose, goal), loops_left, entered=True
-            )
-            refit = solve_loop(
-                robot,
-                loop.hub,
-                wanted,
-                body_length(robot),
-                [loop.coefficients],
-                solve_accuracy(robot, tol),
-            )
-            loop = refit or loop  # a failed fit keeps the last loop: the next one corrects
-            angles = loop.angles()
-            loops_left -= 1
-        else:
-            angles = route.enter if kind == "to hub" else route.leave
+    leave = route.leave
+    back = path_motion(robot, leave) if len(leave) > 1 else np.zeros(3)
+    most = LOOPS_FACTOR * route.count
+    total = most + 2
+    pose = np.zeros(3)
+    done = 0
+
+    def play(kind: str, angles: np.ndarray) -> None:
+        nonlocal pose, done
         before = pose
         pose = runner.play(angles, period_ms)
         moved = se2.relative(before, pose)
@@ -246,11 +231,33 @@ def _follow(
             {
                 "kind": kind,
                 "frames": len(angles) - 1,
-                "refitted": kind == "loop",
                 "pose": pose_dict(pose),
                 "motion": {"dx": float(moved[0]), "dy": float(moved[1]), "dtheta": float(moved[2])},
             }
         )
+        done += 1
         if progress is not None:
-            progress(index + 1, total)
+            progress(done, total)
+
+    if len(route.enter) > 1:
+        play("to hub", route.enter)
+    for _ in range(most):
+        d, h = pose_error(se2.compose(pose, back), goal)
+        if d <= STOP_SHARE * tol.position and abs(h) <= STOP_SHARE * tol.heading:
+            break
+        remaining = se2.relative(pose, goal)
+        count = loop_counts(robot, remaining, most)[0]
+        wanted = loop_target(robot, route.start, loop.hub, remaining, count, entered=True)
+        refit = solve_loop(
+            robot,
+            loop.hub,
+            wanted,
+            body_length(robot),
+            [loop.coefficients],
+            solve_accuracy(robot, tol),
+        )
+        loop = refit or loop  # a failed fit keeps the last loop: the next one corrects
+        play("loop", loop.angles())
+    if len(leave) > 1:
+        play("to start", leave)
     return pose

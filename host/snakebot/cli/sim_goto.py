@@ -56,9 +56,10 @@ def goto(
     The plan of `snakebot plan` (start -> hub, loops, back) is played segment by segment
     on the emulated bus, the host as bus master running the controller's player. After
     each segment the body's pose is read from the world, as a camera or motion capture
-    would on the real robot, and the next loop is fitted again to what is left of the
-    way; if the end is still outside the tolerance, a fresh plan starts from there (three
-    plans at most). The report gives the final error and the path.
+    would on the real robot, and the next loop is fitted again to its share of what is
+    left of the way; loops go on until the move back would end within half the tolerance
+    (three times the planned loops at most). The report gives the final error and the
+    path; the exit status is 1 if the end is outside the tolerance.
 
     \b
     Example:

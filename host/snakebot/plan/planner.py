@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from snakebot.gait.common import Gait, motion, path, table_motion
+from snakebot.gait.common import Gait, motion, motion_frame, path, table_motion
 from snakebot.gait.field import SPEED_MARGIN
 from snakebot.gait.limits import check_ticks
 from snakebot.gaittable import max_frames
@@ -224,8 +224,7 @@ class Plan:
         d, h = self.error
         return {
             "robot": self.robot.name,
-            "frame": "start pose: x along the start heading, y to its left, theta "
-            "counter-clockwise (" + self.gait.summary()["frame"] + ")",
+            "frame": motion_frame(self.robot),
             "target": pose_dict(self.target),
             "predicted_final": pose_dict(self.reached),
             "error": {

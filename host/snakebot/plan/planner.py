@@ -13,11 +13,15 @@ only the leading order. The solver starts from several deterministic guesses (fo
 snake, a serpenoid wave among them), tries the robot's hubs in turn and k from a nominal
 count up to what the controller's table holds.
 
-The table is then rounded to ticks, timed to the servos' speed (frame period a whole
-number of controller ticks), checked against the joint limits, and its motion as played
-(``gait.common.table_motion``) must end at the target within the tolerance; rounding
-errors are fed back into the target twice if needed. A target that no hub and no k
-reaches within the table's size raises ``Unreachable``."""
+The table is then written in ticks loop by loop, re-planned on the way as the thesis
+re-evaluates its fields: before each loop, what is left (from the pose the loops so
+far reach as played) is split over the loops to come, and the loop, rounded to ticks,
+is nudged tick by tick (refitted first if that is not enough) to its share, so the
+rounding does not compound over the loops. The table is timed to the servos' speed
+(frame period a whole number of controller ticks), checked against the joint limits,
+and its motion as played (``gait.common.table_motion``) must end at the target within
+the tolerance; else the next route is tried. A target that no hub and no k reaches
+within the table's size raises ``Unreachable``."""
 
 from __future__ import annotations
 

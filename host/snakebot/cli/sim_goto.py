@@ -14,6 +14,8 @@ import click
 import snakebot.transport.ports  # noqa: F401  (registers sim://)
 from snakebot.cli.plan import FROM_OPTION, TO_OPTION, tolerance_options, unreachable
 from snakebot.plan import Unreachable
+from snakebot.plan.goto import WORLDS
+from snakebot.plan.goto import goto as run_goto
 
 
 @click.command("goto")
@@ -23,7 +25,7 @@ from snakebot.plan import Unreachable
 @tolerance_options
 @click.option(
     "--world",
-    type=click.Choice(["kinematic", "mujoco"]),
+    type=click.Choice(WORLDS),
     default="kinematic",
     show_default=True,
     help="what moves the body: the minimum-slip model, or MuJoCo's physics (wheels that "
@@ -65,7 +67,6 @@ def goto(
     Example:
       snakebot sim goto trident --to 2,1,30deg --plot goto.png
     """
-    from snakebot.plan.goto import goto as run_goto
     from snakebot.robots import load_robot
 
     chosen = load_robot(robot)

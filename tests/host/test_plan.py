@@ -133,3 +133,9 @@ def test_plan_uploads_and_plays_on_the_controller(controller, tmp_path):
     assert controller.active_table() == out.read_bytes()
     played = cli_json("play", "--port", controller.device)
     assert played["state"] == "PLAYING" and played["loop"] is False
+
+
+def test_a_robot_without_a_wheel_model_is_refused_with_exit_2(tmp_path):
+    result = run("plan", "car", "--to", "1,0,0", "-o", tmp_path / "car.gait")
+    assert result.exit_code == 2
+    assert "snake or a trident" in result.output and not (tmp_path / "car.gait").exists()

@@ -308,6 +308,12 @@ def loop_counts(robot: Robot, target: np.ndarray, most: int) -> list[int]:
 
 
 def validate_start(robot: Robot, start: np.ndarray) -> None:
+    """PlanError unless ``robot`` has a wheel model and ``start`` is inside its limits."""
+    if robot.kind not in ("snake", "trident"):
+        raise PlanError(
+            f"{robot.name} is a {robot.kind}, which has a field model only (no wheel-by-wheel "
+            "model to plan with): plan for a snake or a trident (snake3, snake5, trident)"
+        )
     lo = np.array([j.min_rad for j in robot.joints])
     hi = np.array([j.max_rad for j in robot.joints])
     if len(start) != robot.n_joints:

@@ -14,7 +14,7 @@ import click
 import snakebot.transport.ports  # noqa: F401  (registers sim://)
 from snakebot.cli.plan import FROM_OPTION, TO_OPTION, tolerance_options, unreachable
 from snakebot.plan import Unreachable
-from snakebot.plan.goto import WORLDS
+from snakebot.plan.goto import MAX_SLOWDOWN, WORLDS
 from snakebot.plan.goto import goto as run_goto
 
 
@@ -30,6 +30,12 @@ from snakebot.plan.goto import goto as run_goto
     show_default=True,
     help="what moves the body: the minimum-slip model, or MuJoCo's physics (wheels that "
     "slip) where this build has it",
+)
+@click.option(
+    "--slowdown",
+    type=click.IntRange(1, MAX_SLOWDOWN),
+    help="play the frames this many times slower than the servos allow (default: 1 on the "
+    "kinematic world, 3 on mujoco, where slower loops slip less)",
 )
 @click.option(
     "--ideal",
@@ -49,6 +55,7 @@ def goto(
     tolerance: float,
     heading_tolerance: float,
     world: str,
+    slowdown: int | None,
     ideal: bool,
     plot: Path | None,
     as_json: bool,
@@ -60,7 +67,7 @@ def goto(
     each segment the body's pose is read from the world, as a camera or motion capture
     would on the real robot, and the next loop is fitted again to its share of what is
     left of the way; loops go on until the move back would end within half the tolerance
-    (three times the planned loops at most). The report gives the final error and the
+    (five times the planned loops at most). The report gives the final error and the
     path; the exit status is 1 if the end is outside the tolerance.
 
     \b
@@ -84,6 +91,7 @@ def goto(
                 start=tuple(start) if start else None,
                 world=world,
                 ideal=ideal,
+                slowdown=slowdown,
                 tolerance=tolerance,
                 heading_tolerance=heading_tolerance,
                 progress=None if as_json else progress,

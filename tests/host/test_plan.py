@@ -139,3 +139,18 @@ def test_a_robot_without_a_wheel_model_is_refused_with_exit_2(tmp_path):
     result = run("plan", "car", "--to", "1,0,0", "-o", tmp_path / "car.gait")
     assert result.exit_code == 2
     assert "snake or a trident" in result.output and not (tmp_path / "car.gait").exists()
+
+
+def test_a_plan_near_a_singular_configuration_is_warned_about(monkeypatch):
+    """Plans keep clear of singular configurations (no warning at the documented
+    threshold); a plan whose table comes within the threshold is named on stderr and in
+    the JSON, with its condition number (here: the threshold raised above every plan)."""
+    quiet = CliRunner().invoke(main, ["plan", "trident", "--to", "0.5,0.2,10deg", "--json"])
+    assert quiet.exit_code == 0, quiet.output
+    assert json.loads(quiet.stdout)["warnings"] == []
+    monkeypatch.setattr("snakebot.gait.common.NEAR_SINGULAR_RCOND", 2.0)
+    loud = CliRunner().invoke(main, ["plan", "trident", "--to", "0.5,0.2,10deg", "--json"])
+    assert loud.exit_code == 0, loud.output
+    (warning,) = json.loads(loud.stdout)["warnings"]
+    assert warning["kind"] == "near_singular" and warning["condition"] > 0.5
+    assert "plan as written" in loud.stderr and "condition number" in loud.stderr

@@ -167,6 +167,8 @@ def plan_command(
             from snakebot.plots import plot_gait
 
             summary["plot"] = str(plot_gait(table, plot))
+    for warning in summary["warnings"]:
+        click.echo(f"warning: {warning['message']}", err=True)
     if as_json:
         click.echo(json.dumps(summary, indent=2))
         return

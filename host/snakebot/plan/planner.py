@@ -32,7 +32,14 @@ from typing import Any
 
 import numpy as np
 
-from snakebot.gait.common import Gait, motion, motion_frame, path, table_motion
+from snakebot.gait.common import (
+    Gait,
+    motion,
+    motion_frame,
+    path,
+    singularity_warnings,
+    table_motion,
+)
 from snakebot.gait.field import SPEED_MARGIN
 from snakebot.gait.limits import check_ticks
 from snakebot.gaittable import max_frames
@@ -245,6 +252,7 @@ class Plan:
             "frames": len(self.gait.ticks),
             "frame_period_ms": self.gait.period_ms,
             "duration_s": round(self.gait.duration_s, 6),
+            "warnings": self.gait.warnings,
         }
 
 
@@ -494,4 +502,5 @@ def _gait(
         {**moved, **note},
         path(table_traj),
         path(table_traj),
+        warnings=singularity_warnings({"plan as written": table_traj}),
     )

@@ -1,0 +1,151 @@
+"""The servos enforce the robot's limits (issue #17): the firmware in QEMU, on an emulated
+bus of three AX-12s, makes each servo's CW/CCW Angle Limit equal to the robot's limits
+set from the host, writing the servo's EEPROM only where it differs and reading it back;
+refuses tables that reach beyond those limits; and will not move while a servo has not
+taken them. Under bus corruption no servo accepts a goal outside them (the campaigns
+``servo-limits-*``, run here for a few seconds; ``python -m tools.campaigns --only
+servo-limits-5pct --seconds 120`` for the long run)."""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from firmware_support import build_firmware
+
+from snakebot.controller import Command, ControllerErrors, LimitsState, State, UploadResult
+from snakebot.controller.limits import LimitsError, limits_state, set_limits
+from snakebot.gaittable import GaitTable
+from snakebot.sim.faults import FaultConfig
+from tools.campaigns import FRAMES, IDS, LIMITS, PERIOD_MS, Rig, gait_table, run
+
+pytestmark = pytest.mark.qemu
+
+ROBOT = dict(zip(IDS, LIMITS, strict=True))
+FACTORY = (0, 1023)  # an AX-12's angle limits as shipped
+
+
+@pytest.fixture(scope="module", autouse=True)
+def firmware() -> None:
+    build_firmware()
+
+
+@pytest.fixture
+def rig() -> Iterator[Rig]:
+    with tempfile.TemporaryDirectory(prefix="snakebot-limits-") as tmp:
+        with Rig(FaultConfig(seed=1), Path(tmp)) as r:
+            yield r
+
+
+def preset(rig: Rig, servo_id: int, limits: tuple[int, int]) -> None:
+    """Give a servo these angle limits in its EEPROM, as a previous run would have."""
+    with rig.server.lock:
+        servo = rig.bus.servo(servo_id)
+        servo.set_register("CW Angle Limit", limits[0])
+        servo.set_register("CCW Angle Limit", limits[1])
+
+
+def held(rig: Rig) -> list[tuple[int, int]]:
+    with rig.server.lock:
+        return [s.angle_limits() for s in rig.servos]
+
+
+def writes(rig: Rig) -> list[int]:
+    with rig.server.lock:
+        return [s.angle_limit_writes for s in rig.servos]
+
+
+def wait_settled(rig: Rig, timeout_s: float = 10.0) -> str:
+    deadline = time.monotonic() + timeout_s
+    while (state := limits_state(rig.ctl)[0]) == "APPLYING" and time.monotonic() < deadline:
+        time.sleep(0.05)
+    return state
+
+
+def test_servos_take_the_robot_limits_written_only_where_they_differ(rig):
+    preset(rig, 1, LIMITS[0])  # servo 1 holds them already; 2 and 3 are as shipped
+    assert held(rig) == [LIMITS[0], FACTORY, FACTORY]
+    assert limits_state(rig.ctl) == ("NONE", 0)
+
+    report = set_limits(rig.ctl, ROBOT)
+
+    assert (report.state, report.count) == ("VERIFIED", 3)
+    assert held(rig) == list(LIMITS)
+    assert writes(rig) == [0, 1, 1]  # one EEPROM write each where they differed, none else
+    # a new roster (the table's commit) checks them again: read, equal, nothing written
+    assert rig.upload(gait_table()) == UploadResult.OK
+    assert wait_settled(rig) == "VERIFIED"
+    assert writes(rig) == [0, 1, 1]
+    # a servo whose limits were changed behind the controller's back (say, swapped for a
+    # spare) is put right at the next roster change: here, empty the roster and restore it
+    preset(rig, 3, FACTORY)
+    rig.write({"Joint Count": 0})
+    rig.write({"Joint Count": 3})
+    assert wait_settled(rig) == "VERIFIED"
+    assert held(rig) == list(LIMITS)
+    assert writes(rig) == [0, 1, 2]
+    # and it plays
+    rig.command(Command.PLAY)
+    assert rig.ctl.read("State")["State"] == State.PLAYING
+
+
+def test_a_table_wider_than_the_robot_limits_is_refused(rig):
+    set_limits(rig.ctl, ROBOT)
+    assert rig.upload(gait_table()) == UploadResult.OK
+    before = rig.ctl.read("Table Size", "Table CRC")
+    wide = tuple((lo - 100, hi + 100) for lo, hi in LIMITS)  # e.g. +-145 deg vs the robot's
+    frames = FRAMES.copy()
+    frames[0] = [hi + 100 for _, hi in LIMITS]
+    table = GaitTable(IDS, PERIOD_MS, True, wide, frames, {}).encode()
+    assert rig.upload(table) == UploadResult.OUTSIDE_ROBOT_LIMITS
+    after = rig.ctl.read("Table Size", "Table CRC", "Error Flags")
+    assert after["Error Flags"] & ControllerErrors.UPLOAD_LAYOUT
+    assert (after["Table Size"], after["Table CRC"]) == (before["Table Size"], before["Table CRC"])
+    # a servo the robot's limits do not cover is refused too
+    other = GaitTable((1, 2, 9), PERIOD_MS, True, LIMITS, FRAMES, {}).encode()
+    assert rig.upload(other) == UploadResult.OUTSIDE_ROBOT_LIMITS
+    # narrower limits set after the table: the old table may not play any more
+    set_limits(rig.ctl, {sid: (lo + 50, hi - 50) for sid, (lo, hi) in ROBOT.items()})
+    rig.command(Command.PLAY)
+    r = rig.ctl.read("State", "Error Flags")
+    assert r["State"] == State.IDLE and r["Error Flags"] & ControllerErrors.REFUSED
+
+
+def test_malformed_robot_limits_are_refused(rig):
+    with pytest.raises(LimitsError, match="BAD_ROBOT_LIMITS"):
+        set_limits(rig.ctl, {1: (700, 300)})
+    assert limits_state(rig.ctl) == ("NONE", 0)
+
+
+def test_a_servo_that_will_not_take_them_stops_the_controller_from_moving(rig):
+    assert rig.upload(gait_table()) == UploadResult.OK
+    with rig.server.lock:
+        rig.bus.servo(2).set_register("Lock", 1)  # EEPROM writes refused until power-off
+    with pytest.raises(LimitsError, match="FAILED"):
+        set_limits(rig.ctl, ROBOT, timeout_s=20.0)
+    assert held(rig)[1] == FACTORY
+    assert rig.ctl.read("Limits State")["Limits State"] == LimitsState.FAILED
+    assert rig.ctl.read("Error Flags")["Error Flags"] & ControllerErrors.LIMITS
+    rig.command(Command.PLAY)
+    r = rig.ctl.read("State", "Error Flags")
+    assert r["State"] == State.IDLE and r["Error Flags"] & ControllerErrors.REFUSED
+    # unlocked (power-cycled), CLEAR checks again, and it may move
+    with rig.server.lock:
+        rig.bus.servo(2).set_register("Lock", 0)
+    rig.command(Command.CLEAR)
+    assert wait_settled(rig, 20.0) == "VERIFIED"
+    assert held(rig) == list(LIMITS)
+    rig.command(Command.PLAY)
+    assert rig.ctl.read("State")["State"] == State.PLAYING
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["servo-limits-1pct", "servo-limits-5pct"])
+def test_no_servo_accepts_a_goal_outside_the_limits_under_corruption(name):
+    outcome = run(name, 1)
+    assert outcome.ok, "; ".join(outcome.problems)
+    assert outcome.counts["corrupted_bytes"] > 0 and outcome.counts["goals"] > 0
+    assert outcome.counts["servo_goals_accepted_outside"] == 0

@@ -13,19 +13,26 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
-from firmware_support import build_firmware
+from controller_cli_support import cli, cli_json, save, wave_table
+from firmware_support import QEMU_DIR, build_firmware, wait_for_boot
 
 from snakebot.controller import Command, ControllerErrors, LimitsState, State, UploadResult
 from snakebot.controller.limits import LimitsError, limits_state, set_limits
 from snakebot.gaittable import GaitTable
+from snakebot.robots import load_robot
 from snakebot.sim.faults import FaultConfig
+from snakebot.sim.options import SimOptions
+from snakebot.sim.qemu import Endpoint, QemuFirmware
+from snakebot.sim.transports.unixsock import UnixSocketServer
 from tools.campaigns import FRAMES, IDS, LIMITS, PERIOD_MS, Rig, gait_table, run
 
 pytestmark = pytest.mark.qemu
 
 ROBOT = dict(zip(IDS, LIMITS, strict=True))
 FACTORY = (0, 1023)  # an AX-12's angle limits as shipped
+ENV = {"SNAKEBOT_MARGIN_MS": "300"}  # QEMU shares a loaded machine
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -149,3 +156,41 @@ def test_no_servo_accepts_a_goal_outside_the_limits_under_corruption(name):
     assert outcome.ok, "; ".join(outcome.problems)
     assert outcome.counts["corrupted_bytes"] > 0 and outcome.counts["goals"] > 0
     assert outcome.counts["servo_goals_accepted_outside"] == 0
+
+
+def test_limits_set_from_the_robot_file_then_a_wider_table_is_refused(tmp_path):
+    """`snakebot limits set snake5`, then a table made for +-145 degree joints on the same
+    servo IDs: refused by the controller with the reason and the fix; snake5's own
+    table is taken."""
+    robot = load_robot("snake5")
+    wanted = [tuple(lim) for lim in robot.tick_limits]
+    sock = tmp_path / "bus.sock"
+    bus = SimOptions(robot="snake5").build_bus()
+    with (
+        UnixSocketServer(bus, sock) as server,
+        QemuFirmware(QEMU_DIR / "flash.bin", bus=Endpoint.unix_client(sock)) as fw,
+    ):
+        port = fw.ports.pc_link
+        wait_for_boot(port)
+        assert cli_json("limits", "show", "--port", port, env=ENV) == {"state": "NONE", "count": 0}
+        report = cli_json("limits", "set", "snake5", "--port", port, env=ENV)
+        assert (report["state"], report["count"]) == ("VERIFIED", len(wanted))
+        with server.lock:
+            held = [
+                (bus.servo(i).regs.get("CW Angle Limit"), bus.servo(i).regs.get("CCW Angle Limit"))
+                for i in robot.servo_ids
+            ]
+        assert held == wanted
+        shown = cli_json("limits", "show", "--port", port, env=ENV)
+        assert shown == {"state": "VERIFIED", "count": len(wanted)}
+
+        # +-145 degrees (24..1000) on the same servos, goals out to 896 and 198
+        wave = wave_table(robot.servo_ids)
+        frames = np.array(wave.frames)
+        frames[0], frames[1] = 896, 198
+        wide = GaitTable(wave.joint_ids, 20, True, ((24, 1000),) * len(wanted), frames, {})
+        result = cli("upload", save(wide, tmp_path, "wide.gait"), "--port", port, env=ENV)
+        assert result.exit_code == 2, result.output  # the table is at fault: bad input
+        assert "OUTSIDE_ROBOT_LIMITS" in result.stderr and "limits set" in result.stderr
+        own = GaitTable(wave.joint_ids, 20, True, tuple(wanted), wave.frames, {})
+        assert cli_json("upload", save(own, tmp_path), "--port", port, env=ENV)["bytes"] > 0

@@ -273,17 +273,16 @@ static uint16_t top_tick(void)
 
 /* Robot limits as staged: a count N (1..18), then N records of servo ID, min tick, max
  * tick (u8, u16, u16); IDs distinct, min < max <= the top position tick. */
-#define LIMITS_RECORD 5u
-static uint8_t commit_limits(ctl_device *d, uint32_t len)
+static uint8_t apply_limits(ctl_device *d, const uint8_t *blob, size_t len)
 {
-    uint8_t n = d->staging[0];
-    if (n == 0 || n > CTL_MAX_JOINTS || len != 1u + LIMITS_RECORD * n) {
+    uint8_t n = len > 0 ? blob[0] : 0u;
+    if (n == 0 || n > CTL_MAX_JOINTS || len != 1u + CTL_LIMITS_RECORD * n) {
         return CTL_UPLOAD_RESULT_BAD_ROBOT_LIMITS;
     }
     uint8_t ids[CTL_MAX_JOINTS];
     uint16_t mins[CTL_MAX_JOINTS], maxs[CTL_MAX_JOINTS];
     for (uint8_t k = 0; k < n; k++) {
-        const uint8_t *r = d->staging + 1 + LIMITS_RECORD * k;
+        const uint8_t *r = blob + 1 + CTL_LIMITS_RECORD * k;
         ids[k] = r[0];
         mins[k] = (uint16_t)get_le(r + 1, 2);
         maxs[k] = (uint16_t)get_le(r + 3, 2);
@@ -304,6 +303,7 @@ static uint8_t commit_limits(ctl_device *d, uint32_t len)
         if (j->min < lo) j->min = lo;
         if (j->max > hi) j->max = hi;
     }
+    d->limits_changed = 1;
     return GT_OK;
 }
 
@@ -320,7 +320,7 @@ static void commit(ctl_device *d, uint8_t what)
     } else if (crc32_compute(d->staging, len) != crc) {
         result = CTL_UPLOAD_RESULT_TRANSFER_CRC;
     } else if (what == CTL_UPLOAD_COMMIT_LIMITS) {
-        result = commit_limits(d, len);
+        result = apply_limits(d, d->staging, len);
     } else {
         result = check_table(d, d->staging, len, &info);
         if (result == GT_OK) activate(d, d->staging, len, crc, &info);
@@ -659,6 +659,7 @@ void ctl_init(ctl_device *d)
     d->active_len = 0;
     d->out_count = 0;
     d->table_changed = 0;
+    d->limits_changed = 0;
 }
 
 bool ctl_load_table(ctl_device *d, const uint8_t *table, size_t len)
@@ -668,6 +669,32 @@ bool ctl_load_table(ctl_device *d, const uint8_t *table, size_t len)
     if (check_table(d, table, len, &info) != GT_OK) return false;
     activate(d, table, len, crc32_compute(table, len), &info);
     return true;
+}
+
+bool ctl_load_limits(ctl_device *d, const uint8_t *blob, size_t len)
+{
+    return apply_limits(d, blob, len) == GT_OK;
+}
+
+size_t ctl_robot_limits(const ctl_device *d, uint8_t *out, size_t cap)
+{
+    uint8_t n = bus_limits_count(&d->bus);
+    if (n == 0 || cap < 1u + CTL_LIMITS_RECORD * n) return 0;
+    out[0] = n;
+    for (uint8_t k = 0; k < n; k++) {
+        uint8_t *r = out + 1 + CTL_LIMITS_RECORD * k;
+        r[0] = d->bus.lim_id[k];
+        put_le(r + 1, 2, d->bus.lim_min[k]);
+        put_le(r + 3, 2, d->bus.lim_max[k]);
+    }
+    return 1u + CTL_LIMITS_RECORD * n;
+}
+
+bool ctl_limits_changed(ctl_device *d)
+{
+    bool changed = d->limits_changed != 0;
+    d->limits_changed = 0;
+    return changed;
 }
 
 bool ctl_pc_feed(ctl_device *d, uint8_t byte)

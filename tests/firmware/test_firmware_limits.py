@@ -16,11 +16,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 from controller_cli_support import cli, cli_json, save, wave_table
+from ctl_support import CTL, CTL_ID, Device, ffi, lib
 from firmware_support import QEMU_DIR, build_firmware, wait_for_boot
 
 from snakebot.controller import Command, ControllerErrors, LimitsState, State, UploadResult
-from snakebot.controller.limits import LimitsError, limits_state, set_limits
+from snakebot.controller.limits import LimitsError, encode_limits, limits_state, set_limits
+from snakebot.controller.upload import chunk_writes, commit_write
 from snakebot.gaittable import GaitTable
+from snakebot.protocol import write
 from snakebot.robots import load_robot
 from snakebot.sim.faults import FaultConfig
 from snakebot.sim.options import SimOptions
@@ -194,3 +197,30 @@ def test_limits_set_from_the_robot_file_then_a_wider_table_is_refused(tmp_path):
         assert "OUTSIDE_ROBOT_LIMITS" in result.stderr and "limits set" in result.stderr
         own = GaitTable(wave.joint_ids, 20, True, tuple(wanted), wave.frames, {})
         assert cli_json("upload", save(own, tmp_path), "--port", port, env=ENV)["bytes"] > 0
+
+
+def test_the_limits_kept_in_flash_come_back_as_they_were_set():
+    """What the firmware stores after a LIMITS commit (ctl_robot_limits) is what it loads
+    at start (ctl_load_limits) on a fresh controller: the same limits, and a table beyond
+    them refused as before; a malformed record is not loaded."""
+    first = Device()
+    blob = encode_limits(ROBOT)
+    for address, data in chunk_writes(blob, controller=CTL):
+        assert first.one(write(CTL_ID, address, data)).error == 0
+    assert first.one(write(CTL_ID, *commit_write(blob, CTL, what="LIMITS"))).error == 0
+    assert first.get("Upload Result") == UploadResult.OK
+    assert lib.ctl_limits_changed(first.d) and not lib.ctl_limits_changed(first.d)
+    out = ffi.new("uint8_t[]", 128)
+    kept = bytes(ffi.buffer(out, lib.ctl_robot_limits(first.d, out, 128)))
+    assert kept == blob
+
+    after_reset = Device()
+    assert lib.ctl_load_limits(after_reset.d, kept, len(kept))
+    assert after_reset.get("Limits Count") == len(ROBOT)
+    assert after_reset.get("Limits State") == LimitsState.APPLYING  # the servos are checked
+    wide = tuple((lo - 1, hi) for lo, hi in LIMITS)
+    assert after_reset.upload(GaitTable(IDS, PERIOD_MS, True, wide, FRAMES, {}).encode()) == (
+        UploadResult.OUTSIDE_ROBOT_LIMITS
+    )
+    assert after_reset.upload(gait_table()) == UploadResult.OK
+    assert not lib.ctl_load_limits(Device().d, kept[:-1], len(kept) - 1)

@@ -9,7 +9,6 @@ servo-limits-5pct --seconds 120`` for the long run)."""
 from __future__ import annotations
 
 import tempfile
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -20,7 +19,13 @@ from ctl_support import CTL, CTL_ID, Device, ffi, lib
 from firmware_support import QEMU_DIR, build_firmware, wait_for_boot
 
 from snakebot.controller import Command, ControllerErrors, LimitsState, State, UploadResult
-from snakebot.controller.limits import LimitsError, encode_limits, limits_state, set_limits
+from snakebot.controller.limits import (
+    LimitsError,
+    encode_limits,
+    limits_state,
+    set_limits,
+    wait_settled,
+)
 from snakebot.controller.upload import chunk_writes, commit_write
 from snakebot.gaittable import GaitTable
 from snakebot.protocol import write
@@ -68,11 +73,8 @@ def writes(rig: Rig) -> list[int]:
         return [s.angle_limit_writes for s in rig.servos]
 
 
-def wait_settled(rig: Rig, timeout_s: float = 10.0) -> str:
-    deadline = time.monotonic() + timeout_s
-    while (state := limits_state(rig.ctl)[0]) == "APPLYING" and time.monotonic() < deadline:
-        time.sleep(0.05)
-    return state
+def settled(rig: Rig, timeout_s: float = 10.0) -> str:
+    return wait_settled(rig.ctl, timeout_s)[0]
 
 
 def test_servos_take_the_robot_limits_written_only_where_they_differ(rig):
@@ -87,14 +89,14 @@ def test_servos_take_the_robot_limits_written_only_where_they_differ(rig):
     assert writes(rig) == [0, 1, 1]  # one EEPROM write each where they differed, none else
     # a new roster (the table's commit) checks them again: read, equal, nothing written
     assert rig.upload(gait_table()) == UploadResult.OK
-    assert wait_settled(rig) == "VERIFIED"
+    assert settled(rig) == "VERIFIED"
     assert writes(rig) == [0, 1, 1]
     # a servo whose limits were changed behind the controller's back (say, swapped for a
     # spare) is put right at the next roster change: here, empty the roster and restore it
     preset(rig, 3, FACTORY)
     rig.write({"Joint Count": 0})
     rig.write({"Joint Count": 3})
-    assert wait_settled(rig) == "VERIFIED"
+    assert settled(rig) == "VERIFIED"
     assert held(rig) == list(LIMITS)
     assert writes(rig) == [0, 1, 2]
     # and it plays
@@ -146,7 +148,7 @@ def test_a_servo_that_will_not_take_them_stops_the_controller_from_moving(rig):
     with rig.server.lock:
         rig.bus.servo(2).set_register("Lock", 0)
     rig.command(Command.CLEAR)
-    assert wait_settled(rig, 20.0) == "VERIFIED"
+    assert settled(rig, 20.0) == "VERIFIED"
     assert held(rig) == list(LIMITS)
     rig.command(Command.PLAY)
     assert rig.ctl.read("State")["State"] == State.PLAYING
@@ -197,6 +199,8 @@ def test_limits_set_from_the_robot_file_then_a_wider_table_is_refused(tmp_path):
         assert "OUTSIDE_ROBOT_LIMITS" in result.stderr and "limits set" in result.stderr
         own = GaitTable(wave.joint_ids, 20, True, tuple(wanted), wave.frames, {})
         assert cli_json("upload", save(own, tmp_path), "--port", port, env=ENV)["bytes"] > 0
+        # at once after the upload (a new roster: the servos are being checked) play waits
+        assert cli_json("play", "--port", port, env=ENV)["state"] == "PLAYING"
 
 
 def test_the_limits_kept_in_flash_come_back_as_they_were_set():

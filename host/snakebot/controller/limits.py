@@ -88,6 +88,29 @@ def limits_state(ctl: ControllerClient) -> tuple[str, int]:
     return _state_name(ctl, r["Limits State"]), r["Limits Count"]
 
 
+def wait_settled(ctl: ControllerClient, timeout_s: float = VERIFY_TIMEOUT_S) -> tuple[str, int]:
+    """Wait while the controller checks its servos' angle limits (Limits State APPLYING),
+    at most ``timeout_s``; then (Limits State, Limits Count)."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        state, count = limits_state(ctl)
+        if state != "APPLYING" or time.monotonic() > deadline:
+            return state, count
+        time.sleep(0.05)
+
+
+def not_held(ctl: ControllerClient, state: str, timeout_s: float) -> str:
+    """Why the servos do not hold the robot's limits, and what to do."""
+    flags = ctl.read("Error Flags")["Error Flags"]
+    return (
+        f"the servos' angle limits are {state} after {timeout_s:.0f} s: a servo did not "
+        "answer, or would not store them (Lock is set until it is power-cycled); check "
+        "the servos' power, cables and IDs (`snakebot bus scan`), then send CLEAR "
+        "(`snakebot stop --clear`) or set the limits again (Error Flags: "
+        f"{words.describe_flags(flags, ctl.table)})"
+    )
+
+
 def set_limits(
     ctl: ControllerClient, limits: Limits, *, timeout_s: float = VERIFY_TIMEOUT_S
 ) -> LimitsReport:
@@ -103,20 +126,10 @@ def set_limits(
     if result != ctl.table.enums["Upload Result"]["OK"]:
         name, what, fix = words.upload_result_reason(result, ctl.table)
         raise LimitsError(f"the controller refused the robot's limits ({name}: {what}): {fix}")
-    deadline = time.monotonic() + timeout_s
-    while True:
-        state, count = limits_state(ctl)
-        if state != "APPLYING" or time.monotonic() > deadline:
-            break
-        time.sleep(0.05)
+    state, count = wait_settled(ctl, timeout_s)
     flags = ctl.read("Error Flags")["Error Flags"]
     if state != "VERIFIED":
-        raise LimitsError(
-            f"the servos' angle limits are {state} after {timeout_s:.0f} s: a servo did not "
-            "answer, or would not store them (Lock is set until it is power-cycled); check "
-            "the servos' power, cables and IDs (`snakebot bus scan`), then send CLEAR or set "
-            f"the limits again (Error Flags: {words.describe_flags(flags, ctl.table)})"
-        )
+        raise LimitsError(not_held(ctl, state, timeout_s))
     return LimitsReport(
         dict(limits), state, count, time.monotonic() - t0, words.flag_names(flags, ctl.table)
     )

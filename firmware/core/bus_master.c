@@ -324,6 +324,11 @@ void bus_set_limits(bus_master *b, const uint8_t *ids, const uint16_t *mins,
 
 void bus_recheck_limits(bus_master *b)
 {
+    /* a reply still due belongs to the old check: it must not count for the new one */
+    if (b->awaiting != NO_READ && b->awaiting_kind != AWAIT_TELEMETRY) {
+        b->awaiting = NO_READ;
+        b->rx_len = 0;
+    }
     b->lim_next = 0;
     b->lim_phase = LIM_READ;
     b->lim_tries = 0;

@@ -28,7 +28,7 @@ from snakebot.controller.limits import (
 )
 from snakebot.controller.upload import chunk_writes, commit_write
 from snakebot.gaittable import GaitTable
-from snakebot.protocol import write
+from snakebot.protocol import read, status, write
 from snakebot.robots import load_robot
 from snakebot.sim.faults import FaultConfig
 from snakebot.sim.options import SimOptions
@@ -228,3 +228,50 @@ def test_the_limits_kept_in_flash_come_back_as_they_were_set():
     )
     assert after_reset.upload(gait_table()) == UploadResult.OK
     assert not lib.ctl_load_limits(Device().d, kept[:-1], len(kept) - 1)
+
+
+def _bus_with_limits(ids: list[int], mins: list[int], maxs: list[int]):
+    mem = ffi.new("uint8_t[]", lib.bus_master_size())
+    b = ffi.cast("bus_master *", mem)
+    lib.bus_init(b)
+    lib.bus_set_limits(b, ids, mins, maxs, len(ids))
+    return mem, b
+
+
+def _tick(b) -> list[tuple[bytes, int]]:
+    """One control tick with no goals: the packets it sends, each with its reply length."""
+    out, txn = ffi.new("uint8_t[]", 128), ffi.new("bus_txn *")
+    lib.bus_begin_tick(b)
+    sent = []
+    while n := lib.bus_next(b, ffi.NULL, ffi.NULL, ffi.NULL, 0, out, 128, txn):
+        sent.append((bytes(ffi.buffer(out, n)), txn.reply_len))
+    return sent
+
+
+def test_a_servo_that_never_answers_fails_the_check_one_read_per_tick():
+    """The check asks again and again, one READ per tick (never two replies awaited in
+    one tick), and gives up after BUS_LIMIT_SILENT unanswered READs in a row."""
+    _mem, b = _bus_with_limits([5], [300], [700])
+    assert lib.bus_limits_state(b) == LimitsState.APPLYING
+    for _ in range(lib.BUS_LIMIT_SILENT):
+        assert lib.bus_limits_state(b) == LimitsState.APPLYING
+        assert _tick(b) == [(read(5, 6, 4), 10)]  # CW/CCW Angle Limit; FF FF id 6 err 4 chk
+    lib.bus_begin_tick(b)  # closes the last READ unanswered
+    assert lib.bus_limits_state(b) == LimitsState.FAILED
+    assert lib.bus_limit_writes(b) == 0
+    lib.bus_recheck_limits(b)
+    assert lib.bus_limits_state(b) == LimitsState.APPLYING
+
+
+def test_a_reply_due_to_the_old_check_does_not_count_for_new_limits():
+    _mem, b = _bus_with_limits([5], [300], [700])
+    out, txn = ffi.new("uint8_t[]", 128), ffi.new("bus_txn *")
+    lib.bus_begin_tick(b)
+    n = lib.bus_next(b, ffi.NULL, ffi.NULL, ffi.NULL, 0, out, 128, txn)
+    assert bytes(ffi.buffer(out, n)) == read(5, 6, 4)  # its reply is now awaited
+    lib.bus_set_limits(b, [6], [300], [700], 1)  # new limits while servo 5's reply is due
+    reply = status(5, 0, bytes([44, 1, 188, 2]))  # 300, 700: what servo 6 should hold
+    assert not lib.bus_rx(b, reply, len(reply))
+    lib.bus_rx_done(b)
+    assert lib.bus_limits_state(b) == LimitsState.APPLYING  # servo 6 not yet read
+    assert _tick(b) == [(read(6, 6, 4), 10)]

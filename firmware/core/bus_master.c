@@ -12,6 +12,7 @@
 #define AWAIT_TELEMETRY 0u
 #define AWAIT_LIMITS 1u
 #define AWAIT_ACK 2u
+#define AWAIT_AUDIT 3u
 /* A status packet: FF FF ID LEN ERR, the data, CHK. */
 #define STATUS_OVERHEAD (BUS_REPLY_BYTES - BUS_TELEMETRY_LENGTH)
 #define LIMITS_BYTES (AX12_CW_ANGLE_LIMIT_SIZE + AX12_CCW_ANGLE_LIMIT_SIZE)
@@ -22,7 +23,7 @@
 
 static uint8_t await_data_bytes(uint8_t kind)
 {
-    return kind == AWAIT_TELEMETRY ? BUS_TELEMETRY_LENGTH : kind == AWAIT_LIMITS ? LIMITS_BYTES : 0u;
+    return kind == AWAIT_TELEMETRY ? BUS_TELEMETRY_LENGTH : kind == AWAIT_ACK ? 0u : LIMITS_BYTES;
 }
 
 size_t bus_master_size(void)
@@ -135,6 +136,23 @@ static bool limits_turn(bus_master *b)
     return b->lim_turn != 0 || b->count == 0;
 }
 
+/* Whether this tick's READ re-reads one verified servo's angle limits (the audit). */
+static bool audit_turn(bus_master *b)
+{
+    if (b->lim_count == 0 || limits_pending(b) || b->lim_failed) return false;
+    if (++b->lim_audit_wait < BUS_LIMIT_AUDIT_TICKS) return false;
+    b->lim_audit_wait = 0;
+    return true;
+}
+
+static size_t audit_packet(bus_master *b, uint8_t *out, size_t cap, bus_txn *txn)
+{
+    uint8_t k = (uint8_t)(b->lim_audit_k % b->lim_count);
+    size_t n = dxl_read(out, cap, b->lim_id[k], AX12_CW_ANGLE_LIMIT, LIMITS_BYTES);
+    if (n > 0) await_reply(b, k, b->lim_id[k], AWAIT_AUDIT, txn);
+    return n;
+}
+
 /* The next step of the limits check: READ the angle limits, or WRITE the robot's. */
 static size_t limits_packet(bus_master *b, uint8_t *out, size_t cap, bus_txn *txn)
 {
@@ -173,6 +191,8 @@ size_t bus_next(bus_master *b, const uint8_t *ids, const uint16_t *goals,
             n = goals_packet(ids, goals, speeds, count, out, cap);
         } else if (step == STEP_READ && limits_turn(b)) {
             n = limits_packet(b, out, cap, txn);
+        } else if (step == STEP_READ && audit_turn(b)) {
+            n = audit_packet(b, out, cap, txn);
         } else if (step == STEP_READ && b->count > 0) {
             uint8_t k = b->next;
             b->next = (uint8_t)((k + 1u) % b->count);
@@ -229,11 +249,28 @@ static void limits_done(bus_master *b, const uint8_t *data)
     }
 }
 
+/* An audit READ came back with data[0..4): on to the next servo, or, if this one's
+ * angle limits changed, check it (and those after it) again. */
+static void audit_done(bus_master *b, const uint8_t *data)
+{
+    uint8_t k = b->awaiting;
+    if (k >= b->lim_count || limits_pending(b) || b->lim_id[k] != b->awaiting_id) return;
+    if (rd16(data) == b->lim_min[k] && rd16(data + 2) == b->lim_max[k]) {
+        b->lim_audit_k = (uint8_t)((k + 1u) % b->lim_count);
+        return;
+    }
+    b->lim_next = k;
+    b->lim_phase = LIM_WRITE;
+    b->lim_tries = 0;
+    b->lim_silent = 0;
+}
+
 static void take_reply(bus_master *b, const uint8_t *packet)
 {
     if (b->awaiting_kind != AWAIT_TELEMETRY) {
         b->taken = 1;
-        limits_done(b, packet + 5);
+        if (b->awaiting_kind == AWAIT_AUDIT) audit_done(b, packet + 5);
+        else limits_done(b, packet + 5);
         return;
     }
     bus_servo *s = &b->servo[b->awaiting];
@@ -289,7 +326,8 @@ void bus_rx_done(bus_master *b)
 {
     if (b->awaiting == NO_READ) return;
     if (b->awaiting_kind != AWAIT_TELEMETRY) {
-        if (!b->taken) limits_done(b, NULL);
+        /* an unanswered audit READ is asked again at the next audit */
+        if (!b->taken && b->awaiting_kind != AWAIT_AUDIT) limits_done(b, NULL);
     } else if (!b->taken) {
         bus_servo *s = &b->servo[b->awaiting];
         if (s->timeout_count < 0xFFu) s->timeout_count++;

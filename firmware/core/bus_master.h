@@ -21,7 +21,10 @@
  * of telemetry (so a tick never waits for more than one reply): READ the servo's angle
  * limits; only if they differ WRITE them (they live in EEPROM, which wears) and READ
  * them back. A servo that will not take them (BUS_LIMIT_TRIES writes), or does not
- * answer (BUS_LIMIT_SILENT reads), leaves the check FAILED. The check runs again after every roster change. */
+ * answer (BUS_LIMIT_SILENT reads), leaves the check FAILED. The check runs again after
+ * every roster change; and once VERIFIED, every BUS_LIMIT_AUDIT_TICKS ticks one servo's
+ * angle limits are read again (round robin), since a damaged packet could have changed
+ * them: one found changed is checked (and written) again. */
 #ifndef SNAKEBOT_BUS_MASTER_H
 #define SNAKEBOT_BUS_MASTER_H
 
@@ -51,6 +54,7 @@
  * packets (5 % of bytes) still gets through, few enough to give up within a second. */
 #define BUS_LIMIT_TRIES 16
 #define BUS_LIMIT_SILENT 48
+#define BUS_LIMIT_AUDIT_TICKS 25
 
 /* What bus_next() produced. */
 typedef struct {
@@ -144,6 +148,8 @@ struct bus_master {
     uint8_t lim_silent;    /* READs without an answer, in a row */
     uint8_t lim_failed;
     uint8_t lim_turn;      /* alternates the tick's READ between telemetry and the check */
+    uint8_t lim_audit_k;   /* the servo the next audit READ asks */
+    uint8_t lim_audit_wait; /* ticks since the last audit READ */
     uint16_t lim_writes;
 };
 

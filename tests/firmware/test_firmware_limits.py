@@ -9,6 +9,7 @@ servo-limits-5pct --seconds 120`` for the long run)."""
 from __future__ import annotations
 
 import tempfile
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -102,6 +103,15 @@ def test_servos_take_the_robot_limits_written_only_where_they_differ(rig):
     # and it plays
     rig.command(Command.PLAY)
     assert rig.ctl.read("State")["State"] == State.PLAYING
+    # while it plays, the controller keeps re-reading the servos' angle limits (a damaged
+    # packet could change them): one changed is written back, with no roster change
+    preset(rig, 2, FACTORY)
+    deadline = time.monotonic() + 10
+    while held(rig) != list(LIMITS) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert held(rig) == list(LIMITS)
+    assert writes(rig) == [0, 2, 2]
+    assert settled(rig) == "VERIFIED"
 
 
 def test_a_table_wider_than_the_robot_limits_is_refused(rig):

@@ -30,6 +30,7 @@ from snakebot.cli.bus import bus  # noqa: E402
 from snakebot.cli.demo import demo  # noqa: E402
 from snakebot.cli.flash import flash_command  # noqa: E402
 from snakebot.cli.gait import gait  # noqa: E402
+from snakebot.cli.limits import limits  # noqa: E402
 from snakebot.cli.model import model  # noqa: E402
 from snakebot.cli.monitor import monitor  # noqa: E402
 from snakebot.cli.plan import plan_command  # noqa: E402
@@ -42,7 +43,20 @@ from snakebot.cli.sim_serve import serve  # noqa: E402
 from snakebot.cli.sim_thesis import friction, thesis  # noqa: E402
 from snakebot.cli.upload import upload  # noqa: E402
 
-for command in (model, gait, sim, upload, play, stop, serpenoid, monitor, bus, flash_command, demo):
+for command in (
+    model,
+    gait,
+    sim,
+    upload,
+    limits,
+    play,
+    stop,
+    serpenoid,
+    monitor,
+    bus,
+    flash_command,
+    demo,
+):
     main.add_command(command)
 for command in (plan_command,):
     main.add_command(command)

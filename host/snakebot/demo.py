@@ -46,6 +46,7 @@ from snakebot.controller.monitor import Sample, render, sample
 from snakebot.controller.playback import play, stop
 from snakebot.controller.uploader import UploadReport, upload_gait
 from snakebot.errors import SnakebotError
+from snakebot.extras import available, install_hint
 from snakebot.gait import serpenoid
 from snakebot.gait.common import PREDICT_OPTIONS
 from snakebot.gaittable import GaitTable, write_gait
@@ -400,7 +401,7 @@ class DemoResult:
     gait: dict[str, Any]
     upload: UploadReport
     comparison: Comparison
-    png: Path
+    png: Path | None  # None without matplotlib
     seconds: float
     monitor: list[dict[str, Any]]
 
@@ -414,7 +415,7 @@ class DemoResult:
             "upload": self.upload.as_dict(),
             "cycles": {"warmup": self.settings.warmup_cycles, "measured": self.settings.cycles},
             **self.comparison.as_dict(),
-            "png": str(self.png),
+            "png": None if self.png is None else str(self.png),
             "monitor": self.monitor,
             "seconds": round(self.seconds, 2),
         }
@@ -494,7 +495,8 @@ def run_demo(settings: DemoSettings | None = None, say: Say = print) -> DemoResu
     comparison = compare(
         robot, table, record, goal_t, goal_ticks, settings.warmup_cycles, settings.cycles
     )
-    png = plot_demo(robot, comparison, out_dir / "demo.png")
+    # The picture needs the `plot` extra; without it the demo still runs and says so.
+    png = plot_demo(robot, comparison, out_dir / "demo.png") if available("matplotlib") else None
     return DemoResult(
         settings,
         info.as_dict(),
@@ -577,6 +579,11 @@ def summary_lines(result: DemoResult) -> list[str]:
         f"{100 * RESIDUAL_SAFETY * c.sensitivity_m_per_rad * c.residual_max_rad:.1f} cm.",
         f"   the firmware played at {c.playback_rate:.2f}x wall-clock speed (its clock in QEMU);"
         " the motion per cycle does not depend on it.",
-        f"6. wrote {result.png} (body path: emulated vs predicted; joint angles: commanded vs "
-        f"measured) and {result.gait_file}; took {result.seconds:.1f} s; nothing left running.",
+        (
+            f"6. wrote {result.png} (body path: emulated vs predicted; joint angles: commanded "
+            f"vs measured) and {result.gait_file}"
+            if result.png is not None
+            else f"6. wrote {result.gait_file}; no picture ({install_hint('matplotlib')} draws one)"
+        )
+        + f"; took {result.seconds:.1f} s; nothing left running.",
     ]

@@ -10,6 +10,7 @@ import click
 import numpy as np
 
 from snakebot.cli.params import ANGLES
+from snakebot.extras import require
 from snakebot.kinematics import default_form, field_model, fields
 from snakebot.robots import load_robot
 
@@ -172,6 +173,7 @@ def fields_command(
 
 
 def _print_symbolic(rb: Any, form: str, as_json: bool) -> None:
+    require("sympy", "--symbolic")
     from snakebot.symbolic.display import field_expressions
 
     ex = field_expressions(rb, form if rb.kind == "trident" else "body")

@@ -11,6 +11,7 @@ from typing import Any
 import click
 
 import snakebot.transport.ports  # noqa: F401  (registers sim://)
+from snakebot.extras import require
 from snakebot.sim.predict import DEFAULT_WORLD_HZ, predict_gait
 
 
@@ -77,6 +78,7 @@ def predict(
     result = predict_gait(gait_file, robot, ideal=ideal, world_hz=world_rate)
     summary = result.summary()
     if plot is not None:
+        require("matplotlib", "--plot")
         from snakebot.sim.predict_plot import plot_prediction
 
         summary["plot"] = str(plot_prediction(result, plot))

@@ -19,7 +19,7 @@ from firmware_support import build_firmware
 from snakebot.firmware import SHIPPED, built_image
 from snakebot.paths import REPO_ROOT
 
-pytestmark = [pytest.mark.slow, pytest.mark.qemu, pytest.mark.xdist_group("wheel")]
+pytestmark = [pytest.mark.slow, pytest.mark.qemu]
 
 # The control tables (protocol/*.json) move into the package as snakebot/devices/data in a
 # branch of their own; until it is merged the installed package cannot load them.

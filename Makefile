@@ -22,7 +22,7 @@ TEST_APT    := $(DEMO_APT) clang libclang-rt-14-dev
 TEST_JOBS   ?= 2
 
 .PHONY: help setup system-packages demo-packages python-env runtime-env core firmware \
-        test lint fuzz-targets bench demo flash flash-image clean fuzz
+        test test-parallel lint fuzz-targets bench demo flash flash-image clean fuzz
 
 help:
 	@echo "make demo      run the main job on the emulated robot (does its own set-up)"
@@ -85,14 +85,30 @@ firmware: demo-packages
 
 # The static checks, the firmware and the fuzz targets side by side; then the suite on
 # TEST_JOBS workers, each test file whole in one worker (--dist loadfile: module fixtures,
-# such as the package check's wheel, are made once); then the tests marked `serial`
-# (fault campaigns whose counts need QEMU to keep pace) with nothing beside them.
-# Building first means the workers never compile the same files at the same time; the
-# fuzzing passes (a fixed time each) run at low priority beside the other tests.
+# such as the package check's wheel, are made once), beside the fuzz tests split in two
+# so that the two fuzzing passes overlap; then the tests marked `serial` (fault campaigns
+# whose counts need QEMU to keep pace, dynamixel-sdk's fixed waits) with nothing beside
+# them. A fuzzing pass lasts its fixed time whatever its priority, so it runs niced and
+# yields the CPU to the tests beside it. Building first means no two processes compile
+# the same files at the same time.
+FUZZ_TESTS  := tests/reliability/test_fuzz_targets.py
+FUZZ_K_1    := fuzz_pclink
+FUZZ_K_2    := not fuzz_pclink
 test: system-packages python-env
 	$(Q)$(MAKE) --no-print-directory -j$(TEST_JOBS) lint firmware fuzz-targets
-	$(Q)FUZZ_NICE=10 $(PY) -m pytest -n $(TEST_JOBS) --dist loadfile -m "not serial"
+	$(Q)$(MAKE) --no-print-directory -j3 test-parallel test-fuzz-1 test-fuzz-2
 	$(Q)$(PY) -m pytest -m serial
+
+test-parallel:
+	$(Q)$(PY) -m pytest -n $(TEST_JOBS) --dist loadfile -m "not serial" --ignore=$(FUZZ_TESTS)
+
+# Each half writes a log, shown whole if it fails (one line if not), so outputs do not mix.
+test-fuzz-%:
+	@mkdir -p build
+	$(Q)FUZZ_LAUNCH="nice -n 10" $(PY) -m pytest -q -p no:cacheprovider $(FUZZ_TESTS) \
+	    -k "$(FUZZ_K_$*)" > build/test-fuzz-$*.log 2>&1 \
+	    && echo "fuzz tests ($(FUZZ_K_$*)): $$(tail -n1 build/test-fuzz-$*.log)" \
+	    || { cat build/test-fuzz-$*.log; exit 1; }
 
 fuzz-targets:
 	$(Q)$(MAKE) --no-print-directory -C fuzz all

@@ -22,7 +22,7 @@ TEST_APT    := $(DEMO_APT) clang libclang-rt-14-dev
 TEST_JOBS   ?= 2
 
 .PHONY: help setup system-packages demo-packages python-env runtime-env core firmware \
-        test test-parallel lint fuzz-targets bench demo flash flash-image clean fuzz
+        test test-parallel lint fuzz-targets bench demo flash flash-image clean fuzz docs
 
 help:
 	@echo "make demo      run the main job on the emulated robot (does its own set-up)"
@@ -32,6 +32,7 @@ help:
 	@echo "make bench     run the benchmarks"
 	@echo "make fuzz FUZZ_SECONDS=60   fuzz the parser and the PC link (libFuzzer, clang)"
 	@echo "make lint      ruff check, ruff format --check, and the Python 3.10 check (vermin)"
+	@echo "make docs      API reference from the docstrings (pdoc) into build/docs/"
 	@echo "make flash PORT=/dev/ttyUSB0   flash the CM-530 through the ROBOTIS bootloader"
 	@echo "V=1 shows the commands (compiler lines included)"
 
@@ -138,6 +139,11 @@ flash:
 
 flash-image: demo-packages runtime-env firmware
 	$(Q)$(PY) -m snakebot flash build/cm530/firmware.bin --port $(PORT)
+
+# API reference from the docstrings; the prose documents are docs/*.md.
+DOCS_DIR ?= build/docs
+docs: python-env
+	$(PY) -m pdoc --docformat restructuredtext -o $(DOCS_DIR) snakebot '!snakebot\._'
 
 clean:
 	rm -rf build dist $(VENV) host/*.egg-info

@@ -1,11 +1,12 @@
 """Where the repository's shared, non-Python files live, for tests and generators.
 
-``protocol/`` (control tables, packet vectors, the gait-table layout) and
-``firmware/`` sit at the repository root so the C and Python sides read the same files.
-They are not installed: what the package needs at run time ships inside it (package
-data; the firmware images through :mod:`snakebot.firmware`). These helpers serve code
-that runs from a checkout (an editable install): the tests, the code generators, the
-development harnesses. ``SNAKEBOT_PROTOCOL_DIR`` overrides the protocol directory.
+``protocol/`` (packet vectors, the gait-table layout) and ``firmware/`` sit at the
+repository root so the C and Python sides read the same files. They are not installed:
+what the package needs at run time ships inside it (package data: the control tables in
+:mod:`snakebot.devices`, the firmware images through :mod:`snakebot.firmware`). These
+helpers serve code that runs from a checkout (an editable install): the tests, the code
+generators, the development harnesses. ``SNAKEBOT_PROTOCOL_DIR`` overrides the protocol
+directory.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ def in_checkout() -> bool:
 
 
 def protocol_dir() -> Path:
-    """The repository's ``protocol/`` directory (``ax12.json``, ``vectors/``, layouts)."""
+    """The repository's ``protocol/`` directory (``vectors/``, the layout documents)."""
     override = os.environ.get("SNAKEBOT_PROTOCOL_DIR")
     path = Path(override) if override else REPO_ROOT / "protocol"
     if not path.is_dir():

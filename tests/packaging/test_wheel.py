@@ -1,6 +1,7 @@
 """The package as a user gets it: `python -m build` makes the sdist and, from the sdist, the
-wheel; the wheel goes into a fresh venv outside the checkout, and the main commands run
-there from a directory outside the checkout, with no extras installed."""
+wheel; the wheel goes into a fresh venv outside the checkout with only the `physics`
+extra (the demo's default world is MuJoCo), and the main commands run there from a
+directory outside the checkout."""
 
 from __future__ import annotations
 
@@ -20,15 +21,6 @@ from snakebot.firmware import SHIPPED, built_image
 from snakebot.paths import REPO_ROOT
 
 pytestmark = [pytest.mark.slow, pytest.mark.qemu]
-
-# The control tables (protocol/*.json) move into the package as snakebot/devices/data in a
-# branch of their own; until it is merged the installed package cannot load them.
-packaged_protocol = pytest.mark.xfail(
-    not (REPO_ROOT / "host" / "snakebot" / "devices" / "data" / "ax12.json").is_file(),
-    reason="protocol data not yet package data (snakebot/devices/data)",
-    raises=AssertionError,
-    strict=True,
-)
 
 BUILD_TIMEOUT_S = 600.0  # sdist, then the wheel from it in an isolated environment
 DEMO_TIMEOUT_S = 300.0
@@ -73,7 +65,7 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> Installed:
     (wheel,) = dist.glob("*.whl")
     venv = root / "venv"
     _run(sys.executable, "-m", "venv", venv, timeout=120)
-    _run(venv / "bin" / "python", "-m", "pip", "install", "-q", wheel, timeout=600)
+    _run(venv / "bin" / "python", "-m", "pip", "install", "-q", f"{wheel}[physics]", timeout=600)
     work = root / "work"
     work.mkdir()
     return Installed(sdist, wheel, venv, work)
@@ -87,6 +79,9 @@ def test_the_wheel_is_abi3_and_carries_the_firmware_and_the_license(installed):
             data = whl.read(f"snakebot/firmware/images/{board}/{name}")
             assert data == built_image(board, name).read_bytes(), f"{board}/{name} differs"
         assert any(n.endswith(".dist-info/licenses/LICENSE") for n in names)
+        devices = REPO_ROOT / "host" / "snakebot" / "devices" / "data"
+        for path in devices.glob("*.json"):  # the control tables the commands load
+            assert whl.read(f"snakebot/devices/data/{path.name}") == path.read_bytes()
         metadata = next(whl.read(n).decode() for n in names if n.endswith(".dist-info/METADATA"))
     assert "snakebot/_core_build.py" not in names  # a build script, not part of the package
     assert "License-Expression: Apache-2.0" in metadata
@@ -99,28 +94,25 @@ def test_the_sdist_carries_what_the_wheel_build_needs(installed):
     with tarfile.open(installed.sdist) as tar:
         names = {n.split("/", 1)[1] for n in tar.getnames() if "/" in n}
     core = REPO_ROOT / "firmware" / "core"
-    for path in [*core.glob("*.c"), *core.glob("*.h"), REPO_ROOT / "protocol" / "ax12.json"]:
+    for path in [*core.glob("*.c"), *core.glob("*.h"), *(REPO_ROOT / "protocol").glob("*.md")]:
         assert str(path.relative_to(REPO_ROOT)) in names
     assert "host/snakebot/_core_build.py" in names
     for board, name in SHIPPED:
         assert f"host/snakebot/firmware/images/{board}/{name}" in names
 
 
-@packaged_protocol
 def test_help_runs_outside_the_checkout(installed):
     done = installed.run("--help")
     assert done.returncode == 0, done.stderr
     assert "demo" in done.stdout and "flash" in done.stdout
 
 
-@packaged_protocol
 def test_model_fields_from_the_wheel(installed):
     done = installed.run("model", "fields", "snake3", "--at", "0,0,0,0.3,-0.3", "--json")
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout)["robot"] == "snake3"
 
 
-@packaged_protocol
 def test_a_missing_extra_is_one_line_naming_the_install(installed):
     done = installed.run("model", "fields", "snake3", "--symbolic")
     assert done.returncode == 2
@@ -129,7 +121,6 @@ def test_a_missing_extra_is_one_line_naming_the_install(installed):
     )
 
 
-@packaged_protocol
 def test_gait_then_predict_from_the_wheel(installed):
     gait = installed.work / "x.gait"
     done = installed.run(
@@ -143,7 +134,6 @@ def test_gait_then_predict_from_the_wheel(installed):
     assert summary["frames"] == 100 and summary["emulated"]["dx"] > 0.1  # 2 s at 50 Hz
 
 
-@packaged_protocol
 def test_demo_runs_the_shipped_firmware(installed):
     out = installed.work / "out"
     done = installed.run(

@@ -12,6 +12,7 @@ from types import FrameType
 import click
 
 from snakebot.sim.errors import SimError
+from snakebot.sim.physics.select import DEFAULT_WORLD, WORLDS
 from snakebot.sim.serve import EmulatedRobot
 
 
@@ -40,6 +41,15 @@ from snakebot.sim.serve import EmulatedRobot
     "'brownout=10@5+1' (see `snakebot sim bus --help`).",
 )
 @click.option(
+    "--world",
+    type=click.Choice(WORLDS),
+    default=DEFAULT_WORLD,
+    show_default=True,
+    help="kinematic: the minimum-slip model moves the body from the servos' positions; "
+    "mujoco: the body in MuJoCo (mass, slipping wheels) moves the servos, whose "
+    "position, speed and load the firmware reads come from the physics.",
+)
+@click.option(
     "--report",
     type=click.FloatRange(min=0),
     default=5.0,
@@ -54,7 +64,12 @@ from snakebot.sim.serve import EmulatedRobot
     "qemu_pid, ...), then the body's pose.",
 )
 def serve(
-    robot: str, firmware: Path | None, sim_options: str, report: float, as_json: bool
+    robot: str,
+    firmware: Path | None,
+    sim_options: str,
+    world: str,
+    report: float,
+    as_json: bool,
 ) -> None:
     """Run the controller firmware in QEMU on the emulated robot until Ctrl-C.
 
@@ -79,7 +94,7 @@ def serve(
         stop.set()
 
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    emulated = EmulatedRobot(robot, firmware, sim_query=sim_options)
+    emulated = EmulatedRobot(robot, firmware, sim_query=sim_options, world=world)
     try:
         info = emulated.start()
         if as_json:

@@ -1,4 +1,4 @@
-"""Serpenoid gaits: phi_k(t) = A sin(omega t + (k - 1) delta) + phi_0 on every joint.
+"""Serpenoid gaits: phi_k(t) = A sin(omega t + (k - 1) delta + phase) + phi_0 on every joint.
 
 The frames sample the gait every frame period. omega is adjusted (by less than half a
 frame over the whole gait) so the gait spans a whole number of frames: a whole number of
@@ -19,6 +19,7 @@ from snakebot.gait.common import (
     path,
     period_ms_for,
     predict_table,
+    singularity_warnings,
 )
 from snakebot.gait.limits import check_motion, check_ticks
 from snakebot.kinematics import Sines, integrate_joints
@@ -32,21 +33,27 @@ def serpenoid(
     delta: float,
     *,
     offset: float = 0.0,
+    phase: float = 0.0,
     cycles: float = 1.0,
     rate_hz: float = 50.0,
     loop: bool | None = None,
 ) -> Gait:
     """A serpenoid gait for a snake robot (checked against its limits)."""
     if robot.kind != "snake":
+        other = (
+            "use `snakebot gait field` for it"
+            if robot.kind == "trident"
+            else f"its control fields are in `snakebot model fields {robot.name}`"
+        )
         raise GaitError(
-            f"{robot.name} is a {robot.kind}: the serpenoid gait drives a chain "
-            "of links; use `snakebot gait field` for it"
+            f"{robot.name} is a {robot.kind}: the serpenoid gait drives a chain of links; " + other
         )
     for name, value in (
         ("amplitude", amplitude),
         ("omega", omega),
         ("delta", delta),
         ("offset", offset),
+        ("phase", phase),
         ("cycles", cycles),
     ):
         if not math.isfinite(value):
@@ -67,7 +74,7 @@ def serpenoid(
     frames = steps if loop else steps + 1
     frame_budget(robot, frames, "lower --rate or --cycles (or raise --omega)")
     omega_used = math.copysign(2 * math.pi * cycles / (steps * dt), omega)
-    schedule = Sines.serpenoid(robot.n_joints, amplitude, omega_used, delta, offset)
+    schedule = Sines.serpenoid(robot.n_joints, amplitude, omega_used, delta, offset, phase)
     duration = steps * dt
 
     dense = np.linspace(0.0, duration, 16 * steps + 1)
@@ -90,6 +97,7 @@ def serpenoid(
         "omega_requested_rad_s": omega,
         "delta_rad": delta,
         "offset_rad": offset,
+        "phase_rad": phase,
         "cycles": cycles,
         "rate_hz": 1000.0 / period_ms,
     }
@@ -104,4 +112,5 @@ def serpenoid(
         {**motion(table_traj), **note},
         path(traj),
         path(table_traj),
+        warnings=singularity_warnings({"continuous gait": traj, "table as written": table_traj}),
     )

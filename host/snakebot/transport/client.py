@@ -21,6 +21,7 @@ What makes a transaction trustworthy on a real bus:
 
 from __future__ import annotations
 
+import functools
 import threading
 import time
 from collections import deque
@@ -30,7 +31,8 @@ from types import TracebackType
 
 import serial
 
-from snakebot import protocol
+from snakebot import devices, protocol
+from snakebot.devices import Device
 from snakebot.protocol import (
     BROADCAST_ID,
     CorruptPacket,
@@ -43,15 +45,10 @@ from snakebot.protocol import (
     ServoError,
 )
 from snakebot.transport import settings
+from snakebot.transport.portio import PortIO
 from snakebot.transport.ports import open_port
 from snakebot.transport.settings import EchoSetting
 from snakebot.transport.timing import DEFAULT_BAUDRATE, STATUS_OVERHEAD, BusTiming
-
-STATUS_RETURN_LEVEL_ADDR = 16
-"""AX-12 control-table address of Status Return Level (0: PING only, 1: +READ, 2: all)."""
-
-MODEL_NUMBER_ADDR = 0
-"""AX-12 control-table address of the 2-byte model number (12 for AX-12A, 300 for AX-12W)."""
 
 DEFAULT_STATUS_RETURN_LEVEL = 2
 """Factory setting: every instruction addressed to one servo is answered."""
@@ -103,11 +100,11 @@ class DxlClient:
     its echo. Until it has decided, a packet identical to the instruction is never taken
     for the reply.
     ``status_return_level``: what every servo is assumed to be set to (default 2);
-    change one servo's with :meth:`set_status_return_level`. Writes to address 16 made
-    through this client update it automatically.
-    ``status_return_level_address``: where the devices on this port keep their Status
-    Return Level (16 on AX servos); None for a device whose address 16 means something
-    else, such as the snakebot controller, so writes there are not taken for it.
+    change one servo's with :meth:`set_status_return_level`. Writes to the Status Return
+    Level register made through this client update it automatically.
+    ``device``: the kind of device on this port (an AX-12A unless told otherwise, e.g.
+    ``snakebot.devices.controller()`` on the PC link): where its Status Return Level
+    and Model Number live comes from its description.
 
     Transactions from several threads are serialised. The client sets the port's read
     timeout itself, so a port handed in should not be read by anyone else meanwhile.
@@ -125,7 +122,7 @@ class DxlClient:
         echo: EchoSetting | None = None,
         echo_probe_s: float | None = None,
         status_return_level: int = DEFAULT_STATUS_RETURN_LEVEL,
-        status_return_level_address: int | None = STATUS_RETURN_LEVEL_ADDR,
+        device: Device | None = None,
     ) -> None:
         self.retries = settings.resolve_retries(retries)
         echo_setting = settings.resolve_echo(echo)
@@ -137,7 +134,8 @@ class DxlClient:
         }
         self._default_level = _check_level(status_return_level)
         self._levels: dict[int, int] = {}
-        self._level_address = status_return_level_address
+        self.device = device or devices.ax12()
+        self._level_address = self.device.status_return_level_address
         if isinstance(port, str):
             self._port = open_port(port, baudrate or DEFAULT_BAUDRATE, timeout=0)
             self._owns_port = True
@@ -146,6 +144,7 @@ class DxlClient:
             self._owns_port = False
             if baudrate is not None and port.baudrate != baudrate:
                 port.baudrate = baudrate
+        self._io = PortIO(self._port)
         self.timing = BusTiming(baudrate=int(self._port.baudrate), **timing_kwargs)
         # None: not known yet ("auto" before the first answered transaction).
         self._echo: bool | None = None if echo_setting == "auto" else bool(echo_setting)
@@ -197,7 +196,7 @@ class DxlClient:
 
     def set_status_return_level(self, servo_id: int, level: int) -> None:
         """Tell the client what ``servo_id`` is set to (broadcast ID: every servo). This
-        does not write the servo; write address 16 for that."""
+        does not write the servo; write its Status Return Level register for that."""
         level = _check_level(level)
         if servo_id == BROADCAST_ID:
             self._default_level = level
@@ -286,9 +285,10 @@ class DxlClient:
         parser = self._parser
         seen = _Attempt()
         echo = self._echo
+        io = self._io
         port.reset_input_buffer()
         parser.reset()
-        port.write(packet)
+        io.write(packet)
         deadline = time.monotonic() + timeout
         status_len = STATUS_OVERHEAD + expect_len
         data = b""
@@ -329,9 +329,7 @@ class DxlClient:
             want = status_len - parser.pending
             if echo is True and not seen.echo_seen:
                 want += len(packet)
-            if self._read_timeout is None or abs(self._read_timeout - remaining) > 1e-4:
-                port.timeout = self._read_timeout = remaining
-            data = port.read(want if want > 1 else 1)
+            data = io.read(want if want > 1 else 1, remaining)
 
     def _settle_echo(self, heard: Packet, expect_id: int, expect_len: int) -> Packet | None:
         """Decide an ambiguous first transaction in "auto" echo mode.
@@ -443,10 +441,10 @@ class DxlClient:
         if self.status_return_level(servo_id) < 1:
             raise ProtocolError(
                 f"servo {servo_id} is set to Status Return Level 0, so it never answers "
-                "READ: write 1 or 2 to its address 16, then call set_status_return_level"
+                "READ: write 1 or 2 to its Status Return Level, then call "
+                "set_status_return_level"
             )
-        packet = protocol.read(servo_id, address, length)
-        return self.transact(packet, servo_id, length).params
+        return self.transact(_read_packet(servo_id, address, length), servo_id, length).params
 
     def read_u8(self, servo_id: int, address: int) -> int:
         """READ one byte."""
@@ -458,7 +456,7 @@ class DxlClient:
 
     def model_number(self, servo_id: int) -> int:
         """The servo's model number (12 for an AX-12A, 300 for an AX-12W)."""
-        return self.read_u16(servo_id, MODEL_NUMBER_ADDR)
+        return self.read_u16(servo_id, self.device.register("Model Number").address)
 
     def write(self, servo_id: int, address: int, data: bytes) -> None:
         """WRITE ``data`` at ``address`` (waits for the status if the servo sends one)."""
@@ -503,6 +501,13 @@ class DxlClient:
         self.send(protocol.sync_write(address, length, data))
         for servo_id, chunk in data.items():
             self._after_write(servo_id, address, bytes(chunk))
+
+
+@functools.lru_cache(maxsize=1024)
+def _read_packet(servo_id: int, address: int, length: int) -> bytes:
+    """``protocol.read``, built once per (ID, address, length): a control loop reads the
+    same registers of the same servos over and over."""
+    return protocol.read(servo_id, address, length)
 
 
 def _require_device(servo_id: int, what: str) -> None:

@@ -56,8 +56,8 @@ system-packages:
 demo-packages:
 	$(call apt_install,$(DEMO_APT))
 
-# .venv in two layers: the runtime (with the `plot` extra for the demo's picture), then
-# the dev extras (tests, lint, benchmarks) on top.
+# .venv in two layers: the runtime with what the demo uses (the `physics` extra for its
+# MuJoCo world, `plot` for its picture), then the dev extras (tests, lint, benchmarks).
 runtime-env: $(VENV)/.runtime $(VENV)/.core
 python-env: $(VENV)/.dev $(VENV)/.core
 
@@ -67,7 +67,7 @@ $(VENV)/.venv:
 	$(Q)touch $@
 
 $(VENV)/.runtime: pyproject.toml setup.py | $(VENV)/.venv
-	$(Q)$(PIP) install $(PIP_QUIET) --no-build-isolation -e '.[plot]'
+	$(Q)$(PIP) install $(PIP_QUIET) --no-build-isolation -e '.[physics,plot]'
 	$(Q)touch $@
 
 $(VENV)/.dev: $(VENV)/.runtime

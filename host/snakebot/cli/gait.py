@@ -332,3 +332,8 @@ def _short(value: Any) -> str:
     if isinstance(value, dict):
         return "{" + ", ".join(f"{k}: {_short(v)}" for k, v in value.items()) + "}"
     return str(value)
+
+
+from snakebot.cli.gait_search import search_command  # noqa: E402 - after the group exists
+
+gait.add_command(search_command)

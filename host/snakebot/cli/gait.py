@@ -9,6 +9,7 @@ from typing import Any
 import click
 
 from snakebot.cli.params import ANGLE, ANGLES
+from snakebot.extras import require
 from snakebot.gait import Gait, field_gait, serpenoid
 from snakebot.gaittable import read_gait, sidecar_path, write_gait
 from snakebot.robots import load_robot
@@ -295,6 +296,7 @@ def show(file: Path, plot: Path | None, as_json: bool) -> None:
         **{k: v for k, v in meta.items() if k not in ("path", "table_path", "joints")},
     }
     if plot is not None:
+        require("matplotlib", "--plot")
         from snakebot.plots import plot_gait
 
         summary["plot"] = str(plot_gait(table, plot))

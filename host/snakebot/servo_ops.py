@@ -17,24 +17,27 @@ from __future__ import annotations
 import math
 import re
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 
 import serial
 
-from snakebot import protocol
+from snakebot import devices, protocol
 from snakebot.devices import Baud
 from snakebot.errors import SnakebotError
 from snakebot.protocol import (
     BROADCAST_ID,
+    FRAME_RESET_S,
     MAX_ID,
     ControlTable,
     ControlTableError,
+    CorruptPacket,
     DxlTimeout,
     Entry,
     ErrorFlags,
+    Packet,
 )
-from snakebot.transport import DxlClient
+from snakebot.transport import DxlClient, settings
 
 BASE_MODEL = "AX-12A"
 """The table used to check names and ranges before a servo has been asked its model
@@ -42,6 +45,19 @@ BASE_MODEL = "AX-12A"
 
 COMMON_REGISTERS = (1, 3, 4, 7, 9, 16, 34, 207)
 """The Baud Rate values the AX-12 e-Manual tabulates."""
+
+STANDARD_REGISTERS = (0, *COMMON_REGISTERS, 103)
+"""The Baud Rate values the AX and MX e-Manuals tabulate between them (each model's
+fixed-rate values come from its description)."""
+
+SCAN_RETRIES = 3
+"""Further PINGs a scan gives an ID whose reply came back damaged."""
+
+QUIET_MARGIN = 1.5
+"""How much longer than the servos' frame reset a quiet pause lasts."""
+
+QUIET_READ_SIZE = 4096
+"""Bytes one read of a quiet pause may drop (more than the line brings in the pause)."""
 
 SETTLE_S = 0.01
 """Pause after an ID or baud change before the servo is addressed anew (it stores the
@@ -188,16 +204,28 @@ def describe_value(decoded: dict[str, object]) -> str:
 
 
 def identify(client: DxlClient, servo_id: int, *, retries: int | None = None) -> ServoInfo | None:
-    """PING ``servo_id`` and read its model and firmware; None if it does not answer."""
+    """PING ``servo_id`` and read its model and firmware; None if it does not answer.
+
+    A servo reporting error bits (overheated, overloaded) is still identified: its
+    flags are in :attr:`ServoInfo.error`. Damaged replies raise :class:`CorruptPacket`
+    after the client's retries."""
     try:
         reply = client.ping(servo_id, check=False, retries=retries)
     except DxlTimeout:
         return None
+    return _identified(client, servo_id, reply)
+
+
+def _identified(client: DxlClient, servo_id: int, reply: Packet) -> ServoInfo:
+    """The servo that answered PING with ``reply``: its model and firmware, read."""
     base = _base()
     start = base.by_name("Model Number").address
     fw = base.by_name("Firmware Version")
+    length = fw.address + fw.size - start
     try:
-        data = client.read(servo_id, start, fw.address + fw.size - start)
+        data = client.transact(
+            protocol.read(servo_id, start, length), servo_id, length, check=False
+        ).params
     except DxlTimeout:  # answers PING only: Status Return Level 0
         return ServoInfo(servo_id, client.baudrate, None, None, None, reply.error)
     number = int.from_bytes(data[:2], "little")
@@ -211,25 +239,103 @@ def identify(client: DxlClient, servo_id: int, *, retries: int | None = None) ->
     )
 
 
-def scan(
-    port: serial.SerialBase,
-    ids: Iterable[int],
-    bauds: Sequence[int],
-    *,
-    on_baud: Callable[[int], None] = lambda _: None,
-) -> list[ServoInfo]:
-    """PING every ID in ``ids`` at each rate in ``bauds`` (one try each: silent IDs are
-    the rule) and identify those that answer."""
-    found: list[ServoInfo] = []
+@dataclass(frozen=True)
+class Probe:
+    """What one ID at one baud rate gave in a scan."""
+
+    id: int
+    baud: int
+    info: ServoInfo | None  # None: nothing identified
+    garbled: bool = False  # every try heard only damaged replies: something is there
+
+    def as_dict(self) -> dict[str, object]:
+        return {"id": self.id, "baud": self.baud}
+
+
+def probe(client: DxlClient, servo_id: int, *, retries: int = SCAN_RETRIES) -> Probe:
+    """Identify ``servo_id`` for a scan: one PING for a silent ID (silence is the rule),
+    up to ``retries`` more after a damaged reply (a corrupted echo on a one-wire
+    adapter, noise on the line), which means something may be there, or after an
+    echo that never came back intact (the instruction itself was damaged).
+
+    Before each retry the line is left quiet for :data:`~snakebot.protocol.FRAME_RESET_S`:
+    a damaged length byte leaves the servos waiting for the rest of a packet that never
+    comes, and they give up on it only after that pause."""
+    garbled = False
+    for _ in range(1 + retries):
+        if garbled:
+            _quiet(client.port)
+        try:
+            reply = client.ping(servo_id, check=False, retries=0)
+            return Probe(servo_id, client.baudrate, _identified(client, servo_id, reply))
+        except CorruptPacket:
+            garbled = True
+        except DxlTimeout as exc:
+            if not exc.echo_missing:
+                return Probe(servo_id, client.baudrate, None)
+            garbled = True
+    return Probe(servo_id, client.baudrate, None, garbled=True)
+
+
+def _quiet(port: serial.SerialBase) -> None:
+    """Send nothing for a little over :data:`~snakebot.protocol.FRAME_RESET_S` (reading
+    and dropping whatever arrives), so every servo abandons a packet it was still
+    waiting for. Waiting in a read, not a sleep, lets an emulated bus's clock run too."""
+    deadline = time.monotonic() + FRAME_RESET_S * QUIET_MARGIN
+    while (remaining := deadline - time.monotonic()) > 0:
+        port.timeout = remaining
+        port.read(QUIET_READ_SIZE)
+    port.reset_input_buffer()
+
+
+def detect_echo(port: serial.SerialBase, baud: int) -> bool:
+    """Whether the line echoes the host's own bytes (a one-wire adapter), unless
+    ``SNAKEBOT_ECHO`` says: a broadcast PING, which no servo answers, comes back only
+    as its echo. Asked again (after a quiet pause) while what comes back is damaged.
+
+    A scan settles this first because the client's own "auto" mode decides from the
+    first answer, and on a noisy line a damaged echo can mislead it for the whole scan.
+    """
+    setting = settings.resolve_echo()
+    if setting != "auto":
+        return bool(setting)
+    packet = protocol.ping(BROADCAST_ID)
+    timing = DxlClient(port, baud, echo=False).timing
+    wait = max(timing.reply_timeout_s(len(packet), 0), settings.resolve_echo_probe_s())
+    for _ in range(1 + SCAN_RETRIES):
+        port.reset_input_buffer()
+        port.write(packet)
+        heard = b""
+        deadline = time.monotonic() + wait
+        while (remaining := deadline - time.monotonic()) > 0 and len(heard) < len(packet):
+            port.timeout = remaining
+            heard += port.read(len(packet) - len(heard))
+        if not heard:
+            return False
+        if heard == packet:
+            return True
+        _quiet(port)
+    return True  # something came back every time, damaged: an echo on a noisy line
+
+
+def scan_probes(
+    port: serial.SerialBase, ids: Iterable[int], bauds: Sequence[int]
+) -> Iterator[Probe]:
+    """:func:`probe` every ID in ``ids`` at each rate in ``bauds``, yielding each result as
+    it comes, so a caller can show progress and keep what was found if stopped."""
     ids = list(ids)
-    for baud in bauds:
-        on_baud(baud)
-        client = DxlClient(port, baud)
+    echo = detect_echo(port, bauds[0]) if bauds else False
+    for n, baud in enumerate(bauds):
+        client = DxlClient(port, baud, echo=echo)
+        if n:  # servos at this rate heard the last one's PINGs as garbage: let them reset
+            _quiet(port)
         for servo_id in ids:
-            info = identify(client, servo_id, retries=0)
-            if info is not None:
-                found.append(info)
-    return found
+            yield probe(client, servo_id)
+
+
+def scan(port: serial.SerialBase, ids: Iterable[int], bauds: Sequence[int]) -> list[ServoInfo]:
+    """The servos :func:`scan_probes` identifies."""
+    return [p.info for p in scan_probes(port, ids, bauds) if p.info is not None]
 
 
 def parse_ids(text: str) -> list[int]:
@@ -256,16 +362,20 @@ def parse_ids(text: str) -> list[int]:
 
 
 def parse_bauds(text: str) -> list[int]:
-    """ "1000000,57600" -> rates; "common" -> :data:`COMMON_BAUDS`."""
-    if text.strip().lower() == "common":
+    """ "1000000,57600" -> rates; "common" -> :data:`COMMON_BAUDS`; "all" ->
+    :func:`all_bauds`."""
+    word = text.strip().lower()
+    if word == "common":
         return list(COMMON_BAUDS)
+    if word == "all":
+        return all_bauds()
     try:
         bauds = [int(float(b)) for b in text.split(",") if b.strip()]
     except ValueError:
         bauds = []
     if not bauds or any(b <= 0 for b in bauds):
         raise BusCommandError(
-            f"cannot read the baud rates {text!r}: write e.g. 1000000,57600 or common"
+            f"cannot read the baud rates {text!r}: write e.g. 1000000,57600, common or all"
         )
     return bauds
 
@@ -396,6 +506,23 @@ def baud_register(bps: float) -> int:
 def baud_from_register(value: int) -> float:
     """The AX-12's bit rate for Baud Rate register ``value``."""
     return _baud().rate(value)
+
+
+def all_bauds() -> list[int]:
+    """Every rate the AX and MX servos described are tabulated at (:data:`STANDARD_REGISTERS`
+    through each model's baud formula, and its fixed rates), each once, the factory
+    rate first and the rest fastest first."""
+    rates: set[int] = set()
+    for name in devices.names("servo"):
+        baud = devices.load(name).baud
+        if baud is None:
+            continue
+        values = [v for v in STANDARD_REGISTERS if v in baud.values()] + list(baud.fixed)
+        rates.update(int(baud.rate(v)) for v in values)
+    factory = _base().by_name("Baud Rate").default
+    assert factory is not None  # the AX-12A's description gives it
+    first = int(baud_from_register(factory))
+    return [first, *sorted(rates - {first}, reverse=True)]
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,7 @@ def main() -> None:
 # Command registration: each command lives in its own module. Imported here, after
 # `main` exists, because the `sim` subcommands attach to the `sim` group.
 from snakebot.cli.bus import bus  # noqa: E402
+from snakebot.cli.bus_play import bus_play  # noqa: E402
 from snakebot.cli.demo import demo  # noqa: E402
 from snakebot.cli.flash import flash_command  # noqa: E402
 from snakebot.cli.gait import gait  # noqa: E402
@@ -42,5 +43,6 @@ from snakebot.cli.upload import upload  # noqa: E402
 
 for command in (model, gait, sim, upload, play, stop, serpenoid, monitor, bus, flash_command, demo):
     main.add_command(command)
+bus.add_command(bus_play)
 for command in (predict, serve, bootloader, thesis, friction):
     sim.add_command(command)

@@ -4,12 +4,14 @@ on a terminal."""
 
 from __future__ import annotations
 
+import math
 import os
 import pty
 import subprocess
 import sys
 import time
 
+import pytest
 from controller_cli_support import (
     cli,
     cli_json,
@@ -18,12 +20,18 @@ from controller_cli_support import (
 
 from snakebot.controller import State
 from snakebot.paths import REPO_ROOT
+from snakebot.robots import load_robot
+
+SNAKE5 = load_robot("snake5")
 
 SERVO_FIELDS = {
     "joint",
+    "name",
     "id",
     "goal",
+    "goal_deg",
     "position",
+    "position_deg",
     "speed_rpm",
     "load",
     "load_percent",
@@ -52,6 +60,14 @@ def test_json_lines_have_the_controller_and_every_servo(controller_with_table):
         assert c["state"] == "PLAYING" and c["error_flags"] == []
         assert c["table_bytes"] == len(server.active_table())
         assert [s["id"] for s in record["servos"]] == [10, 11, 15, 16]
+        assert [s["name"] for s in record["servos"]] == ["phi1", "phi2", "phi3", "phi4"]
+        # angles as the robot description converts its joints' ticks
+        for joint, servo in zip(SNAKE5.joints, record["servos"], strict=True):
+            for tick, deg in (
+                (servo["position"], servo["position_deg"]),
+                (servo["goal"], servo["goal_deg"]),
+            ):
+                assert deg == pytest.approx(math.degrees(joint.tick_to_angle(tick)), abs=0.01)
         for servo in record["servos"]:
             assert set(servo) == SERVO_FIELDS
             assert servo["voltage_v"] == 12.0  # the emulated supply

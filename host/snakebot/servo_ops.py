@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import serial
 
 from snakebot import devices, protocol
-from snakebot.devices import Baud
+from snakebot.devices import Baud, DeviceError
 from snakebot.errors import SnakebotError
 from snakebot.protocol import (
     BROADCAST_ID,
@@ -149,6 +149,44 @@ def write_range(entry: Entry) -> tuple[int, int]:
     return low, high
 
 
+def parse_value(entry: Entry, text: str) -> int:
+    """The raw value ``text`` asks ``entry`` for: a whole number (decimal or 0x hex), or an
+    amount with a unit ("30deg", "50 rpm", "0.5rad"), converted through the register's
+    scale in its device description."""
+    text = text.strip()
+    try:
+        return int(text, 0)
+    except ValueError:
+        pass
+    m = re.fullmatch(r"([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*([A-Za-z%/]+)", text)
+    if m is None:
+        raise BusCommandError(
+            f"cannot read the value {text!r}: give a whole number (512, 0x200) or an amount "
+            "with a unit (30deg, 50rpm)"
+        )
+    amount, unit = float(m.group(1)), m.group(2)
+    if entry.scale is None:
+        raise BusCommandError(f"{entry.name} has no unit: give its raw value, not {text!r}")
+    try:
+        raw = entry.from_units(amount, unit)
+    except DeviceError:
+        raise BusCommandError(
+            f"{entry.name} is in {entry.scale.unit}: cannot convert {unit!r} "
+            f"(give e.g. {amount:g}{entry.scale.unit})"
+        ) from None
+    if raw == 0 and entry.name in ZERO_MEANS and amount != 0:
+        raise BusCommandError(
+            f"{text} is below one step of {entry.name} ({entry.scale}), and 0 would mean "
+            f"{ZERO_MEANS[entry.name]}: give a larger amount"
+        )
+    if raw == 0 and entry.name in ZERO_MEANS:
+        raise BusCommandError(
+            f"{entry.name} 0 means {ZERO_MEANS[entry.name]}, not {text}: write the raw 0 if "
+            "that is what you want"
+        )
+    return raw
+
+
 def check_write(entry: Entry, value: int) -> None:
     """Refuse a write the servo would reject, before it is sent."""
     if not entry.writable:
@@ -161,9 +199,30 @@ def check_write(entry: Entry, value: int) -> None:
         raise BusCommandError(f"{entry.name} takes {low}-{high}, not {value}{extra}")
 
 
-def decode(entry: Entry, value: int) -> dict[str, object]:
+ERROR_BIT_REGISTERS = ("Alarm LED", "Shutdown")
+"""Registers holding a mask of the status packet's error bits."""
+
+ZERO_MEANS = {"Moving Speed": "maximum speed: no speed control"}
+"""Registers where 0 is not the scale's zero (the e-Manual's note, in the descriptions)."""
+
+
+def meaning(entry: Entry, value: int, table: ControlTable | None = None) -> str | None:
+    """What a special value of ``entry`` stands for: the Baud Rate register's bit rate,
+    the error bits of an alarm mask, 0 for Moving Speed; None for plain values."""
+    table = table or _base()
+    if entry.name == "Baud Rate" and table.device.baud is not None:
+        return f"{table.device.baud.rate(value):.0f} bit/s"
+    if entry.name in ERROR_BIT_REGISTERS:
+        return ErrorFlags(value).describe()
+    if value == 0 and entry.name in ZERO_MEANS:
+        return ZERO_MEANS[entry.name]
+    return None
+
+
+def decode(entry: Entry, value: int, table: ControlTable | None = None) -> dict[str, object]:
     """``value`` of ``entry`` in words: its unit and, where the register has a scale, the
-    physical value; direction-bit registers split into magnitude and direction."""
+    physical value; direction-bit registers split into magnitude and direction; special
+    values (:func:`meaning`) in words."""
     out: dict[str, object] = {
         "name": entry.name,
         "address": entry.address,
@@ -185,12 +244,17 @@ def decode(entry: Entry, value: int) -> dict[str, object]:
         digits = max(0, -math.floor(math.log10(float(scale.factor))))
         out["physical"] = round(magnitude * float(scale.factor), digits)
         out["unit"] = scale.unit
+    said = meaning(entry, value, table)
+    if said is not None:
+        out["meaning"] = said
     return out
 
 
 def describe_value(decoded: dict[str, object]) -> str:
     """A decoded value as text: "512 (150.016 deg)", "1124 (100 CW, 9.8 % of ...)"."""
     parts = []
+    if "meaning" in decoded:
+        return f"{decoded['value']} ({decoded['meaning']})"
     if decoded.get("magnitude"):
         parts.append(f"{decoded['magnitude']} {decoded['direction']}")
     if "physical" in decoded:
@@ -413,7 +477,7 @@ def read_registers(
     for entry in chosen:
         offset = entry.address - start
         raw = int.from_bytes(data[offset : offset + entry.size], "little")
-        values.append(decode(entry, raw))
+        values.append(decode(entry, raw, table))
     return table, values
 
 

@@ -234,7 +234,8 @@ def read_command(
 def write_command(
     port: str, baud: int, as_json: bool, servo_id: int, register: str, value: str
 ) -> None:
-    """Write VALUE (decimal or 0x hex, raw register units) to REGISTER of servo ID.
+    """Write VALUE to REGISTER of servo ID: a raw value (decimal or 0x hex) or an
+    amount with a unit the register's scale converts (30deg, 0.5rad, 50rpm, 11.5V).
 
     Read-only registers and values outside the register's range are refused before
     anything is sent. Change an ID with `snakebot bus set-id` and a baud rate with
@@ -242,15 +243,12 @@ def write_command(
 
     \b
         snakebot bus write 1 goal-position 512 --port /dev/ttyUSB0
+        snakebot bus write 1 goal-position 150deg --port /dev/ttyUSB0
+        snakebot bus write 1 moving-speed 50rpm --port /dev/ttyUSB0
         snakebot bus write 1 led 1 --port /dev/ttyUSB0
     """
     entry = servo_ops.resolve_register(register)
-    try:
-        number = int(value, 0)
-    except ValueError:
-        raise BusCommandError(
-            f"cannot read the value {value!r}: give a whole number, e.g. 512 or 0x200"
-        ) from None
+    number = servo_ops.parse_value(entry, value)
     redirect = {"ID": "set-id", "Baud Rate": "set-baud"}.get(entry.name)
     if redirect:
         raise BusCommandError(

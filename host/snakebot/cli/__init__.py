@@ -34,6 +34,7 @@ from snakebot.cli.gait import gait  # noqa: E402
 from snakebot.cli.model import model  # noqa: E402
 from snakebot.cli.monitor import monitor  # noqa: E402
 from snakebot.cli.playback import play, serpenoid, stop  # noqa: E402
+from snakebot.cli.robot import robot  # noqa: E402
 from snakebot.cli.sim import sim  # noqa: E402
 from snakebot.cli.sim_bootloader import bootloader  # noqa: E402
 from snakebot.cli.sim_predict import predict  # noqa: E402
@@ -43,6 +44,7 @@ from snakebot.cli.upload import upload  # noqa: E402
 
 for command in (model, gait, sim, upload, play, stop, serpenoid, monitor, bus, flash_command, demo):
     main.add_command(command)
+main.add_command(robot)
 bus.add_command(bus_play)
 for command in (predict, serve, bootloader, thesis, friction):
     sim.add_command(command)

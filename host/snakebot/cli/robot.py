@@ -7,11 +7,11 @@ from pathlib import Path
 
 import click
 
-from snakebot.cli.bus import PORT_HELP
+from snakebot.cli.bus import bus_options
 from snakebot.robots import load_robot
 from snakebot.robots.calibrate import JOG_DEG, calibrate, updated_text, write_atomically
 from snakebot.robots.model import Joint
-from snakebot.transport import DEFAULT_BAUDRATE, DxlClient
+from snakebot.transport import DxlClient
 
 
 @click.group("robot")
@@ -21,17 +21,7 @@ def robot() -> None:
 
 @robot.command("calibrate")
 @click.argument("toml", metavar="ROBOT.toml", type=click.Path(dir_okay=False, path_type=Path))
-@click.option(
-    "--port", "-p", required=True, envvar="SNAKEBOT_BUS_PORT", show_envvar=True, help=PORT_HELP
-)
-@click.option(
-    "--baud",
-    "-b",
-    type=click.IntRange(min=1),
-    default=DEFAULT_BAUDRATE,
-    show_default=True,
-    help="Bit rate of the bus (AX-12 factory setting: 1000000).",
-)
+@bus_options
 @click.option(
     "--yes",
     "-y",
@@ -39,8 +29,7 @@ def robot() -> None:
     help="Ask nothing: the snake already lies straight, and each joint keeps the sign in "
     "the file (its jog then only checks that the servo follows).",
 )
-@click.option("--json", "as_json", is_flag=True, help="Print what was found as JSON.")
-def calibrate_command(toml: Path, port: str, baud: int, yes: bool, as_json: bool) -> None:
+def calibrate_command(toml: Path, port: str, baud: int, as_json: bool, yes: bool) -> None:
     """Measure each joint's zero tick and sign on the real robot and write them into
     ROBOT.toml (its comments and layout are kept; the file is replaced in one step,
     and only if the result is a valid robot).

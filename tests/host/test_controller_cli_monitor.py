@@ -4,6 +4,8 @@ on a terminal."""
 
 from __future__ import annotations
 
+import csv
+import json
 import math
 import os
 import pty
@@ -19,6 +21,7 @@ from controller_cli_support import (
 )
 
 from snakebot.controller import State
+from snakebot.controller.monitor import CSV_COLUMNS
 from snakebot.paths import REPO_ROOT
 from snakebot.robots import load_robot
 
@@ -206,3 +209,36 @@ def test_rosters_longer_than_one_servo_page(tmp_path):
     assert [s["reverse"] for s in servos] == [k % 2 == 1 for k in range(8)]
     span = round(60 * 1023 / 300)
     assert all(s["max_tick"] - s["min_tick"] == 2 * span for s in servos)
+
+
+def test_csv_records_every_sample_one_row_per_servo(controller_with_table, tmp_path):
+    path = tmp_path / "run.csv"
+    result = cli(
+        "monitor", "--port", controller_with_table.device, "--duration", "0.2",
+        "--interval", "0.1", "--csv", path, "--json",
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    records = [json.loads(line) for line in result.stdout.splitlines()]
+    with path.open(newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert list(rows[0]) == list(CSV_COLUMNS)
+    # the same samples as the JSON Lines printed beside them, servo by servo
+    expected = [(r["t"], s["name"], s["position"], s["position_deg"])
+                for r in records for s in r["servos"]]  # fmt: skip
+    got = [(float(r["t"]), r["name"], int(r["position"]), float(r["position_deg"])) for r in rows]
+    assert got == expected and len(rows) == 3 * 4
+
+
+def test_csv_to_an_unwritable_place_fails_before_connecting(tmp_path):
+    result = cli(
+        "monitor", "--port", "/dev/ttySNAKEBOT-missing", "--csv", tmp_path / "no" / "x.csv"
+    )
+    assert result.exit_code == 2
+    assert "x.csv" in result.stderr and "Traceback" not in result.output
+
+
+def test_csv_is_not_left_behind_when_the_controller_cannot_be_reached(tmp_path):
+    path = tmp_path / "run.csv"
+    result = cli("monitor", "--port", "/dev/ttySNAKEBOT-missing", "--csv", path)
+    assert result.exit_code == 2 and "error: " in result.stderr
+    assert not path.exists()

@@ -2,15 +2,18 @@
 
 from __future__ import annotations
 
+import contextlib
+import csv
 import json
 import shutil
 import sys
 import time
+from pathlib import Path
 
 import click
 
 from snakebot.cli.controller_link import controller_options, open_controller
-from snakebot.controller.monitor import render, sample
+from snakebot.controller.monitor import CSV_COLUMNS, csv_rows, render, sample
 
 CLEAR_BELOW = "\x1b[J"
 GRID_SLACK = 1e-9
@@ -37,24 +40,55 @@ def _cursor_up(lines: int) -> str:
     show_default=True,
     help="Seconds between samples.",
 )
+@click.option(
+    "--csv",
+    "csv_path",
+    type=click.Path(dir_okay=False, writable=True, path_type=Path),
+    help="Also record every sample to this CSV file, one row per servo (t, state, joint "
+    "name, ticks and degrees, speed, load, voltage, temperature, errors).",
+)
 def monitor(
-    port: str, baud: int, controller_id: int, as_json: bool, duration: float | None, interval: float
+    port: str,
+    baud: int,
+    controller_id: int,
+    as_json: bool,
+    duration: float | None,
+    interval: float,
+    csv_path: Path | None,
 ) -> None:
     """Show the controller's state and error flags, and each roster servo's position,
     load, voltage, temperature and errors, as the controller last read them.
 
     On a terminal the table refreshes in place; otherwise (or with --json, one JSON
-    record per line: JSON Lines) every sample is printed after the last.
+    record per line: JSON Lines) every sample is printed after the last. With --csv
+    each sample is also written to a file as it is taken, so a run stopped with Ctrl-C
+    keeps everything up to then.
     """
     live = sys.stdout.isatty() and not as_json
     shown = 0
-    with open_controller(port, baud, controller_id) as ctl:
-        ctl.identify()
+    with contextlib.ExitStack() as stack:
+        recorder = None
+        if csv_path is not None:  # opened first: a path that cannot be written fails at once
+            out = stack.enter_context(csv_path.open("w", newline=""))
+            recorder = csv.DictWriter(out, fieldnames=CSV_COLUMNS)
+        try:
+            ctl = stack.enter_context(open_controller(port, baud, controller_id))
+            ctl.identify()
+        except BaseException:
+            if csv_path is not None:  # no controller, no recording: leave no empty file
+                out.close()
+                csv_path.unlink(missing_ok=True)
+            raise
+        if recorder is not None:
+            recorder.writeheader()
         t0 = time.monotonic()
         taken = 0
         try:
             while True:
                 s = sample(ctl, t0)
+                if recorder is not None:
+                    recorder.writerows(csv_rows(s))
+                    out.flush()
                 if as_json:
                     click.echo(json.dumps(s.as_record()))
                 else:

@@ -102,6 +102,35 @@ def sample(ctl: ControllerClient, t0: float | None = None) -> Sample:
     return Sample(now - (now if t0 is None else t0), registers, servos, ctl.table)
 
 
+CSV_COLUMNS = (
+    "t",
+    "state",
+    "name",
+    "id",
+    "goal",
+    "goal_deg",
+    "position",
+    "position_deg",
+    "speed_rpm",
+    "load_percent",
+    "voltage_v",
+    "temperature_c",
+    "error",
+)
+"""The columns of ``snakebot monitor --csv``: one row per roster servo per sample."""
+
+
+def csv_rows(s: Sample) -> list[dict[str, Any]]:
+    """The sample as CSV rows (:data:`CSV_COLUMNS`), one per roster servo."""
+    base = {"t": round(s.t, 3), "state": s.controller_record()["state"]}
+    rows = []
+    for j in s.servos:
+        record = servo_record(j)
+        record["error"] = " ".join(record["error"])
+        rows.append(base | {k: record[k] for k in CSV_COLUMNS if k in record})
+    return rows
+
+
 HEADER = (
     f"{'joint':>5} {'ID':>4} {'goal':>5} {'pos':>5} {'angle deg':>9} {'speed rpm':>10} "
     f"{'load %':>7} "

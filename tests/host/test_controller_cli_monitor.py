@@ -242,3 +242,24 @@ def test_csv_is_not_left_behind_when_the_controller_cannot_be_reached(tmp_path):
     result = cli("monitor", "--port", "/dev/ttySNAKEBOT-missing", "--csv", path)
     assert result.exit_code == 2 and "error: " in result.stderr
     assert not path.exists()
+
+
+def test_mcap_holds_one_json_message_per_sample(controller_with_table, tmp_path):
+    from mcap.reader import make_reader
+
+    path = tmp_path / "run.mcap"
+    result = cli(
+        "monitor", "--port", controller_with_table.device, "--duration", "0.2",
+        "--interval", "0.1", "--mcap", path, "--json",
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    printed = [json.loads(line) for line in result.stdout.splitlines()]
+    with path.open("rb") as f:
+        messages = list(make_reader(f).iter_messages())
+    assert len(messages) == len(printed) == 3
+    for (schema, channel, message), record in zip(messages, printed, strict=True):
+        assert channel.topic == "/snakebot/telemetry" and channel.message_encoding == "json"
+        assert schema.encoding == "jsonschema"
+        assert json.loads(message.data) == record
+    stamps = [m.log_time for _, _, m in messages]
+    assert stamps == sorted(stamps) and stamps[-1] - stamps[0] >= 0.15e9  # wall-clock ns

@@ -364,8 +364,8 @@ def detect_echo(port: serial.SerialBase, baud: int) -> bool:
     if setting != "auto":
         return bool(setting)
     packet = protocol.ping(BROADCAST_ID)
-    timing = DxlClient(port, baud, echo=False).timing
-    wait = max(timing.reply_timeout_s(len(packet), 0), settings.resolve_echo_probe_s())
+    # an echo comes back before any reply would: the reply timeout covers it
+    wait = DxlClient(port, baud, echo=False).timing.reply_timeout_s(len(packet), 0)
     for _ in range(1 + SCAN_RETRIES):
         port.reset_input_buffer()
         port.write(packet)

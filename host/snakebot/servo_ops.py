@@ -17,24 +17,27 @@ from __future__ import annotations
 import math
 import re
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 
 import serial
 
-from snakebot import protocol
-from snakebot.devices import Baud
+from snakebot import devices, protocol
+from snakebot.devices import Baud, DeviceError
 from snakebot.errors import SnakebotError
 from snakebot.protocol import (
     BROADCAST_ID,
+    FRAME_RESET_S,
     MAX_ID,
     ControlTable,
     ControlTableError,
+    CorruptPacket,
     DxlTimeout,
     Entry,
     ErrorFlags,
+    Packet,
 )
-from snakebot.transport import DxlClient
+from snakebot.transport import DxlClient, settings
 
 BASE_MODEL = "AX-12A"
 """The table used to check names and ranges before a servo has been asked its model
@@ -42,6 +45,19 @@ BASE_MODEL = "AX-12A"
 
 COMMON_REGISTERS = (1, 3, 4, 7, 9, 16, 34, 207)
 """The Baud Rate values the AX-12 e-Manual tabulates."""
+
+STANDARD_REGISTERS = (0, *COMMON_REGISTERS, 103)
+"""The Baud Rate values the AX and MX e-Manuals tabulate between them (each model's
+fixed-rate values come from its description)."""
+
+SCAN_RETRIES = 3
+"""Further PINGs a scan gives an ID whose reply came back damaged."""
+
+QUIET_MARGIN = 1.5
+"""How much longer than the servos' frame reset a quiet pause lasts."""
+
+QUIET_READ_SIZE = 4096
+"""Bytes one read of a quiet pause may drop (more than the line brings in the pause)."""
 
 SETTLE_S = 0.01
 """Pause after an ID or baud change before the servo is addressed anew (it stores the
@@ -133,6 +149,44 @@ def write_range(entry: Entry) -> tuple[int, int]:
     return low, high
 
 
+def parse_value(entry: Entry, text: str) -> int:
+    """The raw value ``text`` asks ``entry`` for: a whole number (decimal or 0x hex), or an
+    amount with a unit ("30deg", "50 rpm", "0.5rad"), converted through the register's
+    scale in its device description."""
+    text = text.strip()
+    try:
+        return int(text, 0)
+    except ValueError:
+        pass
+    m = re.fullmatch(r"([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*([A-Za-z%/]+)", text)
+    if m is None:
+        raise BusCommandError(
+            f"cannot read the value {text!r}: give a whole number (512, 0x200) or an amount "
+            "with a unit (30deg, 50rpm)"
+        )
+    amount, unit = float(m.group(1)), m.group(2)
+    if entry.scale is None:
+        raise BusCommandError(f"{entry.name} has no unit: give its raw value, not {text!r}")
+    try:
+        raw = entry.from_units(amount, unit)
+    except DeviceError:
+        raise BusCommandError(
+            f"{entry.name} is in {entry.scale.unit}: cannot convert {unit!r} "
+            f"(give e.g. {amount:g}{entry.scale.unit})"
+        ) from None
+    if raw == 0 and entry.name in ZERO_MEANS and amount != 0:
+        raise BusCommandError(
+            f"{text} is below one step of {entry.name} ({entry.scale}), and 0 would mean "
+            f"{ZERO_MEANS[entry.name]}: give a larger amount"
+        )
+    if raw == 0 and entry.name in ZERO_MEANS:
+        raise BusCommandError(
+            f"{entry.name} 0 means {ZERO_MEANS[entry.name]}, not {text}: write the raw 0 if "
+            "that is what you want"
+        )
+    return raw
+
+
 def check_write(entry: Entry, value: int) -> None:
     """Refuse a write the servo would reject, before it is sent."""
     if not entry.writable:
@@ -145,9 +199,30 @@ def check_write(entry: Entry, value: int) -> None:
         raise BusCommandError(f"{entry.name} takes {low}-{high}, not {value}{extra}")
 
 
-def decode(entry: Entry, value: int) -> dict[str, object]:
+ERROR_BIT_REGISTERS = ("Alarm LED", "Shutdown")
+"""Registers holding a mask of the status packet's error bits."""
+
+ZERO_MEANS = {"Moving Speed": "maximum speed: no speed control"}
+"""Registers where 0 is not the scale's zero (the e-Manual's note, in the descriptions)."""
+
+
+def meaning(entry: Entry, value: int, table: ControlTable | None = None) -> str | None:
+    """What a special value of ``entry`` stands for: the Baud Rate register's bit rate,
+    the error bits of an alarm mask, 0 for Moving Speed; None for plain values."""
+    table = table or _base()
+    if entry.name == "Baud Rate" and table.device.baud is not None:
+        return f"{table.device.baud.rate(value):.0f} bit/s"
+    if entry.name in ERROR_BIT_REGISTERS:
+        return ErrorFlags(value).describe()
+    if value == 0 and entry.name in ZERO_MEANS:
+        return ZERO_MEANS[entry.name]
+    return None
+
+
+def decode(entry: Entry, value: int, table: ControlTable | None = None) -> dict[str, object]:
     """``value`` of ``entry`` in words: its unit and, where the register has a scale, the
-    physical value; direction-bit registers split into magnitude and direction."""
+    physical value; direction-bit registers split into magnitude and direction; special
+    values (:func:`meaning`) in words."""
     out: dict[str, object] = {
         "name": entry.name,
         "address": entry.address,
@@ -169,12 +244,17 @@ def decode(entry: Entry, value: int) -> dict[str, object]:
         digits = max(0, -math.floor(math.log10(float(scale.factor))))
         out["physical"] = round(magnitude * float(scale.factor), digits)
         out["unit"] = scale.unit
+    said = meaning(entry, value, table)
+    if said is not None:
+        out["meaning"] = said
     return out
 
 
 def describe_value(decoded: dict[str, object]) -> str:
     """A decoded value as text: "512 (150.016 deg)", "1124 (100 CW, 9.8 % of ...)"."""
     parts = []
+    if "meaning" in decoded:
+        return f"{decoded['value']} ({decoded['meaning']})"
     if decoded.get("magnitude"):
         parts.append(f"{decoded['magnitude']} {decoded['direction']}")
     if "physical" in decoded:
@@ -188,16 +268,28 @@ def describe_value(decoded: dict[str, object]) -> str:
 
 
 def identify(client: DxlClient, servo_id: int, *, retries: int | None = None) -> ServoInfo | None:
-    """PING ``servo_id`` and read its model and firmware; None if it does not answer."""
+    """PING ``servo_id`` and read its model and firmware; None if it does not answer.
+
+    A servo reporting error bits (overheated, overloaded) is still identified: its
+    flags are in :attr:`ServoInfo.error`. Damaged replies raise :class:`CorruptPacket`
+    after the client's retries."""
     try:
         reply = client.ping(servo_id, check=False, retries=retries)
     except DxlTimeout:
         return None
+    return _identified(client, servo_id, reply)
+
+
+def _identified(client: DxlClient, servo_id: int, reply: Packet) -> ServoInfo:
+    """The servo that answered PING with ``reply``: its model and firmware, read."""
     base = _base()
     start = base.by_name("Model Number").address
     fw = base.by_name("Firmware Version")
+    length = fw.address + fw.size - start
     try:
-        data = client.read(servo_id, start, fw.address + fw.size - start)
+        data = client.transact(
+            protocol.read(servo_id, start, length), servo_id, length, check=False
+        ).params
     except DxlTimeout:  # answers PING only: Status Return Level 0
         return ServoInfo(servo_id, client.baudrate, None, None, None, reply.error)
     number = int.from_bytes(data[:2], "little")
@@ -211,25 +303,103 @@ def identify(client: DxlClient, servo_id: int, *, retries: int | None = None) ->
     )
 
 
-def scan(
-    port: serial.SerialBase,
-    ids: Iterable[int],
-    bauds: Sequence[int],
-    *,
-    on_baud: Callable[[int], None] = lambda _: None,
-) -> list[ServoInfo]:
-    """PING every ID in ``ids`` at each rate in ``bauds`` (one try each: silent IDs are
-    the rule) and identify those that answer."""
-    found: list[ServoInfo] = []
+@dataclass(frozen=True)
+class Probe:
+    """What one ID at one baud rate gave in a scan."""
+
+    id: int
+    baud: int
+    info: ServoInfo | None  # None: nothing identified
+    garbled: bool = False  # every try heard only damaged replies: something is there
+
+    def as_dict(self) -> dict[str, object]:
+        return {"id": self.id, "baud": self.baud}
+
+
+def probe(client: DxlClient, servo_id: int, *, retries: int = SCAN_RETRIES) -> Probe:
+    """Identify ``servo_id`` for a scan: one PING for a silent ID (silence is the rule),
+    up to ``retries`` more after a damaged reply (a corrupted echo on a one-wire
+    adapter, noise on the line), which means something may be there, or after an
+    echo that never came back intact (the instruction itself was damaged).
+
+    Before each retry the line is left quiet for :data:`~snakebot.protocol.FRAME_RESET_S`:
+    a damaged length byte leaves the servos waiting for the rest of a packet that never
+    comes, and they give up on it only after that pause."""
+    garbled = False
+    for _ in range(1 + retries):
+        if garbled:
+            _quiet(client.port)
+        try:
+            reply = client.ping(servo_id, check=False, retries=0)
+            return Probe(servo_id, client.baudrate, _identified(client, servo_id, reply))
+        except CorruptPacket:
+            garbled = True
+        except DxlTimeout as exc:
+            if not exc.echo_missing:
+                return Probe(servo_id, client.baudrate, None)
+            garbled = True
+    return Probe(servo_id, client.baudrate, None, garbled=True)
+
+
+def _quiet(port: serial.SerialBase) -> None:
+    """Send nothing for a little over :data:`~snakebot.protocol.FRAME_RESET_S` (reading
+    and dropping whatever arrives), so every servo abandons a packet it was still
+    waiting for. Waiting in a read, not a sleep, lets an emulated bus's clock run too."""
+    deadline = time.monotonic() + FRAME_RESET_S * QUIET_MARGIN
+    while (remaining := deadline - time.monotonic()) > 0:
+        port.timeout = remaining
+        port.read(QUIET_READ_SIZE)
+    port.reset_input_buffer()
+
+
+def detect_echo(port: serial.SerialBase, baud: int) -> bool:
+    """Whether the line echoes the host's own bytes (a one-wire adapter), unless
+    ``SNAKEBOT_ECHO`` says: a broadcast PING, which no servo answers, comes back only
+    as its echo. Asked again (after a quiet pause) while what comes back is damaged.
+
+    A scan settles this first because the client's own "auto" mode decides from the
+    first answer, and on a noisy line a damaged echo can mislead it for the whole scan.
+    """
+    setting = settings.resolve_echo()
+    if setting != "auto":
+        return bool(setting)
+    packet = protocol.ping(BROADCAST_ID)
+    # an echo comes back before any reply would: the reply timeout covers it
+    wait = DxlClient(port, baud, echo=False).timing.reply_timeout_s(len(packet), 0)
+    for _ in range(1 + SCAN_RETRIES):
+        port.reset_input_buffer()
+        port.write(packet)
+        heard = b""
+        deadline = time.monotonic() + wait
+        while (remaining := deadline - time.monotonic()) > 0 and len(heard) < len(packet):
+            port.timeout = remaining
+            heard += port.read(len(packet) - len(heard))
+        if not heard:
+            return False
+        if heard == packet:
+            return True
+        _quiet(port)
+    return True  # something came back every time, damaged: an echo on a noisy line
+
+
+def scan_probes(
+    port: serial.SerialBase, ids: Iterable[int], bauds: Sequence[int]
+) -> Iterator[Probe]:
+    """:func:`probe` every ID in ``ids`` at each rate in ``bauds``, yielding each result as
+    it comes, so a caller can show progress and keep what was found if stopped."""
     ids = list(ids)
-    for baud in bauds:
-        on_baud(baud)
-        client = DxlClient(port, baud)
+    echo = detect_echo(port, bauds[0]) if bauds else False
+    for n, baud in enumerate(bauds):
+        client = DxlClient(port, baud, echo=echo)
+        if n:  # servos at this rate heard the last one's PINGs as garbage: let them reset
+            _quiet(port)
         for servo_id in ids:
-            info = identify(client, servo_id, retries=0)
-            if info is not None:
-                found.append(info)
-    return found
+            yield probe(client, servo_id)
+
+
+def scan(port: serial.SerialBase, ids: Iterable[int], bauds: Sequence[int]) -> list[ServoInfo]:
+    """The servos :func:`scan_probes` identifies."""
+    return [p.info for p in scan_probes(port, ids, bauds) if p.info is not None]
 
 
 def parse_ids(text: str) -> list[int]:
@@ -256,16 +426,20 @@ def parse_ids(text: str) -> list[int]:
 
 
 def parse_bauds(text: str) -> list[int]:
-    """ "1000000,57600" -> rates; "common" -> :data:`COMMON_BAUDS`."""
-    if text.strip().lower() == "common":
+    """ "1000000,57600" -> rates; "common" -> :data:`COMMON_BAUDS`; "all" ->
+    :func:`all_bauds`."""
+    word = text.strip().lower()
+    if word == "common":
         return list(COMMON_BAUDS)
+    if word == "all":
+        return all_bauds()
     try:
         bauds = [int(float(b)) for b in text.split(",") if b.strip()]
     except ValueError:
         bauds = []
     if not bauds or any(b <= 0 for b in bauds):
         raise BusCommandError(
-            f"cannot read the baud rates {text!r}: write e.g. 1000000,57600 or common"
+            f"cannot read the baud rates {text!r}: write e.g. 1000000,57600, common or all"
         )
     return bauds
 
@@ -303,7 +477,7 @@ def read_registers(
     for entry in chosen:
         offset = entry.address - start
         raw = int.from_bytes(data[offset : offset + entry.size], "little")
-        values.append(decode(entry, raw))
+        values.append(decode(entry, raw, table))
     return table, values
 
 
@@ -396,6 +570,23 @@ def baud_register(bps: float) -> int:
 def baud_from_register(value: int) -> float:
     """The AX-12's bit rate for Baud Rate register ``value``."""
     return _baud().rate(value)
+
+
+def all_bauds() -> list[int]:
+    """Every rate the AX and MX servos described are tabulated at (:data:`STANDARD_REGISTERS`
+    through each model's baud formula, and its fixed rates), each once, the factory
+    rate first and the rest fastest first."""
+    rates: set[int] = set()
+    for name in devices.names("servo"):
+        baud = devices.load(name).baud
+        if baud is None:
+            continue
+        values = [v for v in STANDARD_REGISTERS if v in baud.values()] + list(baud.fixed)
+        rates.update(int(baud.rate(v)) for v in values)
+    factory = _base().by_name("Baud Rate").default
+    assert factory is not None  # the AX-12A's description gives it
+    first = int(baud_from_register(factory))
+    return [first, *sorted(rates - {first}, reverse=True)]
 
 
 @dataclass(frozen=True)

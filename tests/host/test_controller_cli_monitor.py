@@ -4,12 +4,16 @@ on a terminal."""
 
 from __future__ import annotations
 
+import csv
+import json
+import math
 import os
 import pty
 import subprocess
 import sys
 import time
 
+import pytest
 from controller_cli_support import (
     cli,
     cli_json,
@@ -17,13 +21,20 @@ from controller_cli_support import (
 )
 
 from snakebot.controller import State
+from snakebot.controller.monitor import CSV_COLUMNS
 from snakebot.paths import REPO_ROOT
+from snakebot.robots import load_robot
+
+SNAKE5 = load_robot("snake5")
 
 SERVO_FIELDS = {
     "joint",
+    "name",
     "id",
     "goal",
+    "goal_deg",
     "position",
+    "position_deg",
     "speed_rpm",
     "load",
     "load_percent",
@@ -52,6 +63,14 @@ def test_json_lines_have_the_controller_and_every_servo(controller_with_table):
         assert c["state"] == "PLAYING" and c["error_flags"] == []
         assert c["table_bytes"] == len(server.active_table())
         assert [s["id"] for s in record["servos"]] == [10, 11, 15, 16]
+        assert [s["name"] for s in record["servos"]] == ["phi1", "phi2", "phi3", "phi4"]
+        # angles as the robot description converts its joints' ticks
+        for joint, servo in zip(SNAKE5.joints, record["servos"], strict=True):
+            for tick, deg in (
+                (servo["position"], servo["position_deg"]),
+                (servo["goal"], servo["goal_deg"]),
+            ):
+                assert deg == pytest.approx(math.degrees(joint.tick_to_angle(tick)), abs=0.01)
         for servo in record["servos"]:
             assert set(servo) == SERVO_FIELDS
             assert servo["voltage_v"] == 12.0  # the emulated supply
@@ -190,3 +209,57 @@ def test_rosters_longer_than_one_servo_page(tmp_path):
     assert [s["reverse"] for s in servos] == [k % 2 == 1 for k in range(8)]
     span = round(60 * 1023 / 300)
     assert all(s["max_tick"] - s["min_tick"] == 2 * span for s in servos)
+
+
+def test_csv_records_every_sample_one_row_per_servo(controller_with_table, tmp_path):
+    path = tmp_path / "run.csv"
+    result = cli(
+        "monitor", "--port", controller_with_table.device, "--duration", "0.2",
+        "--interval", "0.1", "--csv", path, "--json",
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    records = [json.loads(line) for line in result.stdout.splitlines()]
+    with path.open(newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert list(rows[0]) == list(CSV_COLUMNS)
+    # the same samples as the JSON Lines printed beside them, servo by servo
+    expected = [(r["t"], s["name"], s["position"], s["position_deg"])
+                for r in records for s in r["servos"]]  # fmt: skip
+    got = [(float(r["t"]), r["name"], int(r["position"]), float(r["position_deg"])) for r in rows]
+    assert got == expected and len(rows) == 3 * 4
+
+
+def test_csv_to_an_unwritable_place_fails_before_connecting(tmp_path):
+    result = cli(
+        "monitor", "--port", "/dev/ttySNAKEBOT-missing", "--csv", tmp_path / "no" / "x.csv"
+    )
+    assert result.exit_code == 2
+    assert "x.csv" in result.stderr and "Traceback" not in result.output
+
+
+def test_csv_is_not_left_behind_when_the_controller_cannot_be_reached(tmp_path):
+    path = tmp_path / "run.csv"
+    result = cli("monitor", "--port", "/dev/ttySNAKEBOT-missing", "--csv", path)
+    assert result.exit_code == 2 and "error: " in result.stderr
+    assert not path.exists()
+
+
+def test_mcap_holds_one_json_message_per_sample(controller_with_table, tmp_path):
+    from mcap.reader import make_reader
+
+    path = tmp_path / "run.mcap"
+    result = cli(
+        "monitor", "--port", controller_with_table.device, "--duration", "0.2",
+        "--interval", "0.1", "--mcap", path, "--json",
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    printed = [json.loads(line) for line in result.stdout.splitlines()]
+    with path.open("rb") as f:
+        messages = list(make_reader(f).iter_messages())
+    assert len(messages) == len(printed) == 3
+    for (schema, channel, message), record in zip(messages, printed, strict=True):
+        assert channel.topic == "/snakebot/telemetry" and channel.message_encoding == "json"
+        assert schema.encoding == "jsonschema"
+        assert json.loads(message.data) == record
+    stamps = [m.log_time for _, _, m in messages]
+    assert stamps == sorted(stamps) and stamps[-1] - stamps[0] >= 0.15e9  # wall-clock ns

@@ -27,6 +27,7 @@ def main() -> None:
 # Command registration: each command lives in its own module. Imported here, after
 # `main` exists, because the `sim` subcommands attach to the `sim` group.
 from snakebot.cli.bus import bus  # noqa: E402
+from snakebot.cli.bus_play import bus_play  # noqa: E402
 from snakebot.cli.demo import demo  # noqa: E402
 from snakebot.cli.flash import flash_command  # noqa: E402
 from snakebot.cli.gait import gait  # noqa: E402
@@ -35,6 +36,7 @@ from snakebot.cli.model import model  # noqa: E402
 from snakebot.cli.monitor import monitor  # noqa: E402
 from snakebot.cli.plan import plan_command  # noqa: E402
 from snakebot.cli.playback import play, serpenoid, stop  # noqa: E402
+from snakebot.cli.robot import robot  # noqa: E402
 from snakebot.cli.sim import sim  # noqa: E402
 from snakebot.cli.sim_bootloader import bootloader  # noqa: E402
 from snakebot.cli.sim_goto import goto  # noqa: E402
@@ -58,7 +60,8 @@ for command in (
     demo,
 ):
     main.add_command(command)
-for command in (plan_command,):
+for command in (plan_command, robot):
     main.add_command(command)
+bus.add_command(bus_play)
 for command in (predict, serve, bootloader, goto, thesis, friction):
     sim.add_command(command)

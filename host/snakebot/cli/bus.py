@@ -5,14 +5,18 @@ from __future__ import annotations
 
 import functools
 import json
+import sys
 from collections.abc import Callable
 from typing import Any
 
 import click
 
 from snakebot import servo_ops
-from snakebot.servo_ops import BusCommandError, ServoInfo
+from snakebot.servo_ops import BusCommandError, Probe, ServoInfo
 from snakebot.transport import DEFAULT_BAUDRATE, DxlClient, open_port
+
+EXIT_INTERRUPTED = 130
+"""What a shell reports for a command stopped by Ctrl-C (128 + SIGINT)."""
 
 PORT_HELP = (
     "The bus adapter: a device (/dev/ttyUSB0, COM3), a pyserial URL, or sim://?ids=1,2 for "
@@ -81,27 +85,52 @@ def bus() -> None:
 )
 @click.option(
     "--bauds",
-    help="Rates to try instead of --baud, comma-separated, or "
-    "'common' for the AX-12's usual ones (1000000 ... 9615).",
+    help="Rates to try instead of --baud, comma-separated; 'common' for the AX-12's "
+    "usual ones (1000000 ... 9615), 'all' for every rate an AX or MX servo is "
+    "tabulated at (up to 3000000).",
 )
-def scan_command(port: str, baud: int, as_json: bool, ids: str, bauds: str | None) -> None:
+@click.pass_context
+def scan_command(
+    ctx: click.Context, port: str, baud: int, as_json: bool, ids: str, bauds: str | None
+) -> None:
     """Find the servos on the bus: PING every ID, and report each one's model and
-    firmware version.
+    firmware version as it is found.
 
-    Each silent ID costs one reply timeout (about 20 ms with a USB adapter), so a scan of
-    all 254 IDs takes a few seconds per baud rate. A servo whose baud rate you do not
-    know turns up with --bauds common.
+    An ID whose reply arrives damaged (noise, a corrupted echo on a one-wire adapter)
+    is tried again; one that never answers cleanly is listed as garbled rather than
+    stopping the scan. Ctrl-C stops early and still lists what was found (exit 130).
+    Exit status 1 when no servo answers.
+
+    Each silent ID costs one reply timeout, so a scan of all 254 IDs takes a few
+    seconds per baud rate through a USB adapter. A servo whose baud rate you do not
+    know turns up with --bauds common, or --bauds all.
     """
     id_list = servo_ops.parse_ids(ids)
     rates = servo_ops.parse_bauds(bauds) if bauds else [baud]
-    span = f"IDs {ids}" if len(id_list) > 1 else f"ID {id_list[0]}"
-
-    def on_baud(rate: int) -> None:
-        if not as_json:
-            click.echo(f"Scanning {span} at {rate} baud on {port} ...")
-
-    with open_port(port, rates[0], timeout=0) as link:
-        found = servo_ops.scan(link, id_list, rates, on_baud=on_baud)
+    found: list[ServoInfo] = []
+    garbled: list[Probe] = []
+    interrupted = False
+    if not as_json:
+        span = f"IDs {ids}" if len(id_list) > 1 else f"ID {id_list[0]}"
+        at = f"{rates[0]} baud" if len(rates) == 1 else f"{len(rates)} baud rates"
+        click.echo(f"Scanning {span} at {at} on {port} ...")
+    bar = click.progressbar(
+        length=len(id_list) * len(rates), label="Scanning", file=sys.stderr, show_pos=True
+    )
+    with open_port(port, rates[0], timeout=0) as link, bar:
+        try:
+            for result in servo_ops.scan_probes(link, id_list, rates):
+                bar.update(1)
+                if result.info is not None:
+                    if not found and not as_json:
+                        click.echo(HEADER)
+                    found.append(result.info)
+                    if not as_json:
+                        click.echo(_servo_line(result.info))
+                elif result.garbled:
+                    garbled.append(result)
+        except KeyboardInterrupt:
+            interrupted = True
     if as_json:
         click.echo(
             json.dumps(
@@ -110,20 +139,30 @@ def scan_command(port: str, baud: int, as_json: bool, ids: str, bauds: str | Non
                     "ids": id_list,
                     "bauds": rates,
                     "found": [s.as_dict() for s in found],
+                    "garbled": [g.as_dict() for g in garbled],
+                    "interrupted": interrupted,
                 }
             )
         )
-        return
-    if found:
-        click.echo(HEADER)
-        for info in found:
-            click.echo(_servo_line(info))
-        click.echo(f"Found {len(found)} servo{'s' if len(found) != 1 else ''}.")
     else:
+        for g in garbled:
+            click.echo(
+                f"ID {g.id} at {g.baud} baud: only damaged replies "
+                f"({1 + servo_ops.SCAN_RETRIES} tries); check the cabling, or two servos "
+                "sharing this ID"
+            )
+        if found:
+            click.echo(f"Found {len(found)} servo{'s' if len(found) != 1 else ''}.")
+    if interrupted:
+        click.echo("Scan stopped by Ctrl-C: the list above is what was found so far.", err=True)
+        ctx.exit(EXIT_INTERRUPTED)
+    if not found:
         click.echo(
-            "No servo answered. Check that the servos are powered (USB does not power them) "
-            "and cabled, and try other rates with --bauds common."
+            "error: no servo answered. Check that the servos are powered (USB does not "
+            "power them) and cabled, and try other rates with --bauds common or --bauds all.",
+            err=True,
         )
+        ctx.exit(1)
 
 
 @bus.command("ping")
@@ -195,7 +234,8 @@ def read_command(
 def write_command(
     port: str, baud: int, as_json: bool, servo_id: int, register: str, value: str
 ) -> None:
-    """Write VALUE (decimal or 0x hex, raw register units) to REGISTER of servo ID.
+    """Write VALUE to REGISTER of servo ID: a raw value (decimal or 0x hex) or an
+    amount with a unit the register's scale converts (30deg, 0.5rad, 50rpm, 11.5V).
 
     Read-only registers and values outside the register's range are refused before
     anything is sent. Change an ID with `snakebot bus set-id` and a baud rate with
@@ -203,15 +243,12 @@ def write_command(
 
     \b
         snakebot bus write 1 goal-position 512 --port /dev/ttyUSB0
+        snakebot bus write 1 goal-position 150deg --port /dev/ttyUSB0
+        snakebot bus write 1 moving-speed 50rpm --port /dev/ttyUSB0
         snakebot bus write 1 led 1 --port /dev/ttyUSB0
     """
     entry = servo_ops.resolve_register(register)
-    try:
-        number = int(value, 0)
-    except ValueError:
-        raise BusCommandError(
-            f"cannot read the value {value!r}: give a whole number, e.g. 512 or 0x200"
-        ) from None
+    number = servo_ops.parse_value(entry, value)
     redirect = {"ID": "set-id", "Baud Rate": "set-baud"}.get(entry.name)
     if redirect:
         raise BusCommandError(

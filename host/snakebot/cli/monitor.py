@@ -2,15 +2,19 @@
 
 from __future__ import annotations
 
+import contextlib
+import csv
 import json
 import shutil
 import sys
 import time
+from pathlib import Path
 
 import click
 
 from snakebot.cli.controller_link import controller_options, open_controller
-from snakebot.controller.monitor import render, sample
+from snakebot.controller.mcap_log import McapLog
+from snakebot.controller.monitor import CSV_COLUMNS, csv_rows, render, sample
 
 CLEAR_BELOW = "\x1b[J"
 GRID_SLACK = 1e-9
@@ -37,24 +41,70 @@ def _cursor_up(lines: int) -> str:
     show_default=True,
     help="Seconds between samples.",
 )
+@click.option(
+    "--csv",
+    "csv_path",
+    type=click.Path(dir_okay=False, writable=True, path_type=Path),
+    help="Also record every sample to this CSV file, one row per servo (t, state, joint "
+    "name, ticks and degrees, speed, load, voltage, temperature, errors).",
+)
+@click.option(
+    "--mcap",
+    "mcap_path",
+    type=click.Path(dir_okay=False, writable=True, path_type=Path),
+    help="Also record every sample to this MCAP file (Foxglove Studio, PlotJuggler): one "
+    "JSON message per sample, as --json prints it. Needs the mcap package.",
+)
 def monitor(
-    port: str, baud: int, controller_id: int, as_json: bool, duration: float | None, interval: float
+    port: str,
+    baud: int,
+    controller_id: int,
+    as_json: bool,
+    duration: float | None,
+    interval: float,
+    csv_path: Path | None,
+    mcap_path: Path | None,
 ) -> None:
     """Show the controller's state and error flags, and each roster servo's position,
     load, voltage, temperature and errors, as the controller last read them.
 
     On a terminal the table refreshes in place; otherwise (or with --json, one JSON
-    record per line: JSON Lines) every sample is printed after the last.
+    record per line: JSON Lines) every sample is printed after the last. With --csv
+    each sample is also written to a file as it is taken, so a run stopped with Ctrl-C
+    keeps everything up to then; --mcap does the same in MCAP.
     """
     live = sys.stdout.isatty() and not as_json
     shown = 0
-    with open_controller(port, baud, controller_id) as ctl:
-        ctl.identify()
+    with contextlib.ExitStack() as stack:
+        recorder = None
+        if csv_path is not None:  # opened first: a path that cannot be written fails at once
+            out = stack.enter_context(csv_path.open("w", newline=""))
+            recorder = csv.DictWriter(out, fieldnames=CSV_COLUMNS)
+        mcap_log = None
+        try:
+            if mcap_path is not None:
+                mcap_log = McapLog(stack.enter_context(mcap_path.open("wb")))
+                stack.enter_context(mcap_log)
+            ctl = stack.enter_context(open_controller(port, baud, controller_id))
+            ctl.identify()
+        except BaseException:
+            stack.close()  # no controller, no recording: leave no empty file
+            for path in (csv_path, mcap_path):
+                if path is not None:
+                    path.unlink(missing_ok=True)
+            raise
+        if recorder is not None:
+            recorder.writeheader()
         t0 = time.monotonic()
         taken = 0
         try:
             while True:
                 s = sample(ctl, t0)
+                if recorder is not None:
+                    recorder.writerows(csv_rows(s))
+                    out.flush()
+                if mcap_log is not None:
+                    mcap_log.write(s.as_record())
                 if as_json:
                     click.echo(json.dumps(s.as_record()))
                 else:

@@ -8,6 +8,7 @@ each roster servo (the servo window), as records and as a text table.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -15,6 +16,7 @@ from typing import Any
 from snakebot.controller import words
 from snakebot.controller.client import ControllerClient, JointRecord
 from snakebot.controller.table import Controller, load
+from snakebot.robots.model import Joint, joint_name
 
 # The servo window mirrors the servos' registers: units and encodings are theirs.
 _SPEED = load().servo_field("Present Speed")
@@ -61,12 +63,22 @@ class Sample:
         }
 
 
+def joint_of(j: JointRecord) -> Joint:
+    """The roster joint as a robot joint, for its tick-to-angle conversion (the limits
+    play no part in it)."""
+    return Joint(joint_name(j.joint), j.id, j.zero_tick, -1 if j.reverse else 1, 0.0, 0.0)
+
+
 def servo_record(j: JointRecord) -> dict[str, Any]:
+    joint = joint_of(j)
     return {
         "joint": j.joint,
+        "name": joint.name,
         "id": j.id,
         "goal": j.goal,
+        "goal_deg": round(math.degrees(joint.tick_to_angle(j.goal)), 2),
         "position": j.position,
+        "position_deg": round(math.degrees(joint.tick_to_angle(j.position)), 2),
         "speed_rpm": round(_SPEED.to_units(j.speed, "rpm"), 2),
         "load": _LOAD.value(j.load),
         "load_percent": round(_LOAD.to_units(j.load), 1),
@@ -90,8 +102,38 @@ def sample(ctl: ControllerClient, t0: float | None = None) -> Sample:
     return Sample(now - (now if t0 is None else t0), registers, servos, ctl.table)
 
 
+CSV_COLUMNS = (
+    "t",
+    "state",
+    "name",
+    "id",
+    "goal",
+    "goal_deg",
+    "position",
+    "position_deg",
+    "speed_rpm",
+    "load_percent",
+    "voltage_v",
+    "temperature_c",
+    "error",
+)
+"""The columns of ``snakebot monitor --csv``: one row per roster servo per sample."""
+
+
+def csv_rows(s: Sample) -> list[dict[str, Any]]:
+    """The sample as CSV rows (:data:`CSV_COLUMNS`), one per roster servo."""
+    base = {"t": round(s.t, 3), "state": s.controller_record()["state"]}
+    rows = []
+    for j in s.servos:
+        record = servo_record(j)
+        record["error"] = " ".join(record["error"])
+        rows.append(base | {k: record[k] for k in CSV_COLUMNS if k in record})
+    return rows
+
+
 HEADER = (
-    f"{'joint':>5} {'ID':>4} {'goal':>5} {'pos':>5} {'speed rpm':>10} {'load %':>7} "
+    f"{'joint':>5} {'ID':>4} {'goal':>5} {'pos':>5} {'angle deg':>9} {'speed rpm':>10} "
+    f"{'load %':>7} "
     f"{'volt':>5} {'temp':>5}  errors"
 )
 
@@ -121,7 +163,8 @@ def render(s: Sample) -> list[str]:
         if j.error_count:
             errors += f"; {j.error_count} replies with errors"
         lines.append(
-            f"{j.joint:>5} {j.id:>4} {j.goal:>5} {j.position:>5} {r['speed_rpm']:>10.1f} "
+            f"{r['name']:>5} {j.id:>4} {j.goal:>5} {j.position:>5} {r['position_deg']:>+9.1f} "
+            f"{r['speed_rpm']:>10.1f} "
             f"{r['load_percent']:>7.1f} {r['voltage_v']:>5.1f} {j.temperature:>5}  {errors}"
         )
     return lines

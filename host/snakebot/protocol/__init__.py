@@ -15,6 +15,7 @@ from snakebot.protocol.errors import (
 )
 from snakebot.protocol.instructions import (
     BROADCAST_ID,
+    FRAME_RESET_S,
     MAX_ID,
     MAX_PACKET_LEN,
     MAX_PARAMS,
@@ -37,6 +38,7 @@ from snakebot.protocol.parser import PacketParser, decode
 __all__ = [
     "BROADCAST_ID",
     "MAX_ID",
+    "FRAME_RESET_S",
     "MAX_PACKET_LEN",
     "MAX_PARAMS",
     "ControlTable",

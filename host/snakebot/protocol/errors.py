@@ -76,6 +76,10 @@ class PacketArgumentError(ProtocolError, ValueError):
 class DxlTimeout(ProtocolError):
     """No (complete) reply arrived in time."""
 
+    echo_missing: bool = False
+    """On a bus known to echo: not even the instruction's own echo came back intact, so
+    the instruction itself may have been damaged on the wire."""
+
 
 class CorruptPacket(ProtocolError):
     """A reply had a bad checksum, an impossible length, or the wrong shape."""

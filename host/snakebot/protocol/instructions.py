@@ -17,6 +17,7 @@ HEADER = b"\xff\xff"
 BROADCAST_ID = 0xFE
 MAX_ID = 0xFD  # highest addressable device ID (253)
 MAX_PACKET_LEN = 250  # whole packet, header to checksum: ROBOTIS's SDK cap
+FRAME_RESET_S = 0.1  # a pause this long inside a packet makes an AX-12 drop the packet
 MIN_LEN_FIELD = 2  # LEN counts the instruction/error byte and the checksum
 MAX_LEN_FIELD = MAX_PACKET_LEN - 4  # 246
 MAX_PARAMS = MAX_LEN_FIELD - 2  # 244

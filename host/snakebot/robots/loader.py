@@ -39,6 +39,7 @@ from snakebot.robots.model import (
     Physics,
     Robot,
     RobotError,
+    joint_name,
 )
 
 BUILTIN_ROBOTS = ("snake3", "trident", "snake5", "car")
@@ -148,7 +149,7 @@ def _joint(reader: _Reader, index: int) -> Joint:
     if low >= high:
         raise reader.fail((*base, "max_deg"), f"must be greater than min_deg ({low}), not {high}")
     joint = Joint(
-        name=reader.get((*base, "name"), str, f"phi{index + 1}"),
+        name=reader.get((*base, "name"), str, joint_name(index)),
         servo_id=reader.integer((*base, "servo_id"), 0, 253),
         zero_tick=reader.integer((*base, "zero_tick"), TICK_MIN, TICK_MAX),
         sign=sign,

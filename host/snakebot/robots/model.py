@@ -24,6 +24,11 @@ class RobotError(SnakebotError):
     """A robot description that cannot be used (file missing, malformed, inconsistent)."""
 
 
+def joint_name(index: int) -> str:
+    """The name of joint ``index`` (0 = the first) when a description gives none: phi1, ..."""
+    return f"phi{index + 1}"
+
+
 @dataclass(frozen=True)
 class Joint:
     """One actuated joint: the servo driving it and how its ticks map to the angle."""

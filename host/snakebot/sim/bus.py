@@ -29,14 +29,14 @@ import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
-from snakebot.protocol import BROADCAST_ID, MAX_PACKET_LEN, Instruction, Packet
+from snakebot.protocol import BROADCAST_ID, FRAME_RESET_S, MAX_PACKET_LEN, Instruction, Packet
 from snakebot.sim.clock import BITS_PER_BYTE
 from snakebot.sim.faults import FaultConfig, FaultInjector
 from snakebot.sim.receiver import ServoReceiver
 from snakebot.sim.servo import VirtualServo, sync_write_shape
 from snakebot.sim.uart import resample, same_baud
 
-INTER_BYTE_GAP_S = 0.1
+INTER_BYTE_GAP_S = FRAME_RESET_S
 """A pause longer than this inside a packet makes a servo drop the partial packet."""
 
 MASTER = "master"

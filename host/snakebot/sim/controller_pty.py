@@ -32,6 +32,7 @@ import sys
 import time
 from collections.abc import Callable
 
+from snakebot.controller.player import TICK_MS
 from snakebot.core import ffi, lib
 from snakebot.sim.bus import Bus
 from snakebot.sim.clock import byte_time
@@ -39,9 +40,6 @@ from snakebot.sim.errors import SimError
 from snakebot.sim.options import SimOptions
 from snakebot.sim.transports.base import RawPty, ThreadedServer
 from snakebot.sim.transports.pump import ServerThread
-
-TICK_MS = 10
-"""Control tick, as BOARD_CONTROL_TICK_MS on both boards."""
 
 BUS_BAUD = 1_000_000
 """The Dynamixel bus rate (BOARD_BUS_BAUD)."""

@@ -34,8 +34,18 @@ from urllib.parse import urlencode
 import numpy as np
 
 from snakebot import devices
-from snakebot.core import ffi, lib
-from snakebot.errors import SnakebotError
+from snakebot.controller.player import (
+    GOAL_BLOCK,
+    GOAL_POSITION_ADDR,
+    START_SETTLE_S,
+    START_SPEED,
+    START_TOLERANCE_TICKS,
+    TICK_MS,
+    PlayerError,
+    TablePlayer,
+    goal_block,
+    goal_blocks,
+)
 from snakebot.gait.common import (
     TableMotion,
     motion,
@@ -48,7 +58,6 @@ from snakebot.kinematics import KinematicsError, Trajectory
 from snakebot.protocol import sync_write
 from snakebot.robots import Robot, RobotError, load_robot
 from snakebot.sim.bus import Bus
-from snakebot.sim.controller_pty import TICK_MS
 from snakebot.sim.physics.select import DEFAULT_WORLD, make_world, record_extras, world_of
 from snakebot.sim.world import DEFAULT_BATCH, WorldRecord
 from snakebot.transport import DxlClient
@@ -57,18 +66,10 @@ _AX12 = devices.ax12()
 _GOAL = _AX12.register("Goal Position")
 _SPEED = _AX12.register("Moving Speed")
 _PRESENT = _AX12.register("Present Position")
-GOAL_POSITION_ADDR, GOAL_BLOCK = _AX12.span(_GOAL.name, _SPEED.name)
-"""Goal Position then Moving Speed: where one SYNC_WRITE block goes, and its bytes."""
-START_SPEED = 200
-"""Moving Speed (about 22 rpm) for the move to the first frame."""
-START_SETTLE_S = 0.1
-"""Extra bus time allowed for the move to the first frame."""
-START_TOLERANCE_TICKS = 1
-"""How far from the first frame a servo may stop (the factory compliance margin)."""
 DEFAULT_WORLD_HZ = 100.0
 
 
-class PredictError(SnakebotError):
+class PredictError(PlayerError):
     """A gait that cannot be played on the emulated robot as asked."""
 
 
@@ -200,31 +201,6 @@ def resolve_robot(table: GaitTable, robot: str | Robot | None) -> Robot:
     return chosen
 
 
-class TablePlayer:
-    """The controller's gait player (C, ``play_*``) on one table, ticked from Python."""
-
-    def __init__(self, table: GaitTable) -> None:
-        self._data = ffi.new("uint8_t[]", table.encode())  # the player keeps a pointer
-        self._mem = ffi.new("uint8_t[]", lib.play_state_size())
-        self._state = ffi.cast("play_state *", self._mem)
-        self._params = ffi.new("play_params *")
-        self._params.speed_scale = 256  # as written
-        self._params.loop = int(table.loop)
-        self._roster = ffi.new("play_joint[]", 1)  # table mode: limits come from the table
-        lib.play_init(self._state)
-        if not lib.play_start_table(self._state, self._data, table.size, 0):
-            raise PredictError("the controller's player refuses the table: it does not validate")
-
-    def tick(self, now_ms: int) -> dict[int, tuple[int, int]]:
-        """The outputs after a control tick at ``now_ms``: servo ID -> (goal, speed)."""
-        count = lib.play_tick(self._state, self._params, self._roster, 0, now_ms)
-        p = self._state
-        return {
-            lib.play_out_id(p, j): (lib.play_out_goal(p, j), lib.play_out_speed(p, j))
-            for j in range(count)
-        }
-
-
 def player_writes(table: GaitTable) -> tuple[float, list[dict[int, bytes]]]:
     """The SYNC_WRITE blocks (servo ID -> goal, speed little-endian) the controller sends
     over one pass of the table, one per control tick from t = 0 to the pass's end, and
@@ -235,13 +211,8 @@ def player_writes(table: GaitTable) -> tuple[float, list[dict[int, bytes]]]:
     blocks = []
     for n in range(math.ceil(pass_ms / TICK_MS) + 1):
         outputs = player.tick(min(n * TICK_MS, pass_ms))
-        blocks.append({sid: _goal_block(goal, speed) for sid, (goal, speed) in outputs.items()})
+        blocks.append(goal_blocks(outputs))
     return TICK_MS / 1000.0, blocks
-
-
-def _goal_block(goal: int, speed: int) -> bytes:
-    """Goal Position and Moving Speed as one SYNC_WRITE block."""
-    return goal.to_bytes(_GOAL.size, "little") + speed.to_bytes(_SPEED.size, "little")
 
 
 def sim_url(robot: Robot, ideal: bool) -> str:
@@ -258,7 +229,7 @@ def move_to_start(client: DxlClient, bus: Bus, robot: Robot, first: np.ndarray) 
     client.sync_write(
         _GOAL.address,
         GOAL_BLOCK,
-        {sid: _goal_block(int(g), START_SPEED) for sid, g in zip(ids, first, strict=True)},
+        {sid: goal_block(int(g), START_SPEED) for sid, g in zip(ids, first, strict=True)},
     )
     here = np.array(bus.positions(ids))
     distance = float(np.abs(here - first).max())

@@ -409,13 +409,15 @@ class DxlClient:
             )
         else:
             echo_hint = ""
-        return DxlTimeout(
+        timeout_error = DxlTimeout(
             f"no reply to {what} within {timeout * 1e3:.1f} ms at {self.baudrate} baud "
             f"({tried}). Check that the servos are powered (USB does not power them), that "
             f"the baud rate matches the servo's (AX-12 factory setting: 1000000), that a "
             f"servo with ID {expect_id} is on the bus (scan for it), and, on a slow USB "
             f"adapter, raise SNAKEBOT_LATENCY_MS{echo_hint}"
         )
+        timeout_error.echo_missing = self._echo is True and not last.echo_seen
+        return timeout_error
 
     def _exchange(self, packet: bytes, servo_id: int, expect_len: int) -> Packet | None:
         """Transact if ``servo_id`` will answer this instruction, else just send."""

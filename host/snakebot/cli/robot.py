@@ -1,0 +1,75 @@
+"""`snakebot robot`: bring a robot description and the real robot into agreement."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+
+from snakebot.cli.bus import bus_options
+from snakebot.robots import load_robot
+from snakebot.robots.calibrate import JOG_DEG, calibrate, updated_text, write_atomically
+from snakebot.robots.model import Joint
+from snakebot.transport import DxlClient
+
+
+@click.group("robot")
+def robot() -> None:
+    """Work on a robot description (a robot .toml) against the real robot."""
+
+
+@robot.command("calibrate")
+@click.argument("toml", metavar="ROBOT.toml", type=click.Path(dir_okay=False, path_type=Path))
+@bus_options
+@click.option(
+    "--yes",
+    "-y",
+    is_flag=True,
+    help="Ask nothing: the snake already lies straight, and each joint keeps the sign in "
+    "the file (its jog then only checks that the servo follows).",
+)
+def calibrate_command(toml: Path, port: str, baud: int, as_json: bool, yes: bool) -> None:
+    """Measure each joint's zero tick and sign on the real robot and write them into
+    ROBOT.toml (its comments and layout are kept; the file is replaced in one step,
+    and only if the result is a valid robot).
+
+    Connect the servos through a bus adapter and power them. The command turns the
+    torque off; you lay the snake straight on the floor and press Enter; each joint's
+    position is read as its zero tick. Then each joint turns a little (about 10
+    degrees) and back, and you say whether the link nearer the head turned
+    counter-clockwise seen from above (sign 1) or clockwise (sign -1).
+
+    \b
+        snakebot robot calibrate my_snake.toml --port /dev/ttyUSB0
+    """
+    described = load_robot(toml)
+    text = toml.read_text()
+    if not yes:
+        click.echo(
+            f"{described.name}: turning the torque off. Lay the snake straight (every link "
+            "in one line), then press Enter.",
+            err=as_json,
+        )
+        click.prompt("", default="", show_default=False, prompt_suffix="", err=as_json)
+
+    def ask(joint: Joint) -> bool:
+        return click.confirm(
+            f"{joint.name} (servo {joint.servo_id}) turned about {JOG_DEG:g} degrees and back: "
+            "did the link nearer the head turn counter-clockwise, seen from above?",
+            err=as_json,
+        )
+
+    with DxlClient(port, baud) as client:
+        found = calibrate(client, described, None if yes else ask)
+    write_atomically(toml, updated_text(text, found))
+    if as_json:
+        click.echo(json.dumps({"robot": str(toml), "joints": [c.as_dict() for c in found]}))
+        return
+    for c in found:
+        origin = "as you saw it" if c.asked else "kept from the file"
+        click.echo(
+            f"{c.name}: servo {c.servo_id}, zero tick {c.zero_tick}, sign {c.sign:+d} "
+            f"({origin}; the jog turned it {c.moved_ticks:+d} ticks)"
+        )
+    click.echo(f"Wrote {toml}.")

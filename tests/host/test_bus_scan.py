@@ -1,0 +1,90 @@
+"""`snakebot bus scan` on lines that misbehave: damaged replies and echoes, silence, Ctrl-C."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+
+import pytest
+from click.testing import CliRunner
+
+import snakebot.transport.ports  # noqa: F401  (registers sim://)
+from snakebot import devices, servo_ops
+from snakebot.cli import main
+from snakebot.transport import open_port
+
+pytestmark = pytest.mark.timeout(120)
+
+SNAKE5_IDS = [10, 11, 15, 16]
+NOISY = "sim://?robot=snake5&echo=1&corrupt=0.01&seed={seed}"
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_scan_through_a_noisy_one_wire_adapter_finds_every_servo(seed):
+    with open_port(NOISY.format(seed=seed), 1_000_000, timeout=0) as link:
+        found = servo_ops.scan(link, range(0, 254), [1_000_000])
+        damaged = link.bus.faults.corrupted_bytes
+    assert damaged > 0  # the line really did damage bytes during this scan
+    assert [s.id for s in found] == SNAKE5_IDS
+    assert all(s.model == "AX-12A" for s in found)
+
+
+def test_scan_cli_keeps_going_past_damaged_replies():
+    result = CliRunner().invoke(
+        main, ["bus", "scan", "--port", NOISY.format(seed=0), "--ids", "0-20", "--json"]
+    )
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.stdout)
+    assert [s["id"] for s in report["found"]] == SNAKE5_IDS
+    assert report["interrupted"] is False
+
+
+def test_scan_that_finds_nothing_fails_with_advice():
+    result = CliRunner().invoke(main, ["bus", "scan", "--port", "sim://?ids=40", "--ids", "1-3"])
+    assert result.exit_code == 1
+    assert "error: no servo answered" in result.stderr and "--bauds all" in result.stderr
+
+
+def test_bauds_all_covers_every_tabulated_ax_and_mx_rate():
+    rates = servo_ops.parse_bauds("all")
+    assert rates[0] == 1_000_000 and len(rates) == len(set(rates))
+    assert set(servo_ops.COMMON_BAUDS) <= set(rates)
+    mx = devices.load("MX-28").require_baud()
+    assert {round(mx.rate(v)) for v in mx.fixed} <= set(rates)
+    assert min(rates) == min(servo_ops.COMMON_BAUDS)
+
+
+def test_scan_with_bauds_all_finds_a_servo_common_misses():
+    port = "sim://?ids=3&baud=2000000"
+    assert 2_000_000 not in servo_ops.COMMON_BAUDS
+    args = ["bus", "scan", "--port", port, "--ids", "2-3", "--json", "--bauds"]
+    assert CliRunner().invoke(main, [*args, "common"]).exit_code == 1
+    result = CliRunner().invoke(main, [*args, "all"])
+    assert result.exit_code == 0, result.output
+    (servo,) = json.loads(result.stdout)["found"]
+    assert (servo["id"], servo["model"], servo["baud"]) == (3, "AX-12A", 2_000_000)
+
+
+def test_ctrl_c_prints_what_was_found_and_exits_130():
+    env = {**os.environ, "SNAKEBOT_LATENCY_MS": "20"}
+    scan = subprocess.Popen(
+        [sys.executable, "-m", "snakebot", "bus", "scan", "--port", "sim://?ids=1,2"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+    assert scan.stdout is not None
+    lines = []
+    for line in scan.stdout:  # the servos are printed as they are found
+        lines.append(line)
+        if line.split()[:1] == ["2"]:
+            break
+    scan.send_signal(signal.SIGINT)
+    rest, err = scan.communicate(timeout=30)
+    assert scan.returncode == 130, err
+    assert "AX-12A" in "".join(lines)
+    assert "Scan stopped by Ctrl-C" in err and "Traceback" not in err

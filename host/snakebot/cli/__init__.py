@@ -2,7 +2,8 @@
 
 Each module defines a click command or group and is registered below. Commands parse
 their options, open what they need, call an operation from the library and print;
-errors from the library become one line on stderr and exit status 2 (see ``errors``).
+errors become one line on stderr and an exit status: 1 runtime failure, 2 bad input,
+130 Ctrl-C (see ``errors``).
 """
 
 from __future__ import annotations

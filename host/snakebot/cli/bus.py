@@ -4,13 +4,14 @@ U2D2 in Protocol 1.0, or the emulator): scan, ping, read, write, set-id, set-bau
 from __future__ import annotations
 
 import functools
-import json
 from collections.abc import Callable
 from typing import Any
 
 import click
 
 from snakebot import servo_ops
+from snakebot.cli.output import dumps
+from snakebot.cli.params import NumberType
 from snakebot.servo_ops import BusCommandError, ServoInfo
 from snakebot.transport import DEFAULT_BAUDRATE, DxlClient, open_port
 
@@ -43,7 +44,7 @@ def bus_options(func: Callable[..., Any]) -> Callable[..., Any]:
 
 
 def _emit(as_json: bool, data: object, text: str) -> None:
-    click.echo(json.dumps(data) if as_json else text)
+    click.echo(dumps(data) if as_json else text)
 
 
 def _servo_line(info: ServoInfo) -> str:
@@ -104,7 +105,7 @@ def scan_command(port: str, baud: int, as_json: bool, ids: str, bauds: str | Non
         found = servo_ops.scan(link, id_list, rates, on_baud=on_baud)
     if as_json:
         click.echo(
-            json.dumps(
+            dumps(
                 {
                     "port": port,
                     "ids": id_list,
@@ -140,7 +141,7 @@ def ping_command(port: str, baud: int, as_json: bool, ids: tuple[int, ...]) -> N
     missing = [servo_id for servo_id, info in results.items() if info is None]
     if as_json:
         click.echo(
-            json.dumps(
+            dumps(
                 {
                     "port": port,
                     "baud": baud,
@@ -179,7 +180,7 @@ def read_command(
     with DxlClient(port, baud) as client:
         table, values = servo_ops.read_registers(client, servo_id, entries)
     if as_json:
-        click.echo(json.dumps({"id": servo_id, "model": table.model, "registers": values}))
+        click.echo(dumps({"id": servo_id, "model": table.model, "registers": values}))
         return
     click.echo(f"servo {servo_id} ({table.model}):")
     for v in values:
@@ -224,7 +225,7 @@ def write_command(
     decoded = servo_ops.decode(entry, number)
     if as_json:
         click.echo(
-            json.dumps(
+            dumps(
                 {
                     "id": servo_id,
                     "register": entry.name,
@@ -268,7 +269,7 @@ def set_id_command(port: str, baud: int, as_json: bool, old_id: int, new_id: int
 @bus.command("set-baud")
 @bus_options
 @click.argument("servo_id", metavar="ID", type=click.IntRange(0, servo_ops.MAX_ID))
-@click.argument("rate", required=False, type=click.FloatRange(min=1))
+@click.argument("rate", required=False, type=NumberType(1))
 @click.option(
     "--value",
     "register",

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from typing import Any, TextIO
 
 import click
 
+from snakebot.cli.output import dumps
+from snakebot.cli.params import NumberType
 from snakebot.flash import PC_LINK_BAUD, FlashTimeouts, board_layout, flash, load_image
 from snakebot.flash.loader import last_line
 from snakebot.transport import open_port
@@ -59,7 +60,7 @@ class _LazyBar:
 )
 @click.option(
     "--reset-timeout",
-    type=click.FloatRange(min=0.1),
+    type=NumberType(0.1),
     metavar="SECONDS",
     help="How long to wait for you to press RESET (default 20, or SNAKEBOT_FLASH_RESET_TIMEOUT_S).",
 )
@@ -134,7 +135,7 @@ def flash_command(
         say("Left the board in the bootloader (--no-go): press RESET or send GO to start it.")
     if as_json:
         click.echo(
-            json.dumps(
+            dumps(
                 {
                     "firmware": firmware,
                     "port": port,

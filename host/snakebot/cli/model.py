@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import json
 import math
 from typing import Any
 
 import click
 import numpy as np
 
+from snakebot.cli.output import dumps
 from snakebot.cli.params import ANGLES
 from snakebot.kinematics import default_form, field_model, fields
 from snakebot.robots import load_robot
@@ -59,7 +59,7 @@ def info(robot: str, as_json: bool) -> None:
         ],
     }
     if as_json:
-        click.echo(json.dumps(data, indent=2))
+        click.echo(dumps(data, indent=2))
         return
     click.echo(f"{rb.name}: {rb.description or rb.kind} ({rb.source})")
     geometry = ", ".join(
@@ -152,7 +152,7 @@ def fields_command(
     if kind == "snake3":
         data["det_b"] = fs.det_b
     if as_json:
-        click.echo(json.dumps(data, indent=2))
+        click.echo(dumps(data, indent=2))
         return
     inputs = "joint-velocity" if used_form == "joint" else f"{used_form}-velocity"
     click.echo(f"{rb.name} ({inputs} inputs) at q = {_fmt(np.array(at))}")
@@ -178,7 +178,7 @@ def _print_symbolic(rb: Any, form: str, as_json: bool) -> None:
     names = [str(s) for s in ex.model.q]
     if as_json:
         click.echo(
-            json.dumps(
+            dumps(
                 {
                     "robot": rb.name,
                     "form": form,

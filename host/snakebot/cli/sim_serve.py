@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 import signal
 import threading
@@ -11,6 +10,8 @@ from types import FrameType
 
 import click
 
+from snakebot.cli.output import dumps
+from snakebot.cli.params import NumberType
 from snakebot.sim.errors import SimError
 from snakebot.sim.serve import DEFAULT_FIRMWARE, EmulatedRobot
 
@@ -41,7 +42,7 @@ from snakebot.sim.serve import DEFAULT_FIRMWARE, EmulatedRobot
 )
 @click.option(
     "--report",
-    type=click.FloatRange(min=0),
+    type=NumberType(0),
     default=5.0,
     show_default=True,
     help="Seconds between lines giving the body's pose in the world (0: never).",
@@ -83,7 +84,7 @@ def serve(
     try:
         info = emulated.start()
         if as_json:
-            click.echo(json.dumps({"event": "serving", **info.as_dict()}))
+            click.echo(dumps({"event": "serving", **info.as_dict()}))
         else:
             click.echo(
                 f"emulated {info.robot}: firmware {info.firmware} in QEMU (pid {info.qemu_pid})"
@@ -121,7 +122,7 @@ def _pose(emulated: EmulatedRobot, as_json: bool, final: bool = False) -> None:
     t = float(record.t[-1])
     if as_json:
         click.echo(
-            json.dumps(
+            dumps(
                 {
                     "event": "stopped" if final else "pose",
                     "t": round(t, 3),

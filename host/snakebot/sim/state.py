@@ -44,7 +44,7 @@ class EepromStore:
     def _restore(self, servos: Sequence[VirtualServo]) -> None:
         try:
             doc = json.loads(self.path.read_text())
-            if doc.get("format") != FORMAT:
+            if not isinstance(doc, dict) or doc.get("format") != FORMAT:
                 raise ValueError(f"not a {FORMAT} file")
             saved = doc["servos"]
             images = [(entry["model"], bytes.fromhex(entry["eeprom"])) for entry in saved]

@@ -12,9 +12,15 @@ What makes a transaction trustworthy on a real bus:
 * A status packet from an earlier, timed-out transaction that arrives late is discarded
   unless it comes from the addressed ID with the parameter length this instruction
   expects.
-* Timed-out and corrupt replies are retried; a reply with error bits raises
-  :class:`ServoError` at once, carrying the flags. A wrong value is never returned:
-  after the last attempt the caller gets :class:`DxlTimeout` or :class:`CorruptPacket`.
+* Timed-out and corrupt replies are retried, and so are replies whose CHECKSUM or
+  INSTRUCTION bit says the servo received a damaged instruction (it did nothing, so
+  sending it again is safe); other error bits raise :class:`ServoError` at once, carrying
+  the flags. After the last attempt the caller gets :class:`DxlTimeout`,
+  :class:`CorruptPacket` or :class:`ServoError`.
+* The 8-bit checksum lets about one damaged packet in 256 through. So a value read is
+  checked against its register's range in the device description and read again when it
+  is outside (then :class:`CorruptPacket`), and :meth:`DxlClient.read_confirmed` reads
+  twice, for values that decisions are based on.
 * Broadcast instructions and SYNC_WRITE get no reply and are not waited for; nor are
   instructions that the servo's Status Return Level tells it not to answer.
 """
@@ -27,6 +33,7 @@ from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import TracebackType
+from typing import Literal
 
 import serial
 
@@ -35,6 +42,7 @@ from snakebot.protocol import (
     BROADCAST_ID,
     CorruptPacket,
     DxlTimeout,
+    ErrorFlags,
     Instruction,
     Packet,
     PacketParser,
@@ -42,6 +50,7 @@ from snakebot.protocol import (
     Rejected,
     ServoError,
 )
+from snakebot.protocol.control_table import ControlTable
 from snakebot.transport import settings
 from snakebot.transport.ports import open_port
 from snakebot.transport.settings import EchoSetting
@@ -55,6 +64,14 @@ MODEL_NUMBER_ADDR = 0
 
 DEFAULT_STATUS_RETURN_LEVEL = 2
 """Factory setting: every instruction addressed to one servo is answered."""
+
+RESEND_FLAGS = ErrorFlags.CHECKSUM | ErrorFlags.INSTRUCTION
+"""Status error bits saying the servo did not act on the instruction because it arrived
+damaged: the instruction is sent again, like after a damaged reply."""
+
+DEFAULT_REGISTERS_MODEL = "AX-12A"
+"""Whose register ranges values read from servos are checked against (the AX-12W has the
+same layout and ranges)."""
 
 RECENT_SENDS = 8
 """How many earlier instructions are remembered, so that their late echoes are recognised."""
@@ -108,6 +125,9 @@ class DxlClient:
     ``status_return_level_address``: where the devices on this port keep their Status
     Return Level (16 on AX servos); None for a device whose address 16 means something
     else, such as the snakebot controller, so writes there are not taken for it.
+    ``registers``: the control table whose ranges values read are checked against; "auto"
+    (the default): the AX-12's when the devices are AX servos (Status Return Level at
+    16), none otherwise; None: no check.
 
     Transactions from several threads are serialised. The client sets the port's read
     timeout itself, so a port handed in should not be read by anyone else meanwhile.
@@ -126,6 +146,7 @@ class DxlClient:
         echo_probe_s: float | None = None,
         status_return_level: int = DEFAULT_STATUS_RETURN_LEVEL,
         status_return_level_address: int | None = STATUS_RETURN_LEVEL_ADDR,
+        registers: ControlTable | Literal["auto"] | None = "auto",
     ) -> None:
         self.retries = settings.resolve_retries(retries)
         echo_setting = settings.resolve_echo(echo)
@@ -138,6 +159,12 @@ class DxlClient:
         self._default_level = _check_level(status_return_level)
         self._levels: dict[int, int] = {}
         self._level_address = status_return_level_address
+        if registers == "auto":
+            registers = None
+            if status_return_level_address == STATUS_RETURN_LEVEL_ADDR:
+                registers = ControlTable.for_model(DEFAULT_REGISTERS_MODEL)
+        self.registers: ControlTable | None = registers
+        self._range_checks: dict[tuple[int, int], list[tuple[str, int, int, int, int]]] = {}
         if isinstance(port, str):
             self._port = open_port(port, baudrate or DEFAULT_BAUDRATE, timeout=0)
             self._owns_port = True
@@ -261,6 +288,9 @@ class DxlClient:
                 if reply is None and self._echo is None and attempt.echo is not None:
                     reply = self._settle_echo(attempt.echo, expect_id, expect_params_len)
                 if reply is not None:
+                    if reply.code & RESEND_FLAGS and len(attempts) + 1 < tries:
+                        attempts.append(attempt)  # the servo heard a damaged instruction
+                        continue
                     if check and reply.code:
                         raise ServoError(reply.id, reply.code)
                     return reply
@@ -446,7 +476,59 @@ class DxlClient:
                 "READ: write 1 or 2 to its address 16, then call set_status_return_level"
             )
         packet = protocol.read(servo_id, address, length)
-        return self.transact(packet, servo_id, length).params
+        for _ in range(1 + self.retries):
+            data = self.transact(packet, servo_id, length).params
+            wrong = self._out_of_range(address, data)
+            if wrong is None:
+                return data
+        raise CorruptPacket(
+            f"servo {servo_id} returned {wrong} in each of {1 + self.retries} READs: a damaged "
+            "reply the checksum let through, or a servo that is not the model expected; check "
+            "the cable and the servo's model number"
+        )
+
+    def read_confirmed(self, servo_id: int, address: int, length: int) -> bytes:
+        """READ until two replies in a row agree, and return that value: for reads that
+        decisions are based on (a servo's model, a value written and read back), where a
+        damaged reply that the checksum let through must not count. CorruptPacket if no
+        two agree within the retries."""
+        last = self.read(servo_id, address, length)
+        for _ in range(1 + self.retries):
+            data = self.read(servo_id, address, length)
+            if data == last:
+                return data
+            last = data
+        raise CorruptPacket(
+            f"servo {servo_id} gave {2 + self.retries} different values for {length} bytes at "
+            f"address {address}: check the cable, and that the value is not changing"
+        )
+
+    def _out_of_range(self, address: int, data: bytes) -> str | None:
+        """What in ``data`` (read from ``address``) lies outside its register's range, in
+        words, or None."""
+        key = (address, len(data))
+        checks = self._range_checks.get(key)
+        if checks is None:
+            checks = self._range_checks[key] = self._ranges_within(address, len(data))
+        for name, offset, size, low, high in checks:
+            value = int.from_bytes(data[offset : offset + size], "little")
+            if not low <= value <= high:
+                return f"{name} = {value}, outside its range {low}..{high}"
+        return None
+
+    def _ranges_within(self, address: int, length: int) -> list[tuple[str, int, int, int, int]]:
+        """(name, offset, size, low, high) of each register with a documented range that
+        lies wholly within ``length`` bytes from ``address``."""
+        if self.registers is None:
+            return []
+        return [
+            (e.name, e.address - address, e.size, e.min, e.max)
+            for e in self.registers
+            if e.min is not None
+            and e.max is not None
+            and address <= e.address
+            and e.address + e.size <= address + length
+        ]
 
     def read_u8(self, servo_id: int, address: int) -> int:
         """READ one byte."""

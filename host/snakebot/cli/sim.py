@@ -18,6 +18,7 @@ import click
 import snakebot.transport.ports  # noqa: F401  (registers sim://)
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NUMBER
+from snakebot.cli.signals import STOP_SIGNALS
 from snakebot.sim.errors import SimOptionError
 from snakebot.sim.options import SimOptions
 from snakebot.sim.transports import PtyServer, UnixSocketServer
@@ -180,7 +181,7 @@ def bus(
     def on_signal(signum: int, frame: FrameType | None) -> None:
         stop.set()
 
-    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    previous = {s: signal.signal(s, on_signal) for s in STOP_SIGNALS}
     try:
         servos = [s.id for s in the_bus.servos]
         url = "sim://" + (f"?{query}" if query else "")

@@ -11,6 +11,7 @@ import click
 
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType
+from snakebot.cli.signals import STOP_SIGNALS
 from snakebot.sim.bootloader import (
     DEFAULT_SILENCE_S,
     PC_LINK_BAUD,
@@ -102,7 +103,7 @@ def bootloader(
     def on_signal(signum: int, frame: FrameType | None) -> None:
         stop.set()
 
-    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    previous = {s: signal.signal(s, on_signal) for s in STOP_SIGNALS}
     try:
         if as_json:
             click.echo(dumps({"device": server.device, "link": link, "baud": PC_LINK_BAUD}))

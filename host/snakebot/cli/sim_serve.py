@@ -12,6 +12,7 @@ import click
 
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType
+from snakebot.cli.signals import STOP_SIGNALS
 from snakebot.sim.errors import SimError
 from snakebot.sim.serve import DEFAULT_FIRMWARE, EmulatedRobot
 
@@ -79,7 +80,7 @@ def serve(
     def on_signal(signum: int, frame: FrameType | None) -> None:
         stop.set()
 
-    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    previous = {s: signal.signal(s, on_signal) for s in STOP_SIGNALS}
     emulated = EmulatedRobot(robot, firmware, sim_query=sim_options)
     try:
         info = emulated.start()

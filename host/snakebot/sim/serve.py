@@ -35,8 +35,8 @@ import contextlib
 import os
 import shutil
 import struct
-import tempfile
 import time
+from collections import deque
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from types import TracebackType
@@ -52,6 +52,7 @@ from snakebot.sim.options import SimOptions
 from snakebot.sim.qemu import REPO_ROOT, Endpoint, QemuFirmware
 from snakebot.sim.servo import VirtualServo
 from snakebot.sim.transports.unixsock import UnixSocketServer
+from snakebot.sim.workdirs import make_workdir
 from snakebot.sim.world import World, WorldRecord
 from snakebot.transport import DxlClient
 
@@ -193,11 +194,18 @@ class GoalLog:
     """Each servo's Goal Position register (the last goal the master sent it), sampled on
     the bus clock every ``period`` seconds from ``start``, like the world's samples."""
 
-    def __init__(self, bus: Bus, ids: tuple[int, ...], period: float, start: float) -> None:
+    def __init__(
+        self,
+        bus: Bus,
+        ids: tuple[int, ...],
+        period: float,
+        start: float,
+        keep: int | None = None,
+    ) -> None:
         self._servos = [bus.servo(i) for i in ids]
         self._start = start
-        self._t: list[float] = []
-        self._rows: list[list[int]] = []
+        self._t: deque[float] = deque(maxlen=keep)  # keep: the latest samples only
+        self._rows: deque[list[int]] = deque(maxlen=keep)
         bus.every(period, self._sample, start=start)
 
     def _sample(self, t: float) -> None:
@@ -221,6 +229,8 @@ class EmulatedRobot:
     the image to run (default ``build/qemu/firmware.elf``). ``sim_query``: extra emulator
     options as in a ``sim://`` URL (``corrupt=0.001&seed=3``; see ``snakebot sim bus
     --help``). ``world_period``: seconds of bus time between the world's samples.
+    ``history_s``: how many seconds of the latest world samples and goals :meth:`record`
+    and :meth:`goals` keep (None: all), so a robot served for hours needs bounded memory.
     """
 
     def __init__(
@@ -230,8 +240,10 @@ class EmulatedRobot:
         *,
         sim_query: str = "",
         world_period: float = 0.01,
+        history_s: float | None = None,
     ) -> None:
         self.robot = robot if isinstance(robot, Robot) else load_robot(robot)
+        self.history = None if history_s is None else max(1, round(history_s / world_period))
         self.firmware = Path(firmware) if firmware is not None else DEFAULT_FIRMWARE
         self.sim_query = sim_query
         self.world_period = world_period
@@ -249,7 +261,7 @@ class EmulatedRobot:
         """Start the bus, the world and QEMU; return once the firmware answers PING."""
         if self._info is not None:
             return self._info
-        self._workdir = tempfile.mkdtemp(prefix="snakebot-serve-")
+        self._workdir = make_workdir("serve")
         try:
             image = flash_image(self.firmware, Path(self._workdir) / "flash.bin")
             options = SimOptions.from_query(self.sim_query)
@@ -263,9 +275,15 @@ class EmulatedRobot:
             sock = Path(self._workdir) / "bus.sock"
             self._server = UnixSocketServer(self._bus, sock).start()
             with self._server.lock:  # type: ignore[attr-defined]
-                self._world = World(self._bus, self.robot, period=self.world_period)
+                self._world = World(
+                    self._bus, self.robot, period=self.world_period, keep=self.history
+                )
                 self._goals = GoalLog(
-                    self._bus, self.robot.servo_ids, self.world_period, self._world.start_time
+                    self._bus,
+                    self.robot.servo_ids,
+                    self.world_period,
+                    self._world.start_time,
+                    keep=self.history,
                 )
             self._qemu = QemuFirmware(image, bus=Endpoint.unix_client(sock))
             ports = self._qemu.start()

@@ -152,3 +152,21 @@ def test_sim_serve_leaves_no_work_directories(how):
         assert len(_workdirs(proc.pid)) == 2  # no chance to clean up...
         sweep_stale("serve"), sweep_stale("qemu")  # ...so the next start does
     assert _workdirs(proc.pid) == []
+
+
+@pytest.mark.qemu
+@pytest.mark.skipif(not DEFAULT_IMAGE.is_file(), reason="needs `make firmware`")
+def test_a_served_robot_keeps_only_its_recent_history():
+    import time
+
+    from snakebot.sim.serve import EmulatedRobot
+
+    with EmulatedRobot("snake3", history_s=0.5) as robot:
+        time.sleep(4.0)  # about 400 world samples on the bus clock
+        world = robot.world
+        with robot.lock:  # the bus runs on in its thread: take both at one instant
+            record, samples = world.record(), world.samples
+        t, goals = robot.goals()
+    assert samples > 50 + world.batch
+    assert len(record.t) <= 50 + world.batch and len(t) == len(goals) <= 50
+    assert record.t[-1] == pytest.approx((samples - 1) * world.period)

@@ -16,6 +16,10 @@ from snakebot.cli.signals import STOP_SIGNALS
 from snakebot.sim.errors import SimError
 from snakebot.sim.serve import DEFAULT_FIRMWARE, EmulatedRobot
 
+HISTORY_S = 600.0
+"""Seconds of the world's latest samples kept while serving: memory stays flat however
+long it serves (the pose reports need only the latest)."""
+
 
 @click.command("serve")
 @click.option(
@@ -81,7 +85,7 @@ def serve(
         stop.set()
 
     previous = {s: signal.signal(s, on_signal) for s in STOP_SIGNALS}
-    emulated = EmulatedRobot(robot, firmware, sim_query=sim_options)
+    emulated = EmulatedRobot(robot, firmware, sim_query=sim_options, history_s=HISTORY_S)
     try:
         info = emulated.start()
         if as_json:

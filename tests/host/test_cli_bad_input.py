@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import json
 import os
+import pty
 import re
 import subprocess
 import sys
+import tty
 import zlib
 from pathlib import Path
 
@@ -307,23 +309,44 @@ def test_runtime_failure_exits_1_usage_error_exits_2() -> None:
     usage = _cli("gait", "serpenoid", "snake3", "--bogus")
     assert usage.returncode == 2 and "Traceback" not in usage.stderr
     # A controller that does not answer is a runtime failure, not bad input.
-    runtime = _cli("stop", "--port", "sim://?ids=1", timeout=120)
+    master, slave = pty.openpty()  # a port with nobody behind it
+    tty.setraw(slave)
+    try:
+        env = {**os.environ, "SNAKEBOT_RETRIES": "0"}
+        runtime = _cli("stop", "--port", os.ttyname(slave), timeout=120, env=env)
+    finally:
+        os.close(master)
+        os.close(slave)
     assert runtime.returncode == 1, runtime.stderr
     assert runtime.stderr.startswith("error: ") and "Traceback" not in runtime.stderr
 
 
+@pytest.mark.parametrize(
+    "args, server",
+    [
+        (["monitor"], "snakebot sim serve"),
+        (["upload", "x.gait"], "snakebot sim serve"),
+        (["flash", "x.bin"], "snakebot sim bootloader"),
+    ],
+)
+def test_controller_commands_on_a_servo_bus_say_what_to_run(args: list[str], server: str) -> None:
+    line = assert_one_line_error(run(*args, "--port", "sim://?robot=snake5"))
+    assert f"run `{server}`" in line
+
+
 def test_broken_pipe_is_quiet() -> None:
+    # The reader is gone before the command prints anything (as `snakebot ... | head`
+    # once head has had its lines).
     proc = subprocess.Popen(
-        [sys.executable, "-m", "snakebot", "model", "fields", "snake3", "--symbolic"],
+        [sys.executable, "-m", "snakebot", "bus", "read", "1", "--port", "sim://?ids=1"],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
     )
     assert proc.stdout is not None and proc.stderr is not None
-    proc.stdout.read(1)
     proc.stdout.close()
     err = proc.stderr.read().decode()
-    proc.wait(timeout=60)
-    assert "Traceback" not in err and "BrokenPipe" not in err, err
+    assert proc.wait(timeout=60) == 141
+    assert err == "", err
 
 
 def test_the_builtin_robots_still_load() -> None:

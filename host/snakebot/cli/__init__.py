@@ -20,8 +20,9 @@ def main() -> None:
     """snakebot: derive gaits for wheeled snake robots, check them, and run them on a
     ROBOTIS CM-530 with AX-12 servos, or on the emulated robot.
 
-    Start with `snakebot COMMAND --help`. Ports may be device paths (/dev/ttyUSB0),
-    pyserial URLs, or sim:// for the emulated robot.
+    Start with `snakebot COMMAND --help`. Ports may be device paths (/dev/ttyUSB0) or
+    pyserial URLs. The bus commands also take sim:// (emulated servos, in process); the
+    controller commands need the emulated controller of `snakebot sim serve`.
     """
 
 

@@ -8,7 +8,7 @@ from typing import Any, TextIO
 import click
 
 from snakebot.cli.output import dumps
-from snakebot.cli.params import NumberType
+from snakebot.cli.params import NumberType, controller_port
 from snakebot.flash import PC_LINK_BAUD, FlashTimeouts, board_layout, flash, load_image
 from snakebot.flash.loader import last_line
 from snakebot.transport import open_port
@@ -44,7 +44,9 @@ class _LazyBar:
     required=True,
     envvar="SNAKEBOT_PORT",
     show_envvar=True,
-    help="The CM-530's PC link: its USB-serial device (/dev/ttyUSB0, COM3) or a pyserial URL.",
+    callback=controller_port("snakebot sim bootloader"),
+    help="The CM-530's PC link: its USB-serial device (/dev/ttyUSB0, COM3), a pyserial URL, "
+    "or the pseudo-terminal of `snakebot sim bootloader`.",
 )
 @click.option(
     "--no-go",

@@ -169,3 +169,24 @@ def _plot_formats() -> Collection[str]:
 
 OUTPUT_PATH = OutputPathType()
 PLOT_PATH = OutputPathType(_plot_formats)
+
+
+SERVO_BUS_SCHEME = "sim://"
+
+
+def controller_port(server: str) -> Callable[[click.Context, click.Parameter, Any], Any]:
+    """A --port callback for commands that talk to the controller (or its bootloader): a
+    sim:// URL is an emulated servo bus with no controller on it, so it is refused with
+    the command that emulates one (``server``)."""
+
+    def check(ctx: click.Context, param: click.Parameter, value: Any) -> Any:
+        if isinstance(value, str) and value.startswith(SERVO_BUS_SCHEME):
+            raise click.BadParameter(
+                f"{value} is an emulated servo bus, with no controller on it: run "
+                f"`{server}` and give the pseudo-terminal it prints as --port",
+                ctx,
+                param,
+            )
+        return value
+
+    return check

@@ -28,9 +28,11 @@ from snakebot.sim.transports import PtyServer, UnixSocketServer
 def sim() -> None:
     """The emulated robot: virtual AX-12 servos on an emulated bus.
 
-    Any command that takes --port also accepts sim://?robot=snake5 (add &echo=1,
-    &corrupt=0.01, ... as listed in `snakebot sim bus --help`) to run against the
-    emulator in process, with no server.
+    The bus commands (`snakebot bus ...`) also accept --port sim://?robot=snake5 (add
+    &echo=1, &corrupt=0.01, ... as listed in `snakebot sim bus --help`) to run against
+    emulated servos in process, with no server. The controller commands (upload, play,
+    stop, serpenoid, monitor) need a controller: `snakebot sim serve` runs the firmware
+    and prints the port to give them; `snakebot sim bootloader` does the same for flash.
     """
 
 

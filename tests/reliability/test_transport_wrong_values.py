@@ -143,3 +143,17 @@ def test_a_confirmed_read_that_never_agrees_is_refused(scripted):
     servo, client = scripted(lambda p, n: punch(100 + n))
     with pytest.raises(CorruptPacket, match="different values"):
         client.read_confirmed(1, PUNCH.address, 2)
+
+
+def test_a_range_error_for_data_in_range_is_sent_again(scripted):
+    # LED takes 0..1: a RANGE error for 1 means the servo heard something else.
+    servo, client = scripted(lambda p, n: protocol.status(1, ErrorFlags.RANGE if n == 0 else 0))
+    client.write(1, LED.address, b"\x01")
+    assert len(servo.heard) == 2
+
+
+def test_a_range_error_for_data_out_of_range_is_reported_at_once(scripted):
+    servo, client = scripted(lambda p, n: protocol.status(1, ErrorFlags.RANGE))
+    with pytest.raises(ServoError):
+        client.write(1, LED.address, b"\x07")
+    assert len(servo.heard) == 1

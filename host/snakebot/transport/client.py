@@ -552,10 +552,26 @@ class DxlClient:
             # Whether this very write is answered depends on the level before and after.
             wait = wait and level >= 2
         if wait:
-            self.transact(packet, servo_id, 0)
+            self._transact_write(packet, servo_id, address, data)
         else:
             self.send(packet)
         self._after_write(servo_id, address, data)
+
+    def _transact_write(self, packet: bytes, servo_id: int, address: int, data: bytes) -> None:
+        """A WRITE that waits for its status. A RANGE error for data that the register
+        description says is in range means the servo heard other data (damage the
+        checksum let through), so the WRITE is sent again, like after a damaged reply."""
+        in_range = bool(self._ranges_within(address, len(data))) and (
+            self._out_of_range(address, data) is None
+        )
+        for attempt in range(1 + self.retries):
+            try:
+                self.transact(packet, servo_id, 0)
+                return
+            except ServoError as exc:
+                damaged = in_range and exc.flags & ErrorFlags.RANGE
+                if not damaged or attempt == self.retries:
+                    raise
 
     def write_u8(self, servo_id: int, address: int, value: int) -> None:
         """WRITE one byte."""

@@ -139,10 +139,12 @@ def test_output_files_follow_the_umask(tmp_path: Path) -> None:
     try:
         out = tmp_path / "u.gait"
         assert run(*SERPENOID, "--cycles", "1", "-o", out).exit_code == 0
+        state = tmp_path / "eeprom.json"  # the emulator's servo state file
+        assert run("bus", "ping", "1", "--port", f"sim://?ids=1&state={state}").exit_code == 0
     finally:
         os.umask(old)
-    assert out.stat().st_mode & 0o777 == 0o644
-    assert _sidecar(out).stat().st_mode & 0o777 == 0o644
+    for written in (out, _sidecar(out), state):
+        assert written.stat().st_mode & 0o777 == 0o644, written
 
 
 # -- robot TOML ----------------------------------------------------------------------------

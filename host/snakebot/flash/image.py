@@ -18,7 +18,7 @@ from pathlib import Path
 
 from snakebot.flash.errors import ImageError
 from snakebot.paths import REPO_ROOT
-from snakebot.readfile import FileTooLarge, read_bounded
+from snakebot.userfiles import FileTooLarge, read_bounded
 
 BOARD_LINKER_SCRIPT = REPO_ROOT / "firmware" / "boards" / "cm530" / "cm530.ld"
 

@@ -16,7 +16,7 @@ from typing import Any
 from snakebot.gaittable.errors import GaitTableError
 from snakebot.gaittable.layout import MAX_TABLE_BYTES
 from snakebot.gaittable.table import GaitTable
-from snakebot.readfile import FileTooLarge, read_bounded
+from snakebot.userfiles import FileTooLarge, new_file_mode, read_bounded
 
 SIDECAR_FORMAT = "snakebot-gait-metadata"
 
@@ -74,17 +74,11 @@ def write_gait(path: str | os.PathLike[str], table: GaitTable) -> None:
                 temp.unlink()
 
 
-def _umask() -> int:
-    mask = os.umask(0o022)  # the only way to read it is to set it; put it back at once
-    os.umask(mask)
-    return mask
-
-
 def _stage(target: Path, data: bytes) -> Path:
     fd, name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
     try:
         # mkstemp makes the file 0600; the finished file gets what open() would give it.
-        os.fchmod(fd, 0o666 & ~_umask())
+        os.fchmod(fd, new_file_mode())
         with os.fdopen(fd, "wb") as f:
             f.write(data)
             f.flush()

@@ -23,8 +23,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from snakebot.readfile import FileTooLarge, read_bounded
 from snakebot.robots.model import SERVO_MAX_RPM, TICK_MAX, TICK_MIN, Joint, Robot, RobotError
+from snakebot.userfiles import FileTooLarge, read_bounded
 
 BUILTIN_ROBOTS = ("snake3", "trident", "snake5")
 MAX_LINKS = 16  # the C core's fixed buffers (KIN_MAX_LINKS)

@@ -1,8 +1,11 @@
-"""Reading a file the user names, never more than the largest valid one.
+"""Files the user names: read never beyond the largest valid one, written with the
+permissions the user's umask gives.
 
 A path to ``/dev/zero``, a disk image or a log file must not make snakebot read until
-memory runs out: every reader of user files (gait tables, their metadata, firmware
-images) goes through :func:`read_bounded` with the largest size its format allows.
+memory runs out: every reader of user files (gait tables, their metadata, robot files,
+firmware images) goes through :func:`read_bounded` with the largest size its format
+allows. Files written atomically (a temporary file, then a rename) start as 0600; they
+get :func:`new_file_mode` so they end as any other file the user makes.
 """
 
 from __future__ import annotations
@@ -39,3 +42,10 @@ def read_bounded(path: str | os.PathLike[str], limit: int, what: str) -> bytes:
             size,
         )
     return data
+
+
+def new_file_mode() -> int:
+    """The mode ``open()`` gives a new file: 0666 less the process's umask."""
+    mask = os.umask(0o022)  # the only way to read it is to set it; put it back at once
+    os.umask(mask)
+    return 0o666 & ~mask

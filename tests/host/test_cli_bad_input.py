@@ -7,6 +7,7 @@ import json
 import os
 import pty
 import re
+import signal
 import subprocess
 import sys
 import tty
@@ -354,3 +355,26 @@ def test_broken_pipe_is_quiet() -> None:
 def test_the_builtin_robots_still_load() -> None:
     for name in ("snake3", "snake5", "trident"):
         assert load_robot(name).joints
+
+
+def test_ctrl_c_exits_130(tmp_path: Path) -> None:
+    image = tmp_path / "fw.bin"
+    image.write_bytes(bytes(1024))
+    master, slave = pty.openpty()  # a board that never answers: flash waits for RESET
+    tty.setraw(slave)
+    try:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "snakebot", "flash", str(image), "--force"]
+            + ["--port", os.ttyname(slave), "--reset-timeout", "60"],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        assert proc.stdout is not None and proc.stdout.readline().startswith("Flashing")
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert proc.returncode == 130, err
+    assert err.strip().splitlines()[-1] == "interrupted" and "Traceback" not in err

@@ -10,7 +10,6 @@ emulator adds ``sim://`` through :func:`register_handler_package`).
 from __future__ import annotations
 
 import errno
-import fcntl
 import os
 import sys
 import tempfile
@@ -80,6 +79,8 @@ class PortLock:
     that names the holder, so a second opener can say who has the port."""
 
     def __init__(self, device: str) -> None:
+        import fcntl  # POSIX only; Windows opens a COM port exclusively by itself
+
         self.path = _lock_path(device)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o666)
@@ -119,7 +120,8 @@ def open_port(
     (another program's ``flock``, as pyserial's ``exclusive`` takes it)."""
     if not url:
         raise PortError(url, "no serial port given: pass a device (/dev/ttyUSB0) or a URL")
-    lock = PortLock(url) if _is_device(url) and os.path.exists(url) else None
+    posix = os.name == "posix"
+    lock = PortLock(url) if posix and _is_device(url) and os.path.exists(url) else None
     try:
         port = _open(url, baudrate, timeout, exclusive=lock is not None)
     except BaseException:

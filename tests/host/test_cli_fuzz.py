@@ -12,9 +12,11 @@ on a loaded machine.
 
 from __future__ import annotations
 
+import atexit
 import json
 import os
 import re
+import shutil
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -158,6 +160,7 @@ def _sample_files() -> list[str]:
     """A gait table (with its metadata) and a firmware-sized blob, made once per run."""
     if not _FILES:
         where = Path(tempfile.mkdtemp(prefix="snakebot-cli-fuzz-"))
+        atexit.register(shutil.rmtree, where, True)
         gait = where / "walk.gait"
         args = ["gait", "serpenoid", "snake3", "-A", "20deg", "-w", "90deg", "-d", "90deg"]
         assert invoke([*args, "--cycles", "1", "-o", str(gait)]).exit_code == 0

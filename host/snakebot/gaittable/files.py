@@ -34,6 +34,8 @@ def sidecar_path(path: str | os.PathLike[str]) -> Path:
 def write_gait(path: str | os.PathLike[str], table: GaitTable) -> None:
     """Write ``table`` to ``path`` (binary) and ``path``.json (metadata), atomically each."""
     path = Path(path)
+    # What read_gait would refuse is not written in the first place.
+    _check_metadata(table.metadata, "gait metadata", "give it the shape gait commands write")
     sidecar = {
         "format": SIDECAR_FORMAT,
         "table": {
@@ -140,14 +142,20 @@ def _read_metadata(sidecar: Path, table: GaitTable) -> dict[str, Any]:
         raise GaitTableError(
             f"gait metadata in {sidecar} is not an object: write the gait again", "not_json"
         )
+    _check_metadata(
+        metadata, f"gait metadata {sidecar}", "write the gait again, or delete the .json"
+    )
+    return metadata
+
+
+def _check_metadata(metadata: dict[str, Any], where: str, fix: str) -> None:
+    """GaitTableError if a key snakebot reads holds the wrong kind of value."""
     for key, check in METADATA_SCHEMA.items():
         if key in metadata and not check(metadata[key]):
             raise GaitTableError(
-                f"gait metadata {sidecar}: {key} is {_brief(metadata[key])}, not "
-                f"{check.__doc__}: write the gait again, or delete the .json",
+                f"{where}: {key} is {_brief(metadata[key])}, not {check.__doc__}: {fix}",
                 "not_json",
             )
-    return metadata
 
 
 def _refuse_constant(name: str) -> Any:

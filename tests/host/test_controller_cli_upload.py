@@ -196,8 +196,15 @@ def test_uploading_while_playing_says_the_gait_stopped(controller_with_table, tm
 
 def test_a_device_that_is_not_a_controller_is_named(tmp_path):
     path = save(wave_table(), tmp_path)
-    # an AX-12 answering at ID 200 on the emulated servo bus
-    result = cli("upload", path, "--port", "sim://?ids=200", "--baud", "1000000")
+    # an AX-12 answering at ID 200 on an emulated servo bus served on a pty
+    from snakebot.sim.options import SimOptions
+    from snakebot.sim.transports import PtyServer
+
+    server = PtyServer(SimOptions(ids=(200,)).build_bus()).start()
+    try:
+        result = cli("upload", path, "--port", server.device, "--baud", "1000000")
+    finally:
+        server.close()
     assert result.exit_code == 2
     assert "not a snakebot controller" in result.stderr
 

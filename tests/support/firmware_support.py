@@ -89,7 +89,11 @@ def assert_healthy_bus(reads: int, timeouts: int) -> None:
 
 def client(port: str) -> DxlClient:
     """A Protocol 1.0 client on the emulated PC link (a pty path)."""
-    return DxlClient(port, PC_BAUD, margin_s=CLIENT_MARGIN_S, echo=False)
+    # The controller's address 16 is not a Status Return Level, and its registers are not
+    # an AX-12's (so no AX range checks either).
+    return DxlClient(
+        port, PC_BAUD, margin_s=CLIENT_MARGIN_S, echo=False, status_return_level_address=None
+    )
 
 
 HAL_DIR = REPO_ROOT / "firmware" / "hal"

@@ -4,7 +4,7 @@ Exit statuses (the same for every command):
 
 * 0: done;
 * 1: a runtime failure, the input was fine: a controller or servo that does not answer,
-  an upload that did not land, a file that cannot be written, an emulator that died;
+  an upload that did not land, a file that cannot be written (OSError);
 * 2: bad input: a usage error (click's), a value out of range, a malformed file, a port
   that does not exist;
 * 130: interrupted with Ctrl-C (SIGINT);
@@ -30,8 +30,6 @@ from snakebot.errors import SnakebotError
 from snakebot.flash.errors import FlashError, FlashSettingError, ImageError
 from snakebot.protocol.errors import CorruptPacket, DxlTimeout, ServoError
 from snakebot.sim.errors import SimOptionError
-from snakebot.sim.qemu import QemuError
-from snakebot.sim.serve import ServeError
 
 EXIT_RUNTIME = 1
 EXIT_BAD_INPUT = 2
@@ -51,8 +49,6 @@ RUNTIME_ERRORS: tuple[type[BaseException], ...] = (
     ControllerLinkError,
     UploadError,
     FlashError,
-    QemuError,
-    ServeError,
 )
 """Library errors that mean "the input was fine, the world did not cooperate"."""
 

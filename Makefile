@@ -8,7 +8,7 @@ APT_PACKAGES := gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm clang 
 CORE_FILES  := $(wildcard firmware/core/*.c firmware/core/*.h)
 PORT        ?=
 
-.PHONY: help setup system-packages python-env core firmware test lint bench demo flash clean fuzz
+.PHONY: help setup system-packages python-env core firmware test lint bench demo flash clean fuzz docs
 
 help:
 	@echo "make demo      run the main job on the emulated robot (does its own set-up)"
@@ -18,6 +18,7 @@ help:
 	@echo "make bench     run the benchmarks"
 	@echo "make fuzz FUZZ_SECONDS=60   fuzz the parser and the PC link (libFuzzer, clang)"
 	@echo "make lint      ruff"
+	@echo "make docs      API reference from the docstrings (pdoc) into build/docs/"
 	@echo "make flash PORT=/dev/ttyUSB0   flash the CM-530 through the ROBOTIS bootloader"
 
 setup: system-packages python-env
@@ -73,6 +74,11 @@ demo: setup firmware
 flash: setup firmware
 	@test -n "$(PORT)" || { echo "error: give the controller's port: make flash PORT=/dev/ttyUSB0"; exit 2; }
 	$(PY) -m snakebot flash build/cm530/firmware.bin --port $(PORT)
+
+# API reference from the docstrings; the prose documents are docs/*.md.
+DOCS_DIR ?= build/docs
+docs: python-env
+	$(PY) -m pdoc --docformat restructuredtext -o $(DOCS_DIR) snakebot '!snakebot\._'
 
 clean:
 	rm -rf build $(VENV) host/*.egg-info

@@ -1,8 +1,8 @@
 """Bus time per control tick for 5 and 18 servos against the 1 Mbps wire limit.
 
 Each control tick the firmware's bus master sends one SYNC_WRITE of goal positions and
-moving speeds (addresses 30-33) to the whole roster, then one telemetry READ (addresses
-36-43) of the next servo, round robin, and waits for its status packet. Here the
+moving speeds to the whole roster, then one telemetry READ (Present Position through
+Present Temperature) of the next servo, round robin, and waits for its status packet. Here the
 firmware's own bus master (``firmware/core/bus_master.c`` through ``snakebot._core``)
 produces the packets, and they go onto the emulated bus (``snakebot.sim.bus``) with virtual
 AX-12As on its virtual clock, which times every byte at 10 bits at the servos' baud rate
@@ -20,11 +20,12 @@ from __future__ import annotations
 
 import sys
 
-from snakebot import protocol
+from snakebot import devices, protocol
 from snakebot.core import ffi, lib
 from snakebot.sim.bus import Bus
 from snakebot.sim.servo import VirtualServo
 
+AX12 = devices.ax12()
 BAUD = 1_000_000
 BITS_PER_BYTE = 10
 TICK_S = 0.010  # the firmware's control tick (BOARD_CONTROL_TICK_MS)
@@ -82,9 +83,11 @@ class FirmwareBusMaster:
 
 def wire_limit_s(count: int) -> tuple[float, int]:
     """The tick's bytes at 1 Mbps, from the Protocol 1.0 packets built in Python."""
-    sync = protocol.sync_write(30, 4, {i: bytes(4) for i in range(1, count + 1)})
-    read = protocol.read(1, 36, 8)
-    reply = protocol.status(1, 0, bytes(8))
+    goal, block = AX12.span("Goal Position", "Moving Speed")
+    first, length = AX12.span("Present Position", "Present Temperature")
+    sync = protocol.sync_write(goal, block, {i: bytes(block) for i in range(1, count + 1)})
+    read = protocol.read(1, first, length)
+    reply = protocol.status(1, 0, bytes(length))
     size = len(sync) + len(read) + len(reply)
     return size * BITS_PER_BYTE / BAUD, size
 

@@ -64,7 +64,7 @@ from typing import Any
 
 import numpy as np
 
-from snakebot import protocol
+from snakebot import devices, protocol
 from snakebot.controller import Command, ControllerErrors, State, UploadResult, load
 from snakebot.controller.client import ControllerClient
 from snakebot.controller.errors import ControllerError
@@ -72,7 +72,14 @@ from snakebot.controller.monitor import Sample, sample
 from snakebot.controller.upload import chunk_writes, commit_write
 from snakebot.gaittable import GaitTable
 from snakebot.paths import REPO_ROOT
-from snakebot.protocol import Instruction, Packet, PacketParser, ProtocolError
+from snakebot.protocol import (
+    MAX_PACKET_LEN,
+    Instruction,
+    Packet,
+    PacketParser,
+    ProtocolError,
+    Rejected,
+)
 from snakebot.sim.bus import Bus
 from snakebot.sim.errors import SimError
 from snakebot.sim.faults import FaultConfig
@@ -95,10 +102,14 @@ PC_BAUD = 57600
 MARGIN_S = 0.3  # the PC-link client's allowance beyond the wire time (QEMU may be slow)
 SAMPLE_S = 0.1  # how often the watch loop looks
 STALL_MS = 100  # ten control ticks without a bus packet while the roster is polled
-GOAL_POSITION = 30
-TORQUE_ENABLE = 24
-TELEMETRY_PARAMS = 8
 CTL = load()
+MAX_LEN_FIELD = MAX_PACKET_LEN - 4  # the largest LEN byte a packet can carry
+_AX12 = devices.ax12()
+GOAL_POSITION, GOAL_BLOCK = _AX12.span("Goal Position", "Moving Speed")
+"""What the firmware's goal SYNC_WRITE sets per servo: Goal Position and Moving Speed."""
+TORQUE_ENABLE = _AX12.register("Torque Enable").address
+_, TELEMETRY_PARAMS = _AX12.span("Present Position", "Present Temperature")
+"""The telemetry READ's length."""
 
 
 def _reg(name: str) -> int:
@@ -170,11 +181,11 @@ class Tap:
             prelude = bytes(self._prelude)
             self._prelude.clear()
             p = event.params
-            if event.code == Instruction.SYNC_WRITE and p[:2] == bytes([GOAL_POSITION, 4]):
+            if event.code == Instruction.SYNC_WRITE and p[:2] == bytes([GOAL_POSITION, GOAL_BLOCK]):
                 self.goal_packets += 1
-                for k in range(2, len(p) - 4, 5):
+                for k in range(2, len(p) - GOAL_BLOCK, GOAL_BLOCK + 1):
                     sid, goal = p[k], p[k + 1] | p[k + 2] << 8
-                    lo, hi = self.limits.get(sid, (0, 1023))
+                    lo, hi = self.limits.get(sid, _AX12.require_position().range)
                     self.goals += 1
                     if not lo <= goal <= hi:
                         self.goals_outside += 1
@@ -796,6 +807,50 @@ def _after_brownout(long: bool) -> Callable[[Rig, Outcome, Sample], None]:
     return check
 
 
+class PcLinkModel:
+    """The controller's PC link as the firmware parses it, for predicting what noise does:
+    the shared resynchronisation rule (:class:`snakebot.protocol.PacketParser`), and after
+    each byte the firmware's extra step (``dxl_parser_skip_to_hidden``): while a candidate
+    is incomplete, the first later ``FF FF`` that starts a complete packet with a good
+    checksum among the bytes held back wins, and what lay before it is one rejection."""
+
+    def __init__(self) -> None:
+        self.parser = PacketParser()
+        self.held = b""  # the parser's pending bytes (the last ``pending`` bytes fed)
+
+    def reset(self) -> None:
+        self.parser.reset()
+        self.held = b""
+
+    def _feed(self, data: bytes) -> list[Packet | Rejected]:
+        events = self.parser.feed(data)
+        pending = self.parser.pending
+        self.held = (self.held + data)[len(self.held) + len(data) - pending :] if pending else b""
+        return events
+
+    def _hidden(self) -> int | None:
+        held = self.held
+        for i in range(1, len(held) - 3):
+            if held[i] != 0xFF or held[i + 1] != 0xFF or held[i + 2] == 0xFF:
+                continue
+            end = i + held[i + 3] + 4
+            if 2 <= held[i + 3] <= MAX_LEN_FIELD and end <= len(held):
+                if protocol.checksum(held[i + 2 : end - 1]) == held[end - 1]:
+                    return i
+        return None
+
+    def feed(self, data: bytes) -> list[Packet | Rejected]:
+        events: list[Packet | Rejected] = []
+        for byte in data:
+            events += self._feed(bytes([byte]))
+            while self.parser.pending and (i := self._hidden()) is not None:
+                events.append(Rejected("hidden", self.held[:i]))
+                rest = self.held[i:]
+                self.reset()
+                events += self._feed(rest)
+        return events
+
+
 def _pc_noise(rig: Rig, out: Outcome) -> None:
     """Noise bursts on the PC link while the table plays; each is followed at once by a
     PING, or first by a pause (the firmware drops a partial packet after 100 ms)."""
@@ -804,7 +859,7 @@ def _pc_noise(rig: Rig, out: Outcome) -> None:
     ctl = rig.ctl
     link = ctl.link
     base = ctl.read("PC Packets", "PC Errors")
-    model = PacketParser()
+    model = PcLinkModel()
     expected = Counter()
     predicted_wrong = 0
     bursts = noise_bytes = answered = 0

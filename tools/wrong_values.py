@@ -55,7 +55,6 @@ def run(seed: int, transactions: int, corrupt: float, baseline: bool = False) ->
     """``transactions`` transactions at ``corrupt`` with faults seeded by ``seed``."""
     table = ControlTable.for_model(MODEL)
     url = f"sim://?ids={SERVO_ID}&model={MODEL}&corrupt={corrupt}&seed={seed}&return_delay=0"
-    registers = None if baseline else "auto"
     saved = client_module.RESEND_FLAGS
     if baseline:
         client_module.RESEND_FLAGS = ErrorFlags(0)
@@ -63,7 +62,7 @@ def run(seed: int, transactions: int, corrupt: float, baseline: bool = False) ->
     rng = random.Random(seed)
     entries = list(table)
     try:
-        with DxlClient(url, echo=False, registers=registers) as client:
+        with DxlClient(url, echo=False, check_ranges=not baseline) as client:
             servo = client.port.bus.servos[0]
             for _ in range(transactions):
                 tally.transactions += 1

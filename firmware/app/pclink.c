@@ -33,7 +33,11 @@ bool pclink_poll(ctl_device *ctl, uint32_t now_ms)
     uint8_t chunk[32];
     size_t n;
     bool worked = false;
-    while ((n = hal_usart_read(&platform_pc, chunk, sizeof chunk)) > 0U) {
+    /* At most one ring's worth per pass: a host that never stops sending must not keep
+     * the main loop from its control tick. */
+    for (size_t taken = 0; taken < BOARD_PC_RX_RING &&
+                           (n = hal_usart_read(&platform_pc, chunk, sizeof chunk)) > 0U;
+         taken += n) {
         worked = true;
         last_byte_ms = now_ms;
         for (size_t i = 0; i < n; i++) {

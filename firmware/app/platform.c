@@ -76,10 +76,38 @@ const platform_info_t *platform_info(void)
     return &info;
 }
 
+#if BOARD_PACE_PC_TX
+/* The PC link's transmitter paced to BOARD_PC_BAUD (10 bits a byte), for a USART that
+ * takes bytes as fast as they are written: a host that does not read then fills the ring
+ * and sees replies dropped, as on the CM-530, instead of the emulator spending its time
+ * sending them. Credit in thousandths of a byte; at most a ring's worth is saved up. */
+#define PC_BYTES_PER_S (BOARD_PC_BAUD / 10U)
+static uint32_t pc_credit;
+static uint32_t pc_credit_ms;
+
+static void service_pc(void)
+{
+    uint32_t now = hal_millis();
+    pc_credit += (now - pc_credit_ms) * PC_BYTES_PER_S;
+    pc_credit_ms = now;
+    if (pc_credit > BOARD_PC_TX_RING * 1000UL) {
+        pc_credit = BOARD_PC_TX_RING * 1000UL;
+    }
+    uint32_t bytes = pc_credit / 1000U;
+    hal_usart_service_bytes(&platform_pc, bytes);
+    pc_credit -= bytes * 1000U;
+}
+#else
+static void service_pc(void)
+{
+    hal_usart_service(&platform_pc);
+}
+#endif
+
 void platform_service(void)
 {
     hal_usart_service(&platform_bus);
-    hal_usart_service(&platform_pc);
+    service_pc();
 }
 
 void platform_idle(int idle)
@@ -89,8 +117,10 @@ void platform_idle(int idle)
         return;
     }
     uint32_t primask = hal_irq_save();
+    /* A paced transmitter waits for time to pass anyway: the next SysTick wakes us. */
+    bool pc_tx_idle = BOARD_PACE_PC_TX || hal_usart_tx_done(&platform_pc);
     if (hal_ring_count(&platform_pc.rx) == 0U && hal_ring_count(&platform_bus.rx) == 0U &&
-        hal_usart_tx_done(&platform_pc) && hal_usart_tx_done(&platform_bus)) {
+        pc_tx_idle && hal_usart_tx_done(&platform_bus)) {
         hal_wait_for_interrupt();
     }
     hal_irq_restore(primask);

@@ -1,5 +1,6 @@
 /* Keeps the committed gait table across power cycles, in the flash pages the board sets
- * aside (BOARD_STORE_BASE). Boards without a flash store (qemu) keep it in RAM only:
+ * aside (BOARD_STORE_BASE), as a store_slots record: a power cut during a save leaves the
+ * previous table. Boards without a flash store (qemu) keep it in RAM only:
  * there these do nothing. */
 #ifndef SNAKEBOT_STORE_H
 #define SNAKEBOT_STORE_H

@@ -9,6 +9,10 @@
 #define STEP_READ 2u
 #define STEP_DONE 3u
 #define REPLY_LEN_FIELD (BUS_TELEMETRY_LENGTH + 2)
+/* Where register ``reg`` sits in the telemetry reply's data. */
+#define TELEMETRY_AT(reg) ((reg) - BUS_TELEMETRY_ADDRESS)
+/* The status packet: FF FF id len err, the data, checksum. */
+typedef char bus_reply_bytes_match[(BUS_REPLY_BYTES == BUS_TELEMETRY_LENGTH + 6) ? 1 : -1];
 
 size_t bus_master_size(void)
 {
@@ -135,11 +139,11 @@ static void take_reply(bus_master *b, const uint8_t *packet)
     const uint8_t *data = packet + 5;
     s->error = packet[4];
     if (s->error != 0 && s->error_count < 0xFFu) s->error_count++;
-    s->position = rd16(data);
-    s->speed = rd16(data + 2);
-    s->load = rd16(data + 4);
-    s->voltage = data[6];
-    s->temperature = data[7];
+    s->position = rd16(data + TELEMETRY_AT(AX12_PRESENT_POSITION));
+    s->speed = rd16(data + TELEMETRY_AT(AX12_PRESENT_SPEED));
+    s->load = rd16(data + TELEMETRY_AT(AX12_PRESENT_LOAD));
+    s->voltage = data[TELEMETRY_AT(AX12_PRESENT_VOLTAGE)];
+    s->temperature = data[TELEMETRY_AT(AX12_PRESENT_TEMPERATURE)];
     s->missed = 0;
     s->fresh = 1;
     b->taken = 1;

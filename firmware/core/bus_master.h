@@ -22,11 +22,15 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "ax12_table.h"
 #include "ctl_table.h"
 
+/* The telemetry block: Present Position through Present Temperature. */
+#define BUS_TELEMETRY_ADDRESS AX12_PRESENT_POSITION
+#define BUS_TELEMETRY_LENGTH \
+    (AX12_PRESENT_TEMPERATURE + AX12_PRESENT_TEMPERATURE_SIZE - AX12_PRESENT_POSITION)
+
 /* cffi:begin */
-#define BUS_TELEMETRY_ADDRESS 36
-#define BUS_TELEMETRY_LENGTH 8
 /* Bytes of the status packet answering the telemetry READ. */
 #define BUS_REPLY_BYTES 14
 /* A reply window the app may use: 14 + 8 bytes at 1 Mbps, plus the AX-12's default

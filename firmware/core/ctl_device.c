@@ -207,18 +207,15 @@ static void show_table(ctl_device *d, const gt_info *info, uint32_t crc)
     sync_bus_roster(d);
 }
 
-static bool activate(ctl_device *d, const uint8_t *table, size_t len, uint32_t crc)
+/* Make table[0..len) active; `info` is what gt_validate found for it. */
+static void activate(ctl_device *d, const uint8_t *table, size_t len, uint32_t crc,
+                     const gt_info *info)
 {
-    gt_info info;
-    if (len == 0 || len > CTL_MAX_TABLE_BYTES || gt_validate(table, len, &info) != GT_OK) {
-        return false;
-    }
     stop_motion(d);
     for (size_t i = 0; i < len; i++) d->active[i] = table[i];
     d->active_len = (uint16_t)len;
     d->table_changed = 1;
-    show_table(d, &info, crc);
-    return true;
+    show_table(d, info, crc);
 }
 
 static uint16_t upload_flag(uint8_t result)
@@ -251,7 +248,7 @@ static void commit(ctl_device *d)
         result = (uint8_t)gt_validate(d->staging, len, &info);
     }
     set_reg(d, CTL_ERROR_FLAGS, 2, reg(d, CTL_ERROR_FLAGS, 2) & ~(uint32_t)UPLOAD_FLAGS);
-    if (result == GT_OK) activate(d, d->staging, len, crc);
+    if (result == GT_OK) activate(d, d->staging, len, crc, &info); /* validated above */
     else raise_flags(d, upload_flag(result));
     d->regs[CTL_UPLOAD_RESULT] = result;
 }
@@ -382,15 +379,18 @@ static uint8_t write_bytes(ctl_device *d, uint8_t start, const uint8_t *data, si
         if (a >= CTL_SERVO_WINDOW && a < WINDOW_END) continue;
         const field *f = register_at((uint8_t)a);
         if (f == NULL || (f->access & CTL_ACCESS_W) == 0) return DXL_ERR_RANGE;
+        /* the register's bytes this write touches are a..last: one check covers them */
+        uint16_t f_end = (uint16_t)(f->addr + f->size);
+        uint16_t last = (uint16_t)((f_end < end ? f_end : end) - 1u);
         if (f->addr == CTL_UPLOAD_DATA) {
-            if (offset + (a - CTL_UPLOAD_DATA) >= CTL_MAX_TABLE_BYTES) {
+            if (offset + (last - CTL_UPLOAD_DATA) >= CTL_MAX_TABLE_BYTES) {
                 raise_flags(d, CTL_ERROR_FLAGS_UPLOAD_LENGTH);
                 return DXL_ERR_RANGE;
             }
-        } else if ((a == f->addr || a == start) &&
-                   !in_range(f, value_after(d, f->addr, f->size, start, data, n))) {
+        } else if (!in_range(f, value_after(d, f->addr, f->size, start, data, n))) {
             return DXL_ERR_RANGE;
         }
+        a = last;
     }
     if (write_window(d, start, data, n, false) != 0) return DXL_ERR_RANGE;
 
@@ -569,7 +569,10 @@ void ctl_init(ctl_device *d)
 bool ctl_load_table(ctl_device *d, const uint8_t *table, size_t len)
 {
     if (len == 0 || len > CTL_MAX_TABLE_BYTES) return false;
-    return activate(d, table, len, crc32_compute(table, len));
+    gt_info info;
+    if (gt_validate(table, len, &info) != GT_OK) return false;
+    activate(d, table, len, crc32_compute(table, len), &info);
+    return true;
 }
 
 bool ctl_pc_feed(ctl_device *d, uint8_t byte)
@@ -581,7 +584,14 @@ bool ctl_pc_poll(ctl_device *d, uint32_t now_ms, uint8_t *out, size_t cap, size_
 {
     dxl_event ev;
     *out_len = 0;
-    if (!dxl_parser_poll(&d->pc, &ev)) return false;
+    if (!dxl_parser_poll(&d->pc, &ev)) {
+        /* A false header (noise, a damaged LEN) must not hold back the host's packets
+         * behind it until its LEN is made up: the host would wait in vain, and a trickle
+         * of noise keeps the line from ever going quiet for the gap reset. */
+        if (!dxl_parser_skip_to_hidden(&d->pc)) return false;
+        set_reg(d, CTL_PC_ERRORS, 2, reg(d, CTL_PC_ERRORS, 2) + 1u);
+        return true;
+    }
     if (ev.kind == DXL_EVENT_PACKET) {
         set_reg(d, CTL_PC_PACKETS, 2, reg(d, CTL_PC_PACKETS, 2) + 1u);
         *out_len = ctl_handle_packet(d, ev.id, ev.code, ev.params, ev.nparams, now_ms, out, cap);

@@ -1,5 +1,7 @@
 #include "dxl_parser.h"
 
+#include <string.h>
+
 /* Compile-time checks: the storage holds the ring twice, and a window of a whole packet
  * starting at any slot stays inside it. */
 typedef char dxl_parser_storage_check[
@@ -17,12 +19,14 @@ static void drop(dxl_parser *p, uint16_t n)
 {
     p->start = (uint8_t)(p->start + n);
     p->count = (uint16_t)(p->count - n);
+    p->hunted = p->hunted > n ? (uint16_t)(p->hunted - n) : 0u;
 }
 
 void dxl_parser_reset(dxl_parser *p)
 {
     p->start = 0;
     p->count = 0;
+    p->hunted = 0;
 }
 
 bool dxl_parser_feed(dxl_parser *p, uint8_t byte)
@@ -99,4 +103,47 @@ bool dxl_parser_poll(dxl_parser *p, dxl_event *ev)
     report(p, ev, DXL_EVENT_PACKET, total);
     drop(p, total);
     return true;
+}
+
+/* A whole packet with a good checksum starts at b[i] and ends at or before b[count]. */
+static bool good_packet_at(const dxl_parser *p, const uint8_t *b, uint16_t i)
+{
+    if (b[i + 1u] != DXL_HEADER_BYTE || b[i + 2u] == DXL_HEADER_BYTE) {
+        return false;
+    }
+    uint8_t len = b[i + 3u];
+    if (len < DXL_MIN_LEN_FIELD || len > DXL_MAX_LEN_FIELD) {
+        return false;
+    }
+    uint16_t end = (uint16_t)(i + len + 4u);
+    if (end > p->count || end <= p->hunted) {
+        return false; /* not complete yet, or already checked and found bad */
+    }
+    uint8_t expected = dxl_checksum(&b[i + 2u], (size_t)len + 1u);
+    return expected == b[end - 1u];
+}
+
+bool dxl_parser_skip_to_hidden(dxl_parser *p)
+{
+    /* The unconsumed bytes are contiguous in storage (each byte is stored twice), so
+     * memchr can look for header bytes: usually there are none past the first. */
+    if (p->count < 5u) { /* FF FF at index 1 or later, with its LEN */
+        p->hunted = p->count;
+        return false;
+    }
+    const uint8_t *b = &p->storage[p->start];
+    const uint8_t *limit = b + p->count - 3; /* a header needs 4 bytes to say its LEN */
+    for (const uint8_t *q = b + 1; q < limit; q++) {
+        q = memchr(q, DXL_HEADER_BYTE, (size_t)(limit - q));
+        if (q == NULL) {
+            break;
+        }
+        uint16_t i = (uint16_t)(q - b);
+        if (good_packet_at(p, b, i)) {
+            drop(p, i);
+            return true;
+        }
+    }
+    p->hunted = p->count;
+    return false;
 }

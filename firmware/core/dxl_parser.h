@@ -50,6 +50,7 @@ typedef struct {
     uint8_t storage[512];   /* DXL_PARSER_STORAGE */
     uint8_t start;          /* slot of the oldest unconsumed byte */
     uint16_t count;         /* unconsumed bytes, at most DXL_MAX_PACKET */
+    uint16_t hunted;        /* dxl_parser_skip_to_hidden: packets ending here were checked */
 } dxl_parser;
 
 /* Empty the parser (also the initial state; a zeroed dxl_parser is already reset). */
@@ -61,6 +62,15 @@ bool dxl_parser_feed(dxl_parser *p, uint8_t byte);
 bool dxl_parser_poll(dxl_parser *p, dxl_event *ev);
 /* Bytes held back as the possible start of a packet. */
 uint16_t dxl_parser_pending(const dxl_parser *p);
+/* Beyond the shared rule, for a receiver that must not wait on a false header: once
+ * dxl_parser_poll has returned false (the candidate at the front is incomplete), look
+ * for a whole packet with a good checksum starting at a later header among the bytes
+ * held back; if there is one, drop everything before it and return true (the next poll
+ * reports it). Each later candidate is checksummed once, when its last byte is there,
+ * so the cost per byte stays O(DXL_MAX_PACKET). A good packet hidden inside a longer
+ * real one is taken too: a real packet's payload with FF FF, a plausible LEN and a
+ * matching checksum at the right place, which the checksum makes rare. */
+bool dxl_parser_skip_to_hidden(dxl_parser *p);
 /* cffi:end */
 
 #endif

@@ -7,6 +7,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "ax12_table.h"
 #include "ctl_table.h"
 
 /* The controller's limits, from protocol/controller.json (published as CTL_MAX_*). */
@@ -21,7 +22,6 @@
 #define GT_CRC_OFFSET 12
 #define GT_JOINT_SIZE 6
 #define GT_FLAG_LOOP 1
-#define GT_MAX_TICK 1023
 #define GT_MAX_ID 253
 
 /* gt_validate() results, in check order (protocol/gait_table.md, "Validation order"). */
@@ -63,5 +63,8 @@ uint16_t gt_joint_max(const uint8_t *table, const gt_info *info, uint8_t joint);
 /* Goal of joint j in frame f, in ticks (0 if either is out of range). */
 uint16_t gt_frame(const uint8_t *table, const gt_info *info, uint16_t frame, uint8_t joint);
 /* cffi:end */
+
+/* The highest tick a joint limit may take: the servo's (generated from its description). */
+#define GT_MAX_TICK AX12_POSITION_MAX
 
 #endif

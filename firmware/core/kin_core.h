@@ -129,7 +129,7 @@ int kin_body_velocity(const kin_robot *rb, const double *q, const double *dphi,
  * for robots without a field model (snakes other than 3 links). */
 int kin_field_count(const kin_robot *rb, int32_t *fields, int32_t *inputs);
 /* All fields at q (thesis order: g1.., h1..), out[f * n + k], n = 3 + joints.
- * The 3-link snake's fields are undefined on its singular line phi1 = phi2
+ * The 3-link snake's fields are undefined where det B = 0 (phi1 = phi2, or a joint at +-pi)
  * (KIN_ESINGULAR); *det receives det B there (3-link) or 1 (trident); may be NULL. */
 int kin_fields(const kin_robot *rb, int32_t form, const double *q, double *out, double *det);
 /* Velocity of the field-driven system: qdot = sum_i u_i g_i(q). */

@@ -6,7 +6,7 @@
 
 #include <math.h>
 
-/* |det B| / l below this counts as the 3-link singular line phi1 = phi2. */
+/* |det B| / l below this counts as the 3-link singular set (phi1 = phi2, or a joint at +-pi). */
 #define SNAKE3_DET_MIN 1e-12
 
 static int field_model(const kin_robot *rb, int32_t *fields, int32_t *inputs, int32_t *n)

@@ -338,8 +338,8 @@ const char *kin_strerror(int code)
     case KIN_ENONFINITE:
         return "a non-finite number (NaN or infinity) appeared";
     case KIN_EUNSUPPORTED:
-        return "no vector-field model for this robot (only the 3-link snake and the trident "
-               "have one)";
+        return "the C core has no vector-field model for this robot (it has the 3-link "
+               "snake's and the trident's)";
     default:
         return "unknown kinematic-core status";
     }

@@ -30,13 +30,12 @@ static const int16_t quarter_sine[257] = {
     32745, 32752, 32757, 32761, 32765, 32766, 32767,
 };
 
-/* Ticks per milliradian, Q24: 1023 / radians(300) / 1000 * 2^24. */
-#define TICKS_PER_MRAD_Q24 3277909LL
 /* Binary angle per milliradian, Q16: 2^32 / (2000 pi) * 2^16. */
 #define BAM_PER_MRAD_Q16 44798133900LL
-/* AX-12 speed units per (tick/s), Q18: (300 / 1023) / 6 / 0.111 * 2^18. The AX-12 counts
- * 0.111 rpm per unit and 300 / 1023 degrees per tick. */
-#define UNITS_PER_TICK_S_Q18 115428ULL
+/* The servo's units (ticks per milliradian, Moving Speed units per tick/s) come from
+ * ax12_table.h, generated from the AX-12A's description with the fixed-point shifts below. */
+#define TICKS_PER_MRAD_Q24 AX12_TICKS_PER_MRAD_Q24
+#define UNITS_PER_TICK_S_Q18 ((uint64_t)AX12_SPEED_UNITS_PER_TICK_S_Q18)
 
 /* floor((v + 2^(shift-1)) / 2^shift) for any sign, without relying on >> of negatives. */
 static int64_t round_shift(int64_t v, unsigned shift)

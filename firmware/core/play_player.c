@@ -134,8 +134,8 @@ static uint8_t tick_serpenoid(play_state *p, const play_params *params, const pl
         int32_t angle = play_serp_ticks(params->amp_mrad, params->phi0_mrad, theta);
         int32_t goal = (int32_t)jt->zero + (jt->reverse ? -angle : angle) +
                        steer(params, roster, roster_count, k);
-        uint16_t lo = jt->min > 1023u ? 1023u : jt->min;
-        uint16_t hi = jt->max > 1023u ? 1023u : jt->max;
+        uint16_t lo = jt->min > AX12_POSITION_MAX ? AX12_POSITION_MAX : jt->min;
+        uint16_t hi = jt->max > AX12_POSITION_MAX ? AX12_POSITION_MAX : jt->max;
         p->out_id[k] = jt->id;
         p->out_goal[k] = clamp_tick(goal, lo, hi < lo ? lo : hi);
         p->out_speed[k] = play_speed_units(

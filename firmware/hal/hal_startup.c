@@ -9,6 +9,7 @@
 #include <stdint.h>
 
 #include "hal_cpu.h"
+#include "hal_image.h"
 
 extern uint32_t _sidata; /* .data initial values in flash */
 extern uint32_t _sdata, _edata;
@@ -57,6 +58,7 @@ const hal_vector_t hal_vector_table[16 + HAL_IRQ_COUNT] = {
     [4] = MemManage_Handler,
     [5] = BusFault_Handler,
     [6] = UsageFault_Handler,
+    [HAL_IMAGE_INFO_VECTOR] = (hal_vector_t)(uintptr_t)&hal_image_info, /* reserved entry */
     [11] = SVC_Handler,
     [12] = DebugMon_Handler,
     [14] = PendSV_Handler,

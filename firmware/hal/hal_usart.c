@@ -153,14 +153,20 @@ static bool transmit_step(hal_usart_t *u, uint32_t sr)
     return false;
 }
 
-void hal_usart_service(hal_usart_t *u)
+void hal_usart_service_bytes(hal_usart_t *u, uint32_t max)
 {
     uint32_t primask = hal_irq_save();
     /* Feed while the hardware takes bytes: one on a real USART, all of them in QEMU. The
      * ring bounds the loop. */
-    while (transmit_step(u, hal_io_read32(HAL_USART_SR(u->base)))) {
+    for (uint32_t n = 0; n < max && transmit_step(u, hal_io_read32(HAL_USART_SR(u->base)));
+         n++) {
     }
     hal_irq_restore(primask);
+}
+
+void hal_usart_service(hal_usart_t *u)
+{
+    hal_usart_service_bytes(u, UINT32_MAX);
 }
 
 void hal_usart_isr(hal_usart_t *u)

@@ -64,6 +64,9 @@ void hal_usart_flush_rx(hal_usart_t *u);
 /* Polling half of the driver: feed the transmitter, turn the line around after TC.
  * Call from the main loop. */
 void hal_usart_service(hal_usart_t *u);
+/* The same, writing at most `max` bytes to the data register (a USART without baud
+ * timing, as QEMU's, takes every byte at once: its caller paces it). */
+void hal_usart_service_bytes(hal_usart_t *u, uint32_t max);
 
 /* The interrupt body: call from USARTx_IRQHandler. */
 void hal_usart_isr(hal_usart_t *u);

@@ -35,22 +35,24 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from snakebot.controller import load as load_controller
 from snakebot.controller.client import ControllerClient
 from snakebot.controller.monitor import Sample, render, sample
 from snakebot.controller.playback import play, stop
 from snakebot.controller.uploader import UploadReport, upload_gait
 from snakebot.errors import SnakebotError
 from snakebot.gait import serpenoid
-from snakebot.gait.common import PREDICT_OPTIONS
+from snakebot.gait.common import motion_frame, table_motion
 from snakebot.gaittable import GaitTable, write_gait
-from snakebot.kinematics import Table, integrate_joints
 from snakebot.robots import Robot, load_robot
+from snakebot.sim.physics.select import record_extras, world_of
+from snakebot.sim.physics.video import check_video_path, write_video
 from snakebot.sim.serve import PC_LINK_MARGIN_S, EmulatedRobot, ServeInfo
 from snakebot.sim.world import WorldRecord
 from snakebot.transport.settings import resolve_margin_s
@@ -100,6 +102,11 @@ class DemoSettings:
     cycles: int = 3
     out_dir: Path = Path("out")
     firmware: Path | None = None
+    world: str = "mujoco"
+    """The emulated world: "mujoco" (the physics, so the prediction is checked against
+    something other than itself) or "kinematic" (the model the prediction uses)."""
+    video: Path | None = None
+    """Where to write a GIF/MP4 of the emulated robot seen from above (None: none)."""
 
 
 # -- the firmware's timeline --------------------------------------------------------------
@@ -158,7 +165,7 @@ def _motion(q_end: np.ndarray) -> dict[str, float]:
 
 
 def _relative(pose0: np.ndarray, poses: np.ndarray) -> np.ndarray:
-    """Poses in the frame of ``pose0`` (x forward along its heading)."""
+    """Poses in the frame of ``pose0`` (+x along its heading: gait.common.motion_frame)."""
     c, s = math.cos(pose0[2]), math.sin(pose0[2])
     d = poses[:, :2] - pose0[:2]
     return np.column_stack(
@@ -175,18 +182,20 @@ def predicted_motion(
     samples: int = 2,
 ) -> np.ndarray:
     """Body poses (x, y, theta) over ``cycles`` whole cycles of the looping table, the joints
-    delayed by ``delay_s``, from the origin; ``samples`` rows evenly in time."""
-    period = len(angles) * period_s
-    t0 = period - delay_s  # the joints at window start are where the table was delay_s ago
-    traj = integrate_joints(
+    delayed by ``delay_s``, from the origin (``gait.common.table_motion``, the prediction
+    ``gait`` and ``sim predict`` make); at least ``samples`` rows evenly in time."""
+    per_interval = max(1, math.ceil((samples - 1) / (cycles * len(angles))))
+    played = table_motion(
         robot,
-        Table(angles, period_s, True),
-        t0 + cycles * period,
-        t0=t0,
-        samples=samples,
-        options=PREDICT_OPTIONS,
+        angles,
+        period_s,
+        True,
+        per_interval=per_interval,
+        # the joints at window start are where the table was delay_s ago
+        start_s=len(angles) * period_s - delay_s,
+        passes=cycles,
     )
-    return traj.q[:, :3]
+    return played.trajectory.q[:, :3]
 
 
 @dataclass
@@ -210,6 +219,8 @@ class Comparison:
     joint_t: np.ndarray = field(repr=False)
     joint_commanded: np.ndarray = field(repr=False)
     joint_measured: np.ndarray = field(repr=False)
+    physics: dict[str, Any] | None = None
+    """With the physics world: what it adds (see :func:`physics_effects`)."""
 
     @property
     def within_tolerance(self) -> bool:
@@ -222,7 +233,7 @@ class Comparison:
             "difference_m": round(self.difference_m, 6),
             "tolerance_m": round(self.tolerance_m, 6),
             "within_tolerance": self.within_tolerance,
-            "reason": "servo lag",
+            "reason": "servo lag" if self.physics is None else "servo lag and physics",
             "servo_lag_ms": round(1000 * self.lag_s, 1),
             "tracking_error_deg": {
                 "max": round(math.degrees(self.tracking_max_rad), 3),
@@ -233,6 +244,7 @@ class Comparison:
             "sensitivity_m_per_rad": round(self.sensitivity_m_per_rad, 6),
             "playback_rate": round(self.playback_rate, 4),
             "window_s": [round(self.window_s[0], 3), round(self.window_s[1], 3)],
+            **({} if self.physics is None else {"physics": self.physics}),
         }
 
 
@@ -332,6 +344,49 @@ def compare(
     )
 
 
+def physics_effects(
+    robot: Robot, table: GaitTable, record: WorldRecord, comparison: Comparison, cycles: int
+) -> dict[str, Any]:
+    """What the physics world adds to the comparison: the prediction for the physical
+    twin's free-rolling wheels (c_t = 0, where the prediction takes the robot's c_t), the
+    wheels' sideways slide over the measured cycles (m), and each joint's energy (J)
+    and peak load over the whole run."""
+    angles = robot.ticks_to_angles(table.frames.astype(float))
+    free = _motion(
+        predicted_motion(replace(robot, c_t=0.0), angles, table.frame_period_ms / 1000.0, cycles)[
+            -1
+        ]
+    )
+    e = comparison.emulated
+    t_a, t_b = comparison.window_s
+    inside = (record.t >= t_a) & (record.t <= t_b)
+    slid = WorldRecord(
+        record.t[inside],
+        record.pose[inside],
+        record.phi[inside],
+        record.slip[inside],
+        record.regularised[inside],
+        record.c_t,
+        record.fallback_c_t,
+    ).slip_distance()
+    extras = record_extras(record)
+    return {
+        "c_t": robot.c_t,
+        "predicted_free_wheels": _rounded(free),
+        "difference_free_wheels_m": round(
+            math.hypot(e["dx"] - free["dx"], e["dy"] - free["dy"]), 6
+        ),
+        "wheel_slide_m": [round(float(v) * _unit(robot), 6) for v in slid],
+        "energy_j": [round(v, 6) for v in extras["energy_j"]],
+        "peak_load": [round(v, 4) for v in extras["peak_load"]],
+        "mu": extras["mu"],
+    }
+
+
+def _unit(robot: Robot) -> float:
+    return robot.physics.unit_m if robot.physics is not None else 1.0
+
+
 # -- the picture --------------------------------------------------------------------------
 
 
@@ -348,7 +403,7 @@ def plot_demo(robot: Robot, comparison: Comparison, out: Path) -> Path:
     ax_path.plot(em[:, 0], em[:, 1], "-", color="tab:red", label="emulated (firmware in QEMU)")
     ax_path.plot([0], [0], "o", color="black", label="start")
     ax_path.set_aspect("equal", adjustable="datalim")
-    ax_path.set_xlabel("x (m, along the head's heading at the start)")
+    ax_path.set_xlabel("x (m, along link 1 from the tail towards the head, at the start)")
     ax_path.set_ylabel("y (m)")
     ax_path.set_title(
         f"{robot.name}: body path over the measured cycles\n"
@@ -407,6 +462,7 @@ class DemoResult:
     def as_dict(self) -> dict[str, Any]:
         return {
             "robot": self.settings.robot,
+            "world": self.settings.world,
             "firmware": self.info["firmware"],
             "qemu_pid": self.info["qemu_pid"],
             "gait_file": str(self.gait_file),
@@ -415,6 +471,7 @@ class DemoResult:
             "cycles": {"warmup": self.settings.warmup_cycles, "measured": self.settings.cycles},
             **self.comparison.as_dict(),
             "png": str(self.png),
+            **({"video": str(self.settings.video)} if self.settings.video else {}),
             "monitor": self.monitor,
             "seconds": round(self.seconds, 2),
         }
@@ -423,17 +480,14 @@ class DemoResult:
 def _monitor_line(s: Sample) -> str:
     c = s.controller_record()
     servos = "  ".join(f"{j.id}:{j.position:4d}" for j in s.servos)
-    loads = max((abs(r) for r in (_signed(j.load) for j in s.servos)), default=0)
+    load = load_controller().servo_field("Present Load")
+    loads = max((abs(load.to_units(j.load)) for j in s.servos), default=0.0)
     errors = ",".join(c["error_flags"]) or "none"
     return (
         f"  t={s.t:5.2f} s  {c['state']:<8} frame {c['play_frame']:3d}  positions {servos}"
-        f"  max load {100 * loads / 1023:4.1f} %  bus reads {c['bus_reads']}  "
+        f"  max load {loads:4.1f} %  bus reads {c['bus_reads']}  "
         f"timeouts {c['bus_timeouts']}  errors {errors}"
     )
-
-
-def _signed(value: int) -> int:
-    return -(value & 1023) if value & 1024 else value & 1023
 
 
 def run_demo(settings: DemoSettings | None = None, say: Say = print) -> DemoResult:
@@ -444,6 +498,8 @@ def run_demo(settings: DemoSettings | None = None, say: Say = print) -> DemoResu
     robot = load_robot(settings.robot)
     out_dir = Path(settings.out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    if settings.video is not None:
+        check_video_path(settings.video)
 
     gait = serpenoid(
         robot,
@@ -465,13 +521,13 @@ def run_demo(settings: DemoSettings | None = None, say: Say = print) -> DemoResu
         f"{table.frame_period_ms} ms ({cycle_s:.2f} s a cycle, looping) -> {gait_file}"
     )
 
-    emulated = EmulatedRobot(robot, settings.firmware)
+    emulated = EmulatedRobot(robot, settings.firmware, world=settings.world)
     try:
         info: ServeInfo = emulated.start()
         say(
             f"2. emulated {robot.name} running: firmware {info.firmware} in QEMU (pid "
             f"{info.qemu_pid}), servos {', '.join(map(str, info.servo_ids))} on the emulated "
-            f"bus, PC link {info.pc_link}"
+            f"bus, PC link {info.pc_link}, the {settings.world} world"
         )
         margin = max(resolve_margin_s(), PC_LINK_MARGIN_S)
         with ControllerClient.open(info.pc_link, margin_s=margin) as ctl:
@@ -494,7 +550,12 @@ def run_demo(settings: DemoSettings | None = None, say: Say = print) -> DemoResu
     comparison = compare(
         robot, table, record, goal_t, goal_ticks, settings.warmup_cycles, settings.cycles
     )
+    if world_of(record) != "kinematic":
+        comparison.physics = physics_effects(robot, table, record, comparison, settings.cycles)
     png = plot_demo(robot, comparison, out_dir / "demo.png")
+    if settings.video is not None:
+        say(f"   writing the video {settings.video} ...")
+        write_video(settings.video, robot, {f"emulated ({settings.world})": record})
     return DemoResult(
         settings,
         info.as_dict(),
@@ -544,6 +605,26 @@ def _play(
     return monitor
 
 
+def _physics_lines(c: Comparison) -> list[str]:
+    """The physics world's part of the explanation (none for the kinematic world)."""
+    if c.physics is None:
+        return []
+    ph = c.physics
+    free = ph["predicted_free_wheels"]
+    return [
+        f"   physics (MuJoCo, wheel-floor mu = {ph['mu']:g}): the body has mass and its "
+        f"wheels slid sideways {100 * sum(ph['wheel_slide_m']):.1f} cm in all; its wheels "
+        f"roll freely where the prediction takes rolling friction c_t = {ph['c_t']:g}. "
+        f"Predicted with free wheels (c_t = 0): {100 * free['distance']:.1f} cm, "
+        f"{100 * ph['difference_free_wheels_m']:.1f} cm from the physics.",
+        "   energy per joint "
+        + ", ".join(f"{e:.3f}" for e in ph["energy_j"])
+        + " J; peak load "
+        + ", ".join(f"{100 * v:.0f}" for v in ph["peak_load"])
+        + " % of stall torque.",
+    ]
+
+
 def summary_lines(result: DemoResult) -> list[str]:
     """What the demo found, in words."""
     c = result.comparison
@@ -558,8 +639,8 @@ def summary_lines(result: DemoResult) -> list[str]:
         )
 
     return [
-        f"5. over the {n} measured cycles (x = forward along the head link's heading at the "
-        "start, angles counter-clockwise):",
+        f"5. over the {n} measured cycles "
+        f"({motion_frame(load_robot(result.settings.robot))}; angles counter-clockwise):",
         f"   emulated : {where(e)}",
         f"   predicted: {where(p)}",
         f"   difference {100 * c.difference_m:.1f} cm "
@@ -575,8 +656,15 @@ def summary_lines(result: DemoResult) -> list[str]:
         f"prediction by {100 * c.lag_effect_m:.1f} cm, and the rest of the tracking error "
         f"(at most {math.degrees(c.residual_max_rad):.2f} deg) can add "
         f"{100 * RESIDUAL_SAFETY * c.sensitivity_m_per_rad * c.residual_max_rad:.1f} cm.",
+        *_physics_lines(c),
         f"   the firmware played at {c.playback_rate:.2f}x wall-clock speed (its clock in QEMU);"
         " the motion per cycle does not depend on it.",
         f"6. wrote {result.png} (body path: emulated vs predicted; joint angles: commanded vs "
-        f"measured) and {result.gait_file}; took {result.seconds:.1f} s; nothing left running.",
+        f"measured){_video_words(result)} and {result.gait_file}; took {result.seconds:.1f} s; "
+        "nothing left running.",
     ]
+
+
+def _video_words(result: DemoResult) -> str:
+    video = result.settings.video
+    return f", {video} (the robot seen from above)" if video is not None else ""

@@ -1,8 +1,9 @@
 """Where the project's shared, non-Python files live.
 
-``protocol/`` holds the facts that cross a wire (control tables, packet vectors, the
-gait-table layout). It sits at the repository root so the C and Python sides read the
-same files; snakebot is installed editable (``make setup``) and finds it from here.
+``protocol/`` holds the facts that cross a wire (packet vectors, the gait-table layout;
+the control tables are package data in ``snakebot.devices``). It sits at the repository
+root so the C and Python sides read the same files; snakebot is installed editable
+(``make setup``) and finds it from here.
 The environment variable ``SNAKEBOT_PROTOCOL_DIR`` overrides the location.
 """
 
@@ -15,7 +16,7 @@ REPO_ROOT = Path(__file__).resolve().parents[2]
 
 
 def protocol_dir() -> Path:
-    """The directory holding ``ax12.json``, ``vectors/`` and the layout documents."""
+    """The directory holding ``vectors/`` and the layout documents."""
     override = os.environ.get("SNAKEBOT_PROTOCOL_DIR")
     path = Path(override) if override else REPO_ROOT / "protocol"
     if not path.is_dir():

@@ -30,13 +30,35 @@ def joint_angles(table: GaitTable) -> tuple[np.ndarray, np.ndarray, str]:
     return times, np.degrees((ticks - zero) / (sign * TICKS_PER_RAD)), "joint angle (deg)"
 
 
+def _pose_series(ax: Any, meta: dict[str, Any]) -> None:
+    """x, y (left axis) and theta (right axis) of the predicted body against time, as the
+    thesis's simulation figures show them."""
+    for key, style, text in (("path", "-", "continuous"), ("table_path", "--", "table")):
+        if key not in meta or not meta[key].get("t"):
+            continue
+        p = meta[key]
+        ax.plot(p["t"], p["x"], style, color="tab:blue", label=f"x ({text})")
+        ax.plot(p["t"], p["y"], style, color="tab:orange", label=f"y ({text})")
+    turn = ax.twinx()
+    for key, style in (("path", "-"), ("table_path", "--")):
+        if key in meta and meta[key].get("t"):
+            turn.plot(meta[key]["t"], meta[key]["theta"], style, color="tab:green")
+    turn.set_ylabel("theta (rad, green)")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("x, y")
+    ax.set_title("predicted body pose against time (start frame)")
+    ax.legend(fontsize="small")
+    ax.grid(alpha=0.3)
+
+
 def plot_gait(table: GaitTable, out: str | Path) -> Path:
-    """Write a PNG: joint angles over time, and the predicted body path if known."""
+    """Write a PNG: joint angles over time, and, when the metadata has the predicted
+    body motion, x, y, theta over time and the body's path."""
     meta: dict[str, Any] = table.metadata
     has_path = "path" in meta
-    fig = Figure(figsize=(11 if has_path else 7, 4.5), layout="constrained")
+    fig = Figure(figsize=(16 if has_path else 7, 4.5), layout="constrained")
     FigureCanvasAgg(fig)
-    axes = fig.subplots(1, 2 if has_path else 1, squeeze=False)[0]
+    axes = fig.subplots(1, 3 if has_path else 1, squeeze=False)[0]
     times, values, label = joint_angles(table)
     names = [j.get("name", f"joint {i + 1}") for i, j in enumerate(meta.get("joints", []))]
     for j in range(values.shape[1]):
@@ -54,7 +76,8 @@ def plot_gait(table: GaitTable, out: str | Path) -> Path:
     axes[0].legend(fontsize="small")
     axes[0].grid(alpha=0.3)
     if has_path:
-        ax = axes[1]
+        _pose_series(axes[1], meta)
+        ax = axes[2]
         for key, style, text in (
             ("path", "-", "continuous gait"),
             ("table_path", "--", "table as written"),

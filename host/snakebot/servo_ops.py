@@ -2,9 +2,10 @@
 identify them, read and write registers by name, change a servo's ID or baud rate.
 
 Each operation takes a :class:`~snakebot.transport.DxlClient` (or, for a scan over several
-baud rates, an open port) and returns plain data; ``snakebot bus`` prints it. Registers
-come from ``protocol/ax12.json`` through :class:`~snakebot.protocol.ControlTable`: no
-address is written here.
+baud rates, an open port) and returns plain data; ``snakebot bus`` prints it. Registers,
+their units and the baud formula come from the device descriptions
+(:mod:`snakebot.devices`, through :class:`~snakebot.protocol.ControlTable`): no address
+or unit factor is written here.
 
 Values are checked before anything is sent: a read-only register, a value outside the
 register's documented range, or an ID that is already taken is refused with a sentence
@@ -13,6 +14,7 @@ saying why and what to do instead.
 
 from __future__ import annotations
 
+import math
 import re
 import time
 from collections.abc import Callable, Iterable, Sequence
@@ -21,6 +23,7 @@ from dataclasses import dataclass
 import serial
 
 from snakebot import protocol
+from snakebot.devices import Baud
 from snakebot.errors import SnakebotError
 from snakebot.protocol import (
     BROADCAST_ID,
@@ -37,14 +40,8 @@ BASE_MODEL = "AX-12A"
 """The table used to check names and ranges before a servo has been asked its model
 (the AX-12 family shares addresses and ranges; only some defaults differ)."""
 
-SERVO_CLOCK_HZ = 2_000_000
-"""AX-12 baud rate = SERVO_CLOCK_HZ / (Baud Rate register + 1)."""
-
-BAUD_TOLERANCE = 0.03
-"""How far the servo's rate may be from the one asked for (the AX-12 manual's UART margin)."""
-
-COMMON_BAUDS = (1_000_000, 500_000, 400_000, 250_000, 200_000, 117_647, 57_142, 9_615)
-"""The rates the AX-12 e-Manual tabulates (registers 1, 3, 4, 7, 9, 16, 34, 207)."""
+COMMON_REGISTERS = (1, 3, 4, 7, 9, 16, 34, 207)
+"""The Baud Rate values the AX-12 e-Manual tabulates."""
 
 SETTLE_S = 0.01
 """Pause after an ID or baud change before the servo is addressed anew (it stores the
@@ -62,7 +59,7 @@ class ServoInfo:
     id: int
     baud: int
     model_number: int | None  # None when it answers PING but not READ
-    model: str | None  # None when ax12.json does not know the model number
+    model: str | None  # None when no device description has the model number
     firmware: int | None
     error: ErrorFlags  # the error bits of its PING reply
 
@@ -90,7 +87,7 @@ def _base() -> ControlTable:
 
 
 def model_name(number: int) -> str | None:
-    """The model called ``number`` in ax12.json (12: "AX-12A"), or None."""
+    """The servo model whose model number is ``number`` (12: "AX-12A"), or None."""
     try:
         return ControlTable.for_model_number(number).model
     except ControlTableError:
@@ -105,7 +102,7 @@ def _squash(text: str) -> str:
 
 
 def resolve_register(name_or_address: str, table: ControlTable | None = None) -> Entry:
-    """The register called ``name_or_address``: a name from ax12.json in any case, with
+    """The register called ``name_or_address``: a register name in any case, with
     spaces, '-' or '_' ("goal-position"), or the decimal or 0x address where it starts."""
     table = table or _base()
     text = name_or_address.strip()
@@ -148,12 +145,8 @@ def check_write(entry: Entry, value: int) -> None:
         raise BusCommandError(f"{entry.name} takes {low}-{high}, not {value}{extra}")
 
 
-_SCALED_UNIT = re.compile(r"^(\d+(?:\.\d+)?)\s+([^\s(]+)")
-_FRACTION_UNIT = re.compile(r"^1/(\d+) of (.+)$")
-
-
 def decode(entry: Entry, value: int) -> dict[str, object]:
-    """``value`` of ``entry`` in words: its unit and, where the unit has a scale, the
+    """``value`` of ``entry`` in words: its unit and, where the register has a scale, the
     physical value; direction-bit registers split into magnitude and direction."""
     out: dict[str, object] = {
         "name": entry.name,
@@ -164,19 +157,18 @@ def decode(entry: Entry, value: int) -> dict[str, object]:
         "area": entry.area,
     }
     magnitude = value
-    if "bit 10 = direction" in entry.note and (not entry.writable or value > 0x3FF):
-        magnitude = value & 0x3FF
-        out["direction"] = "CW" if value & 0x400 else "CCW"
+    mask = entry.encoding.magnitude_mask
+    # a writable direction-bit register (Moving Speed) has the bit only in wheel mode
+    if mask is not None and (not entry.writable or value > mask):
+        magnitude = value & mask
+        out["direction"] = "CW" if entry.value(value) < 0 else "CCW"
         out["magnitude"] = magnitude
-    unit = entry.unit
-    if (m := _SCALED_UNIT.match(unit)) is not None:
-        out["physical"] = round(magnitude * float(m.group(1)), 3)
-        out["unit"] = m.group(2)
-    elif (m := _FRACTION_UNIT.match(unit)) is not None:
-        out["physical"] = round(magnitude * 100 / int(m.group(1)), 1)
-        out["unit"] = f"% of {m.group(2)}"
-    elif unit:
-        out["unit"] = unit
+    scale = entry.scale
+    if scale is not None:
+        # as many decimals as one step needs
+        digits = max(0, -math.floor(math.log10(float(scale.factor))))
+        out["physical"] = round(magnitude * float(scale.factor), digits)
+        out["unit"] = scale.unit
     return out
 
 
@@ -381,23 +373,31 @@ def set_id(client: DxlClient, old: int, new: int) -> ServoInfo:
     return moved
 
 
+def _baud() -> Baud:
+    return _base().device.require_baud()
+
+
+COMMON_BAUDS = tuple(int(_baud().rate(n)) for n in COMMON_REGISTERS)
+"""The rates of :data:`COMMON_REGISTERS`."""
+
+
 def baud_register(bps: float) -> int:
-    """The Baud Rate register value whose rate (2,000,000 / (value + 1)) is within
-    :data:`BAUD_TOLERANCE` of ``bps``."""
-    if bps > 0:
-        value = round(SERVO_CLOCK_HZ / bps - 1)
-        if 0 <= value <= 254 and abs(baud_from_register(value) - bps) <= BAUD_TOLERANCE * bps:
-            return value
+    """The Baud Rate register value whose rate (the device's baud formula) is within
+    the servo's UART tolerance of ``bps``."""
+    value = _baud().value_for(bps)
+    if value is not None:
+        return value
+    examples = ", ".join(
+        f"{rate} (n={n})" for n, rate in zip(COMMON_REGISTERS, COMMON_BAUDS, strict=True)
+    )
     raise BusCommandError(
-        f"an AX-12 cannot run at {bps:g} bit/s: its rate is 2,000,000 / (n + 1) for a "
-        "Baud Rate register value n of 0-254, e.g. 1000000 (n=1), 500000 (3), 400000 (4), "
-        "250000 (7), 200000 (9), 117647 (16), 57142 (34), 9615 (207)"
+        f"an AX-12 cannot run at {bps:g} bit/s: its rate is {_baud().describe()}, e.g. {examples}"
     )
 
 
 def baud_from_register(value: int) -> float:
     """The AX-12's bit rate for Baud Rate register ``value``."""
-    return SERVO_CLOCK_HZ / (value + 1)
+    return _baud().rate(value)
 
 
 @dataclass(frozen=True)

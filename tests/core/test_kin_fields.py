@@ -18,6 +18,7 @@ from snakebot.kinematics import (
     fields,
     wheel_speeds,
 )
+from snakebot.kinematics.model import singular_reason
 from snakebot.robots import load_robot
 from snakebot.symbolic import snake3 as sym_snake3
 from snakebot.symbolic import trident as sym_trident
@@ -77,26 +78,67 @@ def test_trident_forms_agree_on_inputs_but_not_brackets_at_q0():
     ),
     st.floats(0.2, 3),
     st.floats(0.2, 3),
+    st.sampled_from(["body", "world"]),
 )
-def test_trident_det_g_star_is_constant_in_body_form(q, r, arm):
+def test_trident_det_g_star_is_constant_in_both_forms(q, r, arm, form):
     robot = replace(TRIDENT, r=r, l=arm)
-    f = fields(robot, np.array(q), "body")
-    assert f.det == pytest.approx(3 * S3 * r**2 / (2 * arm**6), rel=1e-7)
+    f = fields(robot, np.array(q), form)
+    assert f.det == pytest.approx(3 * S3 * r**2 / (2 * arm**6), rel=1e-12)
+    # the closed form is the determinant of the fields the core computes
+    assert np.linalg.det(f.values.T) == pytest.approx(f.det, rel=1e-7)
     assert f.growth == (3, 6)
 
 
+def test_trident_without_base_radius_loses_rank():
+    f = fields(replace(TRIDENT, r=0.0), np.array([0, 0, 0, 0.3, -0.2, 0.1]))
+    assert f.det == 0.0 and f.growth[0] == 3 and f.growth[1] < 6
+
+
 @settings(max_examples=60)
-@given(st.tuples(st.floats(-3, 3), st.floats(-3, 3), st.floats(-math.pi, math.pi), angle, angle))
-def test_snake3_growth_and_singular_line(q):
+@given(
+    st.tuples(st.floats(-3, 3), st.floats(-3, 3), st.floats(-math.pi, math.pi), angle, angle),
+    st.floats(0.2, 3),
+)
+def test_snake3_det_g_star_is_l6_over_det_b4(q, half_link):
+    robot = replace(SNAKE3, l=half_link)
     q = np.array(q)
-    f = fields(SNAKE3, q)
-    det_b = math.sin(q[3]) - math.sin(q[4]) + math.sin(q[3] - q[4])
-    if abs(q[3] - q[4]) < 1e-2:
-        return  # too near the singular line for a rank decision in floating point
+    f = fields(robot, q)
+    det_b = half_link * (math.sin(q[3]) - math.sin(q[4]) + math.sin(q[3] - q[4]))
     assert f.det_b == pytest.approx(det_b, rel=1e-9, abs=1e-15)
+    if f.singular:
+        assert f.det is None and abs(det_b) < 1e-11
+        return
+    assert f.det == pytest.approx(half_link**6 / det_b**4, rel=1e-12)
+    if f.condition < 1e6:  # the numeric determinant is trustworthy there
+        assert np.linalg.det(f.values.T) == pytest.approx(f.det, rel=1e-6)
+
+
+@settings(max_examples=80)
+@given(
+    st.floats(-3.0, 3.0),
+    st.floats(-9, -2.5),  # log10 of the distance from phi1 = phi2
+    st.sampled_from([-1.0, 1.0]),
+    st.floats(-math.pi, math.pi),
+)
+def test_snake3_growth_is_2_3_5_however_near_the_singular_line(p1, log_gap, sign, theta):
+    q = np.array([0.4, -0.2, theta, p1, p1 + sign * 10**log_gap])
+    f = fields(SNAKE3, q)
+    assert not f.singular
     assert f.growth == (2, 3, 5)
-    on_line = fields(SNAKE3, np.r_[q[:4], q[3]])
+    assert f.det > 0 and math.isfinite(f.det)
+    # the conditioning reports the nearness: it grows as det B^-2
+    far = fields(SNAKE3, np.array([0.4, -0.2, theta, p1, p1 + sign * 0.5]))
+    assert f.condition > far.condition
+
+
+def test_snake3_singular_set_and_its_reasons():
+    on_line = fields(SNAKE3, np.array([0, 0, 0.3, 0.7, 0.7]))
     assert on_line.singular and on_line.values is None and on_line.growth is None
+    assert singular_reason(SNAKE3, on_line.q) == "phi1 = phi2"
+    folded = fields(SNAKE3, np.array([0, 0, 0, math.pi, 0.3]))
+    assert folded.singular and singular_reason(SNAKE3, folded.q).startswith("phi1 = +-pi")
+    folded = fields(SNAKE3, np.array([0, 0, 0, 0.3, -math.pi]))
+    assert folded.singular and singular_reason(SNAKE3, folded.q).startswith("phi2 = +-pi")
 
 
 def _constraint_residual(robot, q, qdot):
@@ -240,8 +282,8 @@ def test_singular_configurations_are_reported_not_nan():
     ).all()
 
 
-def test_fields_do_not_exist_for_five_links():
-    with pytest.raises(KinematicsError, match="no vector-field model"):
+def test_the_c_core_sends_five_links_to_the_jet_model():
+    with pytest.raises(KinematicsError, match="model fields"):
         fields(load_robot("snake5"), np.zeros(7))
 
 

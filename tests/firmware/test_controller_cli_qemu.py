@@ -11,9 +11,13 @@ import zlib
 
 import pytest
 from controller_cli_support import cli, cli_json, save, wave_table
-from firmware_support import CONTROLLER_ID, QEMU_DIR, assert_healthy_bus, build_firmware, client
+from firmware_support import (
+    QEMU_DIR,
+    assert_healthy_bus,
+    build_firmware,
+    wait_for_boot,
+)
 
-from snakebot.protocol import DxlTimeout
 from snakebot.sim.options import SimOptions
 from snakebot.sim.qemu import Endpoint, QemuFirmware
 from snakebot.sim.transports.unixsock import UnixSocketServer
@@ -34,15 +38,7 @@ def firmware(tmp_path_factory):
         QemuFirmware(QEMU_DIR / "flash.bin", bus=Endpoint.unix_client(sock)) as fw,
     ):
         port = fw.ports.pc_link
-        with client(port) as c:  # wait for the image to boot
-            deadline = time.monotonic() + 20
-            while True:
-                try:
-                    c.ping(CONTROLLER_ID, retries=0)
-                    break
-                except DxlTimeout:
-                    if time.monotonic() > deadline:
-                        raise
+        wait_for_boot(port)
         yield port
         assert server.running
 

@@ -20,11 +20,13 @@ DEMO_TIMEOUT_S = 300.0  # the demo takes ~15 s; a loaded machine may be much slo
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
-def test_demo_json_reports_the_snake_advancing_and_writes_the_png(tmp_path):
+@pytest.mark.parametrize("world", ["mujoco", "kinematic"])
+def test_demo_json_reports_the_snake_advancing_and_writes_the_png(tmp_path, world):
     build_firmware()
     out = tmp_path / "out"
     done = subprocess.run(
-        [sys.executable, "-m", "snakebot", "demo", "--json", "--cycles", "2", "--out", str(out)],
+        [sys.executable, "-m", "snakebot", "demo", "--json", "--cycles", "2", "--out", str(out)]
+        + ([] if world == "mujoco" else ["--world", world]),
         capture_output=True,
         text=True,
         timeout=DEMO_TIMEOUT_S,
@@ -41,7 +43,16 @@ def test_demo_json_reports_the_snake_advancing_and_writes_the_png(tmp_path):
         ((emulated["dx"] - predicted["dx"]) ** 2 + (emulated["dy"] - predicted["dy"]) ** 2) ** 0.5,
         abs=1e-5,
     )
-    assert result["reason"] == "servo lag"
+    assert result["world"] == world
+    if world == "mujoco":  # the default: the prediction's own model is not the judge
+        assert result["reason"] == "servo lag and physics"
+        physics = result["physics"]
+        free = physics["predicted_free_wheels"]  # the kinematic model, the twin's free wheels
+        assert physics["difference_free_wheels_m"] < 0.1 * free["distance"]
+        assert sum(physics["energy_j"]) > 0
+    else:  # the prediction's own model: only the servos' lag separates them
+        assert result["reason"] == "servo lag" and "physics" not in result
+        assert result["within_tolerance"]
     assert result["upload"]["crc"] == f"0x{zlib.crc32((out / 'demo.gait').read_bytes()):08x}"
     assert result["monitor"]
     assert all(m["controller"]["state"] == "PLAYING" for m in result["monitor"])

@@ -35,7 +35,11 @@ def _word(data: bytes, index: int) -> int:
 
 def _flash_and_ram(elf) -> tuple[int, int]:
     s = sections(elf)
-    flash = sum(s[name][1] for name in (".isr_vector", ".text", ".ARM.exidx", ".data") if name in s)
+    flash = sum(
+        s[name][1]
+        for name in (".isr_vector", ".image_info", ".text", ".ARM.exidx", ".data")
+        if name in s
+    )
     ram = sum(s[name][1] for name in (".data", ".bss", ".stack") if name in s)
     return flash, ram
 

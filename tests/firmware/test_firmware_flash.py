@@ -1,11 +1,15 @@
-"""The flash-programming driver (firmware/hal/hal_flash.c), compiled for the host and run
-against a register model of the STM32F1 flash controller (FPEC, PM0075): QEMU has no
-flash controller, so this is where the driver's logic is proven. The model behaves like
+"""The flash-programming driver (firmware/hal/hal_flash.c) and the two-slot table store on
+it (firmware/app/store_slots.c), compiled for the host and run against a register model
+of the STM32F1 flash controller (FPEC, PM0075): QEMU has no flash controller, so this is
+where their logic is proven. The model behaves like
 the chip where the driver depends on it: the controller starts locked and opens only to
 KEY1 then KEY2, BSY stays set for a while after each operation, programming a half-word
 that is not erased sets PGERR and changes nothing, protected pages set WRPRTERR."""
 
 from __future__ import annotations
+
+import random
+import zlib
 
 import pytest
 from firmware_support import RegisterModels, hal_fixture
@@ -30,6 +34,10 @@ typedef struct { uint32_t base; uint32_t size; uint32_t page_size; } hal_flash_r
 int hal_flash_erase(const hal_flash_region_t *r, uint32_t offset, uint32_t len);
 int hal_flash_write(const hal_flash_region_t *r, uint32_t offset, const uint8_t *data,
                     uint32_t len);
+typedef struct { uint32_t offset; uint32_t len; uint32_t seq; } store_record_t;
+uint32_t store_slots_capacity(const hal_flash_region_t *r);
+bool store_slots_newest(const hal_flash_region_t *r, store_record_t *out);
+int store_slots_save(const hal_flash_region_t *r, const uint8_t *data, uint32_t len);
 """
 
 
@@ -171,11 +179,12 @@ MODELS = RegisterModels()
 
 hal = hal_fixture(
     "_hal_flash_host",
-    ["hal_flash.c"],
-    ["hal_flash.h"],
+    ["hal_flash.c", "../app/store_slots.c", "../core/crc32.c"],
+    ["hal_flash.h", "store_slots.h"],
     CDEF,
     MODELS,
     defines=[("HAL_FLASH_BUSY_POLLS", str(BUSY_POLLS))],
+    include_dirs=["app", "core"],
     io16=True,
 )
 
@@ -322,3 +331,144 @@ def test_any_writes_into_erased_flash_read_back(hal, chunks):
         assert m.mem == expected
         assert m.locked()
         assert m.unexpected == []
+
+
+# ---- the two-slot table store (store_slots.c) on the driver --------------------------------
+
+
+class PowerCutModel(FlashModel):
+    """A FlashModel whose power fails during its ``cut_at``-th flash operation (page erase
+    or half-word program, counted from 0): that operation is left torn (an erase sets a
+    random part of the page's bits back to 1, a program clears a random part of the bits
+    it should), and nothing changes flash after it. ``cut_at=None`` never cuts; ``ops``
+    counts the operations started, so a run without a cut tells how many there are."""
+
+    def __init__(self, mem: bytes | None = None, cut_at: int | None = None, seed: int = 0):
+        super().__init__(busy_reads=1)
+        if mem is not None:
+            self.mem[:] = mem
+        self.cut_at = cut_at
+        self.ops = 0
+        self.dead = False
+        self.rng = random.Random(seed)
+
+    def _step(self) -> str:
+        """Start one operation: "run" it, "tear" it (the cut), or "skip" it (after)."""
+        if self.dead:
+            return "skip"
+        self.ops += 1
+        if self.ops - 1 == self.cut_at:
+            self.dead = True
+            return "tear"
+        return "run"
+
+    def erase(self, addr: int) -> None:
+        step = self._step()
+        if step == "run":
+            super().erase(addr)
+        elif step == "tear" and self.in_flash(addr):
+            page = (addr - BASE) // PAGE
+            for i in range(page * PAGE, (page + 1) * PAGE):
+                self.mem[i] |= self.rng.getrandbits(8)
+
+    def write16(self, addr: int, value: int) -> None:
+        step = self._step()
+        if step == "run":
+            super().write16(addr, value)
+        elif step == "tear" and self.in_flash(addr):
+            off = addr - BASE
+            keep = value | self.rng.getrandbits(16)
+            self.mem[off] &= keep & 0xFF
+            self.mem[off + 1] &= keep >> 8
+
+
+def stored(hal, mem: bytes) -> tuple[bytes, int] | None:
+    """What a fresh start finds in flash holding ``mem``: (table, sequence) or None."""
+    with MODELS.use(PowerCutModel(mem)) as m:
+        rec = hal.ffi.new("store_record_t *")
+        if not hal.lib.store_slots_newest(region(hal), rec):
+            return None
+        assert m.unexpected == []
+        return bytes(m.mem[rec.offset : rec.offset + rec.len]), rec.seq
+
+
+def save(hal, mem: bytes, table: bytes, cut_at: int | None = None, seed: int = 0):
+    """Save ``table`` into flash holding ``mem``; returns (status, flash after, ops)."""
+    with MODELS.use(PowerCutModel(mem, cut_at, seed)) as m:
+        status = hal.lib.store_slots_save(region(hal), hal.ffi.from_buffer(table), len(table))
+        assert m.unexpected == []
+        return status, bytes(m.mem), m.ops
+
+
+def tables(n: int, size: int = 60) -> list[bytes]:
+    rng = random.Random(size)
+    return [bytes(rng.getrandbits(8) for _ in range(size)) for _ in range(n)]
+
+
+def test_store_keeps_the_newest_record_and_alternates_slots(hal):
+    mem = b"\xa5" * (PAGE * PAGES)
+    assert stored(hal, mem) is None
+    slots = set()
+    for seq, table in enumerate(tables(4), start=1):
+        status, mem, _ = save(hal, mem, table)
+        assert status == OK
+        assert stored(hal, mem) == (table, seq)
+        slots.add(mem.index(table) // (PAGE * PAGES // 2))
+    assert slots == {0, 1}
+
+
+def test_store_refuses_what_does_not_fit(hal):
+    with MODELS.use(PowerCutModel()) as m:
+        r = region(hal)
+        cap = hal.lib.store_slots_capacity(r)
+        assert cap == PAGE * PAGES // 2 - 16
+        big = bytes(cap + 1)
+        assert hal.lib.store_slots_save(r, hal.ffi.from_buffer(big), len(big)) == RANGE
+        assert m.writes == 0
+
+
+@pytest.mark.parametrize("earlier", [0, 1, 2], ids=["first-save", "second", "third"])
+def test_a_power_cut_at_every_step_of_a_save_leaves_the_old_or_the_new_table(hal, earlier):
+    """``earlier`` saves complete first; the next is cut at each of its flash operations
+    in turn (torn), and a fresh start must find exactly the previous table, or the new
+    one only once the save had finished programming it."""
+    old, new = tables(earlier + 1)[:earlier], tables(earlier + 1)[earlier]
+    mem = b"\xa5" * (PAGE * PAGES)
+    for table in old:
+        mem = save(hal, mem, table)[1]
+    before = stored(hal, mem)
+    status, done, steps = save(hal, mem, new)
+    assert status == OK and stored(hal, done) == (new, earlier + 1)
+    assert steps > len(new) // 2  # every half-word of the table is a step
+    outcomes = []
+    for cut in range(steps):
+        for seed in range(2):
+            status, after, _ = save(hal, mem, new, cut_at=cut, seed=seed)
+            assert status != OK, f"a save cut at step {cut} reported success"
+            found = stored(hal, after)
+            assert found in (before, (new, earlier + 1)), f"cut at step {cut}: {found}"
+            outcomes.append(found == before)
+            # and the next save after the cut works, and wins
+            status, again, _ = save(hal, after, new[::-1])
+            assert status == OK and stored(hal, again)[0] == new[::-1]
+    assert all(outcomes), "only the magic, written last, may make the new record count"
+
+
+def test_sequence_numbers_wrap(hal):
+    first, second = tables(2)
+    mem = bytearray(save(hal, b"\xa5" * (PAGE * PAGES), first)[1])
+    slot = mem.index(first) - 16
+    mem[slot + 4 : slot + 8] = b"\xff\xff\xff\xff"  # as if 2^32 - 1 saves had happened
+    assert stored(hal, bytes(mem)) == (first, 0xFFFFFFFF)
+    status, after, _ = save(hal, bytes(mem), second)
+    assert status == OK and stored(hal, after) == (second, 0)
+
+
+def test_a_record_with_a_damaged_table_is_not_loaded(hal):
+    first, second = tables(2)
+    mem = save(hal, b"\xa5" * (PAGE * PAGES), first)[1]
+    mem = bytearray(save(hal, mem, second)[1])
+    at = mem.index(second)
+    assert zlib.crc32(second) == int.from_bytes(mem[at - 4 : at], "little")
+    mem[at + 7] ^= 0x10
+    assert stored(hal, bytes(mem)) == (first, 1)

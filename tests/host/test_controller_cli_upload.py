@@ -21,7 +21,13 @@ from controller_cli_support import (
 )
 
 from snakebot.gaittable import max_frames
-from snakebot.sim.controller_pty import CorruptOnce, CutAfter, is_commit, is_upload_chunk
+from snakebot.sim.controller_pty import (
+    ControllerPty,
+    CorruptOnce,
+    CutAfter,
+    is_commit,
+    is_upload_chunk,
+)
 
 
 @pytest.mark.parametrize("window", ["1", "8"])
@@ -34,7 +40,8 @@ def test_round_trip_controller_crc_equals_ours(controller, tmp_path, window):
     assert result.exit_code == 0, result.output
     size = path.stat().st_size
     assert f"Uploaded {size} bytes in " in result.stdout
-    assert "of the 57600 baud wire" in result.stdout
+    # the test controller's pty is not paced, so no share of the wire is claimed
+    assert "not a paced serial line" in result.stdout
     assert f"0x{crc_of(path):08x}" in result.stdout
     # the controller holds exactly the file's bytes (it cannot send a table back over the
     # link, so they are looked at in the device itself)
@@ -50,9 +57,21 @@ def test_json_report_carries_the_controllers_figures(controller, tmp_path):
     assert report["bytes"] == path.stat().st_size
     assert (report["joints"], report["frames"], report["period_ms"]) == (4, 200, 20)
     assert report["attempts"] == 1 and report["loop"] is True
-    assert 0 < report["wire_percent"]
+    assert report["paced"] is False and "wire_percent" not in report  # an unpaced pty
+    assert report["bytes_per_s"] > 0
     status = monitor_records(controller.device)[0]["controller"]
     assert status["table_crc"] == report["crc"] and status["table_bytes"] == report["bytes"]
+
+
+def test_on_a_paced_link_the_report_gives_the_whole_uploads_share_of_the_wire(tmp_path):
+    path = save(wave_table(), tmp_path)
+    with ControllerPty(robot="snake5", baudrate=57600) as server:
+        report = cli_json("upload", path, "--port", server.device)
+    assert report["paced"] is True
+    # the whole command (checks, chunks, commit, verification) against the wire's
+    # 5760 bytes/s: at most the chunk stream's 64 of every 73 bytes
+    assert report["wire_percent"] == pytest.approx(100 * report["bytes_per_s"] / 5760, abs=0.1)
+    assert 30 < report["wire_percent"] < 100 * 64 / 73
 
 
 @pytest.mark.parametrize("k", [0, 1, 12])

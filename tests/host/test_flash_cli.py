@@ -10,6 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from snakebot.cli import main
+from snakebot.flash.image import identity_block
 from snakebot.sim.bootloader import APP_BASE, Bootloader, BootloaderFaults, BootloaderPty
 
 pytestmark = pytest.mark.timeout(60)  # every wait has a bound: nothing may hang
@@ -18,10 +19,12 @@ REPO = Path(__file__).resolve().parents[2]
 
 
 def make_image(path: Path, size: int, seed: int = 1) -> bytes:
-    """A plausible CM-530 application: stack at the top of RAM, reset handler inside."""
+    """A plausible CM-530 application: stack at the top of RAM, reset handler inside, the
+    identity block after the eight vectors."""
     rng = random.Random(seed)
-    body = bytes(rng.randrange(256) for _ in range(size - 8))
-    data = (0x20010000).to_bytes(4, "little") + (APP_BASE + 0x101).to_bytes(4, "little") + body
+    vectors = [0x20010000, APP_BASE + 0x101, 0, 0, 0, 0, 0, APP_BASE + 32]
+    head = b"".join(v.to_bytes(4, "little") for v in vectors) + identity_block("cm530", 1, size)
+    data = head + bytes(rng.randrange(256) for _ in range(size - len(head)))
     path.write_bytes(data)
     return data
 

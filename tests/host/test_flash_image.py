@@ -6,8 +6,16 @@ import pytest
 
 from snakebot.flash import FlashTimeouts, ImageError, board_layout, checksum, load_image
 from snakebot.flash.errors import FlashError, FlashSettingError
-from snakebot.flash.image import FALLBACK_LAYOUT
+from snakebot.flash.image import FALLBACK_LAYOUT, identity_block
 from snakebot.flash.loader import ChecksumReport, verify_checksum
+
+
+def vectors(sp: int, reset: int, base: int, size: int, board: str = "cm530") -> bytes:
+    """An image of ``size`` bytes at ``base``: eight vectors (SP, reset, entry 7 pointing
+    at the identity block right after them), the block, then zeros."""
+    words = [sp, reset, 0, 0, 0, 0, 0, base + 32]
+    head = b"".join(w.to_bytes(4, "little") for w in words) + identity_block(board, 1, size)
+    return head + bytes(size - len(head))
 
 
 def test_layout_comes_from_the_cm530_linker_script():
@@ -30,9 +38,7 @@ def test_layout_follows_an_edited_linker_script(tmp_path):
     assert layout.app_size == 100 * 1024
     assert layout.ram_end == 0x20005000
     image = tmp_path / "fw.bin"
-    image.write_bytes(
-        (0x20005000).to_bytes(4, "little") + (0x08004011).to_bytes(4, "little") + bytes(100)
-    )
+    image.write_bytes(vectors(0x20005000, 0x08004041, 0x08004000, 100))
     assert load_image(image, layout) == image.read_bytes()
     image.write_bytes(bytes(100 * 1024 + 1))
     with pytest.raises(ImageError, match="more than the 102400 bytes"):
@@ -81,3 +87,63 @@ def test_timeouts_from_environment_and_keywords(monkeypatch):
     monkeypatch.setenv("SNAKEBOT_FLASH_READY_TIMEOUT_S", "-1")
     with pytest.raises(FlashSettingError, match="SNAKEBOT_FLASH_READY_TIMEOUT_S='-1'"):
         FlashTimeouts.resolve()
+
+
+@pytest.mark.parametrize(
+    ("sp", "reset", "board", "size", "says", "message"),
+    [
+        (0x2000FFFF, 0x08003101, "cm530", 512, 512, "not 8-byte aligned"),
+        (0x2000FFFC, 0x08003101, "cm530", 512, 512, "not 8-byte aligned"),
+        (0x20010008, 0x08003101, "cm530", 512, 512, "outside the CM-530's RAM"),
+        (0x20010000, 0x08003009, "cm530", 512, 512, "inside its vector table or identity"),
+        (0x20010000, 0x08003031, "cm530", 512, 512, "inside its vector table or identity"),
+        (0x20010000, 0x08003201, "cm530", 512, 512, "not a Thumb address inside the image"),
+        (0x20010000, 0x08003100, "cm530", 512, 512, "not a Thumb address"),
+        (0x20010000, 0x08003101, "qemu", 512, 512, "built for board 'qemu', not 'cm530'"),
+        (0x20010000, 0x08003101, "cm530", 512, 600, "is 512 bytes but says it is 600"),
+    ],
+)
+def test_images_the_cm530_would_not_start_are_refused(
+    tmp_path, sp, reset, board, size, says, message
+):
+    path = tmp_path / "fw.bin"
+    data = bytearray(vectors(sp, reset, 0x08003000, size, board))
+    data[32 + 8 : 32 + 12] = says.to_bytes(4, "little")
+    path.write_bytes(bytes(data))
+    with pytest.raises(ImageError, match=message):
+        load_image(path)
+    assert load_image(path, check_vectors=False) == bytes(data)  # --force
+
+
+def test_an_image_without_an_identity_block_is_refused(tmp_path):
+    path = tmp_path / "fw.bin"
+    words = [0x20010000, 0x08003041] + [0] * 6
+    path.write_bytes(b"".join(w.to_bytes(4, "little") for w in words) + bytes(200))
+    with pytest.raises(ImageError, match="no snakebot identity block"):
+        load_image(path)
+
+
+def test_the_built_images_carry_their_board_and_length():
+    """Both builds link at 0x08003000 with a stack in the CM-530's RAM: only the identity
+    block tells the qemu image from the CM-530's, and the flasher refuses it."""
+    from firmware_support import build_firmware
+
+    from snakebot.flash.image import BOARD_LINKER_SCRIPT, image_info
+    from snakebot.paths import REPO_ROOT
+
+    build_firmware()
+    version = int(
+        next(
+            line.split()[2]
+            for line in (REPO_ROOT / "firmware/core/ctl_table.h").read_text().splitlines()
+            if line.startswith("#define CTL_FIRMWARE_VERSION_VALUE")
+        )
+    )
+    for board in ("cm530", "qemu"):
+        data = (REPO_ROOT / "build" / board / "firmware.bin").read_bytes()
+        info = image_info(data, board_layout().app_base)
+        assert (info.board, info.image_bytes, info.firmware_version) == (board, len(data), version)
+    assert load_image(REPO_ROOT / "build/cm530/firmware.bin")
+    with pytest.raises(ImageError, match="built for board 'qemu'"):
+        load_image(REPO_ROOT / "build/qemu/firmware.bin")
+    assert BOARD_LINKER_SCRIPT.exists()

@@ -47,6 +47,17 @@ def test_tolerance_is_met_for_a_combination():
     assert _table_speeds(gait) <= TRIDENT.max_speed_rad_s
 
 
+def test_every_block_of_the_written_gait_meets_the_tolerance():
+    # A direct segment before each loop: the loops must still start at phase 0, as the
+    # block the tolerance was measured on did (they used to start mid-phase).
+    gait = field_gait(TRIDENT, "h3+g3", form="world", duration=0.3, tolerance=0.05)
+    first = gait.parameters["block_relative_error"]
+    assert gait.parameters["blocks"] > 1
+    assert first <= 0.05
+    assert gait.parameters["block_errors_max"] <= 0.05
+    assert gait.parameters["block_errors_max"] == pytest.approx(first, rel=0.2)
+
+
 def test_snake3_bracket_gait_loops_in_joint_space():
     gait = field_gait(SNAKE3, "h1", periods=3, amplitude=0.15)
     assert gait.loop  # the joints return: the table can repeat
@@ -60,8 +71,10 @@ def test_snake3_bracket_gait_loops_in_joint_space():
 def test_refusals():
     with pytest.raises(GaitError, match="--periods K needs"):
         field_gait(TRIDENT, "g1", periods=3)
-    with pytest.raises(GaitError, match="exactly one"):
-        field_gait(TRIDENT, "h1")
+    with pytest.raises(GaitError, match="not both"):
+        field_gait(TRIDENT, "h1", duration=0.1, periods=2)
+    with pytest.raises(GaitError, match="no bracket term: give --duration"):
+        field_gait(TRIDENT, "g1")
     with pytest.raises(GaitError, match="singular"):
         field_gait(SNAKE3, "g1", duration=0.1, start=(0.2, 0.2))
     with pytest.raises(Exception, match="h4"):
@@ -75,3 +88,19 @@ def test_refusals():
     ):
         # every arm: phi = -2 atan(s) at flow parameter s, sped up to the servos' limit
         field_gait(TRIDENT, "g3", duration=1.5)
+
+
+@pytest.mark.parametrize("expression", ["2*g1-h3", "g3+2*h1", "g2+h2/2", "g1-h3"])
+def test_the_thesis_combinations_work_with_the_defaults(expression):
+    gait = field_gait(TRIDENT, expression)
+    assert gait.parameters["block_relative_error"] <= 0.05
+    assert gait.parameters["block_errors_max"] <= 0.05
+    assert gait.parameters["flow_parameter"] > 0
+
+
+def test_a_duration_too_long_for_the_tolerance_says_which_would_do():
+    with pytest.raises(GaitError, match="shorten --duration to about") as info:
+        field_gait(TRIDENT, "2*g1-h3", duration=1.0)
+    suggested = float(str(info.value).split("to about ")[1].split(",")[0])
+    gait = field_gait(TRIDENT, "2*g1-h3", duration=suggested)
+    assert gait.parameters["block_relative_error"] <= 0.05

@@ -84,3 +84,43 @@ def test_refusals():
         serpenoid(SNAKE5, 0.3, 2 * math.pi, 1.0, cycles=5, rate_hz=100)
     with pytest.raises(GaitError, match="positive"):
         serpenoid(SNAKE5, -0.3, 1.0, 1.0, cycles=1)
+
+
+@pytest.mark.parametrize("robot", ["snake3", "snake5"])
+def test_positive_delta_and_omega_move_the_snake_head_first(robot):
+    # link 1's heading points from its free end (the tail) along the body to the head
+    snake = load_robot(robot)
+    gait = serpenoid(snake, 0.5, 2.0, 1.2, cycles=1)
+    assert gait.predicted["dx"] > 0
+    assert "from the tail end (x, y) towards the head" in gait.summary()["frame"]
+    backwards = serpenoid(snake, 0.5, 2.0, -1.2, cycles=1)
+    assert backwards.predicted["dx"] < 0
+
+
+def test_a_near_circular_four_link_gait_on_ideal_wheels_warns():
+    # delta = -0.006: the joints almost equal, the axles almost concurrent; ideal wheels
+    # make the predicted motion absurd there (metres from a 30-degree wiggle)
+    from dataclasses import replace
+
+    four = replace(SNAKE5, name="snake4", links=4, joints=SNAKE5.joints[:3], c_t=0.0)
+    gait = serpenoid(four, math.radians(30), math.pi, -0.006, cycles=1)
+    kinds = {w["trajectory"]: w for w in gait.warnings}
+    assert set(kinds) == {"continuous gait", "table as written"}
+    assert kinds["continuous gait"]["condition"] > 1e5
+    steady = serpenoid(replace(four, c_t=0.01), math.radians(30), math.pi, -0.006, cycles=1)
+    assert steady.warnings == []
+
+
+def test_table_motion_over_two_passes_composes_one_pass_twice():
+    from snakebot.gait.common import table_motion
+
+    gait = serpenoid(SNAKE5, 0.5, 3.0, 1.2, cycles=1, rate_hz=50)
+    angles, period = SNAKE5.ticks_to_angles(gait.ticks), gait.period_ms / 1000
+    one = table_motion(SNAKE5, angles, period, True).trajectory.q[-1, :3]
+    two = table_motion(SNAKE5, angles, period, True, passes=2).trajectory.q[-1, :3]
+    c, s = math.cos(one[2]), math.sin(one[2])
+    composed = one + np.array([c * one[0] - s * one[1], s * one[0] + c * one[1], one[2]])
+    np.testing.assert_allclose(two, composed, atol=1e-7)
+    # starting a loop a whole pass later changes nothing
+    later = table_motion(SNAKE5, angles, period, True, start_s=len(angles) * period)
+    np.testing.assert_allclose(later.trajectory.q[-1, :3], one, atol=1e-9)

@@ -39,7 +39,7 @@ from hypothesis import assume, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, initialize, rule
 
-from snakebot import protocol
+from snakebot import devices, protocol
 from snakebot.protocol import (
     BROADCAST_ID,
     CorruptPacket,
@@ -54,7 +54,7 @@ from snakebot.transport import DxlClient
 
 IDS = (1, 2)
 TABLE_BYTES = 64
-STATUS_RETURN_LEVEL = 16  # the client changes its expectations when this is written
+STATUS_RETURN_LEVEL = devices.ax12().status_return_level_address  # the client tracks it
 RETRIES = 2
 MARGIN_S = 0.08  # the client's whole allowance for a reply (latency 0, return delay 0)
 IN_TIME_S = MARGIN_S - 0.02  # an answer sent sooner than this after the write is in time
@@ -272,7 +272,7 @@ class TransportUnderFaults(RuleBasedStateMachine):
             return_delay_us=0,
             echo=setting,
             echo_probe_s=0.2,
-            registers=None,  # generic devices: their table holds any bytes
+            check_ranges=False,  # generic devices: their table holds any bytes
         )
 
     def teardown(self) -> None:

@@ -173,3 +173,39 @@ def test_resampling_matches_a_hand_worked_frame():
     data = bytes(range(0, 256, 17))
     assert [b for _, b in resample(data, 1_000_000, 1_000_000)] == list(data)
     assert [b for _, b in resample(data, 1_000_000, 57_600)] != list(data)
+
+
+def test_sync_write_gives_each_named_servo_the_first_block_that_names_it():
+    bus = make_bus(1, 2, 2, 3)  # two servos share ID 2; ID 3 is not named
+    packet = bytearray(P.sync_write(30, 2, {1: (400).to_bytes(2, "little")}))
+    # a second block for servo 1 (ignored, as a servo takes the first) and one for ID 2
+    body = packet[5:-1] + bytes((1, 0x58, 0x02, 2, 0x90, 0x01))
+    framed = P.encode_packet(P.BROADCAST_ID, P.Instruction.SYNC_WRITE, bytes(body))
+    exchange(bus, framed)
+    goals = [s.regs.get("Goal Position") for s in bus.servos]
+    assert goals == [400, 400, 400, bus.servo(3).present_position]
+    assert [s.regs.get("Torque Enable") for s in bus.servos] == [1, 1, 1, 0]
+
+
+def test_a_packet_for_one_id_is_handled_by_that_servo_alone(monkeypatch):
+    bus = make_bus(*range(1, 19))
+    heard = []
+    for s in bus.servos:
+        monkeypatch.setattr(
+            s, "receive", lambda event, t, s=s, f=s.receive: (heard.append(s.id), f(event, t))[1]
+        )
+    assert reply(bus, P.read(7, 36, 2)).id == 7
+    assert heard == [7]  # the other 17 are not asked, and nobody parses the reply again
+    heard.clear()
+    exchange(bus, P.write(P.BROADCAST_ID, 25, b"\x01"))
+    assert heard == list(range(1, 19))
+
+
+def test_a_packet_sent_before_an_id_change_lands_reaches_the_servo_by_its_new_id():
+    bus = make_bus(1, 2)
+    # both go out back to back: the READ is on the wire before the WRITE has landed
+    bus.master_write(P.write(1, 3, b"\x07"))  # servo 1 becomes servo 7
+    bus.master_write(P.read(7, 36, 2))
+    bus.run_until(bus.now + 0.01)
+    events = PacketParser().feed(bus.master_read(1 << 16))
+    assert [(e.id, len(e.params)) for e in events if isinstance(e, Packet)] == [(7, 0), (7, 2)]

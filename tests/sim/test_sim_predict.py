@@ -14,9 +14,13 @@ from snakebot.cli import main
 from snakebot.gait import serpenoid
 from snakebot.gaittable import GaitTable, write_gait
 from snakebot.robots import load_robot
-from snakebot.sim.predict import PredictError, frame_speeds, predict_gait
+from snakebot.sim.predict import PredictError, player_writes, predict_gait
 
 FIVE_LINK = load_robot("snake5")
+
+
+def run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=False)
 
 
 @pytest.fixture(scope="module")
@@ -56,25 +60,34 @@ def test_a_five_link_serpenoid_advances_on_modelled_servos_that_lag(s5_gait):
     assert em["dx"] > 0.8 * predicted_dx > 0.2  # forward along the start heading
     assert abs(em["dy"]) < 0.5 * em["dx"]
     # modelled servos lag their goals: a tracking error exists, and stays small, because
-    # each write asks for the speed that reaches the next frame on time
-    assert 0 < diff["joint_max_rad"] < math.radians(1.0)
+    # each tick's write asks for the speed of the frame step (the controller's player;
+    # its mid-frame goals are rounded to whole ticks, 0.15 degrees)
+    assert 0 < diff["joint_max_rad"] < math.radians(1.5)
     assert diff["joint_rms_rad"] > 0
     assert 0 < diff["path_max"] < 0.05 * predicted_dx
     assert em["samples"] == 201  # 100 Hz world for 50 Hz frames
     assert em["slip_max"] > 0 and len(em["slip_distance"]) == 5
 
 
-def test_writes_carry_the_next_frame_and_the_controllers_speed():
-    frames = np.array([[500, 600], [510, 600], [530, 590]])
-    goals, speeds = frame_speeds(frames, 20, loop=True)
-    assert goals.tolist() == [[510, 600], [530, 590], [500, 600]]
+def test_writes_are_the_controllers_player_tick_by_tick():
+    frames = np.array([[500, 600], [510, 600], [530, 590]], dtype=np.uint16)
+    limits = ((0, 1023), (0, 1023))
+    tick, blocks = player_writes(GaitTable((1, 2), 20, True, limits, frames))
+    assert tick == 0.01 and len(blocks) == 7  # 60 ms pass, ticks at 0, 10, .., 60 ms
+
+    def decoded(block):
+        return {sid: (int.from_bytes(b[:2], "little"), int.from_bytes(b[2:], "little"))
+                for sid, b in block.items()}  # fmt: skip
+
+    # frame 0 at 0 ms, half way to frame 1 at 10 ms (rounded), frame 1 at 20 ms, ...
+    goals = [[decoded(b)[sid][0] for sid in (1, 2)] for b in blocks]
+    assert goals == [[500, 600], [505, 600], [510, 600], [520, 595], [530, 590], [515, 595],
+                     [500, 600]]  # fmt: skip
     # 10 ticks in 20 ms = 500 ticks/s = 220.2 units of 0.111 rpm, rounded up; a joint
     # that holds still gets the controller's floor (16), never 0 (= full speed)
-    assert speeds[0].tolist() == [221, 16]
-    assert speeds[1].tolist() == [441, 221]
-    once_goals, once_speeds = frame_speeds(frames, 20, loop=False)
-    assert once_goals.tolist() == [[510, 600], [530, 590]]
-    assert len(once_speeds) == 2
+    assert decoded(blocks[0]) == {1: (500, 221), 2: (600, 16)}
+    once = player_writes(GaitTable((1, 2), 20, False, limits, frames))[1]
+    assert len(once) == 5 and decoded(once[-1])[1][0] == 530
 
 
 def test_a_three_link_serpenoid_crosses_its_singular_line_and_stays_finite():
@@ -131,3 +144,30 @@ def test_cli_wrong_robot_is_a_one_line_error(s5_file):
     out = CliRunner().invoke(main, ["sim", "predict", str(s5_file), "--robot", "trident"])
     assert out.exit_code == 2
     assert out.output.startswith("error: ") and "--robot" in out.output
+
+
+def test_singular_crossing_is_regularised_alike_in_prediction_and_emulation(tmp_path):
+    # The rounded table crosses phi1 = phi2 inadmissibly on one frame interval: the
+    # prediction used to put rolling friction on the whole table (dx 4.75 against 5.28).
+    out = tmp_path / "s.gait"
+    made = run(
+        *("gait", "serpenoid", "snake3", "-A", "40deg", "-w", "3", "-d", "90deg"),
+        *("--cycles", "1", "-o", out, "--json"),
+    )
+    assert made.exit_code == 0, made.output
+    table_figure = json.loads(made.output)["table"]
+    result = run("sim", "predict", out, "--ideal", "--json")
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.output)
+    em, pr = data["emulated"], data["predicted"]
+    assert em["regularised_intervals"] == pr["regularised_intervals"] == 1
+    assert table_figure["regularised_intervals"] == 1
+    for key in ("dx", "dy", "dtheta"):
+        assert pr[key] == pytest.approx(em[key], abs=1e-6)
+        assert table_figure[key] == pytest.approx(pr[key], abs=1e-6)
+    # the arbitrary friction on that interval decides little: a tenth of it moves the end
+    # by under 1 % of the distance
+    assert 0 < pr["fallback_spread"] == pytest.approx(table_figure["fallback_spread"])
+    assert pr["fallback_spread"] < 0.01 * math.hypot(pr["dx"], pr["dy"])
+    # and near the continuous gait's own motion (5.32, 1.91)
+    assert pr["dx"] == pytest.approx(table_figure["dx"]) and abs(pr["dx"] - 5.32) < 0.1

@@ -1,4 +1,4 @@
-"""Virtual AX-12 servos: the control table from protocol/ax12.json, the instructions,
+"""Virtual AX-12 servos: the control table from the AX-12 descriptions, the instructions,
 the error bits, and the motion, voltage and thermal models (in bus time)."""
 
 from __future__ import annotations

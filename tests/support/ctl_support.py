@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from hypothesis import strategies as st
 
+from snakebot import devices
 from snakebot.controller import chunk_writes
 from snakebot.controller import load as load_controller
 from snakebot.core import ffi, lib
@@ -17,6 +18,7 @@ from snakebot.protocol import BROADCAST_ID, Instruction, PacketParser, ping, rea
 
 CTL = load_controller()
 CTL_ID = CTL.default_id
+TICK_LOW, TICK_HIGH = devices.ax12().require_position().range
 
 
 @st.composite
@@ -26,8 +28,8 @@ def gait_tables(draw: st.DrawFn, max_joints: int = 6, loop: bool | None = None) 
     ids = draw(st.lists(st.integers(0, 253), min_size=joints, max_size=joints, unique=True))
     limits = []
     for _ in range(joints):
-        lo = draw(st.integers(0, 1023))
-        limits.append((lo, draw(st.integers(lo, 1023))))
+        lo = draw(st.integers(TICK_LOW, TICK_HIGH))
+        limits.append((lo, draw(st.integers(lo, TICK_HIGH))))
     frames = draw(st.integers(1, min(max_frames(joints), 40)))
     seed = draw(st.integers(0, 2**32 - 1))
     rng = np.random.default_rng(seed)

@@ -7,13 +7,16 @@ from __future__ import annotations
 import contextlib
 import shutil
 import subprocess
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, TypeVar
 
 import pytest
 
+from snakebot import devices
 from snakebot.paths import REPO_ROOT
+from snakebot.protocol import DxlTimeout
 from snakebot.transport import DxlClient
 
 BUILD = REPO_ROOT / "build"
@@ -89,11 +92,23 @@ def assert_healthy_bus(reads: int, timeouts: int) -> None:
 
 def client(port: str) -> DxlClient:
     """A Protocol 1.0 client on the emulated PC link (a pty path)."""
-    # The controller's address 16 is not a Status Return Level, and its registers are not
-    # an AX-12's (so no AX range checks either).
+    # The controller, not an AX-12: its registers (and their ranges) are its own.
     return DxlClient(
-        port, PC_BAUD, margin_s=CLIENT_MARGIN_S, echo=False, status_return_level_address=None
+        port, PC_BAUD, margin_s=CLIENT_MARGIN_S, echo=False, device=devices.controller()
     )
+
+
+def wait_for_boot(port: str, timeout: float = 20.0) -> None:
+    """Wait until the firmware answers PING on its PC link (DxlTimeout after ``timeout``)."""
+    with client(port) as c:
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                c.ping(CONTROLLER_ID, retries=0)
+                return
+            except DxlTimeout:
+                if time.monotonic() > deadline:
+                    raise
 
 
 HAL_DIR = REPO_ROOT / "firmware" / "hal"
@@ -107,11 +122,18 @@ extern "Python+C" void hal_io_write16(uint32_t addr, uint16_t value);
 
 
 def build_hal_host(
-    name: str, sources: list[str], headers: list[str], cdef: str, tmpdir: Path, defines=()
+    name: str,
+    sources: list[str],
+    headers: list[str],
+    cdef: str,
+    tmpdir: Path,
+    defines=(),
+    include_dirs=(),
 ):
     """Compile HAL drivers for the host with -DHAL_HOST_TEST: every register access goes
     to the four hal_io_* callbacks, which the test implements in Python (a register model
-    of the peripheral). Returns the compiled module (``.ffi``, ``.lib``)."""
+    of the peripheral). ``sources`` are relative to firmware/hal, ``include_dirs`` (more
+    than firmware/hal) to firmware. Returns the compiled module (``.ffi``, ``.lib``)."""
     import importlib.util
 
     from cffi import FFI
@@ -122,7 +144,7 @@ def build_hal_host(
         name,
         "\n".join(f'#include "{h}"' for h in ("hal_io.h", *headers)),
         sources=[str(HAL_DIR / s) for s in sources],
-        include_dirs=[str(HAL_DIR)],
+        include_dirs=[str(HAL_DIR), *(str(HAL_DIR.parent / d) for d in include_dirs)],
         define_macros=[("HAL_HOST_TEST", None), *defines],
         extra_compile_args=["-std=c99", "-Wall", "-Wextra"],
     )
@@ -166,12 +188,13 @@ def build_hal_on_models(
     models: RegisterModels,
     *,
     defines=(),
+    include_dirs=(),
     io16: bool = False,
 ):
     """:func:`build_hal_host`, with the hal_io_* callbacks going to ``models.current``
     (its ``read32``/``write32``, and ``read16``/``write16`` with ``io16``; without it a
     16-bit access fails the test)."""
-    mod = build_hal_host(name, sources, headers, cdef, tmpdir, defines)
+    mod = build_hal_host(name, sources, headers, cdef, tmpdir, defines, include_dirs)
 
     @mod.ffi.def_extern()
     def hal_io_read32(addr):
@@ -204,6 +227,7 @@ def hal_fixture(
     models: RegisterModels,
     *,
     defines=(),
+    include_dirs=(),
     io16: bool = False,
 ):
     """A module-scoped ``hal`` fixture: the drivers built once by
@@ -214,7 +238,15 @@ def hal_fixture(
     def hal(tmp_path_factory):
         tmpdir = tmp_path_factory.mktemp(name.strip("_"))
         return build_hal_on_models(
-            name, sources, headers, cdef, tmpdir, models, defines=defines, io16=io16
+            name,
+            sources,
+            headers,
+            cdef,
+            tmpdir,
+            models,
+            defines=defines,
+            include_dirs=include_dirs,
+            io16=io16,
         )
 
     return hal

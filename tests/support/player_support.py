@@ -6,11 +6,17 @@ import math
 
 import numpy as np
 
+from snakebot import devices
 from snakebot.core import ffi, lib
 from snakebot.gaittable import GaitTable
 
-TICKS_PER_RAD = 1023 / math.radians(300)
-UNITS_PER_TICK_S = (300 / 1023) / 6 / 0.111  # AX-12: 0.111 rpm per speed unit
+# The exact values the fixed-point player approximates, from the AX-12A's description.
+_AX12 = devices.ax12()
+_POSITION = _AX12.require_position()
+_SPEED = _AX12.register("Moving Speed")
+TICKS_PER_RAD = _POSITION.ticks_per_rad
+UNITS_PER_TICK_S = 1 / _SPEED.to_units(1, "deg/s") / _POSITION.scale.per_unit("deg")
+SPEED_MAX = _SPEED.encoding.magnitude_mask
 
 
 class Player:
@@ -67,7 +73,7 @@ def table_reference(table: GaitTable, u_ms: float) -> np.ndarray:
 
 
 def speed_reference(ticks_per_s: float) -> float:
-    return min(max(math.ceil(ticks_per_s * UNITS_PER_TICK_S), 16), 1023)
+    return min(max(math.ceil(ticks_per_s * UNITS_PER_TICK_S), lib.PLAY_MIN_SPEED), SPEED_MAX)
 
 
 def serpenoid_reference(amp: float, phase: float, delta: float, phi0: float, k: int) -> float:

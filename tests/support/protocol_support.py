@@ -3,15 +3,25 @@ through snakebot.core, with events in the same shape as the Python parser's."""
 
 from __future__ import annotations
 
+import importlib.util
 import json
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from snakebot.core import ffi, lib
-from snakebot.paths import protocol_dir
+from snakebot.paths import REPO_ROOT, protocol_dir
 from snakebot.protocol import Packet, Rejected
 
 VECTOR_FILES = ("instructions.json", "status.json", "streams.json")
+
+
+def gen_headers():
+    """protocol/gen_headers.py as a module (it is a script, not part of the package)."""
+    path = REPO_ROOT / "protocol" / "gen_headers.py"
+    spec = importlib.util.spec_from_file_location("gen_headers", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def load_vectors() -> list[dict]:

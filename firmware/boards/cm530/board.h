@@ -1,5 +1,5 @@
 /* ROBOTIS CM-530: STM32F103RE (512 KB flash, 64 KB RAM), 8 MHz crystal.
- * Sources: ROBOTIS e-Manual and example code; see /work/shared/docs/hardware.md. The memory
+ * Sources: ROBOTIS e-Manual and example code; docs/hardware.md has the wiring. The memory
  * layout must agree with cm530.ld. */
 #ifndef SNAKEBOT_BOARD_H
 #define SNAKEBOT_BOARD_H
@@ -28,6 +28,8 @@
 #define BOARD_BUS_TX_RING 512
 #define BOARD_PC_RX_RING 512
 #define BOARD_PC_TX_RING 512
+/* The USART's own baud timing paces the PC link's transmitter. */
+#define BOARD_PACE_PC_TX 0
 
 /* Independent watchdog timeout (LSI-based, approximate). */
 #define BOARD_WATCHDOG_MS 500UL

@@ -36,6 +36,9 @@
 #define BOARD_BUS_TX_RING 128
 #define BOARD_PC_RX_RING 256
 #define BOARD_PC_TX_RING 256
+/* QEMU's USART has no baud timing: the PC link's transmitter is paced in software
+ * (platform.c), so replies leave at the rate the CM-530's wire carries them. */
+#define BOARD_PACE_PC_TX 1
 
 #define BOARD_WATCHDOG_MS 500UL
 

@@ -39,9 +39,10 @@ from snakebot.cli.sim import sim  # noqa: E402
 from snakebot.cli.sim_bootloader import bootloader  # noqa: E402
 from snakebot.cli.sim_predict import predict  # noqa: E402
 from snakebot.cli.sim_serve import serve  # noqa: E402
+from snakebot.cli.sim_thesis import friction, thesis  # noqa: E402
 from snakebot.cli.upload import upload  # noqa: E402
 
 for command in (model, gait, sim, upload, play, stop, serpenoid, monitor, bus, flash_command, demo):
     main.add_command(command)
-for command in (predict, serve, bootloader):
+for command in (predict, serve, bootloader, thesis, friction):
     sim.add_command(command)

@@ -70,7 +70,7 @@ def bus() -> None:
     \b
         snakebot bus scan --port /dev/ttyUSB0
 
-    Register names come from the AX-12 control table (protocol/ax12.json): write them as
+    Register names come from the AX-12 control table (snakebot.devices): write them as
     you like, e.g. goal-position, "Goal Position" or goal_position, or give the address.
     """
 

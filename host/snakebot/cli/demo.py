@@ -11,6 +11,7 @@ import click
 from snakebot.cli.output import dumps
 from snakebot.cli.params import ANGLE
 from snakebot.demo import DemoSettings, run_demo, summary_lines
+from snakebot.sim.physics.select import WORLDS
 
 EXIT_INTERRUPTED = 130  # as a shell reports a program stopped by Ctrl-C
 
@@ -73,6 +74,19 @@ def _sigterm(signum: int, frame: FrameType | None) -> None:
     help="Firmware image for QEMU (default build/qemu/firmware.elf).",
 )
 @click.option(
+    "--world",
+    type=click.Choice(WORLDS),
+    default=DemoSettings.world,
+    show_default=True,
+    help="mujoco: the body has mass and its wheels can slip, so the prediction is checked "
+    "against physics; kinematic: the body follows the prediction's own model.",
+)
+@click.option(
+    "--video",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write a GIF (or MP4, with ffmpeg) of the emulated robot seen from above.",
+)
+@click.option(
     "--json",
     "as_json",
     is_flag=True,
@@ -86,6 +100,8 @@ def demo(
     cycles: int,
     out_dir: Path,
     firmware: Path | None,
+    world: str,
+    video: Path | None,
     as_json: bool,
 ) -> None:
     """Run the whole chain on the emulated 5-link robot and report what it did.
@@ -105,6 +121,8 @@ def demo(
         cycles=cycles,
         out_dir=out_dir,
         firmware=firmware,
+        world=world,
+        video=video,
     )
     previous = signal.signal(signal.SIGTERM, _sigterm)
     try:

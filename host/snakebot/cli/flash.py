@@ -69,8 +69,8 @@ class _LazyBar:
 @click.option(
     "--force",
     is_flag=True,
-    help="Flash even if the image's vector table does not look like a CM-530 "
-    "application linked at 0x08003000.",
+    help="Flash even if the image does not look like snakebot firmware for the CM-530 "
+    "linked at 0x08003000 (vector table, board name and length in its identity block).",
 )
 @click.option(
     "--json",

@@ -24,10 +24,23 @@ def gait() -> None:
 
     Every generated gait is checked against the robot's joint limits and its servos'
     maximum speed before anything is written. Angles are radians unless suffixed
-    with 'deg' (rates: rad/s, or deg/s with 'deg'); pi expressions work: pi/4."""
+    with 'deg' (rates: rad/s, or deg/s with 'deg'); pi expressions work: pi/4.
+
+    A gait whose joint motion passes near a singular configuration (wheel axles
+    meeting in one point or all parallel: the wheel model's condition number above
+    100, reciprocal below 0.01) gets a warning on stderr and in the JSON "warnings":
+    its predicted body motion there is hypersensitive to rounding and friction."""
 
 
-def _write(g: Gait, out: Path, as_json: bool) -> None:
+PLOT_OPTION = click.option(
+    "--plot",
+    type=PLOT_PATH,
+    help="also write a PNG: each joint, and x, y, theta of the predicted body, against "
+    "time (as the thesis's figures), beside the body's path",
+)
+
+
+def _write(g: Gait, out: Path, as_json: bool, plot: Path | None = None) -> None:
     table = g.gait_table()
     write_gait(out, table)
     summary = {
@@ -36,6 +49,10 @@ def _write(g: Gait, out: Path, as_json: bool) -> None:
         "bytes": table.size,
         **g.summary(),
     }
+    if plot is not None:
+        from snakebot.plots import plot_gait
+
+        summary["plot"] = str(plot_gait(table, plot))
     if as_json:
         click.echo(dumps(summary, indent=2))
         return
@@ -45,6 +62,8 @@ def _write(g: Gait, out: Path, as_json: bool) -> None:
         f"{table.size} bytes) and {sidecar_path(out)}"
     )
     _print_motion(summary)
+    if plot is not None:
+        click.echo(f"plot written to {summary['plot']}")
 
 
 def _print_motion(meta: dict[str, Any]) -> None:
@@ -54,10 +73,8 @@ def _print_motion(meta: dict[str, Any]) -> None:
             f"dtheta = {m['dtheta']: .6f} rad"
         )
 
-    click.echo(
-        f"predicted body motion over {meta.get('duration_s', 0):.3f} s "
-        "(start pose frame, reference point):"
-    )
+    frame = meta.get("frame", "start pose frame")
+    click.echo(f"predicted body motion over {meta.get('duration_s', 0):.3f} s ({frame}):")
     line("continuous gait:", meta["predicted"])
     line("table as written (ticks, linear):", meta["table"])
     for key, label in (
@@ -68,6 +85,8 @@ def _print_motion(meta: dict[str, Any]) -> None:
             line(label, meta[key])
     if "note" in meta["table"]:
         click.echo(f"  note: {meta['table']['note']}")
+    for warning in meta.get("warnings", []):
+        click.echo(f"warning: {warning['message']}", err=True)
 
 
 @gait.command("serpenoid")
@@ -95,6 +114,13 @@ def _print_motion(meta: dict[str, Any]) -> None:
     help="P0: offset added to every joint (turns the snake)",
 )
 @click.option(
+    "--phase",
+    type=ANGLE,
+    default=0.0,
+    show_default=True,
+    help="S: start phase of joint 1 at t = 0 (rad or deg; pi expressions work)",
+)
+@click.option(
     "--cycles",
     type=NumberType(0, low_open=True),
     required=True,
@@ -102,6 +128,7 @@ def _print_motion(meta: dict[str, Any]) -> None:
 )
 @click.option("--rate", type=RATE, default=50.0, show_default=True, help=RATE_HELP)
 @click.option("--output", "-o", type=OUTPUT_PATH, required=True, help=OUT_HELP)
+@PLOT_OPTION
 @click.option("--json", "as_json", is_flag=True, help="print the summary as JSON")
 def serpenoid_command(
     robot: str,
@@ -109,12 +136,14 @@ def serpenoid_command(
     omega: float,
     delta: float,
     offset: float,
+    phase: float,
     cycles: float,
     rate: float,
     output: Path,
+    plot: Path | None,
     as_json: bool,
 ) -> None:
-    """A serpenoid gait: phi_k(t) = A sin(W t + (k-1) D) + P0 on every joint k.
+    """A serpenoid gait: phi_k(t) = A sin(W t + (k-1) D + S) + P0 on every joint k.
 
     ROBOT is a snake (snake3, snake5, or a .toml file). W is adjusted slightly so the
     gait spans a whole number of frames (the summary shows the value used). The summary
@@ -122,11 +151,22 @@ def serpenoid_command(
     written (rounded to ticks, interpolated linearly as the controller plays it).
 
     Example: snakebot gait serpenoid snake5 -A 30deg -w 180deg -d 90deg --cycles 2 -o s.gait
+
+    The thesis's example phi1 = cos(-2 pi^2/3 t + pi^2), phi2 = cos(-2 pi^2/3 t - 2 pi^2)
+    (cos x = sin(x + pi/2)) is
+    -A 1 -w "-2*pi**2/3" -d "-3*pi**2" --phase "pi**2+pi/2" --cycles 1.
     """
     g = serpenoid(
-        load_robot(robot), amplitude, omega, delta, offset=offset, cycles=cycles, rate_hz=rate
+        load_robot(robot),
+        amplitude,
+        omega,
+        delta,
+        offset=offset,
+        phase=phase,
+        cycles=cycles,
+        rate_hz=rate,
     )
-    _write(g, output, as_json)
+    _write(g, output, as_json, plot)
 
 
 @gait.command("field")
@@ -143,7 +183,8 @@ def serpenoid_command(
     type=NUMBER,
     help="T: follow EXPR for T units of its flow "
     "parameter (the motion of T * EXPR to first order); the gait itself runs as "
-    "fast as the servos allow",
+    "fast as the servos allow. Default for combinations with brackets: 1, or the "
+    "longest the table holds at the --tolerance (the summary's flow_parameter)",
 )
 @click.option(
     "--periods", type=click.IntRange(min=1), help="K: number of input loops (bracket terms only)"
@@ -181,6 +222,7 @@ def serpenoid_command(
 )
 @click.option("--rate", type=RATE, default=50.0, show_default=True, help=RATE_HELP)
 @click.option("--output", "-o", type=OUTPUT_PATH, required=True, help=OUT_HELP)
+@PLOT_OPTION
 @click.option("--json", "as_json", is_flag=True, help="print the summary as JSON")
 def field_command(
     robot: str,
@@ -194,6 +236,7 @@ def field_command(
     form: str | None,
     rate: float,
     output: Path,
+    plot: Path | None,
     as_json: bool,
 ) -> None:
     """A gait that follows a control vector field or a combination of fields and Lie
@@ -206,6 +249,10 @@ def field_command(
     shrinks about linearly with A), so --tolerance picks A and the number of loops.
 
     Example: snakebot gait field trident --field 2*g1-h3 --duration 0.2 --tolerance 0.2 -o x.gait
+
+    The thesis's combinations (2*g1-h3, g3+2*h1, g2+h2/2, g1-h3 for the trident) work
+    as they are: without --duration the tolerance (default 0.05) sets the loop size and
+    the gait follows the field for as long as the table allows, up to 1 unit.
     """
     g = field_gait(
         load_robot(robot),
@@ -219,7 +266,7 @@ def field_command(
         form=form,
         rate_hz=rate,
     )
-    _write(g, output, as_json)
+    _write(g, output, as_json, plot)
 
 
 @gait.command("show")
@@ -295,3 +342,8 @@ def _short(value: Any) -> str:
     if isinstance(value, dict):
         return "{" + ", ".join(f"{k}: {_short(v)}" for k, v in value.items()) + "}"
     return str(value)
+
+
+from snakebot.cli.gait_search import search_command  # noqa: E402 - after the group exists
+
+gait.add_command(search_command)

@@ -10,7 +10,10 @@ import numpy as np
 
 from snakebot.cli.output import dumps
 from snakebot.cli.params import ANGLES
-from snakebot.kinematics import default_form, field_model, fields
+from snakebot.gait.common import NEAR_SINGULAR_RCOND
+from snakebot.kinematics import body_velocity, default_form, field_model, fields
+from snakebot.kinematics.lie import LieFields, lie_fields, lie_model
+from snakebot.kinematics.model import singular_reason
 from snakebot.robots import load_robot
 
 
@@ -26,7 +29,8 @@ def model() -> None:
 def info(robot: str, as_json: bool) -> None:
     """Show a robot description: geometry, friction, and each joint's servo.
 
-    ROBOT is a built-in robot (snake3, trident, snake5) or the path of a robot .toml file.
+    ROBOT is a built-in robot (snake3, trident, snake5, car) or the path of a robot .toml
+    file.
     """
     rb = load_robot(robot)
     data: dict[str, Any] = {
@@ -34,15 +38,15 @@ def info(robot: str, as_json: bool) -> None:
         "kind": rb.kind,
         "description": rb.description,
         "source": rb.source,
-        "geometry": (
-            {"links": rb.links, "half_link": rb.l}
-            if rb.kind == "snake"
-            else {
+        "geometry": {
+            "snake": lambda: {"links": rb.links, "half_link": rb.l},
+            "car": lambda: {"wheelbase": rb.l},
+            "trident": lambda: {
                 "base_radius": rb.r,
                 "arm_length": rb.l,
                 "alphas_deg": [math.degrees(a) for a in rb.alphas],
-            }
-        ),
+            },
+        }[rb.kind](),
         "friction": {"c_n": rb.c_n, "c_t": rb.c_t},
         "servo": {"model": rb.servo_model, "max_speed_rad_s": rb.max_speed_rad_s},
         "joints": [
@@ -100,6 +104,14 @@ def _fmt(values: np.ndarray) -> str:
     help="trident only: body-velocity inputs (default, the thesis's system (18)) "
     "or world-velocity inputs (system (11)); they differ in the brackets",
 )
+@click.option(
+    "--depth",
+    type=int,
+    metavar="D",
+    help="bracket depth for snakes and the car (default 3, at most 8; a 16-link snake "
+    "takes about 3 s at depth 5): a Lyndon basis of brackets up to D and the growth "
+    "vector to D",
+)
 @click.option("--json", "as_json", is_flag=True, help="print JSON instead of text")
 @click.option(
     "--symbolic",
@@ -108,35 +120,73 @@ def _fmt(values: np.ndarray) -> str:
     "--at is then not needed (the 3-link snake takes about 20 s to simplify)",
 )
 def fields_command(
-    robot: str, at: list[float] | None, form: str | None, as_json: bool, symbolic: bool
+    robot: str,
+    at: list[float] | None,
+    form: str | None,
+    depth: int | None,
+    as_json: bool,
+    symbolic: bool,
 ) -> None:
     """The control vector fields g1.. and their Lie brackets h1.. at a configuration,
     with the rank at each step of the filtration (the growth vector), det G* and whether
     q is singular.
 
-    ROBOT is snake3 or trident (or a file describing a 3-link snake or a trident):
-    fields are defined where the non-slip constraints determine the body's motion.
-    Brackets follow [X, Y] = DY X - DX Y; fields come in the thesis's order
-    (3-link: h1 = [g1,g2], h2 = [g1,h1], h3 = [g2,h1]; trident: h1 = [g1,g2],
-    h2 = [g1,g3], h3 = [g2,g3]).
+    det G* (the fields side by side) is printed from its closed form: l^6 / det B^4 for
+    the 3-link snake (det B = 4 l sin((phi1-phi2)/2) cos(phi1/2) cos(phi2/2), zero where
+    phi1 = phi2 or a joint is at +-pi), 3 sqrt(3) r^2 / (2 l^6) for the trident. It is
+    never zero where the fields exist, so the growth vector is exact however near the
+    singular set q is; the condition number of G* (unit columns) beside it says how near.
+
+    ROBOT is snake3, trident, snake5, car, or a robot file: fields are defined where the
+    non-slip constraints determine the motion. Brackets follow [X, Y] = DY X - DX Y;
+    fields come in the thesis's order (3-link: h1 = [g1,g2], h2 = [g1,h1],
+    h3 = [g2,h1]; trident: h1 = [g1,g2], h2 = [g1,g3], h3 = [g2,g3]).
+
+    An N-link snake (any N from 3 to 16) has two control fields: g1 moves joint 1 at
+    unit rate and g2 joint 2, with the other of the two still; the body and joints 3..
+    do what the N wheel constraints then require. Its brackets (and the car's, or the
+    3-link snake's with --depth) are a Lyndon basis named by their expressions,
+    e.g. [g1,[g1,g2]] and [[g1,g2],g2] (= -h3 for 3 links), computed to any --depth
+    from exact derivatives. Their growth vector is exact to depth 3 (snakes: the
+    first five coordinates are the 3-link snake's, whose det G* is never zero; the car:
+    det(S, D, R, T) = 1/(L^2 cos^4 Phi)); deeper ranks are numeric, with the condition
+    number, and flagged where double precision cannot decide them. The car (thesis,
+    chapter 1) has q = (x, y, theta, Phi), steering S, drive D, R = [S,D],
+    T = [R,D]: growth (2, 3, 4).
 
     Example: snakebot model fields snake3 --at 0,0,0,pi/3,-pi/3
     """
     rb = load_robot(robot)
-    kind = field_model(rb)
-    n = 3 + rb.n_joints
-    used_form = form or default_form(rb)
+    jets = rb.kind == "car" or (rb.kind == "snake" and (rb.links != 3 or depth is not None))
+    if symbolic and (depth is not None or rb.kind == "snake" and rb.links != 3):
+        raise click.UsageError(
+            "--symbolic is available for snake3, the trident and the car (no --depth)"
+        )
+    if depth is not None and not jets:
+        raise click.UsageError(
+            "--depth applies to snakes and the car: the trident's filtration is complete "
+            "at depth 2 (growth (3, 6))"
+        )
     if symbolic:
-        _print_symbolic(rb, used_form, as_json)
+        _print_symbolic(rb, form or default_form(rb), as_json)
         return
+    n = len(rb.state_names)
     if at is None:
         raise click.UsageError("give the configuration with --at (or ask for --symbolic)")
-    if len(at) != n:
+    if at is not None and len(at) != n:
         raise click.BadParameter(
             f"{rb.name} has {n} coordinates ({', '.join(rb.state_names)}): give {n} values, "
             f"got {len(at)}",
             param_hint="--at",
         )
+    if jets:
+        if form is not None:
+            raise click.UsageError("--form applies to the trident only")
+        assert at is not None
+        _print_lie(rb, lie_fields(lie_model(rb), np.array(at), depth or 3), as_json)
+        return
+    kind = field_model(rb)
+    used_form = form or default_form(rb)
     fs = fields(rb, np.array(at), form)
     data = {
         "robot": rb.name,
@@ -147,10 +197,14 @@ def fields_command(
         else {name: (fs[name] + 0.0).tolist() for name in fs.names},
         "growth": None if fs.growth is None else list(fs.growth),
         "det": fs.det,
+        "condition": fs.condition,
         "singular": fs.singular,
+        "joint_driven": _joint_driven(rb, np.array(at)),
     }
     if kind == "snake3":
         data["det_b"] = fs.det_b
+        if fs.singular:
+            data["singular_where"] = singular_reason(rb, np.array(at))
     if as_json:
         click.echo(dumps(data, indent=2))
         return
@@ -160,15 +214,91 @@ def fields_command(
     if fs.values is None:
         click.echo(
             f"  singular: yes (det B = {fs.det_b:.3g}): the 3-link snake's fields are "
-            "undefined where phi1 = phi2"
+            f"undefined where det B = 0; here {data['singular_where']}"
         )
         return
     for name in fs.names:
         click.echo(f"  {name:3} = {_fmt(fs[name])}")
     click.echo(
-        f"  growth vector: {fs.growth}   det G* = {fs.det:.9g}   singular: "
-        f"{'yes' if fs.singular else 'no'}"
+        f"  growth vector: {fs.growth}   det G* = {fs.det:.9g}   condition number "
+        f"{fs.condition:.3g}   singular: {'yes' if fs.singular else 'no'}"
     )
+    _echo_joint_driven(data["joint_driven"])
+
+
+def _joint_driven(rb: Any, q: np.ndarray) -> dict[str, Any] | None:
+    """How well the joints, driven as the servos drive them, determine the body at q:
+    the minimum-slip wheel model's reciprocal condition number (None for the car)."""
+    if rb.kind not in ("snake", "trident"):
+        return None
+    rcond = body_velocity(rb, q, np.zeros(rb.n_joints)).rcond
+    return {"rcond": rcond, "near_singular": rcond < NEAR_SINGULAR_RCOND}
+
+
+def _echo_joint_driven(data: dict[str, Any] | None) -> None:
+    if data is None or not data["near_singular"]:
+        return
+    where = (
+        "at a singular configuration (the wheel axles meet in one point or are parallel)"
+        if data["rcond"] == 0
+        else f"near a singular configuration (condition number {1 / data['rcond']:.3g})"
+    )
+    click.echo(f"  warning: driven by its joints, as the servos drive it, q is {where}")
+
+
+def _print_lie(rb: Any, lf: LieFields, as_json: bool) -> None:
+    inputs = "steering S, drive D" if rb.kind == "car" else "joint rates dphi1 (g1), dphi2 (g2)"
+    data = {
+        "robot": rb.name,
+        "form": "car" if rb.kind == "car" else "joint",
+        "q": [float(v) for v in lf.q],
+        "coordinates": list(rb.state_names),
+        "inputs": inputs,
+        "depth": max(lf.depths),
+        "fields": None
+        if lf.values is None
+        else {name: (lf[name] + 0.0).tolist() for name in lf.names},
+        "depths": dict(zip(lf.names, lf.depths, strict=True)),
+        "aliases": {v: k for k, v in lf.aliases.items()},
+        "growth": None if lf.growth is None else list(lf.growth),
+        "growth_exact_to_depth": len(lf.exact),
+        "growth_reliable": lf.ranks_reliable,
+        "condition": lf.condition,
+        "singular": lf.singular,
+        "joint_driven": _joint_driven(rb, lf.q),
+    }
+    if lf.singular and rb.kind == "snake":
+        data["singular_where"] = singular_reason(rb, lf.q)
+    if as_json:
+        click.echo(dumps(data, indent=2))
+        return
+    click.echo(f"{rb.name} (inputs: {inputs}) at q = {_fmt(lf.q)}")
+    click.echo(f"  coordinates: ({', '.join(rb.state_names)})")
+    if lf.values is None:
+        where = (
+            "the steering is at +-90 degrees (tan Phi has a pole)"
+            if rb.kind == "car"
+            else f"the first three links' constraints do not determine the body: "
+            f"{singular_reason(rb, lf.q)}"
+        )
+        click.echo(f"  singular: yes: {where}")
+        return
+    expressions = {v: k for k, v in lf.aliases.items()}
+    labels = [f"{n} = {expressions[n]}" if n in expressions else n for n in lf.names]
+    width = max(len(label) for label in labels)
+    for name, label in zip(lf.names, labels, strict=True):
+        click.echo(f"  {label:{width}} = {_fmt(lf[name])}")
+    exact = len(lf.exact)
+    click.echo(
+        f"  growth vector: {lf.growth} (exact to depth {exact})   condition number "
+        f"{lf.condition:.3g}   singular: no"
+    )
+    if not lf.ranks_reliable:
+        click.echo(
+            f"  warning: past depth {exact} the ranks are numeric, and at this condition "
+            "number double precision cannot decide them (q is too near the singular set)"
+        )
+    _echo_joint_driven(data["joint_driven"])
 
 
 def _print_symbolic(rb: Any, form: str, as_json: bool) -> None:
@@ -190,8 +320,9 @@ def _print_symbolic(rb: Any, form: str, as_json: bool) -> None:
             )
         )
         return
-    params = ", ".join(str(p) for p in ex.model.params if p.name in ("l", "r"))
-    click.echo(f"{rb.name} fields ({form} inputs), symbolic in {params}; x, y in {ex.frame}")
+    params = ", ".join(str(p) for p in ex.model.params if p.name in ("l", "r", "L"))
+    inputs = "steering S, drive D" if rb.kind == "car" else f"{form} inputs"
+    click.echo(f"{rb.name} fields ({inputs}), symbolic in {params}; x, y in {ex.frame}")
     for field_name, comps in ex.components.items():
         click.echo(f"{field_name}:")
         for coord, expr in zip(names, comps, strict=True):

@@ -21,6 +21,7 @@ from snakebot.cli.params import NUMBER
 from snakebot.cli.signals import STOP_SIGNALS
 from snakebot.sim.errors import SimOptionError
 from snakebot.sim.options import SimOptions
+from snakebot.sim.physics.select import DEFAULT_WORLD, WORLDS
 from snakebot.sim.transports import PtyServer, UnixSocketServer
 
 
@@ -92,6 +93,15 @@ def _query(**flags: object) -> str:
 @click.option("--ideal", is_flag=True, help="Servos reach their goal instantly.")
 @click.option("--voltage", type=NUMBER, help="Supply voltage in volts (default 12).")
 @click.option("--state", metavar="FILE", help="Keep the servos' EEPROM in FILE between runs.")
+@click.option(
+    "--world",
+    type=click.Choice(WORLDS),
+    default=DEFAULT_WORLD,
+    show_default=True,
+    help="kinematic: each servo moves by its own model; mujoco: the robot's body in "
+    "MuJoCo moves the servos (their position, speed and load come from the physics; "
+    "needs --robot).",
+)
 @click.option("--seed", type=int, help="Seed for the injected faults (default 0).")
 @click.option("--corrupt", type=NUMBER, help="Probability of a flipped bit per byte on the wire.")
 @click.option("--drop", type=NUMBER, help="Probability that a status packet is lost.")
@@ -125,6 +135,7 @@ def bus(
     ideal: bool,
     voltage: float | None,
     state: str | None,
+    world: str,
     seed: int | None,
     corrupt: float | None,
     drop: float | None,
@@ -159,6 +170,7 @@ def bus(
         ideal=ideal,
         voltage=voltage,
         state=state,
+        world=None if world == DEFAULT_WORLD else world,
         seed=seed,
         corrupt=corrupt,
         drop=drop,

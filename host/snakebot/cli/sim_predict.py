@@ -11,7 +11,9 @@ import click
 
 import snakebot.transport.ports  # noqa: F401  (registers sim://)
 from snakebot.cli.output import dumps
-from snakebot.cli.params import NUMBER, PLOT_PATH
+from snakebot.cli.params import NUMBER, PLOT_PATH, NumberType
+from snakebot.sim.physics.select import DEFAULT_WORLD, WORLDS
+from snakebot.sim.physics.video import StateMotion, check_video_path, write_video
 from snakebot.sim.predict import DEFAULT_WORLD_HZ, predict_gait
 
 
@@ -43,9 +45,29 @@ def _motion(label: str, m: dict[str, Any]) -> str:
     help="how often (Hz, bus time) the world samples modelled servos; at least once per frame",
 )
 @click.option(
+    "--world",
+    type=click.Choice(WORLDS),
+    default=DEFAULT_WORLD,
+    show_default=True,
+    help="kinematic: the minimum-slip wheel model moves the body from the servos' "
+    "positions; mujoco: the body has mass, its wheels can slip and the servos run out of "
+    "torque (the robot TOML's [physics] table).",
+)
+@click.option(
+    "--mu",
+    type=NumberType(0, low_open=True),
+    help="With --world mujoco: the wheel-floor friction coefficient (default: the robot's).",
+)
+@click.option(
     "--plot",
     type=PLOT_PATH,
     help="write a PNG of the emulated and predicted body paths and the joints' tracking",
+)
+@click.option(
+    "--video",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="write a GIF (or an MP4, with ffmpeg) of the emulated robot seen from above, "
+    "the predicted one beside it",
 )
 @click.option("--json", "as_json", is_flag=True, help="print the report as JSON")
 def predict(
@@ -53,30 +75,56 @@ def predict(
     robot: str | None,
     ideal: bool,
     world_rate: float,
+    world: str,
+    mu: float | None,
     plot: Path | None,
+    video: Path | None,
     as_json: bool,
 ) -> None:
     """Play the gait table GAIT on the emulated robot and compare the body's path with
     the prediction integrated from the same table.
 
     The host is the bus master, as with a USB2Dynamixel adapter and no controller: it
-    puts the virtual servos at the first frame, then sends one SYNC_WRITE per frame
-    (goal = the next frame, moving speed = what covers the step in one frame period).
-    The servos' present positions drive the body through the minimum-slip wheel model.
+    puts the virtual servos at the first frame, then runs the controller's own gait
+    player (the firmware's C, in process) every 10 ms control tick and sends its goals
+    (interpolated between frames) and moving speeds in one SYNC_WRITE per tick.
+    The servos' present positions drive the body through the minimum-slip wheel model,
+    or, with --world mujoco, the servos drive a body with mass on wheels that can slip,
+    and the report adds each wheel's sideways slip, each joint's energy and peak load.
     Everything runs on the emulator's clock, many times faster than real time.
 
-    The report gives the body's displacement (in the start pose's frame) emulated and
+    The report gives the body's displacement (in the start pose's frame: for a snake,
+    +x along link 1 from the tail end (x, y) towards the head) emulated and
     predicted, their difference, the joints' tracking error and the wheels' slip.
     Modelled AX-12s lag their goals a little; with --ideal the two paths agree to the
-    integrator's accuracy.
+    integrator's accuracy. Where ideal wheels are singular on a frame interval (a
+    rounded crossing of the 3-link snake's phi1 = phi2), that interval alone gets a
+    little rolling friction, in the prediction as in the emulator; a prediction passing
+    near a singular configuration (condition number above 100) is warned about, on
+    stderr and in the JSON "warnings".
 
     \b
     Example:
       snakebot gait serpenoid snake5 -A 30deg -w 180deg -d 90deg --cycles 1 -o s.gait
       snakebot sim predict s.gait --plot s.png
     """
-    result = predict_gait(gait_file, robot, ideal=ideal, world_hz=world_rate)
+    if video is not None:
+        check_video_path(video)
+    result = predict_gait(gait_file, robot, ideal=ideal, world_hz=world_rate, world=world, mu=mu)
     summary = result.summary()
+    if video is not None:
+        click.echo("writing the video ...", err=True)
+        summary["video"] = str(
+            write_video(
+                video,
+                result.robot,
+                {
+                    f"emulated ({world})": result.emulated,
+                    "predicted": StateMotion.of_states(result.predicted.t, result.predicted.q),
+                },
+                f"{gait_file.name} on {result.robot.name}",
+            )
+        )
     if plot is not None:
         from snakebot.sim.predict_plot import plot_prediction
 
@@ -87,12 +135,12 @@ def predict(
     diff = summary["difference"]
     em = summary["emulated"]
     click.echo(
-        f"played {gait_file} on the emulated {summary['robot']} "
+        f"played {gait_file} on the emulated {summary['robot']} in the {world} world "
         f"({summary['servos']} servos, host as bus master): {summary['frames']} "
         f"frames every {summary['frame_period_ms']} ms, "
         f"{'one loop' if summary['loop'] else 'once'}, {summary['duration_s']:.3f} s"
     )
-    click.echo("body motion (start pose frame, reference point):")
+    click.echo(f"body motion ({summary['frame']}):")
     click.echo(_motion("emulated:", em))
     click.echo(_motion("predicted:", summary["predicted"]))
     click.echo(_motion("difference:", diff))
@@ -104,9 +152,18 @@ def predict(
         f"joint tracking error: max {math.degrees(diff['joint_max_rad']):.3f} deg, "
         f"rms {math.degrees(diff['joint_rms_rad']):.3f} deg"
     )
-    click.echo(
-        f"wheel slip: at most {em['slip_max']:.3g} per second sideways (c_t = {em['c_t']:g})"
-    )
+    friction = f"c_t = {em['c_t']:g}" if em["c_t"] is not None else f"mu = {em['mu']:g}"
+    click.echo(f"wheel slip: at most {em['slip_max']:.3g} per second sideways ({friction})")
+    if "energy_j" in em:
+        click.echo(
+            "physics: energy per joint "
+            + ", ".join(f"{e:.3g}" for e in em["energy_j"])
+            + " J; peak load "
+            + ", ".join(f"{100 * v:.0f}" for v in em["peak_load"])
+            + " % of stall; slid sideways "
+            + ", ".join(f"{v:.3g}" for v in em["slip_distance"])
+            + " per wheel"
+        )
     if em["regularised_intervals"]:
         click.echo(
             f"  {em['regularised_intervals']} interval(s) crossed a singular "
@@ -118,3 +175,7 @@ def predict(
     )
     if plot is not None:
         click.echo(f"plot written to {summary['plot']}")
+    if video is not None:
+        click.echo(f"video written to {summary['video']}")
+    for warning in summary["warnings"]:
+        click.echo(f"warning: {warning['message']}", err=True)

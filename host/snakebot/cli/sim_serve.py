@@ -14,6 +14,7 @@ from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType
 from snakebot.cli.signals import STOP_SIGNALS
 from snakebot.sim.errors import SimError
+from snakebot.sim.physics.select import DEFAULT_WORLD, WORLDS
 from snakebot.sim.serve import DEFAULT_FIRMWARE, EmulatedRobot
 
 HISTORY_S = 600.0
@@ -46,6 +47,15 @@ long it serves (the pose reports need only the latest)."""
     "'brownout=10@5+1' (see `snakebot sim bus --help`).",
 )
 @click.option(
+    "--world",
+    type=click.Choice(WORLDS),
+    default=DEFAULT_WORLD,
+    show_default=True,
+    help="kinematic: the minimum-slip model moves the body from the servos' positions; "
+    "mujoco: the body in MuJoCo (mass, slipping wheels) moves the servos, whose "
+    "position, speed and load the firmware reads come from the physics.",
+)
+@click.option(
     "--report",
     type=NumberType(0),
     default=5.0,
@@ -60,7 +70,12 @@ long it serves (the pose reports need only the latest)."""
     "qemu_pid, ...), then the body's pose.",
 )
 def serve(
-    robot: str, firmware: Path | None, sim_options: str, report: float, as_json: bool
+    robot: str,
+    firmware: Path | None,
+    sim_options: str,
+    world: str,
+    report: float,
+    as_json: bool,
 ) -> None:
     """Run the controller firmware in QEMU on the emulated robot until Ctrl-C.
 
@@ -85,7 +100,9 @@ def serve(
         stop.set()
 
     previous = {s: signal.signal(s, on_signal) for s in STOP_SIGNALS}
-    emulated = EmulatedRobot(robot, firmware, sim_query=sim_options, history_s=HISTORY_S)
+    emulated = EmulatedRobot(
+        robot, firmware, sim_query=sim_options, world=world, history_s=HISTORY_S
+    )
     try:
         info = emulated.start()
         if as_json:

@@ -35,6 +35,11 @@ def upload(
     controller's own CRC-32 and size of its active table equal the file's. If the
     upload fails, the controller keeps its previous table.
 
+    The report gives the rate of the whole command (checks, transfer, verification) and
+    its share of what the link's baud rate allows; a link that carried the bytes faster
+    than that (a pty to the emulator) is not paced, and --json then says "paced": false
+    instead of giving a "wire_percent".
+
     \b
         snakebot gait serpenoid snake5 -A 30deg -w 180deg -d 90deg --cycles 2 -o walk.gait
         snakebot upload walk.gait --port /dev/ttyUSB0

@@ -1,5 +1,6 @@
 """The host's view of the snakebot controller (the CM-530 firmware as a Protocol 1.0
-device): register names, addresses and value meanings from ``protocol/controller.json``.
+device): register names, addresses and value meanings from its description
+(``snakebot/devices/data/controller.json``).
 
     from snakebot.controller import load, State, Command
     table = load()

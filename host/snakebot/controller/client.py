@@ -4,7 +4,7 @@
     with ControllerClient.open("/dev/ttyUSB0") as ctl:     # 57600 baud, ID 200
         ctl.identify()                                      # NotAController if it is not one
         print(ctl.read("State", "Error Flags"))             # {"State": 0, "Error Flags": 0}
-        ctl.write({"Speed Scale": 512})                     # range-checked from controller.json
+        ctl.write({"Speed Scale": 512})                     # range-checked by its description
 
 Every transaction goes through :class:`snakebot.transport.DxlClient` (timeouts from the
 wire, retries, stale-reply handling). Its READ/WRITE helpers are not used: they track an
@@ -21,7 +21,7 @@ from dataclasses import asdict, dataclass
 from types import TracebackType
 from typing import Any
 
-from snakebot import protocol
+from snakebot import devices, protocol
 from snakebot.controller.errors import ControllerError, ControllerLinkError, NotAController
 from snakebot.controller.table import Controller, Register, load
 from snakebot.protocol import CorruptPacket, DxlTimeout, ErrorFlags, ServoError
@@ -78,15 +78,18 @@ class JointRecord:
         return asdict(self)
 
 
+_POSITION = devices.ax12().require_position()
+
+
 @dataclass(frozen=True)
 class RosterEntry:
     """What the roster needs to know about one joint (written through the servo window)."""
 
     id: int
     reverse: bool = False
-    zero_tick: int = 512
-    min_tick: int = 0
-    max_tick: int = 1023
+    zero_tick: int = _POSITION.centre
+    min_tick: int = _POSITION.range[0]
+    max_tick: int = _POSITION.range[1]
 
 
 class ControllerClient:
@@ -116,10 +119,10 @@ class ControllerClient:
         **link_options: Any,
     ) -> ControllerClient:
         """Open ``port`` (device path or URL). The PC link never echoes, so the client is
-        told so (``echo=False``) unless ``link_options`` say otherwise; and the
-        controller's address 16 is Speed Scale, not a servo's Status Return Level."""
+        told so (``echo=False``) unless ``link_options`` say otherwise; and the device
+        there is the controller (its Status Return Level is not where a servo's is)."""
         link_options.setdefault("echo", False)
-        link_options.setdefault("status_return_level_address", None)
+        link_options.setdefault("device", devices.controller())
         link = DxlClient(port, baudrate, **link_options)
         return cls(link, controller_id, port_name=port)
 

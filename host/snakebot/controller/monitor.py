@@ -14,13 +14,12 @@ from typing import Any
 
 from snakebot.controller import words
 from snakebot.controller.client import ControllerClient, JointRecord
-from snakebot.controller.table import Controller
+from snakebot.controller.table import Controller, load
 
-LOAD_FULL_SCALE = 1023
-"""AX-12 Present Load magnitude at 100 % of its torque."""
-
-SPEED_RPM_PER_UNIT = 0.111
-"""AX-12 Present Speed unit (rpm)."""
+# The servo window mirrors the servos' registers: units and encodings are theirs.
+_SPEED = load().servo_field("Present Speed")
+_LOAD = load().servo_field("Present Load")
+_VOLTAGE = load().servo_field("Present Voltage")
 
 
 @dataclass(frozen=True)
@@ -63,16 +62,15 @@ class Sample:
 
 
 def servo_record(j: JointRecord) -> dict[str, Any]:
-    load = words.signed_ax12(j.load)
     return {
         "joint": j.joint,
         "id": j.id,
         "goal": j.goal,
         "position": j.position,
-        "speed_rpm": round(words.signed_ax12(j.speed) * SPEED_RPM_PER_UNIT, 2),
-        "load": load,
-        "load_percent": round(100.0 * load / LOAD_FULL_SCALE, 1),
-        "voltage_v": j.voltage / 10,
+        "speed_rpm": round(_SPEED.to_units(j.speed, "rpm"), 2),
+        "load": _LOAD.value(j.load),
+        "load_percent": round(_LOAD.to_units(j.load), 1),
+        "voltage_v": round(_VOLTAGE.to_units(j.voltage, "V"), 1),
         "temperature_c": j.temperature,
         "error": words.servo_error_names(j.error),
         "error_count": j.error_count,

@@ -24,13 +24,8 @@ from snakebot.controller.client import ControllerClient, RosterEntry
 from snakebot.controller.errors import ControllerError
 from snakebot.robots import Robot
 
-SPEED_ONE = 256
-"""Speed Scale for normal speed (the register is in 1/256)."""
-
-TICKS_PER_RAD = 1023.0 / math.radians(300.0)
-"""AX-12 position ticks per radian (Steering Offset is in ticks)."""
-
-MRAD_PER_RAD = 1000.0
+SPEED = "x"
+"""The unit of Speed Scale: a factor on the generated speed (1 = as generated)."""
 
 FINISH_GRACE_S = 0.05
 """A table played once may already be over when the State is read back: it counts as
@@ -58,14 +53,15 @@ def _raw(
     ctl: ControllerClient,
     register: str,
     value: float,
-    scale: float,
     what: str,
     rate: bool = False,
     angle: bool = True,
 ) -> int:
-    """``value`` (user units) as the register's integer, or ControllerError with the
-    range in user units."""
+    """``value`` (radians, rad/s, or a speed factor) as the register's integer, or
+    ControllerError with the range in those units."""
     reg = ctl.table.register(register)
+    assert reg.scale is not None, register  # every register set here has a unit
+    scale = reg.scale.per_unit(("rad/s" if rate else "rad") if angle else SPEED)
     raw = int(round(value * scale))
     if reg.accepts(raw):
         return raw
@@ -88,21 +84,25 @@ def _refuse(message: str) -> int:
 
 def speed_scale(ctl: ControllerClient, speed: float) -> int:
     """Speed Scale for a speed factor (1 = as generated)."""
-    return _raw(ctl, "Speed Scale", speed, SPEED_ONE, "--speed", angle=False)
+    return _raw(ctl, "Speed Scale", speed, "--speed", angle=False)
 
 
 def steering_offset(ctl: ControllerClient, steer: float) -> int:
     """Steering Offset in ticks for an angle in radians added to every joint."""
-    return _raw(ctl, "Steering Offset", steer, TICKS_PER_RAD, "--steer")
+    return _raw(ctl, "Steering Offset", steer, "--steer")
 
 
 def _status(ctl: ControllerClient, regs: dict[str, int]) -> dict[str, Any]:
     """The controller's state after a command, for printing and --json."""
+
+    def units(name: str, unit: str) -> float:
+        return ctl.table.register(name).to_units(regs[name], unit)
+
     return {
         "state": words.state_name(regs["State"], ctl.table),
         "error_flags": words.flag_names(regs["Error Flags"], ctl.table),
-        "speed": regs["Speed Scale"] / SPEED_ONE,
-        "steer_rad": regs["Steering Offset"] / TICKS_PER_RAD,
+        "speed": units("Speed Scale", SPEED),
+        "steer_rad": units("Steering Offset", "rad"),
         "steering_offset_ticks": regs["Steering Offset"],
         "loop": bool(regs["Loop"]),
         "joint_count": regs["Joint Count"],
@@ -114,10 +114,10 @@ def _status(ctl: ControllerClient, regs: dict[str, int]) -> dict[str, Any]:
             "period_ms": regs["Table Period"],
         },
         "serpenoid": {
-            "amplitude_rad": regs["Serp Amplitude"] / MRAD_PER_RAD,
-            "omega_rad_s": regs["Serp Omega"] / MRAD_PER_RAD,
-            "delta_rad": regs["Serp Delta"] / MRAD_PER_RAD,
-            "offset_rad": regs["Serp Phi0"] / MRAD_PER_RAD,
+            "amplitude_rad": units("Serp Amplitude", "rad"),
+            "omega_rad_s": units("Serp Omega", "rad/s"),
+            "delta_rad": units("Serp Delta", "rad"),
+            "offset_rad": units("Serp Phi0", "rad"),
         },
     }
 
@@ -184,8 +184,9 @@ def play(
     ctl.write(values)
     once_s = None
     if not values["Loop"]:
-        once_s = (before["Table Frames"] - 1) * before["Table Period"] / 1000.0
-        once_s *= SPEED_ONE / values["Speed Scale"]
+        period_s = ctl.table.register("Table Period").to_units(before["Table Period"], "s")
+        speed = ctl.table.register("Speed Scale").to_units(values["Speed Scale"], SPEED)
+        once_s = (before["Table Frames"] - 1) * period_s / speed
     return _start(ctl, before, "PLAY", "PLAYING", finished_ok=once_s)
 
 
@@ -213,12 +214,10 @@ def serpenoid(
 ) -> dict[str, Any]:
     """Start the firmware's serpenoid on the roster (``roster`` replaces it first)."""
     values = {
-        "Serp Amplitude": _raw(
-            ctl, "Serp Amplitude", settings.amplitude, MRAD_PER_RAD, "--amplitude"
-        ),
-        "Serp Omega": _raw(ctl, "Serp Omega", settings.omega, MRAD_PER_RAD, "--omega", rate=True),
-        "Serp Delta": _raw(ctl, "Serp Delta", settings.delta, MRAD_PER_RAD, "--delta"),
-        "Serp Phi0": _raw(ctl, "Serp Phi0", settings.offset, MRAD_PER_RAD, "--offset"),
+        "Serp Amplitude": _raw(ctl, "Serp Amplitude", settings.amplitude, "--amplitude"),
+        "Serp Omega": _raw(ctl, "Serp Omega", settings.omega, "--omega", rate=True),
+        "Serp Delta": _raw(ctl, "Serp Delta", settings.delta, "--delta"),
+        "Serp Phi0": _raw(ctl, "Serp Phi0", settings.offset, "--offset"),
         "Speed Scale": speed_scale(ctl, speed),
         "Steering Offset": steering_offset(ctl, steer),
     }

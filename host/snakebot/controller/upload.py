@@ -2,7 +2,7 @@
 "Uploading a gait table"), as (address, data) pairs any Protocol 1.0 client can send.
 
 The transport (retries, timeouts, progress) belongs to the upload command; this module
-only knows the layout, so the addresses come from controller.json and nowhere else.
+only knows the layout, so the addresses come from the controller's description and nowhere else.
 """
 
 from __future__ import annotations
@@ -43,6 +43,8 @@ def commit_write(table: bytes, controller: Controller | None = None) -> tuple[in
     crc = ctl.register("Upload CRC")
     commit = ctl.register("Upload Commit")
     if not (length.end == crc.address and crc.end == commit.address):
-        raise ControllerTableError("controller.json: Upload Length/CRC/Commit must be adjacent")
+        raise ControllerTableError(
+            "the controller's description: Upload Length/CRC/Commit must be adjacent"
+        )
     data = length.encode(len(table)) + crc.encode(zlib.crc32(table)) + commit.encode(1)
     return length.address, data

@@ -50,6 +50,9 @@ VERIFY_REGISTERS = (
     "Table Period",
 )
 
+BEFORE_REGISTERS = ("State", "Joint Count", "Table Size", "Table CRC")
+"""What the upload needs to know beforehand (one READ; every byte costs link time)."""
+
 ProgressCallback = Callable[[int, int], None]  # (table bytes acknowledged, table bytes)
 RetryCallback = Callable[[int, int, str], None]  # (attempt about to start, attempts, why)
 
@@ -73,10 +76,20 @@ class UploadReport:
     new_servos: list[int] = field(default_factory=list)
     playback_stopped: bool = False
     previous_crc: int | None = None
+    sent_bytes: int = 0
+    """Bytes of the chunk and commit WRITEs put on the link, every attempt counted."""
 
     @property
     def bytes_per_s(self) -> float:
+        """Table bytes per second of the whole upload: checks, transfer and verification."""
         return self.bytes / self.seconds if self.seconds > 0 else float("inf")
+
+    @property
+    def paced(self) -> bool:
+        """Whether the link ran no faster than its baud rate allows: what was sent took
+        at least its wire time. A pseudo-terminal to an emulator (QEMU) carries bytes as
+        fast as the processes move them, and then a share of the wire means nothing."""
+        return self.seconds >= self.sent_bytes * BITS_PER_BYTE / self.baudrate
 
     @property
     def wire_fraction(self) -> float:
@@ -89,14 +102,21 @@ class UploadReport:
         if self.previous_crc is not None:
             out["previous_crc"] = f"0x{self.previous_crc:08x}"
         out["bytes_per_s"] = round(self.bytes_per_s, 1)
-        out["wire_percent"] = round(100 * self.wire_fraction, 1)
+        out["paced"] = self.paced
+        if self.paced:
+            out["wire_percent"] = round(100 * self.wire_fraction, 1)
         return out
 
     def summary(self) -> str:
-        return (
-            f"Uploaded {self.bytes} bytes in {self.seconds:.3f} s ({self.bytes_per_s:.0f} "
-            f"bytes/s, {100 * self.wire_fraction:.1f} % of the {self.baudrate} baud wire)"
+        rate = (
+            f"Uploaded {self.bytes} bytes in {self.seconds:.3f} s ({self.bytes_per_s:.0f} bytes/s"
         )
+        if not self.paced:
+            return (
+                f"{rate}; the link carried them faster than {self.baudrate} baud allows, so "
+                "it is not a paced serial line and no share of the wire is given)"
+            )
+        return f"{rate}, {100 * self.wire_fraction:.1f} % of the {self.baudrate} baud wire)"
 
 
 def check_fits(ctl: ControllerClient, table: GaitTable, size: int) -> None:
@@ -168,6 +188,7 @@ def upload_gait(
     on_retry: RetryCallback | None = None,
 ) -> UploadReport:
     """Upload ``table`` to the controller and make it the active table (see the module)."""
+    start = time.monotonic()  # the whole command: checks, transfer, verification
     retries = resolve_upload_retries(retries)
     window = resolve_upload_window(window)
     data = table.encode()
@@ -175,7 +196,7 @@ def upload_gait(
     check_fits(ctl, table, len(data))
 
     ctl.identify()
-    before = ctl.read_all()
+    before = ctl.read(*BEFORE_REGISTERS)
     roster = ctl.roster(before["Joint Count"]) if before["Joint Count"] else []
     new_servos = check_servos(table, roster, allow_new_servos)
 
@@ -194,17 +215,18 @@ def upload_gait(
             confirmed = count if count < len(chunks) else len(chunks) - (count == len(chunks))
             on_progress(acked_bytes[confirmed], len(data))
 
-    start = time.monotonic()
     attempts = 1 + retries
     why = ""
     after: dict[str, int] | None = None
+    sent_bytes = 0
     for attempt in range(1, attempts + 1):
         if attempt > 1 and on_retry is not None:
             on_retry(attempt, attempts, why)
         result = stream_writes(ctl.link, ctl.id, packets, window, on_ack)
-        elapsed = time.monotonic() - start
+        sent_bytes += sum(len(p) for p in packets[: result.sent])
         try:
             after = ctl.read(*VERIFY_REGISTERS)
+            elapsed = time.monotonic() - start
         except ControllerLinkError:
             after = None
             why = (
@@ -232,6 +254,7 @@ def upload_gait(
                 playback_stopped=words.state_name(before["State"], ctl.table)
                 in ("PLAYING", "SERPENOID"),
                 previous_crc=before["Table CRC"] if before["Table Size"] else None,
+                sent_bytes=sent_bytes,
             )
         if result.error:
             raise _refused(ctl, result, len(packets), after, before)

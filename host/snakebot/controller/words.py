@@ -1,5 +1,5 @@
 """The controller's numbers in words: states, Error Flags, Upload Result, and the AX-12
-direction-and-magnitude values it mirrors. Names come from controller.json; the
+direction-and-magnitude values it mirrors. Names come from the controller's description; the
 sentences (what happened, and what to do) are written here once."""
 
 from __future__ import annotations
@@ -119,10 +119,3 @@ def servo_error_words(value: int) -> str:
 
 def servo_error_names(value: int) -> list[str]:
     return [flag.name or str(int(flag)) for flag in ErrorFlags if value & flag]
-
-
-def signed_ax12(value: int) -> int:
-    """An AX-12 speed or load word (bits 0-9 magnitude, bit 10 set = clockwise) as a signed
-    number: counter-clockwise positive, clockwise negative."""
-    magnitude = value & 0x3FF
-    return -magnitude if value & 0x400 else magnitude

@@ -8,11 +8,17 @@ end of the last flash region, 0x08080000), so the bootloader accepts at most 500
 Our own firmware stops short of that (the gait-table store lives in the last 32 KB), but
 another application may use the whole area. When the linker script is not there (snakebot
 installed without its repository) the numbers in :data:`FALLBACK_LAYOUT` are used.
+
+Our images carry an identity block (``firmware/hal/hal_image.h``: the board they were
+built for, the firmware version, their length) whose address is in the vector table's
+entry 7; :func:`image_info` reads it and :func:`load_image` refuses an image for another
+board (the qemu build links at the same address but is not a CM-530 image).
 """
 
 from __future__ import annotations
 
 import re
+import struct
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,7 +26,22 @@ from snakebot.flash.errors import ImageError
 from snakebot.paths import REPO_ROOT
 from snakebot.userfiles import FileTooLarge, read_bounded
 
-BOARD_LINKER_SCRIPT = REPO_ROOT / "firmware" / "boards" / "cm530" / "cm530.ld"
+BOARD = "cm530"
+"""The board `snakebot flash` programs: the firmware's board directory and the name its
+images carry in their identity block."""
+
+BOARD_LINKER_SCRIPT = REPO_ROOT / "firmware" / "boards" / BOARD / f"{BOARD}.ld"
+
+STACK_ALIGN = 8
+"""The initial stack pointer's alignment: the Arm procedure call standard (AAPCS) wants
+the stack 8-byte aligned at every public interface, the first call from reset included."""
+
+INFO_VECTOR = 7
+"""The vector table entry (a reserved one on Cortex-M3) holding the identity block's address."""
+
+INFO_MAGIC = b"SNKI"
+INFO_VERSION = 1
+_INFO = struct.Struct("<4sBBHI8s")  # hal_image_info_t (firmware/hal/hal_image.h)
 
 FLASH_BASE = 0x08000000
 """Where STM32 flash is mapped; regions from here up to SRAM_BASE are flash."""
@@ -37,6 +58,7 @@ class BoardLayout:
     ram_base: int
     ram_end: int  # one past the last RAM address
     source: str  # where these numbers came from
+    board: str = BOARD  # the name an image for it carries
 
     @property
     def app_size(self) -> int:
@@ -91,6 +113,41 @@ def board_layout(linker_script: Path = BOARD_LINKER_SCRIPT) -> BoardLayout:
     )
 
 
+@dataclass(frozen=True)
+class ImageInfo:
+    """An image's identity block (``hal_image_info_t``)."""
+
+    board: str
+    firmware_version: int
+    image_bytes: int  # the length the image says it has
+    address: int  # where the block lies in flash
+
+
+def image_info(data: bytes, app_base: int) -> ImageInfo | None:
+    """The identity block of the image ``data`` (linked at ``app_base``), or None if the
+    image has none (not ours, or older than the block)."""
+    if len(data) < 4 * (INFO_VECTOR + 1):
+        return None
+    address = int.from_bytes(data[4 * INFO_VECTOR : 4 * INFO_VECTOR + 4], "little")
+    offset = address - app_base
+    if not 0 <= offset <= len(data) - _INFO.size:
+        return None
+    magic, version, fw_version, _reserved, nbytes, board = _INFO.unpack_from(data, offset)
+    if magic != INFO_MAGIC or version != INFO_VERSION:
+        return None
+    name = board.split(b"\0", 1)[0].decode("ascii", "replace")
+    return ImageInfo(board=name, firmware_version=fw_version, image_bytes=nbytes, address=address)
+
+
+def identity_block(board: str, firmware_version: int, image_bytes: int) -> bytes:
+    """The bytes of an identity block (``hal_image_info_t``): what the firmware build puts
+    after the vector table, for tools and tests that make images another way."""
+    name = board.encode("ascii")
+    if len(name) > 8:
+        raise ValueError(f"board name {board!r} is longer than 8 bytes")
+    return _INFO.pack(INFO_MAGIC, INFO_VERSION, firmware_version, 0, image_bytes, name)
+
+
 def checksum(data: bytes) -> int:
     """The ROBOTIS loader's checksum: the low byte of the sum of all bytes."""
     return sum(data) & 0xFF
@@ -116,9 +173,11 @@ def load_image(
 
     Refuses a missing or empty file, an ELF or Intel HEX file (with the command that makes
     the .bin), an image bigger than the application area, and, unless ``check_vectors`` is
-    False, an image whose vector table does not fit the board (initial stack pointer in
-    RAM, reset handler a Thumb address inside the application area): that is an image
-    linked for another address, which the bootloader would store but never start.
+    False, an image the board would not start: its vector table must fit the board
+    (initial stack pointer inside RAM and 8-byte aligned, reset handler a Thumb address in
+    the image's code, after its vector table and identity block) and its identity block
+    must name this board and the image's true length. Such an image is linked for another
+    address or board, or cut short: the bootloader would store it and the CPU fault.
     """
     path = Path(path)
     layout = layout or board_layout()
@@ -162,6 +221,7 @@ def _too_big(path: Path, size: int | None, layout: BoardLayout) -> str:
 
 
 def _check_vectors(path: Path, data: bytes, layout: BoardLayout) -> None:
+    force = "(pass --force to flash it anyway)"
     if len(data) < 8:
         raise ImageError(
             f"firmware image {path} is only {len(data)} bytes, too short to hold a Cortex-M "
@@ -173,13 +233,44 @@ def _check_vectors(path: Path, data: bytes, layout: BoardLayout) -> None:
         raise ImageError(
             f"firmware image {path} starts with stack pointer 0x{sp:08X}, outside the "
             f"CM-530's RAM 0x{layout.ram_base:08X}-0x{layout.ram_end:08X}: this is not a "
-            "Cortex-M image for this board (pass --force to flash it anyway)"
+            f"Cortex-M image for this board {force}"
+        )
+    if sp % STACK_ALIGN:
+        raise ImageError(
+            f"firmware image {path} starts with stack pointer 0x{sp:08X}, not {STACK_ALIGN}-byte "
+            f"aligned as the first call from reset needs: the image is damaged or not built "
+            f"for a Cortex-M {force}"
         )
     entry = reset & ~1
-    if not (reset & 1 and layout.app_base <= entry < layout.app_base + len(data)):
+    code_end = layout.app_base + len(data)
+    if not (reset & 1 and layout.app_base <= entry < code_end):
         raise ImageError(
             f"firmware image {path} has its reset handler at 0x{reset:08X}, not a Thumb "
             f"address inside the image at 0x{layout.app_base:08X}: it was linked for "
             "another address (the bootloader starts the application at "
-            f"0x{layout.app_base:08X}; build with boards/cm530/cm530.ld, or pass --force)"
+            f"0x{layout.app_base:08X}; build with boards/cm530/cm530.ld) {force}"
+        )
+    info = image_info(data, layout.app_base)
+    if info is None:
+        raise ImageError(
+            f"firmware image {path} has no snakebot identity block (vector entry "
+            f"{INFO_VECTOR} pointing at {INFO_MAGIC.decode()}): build it with make firmware, "
+            f"or {force[1:-1]} if it is another program for the CM-530"
+        )
+    if info.board != layout.board:
+        raise ImageError(
+            f"firmware image {path} was built for board {info.board!r}, not {layout.board!r}: "
+            f"give build/{layout.board}/firmware.bin"
+        )
+    if info.image_bytes != len(data):
+        raise ImageError(
+            f"firmware image {path} is {len(data)} bytes but says it is {info.image_bytes}: "
+            "it is cut short or has bytes appended; rebuild it (make firmware)"
+        )
+    code_start = info.address + _INFO.size
+    if entry < code_start:
+        raise ImageError(
+            f"firmware image {path} has its reset handler at 0x{reset:08X}, inside its vector "
+            f"table or identity block (code starts at 0x{code_start:08X}): the image is "
+            f"damaged {force}"
         )

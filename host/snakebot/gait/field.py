@@ -35,6 +35,7 @@ from snakebot.gait.common import (
     path,
     period_ms_for,
     predict_table,
+    singularity_warnings,
 )
 from snakebot.gait.limits import check_motion, check_ticks
 from snakebot.gait.values import parse_field_expression
@@ -59,6 +60,9 @@ MIN_FRAMES_PER_PERIOD = 16
 #: Tolerance used when neither --amplitude nor --tolerance is given.
 DEFAULT_TOLERANCE = 0.05
 DENSE = 4  # integration samples per frame for the limit checks
+#: Flow parameter a gait with brackets follows for when no --duration or --periods is
+#: given (fewer blocks if the table cannot hold them; the summary gives the value used).
+AUTO_FLOW = 1.0
 
 
 @dataclass(frozen=True)
@@ -133,14 +137,27 @@ def block_error(
 ) -> tuple[float, np.ndarray]:
     """Relative error of one block against eps X(q0), and the block's motion."""
     inputs = 2 if model == "snake3" else 3
+    moved = _run(robot, plan_block(model, combo, eps, form, inputs), q0) - q0
+    return _relative_error(robot, combo, eps, form, q0, moved), moved
+
+
+def _relative_error(
+    robot: Robot,
+    combo: dict[str, float],
+    eps: float,
+    form: str | None,
+    q0: np.ndarray,
+    moved: np.ndarray,
+) -> float:
+    """|moved - eps X(q0)| / |eps X(q0)|: how far a block from q0 missed its target."""
     f = fields(robot, q0, form)
     target = eps * sum(coef * f[name] for name, coef in combo.items())
-    moved = _run(robot, plan_block(model, combo, eps, form, inputs), q0) - q0
-    return float(np.linalg.norm(moved - target) / np.linalg.norm(target)), moved
+    return float(np.linalg.norm(moved - target) / np.linalg.norm(target))
 
 
-def _joint_speeds(robot: Robot, traj: Trajectory, inputs: Inputs, t0: float) -> np.ndarray:
-    u = inputs.at(traj.t - t0)
+def _joint_speeds(robot: Robot, traj: Trajectory, inputs: Inputs) -> np.ndarray:
+    """Joint velocities along a segment's trajectory (its own clock, from 0)."""
+    u = inputs.at(traj.t)
     return np.array(
         [field_velocity(robot, q, ui, inputs.form)[3:] for q, ui in zip(traj.q, u, strict=True)]
     )
@@ -153,7 +170,7 @@ def _timed(
     probe = integrate_fields(
         robot, seg.inputs, seg.length, q0=q0, samples=257, options=PREDICT_OPTIONS
     )
-    peak = float(np.abs(_joint_speeds(robot, probe, seg.inputs, 0.0)).max())
+    peak = float(np.abs(_joint_speeds(robot, probe, seg.inputs)).max())
     fastest = SPEED_MARGIN * robot.max_speed_rad_s / peak if peak > 0 else 1.0
     if seg.loop:
         speed = omega if omega is not None else fastest
@@ -204,8 +221,13 @@ def field_gait(
         else " + ".join(f"{v:g}*{k}" for k, v in combo.items())
     )
     brackets = [n for n in combo if n.startswith("h")]
-    if (duration is None) == (periods is None):
-        raise GaitError("give exactly one of --duration T or --periods K")
+    if duration is not None and periods is not None:
+        raise GaitError("give one of --duration T or --periods K, not both")
+    auto = duration is None and periods is None  # the longest the accuracy allows
+    if auto and not brackets:
+        raise GaitError(f"{text} has no bracket term: give --duration T to follow it for")
+    if auto and amplitude is not None:
+        raise GaitError("with --amplitude, give --duration T or --periods K too")
     if duration is not None and not (duration > 0 and math.isfinite(duration)):
         raise GaitError(f"--duration must be positive, not {duration}")
     if periods is not None and (periods < 1 or not brackets):
@@ -259,14 +281,14 @@ def field_gait(
             # Fewest frames a block can take: each loop is sampled by a minimum of frames.
             block_frames = MIN_FRAMES_PER_PERIOD * len(brackets) + (len(combo) > len(brackets))
             most_blocks = max(1, (max_frames(robot.n_joints) - 1) // block_frames)
-            eps = eps_of(0.3) if periods is not None else duration
+            eps = eps_of(0.3) if duration is None else duration
             count = periods or 1
             for _ in range(16):
                 err = block_error(robot, model, combo, eps, c_form, q0)[0]
                 if err <= tol:
                     break
                 shrink = min(0.5, 0.8 * (tol / err) ** exponent)
-                if periods is not None:
+                if duration is None:
                     eps *= shrink
                 elif count >= most_blocks:
                     break
@@ -274,10 +296,14 @@ def field_gait(
                     count = min(most_blocks, max(count + 1, math.ceil(count / shrink)))
                     eps = duration / count
             if err > tol:
+                # the error scales as eps^(1/exponent): the duration that would meet tol
+                fits = count * eps * 0.8 * (tol / err) ** exponent
                 raise GaitError(
-                    f"cannot follow {text} to within {tol:g}: {count} blocks of loops (the most "
-                    f"a gait table of {robot.n_joints} joints holds) still err by {err:.3g}: "
-                    "loosen --tolerance or shorten --duration"
+                    f"cannot follow {text} to within {tol:g} for --duration {duration:g}: "
+                    f"{count} blocks of loops (the most a gait table of {robot.n_joints} "
+                    f"joints holds) still err by {err:.3g}: shorten --duration to about "
+                    f"{fits:.3g}, loosen --tolerance to {err:.2g}, or leave --duration out "
+                    "to get the longest motion that meets the tolerance"
                 )
 
     block = plan_block(model, combo, eps, c_form, inputs)
@@ -287,6 +313,10 @@ def field_gait(
         s, frames = _timed(robot, seg, q0, dt, omega)
         timed.append(s)
         total_frames += frames
+    if auto:
+        # As many blocks as reach AUTO_FLOW, or as the table holds.
+        fit = max(1, (max_frames(robot.n_joints) - 1) // total_frames)
+        count = max(1, min(fit, math.ceil(AUTO_FLOW / eps - 1e-9)))
     frame_budget(
         robot,
         count * total_frames + 1,
@@ -296,24 +326,28 @@ def field_gait(
     # The whole gait, segment after segment, sampled DENSE times per frame.
     t_all, q_all, dphi_all = [np.zeros(1)], [q0[None, :]], [np.zeros((1, robot.n_joints))]
     t, q = 0.0, q0
+    block_errors = []
     for _ in range(count):
+        q_block = q
         for seg in timed:
             steps = round(seg.length / dt)
+            # Each segment's inputs run on its own clock from 0, as block_error simulated
+            # them: a loop must start at phase 0 wherever it falls in the gait.
             traj = integrate_fields(
                 robot,
                 seg.inputs,
-                t + seg.length,
+                seg.length,
                 q0=q,
-                t0=t,
                 samples=DENSE * steps + 1,
                 options=PREDICT_OPTIONS,
             )
-            speeds = _joint_speeds(robot, traj, seg.inputs, t)
-            t_all.append(traj.t[1:])
+            speeds = _joint_speeds(robot, traj, seg.inputs)
+            t_all.append(t + traj.t[1:])
             q_all.append(traj.q[1:])
             dphi_all.append(speeds[1:])
             dphi_all[0] = speeds[:1] if len(t_all) == 2 else dphi_all[0]
             t, q = t + seg.length, traj.q[-1]
+        block_errors.append(_relative_error(robot, combo, eps, c_form, q_block, q - q_block))
     times, states, dphi = np.concatenate(t_all), np.vstack(q_all), np.vstack(dphi_all)
     check_motion(robot, times, states[:, 3:], dphi)
 
@@ -338,6 +372,7 @@ def field_gait(
         "block_eps": eps,
         "flow_parameter": tau,
         "block_relative_error": err,
+        "block_errors_max": max(block_errors),
         "rate_hz": 1000.0 / period_ms,
         "segments": [
             {
@@ -382,6 +417,9 @@ def field_gait(
         path(traj),
         path(table_traj),
         extra,
+        # the field-driven path has no wheel problem to condition; the table is played
+        # through the joints, as the robot will
+        singularity_warnings({"table as written": table_traj}),
     )
 
 

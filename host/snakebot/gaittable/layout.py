@@ -11,6 +11,7 @@ import zlib
 
 import numpy as np
 
+from snakebot import devices
 from snakebot.controller import load as load_controller
 from snakebot.gaittable.errors import GaitTableError
 
@@ -22,7 +23,7 @@ CRC_OFFSET = 12
 JOINT = struct.Struct("<BBHH")  # id, reserved, min tick, max tick
 JOINT_SIZE = JOINT.size  # 6
 FLAG_LOOP = 0x01
-MAX_TICK = 1023
+MAX_TICK = devices.ax12().require_position().range[1]
 MAX_ID = 253
 MAX_PERIOD_MS = 0xFFFF
 MAX_FRAME_COUNT = 0xFFFF

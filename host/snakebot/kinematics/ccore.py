@@ -23,10 +23,16 @@ _HINTS = {
     lib.KIN_ESTEPSIZE: "loosen the tolerance, or check the motion for a singular configuration",
     lib.KIN_EMAXSTEPS: "shorten the time span or loosen the tolerance",
     lib.KIN_ENONFINITE: "check the inputs for NaN or infinity",
-    lib.KIN_EUNSUPPORTED: "use snake3 or trident, or drive the joints instead (gait serpenoid)",
+    lib.KIN_EUNSUPPORTED: "use snake3 or trident here, or drive the joints instead "
+    "(gait serpenoid)",
     lib.KIN_EGEOMETRY: "fix the robot description's lengths and link count",
     lib.KIN_EINVAL: "this is a bug in the caller: report it",
 }
+
+
+#: Core statuses of a joint motion that ideal wheels cannot follow (a singular crossing:
+#: reported, or the step size collapsing at the pole of the body velocity).
+SINGULAR_CODES = (lib.KIN_ESINGULAR, lib.KIN_EINADMISSIBLE, lib.KIN_ESTEPSIZE)
 
 
 class KinematicsError(SnakebotError):
@@ -38,6 +44,15 @@ class KinematicsError(SnakebotError):
         where = f" ({context})" if context else ""
         hint = _HINTS.get(code)
         super().__init__(f"{text}{where}" + (f": {hint}" if hint else ""))
+
+
+class UnsupportedModel(KinematicsError):
+    """A model the C core does not have for this robot (KIN_EUNSUPPORTED); the message
+    says where the robot's model is."""
+
+    def __init__(self, message: str) -> None:
+        self.code = lib.KIN_EUNSUPPORTED
+        SnakebotError.__init__(self, message)
 
 
 class SingularConfiguration(KinematicsError):
@@ -55,6 +70,12 @@ def check(code: int, context: str = "") -> None:
 
 def c_robot(robot: Robot, c_t: float | None = None) -> Any:
     """A ``kin_robot`` struct for the robot (optionally overriding its c_t)."""
+    if robot.kind not in ("snake", "trident"):
+        raise UnsupportedModel(
+            f"{robot.name} is a {robot.kind}: only its control fields are modelled "
+            f"(snakebot model fields {robot.name}); gaits and the emulator drive snakes "
+            "and tridents"
+        )
     rb = ffi.new("kin_robot *")
     rb.kind = lib.KIN_SNAKE if robot.kind == "snake" else lib.KIN_TRIDENT
     rb.links = robot.links if robot.kind == "snake" else 0

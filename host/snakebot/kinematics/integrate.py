@@ -32,13 +32,20 @@ class Sines:
 
     @classmethod
     def serpenoid(
-        cls, joints: int, amplitude: float, omega: float, delta: float, offset: float = 0.0
+        cls,
+        joints: int,
+        amplitude: float,
+        omega: float,
+        delta: float,
+        offset: float = 0.0,
+        phase: float = 0.0,
     ) -> Sines:
-        """phi_k = A sin(omega t + (k - 1) delta) + phi_0 (Hirose's discrete serpenoid)."""
+        """phi_k = A sin(omega t + (k - 1) delta + phase) + phi_0 (Hirose's discrete
+        serpenoid; ``phase`` is joint 1's phase at t = 0)."""
         return cls(
             omega,
             (amplitude,) * joints,
-            tuple(k * delta for k in range(joints)),
+            tuple(phase + k * delta for k in range(joints)),
             (offset,) * joints,
         )
 

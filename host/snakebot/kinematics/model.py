@@ -3,6 +3,7 @@ control vector fields with their brackets, and the filtration's growth vector.""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -11,6 +12,7 @@ from snakebot.core import ffi, lib
 from snakebot.kinematics.ccore import (
     FORMS,
     KinematicsError,
+    UnsupportedModel,
     as_doubles,
     c_robot,
     check,
@@ -32,6 +34,11 @@ FILTRATION = {
     "snake3": (("g1", "g2"), ("h1",), ("h2", "h3")),
     "trident": (("g1", "g2", "g3"), ("h1", "h2", "h3")),
 }
+#: Growth vector wherever det G* is non-zero (G*: all fields side by side is then
+#: invertible, so every step of the filtration has full rank).
+GENERIC_GROWTH = {"snake3": (2, 3, 5), "trident": (3, 6)}
+#: Rank tolerance on unit-normalised columns, used only where det G* = 0 exactly
+#: (a trident with r = 0); elsewhere the growth follows from det G*.
 RANK_TOL = 1e-9
 
 
@@ -41,10 +48,11 @@ def field_model(robot: Robot) -> str:
         return "trident"
     if robot.links == 3:
         return "snake3"
-    raise KinematicsError(
-        lib.KIN_EUNSUPPORTED,
-        f"{robot.name} is a {robot.links}-link snake: with more than 3 wheels the non-slip "
-        "constraints over-determine the body, so there are no control vector fields",
+    what = f"a {robot.links}-link snake" if robot.kind == "snake" else f"a {robot.kind}"
+    raise UnsupportedModel(
+        f"{robot.name} is {what}: its two control fields and their brackets are in "
+        f"`snakebot model fields {robot.name}`; field-driven integration and `gait field` "
+        "cover the 3-link snake and the trident"
     )
 
 
@@ -113,6 +121,32 @@ def body_velocity(
     return BodyVelocity(xi, slip, float(rcond[0]))
 
 
+def det_g_star(robot: Robot, det_b: float) -> float:
+    """det G* (all fields side by side, in the thesis's order) in closed form.
+
+    3-link snake: ``l^6 / det B^4`` with ``det B = l (sin p1 - sin p2 + sin(p1 - p2))``:
+    never zero where the fields exist, so the growth vector is (2, 3, 5) everywhere off
+    the singular set, however near it. Trident: ``3 sqrt(3) r^2 / (2 l^6)`` in both
+    input forms, a constant. Both were found from and are checked against the fields the
+    core computes (tests/core/test_kin_fields.py)."""
+    if robot.kind == "trident":
+        return 3.0 * math.sqrt(3.0) * robot.r**2 / (2.0 * robot.l**6)
+    return robot.l**6 / det_b**4
+
+
+def singular_reason(robot: Robot, q: np.ndarray) -> str:
+    """Which part of the 3-link snake's singular set q is on: det B =
+    4 l sin((p1 - p2)/2) cos(p1/2) cos(p2/2) vanishes where phi1 = phi2 (the axles meet in
+    a point, or are parallel) and where a joint is at +-pi (a link folded back)."""
+    p1, p2 = float(q[3]), float(q[4])
+    factors = {
+        "phi1 = phi2": abs(math.sin((p1 - p2) / 2)),
+        "phi1 = +-pi (link 2 folded back onto link 1)": abs(math.cos(p1 / 2)),
+        "phi2 = +-pi (link 3 folded back onto link 2)": abs(math.cos(p2 / 2)),
+    }
+    return min(factors, key=lambda k: factors[k])
+
+
 @dataclass(frozen=True)
 class FieldSet:
     """The fields at one q. ``values`` is None where the model is singular."""
@@ -122,8 +156,9 @@ class FieldSet:
     q: np.ndarray
     names: tuple[str, ...]
     values: np.ndarray | None  # (fields, n)
-    det_b: float  # det B for the 3-link snake (zero on its singular line); 1 for the trident
+    det_b: float  # det B for the 3-link snake (zero on its singular set); 1 for the trident
     singular: bool
+    det_exact: float | None = None  # det G* in closed form (det_g_star); None if singular
 
     def __getitem__(self, name: str) -> np.ndarray:
         if self.values is None:
@@ -131,23 +166,43 @@ class FieldSet:
         return self.values[self.names.index(name)]
 
     @property
+    def model(self) -> str:
+        return "trident" if len(self.names) == 6 else "snake3"
+
+    def _unit_columns(self) -> np.ndarray:
+        # Near a singular set the brackets grow far faster than the fields (1/det^5
+        # against 1/det): unit columns keep that scale out of rank and conditioning.
+        assert self.values is not None
+        norms = np.maximum(np.linalg.norm(self.values, axis=1), 1e-300)
+        return (self.values / norms[:, None]).T
+
+    @property
     def growth(self) -> tuple[int, ...] | None:
-        """Rank of Delta_1, Delta_2, ... (the growth vector)."""
-        if self.values is None:
+        """Rank of Delta_1, Delta_2, ... (the growth vector): exact from det G* != 0;
+        a numeric rank only where det G* is exactly zero."""
+        if self.values is None or self.det_exact is None:
             return None
-        model = "trident" if len(self.names) == 6 else "snake3"
-        ranks, cols = [], []
-        for step in FILTRATION[model]:
-            # Unit columns: near a singular set the brackets grow far faster than the
-            # fields (1/det^5 against 1/det), which must not decide the rank.
-            cols += [self[n] / max(np.linalg.norm(self[n]), 1e-300) for n in step]
-            ranks.append(int(np.linalg.matrix_rank(np.array(cols), tol=RANK_TOL)))
+        if self.det_exact != 0.0:
+            return GENERIC_GROWTH[self.model]
+        ranks, count = [], 0
+        unit = self._unit_columns()
+        for step in FILTRATION[self.model]:
+            count += len(step)
+            ranks.append(int(np.linalg.matrix_rank(unit[:, :count], tol=RANK_TOL)))
         return tuple(ranks)
 
     @property
     def det(self) -> float | None:
-        """det G*: the determinant of all fields side by side (columns g..., h...)."""
-        return None if self.values is None else float(np.linalg.det(self.values.T))
+        """det G*: the determinant of all fields side by side (columns g..., h...), from
+        its closed form (det_g_star), exact near the singular set where a numeric
+        determinant of the fields is not."""
+        return None if self.values is None else self.det_exact
+
+    @property
+    def condition(self) -> float | None:
+        """2-norm condition number of G* with unit columns: how near q is to losing rank
+        numerically (it grows as det B^-2 towards the 3-link snake's singular set)."""
+        return None if self.values is None else float(np.linalg.cond(self._unit_columns()))
 
 
 def fields(robot: Robot, q: np.ndarray, form: str | None = None) -> FieldSet:
@@ -164,7 +219,8 @@ def fields(robot: Robot, q: np.ndarray, form: str | None = None) -> FieldSet:
     if code == lib.KIN_ESINGULAR:
         return FieldSet(robot.name, form_name, qa, names, None, float(det[0]), True)
     check(code, f"{robot.name} at q = {qa}")
-    return FieldSet(robot.name, form_name, qa, names, out, float(det[0]), False)
+    exact = det_g_star(robot, float(det[0]))
+    return FieldSet(robot.name, form_name, qa, names, out, float(det[0]), False, exact)
 
 
 def field_velocity(

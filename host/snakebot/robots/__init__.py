@@ -12,6 +12,7 @@ from snakebot.robots.model import (
     SERVO_MAX_RPM,
     TICKS_PER_RAD,
     Joint,
+    Physics,
     Robot,
     RobotError,
 )
@@ -21,6 +22,7 @@ __all__ = [
     "SERVO_MAX_RPM",
     "TICKS_PER_RAD",
     "Joint",
+    "Physics",
     "Robot",
     "RobotError",
     "load_robot",

@@ -3,12 +3,16 @@
 Schema (see the built-in files beside this module for complete examples)::
 
     name = "snake5"
-    kind = "snake"                # or "trident"
+    kind = "snake"                # or "trident", or "car"
     description = "..."           # optional
     [geometry]                    # snake: links (>= 2), half_link (l > 0)
                                   # trident: base_radius, arm_length, alphas_deg (3 angles)
+                                  # car: wheelbase (L > 0); one joint, the steering angle
     [friction]                    # c_n > 0, c_t >= 0 (optional; defaults 1 and 0)
     [servo]                       # model ("AX-12A" or "AX-12W"), max_speed_rpm (optional)
+    [physics]                     # optional; the physics world needs it: unit_m (> 0), and
+                                  # link_mass_kg, wheel_radius_m, wheel_mass_kg, mu,
+                                  # rolling_damping (PHYSICS_DEFAULTS when left out)
     [[joints]]                    # one per actuated joint, in order phi_1, phi_2, ...
     name, servo_id (0-253), zero_tick (0-1023), sign (1 or -1), min_deg, max_deg
 """
@@ -23,21 +27,39 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from snakebot.robots.model import SERVO_MAX_RPM, TICK_MAX, TICK_MIN, Joint, Robot, RobotError
+from snakebot.robots.model import (
+    SERVO_MAX_RPM,
+    TICK_MAX,
+    TICK_MIN,
+    Joint,
+    Physics,
+    Robot,
+    RobotError,
+)
 from snakebot.userfiles import FileTooLarge, read_bounded
 
-BUILTIN_ROBOTS = ("snake3", "trident", "snake5")
+BUILTIN_ROBOTS = ("snake3", "trident", "snake5", "car")
 MAX_LINKS = 16  # the C core's fixed buffers (KIN_MAX_LINKS)
 MAX_FILE_BYTES = 1 << 20  # a robot description is a few hundred bytes; this is no robot
 MAX_LIMIT_DEG = 360.0  # joint limits beyond a full turn are typing errors, whatever the servo
+
+PHYSICS_DEFAULTS: dict[str, float] = {
+    "link_mass_kg": 0.08,  # an AX-12A (55 g) with its brackets and wheel axle
+    "wheel_radius_m": 0.02,
+    "wheel_mass_kg": 0.01,
+    "mu": 0.8,  # rubber on a hard floor
+    "rolling_damping": 1e-5,
+}
+"""``[physics]`` values a robot may leave out; ``unit_m`` has no default."""
 
 SCHEMA: dict[str, Any] = {
     "name": None,
     "kind": None,
     "description": None,
-    "geometry": {"links", "half_link", "base_radius", "arm_length", "alphas_deg"},
+    "geometry": {"links", "half_link", "base_radius", "arm_length", "alphas_deg", "wheelbase"},
     "friction": {"c_n", "c_t"},
     "servo": {"model", "max_speed_rpm"},
+    "physics": {"unit_m", *PHYSICS_DEFAULTS},
     "joints": [{"name", "servo_id", "zero_tick", "sign", "min_deg", "max_deg"}],
 }
 """The keys a robot file may have: None for a value, a set for a table's keys, a list
@@ -189,6 +211,16 @@ def _joint(reader: _Reader, index: int) -> Joint:
     return joint
 
 
+def _physics(reader: _Reader) -> Physics | None:
+    if "physics" not in reader.data:
+        return None
+    values = {
+        key: reader.number(("physics", key), 0.0, default, strictly=key != "rolling_damping")
+        for key, default in PHYSICS_DEFAULTS.items()
+    }
+    return Physics(unit_m=reader.number(("physics", "unit_m"), 0.0, strictly=True), **values)
+
+
 def parse_robot(text: str, source: str = "<robot>") -> Robot:
     """Build a ``Robot`` from TOML text; ``source`` names it in error messages."""
     try:
@@ -198,8 +230,8 @@ def parse_robot(text: str, source: str = "<robot>") -> Robot:
     reader = _Reader(data, text, source)
     reader.check_keys(SCHEMA, data)
     kind = reader.get(("kind",), str)
-    if kind not in ("snake", "trident"):
-        raise reader.fail(("kind",), f'must be "snake" or "trident", not {kind!r}')
+    if kind not in ("snake", "trident", "car"):
+        raise reader.fail(("kind",), f'must be "snake", "trident" or "car", not {kind!r}')
     joints_raw = reader.get(("joints",), list)
     joints = tuple(_joint(reader, i) for i in range(len(joints_raw)))
     ids = [j.servo_id for j in joints]
@@ -235,6 +267,7 @@ def parse_robot(text: str, source: str = "<robot>") -> Robot:
         c_n=reader.number(("friction", "c_n"), 0.0, 1.0, strictly=True),
         c_t=reader.number(("friction", "c_t"), 0.0, 0.0),
         description=reader.get(("description",), str, ""),
+        physics=_physics(reader),
         source=source,
     )
     if kind == "snake":
@@ -248,6 +281,12 @@ def parse_robot(text: str, source: str = "<robot>") -> Robot:
         return Robot(
             l=reader.number(("geometry", "half_link"), 0.0, strictly=True), links=links, **common
         )
+    if kind == "car":
+        if len(joints) != 1:
+            raise reader.fail(
+                ("joints",), f"has {len(joints)} entries but a car has 1 joint (its steering)"
+            )
+        return Robot(l=reader.number(("geometry", "wheelbase"), 0.0, strictly=True), **common)
     alphas = reader.get(("geometry", "alphas_deg"), list)
     if len(alphas) != 3 or not all(isinstance(a, int | float) for a in alphas):
         raise reader.fail(("geometry", "alphas_deg"), f"must be 3 angles in degrees, not {alphas}")

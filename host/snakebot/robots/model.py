@@ -2,18 +2,18 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
 
+from snakebot import devices
 from snakebot.errors import SnakebotError
 
-#: AX-12 position units: 0..1023 over 300 degrees, 512 = centre.
-TICKS_PER_RAD = 1023.0 / math.radians(300.0)
-TICK_MIN = 0
-TICK_MAX = 1023
+_POSITION = devices.ax12().require_position()
+#: AX-12 position units, from its device description (the AX-12 family shares them).
+TICKS_PER_RAD = _POSITION.ticks_per_rad
+TICK_MIN, TICK_MAX = _POSITION.range
 
 #: No-load maximum joint speed per servo model (ROBOTIS e-Manual): AX-12A 59 rpm at 12 V,
 #: AX-12W 54 rpm in joint mode.
@@ -49,15 +49,37 @@ class Joint:
 
 
 @dataclass(frozen=True)
-class Robot:
-    """A wheeled snake (``kind == "snake"``) or trident (``kind == "trident"``).
+class Physics:
+    """What the physics world needs beyond the geometry (the robot TOML's ``[physics]``
+    table). ``unit_m``: metres per length unit of ``[geometry]`` (1 for a robot measured
+    in metres; a dimensionless thesis robot gets the size a lab would build). Masses in
+    kg, the wheel radius in metres; ``mu`` is the wheel-floor friction coefficient (it
+    holds the wheels sideways); ``rolling_damping`` (N m s/rad) resists each wheel's spin.
+    """
 
-    Snake: ``links`` links of length ``2 * l``, a wheel at each link's middle.
+    unit_m: float
+    link_mass_kg: float
+    wheel_radius_m: float
+    wheel_mass_kg: float
+    mu: float
+    rolling_damping: float
+
+
+@dataclass(frozen=True)
+class Robot:
+    """A wheeled snake (``kind == "snake"``), trident (``kind == "trident"``) or car
+    (``kind == "car"``).
+
+    Snake: ``links`` links of length ``2 * l``, a wheel at each link's middle; link 1's
+    free end (the reference point) is the tail, link N's the head.
     Trident: base radius ``r``, arm length ``l``, arm corners at ``alphas`` (radians).
+    Car (the thesis's first chapter): wheelbase ``l``; its one joint is the steering
+    angle Phi, and the drive is an input, not a joint. It has a field model only
+    (``snakebot model fields``), no wheel-by-wheel model in the C core.
     """
 
     name: str
-    kind: Literal["snake", "trident"]
+    kind: Literal["snake", "trident", "car"]
     joints: tuple[Joint, ...]
     servo_model: str
     max_speed_rad_s: float
@@ -68,6 +90,7 @@ class Robot:
     c_n: float = 1.0
     c_t: float = 0.0
     description: str = ""
+    physics: Physics | None = None  # None: the TOML has no [physics] table
     source: str = field(default="", compare=False)  # file it came from
 
     @property
@@ -76,7 +99,7 @@ class Robot:
 
     @property
     def n_wheels(self) -> int:
-        return self.links if self.kind == "snake" else 3
+        return {"snake": self.links, "trident": 3, "car": 4}[self.kind]
 
     @property
     def state_names(self) -> tuple[str, ...]:

@@ -29,11 +29,11 @@ import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
-from snakebot.protocol import BROADCAST_ID, Packet
+from snakebot.protocol import BROADCAST_ID, MAX_PACKET_LEN, Instruction, Packet
 from snakebot.sim.clock import BITS_PER_BYTE
 from snakebot.sim.faults import FaultConfig, FaultInjector
 from snakebot.sim.receiver import ServoReceiver
-from snakebot.sim.servo import VirtualServo
+from snakebot.sim.servo import VirtualServo, sync_write_shape
 from snakebot.sim.uart import resample, same_baud
 
 INTER_BYTE_GAP_S = 0.1
@@ -43,10 +43,12 @@ MASTER = "master"
 NOISE = "noise"
 
 _EPS = 1e-12
+_SYNC_WRITE = int(Instruction.SYNC_WRITE)
 
 
 class _Transmission:
-    """Bytes one driver puts on the wire, back to back from ``start``."""
+    """Bytes one driver puts on the wire, back to back from ``start``; also what a
+    receiver at the same rate hears of them (byte i complete at :meth:`arrival`)."""
 
     __slots__ = ("source", "start", "period", "baud", "data", "end")
 
@@ -57,6 +59,9 @@ class _Transmission:
         self.period = BITS_PER_BYTE / baud  # clock.byte_time
         self.data = data
         self.end = start + len(data) * self.period
+
+    def arrival(self, i: int) -> float:
+        return self.start + (i + 1) * self.period
 
 
 class _Heard:
@@ -115,6 +120,30 @@ class _Receiver:
         self.baud = baud
         self.parser = ServoReceiver()
         self.last_t = -math.inf
+
+
+class _Group:
+    """The powered servos at one baud rate: their shared receiver, the servos in bus
+    order, and an index of them by ID (several when IDs collide), so a packet for one
+    ID costs the same however many servos share the line.
+
+    Packets already on their way keep the group they were sent to, as its servos were
+    listening then; but a servo answers to the ID it has when a packet lands, so the
+    index is rebuilt when IDs have changed since (``epoch``: the bus's count of link
+    changes it was built at)."""
+
+    __slots__ = ("rx", "members", "by_id", "epoch")
+
+    def __init__(self, rx: _Receiver, members: list[VirtualServo], epoch: int) -> None:
+        self.rx = rx
+        self.members = members
+        self.reindex(epoch)
+
+    def reindex(self, epoch: int) -> None:
+        self.by_id: dict[int, list[VirtualServo]] = {}
+        for s in self.members:
+            self.by_id.setdefault(s.id, []).append(s)
+        self.epoch = epoch
 
 
 class Schedule:
@@ -204,6 +233,8 @@ class Bus:
         self.fault_config = faults or FaultConfig()
         self.faults = FaultInjector(self.fault_config)
         self._corrupting = self.fault_config.corrupt > 0
+        config = self.fault_config
+        self._reply_faults = bool(config.drop or config.delay_s or config.jitter_s)
         self.stats = BusStats()
         self._events: list[tuple[float, int, Callable, object]] = []
         self._seq = itertools.count()
@@ -212,8 +243,8 @@ class Bus:
         self._master_tx_free = 0.0
         self._servo_tx_free: dict[int, float] = {}
         self._receivers: dict[float, _Receiver] = {}
-        self._groups: list[tuple[_Receiver, list[VirtualServo]]] | None = None
-        self._others: dict[int, tuple[list[VirtualServo], list[VirtualServo]]] = {}
+        self._groups: list[_Group] | None = None
+        self._link_epoch = 0  # link changes so far (_Group.epoch)
         self._by_id: dict[int, VirtualServo] | None = None  # the first servo with each ID
         self._indexed = 0  # how many servos the index was built from
         for s in self.servos:
@@ -245,8 +276,9 @@ class Bus:
         # a servo changed baud rate or ID, or lost/regained power
         self._groups = None
         self._by_id = None
+        self._link_epoch += 1
 
-    def _listeners(self) -> list[tuple[_Receiver, list[VirtualServo]]]:
+    def _listeners(self) -> list[_Group]:
         """The powered servos grouped by baud rate, each group with its shared parser."""
         if self._groups is None:
             by_baud: dict[float, list[VirtualServo]] = {}
@@ -258,14 +290,8 @@ class Bus:
                 rx = self._receivers.get(baud)
                 if rx is None:
                     rx = self._receivers[baud] = _Receiver(baud)
-                groups.append((rx, members))
+                groups.append(_Group(rx, members, self._link_epoch))
             self._groups = groups
-            # each servo's group without it: who hears what the servo sends
-            self._others = {
-                id(s): (members, [o for o in members if o is not s])
-                for _, members in groups
-                for s in members
-            }
         return self._groups
 
     def servo(self, servo_id: int) -> VirtualServo:
@@ -339,10 +365,13 @@ class Bus:
         return whether any have. What a blocking read does in virtual time."""
         events = self._events
         while True:
-            available = self.master_in_waiting()
-            if available >= count:
-                return True
-            t_byte = self.next_master_arrival(count - available)
+            if self._master_rx:
+                available = self.master_in_waiting()
+                if available >= count:
+                    return True
+                t_byte = self.next_master_arrival(count - available)
+            else:
+                t_byte = None  # nothing on its way to the master yet
             t_event = events[0][0] if events else math.inf
             if t_byte is not None and t_byte <= self.now:
                 break  # cannot happen (arrived bytes are counted); never spin on it
@@ -482,19 +511,12 @@ class Bus:
         groups = self._groups
         if groups is None:
             groups = self._listeners()
-        own = None
-        if source is not MASTER and source is not NOISE:
-            own = self._others.get(id(source))
         events = self._events
-        for rx, members in groups:
-            if own is not None and members is own[0]:
-                members = own[1]
-                if not members:
-                    continue
-            if tx.baud == rx.baud:
-                heard = _Heard(data, tx.start, tx.period)
-            else:
-                heard = _Heard.of(tx, rx.baud)
+        for group in groups:
+            rx = group.rx
+            if len(group.members) == 1 and group.members[0] is source:
+                continue
+            heard: _Heard | _Transmission = tx if baud == rx.baud else _Heard.of(tx, rx.baud)
             hd = heard.data
             n = len(hd)
             if n >= 6 and hd[0] == 0xFF and hd[1] == 0xFF and hd[2] != 0xFF and hd[3] + 4 == n:
@@ -504,7 +526,7 @@ class Bus:
             i0 = 0
             for end in ends:
                 if end > i0:
-                    job = (rx, heard, i0, end, members)
+                    job = (group, heard, i0, end, source)
                     heapq.heappush(
                         events, (heard.arrival(end - 1), next(self._seq), self._deliver, job)
                     )
@@ -524,27 +546,85 @@ class Bus:
                 tx.data[i] = self.faults.collision_byte()
 
     def _deliver(self, t: float, job: tuple) -> None:
-        rx, heard, i0, i1, members = job
+        group, heard, i0, i1, source = job
+        if group.epoch != self._link_epoch:
+            group.reindex(self._link_epoch)
+        rx = group.rx
         parser = rx.parser
         if parser.pending and heard.arrival(i0) - rx.last_t > INTER_BYTE_GAP_S:
             parser.reset()
         rx.last_t = t
-        for event in parser.feed(heard.data[i0:i1]):  # a slice is a copy
+        data = heard.data
+        n = i1 - i0
+        if (
+            n >= 6
+            and not parser.pending
+            and data[i0] == 0xFF
+            and data[i0 + 1] == 0xFF
+            and data[i0 + 3] + 4 == n <= MAX_PACKET_LEN
+        ):
+            # One whole frame to an idle parser: it yields one packet (or a bad checksum)
+            # for the ID in byte 2 and leaves the parser idle. When no servo here but the
+            # sender answers to that ID (a status packet, a READ of another bus), nobody
+            # acts on it, and the parse is skipped.
+            target = data[i0 + 2]
+            hearers = group.by_id.get(target)
+            if (
+                target != BROADCAST_ID
+                and target != 0xFF
+                and (hearers is None or (len(hearers) == 1 and hearers[0] is source))
+            ):
+                return
+        for event in parser.feed(data[i0:i1]):  # a slice is a copy
+            if group.epoch != self._link_epoch:  # the packet before changed an ID
+                group.reindex(self._link_epoch)
             # a packet for one ID concerns only the servos with that ID (the others
             # ignore it); every servo looks at a damaged one
-            target = event.id if type(event) is Packet else BROADCAST_ID
-            for s in members:
-                if target == BROADCAST_ID or s.id == target:
+            if type(event) is not Packet:
+                hearers = group.members
+            elif event.id != BROADCAST_ID:
+                hearers = group.by_id.get(event.id)
+                if hearers is None:
+                    continue
+            elif event.code == _SYNC_WRITE:
+                self._sync_write(group, event.params, t, source)
+                continue
+            else:
+                hearers = group.members
+            for s in hearers:
+                if s is not source:
                     reply = s.receive(event, t)
                     if reply is not None:
                         self._reply(s, reply, t)
 
+    @staticmethod
+    def _sync_write(group: _Group, params: bytes, t: float, source: object) -> None:
+        """A broadcast SYNC_WRITE, parsed once: each servo named gets its own block (the
+        first that names it, as each servo looks for itself); the others ignore it."""
+        shape = sync_write_shape(params)
+        if shape is None:
+            return  # malformed: no servo can find its slice
+        address, block = shape
+        by_id = group.by_id
+        done = set()
+        for i in range(2, len(params), block):
+            sid = params[i]
+            servos = by_id.get(sid)
+            if servos is None or sid in done:
+                continue
+            done.add(sid)
+            for s in servos:
+                if s is not source:
+                    s.sync_write_block(address, params[i + 1 : i + block], t)
+
     def _reply(self, servo: VirtualServo, reply: tuple[bytes, float], t: float) -> None:
-        faults = self.faults
-        if faults.drop_reply():
-            return
         packet, baud = reply
-        start = t + servo.return_delay_s + faults.reply_delay()
+        start = t + servo.return_delay_s
+        if self._reply_faults:
+            faults = self.faults
+            if faults.drop_reply():
+                return
+            start += faults.reply_delay()
         key = id(servo)
         free = self._servo_tx_free.get(key, 0.0)
         if free > start:

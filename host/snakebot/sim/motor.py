@@ -20,17 +20,30 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-POSITION_RANGE_DEG = 300.0
-MAX_POSITION = 1023
-TICKS_PER_DEG = MAX_POSITION / POSITION_RANGE_DEG
+from snakebot import devices
+
+# The AX-12's units, from its device description (the family shares them).
+_AX12 = devices.ax12()
+_POSITION = _AX12.require_position()
+_SPEED = _AX12.register("Present Speed")
+_LOAD = _AX12.register("Present Load")
+assert _SPEED.scale is not None and _SPEED.encoding.direction_bit is not None
+
+POSITION_RANGE_DEG = _POSITION.span_deg
+MAX_POSITION = _POSITION.range[1]
+TICKS_PER_DEG = _POSITION.scale.per_unit("deg")
 TICKS_PER_REV = 360.0 * TICKS_PER_DEG
 """A full turn in position ticks (the 300-360 degree dead zone included): 1227.6."""
-TICKS_PER_S_PER_RPM = 6.0 * TICKS_PER_DEG
+TICKS_PER_S_PER_RPM = devices.conversion("rpm", "deg/s") * TICKS_PER_DEG
 """1 rpm = 6 degrees/s = 20.46 ticks/s."""
-SPEED_UNIT_RPM = 0.111
+SPEED_UNIT_RPM = _SPEED.scale.factor_in("rpm")
 """Moving Speed and Present Speed unit."""
-DIRECTION_BIT = 1 << 10
-"""Bit 10 of speed and load values: set = CW (toward smaller positions)."""
+DIRECTION_BIT = 1 << _SPEED.encoding.direction_bit
+"""The direction bit of speed and load values: set = CW (toward smaller positions)."""
+SPEED_MAX = DIRECTION_BIT - 1
+"""The largest speed magnitude (and joint-mode Moving Speed)."""
+TORQUE_FULL = _AX12.register("Torque Limit").value_range()[1]
+"""Torque Limit (and load magnitude) at the full stall torque."""
 AMBIENT_C = 25.0
 
 
@@ -77,15 +90,15 @@ def speed_setting(moving_speed: int) -> float:
 
 
 def speed_register(ticks_per_s: float) -> int:
-    """Present Speed encoding of a signed speed: magnitude in 0.111 rpm, bit 10 = CW."""
-    magnitude = min(1023, round(abs(ticks_per_s) / (SPEED_UNIT_RPM * TICKS_PER_S_PER_RPM)))
-    return magnitude | (DIRECTION_BIT if ticks_per_s < 0 and magnitude else 0)
+    """Present Speed encoding of a signed speed (ticks/s; negative = CW)."""
+    magnitude = min(SPEED_MAX, round(abs(ticks_per_s) / (SPEED_UNIT_RPM * TICKS_PER_S_PER_RPM)))
+    return _SPEED.raw(-magnitude if ticks_per_s < 0 else magnitude)
 
 
 def load_register(fraction: float, cw: bool) -> int:
-    """Present Load encoding: fraction of stall torque in 1/1023, bit 10 = CW."""
-    magnitude = min(1023, round(fraction * 1023))
-    return magnitude | (DIRECTION_BIT if cw and magnitude else 0)
+    """Present Load encoding of a fraction of the stall torque, pushing CW or CCW."""
+    magnitude = min(SPEED_MAX, abs(_LOAD.from_units(100.0 * fraction)))
+    return _LOAD.raw(-magnitude if cw else magnitude)
 
 
 def thermal_step(temp_c: float, load_fraction: float, dt: float, spec: MotorSpec) -> float:

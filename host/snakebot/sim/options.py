@@ -10,10 +10,11 @@ import math
 from dataclasses import dataclass, field, replace
 from urllib.parse import parse_qsl
 
+from snakebot import devices
 from snakebot.sim.bus import Bus
 from snakebot.sim.errors import SimOptionError
 from snakebot.sim.faults import Brownout, FaultConfig
-from snakebot.sim.servo import VirtualServo, baud_from_register
+from snakebot.sim.servo import VirtualServo
 
 URL_FORM = "sim://[NAME][?robot=NAME|ids=1,2,3][&option=value...]"
 
@@ -32,6 +33,9 @@ OPTIONS: dict[str, str] = {
     "state": "a file keeping the servos' EEPROM between runs",
     "realtime": "1: tie the bus clock to the wall clock instead of running as fast as "
     "possible (sim:// only; the pty and socket servers always do)",
+    "world": "kinematic (default: each servo moves by its own model) or mujoco: the "
+    "robot's body in MuJoCo moves the servos, whose position, speed and load come from "
+    "the physics (needs robot=)",
     "seed": "seed for every injected fault (default 0)",
     "corrupt": "probability that a byte on the wire gets a flipped bit, e.g. 0.01",
     "drop": "probability that a status packet is never sent",
@@ -42,6 +46,9 @@ OPTIONS: dict[str, str] = {
     "brownout": "ID@START+DURATION in seconds: that servo loses power (repeatable, or "
     "several separated by ';')",
 }
+
+WORLD_PERIOD_S = 0.01
+"""How often a physics world behind a sim:// bus samples (its record is not kept)."""
 
 _TRUE = {"1", "true", "yes", "on"}
 _FALSE = {"0", "false", "no", "off"}
@@ -74,14 +81,15 @@ def _int(name: str, text: str, low: int, high: int) -> int:
 
 
 def servo_baud_register(bps: float) -> int:
-    """The Baud Rate register value for ``bps`` (2 000 000 / (value + 1)), if one comes
-    within 3 % (the UART tolerance the AX-12 manual quotes)."""
-    value = round(2_000_000 / bps - 1)
-    if 0 <= value <= 254 and abs(baud_from_register(value) - bps) <= 0.03 * bps:
+    """The Baud Rate register value whose rate (the AX-12's baud formula) comes within
+    the AX-12's UART tolerance of ``bps``."""
+    baud = devices.ax12().require_baud()
+    value = baud.value_for(bps)
+    if value is not None:
         return value
     raise SimOptionError(
-        f"an AX-12 cannot run at {bps:g} bit/s: its rate is 2000000/(n+1) for n = 0..254 "
-        "(e.g. 1000000, 500000, 400000, 250000, 200000, 117647, 57142, 9615)"
+        f"an AX-12 cannot run at {bps:g} bit/s: its rate is {baud.describe()} "
+        "(e.g. 1000000 or 57142)"
     )
 
 
@@ -99,6 +107,7 @@ class SimOptions:
     voltage: float | None = None
     state: str | None = None
     realtime: bool = False
+    world: str = "kinematic"
     faults: FaultConfig = field(default_factory=FaultConfig)
 
     @classmethod
@@ -139,6 +148,10 @@ class SimOptions:
                 opts = replace(opts, voltage=_number(key, value, 0, 25.5))
             elif key == "state":
                 opts = replace(opts, state=value)
+            elif key == "world":
+                from snakebot.sim.physics.select import check_world
+
+                opts = replace(opts, world=check_world(value))
             elif key == "seed":
                 fault["seed"] = _int(key, value, 0, 2**63)
             elif key in ("corrupt", "drop"):
@@ -189,6 +202,23 @@ class SimOptions:
             from snakebot.sim.state import EepromStore
 
             EepromStore(self.state).attach(servos)
-        return Bus(
+        bus = Bus(
             servos, baudrate=baudrate, echo=self.echo, faults=self.faults, supply_v=self.voltage
         )
+        if self.world != "kinematic":
+            self._attach_world(bus)
+        return bus
+
+    def _attach_world(self, bus: Bus) -> None:
+        """Put the robot's body in the physics world on ``bus``: from now on it moves the
+        servos (the world lives as long as the bus's schedule of its steps)."""
+        if not self.robot:
+            raise SimOptionError(f"world={self.world} needs the robot's body: add robot=NAME")
+        if self.ideal:
+            raise SimOptionError(
+                f"ideal servos have no torque: drop ideal=1 for world={self.world}"
+            )
+        from snakebot.robots import load_robot
+        from snakebot.sim.physics.select import make_world
+
+        make_world(self.world, bus, load_robot(self.robot), period=WORLD_PERIOD_S, keep=1)

@@ -1,21 +1,22 @@
 """Play a gait table on the emulated robot, with the host as bus master, and compare the
 body's path with the prediction integrated from the same table.
 
-What is played, as a PC with a USB2Dynamixel adapter (and no controller) would: the host
-puts the servos at the table's first frame, then at every frame time t_k = k * period it
-sends one SYNC_WRITE of Goal Position and Moving Speed (addresses 30-33) to every joint,
-through snakebot's ``DxlClient`` on a ``sim://`` port. The goal is the next frame, and
-the speed is the one that covers the step to it in one frame period (rounded up, at
-least 16 units, exactly as the controller's player computes it: ``play_speed_units``
-from the C core), so a servo that keeps up arrives at each frame on time. A looping table
-wraps from its last frame to frame 0; one pass is played.
+What is played is what the controller sends: the host puts the servos at the table's
+first frame, then runs the controller's own gait player (``play_player.c``, compiled into
+``snakebot._core``) one control tick at a time (``TICK_MS``, as the firmware's main loop)
+and sends each tick's outputs in one SYNC_WRITE of Goal Position and Moving Speed
+(addresses 30-33) through snakebot's ``DxlClient`` on a ``sim://`` port: the goal
+interpolated linearly in ticks between frames, the speed that of the frame step (at least
+16 units). A looping table wraps from its last frame to frame 0; one pass is played.
 
-The world (:mod:`snakebot.sim.world`) samples the servos and moves the body. With ideal
-servos (instant motion) it samples at the frame instants, where the servos sit exactly on
-the frames, so the emulated path is the table prediction (``Gait.table``: ticks back to
-angles, linear in between) up to the integrator's tolerance. With modelled AX-12s it
-samples at least ``world_hz`` times a second and the servos' lag shows up as joint
-tracking error and as a different body path.
+The world (:mod:`snakebot.sim.world`) samples the servos and moves the body, starting one
+tick after the first write, so each of its samples sees the goals of the tick one tick
+earlier. With ideal servos (instant motion) it samples at the frame instants, where the
+servos then sit exactly on the frames (when the frame period is a whole number of ticks),
+so the emulated path is the table prediction (``gait.common.table_motion``, the same
+function the gait's ``table`` figure comes from) up to the integrator's tolerance. With
+modelled AX-12s it samples at least ``world_hz`` times a second and the servos' lag shows
+up as joint tracking error and as a different body path.
 
 Everything runs on the bus's virtual clock: as fast as the computer allows, and the
 result reports how many times faster than real time that was.
@@ -32,22 +33,34 @@ from urllib.parse import urlencode
 
 import numpy as np
 
-from snakebot.core import lib
+from snakebot import devices
+from snakebot.core import ffi, lib
 from snakebot.errors import SnakebotError
-from snakebot.gait.common import PREDICT_OPTIONS, motion
+from snakebot.gait.common import (
+    TableMotion,
+    motion,
+    motion_frame,
+    singularity_warnings,
+    table_motion,
+)
 from snakebot.gaittable import GaitTable, read_gait
-from snakebot.kinematics import KinematicsError, Table, Trajectory, integrate_joints
+from snakebot.kinematics import KinematicsError, Trajectory
 from snakebot.protocol import sync_write
 from snakebot.robots import Robot, RobotError, load_robot
 from snakebot.sim.bus import Bus
-from snakebot.sim.world import DEFAULT_BATCH, SINGULAR_CODES, World, WorldRecord, fallback_c_t
+from snakebot.sim.controller_pty import TICK_MS
+from snakebot.sim.physics.select import DEFAULT_WORLD, make_world, record_extras, world_of
+from snakebot.sim.world import DEFAULT_BATCH, WorldRecord
 from snakebot.transport import DxlClient
 
-GOAL_POSITION_ADDR = 30
-"""Goal Position (2 bytes) then Moving Speed (2 bytes): one 4-byte SYNC_WRITE block."""
-PRESENT_POSITION_ADDR = 36
+_AX12 = devices.ax12()
+_GOAL = _AX12.register("Goal Position")
+_SPEED = _AX12.register("Moving Speed")
+_PRESENT = _AX12.register("Present Position")
+GOAL_POSITION_ADDR, GOAL_BLOCK = _AX12.span(_GOAL.name, _SPEED.name)
+"""Goal Position then Moving Speed: where one SYNC_WRITE block goes, and its bytes."""
 START_SPEED = 200
-"""Moving Speed (0.111 rpm units, about 22 rpm) for the move to the first frame."""
+"""Moving Speed (about 22 rpm) for the move to the first frame."""
 START_SETTLE_S = 0.1
 """Extra bus time allowed for the move to the first frame."""
 START_TOLERANCE_TICKS = 1
@@ -70,8 +83,15 @@ class Prediction:
     world_period_s: float
     emulated: WorldRecord
     predicted: Trajectory
-    predicted_c_t: float
+    played: TableMotion
     wall_s: float
+
+    @property
+    def predicted_c_t(self) -> float:
+        """The rolling friction of the prediction: the robot's, or the fallback where
+        ideal wheels were singular on some frame interval."""
+        p = self.played
+        return p.fallback_c_t if p.regularised.any() and p.fallback_c_t else p.c_t
 
     @property
     def duration_s(self) -> float:
@@ -100,6 +120,7 @@ class Prediction:
         err = self.joint_error
         pred_slip = self.predicted.slip
         out: dict[str, Any] = {
+            "world": world_of(self.emulated),
             "gait": self.gait,
             "robot": self.robot.name,
             "servos": "ideal" if self.ideal else self.robot.servo_model,
@@ -107,6 +128,7 @@ class Prediction:
             "frame_period_ms": self.table.frame_period_ms,
             "loop": self.table.loop,
             "duration_s": round(self.duration_s, 9),
+            "frame": motion_frame(self.robot),
             "world_period_s": self.world_period_s,
             "emulated": {
                 **em,
@@ -116,11 +138,14 @@ class Prediction:
                 "slip_max": self.emulated.slip_max(),
                 "slip_distance": [float(v) for v in self.emulated.slip_distance()],
                 "samples": len(self.emulated.t),
+                **record_extras(self.emulated),
             },
             "predicted": {
                 **pr,
                 "slip_max": float(np.abs(pred_slip).max()) if pred_slip is not None else 0.0,
                 "c_t": self.predicted_c_t,
+                "regularised_intervals": int(self.played.regularised.sum()),
+                "fallback_spread": self.played.fallback_spread,
                 "source": "integrated from the table's frames (ticks to angles, linear in "
                 "between, as the controller plays them)",
             },
@@ -137,6 +162,7 @@ class Prediction:
             },
             "realtime_factor": self.realtime_factor,
             "wall_s": self.wall_s,
+            "warnings": singularity_warnings({"prediction from the table": self.predicted}),
         }
         meta_table = self.table.metadata.get("table")
         if isinstance(meta_table, dict):
@@ -174,32 +200,48 @@ def resolve_robot(table: GaitTable, robot: str | Robot | None) -> Robot:
     return chosen
 
 
-def frame_speeds(frames: np.ndarray, period_ms: int, loop: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Goals and Moving Speeds of the writes: write k (at k * period) sends frame k + 1
-    (frame 0 after the last, for a loop) at the speed that covers the step in one
-    period, as the controller's player computes it."""
-    frames = np.asarray(frames, dtype=np.int64)
-    nxt = np.roll(frames, -1, axis=0) if loop else frames[1:]
-    cur = frames if loop else frames[:-1]
-    steps = np.abs(nxt - cur)
-    speeds = np.array(
-        [[lib.play_speed_units(int(s) * 1000 * 256 // period_ms) for s in row] for row in steps],
-        dtype=np.int64,
-    ).reshape(steps.shape)
-    return nxt, speeds
+class TablePlayer:
+    """The controller's gait player (C, ``play_*``) on one table, ticked from Python."""
 
+    def __init__(self, table: GaitTable) -> None:
+        self._data = ffi.new("uint8_t[]", table.encode())  # the player keeps a pointer
+        self._mem = ffi.new("uint8_t[]", lib.play_state_size())
+        self._state = ffi.cast("play_state *", self._mem)
+        self._params = ffi.new("play_params *")
+        self._params.speed_scale = 256  # as written
+        self._params.loop = int(table.loop)
+        self._roster = ffi.new("play_joint[]", 1)  # table mode: limits come from the table
+        lib.play_init(self._state)
+        if not lib.play_start_table(self._state, self._data, table.size, 0):
+            raise PredictError("the controller's player refuses the table: it does not validate")
 
-def sync_blocks(
-    ids: tuple[int, ...], goals: np.ndarray, speeds: np.ndarray
-) -> list[dict[int, bytes]]:
-    """One SYNC_WRITE payload (ID -> goal, speed little-endian) per write."""
-    return [
-        {
-            sid: int(g).to_bytes(2, "little") + int(v).to_bytes(2, "little")
-            for sid, g, v in zip(ids, grow, vrow, strict=True)
+    def tick(self, now_ms: int) -> dict[int, tuple[int, int]]:
+        """The outputs after a control tick at ``now_ms``: servo ID -> (goal, speed)."""
+        count = lib.play_tick(self._state, self._params, self._roster, 0, now_ms)
+        p = self._state
+        return {
+            lib.play_out_id(p, j): (lib.play_out_goal(p, j), lib.play_out_speed(p, j))
+            for j in range(count)
         }
-        for grow, vrow in zip(goals, speeds, strict=True)
-    ]
+
+
+def player_writes(table: GaitTable) -> tuple[float, list[dict[int, bytes]]]:
+    """The SYNC_WRITE blocks (servo ID -> goal, speed little-endian) the controller sends
+    over one pass of the table, one per control tick from t = 0 to the pass's end, and
+    the tick period in seconds."""
+    period_ms = table.frame_period_ms
+    pass_ms = period_ms * (table.frame_count if table.loop else table.frame_count - 1)
+    player = TablePlayer(table)
+    blocks = []
+    for n in range(math.ceil(pass_ms / TICK_MS) + 1):
+        outputs = player.tick(min(n * TICK_MS, pass_ms))
+        blocks.append({sid: _goal_block(goal, speed) for sid, (goal, speed) in outputs.items()})
+    return TICK_MS / 1000.0, blocks
+
+
+def _goal_block(goal: int, speed: int) -> bytes:
+    """Goal Position and Moving Speed as one SYNC_WRITE block."""
+    return goal.to_bytes(_GOAL.size, "little") + speed.to_bytes(_SPEED.size, "little")
 
 
 def sim_url(robot: Robot, ideal: bool) -> str:
@@ -214,19 +256,17 @@ def move_to_start(client: DxlClient, bus: Bus, robot: Robot, first: np.ndarray) 
     servos' Present Position over the bus."""
     ids = robot.servo_ids
     client.sync_write(
-        GOAL_POSITION_ADDR,
-        4,
-        {
-            sid: int(g).to_bytes(2, "little") + START_SPEED.to_bytes(2, "little")
-            for sid, g in zip(ids, first, strict=True)
-        },
+        _GOAL.address,
+        GOAL_BLOCK,
+        {sid: _goal_block(int(g), START_SPEED) for sid, g in zip(ids, first, strict=True)},
     )
     here = np.array(bus.positions(ids))
     distance = float(np.abs(here - first).max())
-    ticks_per_s = START_SPEED * 0.111 * 6.0 * 1023.0 / 300.0
+    ticks_per_deg = _AX12.require_position().scale.per_unit("deg")
+    ticks_per_s = _SPEED.to_units(START_SPEED, "deg/s") * ticks_per_deg
     bus.run_until(bus.now + distance / ticks_per_s + START_SETTLE_S)
     for sid, goal in zip(ids, first, strict=True):
-        present = client.read_u16(sid, PRESENT_POSITION_ADDR)
+        present = client.read_u16(sid, _PRESENT.address)
         if abs(present - int(goal)) > START_TOLERANCE_TICKS:
             raise PredictError(
                 f"servo {sid} stopped at {present} ticks, not at the first frame's {int(goal)}: "
@@ -243,6 +283,8 @@ def play(
     ideal: bool,
     world_hz: float = DEFAULT_WORLD_HZ,
     batch: int = DEFAULT_BATCH,
+    world: str = DEFAULT_WORLD,
+    mu: float | None = None,
 ) -> tuple[WorldRecord, float, float]:
     """Play ``table`` once from the servos' current state (``ideal``: they are ideal
     servos, so the world samples at the frame instants); returns the world's record,
@@ -252,68 +294,59 @@ def play(
     period = table.frame_period_ms / 1000.0
     per_frame = 1 if ideal else max(1, math.ceil(period * world_hz - 1e-9))
     world_period = period / per_frame
-    goals, speeds = frame_speeds(table.frames, table.frame_period_ms, table.loop)
+    tick, blocks = player_writes(table)
     # the packets are known before the play starts: encode them once, as a host loop should
     packets = [
-        sync_write(GOAL_POSITION_ADDR, 4, block)
-        for block in sync_blocks(robot.servo_ids, goals, speeds)
+        (n, sync_write(GOAL_POSITION_ADDR, GOAL_BLOCK, b)) for n, b in enumerate(blocks) if b
     ]
-    writes = len(packets)
-    duration = writes * period
-    wall0 = time.perf_counter()
+    intervals = table.frame_count if table.loop else table.frame_count - 1
+    duration = intervals * period
     start = bus.now
-    world = World(bus, robot, period=world_period, start=start, batch=batch)
-    for k, packet in enumerate(packets):
-        bus.run_until(start + k * period)
+    # One tick late: a sample at t sees the goals sent at t - tick (the world samples
+    # before a write due at the same instant), so its samples at the frame instants see
+    # the frames themselves. Built before the clock starts: MuJoCo's model compiles once,
+    # outside the play.
+    body = make_world(
+        world, bus, robot, period=world_period, start=start + tick, batch=batch, mu=mu
+    )
+    wall0 = time.perf_counter()
+    for n, packet in packets:
+        bus.run_until(start + min(n * tick, duration))
         client.send(packet)  # SYNC_WRITE: no reply to wait for
-    bus.run_until(start + duration + 0.5 * world_period)
-    world.stop()
-    record = world.record()
+    bus.run_until(start + tick + duration + 0.5 * world_period)
+    body.stop()
+    record = body.record()
     wall = time.perf_counter() - wall0
-    expected = writes * per_frame + 1
+    expected = intervals * per_frame + 1
     if len(record.t) != expected:  # pragma: no cover - a clock bug, not a user error
         raise PredictError(f"the world took {len(record.t)} samples, expected {expected}")
     return record, world_period, wall
 
 
-def predict_table(robot: Robot, table: GaitTable, samples: int) -> tuple[Trajectory, float]:
+def predict_table(robot: Robot, table: GaitTable, samples: int) -> tuple[Trajectory, TableMotion]:
     """The body path integrated straight from the table, as the gait's ``table`` figure
-    is (ticks to angles, linear in between, the robot's c_t, or a small one over the
-    whole table if ideal wheels are singular on it), at ``samples`` evenly spaced times
-    over one pass (slip: mid-interval, as the world records it); returns the trajectory
-    and the c_t used."""
-    angles = robot.ticks_to_angles(table.frames)
-    period = table.frame_period_ms / 1000.0
-    frames = table.frame_count
-    duration = period * (frames if table.loop else frames - 1)
-    schedule = Table(angles, period, table.loop)
-    c_t = robot.c_t
-
-    def run(c_t: float) -> Trajectory:
-        return integrate_joints(
-            robot,
-            schedule,
-            duration,
-            samples=2 * samples - 1,
-            options=PREDICT_OPTIONS,
-            c_t=c_t,
-            with_slip=True,
-        )
-
+    is (``table_motion``: ticks to angles, linear in between, the robot's c_t, and a small
+    one on just the frame intervals where ideal wheels are singular, as the world does),
+    at ``samples`` evenly spaced times over one pass (slip: mid-interval, as the world
+    records it); returns the trajectory and the table motion it came from."""
+    intervals = table.frame_count if table.loop else table.frame_count - 1
+    per_sample, rest = divmod(samples - 1, intervals)
+    if rest or per_sample < 1:  # pragma: no cover - the world samples whole frames
+        raise PredictError(f"{samples} samples do not divide the table's {intervals} intervals")
     try:
-        try:
-            traj = run(c_t)
-        except KinematicsError as exc:
-            fallback = fallback_c_t(robot, c_t)
-            if fallback is None or exc.code not in SINGULAR_CODES:
-                raise
-            c_t = fallback
-            traj = run(c_t)
+        played = table_motion(
+            robot,
+            robot.ticks_to_angles(table.frames),
+            table.frame_period_ms / 1000.0,
+            table.loop,
+            per_interval=2 * per_sample,
+        )
     except KinematicsError as exc:
         raise PredictError(f"cannot predict the table's motion: {exc}") from exc
+    traj = played.trajectory
     assert traj.slip is not None
     slip = np.vstack([np.zeros((1, traj.slip.shape[1])), traj.slip[1::2]])
-    return Trajectory(traj.t[::2], traj.q[::2], slip, traj.stats), c_t
+    return Trajectory(traj.t[::2], traj.q[::2], slip, traj.stats), played
 
 
 def predict_gait(
@@ -323,24 +356,35 @@ def predict_gait(
     ideal: bool = False,
     world_hz: float = DEFAULT_WORLD_HZ,
     batch: int = DEFAULT_BATCH,
+    world: str = DEFAULT_WORLD,
+    mu: float | None = None,
 ) -> Prediction:
     """Play a gait table (a file or a ``GaitTable``) on an emulated robot and compare.
-    ``batch``: samples the world integrates per C call (results do not depend on it)."""
+    ``batch``: samples the world integrates per C call (results do not depend on it);
+    ``world``: "kinematic" or "mujoco" (``mu``: its wheel-floor friction)."""
     table = gait if isinstance(gait, GaitTable) else read_gait(gait)
     name = "<table>" if isinstance(gait, GaitTable) else str(gait)
     chosen = resolve_robot(table, robot)
     if table.frame_count < 2:
         raise PredictError("the table has a single frame: nothing moves; give it two or more")
+    if ideal and world != "kinematic":
+        raise PredictError(f"ideal servos have no torque: drop --ideal for the {world} world")
     client = DxlClient(sim_url(chosen, ideal), echo=False)
     try:
         bus: Bus = client.port.bus
         move_to_start(client, bus, chosen, table.frames[0])
         record, world_period, wall = play(
-            client, bus, chosen, table, ideal=ideal, world_hz=world_hz, batch=batch
+            client,
+            bus,
+            chosen,
+            table,
+            ideal=ideal,
+            world_hz=world_hz,
+            batch=batch,
+            world=world,
+            mu=mu,
         )
     finally:
         client.close()
-    predicted, predicted_c_t = predict_table(chosen, table, len(record.t))
-    return Prediction(
-        name, chosen, table, ideal, world_period, record, predicted, predicted_c_t, wall
-    )
+    predicted, played = predict_table(chosen, table, len(record.t))
+    return Prediction(name, chosen, table, ideal, world_period, record, predicted, played, wall)

@@ -11,11 +11,14 @@ wants them:
 
 The pseudo-terminals are made here, not by QEMU's ``pty`` backend: that one drops the
 firmware's output until it notices, up to a second later, that someone opened the
-terminal, and again after every close. Here QEMU gets the master side (``-add-fd``, as a
-host serial device) and this object holds the terminal open for QEMU's lifetime, so
-clients may open and close it as often as they like and nothing is lost. Bytes the firmware
-sends while no client has it open wait in the terminal's buffer (clients flush their input
-before a transaction; :class:`snakebot.transport.DxlClient` does).
+terminal, and again after every close. Here this object holds the terminal open for
+QEMU's lifetime, so clients may open and close it as often as they like. QEMU gets one
+end of a socket pair and a relay thread (:class:`snakebot.sim.transports.relay.PtyRelay`)
+carries bytes between it and the terminal's master side without ever making QEMU wait:
+bytes the firmware sends while no client reads wait in the terminal's buffer (clients
+flush their input before a transaction; :class:`snakebot.transport.DxlClient` does), and
+once that is full they are dropped and counted (:meth:`QemuFirmware.dropped`), as a
+USB-serial adapter drops what the PC does not read, instead of stalling the CPU.
 
 ::
 
@@ -57,6 +60,7 @@ from typing import Any
 
 from snakebot.paths import REPO_ROOT
 from snakebot.sim.errors import SimError
+from snakebot.sim.transports.relay import PtyRelay
 from snakebot.sim.workdirs import make_workdir
 
 QEMU_BINARY = "qemu-system-arm"
@@ -212,28 +216,27 @@ def _stop_process(proc: subprocess.Popen[bytes], qmp: _Qmp | None, timeout: floa
         proc.wait()
 
 
-def _close_ptys(ptys: dict[str, tuple[int, int, str]], masters_only: bool = False) -> None:
-    """Close our ends of the pseudo-terminals (just the masters once QEMU holds them)."""
-    for label, (master, slave, path) in list(ptys.items()):
-        if master >= 0:
+def _close_ptys(ptys: dict[str, tuple[int, int, str]]) -> None:
+    """Close both ends of the pseudo-terminals."""
+    for master, slave, _path in ptys.values():
+        for fd in (master, slave):
             with contextlib.suppress(OSError):
-                os.close(master)
-        if masters_only:
-            ptys[label] = (-1, slave, path)
-        else:
-            with contextlib.suppress(OSError):
-                os.close(slave)
-            del ptys[label]
+                os.close(fd)
+    ptys.clear()
 
 
 def _finalize(
     proc: subprocess.Popen[bytes],
     qmp_box: list[_Qmp],
     ptys: dict[str, tuple[int, int, str]],
+    relays: dict[str, PtyRelay],
     workdir: str | None,
 ) -> None:
     _stop_process(proc, qmp_box[0] if qmp_box else None, STOP_TIMEOUT_S)
     qmp_box.clear()
+    for relay in relays.values():
+        relay.stop()
+    relays.clear()
     _close_ptys(ptys)
     if workdir is not None:
         shutil.rmtree(workdir, ignore_errors=True)
@@ -272,6 +275,8 @@ class QemuFirmware:
         self._finalizer: weakref.finalize | None = None
         self._ports: QemuPorts | None = None
         self._ptys: dict[str, tuple[int, int, str]] = {}  # label -> (master, slave, path)
+        self._pairs: dict[str, tuple[socket.socket, socket.socket]] = {}  # label -> (QEMU's, ours)
+        self._relays: dict[str, PtyRelay] = {}
 
     # -- the command line -------------------------------------------------------------
 
@@ -280,7 +285,7 @@ class QemuFirmware:
         if ep.kind == "null":
             return f"null,id={label}"
         if ep.kind == "pty":
-            return f"serial,id={label},path=/dev/fdset/{self._fdset(label)}"
+            return f"socket,id={label},fd={self._pairs[label][0].fileno()},server=off"
         if ep.kind == "unix-server":
             path = ep.path or os.path.join(self._workdir, f"{label}.sock")
             return f"socket,id={label},path={path},server=on,wait=off"
@@ -296,8 +301,6 @@ class QemuFirmware:
         serials[BUS_SERIAL_INDEX] = "chardev:bus"
         serials[PC_LINK_SERIAL_INDEX] = "chardev:pc"
         cmd = [find_qemu(), "-M", MACHINE, "-nographic", "-monitor", "none"]
-        for label, (master, _slave, _path) in self._ptys.items():
-            cmd += ["-add-fd", f"fd={master},set={self._fdset(label)}"]
         cmd += ["-chardev", self._chardev("bus", self.bus)]
         cmd += ["-chardev", self._chardev("pc", self.pc_link)]
         for s in serials:
@@ -306,16 +309,26 @@ class QemuFirmware:
         cmd += ["-kernel", str(self.image)]
         return cmd + self.extra_args
 
-    @staticmethod
-    def _fdset(label: str) -> int:
-        return 1 if label == "bus" else 2
-
     def _open_ptys(self) -> None:
         for label, ep in (("bus", self.bus), ("pc", self.pc_link)):
             if ep.kind == "pty":
                 master, slave = os.openpty()
                 tty.setraw(slave)
                 self._ptys[label] = (master, slave, os.ttyname(slave))
+                self._pairs[label] = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
+
+    def _close_pairs(self) -> None:
+        for theirs, ours in self._pairs.values():
+            theirs.close()
+            if ours.fileno() >= 0 and not any(r.sock is ours for r in self._relays.values()):
+                ours.close()
+        self._pairs.clear()
+
+    def dropped(self, label: str = "pc") -> int:
+        """Bytes the firmware sent on a pty line (``"pc"`` or ``"bus"``) that the terminal
+        had no room for, because no client read them."""
+        relay = self._relays.get(label)
+        return 0 if relay is None else relay.dropped
 
     @property
     def _qmp_path(self) -> str:
@@ -371,15 +384,19 @@ class QemuFirmware:
                     stdout=log,
                     stderr=subprocess.STDOUT,
                     preexec_fn=_die_with_parent if self.die_with_parent else None,
-                    pass_fds=[master for master, _s, _p in self._ptys.values()],
+                    pass_fds=[theirs.fileno() for theirs, _ours in self._pairs.values()],
                 )
         except BaseException:
+            self._close_pairs()
             _close_ptys(self._ptys)
             shutil.rmtree(self._workdir, ignore_errors=True)
             raise
-        _close_ptys(self._ptys, masters_only=True)  # QEMU has them now
+        for label, (_theirs, ours) in self._pairs.items():
+            relay = PtyRelay(ours, self._ptys[label][0], f"snakebot.sim-qemu-{label}-relay")
+            self._relays[label] = relay.start()
+        self._close_pairs()  # QEMU has its ends; the relays have ours
         self._finalizer = weakref.finalize(
-            self, _finalize, self._proc, self._qmp_box, self._ptys, self._workdir
+            self, _finalize, self._proc, self._qmp_box, self._ptys, self._relays, self._workdir
         )
         try:
             self._qmp_box.append(self._connect_qmp(timeout))

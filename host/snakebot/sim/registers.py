@@ -1,11 +1,12 @@
-"""A servo's control table as a register file, checked against ``protocol/ax12.json``.
+"""A servo's control table as a register file, checked against its device description.
 
 The table (addresses, sizes, access, write ranges, factory defaults) comes from
-``snakebot.protocol.ControlTable``; nothing here repeats an address except through the
-register names. A write is checked as a whole before any byte changes: every byte must
-fall inside a writable register, multi-byte registers must be written whole (the AX-12
-manual: "both bytes need to be written at the same time"), and every value must be in
-its register's range. A failed check writes nothing and says which error bit to set.
+:mod:`snakebot.devices` through ``snakebot.protocol.ControlTable``; nothing here repeats
+an address except through the register names. A write is checked as a whole before any
+byte changes: every byte must fall inside a writable register, multi-byte registers must
+be written whole (the AX-12 manual: "both bytes need to be written at the same time"),
+and every value must be in its register's range. A failed check writes nothing and says
+which error bit to set.
 """
 
 from __future__ import annotations
@@ -46,20 +47,14 @@ class RegisterFile:
         last = self._by_name[LOCKED_WRITABLE[1]]
         self._locked_span = (first.address, last.address + last.size)
         self._layouts: dict[tuple[int, int, bool], tuple[Entry, ...] | None] = {}
-        self._ranges = {
-            e.name: (
-                0 if e.min is None else e.min,
-                (1 << (8 * e.size)) - 1 if e.max is None else e.max,
-            )
-            for e in table.entries
-        }
+        self._ranges = {e.name: e.value_range() for e in table.entries}
 
     @property
     def size(self) -> int:
         return self.table.size
 
     def entry(self, name: str) -> Entry:
-        """The register called ``name`` (exact spelling from ax12.json)."""
+        """The register called ``name`` (exact spelling from the description)."""
         return self._by_name[name]
 
     def get(self, name: str) -> int:

@@ -5,7 +5,8 @@
 1. the robot's virtual AX-12s on an emulated bus (:mod:`snakebot.sim.bus`), served on a Unix
    socket in a private work directory (:class:`~snakebot.sim.transports.unixsock.UnixSocketServer`,
    the bus clock tied to the wall clock);
-2. the world (:class:`snakebot.sim.world.World`): the body on the floor, sampling the servos
+2. the world (:class:`snakebot.sim.world.World`, or with ``world="mujoco"``
+   :class:`snakebot.sim.physics.PhysicsWorld`): the body on the floor, sampling the servos
    every 10 ms of bus time from the moment the firmware connects;
 3. ``qemu-system-arm`` running the firmware (:class:`snakebot.sim.qemu.QemuFirmware`) with
    USART1, the Dynamixel bus, connected to that socket and USART3, the PC link, on a
@@ -49,6 +50,8 @@ from snakebot.robots import Robot, load_robot
 from snakebot.sim.bus import Bus
 from snakebot.sim.errors import SimError
 from snakebot.sim.options import SimOptions
+from snakebot.sim.physics import PhysicsWorld
+from snakebot.sim.physics.select import DEFAULT_WORLD, check_world, make_world
 from snakebot.sim.qemu import REPO_ROOT, Endpoint, QemuFirmware
 from snakebot.sim.servo import VirtualServo
 from snakebot.sim.transports.unixsock import UnixSocketServer
@@ -228,7 +231,8 @@ class EmulatedRobot:
     ``robot``: a built-in name or a robot TOML file (or a :class:`Robot`). ``firmware``:
     the image to run (default ``build/qemu/firmware.elf``). ``sim_query``: extra emulator
     options as in a ``sim://`` URL (``corrupt=0.001&seed=3``; see ``snakebot sim bus
-    --help``). ``world_period``: seconds of bus time between the world's samples.
+    --help``). ``world_period``: seconds of bus time between the world's samples;
+    ``world``: "kinematic" or "mujoco" (the physics moves the servos).
     ``history_s``: how many seconds of the latest world samples and goals :meth:`record`
     and :meth:`goals` keep (None: all), so a robot served for hours needs bounded memory.
     """
@@ -240,8 +244,10 @@ class EmulatedRobot:
         *,
         sim_query: str = "",
         world_period: float = 0.01,
+        world: str = DEFAULT_WORLD,
         history_s: float | None = None,
     ) -> None:
+        self.world_kind = check_world(world)
         self.robot = robot if isinstance(robot, Robot) else load_robot(robot)
         self.history = None if history_s is None else max(1, round(history_s / world_period))
         self.firmware = Path(firmware) if firmware is not None else DEFAULT_FIRMWARE
@@ -250,7 +256,7 @@ class EmulatedRobot:
         self._workdir: str | None = None
         self._server: UnixSocketServer | None = None
         self._qemu: QemuFirmware | None = None
-        self._world: World | None = None
+        self._world: World | PhysicsWorld | None = None
         self._bus: Bus | None = None
         self._goals: GoalLog | None = None
         self._info: ServeInfo | None = None
@@ -275,8 +281,12 @@ class EmulatedRobot:
             sock = Path(self._workdir) / "bus.sock"
             self._server = UnixSocketServer(self._bus, sock).start()
             with self._server.lock:  # type: ignore[attr-defined]
-                self._world = World(
-                    self._bus, self.robot, period=self.world_period, keep=self.history
+                self._world = make_world(
+                    self.world_kind,
+                    self._bus,
+                    self.robot,
+                    period=self.world_period,
+                    keep=self.history,
                 )
                 self._goals = GoalLog(
                     self._bus,
@@ -385,7 +395,7 @@ class EmulatedRobot:
         return self._bus
 
     @property
-    def world(self) -> World:
+    def world(self) -> World | PhysicsWorld:
         if self._world is None:
             raise ServeError("the emulated robot is not running: call start() first")
         return self._world

@@ -27,6 +27,9 @@ What it does, as the ROBOTIS manuals describe (the choices they leave open are m
 
 Motion and heat follow ``snakebot.sim.motor``. ``ideal=True`` makes motion instant (the
 position is the goal), for comparing the emulated world with a prediction exactly.
+A physics world may own the motion instead (``world_driven``): it reads the controller's
+registers (:meth:`VirtualServo.controller`) and reports position, speed and load back
+(:meth:`VirtualServo.set_motion`); the servo keeps its heat, alarms and protocol.
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+from snakebot import devices
 from snakebot.protocol import (
     BROADCAST_ID,
     ControlTable,
@@ -43,8 +47,8 @@ from snakebot.protocol import (
     Instruction,
     Packet,
     Rejected,
-    status,
 )
+from snakebot.protocol.instructions import frame
 from snakebot.sim import motor
 from snakebot.sim.errors import SimOptionError
 from snakebot.sim.registers import RegisterFile
@@ -80,6 +84,9 @@ _SHADOWS = {
     "Torque Limit": "_torque_limit",
     "CW Compliance Margin": "_cw_margin",
     "CCW Compliance Margin": "_ccw_margin",
+    "CW Compliance Slope": "_cw_slope",
+    "CCW Compliance Slope": "_ccw_slope",
+    "Punch": "_punch",
     "CW Angle Limit": "_cw_limit",
     "CCW Angle Limit": "_ccw_limit",
     "Temperature Limit": "_temp_limit",
@@ -173,9 +180,23 @@ _SPEED_SETTINGS = tuple(motor.speed_setting(value) for value in range(motor.DIRE
 the setting depends on), worked out once."""
 
 
+_BAUD = devices.ax12().require_baud()
+
+
 def baud_from_register(value: int) -> float:
-    """Bits per second for a Baud Rate register value: 2 000 000 / (value + 1)."""
-    return 2_000_000 / (value + 1)
+    """Bits per second for a Baud Rate register value (the AX-12's baud formula)."""
+    return _BAUD.rate(value)
+
+
+def sync_write_shape(params: bytes) -> tuple[int, int] | None:
+    """(start address, bytes per servo block: ID + data) of SYNC_WRITE parameters, or
+    None when they cannot be split into whole blocks."""
+    if len(params) < 2:
+        return None
+    address, length = params[0], params[1]
+    if length == 0 or (len(params) - 2) % (length + 1):
+        return None
+    return address, length + 1
 
 
 class VirtualServo:
@@ -208,6 +229,8 @@ class VirtualServo:
         self.supply_v = self.spec.nominal_voltage
         self.external_torque = 0.0
         """Torque the outside world applies, N m (+ turns toward larger positions)."""
+        self.world_driven = False
+        """True while a physics world owns the motion (see :meth:`set_motion`)."""
         regs = self.regs
         goal, speed = regs.entry("Goal Position"), regs.entry("Moving Speed")
         self._goal_addr = goal.address
@@ -258,7 +281,7 @@ class VirtualServo:
         self.return_delay_s = self._return_delay_reg * 2e-6
         """Return Delay Time in seconds (2 us per unit)."""
         self.wheel_mode = self._cw_limit == 0 and self._ccw_limit == 0
-        self._speed_setting = _SPEED_SETTINGS[self._moving_speed & 1023]
+        self._speed_setting = _SPEED_SETTINGS[self._moving_speed & motor.SPEED_MAX]
         tenths = round(self.supply_v * 10)
         self._voltage_bad = not self._min_voltage <= tenths <= self._max_voltage
 
@@ -352,7 +375,71 @@ class VirtualServo:
         self.advance(t)
         self.external_torque = float(torque_nm)
 
+    def controller(self) -> tuple[float, ...]:
+        """What the servo's position controller works from, for a physics world:
+        (goal, Moving Speed setting in ticks/s (inf: no limit), torque on (0/1), Torque
+        Limit, CW margin, CCW margin, CW slope, CCW slope, Punch, supply volts, wheel mode
+        (0/1), raw Moving Speed). Torque is off while unpowered."""
+        on = 1.0 if self.powered and self._torque_enable == 1 and self._torque_limit > 0 else 0.0
+        return (
+            float(self._goal),
+            self._speed_setting,
+            on,
+            float(self._torque_limit),
+            float(self._cw_margin),
+            float(self._ccw_margin),
+            float(self._cw_slope),
+            float(self._ccw_slope),
+            float(self._punch),
+            self.supply_v,
+            1.0 if self.wheel_mode else 0.0,
+            float(self._moving_speed),
+        )
+
+    def set_motion(
+        self,
+        t: float,
+        pos: float,
+        vel: float,
+        load_fraction: float,
+        load_cw: bool,
+        moving: bool,
+        overload: bool,
+    ) -> None:
+        """A physics world's report at bus time ``t``: position (ticks), speed (ticks/s),
+        load (fraction of stall torque, ``load_cw``: pushing toward smaller positions),
+        whether it moves, whether the load exceeds what it may give. Heat and alarms
+        follow from them as for the servo's own motion."""
+        self.world_driven = True
+        self.advance(t)
+        self.pos = pos
+        self.vel = vel
+        self.load_fraction = load_fraction if load_fraction < 1.0 else 1.0
+        self.load_cw = load_cw
+        self.moving = moving
+        self.overload = overload and self.powered
+        if self.overload:
+            conditions = self._conditions()
+            if conditions & self._shutdown:
+                self._alarm(conditions)
+
+    def _heat(self, fraction: float, dt: float) -> None:
+        temp = self.temp
+        if fraction or temp != _AMBIENT_C:
+            steady = _AMBIENT_C + self._stall_rise * fraction * fraction
+            temp = self.temp = steady + (temp - steady) * _exp(-dt / self._thermal_tau)
+        if self.overload or self._voltage_bad or temp >= self._temp_limit + 0.5:
+            conditions = self._conditions()
+            if conditions & self._shutdown:
+                self._alarm(conditions)
+
     def _step(self, dt: float) -> None:
+        if self.world_driven:  # the world set the motion; heat and alarms stay ours
+            if self.powered:
+                self._heat(self.load_fraction, dt)
+            else:
+                self.temp = motor.thermal_step(self.temp, 0.0, dt, self.spec)
+            return
         if not self.powered:
             self.vel = 0.0
             self.moving = False
@@ -365,7 +452,7 @@ class VirtualServo:
         external = self.external_torque
         if external:
             stall = self._stall
-            available = stall * limit / 1023.0
+            available = stall * limit / motor.TORQUE_FULL
             load = -external if external < 0.0 else external
             overload = torque_on and load > available
             scale = 1.0 - load / stall
@@ -379,7 +466,7 @@ class VirtualServo:
         if torque_on and not overload:
             if wheel:
                 value = self._moving_speed
-                v = (value & 1023) / 1023.0 * self._vmax_wheel
+                v = (value & motor.SPEED_MAX) / motor.SPEED_MAX * self._vmax_wheel
                 if external:
                     v *= scale
                 if value & motor.DIRECTION_BIT:
@@ -422,14 +509,7 @@ class VirtualServo:
             fraction = self._moving_load if delta else 0.0
         self.load_fraction = fraction if fraction < 1.0 else 1.0
         self.load_cw = external > 0 if external else delta < 0
-        temp = self.temp
-        if fraction or temp != _AMBIENT_C:
-            steady = _AMBIENT_C + self._stall_rise * fraction * fraction
-            temp = self.temp = steady + (temp - steady) * _exp(-dt / self._thermal_tau)
-        if overload or self._voltage_bad or temp >= self._temp_limit + 0.5:
-            conditions = self._conditions()
-            if conditions & self._shutdown:
-                self._alarm(conditions)
+        self._heat(fraction, dt)
 
     def _conditions(self) -> int:
         flags = _VOLTAGE if self._voltage_bad else 0
@@ -448,21 +528,30 @@ class VirtualServo:
             self.latched |= shut
             self.overload = False
 
-    def _refresh_present(self) -> None:
+    def _refresh_present(self, first: int = 0, end: int = 1 << 16) -> None:
+        """Bring the present-state registers that overlap addresses ``first``..``end - 1``
+        (default: all of them) up to date from the physics; a READ refreshes only what
+        it reads."""
         image = self.regs.image
         position, speed, load, voltage, temperature, moving = self._present_addr
-        value = self.present_position
-        image[position] = value & 0xFF
-        image[position + 1] = value >> 8
-        value = motor.speed_register(self.vel)
-        image[speed] = value & 0xFF
-        image[speed + 1] = value >> 8
-        value = motor.load_register(self.load_fraction, self.load_cw)
-        image[load] = value & 0xFF
-        image[load + 1] = value >> 8
-        image[voltage] = max(0, min(255, round(self.supply_v * 10)))
-        image[temperature] = max(0, min(255, round(self.temp)))
-        image[moving] = int(self.moving)
+        if first < position + 2 and position < end:
+            value = self.present_position
+            image[position] = value & 0xFF
+            image[position + 1] = value >> 8
+        if first < speed + 2 and speed < end:
+            value = motor.speed_register(self.vel)
+            image[speed] = value & 0xFF
+            image[speed + 1] = value >> 8
+        if first < load + 2 and load < end:
+            value = motor.load_register(self.load_fraction, self.load_cw)
+            image[load] = value & 0xFF
+            image[load + 1] = value >> 8
+        if first <= voltage < end:
+            image[voltage] = max(0, min(255, round(self.supply_v * 10)))
+        if first <= temperature < end:
+            image[temperature] = max(0, min(255, round(self.temp)))
+        if first <= moving < end:
+            image[moving] = int(self.moving)
 
     @property
     def errors(self) -> ErrorFlags:
@@ -518,7 +607,7 @@ class VirtualServo:
         reply = None
         if target != BROADCAST_ID and self._answers(code):
             error = flags | self._conditions() | self.latched
-            reply = (status(self._id if code != _RESET else my_id, error, data), baud)
+            reply = (frame(self._id if code != _RESET else my_id, error, data), baud)
         if code == _RESET:
             self.factory_reset()
         return reply
@@ -532,13 +621,14 @@ class VirtualServo:
         if not self._answers(data[4]):
             return None
         error = _CHECKSUM | self._conditions() | self.latched
-        return status(self._id, error), self.baudrate
+        return frame(self._id, error), self.baudrate
 
     def _read(self, params: bytes) -> tuple[int, bytes]:
         if len(params) != 2:
             return _RANGE, b""
-        self._refresh_present()
-        data = self.regs.read(params[0], params[1])
+        address, length = params[0], params[1]
+        self._refresh_present(address, address + length)
+        data = self.regs.read(address, length)
         if data is None:
             return _RANGE, b""
         return 0, data
@@ -577,13 +667,13 @@ class VirtualServo:
             if cw or ccw:  # joint mode
                 if not cw <= goal <= ccw:
                     return _ANGLE
-                if speed > 1023:
+                if speed > motor.SPEED_MAX:
                     return _RANGE
             self.regs.image[address : address + n] = data
             self._goal = goal
             if n == 4:
                 self._moving_speed = speed
-                self._speed_setting = _SPEED_SETTINGS[speed & 1023]
+                self._speed_setting = _SPEED_SETTINGS[speed & motor.SPEED_MAX]
             if self._torque_enable != 1:
                 self.regs.set("Torque Enable", 1)  # a goal switches the torque on
                 self._torque_enable = 1
@@ -606,7 +696,7 @@ class VirtualServo:
             if cw or ccw:  # joint mode
                 if goal >= 0 and not cw <= values[goal] <= ccw:
                     return _ANGLE
-                if speed >= 0 and values[speed] > 1023:
+                if speed >= 0 and values[speed] > motor.SPEED_MAX:
                     return _RANGE
         if registered:
             self._pending = (plan, data, values)
@@ -634,26 +724,33 @@ class VirtualServo:
         if plan.derive:
             self._derive()
         elif plan.speed >= 0:  # all that _derive would change
-            self._speed_setting = _SPEED_SETTINGS[self._moving_speed & 1023]
+            self._speed_setting = _SPEED_SETTINGS[self._moving_speed & motor.SPEED_MAX]
         if link is not None and (self.baudrate, self._id) != link:
             self._link_changed()
         if eeprom and self.on_eeprom_change is not None:
             self.on_eeprom_change(self)
 
     def _sync_write(self, params: bytes, my_id: int) -> None:
-        if len(params) < 2:
-            return
-        address, length = params[0], params[1]
-        block = length + 1
-        n = len(params)
-        if length == 0 or (n - 2) % block:
+        shape = sync_write_shape(params)
+        if shape is None:
             return  # malformed: a real servo cannot find its slice either
+        address, block = shape
         k = params[2::block].find(my_id)  # the first block that names this servo
         if k >= 0:
             i = 2 + k * block
-            flags = self._write_at(address, params[i + 1 : i + block], False)
-            if flags:
-                self._alarm(flags)
+            self._write_block(address, params[i + 1 : i + block])
+
+    def _write_block(self, address: int, data: bytes) -> None:
+        flags = self._write_at(address, data, False)
+        if flags:
+            self._alarm(flags)
+
+    def sync_write_block(self, address: int, data: bytes, t: float) -> None:
+        """This servo's block of a broadcast SYNC_WRITE heard at bus time ``t`` (the bus
+        parses the packet once and hands each servo named in it its own block)."""
+        if self.powered:
+            self.advance(t)
+            self._write_block(address, data)
 
     def factory_reset(self) -> None:
         """RESET: every register back to its factory value (ID 1, 1 Mbps), as at power-on."""

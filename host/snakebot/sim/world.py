@@ -27,10 +27,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from snakebot.core import lib
 from snakebot.errors import SnakebotError
 from snakebot.gait.common import PREDICT_OPTIONS, REGULARISING_CT
 from snakebot.kinematics import KinematicsError, Options, Table, integrate_joints
+from snakebot.kinematics.ccore import SINGULAR_CODES
 from snakebot.robots import Robot
 from snakebot.sim.bus import Bus
 
@@ -39,9 +39,6 @@ DEFAULT_PERIOD_S = 0.01
 
 DEFAULT_BATCH = 256
 """Samples integrated per C call (fewer when the pose is asked for sooner)."""
-
-SINGULAR_CODES = (lib.KIN_ESINGULAR, lib.KIN_EINADMISSIBLE, lib.KIN_ESTEPSIZE)
-"""Core statuses of a motion that ideal wheels cannot follow (a singular crossing)."""
 
 
 class WorldError(SnakebotError):
@@ -124,6 +121,19 @@ def integrate_samples(
     return q, slip
 
 
+def require_servos(bus: Bus, robot: Robot) -> tuple[int, ...]:
+    """The robot's servo IDs, once checked to be on the bus (a world drives them all)."""
+    ids = robot.servo_ids
+    missing = [i for i in ids if all(s.id != i for s in bus.servos)]
+    if missing:
+        raise WorldError(
+            f"{robot.name} drives servos {list(ids)} but the bus has no servo with ID "
+            f"{', '.join(map(str, missing))}: build the bus for this robot "
+            f"(sim://?robot={robot.source or robot.name})"
+        )
+    return ids
+
+
 class World:
     """The body of ``robot`` driven by the servos on ``bus``.
 
@@ -158,14 +168,7 @@ class World:
             raise WorldError(f"batch must be at least 1 sample, not {batch}")
         if keep is not None and keep < 1:
             raise WorldError(f"keep must be at least 1 sample, not {keep}")
-        ids = robot.servo_ids
-        missing = [i for i in ids if all(s.id != i for s in bus.servos)]
-        if missing:
-            raise WorldError(
-                f"{robot.name} drives servos {list(ids)} but the bus has no servo with ID "
-                f"{', '.join(map(str, missing))}: build the bus for this robot "
-                f"(sim://?robot={robot.source or robot.name})"
-            )
+        ids = require_servos(bus, robot)
         self.bus = bus
         self.robot = robot
         self.period = float(period)

@@ -36,7 +36,7 @@ def field_expressions(robot: Robot, form: str = "body") -> Expressions:
     if model.name == "trident":
         for sym, value in zip(model.params[2:], robot.alphas, strict=True):
             subs[sym] = _angle(value)
-    else:
+    elif model.name == "snake3":
         subs[model.q[2]] = sp.Integer(0)
         frame = (
             "link 1's frame (these are the fields at theta = 0; at any theta, "

@@ -119,10 +119,31 @@ def trident(form: str = "body") -> SymbolicModel:
     return SymbolicModel("trident", form, tuple(q), (r, l, *alphas), fields, brackets, None)
 
 
+@cache
+def car() -> SymbolicModel:
+    """The car of the thesis's first chapter: q = (x, y, theta, Phi), steering
+    S = d/dPhi, drive D = cos theta d/dx + sin theta d/dy + tan(Phi) / L d/dtheta;
+    R = [S, D] and T = [R, D] (kinematics/lie.py computes the same numerically)."""
+    x, y, theta, steer = sp.symbols("x y theta Phi", real=True)
+    wheelbase = sp.Symbol("L", positive=True)
+    q = sp.Matrix([x, y, theta, steer])
+    fields = {
+        "S": sp.Matrix([0, 0, 0, 1]),
+        "D": sp.Matrix([sp.cos(theta), sp.sin(theta), sp.tan(steer) / wheelbase, 0]),
+    }
+    brackets = {"R": ("S", "D"), "T": ("R", "D")}
+    for h, (a, b) in brackets.items():
+        fields[h] = lie_bracket(fields[a], fields[b], q)
+    return SymbolicModel("car", "car", tuple(q), (wheelbase,), fields, brackets, None)
+
+
 def model_for(kind: str, links: int = 3, form: str = "body") -> SymbolicModel:
-    """The symbolic model for a robot kind; only the 3-link snake and the trident have one."""
+    """The symbolic model for a robot kind: the 3-link snake and the trident (other
+    snakes' fields are computed numerically with exact derivatives: kinematics.lie)."""
     if kind == "trident":
         return trident(form)
     if kind == "snake" and links == 3:
         return snake3()
-    raise ValueError(f"no control vector fields for a {links}-link snake")
+    if kind == "car":
+        return car()
+    raise ValueError(f"no symbolic model for a {links}-link {kind}: see kinematics.lie")

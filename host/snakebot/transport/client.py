@@ -27,17 +27,18 @@ What makes a transaction trustworthy on a real bus:
 
 from __future__ import annotations
 
+import functools
 import threading
 import time
 from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import TracebackType
-from typing import Literal
 
 import serial
 
-from snakebot import protocol
+from snakebot import devices, protocol
+from snakebot.devices import Device
 from snakebot.protocol import (
     BROADCAST_ID,
     CorruptPacket,
@@ -50,17 +51,11 @@ from snakebot.protocol import (
     Rejected,
     ServoError,
 )
-from snakebot.protocol.control_table import ControlTable
 from snakebot.transport import settings
+from snakebot.transport.portio import PortIO
 from snakebot.transport.ports import open_port
 from snakebot.transport.settings import EchoSetting
 from snakebot.transport.timing import DEFAULT_BAUDRATE, STATUS_OVERHEAD, BusTiming
-
-STATUS_RETURN_LEVEL_ADDR = 16
-"""AX-12 control-table address of Status Return Level (0: PING only, 1: +READ, 2: all)."""
-
-MODEL_NUMBER_ADDR = 0
-"""AX-12 control-table address of the 2-byte model number (12 for AX-12A, 300 for AX-12W)."""
 
 DEFAULT_STATUS_RETURN_LEVEL = 2
 """Factory setting: every instruction addressed to one servo is answered."""
@@ -68,10 +63,6 @@ DEFAULT_STATUS_RETURN_LEVEL = 2
 RESEND_FLAGS = ErrorFlags.CHECKSUM | ErrorFlags.INSTRUCTION
 """Status error bits saying the servo did not act on the instruction because it arrived
 damaged: the instruction is sent again, like after a damaged reply."""
-
-DEFAULT_REGISTERS_MODEL = "AX-12A"
-"""Whose register ranges values read from servos are checked against (the AX-12W has the
-same layout and ranges)."""
 
 RECENT_SENDS = 8
 """How many earlier instructions are remembered, so that their late echoes are recognised."""
@@ -120,14 +111,13 @@ class DxlClient:
     its echo. Until it has decided, a packet identical to the instruction is never taken
     for the reply.
     ``status_return_level``: what every servo is assumed to be set to (default 2);
-    change one servo's with :meth:`set_status_return_level`. Writes to address 16 made
-    through this client update it automatically.
-    ``status_return_level_address``: where the devices on this port keep their Status
-    Return Level (16 on AX servos); None for a device whose address 16 means something
-    else, such as the snakebot controller, so writes there are not taken for it.
-    ``registers``: the control table whose ranges values read are checked against; "auto"
-    (the default): the AX-12's when the devices are AX servos (Status Return Level at
-    16), none otherwise; None: no check.
+    change one servo's with :meth:`set_status_return_level`. Writes to the Status Return
+    Level register made through this client update it automatically.
+    ``device``: the kind of device on this port (an AX-12A unless told otherwise, e.g.
+    ``snakebot.devices.controller()`` on the PC link): where its Status Return Level
+    and Model Number live comes from its description.
+    ``check_ranges``: whether every value read is checked against its register's range
+    in the device description (default True).
 
     Transactions from several threads are serialised. The client sets the port's read
     timeout itself, so a port handed in should not be read by anyone else meanwhile.
@@ -145,8 +135,8 @@ class DxlClient:
         echo: EchoSetting | None = None,
         echo_probe_s: float | None = None,
         status_return_level: int = DEFAULT_STATUS_RETURN_LEVEL,
-        status_return_level_address: int | None = STATUS_RETURN_LEVEL_ADDR,
-        registers: ControlTable | Literal["auto"] | None = "auto",
+        device: Device | None = None,
+        check_ranges: bool = True,
     ) -> None:
         self.retries = settings.resolve_retries(retries)
         echo_setting = settings.resolve_echo(echo)
@@ -158,13 +148,10 @@ class DxlClient:
         }
         self._default_level = _check_level(status_return_level)
         self._levels: dict[int, int] = {}
-        self._level_address = status_return_level_address
-        if registers == "auto":
-            registers = None
-            if status_return_level_address == STATUS_RETURN_LEVEL_ADDR:
-                registers = ControlTable.for_model(DEFAULT_REGISTERS_MODEL)
-        self.registers: ControlTable | None = registers
-        self._range_checks: dict[tuple[int, int], list[tuple[str, int, int, int, int]]] = {}
+        self.device = device or devices.ax12()
+        self._level_address = self.device.status_return_level_address
+        self.check_ranges = check_ranges
+        self._range_checks: dict[tuple[int, int], list[tuple[str, int, int, bool, int, int]]] = {}
         if isinstance(port, str):
             self._port = open_port(port, baudrate or DEFAULT_BAUDRATE, timeout=0)
             self._owns_port = True
@@ -173,6 +160,7 @@ class DxlClient:
             self._owns_port = False
             if baudrate is not None and port.baudrate != baudrate:
                 port.baudrate = baudrate
+        self._io = PortIO(self._port)
         self.timing = BusTiming(baudrate=int(self._port.baudrate), **timing_kwargs)
         # None: not known yet ("auto" before the first answered transaction).
         self._echo: bool | None = None if echo_setting == "auto" else bool(echo_setting)
@@ -224,7 +212,7 @@ class DxlClient:
 
     def set_status_return_level(self, servo_id: int, level: int) -> None:
         """Tell the client what ``servo_id`` is set to (broadcast ID: every servo). This
-        does not write the servo; write address 16 for that."""
+        does not write the servo; write its Status Return Level register for that."""
         level = _check_level(level)
         if servo_id == BROADCAST_ID:
             self._default_level = level
@@ -316,9 +304,10 @@ class DxlClient:
         parser = self._parser
         seen = _Attempt()
         echo = self._echo
+        io = self._io
         port.reset_input_buffer()
         parser.reset()
-        port.write(packet)
+        io.write(packet)
         deadline = time.monotonic() + timeout
         status_len = STATUS_OVERHEAD + expect_len
         data = b""
@@ -359,9 +348,7 @@ class DxlClient:
             want = status_len - parser.pending
             if echo is True and not seen.echo_seen:
                 want += len(packet)
-            if self._read_timeout is None or abs(self._read_timeout - remaining) > 1e-4:
-                port.timeout = self._read_timeout = remaining
-            data = port.read(want if want > 1 else 1)
+            data = io.read(want if want > 1 else 1, remaining)
 
     def _settle_echo(self, heard: Packet, expect_id: int, expect_len: int) -> Packet | None:
         """Decide an ambiguous first transaction in "auto" echo mode.
@@ -473,9 +460,10 @@ class DxlClient:
         if self.status_return_level(servo_id) < 1:
             raise ProtocolError(
                 f"servo {servo_id} is set to Status Return Level 0, so it never answers "
-                "READ: write 1 or 2 to its address 16, then call set_status_return_level"
+                "READ: write 1 or 2 to its Status Return Level, then call "
+                "set_status_return_level"
             )
-        packet = protocol.read(servo_id, address, length)
+        packet = _read_packet(servo_id, address, length)
         for _ in range(1 + self.retries):
             data = self.transact(packet, servo_id, length).params
             wrong = self._out_of_range(address, data)
@@ -510,24 +498,27 @@ class DxlClient:
         checks = self._range_checks.get(key)
         if checks is None:
             checks = self._range_checks[key] = self._ranges_within(address, len(data))
-        for name, offset, size, low, high in checks:
-            value = int.from_bytes(data[offset : offset + size], "little")
+        for name, offset, size, signed, low, high in checks:
+            value = int.from_bytes(data[offset : offset + size], "little", signed=signed)
             if not low <= value <= high:
                 return f"{name} = {value}, outside its range {low}..{high}"
         return None
 
-    def _ranges_within(self, address: int, length: int) -> list[tuple[str, int, int, int, int]]:
-        """(name, offset, size, low, high) of each register with a documented range that
-        lies wholly within ``length`` bytes from ``address``."""
-        if self.registers is None:
+    def _ranges_within(
+        self, address: int, length: int
+    ) -> list[tuple[str, int, int, bool, int, int]]:
+        """(name, offset, size, signed, low, high) of each readable register of the device
+        with a documented range that lies wholly within ``length`` bytes from ``address``."""
+        if not self.check_ranges:
             return []
         return [
-            (e.name, e.address - address, e.size, e.min, e.max)
-            for e in self.registers
-            if e.min is not None
-            and e.max is not None
-            and address <= e.address
-            and e.address + e.size <= address + length
+            (r.name, r.address - address, r.size, r.signed, r.min, r.max)
+            for r in self.device.registers
+            if r.readable
+            and r.min is not None
+            and r.max is not None
+            and address <= r.address
+            and r.end <= address + length
         ]
 
     def read_u8(self, servo_id: int, address: int) -> int:
@@ -540,7 +531,7 @@ class DxlClient:
 
     def model_number(self, servo_id: int) -> int:
         """The servo's model number (12 for an AX-12A, 300 for an AX-12W)."""
-        return self.read_u16(servo_id, MODEL_NUMBER_ADDR)
+        return self.read_u16(servo_id, self.device.register("Model Number").address)
 
     def write(self, servo_id: int, address: int, data: bytes) -> None:
         """WRITE ``data`` at ``address`` (waits for the status if the servo sends one)."""
@@ -601,6 +592,13 @@ class DxlClient:
         self.send(protocol.sync_write(address, length, data))
         for servo_id, chunk in data.items():
             self._after_write(servo_id, address, bytes(chunk))
+
+
+@functools.lru_cache(maxsize=1024)
+def _read_packet(servo_id: int, address: int, length: int) -> bytes:
+    """``protocol.read``, built once per (ID, address, length): a control loop reads the
+    same registers of the same servos over and over."""
+    return protocol.read(servo_id, address, length)
 
 
 def _require_device(servo_id: int, what: str) -> None:

@@ -1,0 +1,132 @@
+"""Benchmark: gait search throughput and how it scales.
+
+1. Evaluations per second per core of one search run, in this process (CPU time, so
+   other processes on the machine count less): the kinematic world (snake5, a 3-cycle
+   serpenoid; goal 1000/s) and the physics world (the same 3-cycle run in MuJoCo on the
+   emulated bus; goal 5/s).
+2. Parallel efficiency from 1 to 2 workers (goal 80 %): the same kinematic grid on a
+   local process pool and on a Dask LocalCluster (loopback), each with 1 then 2 workers;
+   efficiency = T(1) / (2 T(2)), pools started and warmed before the clock starts.
+
+Ratios are against the goals; a missed goal prints MISS. The machine may be shared:
+the load average is printed with the figures.
+
+    .venv/bin/python bench/bench_search.py [--quick]
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import time
+
+from snakebot.search import LocalRunner, Request, Search, Settings, Space
+from snakebot.search.evaluate import evaluate_many
+from snakebot.search.runner import DaskRunner, Runner
+
+GOAL_KINEMATIC = 1000.0
+GOAL_PHYSICS = 5.0
+GOAL_EFFICIENCY = 0.80
+CYCLES = 3
+POINT = {
+    "amplitude": math.radians(30),
+    "omega": math.radians(360),
+    "delta": math.radians(60),
+    "offset": 0.0,
+}
+
+
+def verdict(value: float, goal: float) -> str:
+    return f"ratio {value / goal:.2f}" + ("" if value >= goal else "  MISS")
+
+
+def per_core(world: str, runs: int) -> float:
+    """Runs per CPU second of this process (after one warm-up run)."""
+    settings = Settings("snake5", world, CYCLES, 50.0)
+    evaluate_many(settings, [POINT])
+    points = [
+        {**POINT, "amplitude": math.radians(20 + 20 * k / max(1, runs - 1))} for k in range(runs)
+    ]
+    cpu0 = time.process_time()
+    rows = evaluate_many(settings, points)
+    cpu = time.process_time() - cpu0
+    assert all(r["status"] == "ok" for r in rows), rows[0]["reason"]
+    return runs / cpu
+
+
+def timed_search(runner: Runner, count: int) -> float:
+    """Wall time of a kinematic grid of ``count`` x 10 candidates on ``runner``."""
+    space = Space.parse((f"A=20deg:40deg:{count}", "delta=10deg:150deg:10", "omega=360deg"))
+    request = Request(Settings("snake5", "kinematic", CYCLES, 50.0), space)
+    Search(
+        Request(request.settings, Space.parse(("A=30deg:31deg:4", "delta=1", "omega=6"))), runner
+    ).run()
+    t0 = time.perf_counter()
+    Search(request, runner).run()
+    return time.perf_counter() - t0
+
+
+def efficiency(make, count: int, rounds: int) -> tuple[float, float, float]:  # noqa: ANN001
+    times = {}
+    for workers in (1, 2):
+        runner = make(workers)
+        try:
+            times[workers] = min(timed_search(runner, count) for _ in range(rounds))
+        finally:
+            runner.close()
+    return times[1], times[2], times[1] / (2 * times[2])
+
+
+def dask_runner(workers: int) -> Runner:
+    from distributed import LocalCluster
+
+    cluster = LocalCluster(
+        n_workers=workers,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address=None,
+    )
+    runner = DaskRunner(cluster.scheduler_address)
+    close = runner.close
+
+    def close_both() -> None:
+        close()
+        cluster.close()
+
+    runner.close = close_both  # type: ignore[method-assign]
+    return runner
+
+
+def main() -> int:
+    quick = "--quick" in sys.argv
+    print(f"== machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}")
+    kin = per_core("kinematic", 300 if quick else 1000)
+    phys = per_core("mujoco", 3 if quick else 10)
+    print(f"== one run: snake5 serpenoid, {CYCLES} cycles of 1 s at 50 Hz, per CPU second")
+    print(
+        f"   kinematic world: {kin:8.1f} runs/s/core "
+        f"(goal {GOAL_KINEMATIC:.0f}: {verdict(kin, GOAL_KINEMATIC)})"
+    )
+    print(
+        f"   physics world:   {phys:8.2f} runs/s/core "
+        f"(goal {GOAL_PHYSICS:.0f}: {verdict(phys, GOAL_PHYSICS)})"
+    )
+    count, rounds = (60, 2) if quick else (200, 3)
+    print(
+        f"== parallel efficiency, 1 -> 2 workers: a kinematic grid of {count * 10} runs, "
+        f"best of {rounds}"
+    )
+    for label, make in (("local process pool", LocalRunner), ("Dask LocalCluster", dask_runner)):
+        t1, t2, eff = efficiency(make, count, rounds)
+        print(
+            f"   {label:19} {t1:6.2f} s -> {t2:6.2f} s: {100 * eff:5.1f} % "
+            f"(goal {100 * GOAL_EFFICIENCY:.0f} %: {verdict(eff, GOAL_EFFICIENCY)})"
+        )
+    print(f"== load average after: {os.getloadavg()[0]:.1f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

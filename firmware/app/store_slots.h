@@ -1,0 +1,39 @@
+/* A record store in flash that survives a power cut at any instant: the region is split
+ * into two slots, each holding at most one record
+ *
+ *     0  magic "SNKS"   4  sequence number (u32)   8  length (u16)   10  0xFFFF
+ *    12  CRC-32 of the data   16  the data
+ *
+ * A save erases and writes the slot that does NOT hold the newest record, and programs
+ * the magic last; the newest valid record (magic, length and CRC all right, highest
+ * sequence number) is the one loaded. A cut during a save therefore leaves either the
+ * previous record (the new one has no magic or a wrong CRC) or the new one, never
+ * neither. Flash is read with hal_io_read16 like everything the HAL touches, so the store
+ * runs on the host against the flash register model too. */
+#ifndef SNAKEBOT_STORE_SLOTS_H
+#define SNAKEBOT_STORE_SLOTS_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "hal_flash.h"
+
+#define STORE_SLOTS_HEADER_BYTES 16U
+
+typedef struct {
+    uint32_t offset; /* where the data starts, from the region's base */
+    uint32_t len;    /* bytes of data */
+    uint32_t seq;    /* sequence number: higher (mod 2^32) is newer */
+} store_record_t;
+
+/* The largest record the region takes (the region must be an even number of pages). */
+uint32_t store_slots_capacity(const hal_flash_region_t *r);
+
+/* The newest valid record into *out; false if there is none. */
+bool store_slots_newest(const hal_flash_region_t *r, store_record_t *out);
+
+/* Write data[0..len) as a new record in the slot not holding the newest one. */
+hal_flash_status_t store_slots_save(const hal_flash_region_t *r, const uint8_t *data,
+                                    uint32_t len);
+
+#endif

@@ -1,0 +1,10 @@
+"""The devices package's exception."""
+
+from __future__ import annotations
+
+from snakebot.errors import SnakebotError
+
+
+class DeviceError(SnakebotError):
+    """An unknown device or register, a value a register cannot hold, or a broken
+    description file; the message says which and what to do."""

@@ -1,0 +1,339 @@
+"""The physics world: the robot's body on a floor, in MuJoCo, moved by AX-12 actuators that
+the virtual servos' registers command.
+
+It has the interface of the kinematic :class:`snakebot.sim.world.World` (built on a bus,
+sampling every ``period`` of bus time, ``pose``, ``record()``, ``stop()``), but the
+servos do not move themselves: every control period (``control_period`` of bus time) the
+world reads each servo's controller registers, works out its motor's drive
+(:mod:`snakebot.sim.physics.actuator`), steps MuJoCo over the period, and reports the
+joint's position, speed and load back to the servo
+(:meth:`snakebot.sim.servo.VirtualServo.set_motion`), so a master reading Present
+Position, Present Speed or Present Load over the bus sees the physics, and a joint that
+cannot deliver the torque asked of it reports overload.
+
+The record is the kinematic world's (pose in the robot's length units, joint angles,
+each wheel's sideways slip speed) plus each joint's motor torque, load and the energy it
+put in (the integral of torque times joint speed; negative while the joint is driven
+backwards).
+
+    world = PhysicsWorld(bus, robot)   # samples from now, every 10 ms of bus time
+    bus.run_until(bus.now + 2.0)       # ... while a master drives the servos
+    rec = world.record()
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from snakebot.robots import TICKS_PER_RAD, Robot
+from snakebot.sim.bus import Bus
+from snakebot.sim.physics.actuator import OVERLOAD_HOLD_S, STALLED_FRACTION, Actuator
+from snakebot.sim.physics.mjcf import CONTROL_PERIOD_S, TIMESTEP_S, build_mjcf, physics_of
+from snakebot.sim.world import DEFAULT_PERIOD_S, WorldError, WorldRecord, require_servos
+
+PENETRATION_LIMIT = 0.5
+"""A wheel whose centre sinks below this fraction of its radius means the contact solver
+has failed: the run stops."""
+
+
+class PhysicsError(WorldError):
+    """The physics cannot go on (blow-up, deep penetration) or cannot start."""
+
+
+def _mujoco() -> Any:
+    try:
+        import mujoco
+    except ImportError:  # pragma: no cover - mujoco is a dev and physics dependency
+        raise PhysicsError(
+            "the physics world needs MuJoCo: pip install 'snakebot[physics]' (make setup "
+            "installs it)"
+        ) from None
+    return mujoco
+
+
+@dataclass(frozen=True)
+class PhysicsRecord(WorldRecord):
+    """:class:`WorldRecord` plus, per sample and joint, the motor ``torque`` (N m at the
+    joint, + in the joint's positive direction) and ``load`` (fraction of the stall
+    torque); per joint the ``energy`` put in (J); and the wheel-floor ``mu``."""
+
+    torque: np.ndarray
+    load: np.ndarray
+    energy: np.ndarray
+    mu: float
+    timestep: float
+
+    def physics_summary(self) -> dict[str, Any]:
+        """What the physics adds to a report: per wheel the largest sideways slip speed
+        (robot length units per second; the distance slid is ``slip_distance``), per
+        joint the energy (J) and the peak load (fraction of stall torque)."""
+        slip = np.abs(self.slip)
+        return {
+            "c_t": None,  # the physics has Coulomb friction and free wheels instead
+            "mu": self.mu,
+            "timestep_s": self.timestep,
+            "wheel_slip_speed_max": [float(v) for v in slip.max(axis=0)]
+            if len(slip)
+            else [0.0] * self.slip.shape[1],
+            "energy_j": [float(v) for v in self.energy],
+            "peak_load": [float(v) for v in self.load.max(axis=0)]
+            if len(self.load)
+            else [0.0] * self.load.shape[1],
+        }
+
+
+class PhysicsWorld:
+    """The body of ``robot`` in MuJoCo, driven by the servos on ``bus``.
+
+    Sampling starts at bus time ``start`` (default: now), every ``period`` seconds until
+    :meth:`stop`; the control period and the MuJoCo step are at most ``control_period``
+    and ``timestep``, shortened to divide the sampling period. ``keep``: how many of the
+    latest samples the record keeps (default all; a server that runs for days keeps
+    few). ``pose`` is the body pose at the start (robot units, radians); the joints
+    start where the servos are. ``mu`` overrides the wheel-floor friction coefficient of
+    the robot's ``[physics]`` table.
+    """
+
+    def __init__(
+        self,
+        bus: Bus,
+        robot: Robot,
+        *,
+        period: float = DEFAULT_PERIOD_S,
+        start: float | None = None,
+        pose: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        mu: float | None = None,
+        timestep: float = TIMESTEP_S,
+        control_period: float = CONTROL_PERIOD_S,
+        keep: int | None = None,
+    ) -> None:
+        mujoco = _mujoco()
+        if not min(period, timestep, control_period) > 0:
+            raise PhysicsError(
+                f"the world's period ({period}), control period ({control_period}) and time "
+                f"step ({timestep}) must be positive"
+            )
+        phys = physics_of(robot)
+        ids = require_servos(bus, robot)
+        # the sampling period is kept exactly; control period and step shrink to divide it
+        self.steps_per_sample = max(1, math.ceil(period / control_period - 1e-9))
+        self.period = float(period)
+        self.control_period = self.period / self.steps_per_sample
+        self.substeps = max(1, math.ceil(self.control_period / timestep - 1e-9))
+        self.timestep = self.control_period / self.substeps
+        xml, names = build_mjcf(robot, timestep=self.timestep, mu=mu)
+        self._mj = mujoco
+        self.model = mujoco.MjModel.from_xml_string(xml)
+        self.data = mujoco.MjData(self.model)
+        self.bus = bus
+        self.robot = robot
+        self.unit = phys.unit_m
+        self.mu = phys.mu if mu is None else float(mu)
+        self.start_time = bus.now if start is None else float(start)
+        self.actuator = Actuator.for_model(robot.servo_model)
+        self._servos = [bus.servo(i) for i in ids]
+        self._signs = [float(j.sign) for j in robot.joints]
+        self._zeros = [float(j.zero_tick) for j in robot.joints]
+        m = self.model
+        jid = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in names.joints]
+        self._qadr = [int(m.jnt_qposadr[j]) for j in jid]
+        self._dadr = [int(m.jnt_dofadr[j]) for j in jid]
+        self._qadr_np, self._dadr_np = np.array(self._qadr), np.array(self._dadr)
+        self._wheels = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n) for n in names.wheels]
+        # the base slides in z from the wheels' resting height (their radius)
+        self._min_z = (PENETRATION_LIMIT - 1.0) * phys.wheel_radius_m
+        d = self.data
+        d.qpos[0], d.qpos[1], d.qpos[3] = pose[0] * self.unit, pose[1] * self.unit, pose[2]
+        for k, servo in enumerate(self._servos):
+            servo.advance(self.start_time)
+            d.qpos[self._qadr[k]] = (servo.pos - self._zeros[k]) / (self._signs[k] * TICKS_PER_RAD)
+        mujoco.mj_forward(m, d)
+        n = robot.n_joints
+        self._energy = np.zeros(n)
+        self._stalled = [0.0] * n
+        self._moving = [False] * n
+        self._on = [False] * n
+        self._t: deque[float] = deque(maxlen=keep)
+        self._rows: deque[np.ndarray] = deque(maxlen=keep)
+        self._ticks = 0
+        self._running = True
+        self._joints = list(zip(self._servos, self._signs, self._zeros, strict=True))
+        self._root = int(m.body_rootid[self._wheels[0]])
+        # what a sample keeps: x, y, theta and the joints; per wheel its turn rate and
+        # velocity (x, y) about the root's centre of mass, its centre (x, y), its axle
+        w = np.array(self._wheels)
+        self._qsel = np.array([0, 1, 3, *self._qadr])
+        self._cvel_idx = (6 * w[:, None] + [2, 3, 4]).ravel()
+        self._xpos_idx = (3 * w[:, None] + [0, 1]).ravel()
+        self._axle_idx = (9 * w[:, None] + [1, 4]).ravel()  # row-major 3x3: column 1
+        self._schedule = bus.every(self.control_period, self._tick, start=self.start_time)
+
+    # -- stepping -------------------------------------------------------------------------
+
+    def _motor_torque(self) -> np.ndarray:
+        """Each motor's torque at its joint now (N m, + in the joint's direction): the
+        drive less the back-EMF braking."""
+        d = self.data
+        return d.actuator_force - self.actuator.damping * d.qvel[self._dadr_np]
+
+    def _tick(self, t: float) -> None:
+        """At bus time ``t``: bring the physics from the last tick to ``t`` under the
+        drive set then, report the joints to the servos (and record, if a sample is
+        due), and set every motor's drive from its servo's registers as they are now."""
+        if not self._running:
+            return
+        m, d = self.model, self.data
+        qvel = d.qvel
+        period = self.control_period
+        if self._ticks:
+            # energy: the motors' power (the drive in force during each step, the speed
+            # at its end; the implicit integrator's own reading of the step)
+            step, dadr, damping = self._mj.mj_step, self._dadr_np, self.actuator.damping
+            dt = self.timestep
+            for _ in range(self.substeps):
+                step(m, d)
+                w = qvel[dadr]
+                torque = d.actuator_force - damping * w
+                self._energy += torque * w * dt
+        else:
+            torque = self._motor_torque()
+        if self._ticks % self.steps_per_sample == 0:
+            self._sample(t, torque)
+        self._ticks += 1
+        act = self.actuator
+        stall_nm = act.stall_nm
+        stalled_speed = STALLED_FRACTION * act.no_load_rad_s
+        # plain floats from here on: numpy scalars are slow one at a time
+        angles = d.qpos[self._qadr_np].tolist()
+        speeds = qvel[self._dadr_np].tolist()
+        torques = torque.tolist()
+        constant, slope, low, high = [], [], [], []
+        for k, (servo, sign, zero) in enumerate(self._joints):
+            pos = zero + sign * angles[k] * TICKS_PER_RAD
+            w = speeds[k]
+            tau = torques[k]
+            # a servo with its torque off drives nothing and reports no load (the gear
+            # train still brakes the joint: that stays in the physics)
+            on = self._on[k]
+            servo.set_motion(
+                t,
+                pos,
+                sign * w * TICKS_PER_RAD,
+                abs(tau) / stall_nm if on else 0.0,
+                on and tau * sign < 0,
+                self._moving[k],
+                self._stalled[k] >= OVERLOAD_HOLD_S,
+            )
+            ctrl = servo.controller()
+            self._on[k] = ctrl[2] != 0.0
+            gain, target, offset, cap, cut = act.drive(ctrl, pos)
+            stall = act.stall_at(ctrl[9])
+            # duty = gain * (target - ticks) + offset, ticks = zero + sign * TICKS_PER_RAD * q,
+            # as a joint torque (sign * stall * duty) affine in the joint angle q
+            constant.append(sign * stall * (gain * (target - zero) + offset))
+            slope.append(-stall * gain * TICKS_PER_RAD)
+            low.append(-stall * cap)
+            high.append(stall * cap)
+            slow = abs(w) < stalled_speed
+            self._stalled[k] = self._stalled[k] + period if cut and slow else 0.0
+            self._moving[k] = gain != 0.0 or offset != 0.0
+        bias = m.actuator_biasprm
+        bias[:, 0] = constant
+        bias[:, 1] = slope
+        limits = m.actuator_forcerange
+        limits[:, 0] = low
+        limits[:, 1] = high
+
+    def _sample(self, t: float, torque: np.ndarray) -> None:
+        """Check the physics is sane and keep what the record is made of (raw: the record
+        works the slip out for all samples at once)."""
+        d = self.data
+        q = d.qpos
+        z = q[2]  # the robot stays level: every wheel centre sinks with the base
+        if not math.isfinite(q.sum() + d.qvel.sum()):
+            self._fail(t, "the simulation blew up (a position or speed is not finite)")
+        if z < self._min_z:
+            self._fail(t, "the wheels sank deep into the floor")
+        self._t.append(t - self.start_time)
+        self._rows.append(
+            np.concatenate(
+                (
+                    q[self._qsel],
+                    d.cvel.ravel()[self._cvel_idx],
+                    d.xpos.ravel()[self._xpos_idx],
+                    d.subtree_com[self._root, :2],
+                    d.xmat.ravel()[self._axle_idx],
+                    torque,
+                )
+            )
+        )
+
+    def _fail(self, t: float, what: str) -> None:
+        self.stop()
+        raise PhysicsError(
+            f"{what} at {t - self.start_time:.3f} s of world time: the run is stopped; "
+            "check the robot's [physics] table (masses, wheel radius, mu) for values far "
+            "from a real robot's, or play a gentler gait"
+        )
+
+    def stop(self) -> None:
+        """Stop stepping (what was sampled stays in the record); the servos move by
+        their own model again."""
+        if self._running:
+            self._schedule.cancel()
+            self._running = False
+            for servo in self._servos:
+                servo.world_driven = False
+
+    @property
+    def running(self) -> bool:
+        return self._running
+
+    # -- results --------------------------------------------------------------------------
+
+    @property
+    def pose(self) -> np.ndarray:
+        """The body pose (x, y, theta) now, in robot units."""
+        q = self.data.qpos
+        return np.array([q[0] / self.unit, q[1] / self.unit, q[3]])
+
+    @property
+    def samples(self) -> int:
+        return len(self._t)
+
+    def record(self) -> PhysicsRecord:
+        """Everything sampled so far."""
+        n, w = self.robot.n_joints, self.robot.n_wheels
+        rows = np.array(list(self._rows), dtype=float).reshape(-1, 3 + n + 7 * w + 2 + n)
+        cols = np.cumsum([3 + n, 3 * w, 2 * w, 2, 2 * w])
+        state, cvel, centre, com, axle, torque = np.split(rows, cols, axis=1)
+        # each wheel centre's velocity along its axle, from the com-based velocities (the
+        # robot is one tree rooted at the base): v + w x r. The robot stays level, so of
+        # w only the turn about z moves a centre sideways (the spin is along the axle).
+        cvel = cvel.reshape(len(rows), w, 3)
+        centre = centre.reshape(len(rows), w, 2)
+        axle = axle.reshape(len(rows), w, 2)
+        r = centre - com[:, None, :]
+        vx = cvel[:, :, 1] - cvel[:, :, 0] * r[:, :, 1]
+        vy = cvel[:, :, 2] + cvel[:, :, 0] * r[:, :, 0]
+        slip = (vx * axle[:, :, 0] + vy * axle[:, :, 1]) / self.unit
+        pose = state[:, :3] / [self.unit, self.unit, 1.0]
+        return PhysicsRecord(
+            np.array(self._t),
+            pose,
+            state[:, 3:],
+            slip,
+            np.zeros(len(rows), dtype=bool),
+            self.robot.c_t,
+            None,
+            torque,
+            np.abs(torque) / self.actuator.stall_nm,
+            np.array(self._energy),
+            self.mu,
+            self.timestep,
+        )

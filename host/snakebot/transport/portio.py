@@ -1,0 +1,80 @@
+"""Writing an instruction and reading its reply with as few system calls as the port allows.
+
+A transaction's critical path is the time between the reply's last byte arriving and the
+next instruction leaving; at 1 Mbps the wire itself needs only 160 us for a READ, so a
+few microseconds there matter. pyserial's POSIX port costs more than the operating
+system requires: every ``write`` is followed by a ``select`` that waits for the bytes
+to drain, every ``read`` builds timeout bookkeeping, and setting ``timeout`` re-applies
+the whole termios configuration. On such a port :class:`PortIO` writes with one
+``os.write`` and reads with one ``select`` and one ``os.read``, on the file descriptor
+pyserial opened (pyserial still owns it: opening, settings, closing). Any other port
+(``sim://``, ``loop://``, sockets, a port handed in by the caller of another kind) goes
+through pyserial unchanged.
+"""
+
+from __future__ import annotations
+
+import os
+import select
+
+import serial
+from serial import SerialException
+
+try:
+    from serial.serialposix import Serial as _PosixSerial
+except ImportError:  # not a POSIX system: every port takes the general path
+    _PosixSerial = None
+
+TIMEOUT_TOLERANCE_S = 1e-4
+"""A read timeout that differs by less than this from the port's is not re-applied."""
+
+
+class PortIO:
+    """Write and timed read on ``port``, direct on a plain POSIX serial port."""
+
+    __slots__ = ("port", "_direct")
+
+    def __init__(self, port: serial.SerialBase) -> None:
+        self.port = port
+        # Only pyserial's plain POSIX class: its descriptor is non-blocking and read with
+        # select, exactly as done here (subclasses such as VTIMESerial read otherwise).
+        self._direct = _PosixSerial is not None and type(port) is _PosixSerial
+
+    def write(self, data: bytes) -> None:
+        """Put ``data`` on the port (the whole of it)."""
+        port = self.port
+        if not self._direct or not port.is_open:
+            port.write(data)
+            return
+        try:
+            n = os.write(port.fd, data)
+        except BlockingIOError:
+            n = 0
+        except OSError as exc:
+            raise SerialException(f"write failed: {exc}") from exc
+        if n < len(data):
+            port.write(data[n:])  # the output queue is full: let pyserial wait for room
+
+    def read(self, size: int, timeout: float) -> bytes:
+        """Up to ``size`` bytes, waiting at most ``timeout`` seconds for the first."""
+        port = self.port
+        if not self._direct or not port.is_open:
+            current = port.timeout
+            if current is None or abs(current - timeout) > TIMEOUT_TOLERANCE_S:
+                port.timeout = timeout
+            return port.read(size)
+        fd = port.fd
+        try:
+            if not select.select((fd,), (), (), timeout)[0]:
+                return b""
+            data = os.read(fd, size)
+        except BlockingIOError:
+            return b""
+        except OSError as exc:
+            raise SerialException(f"read failed: {exc}") from exc
+        if not data:
+            raise SerialException(
+                "the port reports data but reading returns none (device disconnected, or "
+                "another program has the port open?)"
+            )
+        return data

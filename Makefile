@@ -1,31 +1,46 @@
 # snakebot: `make demo` and `make test` are the quick start; each does the set-up it needs.
+# Quiet by default: V=1 shows every command, here and in firmware/ and fuzz/.
 
 PYTHON      ?= python3
 VENV        := .venv
 PY          := $(VENV)/bin/python
 PIP         := $(PY) -m pip
-APT_PACKAGES := gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm clang libclang-rt-14-dev
 CORE_FILES  := $(wildcard firmware/core/*.c firmware/core/*.h)
 PORT        ?=
+V           ?= 0
+Q           := $(if $(filter 1,$(V)),,@)
+PIP_QUIET   := $(if $(filter 1,$(V)),,-q)
+export V
 
-.PHONY: help setup system-packages python-env core firmware test lint bench demo flash clean fuzz docs
+# The demo needs the C compiler and headers for snakebot._core, the ARM cross-compiler
+# and QEMU; the tests and the fuzzer add clang (libFuzzer and the sanitizers).
+DEMO_APT    := gcc python3-dev python3-venv gcc-arm-none-eabi libnewlib-arm-none-eabi \
+               qemu-system-arm
+TEST_APT    := $(DEMO_APT) clang libclang-rt-14-dev
+
+# pytest workers: the suite waits on ptys, QEMU and timeouts as much as it computes.
+TEST_JOBS   ?= 2
+
+.PHONY: help setup system-packages demo-packages python-env runtime-env core firmware \
+        test test-parallel lint fuzz-targets bench demo flash flash-image clean fuzz docs
 
 help:
 	@echo "make demo      run the main job on the emulated robot (does its own set-up)"
 	@echo "make test      run the whole test suite (does its own set-up)"
-	@echo "make setup     install system packages, create .venv, install snakebot"
+	@echo "make setup     install system packages, create .venv, install snakebot with its dev extras"
 	@echo "make firmware  cross-compile the firmware (arm-none-eabi-gcc)"
 	@echo "make bench     run the benchmarks"
 	@echo "make fuzz FUZZ_SECONDS=60   fuzz the parser and the PC link (libFuzzer, clang)"
-	@echo "make lint      ruff"
+	@echo "make lint      ruff check, ruff format --check, and the Python 3.10 check (vermin)"
 	@echo "make docs      API reference from the docstrings (pdoc) into build/docs/"
 	@echo "make flash PORT=/dev/ttyUSB0   flash the CM-530 through the ROBOTIS bootloader"
+	@echo "V=1 shows the commands (compiler lines included)"
 
 setup: system-packages python-env
 
 # Installs only what is missing, so a prepared machine is not touched (and needs no root).
-system-packages:
-	@missing=""; for p in $(APT_PACKAGES); do \
+define apt_install
+	@missing=""; for p in $(1); do \
 	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "install ok installed" || missing="$$missing $$p"; \
 	done; \
 	if [ -n "$$missing" ]; then \
@@ -33,47 +48,97 @@ system-packages:
 	  SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
 	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq $$missing >/dev/null; \
 	fi
+endef
 
-python-env: $(VENV)/.installed $(VENV)/.core
+system-packages:
+	$(call apt_install,$(TEST_APT))
 
-$(VENV)/.installed: pyproject.toml setup.py
-	test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PIP) install -q --upgrade pip setuptools wheel cffi
-	$(PIP) install -q --no-build-isolation -e '.[dev]'
-	touch $@
+demo-packages:
+	$(call apt_install,$(DEMO_APT))
+
+# .venv in two layers: the runtime with what the demo uses (the `physics` extra for its
+# MuJoCo world, `plot` for its picture), then the dev extras (tests, lint, benchmarks).
+runtime-env: $(VENV)/.runtime $(VENV)/.core
+python-env: $(VENV)/.dev $(VENV)/.core
+
+$(VENV)/.venv:
+	$(Q)test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(Q)$(PIP) install $(PIP_QUIET) --upgrade pip setuptools wheel cffi
+	$(Q)touch $@
+
+$(VENV)/.runtime: pyproject.toml setup.py | $(VENV)/.venv
+	$(Q)$(PIP) install $(PIP_QUIET) --no-build-isolation -e '.[physics,plot]'
+	$(Q)touch $@
+
+$(VENV)/.dev: $(VENV)/.runtime
+	$(Q)$(PIP) install $(PIP_QUIET) --no-build-isolation -e '.[dev]'
+	$(Q)touch $@
 
 # Rebuilds snakebot._core when the C core changes.
-$(VENV)/.core: $(VENV)/.installed $(CORE_FILES) host/snakebot/_core_build.py
-	$(PIP) install -q --no-build-isolation --no-deps -e .
-	touch $@
+$(VENV)/.core: $(VENV)/.runtime $(CORE_FILES) host/snakebot/_core_build.py
+	$(Q)$(PIP) install $(PIP_QUIET) --no-build-isolation --no-deps -e .
+	$(Q)touch $@
 
 core: $(VENV)/.core
 
-firmware: system-packages
-	$(MAKE) -C firmware
+firmware: demo-packages
+	$(Q)$(MAKE) --no-print-directory -C firmware
 
-test: setup firmware
-	$(PY) -m ruff check .
-	$(PY) -m pytest
+# The static checks, the firmware and the fuzz targets side by side; then the suite on
+# TEST_JOBS workers, each test file whole in one worker (--dist loadfile: module fixtures,
+# such as the package check's wheel, are made once), beside the fuzz tests split in two
+# so that the two fuzzing passes overlap; then the tests marked `serial` (fault campaigns
+# whose counts need QEMU to keep pace, dynamixel-sdk's fixed waits) with nothing beside
+# them. A fuzzing pass lasts its fixed time whatever its priority, so it runs niced and
+# yields the CPU to the tests beside it. Building first means no two processes compile
+# the same files at the same time.
+FUZZ_TESTS  := tests/reliability/test_fuzz_targets.py
+FUZZ_K_1    := fuzz_pclink
+FUZZ_K_2    := not fuzz_pclink
+test: system-packages python-env
+	$(Q)$(MAKE) --no-print-directory -j$(TEST_JOBS) lint firmware fuzz-targets
+	$(Q)$(MAKE) --no-print-directory -j3 test-parallel test-fuzz-1 test-fuzz-2
+	$(Q)$(PY) -m pytest -m serial
+
+test-parallel:
+	$(Q)$(PY) -m pytest -n $(TEST_JOBS) --dist loadfile -m "not serial" --ignore=$(FUZZ_TESTS)
+
+# Each half writes a log, shown whole if it fails (one line if not), so outputs do not mix.
+test-fuzz-%:
+	@mkdir -p build
+	$(Q)FUZZ_LAUNCH="nice -n 10" $(PY) -m pytest -q -p no:cacheprovider $(FUZZ_TESTS) \
+	    -k "$(FUZZ_K_$*)" > build/test-fuzz-$*.log 2>&1 \
+	    && echo "fuzz tests ($(FUZZ_K_$*)): $$(tail -n1 build/test-fuzz-$*.log)" \
+	    || { cat build/test-fuzz-$*.log; exit 1; }
+
+fuzz-targets:
+	$(Q)$(MAKE) --no-print-directory -C fuzz all
 
 # Each fuzz target runs FUZZ_SECONDS (fuzz/Makefile: regress, minimize, seeds).
 FUZZ_SECONDS ?= 60
 fuzz: system-packages
-	$(MAKE) -C fuzz run FUZZ_SECONDS=$(FUZZ_SECONDS) PYTHON=$(PYTHON)
+	$(Q)$(MAKE) --no-print-directory -C fuzz run FUZZ_SECONDS=$(FUZZ_SECONDS) PYTHON=$(PYTHON)
 
+# Python 3.10 is the oldest supported (Ubuntu 22.04): vermin checks the code needs no more.
 lint: python-env
-	$(PY) -m ruff check .
-	$(PY) -m ruff format --check . || true
+	$(Q)$(PY) -m ruff check .
+	$(Q)$(PY) -m ruff format --check .
+	$(Q)$(VENV)/bin/vermin --quiet --no-tips --violations --eval-annotations -t=3.10- \
+	    host tests bench tools fuzz protocol setup.py
 
-bench: setup firmware
+bench: system-packages python-env firmware
 	@for b in bench/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
 
-demo: setup firmware
-	$(PY) -m snakebot demo
+demo: demo-packages runtime-env firmware
+	$(Q)$(PY) -m snakebot demo
 
-flash: setup firmware
+# The port is checked before anything is built or installed.
+flash:
 	@test -n "$(PORT)" || { echo "error: give the controller's port: make flash PORT=/dev/ttyUSB0"; exit 2; }
-	$(PY) -m snakebot flash build/cm530/firmware.bin --port $(PORT)
+	$(Q)$(MAKE) --no-print-directory flash-image
+
+flash-image: demo-packages runtime-env firmware
+	$(Q)$(PY) -m snakebot flash build/cm530/firmware.bin --port $(PORT)
 
 # API reference from the docstrings; the prose documents are docs/*.md.
 DOCS_DIR ?= build/docs
@@ -81,5 +146,5 @@ docs: python-env
 	$(PY) -m pdoc --docformat restructuredtext -o $(DOCS_DIR) snakebot '!snakebot\._'
 
 clean:
-	rm -rf build $(VENV) host/*.egg-info
+	rm -rf build dist $(VENV) host/*.egg-info
 	find . -name __pycache__ -prune -exec rm -rf {} +

@@ -68,6 +68,7 @@ from snakebot import devices, protocol
 from snakebot.controller import Command, ControllerErrors, State, UploadResult, load
 from snakebot.controller.client import ControllerClient
 from snakebot.controller.errors import ControllerError
+from snakebot.controller.limits import LimitsError, limits_state, set_limits
 from snakebot.controller.monitor import Sample, sample
 from snakebot.controller.upload import chunk_writes, commit_write
 from snakebot.gaittable import GaitTable
@@ -110,6 +111,8 @@ GOAL_POSITION, GOAL_BLOCK = _AX12.span("Goal Position", "Moving Speed")
 TORQUE_ENABLE = _AX12.register("Torque Enable").address
 _, TELEMETRY_PARAMS = _AX12.span("Present Position", "Present Temperature")
 """The telemetry READ's length."""
+TELEMETRY_ADDRESS = _AX12.register("Present Position").address
+"""Where the telemetry READ starts (the firmware also READs angle limits: not telemetry)."""
 
 
 def _reg(name: str) -> int:
@@ -194,7 +197,7 @@ class Tap:
                 self.torque_on += 1
             elif event.code == Instruction.WRITE and p[:2] == bytes([TORQUE_ENABLE, 0]):
                 self.torque_off += 1
-            elif event.code == Instruction.READ:
+            elif event.code == Instruction.READ and p[:1] == bytes([TELEMETRY_ADDRESS]):
                 self.reads_sent += 1
                 # The firmware empties its receiver just before it sends, so what reached
                 # the bus side since the previous packet may still count for this READ.
@@ -230,6 +233,34 @@ class TappedBus(Bus):
         if out:
             self.tap.heard(out)
         return out
+
+
+class AuditedServo(VirtualServo):
+    """A virtual AX-12 that keeps account of what it accepted: WRITEs that reached its
+    angle limits (EEPROM), and every goal it took outside the robot's limits for it
+    (whatever the wire did to the packet that carried it)."""
+
+    def __init__(self, servo_id: int, robot_limits: tuple[int, int]) -> None:
+        super().__init__(servo_id)
+        self.robot_limits = robot_limits
+        cw, ccw = self.regs.entry("CW Angle Limit"), self.regs.entry("CCW Angle Limit")
+        self._angle_span = (cw.address, ccw.address + ccw.size)
+        self.angle_limit_writes = 0
+        self.goals_outside: list[int] = []
+
+    def _write_at(self, address: int, data: bytes, registered: bool) -> int:
+        goal = self._goal
+        flags = super()._write_at(address, data, registered)
+        if flags == 0 and not registered:
+            lo, hi = self._angle_span
+            self.angle_limit_writes += address < hi and address + len(data) > lo
+            low, high = self.robot_limits
+            if self._goal != goal and not low <= self._goal <= high:
+                self.goals_outside.append(self._goal)
+        return flags
+
+    def angle_limits(self) -> tuple[int, int]:
+        return self.regs.get("CW Angle Limit"), self.regs.get("CCW Angle Limit")
 
 
 # -- the firmware's RAM, through QEMU -----------------------------------------------------------
@@ -357,7 +388,7 @@ class Health:
     safe_entries: int = 0
     recoveries: int = 0
     flags_seen: int = 0
-    servo_goals_outside: int = 0  # goals the servos took that the firmware never sent
+    servo_goals_outside: int = 0  # sampled servo goals outside the limits
     table_checks: int = 0
     table_failures: list[str] = field(default_factory=list)
 
@@ -366,9 +397,11 @@ class Rig:
     """QEMU running the firmware, wired to a tapped emulated bus; a controller client on
     the PC link; the firmware's RAM within reach. Use as a context manager."""
 
-    def __init__(self, faults: FaultConfig, workdir: Path) -> None:
+    def __init__(self, faults: FaultConfig, workdir: Path, play_s: float | None = None) -> None:
         self.tap = Tap(dict(zip(IDS, LIMITS, strict=True)))
-        self.bus = TappedBus(self.tap, [VirtualServo(i) for i in IDS], faults=faults)
+        self.servos = [AuditedServo(i, lim) for i, lim in zip(IDS, LIMITS, strict=True)]
+        self.bus = TappedBus(self.tap, self.servos, faults=faults)
+        self.play_s = play_s  # overrides how long the campaigns that play, play
         self.server = UnixSocketServer(self.bus, workdir / "bus.sock")
         self.fw = QemuFirmware(IMAGE, bus=Endpoint.unix_client(workdir / "bus.sock"))
         self.ram = RamMap.from_build()
@@ -418,6 +451,13 @@ class Rig:
 
     def command(self, cmd: Command) -> None:
         self.ctl.write({"Command": int(cmd)})
+
+    def set_robot_limits(self, limits: dict[int, tuple[int, int]]) -> str:
+        """The robot's limits onto the controller; returns Limits State once settled."""
+        try:
+            return set_limits(self.ctl, limits, timeout_s=20.0).state
+        except LimitsError:
+            return limits_state(self.ctl)[0]
 
     def upload(self, blob: bytes, *, commit: bool = True) -> int:
         """The upload sequence; returns Upload Result (after the commit) or -1."""
@@ -629,6 +669,8 @@ def _common_checks(rig: Rig, out: Outcome, last: Sample) -> None:
         goals=tap.goals,
         goals_outside_limits=tap.goals_outside,
         servo_goals_outside_limits=h.servo_goals_outside,
+        servo_goals_accepted_outside=sum(len(s.goals_outside) for s in rig.servos),
+        angle_limit_writes=sum(s.angle_limit_writes for s in rig.servos),
         reads_sent=tap.reads_sent,
         reads_answered=tap.reads_answered,
         reads_damaged=tap.reads_damaged,
@@ -704,9 +746,36 @@ def _play_under(seconds: float, recover: bool = True) -> Callable[[Rig, Outcome]
 
     def body(rig: Rig, out: Outcome) -> None:
         _start(rig, out)
-        rig.watch(seconds, rig.operator() if recover else None)
+        rig.watch(rig.play_s or seconds, rig.operator() if recover else None)
 
     return body
+
+
+def _servo_limits(seconds: float) -> Callable[[Rig, Outcome], None]:
+    """A campaign body: the robot's limits set on the controller first (the servos' angle
+    limits start at the factory 0..1023), then play as the other campaigns do."""
+    play = _play_under(seconds)
+
+    def body(rig: Rig, out: Outcome) -> None:
+        state = rig.set_robot_limits(dict(zip(IDS, LIMITS, strict=True)))
+        out.check("servo-limits", state == "VERIFIED", f"Limits State {state} after setting")
+        with rig.server.lock:
+            held = [s.angle_limits() for s in rig.servos]
+        out.check(
+            "servo-limits",
+            held == list(LIMITS),
+            f"the servos' angle limits are {held}, the robot's {list(LIMITS)}",
+        )
+        play(rig, out)
+
+    return body
+
+
+def _after_servo_limits(rig: Rig, out: Outcome, last: Sample) -> None:
+    """No servo took a goal outside the robot's limits, however the bus damaged packets."""
+    _after_corrupt(rig, out, last)
+    outside = {s.id: s.goals_outside[:5] for s in rig.servos if s.goals_outside}
+    out.check("servo-limits", not outside, f"servos accepted goals outside the limits: {outside}")
 
 
 def _clean(rig: Rig, out: Outcome) -> None:
@@ -1014,6 +1083,22 @@ CAMPAIGNS: dict[str, Campaign] = {
             _after_corrupt,
         ),
         Campaign(
+            "servo-limits-1pct",
+            "the robot's limits set in the servos first, then as corrupt-1pct: no servo "
+            "may accept a goal outside them",
+            _corrupt(0.01),
+            _servo_limits(4.0),
+            _after_servo_limits,
+        ),
+        Campaign(
+            "servo-limits-5pct",
+            "the robot's limits set in the servos first, then as corrupt-5pct: no servo "
+            "may accept a goal outside them",
+            _corrupt(0.05),
+            _servo_limits(4.0),
+            _after_servo_limits,
+        ),
+        Campaign(
             "drop-10pct",
             "each servo status packet is lost w.p. 10 %",
             lambda s: FaultConfig(seed=s, drop=0.10),
@@ -1054,8 +1139,9 @@ CAMPAIGNS: dict[str, Campaign] = {
 }
 
 
-def run(name: str, seed: int = 1) -> Outcome:
-    """Run one campaign; its Outcome says what was counted and which checks held."""
+def run(name: str, seed: int = 1, seconds: float | None = None) -> Outcome:
+    """Run one campaign; its Outcome says what was counted and which checks held.
+    ``seconds``: how long the campaigns that play a table play (default: their own)."""
     try:
         campaign = CAMPAIGNS[name]
     except KeyError:
@@ -1067,7 +1153,7 @@ def run(name: str, seed: int = 1) -> Outcome:
     out = Outcome(name, seed, campaign.description)
     t0 = time.monotonic()
     with tempfile.TemporaryDirectory(prefix="snakebot.sim-campaign-") as tmp:
-        with Rig(campaign.faults(seed), Path(tmp)) as rig:
+        with Rig(campaign.faults(seed), Path(tmp), seconds) as rig:
             try:
                 campaign.body(rig, out)
                 last = rig.freeze()
@@ -1135,12 +1221,19 @@ def main(argv: list[str] | None = None) -> int:
         help="run this campaign (repeatable); default: all of them, namely " + ", ".join(CAMPAIGNS),
     )
     parser.add_argument("--seed", type=int, default=1, help="seed of the faults (default 1)")
+    parser.add_argument(
+        "--seconds",
+        type=float,
+        metavar="S",
+        help="how long the campaigns that play a table under a fault play (default: "
+        "their own few seconds; e.g. 120 for the figures in docs/reliability.md)",
+    )
     parser.add_argument("--json", action="store_true", help="one JSON record per campaign")
     args = parser.parse_args(argv)
     outcomes = []
     for name in args.only or list(CAMPAIGNS):
         try:
-            outcome = run(name, args.seed)
+            outcome = run(name, args.seed, args.seconds)
         except SimError as exc:
             print(f"error: {exc}", file=sys.stderr)
             return 2

@@ -22,6 +22,7 @@ int main(void)
     ctl_init(&ctl);
     (void)store_load(&ctl);
     (void)ctl_table_changed(&ctl); /* loading from the store is not a change to store */
+    (void)ctl_limits_changed(&ctl);
     pclink_init();
     busport_init();
 
@@ -41,6 +42,9 @@ int main(void)
         worked |= busport_poll(&ctl);
         if (ctl_table_changed(&ctl)) {
             (void)store_save(&ctl);
+        }
+        if (ctl_limits_changed(&ctl)) {
+            (void)store_save_limits(&ctl);
         }
         platform_service();
         platform_idle(!worked);

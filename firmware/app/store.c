@@ -13,6 +13,8 @@
 
 static const hal_flash_region_t region = {BOARD_STORE_BASE, BOARD_STORE_SIZE,
                                           BOARD_FLASH_PAGE_SIZE};
+static const hal_flash_region_t limits_region = {BOARD_LIMITS_STORE_BASE,
+                                                 BOARD_LIMITS_STORE_SIZE, BOARD_FLASH_PAGE_SIZE};
 
 /* Each slot is half the region, in whole pages, and must hold a header and a table. */
 typedef char store_slot_holds_a_table[(BOARD_STORE_SIZE / 2U) % BOARD_FLASH_PAGE_SIZE == 0U &&
@@ -21,9 +23,21 @@ typedef char store_slot_holds_a_table[(BOARD_STORE_SIZE / 2U) % BOARD_FLASH_PAGE
                                           ? 1
                                           : -1];
 
+typedef char limits_slot_holds_the_limits[(BOARD_LIMITS_STORE_SIZE / 2U) % BOARD_FLASH_PAGE_SIZE ==
+                                                      0U &&
+                                                  BOARD_LIMITS_STORE_SIZE / 2U >=
+                                                      STORE_SLOTS_HEADER_BYTES + CTL_LIMITS_BLOB_MAX
+                                              ? 1
+                                              : -1];
+
 bool store_load(ctl_device *ctl)
 {
     store_record_t rec;
+    /* the limits first: a table beyond them must not load */
+    if (store_slots_newest(&limits_region, &rec)) {
+        (void)ctl_load_limits(ctl, (const uint8_t *)(BOARD_LIMITS_STORE_BASE + rec.offset),
+                              rec.len);
+    }
     if (!store_slots_newest(&region, &rec)) {
         return false;
     }
@@ -41,6 +55,16 @@ bool store_save(const ctl_device *ctl)
     return store_slots_save(&region, table, (uint32_t)len) == HAL_FLASH_OK;
 }
 
+bool store_save_limits(const ctl_device *ctl)
+{
+    uint8_t blob[CTL_LIMITS_BLOB_MAX];
+    size_t len = ctl_robot_limits(ctl, blob, sizeof blob);
+    if (len == 0U) {
+        return false;
+    }
+    return store_slots_save(&limits_region, blob, (uint32_t)len) == HAL_FLASH_OK;
+}
+
 #else
 
 bool store_load(ctl_device *ctl)
@@ -50,6 +74,12 @@ bool store_load(ctl_device *ctl)
 }
 
 bool store_save(const ctl_device *ctl)
+{
+    (void)ctl;
+    return false;
+}
+
+bool store_save_limits(const ctl_device *ctl)
 {
     (void)ctl;
     return false;

@@ -13,6 +13,23 @@
 #define TELEMETRY_AT(reg) ((reg) - BUS_TELEMETRY_ADDRESS)
 /* The status packet: FF FF id len err, the data, checksum. */
 typedef char bus_reply_bytes_match[(BUS_REPLY_BYTES == BUS_TELEMETRY_LENGTH + 6) ? 1 : -1];
+/* What the pending reply answers, and the data bytes its status packet carries. */
+#define AWAIT_TELEMETRY 0u
+#define AWAIT_LIMITS 1u
+#define AWAIT_ACK 2u
+#define AWAIT_AUDIT 3u
+/* A status packet: FF FF ID LEN ERR, the data, CHK. */
+#define STATUS_OVERHEAD (BUS_REPLY_BYTES - BUS_TELEMETRY_LENGTH)
+#define LIMITS_BYTES (AX12_CW_ANGLE_LIMIT_SIZE + AX12_CCW_ANGLE_LIMIT_SIZE)
+/* Steps of the limits check of one servo. */
+#define LIM_READ 0u
+#define LIM_WRITE 1u
+#define LIM_VERIFY 2u
+
+static uint8_t await_data_bytes(uint8_t kind)
+{
+    return kind == AWAIT_TELEMETRY ? BUS_TELEMETRY_LENGTH : kind == AWAIT_ACK ? 0u : LIMITS_BYTES;
+}
 
 size_t bus_master_size(void)
 {
@@ -30,18 +47,22 @@ void bus_init(bus_master *b)
 void bus_set_roster(bus_master *b, const uint8_t *ids, uint8_t count)
 {
     if (count > CTL_MAX_JOINTS) count = CTL_MAX_JOINTS;
+    bool changed = count != b->count;
     for (uint8_t k = 0; k < count; k++) {
         if (k >= b->count || b->ids[k] != ids[k]) {
             bus_servo zero = {0};
             b->servo[k] = zero;
             b->ids[k] = ids[k];
+            changed = true;
         }
     }
     b->count = count;
     if (b->next >= count) b->next = 0;
+    /* a servo may have been swapped for another with other angle limits */
+    if (changed) bus_recheck_limits(b);
     /* A READ in flight whose servo has left its slot ends here, counted as unanswered
      * (against no servo): its reply, if it still comes, must not be filed under another. */
-    if (b->awaiting != NO_READ &&
+    if (b->awaiting != NO_READ && b->awaiting_kind == AWAIT_TELEMETRY &&
         (b->awaiting >= count || b->ids[b->awaiting] != b->awaiting_id)) {
         if (!b->taken) {
             b->timeouts++;
@@ -93,6 +114,71 @@ static size_t goals_packet(const uint8_t *ids, const uint16_t *goals, const uint
     return dxl_sync_write(out, cap, AX12_GOAL_POSITION, 4, ids, data, count);
 }
 
+static void await_reply(bus_master *b, uint8_t slot, uint8_t id, uint8_t kind, bus_txn *txn)
+{
+    b->awaiting = slot;
+    b->awaiting_id = id;
+    b->awaiting_kind = kind;
+    b->taken = 0;
+    b->corrupt = 0;
+    b->rx_len = 0;
+    txn->kind = BUS_TXN_READ;
+    txn->id = id;
+    txn->reply_len = (uint8_t)(STATUS_OVERHEAD + await_data_bytes(kind));
+}
+
+static bool limits_pending(const bus_master *b)
+{
+    return b->lim_next < b->lim_count;
+}
+
+/* Whether this tick's READ belongs to the limits check: every other tick while it runs
+ * (every tick when there is no roster to poll). */
+static bool limits_turn(bus_master *b)
+{
+    if (!limits_pending(b)) return false;
+    b->lim_turn ^= 1u;
+    return b->lim_turn != 0 || b->count == 0;
+}
+
+/* Whether this tick's READ re-reads one verified servo's angle limits (the audit). */
+static bool audit_turn(bus_master *b)
+{
+    if (b->lim_count == 0 || limits_pending(b) || b->lim_failed) return false;
+    if (++b->lim_audit_wait < BUS_LIMIT_AUDIT_TICKS) return false;
+    b->lim_audit_wait = 0;
+    return true;
+}
+
+static size_t audit_packet(bus_master *b, uint8_t *out, size_t cap, bus_txn *txn)
+{
+    uint8_t k = (uint8_t)(b->lim_audit_k % b->lim_count);
+    size_t n = dxl_read(out, cap, b->lim_id[k], AX12_CW_ANGLE_LIMIT, LIMITS_BYTES);
+    if (n > 0) await_reply(b, k, b->lim_id[k], AWAIT_AUDIT, txn);
+    return n;
+}
+
+/* The next step of the limits check: READ the angle limits, or WRITE the robot's. */
+static size_t limits_packet(bus_master *b, uint8_t *out, size_t cap, bus_txn *txn)
+{
+    uint8_t k = b->lim_next;
+    uint8_t id = b->lim_id[k];
+    if (b->lim_phase == LIM_WRITE) {
+        uint8_t data[LIMITS_BYTES] = {
+            (uint8_t)(b->lim_min[k] & 0xFFu), (uint8_t)(b->lim_min[k] >> 8),
+            (uint8_t)(b->lim_max[k] & 0xFFu), (uint8_t)(b->lim_max[k] >> 8)};
+        size_t n = dxl_write(out, cap, id, AX12_CW_ANGLE_LIMIT, data, LIMITS_BYTES);
+        if (n > 0) {
+            b->lim_writes++;
+            await_reply(b, k, id, AWAIT_ACK, txn);
+        }
+        return n;
+    }
+    size_t n = dxl_read(out, cap, id, AX12_CW_ANGLE_LIMIT, LIMITS_BYTES);
+    if (n > 0) await_reply(b, k, id, AWAIT_LIMITS, txn);
+    return n;
+}
+
 size_t bus_next(bus_master *b, const uint8_t *ids, const uint16_t *goals,
                 const uint16_t *speeds, uint8_t count, uint8_t *out, size_t cap, bus_txn *txn)
 {
@@ -108,20 +194,15 @@ size_t bus_next(bus_master *b, const uint8_t *ids, const uint16_t *goals,
             n = torque_packet(b, count > 0 ? ids : b->ids, count > 0 ? count : b->count, out, cap);
         } else if (step == STEP_GOALS && count > 0) {
             n = goals_packet(ids, goals, speeds, count, out, cap);
+        } else if (step == STEP_READ && limits_turn(b)) {
+            n = limits_packet(b, out, cap, txn);
+        } else if (step == STEP_READ && audit_turn(b)) {
+            n = audit_packet(b, out, cap, txn);
         } else if (step == STEP_READ && b->count > 0) {
             uint8_t k = b->next;
             b->next = (uint8_t)((k + 1u) % b->count);
             n = dxl_read(out, cap, b->ids[k], BUS_TELEMETRY_ADDRESS, BUS_TELEMETRY_LENGTH);
-            if (n > 0) {
-                b->awaiting = k;
-                b->awaiting_id = b->ids[k];
-                b->taken = 0;
-                b->corrupt = 0;
-                b->rx_len = 0;
-                txn->kind = BUS_TXN_READ;
-                txn->id = b->ids[k];
-                txn->reply_len = BUS_REPLY_BYTES;
-            }
+            if (n > 0) await_reply(b, k, b->ids[k], AWAIT_TELEMETRY, txn);
         }
         if (n > 0) return n;
     }
@@ -133,8 +214,70 @@ static uint16_t rd16(const uint8_t *p)
     return (uint16_t)(p[0] | (p[1] << 8));
 }
 
+/* The check of servo lim_next is over (verified, or failed): on to the next one. */
+static void limits_advance(bus_master *b, bool failed)
+{
+    if (failed) b->lim_failed = 1;
+    b->lim_next++;
+    b->lim_phase = LIM_READ;
+    b->lim_tries = 0;
+    b->lim_silent = 0;
+}
+
+
+/* A READ of the angle limits came back with data[0..4). */
+static void limits_read(bus_master *b, const uint8_t *data)
+{
+    uint8_t k = b->lim_next;
+    b->lim_silent = 0;
+    if (rd16(data) == b->lim_min[k] && rd16(data + 2) == b->lim_max[k]) {
+        limits_advance(b, false);
+    } else if (b->lim_phase == LIM_READ) {
+        b->lim_phase = LIM_WRITE; /* differs: write once, then read back */
+    } else if (++b->lim_tries >= BUS_LIMIT_TRIES) {
+        limits_advance(b, true); /* written again and again, never taken */
+    } else {
+        b->lim_phase = LIM_WRITE;
+    }
+}
+
+/* The pending limits transaction is over: answered (data), or not (NULL). */
+static void limits_done(bus_master *b, const uint8_t *data)
+{
+    if (b->awaiting != b->lim_next || !limits_pending(b)) return; /* the check restarted */
+    if (b->awaiting_kind == AWAIT_ACK) {
+        b->lim_phase = LIM_VERIFY; /* the read back decides, acknowledged or not */
+    } else if (data != NULL) {
+        limits_read(b, data);
+    } else if (++b->lim_silent >= BUS_LIMIT_SILENT) {
+        limits_advance(b, true); /* the same READ is sent again meanwhile */
+    }
+}
+
+/* An audit READ came back with data[0..4): on to the next servo, or, if this one's
+ * angle limits changed, check it (and those after it) again. */
+static void audit_done(bus_master *b, const uint8_t *data)
+{
+    uint8_t k = b->awaiting;
+    if (k >= b->lim_count || limits_pending(b) || b->lim_id[k] != b->awaiting_id) return;
+    if (rd16(data) == b->lim_min[k] && rd16(data + 2) == b->lim_max[k]) {
+        b->lim_audit_k = (uint8_t)((k + 1u) % b->lim_count);
+        return;
+    }
+    b->lim_next = k;
+    b->lim_phase = LIM_WRITE;
+    b->lim_tries = 0;
+    b->lim_silent = 0;
+}
+
 static void take_reply(bus_master *b, const uint8_t *packet)
 {
+    if (b->awaiting_kind != AWAIT_TELEMETRY) {
+        b->taken = 1;
+        if (b->awaiting_kind == AWAIT_AUDIT) audit_done(b, packet + 5);
+        else limits_done(b, packet + 5);
+        return;
+    }
     bus_servo *s = &b->servo[b->awaiting];
     const uint8_t *data = packet + 5;
     s->error = packet[4];
@@ -150,15 +293,17 @@ static void take_reply(bus_master *b, const uint8_t *packet)
     b->reads++;
 }
 
-/* Look for FF FF id LEN=10 ERR d0..d7 CHK anywhere in what has come back. */
+/* Look for FF FF id LEN ERR data CHK anywhere in what has come back (LEN = data + 2). */
 static bool scan(bus_master *b)
 {
-    for (uint8_t i = 0; i + BUS_REPLY_BYTES <= b->rx_len; i++) {
+    uint8_t ndata = await_data_bytes(b->awaiting_kind);
+    uint8_t bytes = (uint8_t)(STATUS_OVERHEAD + ndata);
+    for (uint8_t i = 0; i + bytes <= b->rx_len; i++) {
         const uint8_t *p = b->rx + i;
-        if (p[0] != 0xFFu || p[1] != 0xFFu || p[2] != b->awaiting_id || p[3] != REPLY_LEN_FIELD) {
+        if (p[0] != 0xFFu || p[1] != 0xFFu || p[2] != b->awaiting_id || p[3] != ndata + 2u) {
             continue;
         }
-        if (dxl_checksum(p + 2, BUS_REPLY_BYTES - 3) != p[BUS_REPLY_BYTES - 1]) {
+        if (dxl_checksum(p + 2, bytes - 3u) != p[bytes - 1u]) {
             b->corrupt = 1;
             continue;
         }
@@ -177,7 +322,7 @@ bool bus_rx(bus_master *b, const uint8_t *data, size_t len)
             b->rx_len--;
         }
         b->rx[b->rx_len++] = data[i];
-        if (b->rx_len >= BUS_REPLY_BYTES && scan(b)) return true;
+        if (scan(b)) return true;
     }
     return false;
 }
@@ -185,7 +330,10 @@ bool bus_rx(bus_master *b, const uint8_t *data, size_t len)
 void bus_rx_done(bus_master *b)
 {
     if (b->awaiting == NO_READ) return;
-    if (!b->taken) {
+    if (b->awaiting_kind != AWAIT_TELEMETRY) {
+        /* an unanswered audit READ is asked again at the next audit */
+        if (!b->taken && b->awaiting_kind != AWAIT_AUDIT) limits_done(b, NULL);
+    } else if (!b->taken) {
         bus_servo *s = &b->servo[b->awaiting];
         if (s->timeout_count < 0xFFu) s->timeout_count++;
         if (s->missed < 0xFFu) s->missed++;
@@ -202,6 +350,62 @@ void bus_clear_faults(bus_master *b)
         b->servo[k].error = 0;
         b->servo[k].missed = 0;
     }
+}
+
+void bus_set_limits(bus_master *b, const uint8_t *ids, const uint16_t *mins,
+                    const uint16_t *maxs, uint8_t count)
+{
+    if (count > CTL_MAX_JOINTS) count = CTL_MAX_JOINTS;
+    for (uint8_t k = 0; k < count; k++) {
+        b->lim_id[k] = ids[k];
+        b->lim_min[k] = mins[k];
+        b->lim_max[k] = maxs[k];
+    }
+    b->lim_count = count;
+    bus_recheck_limits(b);
+}
+
+void bus_recheck_limits(bus_master *b)
+{
+    /* a reply still due belongs to the old check: it must not count for the new one */
+    if (b->awaiting != NO_READ && b->awaiting_kind != AWAIT_TELEMETRY) {
+        b->awaiting = NO_READ;
+        b->rx_len = 0;
+    }
+    b->lim_next = 0;
+    b->lim_phase = LIM_READ;
+    b->lim_tries = 0;
+    b->lim_silent = 0;
+    b->lim_failed = 0;
+}
+
+uint8_t bus_limits_state(const bus_master *b)
+{
+    if (b->lim_count == 0) return CTL_LIMITS_STATE_NONE;
+    if (limits_pending(b)) return CTL_LIMITS_STATE_APPLYING;
+    return b->lim_failed ? CTL_LIMITS_STATE_FAILED : CTL_LIMITS_STATE_VERIFIED;
+}
+
+uint8_t bus_limits_count(const bus_master *b)
+{
+    return b->lim_count;
+}
+
+bool bus_limits_of(const bus_master *b, uint8_t id, uint16_t *min, uint16_t *max)
+{
+    for (uint8_t k = 0; k < b->lim_count; k++) {
+        if (b->lim_id[k] == id) {
+            *min = b->lim_min[k];
+            *max = b->lim_max[k];
+            return true;
+        }
+    }
+    return false;
+}
+
+uint16_t bus_limit_writes(const bus_master *b)
+{
+    return b->lim_writes;
 }
 
 uint8_t bus_roster_count(const bus_master *b)

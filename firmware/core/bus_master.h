@@ -14,7 +14,17 @@
  * A tick sends, in order: a pending torque on/off, the SYNC_WRITE of goal positions and
  * moving speeds (addresses 30-33), then one READ of the telemetry block (addresses 36-43)
  * of the next roster servo, round robin. Replies are found in whatever bytes come back,
- * so an echo of our own instruction (one-wire adapters) or leading noise is skipped. */
+ * so an echo of our own instruction (one-wire adapters) or leading noise is skipped.
+ *
+ * The robot's limits (bus_set_limits): while some servo's CW/CCW Angle Limit is not yet
+ * known to equal them, every other tick's READ is one step of the limits check instead
+ * of telemetry (so a tick never waits for more than one reply): READ the servo's angle
+ * limits; only if they differ WRITE them (they live in EEPROM, which wears) and READ
+ * them back. A servo that will not take them (BUS_LIMIT_TRIES writes), or does not
+ * answer (BUS_LIMIT_SILENT reads), leaves the check FAILED. The check runs again after
+ * every roster change; and once VERIFIED, every BUS_LIMIT_AUDIT_TICKS ticks one servo's
+ * angle limits are read again (round robin), since a damaged packet could have changed
+ * them: one found changed is checked (and written) again. */
 #ifndef SNAKEBOT_BUS_MASTER_H
 #define SNAKEBOT_BUS_MASTER_H
 
@@ -43,6 +53,12 @@
 #define BUS_TORQUE_NONE 0
 #define BUS_TORQUE_ON 1
 #define BUS_TORQUE_OFF 2
+/* A servo fails the check after this many WRITEs it did not take (read back different),
+ * or this many limits READs in a row without an answer: enough that a bus damaging most
+ * packets (5 % of bytes) still gets through, few enough to give up within a second. */
+#define BUS_LIMIT_TRIES 16
+#define BUS_LIMIT_SILENT 48
+#define BUS_LIMIT_AUDIT_TICKS 25
 
 /* What bus_next() produced. */
 typedef struct {
@@ -90,6 +106,18 @@ void bus_clear_faults(bus_master *b);
 /* Roster size and the mirror of roster servo k (NULL if k is out of range). */
 uint8_t bus_roster_count(const bus_master *b);
 const bus_servo *bus_servo_at(const bus_master *b, uint8_t k);
+/* The robot's limits: servo ids[i] may move in [mins[i], maxs[i]] (count 0 = none);
+ * starts the check of the servos' angle limits. */
+void bus_set_limits(bus_master *b, const uint8_t *ids, const uint16_t *mins,
+                    const uint16_t *maxs, uint8_t count);
+/* Run the check again from the first servo (e.g. after CLEAR). */
+void bus_recheck_limits(bus_master *b);
+/* CTL_LIMITS_STATE_* (the Limits State register), the servos the limits cover, and those of servo id (false: none). */
+uint8_t bus_limits_state(const bus_master *b);
+uint8_t bus_limits_count(const bus_master *b);
+bool bus_limits_of(const bus_master *b, uint8_t id, uint16_t *min, uint16_t *max);
+/* EEPROM WRITEs of angle limits sent (wraps). */
+uint16_t bus_limit_writes(const bus_master *b);
 /* Counters (wrap): replies taken, reads without a usable reply, corrupt replies. */
 uint16_t bus_reads(const bus_master *b);
 uint16_t bus_timeouts(const bus_master *b);
@@ -105,6 +133,7 @@ struct bus_master {
     uint8_t torque;        /* BUS_TORQUE_* pending */
     uint8_t awaiting;      /* roster slot of the pending READ, or 0xFF */
     uint8_t awaiting_id;
+    uint8_t awaiting_kind; /* what the pending reply answers (AWAIT_* in bus_master.c) */
     uint8_t taken;         /* the pending READ's reply has been applied */
     uint8_t corrupt;       /* a reply with a bad checksum was seen */
     uint8_t rx_len;
@@ -112,6 +141,20 @@ struct bus_master {
     uint16_t reads;
     uint16_t timeouts;
     uint16_t errors;
+    /* the robot's limits and their check */
+    uint8_t lim_count;
+    uint8_t lim_id[CTL_MAX_JOINTS];
+    uint16_t lim_min[CTL_MAX_JOINTS];
+    uint16_t lim_max[CTL_MAX_JOINTS];
+    uint8_t lim_next;      /* servo being checked; lim_count = check done */
+    uint8_t lim_phase;     /* LIM_* in bus_master.c */
+    uint8_t lim_tries;     /* WRITEs not taken */
+    uint8_t lim_silent;    /* READs without an answer, in a row */
+    uint8_t lim_failed;
+    uint8_t lim_turn;      /* alternates the tick's READ between telemetry and the check */
+    uint8_t lim_audit_k;   /* the servo the next audit READ asks */
+    uint8_t lim_audit_wait; /* ticks since the last audit READ */
+    uint16_t lim_writes;
 };
 
 #endif

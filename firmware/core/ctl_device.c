@@ -232,7 +232,82 @@ static uint16_t upload_flag(uint8_t result)
     }
 }
 
-static void commit(ctl_device *d)
+/* Whether joint limits [min, max] of servo id lie within the robot's (always, when no
+ * robot limits are set). */
+static bool within_robot(const ctl_device *d, uint8_t id, uint16_t min, uint16_t max)
+{
+    if (bus_limits_count(&d->bus) == 0) return true;
+    uint16_t lo, hi;
+    return bus_limits_of(&d->bus, id, &lo, &hi) && min >= lo && max <= hi;
+}
+
+/* A table's joint limits (its frames lie within them: gt_validate) within the robot's. */
+static bool table_fits(const ctl_device *d, const uint8_t *table, const gt_info *info)
+{
+    for (uint8_t j = 0; j < info->joint_count; j++) {
+        if (!within_robot(d, gt_joint_id(table, info, j), gt_joint_min(table, info, j),
+                          gt_joint_max(table, info, j))) {
+            return false;
+        }
+    }
+    return true;
+}
+
+static uint8_t check_table(const ctl_device *d, const uint8_t *table, size_t len, gt_info *info)
+{
+    uint8_t result = (uint8_t)gt_validate(table, len, info);
+    if (result == GT_OK && !table_fits(d, table, info)) {
+        result = CTL_UPLOAD_RESULT_OUTSIDE_ROBOT_LIMITS;
+    }
+    return result;
+}
+
+/* The highest position tick: the servo window's Max Tick range says it. */
+static uint16_t top_tick(void)
+{
+    for (size_t i = 0; i < N_SERVO_FIELDS; i++) {
+        if (servo_fields[i].addr == CTL_REC_MAX_TICK) return (uint16_t)servo_fields[i].max;
+    }
+    return 0;
+}
+
+/* Robot limits as staged: a count N (1..18), then N records of servo ID, min tick, max
+ * tick (u8, u16, u16); IDs distinct, min < max <= the top position tick. */
+static uint8_t apply_limits(ctl_device *d, const uint8_t *blob, size_t len)
+{
+    uint8_t n = len > 0 ? blob[0] : 0u;
+    if (n == 0 || n > CTL_MAX_JOINTS || len != 1u + CTL_LIMITS_RECORD * n) {
+        return CTL_UPLOAD_RESULT_BAD_ROBOT_LIMITS;
+    }
+    uint8_t ids[CTL_MAX_JOINTS];
+    uint16_t mins[CTL_MAX_JOINTS], maxs[CTL_MAX_JOINTS];
+    for (uint8_t k = 0; k < n; k++) {
+        const uint8_t *r = blob + 1 + CTL_LIMITS_RECORD * k;
+        ids[k] = r[0];
+        mins[k] = (uint16_t)get_le(r + 1, 2);
+        maxs[k] = (uint16_t)get_le(r + 3, 2);
+        if (ids[k] > DXL_MAX_ID || mins[k] >= maxs[k] || maxs[k] > top_tick()) {
+            return CTL_UPLOAD_RESULT_BAD_ROBOT_LIMITS;
+        }
+        for (uint8_t i = 0; i < k; i++) {
+            if (ids[i] == ids[k]) return CTL_UPLOAD_RESULT_BAD_ROBOT_LIMITS;
+        }
+    }
+    stop_motion(d);
+    bus_set_limits(&d->bus, ids, mins, maxs, n);
+    /* the serpenoid's clamps stay within the robot's limits */
+    for (uint8_t k = 0; k < CTL_MAX_JOINTS; k++) {
+        play_joint *j = &d->roster[k];
+        uint16_t lo, hi;
+        if (!bus_limits_of(&d->bus, j->id, &lo, &hi)) continue;
+        if (j->min < lo) j->min = lo;
+        if (j->max > hi) j->max = hi;
+    }
+    d->limits_changed = 1;
+    return GT_OK;
+}
+
+static void commit(ctl_device *d, uint8_t what)
 {
     uint32_t len = reg(d, CTL_UPLOAD_LENGTH, 2);
     uint32_t crc = reg(d, CTL_UPLOAD_CRC, 4);
@@ -244,13 +319,22 @@ static void commit(ctl_device *d)
         result = CTL_UPLOAD_RESULT_INCOMPLETE;
     } else if (crc32_compute(d->staging, len) != crc) {
         result = CTL_UPLOAD_RESULT_TRANSFER_CRC;
+    } else if (what == CTL_UPLOAD_COMMIT_LIMITS) {
+        result = apply_limits(d, d->staging, len);
     } else {
-        result = (uint8_t)gt_validate(d->staging, len, &info);
+        result = check_table(d, d->staging, len, &info);
+        if (result == GT_OK) activate(d, d->staging, len, crc, &info);
     }
     set_reg(d, CTL_ERROR_FLAGS, 2, reg(d, CTL_ERROR_FLAGS, 2) & ~(uint32_t)UPLOAD_FLAGS);
-    if (result == GT_OK) activate(d, d->staging, len, crc, &info); /* validated above */
-    else raise_flags(d, upload_flag(result));
+    if (result != GT_OK) raise_flags(d, upload_flag(result));
     d->regs[CTL_UPLOAD_RESULT] = result;
+}
+
+/* The servos hold the robot's limits, or none are set. */
+static bool limits_ready(const ctl_device *d)
+{
+    uint8_t s = bus_limits_state(&d->bus);
+    return s == CTL_LIMITS_STATE_NONE || s == CTL_LIMITS_STATE_VERIFIED;
 }
 
 static bool roster_ok(const ctl_device *d)
@@ -258,7 +342,8 @@ static bool roster_ok(const ctl_device *d)
     uint8_t n = joint_count(d);
     if (n == 0) return false;
     for (uint8_t k = 0; k < n; k++) {
-        if (d->roster[k].min > d->roster[k].max) return false;
+        const play_joint *j = &d->roster[k];
+        if (j->min > j->max || !within_robot(d, j->id, j->min, j->max)) return false;
     }
     return true;
 }
@@ -268,12 +353,15 @@ static void command(ctl_device *d, uint8_t cmd, uint32_t now_ms)
     bool started = false;
     switch (cmd) {
     case CTL_COMMAND_PLAY:
-        if (state(d) == CTL_STATE_SAFE || d->active_len == 0) break;
+        if (state(d) == CTL_STATE_SAFE || d->active_len == 0 || !limits_ready(d)) break;
+        gt_info info;
+        /* robot limits set after the table may be narrower than its own */
+        if (check_table(d, d->active, d->active_len, &info) != GT_OK) break;
         started = play_start_table(&d->player, d->active, d->active_len, now_ms);
         if (started) set_state(d, CTL_STATE_PLAYING);
         break;
     case CTL_COMMAND_SERPENOID:
-        if (state(d) == CTL_STATE_SAFE || !roster_ok(d)) break;
+        if (state(d) == CTL_STATE_SAFE || !roster_ok(d) || !limits_ready(d)) break;
         started = play_start_serpenoid(&d->player, joint_count(d), now_ms);
         if (started) set_state(d, CTL_STATE_SERPENOID);
         break;
@@ -281,6 +369,7 @@ static void command(ctl_device *d, uint8_t cmd, uint32_t now_ms)
     case CTL_COMMAND_CLEAR:
         set_reg(d, CTL_ERROR_FLAGS, 2, 0);
         bus_clear_faults(&d->bus);
+        if (bus_limits_state(&d->bus) == CTL_LIMITS_STATE_FAILED) bus_recheck_limits(&d->bus);
         if (state(d) == CTL_STATE_SAFE) set_state(d, CTL_STATE_IDLE);
         return;
     default: return;
@@ -361,6 +450,10 @@ static uint8_t write_window(ctl_device *d, uint8_t start, const uint8_t *data, s
         if (base >= start + n || base + CTL_SERVO_RECORD_SIZE <= start) continue;
         uint8_t rec[CTL_SERVO_RECORD_SIZE];
         if (!check_record(d, slot, page, start, data, n, rec)) return DXL_ERR_RANGE;
+        if (!within_robot(d, rec[CTL_REC_ID], (uint16_t)get_le(rec + CTL_REC_MIN_TICK, 2),
+                          (uint16_t)get_le(rec + CTL_REC_MAX_TICK, 2))) {
+            return DXL_ERR_RANGE;
+        }
         if (apply) record_write(d, (uint8_t)(page * CTL_SERVO_RECORDS + slot), rec);
     }
     return 0;
@@ -396,7 +489,7 @@ static uint8_t write_bytes(ctl_device *d, uint8_t start, const uint8_t *data, si
 
     /* apply */
     uint8_t cmd = 0;
-    bool do_commit = false;
+    uint8_t do_commit = CTL_UPLOAD_COMMIT_NONE;
     for (uint16_t a = start; a < end; a++) {
         uint8_t v = data[a - start];
         if (a >= CTL_SERVO_WINDOW && a < WINDOW_END) continue;
@@ -405,7 +498,7 @@ static uint8_t write_bytes(ctl_device *d, uint8_t start, const uint8_t *data, si
         } else if (a == CTL_COMMAND) {
             cmd = v;
         } else if (a == CTL_UPLOAD_COMMIT) {
-            do_commit = v == 1;
+            do_commit = v;
         } else {
             d->regs[a] = v;
         }
@@ -421,7 +514,7 @@ static uint8_t write_bytes(ctl_device *d, uint8_t start, const uint8_t *data, si
     }
     write_window(d, start, data, n, true);
     sync_bus_roster(d);
-    if (do_commit) commit(d);
+    if (do_commit != CTL_UPLOAD_COMMIT_NONE) commit(d, do_commit);
     if (cmd != 0) command(d, cmd, now_ms);
     return 0;
 }
@@ -434,6 +527,8 @@ static void refresh(ctl_device *d)
     set_reg(d, CTL_BUS_READS, 2, bus_reads(&d->bus));
     set_reg(d, CTL_BUS_TIMEOUTS, 2, bus_timeouts(&d->bus));
     set_reg(d, CTL_BUS_ERRORS, 2, bus_errors(&d->bus));
+    d->regs[CTL_LIMITS_COUNT] = bus_limits_count(&d->bus);
+    d->regs[CTL_LIMITS_STATE] = bus_limits_state(&d->bus);
 }
 
 static void read_bytes(ctl_device *d, uint8_t start, uint8_t n, uint8_t *out)
@@ -465,7 +560,7 @@ static void reset_device(ctl_device *d)
     bus_clear_faults(&d->bus);
     if (d->active_len > 0) {
         gt_info info;
-        if (gt_validate(d->active, d->active_len, &info) == GT_OK) {
+        if (check_table(d, d->active, d->active_len, &info) == GT_OK) {
             show_table(d, &info, crc32_compute(d->active, d->active_len));
         }
     }
@@ -564,15 +659,42 @@ void ctl_init(ctl_device *d)
     d->active_len = 0;
     d->out_count = 0;
     d->table_changed = 0;
+    d->limits_changed = 0;
 }
 
 bool ctl_load_table(ctl_device *d, const uint8_t *table, size_t len)
 {
     if (len == 0 || len > CTL_MAX_TABLE_BYTES) return false;
     gt_info info;
-    if (gt_validate(table, len, &info) != GT_OK) return false;
+    if (check_table(d, table, len, &info) != GT_OK) return false;
     activate(d, table, len, crc32_compute(table, len), &info);
     return true;
+}
+
+bool ctl_load_limits(ctl_device *d, const uint8_t *blob, size_t len)
+{
+    return apply_limits(d, blob, len) == GT_OK;
+}
+
+size_t ctl_robot_limits(const ctl_device *d, uint8_t *out, size_t cap)
+{
+    uint8_t n = bus_limits_count(&d->bus);
+    if (n == 0 || cap < 1u + CTL_LIMITS_RECORD * n) return 0;
+    out[0] = n;
+    for (uint8_t k = 0; k < n; k++) {
+        uint8_t *r = out + 1 + CTL_LIMITS_RECORD * k;
+        r[0] = d->bus.lim_id[k];
+        put_le(r + 1, 2, d->bus.lim_min[k]);
+        put_le(r + 3, 2, d->bus.lim_max[k]);
+    }
+    return 1u + CTL_LIMITS_RECORD * n;
+}
+
+bool ctl_limits_changed(ctl_device *d)
+{
+    bool changed = d->limits_changed != 0;
+    d->limits_changed = 0;
+    return changed;
 }
 
 bool ctl_pc_feed(ctl_device *d, uint8_t byte)
@@ -615,6 +737,7 @@ void ctl_tick(ctl_device *d, uint32_t now_ms)
                                         d->regs[CTL_BUS_LOSS_LIMIT], moving(d),
                                         now_ms - d->last_link_ms, d->regs[CTL_LINK_TIMEOUT]);
     if (faults != 0) enter_safe(d, faults);
+    if (bus_limits_state(&d->bus) == CTL_LIMITS_STATE_FAILED) raise_flags(d, CTL_ERROR_FLAGS_LIMITS);
 
     play_params params;
     params.speed_scale = (uint16_t)reg(d, CTL_SPEED_SCALE, 2);

@@ -4,7 +4,8 @@
  * 5.5 KB: the 2 KB staging area and the 2 KB active table are inside) and only moves
  * bytes:
  *
- *     ctl_init(&ctl);                       // once; then maybe ctl_load_table() from flash
+ *     ctl_init(&ctl);                       // once; then maybe ctl_load_limits() and
+ *                                           // ctl_load_table() from flash, in that order
  *     // PC link, for each received byte (main loop draining the USART3 RX ring):
  *     ctl_pc_feed(&ctl, byte);
  *     while (ctl_pc_poll(&ctl, now_ms, tx, sizeof tx, &n)) if (n) pc_send(tx, n);
@@ -16,6 +17,7 @@
  *                          returns true; then ctl_bus_rx_done(); }
  *     }
  *     if (ctl_table_changed(&ctl)) persist ctl_active_table(&ctl, &len) to flash;
+ *     if (ctl_limits_changed(&ctl)) persist ctl_robot_limits(&ctl, buf, sizeof buf);
  */
 #ifndef SNAKEBOT_CTL_DEVICE_H
 #define SNAKEBOT_CTL_DEVICE_H
@@ -45,6 +47,14 @@ void ctl_init(ctl_device *d);
 /* Make table[0..len) the active table without an upload (e.g. one kept in flash);
  * false, and nothing changed, if it does not validate. */
 bool ctl_load_table(ctl_device *d, const uint8_t *table, size_t len);
+/* The robot's limits as Upload Commit LIMITS takes them (protocol/controller.md), e.g.
+ * kept in flash; false, and nothing changed, if they are malformed. */
+bool ctl_load_limits(ctl_device *d, const uint8_t *blob, size_t len);
+/* Bytes of the robot's limits in that form (at most CTL_LIMITS_BLOB_MAX); 0 if none are
+ * set or cap is too small. */
+size_t ctl_robot_limits(const ctl_device *d, uint8_t *out, size_t cap);
+/* True once after each commit that set the robot's limits. */
+bool ctl_limits_changed(ctl_device *d);
 
 /* PC link: one received byte (false: the parser is full, poll first). */
 bool ctl_pc_feed(ctl_device *d, uint8_t byte);
@@ -77,6 +87,10 @@ bool ctl_table_changed(ctl_device *d);
 const uint8_t *ctl_active_table(const ctl_device *d, size_t *len);
 /* cffi:end */
 
+/* The robot's limits as staged: a count, then per servo its ID, min tick, max tick. */
+#define CTL_LIMITS_RECORD 5u
+#define CTL_LIMITS_BLOB_MAX (1u + CTL_LIMITS_RECORD * CTL_MAX_JOINTS)
+
 struct ctl_device {
     uint8_t regs[CTL_CONTROL_TABLE_BYTES]; /* the stored registers (windows excluded) */
     play_joint roster[CTL_MAX_JOINTS];
@@ -88,6 +102,7 @@ struct ctl_device {
     uint16_t active_len;    /* 0: no active table */
     uint8_t out_count;      /* goals to send this tick */
     uint8_t table_changed;
+    uint8_t limits_changed;
     uint8_t staging[CTL_MAX_TABLE_BYTES];
     uint8_t active[CTL_MAX_TABLE_BYTES];
 };

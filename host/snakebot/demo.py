@@ -47,6 +47,7 @@ from snakebot.controller.monitor import Sample, render, sample
 from snakebot.controller.playback import play, stop
 from snakebot.controller.uploader import UploadReport, upload_gait
 from snakebot.errors import SnakebotError
+from snakebot.extras import available, install_hint
 from snakebot.gait import serpenoid
 from snakebot.gait.common import motion_frame, table_motion
 from snakebot.gaittable import GaitTable, write_gait
@@ -455,7 +456,7 @@ class DemoResult:
     gait: dict[str, Any]
     upload: UploadReport
     comparison: Comparison
-    png: Path
+    png: Path | None  # None without matplotlib
     seconds: float
     monitor: list[dict[str, Any]]
 
@@ -470,7 +471,7 @@ class DemoResult:
             "upload": self.upload.as_dict(),
             "cycles": {"warmup": self.settings.warmup_cycles, "measured": self.settings.cycles},
             **self.comparison.as_dict(),
-            "png": str(self.png),
+            "png": None if self.png is None else str(self.png),
             **({"video": str(self.settings.video)} if self.settings.video else {}),
             "monitor": self.monitor,
             "seconds": round(self.seconds, 2),
@@ -552,7 +553,8 @@ def run_demo(settings: DemoSettings | None = None, say: Say = print) -> DemoResu
     )
     if world_of(record) != "kinematic":
         comparison.physics = physics_effects(robot, table, record, comparison, settings.cycles)
-    png = plot_demo(robot, comparison, out_dir / "demo.png")
+    # The picture needs the `plot` extra; without it the demo still runs and says so.
+    png = plot_demo(robot, comparison, out_dir / "demo.png") if available("matplotlib") else None
     if settings.video is not None:
         say(f"   writing the video {settings.video} ...")
         write_video(settings.video, robot, {f"emulated ({settings.world})": record})
@@ -659,9 +661,14 @@ def summary_lines(result: DemoResult) -> list[str]:
         *_physics_lines(c),
         f"   the firmware played at {c.playback_rate:.2f}x wall-clock speed (its clock in QEMU);"
         " the motion per cycle does not depend on it.",
-        f"6. wrote {result.png} (body path: emulated vs predicted; joint angles: commanded vs "
-        f"measured){_video_words(result)} and {result.gait_file}; took {result.seconds:.1f} s; "
-        "nothing left running.",
+        (
+            f"6. wrote {result.png} (body path: emulated vs predicted; joint angles: commanded "
+            f"vs measured){_video_words(result)} and {result.gait_file}"
+            if result.png is not None
+            else f"6. wrote {result.gait_file}{_video_words(result)}; no picture "
+            f"({install_hint('matplotlib')} draws one)"
+        )
+        + f"; took {result.seconds:.1f} s; nothing left running.",
     ]
 
 

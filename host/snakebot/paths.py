@@ -1,10 +1,12 @@
-"""Where the project's shared, non-Python files live.
+"""Where the repository's shared, non-Python files live, for tests and generators.
 
-``protocol/`` holds the facts that cross a wire (packet vectors, the gait-table layout;
-the control tables are package data in ``snakebot.devices``). It sits at the repository
-root so the C and Python sides read the same files; snakebot is installed editable
-(``make setup``) and finds it from here.
-The environment variable ``SNAKEBOT_PROTOCOL_DIR`` overrides the location.
+``protocol/`` (packet vectors, the gait-table layout) and ``firmware/`` sit at the
+repository root so the C and Python sides read the same files. They are not installed:
+what the package needs at run time ships inside it (package data: the control tables in
+:mod:`snakebot.devices`, the firmware images through :mod:`snakebot.firmware`). These
+helpers serve code that runs from a checkout (an editable install): the tests, the code
+generators, the development harnesses. ``SNAKEBOT_PROTOCOL_DIR`` overrides the protocol
+directory.
 """
 
 from __future__ import annotations
@@ -13,15 +15,24 @@ import os
 from pathlib import Path
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
+"""The checkout's root when snakebot is installed editable; meaningless otherwise (an
+installed package's parents are site-packages), so ask :func:`in_checkout` first."""
+
+
+def in_checkout() -> bool:
+    """Whether this snakebot runs from its repository (an editable install)."""
+    return (REPO_ROOT / "firmware" / "Makefile").is_file() and (
+        REPO_ROOT / "host" / "snakebot"
+    ).is_dir()
 
 
 def protocol_dir() -> Path:
-    """The directory holding ``vectors/`` and the layout documents."""
+    """The repository's ``protocol/`` directory (``vectors/``, the layout documents)."""
     override = os.environ.get("SNAKEBOT_PROTOCOL_DIR")
     path = Path(override) if override else REPO_ROOT / "protocol"
     if not path.is_dir():
         raise FileNotFoundError(
-            f"protocol data not found at {path}: install snakebot editable from its "
-            "repository (make setup) or set SNAKEBOT_PROTOCOL_DIR"
+            f"protocol data not found at {path}: it is part of the snakebot repository; "
+            "run this from a checkout (make setup) or set SNAKEBOT_PROTOCOL_DIR"
         )
     return path

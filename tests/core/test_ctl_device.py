@@ -60,8 +60,10 @@ def test_ping_answers_only_at_its_id(dev):
 
 
 def test_registers_start_at_their_defaults(dev):
-    data = dev.read(0, 127)
-    values = CTL.decode(0, data)
+    values = CTL.decode(0, dev.read(0, 127))
+    # the registers after the servo window (the robot's limits)
+    window_end = CTL.servo_window_address + CTL.servo_records * CTL.servo_record_size
+    values.update(CTL.decode(window_end, dev.read(window_end, 256 - window_end)))
     for reg in CTL.registers:
         if reg.readable and reg.size <= 4:
             # the READ itself is the first packet counted

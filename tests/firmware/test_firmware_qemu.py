@@ -164,6 +164,7 @@ def answers_again(c) -> None:
         assert c.ping(CONTROLLER_ID, retries=0) == Packet(CONTROLLER_ID, 0, b"")
 
 
+@pytest.mark.serial  # its deadline counts on QEMU keeping pace: nothing beside it
 @pytest.mark.parametrize("junk", NASTY, ids=lambda b: b.hex()[:16])
 def test_keeps_answering_after_malformed_input(link, junk):
     """A stalled packet start (say, a header promising 246 bytes) would swallow the next

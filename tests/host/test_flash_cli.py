@@ -73,6 +73,7 @@ def test_flash_stores_the_image_byte_for_byte_and_starts_it(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # paced at line speed with a stall deadline: nothing beside it
 def test_an_image_bigger_than_the_pty_buffers_goes_through_at_line_speed(tmp_path):
     """A pty (like a driver) takes ~20 KB at once, then holds the writer until its reader
     has drained nearly all of it: at 57600 baud that is seconds, and must not be taken

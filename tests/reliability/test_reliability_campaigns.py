@@ -18,7 +18,7 @@ from firmware_support import build_firmware
 
 from tools.campaigns import CAMPAIGNS, run
 
-pytestmark = [pytest.mark.qemu, pytest.mark.slow]
+pytestmark = [pytest.mark.qemu, pytest.mark.slow, pytest.mark.serial]
 
 SEED = int(os.environ.get("SNAKEBOT_CAMPAIGN_SEED", "1"))
 

@@ -18,6 +18,9 @@ from snakebot.sim.options import SimOptions
 from snakebot.sim.transports import PtyServer
 from snakebot.transport import DxlClient
 
+# dynamixel-sdk waits its own fixed time for a reply: run with nothing beside it.
+pytestmark = pytest.mark.serial
+
 IDS = (10, 11, 15, 16)  # snake5's servos
 
 

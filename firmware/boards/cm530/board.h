@@ -20,6 +20,9 @@
 #define BOARD_HAS_FLASH_STORE 1
 #define BOARD_STORE_BASE 0x08078000UL
 #define BOARD_STORE_SIZE (32UL * 1024UL)
+/* The 4 KB below it keep the robot's limits (two slots of one page each). */
+#define BOARD_LIMITS_STORE_BASE 0x08077000UL
+#define BOARD_LIMITS_STORE_SIZE (4UL * 1024UL)
 
 #include "cm530_io.h" /* bus and PC-link USARTs and pins */
 

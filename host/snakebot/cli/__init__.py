@@ -32,17 +32,35 @@ from snakebot.cli.bus import bus  # noqa: E402
 from snakebot.cli.demo import demo  # noqa: E402
 from snakebot.cli.flash import flash_command  # noqa: E402
 from snakebot.cli.gait import gait  # noqa: E402
+from snakebot.cli.limits import limits  # noqa: E402
 from snakebot.cli.model import model  # noqa: E402
 from snakebot.cli.monitor import monitor  # noqa: E402
+from snakebot.cli.plan import plan_command  # noqa: E402
 from snakebot.cli.playback import play, serpenoid, stop  # noqa: E402
 from snakebot.cli.sim import sim  # noqa: E402
 from snakebot.cli.sim_bootloader import bootloader  # noqa: E402
+from snakebot.cli.sim_goto import goto  # noqa: E402
 from snakebot.cli.sim_predict import predict  # noqa: E402
 from snakebot.cli.sim_serve import serve  # noqa: E402
 from snakebot.cli.sim_thesis import friction, thesis  # noqa: E402
 from snakebot.cli.upload import upload  # noqa: E402
 
-for command in (model, gait, sim, upload, play, stop, serpenoid, monitor, bus, flash_command, demo):
+for command in (
+    model,
+    gait,
+    sim,
+    upload,
+    limits,
+    play,
+    stop,
+    serpenoid,
+    monitor,
+    bus,
+    flash_command,
+    demo,
+):
     main.add_command(command)
-for command in (predict, serve, bootloader, thesis, friction):
+for command in (plan_command,):
+    main.add_command(command)
+for command in (predict, serve, bootloader, goto, thesis, friction):
     sim.add_command(command)

@@ -71,7 +71,8 @@ def _sigterm(signum: int, frame: FrameType | None) -> None:
     "--firmware",
     type=click.Path(dir_okay=False, path_type=Path),
     default=None,
-    help="Firmware image for QEMU (default build/qemu/firmware.elf).",
+    help="Firmware image for QEMU (default: the qemu board's firmware.elf that `make "
+    "firmware` built in this checkout, else the one shipped with snakebot).",
 )
 @click.option(
     "--world",

@@ -9,6 +9,7 @@ import click
 
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType, controller_port
+from snakebot.firmware import image as firmware_image
 from snakebot.flash import PC_LINK_BAUD, FlashTimeouts, board_layout, flash, load_image
 from snakebot.flash.loader import last_line
 from snakebot.transport import open_port
@@ -37,7 +38,7 @@ class _LazyBar:
 
 
 @click.command("flash")
-@click.argument("firmware", type=click.Path(dir_okay=False, path_type=str))
+@click.argument("firmware", required=False, type=click.Path(dir_okay=False, path_type=str))
 @click.option(
     "--port",
     "-p",
@@ -79,7 +80,7 @@ class _LazyBar:
     help="Print the result as one JSON object on stdout (messages go to stderr).",
 )
 def flash_command(
-    firmware: str,
+    firmware: str | None,
     port: str,
     no_go: bool,
     no_checksum_byte: bool,
@@ -89,12 +90,15 @@ def flash_command(
 ) -> None:
     """Flash FIRMWARE (a raw .bin) onto the CM-530 through its ROBOTIS bootloader.
 
+    Without FIRMWARE it flashes snakebot's own controller firmware: the image `make
+    firmware` built in this checkout, else the one shipped with the installed package.
+
     Run the command, then press RESET on the CM-530 (or switch it on) when asked: the
     bootloader only listens for a moment after a reset. The command then loads the image,
     checks the bootloader's checksum against its own, and starts the new firmware.
 
     \b
-        make firmware
+        snakebot flash --port /dev/ttyUSB0
         snakebot flash build/cm530/firmware.bin --port /dev/ttyUSB0
 
     The link runs at 57600 baud, so 100 KB takes about 18 s. Timeouts can be raised with
@@ -106,6 +110,8 @@ def flash_command(
     def say(message: str) -> None:
         click.echo(message, file=out)
 
+    if firmware is None:
+        firmware = str(firmware_image("cm530", "firmware.bin"))
     layout = board_layout()
     image = load_image(firmware, layout, check_vectors=not force)
     timeouts = FlashTimeouts.resolve(reset=reset_timeout)

@@ -9,6 +9,7 @@ import click
 
 from snakebot.cli.output import dumps
 from snakebot.cli.params import ANGLE, ANGLES, NUMBER, OUTPUT_PATH, PLOT_PATH, NumberType
+from snakebot.extras import require
 from snakebot.gait import Gait, field_gait, serpenoid
 from snakebot.gaittable import read_gait, sidecar_path, write_gait
 from snakebot.robots import load_robot
@@ -304,6 +305,7 @@ def show(file: Path, plot: Path | None, as_json: bool) -> None:
     hidden = ("path", "table_path", "joints")
     summary = {**{k: v for k, v in meta.items() if k not in hidden}, **computed}
     if plot is not None:
+        require("matplotlib", "--plot")
         from snakebot.plots import plot_gait
 
         summary["plot"] = str(plot_gait(table, plot))

@@ -10,6 +10,7 @@ import numpy as np
 
 from snakebot.cli.output import dumps
 from snakebot.cli.params import ANGLES
+from snakebot.extras import require
 from snakebot.gait.common import NEAR_SINGULAR_RCOND
 from snakebot.kinematics import body_velocity, default_form, field_model, fields
 from snakebot.kinematics.lie import LieFields, lie_fields, lie_model
@@ -302,6 +303,7 @@ def _print_lie(rb: Any, lf: LieFields, as_json: bool) -> None:
 
 
 def _print_symbolic(rb: Any, form: str, as_json: bool) -> None:
+    require("sympy", "--symbolic")
     from snakebot.symbolic.display import field_expressions
 
     ex = field_expressions(rb, form if rb.kind == "trident" else "body")

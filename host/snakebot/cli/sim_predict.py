@@ -12,6 +12,7 @@ import click
 import snakebot.transport.ports  # noqa: F401  (registers sim://)
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NUMBER, PLOT_PATH, NumberType
+from snakebot.extras import require
 from snakebot.sim.physics.select import DEFAULT_WORLD, WORLDS
 from snakebot.sim.physics.video import StateMotion, check_video_path, write_video
 from snakebot.sim.predict import DEFAULT_WORLD_HZ, predict_gait
@@ -126,6 +127,7 @@ def predict(
             )
         )
     if plot is not None:
+        require("matplotlib", "--plot")
         from snakebot.sim.predict_plot import plot_prediction
 
         summary["plot"] = str(plot_prediction(result, plot))

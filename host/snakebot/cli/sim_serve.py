@@ -15,7 +15,7 @@ from snakebot.cli.params import NumberType
 from snakebot.cli.signals import STOP_SIGNALS
 from snakebot.sim.errors import SimError
 from snakebot.sim.physics.select import DEFAULT_WORLD, WORLDS
-from snakebot.sim.serve import DEFAULT_FIRMWARE, EmulatedRobot
+from snakebot.sim.serve import EmulatedRobot
 
 HISTORY_S = 600.0
 """Seconds of the world's latest samples kept while serving: memory stays flat however
@@ -35,9 +35,9 @@ long it serves (the pose reports need only the latest)."""
     "--firmware",
     type=click.Path(dir_okay=False, path_type=Path),
     default=None,
-    help=f"Firmware for QEMU: the qemu board's application ELF (default "
-    f"{DEFAULT_FIRMWARE.parent.name}/{DEFAULT_FIRMWARE.name} under build/; the boot "
-    "stub beside it goes in front) or a whole-flash .bin image.",
+    help="Firmware for QEMU: the qemu board's application ELF (the boot stub beside it "
+    "goes in front) or a whole-flash .bin image. Default: build/qemu/firmware.elf from "
+    "`make firmware` in a checkout, else the image shipped with snakebot.",
 )
 @click.option(
     "--sim-options",

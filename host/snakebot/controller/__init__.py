@@ -20,15 +20,19 @@ Command = IntEnum("Command", _enums["Command"])
 SafeAction = IntEnum("SafeAction", _enums["Safe Action"])
 UploadResult = IntEnum("UploadResult", _enums["Upload Result"])
 ControllerErrors = IntFlag("ControllerErrors", _enums["Error Flags"])
+UploadCommit = IntEnum("UploadCommit", _enums["Upload Commit"])
+LimitsState = IntEnum("LimitsState", _enums["Limits State"])
 
 __all__ = [
     "Command",
     "Controller",
     "ControllerErrors",
     "ControllerTableError",
+    "LimitsState",
     "Register",
     "SafeAction",
     "State",
+    "UploadCommit",
     "UploadResult",
     "chunk_writes",
     "commit_write",

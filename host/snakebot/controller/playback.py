@@ -22,6 +22,7 @@ from typing import Any
 from snakebot.controller import words
 from snakebot.controller.client import ControllerClient, RosterEntry
 from snakebot.controller.errors import ControllerError
+from snakebot.controller.limits import VERIFY_TIMEOUT_S, not_held, wait_settled
 from snakebot.robots import Robot
 
 SPEED = "x"
@@ -140,6 +141,10 @@ def _start(
     want: str,
     finished_ok: float | None = None,
 ) -> dict[str, Any]:
+    # after a roster change the controller checks the servos' angle limits first
+    state, _ = wait_settled(ctl)
+    if state not in ("NONE", "VERIFIED"):
+        raise ControllerError(not_held(ctl, state, VERIFY_TIMEOUT_S))
     sent = time.monotonic()
     ctl.command(command)
     after = ctl.read_all()

@@ -35,9 +35,12 @@ def chunk_writes(
     ]
 
 
-def commit_write(table: bytes, controller: Controller | None = None) -> tuple[int, bytes]:
+def commit_write(
+    table: bytes, controller: Controller | None = None, *, what: str = "TABLE"
+) -> tuple[int, bytes]:
     """The WRITE that commits: Upload Length, Upload CRC (zlib.crc32 of all the bytes) and
-    Upload Commit = 1 in one packet."""
+    Upload Commit in one packet; ``what`` names the Upload Commit value (TABLE: the staged
+    bytes are a gait table; LIMITS: they are the robot's limits)."""
     ctl = controller or load()
     length = ctl.register("Upload Length")
     crc = ctl.register("Upload CRC")
@@ -46,5 +49,6 @@ def commit_write(table: bytes, controller: Controller | None = None) -> tuple[in
         raise ControllerTableError(
             "the controller's description: Upload Length/CRC/Commit must be adjacent"
         )
-    data = length.encode(len(table)) + crc.encode(zlib.crc32(table)) + commit.encode(1)
+    value = ctl.enums["Upload Commit"][what]
+    data = length.encode(len(table)) + crc.encode(zlib.crc32(table)) + commit.encode(value)
     return length.address, data

@@ -16,7 +16,10 @@ FLAG_MEANINGS: dict[str, str] = {
     "by default)",
     "BUS_LOSS": "a roster servo stopped answering telemetry reads",
     "LINK_LOSS": "the PC link went quiet for longer than Link Timeout while moving",
-    "REFUSED": "a command could not run (no table, empty roster, or the safe state)",
+    "REFUSED": "a command could not run (no table, empty roster, the safe state, or the "
+    "servos do not yet hold the robot's limits)",
+    "LIMITS": "a servo would not take the robot's limits as its CW/CCW Angle Limit (or did "
+    "not answer while they were checked)",
 }
 
 SAFE_FIXES: dict[str, str] = {
@@ -52,6 +55,16 @@ UPLOAD_RESULTS: dict[str, tuple[str, str]] = {
     "BAD_JOINT_ID": ("a servo ID above 253 or used twice", ""),
     "BAD_LIMITS": ("a joint's min tick above its max", ""),
     "FRAME_OUT_OF_LIMITS": ("a frame value outside its joint's limits", ""),
+    "OUTSIDE_ROBOT_LIMITS": (
+        "the table lets a joint move beyond the robot's limits set on the controller (or "
+        "names a servo they do not cover)",
+        "regenerate the table with `snakebot gait` from the same robot file as "
+        "`snakebot limits set`, or set that robot's limits first",
+    ),
+    "BAD_ROBOT_LIMITS": (
+        "the robot's limits were malformed (count, a servo ID twice, or min not below max)",
+        "",
+    ),
     "NONE": ("no table has been committed since the controller started", ""),
 }
 

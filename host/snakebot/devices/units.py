@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from enum import StrEnum
+from enum import Enum
 from fractions import Fraction
 
 from snakebot.devices.errors import DeviceError
@@ -78,12 +78,15 @@ class Scale:
         return f"{self.shown or self.factor} {self.unit}"
 
 
-class Encoding(StrEnum):
+class Encoding(str, Enum):  # enum.StrEnum is Python 3.11+; this is the same for 3.10
     """How a register's bits hold a signed value."""
 
     UNSIGNED = "unsigned"
     SIGN_MAGNITUDE_BIT10 = "sign_magnitude_bit10"  # bits 0-9 magnitude, bit 10 set = CW (<0)
     TWOS_COMPLEMENT = "twos_complement"
+
+    def __str__(self) -> str:
+        return str(self.value)
 
     @property
     def direction_bit(self) -> int | None:

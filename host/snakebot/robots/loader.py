@@ -22,10 +22,15 @@ from __future__ import annotations
 import difflib
 import math
 import re
-import tomllib
+import sys
 from importlib import resources
 from pathlib import Path
 from typing import Any
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # the same parser as a package (a dependency on Python 3.10 only)
+    import tomli as tomllib
 
 from snakebot.robots.model import (
     SERVO_MAX_RPM,

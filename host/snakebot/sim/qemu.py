@@ -58,7 +58,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
-from snakebot.paths import REPO_ROOT
+from snakebot.firmware import image as firmware_image
 from snakebot.sim.errors import SimError
 from snakebot.sim.transports.relay import PtyRelay
 from snakebot.sim.workdirs import make_workdir
@@ -68,8 +68,9 @@ QEMU_BINARY = "qemu-system-arm"
 
 MACHINE = "stm32vldiscovery"
 
-DEFAULT_IMAGE = REPO_ROOT / "build" / "qemu" / "flash.bin"
-"""The whole 128 KB flash as the qemu board sees it: boot stub, padding, application."""
+DEFAULT_IMAGE = firmware_image("qemu", "flash.bin")
+"""The whole 128 KB flash as the qemu board sees it: boot stub, padding, application
+(built in this checkout, else shipped in the package)."""
 
 START_TIMEOUT_S = 10.0
 """How long :meth:`QemuFirmware.start` waits for QEMU to come up (its QMP socket)."""

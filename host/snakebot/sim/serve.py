@@ -45,6 +45,7 @@ from typing import Any
 
 import numpy as np
 
+from snakebot.firmware import image as firmware_image
 from snakebot.protocol import DxlTimeout, ProtocolError
 from snakebot.robots import Robot, load_robot
 from snakebot.sim.bus import Bus
@@ -52,15 +53,16 @@ from snakebot.sim.errors import SimError
 from snakebot.sim.options import SimOptions
 from snakebot.sim.physics import PhysicsWorld
 from snakebot.sim.physics.select import DEFAULT_WORLD, check_world, make_world
-from snakebot.sim.qemu import REPO_ROOT, Endpoint, QemuFirmware
+from snakebot.sim.qemu import Endpoint, QemuFirmware
 from snakebot.sim.servo import VirtualServo
 from snakebot.sim.transports.unixsock import UnixSocketServer
 from snakebot.sim.workdirs import make_workdir
 from snakebot.sim.world import World, WorldRecord
 from snakebot.transport import DxlClient
 
-DEFAULT_FIRMWARE = REPO_ROOT / "build" / "qemu" / "firmware.elf"
-"""The qemu board's application image, as ``make firmware`` builds it."""
+DEFAULT_FIRMWARE = firmware_image("qemu", "firmware.elf")
+"""The qemu board's application image: ``make firmware``'s in a checkout, else the one
+shipped in the package (:mod:`snakebot.firmware`)."""
 
 FLASH_BASE = 0x08000000
 FLASH_SIZE = 128 * 1024  # stm32vldiscovery (STM32F100RB)
@@ -150,11 +152,11 @@ def flash_image(firmware: str | os.PathLike[str], out: str | os.PathLike[str]) -
     lays out ``flash.bin``; the gap is erased flash (0xFF)."""
     src = Path(firmware)
     if not src.is_file():
-        where = DEFAULT_FIRMWARE.relative_to(REPO_ROOT)
         hint = (
             "run `make firmware` to build it"
             if src == DEFAULT_FIRMWARE
-            else f"check the path; `make firmware` builds {where}"
+            else "check the path; `make firmware` builds build/qemu/firmware.elf in a "
+            f"checkout (the default without --firmware: {DEFAULT_FIRMWARE})"
         )
         raise ServeError(f"firmware image {src} not found: {hint}")
     dest = Path(out)

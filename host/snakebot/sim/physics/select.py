@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from snakebot.extras import require
 from snakebot.robots import Robot
 from snakebot.sim.bus import Bus
 from snakebot.sim.errors import SimOptionError
@@ -38,6 +39,7 @@ def make_world(
     if check_world(name) == "kinematic":
         extra = {} if batch is None else {"batch": batch}
         return World(bus, robot, period=period, start=start, keep=keep, **extra)
+    require("mujoco", "the mujoco world")
     from snakebot.sim.physics.world import PhysicsWorld
 
     return PhysicsWorld(bus, robot, period=period, start=start, mu=mu, keep=keep)

@@ -11,15 +11,16 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from pathlib import Path
-from typing import NamedTuple, Protocol
+from typing import TYPE_CHECKING, NamedTuple, Protocol
 
 import numpy as np
-from matplotlib import animation
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 from snakebot.errors import SnakebotError
+from snakebot.extras import require
 from snakebot.robots import Robot
+
+if TYPE_CHECKING:  # matplotlib is the `plot` extra: imported when a video is written
+    from matplotlib.animation import AbstractMovieWriter
 
 FPS = 20
 MAX_FRAMES = 300
@@ -76,7 +77,10 @@ def body_points(robot: Robot, pose: np.ndarray, phi: np.ndarray) -> tuple[np.nda
     return np.array(lines), np.array(wheels)
 
 
-def _writer(path: Path) -> animation.AbstractMovieWriter:
+def _writer(path: Path) -> AbstractMovieWriter:
+    require("matplotlib", "--video")
+    from matplotlib import animation
+
     suffix = path.suffix.lower()
     if suffix == ".gif":
         return animation.PillowWriter(fps=FPS)
@@ -113,6 +117,9 @@ def write_video(
     frames = max(2, min(MAX_FRAMES, int(duration * FPS) + 1))
     times = np.linspace(0.0, duration, frames)
     speedup = duration / (frames / FPS) if frames > 1 else 1.0
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
     fig = Figure(figsize=(5, 5), layout="constrained")
     FigureCanvasAgg(fig)

@@ -8,10 +8,13 @@ import os
 import tty
 from pathlib import Path
 from types import TracebackType
-from typing import Self
+from typing import TYPE_CHECKING
 
 from snakebot.sim.errors import SimError
 from snakebot.sim.transports.pump import ServerThread
+
+if TYPE_CHECKING:  # typing.Self is 3.11+; annotations are never evaluated at run time
+    from typing import Self  # novermin
 
 
 class RawPty:

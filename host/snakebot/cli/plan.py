@@ -1,0 +1,201 @@
+"""``snakebot plan``: a gait table that takes the robot to a target pose."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import click
+
+from snakebot.cli.output import dumps
+from snakebot.cli.params import ANGLE, ANGLES, NUMBER
+from snakebot.gait.values import InputError, parse_angle, parse_number
+from snakebot.plan import Unreachable
+from snakebot.plan.planner import DEFAULT_HEADING_TOLERANCE, DEFAULT_TOLERANCE
+
+#: Exit status when no plan reaches the target: a runtime failure, not bad input.
+EXIT_UNREACHABLE = 1
+
+
+class PoseType(click.ParamType):
+    """X,Y,THETA: two numbers in the robot's length units, and an angle (rad or deg)."""
+
+    name = "x,y,theta"
+
+    def convert(
+        self, value: Any, param: click.Parameter | None, ctx: click.Context | None
+    ) -> tuple[float, float, float]:
+        if isinstance(value, tuple):
+            return value
+        parts = str(value).split(",")
+        if len(parts) != 3 or not all(p.strip() for p in parts):
+            self.fail(f"{value!r} is not X,Y,THETA: give three comma-separated values", param, ctx)
+        try:
+            return (parse_number(parts[0]), parse_number(parts[1]), parse_angle(parts[2]))
+        except InputError as exc:
+            self.fail(str(exc), param, ctx)
+
+
+POSE = PoseType()
+
+TO_OPTION = click.option(
+    "--to",
+    "target",
+    type=POSE,
+    required=True,
+    metavar="X,Y,THETA",
+    help="target body pose relative to the start pose: X along the start heading, Y to "
+    "its left (the robot's length units), THETA counter-clockwise (rad, or deg with "
+    "'deg'), e.g. 3,1,45deg",
+)
+FROM_OPTION = click.option(
+    "--from",
+    "start",
+    type=ANGLES,
+    metavar="PHI1,...",
+    help="joint angles at the start, where the plan also ends (default: pi/3,-pi/3 for "
+    "the 3-link snake, 0 for the others)",
+)
+TOLERANCE_OPTIONS = (
+    click.option(
+        "--tolerance",
+        type=NUMBER,
+        default=DEFAULT_TOLERANCE,
+        show_default=True,
+        help="how near the end must be, as a fraction of the distance to the target "
+        "(at least that fraction of a tenth of a body length)",
+    ),
+    click.option(
+        "--heading-tolerance",
+        type=ANGLE,
+        default=DEFAULT_HEADING_TOLERANCE,
+        show_default="2deg",
+        help="how near the end heading must be (rad, or deg with 'deg')",
+    ),
+)
+
+
+def tolerance_options(f: Any) -> Any:
+    for option in reversed(TOLERANCE_OPTIONS):
+        f = option(f)
+    return f
+
+
+def unreachable(exc: Unreachable) -> None:
+    """Report a target no plan reaches: one line, exit status 1."""
+    click.echo(f"error: {exc}", err=True)
+    raise SystemExit(EXIT_UNREACHABLE)
+
+
+@click.command("plan")
+@click.argument("robot", metavar="ROBOT")
+@TO_OPTION
+@FROM_OPTION
+@tolerance_options
+@click.option(
+    "--output",
+    "-o",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="the gait table to write (FILE.json gets the metadata); without it the plan is "
+    "only reported",
+)
+@click.option(
+    "--plot",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="also write a PNG of the joints and the body's path (needs -o)",
+)
+@click.option("--json", "as_json", is_flag=True, help="print the report as JSON")
+def plan_command(
+    robot: str,
+    target: tuple[float, float, float],
+    start: list[float] | None,
+    tolerance: float,
+    heading_tolerance: float,
+    output: Path | None,
+    plot: Path | None,
+    as_json: bool,
+) -> None:
+    """Plan a gait table that takes ROBOT (snake3, trident, snake5 or a .toml) from rest
+    to a target pose, for `snakebot upload` and `play`.
+
+    \b
+    How: the joints move from the start to a hub configuration, run one closed joint
+    loop k times and come back. A loop through the hub moves the body by the same pose
+    wherever it is (the system is driftless and the same everywhere on the floor), so k
+    loops reach the target when one loop makes its k-th root: the same circular arc,
+    a k-th of the way. The loop (two harmonics per joint) is fitted to that root by
+    least squares with the exact motion integrated by the C core, the Lie brackets'
+    leading order corrected all along the way. For a snake the first guess is a
+    serpenoid wave; the plan keeps inside the joint limits and is timed to the servos'
+    speed; its table, rounded to ticks and played as the controller plays it, is checked
+    to end within the tolerance.
+
+    When no plan inside the limits and the controller's table reaches the target, the
+    command says so and exits with status 1; nothing is written.
+
+    \b
+    Example:
+      snakebot plan trident --to 2,1,30deg -o go.gait
+      snakebot sim predict go.gait --ideal
+    """
+    from snakebot.plan import make_plan
+    from snakebot.robots import load_robot
+
+    if plot is not None and output is None:
+        raise click.UsageError("--plot needs -o FILE: the plot is drawn from the written table")
+    chosen = load_robot(robot)
+    try:
+        plan = make_plan(
+            chosen,
+            target,
+            start=tuple(start) if start else None,
+            tolerance=tolerance,
+            heading_tolerance=heading_tolerance,
+        )
+    except Unreachable as exc:
+        unreachable(exc)
+        return
+    summary = plan.summary()
+    if output is not None:
+        from snakebot.gaittable import sidecar_path, write_gait
+
+        table = plan.gait.gait_table()
+        write_gait(output, table)
+        summary.update(file=str(output), metadata_file=str(sidecar_path(output)))
+        if plot is not None:
+            from snakebot.plots import plot_gait
+
+            summary["plot"] = str(plot_gait(table, plot))
+    for warning in summary["warnings"]:
+        click.echo(f"warning: {warning['message']}", err=True)
+    if as_json:
+        click.echo(dumps(summary, indent=2))
+        return
+    _print(summary)
+
+
+def _print(s: dict[str, Any]) -> None:
+    t, f, e = s["target"], s["predicted_final"], s["error"]
+    click.echo(
+        f"plan for {s['robot']}: {s['loops']} loops through hub "
+        f"({', '.join(f'{math.degrees(v):.1f}' for v in s['hub_rad'])}) deg, "
+        f"{s['frames']} frames every {s['frame_period_ms']} ms ({s['duration_s']:.2f} s)"
+    )
+    click.echo(
+        f"  target     x = {t['x']: .4f}  y = {t['y']: .4f}  theta = "
+        f"{math.degrees(t['theta']): .2f} deg"
+    )
+    click.echo(
+        f"  predicted  x = {f['x']: .4f}  y = {f['y']: .4f}  theta = "
+        f"{math.degrees(f['theta']): .2f} deg (the table as the controller plays it)"
+    )
+    click.echo(
+        f"  error {e['position']:.4g} (tolerance {e['position_tolerance']:.4g}), heading "
+        f"{math.degrees(e['heading_rad']):.3f} deg (tolerance "
+        f"{math.degrees(e['heading_tolerance_rad']):.2f} deg)"
+    )
+    if "file" in s:
+        click.echo(f"wrote {s['file']} and {s['metadata_file']}")
+    if "plot" in s:
+        click.echo(f"plot written to {s['plot']}")

@@ -1,0 +1,135 @@
+"""The robot's limits on the controller (protocol/controller.md, "The robot's limits").
+
+    report = set_limits(ctl, robot_limits(load_robot("snake5")))
+
+The controller keeps, per servo ID, the range of position ticks the robot's joint may
+reach. They are configuration of the robot, not of a gait table: the firmware makes
+every covered servo's CW/CCW Angle Limit equal to them (so the servo itself refuses a
+goal outside, whatever the bus does to the packet), refuses tables that reach beyond
+them, and refuses to move until the servos are known to hold them.
+
+They travel like a table: staged through Upload Data, then committed with Upload Commit
+LIMITS; the staged bytes are a count, then one record per servo.
+"""
+
+from __future__ import annotations
+
+import struct
+import time
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from snakebot.controller import words
+from snakebot.controller.client import ControllerClient
+from snakebot.controller.errors import ControllerError
+from snakebot.controller.upload import chunk_writes, commit_write
+from snakebot.robots import Robot
+
+RECORD = struct.Struct("<BHH")
+"""One servo's limits as staged: servo ID, min tick, max tick."""
+
+VERIFY_TIMEOUT_S = 10.0
+"""How long the servos may take to be read, written and read back (a few control ticks
+each; generous for a slow emulator)."""
+
+Limits = Mapping[int, tuple[int, int]]
+
+
+class LimitsError(ControllerError):
+    """The controller refused the robot's limits, or its servos did not take them."""
+
+
+def robot_limits(robot: Robot) -> dict[int, tuple[int, int]]:
+    """Servo ID -> (min tick, max tick) of each joint of ``robot``."""
+    return dict(zip(robot.servo_ids, robot.tick_limits, strict=True))
+
+
+def encode_limits(limits: Limits) -> bytes:
+    """The staged form: the servo count, then a :data:`RECORD` per servo."""
+    return bytes([len(limits)]) + b"".join(
+        RECORD.pack(sid, lo, hi) for sid, (lo, hi) in sorted(limits.items())
+    )
+
+
+@dataclass
+class LimitsReport:
+    """What the controller says after the limits were set."""
+
+    limits: dict[int, tuple[int, int]]
+    state: str
+    count: int
+    seconds: float
+    error_flags: list[str] = field(default_factory=list)
+
+    def as_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["limits"] = {str(k): list(v) for k, v in self.limits.items()}
+        return d
+
+    def summary(self) -> str:
+        servos = ", ".join(f"{sid}: {lo}..{hi}" for sid, (lo, hi) in sorted(self.limits.items()))
+        return (
+            f"robot limits set for {self.count} servos ({servos}); the servos' angle limits "
+            f"are {self.state} after {self.seconds:.1f} s"
+        )
+
+
+def _state_name(ctl: ControllerClient, value: int) -> str:
+    for name, code in ctl.table.enums["Limits State"].items():
+        if code == value:
+            return name
+    return f"UNKNOWN({value})"
+
+
+def limits_state(ctl: ControllerClient) -> tuple[str, int]:
+    """(Limits State by name, Limits Count)."""
+    r = ctl.read("Limits Count", "Limits State")
+    return _state_name(ctl, r["Limits State"]), r["Limits Count"]
+
+
+def wait_settled(ctl: ControllerClient, timeout_s: float = VERIFY_TIMEOUT_S) -> tuple[str, int]:
+    """Wait while the controller checks its servos' angle limits (Limits State APPLYING),
+    at most ``timeout_s``; then (Limits State, Limits Count)."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        state, count = limits_state(ctl)
+        if state != "APPLYING" or time.monotonic() > deadline:
+            return state, count
+        time.sleep(0.05)
+
+
+def not_held(ctl: ControllerClient, state: str, timeout_s: float) -> str:
+    """Why the servos do not hold the robot's limits, and what to do."""
+    flags = ctl.read("Error Flags")["Error Flags"]
+    return (
+        f"the servos' angle limits are {state} after {timeout_s:.0f} s: a servo did not "
+        "answer, or would not store them (Lock is set until it is power-cycled); check "
+        "the servos' power, cables and IDs (`snakebot bus scan`), then send CLEAR "
+        "(`snakebot stop --clear`) or set the limits again (Error Flags: "
+        f"{words.describe_flags(flags, ctl.table)})"
+    )
+
+
+def set_limits(
+    ctl: ControllerClient, limits: Limits, *, timeout_s: float = VERIFY_TIMEOUT_S
+) -> LimitsReport:
+    """Make ``limits`` the controller's robot limits and wait until its servos hold them
+    (Limits State VERIFIED). Stops any motion. Raises :class:`LimitsError` with the
+    reason and the fix."""
+    t0 = time.monotonic()
+    blob = encode_limits(limits)
+    for address, data in chunk_writes(blob, controller=ctl.table):
+        ctl.write_block(address, data)
+    ctl.write_block(*commit_write(blob, ctl.table, what="LIMITS"))
+    result = ctl.read("Upload Result")["Upload Result"]
+    if result != ctl.table.enums["Upload Result"]["OK"]:
+        name, what, fix = words.upload_result_reason(result, ctl.table)
+        raise LimitsError(f"the controller refused the robot's limits ({name}: {what}): {fix}")
+    state, count = wait_settled(ctl, timeout_s)
+    flags = ctl.read("Error Flags")["Error Flags"]
+    if state != "VERIFIED":
+        raise LimitsError(not_held(ctl, state, timeout_s))
+    return LimitsReport(
+        dict(limits), state, count, time.monotonic() - t0, words.flag_names(flags, ctl.table)
+    )

@@ -1,0 +1,277 @@
+"""Closed loop on the emulated robot: play a plan segment by segment, read the body's
+pose from the world after each (as a camera or motion capture would), and re-plan the
+rest from there.
+
+The host is the bus master (as in ``sim predict``): the servos go to the start
+configuration, then each segment (the move to the hub, each loop, the move back) is a
+small gait table played by the controller's own player, one SYNC_WRITE per control
+tick, while one world samples the servos for the whole run. Before each loop the
+remaining displacement (pose now -> target) is split over the loops it still needs
+and the loop is fitted again, warm-started from the last one; loops go on until the
+move back would end within the tolerance (see ``_follow``)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from snakebot.errors import SnakebotError
+from snakebot.gait.common import path as sample_path
+from snakebot.gaittable import GaitTable
+from snakebot.kinematics import Trajectory
+from snakebot.plan import se2
+from snakebot.plan.loops import PlanError, path_motion
+from snakebot.plan.planner import (
+    DEFAULT_HEADING_TOLERANCE,
+    DEFAULT_TOLERANCE,
+    Route,
+    Tolerance,
+    body_length,
+    default_start,
+    frame_period_ms,
+    loop_counts,
+    loop_target,
+    pose_dict,
+    pose_error,
+    solve_accuracy,
+    solve_loop,
+    solve_route,
+    validate_start,
+)
+from snakebot.protocol import sync_write
+from snakebot.robots import Robot
+from snakebot.sim.bus import Bus
+from snakebot.sim.controller_pty import TICK_MS
+from snakebot.sim.predict import (
+    DEFAULT_WORLD_HZ,
+    GOAL_POSITION_ADDR,
+    move_to_start,
+    player_writes,
+    sim_url,
+)
+from snakebot.sim.world import World
+from snakebot.transport import DxlClient
+
+WORLDS = ("kinematic", "mujoco")
+#: The closed loop runs at most this many times the planned loops.
+LOOPS_FACTOR = 5
+#: How many times slower than the servos allow a physics world's loops are played:
+#: there the trident's body follows the kinematic model to within about 2 % (at full
+#: speed its wheels slip 10 % short; measured on MuJoCo).
+PHYSICS_SLOWDOWN = 3
+MAX_SLOWDOWN = 20
+#: Loops go on until leaving would end within this share of the tolerance (if they
+#: run out first, the end is still judged against the whole tolerance).
+STOP_SHARE = 0.5
+
+
+class GotoError(SnakebotError):
+    """The closed loop cannot run as asked."""
+
+
+def make_world(name: str, bus: Bus, robot: Robot, period: float, start: float) -> Any:
+    """The world that moves the body: the kinematic minimum-slip model, or MuJoCo's
+    physics when this build has it."""
+    if name == "kinematic":
+        return World(bus, robot, period=period, start=start)
+    if name != "mujoco":
+        raise GotoError(f"unknown world {name!r}: use {' or '.join(WORLDS)}")
+    try:
+        from snakebot.sim.physics.select import make_world as physics_world
+    except ImportError:
+        raise GotoError(
+            "--world mujoco needs the physics world (snakebot.sim.physics) and MuJoCo: "
+            "pip install 'snakebot[physics]', or use --world kinematic"
+        ) from None
+    return physics_world("mujoco", bus, robot, period=period, start=start)
+
+
+@dataclass
+class GotoResult:
+    """What the closed loop did: per segment the pose the world reported, the path."""
+
+    robot: Robot
+    world: str
+    target: np.ndarray
+    tolerance: Tolerance
+    final: np.ndarray
+    segments: list[dict[str, Any]]
+    path: Trajectory
+    wall_s: float
+
+    @property
+    def error(self) -> tuple[float, float]:
+        return pose_error(self.final, self.target)
+
+    @property
+    def within(self) -> bool:
+        d, h = self.error
+        return d <= self.tolerance.position and abs(h) <= self.tolerance.heading
+
+    def summary(self) -> dict[str, Any]:
+        d, h = self.error
+        return {
+            "robot": self.robot.name,
+            "world": self.world,
+            "target": pose_dict(self.target),
+            "final": pose_dict(self.final),
+            "error": {
+                "position": d,
+                "heading_rad": h,
+                "position_tolerance": self.tolerance.position,
+                "heading_tolerance_rad": self.tolerance.heading,
+                "within": self.within,
+            },
+            "segments": self.segments,
+            "duration_s": float(self.path.t[-1]) if len(self.path.t) else 0.0,
+            "wall_s": self.wall_s,
+            "path": sample_path(self.path),
+        }
+
+
+class Runner:
+    """Plays tables back to back on one bus while one world samples the body."""
+
+    def __init__(self, client: DxlClient, bus: Bus, robot: Robot, world: Any) -> None:
+        self.client, self.bus, self.robot, self.world = client, bus, robot, world
+
+    def play(self, angles: np.ndarray, period_ms: int) -> np.ndarray:
+        """Play joint frames once; the body pose the world reports at the end."""
+        robot = self.robot
+        table = GaitTable(
+            robot.servo_ids,
+            period_ms,
+            False,
+            robot.tick_limits,
+            robot.angles_to_ticks(angles).astype(np.uint16),
+            {},
+        )
+        tick, blocks = player_writes(table)
+        duration = (len(angles) - 1) * period_ms / 1000.0
+        start = self.bus.now
+        for n, block in enumerate(blocks):
+            if block:
+                self.bus.run_until(start + min(n * tick, duration))
+                self.client.send(sync_write(GOAL_POSITION_ADDR, 4, block))
+        # the world sees each write one tick later: let it see the last frame settle
+        self.bus.run_until(start + duration + 2 * tick)
+        return self.world.pose
+
+
+def goto(
+    robot: Robot,
+    target: tuple[float, float, float],
+    *,
+    start: tuple[float, ...] | None = None,
+    world: str = "kinematic",
+    ideal: bool = False,
+    tolerance: float = DEFAULT_TOLERANCE,
+    heading_tolerance: float = DEFAULT_HEADING_TOLERANCE,
+    world_hz: float = DEFAULT_WORLD_HZ,
+    slowdown: int | None = None,
+    progress: Any = None,
+) -> GotoResult:
+    """Take the emulated ``robot`` to ``target`` (relative to its start pose) in closed
+    loop, its frames ``slowdown`` times as long as the servos' speed allows (default: 1,
+    or PHYSICS_SLOWDOWN on a physics world); ``progress(done, total)`` is called after
+    each segment."""
+    goal = np.asarray(target, dtype=float)
+    if goal.shape != (3,) or not np.all(np.isfinite(goal)):
+        raise PlanError("--to needs three finite numbers X,Y,THETA")
+    phi0 = default_start(robot) if start is None else np.asarray(start, dtype=float)
+    validate_start(robot, phi0)
+    tol = Tolerance.for_target(robot, goal, tolerance, heading_tolerance)
+    route = solve_route(robot, phi0, goal, tol)
+    if slowdown is None:
+        slowdown = 1 if world == "kinematic" else PHYSICS_SLOWDOWN
+    if not (isinstance(slowdown, int) and 1 <= slowdown <= MAX_SLOWDOWN):
+        raise PlanError(
+            f"--slowdown must be a whole number from 1 to {MAX_SLOWDOWN}, not {slowdown}"
+        )
+    period_ms = frame_period_ms(robot, route.frames()) * slowdown
+    client = DxlClient(sim_url(robot, ideal), echo=False)
+    wall0 = time.perf_counter()
+    segments: list[dict[str, Any]] = []
+    try:
+        bus: Bus = client.port.bus
+        move_to_start(client, bus, robot, robot.angles_to_ticks(phi0))
+        tick = TICK_MS / 1000.0
+        w = make_world(world, bus, robot, 1.0 / world_hz, bus.now + tick)
+        runner = Runner(client, bus, robot, w)
+        pose = _follow(runner, route, goal, tol, period_ms, segments, progress)
+        w.stop()
+        record = w.record()
+    finally:
+        client.close()
+    path = Trajectory(record.t, record.q)
+    return GotoResult(robot, world, goal, tol, pose, segments, path, time.perf_counter() - wall0)
+
+
+def _follow(
+    runner: Runner,
+    route: Route,
+    goal: np.ndarray,
+    tol: Tolerance,
+    period_ms: int,
+    segments: list[dict[str, Any]],
+    progress: Any,
+) -> np.ndarray:
+    """Play the route in closed loop; returns the pose at the end.
+
+    After the move to the hub, loops go on while leaving now (the move back to the
+    start) would end outside the tolerance, up to ``LOOPS_FACTOR`` times the planned
+    count. Before each loop the pose the world reports sets what is left, and the loop
+    is fitted again to its share of it: the k-th root with k the nominal loop count for
+    what is left (at least 2, so a loop never aims at all of it and a loop that moved
+    more or less than the model said is made up for by the next)."""
+    robot = runner.robot
+    loop = route.loop
+    leave = route.leave
+    back = path_motion(robot, leave) if len(leave) > 1 else np.zeros(3)
+    most = LOOPS_FACTOR * route.count
+    total = most + 2
+    pose = np.zeros(3)
+    done = 0
+
+    def play(kind: str, angles: np.ndarray) -> None:
+        nonlocal pose, done
+        before = pose
+        pose = runner.play(angles, period_ms)
+        moved = se2.relative(before, pose)
+        segments.append(
+            {
+                "kind": kind,
+                "frames": len(angles) - 1,
+                "pose": pose_dict(pose),
+                "motion": {"dx": float(moved[0]), "dy": float(moved[1]), "dtheta": float(moved[2])},
+            }
+        )
+        done += 1
+        if progress is not None:
+            progress(done, total)
+
+    if len(route.enter) > 1:
+        play("to hub", route.enter)
+    for _ in range(most):
+        d, h = pose_error(se2.compose(pose, back), goal)
+        if d <= STOP_SHARE * tol.position and abs(h) <= STOP_SHARE * tol.heading:
+            break
+        remaining = se2.relative(pose, goal)
+        count = loop_counts(robot, remaining, most)[0]
+        wanted = loop_target(robot, route.start, loop.hub, remaining, count, entered=True)
+        refit = solve_loop(
+            robot,
+            loop.hub,
+            wanted,
+            body_length(robot),
+            [loop.coefficients],
+            solve_accuracy(robot, tol),
+        )
+        loop = refit or loop  # a failed fit keeps the last loop: the next one corrects
+        play("loop", loop.angles())
+    if len(leave) > 1:
+        play("to start", leave)
+    return pose

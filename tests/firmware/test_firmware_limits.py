@@ -1,0 +1,287 @@
+"""The servos enforce the robot's limits (issue #17): the firmware in QEMU, on an emulated
+bus of three AX-12s, makes each servo's CW/CCW Angle Limit equal to the robot's limits
+set from the host, writing the servo's EEPROM only where it differs and reading it back;
+refuses tables that reach beyond those limits; and will not move while a servo has not
+taken them. Under bus corruption no servo accepts a goal outside them (the campaigns
+``servo-limits-*``, run here for a few seconds; ``python -m tools.campaigns --only
+servo-limits-5pct --seconds 120`` for the long run)."""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+from controller_cli_support import cli, cli_json, save, wave_table
+from ctl_support import CTL, CTL_ID, Device, ffi, lib
+from firmware_support import QEMU_DIR, build_firmware, wait_for_boot
+
+from snakebot.controller import Command, ControllerErrors, LimitsState, State, UploadResult
+from snakebot.controller.limits import (
+    LimitsError,
+    encode_limits,
+    limits_state,
+    set_limits,
+    wait_settled,
+)
+from snakebot.controller.upload import chunk_writes, commit_write
+from snakebot.gaittable import GaitTable
+from snakebot.protocol import read, status, write
+from snakebot.robots import load_robot
+from snakebot.sim.faults import FaultConfig
+from snakebot.sim.options import SimOptions
+from snakebot.sim.qemu import Endpoint, QemuFirmware
+from snakebot.sim.transports.unixsock import UnixSocketServer
+from tools.campaigns import FRAMES, IDS, LIMITS, PERIOD_MS, Rig, gait_table, run
+
+pytestmark = pytest.mark.qemu
+
+ROBOT = dict(zip(IDS, LIMITS, strict=True))
+FACTORY = (0, 1023)  # an AX-12's angle limits as shipped
+ENV = {"SNAKEBOT_MARGIN_MS": "300"}  # QEMU shares a loaded machine
+
+
+@pytest.fixture(scope="module", autouse=True)
+def firmware() -> None:
+    build_firmware()
+
+
+@pytest.fixture
+def rig() -> Iterator[Rig]:
+    with tempfile.TemporaryDirectory(prefix="snakebot-limits-") as tmp:
+        with Rig(FaultConfig(seed=1), Path(tmp)) as r:
+            yield r
+
+
+def preset(rig: Rig, servo_id: int, limits: tuple[int, int]) -> None:
+    """Give a servo these angle limits in its EEPROM, as a previous run would have."""
+    with rig.server.lock:
+        servo = rig.bus.servo(servo_id)
+        servo.set_register("CW Angle Limit", limits[0])
+        servo.set_register("CCW Angle Limit", limits[1])
+
+
+def held(rig: Rig) -> list[tuple[int, int]]:
+    with rig.server.lock:
+        return [s.angle_limits() for s in rig.servos]
+
+
+def writes(rig: Rig) -> list[int]:
+    with rig.server.lock:
+        return [s.angle_limit_writes for s in rig.servos]
+
+
+def settled(rig: Rig, timeout_s: float = 10.0) -> str:
+    return wait_settled(rig.ctl, timeout_s)[0]
+
+
+def test_servos_take_the_robot_limits_written_only_where_they_differ(rig):
+    preset(rig, 1, LIMITS[0])  # servo 1 holds them already; 2 and 3 are as shipped
+    assert held(rig) == [LIMITS[0], FACTORY, FACTORY]
+    assert limits_state(rig.ctl) == ("NONE", 0)
+
+    report = set_limits(rig.ctl, ROBOT)
+
+    assert (report.state, report.count) == ("VERIFIED", 3)
+    assert held(rig) == list(LIMITS)
+    assert writes(rig) == [0, 1, 1]  # one EEPROM write each where they differed, none else
+    # a new roster (the table's commit) checks them again: read, equal, nothing written
+    assert rig.upload(gait_table()) == UploadResult.OK
+    assert settled(rig) == "VERIFIED"
+    assert writes(rig) == [0, 1, 1]
+    # a servo whose limits were changed behind the controller's back (say, swapped for a
+    # spare) is put right at the next roster change: here, empty the roster and restore it
+    preset(rig, 3, FACTORY)
+    rig.write({"Joint Count": 0})
+    rig.write({"Joint Count": 3})
+    assert settled(rig) == "VERIFIED"
+    assert held(rig) == list(LIMITS)
+    assert writes(rig) == [0, 1, 2]
+    # and it plays
+    rig.command(Command.PLAY)
+    assert rig.ctl.read("State")["State"] == State.PLAYING
+    # while it plays, the controller keeps re-reading the servos' angle limits (a damaged
+    # packet could change them): one changed is written back, with no roster change
+    preset(rig, 2, FACTORY)
+    deadline = time.monotonic() + 10
+    while held(rig) != list(LIMITS) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert held(rig) == list(LIMITS)
+    assert writes(rig) == [0, 2, 2]
+    assert settled(rig) == "VERIFIED"
+
+
+def test_a_table_wider_than_the_robot_limits_is_refused(rig):
+    set_limits(rig.ctl, ROBOT)
+    assert rig.upload(gait_table()) == UploadResult.OK
+    before = rig.ctl.read("Table Size", "Table CRC")
+    wide = tuple((lo - 100, hi + 100) for lo, hi in LIMITS)  # e.g. +-145 deg vs the robot's
+    frames = FRAMES.copy()
+    frames[0] = [hi + 100 for _, hi in LIMITS]
+    table = GaitTable(IDS, PERIOD_MS, True, wide, frames, {}).encode()
+    assert rig.upload(table) == UploadResult.OUTSIDE_ROBOT_LIMITS
+    after = rig.ctl.read("Table Size", "Table CRC", "Error Flags")
+    assert after["Error Flags"] & ControllerErrors.UPLOAD_LAYOUT
+    assert (after["Table Size"], after["Table CRC"]) == (before["Table Size"], before["Table CRC"])
+    # a servo the robot's limits do not cover is refused too
+    other = GaitTable((1, 2, 9), PERIOD_MS, True, LIMITS, FRAMES, {}).encode()
+    assert rig.upload(other) == UploadResult.OUTSIDE_ROBOT_LIMITS
+    # narrower limits set after the table: the old table may not play any more
+    set_limits(rig.ctl, {sid: (lo + 50, hi - 50) for sid, (lo, hi) in ROBOT.items()})
+    rig.command(Command.PLAY)
+    r = rig.ctl.read("State", "Error Flags")
+    assert r["State"] == State.IDLE and r["Error Flags"] & ControllerErrors.REFUSED
+
+
+def test_malformed_robot_limits_are_refused(rig):
+    with pytest.raises(LimitsError, match="BAD_ROBOT_LIMITS"):
+        set_limits(rig.ctl, {1: (700, 300)})
+    assert limits_state(rig.ctl) == ("NONE", 0)
+
+
+def test_a_servo_that_will_not_take_them_stops_the_controller_from_moving(rig):
+    assert rig.upload(gait_table()) == UploadResult.OK
+    with rig.server.lock:
+        rig.bus.servo(2).set_register("Lock", 1)  # EEPROM writes refused until power-off
+    with pytest.raises(LimitsError, match="FAILED"):
+        set_limits(rig.ctl, ROBOT, timeout_s=20.0)
+    assert held(rig)[1] == FACTORY
+    assert rig.ctl.read("Limits State")["Limits State"] == LimitsState.FAILED
+    assert rig.ctl.read("Error Flags")["Error Flags"] & ControllerErrors.LIMITS
+    rig.command(Command.PLAY)
+    r = rig.ctl.read("State", "Error Flags")
+    assert r["State"] == State.IDLE and r["Error Flags"] & ControllerErrors.REFUSED
+    # unlocked (power-cycled), CLEAR checks again, and it may move
+    with rig.server.lock:
+        rig.bus.servo(2).set_register("Lock", 0)
+    rig.command(Command.CLEAR)
+    assert settled(rig, 20.0) == "VERIFIED"
+    assert held(rig) == list(LIMITS)
+    rig.command(Command.PLAY)
+    assert rig.ctl.read("State")["State"] == State.PLAYING
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["servo-limits-1pct", "servo-limits-5pct"])
+def test_no_servo_accepts_a_goal_outside_the_limits_under_corruption(name):
+    outcome = run(name, 1)
+    assert outcome.ok, "; ".join(outcome.problems)
+    assert outcome.counts["corrupted_bytes"] > 0 and outcome.counts["goals"] > 0
+    assert outcome.counts["servo_goals_accepted_outside"] == 0
+
+
+def test_limits_set_from_the_robot_file_then_a_wider_table_is_refused(tmp_path):
+    """`snakebot limits set snake5`, then a table made for +-145 degree joints on the same
+    servo IDs: refused by the controller with the reason and the fix; snake5's own
+    table is taken."""
+    robot = load_robot("snake5")
+    wanted = [tuple(lim) for lim in robot.tick_limits]
+    sock = tmp_path / "bus.sock"
+    bus = SimOptions(robot="snake5").build_bus()
+    with (
+        UnixSocketServer(bus, sock) as server,
+        QemuFirmware(QEMU_DIR / "flash.bin", bus=Endpoint.unix_client(sock)) as fw,
+    ):
+        port = fw.ports.pc_link
+        wait_for_boot(port)
+        assert cli_json("limits", "show", "--port", port, env=ENV) == {"state": "NONE", "count": 0}
+        report = cli_json("limits", "set", "snake5", "--port", port, env=ENV)
+        assert (report["state"], report["count"]) == ("VERIFIED", len(wanted))
+        with server.lock:
+            held = [
+                (bus.servo(i).regs.get("CW Angle Limit"), bus.servo(i).regs.get("CCW Angle Limit"))
+                for i in robot.servo_ids
+            ]
+        assert held == wanted
+        shown = cli_json("limits", "show", "--port", port, env=ENV)
+        assert shown == {"state": "VERIFIED", "count": len(wanted)}
+
+        # +-145 degrees (24..1000) on the same servos, goals out to 896 and 198
+        wave = wave_table(robot.servo_ids)
+        frames = np.array(wave.frames)
+        frames[0], frames[1] = 896, 198
+        wide = GaitTable(wave.joint_ids, 20, True, ((24, 1000),) * len(wanted), frames, {})
+        result = cli("upload", save(wide, tmp_path, "wide.gait"), "--port", port, env=ENV)
+        assert result.exit_code == 2, result.output  # the table is at fault: bad input
+        assert "OUTSIDE_ROBOT_LIMITS" in result.stderr and "limits set" in result.stderr
+        own = GaitTable(wave.joint_ids, 20, True, tuple(wanted), wave.frames, {})
+        assert cli_json("upload", save(own, tmp_path), "--port", port, env=ENV)["bytes"] > 0
+        # at once after the upload (a new roster: the servos are being checked) play waits
+        assert cli_json("play", "--port", port, env=ENV)["state"] == "PLAYING"
+
+
+def test_the_limits_kept_in_flash_come_back_as_they_were_set():
+    """What the firmware stores after a LIMITS commit (ctl_robot_limits) is what it loads
+    at start (ctl_load_limits) on a fresh controller: the same limits, and a table beyond
+    them refused as before; a malformed record is not loaded."""
+    first = Device()
+    blob = encode_limits(ROBOT)
+    for address, data in chunk_writes(blob, controller=CTL):
+        assert first.one(write(CTL_ID, address, data)).error == 0
+    assert first.one(write(CTL_ID, *commit_write(blob, CTL, what="LIMITS"))).error == 0
+    assert first.get("Upload Result") == UploadResult.OK
+    assert lib.ctl_limits_changed(first.d) and not lib.ctl_limits_changed(first.d)
+    out = ffi.new("uint8_t[]", 128)
+    kept = bytes(ffi.buffer(out, lib.ctl_robot_limits(first.d, out, 128)))
+    assert kept == blob
+
+    after_reset = Device()
+    assert lib.ctl_load_limits(after_reset.d, kept, len(kept))
+    assert after_reset.get("Limits Count") == len(ROBOT)
+    assert after_reset.get("Limits State") == LimitsState.APPLYING  # the servos are checked
+    wide = tuple((lo - 1, hi) for lo, hi in LIMITS)
+    assert after_reset.upload(GaitTable(IDS, PERIOD_MS, True, wide, FRAMES, {}).encode()) == (
+        UploadResult.OUTSIDE_ROBOT_LIMITS
+    )
+    assert after_reset.upload(gait_table()) == UploadResult.OK
+    assert not lib.ctl_load_limits(Device().d, kept[:-1], len(kept) - 1)
+
+
+def _bus_with_limits(ids: list[int], mins: list[int], maxs: list[int]):
+    mem = ffi.new("uint8_t[]", lib.bus_master_size())
+    b = ffi.cast("bus_master *", mem)
+    lib.bus_init(b)
+    lib.bus_set_limits(b, ids, mins, maxs, len(ids))
+    return mem, b
+
+
+def _tick(b) -> list[tuple[bytes, int]]:
+    """One control tick with no goals: the packets it sends, each with its reply length."""
+    out, txn = ffi.new("uint8_t[]", 128), ffi.new("bus_txn *")
+    lib.bus_begin_tick(b)
+    sent = []
+    while n := lib.bus_next(b, ffi.NULL, ffi.NULL, ffi.NULL, 0, out, 128, txn):
+        sent.append((bytes(ffi.buffer(out, n)), txn.reply_len))
+    return sent
+
+
+def test_a_servo_that_never_answers_fails_the_check_one_read_per_tick():
+    """The check asks again and again, one READ per tick (never two replies awaited in
+    one tick), and gives up after BUS_LIMIT_SILENT unanswered READs in a row."""
+    _mem, b = _bus_with_limits([5], [300], [700])
+    assert lib.bus_limits_state(b) == LimitsState.APPLYING
+    for _ in range(lib.BUS_LIMIT_SILENT):
+        assert lib.bus_limits_state(b) == LimitsState.APPLYING
+        assert _tick(b) == [(read(5, 6, 4), 10)]  # CW/CCW Angle Limit; FF FF id 6 err 4 chk
+    lib.bus_begin_tick(b)  # closes the last READ unanswered
+    assert lib.bus_limits_state(b) == LimitsState.FAILED
+    assert lib.bus_limit_writes(b) == 0
+    lib.bus_recheck_limits(b)
+    assert lib.bus_limits_state(b) == LimitsState.APPLYING
+
+
+def test_a_reply_due_to_the_old_check_does_not_count_for_new_limits():
+    _mem, b = _bus_with_limits([5], [300], [700])
+    out, txn = ffi.new("uint8_t[]", 128), ffi.new("bus_txn *")
+    lib.bus_begin_tick(b)
+    n = lib.bus_next(b, ffi.NULL, ffi.NULL, ffi.NULL, 0, out, 128, txn)
+    assert bytes(ffi.buffer(out, n)) == read(5, 6, 4)  # its reply is now awaited
+    lib.bus_set_limits(b, [6], [300], [700], 1)  # new limits while servo 5's reply is due
+    reply = status(5, 0, bytes([44, 1, 188, 2]))  # 300, 700: what servo 6 should hold
+    assert not lib.bus_rx(b, reply, len(reply))
+    lib.bus_rx_done(b)
+    assert lib.bus_limits_state(b) == LimitsState.APPLYING  # servo 6 not yet read
+    assert _tick(b) == [(read(6, 6, 4), 10)]

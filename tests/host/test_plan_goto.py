@@ -1,0 +1,85 @@
+"""snakebot sim goto: closed loop on the emulated robot (modelled AX-12s that lag, the
+kinematic world) ends within the tolerance at seeded random targets, one per robot
+family."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+
+import pytest
+from click.testing import CliRunner
+from test_plan import targets, within
+
+from snakebot.cli import main
+
+
+def run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+@pytest.mark.parametrize(
+    ("robot_name", "target"),
+    [("trident", t) for t in targets("trident", 21, 1)]
+    + [("snake3", t) for t in targets("snake3", 22, 1)]
+    + [("snake5", t) for t in targets("snake5", 23, 1)],
+)
+def test_closed_loop_reaches_random_target(tmp_path, robot_name, target):
+    plot = tmp_path / "goto.png"
+    to = ",".join(f"{v:.6f}" for v in target)
+    result = run("sim", "goto", robot_name, "--to", to, "--json", "--plot", plot)
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.output[result.output.index("{") :])
+    final = report["final"]
+    assert within((final["x"], final["y"], final["theta"]), target)[0], report["error"]
+    # the poses were read from the world after every segment, the last one is the end
+    assert report["segments"] and report["segments"][-1]["pose"] == final
+    assert report["path"]["x"][-1] == pytest.approx(final["x"], abs=1e-9)
+    assert plot.stat().st_size > 0
+
+
+PHYSICS = pytest.mark.skipif(
+    importlib.util.find_spec("mujoco") is None
+    or importlib.util.find_spec("snakebot.sim.physics") is None,
+    reason="the physics world (MuJoCo) is not in this build",
+)
+
+
+def goto_physics(robot_name, seed):
+    target = targets(robot_name, seed, 1)[0]
+    to = ",".join(f"{v:.6f}" for v in target)
+    result = run("sim", "goto", robot_name, "--to", to, "--world", "mujoco", "--json")
+    return json.loads(result.output[result.output.index("{") :])
+
+
+@PHYSICS
+def test_closed_loop_runs_on_the_physics_world():
+    report = goto_physics("trident", 32)
+    assert report["world"] == "mujoco"
+    assert report["segments"][-1]["pose"] == report["final"]
+    e = report["error"]
+    assert e["position"] <= 2 * e["position_tolerance"]
+
+
+@PHYSICS
+@pytest.mark.xfail(
+    reason="issue #14's goal not met for every target yet: on MuJoCo a loop moves the body "
+    "differently from the minimum-slip model the loops are fitted with (snake5 at full "
+    "speed: 2x as far, 4x the turn); with loops 3x slower the trident's closed loop met "
+    "the tolerance at 3 of 4 seeded targets, the 3-link snake's at 1 of 2, snake5's at 0 of 1",
+    strict=False,
+)
+@pytest.mark.parametrize(("robot_name", "seed"), [("trident", 31), ("snake3", 31), ("snake5", 31)])
+def test_closed_loop_on_physics_within_twice_the_tolerance(robot_name, seed):
+    e = goto_physics(robot_name, seed)["error"]
+    assert e["position"] <= 2 * e["position_tolerance"]
+    assert abs(e["heading_rad"]) <= 2 * e["heading_tolerance_rad"]
+
+
+def test_unknown_world_physics_missing_is_one_line(tmp_path):
+    if importlib.util.find_spec("snakebot.sim.physics") is not None:
+        pytest.skip("the physics world is in this build")
+    result = run("sim", "goto", "trident", "--to", "1,0,0", "--world", "mujoco")
+    assert result.exit_code == 2
+    assert result.output.strip().splitlines()[-1].startswith("error: ")
+    assert "physics" in result.output

@@ -450,7 +450,8 @@ def parse_bauds(text: str) -> list[int]:
 def servo_table(client: DxlClient, servo_id: int) -> ControlTable:
     """The control table of the servo at ``servo_id``, from its Model Number."""
     address = _base().by_name("Model Number").address
-    number = client.read_u16(servo_id, address)
+    # Confirmed: the model decides which table every later register name is read from.
+    number = int.from_bytes(client.read_confirmed(servo_id, address, 2), "little")
     try:
         return ControlTable.for_model_number(number)
     except ControlTableError:
@@ -490,7 +491,8 @@ def write_register(client: DxlClient, servo_id: int, entry: Entry, value: int) -
     client.write(servo_id, entry.address, value.to_bytes(entry.size, "little"))
     if client.status_return_level(servo_id) < 1:
         return None
-    return int.from_bytes(client.read(servo_id, entry.address, entry.size), "little")
+    read_back = client.read_confirmed(servo_id, entry.address, entry.size)  # it verifies
+    return int.from_bytes(read_back, "little")
 
 
 # -- ID and baud rate ---------------------------------------------------------------------

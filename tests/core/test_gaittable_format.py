@@ -215,7 +215,9 @@ def test_duration():
 
 
 def test_files_round_trip_with_metadata(tmp_path):
-    table = simple(metadata={"gait": "serpenoid", "A": 0.5, "predicted": {"vx": [0.1, 0.2]}})
+    predicted = {"dx": 0.1, "dy": 0.2, "dtheta": 0.0}
+    metadata = {"gait": "serpenoid", "A": 0.5, "predicted": predicted, "own": {"vx": [0.1]}}
+    table = simple(metadata=metadata)
     path = tmp_path / "walk.gait"
     write_gait(path, table)
     assert path.read_bytes() == table.encode()
@@ -225,6 +227,14 @@ def test_files_round_trip_with_metadata(tmp_path):
     back = read_gait(path)
     assert back == table and back.metadata == table.metadata
     assert sorted(p.name for p in tmp_path.iterdir()) == ["walk.gait", "walk.gait.json"]
+
+
+def test_metadata_of_a_shape_snakebot_cannot_read_is_not_written(tmp_path):
+    path = tmp_path / "walk.gait"
+    with pytest.raises(GaitTableError, match="predicted is") as caught:
+        write_gait(path, simple(metadata={"predicted": {"vx": [0.1, 0.2]}}))
+    assert caught.value.reason == "not_json"
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_binary_alone_reads_with_empty_metadata(tmp_path):

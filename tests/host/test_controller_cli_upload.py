@@ -87,7 +87,7 @@ def test_upload_cut_after_kth_chunk_leaves_old_table_playing(
     with server.lock:
         server.line_filter = cut
     result = cli("upload", new, "--port", server.device, env=FAST_ENV)
-    assert result.exit_code == 2
+    assert result.exit_code == 1
     assert result.stderr.splitlines()[-1].startswith("error: ")
     assert "previous table" in result.stderr
     assert cut.cut and cut.dropped > 0
@@ -111,7 +111,7 @@ def test_link_lost_right_after_the_commit_is_not_reported_as_success(
     with server.lock:
         server.line_filter = CutAfter(is_commit)
     result = cli("upload", new, "--port", server.device, env=FAST_ENV)
-    assert result.exit_code == 2
+    assert result.exit_code == 1
     # the controller may have taken it: the message must not claim either way
     assert "unless the commit got through complete" in result.stderr
     assert server.active_table() == new.read_bytes()  # complete, never half
@@ -154,7 +154,7 @@ def test_failure_reads_the_error_register_and_says_it_in_words(
     with server.lock:
         server.line_filter = lambda i, p: None if is_upload_chunk(p, 128) else p
     result = cli("upload", new, "--port", server.device, env=FAST_ENV)
-    assert result.exit_code == 2
+    assert result.exit_code == 1
     err = result.stderr
     assert "upload failed after 2 attempts" in err
     assert "got no acknowledgement" in err
@@ -182,7 +182,7 @@ def test_unknown_servos_are_refused_before_any_upload_packet(
     server = controller_with_table
     path = save(constant_table(512, ids=(1, 2, 3)), tmp_path)
     result = cli("upload", path, "--port", server.device)
-    assert result.exit_code == 2
+    assert result.exit_code == 1
     assert "IDs 1, 2, 3, which the controller does not have" in result.stderr
     assert "roster" in result.stderr and "10, 11, 15, 16" in result.stderr
     assert "--new-servos" in result.stderr
@@ -215,8 +215,15 @@ def test_uploading_while_playing_says_the_gait_stopped(controller_with_table, tm
 
 def test_a_device_that_is_not_a_controller_is_named(tmp_path):
     path = save(wave_table(), tmp_path)
-    # an AX-12 answering at ID 200 on the emulated servo bus
-    result = cli("upload", path, "--port", "sim://?ids=200", "--baud", "1000000")
+    # an AX-12 answering at ID 200 on an emulated servo bus served on a pty
+    from snakebot.sim.options import SimOptions
+    from snakebot.sim.transports import PtyServer
+
+    server = PtyServer(SimOptions(ids=(200,)).build_bus()).start()
+    try:
+        result = cli("upload", path, "--port", server.device, "--baud", "1000000")
+    finally:
+        server.close()
     assert result.exit_code == 2
     assert "not a snakebot controller" in result.stderr
 

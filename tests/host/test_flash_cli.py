@@ -138,7 +138,7 @@ def test_corrupted_image_fails_on_the_checksum_and_is_not_started(tmp_path):
         result = run(str(tmp_path / "fw.bin"), "--port", server.device)
         with server.lock:
             started = list(boot.started)
-    assert result.exit_code == 2
+    assert result.exit_code == 1
     assert "error: checksum mismatch" in result.stderr
     assert "NOT started" in result.stderr
     assert started == []
@@ -148,7 +148,7 @@ def test_no_answer_to_hash(tmp_path, monkeypatch):
     make_image(tmp_path / "fw.bin", 512)
     with serve(Bootloader(faults=BootloaderFaults(mute=True))) as server:
         result = run(str(tmp_path / "fw.bin"), "--port", server.device, "--reset-timeout", "0.4")
-    assert result.exit_code == 2
+    assert result.exit_code == 1
     assert "error: no answer from the CM-530 bootloader" in result.stderr
     assert "press RESET" in result.stderr
 
@@ -158,7 +158,7 @@ def test_no_ready_after_load(tmp_path, monkeypatch):
     make_image(tmp_path / "fw.bin", 512)
     with serve(Bootloader(faults=BootloaderFaults(no_ready=True))) as server:
         result = run(str(tmp_path / "fw.bin"), "--port", server.device)
-    assert result.exit_code == 2
+    assert result.exit_code == 1
     assert "did not answer the load command" in result.stderr
     assert "'Ready..'" in result.stderr
 

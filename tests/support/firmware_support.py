@@ -14,6 +14,7 @@ from typing import Any, TypeVar
 
 import pytest
 
+from snakebot import devices
 from snakebot.paths import REPO_ROOT
 from snakebot.protocol import DxlTimeout
 from snakebot.transport import DxlClient
@@ -91,7 +92,10 @@ def assert_healthy_bus(reads: int, timeouts: int) -> None:
 
 def client(port: str) -> DxlClient:
     """A Protocol 1.0 client on the emulated PC link (a pty path)."""
-    return DxlClient(port, PC_BAUD, margin_s=CLIENT_MARGIN_S, echo=False)
+    # The controller, not an AX-12: its registers (and their ranges) are its own.
+    return DxlClient(
+        port, PC_BAUD, margin_s=CLIENT_MARGIN_S, echo=False, device=devices.controller()
+    )
 
 
 def wait_for_boot(port: str, timeout: float = 20.0) -> None:

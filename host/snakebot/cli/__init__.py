@@ -2,7 +2,8 @@
 
 Each module defines a click command or group and is registered below. Commands parse
 their options, open what they need, call an operation from the library and print;
-errors from the library become one line on stderr and exit status 2 (see ``errors``).
+errors become one line on stderr and an exit status: 1 runtime failure, 2 bad input,
+130 Ctrl-C (see ``errors``).
 """
 
 from __future__ import annotations
@@ -19,8 +20,9 @@ def main() -> None:
     """snakebot: derive gaits for wheeled snake robots, check them, and run them on a
     ROBOTIS CM-530 with AX-12 servos, or on the emulated robot.
 
-    Start with `snakebot COMMAND --help`. Ports may be device paths (/dev/ttyUSB0),
-    pyserial URLs, or sim:// for the emulated robot.
+    Start with `snakebot COMMAND --help`. Ports may be device paths (/dev/ttyUSB0) or
+    pyserial URLs. The bus commands also take sim:// (emulated servos, in process); the
+    controller commands need the emulated controller of `snakebot sim serve`.
     """
 
 

@@ -4,7 +4,6 @@ U2D2 in Protocol 1.0, or the emulator): scan, ping, read, write, set-id, set-bau
 from __future__ import annotations
 
 import functools
-import json
 import sys
 from collections.abc import Callable
 from typing import Any
@@ -12,6 +11,8 @@ from typing import Any
 import click
 
 from snakebot import servo_ops
+from snakebot.cli.output import dumps
+from snakebot.cli.params import NumberType
 from snakebot.servo_ops import BusCommandError, Probe, ServoInfo
 from snakebot.transport import DEFAULT_BAUDRATE, DxlClient, open_port
 
@@ -47,7 +48,7 @@ def bus_options(func: Callable[..., Any]) -> Callable[..., Any]:
 
 
 def _emit(as_json: bool, data: object, text: str) -> None:
-    click.echo(json.dumps(data) if as_json else text)
+    click.echo(dumps(data) if as_json else text)
 
 
 def _servo_line(info: ServoInfo) -> str:
@@ -133,7 +134,7 @@ def scan_command(
             interrupted = True
     if as_json:
         click.echo(
-            json.dumps(
+            dumps(
                 {
                     "port": port,
                     "ids": id_list,
@@ -179,7 +180,7 @@ def ping_command(port: str, baud: int, as_json: bool, ids: tuple[int, ...]) -> N
     missing = [servo_id for servo_id, info in results.items() if info is None]
     if as_json:
         click.echo(
-            json.dumps(
+            dumps(
                 {
                     "port": port,
                     "baud": baud,
@@ -218,7 +219,7 @@ def read_command(
     with DxlClient(port, baud) as client:
         table, values = servo_ops.read_registers(client, servo_id, entries)
     if as_json:
-        click.echo(json.dumps({"id": servo_id, "model": table.model, "registers": values}))
+        click.echo(dumps({"id": servo_id, "model": table.model, "registers": values}))
         return
     click.echo(f"servo {servo_id} ({table.model}):")
     for v in values:
@@ -261,7 +262,7 @@ def write_command(
     decoded = servo_ops.decode(entry, number)
     if as_json:
         click.echo(
-            json.dumps(
+            dumps(
                 {
                     "id": servo_id,
                     "register": entry.name,
@@ -305,7 +306,7 @@ def set_id_command(port: str, baud: int, as_json: bool, old_id: int, new_id: int
 @bus.command("set-baud")
 @bus_options
 @click.argument("servo_id", metavar="ID", type=click.IntRange(0, servo_ops.MAX_ID))
-@click.argument("rate", required=False, type=click.FloatRange(min=1))
+@click.argument("rate", required=False, type=NumberType(1))
 @click.option(
     "--value",
     "register",

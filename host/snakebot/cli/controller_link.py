@@ -9,13 +9,14 @@ from typing import Any
 
 import click
 
+from snakebot.cli.params import controller_port
 from snakebot.controller import load
 from snakebot.controller.client import PC_LINK_BAUD, ControllerClient
 
 PORT_HELP = (
     "The controller's PC link: the CM-530's USB-serial device (/dev/ttyUSB0, COM3), a "
-    "pyserial URL, or the pseudo-terminal of the emulated controller (QEMU or "
-    "`python -m snakebot.sim.controller_pty`)."
+    "pyserial URL, or the pseudo-terminal of the emulated controller (`snakebot sim "
+    "serve` prints it; sim:// URLs emulate servos only)."
 )
 
 
@@ -28,6 +29,7 @@ def controller_options(func: Callable[..., Any]) -> Callable[..., Any]:
         required=True,
         envvar="SNAKEBOT_CONTROLLER_PORT",
         show_envvar=True,
+        callback=controller_port("snakebot sim serve"),
         help=PORT_HELP,
     )
     @click.option(

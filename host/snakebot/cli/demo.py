@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import json
 import signal
 from pathlib import Path
 from types import FrameType
 
 import click
 
+from snakebot.cli.output import dumps
 from snakebot.cli.params import ANGLE
 from snakebot.demo import DemoSettings, run_demo, summary_lines
 from snakebot.sim.physics.select import WORLDS
@@ -137,7 +137,7 @@ def demo(
     finally:
         signal.signal(signal.SIGTERM, previous)
     if as_json:
-        click.echo(json.dumps(result.as_dict()))
+        click.echo(dumps(result.as_dict()))
         return
     for line in summary_lines(result):
         click.echo(line)

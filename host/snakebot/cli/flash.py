@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from typing import Any, TextIO
 
 import click
 
+from snakebot.cli.output import dumps
+from snakebot.cli.params import NumberType, controller_port
 from snakebot.firmware import image as firmware_image
 from snakebot.flash import PC_LINK_BAUD, FlashTimeouts, board_layout, flash, load_image
 from snakebot.flash.loader import last_line
@@ -44,7 +45,9 @@ class _LazyBar:
     required=True,
     envvar="SNAKEBOT_PORT",
     show_envvar=True,
-    help="The CM-530's PC link: its USB-serial device (/dev/ttyUSB0, COM3) or a pyserial URL.",
+    callback=controller_port("snakebot sim bootloader"),
+    help="The CM-530's PC link: its USB-serial device (/dev/ttyUSB0, COM3), a pyserial URL, "
+    "or the pseudo-terminal of `snakebot sim bootloader`.",
 )
 @click.option(
     "--no-go",
@@ -60,7 +63,7 @@ class _LazyBar:
 )
 @click.option(
     "--reset-timeout",
-    type=click.FloatRange(min=0.1),
+    type=NumberType(0.1),
     metavar="SECONDS",
     help="How long to wait for you to press RESET (default 20, or SNAKEBOT_FLASH_RESET_TIMEOUT_S).",
 )
@@ -140,7 +143,7 @@ def flash_command(
         say("Left the board in the bootloader (--no-go): press RESET or send GO to start it.")
     if as_json:
         click.echo(
-            json.dumps(
+            dumps(
                 {
                     "firmware": firmware,
                     "port": port,

@@ -2,18 +2,19 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
 import click
 
-from snakebot.cli.params import ANGLE, ANGLES
+from snakebot.cli.output import dumps
+from snakebot.cli.params import ANGLE, ANGLES, NUMBER, OUTPUT_PATH, PLOT_PATH, NumberType
 from snakebot.extras import require
 from snakebot.gait import Gait, field_gait, serpenoid
 from snakebot.gaittable import read_gait, sidecar_path, write_gait
 from snakebot.robots import load_robot
 
+RATE = NumberType(0, low_open=True)
 RATE_HELP = "frame rate of the table in Hz (the frame period is rounded to whole ms)"
 OUT_HELP = "the gait table file to write (FILE.json gets the metadata)"
 
@@ -34,7 +35,7 @@ def gait() -> None:
 
 PLOT_OPTION = click.option(
     "--plot",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PLOT_PATH,
     help="also write a PNG: each joint, and x, y, theta of the predicted body, against "
     "time (as the thesis's figures), beside the body's path",
 )
@@ -54,7 +55,7 @@ def _write(g: Gait, out: Path, as_json: bool, plot: Path | None = None) -> None:
 
         summary["plot"] = str(plot_gait(table, plot))
     if as_json:
-        click.echo(json.dumps(summary, indent=2))
+        click.echo(dumps(summary, indent=2))
         return
     click.echo(
         f"wrote {out} ({table.frame_count} frames x {table.joint_count} joints every "
@@ -122,14 +123,12 @@ def _print_motion(meta: dict[str, Any]) -> None:
 )
 @click.option(
     "--cycles",
-    type=float,
+    type=NumberType(0, low_open=True),
     required=True,
     help="C: number of cycles; a whole number makes a looping table",
 )
-@click.option("--rate", type=float, default=50.0, show_default=True, help=RATE_HELP)
-@click.option(
-    "--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True, help=OUT_HELP
-)
+@click.option("--rate", type=RATE, default=50.0, show_default=True, help=RATE_HELP)
+@click.option("--output", "-o", type=OUTPUT_PATH, required=True, help=OUT_HELP)
 @PLOT_OPTION
 @click.option("--json", "as_json", is_flag=True, help="print the summary as JSON")
 def serpenoid_command(
@@ -182,13 +181,15 @@ def serpenoid_command(
 )
 @click.option(
     "--duration",
-    type=float,
+    type=NUMBER,
     help="T: follow EXPR for T units of its flow "
     "parameter (the motion of T * EXPR to first order); the gait itself runs as "
     "fast as the servos allow. Default for combinations with brackets: 1, or the "
     "longest the table holds at the --tolerance (the summary's flow_parameter)",
 )
-@click.option("--periods", type=int, help="K: number of input loops (bracket terms only)")
+@click.option(
+    "--periods", type=click.IntRange(min=1), help="K: number of input loops (bracket terms only)"
+)
 @click.option(
     "--amplitude",
     "-A",
@@ -204,7 +205,7 @@ def serpenoid_command(
 )
 @click.option(
     "--tolerance",
-    type=float,
+    type=NumberType(0, low_open=True),
     help="largest relative error per loop against the "
     "bracket prediction; picks A (default 0.05 unless --amplitude is given)",
 )
@@ -220,10 +221,8 @@ def serpenoid_command(
     type=click.Choice(["body", "world"]),
     help="trident: body- (default) or world-velocity inputs",
 )
-@click.option("--rate", type=float, default=50.0, show_default=True, help=RATE_HELP)
-@click.option(
-    "--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True, help=OUT_HELP
-)
+@click.option("--rate", type=RATE, default=50.0, show_default=True, help=RATE_HELP)
+@click.option("--output", "-o", type=OUTPUT_PATH, required=True, help=OUT_HELP)
 @PLOT_OPTION
 @click.option("--json", "as_json", is_flag=True, help="print the summary as JSON")
 def field_command(
@@ -275,35 +274,48 @@ def field_command(
 @click.argument("file", type=click.Path(exists=True, dir_okay=False, path_type=Path))
 @click.option(
     "--plot",
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="also write a PNG of the joint angles and the predicted body path",
+    type=PLOT_PATH,
+    help="also write a plot of the joint angles and the predicted body path "
+    "(PNG, or another format by the file's extension: .svg, .pdf, ...)",
 )
 @click.option("--json", "as_json", is_flag=True, help="print the summary as JSON")
 def show(file: Path, plot: Path | None, as_json: bool) -> None:
-    """Summarise a gait table file (and its FILE.json metadata), optionally as a plot."""
+    """Summarise a gait table file (and its FILE.json metadata), optionally as a plot.
+
+    Two checksums are shown: the header CRC, stored in the table's header over the rest
+    of the table, and the file CRC-32 of all its bytes, which is what `snakebot upload`
+    and `snakebot monitor` call the table's CRC-32 (the controller's Table CRC).
+    """
     table = read_gait(file)
     meta = table.metadata
-    summary = {
+    computed = {
         "file": str(file),
         "bytes": table.size,
-        "crc32": f"0x{table.crc:08X}",
+        "header_crc": f"0x{table.crc:08X}",
+        "file_crc32": f"0x{table.image_crc:08X}",
         "joint_ids": list(table.joint_ids),
         "limits": [list(x) for x in table.limits],
         "frames": table.frame_count,
         "frame_period_ms": table.frame_period_ms,
         "loop": table.loop,
         "duration_s": table.duration_ms / 1000.0,
-        **{k: v for k, v in meta.items() if k not in ("path", "table_path", "joints")},
     }
+    # The metadata adds what the table cannot say (the gait, its predictions); what the
+    # table's bytes say wins over anything the metadata file claims.
+    hidden = ("path", "table_path", "joints")
+    summary = {**{k: v for k, v in meta.items() if k not in hidden}, **computed}
     if plot is not None:
         require("matplotlib", "--plot")
         from snakebot.plots import plot_gait
 
         summary["plot"] = str(plot_gait(table, plot))
     if as_json:
-        click.echo(json.dumps(summary, indent=2))
+        click.echo(dumps(summary, indent=2))
         return
-    click.echo(f"{file}: {table.size} bytes, table CRC {summary['crc32']}")
+    click.echo(
+        f"{file}: {table.size} bytes, header CRC {summary['header_crc']}, "
+        f"file CRC-32 {summary['file_crc32']}"
+    )
     click.echo(
         f"  {table.frame_count} frames every {table.frame_period_ms} ms "
         f"({'loop' if table.loop else 'played once'}, {table.duration_ms / 1000:.3f} s)"

@@ -3,7 +3,6 @@ joule) or slides least, in either world, on this machine or a Dask cluster."""
 
 from __future__ import annotations
 
-import json
 import math
 import sys
 from pathlib import Path
@@ -11,6 +10,8 @@ from typing import Any
 
 import click
 
+from snakebot.cli.output import dumps
+from snakebot.cli.params import NumberType
 from snakebot.gait import serpenoid
 from snakebot.gaittable import write_gait
 from snakebot.robots import load_robot
@@ -29,6 +30,9 @@ from snakebot.search.search import Outcome
 from snakebot.sim.physics.select import WORLDS
 
 PATH = click.Path(dir_okay=False, path_type=Path)
+
+
+POSITIVE = NumberType(0, low_open=True)
 
 
 @click.command("search")
@@ -62,7 +66,7 @@ PATH = click.Path(dir_okay=False, path_type=Path)
 @click.option("--method", type=click.Choice(METHODS), default="grid", show_default=True)
 @click.option(
     "--samples",
-    type=int,
+    type=click.IntRange(min=1),
     default=100,
     show_default=True,
     help="random: how many candidates; cma: the budget of candidates",
@@ -70,8 +74,10 @@ PATH = click.Path(dir_okay=False, path_type=Path)
 @click.option(
     "--seed", type=click.IntRange(min=1), default=1, show_default=True, help="random/cma seed"
 )
-@click.option("--cycles", type=float, default=3.0, show_default=True, help="gait cycles per run")
-@click.option("--rate", type=float, default=50.0, show_default=True, help="table frame rate (Hz)")
+@click.option("--cycles", type=POSITIVE, default=3.0, show_default=True, help="gait cycles per run")
+@click.option(
+    "--rate", type=POSITIVE, default=50.0, show_default=True, help="table frame rate (Hz)"
+)
 @click.option(
     "--workers",
     type=click.IntRange(min=1),
@@ -173,7 +179,7 @@ def search_command(
 
         summary["plot"] = str(plot_search(outcome, request, plot))
     if as_json:
-        click.echo(json.dumps(summary, indent=2))
+        click.echo(dumps(summary, indent=2))
         return
     _print(summary)
 

@@ -3,11 +3,10 @@ controller, which makes its servos enforce them."""
 
 from __future__ import annotations
 
-import json
-
 import click
 
 from snakebot.cli.controller_link import controller_options, open_controller
+from snakebot.cli.output import dumps
 from snakebot.controller.limits import limits_state, robot_limits, set_limits
 from snakebot.robots import load_robot
 
@@ -41,7 +40,7 @@ def set_command(robot: str, port: str, baud: int, controller_id: int, as_json: b
     with open_controller(port, baud, controller_id) as ctl:
         ctl.identify()
         report = set_limits(ctl, wanted)
-    click.echo(json.dumps(report.as_dict()) if as_json else report.summary())
+    click.echo(dumps(report.as_dict()) if as_json else report.summary())
 
 
 @limits.command("show")
@@ -54,7 +53,7 @@ def show_command(port: str, baud: int, controller_id: int, as_json: bool) -> Non
         ctl.identify()
         state, count = limits_state(ctl)
     if as_json:
-        click.echo(json.dumps({"state": state, "count": count}))
+        click.echo(dumps({"state": state, "count": count}))
     elif count == 0:
         click.echo("no robot limits set: `snakebot limits set ROBOT` sets them")
     else:

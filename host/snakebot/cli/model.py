@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import json
 import math
 from typing import Any
 
 import click
 import numpy as np
 
+from snakebot.cli.output import dumps
 from snakebot.cli.params import ANGLES
 from snakebot.extras import require
 from snakebot.gait.common import NEAR_SINGULAR_RCOND
@@ -64,7 +64,7 @@ def info(robot: str, as_json: bool) -> None:
         ],
     }
     if as_json:
-        click.echo(json.dumps(data, indent=2))
+        click.echo(dumps(data, indent=2))
         return
     click.echo(f"{rb.name}: {rb.description or rb.kind} ({rb.source})")
     geometry = ", ".join(
@@ -207,7 +207,7 @@ def fields_command(
         if fs.singular:
             data["singular_where"] = singular_reason(rb, np.array(at))
     if as_json:
-        click.echo(json.dumps(data, indent=2))
+        click.echo(dumps(data, indent=2))
         return
     inputs = "joint-velocity" if used_form == "joint" else f"{used_form}-velocity"
     click.echo(f"{rb.name} ({inputs} inputs) at q = {_fmt(np.array(at))}")
@@ -271,7 +271,7 @@ def _print_lie(rb: Any, lf: LieFields, as_json: bool) -> None:
     if lf.singular and rb.kind == "snake":
         data["singular_where"] = singular_reason(rb, lf.q)
     if as_json:
-        click.echo(json.dumps(data, indent=2))
+        click.echo(dumps(data, indent=2))
         return
     click.echo(f"{rb.name} (inputs: {inputs}) at q = {_fmt(lf.q)}")
     click.echo(f"  coordinates: ({', '.join(rb.state_names)})")
@@ -310,7 +310,7 @@ def _print_symbolic(rb: Any, form: str, as_json: bool) -> None:
     names = [str(s) for s in ex.model.q]
     if as_json:
         click.echo(
-            json.dumps(
+            dumps(
                 {
                     "robot": rb.name,
                     "form": form,

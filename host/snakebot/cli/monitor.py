@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import contextlib
 import csv
-import json
 import shutil
 import sys
 import time
@@ -13,9 +12,12 @@ from pathlib import Path
 import click
 
 from snakebot.cli.controller_link import controller_options, open_controller
+from snakebot.cli.output import dumps
+from snakebot.cli.params import NumberType
 from snakebot.controller.mcap_log import McapLog
 from snakebot.controller.monitor import CSV_COLUMNS, csv_rows, render, sample
 
+MIN_INTERVAL_S = 0.02
 CLEAR_BELOW = "\x1b[J"
 GRID_SLACK = 1e-9
 """Lets a --duration that is a whole number of intervals count as one (0.3 / 0.1 is
@@ -30,13 +32,13 @@ def _cursor_up(lines: int) -> str:
 @controller_options
 @click.option(
     "--duration",
-    type=click.FloatRange(min=0),
+    type=NumberType(0),
     default=None,
     help="Stop after this many seconds (default: until Ctrl-C).",
 )
 @click.option(
     "--interval",
-    type=click.FloatRange(min=0.02),
+    type=NumberType(MIN_INTERVAL_S),
     default=0.5,
     show_default=True,
     help="Seconds between samples.",
@@ -106,7 +108,7 @@ def monitor(
                 if mcap_log is not None:
                     mcap_log.write(s.as_record())
                 if as_json:
-                    click.echo(json.dumps(s.as_record()))
+                    click.echo(dumps(s.as_record()))
                 else:
                     lines = render(s)
                     if live:  # lines cut to the width, so none wraps and the count holds

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any
 
 import click
 
-from snakebot.cli.params import ANGLE, ANGLES
+from snakebot.cli.output import dumps
+from snakebot.cli.params import ANGLE, ANGLES, NUMBER
 from snakebot.gait.values import InputError, parse_angle, parse_number
 from snakebot.plan import Unreachable
 from snakebot.plan.planner import DEFAULT_HEADING_TOLERANCE, DEFAULT_TOLERANCE
@@ -60,7 +60,7 @@ FROM_OPTION = click.option(
 TOLERANCE_OPTIONS = (
     click.option(
         "--tolerance",
-        type=float,
+        type=NUMBER,
         default=DEFAULT_TOLERANCE,
         show_default=True,
         help="how near the end must be, as a fraction of the distance to the target "
@@ -170,7 +170,7 @@ def plan_command(
     for warning in summary["warnings"]:
         click.echo(f"warning: {warning['message']}", err=True)
     if as_json:
-        click.echo(json.dumps(summary, indent=2))
+        click.echo(dumps(summary, indent=2))
         return
     _print(summary)
 

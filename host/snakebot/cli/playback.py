@@ -3,14 +3,14 @@ controller's gaits."""
 
 from __future__ import annotations
 
-import json
 import math
 from typing import Any
 
 import click
 
 from snakebot.cli.controller_link import controller_options, open_controller
-from snakebot.cli.params import ANGLE
+from snakebot.cli.output import dumps
+from snakebot.cli.params import ANGLE, NUMBER
 from snakebot.controller import playback
 from snakebot.robots import load_robot
 
@@ -25,7 +25,7 @@ STEER_HELP = (
 
 
 def _emit(status: dict[str, Any], as_json: bool, text: str) -> None:
-    click.echo(json.dumps(status) if as_json else text)
+    click.echo(dumps(status) if as_json else text)
 
 
 def _steer_words(status: dict[str, Any]) -> str:
@@ -39,7 +39,7 @@ def _steer_words(status: dict[str, Any]) -> str:
     default=None,
     help="Loop the table, or play it once and stop (default: as the table says).",
 )
-@click.option("--speed", type=float, default=1.0, show_default=True, help=SPEED_HELP)
+@click.option("--speed", type=NUMBER, default=1.0, show_default=True, help=SPEED_HELP)
 @click.option("--steer", type=ANGLE, default=0.0, help=STEER_HELP)
 def play(
     port: str,
@@ -111,7 +111,7 @@ def stop(port: str, baud: int, controller_id: int, as_json: bool, clear: bool) -
     "--offset", type=ANGLE, default=0.0, help="Offset phi0 added to the wave (steers), e.g. 5deg."
 )
 @click.option("--steer", type=ANGLE, default=0.0, help=STEER_HELP)
-@click.option("--speed", type=float, default=1.0, show_default=True, help=SPEED_HELP)
+@click.option("--speed", type=NUMBER, default=1.0, show_default=True, help=SPEED_HELP)
 @click.option(
     "--robot",
     help="Set the controller's roster (servo IDs, directions, zero "

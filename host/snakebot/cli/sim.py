@@ -8,7 +8,6 @@ on a Unix socket (QEMU's USART). In-process clients need no server: give them th
 
 from __future__ import annotations
 
-import json
 import signal
 import threading
 from types import FrameType
@@ -17,6 +16,9 @@ from urllib.parse import urlencode
 import click
 
 import snakebot.transport.ports  # noqa: F401  (registers sim://)
+from snakebot.cli.output import dumps
+from snakebot.cli.params import NUMBER
+from snakebot.cli.signals import STOP_SIGNALS
 from snakebot.sim.errors import SimOptionError
 from snakebot.sim.options import SimOptions
 from snakebot.sim.physics.select import DEFAULT_WORLD, WORLDS
@@ -27,9 +29,11 @@ from snakebot.sim.transports import PtyServer, UnixSocketServer
 def sim() -> None:
     """The emulated robot: virtual AX-12 servos on an emulated bus.
 
-    Any command that takes --port also accepts sim://?robot=snake5 (add &echo=1,
-    &corrupt=0.01, ... as listed in `snakebot sim bus --help`) to run against the
-    emulator in process, with no server.
+    The bus commands (`snakebot bus ...`) also accept --port sim://?robot=snake5 (add
+    &echo=1, &corrupt=0.01, ... as listed in `snakebot sim bus --help`) to run against
+    emulated servos in process, with no server. The controller commands (upload, play,
+    stop, serpenoid, monitor) need a controller: `snakebot sim serve` runs the firmware
+    and prints the port to give them; `snakebot sim bootloader` does the same for flash.
     """
 
 
@@ -79,15 +83,15 @@ def _query(**flags: object) -> str:
     metavar="PATH",
     help="With --pty: also create a symlink PATH to the device, e.g. /tmp/ttyDXL.",
 )
-@click.option("--servo-baud", type=float, help="The servos' baud rate, bit/s (default 1000000).")
+@click.option("--servo-baud", type=NUMBER, help="The servos' baud rate, bit/s (default 1000000).")
 @click.option(
     "--return-delay",
-    type=float,
+    type=NUMBER,
     help="The servos' Return Delay Time in microseconds (factory: 500).",
 )
 @click.option("--echo", is_flag=True, help="Echo every instruction back (one-wire adapter).")
 @click.option("--ideal", is_flag=True, help="Servos reach their goal instantly.")
-@click.option("--voltage", type=float, help="Supply voltage in volts (default 12).")
+@click.option("--voltage", type=NUMBER, help="Supply voltage in volts (default 12).")
 @click.option("--state", metavar="FILE", help="Keep the servos' EEPROM in FILE between runs.")
 @click.option(
     "--world",
@@ -99,11 +103,11 @@ def _query(**flags: object) -> str:
     "needs --robot).",
 )
 @click.option("--seed", type=int, help="Seed for the injected faults (default 0).")
-@click.option("--corrupt", type=float, help="Probability of a flipped bit per byte on the wire.")
-@click.option("--drop", type=float, help="Probability that a status packet is lost.")
-@click.option("--delay", type=float, help="Extra milliseconds before each status packet.")
-@click.option("--jitter", type=float, help="Plus a random 0..JITTER milliseconds.")
-@click.option("--noise", type=float, help="Noise bursts per second.")
+@click.option("--corrupt", type=NUMBER, help="Probability of a flipped bit per byte on the wire.")
+@click.option("--drop", type=NUMBER, help="Probability that a status packet is lost.")
+@click.option("--delay", type=NUMBER, help="Extra milliseconds before each status packet.")
+@click.option("--jitter", type=NUMBER, help="Plus a random 0..JITTER milliseconds.")
+@click.option("--noise", type=NUMBER, help="Noise bursts per second.")
 @click.option("--noise-len", type=int, help="Longest noise burst in bytes (default 4).")
 @click.option(
     "--brownout",
@@ -191,13 +195,13 @@ def bus(
     def on_signal(signum: int, frame: FrameType | None) -> None:
         stop.set()
 
-    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    previous = {s: signal.signal(s, on_signal) for s in STOP_SIGNALS}
     try:
         servos = [s.id for s in the_bus.servos]
         url = "sim://" + (f"?{query}" if query else "")
         if as_json:
             click.echo(
-                json.dumps(
+                dumps(
                     {
                         "transport": "unix" if unix_path else "pty",
                         "device": where,

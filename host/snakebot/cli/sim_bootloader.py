@@ -3,13 +3,15 @@ to try `snakebot flash` (or RoboPlus-style terminal sessions) without a board.""
 
 from __future__ import annotations
 
-import json
 import signal
 import threading
 from types import FrameType
 
 import click
 
+from snakebot.cli.output import dumps
+from snakebot.cli.params import NumberType
+from snakebot.cli.signals import STOP_SIGNALS
 from snakebot.sim.bootloader import (
     DEFAULT_SILENCE_S,
     PC_LINK_BAUD,
@@ -33,14 +35,14 @@ from snakebot.sim.bootloader import (
 )
 @click.option(
     "--reset-after",
-    type=click.FloatRange(min=0),
+    type=NumberType(0),
     metavar="SECONDS",
     help="Stay silent (running the application) for SECONDS, then reset, as when "
     "you press RESET; default: reset at once.",
 )
 @click.option(
     "--silence",
-    type=click.FloatRange(min=0.001),
+    type=NumberType(0.001),
     default=DEFAULT_SILENCE_S,
     show_default=True,
     metavar="SECONDS",
@@ -101,10 +103,10 @@ def bootloader(
     def on_signal(signum: int, frame: FrameType | None) -> None:
         stop.set()
 
-    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    previous = {s: signal.signal(s, on_signal) for s in STOP_SIGNALS}
     try:
         if as_json:
-            click.echo(json.dumps({"device": server.device, "link": link, "baud": PC_LINK_BAUD}))
+            click.echo(dumps({"device": server.device, "link": link, "baud": PC_LINK_BAUD}))
         else:
             click.echo(
                 f"emulated CM-530 bootloader on {server.device}"
@@ -124,6 +126,6 @@ def bootloader(
     for n, image in enumerate(images, 1):
         total = boot.reported_sum(image, sum_excludes_last)
         if as_json:
-            click.echo(json.dumps({"image": n, "bytes": len(image), "checksum": total}))
+            click.echo(dumps({"image": n, "bytes": len(image), "checksum": total}))
         else:
             click.echo(f"image {n}: {len(image)} bytes, checksum 0x{total:02X}")

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import contextlib
-import json
 import math
 import sys
 from pathlib import Path
@@ -12,6 +11,7 @@ from typing import Any
 import click
 
 import snakebot.transport.ports  # noqa: F401  (registers sim://)
+from snakebot.cli.output import dumps
 from snakebot.cli.plan import FROM_OPTION, TO_OPTION, tolerance_options, unreachable
 from snakebot.plan import Unreachable
 from snakebot.plan.goto import MAX_SLOWDOWN, WORLDS
@@ -105,7 +105,7 @@ def goto(
 
         summary["plot"] = str(plot_goto(result, plot))
     if as_json:
-        click.echo(json.dumps(summary, indent=2))
+        click.echo(dumps(summary, indent=2))
     else:
         _print(summary)
     if not summary["error"]["within"]:

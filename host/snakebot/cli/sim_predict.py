@@ -3,7 +3,6 @@ path with the prediction from the same table."""
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any
@@ -11,6 +10,8 @@ from typing import Any
 import click
 
 import snakebot.transport.ports  # noqa: F401  (registers sim://)
+from snakebot.cli.output import dumps
+from snakebot.cli.params import NUMBER, PLOT_PATH, NumberType
 from snakebot.extras import require
 from snakebot.sim.physics.select import DEFAULT_WORLD, WORLDS
 from snakebot.sim.physics.video import StateMotion, check_video_path, write_video
@@ -39,7 +40,7 @@ def _motion(label: str, m: dict[str, Any]) -> str:
 )
 @click.option(
     "--world-rate",
-    type=float,
+    type=NUMBER,
     default=DEFAULT_WORLD_HZ,
     show_default=True,
     help="how often (Hz, bus time) the world samples modelled servos; at least once per frame",
@@ -55,12 +56,12 @@ def _motion(label: str, m: dict[str, Any]) -> str:
 )
 @click.option(
     "--mu",
-    type=click.FloatRange(min=0, min_open=True),
+    type=NumberType(0, low_open=True),
     help="With --world mujoco: the wheel-floor friction coefficient (default: the robot's).",
 )
 @click.option(
     "--plot",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PLOT_PATH,
     help="write a PNG of the emulated and predicted body paths and the joints' tracking",
 )
 @click.option(
@@ -131,7 +132,7 @@ def predict(
 
         summary["plot"] = str(plot_prediction(result, plot))
     if as_json:
-        click.echo(json.dumps(summary, indent=2))
+        click.echo(dumps(summary, indent=2))
         return
     diff = summary["difference"]
     em = summary["emulated"]

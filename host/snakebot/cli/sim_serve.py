@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 import signal
 import threading
@@ -11,9 +10,16 @@ from types import FrameType
 
 import click
 
+from snakebot.cli.output import dumps
+from snakebot.cli.params import NumberType
+from snakebot.cli.signals import STOP_SIGNALS
 from snakebot.sim.errors import SimError
 from snakebot.sim.physics.select import DEFAULT_WORLD, WORLDS
 from snakebot.sim.serve import EmulatedRobot
+
+HISTORY_S = 600.0
+"""Seconds of the world's latest samples kept while serving: memory stays flat however
+long it serves (the pose reports need only the latest)."""
 
 
 @click.command("serve")
@@ -51,7 +57,7 @@ from snakebot.sim.serve import EmulatedRobot
 )
 @click.option(
     "--report",
-    type=click.FloatRange(min=0),
+    type=NumberType(0),
     default=5.0,
     show_default=True,
     help="Seconds between lines giving the body's pose in the world (0: never).",
@@ -93,12 +99,14 @@ def serve(
     def on_signal(signum: int, frame: FrameType | None) -> None:
         stop.set()
 
-    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    emulated = EmulatedRobot(robot, firmware, sim_query=sim_options, world=world)
+    previous = {s: signal.signal(s, on_signal) for s in STOP_SIGNALS}
+    emulated = EmulatedRobot(
+        robot, firmware, sim_query=sim_options, world=world, history_s=HISTORY_S
+    )
     try:
         info = emulated.start()
         if as_json:
-            click.echo(json.dumps({"event": "serving", **info.as_dict()}))
+            click.echo(dumps({"event": "serving", **info.as_dict()}))
         else:
             click.echo(
                 f"emulated {info.robot}: firmware {info.firmware} in QEMU (pid {info.qemu_pid})"
@@ -136,7 +144,7 @@ def _pose(emulated: EmulatedRobot, as_json: bool, final: bool = False) -> None:
     t = float(record.t[-1])
     if as_json:
         click.echo(
-            json.dumps(
+            dumps(
                 {
                     "event": "stopped" if final else "pose",
                     "t": round(t, 3),

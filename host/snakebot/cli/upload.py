@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -10,6 +9,7 @@ from typing import Any
 import click
 
 from snakebot.cli.controller_link import controller_options, open_controller
+from snakebot.cli.output import dumps
 from snakebot.controller.uploader import UploadReport, upload_gait
 from snakebot.gaittable import read_gait
 
@@ -81,13 +81,14 @@ def upload(
 
 def _print(report: UploadReport, gait: Path, port: str, as_json: bool) -> None:
     if as_json:
-        click.echo(json.dumps({"file": str(gait), "port": port, **report.as_dict()}))
+        click.echo(dumps({"file": str(gait), "port": port, **report.as_dict()}))
         return
     click.echo(report.summary())
     how = "looping" if report.loop else "played once"
     click.echo(
-        f"The controller confirmed it: its active table has the file's size and CRC-32 "
-        f"(0x{report.crc:08x}): {report.frames} frames x {report.joints} joints every "
+        f"The controller confirmed it: its active table has the file's size and file "
+        f"CRC-32 (0x{report.crc:08x}, not the header CRC): {report.frames} frames x "
+        f"{report.joints} joints every "
         f"{report.period_ms} ms, {how}."
     )
     if report.attempts > 1:

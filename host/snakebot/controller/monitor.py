@@ -144,7 +144,7 @@ def render(s: Sample) -> list[str]:
     flags = words.describe_flags(s.registers["Error Flags"], s.table)
     lines = [
         f"t = {s.t:7.2f} s   state {c['state']}   frame {c['play_frame']}   "
-        f"speed {c['speed']:.2f}x   table {c['table_bytes']} bytes ({c['table_crc']})",
+        f"speed {c['speed']:.2f}x   table {c['table_bytes']} bytes, file CRC-32 {c['table_crc']}",
         f"error flags: {flags}",
         f"PC link: {c['pc_packets']} packets, {c['pc_errors']} damaged   bus: "
         f"{c['bus_reads']} reads, {c['bus_timeouts']} timeouts, {c['bus_errors']} damaged",

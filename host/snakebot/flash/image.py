@@ -24,6 +24,7 @@ from pathlib import Path
 
 from snakebot.flash.errors import ImageError
 from snakebot.paths import REPO_ROOT
+from snakebot.userfiles import FileTooLarge, read_bounded
 
 BOARD = "cm530"
 """The board `snakebot flash` programs: the firmware's board directory and the name its
@@ -185,7 +186,9 @@ def load_image(
     if path.suffix.lower() in (".elf", ".axf", ".out"):
         raise ImageError(_format_hint(path, "an ELF file"))
     try:
-        data = path.read_bytes()
+        data = read_bounded(path, layout.app_size, "firmware image")
+    except FileTooLarge as exc:
+        raise ImageError(_too_big(path, exc.size, layout)) from None
     except FileNotFoundError:
         raise ImageError(
             f"firmware image {path} not found: build it with make firmware (it writes "
@@ -203,15 +206,18 @@ def load_image(
         raise ImageError(_format_hint(path, "an ELF file"))
     if _looks_like_intel_hex(data):
         raise ImageError(_format_hint(path, "an Intel HEX file"))
-    if len(data) > layout.app_size:
-        raise ImageError(
-            f"firmware image {path} is {len(data)} bytes, more than the {layout.app_size} "
-            f"bytes ({layout.app_size // 1024} KB) of the CM-530's application area "
-            f"0x{layout.app_base:08X}-0x{layout.flash_end - 1:08X}: make the firmware smaller"
-        )
     if check_vectors:
         _check_vectors(path, data, layout)
     return data
+
+
+def _too_big(path: Path, size: int | None, layout: BoardLayout) -> str:
+    bytes_ = f"{size} bytes" if size is not None else "endless (a device?)"
+    return (
+        f"firmware image {path} is {bytes_}, more than the {layout.app_size} "
+        f"bytes ({layout.app_size // 1024} KB) of the CM-530's application area "
+        f"0x{layout.app_base:08X}-0x{layout.flash_end - 1:08X}: make the firmware smaller"
+    )
 
 
 def _check_vectors(path: Path, data: bytes, layout: BoardLayout) -> None:

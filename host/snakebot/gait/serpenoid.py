@@ -85,7 +85,9 @@ def serpenoid_frames(
     loop = whole if loop is None else loop
     if loop and not whole:
         raise GaitError(f"a looping table needs a whole number of cycles, not {cycles}")
-    steps = round(cycles * 2 * math.pi / abs(omega) / dt)
+    # Capped so that a tiny omega or a huge cycle count (an infinite quotient) reaches
+    # the frame budget below as "too many frames" instead of failing to round.
+    steps = round(min(cycles * 2 * math.pi / abs(omega) / dt, 2.0**53))
     if steps < 2:
         raise GaitError(
             "the gait is shorter than two frames: raise --rate or --cycles, or lower --omega"

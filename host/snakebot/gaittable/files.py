@@ -14,9 +14,15 @@ from pathlib import Path
 from typing import Any
 
 from snakebot.gaittable.errors import GaitTableError
+from snakebot.gaittable.layout import MAX_TABLE_BYTES
 from snakebot.gaittable.table import GaitTable
+from snakebot.userfiles import FileTooLarge, new_file_mode, read_bounded
 
 SIDECAR_FORMAT = "snakebot-gait-metadata"
+
+MAX_SIDECAR_BYTES = 4 << 20
+"""The largest metadata file read: the predicted paths of the longest table the
+controller holds, sampled as the gait commands write them, take well under a megabyte."""
 
 
 def sidecar_path(path: str | os.PathLike[str]) -> Path:
@@ -28,6 +34,8 @@ def sidecar_path(path: str | os.PathLike[str]) -> Path:
 def write_gait(path: str | os.PathLike[str], table: GaitTable) -> None:
     """Write ``table`` to ``path`` (binary) and ``path``.json (metadata), atomically each."""
     path = Path(path)
+    # What read_gait would refuse is not written in the first place.
+    _check_metadata(table.metadata, "gait metadata", "give it the shape gait commands write")
     sidecar = {
         "format": SIDECAR_FORMAT,
         "table": {
@@ -71,6 +79,8 @@ def write_gait(path: str | os.PathLike[str], table: GaitTable) -> None:
 def _stage(target: Path, data: bytes) -> Path:
     fd, name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
     try:
+        # mkstemp makes the file 0600; the finished file gets what open() would give it.
+        os.fchmod(fd, new_file_mode())
         with os.fdopen(fd, "wb") as f:
             f.write(data)
             f.flush()
@@ -86,7 +96,9 @@ def read_gait(path: str | os.PathLike[str]) -> GaitTable:
     GaitTableError naming the problem (truncated, bad magic, CRC mismatch, ...)."""
     path = Path(path)
     try:
-        data = path.read_bytes()
+        data = read_bounded(path, MAX_TABLE_BYTES, "gait table")
+    except FileTooLarge as exc:
+        raise GaitTableError(str(exc), "too_big") from exc
     except OSError as exc:
         raise GaitTableError(
             f"cannot read gait table {path}: {exc.strerror or exc}; check the path "
@@ -102,14 +114,24 @@ def _read_metadata(sidecar: Path, table: GaitTable) -> dict[str, Any]:
     if not sidecar.exists():
         return {}
     try:
-        raw = json.loads(sidecar.read_text())
+        raw = json.loads(
+            read_bounded(sidecar, MAX_SIDECAR_BYTES, "gait metadata file"),
+            parse_constant=_refuse_constant,
+        )
         crc = raw["table"]["crc32"]
         metadata = raw["metadata"]
-    except (OSError, ValueError, KeyError, TypeError) as exc:
+    except (OSError, ValueError, KeyError, TypeError, RecursionError, FileTooLarge) as exc:
+        why = "nested too deeply" if isinstance(exc, RecursionError) else str(exc)
         raise GaitTableError(
-            f"gait metadata {sidecar} is unreadable ({exc}): delete it or write the gait again",
+            f"gait metadata {sidecar} is unreadable ({why}): delete it or write the gait again",
             "not_json",
         ) from exc
+    if not isinstance(crc, int) or isinstance(crc, bool):
+        raise GaitTableError(
+            f"gait metadata {sidecar}: table.crc32 must be a number, not {_brief(crc)}: "
+            "write the gait again, or delete the .json",
+            "not_json",
+        )
     if crc != table.image_crc:
         raise GaitTableError(
             f"gait metadata {sidecar} belongs to another table (CRC 0x{crc:08x}, the table is "
@@ -120,4 +142,109 @@ def _read_metadata(sidecar: Path, table: GaitTable) -> dict[str, Any]:
         raise GaitTableError(
             f"gait metadata in {sidecar} is not an object: write the gait again", "not_json"
         )
+    _check_metadata(
+        metadata, f"gait metadata {sidecar}", "write the gait again, or delete the .json"
+    )
     return metadata
+
+
+def _check_metadata(metadata: dict[str, Any], where: str, fix: str) -> None:
+    """GaitTableError if a key snakebot reads holds the wrong kind of value."""
+    for key, check in METADATA_SCHEMA.items():
+        if key in metadata and not check(metadata[key]):
+            raise GaitTableError(
+                f"{where}: {key} is {_brief(metadata[key])}, not {check.__doc__}: {fix}",
+                "not_json",
+            )
+
+
+def _refuse_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a JSON number")
+
+
+def _brief(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _number(value: Any) -> bool:
+    """a number"""
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _integer(value: Any) -> bool:
+    """a whole number"""
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _text(value: Any) -> bool:
+    """a string"""
+    return isinstance(value, str)
+
+
+def _flag(value: Any) -> bool:
+    """true or false"""
+    return isinstance(value, bool)
+
+
+def _mapping(value: Any) -> bool:
+    """an object"""
+    return isinstance(value, dict)
+
+
+def _numbers(value: Any) -> bool:
+    """a list of numbers"""
+    return isinstance(value, list) and all(_number(v) for v in value)
+
+
+def _texts(value: Any) -> bool:
+    """a list of strings"""
+    return isinstance(value, list) and all(_text(v) for v in value)
+
+
+def _motion(value: Any) -> bool:
+    """an object with numbers dx, dy and dtheta"""
+    return _mapping(value) and all(_number(value.get(k)) for k in ("dx", "dy", "dtheta"))
+
+
+def _path(value: Any) -> bool:
+    """an object of equally long number lists x, y and theta"""
+    if not _mapping(value) or not all(_numbers(value.get(k)) for k in ("x", "y", "theta")):
+        return False
+    return len(value["x"]) == len(value["y"]) == len(value["theta"])
+
+
+def _joints(value: Any) -> bool:
+    """a list of joints with a name, servo_id, zero_tick and sign of 1 or -1"""
+    return isinstance(value, list) and all(
+        _mapping(j)
+        and _text(j.get("name", ""))
+        and _integer(j.get("servo_id"))
+        and _integer(j.get("zero_tick"))
+        and j.get("sign") in (1, -1)
+        for j in value
+    )
+
+
+METADATA_SCHEMA: dict[str, Any] = {
+    "gait": _text,
+    "robot": _text,
+    "robot_source": _text,
+    "duration_s": _number,
+    "frame_period_ms": _integer,
+    "frames": _integer,
+    "loop": _flag,
+    "parameters": _mapping,
+    "predicted": _motion,
+    "table": _motion,
+    "first_order": _motion,
+    "second_order": _motion,
+    "path": _path,
+    "table_path": _path,
+    "joints": _joints,
+    "state_names": _texts,
+    "final_q": _numbers,
+    "moved_q": _numbers,
+}
+"""What the metadata keys that snakebot reads must hold (each check's docstring says it in
+words, for the error message). Other keys are kept as they are, for the user."""

@@ -19,6 +19,7 @@ Schema (see the built-in files beside this module for complete examples)::
 
 from __future__ import annotations
 
+import difflib
 import math
 import re
 import sys
@@ -41,9 +42,12 @@ from snakebot.robots.model import (
     RobotError,
     joint_name,
 )
+from snakebot.userfiles import FileTooLarge, read_bounded
 
 BUILTIN_ROBOTS = ("snake3", "trident", "snake5", "car")
 MAX_LINKS = 16  # the C core's fixed buffers (KIN_MAX_LINKS)
+MAX_FILE_BYTES = 1 << 20  # a robot description is a few hundred bytes; this is no robot
+MAX_LIMIT_DEG = 360.0  # joint limits beyond a full turn are typing errors, whatever the servo
 
 PHYSICS_DEFAULTS: dict[str, float] = {
     "link_mass_kg": 0.08,  # an AX-12A (55 g) with its brackets and wheel axle
@@ -53,6 +57,20 @@ PHYSICS_DEFAULTS: dict[str, float] = {
     "rolling_damping": 1e-5,
 }
 """``[physics]`` values a robot may leave out; ``unit_m`` has no default."""
+
+SCHEMA: dict[str, Any] = {
+    "name": None,
+    "kind": None,
+    "description": None,
+    "geometry": {"links", "half_link", "base_radius", "arm_length", "alphas_deg", "wheelbase"},
+    "friction": {"c_n", "c_t"},
+    "servo": {"model", "max_speed_rpm"},
+    "physics": {"unit_m", *PHYSICS_DEFAULTS},
+    "joints": [{"name", "servo_id", "zero_tick", "sign", "min_deg", "max_deg"}],
+}
+"""The keys a robot file may have: None for a value, a set for a table's keys, a list
+holding that set for an array of tables. A key not here is refused with a "did you mean"
+(a misspelt optional key would otherwise be silently ignored)."""
 
 _ARRAY_HEADER = re.compile(r"^\s*\[\[\s*([A-Za-z0-9_.\-]+)\s*\]\]")
 _TABLE_HEADER = re.compile(r"^\s*\[\s*([A-Za-z0-9_.\-]+)\s*\]")
@@ -100,21 +118,25 @@ class _Reader:
 
     def get(self, path: tuple[str, ...], kind: type | tuple[type, ...], default: Any = ...) -> Any:
         node: Any = self.data
-        for part in path:
-            if isinstance(node, list):
+        for n, part in enumerate(path):
+            if isinstance(node, list) and part.isdigit() and int(part) < len(node):
                 node = node[int(part)]
             elif isinstance(node, dict) and part in node:
                 node = node[part]
+            elif n and not isinstance(node, dict | list):
+                raise self.fail(path[:n], f"must be a table, not {_brief(node)}")
             elif default is not ...:
                 return default
             else:
                 raise self.fail(path, "is missing: add it (see the built-in robot files)")
         kinds = kind if isinstance(kind, tuple) else (kind,)
         if float in kinds and isinstance(node, int) and not isinstance(node, bool):
+            if abs(node) > 1e300:  # float() of a longer integer overflows
+                raise self.fail(path, f"must be a reasonable number, not {_brief(node)}")
             node = float(node)
         if isinstance(node, bool) and bool not in kinds or not isinstance(node, kinds):
             names = " or ".join(k.__name__ for k in kinds).replace("str", "a string")
-            raise self.fail(path, f"must be {names}, not {node!r}")
+            raise self.fail(path, f"must be {names}, not {_brief(node)}")
         return node
 
     def number(
@@ -123,14 +145,40 @@ class _Reader:
         low: float | None = None,
         default: Any = ...,
         strictly: bool = False,
+        high: float | None = None,
+        why_high: str = "",
     ) -> float:
         value = self.get(path, float, default)
+        if not math.isfinite(value):
+            raise self.fail(path, f"must be a finite number, not {value}")
         if low is not None and (value < low or (strictly and value == low)):
             relation = ">" if strictly else ">="
             raise self.fail(path, f"must be {relation} {low}, not {value}")
-        if not math.isfinite(value):
-            raise self.fail(path, f"must be a finite number, not {value}")
+        if high is not None and value > high:
+            raise self.fail(path, f"must be at most {high:g}{why_high}, not {value:g}")
         return value
+
+    def check_keys(self, schema: dict[str, Any], node: Any, path: tuple[str, ...] = ()) -> None:
+        """Refuse keys the schema does not know (with the closest known one) and tables
+        or arrays of tables given as something else."""
+        for key, value in node.items():
+            here = (*path, key)
+            if key not in schema:
+                close = difflib.get_close_matches(key, list(schema), n=1)
+                hint = (
+                    f"did you mean '{close[0]}'?" if close else "known keys: " + ", ".join(schema)
+                )
+                raise self.fail(here, f"is not a robot description key: {hint}")
+            expected = schema[key]
+            if isinstance(expected, set):
+                if not isinstance(value, dict):
+                    raise self.fail(here, f"must be a table ([{key}]), not {_brief(value)}")
+                self.check_keys(dict.fromkeys(expected), value, here)
+            elif isinstance(expected, list):
+                if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+                    raise self.fail(here, f"must be tables ([[{key}]]), not {_brief(value)}")
+                for i, item in enumerate(value):
+                    self.check_keys(dict.fromkeys(expected[0]), item, (*here, str(i)))
 
     def integer(self, path: tuple[str, ...], low: int, high: int) -> int:
         value = self.get(path, int)
@@ -144,8 +192,8 @@ def _joint(reader: _Reader, index: int) -> Joint:
     sign = reader.get((*base, "sign"), int)
     if sign not in (1, -1):
         raise reader.fail((*base, "sign"), f"must be 1 or -1, not {sign}")
-    low = reader.number((*base, "min_deg"))
-    high = reader.number((*base, "max_deg"))
+    low = reader.number((*base, "min_deg"), -MAX_LIMIT_DEG, high=MAX_LIMIT_DEG)
+    high = reader.number((*base, "max_deg"), -MAX_LIMIT_DEG, high=MAX_LIMIT_DEG)
     if low >= high:
         raise reader.fail((*base, "max_deg"), f"must be greater than min_deg ({low}), not {high}")
     joint = Joint(
@@ -186,6 +234,7 @@ def parse_robot(text: str, source: str = "<robot>") -> Robot:
     except tomllib.TOMLDecodeError as exc:
         raise RobotError(f"{source}: not valid TOML ({exc}): fix the syntax there") from None
     reader = _Reader(data, text, source)
+    reader.check_keys(SCHEMA, data)
     kind = reader.get(("kind",), str)
     if kind not in ("snake", "trident", "car"):
         raise reader.fail(("kind",), f'must be "snake", "trident" or "car", not {kind!r}')
@@ -206,8 +255,14 @@ def parse_robot(text: str, source: str = "<robot>") -> Robot:
             f"{model!r} is unknown: use one of "
             f"{', '.join(SERVO_MAX_RPM)} or give servo.max_speed_rpm",
         )
+    datasheet = SERVO_MAX_RPM.get(model)
     rpm = reader.number(
-        ("servo", "max_speed_rpm"), 0.0, SERVO_MAX_RPM.get(model, 0.0), strictly=True
+        ("servo", "max_speed_rpm"),
+        0.0,
+        datasheet,
+        strictly=True,
+        high=datasheet,
+        why_high=f" rpm, the {model}'s no-load speed in its datasheet",
     )
     common: dict[str, Any] = dict(
         name=reader.get(("name",), str),
@@ -264,4 +319,21 @@ def load_robot(name_or_path: str | Path) -> Robot:
             f"no robot {text_name!r}: give a built-in name ({', '.join(BUILTIN_ROBOTS)}) "
             "or the path of a robot .toml file"
         )
-    return parse_robot(path.read_text(), source=str(path))
+    try:
+        raw = read_bounded(path, MAX_FILE_BYTES, "robot description")
+    except FileTooLarge as exc:
+        raise RobotError(str(exc)) from None
+    except OSError as exc:
+        raise RobotError(f"cannot read robot file {path}: {exc.strerror or exc}") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise RobotError(
+            f"{path} is not UTF-8 text (byte {exc.start}): save the robot file as UTF-8"
+        ) from None
+    return parse_robot(text, source=str(path))
+
+
+def _brief(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."

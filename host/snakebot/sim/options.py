@@ -117,7 +117,10 @@ class SimOptions:
         fault: dict[str, object] = {}
         brownouts: list[Brownout] = []
         try:
-            pairs = parse_qsl(query, keep_blank_values=True, strict_parsing=bool(query))
+            # "+" is literal here (brownout=10@5+1), not the form-encoding of a space.
+            pairs = parse_qsl(
+                query.replace("+", "%2B"), keep_blank_values=True, strict_parsing=bool(query)
+            )
         except ValueError:
             raise SimOptionError(
                 f"cannot read the options {query!r}: expected {URL_FORM}"

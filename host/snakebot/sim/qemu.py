@@ -50,7 +50,6 @@ import signal
 import socket
 import subprocess
 import sys
-import tempfile
 import time
 import tty
 import weakref
@@ -62,6 +61,7 @@ from typing import Any
 from snakebot.firmware import image as firmware_image
 from snakebot.sim.errors import SimError
 from snakebot.sim.transports.relay import PtyRelay
+from snakebot.sim.workdirs import make_workdir
 
 QEMU_BINARY = "qemu-system-arm"
 """The emulator; the environment variable ``SNAKEBOT_QEMU`` names another."""
@@ -370,7 +370,7 @@ class QemuFirmware:
             raise QemuError("this QemuFirmware was already started: make a new one")
         if not self.image.is_file():
             raise QemuError(f"firmware image {self.image} not found: build it with `make firmware`")
-        self._workdir = tempfile.mkdtemp(prefix="snakebot.sim-qemu-")
+        self._workdir = make_workdir("qemu")
         if self.die_with_parent:
             global _libc
             if _libc is None:

@@ -36,8 +36,8 @@ import contextlib
 import os
 import shutil
 import struct
-import tempfile
 import time
+from collections import deque
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from types import TracebackType
@@ -56,6 +56,7 @@ from snakebot.sim.physics.select import DEFAULT_WORLD, check_world, make_world
 from snakebot.sim.qemu import Endpoint, QemuFirmware
 from snakebot.sim.servo import VirtualServo
 from snakebot.sim.transports.unixsock import UnixSocketServer
+from snakebot.sim.workdirs import make_workdir
 from snakebot.sim.world import World, WorldRecord
 from snakebot.transport import DxlClient
 
@@ -198,11 +199,18 @@ class GoalLog:
     """Each servo's Goal Position register (the last goal the master sent it), sampled on
     the bus clock every ``period`` seconds from ``start``, like the world's samples."""
 
-    def __init__(self, bus: Bus, ids: tuple[int, ...], period: float, start: float) -> None:
+    def __init__(
+        self,
+        bus: Bus,
+        ids: tuple[int, ...],
+        period: float,
+        start: float,
+        keep: int | None = None,
+    ) -> None:
         self._servos = [bus.servo(i) for i in ids]
         self._start = start
-        self._t: list[float] = []
-        self._rows: list[list[int]] = []
+        self._t: deque[float] = deque(maxlen=keep)  # keep: the latest samples only
+        self._rows: deque[list[int]] = deque(maxlen=keep)
         bus.every(period, self._sample, start=start)
 
     def _sample(self, t: float) -> None:
@@ -227,6 +235,8 @@ class EmulatedRobot:
     options as in a ``sim://`` URL (``corrupt=0.001&seed=3``; see ``snakebot sim bus
     --help``). ``world_period``: seconds of bus time between the world's samples;
     ``world``: "kinematic" or "mujoco" (the physics moves the servos).
+    ``history_s``: how many seconds of the latest world samples and goals :meth:`record`
+    and :meth:`goals` keep (None: all), so a robot served for hours needs bounded memory.
     """
 
     def __init__(
@@ -237,9 +247,11 @@ class EmulatedRobot:
         sim_query: str = "",
         world_period: float = 0.01,
         world: str = DEFAULT_WORLD,
+        history_s: float | None = None,
     ) -> None:
         self.world_kind = check_world(world)
         self.robot = robot if isinstance(robot, Robot) else load_robot(robot)
+        self.history = None if history_s is None else max(1, round(history_s / world_period))
         self.firmware = Path(firmware) if firmware is not None else DEFAULT_FIRMWARE
         self.sim_query = sim_query
         self.world_period = world_period
@@ -257,7 +269,7 @@ class EmulatedRobot:
         """Start the bus, the world and QEMU; return once the firmware answers PING."""
         if self._info is not None:
             return self._info
-        self._workdir = tempfile.mkdtemp(prefix="snakebot-serve-")
+        self._workdir = make_workdir("serve")
         try:
             image = flash_image(self.firmware, Path(self._workdir) / "flash.bin")
             options = SimOptions.from_query(self.sim_query)
@@ -272,10 +284,18 @@ class EmulatedRobot:
             self._server = UnixSocketServer(self._bus, sock).start()
             with self._server.lock:  # type: ignore[attr-defined]
                 self._world = make_world(
-                    self.world_kind, self._bus, self.robot, period=self.world_period
+                    self.world_kind,
+                    self._bus,
+                    self.robot,
+                    period=self.world_period,
+                    keep=self.history,
                 )
                 self._goals = GoalLog(
-                    self._bus, self.robot.servo_ids, self.world_period, self._world.start_time
+                    self._bus,
+                    self.robot.servo_ids,
+                    self.world_period,
+                    self._world.start_time,
+                    keep=self.history,
                 )
             self._qemu = QemuFirmware(image, bus=Endpoint.unix_client(sock))
             ports = self._qemu.start()

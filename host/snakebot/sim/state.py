@@ -16,6 +16,7 @@ from pathlib import Path
 
 from snakebot.sim.errors import SimError
 from snakebot.sim.servo import VirtualServo
+from snakebot.userfiles import new_file_mode
 
 FORMAT = "snakebot.sim-eeprom/1"
 
@@ -44,7 +45,7 @@ class EepromStore:
     def _restore(self, servos: Sequence[VirtualServo]) -> None:
         try:
             doc = json.loads(self.path.read_text())
-            if doc.get("format") != FORMAT:
+            if not isinstance(doc, dict) or doc.get("format") != FORMAT:
                 raise ValueError(f"not a {FORMAT} file")
             saved = doc["servos"]
             images = [(entry["model"], bytes.fromhex(entry["eeprom"])) for entry in saved]
@@ -78,6 +79,7 @@ class EepromStore:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=self.path.parent, prefix=self.path.name, suffix=".tmp")
         try:
+            os.fchmod(fd, new_file_mode())  # as any file the user makes, not mkstemp's 0600
             with os.fdopen(fd, "w") as f:
                 json.dump(doc, f, indent=1)
                 f.write("\n")

@@ -144,6 +144,8 @@ class World:
     ``regularise=False`` turns the singular-crossing fallback off: such a crossing then
     raises :class:`WorldError` (from the bus call that ran the sample, or from
     :meth:`record`). The servos are looked up by ID once, here.
+    ``keep`` bounds the record for worlds that run for hours: at most about ``keep``
+    samples (plus one batch) are kept, the oldest dropped; None keeps everything.
     """
 
     def __init__(
@@ -158,11 +160,14 @@ class World:
         options: Options | None = None,
         batch: int = DEFAULT_BATCH,
         regularise: bool = True,
+        keep: int | None = None,
     ) -> None:
         if not period > 0:
             raise WorldError(f"the world's sampling period must be positive, not {period}")
         if batch < 1:
             raise WorldError(f"batch must be at least 1 sample, not {batch}")
+        if keep is not None and keep < 1:
+            raise WorldError(f"keep must be at least 1 sample, not {keep}")
         ids = require_servos(bus, robot)
         self.bus = bus
         self.robot = robot
@@ -183,6 +188,8 @@ class World:
         self._slip: list[np.ndarray] = []
         self._reg: list[np.ndarray] = []
         self._count = 0  # samples integrated so far
+        self.keep = keep
+        self._kept = 0  # samples in _q (the record); _count - _kept were dropped
         self._schedule = bus.every(self.period, self._sample, start=self.start_time)
 
     # -- sampling -------------------------------------------------------------------------
@@ -285,6 +292,14 @@ class World:
         self._slip.append(slip)
         self._reg.append(reg)
         self._count += len(q)
+        self._kept += len(q)
+        keep = self.keep
+        # Trimmed once a batch beyond the bound, so the copying costs O(1) per sample.
+        if keep is not None and self._kept > keep + self.batch:
+            self._q = [np.vstack(self._q)[-keep:]]
+            self._slip = [np.vstack(self._slip)[-keep:]]
+            self._reg = [np.concatenate(self._reg)[-keep:]]
+            self._kept = keep
 
     # -- results --------------------------------------------------------------------------
 
@@ -300,7 +315,8 @@ class World:
         return self._count + len(self._pending)
 
     def record(self) -> WorldRecord:
-        """Everything sampled so far (integrating what is pending first)."""
+        """Everything sampled so far (integrating what is pending first); with ``keep``,
+        at least the latest ``keep`` samples (``t`` still counts from the world's start)."""
         self.flush()
         robot = self.robot
         if not self._q:
@@ -314,7 +330,7 @@ class World:
                 self.fallback_c_t,
             )
         q = np.vstack(self._q)
-        t = np.arange(len(q)) * self.period
+        t = (self._count - self._kept + np.arange(len(q))) * self.period
         return WorldRecord(
             t,
             q[:, :3],

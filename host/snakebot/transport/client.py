@@ -12,9 +12,15 @@ What makes a transaction trustworthy on a real bus:
 * A status packet from an earlier, timed-out transaction that arrives late is discarded
   unless it comes from the addressed ID with the parameter length this instruction
   expects.
-* Timed-out and corrupt replies are retried; a reply with error bits raises
-  :class:`ServoError` at once, carrying the flags. A wrong value is never returned:
-  after the last attempt the caller gets :class:`DxlTimeout` or :class:`CorruptPacket`.
+* Timed-out and corrupt replies are retried, and so are replies whose CHECKSUM or
+  INSTRUCTION bit says the servo received a damaged instruction (it did nothing, so
+  sending it again is safe); other error bits raise :class:`ServoError` at once, carrying
+  the flags. After the last attempt the caller gets :class:`DxlTimeout`,
+  :class:`CorruptPacket` or :class:`ServoError`.
+* The 8-bit checksum lets about one damaged packet in 256 through. So a value read is
+  checked against its register's range in the device description and read again when it
+  is outside (then :class:`CorruptPacket`), and :meth:`DxlClient.read_confirmed` reads
+  twice, for values that decisions are based on.
 * Broadcast instructions and SYNC_WRITE get no reply and are not waited for; nor are
   instructions that the servo's Status Return Level tells it not to answer.
 """
@@ -37,6 +43,7 @@ from snakebot.protocol import (
     BROADCAST_ID,
     CorruptPacket,
     DxlTimeout,
+    ErrorFlags,
     Instruction,
     Packet,
     PacketParser,
@@ -52,6 +59,10 @@ from snakebot.transport.timing import DEFAULT_BAUDRATE, STATUS_OVERHEAD, BusTimi
 
 DEFAULT_STATUS_RETURN_LEVEL = 2
 """Factory setting: every instruction addressed to one servo is answered."""
+
+RESEND_FLAGS = ErrorFlags.CHECKSUM | ErrorFlags.INSTRUCTION
+"""Status error bits saying the servo did not act on the instruction because it arrived
+damaged: the instruction is sent again, like after a damaged reply."""
 
 RECENT_SENDS = 8
 """How many earlier instructions are remembered, so that their late echoes are recognised."""
@@ -105,6 +116,8 @@ class DxlClient:
     ``device``: the kind of device on this port (an AX-12A unless told otherwise, e.g.
     ``snakebot.devices.controller()`` on the PC link): where its Status Return Level
     and Model Number live comes from its description.
+    ``check_ranges``: whether every value read is checked against its register's range
+    in the device description (default True).
 
     Transactions from several threads are serialised. The client sets the port's read
     timeout itself, so a port handed in should not be read by anyone else meanwhile.
@@ -123,6 +136,7 @@ class DxlClient:
         echo_probe_s: float | None = None,
         status_return_level: int = DEFAULT_STATUS_RETURN_LEVEL,
         device: Device | None = None,
+        check_ranges: bool = True,
     ) -> None:
         self.retries = settings.resolve_retries(retries)
         echo_setting = settings.resolve_echo(echo)
@@ -136,6 +150,8 @@ class DxlClient:
         self._levels: dict[int, int] = {}
         self.device = device or devices.ax12()
         self._level_address = self.device.status_return_level_address
+        self.check_ranges = check_ranges
+        self._range_checks: dict[tuple[int, int], list[tuple[str, int, int, bool, int, int]]] = {}
         if isinstance(port, str):
             self._port = open_port(port, baudrate or DEFAULT_BAUDRATE, timeout=0)
             self._owns_port = True
@@ -260,6 +276,9 @@ class DxlClient:
                 if reply is None and self._echo is None and attempt.echo is not None:
                     reply = self._settle_echo(attempt.echo, expect_id, expect_params_len)
                 if reply is not None:
+                    if reply.code & RESEND_FLAGS and len(attempts) + 1 < tries:
+                        attempts.append(attempt)  # the servo heard a damaged instruction
+                        continue
                     if check and reply.code:
                         raise ServoError(reply.id, reply.code)
                     return reply
@@ -446,7 +465,63 @@ class DxlClient:
                 "READ: write 1 or 2 to its Status Return Level, then call "
                 "set_status_return_level"
             )
-        return self.transact(_read_packet(servo_id, address, length), servo_id, length).params
+        packet = _read_packet(servo_id, address, length)
+        for _ in range(1 + self.retries):
+            data = self.transact(packet, servo_id, length).params
+            wrong = self._out_of_range(address, data)
+            if wrong is None:
+                return data
+        raise CorruptPacket(
+            f"servo {servo_id} returned {wrong} in each of {1 + self.retries} READs: a damaged "
+            "reply the checksum let through, or a servo that is not the model expected; check "
+            "the cable and the servo's model number"
+        )
+
+    def read_confirmed(self, servo_id: int, address: int, length: int) -> bytes:
+        """READ until two replies in a row agree, and return that value: for reads that
+        decisions are based on (a servo's model, a value written and read back), where a
+        damaged reply that the checksum let through must not count. CorruptPacket if no
+        two agree within the retries."""
+        last = self.read(servo_id, address, length)
+        for _ in range(1 + self.retries):
+            data = self.read(servo_id, address, length)
+            if data == last:
+                return data
+            last = data
+        raise CorruptPacket(
+            f"servo {servo_id} gave {2 + self.retries} different values for {length} bytes at "
+            f"address {address}: check the cable, and that the value is not changing"
+        )
+
+    def _out_of_range(self, address: int, data: bytes) -> str | None:
+        """What in ``data`` (read from ``address``) lies outside its register's range, in
+        words, or None."""
+        key = (address, len(data))
+        checks = self._range_checks.get(key)
+        if checks is None:
+            checks = self._range_checks[key] = self._ranges_within(address, len(data))
+        for name, offset, size, signed, low, high in checks:
+            value = int.from_bytes(data[offset : offset + size], "little", signed=signed)
+            if not low <= value <= high:
+                return f"{name} = {value}, outside its range {low}..{high}"
+        return None
+
+    def _ranges_within(
+        self, address: int, length: int
+    ) -> list[tuple[str, int, int, bool, int, int]]:
+        """(name, offset, size, signed, low, high) of each readable register of the device
+        with a documented range that lies wholly within ``length`` bytes from ``address``."""
+        if not self.check_ranges:
+            return []
+        return [
+            (r.name, r.address - address, r.size, r.signed, r.min, r.max)
+            for r in self.device.registers
+            if r.readable
+            and r.min is not None
+            and r.max is not None
+            and address <= r.address
+            and r.end <= address + length
+        ]
 
     def read_u8(self, servo_id: int, address: int) -> int:
         """READ one byte."""
@@ -470,10 +545,26 @@ class DxlClient:
             # Whether this very write is answered depends on the level before and after.
             wait = wait and level >= 2
         if wait:
-            self.transact(packet, servo_id, 0)
+            self._transact_write(packet, servo_id, address, data)
         else:
             self.send(packet)
         self._after_write(servo_id, address, data)
+
+    def _transact_write(self, packet: bytes, servo_id: int, address: int, data: bytes) -> None:
+        """A WRITE that waits for its status. A RANGE error for data that the register
+        description says is in range means the servo heard other data (damage the
+        checksum let through), so the WRITE is sent again, like after a damaged reply."""
+        in_range = bool(self._ranges_within(address, len(data))) and (
+            self._out_of_range(address, data) is None
+        )
+        for attempt in range(1 + self.retries):
+            try:
+                self.transact(packet, servo_id, 0)
+                return
+            except ServoError as exc:
+                damaged = in_range and exc.flags & ErrorFlags.RANGE
+                if not damaged or attempt == self.retries:
+                    raise
 
     def write_u8(self, servo_id: int, address: int, value: int) -> None:
         """WRITE one byte."""

@@ -10,7 +10,10 @@ emulator adds ``sim://`` through :func:`register_handler_package`).
 from __future__ import annotations
 
 import errno
+import os
 import sys
+import tempfile
+from pathlib import Path
 
 import serial
 
@@ -59,15 +62,89 @@ def _explain(url: str, exc: BaseException) -> str:
     return f"could not open serial port {url}: {text}"
 
 
+LOCK_DIR_NAME = "snakebot-ports"
+"""Directory (in the temporary directory, one per user) of the lock files that name each
+port's holder; the device's own ``flock`` keeps other users' programs out."""
+
+
+def _lock_path(device: str) -> Path:
+    # The real path, so a symlink (sim bus --link /tmp/ttyDXL) and its target share a lock.
+    name = os.path.realpath(device).strip("/").replace("/", "_") or "root"
+    return Path(tempfile.gettempdir()) / f"{LOCK_DIR_NAME}-{os.getuid()}" / f"{name}.lock"
+
+
+class PortLock:
+    """An advisory lock on a device, held for as long as the port is open: a lock file
+    locked with ``flock`` (released by the kernel when the process ends, however it ends)
+    that names the holder, so a second opener can say who has the port."""
+
+    def __init__(self, device: str) -> None:
+        import fcntl  # POSIX only; Windows opens a COM port exclusively by itself
+
+        self.path = _lock_path(device)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o666)
+        try:
+            fcntl.flock(self._fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            holder = os.pread(self._fd, 512, 0).decode(errors="replace").strip()
+            os.close(self._fd)
+            raise PortError(
+                device,
+                f"serial port {device} is in use by {holder or 'another snakebot'}: stop "
+                "that program first (two programs on one port read each other's replies)",
+            ) from None
+        holder = f"pid {os.getpid()} ({' '.join(Path(a).name for a in sys.argv[:3])})"
+        os.ftruncate(self._fd, 0)
+        os.pwrite(self._fd, holder.encode(), 0)
+
+    def release(self) -> None:
+        if self._fd >= 0:
+            os.ftruncate(self._fd, 0)
+            os.close(self._fd)  # closing the descriptor releases the flock
+            self._fd = -1
+
+
+def _is_device(url: str) -> bool:
+    return "://" not in url
+
+
 def open_port(
     url: str, baudrate: int = DEFAULT_BAUDRATE, timeout: float | None = None
 ) -> serial.SerialBase:
     """Open ``url`` (device path or pyserial URL) at ``baudrate``, 8N1, with read ``timeout``
-    in seconds (None blocks). Raises :class:`PortError` naming the port and the fix."""
+    in seconds (None blocks). Raises :class:`PortError` naming the port and the fix.
+
+    A device (a path, not a URL) is opened exclusively: a second opener, in this process
+    or another, gets a PortError naming the first (snakebot's) or saying the port is busy
+    (another program's ``flock``, as pyserial's ``exclusive`` takes it)."""
     if not url:
         raise PortError(url, "no serial port given: pass a device (/dev/ttyUSB0) or a URL")
+    posix = os.name == "posix"
+    lock = PortLock(url) if posix and _is_device(url) and os.path.exists(url) else None
     try:
-        return serial.serial_for_url(url, baudrate=baudrate, timeout=timeout)
+        port = _open(url, baudrate, timeout, exclusive=lock is not None)
+    except BaseException:
+        if lock is not None:
+            lock.release()
+        raise
+    if lock is not None:
+        close = port.close
+
+        def close_and_unlock() -> None:
+            try:
+                close()
+            finally:
+                lock.release()
+
+        port.close = close_and_unlock  # type: ignore[method-assign]
+    return port
+
+
+def _open(url: str, baudrate: int, timeout: float | None, exclusive: bool) -> serial.SerialBase:
+    extra = {"exclusive": True} if exclusive else {}
+    try:
+        return serial.serial_for_url(url, baudrate=baudrate, timeout=timeout, **extra)
     except ValueError as exc:
         if "protocol" in str(exc) and "://" in url:
             scheme = url.split("://", 1)[0]

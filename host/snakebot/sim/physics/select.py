@@ -34,11 +34,11 @@ def make_world(
     keep: int | None = None,
 ) -> Any:
     """A world of kind ``name`` on ``bus`` sampling every ``period`` from ``start``.
-    ``batch`` tunes the kinematic world, ``mu`` and ``keep`` (samples kept) the physics
-    one (each ignores the other's)."""
+    ``batch`` tunes the kinematic world, ``mu`` the physics one (each ignores the
+    other's); ``keep`` bounds the samples either keeps."""
     if check_world(name) == "kinematic":
         extra = {} if batch is None else {"batch": batch}
-        return World(bus, robot, period=period, start=start, **extra)
+        return World(bus, robot, period=period, start=start, keep=keep, **extra)
     require("mujoco", "the mujoco world")
     from snakebot.sim.physics.world import PhysicsWorld
 

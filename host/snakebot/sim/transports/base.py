@@ -22,8 +22,9 @@ class RawPty:
     editing: bytes pass untouched), the master non-blocking.
 
     ``link``: on :meth:`open`, also make a symlink at this path to the device (replacing
-    an old symlink, never a real file: ``link_advice`` then ends the error); :meth:`close`
-    removes it. The server keeps the slave open itself, so clients may open and close the
+    only a dangling link to a pseudo-terminal, left by a killed server; anything else
+    there is refused, ``link_advice`` ending the error); :meth:`close` removes it if it
+    is still ours. The server keeps the slave open itself, so clients may open and close the
     device as often as they like.
     """
 
@@ -37,6 +38,7 @@ class RawPty:
         self.link_advice = link_advice
         self.master = self.slave = -1
         self.device = ""
+        self._linked = False
 
     def open(self) -> str:
         """Create the pseudo-terminal (and the link); returns the device path."""
@@ -45,12 +47,7 @@ class RawPty:
         os.set_blocking(self.master, False)
         self.device = os.ttyname(self.slave)
         if self.link is not None:
-            if self.link.exists() and not self.link.is_symlink():
-                self.close()
-                raise SimError(f"{self.link} exists and is not a symlink: {self.link_advice}")
-            if self.link.is_symlink():
-                self.link.unlink()
-            self.link.symlink_to(self.device)
+            self._make_link(self.link)
         return self.device
 
     def close(self) -> None:
@@ -59,8 +56,31 @@ class RawPty:
             if fd >= 0:
                 os.close(fd)
         self.master = self.slave = -1
-        if self.link is not None and self.link.is_symlink():
-            self.link.unlink()
+        link = self.link
+        if link is not None and self._linked and _target(link) == self.device:
+            link.unlink()  # ours, still: a link someone has since replaced is left alone
+        self._linked = False
+
+    def _make_link(self, link: Path) -> None:
+        # Only a dangling link to a pseudo-terminal (left by a server that was killed) is
+        # replaced; anything else at the path was not made by us and stays.
+        old = _target(link)
+        if old is not None and old.startswith("/dev/pts/") and not os.path.exists(old):
+            link.unlink(missing_ok=True)
+        try:
+            link.symlink_to(self.device)
+        except FileExistsError:
+            self.close()
+            what = (
+                f"is a symlink to {old}, which this server did not make"
+                if old is not None
+                else "exists and is not a symlink"
+            )
+            raise SimError(f"{link} {what}: {self.link_advice}") from None
+        except OSError as exc:
+            self.close()
+            raise SimError(f"cannot make the link {link}: {exc.strerror or exc}") from None
+        self._linked = True
 
 
 class Server:
@@ -107,3 +127,11 @@ class ThreadedServer(Server):
         if self._thread is not None:
             self._thread.stop()
             self._thread = None
+
+
+def _target(link: Path) -> str | None:
+    """Where the symlink ``link`` points, or None if it is not a symlink."""
+    try:
+        return os.readlink(link)
+    except OSError:
+        return None

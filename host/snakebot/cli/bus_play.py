@@ -3,7 +3,6 @@ host as bus master running the controller's own gait player."""
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 
@@ -11,6 +10,7 @@ import click
 
 from snakebot import devices
 from snakebot.cli.bus import EXIT_INTERRUPTED, bus_options
+from snakebot.cli.output import dumps
 from snakebot.controller.player import (
     FULL_SPEED,
     GOAL_BLOCK,
@@ -103,7 +103,7 @@ def bus_play(port: str, baud: int, as_json: bool, gait: str, loop: bool) -> None
         "present_position": held,
     }
     if as_json:
-        click.echo(json.dumps(report))
+        click.echo(dumps(report))
     else:
         how = "stopped by Ctrl-C" if stopped_at is not None else "finished"
         click.echo(

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import click
 
 from snakebot.cli.bus import bus_options
+from snakebot.cli.output import dumps
 from snakebot.robots import load_robot
 from snakebot.robots.calibrate import JOG_DEG, calibrate, updated_text, write_atomically
 from snakebot.robots.model import Joint
@@ -64,7 +64,7 @@ def calibrate_command(toml: Path, port: str, baud: int, as_json: bool, yes: bool
         found = calibrate(client, described, None if yes else ask)
     write_atomically(toml, updated_text(text, found))
     if as_json:
-        click.echo(json.dumps({"robot": str(toml), "joints": [c.as_dict() for c in found]}))
+        click.echo(dumps({"robot": str(toml), "joints": [c.as_dict() for c in found]}))
         return
     for c in found:
         origin = "as you saw it" if c.asked else "kept from the file"

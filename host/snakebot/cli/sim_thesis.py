@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
 import click
 
+from snakebot.cli.output import dumps
 from snakebot.errors import SnakebotError
 from snakebot.sim.physics.video import check_video_path, write_video
 
@@ -96,7 +96,7 @@ def thesis(
             for line in _run_lines(summary):
                 click.echo(line)
     if as_json:
-        click.echo(json.dumps({"runs": summaries}, indent=2))
+        click.echo(dumps({"runs": summaries}, indent=2))
 
 
 def _run_lines(s: dict) -> list[str]:
@@ -164,7 +164,7 @@ def friction(
     if plot is not None:
         study["plot"] = str(plot_friction(study, plot))
     if as_json:
-        click.echo(json.dumps(study, indent=2))
+        click.echo(dumps(study, indent=2))
         return
     u = study["units"]
     kin, free = study["kinematic"], study["kinematic_free_wheels"]

@@ -42,10 +42,21 @@ FUZZ = settings(
 FUZZ_FILES = settings(FUZZ, max_examples=4 * EXAMPLES)  # files: much faster per example
 pytestmark = pytest.mark.timeout(max(300, 6 * EXAMPLES))
 
-SERVING = {("sim", "bus"), ("sim", "serve"), ("sim", "bootloader"), ("demo",), ("gait", "search")}
-"""Commands that serve until interrupted, run the whole emulated robot or search over
-many runs: not fuzzed here (their options are parsed by the same types; the serving ones
-run in tests/host/test_cli_resources.py)."""
+SERVING = {
+    ("sim", "bus"),
+    ("sim", "serve"),
+    ("sim", "bootloader"),
+    ("demo",),
+    ("gait", "search"),
+    ("bus", "play"),
+    ("sim", "goto"),
+    ("sim", "thesis"),
+    ("sim", "friction"),
+}
+"""Commands that serve until interrupted, play in real time (`bus play --loop` never
+ends), run the whole emulated robot or many physics runs: not fuzzed here (their options
+are parsed by the same types; the serving ones run in tests/host/test_cli_resources.py,
+the others in their own tests)."""
 
 SLOW_FLAGS = {"--symbolic"}  # sympy at full size: minutes on a loaded machine
 ENV = {

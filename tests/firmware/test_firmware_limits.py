@@ -165,6 +165,7 @@ def test_a_servo_that_will_not_take_them_stops_the_controller_from_moving(rig):
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # a fault campaign in QEMU, like the others: nothing beside it
 @pytest.mark.parametrize("name", ["servo-limits-1pct", "servo-limits-5pct"])
 def test_no_servo_accepts_a_goal_outside_the_limits_under_corruption(name):
     outcome = run(name, 1)

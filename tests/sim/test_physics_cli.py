@@ -95,6 +95,7 @@ def test_sim_url_world_option_errors(query, message):
         DxlClient(f"sim://?{query}", echo=False)
 
 
+@pytest.mark.serial  # the SDK's reply deadline counts on the pty server keeping pace
 def test_dynamixel_sdk_over_a_pty_reads_the_physics(tmp_path):
     """`sim bus --world mujoco` in real time: a third-party client sees the servo move
     with the physics (speed and load on the way, at the goal afterwards)."""

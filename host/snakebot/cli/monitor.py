@@ -8,6 +8,7 @@ import shutil
 import sys
 import time
 from pathlib import Path
+from typing import IO, Any
 
 import click
 
@@ -80,12 +81,12 @@ def monitor(
     with contextlib.ExitStack() as stack:
         recorder = None
         if csv_path is not None:  # opened first: a path that cannot be written fails at once
-            out = stack.enter_context(csv_path.open("w", newline=""))
+            out = stack.enter_context(_open_record(csv_path, "--csv", "w", newline=""))
             recorder = csv.DictWriter(out, fieldnames=CSV_COLUMNS)
         mcap_log = None
         try:
             if mcap_path is not None:
-                mcap_log = McapLog(stack.enter_context(mcap_path.open("wb")))
+                mcap_log = McapLog(stack.enter_context(_open_record(mcap_path, "--mcap", "wb")))
                 stack.enter_context(mcap_log)
             ctl = stack.enter_context(open_controller(port, baud, controller_id))
             ctl.identify()
@@ -128,3 +129,15 @@ def monitor(
                     time.sleep(wait)  # a link slower than the interval samples back to back
         except KeyboardInterrupt:
             pass
+
+
+def _open_record(path: Path, option: str, mode: str, **kwargs: Any) -> IO[Any]:
+    """Open a recording file; a path that cannot be written is bad input (exit 2)."""
+    try:
+        return path.open(mode, **kwargs)
+    except OSError as exc:
+        raise click.BadParameter(
+            f"cannot write {path}: {exc.strerror or exc}; choose a file in an existing, "
+            "writable directory",
+            param_hint=option,
+        ) from exc

@@ -108,8 +108,7 @@ class GotoResult:
 
     @property
     def within(self) -> bool:
-        d, h = self.error
-        return d <= self.tolerance.position and abs(h) <= self.tolerance.heading
+        return self.tolerance.admits(self.error)
 
     def summary(self) -> dict[str, Any]:
         d, h = self.error

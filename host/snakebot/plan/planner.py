@@ -157,6 +157,11 @@ class Tolerance:
         reach = max(float(np.hypot(*target[:2])), MIN_DISTANCE_BODIES * body_length(robot))
         return cls(relative * reach, heading)
 
+    def admits(self, error: tuple[float, float]) -> bool:
+        """Whether a pose error (distance, heading difference) is within both bounds."""
+        d, h = error
+        return d <= self.position and abs(h) <= self.heading
+
 
 def pose_error(reached: np.ndarray, target: np.ndarray) -> tuple[float, float]:
     """Distance between the reference points, and the heading difference wrapped to
@@ -228,8 +233,7 @@ class Plan:
 
     @property
     def within(self) -> bool:
-        d, h = self.error
-        return d <= self.tolerance.position and abs(h) <= self.tolerance.heading
+        return self.tolerance.admits(self.error)
 
     def summary(self) -> dict[str, Any]:
         d, h = self.error

@@ -111,19 +111,12 @@ class GotoResult:
         return self.tolerance.admits(self.error)
 
     def summary(self) -> dict[str, Any]:
-        d, h = self.error
         return {
             "robot": self.robot.name,
             "world": self.world,
             "target": pose_dict(self.target),
             "final": pose_dict(self.final),
-            "error": {
-                "position": d,
-                "heading_rad": h,
-                "position_tolerance": self.tolerance.position,
-                "heading_tolerance_rad": self.tolerance.heading,
-                "within": self.within,
-            },
+            "error": self.tolerance.report(self.error),
             "segments": self.segments,
             "duration_s": float(self.path.t[-1]) if len(self.path.t) else 0.0,
             "wall_s": self.wall_s,

@@ -162,6 +162,17 @@ class Tolerance:
         d, h = error
         return d <= self.position and abs(h) <= self.heading
 
+    def report(self, error: tuple[float, float]) -> dict[str, Any]:
+        """A pose error beside these bounds, as the JSON reports of plan and goto give it."""
+        d, h = error
+        return {
+            "position": d,
+            "heading_rad": h,
+            "position_tolerance": self.position,
+            "heading_tolerance_rad": self.heading,
+            "within": self.admits(error),
+        }
+
 
 def pose_error(reached: np.ndarray, target: np.ndarray) -> tuple[float, float]:
     """Distance between the reference points, and the heading difference wrapped to
@@ -236,19 +247,12 @@ class Plan:
         return self.tolerance.admits(self.error)
 
     def summary(self) -> dict[str, Any]:
-        d, h = self.error
         return {
             "robot": self.robot.name,
             "frame": motion_frame(self.robot),
             "target": pose_dict(self.target),
             "predicted_final": pose_dict(self.reached),
-            "error": {
-                "position": d,
-                "heading_rad": h,
-                "position_tolerance": self.tolerance.position,
-                "heading_tolerance_rad": self.tolerance.heading,
-                "within": self.within,
-            },
+            "error": self.tolerance.report(self.error),
             "start_rad": self.route.start.tolist(),
             "hub_rad": self.route.loop.hub.tolist(),
             "loops": self.route.count,

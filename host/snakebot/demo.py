@@ -384,6 +384,18 @@ def physics_effects(
     }
 
 
+def _why(c: Comparison) -> str:
+    """What the plot's title names as the cause of the difference: the servos' lag alone
+    in the kinematic world; with physics, mostly what the physics adds (free-rolling
+    wheels, slide), which the lag is small beside."""
+    lag = f"servo lag {1000 * c.lag_s:.0f} ms"
+    if c.physics is None:
+        return lag
+    free = 100 * c.physics["difference_free_wheels_m"]
+    slide = 100 * sum(c.physics["wheel_slide_m"])
+    return f"free-wheel prediction {free:.1f} cm off; wheels slid {slide:.1f} cm; {lag}"
+
+
 def _unit(robot: Robot) -> float:
     return robot.physics.unit_m if robot.physics is not None else 1.0
 
@@ -408,8 +420,7 @@ def plot_demo(robot: Robot, comparison: Comparison, out: Path) -> Path:
     ax_path.set_ylabel("y (m)")
     ax_path.set_title(
         f"{robot.name}: body path over the measured cycles\n"
-        f"difference {100 * comparison.difference_m:.1f} cm "
-        f"(servo lag {1000 * comparison.lag_s:.0f} ms)"
+        f"difference {100 * comparison.difference_m:.1f} cm\n{_why(comparison)}"
     )
     ax_path.legend(fontsize="small")
     ax_path.grid(alpha=0.3)
@@ -619,9 +630,9 @@ def _physics_lines(c: Comparison) -> list[str]:
         f"roll freely where the prediction takes rolling friction c_t = {ph['c_t']:g}. "
         f"Predicted with free wheels (c_t = 0): {100 * free['distance']:.1f} cm, "
         f"{100 * ph['difference_free_wheels_m']:.1f} cm from the physics.",
-        "   energy per joint "
+        "   net work per joint "
         + ", ".join(f"{e:.3f}" for e in ph["energy_j"])
-        + " J; peak load "
+        + " J (below 0: the others drove it backwards); peak load "
         + ", ".join(f"{100 * v:.0f}" for v in ph["peak_load"])
         + " % of stall torque.",
     ]

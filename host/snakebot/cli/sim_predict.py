@@ -158,9 +158,9 @@ def predict(
     click.echo(f"wheel slip: at most {em['slip_max']:.3g} per second sideways ({friction})")
     if "energy_j" in em:
         click.echo(
-            "physics: energy per joint "
+            "physics: net work per joint "
             + ", ".join(f"{e:.3g}" for e in em["energy_j"])
-            + " J; peak load "
+            + " J (below 0: driven backwards); peak load "
             + ", ".join(f"{100 * v:.0f}" for v in em["peak_load"])
             + " % of stall; slid sideways "
             + ", ".join(f"{v:.3g}" for v in em["slip_distance"])

@@ -62,7 +62,6 @@ SLOW_FLAGS = {"--symbolic"}  # sympy at full size: minutes on a loaded machine
 ENV = {
     "SNAKEBOT_RETRIES": "0",
     "SNAKEBOT_FLASH_RESET_TIMEOUT_S": "0.2",
-    "SNAKEBOT_CONTROLLER_PORT": None,
     "SNAKEBOT_PORT": None,
 }
 

@@ -27,7 +27,7 @@ def controller_options(func: Callable[..., Any]) -> Callable[..., Any]:
         "--port",
         "-p",
         required=True,
-        envvar="SNAKEBOT_CONTROLLER_PORT",
+        envvar="SNAKEBOT_PORT",
         show_envvar=True,
         callback=controller_port("snakebot sim serve"),
         help=PORT_HELP,

@@ -253,10 +253,11 @@ int kin_geom_solve(const kin_robot *rb, const kin_wheel_rows *w, double *xi, dou
     const double wn = sqrt(rb->c_n), wt = sqrt(rb->c_t);
     /* Unknowns (dx, dy, L dtheta): L, the farthest wheel's distance from the reference
      * point, makes the rotation column a speed like the others. */
-    double len = rb->l;
+    double len2 = rb->l * rb->l; /* squared: one square root, not one per wheel */
     for (int32_t i = 0; i < w->count; i++) {
-        len = fmax(len, hypot(w->n_theta[i], w->t_theta[i]));
+        len2 = fmax(len2, w->n_theta[i] * w->n_theta[i] + w->t_theta[i] * w->t_theta[i]);
     }
+    const double len = sqrt(len2);
     for (int32_t i = 0; i < w->count; i++) {
         m[rows][0] = -w->ty[i] * wn;
         m[rows][1] = w->tx[i] * wn;

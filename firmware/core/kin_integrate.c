@@ -61,6 +61,14 @@ static double segment_of(const kin_schedule *s, double t)
     return s->type == KIN_SCHED_TABLE ? floor(t / s->dt) : 0.0;
 }
 
+/* Joint j of a sines schedule at t, given sin and cos of its argument omega t + phase_j. */
+static void sine_joint(const kin_schedule *s, int32_t j, double t, double sn, double cs,
+                       double *phi, double *dphi)
+{
+    phi[j] = s->offset[j] + s->rate[j] * t + s->amp[j] * sn;
+    dphi[j] = s->rate[j] + s->amp[j] * s->omega * cs;
+}
+
 /* Evaluate the schedule; a table uses segment `seg` (its linear extension around it). */
 static void schedule_at(const kin_schedule *s, double seg, double t, double *phi, double *dphi)
 {
@@ -68,8 +76,7 @@ static void schedule_at(const kin_schedule *s, double seg, double t, double *phi
     if (s->type == KIN_SCHED_SINES) {
         for (int32_t j = 0; j < n; j++) {
             const double arg = s->omega * t + s->phase[j];
-            phi[j] = s->offset[j] + s->rate[j] * t + s->amp[j] * sin(arg);
-            dphi[j] = s->rate[j] + s->amp[j] * s->omega * cos(arg);
+            sine_joint(s, j, t, sin(arg), cos(arg), phi, dphi);
         }
         return;
     }
@@ -152,10 +159,8 @@ static void joint_schedule(const joint_ctx *c, double t, double *phi, double *dp
     }
     const double sw = sin(s->omega * t), cw = cos(s->omega * t);
     for (int32_t j = 0; j < c->joints; j++) {
-        const double sn = sw * c->cos_phase[j] + cw * c->sin_phase[j];
-        const double cs = cw * c->cos_phase[j] - sw * c->sin_phase[j];
-        phi[j] = s->offset[j] + s->rate[j] * t + s->amp[j] * sn;
-        dphi[j] = s->rate[j] + s->amp[j] * s->omega * cs;
+        sine_joint(s, j, t, sw * c->cos_phase[j] + cw * c->sin_phase[j],
+                   cw * c->cos_phase[j] - sw * c->sin_phase[j], phi, dphi);
     }
 }
 

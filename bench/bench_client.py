@@ -3,17 +3,23 @@
 A READ of two bytes at 1 Mbps with Return Delay Time 0 puts 8 bytes out and 8 bytes
 back on the wire: 160 us, so no client can do more than 6250 READs a second. The device
 here is this benchmark's own paced fake servo: a separate process on a pseudo-terminal
-that polls for the instruction in a tight loop and releases the status packet exactly
-160 us after the instruction reached it (the instruction's and the reply's wire time),
-so the device is never the floor. Measured in the same run:
+that polls for the instruction in a tight loop (never sleeping, so no wake-up delay)
+and releases the status packet exactly 160 us after the instruction reached it (the
+instruction's and the reply's wire time), so the device is never the floor. Measured
+in the same run:
 
+* the pseudo-terminal itself: a bare loop against the same fake servo answering at
+  once. The kernel hands pty bytes over through a worker thread, so each direction
+  costs some microseconds that a real wire would not: the round trip here caps any
+  client at 160 us / (160 us + that round trip) of the wire;
 * a bare client: os.write and os.read on the pty (blocking or polling, the faster),
   no serial library, no parsing: the best any client can do through the operating
   system here;
-* snakebot's DxlClient (pyserial underneath), as an application uses it.
+* snakebot's DxlClient (pyserial underneath), as an application uses it, and its own
+  cost per READ beyond the bare loop's.
 
 Each is printed as a fraction of the wire-limited rate (goal for DxlClient: at least
-0.95). The two processes need a core each: on a loaded machine the figures drop.
+0.95). The device and the client need a core each: on a loaded machine the figures drop.
 
     .venv/bin/python bench/bench_client.py [--quick]
 """
@@ -40,27 +46,33 @@ WIRE_S = wire_time_s(len(REQUEST) + len(REPLY), BAUD)
 GOAL = 0.95
 
 
-def serve() -> None:
-    """The paced fake servo: answer each READ 160 us (its wire time) after it arrives."""
+def serve(delay_s: float) -> None:
+    """The fake servo: answer each READ ``delay_s`` (its wire time, or 0) after it arrives."""
     master, slave = os.openpty()
     tty.setraw(slave)
+    os.set_blocking(master, False)
     print(os.ttyname(slave), flush=True)
     clock = time.perf_counter
+    read, write = os.read, os.write
+    size, request, reply = len(REQUEST), REQUEST, REPLY
     pending = b""
     while True:
-        # Blocks for the instruction (so that it leaves the core to the client while it
-        # waits) and spins only for the reply's release time, which it must not miss.
+        # Polls for the instruction in a tight loop rather than sleeping in the kernel:
+        # a blocked reader is woken some microseconds after the bytes arrive, and that
+        # delay would count against the client. It therefore needs a core of its own.
         try:
-            pending += os.read(master, 64)
+            pending += read(master, 64)
+        except BlockingIOError:
+            continue
         except OSError:
             return  # the benchmark has gone
-        while (start := pending.find(REQUEST)) >= 0:  # every READ heard, in order
-            release = clock() + WIRE_S
-            pending = pending[start + len(REQUEST) :]
+        while (start := pending.find(request)) >= 0:  # every READ heard, in order
+            release = clock() + delay_s
+            pending = pending[start + size :]
             while clock() < release:
                 pass
-            os.write(master, REPLY)
-        pending = pending[-(len(REQUEST) - 1) :]  # what may begin the next READ
+            write(master, reply)
+        pending = pending[-(size - 1) :]  # what may begin the next READ
 
 
 def client_rate(device: str, n: int) -> float:
@@ -74,9 +86,22 @@ def client_rate(device: str, n: int) -> float:
         return n / (time.perf_counter() - start)
 
 
+def start_device(delay_s: float) -> tuple[subprocess.Popen[str], str]:
+    """A fake servo in its own process and the pty it answers on."""
+    proc = subprocess.Popen(
+        [sys.executable, __file__, "--serve", repr(delay_s)], stdout=subprocess.PIPE, text=True
+    )
+    assert proc.stdout is not None
+    return proc, proc.stdout.readline().strip()
+
+
+def best_bare(device: str, n: int) -> float:
+    return max(bare_rate(device, REQUEST, len(REPLY), n, spin) for spin in (False, True))
+
+
 def main() -> int:
     if "--serve" in sys.argv:
-        serve()
+        serve(float(sys.argv[sys.argv.index("--serve") + 1]))
         return 0
     n = 1000 if "--quick" in sys.argv else 4000
     rounds = 5
@@ -85,30 +110,37 @@ def main() -> int:
         f"== machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} "
         "(the device and the client each need a core)"
     )
-    proc = subprocess.Popen(
-        [sys.executable, __file__, "--serve"], stdout=subprocess.PIPE, text=True
-    )
-    try:
-        assert proc.stdout is not None
-        device = proc.stdout.readline().strip()
-        bare = ours = 0.0
-        for _ in range(rounds):  # alternate, so load from other processes hits both alike
-            for spin in (False, True):
-                bare = max(bare, bare_rate(device, REQUEST, len(REPLY), n // rounds, spin))
-            ours = max(ours, client_rate(device, n // rounds))
-    finally:
-        proc.kill()
-        proc.wait()
+    instant = bare = ours = 0.0
+    for delay_s in (0.0, WIRE_S):  # one device at a time: each spins on a core
+        proc, device = start_device(delay_s)
+        try:
+            for _ in range(rounds):  # alternate, so load from other processes hits both alike
+                if delay_s == 0.0:
+                    instant = max(instant, best_bare(device, n // rounds))
+                    continue
+                bare = max(bare, best_bare(device, n // rounds))
+                ours = max(ours, client_rate(device, n // rounds))
+        finally:
+            proc.kill()
+            proc.wait()
+    pty_us = 1e6 / instant
+    cap = WIRE_S / (WIRE_S + pty_us * 1e-6)
     print(
         f"== READ of {LENGTH} bytes at {BAUD // 1000} kbps, return delay 0, paced fake "
         f"servo; best of {rounds} rounds of {n // rounds}"
     )
     print(f"   wire limit:                 {wire:7.0f} /s")
+    print(
+        f"   the pty alone:              {pty_us:7.1f} us a round trip (bare loop, device "
+        f"answering at once): caps any client at {cap:.2f} of the wire"
+    )
     print(f"   bare write/read loop:       {bare:7.0f} /s ({bare / wire:.2f} of the wire)")
     print(
         f"   snakebot DxlClient:         {ours:7.0f} /s ({ours / wire:.2f} of the wire, "
-        f"{ours / bare:.2f} of the bare loop; goal {GOAL} of the wire: "
-        f"{'met' if ours / wire >= GOAL else 'MISS'})"
+        f"{ours / bare:.2f} of the bare loop, {1e6 / ours - 1e6 / bare:+.1f} us a READ "
+        f"beyond it; goal {GOAL} of the wire: {'met' if ours / wire >= GOAL else 'MISS'}"
+        + ("" if cap >= GOAL else ", out of reach through this pty")
+        + ")"
     )
     return 0
 

@@ -80,9 +80,13 @@ def trident_math(t, q, alphas=tuple(TRIDENT.alphas), r=TRIDENT.r, arm=TRIDENT.l)
     return out
 
 
-def trident_c(rtol=RTOL, atol=ATOL):
+def trident_run(rtol=RTOL, atol=ATOL):
     inputs = Inputs((0.0, 0.0, 0.0), (-AMP * OMEGA, 0.0, 0.0), (0.0, AMP * OMEGA, 0.0), OMEGA)
-    return integrate_fields(TRIDENT, inputs, SPAN, options=Options("dopri5", rtol, atol)).q[-1]
+    return integrate_fields(TRIDENT, inputs, SPAN, options=Options("dopri5", rtol, atol))
+
+
+def trident_c(rtol=RTOL, atol=ATOL):
+    return trident_run(rtol, atol).q[-1]
 
 
 # ---- 5-link snake, serpenoid joints, minimum-slip body ----
@@ -160,34 +164,42 @@ def snake5_math(t, pose, robot=SNAKE5, gait=GAIT):
     return [vx, vy, w]
 
 
+def snake5_run(rtol=RTOL, atol=ATOL, gait=GAIT):
+    return integrate_joints(SNAKE5, gait, SPAN, options=Options("dopri5", rtol, atol))
+
+
 def snake5_c(rtol=RTOL, atol=ATOL, gait=GAIT):
-    return integrate_joints(SNAKE5, gait, SPAN, options=Options("dopri5", rtol, atol)).q[-1, :3]
+    return snake5_run(rtol, atol, gait).q[-1, :3]
 
 
 # ---- the comparison ----
 
 
 def scipy_run(rhs: Rhs, y0: np.ndarray, method: str, rtol: float, width: int) -> np.ndarray:
-    sol = solve_ivp(rhs, (0, SPAN), y0, method=method, rtol=rtol, atol=rtol / 100)
-    return sol.y[:width, -1]
+    return scipy_solve(rhs, y0, method, rtol).y[:width, -1]
+
+
+def scipy_solve(rhs: Rhs, y0: np.ndarray, method: str, rtol: float):
+    return solve_ivp(rhs, (0, SPAN), y0, method=method, rtol=rtol, atol=rtol / 100)
 
 
 def best_python(
     rhss: dict[str, Rhs], y0: np.ndarray, width: int, reference: np.ndarray, target: float
-) -> tuple[float, str, float]:
-    """(seconds, description, error) of the fastest right-hand side and method at the
-    loosest tolerance whose error is at most ``target``."""
-    best = (math.inf, "none reached the C core's accuracy", math.nan)
+) -> tuple[float, str, float, int]:
+    """(seconds, description, error, right-hand-side evaluations) of the fastest
+    right-hand side and method at the loosest tolerance whose error is at most ``target``."""
+    best = (math.inf, "none reached the C core's accuracy", math.nan, 0)
     for rhs_name, rhs in rhss.items():
         for method in METHODS:
             for rtol in SCIPY_RTOLS:
-                err = float(np.abs(scipy_run(rhs, y0, method, rtol, width) - reference).max())
+                sol = scipy_solve(rhs, y0, method, rtol)
+                err = float(np.abs(sol.y[:width, -1] - reference).max())
                 if err <= target:
                     seconds = best_time(
                         lambda f=rhs, m=method, r=rtol: scipy_run(f, y0, m, r, width), PY_ROUNDS
                     )
                     if seconds < best[0]:
-                        best = (seconds, f"{method} + {rhs_name} at rtol {rtol:.0e}", err)
+                        best = (seconds, f"{method} + {rhs_name} at rtol {rtol:.0e}", err, sol.nfev)
                     break
     return best
 
@@ -199,6 +211,25 @@ def check_same_model(rhss: dict[str, Rhs], y0: np.ndarray) -> None:
         values = [np.asarray(f(t, y), dtype=float) for f in rhss.values()]
         if not np.allclose(values[0], values[1], rtol=1e-9, atol=1e-12):
             raise SystemExit(f"the right-hand sides disagree at t={t}: {values}")
+
+
+def explain_ratio(t_c: float, evals_c: int, t_py: float, evals_py: int, ratio: float) -> None:
+    """The ratio as (evaluations the Python side needs per C evaluation) x (cost of one
+    Python evaluation, its integrator's bookkeeping included, per C evaluation): a miss
+    says which factor is short."""
+    per_c, per_py = t_c / evals_c, t_py / evals_py
+    print(
+        f"  why: C {evals_c} evaluations at {per_c * 1e9:.0f} ns each (call overhead "
+        f"included); Python {evals_py} at {per_py * 1e6:.1f} us each: "
+        f"{evals_py / evals_c:.2f} x {per_py / per_c:.0f} = {ratio:.0f}x"
+        + (
+            ""
+            if ratio >= GOAL
+            else f"; {GOAL:.0f}x needs the C core at {per_py * evals_py / GOAL / evals_c * 1e9:.0f}"
+            " ns per evaluation of the same method (its sines, cosines and the least "
+            "squares)"
+        )
+    )
 
 
 def batch_throughput(amplitudes: int, lags: int) -> tuple[int, float]:
@@ -224,10 +255,11 @@ def main() -> int:
     )
     ratios = {}
     python_seconds = {}
-    for name, c_func, rhss, y0, width in (
+    for name, c_func, c_run, rhss, y0, width in (
         (
             "trident periodic inputs (h1 loop)",
             trident_c,
+            trident_run,
             {"numpy": trident_numpy, "math": trident_math},
             np.zeros(6),
             6,
@@ -235,6 +267,7 @@ def main() -> int:
         (
             "5-link serpenoid (minimum slip)",
             snake5_c,
+            snake5_run,
             {"numpy": snake5_numpy, "math": snake5_math},
             np.zeros(3),
             3,
@@ -244,7 +277,7 @@ def main() -> int:
         reference = c_func(1e-13, 1e-14)
         t_c = best_time(c_func, C_ROUNDS)
         err_c = float(np.abs(c_func() - reference).max())
-        t_py, how, err_py = best_python(rhss, y0, width, reference, err_c)
+        t_py, how, err_py, evals_py = best_python(rhss, y0, width, reference, err_c)
         ratio = t_py / t_c
         ratios[name] = ratio
         python_seconds[name] = t_py
@@ -253,6 +286,7 @@ def main() -> int:
             f"{t_py * 1e3:8.1f} ms ({how}, error {err_py:.1e})   speed ratio {ratio:6.0f}x "
             f"(goal {GOAL:.0f}x: {'met' if ratio >= GOAL else 'MISS'})"
         )
+        explain_ratio(t_c, int(c_run().stats["evals"]), t_py, evals_py, ratio)
     n, cpu = batch_throughput(*((4, 4) if quick else (8, 8)))
     per_core = n / cpu
     py_rate = 1 / python_seconds["5-link serpenoid (minimum slip)"]

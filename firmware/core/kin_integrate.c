@@ -61,6 +61,14 @@ static double segment_of(const kin_schedule *s, double t)
     return s->type == KIN_SCHED_TABLE ? floor(t / s->dt) : 0.0;
 }
 
+/* Joint j of a sines schedule at t, given sin and cos of its argument omega t + phase_j. */
+static void sine_joint(const kin_schedule *s, int32_t j, double t, double sn, double cs,
+                       double *phi, double *dphi)
+{
+    phi[j] = s->offset[j] + s->rate[j] * t + s->amp[j] * sn;
+    dphi[j] = s->rate[j] + s->amp[j] * s->omega * cs;
+}
+
 /* Evaluate the schedule; a table uses segment `seg` (its linear extension around it). */
 static void schedule_at(const kin_schedule *s, double seg, double t, double *phi, double *dphi)
 {
@@ -68,8 +76,7 @@ static void schedule_at(const kin_schedule *s, double seg, double t, double *phi
     if (s->type == KIN_SCHED_SINES) {
         for (int32_t j = 0; j < n; j++) {
             const double arg = s->omega * t + s->phase[j];
-            phi[j] = s->offset[j] + s->rate[j] * t + s->amp[j] * sin(arg);
-            dphi[j] = s->rate[j] + s->amp[j] * s->omega * cos(arg);
+            sine_joint(s, j, t, sin(arg), cos(arg), phi, dphi);
         }
         return;
     }
@@ -128,7 +135,34 @@ typedef struct {
     double seg;
     double tscale;
     kin_stats *stats;
+    /* Sines: cos and sin of each joint's phase, so that one sin and cos of omega t serve
+     * every joint (the addition theorem) instead of a pair per joint and evaluation. */
+    double cos_phase[KIN_MAX_JOINTS], sin_phase[KIN_MAX_JOINTS];
 } joint_ctx;
+
+static void joint_ctx_phases(joint_ctx *c)
+{
+    for (int32_t j = 0; c->s->type == KIN_SCHED_SINES && j < c->joints; j++) {
+        c->cos_phase[j] = cos(c->s->phase[j]);
+        c->sin_phase[j] = sin(c->s->phase[j]);
+    }
+}
+
+/* The schedule at t in the right-hand side: schedule_at, with sines by the addition
+ * theorem (equal to it within a few ulps of the angles). */
+static void joint_schedule(const joint_ctx *c, double t, double *phi, double *dphi)
+{
+    const kin_schedule *s = c->s;
+    if (s->type != KIN_SCHED_SINES) {
+        schedule_at(s, c->seg, t, phi, dphi);
+        return;
+    }
+    const double sw = sin(s->omega * t), cw = cos(s->omega * t);
+    for (int32_t j = 0; j < c->joints; j++) {
+        sine_joint(s, j, t, sw * c->cos_phase[j] + cw * c->sin_phase[j],
+                   cw * c->cos_phase[j] - sw * c->sin_phase[j], phi, dphi);
+    }
+}
 
 static int joint_rates(joint_ctx *c, double t, const double *pose, double *xi, double *slip,
                        double *rcond)
@@ -138,7 +172,7 @@ static int joint_rates(joint_ctx *c, double t, const double *pose, double *xi, d
     q[0] = pose[0];
     q[1] = pose[1];
     q[2] = pose[2];
-    schedule_at(c->s, c->seg, t, q + 3, dphi);
+    joint_schedule(c, t, q + 3, dphi);
     int rc = kin_geom_rows(c->rb, q, dphi, &w);
     if (rc != KIN_OK) {
         return rc;
@@ -245,7 +279,8 @@ int kin_integrate_joints(const kin_robot *rb, const kin_schedule *s, const doubl
         return KIN_ENONFINITE;
     }
     stats_start(st, t0);
-    joint_ctx c = {rb, s, joints, segment_of(s, t0), 1.0, st};
+    joint_ctx c = {rb, s, joints, segment_of(s, t0), 1.0, st, {0.0}, {0.0}};
+    joint_ctx_phases(&c);
     if (s->type == KIN_SCHED_TABLE) {
         c.tscale = s->dt;
     } else if (s->omega != 0.0) {

@@ -64,6 +64,8 @@ RESEND_FLAGS = ErrorFlags.CHECKSUM | ErrorFlags.INSTRUCTION
 """Status error bits saying the servo did not act on the instruction because it arrived
 damaged: the instruction is sent again, like after a damaged reply."""
 
+_RESEND_MASK = int(RESEND_FLAGS)  # a plain int: IntFlag's & costs a Python call per reply
+
 RECENT_SENDS = 8
 """How many earlier instructions are remembered, so that their late echoes are recognised."""
 
@@ -276,7 +278,7 @@ class DxlClient:
                 if reply is None and self._echo is None and attempt.echo is not None:
                     reply = self._settle_echo(attempt.echo, expect_id, expect_params_len)
                 if reply is not None:
-                    if reply.code & RESEND_FLAGS and len(attempts) + 1 < tries:
+                    if reply.code & _RESEND_MASK and len(attempts) + 1 < tries:
                         attempts.append(attempt)  # the servo heard a damaged instruction
                         continue
                     if check and reply.code:
@@ -349,6 +351,13 @@ class DxlClient:
             if echo is True and not seen.echo_seen:
                 want += len(packet)
             data = io.read(want if want > 1 else 1, remaining)
+            if echo is False and len(data) == status_len and not parser.pending:
+                # The usual case, the whole reply in one read: checked here in a few
+                # comparisons instead of through the parser (same rules, same outcome).
+                reply = _exact_reply(data, expect_id, expect_len)
+                if reply is not None:
+                    self._recent.append(packet)
+                    return reply, seen
 
     def _settle_echo(self, heard: Packet, expect_id: int, expect_len: int) -> Packet | None:
         """Decide an ambiguous first transaction in "auto" echo mode.
@@ -601,6 +610,20 @@ def _read_packet(servo_id: int, address: int, length: int) -> bytes:
     """``protocol.read``, built once per (ID, address, length): a control loop reads the
     same registers of the same servos over and over."""
     return protocol.read(servo_id, address, length)
+
+
+def _exact_reply(data: bytes, expect_id: int, expect_len: int) -> Packet | None:
+    """``data`` as the status packet from ``expect_id`` with ``expect_len`` parameters if
+    it is exactly that packet, intact; else None (and the parser decides what it is)."""
+    if (
+        data[0] != 0xFF
+        or data[1] != 0xFF
+        or data[2] != expect_id
+        or data[3] != expect_len + 2
+        or ~sum(data[2:-1]) & 0xFF != data[-1]
+    ):
+        return None
+    return Packet(expect_id, data[4], data[5:-1])
 
 
 def _require_device(servo_id: int, what: str) -> None:

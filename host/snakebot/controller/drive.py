@@ -23,6 +23,7 @@ from typing import Any
 
 from snakebot.controller import playback, words
 from snakebot.controller.client import ControllerClient, RosterEntry
+from snakebot.controller.errors import ControllerError, ControllerLinkError
 from snakebot.controller.monitor import sample, servo_record
 
 STEER_STEP = math.radians(5)
@@ -162,13 +163,19 @@ class Driver:
 
     def _set(self, register: str, attr: str, value: float, unit: str) -> str | None:
         """Write ``value`` (in ``unit``) to ``register`` and keep it in ``attr``; at the
-        end of the register's range nothing changes and the reason is returned."""
+        end of the register's range, or if the controller refuses the value, nothing
+        changes and the reason is returned."""
         reg = self.ctl.table.register(register)
         raw = reg.from_units(value, unit)
         low, high = reg.value_range()
         if not reg.accepts(raw):
             return f"at the end of the range ({register} {low}..{high})"
-        self.ctl.write({register: raw})
+        try:
+            self.ctl.write({register: raw})
+        except ControllerLinkError:
+            raise
+        except ControllerError as exc:  # the controller's own checks said no: keep driving
+            return f"refused: {exc}"
         setattr(self, attr, reg.to_units(raw, unit))
         return None
 

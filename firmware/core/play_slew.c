@@ -1,5 +1,7 @@
 #include "play_slew.h"
 
+#include <stdbool.h>
+
 #include "ax12_table.h"
 #include "play_fixed.h"
 
@@ -40,6 +42,12 @@ static int32_t approach(int32_t now, int32_t target, uint64_t max_step)
 static uint32_t magnitude(int32_t v)
 {
     return (uint32_t)(v < 0 ? -v : v);
+}
+
+/* Whether moving a signed factor from now toward target first brings it nearer zero. */
+static bool shrinks(int32_t now, int32_t target)
+{
+    return now > 0 ? target < now : now < 0 && target > now;
 }
 
 /* Milliradians a joint angle may change in `ticks` ticks, and the ticks `mrad` takes. */
@@ -84,11 +92,24 @@ uint32_t play_slew_toward(play_slew *s, const play_slew *target, uint32_t dt_ms)
     }
     if (dt_ms == 0) return 0;
 
+    /* The wave's speed is A |omega| scale: a factor grows only once none shrinks, so on
+     * the way the speed never passes above both its old and its new value. */
+    bool omega_shrinks = shrinks(s->omega_mrad_s, target->omega_mrad_s);
+    bool hold = omega_shrinks || target->amp_mrad < s->amp_mrad ||
+                target->speed_scale < s->speed_scale;
     uint64_t dv_q8 = (uint64_t)TOP_TICKS_S_Q8 * dt_ms / PLAY_SLEW_RAMP_MS;
-    s->omega_mrad_s = (int16_t)approach(s->omega_mrad_s, target->omega_mrad_s,
-                                        ramp_step(dv_q8, s->amp_mrad, s->speed_scale));
-    s->speed_scale = (uint16_t)approach(s->speed_scale, target->speed_scale,
-                                        ramp_step(dv_q8, s->amp_mrad, magnitude(s->omega_mrad_s)));
+    if (omega_shrinks || !hold) {
+        /* a reversal stops at zero first: past it, omega grows */
+        bool reverses = (s->omega_mrad_s < 0) != (target->omega_mrad_s < 0);
+        int32_t goal = omega_shrinks && reverses ? 0 : target->omega_mrad_s;
+        s->omega_mrad_s = (int16_t)approach(s->omega_mrad_s, goal,
+                                            ramp_step(dv_q8, s->amp_mrad, s->speed_scale));
+    }
+    if (target->speed_scale < s->speed_scale || !hold) {
+        s->speed_scale = (uint16_t)approach(
+            s->speed_scale, target->speed_scale,
+            ramp_step(dv_q8, s->amp_mrad, magnitude(s->omega_mrad_s)));
+    }
 
     /* What the wave moves a goal this tick, rounded up; the rest is the parameters'. */
     uint64_t wave_q8 = (uint64_t)play_serp_rate_q8(s->amp_mrad, s->omega_mrad_s, s->speed_scale,
@@ -98,7 +119,9 @@ uint32_t play_slew_toward(play_slew *s, const play_slew *target, uint32_t dt_ms)
     uint32_t left = bound > wave + 2u ? (uint32_t)(bound - wave - 2u) : 0u;
     uint32_t used = 0;
 
-    s->amp_mrad = (uint16_t)slew_angle(s->amp_mrad, target->amp_mrad, &left, &used);
+    if (target->amp_mrad < s->amp_mrad || !hold) {
+        s->amp_mrad = (uint16_t)slew_angle(s->amp_mrad, target->amp_mrad, &left, &used);
+    }
     s->phi0_mrad = (int16_t)slew_angle(s->phi0_mrad, target->phi0_mrad, &left, &used);
     int32_t steering = approach(s->steering, target->steering, left);
     used += magnitude(steering - s->steering);

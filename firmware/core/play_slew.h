@@ -10,7 +10,9 @@
  * steps by more than the bound while the wave itself is slower than the servo by that
  * margin; a parameter still moves at least one unit a tick when nothing is left, so every
  * target is reached. Omega and the speed scale ramp so that the wave's peak speed
- * changes by at most the servo's top speed per PLAY_SLEW_RAMP_MS; the phase is
+ * changes by at most the servo's top speed per PLAY_SLEW_RAMP_MS, and of the speed's
+ * factors (amplitude, |omega|, scale) none grows while another still shrinks, so the
+ * speed on the way stays below the larger of the old and the new one; the phase is
  * integrated (play_player.c), so a change of speed never jumps it. */
 #ifndef SNAKEBOT_PLAY_SLEW_H
 #define SNAKEBOT_PLAY_SLEW_H

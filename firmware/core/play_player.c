@@ -1,6 +1,7 @@
 #include "play_player.h"
 
 #include "play_fixed.h"
+#include "play_slew.h"
 
 /* 2^48 binary angle per (mrad/s * ms): 2^48 / (2 pi 10^6). */
 #define BAM48_PER_MRAD_S_MS 44798134LL
@@ -45,6 +46,7 @@ bool play_start_serpenoid(play_state *p, uint8_t count, uint32_t now_ms)
     p->finished = 0;
     p->phase = 0;
     p->last_ms = now_ms;
+    play_slew_reset(&p->slew);
     return true;
 }
 
@@ -116,8 +118,23 @@ static uint8_t tick_table(play_state *p, const play_params *params, const play_j
     return p->out_count;
 }
 
+/* The register values in params replaced by the slewed working copies (play_slew.h);
+ * returns the goal speed the slewing adds, ticks/s * 256. */
+static uint32_t slew_live(play_state *p, play_params *live, uint32_t dt)
+{
+    play_slew target = {live->amp_mrad, live->phi0_mrad, live->steering, live->omega_mrad_s,
+                        live->speed_scale, 1};
+    uint32_t extra = play_slew_toward(&p->slew, &target, dt);
+    live->amp_mrad = p->slew.amp_mrad;
+    live->phi0_mrad = p->slew.phi0_mrad;
+    live->steering = p->slew.steering;
+    live->omega_mrad_s = p->slew.omega_mrad_s;
+    live->speed_scale = p->slew.speed_scale;
+    return extra;
+}
+
 static uint8_t tick_serpenoid(play_state *p, const play_params *params, const play_joint *roster,
-                              uint8_t roster_count, uint32_t dt)
+                              uint8_t roster_count, uint32_t dt, uint32_t extra_rate_q8)
 {
     int64_t inc = (int64_t)params->omega_mrad_s * (int64_t)dt * params->speed_scale *
                   BAM48_PER_MRAD_S_MS;
@@ -139,7 +156,8 @@ static uint8_t tick_serpenoid(play_state *p, const play_params *params, const pl
         p->out_id[k] = jt->id;
         p->out_goal[k] = clamp_tick(goal, lo, hi < lo ? lo : hi);
         p->out_speed[k] = play_speed_units(
-            play_serp_rate_q8(params->amp_mrad, params->omega_mrad_s, params->speed_scale, theta));
+            play_serp_rate_q8(params->amp_mrad, params->omega_mrad_s, params->speed_scale, theta) +
+            extra_rate_q8);
     }
     p->out_count = count;
     return count;
@@ -151,7 +169,9 @@ uint8_t play_tick(play_state *p, const play_params *params, const play_joint *ro
     uint32_t dt = elapsed(p, now_ms);
     if (p->mode == PLAY_MODE_TABLE) return tick_table(p, params, roster, roster_count, dt);
     if (p->mode == PLAY_MODE_SERPENOID) {
-        return tick_serpenoid(p, params, roster, roster_count, dt);
+        play_params live = *params;
+        uint32_t extra = slew_live(p, &live, dt);
+        return tick_serpenoid(p, &live, roster, roster_count, dt, extra);
     }
     return 0;
 }

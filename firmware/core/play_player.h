@@ -19,6 +19,7 @@
 #include <stdint.h>
 
 #include "gt_table.h"
+#include "play_slew.h"
 
 /* cffi:begin */
 #define PLAY_MODE_IDLE 0
@@ -37,7 +38,9 @@ typedef struct {
     uint16_t max;
 } play_joint;
 
-/* What the controller's registers ask for; read at every tick, so changes apply at once. */
+/* What the controller's registers ask for; read at every tick. Table mode applies changes
+ * at once; serpenoid mode slews amplitude, phi0, steering, omega and scale toward them
+ * (play_slew.h). */
 typedef struct {
     uint16_t speed_scale;   /* 1/256: 256 = as fast as written; 1..1024 */
     int16_t steering;       /* ticks added to every goal (negated for reversed joints) */
@@ -87,6 +90,7 @@ struct play_state {
     uint32_t offset_q8;       /* table: ms * 256 into the current frame */
     uint32_t last_ms;
     uint64_t phase;           /* serpenoid: omega t as a 48-bit binary angle */
+    play_slew slew;           /* serpenoid: working copies of the live parameters */
     const uint8_t *table;
     gt_info info;
     uint8_t out_id[GT_MAX_JOINTS];

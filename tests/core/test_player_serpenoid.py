@@ -112,14 +112,16 @@ def test_player_serpenoid_follows_the_formula(amp, omega, delta, phi0, scale, st
 def test_steering_changes_while_it_moves_and_clamps():
     roster = [(1, 0, 512, 300, 700), (2, 1, 512, 300, 700)]
     p = Player(roster)
-    p.params.amp_mrad, p.params.omega_mrad_s, p.params.delta_mrad = 300, 3142, 1571
+    # omega 0: the wave stands still, so only phi0 moves the goals
+    p.params.amp_mrad, p.params.omega_mrad_s, p.params.delta_mrad = 300, 0, 1571
     p.start_serpenoid(2)
     before = p.tick(100)[1]
     p.params.phi0_mrad = 500  # steer: +97.7 ticks on joint 1, -97.7 on the reversed joint 2
-    after = p.tick(100)[1]  # same instant, new phi0
+    assert list(p.tick(100)[1]) == list(before)  # no time passed: slewed, not stepped
+    after = [p.tick(now)[1] for now in range(110, 1000, 10)][-1]
     assert after[0] - before[0] in (97, 98, 99) and before[1] - after[1] in (97, 98, 99)
     p.params.phi0_mrad = 2000  # far past the limits
-    assert list(p.tick(100)[1]) == [700, 300]
+    assert list(p.tick(3000)[1]) == [700, 300]
 
 
 def test_serpenoid_needs_joints():

@@ -1,0 +1,86 @@
+"""Live steering on the real firmware in QEMU: a large step in Serp Phi0 written while the
+serpenoid runs reaches the emulated servos as a slew, every goal they receive within what
+the servo covers at its top speed in the time since the previous one (the bound the
+firmware derives from ax12_table.h, checked against the description in
+tests/core/test_slew.py), and the wave ends up offset by the new phi0."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+from firmware_support import build_firmware
+
+from snakebot.controller.client import ControllerClient
+from snakebot.controller.playback import SerpenoidSettings, roster_from_robot, serpenoid
+from snakebot.core import lib
+from snakebot.sim.serve import EmulatedRobot
+
+pytestmark = [pytest.mark.qemu, pytest.mark.slow, pytest.mark.serial]
+
+CONTROL_TICK_MS = 10  # firmware/boards/qemu/board.h: a goal may come one tick late
+PHI0_STEP = math.radians(50)  # about eight ticks' worth of the servo's top speed
+OMEGA = math.pi
+PERIOD_S = 2 * math.pi / OMEGA
+WINDOW_S = 1.5 * PERIOD_S  # the wave's middle is half-way between its extremes over this
+
+
+def _record_goals(robot: EmulatedRobot) -> dict[int, list[tuple[float, int]]]:
+    """From now on, each servo's received Goal Positions with their bus times."""
+    received: dict[int, list[tuple[float, int]]] = {}
+    with robot.lock:
+        for joint in robot.robot.joints:
+            servo = robot.servo(joint.servo_id)
+            log = received.setdefault(joint.servo_id, [])
+            deliver = servo.sync_write_block
+
+            def hear(address, data, t, servo=servo, log=log, deliver=deliver):
+                deliver(address, data, t)
+                log.append((t, servo.regs.get("Goal Position")))
+
+            servo.sync_write_block = hear
+    return received
+
+
+def test_a_large_phi0_step_reaches_the_servos_slewed():
+    build_firmware()
+    with EmulatedRobot("snake5") as robot:
+        ctl = ControllerClient.open(robot.info.pc_link)
+        try:
+            wave = SerpenoidSettings(amplitude=math.radians(20), omega=OMEGA, delta=1.5)
+            serpenoid(ctl, wave, roster=roster_from_robot(robot.robot))
+            time.sleep(1.0)
+            received = _record_goals(robot)
+            time.sleep(WINDOW_S + 0.3)
+            with robot.lock:
+                before = {sid: len(log) for sid, log in received.items()}
+            phi0 = ctl.table.register("Serp Phi0").from_units(PHI0_STEP, "rad")
+            ctl.write({"Serp Phi0": phi0})
+            time.sleep(WINDOW_S + 1.0)
+            ctl.command("STOP")
+        finally:
+            ctl.close()
+        with robot.lock:
+            logs = {sid: list(log) for sid, log in received.items()}
+
+    for joint in robot.robot.joints:
+        t, goals = (np.array(v) for v in zip(*logs[joint.servo_id], strict=True))
+        assert len(goals) > 200  # goals kept coming at the control tick
+        dt_ms = np.diff(t) * 1000
+        bounds = [lib.play_slew_step_bound(int(math.ceil(d)) + CONTROL_TICK_MS) for d in dt_ms]
+        steps = np.abs(np.diff(goals))
+        worst = np.argmax(steps - bounds)
+        assert np.all(steps <= bounds), (joint.name, steps[worst], bounds[worst], dt_ms[worst])
+        # the wave is offset by the new phi0: its middle moved by that much
+        split = before[joint.servo_id]
+        after = t[-1] - t <= WINDOW_S
+        earlier = (t[split - 1] - t <= WINDOW_S) & (np.arange(len(t)) < split)
+        shift = _middle(joint, goals[after]) - _middle(joint, goals[earlier])
+        assert shift == pytest.approx(PHI0_STEP, abs=math.radians(3)), joint.name
+
+
+def _middle(joint, goals: np.ndarray) -> float:
+    """The joint angle half-way between the wave's extremes."""
+    return (joint.tick_to_angle(goals.max()) + joint.tick_to_angle(goals.min())) / 2

@@ -69,11 +69,18 @@ def fixed_point(device: Device) -> dict[str, tuple[int, str]]:
     ticks_per_mrad = position.ticks_per_rad / conversion("rad", "mrad")
     units_per_tick_s = position.scale.factor_in("deg") / speed.scale.factor_in("deg/s")
     low, high = position.range
+    assert device.max_speed_rpm is not None, device.name
+    max_speed = device.max_speed_rpm * conversion("rpm", "rad/s") * conversion("rad", "mrad")
     return {
         "POSITION_MIN": (low, "lowest goal tick"),
         "POSITION_MAX": (high, "highest goal tick"),
         "POSITION_CENTRE": (position.centre, "tick of the middle of the range"),
         "SPEED_MAX": (speed.encoding.magnitude_mask, "largest joint-mode Moving Speed"),
+        "MAX_SPEED_MRAD_S": (
+            round(max_speed),
+            f"no-load joint speed ({device.max_speed_rpm:g} rpm) in mrad/s: the fastest a "
+            "joint may be asked to move",
+        ),
         "TICKS_PER_MRAD_Q24": (
             round(ticks_per_mrad * (1 << Q_TICKS_PER_MRAD)),
             f"position ticks per milliradian ({position.ticks_per_rad:.6g} ticks a radian), Q24",
@@ -160,6 +167,9 @@ def render_controller(device: Device) -> str:
         f"#define CTL_CONTROL_TABLE_BYTES {device.table_size}",
     ]
     out += [f"#define CTL_{macro(k)} {v}" for k, v in device.limits.items()]
+    speed = device.register("Speed Scale").scale
+    assert speed is not None and speed.factor.numerator == 1
+    out.append(f"#define CTL_SPEED_SCALE_ONE {speed.factor.denominator}")
     out += [
         "#define CTL_ACCESS_R 1",
         "#define CTL_ACCESS_W 2",

@@ -3,6 +3,7 @@
 #include "crc32.h"
 #include "dxl_packet.h"
 #include "play_safety.h"
+#include "prog_limits.h"
 
 /* ---- register descriptors (from the generated X-macros) ---------------------------- */
 
@@ -61,6 +62,23 @@ static uint32_t reg(const ctl_device *d, uint8_t addr, uint8_t size)
 static void set_reg(ctl_device *d, uint8_t addr, uint8_t size, uint32_t v)
 {
     put_le(d->regs + addr, size, v);
+}
+
+/* The byte at addr after the write of data[0..n) at start. */
+static uint8_t byte_after(const ctl_device *d, uint16_t addr, uint8_t start, const uint8_t *data,
+                          size_t n)
+{
+    return (addr >= start && addr < start + n) ? data[addr - start] : d->regs[addr];
+}
+
+static uint32_t value_after(const ctl_device *d, uint8_t addr, uint8_t size, uint8_t start,
+                            const uint8_t *data, size_t n)
+{
+    uint8_t bytes[4] = {0};
+    for (uint8_t i = 0; i < size && i < 4; i++) {
+        bytes[i] = byte_after(d, (uint16_t)(addr + i), start, data, n);
+    }
+    return get_le(bytes, size);
 }
 
 static int32_t as_value(uint32_t raw, const field *f)
@@ -373,6 +391,18 @@ static uint8_t play_refusal(const ctl_device *d)
     return CTL_REFUSAL_REASON_NONE;
 }
 
+/* Whether the serpenoid, with its registers as a write of data[0..n) at start would leave
+ * them, stays within the roster's limits and the servo's speed: a refusal reason. */
+static uint8_t serpenoid_fits(const ctl_device *d, uint8_t start, const uint8_t *data, size_t n)
+{
+    return prog_check_serpenoid(
+        d->roster, joint_count(d), (uint16_t)value_after(d, CTL_SERP_AMPLITUDE, 2, start, data, n),
+        (int16_t)value_after(d, CTL_SERP_OMEGA, 2, start, data, n),
+        (int16_t)value_after(d, CTL_SERP_PHI0, 2, start, data, n),
+        (int16_t)value_after(d, CTL_STEERING_OFFSET, 2, start, data, n),
+        (uint16_t)value_after(d, CTL_SPEED_SCALE, 2, start, data, n));
+}
+
 /* Why SERPENOID cannot run now (CTL_REFUSAL_REASON_*; NONE: it can). */
 static uint8_t serpenoid_refusal(const ctl_device *d)
 {
@@ -380,7 +410,7 @@ static uint8_t serpenoid_refusal(const ctl_device *d)
     if (joint_count(d) == 0) return CTL_REFUSAL_REASON_EMPTY_ROSTER;
     if (!roster_ok(d)) return CTL_REFUSAL_REASON_BAD_JOINT_LIMITS;
     if (!limits_ready(d)) return CTL_REFUSAL_REASON_LIMITS_NOT_VERIFIED;
-    return CTL_REFUSAL_REASON_NONE;
+    return serpenoid_fits(d, 0, NULL, 0);
 }
 
 static void command(ctl_device *d, uint8_t cmd, uint32_t now_ms)
@@ -430,23 +460,6 @@ static const field *register_at(uint8_t addr)
         }
     }
     return NULL;
-}
-
-/* The byte at addr after the write of data[0..n) at start. */
-static uint8_t byte_after(const ctl_device *d, uint16_t addr, uint8_t start, const uint8_t *data,
-                          size_t n)
-{
-    return (addr >= start && addr < start + n) ? data[addr - start] : d->regs[addr];
-}
-
-static uint32_t value_after(const ctl_device *d, uint8_t addr, uint8_t size, uint8_t start,
-                            const uint8_t *data, size_t n)
-{
-    uint8_t bytes[4] = {0};
-    for (uint8_t i = 0; i < size && i < 4; i++) {
-        bytes[i] = byte_after(d, (uint16_t)(addr + i), start, data, n);
-    }
-    return get_le(bytes, size);
 }
 
 /* Check the servo-window part of a write; the record k as it would become goes to rec. */
@@ -585,6 +598,15 @@ static uint8_t write_bytes(ctl_device *d, uint8_t start, const uint8_t *data, si
         a = last;
     }
     if (write_window(d, start, data, n, false) != 0) return DXL_ERR_RANGE;
+    /* a running serpenoid's live parameters may change only within the limits */
+    if (state(d) == CTL_STATE_SERPENOID && start < CTL_SERP_PHI0 + CTL_SERP_PHI0_SIZE &&
+        end > CTL_SPEED_SCALE) {
+        uint8_t why = serpenoid_fits(d, start, data, n);
+        if (why != CTL_REFUSAL_REASON_NONE) {
+            d->refusal = why;
+            return DXL_ERR_RANGE;
+        }
+    }
 
     /* apply */
     uint8_t cmd = 0;

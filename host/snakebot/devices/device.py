@@ -148,6 +148,7 @@ class Device:
     based_on: str | None = None  # the device this one is a variant of
     servo_model: str | None = None  # the controller: the servo model it drives
     limits: dict[str, int] = field(default_factory=dict)
+    max_speed_rpm: float | None = None  # no-load joint speed (a servo's datasheet fact)
     servo_window: ServoWindow | None = None
     pages: tuple[Page, ...] = ()  # the window's described pages beyond the servo records
     enums: dict[str, dict[str, int]] = field(default_factory=dict)

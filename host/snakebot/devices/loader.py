@@ -280,6 +280,7 @@ def _build(name: str) -> Device:
             based_on=_documents()[name][1].get("based_on"),
             servo_model=doc.get("servo_model"),
             limits=dict(doc.get("limits", {})),
+            max_speed_rpm=doc.get("max_speed_rpm"),
             servo_window=None
             if window is None
             else ServoWindow(

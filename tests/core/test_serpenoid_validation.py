@@ -143,3 +143,24 @@ def test_an_accepted_wave_never_reaches_a_clamp(
         assert lib.play_tick(state, params, free, 2, now) == 2
         for k, (_, _, low, high) in enumerate(joints):
             assert low <= lib.play_out_goal(state, k) <= high
+
+
+def test_a_roster_change_that_would_clip_the_running_wave_is_refused():
+    dev = Device()
+    with_snake5(dev)
+    serp(dev, 0.5, 4.0, 1.0, 0.0)
+    assert dev.command("SERPENOID") == 0 and dev.state == State.SERPENOID
+    zero = roster_from_robot(SNAKE5)[0].zero_tick
+    top = zero + round(0.5 * POSITION.ticks_per_rad)  # the wave's highest goal on joint 0
+    max_tick = CTL.servo_field("Max Tick")
+    assert dev.set("Window Page", 0) == 0
+    address = CTL.servo_address(0, "Max Tick")
+    narrower = max_tick.encode(top - 5)
+    assert dev.one(write(CTL_ID, address, narrower)).error == ErrorFlags.RANGE
+    assert dev.servo_window(0)[0]["Max Tick"] == roster_from_robot(SNAKE5)[0].max_tick
+    assert dev.one(write(CTL_ID, address, max_tick.encode(top + 5))).error == 0
+    # stopped, the roster takes any limits again (checked at the next start)
+    assert dev.command("STOP") == 0
+    assert dev.one(write(CTL_ID, address, narrower)).error == 0
+    assert dev.command("SERPENOID") == 0
+    assert refusal(dev) == lib_value("Refusal Reason", "AMPLITUDE")

@@ -391,18 +391,14 @@ static uint8_t play_refusal(const ctl_device *d)
     return CTL_REFUSAL_REASON_NONE;
 }
 
-/* Whether the serpenoid, with its registers as a write of data[0..n) at start would leave
- * them, stays within the roster's limits and the servo's speed: a refusal reason. */
-static uint8_t serpenoid_fits(const ctl_device *d, const play_joint *roster, uint8_t start,
-                              const uint8_t *data, size_t n)
+/* Whether the serpenoid, as its registers and the roster stand, stays within the roster's
+ * limits and the servo's speed: a refusal reason (NONE: it does). */
+static uint8_t serpenoid_fits(const ctl_device *d)
 {
-    uint8_t count = (uint8_t)value_after(d, CTL_JOINT_COUNT, 1, start, data, n);
-    return prog_check_serpenoid(
-        roster, count, (uint16_t)value_after(d, CTL_SERP_AMPLITUDE, 2, start, data, n),
-        (int16_t)value_after(d, CTL_SERP_OMEGA, 2, start, data, n),
-        (int16_t)value_after(d, CTL_SERP_PHI0, 2, start, data, n),
-        (int16_t)value_after(d, CTL_STEERING_OFFSET, 2, start, data, n),
-        (uint16_t)value_after(d, CTL_SPEED_SCALE, 2, start, data, n));
+    return prog_check_serpenoid(d->roster, joint_count(d), (uint16_t)reg(d, CTL_SERP_AMPLITUDE, 2),
+                                (int16_t)reg(d, CTL_SERP_OMEGA, 2), (int16_t)reg(d, CTL_SERP_PHI0, 2),
+                                (int16_t)reg(d, CTL_STEERING_OFFSET, 2),
+                                (uint16_t)reg(d, CTL_SPEED_SCALE, 2));
 }
 
 /* Why SERPENOID cannot run now (CTL_REFUSAL_REASON_*; NONE: it can). */
@@ -412,7 +408,7 @@ static uint8_t serpenoid_refusal(const ctl_device *d)
     if (joint_count(d) == 0) return CTL_REFUSAL_REASON_EMPTY_ROSTER;
     if (!roster_ok(d)) return CTL_REFUSAL_REASON_BAD_JOINT_LIMITS;
     if (!limits_ready(d)) return CTL_REFUSAL_REASON_LIMITS_NOT_VERIFIED;
-    return serpenoid_fits(d, d->roster, 0, NULL, 0);
+    return serpenoid_fits(d);
 }
 
 static void command(ctl_device *d, uint8_t cmd, uint32_t now_ms)
@@ -553,15 +549,12 @@ static uint8_t write_page(ctl_device *d, uint8_t page, uint8_t start, const uint
     return 0;
 }
 
-/* Check the window part of a write of data[0..n) at start; with `into`, apply the records
- * it changes there (the roster, or a copy of it to check). */
-static uint8_t write_window(ctl_device *d, uint8_t start, const uint8_t *data, size_t n,
-                            play_joint *into)
+static uint8_t write_window(ctl_device *d, uint8_t start, const uint8_t *data, size_t n, bool apply)
 {
     uint8_t page = byte_after(d, CTL_WINDOW_PAGE, start, data, n);
     if (!page_known(page)) return DXL_ERR_RANGE;
     if (start + n <= CTL_SERVO_WINDOW) return 0;
-    if (page >= CTL_SERVO_PAGES) return write_page(d, page, start, data, n, into == d->roster);
+    if (page >= CTL_SERVO_PAGES) return write_page(d, page, start, data, n, apply);
     for (uint8_t slot = 0; slot < CTL_SERVO_RECORDS; slot++) {
         uint16_t base = (uint16_t)(CTL_SERVO_WINDOW + slot * CTL_SERVO_RECORD_SIZE);
         if (base >= start + n || base + CTL_SERVO_RECORD_SIZE <= start) continue;
@@ -571,19 +564,37 @@ static uint8_t write_window(ctl_device *d, uint8_t start, const uint8_t *data, s
                           (uint16_t)get_le(rec + CTL_REC_MAX_TICK, 2))) {
             return DXL_ERR_RANGE;
         }
-        if (into != NULL) record_write(into, (uint8_t)(page * CTL_SERVO_RECORDS + slot), rec);
+        if (apply) record_write(d->roster, (uint8_t)(page * CTL_SERVO_RECORDS + slot), rec);
     }
     return 0;
 }
 
 /* serpenoid_fits() with the registers and the roster as the write of data[0..n) at start
  * (already range-checked) would leave them. */
-static uint8_t serpenoid_fits_after(ctl_device *d, uint8_t start, const uint8_t *data, size_t n)
+static uint8_t serpenoid_fits_after(const ctl_device *d, uint8_t start, const uint8_t *data,
+                                    size_t n)
 {
-    play_joint roster[CTL_MAX_JOINTS];
-    for (uint8_t k = 0; k < CTL_MAX_JOINTS; k++) roster[k] = d->roster[k];
-    (void)write_window(d, start, data, n, roster);
-    return serpenoid_fits(d, roster, start, data, n);
+    uint8_t count = (uint8_t)value_after(d, CTL_JOINT_COUNT, 1, start, data, n);
+    uint8_t page = byte_after(d, CTL_WINDOW_PAGE, start, data, n);
+    uint16_t amp = (uint16_t)value_after(d, CTL_SERP_AMPLITUDE, 2, start, data, n);
+    int16_t phi0 = (int16_t)value_after(d, CTL_SERP_PHI0, 2, start, data, n);
+    int16_t steering = (int16_t)value_after(d, CTL_STEERING_OFFSET, 2, start, data, n);
+    /* one joint at a time, its record as the write would leave it (no roster copy: the
+     * PC link's deepest path is this one) */
+    for (uint8_t k = 0; k < count && k < CTL_MAX_JOINTS; k++) {
+        play_joint j = d->roster[k];
+        if (page < CTL_SERVO_PAGES && k / CTL_SERVO_RECORDS == page) {
+            uint8_t rec[CTL_SERVO_RECORD_SIZE];
+            (void)check_record(d, k % CTL_SERVO_RECORDS, page, start, data, n, rec);
+            record_write(&j, 0, rec);
+        }
+        if (!prog_joint_fits(&j, amp, phi0, steering)) return CTL_REFUSAL_REASON_AMPLITUDE;
+    }
+    if (!prog_speed_fits(amp, (int16_t)value_after(d, CTL_SERP_OMEGA, 2, start, data, n),
+                         (uint16_t)value_after(d, CTL_SPEED_SCALE, 2, start, data, n))) {
+        return CTL_REFUSAL_REASON_SPEED;
+    }
+    return CTL_REFUSAL_REASON_NONE;
 }
 
 /* Range-check then apply a write of data[0..n) at start: all of it, or nothing. */
@@ -612,7 +623,7 @@ static uint8_t write_bytes(ctl_device *d, uint8_t start, const uint8_t *data, si
         }
         a = last;
     }
-    if (write_window(d, start, data, n, NULL) != 0) return DXL_ERR_RANGE;
+    if (write_window(d, start, data, n, false) != 0) return DXL_ERR_RANGE;
     /* a running serpenoid's live parameters and roster change only within the limits */
     if (state(d) == CTL_STATE_SERPENOID) {
         uint8_t why = serpenoid_fits_after(d, start, data, n);
@@ -647,7 +658,7 @@ static uint8_t write_bytes(ctl_device *d, uint8_t start, const uint8_t *data, si
         if (chunk_start == 0) d->staged_end = chunk_end;
         else if (chunk_end > d->staged_end) d->staged_end = chunk_end;
     }
-    write_window(d, start, data, n, d->roster);
+    write_window(d, start, data, n, true);
     sync_bus_roster(d);
     if (do_commit != CTL_UPLOAD_COMMIT_NONE) commit(d, do_commit);
     if (cmd != 0) command(d, cmd, now_ms);

@@ -7,11 +7,18 @@
 #ifndef SNAKEBOT_PROG_LIMITS_H
 #define SNAKEBOT_PROG_LIMITS_H
 
+#include <stdbool.h>
 #include <stdint.h>
 
 #include "play_player.h"
 
 /* cffi:begin */
+/* Whether roster joint j's goals for the serpenoid A sin(theta) + phi0 (milliradians),
+ * steered by steering ticks, stay within its Min Tick..Max Tick at the wave's extremes. */
+bool prog_joint_fits(const play_joint *j, uint16_t amp_mrad, int16_t phi0_mrad,
+                     int16_t steering);
+/* Whether the fastest joint motion A |omega| speed_scale / 256 is within the servo's. */
+bool prog_speed_fits(uint16_t amp_mrad, int16_t omega_mrad_s, uint16_t speed_scale);
 /* CTL_REFUSAL_REASON_NONE if the serpenoid A sin(theta) + phi0 (milliradians), steered
  * by steering ticks, keeps every one of the first count roster joints within its limits
  * and A |omega| scale / 256 within the servo's speed; else CTL_REFUSAL_REASON_AMPLITUDE

@@ -11,9 +11,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from snakebot.controller import ControllerErrors, State
-from snakebot.controller.playback import roster_from_robot
+from snakebot.controller.playback import SerpenoidSettings, check_serpenoid, roster_from_robot
 from snakebot.core import ffi, lib
 from snakebot.devices import ax12
+from snakebot.gait.limits import GaitLimitError
 from snakebot.protocol import ErrorFlags, write
 from snakebot.robots import load_robot
 
@@ -164,3 +165,35 @@ def test_a_roster_change_that_would_clip_the_running_wave_is_refused():
     assert dev.one(write(CTL_ID, address, narrower)).error == 0
     assert dev.command("SERPENOID") == 0
     assert refusal(dev) == lib_value("Refusal Reason", "AMPLITUDE")
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    amplitude=st.floats(0.05, 1.6),
+    omega=st.floats(-12.0, 12.0).filter(lambda w: abs(w) > 0.1),
+    offset=st.floats(-1.0, 1.0),
+    speed=st.sampled_from([0.5, 1.0, 2.0]),
+)
+def test_the_host_and_the_controller_agree_away_from_the_boundary(amplitude, omega, offset, speed):
+    """`snakebot serpenoid --robot` and the controller decide alike, except within two
+    ticks (range) or 1 % (speed) of a limit, where rounding to registers may differ."""
+    settings_ = SerpenoidSettings(amplitude, omega, 1.0, offset)
+    try:
+        check_serpenoid(SNAKE5, settings_, speed=speed)
+        host_ok = True
+    except GaitLimitError:
+        host_ok = False
+    roster = roster_of(
+        [(e.zero_tick, int(e.reverse), e.min_tick, e.max_tick) for e in roster_from_robot(SNAKE5)]
+    )
+    scale = round(speed * 256)
+    reason = lib.prog_check_serpenoid(
+        roster, SNAKE5.n_joints, mrad(amplitude), mrad(omega), mrad(offset), 0, scale
+    )
+    margin = 2 / POSITION.ticks_per_rad
+    reach = abs(offset) + amplitude
+    limit = min(min(-j.min_rad, j.max_rad) for j in SNAKE5.joints)
+    near_range = abs(reach - limit) < margin
+    near_speed = abs(amplitude * abs(omega) * speed / SNAKE5.max_speed_rad_s - 1) < 0.01
+    if not (near_range or near_speed):
+        assert host_ok == (reason == lib.CTL_REFUSAL_REASON_NONE), (host_ok, reason)

@@ -45,6 +45,7 @@
 #include "dxl_packet.h"
 #include "dxl_parser.h"
 #include "gt_table.h"
+#include "prog_limits.h"
 
 #include "fuzz_check.h"
 
@@ -161,7 +162,19 @@ static void check_state(void)
     CHECK((ctl_error_flags(d) & 0xFF00u) == 0);
     CHECK(d->regs[CTL_JOINT_COUNT] <= CTL_MAX_JOINTS);
     CHECK(bus_roster_count(&d->bus) == d->regs[CTL_JOINT_COUNT]);
-    CHECK(d->staged_end <= CTL_MAX_TABLE_BYTES);
+    CHECK(d->staged_end <= d->capacity && d->capacity <= CTL_MAX_TABLE_BYTES);
+    /* the window only ever shows a servo page or a described one */
+    uint8_t page = d->regs[CTL_WINDOW_PAGE];
+    CHECK(page < CTL_SERVO_PAGES || page == CTL_PAGE_PROGRAM);
+    CHECK(d->refusal <= CTL_REFUSAL_REASON_SPEED);
+    /* a serpenoid runs only within the limits (it never relies on clamping) */
+    if (ctl_state(d) == CTL_STATE_SERPENOID) {
+        CHECK(prog_check_serpenoid(d->roster, d->regs[CTL_JOINT_COUNT],
+                                   (uint16_t)reg16(CTL_SERP_AMPLITUDE),
+                                   (int16_t)reg16(CTL_SERP_OMEGA), (int16_t)reg16(CTL_SERP_PHI0),
+                                   (int16_t)reg16(CTL_STEERING_OFFSET),
+                                   (uint16_t)reg16(CTL_SPEED_SCALE)) == CTL_REFUSAL_REASON_NONE);
+    }
 }
 
 /* The active table after any step: valid, described by its registers, and changed only
@@ -748,16 +761,20 @@ static void step(src *s)
     case 3: { /* a roster record in the servo window */
         uint8_t data[1 + CTL_SERVO_RECORD_SIZE];
         uint8_t slot = u8(s) % CTL_SERVO_RECORDS;
-        data[0] = u8(s) % 3u; /* Servo Page, written in the same packet */
+        /* Window Page, written in the same packet: a servo page, or now and then one of
+         * the pages from 16 on (described ones refuse writes to read-only fields, others
+         * are refused outright) */
+        uint8_t pick = u8(s);
+        data[0] = pick < 240 ? pick % CTL_SERVO_PAGES : (uint8_t)(CTL_PAGE_PROGRAM + pick - 240);
         bytes(s, data + 1, 8);
         put16(data + 1 + CTL_REC_ZERO_TICK, u16(s) % 1024u);
         put16(data + 1 + CTL_REC_MIN_TICK, u16(s) % 1024u);
         put16(data + 1 + CTL_REC_MAX_TICK, u16(s) % 1024u);
         data[1 + CTL_REC_REVERSE] &= 1u;
         if (slot == 0) {
-            write_to_me(CTL_SERVO_PAGE, data, 1 + 8);
+            write_to_me(CTL_WINDOW_PAGE, data, 1 + 8);
         } else {
-            write_to_me(CTL_SERVO_PAGE, data, 1);
+            write_to_me(CTL_WINDOW_PAGE, data, 1);
             write_to_me((uint8_t)(CTL_SERVO_WINDOW + slot * CTL_SERVO_RECORD_SIZE), data + 1, 8);
         }
         break;

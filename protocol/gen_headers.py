@@ -8,7 +8,7 @@ range and unit factor is written once.
 
 Outputs: firmware/core/ax12_table.h (the AX-12 registers and the fixed-point unit
 constants the player computes with), firmware/core/ctl_table.h (the controller's table,
-servo window, value names and range X-macros) and the generated part of
+servo window and window pages, value names and range X-macros) and the generated part of
 protocol/controller.md. The loader it uses (snakebot.devices) needs only the standard
 library, so this runs before snakebot is installed.
 """
@@ -69,11 +69,18 @@ def fixed_point(device: Device) -> dict[str, tuple[int, str]]:
     ticks_per_mrad = position.ticks_per_rad / conversion("rad", "mrad")
     units_per_tick_s = position.scale.factor_in("deg") / speed.scale.factor_in("deg/s")
     low, high = position.range
+    assert device.max_speed_rpm is not None, device.name
+    max_speed = device.max_speed_rpm * conversion("rpm", "rad/s") * conversion("rad", "mrad")
     return {
         "POSITION_MIN": (low, "lowest goal tick"),
         "POSITION_MAX": (high, "highest goal tick"),
         "POSITION_CENTRE": (position.centre, "tick of the middle of the range"),
         "SPEED_MAX": (speed.encoding.magnitude_mask, "largest joint-mode Moving Speed"),
+        "MAX_SPEED_MRAD_S": (
+            round(max_speed),
+            f"no-load joint speed ({device.max_speed_rpm:g} rpm) in mrad/s: the fastest a "
+            "joint may be asked to move",
+        ),
         "TICKS_PER_MRAD_Q24": (
             round(ticks_per_mrad * (1 << Q_TICKS_PER_MRAD)),
             f"position ticks per milliradian ({position.ticks_per_rad:.6g} ticks a radian), Q24",
@@ -160,6 +167,9 @@ def render_controller(device: Device) -> str:
         f"#define CTL_CONTROL_TABLE_BYTES {device.table_size}",
     ]
     out += [f"#define CTL_{macro(k)} {v}" for k, v in device.limits.items()]
+    speed = device.register("Speed Scale").scale
+    assert speed is not None and speed.factor.numerator == 1
+    out.append(f"#define CTL_SPEED_SCALE_ONE {speed.factor.denominator}")
     out += [
         "#define CTL_ACCESS_R 1",
         "#define CTL_ACCESS_W 2",
@@ -173,13 +183,21 @@ def render_controller(device: Device) -> str:
     out += [
         "",
         "/* The servo window: CTL_SERVO_RECORDS records of CTL_SERVO_RECORD_SIZE bytes",
-        " * showing roster joints 6 * Servo Page ..; CTL_REC_* are offsets in a record. */",
+        " * showing roster joints 6 * Window Page .. on the first CTL_SERVO_PAGES pages;",
+        " * CTL_REC_* are offsets in a record. */",
         f"#define CTL_SERVO_WINDOW {window.address}",
         f"#define CTL_SERVO_RECORD_SIZE {window.record_size}",
         f"#define CTL_SERVO_RECORDS {window.records}",
+        f"#define CTL_SERVO_PAGES {-(-device.limits['max_joints'] // window.records)}",
     ]
     for f in window.fields:
         out.append(f"#define CTL_REC_{macro(f.name)} {f.address}")
+    out += ["", "/* The other window pages: their numbers, and each field's absolute address. */"]
+    for page in device.pages:
+        out.append(f"#define CTL_PAGE_{macro(page.name)} {page.number}")
+        for f in page.fields:
+            out.append(f"#define CTL_{macro(f.name)} {page.base + f.address}")
+            out.append(f"#define CTL_{macro(f.name)}_SIZE {f.size}")
     out += ["", "/* Values. */"]
     for name, values in device.enums.items():
         for value_name, value in values.items():
@@ -190,6 +208,16 @@ def render_controller(device: Device) -> str:
     out += ["", "#define CTL_SERVO_FIELDS(X) \\"]
     rows = [_xrow(f"CTL_REC_{macro(f.name)}", f) for f in window.fields]
     out += [row + " \\" for row in rows[:-1]] + [rows[-1]]
+    out += [
+        "",
+        "/* Every field of the described pages: X(page, offset, size, access, min, max,",
+        " * is_signed, default), offset from CTL_SERVO_WINDOW. */",
+        "#define CTL_PAGE_FIELDS(X) \\",
+    ]
+    rows = [
+        _xrow(f"CTL_PAGE_{macro(p.name)}, {f.address}", f) for p in device.pages for f in p.fields
+    ]
+    out += [row + " \\" for row in rows[:-1]] + rows[-1:]
     out += ["", "#endif", ""]
     defined = [line.split()[1] for line in out if line.startswith("#define ")]
     clashes = sorted({n for n in defined if defined.count(n) > 1})
@@ -238,6 +266,17 @@ def render_doc_tables(device: Device) -> str:
         rule,
     ]
     out += _rows(window.fields)
+    for page in device.pages:
+        out += [
+            "",
+            f"### Window page {page.number}: {page.name} (from address {page.base})",
+            "",
+            page.description[:1].upper() + page.description[1:] + ".",
+            "",
+            head.format("offset"),
+            rule,
+        ]
+        out += _rows(page.fields)
     out += ["", "### Values", ""]
     for name, values in device.enums.items():
         flags = name in device.flags

@@ -84,6 +84,8 @@
 #define AX12_POSITION_CENTRE             512
 /* largest joint-mode Moving Speed */
 #define AX12_SPEED_MAX                   1023
+/* no-load joint speed (59 rpm) in mrad/s: the fastest a joint may be asked to move */
+#define AX12_MAX_SPEED_MRAD_S            6178
 /* position ticks per milliradian (195.379 ticks a radian), Q24 */
 #define AX12_TICKS_PER_MRAD_Q24          3277909LL
 /* Moving Speed units (0.111 rpm) per tick/s, Q18 */

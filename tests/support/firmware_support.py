@@ -17,6 +17,9 @@ import pytest
 from snakebot import devices
 from snakebot.paths import REPO_ROOT
 from snakebot.protocol import DxlTimeout
+from snakebot.sim.options import SimOptions
+from snakebot.sim.qemu import Endpoint, QemuFirmware
+from snakebot.sim.transports.unixsock import UnixSocketServer
 from snakebot.transport import DxlClient
 
 BUILD = REPO_ROOT / "build"
@@ -109,6 +112,20 @@ def wait_for_boot(port: str, timeout: float = 20.0) -> None:
             except DxlTimeout:
                 if time.monotonic() > deadline:
                     raise
+
+
+@contextlib.contextmanager
+def booted_qemu(folder: Path, robot: str = "snake5") -> Iterator[str]:
+    """The firmware image under QEMU, its bus served by ``robot``'s emulated servos on a
+    Unix socket in ``folder``: yields the PC link's pty once the firmware answers."""
+    build_firmware()
+    sock = folder / "bus.sock"
+    with (
+        UnixSocketServer(SimOptions(robot=robot).build_bus(), sock),
+        QemuFirmware(QEMU_DIR / "flash.bin", bus=Endpoint.unix_client(sock)) as fw,
+    ):
+        wait_for_boot(fw.ports.pc_link)
+        yield fw.ports.pc_link
 
 
 HAL_DIR = REPO_ROOT / "firmware" / "hal"

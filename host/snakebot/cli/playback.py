@@ -136,13 +136,19 @@ def serpenoid(
         phi_k(t) = A sin(omega t + k delta) + phi0
 
     on every joint k of the controller's roster (the servos of the last uploaded table,
-    or those of --robot). No table is needed. Example:
+    or those of --robot). No table is needed. A wave that would take a joint past its
+    limits (A + |offset| + steer) or move faster than the servo can (A * |omega| *
+    speed) is refused, by this command when --robot is given and by the controller
+    always (its Refusal Reason says which). Example:
 
     \b
         snakebot serpenoid --port /dev/ttyUSB0 --robot snake5 -A 30deg -w 180deg -d 120deg
     """
     settings = playback.SerpenoidSettings(amplitude, omega, delta, offset)
-    roster = playback.roster_from_robot(load_robot(robot)) if robot else None
+    model = load_robot(robot) if robot else None
+    roster = playback.roster_from_robot(model) if model else None
+    if model is not None:  # before the port is opened: a refusal sends nothing
+        playback.check_serpenoid(model, settings, speed=speed, steer=steer)
     with open_controller(port, baud, controller_id) as ctl:
         status = playback.serpenoid(ctl, settings, speed=speed, steer=steer, roster=roster)
     s = status["serpenoid"]

@@ -23,10 +23,32 @@ from snakebot.controller import words
 from snakebot.controller.client import ControllerClient, RosterEntry
 from snakebot.controller.errors import ControllerError
 from snakebot.controller.limits import VERIFY_TIMEOUT_S, not_held, wait_settled
+from snakebot.gait.limits import check_serpenoid as check_serpenoid_motion
 from snakebot.robots import Robot
 
 SPEED = "x"
 """The unit of Speed Scale: a factor on the generated speed (1 = as generated)."""
+
+CYCLE_SAMPLES = 4097
+"""Samples of one serpenoid cycle the host checks: a peak falls at most 1/8192 of a turn
+from one, so it is missed by under 2e-7 of the amplitude, far below a position tick."""
+
+REFUSALS = {
+    "SAFE_STATE": "the controller is in the safe state: `snakebot stop --clear` leaves it",
+    "NO_TABLE": "it has no gait table: upload one with `snakebot upload`",
+    "EMPTY_ROSTER": "its roster is empty: pass --robot NAME",
+    "BAD_JOINT_LIMITS": "a roster joint's Min Tick is above its Max Tick or outside the "
+    "robot's limits: pass --robot NAME to set the roster again",
+    "LIMITS_NOT_VERIFIED": "the servos do not hold the robot's limits yet: see "
+    "`snakebot limits show`",
+    "TABLE_OUTSIDE_LIMITS": "the active table leaves the robot's limits: upload a table "
+    "made for them",
+    "AMPLITUDE": "A + |offset| (with --steer) takes a joint outside its roster limits "
+    "(Min Tick..Max Tick): lower --amplitude or --offset",
+    "SPEED": "A * |omega| * --speed is above the servo's no-load speed: lower --omega, "
+    "--amplitude or --speed",
+}
+"""What each Refusal Reason (Program page) means, and the fix."""
 
 FINISH_GRACE_S = 0.05
 """A table played once may already be over when the State is read back: it counts as
@@ -160,6 +182,14 @@ def _start(
         and finished_ok <= time.monotonic() - sent + FINISH_GRACE_S
     ):
         return _status(ctl, after)  # a short table played once is already over
+    if newly_refused:
+        code = ctl.read("Refusal Reason")["Refusal Reason"]
+        names = {v: k for k, v in ctl.table.enums["Refusal Reason"].items()}
+        name = names.get(code, str(code))
+        raise ControllerError(
+            f"the controller refused {command} (Refusal Reason {name}): "
+            f"{REFUSALS.get(name, 'see protocol/controller.md')}; nothing was started"
+        )
     raise ControllerError(
         f"the controller did not start ({command} left it {state}; error flags: "
         f"{words.describe_flags(after['Error Flags'], ctl.table)}): check its state with "
@@ -209,6 +239,29 @@ def roster_from_robot(robot: Robot) -> list[RosterEntry]:
     ]
 
 
+def check_serpenoid(
+    robot: Robot, settings: SerpenoidSettings, *, speed: float = 1.0, steer: float = 0.0
+) -> None:
+    """GaitLimitError unless the on-line serpenoid keeps ``robot``'s joints within their
+    limits and the servo's speed over a whole cycle, as the controller checks before it
+    starts (the same check as `gait serpenoid`'s)."""
+    rate = settings.omega * speed
+    cycle = 2 * math.pi / abs(rate) if rate else 0.0
+    phases = [k * settings.delta for k in range(robot.n_joints)]
+    offset = settings.offset + steer
+    check_serpenoid_motion(
+        robot,
+        settings.amplitude,
+        rate,
+        phases,
+        offset,
+        cycle,
+        CYCLE_SAMPLES,
+        what="the serpenoid",
+        outcome="nothing was sent",
+    )
+
+
 def serpenoid(
     ctl: ControllerClient,
     settings: SerpenoidSettings,
@@ -216,8 +269,13 @@ def serpenoid(
     speed: float = 1.0,
     steer: float = 0.0,
     roster: Iterable[RosterEntry] | None = None,
+    robot: Robot | None = None,
 ) -> dict[str, Any]:
-    """Start the firmware's serpenoid on the roster (``roster`` replaces it first)."""
+    """Start the firmware's serpenoid on the roster (``roster`` replaces it first).
+    ``robot``: check its limits first (GaitLimitError, nothing sent); without it the
+    controller's own check is explained if it refuses."""
+    if robot is not None:
+        check_serpenoid(robot, settings, speed=speed, steer=steer)
     values = {
         "Serp Amplitude": _raw(ctl, "Serp Amplitude", settings.amplitude, "--amplitude"),
         "Serp Omega": _raw(ctl, "Serp Omega", settings.omega, "--omega", rate=True),

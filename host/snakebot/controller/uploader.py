@@ -4,8 +4,9 @@
 
 1. Before anything is sent: the device must be a snakebot controller of our control-table
    version; the table must fit what its control table takes (Upload Length's range, Joint
-   Count's range); and, when the controller already has a roster, the table may name
-   only servos in it (``allow_new_servos`` lifts that).
+   Count's range) and what its board holds (Table Capacity); and, when the controller
+   already has a roster, the table may name only servos in it (``allow_new_servos``
+   lifts that).
 2. The chunk WRITEs and the commit go out as one stream with several packets in flight
    (:mod:`snakebot.controller.transfer`); each is acknowledged. A shortfall of
    acknowledgements, or a commit that found the staged bytes incomplete or damaged,
@@ -30,7 +31,7 @@ from typing import Any
 from snakebot import protocol
 from snakebot.controller import words
 from snakebot.controller.client import ControllerClient, JointRecord
-from snakebot.controller.errors import ControllerLinkError, UploadError
+from snakebot.controller.errors import ControllerError, ControllerLinkError, UploadError
 from snakebot.controller.settings import resolve_upload_retries, resolve_upload_window
 from snakebot.controller.transfer import StreamResult, stream_writes
 from snakebot.controller.upload import chunk_writes, commit_write
@@ -52,6 +53,9 @@ VERIFY_REGISTERS = (
 
 BEFORE_REGISTERS = ("State", "Joint Count", "Table Size", "Table CRC")
 """What the upload needs to know beforehand (one READ; every byte costs link time)."""
+
+CAPACITY = "Table Capacity"
+"""The register (Program page) with the largest table this controller's board takes."""
 
 ProgressCallback = Callable[[int, int], None]  # (table bytes acknowledged, table bytes)
 RetryCallback = Callable[[int, int, str], None]  # (attempt about to start, attempts, why)
@@ -119,14 +123,20 @@ class UploadReport:
         return f"{rate}, {100 * self.wire_fraction:.1f} % of the {self.baudrate} baud wire)"
 
 
-def check_fits(ctl: ControllerClient, table: GaitTable, size: int) -> None:
-    """UploadError unless the controller's control table can take ``table``."""
-    capacity = ctl.table.register("Upload Length").max or 0
+def check_fits(
+    ctl: ControllerClient, table: GaitTable, size: int, capacity: int | None = None
+) -> None:
+    """ControllerError unless the controller can take ``table``: its control table (Upload
+    Length's range, the largest board's) and, when given, the ``capacity`` it reports
+    (Table Capacity on the Program page: this board's)."""
+    largest = ctl.table.register("Upload Length").max or 0
+    if capacity is None or capacity > largest:
+        capacity = largest
     if size > capacity:
-        raise UploadError(
-            f"the table is {size} bytes but the controller holds at most {capacity}: "
-            "generate it with fewer frames (a lower rate or a shorter duration); "
-            "nothing was sent"
+        raise ControllerError(
+            f"the table is {size} bytes but the controller holds at most {capacity} "
+            "(its Table Capacity): generate it with fewer frames (a lower rate or a "
+            "shorter duration); nothing was sent"
         )
     max_joints = ctl.table.register("Joint Count").max or 0
     if table.joint_count > max_joints:
@@ -196,7 +206,8 @@ def upload_gait(
     check_fits(ctl, table, len(data))
 
     ctl.identify()
-    before = ctl.read(*BEFORE_REGISTERS)
+    before = ctl.read(*BEFORE_REGISTERS, CAPACITY)
+    check_fits(ctl, table, len(data), before[CAPACITY])
     roster = ctl.roster(before["Joint Count"]) if before["Joint Count"] else []
     new_servos = check_servos(table, roster, allow_new_servos)
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -21,6 +22,7 @@ def check_motion(
     dphi: np.ndarray | None,
     what: str = "the gait",
     check_range: bool = True,
+    outcome: str = "no file was written",
 ) -> None:
     """Raise GaitLimitError at the first sample (by time) outside a limit.
 
@@ -66,7 +68,7 @@ def check_motion(
         more = f" (and {len(problems) - 1} more violations)" if len(problems) > 1 else ""
         raise GaitLimitError(
             f"{what} is outside {robot.name}'s limits: {problems[0][1]}{more}. Reduce the "
-            "amplitude or offset (range) or the frequency (speed); no file was written"
+            f"amplitude or offset (range) or the frequency (speed); {outcome}"
         )
 
 
@@ -93,3 +95,25 @@ def check_ticks(robot: Robot, ticks: np.ndarray, period_s: float, loop: bool) ->
         what="the gait table (rounded to ticks, played frame to frame)",
         check_range=False,
     )
+
+
+def check_serpenoid(
+    robot: Robot,
+    amplitude: float,
+    omega: float,
+    phases: Sequence[float],
+    offset: float,
+    duration: float,
+    samples: int,
+    *,
+    what: str = "the gait",
+    outcome: str = "no file was written",
+) -> None:
+    """The serpenoid A sin(omega t + phase_k) + offset sampled ``samples`` times over
+    ``duration`` seconds, checked by :func:`check_motion` (angles and speeds). Both
+    `gait serpenoid` and the controller's on-line serpenoid (`snakebot serpenoid`, over
+    one whole cycle) are checked here."""
+    t = np.linspace(0.0, duration, samples)
+    args = omega * t[:, None] + np.asarray(phases, dtype=float)
+    phi = amplitude * np.sin(args) + offset
+    check_motion(robot, t, phi, amplitude * omega * np.cos(args), what=what, outcome=outcome)

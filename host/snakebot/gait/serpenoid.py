@@ -22,7 +22,7 @@ from snakebot.gait.common import (
     predict_table,
     singularity_warnings,
 )
-from snakebot.gait.limits import check_motion, check_ticks
+from snakebot.gait.limits import check_serpenoid, check_ticks
 from snakebot.kinematics import Sines, integrate_joints
 from snakebot.robots import Robot
 
@@ -97,11 +97,7 @@ def serpenoid_frames(
     omega_used = math.copysign(2 * math.pi * cycles / (steps * dt), omega)
     schedule = Sines.serpenoid(robot.n_joints, amplitude, omega_used, delta, offset, phase)
     duration = steps * dt
-    dense = np.linspace(0.0, duration, 16 * steps + 1)
-    args = omega_used * dense[:, None] + np.array(schedule.phase)
-    check_motion(
-        robot, dense, amplitude * np.sin(args) + offset, amplitude * omega_used * np.cos(args)
-    )
+    check_serpenoid(robot, amplitude, omega_used, schedule.phase, offset, duration, 16 * steps + 1)
     t_frames = np.arange(frames) * dt
     phi = amplitude * np.sin(omega_used * t_frames[:, None] + np.array(schedule.phase)) + offset
     ticks = robot.angles_to_ticks(phi)

@@ -15,9 +15,13 @@ _POSITION = devices.ax12().require_position()
 TICKS_PER_RAD = _POSITION.ticks_per_rad
 TICK_MIN, TICK_MAX = _POSITION.range
 
-#: No-load maximum joint speed per servo model (ROBOTIS e-Manual): AX-12A 59 rpm at 12 V,
-#: AX-12W 54 rpm in joint mode.
-SERVO_MAX_RPM = {"AX-12A": 59.0, "AX-12W": 54.0}
+#: No-load maximum joint speed per servo model (ROBOTIS e-Manual: AX-12A 59 rpm at 12 V,
+#: AX-12W 54 rpm in joint mode), from the device descriptions, which the firmware shares.
+SERVO_MAX_RPM = {
+    name: rpm
+    for name in devices.names("servo")
+    if (rpm := devices.load(name).max_speed_rpm) is not None
+}
 
 
 class RobotError(SnakebotError):

@@ -22,7 +22,12 @@ from types import TracebackType
 from typing import Any
 
 from snakebot import devices, protocol
-from snakebot.controller.errors import ControllerError, ControllerLinkError, NotAController
+from snakebot.controller.errors import (
+    ControllerError,
+    ControllerLinkError,
+    ControllerRefused,
+    NotAController,
+)
 from snakebot.controller.table import Controller, Register, load
 from snakebot.protocol import CorruptPacket, DxlTimeout, ErrorFlags, ServoError
 from snakebot.transport import DxlClient
@@ -167,15 +172,18 @@ class ControllerClient:
         except ServoError as exc:
             flags = ErrorFlags(exc.flags)
             hint = (
-                "a value outside the register's range, or a register that cannot be written"
+                "a value outside the register's range, a register that cannot be written, "
+                "or, while the serpenoid runs, a value its joints' limits or the servos' "
+                "speed refuse (the Refusal Reason register says which)"
                 if flags & ErrorFlags.RANGE
                 else "an instruction it does not support"
                 if flags & ErrorFlags.INSTRUCTION
                 else flags.describe()
             )
-            raise ControllerError(
+            raise ControllerRefused(
                 f"{where} refused {what} ({flags.describe()}: {hint}); check that this "
-                "snakebot matches the controller's firmware version"
+                "snakebot matches the controller's firmware version",
+                exc.flags,
             ) from None
 
     # -- raw transactions -----------------------------------------------------------------

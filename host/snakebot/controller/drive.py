@@ -23,8 +23,9 @@ from typing import Any
 
 from snakebot.controller import playback, words
 from snakebot.controller.client import ControllerClient, RosterEntry
-from snakebot.controller.errors import ControllerError, ControllerLinkError
+from snakebot.controller.errors import ControllerError, ControllerLinkError, ControllerRefused
 from snakebot.controller.monitor import sample, servo_record
+from snakebot.protocol import ErrorFlags
 
 STEER_STEP = math.radians(5)
 """How far one left/right press turns: radians of Steering Offset."""
@@ -175,7 +176,12 @@ class Driver:
         except ControllerLinkError:
             raise
         except ControllerError as exc:  # the controller's own checks said no: keep driving
-            return f"refused: {exc}"
+            if not isinstance(exc, ControllerRefused) or not exc.flags & ErrorFlags.RANGE:
+                return f"refused: {exc}"
+            name, _ = playback.refusal_reason(self.ctl)
+            # RANGE from a register inside its range: the running wave would leave a
+            # joint's limits or pass the servo's speed (the controller's validation)
+            return f"at the end of what the joints allow ({register}: Refusal Reason {name})"
         setattr(self, attr, reg.to_units(raw, unit))
         return None
 

@@ -10,6 +10,15 @@ class ControllerError(SnakebotError):
     """The controller refused something, or is not in a state to do it."""
 
 
+class ControllerRefused(ControllerError):
+    """The controller answered with an error byte (``flags``): it refused the instruction
+    and changed nothing."""
+
+    def __init__(self, message: str, flags: int) -> None:
+        super().__init__(message)
+        self.flags = flags
+
+
 class ControllerLinkError(ControllerError):
     """The controller did not answer on the PC link, or answered with damaged packets."""
 

@@ -66,6 +66,15 @@ class SerpenoidSettings:
     offset: float = 0.0
 
 
+def refusal_reason(ctl: ControllerClient) -> tuple[str, str]:
+    """The controller's last Refusal Reason (Program page): its name and what it means,
+    with the fix."""
+    code = ctl.read("Refusal Reason")["Refusal Reason"]
+    names = {v: k for k, v in ctl.table.enums["Refusal Reason"].items()}
+    name = names.get(code, str(code))
+    return name, REFUSALS.get(name, "see protocol/controller.md")
+
+
 def _fmt_angle(rad: float, rate: bool = False) -> str:
     unit = "rad/s" if rate else "rad"
     dunit = "deg/s" if rate else "deg"
@@ -183,12 +192,9 @@ def _start(
     ):
         return _status(ctl, after)  # a short table played once is already over
     if newly_refused:
-        code = ctl.read("Refusal Reason")["Refusal Reason"]
-        names = {v: k for k, v in ctl.table.enums["Refusal Reason"].items()}
-        name = names.get(code, str(code))
+        name, why = refusal_reason(ctl)
         raise ControllerError(
-            f"the controller refused {command} (Refusal Reason {name}): "
-            f"{REFUSALS.get(name, 'see protocol/controller.md')}; nothing was started"
+            f"the controller refused {command} (Refusal Reason {name}): {why}; nothing was started"
         )
     raise ControllerError(
         f"the controller did not start ({command} left it {state}; error flags: "

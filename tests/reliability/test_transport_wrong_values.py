@@ -122,6 +122,21 @@ def test_a_value_always_outside_its_range_is_refused(scripted):
     assert len(servo.heard) == 3
 
 
+@pytest.mark.parametrize(
+    ("name", "value"),
+    [("Present Temperature", 200), ("Present Position", 1500), ("Present Speed", 1 << 11)],
+)
+def test_a_read_only_value_outside_what_the_servo_can_hold_is_refused(scripted, name, value):
+    # Read-only registers have no write range: these ranges come from the description's
+    # read ranges and encodings. A damaged telemetry value used to pass.
+    reg = ControlTable.for_model("AX-12A").by_name(name)
+    reply = protocol.status(1, 0, value.to_bytes(reg.size, "little"))
+    servo, client = scripted(lambda p, n: reply)
+    with pytest.raises(CorruptPacket, match=f"{name} = {value}, outside its range"):
+        client.read(1, reg.address, reg.size)
+    assert len(servo.heard) == 3
+
+
 def test_range_checks_can_be_turned_off(scripted):
     servo = ScriptedServo(lambda p, n: punch(5))
     client = DxlClient(servo.path, echo=False, latency_s=1.0, check_ranges=False)

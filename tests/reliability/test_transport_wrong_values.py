@@ -10,6 +10,7 @@ import select
 import threading
 import tty
 from collections.abc import Callable, Iterator
+from types import SimpleNamespace
 
 import pytest
 
@@ -23,6 +24,7 @@ from snakebot.protocol import (
     ServoError,
 )
 from snakebot.protocol.control_table import ControlTable
+from snakebot.robots.calibrate import read_zero_ticks
 from snakebot.transport import DxlClient
 
 PUNCH = ControlTable.for_model("AX-12A").by_name("Punch")
@@ -172,3 +174,21 @@ def test_a_range_error_for_data_out_of_range_is_reported_at_once(scripted):
     with pytest.raises(ServoError):
         client.write(1, LED.address, b"\x07")
     assert len(servo.heard) == 1
+
+
+def test_calibration_saves_a_zero_tick_only_when_two_reads_agree(scripted):
+    # The first Present Position reply is damaged within the range (700 for 500): it
+    # must not become the zero tick written to the robot file.
+    present = ControlTable.for_model("AX-12A").by_name("Present Position")
+    positions = iter([700, 500, 500])
+
+    def script(p: Packet, n: int) -> bytes:
+        if p.code == Instruction.READ and p.params[0] == present.address:
+            return protocol.status(1, 0, next(positions).to_bytes(2, "little"))
+        if p.code == Instruction.READ:  # the model number and firmware: an AX-12A
+            return protocol.status(1, 0, bytes([12, 0, 24])[: p.params[1]])
+        return protocol.status(1, 0)  # PING, the torque-off WRITE
+
+    servo, client = scripted(script)
+    robot = SimpleNamespace(name="one", joints=[SimpleNamespace(servo_id=1)])
+    assert read_zero_ticks(client, robot) == {1: 500}

@@ -3,6 +3,7 @@
     python -m tools.wrong_values                          # 1 % corruption, seeds 1-3, 10^4 each
     python -m tools.wrong_values --seeds 7 --transactions 40000 --corrupt 0.005 --json
     python -m tools.wrong_values --baseline               # without the client's defences
+    python -m tools.wrong_values --confirmed              # every READ as read_confirmed
 
 A ``DxlClient`` talks to one emulated AX-12A through ``sim://`` (the bus runs as fast as
 the host allows, so a seed fixes every damaged byte). Each transaction is a READ of a
@@ -14,7 +15,9 @@ are counted by kind; a ServoError with the CHECKSUM bit is the servo saying it r
 a damaged instruction.
 
 ``--baseline`` measures the client as it was before these defences: no resend on the
-CHECKSUM and INSTRUCTION bits, no range check of the values read.
+CHECKSUM and INSTRUCTION bits, no range check of the values read. ``--confirmed`` reads
+with ``read_confirmed`` (two equal replies), as the tools do for values they base
+decisions on.
 """
 
 from __future__ import annotations
@@ -51,7 +54,9 @@ class Tally:
         return 1e4 * self.wrong_values / max(1, self.transactions)
 
 
-def run(seed: int, transactions: int, corrupt: float, baseline: bool = False) -> Tally:
+def run(
+    seed: int, transactions: int, corrupt: float, baseline: bool = False, confirmed: bool = False
+) -> Tally:
     """``transactions`` transactions at ``corrupt`` with faults seeded by ``seed``."""
     table = ControlTable.for_model(MODEL)
     url = f"sim://?ids={SERVO_ID}&model={MODEL}&corrupt={corrupt}&seed={seed}&return_delay=0"
@@ -64,6 +69,7 @@ def run(seed: int, transactions: int, corrupt: float, baseline: bool = False) ->
     try:
         with DxlClient(url, echo=False, check_ranges=not baseline) as client:
             servo = client.port.bus.servos[0]
+            read = client.read_confirmed if confirmed else client.read
             for _ in range(transactions):
                 tally.transactions += 1
                 try:
@@ -72,7 +78,7 @@ def run(seed: int, transactions: int, corrupt: float, baseline: bool = False) ->
                         last = min(len(entries) - 1, first + rng.randrange(3))
                         start = entries[first].address
                         length = entries[last].address + entries[last].size - start
-                        got = client.read(SERVO_ID, start, length)
+                        got = read(SERVO_ID, start, length)
                         tally.reads += 1
                         truth = servo.regs.read(start, length)
                         if got != truth:
@@ -101,10 +107,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--transactions", type=int, default=10_000)
     parser.add_argument("--corrupt", type=float, default=0.01)
     parser.add_argument("--baseline", action="store_true")
+    parser.add_argument("--confirmed", action="store_true")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
     for seed in args.seeds:
-        tally = run(seed, args.transactions, args.corrupt, args.baseline)
+        tally = run(seed, args.transactions, args.corrupt, args.baseline, args.confirmed)
         if args.json:
             print(json.dumps({**asdict(tally), "per_10k": tally.per_10k()}))
             continue

@@ -161,6 +161,9 @@ def _doc(registers, **extra):
         ([{"address": 2, "size": 1, "name": "A", "access": "RW", "scale": "speed"}], {}, "speed"),
         ([{"address": 2, "size": 1, "name": "A", "access": "RW", "max": 3, "default": 4}], {}, "4"),
         ([{"address": 2, "size": 1, "name": "A", "access": "R", "encoding": "bcd"}], {}, "bcd"),
+        ([{"address": 2, "size": 1, "name": "A", "access": "R", "read": [0, 256]}], {}, "0..255"),
+        ([{"address": 2, "size": 1, "name": "A", "access": "R", "read": [5, 4]}], {}, "fit"),
+        ([{"address": 2, "size": 1, "name": "A", "access": "R", "read": "B"}], {}, "low, high"),
         ([], {"status_return_level": "Status Return Level"}, "no register"),
         (
             [{"address": 2, "size": 2, "name": "G", "access": "RW", "min": 0, "max": 10}],
@@ -207,3 +210,17 @@ def test_the_servo_window_speaks_in_the_servos_ticks_and_units():
     assert fields["Max Tick"].value_range() == position.range
     assert fields["Present Speed"].encoding is AX.register("Present Speed").encoding
     assert fields["Present Load"].scale == AX.register("Present Load").scale
+
+
+def test_values_read_have_the_range_the_servo_can_hold():
+    """A read-only register's range comes from its ``read`` entry, written once (Present
+    Position shares Goal Position's), or from its encoding; Model Number and Firmware
+    Version have none (the model number is what identifies an unknown servo)."""
+    ranges = {r.name: r.read_range() for r in AX.registers}
+    assert ranges["Present Position"] == AX.register("Goal Position").value_range()
+    assert ranges["Present Voltage"] == AX.register("Min Voltage Limit").value_range()
+    assert ranges["Present Speed"] == ranges["Present Load"] == (0, 2047)
+    assert ranges["Moving"] == ranges["Registered"] == (0, 1)
+    assert ranges["Model Number"] is None and ranges["Firmware Version"] is None
+    mx = devices.load("MX-64")  # a variant inherits them, in its own position range
+    assert mx.register("Present Position").read_range() == (0, 4095)

@@ -10,6 +10,7 @@ import select
 import threading
 import tty
 from collections.abc import Callable, Iterator
+from types import SimpleNamespace
 
 import pytest
 
@@ -23,6 +24,7 @@ from snakebot.protocol import (
     ServoError,
 )
 from snakebot.protocol.control_table import ControlTable
+from snakebot.robots.calibrate import read_zero_ticks
 from snakebot.transport import DxlClient
 
 PUNCH = ControlTable.for_model("AX-12A").by_name("Punch")
@@ -122,6 +124,21 @@ def test_a_value_always_outside_its_range_is_refused(scripted):
     assert len(servo.heard) == 3
 
 
+@pytest.mark.parametrize(
+    ("name", "value"),
+    [("Present Temperature", 200), ("Present Position", 1500), ("Present Speed", 1 << 11)],
+)
+def test_a_read_only_value_outside_what_the_servo_can_hold_is_refused(scripted, name, value):
+    # Read-only registers have no write range: these ranges come from the description's
+    # read ranges and encodings. A damaged telemetry value used to pass.
+    reg = ControlTable.for_model("AX-12A").by_name(name)
+    reply = protocol.status(1, 0, value.to_bytes(reg.size, "little"))
+    servo, client = scripted(lambda p, n: reply)
+    with pytest.raises(CorruptPacket, match=f"{name} = {value}, outside its range"):
+        client.read(1, reg.address, reg.size)
+    assert len(servo.heard) == 3
+
+
 def test_range_checks_can_be_turned_off(scripted):
     servo = ScriptedServo(lambda p, n: punch(5))
     client = DxlClient(servo.path, echo=False, latency_s=1.0, check_ranges=False)
@@ -157,3 +174,21 @@ def test_a_range_error_for_data_out_of_range_is_reported_at_once(scripted):
     with pytest.raises(ServoError):
         client.write(1, LED.address, b"\x07")
     assert len(servo.heard) == 1
+
+
+def test_calibration_saves_a_zero_tick_only_when_two_reads_agree(scripted):
+    # The first Present Position reply is damaged within the range (700 for 500): it
+    # must not become the zero tick written to the robot file.
+    present = ControlTable.for_model("AX-12A").by_name("Present Position")
+    positions = iter([700, 500, 500])
+
+    def script(p: Packet, n: int) -> bytes:
+        if p.code == Instruction.READ and p.params[0] == present.address:
+            return protocol.status(1, 0, next(positions).to_bytes(2, "little"))
+        if p.code == Instruction.READ:  # the model number and firmware: an AX-12A
+            return protocol.status(1, 0, bytes([12, 0, 24])[: p.params[1]])
+        return protocol.status(1, 0)  # PING, the torque-off WRITE
+
+    servo, client = scripted(script)
+    robot = SimpleNamespace(name="one", joints=[SimpleNamespace(servo_id=1)])
+    assert read_zero_ticks(client, robot) == {1: 500}

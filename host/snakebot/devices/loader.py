@@ -23,7 +23,7 @@ from snakebot.devices.units import Encoding, Scale, exact, shown
 SCHEMA = 1
 _REGISTER_KEYS = {
     "address", "offset", "size", "name", "access", "default", "min", "max", "area", "scale",
-    "encoding", "description", "emulator_default", "enum", "mirrors", "ticks",
+    "encoding", "description", "emulator_default", "enum", "mirrors", "ticks", "read",
 }  # fmt: skip
 
 
@@ -158,6 +158,38 @@ def _register(
     )
 
 
+def _read_ranges(
+    file: str, raws: list[dict[str, Any]], registers: list[Register]
+) -> list[Register]:
+    """The registers with their ``read`` ranges: ``[low, high]``, or the name of a
+    register whose write range values read also lie in (Present Position: Goal
+    Position's), so that a range is written once."""
+    by_name = {r.name: r for r in registers}
+    out = []
+    for raw, reg in zip(raws, registers, strict=True):
+        spec = raw.get("read")
+        if spec is None:
+            out.append(reg)
+            continue
+        if isinstance(spec, str) and spec in by_name and by_name[spec].min is not None:
+            low, high = by_name[spec].min, by_name[spec].max
+        elif isinstance(spec, list) and len(spec) == 2 and all(type(v) is int for v in spec):
+            low, high = spec
+        else:
+            raise DeviceError(
+                f"{file}: {reg.name}: read is [low, high] or the name of a register with a "
+                f"write range, not {spec!r}"
+            )
+        full_low, full_high = replace(reg, min=None, max=None).value_range()
+        if not full_low <= low <= high <= full_high:
+            raise DeviceError(
+                f"{file}: {reg.name}: read range {low}..{high} does not fit the field "
+                f"({full_low}..{full_high})"
+            )
+        out.append(replace(reg, read_min=low, read_max=high))
+    return out
+
+
 def _check(file: str, device: Device) -> None:
     """Refuse overlapping, oversized or misfiled registers and dangling references."""
     end = 0
@@ -246,6 +278,7 @@ def _build(name: str) -> Device:
         if servo is not None:  # the controller speaks in its servos' units
             scales = {**servo.scales, **scales}
         registers = [_register(file, r, scales, servo) for r in doc["registers"]]
+        registers = _read_ranges(file, doc["registers"], registers)
         # the model number is written once, as a device fact
         registers = [
             r if r.name != "Model Number" else replace(r, default=doc["model_number"])

@@ -31,6 +31,8 @@ class Register:
     description: str = ""
     emulator_default: int | None = None  # what emulated servos use where the factory varies
     enum: str | None = None  # name of the value set (Device.enums) its values belong to
+    read_min: int | None = None  # range a value read lies in, where it is narrower than
+    read_max: int | None = None  # the field (a read-only register's physical range)
 
     @property
     def readable(self) -> bool:
@@ -67,6 +69,19 @@ class Register:
         else:
             low, high = 0, (1 << bits) - 1
         return (low if self.min is None else self.min, high if self.max is None else self.max)
+
+    def read_range(self) -> tuple[int, int] | None:
+        """The range every raw value read from this register lies in, where one is known:
+        its read range, else its write range, else what its sign-magnitude encoding can
+        hold; None when any value of the field is possible."""
+        if self.read_min is not None and self.read_max is not None:
+            return self.read_min, self.read_max
+        if self.min is not None and self.max is not None:
+            return self.min, self.max
+        mask = self.encoding.magnitude_mask
+        if mask is not None:  # the magnitude and the direction bit above it
+            return 0, (mask << 1) | 1
+        return None
 
     def accepts(self, value: int) -> bool:
         """Whether ``value`` (raw) is a legal WRITE of this register."""

@@ -94,7 +94,14 @@ def read_zero_ticks(client: DxlClient, robot: Robot) -> dict[int, int]:
         )
     for joint in robot.joints:
         client.write(joint.servo_id, _TORQUE.address, _TORQUE.encode(0))
-    return {j.servo_id: client.read_u16(j.servo_id, _PRESENT.address) for j in robot.joints}
+    # Confirmed by a second read: the zero tick is saved in the robot file, and a reply
+    # damaged within the position range passes the checksum about once in 256.
+    return {
+        j.servo_id: int.from_bytes(
+            client.read_confirmed(j.servo_id, _PRESENT.address, _PRESENT.size), "little"
+        )
+        for j in robot.joints
+    }
 
 
 def jog(client: DxlClient, joint: Joint, zero_tick: int) -> int:

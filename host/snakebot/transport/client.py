@@ -519,17 +519,19 @@ class DxlClient:
         self, address: int, length: int
     ) -> list[tuple[str, int, int, bool, int, int]]:
         """(name, offset, size, signed, low, high) of each readable register of the device
-        with a documented range that lies wholly within ``length`` bytes from ``address``."""
+        with a known range (Register.read_range) that lies wholly within ``length`` bytes
+        from ``address``."""
         if not self.check_ranges:
             return []
-        return [
-            (r.name, r.address - address, r.size, r.signed, r.min, r.max)
+        spans = [
+            (r, r.read_range())
             for r in self.device.registers
-            if r.readable
-            and r.min is not None
-            and r.max is not None
-            and address <= r.address
-            and r.end <= address + length
+            if r.readable and address <= r.address and r.end <= address + length
+        ]
+        return [
+            (r.name, r.address - address, r.size, r.signed, *span)
+            for r, span in spans
+            if span is not None
         ]
 
     def read_u8(self, servo_id: int, address: int) -> int:

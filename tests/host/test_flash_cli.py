@@ -65,7 +65,7 @@ def test_flash_stores_the_image_byte_for_byte_and_starts_it(tmp_path):
     assert started == [APP_BASE]
     assert commands == ["L", "GO"]
     out = result.stdout
-    assert "Press RESET on the CM-530 now" in out
+    assert "Press MODE on the CM-530 or power-cycle it now" in out
     assert f"Wrote {len(image) + 1} bytes in " in out and "kbit/s)" in out
     # The emulator sums every byte it received, trailer included.
     assert f"Checksum verified (0x{sum8(image + bytes([trailer])):02X}" in out
@@ -150,7 +150,7 @@ def test_no_answer_to_hash(tmp_path, monkeypatch):
         result = run(str(tmp_path / "fw.bin"), "--port", server.device, "--reset-timeout", "0.4")
     assert result.exit_code == 1
     assert "error: no answer from the CM-530 bootloader" in result.stderr
-    assert "press RESET" in result.stderr
+    assert "press MODE or power-cycle the CM-530" in result.stderr
 
 
 def test_no_ready_after_load(tmp_path, monkeypatch):

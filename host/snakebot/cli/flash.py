@@ -11,12 +11,13 @@ from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType, controller_port
 from snakebot.firmware import image as firmware_image
 from snakebot.flash import PC_LINK_BAUD, FlashTimeouts, board_layout, flash, load_image
-from snakebot.flash.loader import last_line
+from snakebot.flash.errors import FlashError
+from snakebot.flash.loader import RESET_HINT, last_line
 from snakebot.transport import open_port
 
 
 class _LazyBar:
-    """A progress bar that appears with the first image byte, not before the RESET prompt."""
+    """A progress bar that appears with the first image byte, not before the reset prompt."""
 
     def __init__(self, length: int, out: TextIO) -> None:
         self.length = length
@@ -37,6 +38,25 @@ class _LazyBar:
             self._bar = None
 
 
+def _interactive() -> bool:
+    """Whether someone at a terminal can answer a question."""
+    return sys.stdin.isatty()
+
+
+def _confirm_unverified(warning: str, yes: bool, out: TextIO) -> bool:
+    """Whether to start firmware whose checksum report could not be read: --yes says so,
+    else the user is asked; with nobody to ask, it is an error naming --yes."""
+    click.echo(f"warning: {warning}", file=out)
+    if yes:
+        return True
+    if not _interactive():
+        raise FlashError(
+            f"{warning}; the application was NOT started and nobody is at the terminal to "
+            f"confirm: run again with --yes to start it anyway, or {RESET_HINT} and flash again"
+        )
+    return click.confirm("Start the new firmware anyway?", default=False, err=out is sys.stderr)
+
+
 @click.command("flash")
 @click.argument("firmware", required=False, type=click.Path(dir_okay=False, path_type=str))
 @click.option(
@@ -53,7 +73,7 @@ class _LazyBar:
     "--no-go",
     is_flag=True,
     help="Leave the board in the bootloader after a verified upload instead of "
-    "starting the new firmware (send GO later, or press RESET).",
+    "starting the new firmware (send GO later, or press MODE or power-cycle the CM-530).",
 )
 @click.option(
     "--no-checksum-byte",
@@ -65,13 +85,21 @@ class _LazyBar:
     "--reset-timeout",
     type=NumberType(0.1),
     metavar="SECONDS",
-    help="How long to wait for you to press RESET (default 20, or SNAKEBOT_FLASH_RESET_TIMEOUT_S).",
+    help="How long to wait for you to reset the board (press MODE or power-cycle it; "
+    "default 20, or SNAKEBOT_FLASH_RESET_TIMEOUT_S).",
 )
 @click.option(
     "--force",
     is_flag=True,
     help="Flash even if the image does not look like snakebot firmware for the CM-530 "
     "linked at 0x08003000 (vector table, board name and length in its identity block).",
+)
+@click.option(
+    "--yes",
+    "-y",
+    is_flag=True,
+    help="Start the new firmware without asking when the bootloader's checksum report is "
+    "in a format snakebot does not know (it is then not verified).",
 )
 @click.option(
     "--json",
@@ -86,6 +114,7 @@ def flash_command(
     no_checksum_byte: bool,
     reset_timeout: float | None,
     force: bool,
+    yes: bool,
     as_json: bool,
 ) -> None:
     """Flash FIRMWARE (a raw .bin) onto the CM-530 through its ROBOTIS bootloader.
@@ -93,9 +122,11 @@ def flash_command(
     Without FIRMWARE it flashes snakebot's own controller firmware: the image `make
     firmware` built in this checkout, else the one shipped with the installed package.
 
-    Run the command, then press RESET on the CM-530 (or switch it on) when asked: the
-    bootloader only listens for a moment after a reset. The command then loads the image,
-    checks the bootloader's checksum against its own, and starts the new firmware.
+    Run the command, then press MODE on the CM-530 or power-cycle it when asked (it has no
+    RESET button): the bootloader only listens for a moment after a reset. The command
+    then loads the image, checks the bootloader's checksum against its own, and starts the
+    new firmware. A checksum report it cannot read is shown, and you are asked whether to
+    start the firmware anyway (--yes: start it without asking).
 
     \b
         snakebot flash --port /dev/ttyUSB0
@@ -131,16 +162,20 @@ def flash_command(
                 timeouts=timeouts,
                 say=say,
                 progress=bar.update,
+                confirm=lambda warning: _confirm_unverified(warning, yes, out),
             )
     finally:
         bar.close()
     say(f"Wrote {result.bytes_sent} bytes in {result.seconds:.2f} s ({result.kbit_s:.1f} kbit/s)")
-    say(f"Checksum verified (0x{result.reported_checksum:02X}, {result.checksum_meaning})")
+    if result.reported_checksum is None:
+        say("Checksum NOT verified (a report in an unknown format, accepted)")
+    else:
+        say(f"Checksum verified (0x{result.reported_checksum:02X}, {result.checksum_meaning})")
     if result.started:
         said = last_line(result.go_reply)
         say(f"Sent GO: the new firmware is starting (the bootloader said: {said})")
     else:
-        say("Left the board in the bootloader (--no-go): press RESET or send GO to start it.")
+        say(f"Left the board in the bootloader (--no-go): send GO to start it, or {RESET_HINT}.")
     if as_json:
         click.echo(
             dumps(

@@ -13,6 +13,7 @@ from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType
 from snakebot.cli.signals import STOP_SIGNALS
 from snakebot.sim.bootloader import (
+    CHECKSUM_FORMATS,
     DEFAULT_SILENCE_S,
     PC_LINK_BAUD,
     Bootloader,
@@ -56,6 +57,14 @@ from snakebot.sim.bootloader import (
     is_flag=True,
     help="Report the sum of all received bytes but the last (the checksum byte).",
 )
+@click.option(
+    "--checksum-format",
+    type=click.Choice(list(CHECKSUM_FORMATS)),
+    default="hex8",
+    show_default=True,
+    help="How the Checksum line is printed: the sum's width (8/16/32 bits) and base; "
+    "'unknown' prints no number.",
+)
 @click.option("--mute", is_flag=True, help="Fault: never answer '#'.")
 @click.option("--no-ready", is_flag=True, help="Fault: never answer the load command.")
 @click.option(
@@ -76,6 +85,7 @@ def bootloader(
     silence: float,
     no_pace: bool,
     sum_excludes_last: bool,
+    checksum_format: str,
     mute: bool,
     no_ready: bool,
     corrupt: bool,
@@ -96,6 +106,7 @@ def bootloader(
         faults=BootloaderFaults(mute=mute, no_ready=no_ready, corrupt=corrupt),
         silence_s=silence,
         sum_excludes_last=sum_excludes_last,
+        checksum_format=checksum_format,
     )
     server = BootloaderPty(boot, reset_after_s=reset_after, pace=not no_pace, link=link).start()
     stop = threading.Event()
@@ -124,8 +135,9 @@ def bootloader(
     with server.lock:
         images = list(boot.images)
     for n, image in enumerate(images, 1):
-        total = boot.reported_sum(image, sum_excludes_last)
+        bits = CHECKSUM_FORMATS[checksum_format][1]
+        total = boot.reported_sum(image, sum_excludes_last, bits)
         if as_json:
             click.echo(dumps({"image": n, "bytes": len(image), "checksum": total}))
         else:
-            click.echo(f"image {n}: {len(image)} bytes, checksum 0x{total:02X}")
+            click.echo(f"image {n}: {len(image)} bytes, checksum 0x{total:0{bits // 4}X}")

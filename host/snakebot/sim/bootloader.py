@@ -24,7 +24,9 @@ without a board:
   the low byte of the sum of *every* byte it received, including the checksum byte that
   RoboPlus Terminal appends (the real bootloader's exact sum is not confirmed; see
   docs/hardware.md). With ``sum_excludes_last`` it sums all but the last byte instead,
-  the other reading of the same descriptions.
+  the other reading of the same descriptions. How the sum is printed is not confirmed
+  either: ``checksum_format`` picks one of :data:`CHECKSUM_FORMATS` (8, 16 or 32 bits, hex
+  or decimal, and one the host cannot read).
 * It keeps every image it received (:attr:`Bootloader.images`), so a test can compare
   the stored bytes with the file, byte for byte.
 
@@ -90,6 +92,20 @@ HELP = (
 )
 
 
+CHECKSUM_FORMATS: dict[str, tuple[str, int]] = {
+    "hex8": ("Checksum: {:02X}", 8),
+    "hex16": ("Checksum: {:04X}", 16),
+    "hex32": ("Checksum: 0x{:08X}", 32),
+    "hex32-lower": ("Checksum:{:x}", 32),
+    "dec8": ("Checksum: {:d}", 8),
+    "dec16": ("Checksum : {:d}", 16),
+    "dec32": ("CHECKSUM {:d}", 32),
+    "unknown": ("Checksum: OK", 8),
+}
+"""Ways the report may be printed: name -> (line template, sum width in bits). "unknown"
+prints no number at all."""
+
+
 @dataclass(frozen=True)
 class BootloaderFaults:
     """What to get wrong, for tests of the host's error paths."""
@@ -111,6 +127,7 @@ class Bootloader:
     faults: BootloaderFaults = field(default_factory=BootloaderFaults)
     silence_s: float = DEFAULT_SILENCE_S
     sum_excludes_last: bool = False
+    checksum_format: str = "hex8"
     hash_window_s: float | None = None
     capacity: int = APP_AREA
     boot_mode: str = "app"
@@ -132,9 +149,14 @@ class Bootloader:
         return self.images[-1] if self.images else None
 
     @staticmethod
-    def reported_sum(data: bytes, excludes_last: bool = False) -> int:
-        """The sum this bootloader reports for ``data``."""
-        return sum(data[:-1] if excludes_last else data) & 0xFF
+    def reported_sum(data: bytes, excludes_last: bool = False, bits: int = 8) -> int:
+        """The sum this bootloader reports for ``data``, ``bits`` wide."""
+        return sum(data[:-1] if excludes_last else data) % (1 << bits)
+
+    def report_line(self, data: bytes) -> str:
+        """The ``Checksum`` line for a stored image, in :attr:`checksum_format`."""
+        template, bits = CHECKSUM_FORMATS[self.checksum_format]
+        return template.format(self.reported_sum(data, self.sum_excludes_last, bits))
 
     # -- events ---------------------------------------------------------------------------
 
@@ -261,8 +283,7 @@ class Bootloader:
         if self.faults.corrupt:
             data[len(data) // 2] ^= 0x01
         self.images.append(bytes(data))
-        total = self.reported_sum(data, self.sum_excludes_last)
-        return f"\r\nSize: {len(data)}\r\nChecksum: {total:02X}\r\n{PROMPT}".encode()
+        return f"\r\nSize: {len(data)}\r\n{self.report_line(data)}\r\n{PROMPT}".encode()
 
 
 class BootloaderPty(Server):

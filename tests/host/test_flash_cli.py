@@ -189,10 +189,10 @@ def test_missing_port(tmp_path):
     [
         ("missing.bin", None, "not found: build it with make firmware"),
         ("empty.bin", b"", "is empty"),
-        ("fw.hex", b":020000040800F2\n", "Intel HEX file"),
-        ("fw.elf", b"\x7fELF\x01\x01\x01", "ELF file"),
-        ("disguised.bin", b"\x7fELF\x01\x01\x01\x00", "ELF file"),
-        ("hex.bin", b":10000000000001207133000800000000000000004F\n", "Intel HEX file"),
+        ("fw.hex", b":020000040800F2\n", "holds no bytes to load"),
+        ("fw.elf", b"\x7fELF\x01\x01\x01", "not a readable ELF file"),
+        ("disguised.bin", b"\x7fELF\x01\x01\x01\x00", "not a readable ELF file"),
+        ("hex.bin", b":10000000000001207133000800000000000000004F\n", "not a valid Intel HEX"),
         (
             "low.bin",
             (0x20010000).to_bytes(4, "little") + (0x08000101).to_bytes(4, "little"),

@@ -117,7 +117,7 @@ def flash_command(
     yes: bool,
     as_json: bool,
 ) -> None:
-    """Flash FIRMWARE (a raw .bin) onto the CM-530 through its ROBOTIS bootloader.
+    """Flash FIRMWARE (a .bin, .hex or .elf) onto the CM-530 through its ROBOTIS bootloader.
 
     Without FIRMWARE it flashes snakebot's own controller firmware: the image `make
     firmware` built in this checkout, else the one shipped with the installed package.
@@ -131,10 +131,12 @@ def flash_command(
     \b
         snakebot flash --port /dev/ttyUSB0
         snakebot flash build/cm530/firmware.bin --port /dev/ttyUSB0
+        snakebot flash build/cm530/firmware.elf --port /dev/ttyUSB0
 
     The link runs at 57600 baud, so 100 KB takes about 18 s. Timeouts can be raised with
-    the SNAKEBOT_FLASH_*_S environment variables (see snakebot.flash.settings). Give the
-    .bin, not the .hex or .elf: the bootloader takes raw bytes.
+    the SNAKEBOT_FLASH_*_S environment variables (see snakebot.flash.settings). A .hex or
+    .elf is turned into the raw bytes the bootloader takes (the .elf's loadable segments at
+    their load addresses), and refused if it puts anything outside the application area.
     """
     out = sys.stderr if as_json else sys.stdout
 

@@ -53,7 +53,9 @@ def test_report_readings(text, readings):
 def flash(image_path, boot: Bootloader, *args: str, input: str | None = None):
     with serve(boot) as server:
         result = CliRunner().invoke(
-            main, ["flash", str(image_path), "--port", server.device, *args], input=input
+            main,
+            ["flash", "--no-verify", str(image_path), "--port", server.device, *args],
+            input=input,
         )
         with server.lock:
             started = list(boot.started)

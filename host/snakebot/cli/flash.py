@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable
 from typing import Any, TextIO
 
 import click
@@ -12,7 +13,9 @@ from snakebot.cli.params import NumberType, controller_port
 from snakebot.firmware import image as firmware_image
 from snakebot.flash import PC_LINK_BAUD, FlashTimeouts, board_layout, flash, load_image
 from snakebot.flash.errors import FlashError
+from snakebot.flash.image import image_info
 from snakebot.flash.loader import RESET_HINT, last_line
+from snakebot.flash.verify import Verified, verify_firmware
 from snakebot.transport import open_port
 
 
@@ -76,6 +79,12 @@ def _confirm_unverified(warning: str, yes: bool, out: TextIO) -> bool:
     "starting the new firmware (send GO later, or press MODE or power-cycle the CM-530).",
 )
 @click.option(
+    "--no-verify",
+    is_flag=True,
+    help="After GO, do not wait for the new firmware to answer and check its image "
+    "(for firmware that is not snakebot's, or a board whose PC link is elsewhere).",
+)
+@click.option(
     "--no-checksum-byte",
     is_flag=True,
     help="Send only the image, without the trailing checksum byte that RoboPlus "
@@ -111,6 +120,7 @@ def flash_command(
     firmware: str | None,
     port: str,
     no_go: bool,
+    no_verify: bool,
     no_checksum_byte: bool,
     reset_timeout: float | None,
     force: bool,
@@ -124,9 +134,12 @@ def flash_command(
 
     Run the command, then press MODE on the CM-530 or power-cycle it when asked (it has no
     RESET button): the bootloader only listens for a moment after a reset. The command
-    then loads the image, checks the bootloader's checksum against its own, and starts the
-    new firmware. A checksum report it cannot read is shown, and you are asked whether to
-    start the firmware anyway (--yes: start it without asking).
+    then loads the image, checks the bootloader's checksum against its own, starts the
+    new firmware, and verifies it: it must answer PING at ID 200 with the model number
+    and the firmware version of the image, and compute the same CRC-32 over its own image
+    in flash as over the bytes sent (--no-verify skips this). A checksum report it cannot
+    read is shown, and you are asked whether to start the firmware anyway (--yes: start
+    it without asking).
 
     \b
         snakebot flash --port /dev/ttyUSB0
@@ -178,6 +191,9 @@ def flash_command(
         say(f"Sent GO: the new firmware is starting (the bootloader said: {said})")
     else:
         say(f"Left the board in the bootloader (--no-go): send GO to start it, or {RESET_HINT}.")
+    verified = None
+    if result.started and not no_verify:
+        verified = _verify(port, image, layout.app_base, timeouts, say)
     if as_json:
         click.echo(
             dumps(
@@ -195,7 +211,36 @@ def flash_command(
                     "started": result.started,
                     "banner": result.banner.decode("latin-1"),
                     "go_reply": result.go_reply.decode("latin-1"),
+                    "verified": verified is not None,
+                    "firmware_crc": None if verified is None else verified.crc,
+                    "boot_seconds": None if verified is None else round(verified.boot_seconds, 3),
                 }
             ),
             file=sys.stdout,
         )
+
+
+def _verify(
+    port: str, image: bytes, app_base: int, timeouts: FlashTimeouts, say: Callable[[str], None]
+) -> Verified | None:
+    """Wait for the new firmware and have it check its image; None when the image carries
+    no identity block (flashed with --force), so there is nothing to check it against."""
+    info = image_info(image, app_base)
+    if info is None:
+        say("Not verified: the image has no snakebot identity block (flashed with --force).")
+        return None
+    say(f"Waiting up to {timeouts.boot:g} s for the new firmware to answer PING...")
+    shown = [0]
+
+    def waited(seconds: float) -> None:
+        if int(seconds) > shown[0]:
+            shown[0] = int(seconds)
+            say(f"  no answer yet after {shown[0]} s")
+
+    verified = verify_firmware(port, image, info, timeouts, waited)
+    say(
+        f"Verified: controller at ID {verified.controller_id} runs firmware version "
+        f"{verified.firmware_version}, its image in flash has CRC-32 0x{verified.crc:08X} "
+        "as sent"
+    )
+    return verified

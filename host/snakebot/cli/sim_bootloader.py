@@ -73,6 +73,19 @@ from snakebot.sim.bootloader import (
     help="Fault: flip one bit of each stored image (the checksum will not match).",
 )
 @click.option(
+    "--drop-every",
+    type=click.IntRange(0),
+    default=0,
+    metavar="N",
+    help="Fault: lose every Nth image byte on the way in (0: none).",
+)
+@click.option(
+    "--reset-during-transfer",
+    type=click.IntRange(1),
+    metavar="BYTES",
+    help="Fault: reset the board once BYTES image bytes have arrived.",
+)
+@click.option(
     "--json",
     "as_json",
     is_flag=True,
@@ -89,6 +102,8 @@ def bootloader(
     mute: bool,
     no_ready: bool,
     corrupt: bool,
+    drop_every: int,
+    reset_during_transfer: int | None,
     as_json: bool,
 ) -> None:
     """Serve an emulated CM-530 bootloader until interrupted (Ctrl-C).
@@ -103,7 +118,13 @@ def bootloader(
     On exit it lists the images it received, with their sizes and checksums.
     """
     boot = Bootloader(
-        faults=BootloaderFaults(mute=mute, no_ready=no_ready, corrupt=corrupt),
+        faults=BootloaderFaults(
+            mute=mute,
+            no_ready=no_ready,
+            corrupt=corrupt,
+            drop_every=drop_every,
+            reset_after=reset_during_transfer,
+        ),
         silence_s=silence,
         sum_excludes_last=sum_excludes_last,
         checksum_format=checksum_format,

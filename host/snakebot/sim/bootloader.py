@@ -32,7 +32,9 @@ without a board:
 
 Faults for tests (:class:`BootloaderFaults`): ``mute`` never answers ``#``; ``no_ready``
 never answers the load command; ``corrupt`` flips one bit of the stored image, so the
-reported checksum is wrong.
+reported checksum is wrong; ``drop_every`` loses every Nth image byte on the way in (a
+line that drops bytes); ``reset_after`` resets the board once that many image bytes have
+arrived (a power glitch, or MODE pressed, during the transfer).
 
 The line runs at 57600 8N1. On the pseudo-terminal a client that set another baud rate
 is not understood (its bytes are dropped, as a UART at the wrong rate would garble them),
@@ -113,6 +115,8 @@ class BootloaderFaults:
     mute: bool = False  # never answer '#'
     no_ready: bool = False  # never answer the load command
     corrupt: bool = False  # flip one bit of the stored image (middle byte)
+    drop_every: int = 0  # lose every Nth image byte (0: none)
+    reset_after: int | None = None  # reset once this many image bytes have arrived
 
 
 @dataclass
@@ -138,6 +142,7 @@ class Bootloader:
     _line: bytearray = field(default_factory=bytearray)
     _rx: bytearray = field(default_factory=bytearray)
     _overflow: int = 0
+    _arrived: int = 0  # image bytes that reached the line, dropped ones included
     _last_rx: float = 0.0
     _window_end: float | None = None
 
@@ -176,7 +181,7 @@ class Bootloader:
         out = bytearray(self.poll(now))
         for i, byte in enumerate(data):
             if self.state == "receive":
-                self._receive(data[i:], now)
+                out += self._receive(data[i:], now)
                 break
             out += self._byte(byte, now)
         return bytes(out)
@@ -237,6 +242,7 @@ class Bootloader:
             self.state = "receive"
             self._rx.clear()
             self._overflow = 0
+            self._arrived = 0
             self._last_rx = now
             return b"\r\nReady..\r\n"
         if word == "GO" and not arg:
@@ -262,11 +268,19 @@ class Bootloader:
         self.state = "app"
         return f"\r\nGo 0x{address:08X}\r\n".encode()
 
-    def _receive(self, data: bytes, now: float) -> None:
+    def _receive(self, data: bytes, now: float) -> bytes:
+        faults = self.faults
+        first = self._arrived
+        self._arrived += len(data)
+        if faults.reset_after is not None and self._arrived >= faults.reset_after:
+            return self.reset(now)  # the rest of the image meets a restarted board
+        if faults.drop_every:
+            data = bytes(b for n, b in enumerate(data, first + 1) if n % faults.drop_every)
         room = self.capacity + 1 - len(self._rx)  # one extra: the optional checksum byte
         self._rx += data[:room]
         self._overflow += max(0, len(data) - room)
         self._last_rx = now
+        return b""
 
     def _store(self) -> bytes:
         self.state = "prompt"

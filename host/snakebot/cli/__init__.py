@@ -32,6 +32,7 @@ from snakebot.cli.bus import bus  # noqa: E402
 from snakebot.cli.bus_play import bus_play  # noqa: E402
 from snakebot.cli.config import config  # noqa: E402
 from snakebot.cli.demo import demo  # noqa: E402
+from snakebot.cli.doctor import doctor  # noqa: E402
 from snakebot.cli.flash import flash_command  # noqa: E402
 from snakebot.cli.gait import gait  # noqa: E402
 from snakebot.cli.limits import limits  # noqa: E402
@@ -63,7 +64,7 @@ for command in (
     demo,
 ):
     main.add_command(command)
-for command in (plan_command, robot, config):
+for command in (plan_command, robot, config, doctor):
     main.add_command(command)
 bus.add_command(bus_play)
 for command in (predict, serve, bootloader, goto, thesis, friction):

@@ -19,6 +19,7 @@ from snakebot.sim.bootloader import (
     Bootloader,
     BootloaderFaults,
     BootloaderPty,
+    QemuHandover,
 )
 
 
@@ -86,6 +87,12 @@ from snakebot.sim.bootloader import (
     help="Fault: reset the board once BYTES image bytes have arrived.",
 )
 @click.option(
+    "--qemu",
+    is_flag=True,
+    help="After GO, run the stored image in QEMU (the qemu board: build it with make "
+    "firmware, flash build/qemu/firmware.bin --force) and pass the line to it.",
+)
+@click.option(
     "--json",
     "as_json",
     is_flag=True,
@@ -104,6 +111,7 @@ def bootloader(
     corrupt: bool,
     drop_every: int,
     reset_during_transfer: int | None,
+    qemu: bool,
     as_json: bool,
 ) -> None:
     """Serve an emulated CM-530 bootloader until interrupted (Ctrl-C).
@@ -129,7 +137,10 @@ def bootloader(
         sum_excludes_last=sum_excludes_last,
         checksum_format=checksum_format,
     )
-    server = BootloaderPty(boot, reset_after_s=reset_after, pace=not no_pace, link=link).start()
+    handover = QemuHandover() if qemu else None
+    server = BootloaderPty(
+        boot, reset_after_s=reset_after, pace=not no_pace, link=link, on_go=handover
+    ).start()
     stop = threading.Event()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
@@ -151,6 +162,8 @@ def bootloader(
                 raise click.ClickException(f"the bootloader server stopped: {server.error}")
     finally:
         server.close()
+        if handover is not None:
+            handover.close()
         for s, handler in previous.items():
             signal.signal(s, handler)
     with server.lock:

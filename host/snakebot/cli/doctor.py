@@ -29,9 +29,10 @@ MARKS = {"ok": "ok  ", "warn": "WARN", "fail": "FAIL", "skip": "skip"}
 )
 @click.option(
     "--bauds",
-    default="1000000,57600",
+    default="1000000",
     show_default=True,
-    help="Rates to scan a servo bus at, comma-separated, or 'common' / 'all'.",
+    help="Rates to scan a servo bus at, comma-separated, or 'common' / 'all' (the AX-12 "
+    "leaves the factory at 1000000).",
 )
 @click.option(
     "--bootloader",
@@ -76,7 +77,7 @@ def doctor(
                 file=out,
             )
             found += checks.servo_bus(port, id_list, rates)
-    failed = any(c.verdict == "fail" for c in found)
+    failed = [c.name for c in found if c.verdict == "fail"]
     if as_json:
         click.echo(dumps({"port": port, "ok": not failed, "checks": [c.as_dict() for c in found]}))
     else:
@@ -85,4 +86,7 @@ def doctor(
             if c.fix:
                 click.echo(f"      fix: {c.fix}")
     if failed:
+        click.echo(
+            f"error: {len(failed)} check(s) failed ({', '.join(failed)}): see the fixes", err=True
+        )
         sys.exit(1)

@@ -336,12 +336,23 @@ static uint8_t apply_limits(ctl_device *d, const uint8_t *blob, size_t len)
     return GT_OK;
 }
 
+__attribute__((weak)) uint8_t ctl_firmware_check(uint32_t len, uint32_t crc)
+{
+    (void)len;
+    (void)crc;
+    return CTL_UPLOAD_RESULT_FIRMWARE_UNAVAILABLE;
+}
+
 static void commit(ctl_device *d, uint8_t what)
 {
     uint32_t len = reg(d, CTL_UPLOAD_LENGTH, 2);
     uint32_t crc = reg(d, CTL_UPLOAD_CRC, 4);
     gt_info info;
     uint8_t result;
+    if (what == CTL_UPLOAD_COMMIT_FIRMWARE_CHECK) { /* checks the flash, not the staging */
+        d->regs[CTL_UPLOAD_RESULT] = ctl_firmware_check(len, crc);
+        return;
+    }
     if (len == 0 || len > d->capacity) {
         result = CTL_UPLOAD_RESULT_BAD_LENGTH;
     } else if (len > d->staged_end) {

@@ -91,6 +91,12 @@ bool ctl_table_changed(ctl_device *d);
 const uint8_t *ctl_active_table(const ctl_device *d, size_t *len);
 /* cffi:end */
 
+/* Upload Commit FIRMWARE_CHECK: the Upload Result for the firmware image's own CRC-32
+ * compared with `len` bytes and `crc` (protocol/controller.md). The app defines it
+ * (firmware/app/image_info.c); the core's weak default, used where there is no image
+ * (the host build), answers FIRMWARE_UNAVAILABLE. */
+uint8_t ctl_firmware_check(uint32_t len, uint32_t crc);
+
 /* The robot's limits as staged: a count, then per servo its ID, min tick, max tick. */
 #define CTL_LIMITS_RECORD 5u
 #define CTL_LIMITS_BLOB_MAX (1u + CTL_LIMITS_RECORD * CTL_MAX_JOINTS)

@@ -29,7 +29,8 @@ typedef struct {
 
 /* Configure the clock tree for sysclk = hse_hz * pll_mul (72 MHz from 8 MHz x9), AHB /1,
  * APB2 /1, APB1 /2, flash wait states to match. Falls back as described above; the
- * result says what was achieved. Call once, at start-up, from the reset clock. */
+ * result says what was achieved. Call once, at start-up, from the reset clock or from
+ * whatever clock tree a bootloader left (the PLL may still drive SYSCLK). */
 hal_clocks_t hal_clock_init(uint32_t hse_hz, unsigned pll_mul);
 
 #endif

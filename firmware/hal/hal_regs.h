@@ -20,6 +20,9 @@
 #define HAL_NVIC_ICPR(n)        (0xE000E280UL + 4UL * (n))  /* clear-pending */
 #define HAL_NVIC_IPR_BASE       0xE000E400UL                /* one priority byte per IRQ */
 
+#define HAL_SCB_ICSR            0xE000ED04UL  /* interrupt control and state */
+#define HAL_SCB_ICSR_PENDSTCLR  HAL_BIT(25)   /* write 1: clear a pending SysTick */
+#define HAL_SCB_ICSR_PENDSVCLR  HAL_BIT(27)   /* write 1: clear a pending PendSV */
 #define HAL_SCB_VTOR            0xE000ED08UL  /* vector table offset */
 #define HAL_SCB_AIRCR           0xE000ED0CUL
 #define HAL_SCB_AIRCR_KEY       0x05FA0000UL

@@ -5,11 +5,41 @@
  * was entered from the reset vector or from a bootloader that jumped to it (the ROBOTIS
  * bootloader on the CM-530, the boot stub on the qemu board). Interrupt handlers are weak:
  * a board or the app defines the ones it uses; any other interrupt, and every fault,
- * resets the MCU (RCC_CSR then reports a software reset). */
+ * resets the MCU (RCC_CSR then reports a software reset).
+ *
+ * Built with -DHAL_HOST_TEST only hal_quiet_interrupts() is compiled, for the host tests
+ * against a register model. */
 #include <stdint.h>
 
 #include "hal_cpu.h"
 #include "hal_image.h"
+
+void hal_quiet_interrupts(void);
+
+/* NVIC enable and pending registers hold 32 lines each. */
+#define HAL_NVIC_WORDS ((HAL_IRQ_COUNT + 31U) / 32U)
+
+/* Silence every interrupt source the previous owner of the CPU may have left armed: the
+ * ROBOTIS bootloader's state at the jump is undocumented. A line left enabled and pending
+ * would fire as soon as interrupts are enabled, reach hal_unexpected_irq and reset the
+ * MCU, which would enter the bootloader and then this image again: a boot loop. SysTick
+ * is stopped and a tick already pending dropped for the same reason. Out of line, so the
+ * firmware tests can check in the image that it runs before interrupts are enabled. */
+__attribute__((noinline)) void hal_quiet_interrupts(void)
+{
+    hal_io_write32(HAL_SYST_CSR, 0);
+    hal_io_write32(HAL_SCB_ICSR, HAL_SCB_ICSR_PENDSTCLR | HAL_SCB_ICSR_PENDSVCLR);
+    for (uint32_t n = 0; n < HAL_NVIC_WORDS; n++) {
+        hal_io_write32(HAL_NVIC_ICER(n), UINT32_MAX);
+    }
+    /* Disabled first: a disabled line cannot fire even if its peripheral pends it again.
+     * Then the pending bits go, so a line a driver enables later starts clean. */
+    for (uint32_t n = 0; n < HAL_NVIC_WORDS; n++) {
+        hal_io_write32(HAL_NVIC_ICPR(n), UINT32_MAX);
+    }
+}
+
+#ifndef HAL_HOST_TEST
 
 extern uint32_t _sidata; /* .data initial values in flash */
 extern uint32_t _sdata, _edata;
@@ -97,7 +127,10 @@ __attribute__((noreturn, used)) void hal_reset_continue(void)
     for (uint32_t *dst = &_ebss; dst < sp - 16;) { /* stay clear of this frame */
         *dst++ = HAL_STACK_PAINT;
     }
+    hal_quiet_interrupts();
     hal_irq_enable_all(); /* a bootloader may have left interrupts masked */
     (void)main();
     hal_system_reset();
 }
+
+#endif /* HAL_HOST_TEST */

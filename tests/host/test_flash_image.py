@@ -67,16 +67,18 @@ def test_checksum_is_the_low_byte_of_the_sum():
 def test_verify_checksum_accepts_either_documented_reading_and_nothing_else():
     image = bytes([0x10, 0x20, 0x30])  # sum 0x60
     sent = image + bytes([0x60])  # sum 0xC0
-    assert "every byte" in verify_checksum(image, sent, ChecksumReport(0xC0, 2, b"")).meaning
-    assert "without" in verify_checksum(image, sent, ChecksumReport(0x60, 2, b"")).meaning
-    with pytest.raises(FlashError, match="reports 0xC1, we expected 0xC0"):
-        verify_checksum(image, sent, ChecksumReport(0xC1, 2, b""))
+    assert "every byte" in verify_checksum(image, sent, ChecksumReport(": C0", b"")).meaning
+    assert "without" in verify_checksum(image, sent, ChecksumReport(": 60", b"")).meaning
+    with pytest.raises(FlashError, match=r"reports 'Checksum: C1', we expected 0xC0"):
+        verify_checksum(image, sent, ChecksumReport(": C1", b""))
     # Without the trailer only one reading exists.
     with pytest.raises(FlashError):
-        verify_checksum(image, image, ChecksumReport(0xC0, 2, b""))
+        verify_checksum(image, image, ChecksumReport(": C0", b""))
     # A wider report compares the wider sum.
     big = bytes([0xFF] * 3)
-    assert verify_checksum(big, big, ChecksumReport(0x2FD, 4, b"")).value == 0x2FD
+    assert verify_checksum(big, big, ChecksumReport(": 02FD", b"")).value == 0x2FD
+    with pytest.raises(FlashError):
+        verify_checksum(big, big, ChecksumReport(": 01FD", b""))
 
 
 def test_timeouts_from_environment_and_keywords(monkeypatch):

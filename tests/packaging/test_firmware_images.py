@@ -50,7 +50,7 @@ def test_flash_without_an_image_flashes_the_default_one(monkeypatch):
     default = fw.image("cm530", "firmware.bin")
     boot = Bootloader(silence_s=0.3)
     with BootloaderPty(boot, reset_after_s=0.1, pace=False) as server:
-        result = CliRunner().invoke(main, ["flash", "--port", server.device])
+        result = CliRunner().invoke(main, ["flash", "--no-verify", "--port", server.device])
         with server.lock:
             stored = boot.image
     assert result.exit_code == 0, result.output

@@ -30,7 +30,10 @@ def main() -> None:
 # `main` exists, because the `sim` subcommands attach to the `sim` group.
 from snakebot.cli.bus import bus  # noqa: E402
 from snakebot.cli.bus_play import bus_play  # noqa: E402
+from snakebot.cli.compare import compare_command  # noqa: E402
+from snakebot.cli.config import config  # noqa: E402
 from snakebot.cli.demo import demo  # noqa: E402
+from snakebot.cli.doctor import doctor  # noqa: E402
 from snakebot.cli.drive import drive  # noqa: E402
 from snakebot.cli.flash import flash_command  # noqa: E402
 from snakebot.cli.gait import gait  # noqa: E402
@@ -63,7 +66,7 @@ for command in (
     demo,
 ):
     main.add_command(command)
-for command in (plan_command, robot, drive):
+for command in (plan_command, robot, drive, config, doctor, compare_command):
     main.add_command(command)
 bus.add_command(bus_play)
 for command in (predict, serve, bootloader, goto, thesis, friction):

@@ -20,6 +20,18 @@ PORT_HELP = (
 )
 
 
+controller_id_option = click.option(
+    "--id",
+    "controller_id",
+    type=click.IntRange(0, 253),
+    default=load().default_id,
+    show_default=True,
+    envvar="SNAKEBOT_CONTROLLER_ID",
+    help="The controller's Protocol 1.0 ID on the PC link.",
+)
+"""--id, for every command that talks to the controller."""
+
+
 def controller_options(func: Callable[..., Any]) -> Callable[..., Any]:
     """--port, --baud, --id and --json."""
 
@@ -40,15 +52,7 @@ def controller_options(func: Callable[..., Any]) -> Callable[..., Any]:
         show_default=True,
         help="Bit rate of the PC link (the firmware's: 57600).",
     )
-    @click.option(
-        "--id",
-        "controller_id",
-        type=click.IntRange(0, 253),
-        default=load().default_id,
-        show_default=True,
-        envvar="SNAKEBOT_CONTROLLER_ID",
-        help="The controller's Protocol 1.0 ID on the PC link.",
-    )
+    @controller_id_option
     @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:

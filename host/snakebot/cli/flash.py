@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable
 from typing import Any, TextIO
 
 import click
@@ -11,12 +12,15 @@ from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType, controller_port
 from snakebot.firmware import image as firmware_image
 from snakebot.flash import PC_LINK_BAUD, FlashTimeouts, board_layout, flash, load_image
-from snakebot.flash.loader import last_line
+from snakebot.flash.errors import FlashError
+from snakebot.flash.image import image_info
+from snakebot.flash.loader import RESET_HINT, last_line
+from snakebot.flash.verify import Verified, verify_firmware
 from snakebot.transport import open_port
 
 
 class _LazyBar:
-    """A progress bar that appears with the first image byte, not before the RESET prompt."""
+    """A progress bar that appears with the first image byte, not before the reset prompt."""
 
     def __init__(self, length: int, out: TextIO) -> None:
         self.length = length
@@ -37,6 +41,25 @@ class _LazyBar:
             self._bar = None
 
 
+def _interactive() -> bool:
+    """Whether someone at a terminal can answer a question."""
+    return sys.stdin.isatty()
+
+
+def _confirm_unverified(warning: str, yes: bool, out: TextIO) -> bool:
+    """Whether to start firmware whose checksum report could not be read: --yes says so,
+    else the user is asked; with nobody to ask, it is an error naming --yes."""
+    click.echo(f"warning: {warning}", file=out)
+    if yes:
+        return True
+    if not _interactive():
+        raise FlashError(
+            f"{warning}; the application was NOT started and nobody is at the terminal to "
+            f"confirm: run again with --yes to start it anyway, or {RESET_HINT} and flash again"
+        )
+    return click.confirm("Start the new firmware anyway?", default=False, err=out is sys.stderr)
+
+
 @click.command("flash")
 @click.argument("firmware", required=False, type=click.Path(dir_okay=False, path_type=str))
 @click.option(
@@ -53,7 +76,13 @@ class _LazyBar:
     "--no-go",
     is_flag=True,
     help="Leave the board in the bootloader after a verified upload instead of "
-    "starting the new firmware (send GO later, or press RESET).",
+    "starting the new firmware (send GO later, or press MODE or power-cycle the CM-530).",
+)
+@click.option(
+    "--no-verify",
+    is_flag=True,
+    help="After GO, do not wait for the new firmware to answer and check its image "
+    "(for firmware that is not snakebot's, or a board whose PC link is elsewhere).",
 )
 @click.option(
     "--no-checksum-byte",
@@ -65,13 +94,21 @@ class _LazyBar:
     "--reset-timeout",
     type=NumberType(0.1),
     metavar="SECONDS",
-    help="How long to wait for you to press RESET (default 20, or SNAKEBOT_FLASH_RESET_TIMEOUT_S).",
+    help="How long to wait for you to reset the board (press MODE or power-cycle it; "
+    "default 20, or SNAKEBOT_FLASH_RESET_TIMEOUT_S).",
 )
 @click.option(
     "--force",
     is_flag=True,
     help="Flash even if the image does not look like snakebot firmware for the CM-530 "
     "linked at 0x08003000 (vector table, board name and length in its identity block).",
+)
+@click.option(
+    "--yes",
+    "-y",
+    is_flag=True,
+    help="Start the new firmware without asking when the bootloader's checksum report is "
+    "in a format snakebot does not know (it is then not verified).",
 )
 @click.option(
     "--json",
@@ -83,27 +120,36 @@ def flash_command(
     firmware: str | None,
     port: str,
     no_go: bool,
+    no_verify: bool,
     no_checksum_byte: bool,
     reset_timeout: float | None,
     force: bool,
+    yes: bool,
     as_json: bool,
 ) -> None:
-    """Flash FIRMWARE (a raw .bin) onto the CM-530 through its ROBOTIS bootloader.
+    """Flash FIRMWARE (a .bin, .hex or .elf) onto the CM-530 through its ROBOTIS bootloader.
 
     Without FIRMWARE it flashes snakebot's own controller firmware: the image `make
     firmware` built in this checkout, else the one shipped with the installed package.
 
-    Run the command, then press RESET on the CM-530 (or switch it on) when asked: the
-    bootloader only listens for a moment after a reset. The command then loads the image,
-    checks the bootloader's checksum against its own, and starts the new firmware.
+    Run the command, then press MODE on the CM-530 or power-cycle it when asked (it has no
+    RESET button): the bootloader only listens for a moment after a reset. The command
+    then loads the image, checks the bootloader's checksum against its own, starts the
+    new firmware, and verifies it: it must answer PING at ID 200 with the model number
+    and the firmware version of the image, and compute the same CRC-32 over its own image
+    in flash as over the bytes sent (--no-verify skips this). A checksum report it cannot
+    read is shown, and you are asked whether to start the firmware anyway (--yes: start
+    it without asking).
 
     \b
         snakebot flash --port /dev/ttyUSB0
         snakebot flash build/cm530/firmware.bin --port /dev/ttyUSB0
+        snakebot flash build/cm530/firmware.elf --port /dev/ttyUSB0
 
     The link runs at 57600 baud, so 100 KB takes about 18 s. Timeouts can be raised with
-    the SNAKEBOT_FLASH_*_S environment variables (see snakebot.flash.settings). Give the
-    .bin, not the .hex or .elf: the bootloader takes raw bytes.
+    the SNAKEBOT_FLASH_*_S environment variables (see snakebot.flash.settings). A .hex or
+    .elf is turned into the raw bytes the bootloader takes (the .elf's loadable segments at
+    their load addresses), and refused if it puts anything outside the application area.
     """
     out = sys.stderr if as_json else sys.stdout
 
@@ -131,16 +177,23 @@ def flash_command(
                 timeouts=timeouts,
                 say=say,
                 progress=bar.update,
+                confirm=lambda warning: _confirm_unverified(warning, yes, out),
             )
     finally:
         bar.close()
     say(f"Wrote {result.bytes_sent} bytes in {result.seconds:.2f} s ({result.kbit_s:.1f} kbit/s)")
-    say(f"Checksum verified (0x{result.reported_checksum:02X}, {result.checksum_meaning})")
+    if result.reported_checksum is None:
+        say("Checksum NOT verified (a report in an unknown format, accepted)")
+    else:
+        say(f"Checksum verified (0x{result.reported_checksum:02X}, {result.checksum_meaning})")
     if result.started:
         said = last_line(result.go_reply)
         say(f"Sent GO: the new firmware is starting (the bootloader said: {said})")
     else:
-        say("Left the board in the bootloader (--no-go): press RESET or send GO to start it.")
+        say(f"Left the board in the bootloader (--no-go): send GO to start it, or {RESET_HINT}.")
+    verified = None
+    if result.started and not no_verify:
+        verified = _verify(port, image, layout.app_base, timeouts, say)
     if as_json:
         click.echo(
             dumps(
@@ -158,7 +211,36 @@ def flash_command(
                     "started": result.started,
                     "banner": result.banner.decode("latin-1"),
                     "go_reply": result.go_reply.decode("latin-1"),
+                    "verified": verified is not None,
+                    "firmware_crc": None if verified is None else verified.crc,
+                    "boot_seconds": None if verified is None else round(verified.boot_seconds, 3),
                 }
             ),
             file=sys.stdout,
         )
+
+
+def _verify(
+    port: str, image: bytes, app_base: int, timeouts: FlashTimeouts, say: Callable[[str], None]
+) -> Verified | None:
+    """Wait for the new firmware and have it check its image; None when the image carries
+    no identity block (flashed with --force), so there is nothing to check it against."""
+    info = image_info(image, app_base)
+    if info is None:
+        say("Not verified: the image has no snakebot identity block (flashed with --force).")
+        return None
+    say(f"Waiting up to {timeouts.boot:g} s for the new firmware to answer PING...")
+    shown = [0]
+
+    def waited(seconds: float) -> None:
+        if int(seconds) > shown[0]:
+            shown[0] = int(seconds)
+            say(f"  no answer yet after {shown[0]} s")
+
+    verified = verify_firmware(port, image, info, timeouts, waited)
+    say(
+        f"Verified: controller at ID {verified.controller_id} runs firmware version "
+        f"{verified.firmware_version}, its image in flash has CRC-32 0x{verified.crc:08X} "
+        "as sent"
+    )
+    return verified

@@ -13,11 +13,13 @@ from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType
 from snakebot.cli.signals import STOP_SIGNALS
 from snakebot.sim.bootloader import (
+    CHECKSUM_FORMATS,
     DEFAULT_SILENCE_S,
     PC_LINK_BAUD,
     Bootloader,
     BootloaderFaults,
     BootloaderPty,
+    QemuHandover,
 )
 
 
@@ -56,12 +58,39 @@ from snakebot.sim.bootloader import (
     is_flag=True,
     help="Report the sum of all received bytes but the last (the checksum byte).",
 )
+@click.option(
+    "--checksum-format",
+    type=click.Choice(list(CHECKSUM_FORMATS)),
+    default="hex8",
+    show_default=True,
+    help="How the Checksum line is printed: the sum's width (8/16/32 bits) and base; "
+    "'unknown' prints no number.",
+)
 @click.option("--mute", is_flag=True, help="Fault: never answer '#'.")
 @click.option("--no-ready", is_flag=True, help="Fault: never answer the load command.")
 @click.option(
     "--corrupt",
     is_flag=True,
     help="Fault: flip one bit of each stored image (the checksum will not match).",
+)
+@click.option(
+    "--drop-every",
+    type=click.IntRange(0),
+    default=0,
+    metavar="N",
+    help="Fault: lose every Nth image byte on the way in (0: none).",
+)
+@click.option(
+    "--reset-during-transfer",
+    type=click.IntRange(1),
+    metavar="BYTES",
+    help="Fault: reset the board once BYTES image bytes have arrived.",
+)
+@click.option(
+    "--qemu",
+    is_flag=True,
+    help="After GO, run the stored image in QEMU (the qemu board: build it with make "
+    "firmware, flash build/qemu/firmware.bin --force) and pass the line to it.",
 )
 @click.option(
     "--json",
@@ -76,9 +105,13 @@ def bootloader(
     silence: float,
     no_pace: bool,
     sum_excludes_last: bool,
+    checksum_format: str,
     mute: bool,
     no_ready: bool,
     corrupt: bool,
+    drop_every: int,
+    reset_during_transfer: int | None,
+    qemu: bool,
     as_json: bool,
 ) -> None:
     """Serve an emulated CM-530 bootloader until interrupted (Ctrl-C).
@@ -93,11 +126,21 @@ def bootloader(
     On exit it lists the images it received, with their sizes and checksums.
     """
     boot = Bootloader(
-        faults=BootloaderFaults(mute=mute, no_ready=no_ready, corrupt=corrupt),
+        faults=BootloaderFaults(
+            mute=mute,
+            no_ready=no_ready,
+            corrupt=corrupt,
+            drop_every=drop_every,
+            reset_after=reset_during_transfer,
+        ),
         silence_s=silence,
         sum_excludes_last=sum_excludes_last,
+        checksum_format=checksum_format,
     )
-    server = BootloaderPty(boot, reset_after_s=reset_after, pace=not no_pace, link=link).start()
+    handover = QemuHandover() if qemu else None
+    server = BootloaderPty(
+        boot, reset_after_s=reset_after, pace=not no_pace, link=link, on_go=handover
+    ).start()
     stop = threading.Event()
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
@@ -119,13 +162,16 @@ def bootloader(
                 raise click.ClickException(f"the bootloader server stopped: {server.error}")
     finally:
         server.close()
+        if handover is not None:
+            handover.close()
         for s, handler in previous.items():
             signal.signal(s, handler)
     with server.lock:
         images = list(boot.images)
     for n, image in enumerate(images, 1):
-        total = boot.reported_sum(image, sum_excludes_last)
+        bits = CHECKSUM_FORMATS[checksum_format][1]
+        total = boot.reported_sum(image, sum_excludes_last, bits)
         if as_json:
             click.echo(dumps({"image": n, "bytes": len(image), "checksum": total}))
         else:
-            click.echo(f"image {n}: {len(image)} bytes, checksum 0x{total:02X}")
+            click.echo(f"image {n}: {len(image)} bytes, checksum 0x{total:0{bits // 4}X}")

@@ -14,8 +14,6 @@ from __future__ import annotations
 from snakebot.flash.errors import FlashError, FlashSettingError, ImageError
 from snakebot.flash.image import BoardLayout, board_layout, checksum, load_image
 from snakebot.flash.loader import (
-    ChecksumMatch,
-    ChecksumReport,
     FlashResult,
     enter_bootloader,
     flash,
@@ -23,8 +21,8 @@ from snakebot.flash.loader import (
     send_image,
     start_application,
     start_load,
-    verify_checksum,
 )
+from snakebot.flash.report import ChecksumMatch, ChecksumReport, parse_report, verify_checksum
 from snakebot.flash.settings import PC_LINK_BAUD, FlashTimeouts
 
 __all__ = [
@@ -42,6 +40,7 @@ __all__ = [
     "enter_bootloader",
     "flash",
     "load_image",
+    "parse_report",
     "read_checksum",
     "send_image",
     "start_application",

@@ -1,5 +1,6 @@
-"""The firmware image: read a raw ``.bin``, check it fits the CM-530's application area
-and looks like an image linked for it, and compute the bootloader's checksum.
+"""The firmware image: read a ``.bin``, ``.hex`` or ``.elf`` (``formats``), check it fits
+the CM-530's application area and looks like an image linked for it, and compute the
+bootloader's checksum.
 
 The board facts come from the linker script ``firmware/boards/cm530/cm530.ld`` (the one
 source of the memory layout): the application starts at the FLASH region's origin
@@ -23,6 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from snakebot.flash.errors import ImageError
+from snakebot.flash.formats import elf_chunks, flat_image, hex_chunks, kind_of
 from snakebot.paths import REPO_ROOT
 from snakebot.userfiles import FileTooLarge, read_bounded
 
@@ -47,6 +49,10 @@ FLASH_BASE = 0x08000000
 """Where STM32 flash is mapped; regions from here up to SRAM_BASE are flash."""
 
 SRAM_BASE = 0x20000000
+
+FILE_MAX = 32 * 1024 * 1024
+"""The largest firmware file read: an ELF with its debugging information is many times
+its image."""
 
 
 @dataclass(frozen=True)
@@ -153,26 +159,15 @@ def checksum(data: bytes) -> int:
     return sum(data) & 0xFF
 
 
-def _format_hint(path: Path, what: str) -> str:
-    return (
-        f"{path} is {what}, but the ROBOTIS bootloader takes the raw binary image: give "
-        "the .bin (make firmware writes build/cm530/firmware.bin; for another build, "
-        "arm-none-eabi-objcopy -O binary firmware.elf firmware.bin)"
-    )
-
-
-def _looks_like_intel_hex(data: bytes) -> bool:
-    head = data[:64]
-    return head.startswith(b":") and re.fullmatch(rb":[0-9A-Fa-f]+\r?\n[\s\S]*", head) is not None
-
-
 def load_image(
     path: str | Path, layout: BoardLayout | None = None, *, check_vectors: bool = True
 ) -> bytes:
-    """Read the raw image at ``path`` and check it can go through the bootloader.
+    """Read the image at ``path`` (a raw .bin, an Intel HEX or an ELF file, told apart by
+    their content) as the bytes from the application base on, and check it can go through
+    the bootloader.
 
-    Refuses a missing or empty file, an ELF or Intel HEX file (with the command that makes
-    the .bin), an image bigger than the application area, and, unless ``check_vectors`` is
+    Refuses a missing or empty file, a HEX or ELF file that is damaged or places bytes
+    outside the application area, an image bigger than that area, and, unless ``check_vectors`` is
     False, an image the board would not start: its vector table must fit the board
     (initial stack pointer inside RAM and 8-byte aligned, reset handler a Thumb address in
     the image's code, after its vector table and identity block) and its identity block
@@ -181,31 +176,31 @@ def load_image(
     """
     path = Path(path)
     layout = layout or board_layout()
-    if path.suffix.lower() in (".hex", ".ihex"):
-        raise ImageError(_format_hint(path, "an Intel HEX file"))
-    if path.suffix.lower() in (".elf", ".axf", ".out"):
-        raise ImageError(_format_hint(path, "an ELF file"))
     try:
-        data = read_bounded(path, layout.app_size, "firmware image")
+        data = read_bounded(path, FILE_MAX, "firmware file")
     except FileTooLarge as exc:
         raise ImageError(_too_big(path, exc.size, layout)) from None
     except FileNotFoundError:
         raise ImageError(
             f"firmware image {path} not found: build it with make firmware (it writes "
-            "build/cm530/firmware.bin) or give the path of a .bin file"
+            "build/cm530/firmware.bin) or give the path of a .bin, .hex or .elf file"
         ) from None
     except IsADirectoryError:
-        raise ImageError(f"{path} is a directory: give the firmware's .bin file") from None
+        raise ImageError(
+            f"{path} is a directory: give the firmware's .bin, .hex or .elf file"
+        ) from None
     except OSError as exc:
         raise ImageError(f"cannot read firmware image {path}: {exc.strerror or exc}") from exc
     if not data:
         raise ImageError(
             f"firmware image {path} is empty: rebuild it (make firmware) and check the build log"
         )
-    if data.startswith(b"\x7fELF"):
-        raise ImageError(_format_hint(path, "an ELF file"))
-    if _looks_like_intel_hex(data):
-        raise ImageError(_format_hint(path, "an Intel HEX file"))
+    kind = kind_of(path, data)
+    if kind != "bin":
+        chunks = elf_chunks(path, data) if kind == "elf" else hex_chunks(path, data)
+        data = flat_image(path, chunks, layout.app_base, layout.flash_end)
+    elif len(data) > layout.app_size:
+        raise ImageError(_too_big(path, len(data), layout))
     if check_vectors:
         _check_vectors(path, data, layout)
     return data

@@ -8,7 +8,8 @@ The sequence (docs/hardware.md, "Uploading firmware through the ROBOTIS bootload
 3. send the raw image, optionally followed by the low byte of its sum as RoboPlus
    Terminal does (:func:`send_image`);
 4. read the bootloader's ``Checksum:`` report and compare it with ours (:func:`read_checksum`,
-   :func:`verify_checksum`);
+   :func:`~snakebot.flash.report.verify_checksum`; a report in an unknown format is put to
+   the caller's ``confirm``);
 5. send ``\\nGO\\n`` to start the application (:func:`start_application`).
 
 :func:`flash` runs them all. Each step that fails raises :class:`FlashError` saying what
@@ -26,18 +27,26 @@ import serial
 
 from snakebot.flash.errors import FlashError
 from snakebot.flash.image import checksum
+from snakebot.flash.report import (
+    ChecksumMatch,
+    ChecksumReport,
+    unrecognised_message,
+    verify_checksum,
+)
 from snakebot.flash.settings import CHUNK_SIZE, PC_LINK_BAUD, FlashTimeouts
 
 HASH = b"#"
 LOAD_COMMAND = b"\nL\n"
 READY = b"Ready.."
 GO_COMMAND = b"\nGO\n"
-CHECKSUM_REPORT = re.compile(rb"Checksum\s*:?\s*(?:0x)?([0-9A-Fa-f]+)([^0-9A-Fa-f])")
-"""The bootloader's report; the number must be followed by another character (the end of
-its line) so that no digit is still on its way."""
+CHECKSUM_REPORT = re.compile(rb"Checksum([^\r\n]*)[\r\n]", re.IGNORECASE)
+"""The bootloader's report, a whole line: nothing of it is still on its way."""
 
-CHECKSUM_AT_END = re.compile(rb"Checksum\s*:?\s*(?:0x)?([0-9A-Fa-f]+)$")
+CHECKSUM_AT_END = re.compile(rb"Checksum([^\r\n]*)$", re.IGNORECASE)
 """The report as the last thing said, accepted once the wait is over."""
+
+RESET_HINT = "press MODE or power-cycle the CM-530"
+"""How a user resets the board into its bootloader: it has no button labelled RESET."""
 
 SHOWN_REPLY = 200
 """At most this many characters of a reply are quoted in a message."""
@@ -48,6 +57,7 @@ needs to carry them (10 bits a byte at its baud rate)."""
 
 Say = Callable[[str], None]
 Progress = Callable[[int], None]
+Confirm = Callable[[str], bool]
 
 
 def shown(data: bytes) -> str:
@@ -124,8 +134,8 @@ def enter_bootloader(
     port.reset_input_buffer()
     listener = _Listener(port)
     say(
-        f"Press RESET on the CM-530 now (sending '#' for up to {timeouts.reset:g} s "
-        "to catch its bootloader)."
+        f"Press MODE on the CM-530 or power-cycle it now (sending '#' for up to "
+        f"{timeouts.reset:g} s to catch its bootloader)."
     )
     deadline = time.monotonic() + timeouts.reset
     sent = 0
@@ -134,7 +144,7 @@ def enter_bootloader(
             raise FlashError(
                 f"no answer from the CM-530 bootloader on {port.name} after {sent} '#' in "
                 f"{timeouts.reset:g} s: check the cable and the port, that the board is "
-                "powered, and press RESET (or switch it on) while this command waits; "
+                f"powered, and {RESET_HINT} while this command waits; "
                 "close any other program using the port (RoboPlus, a terminal). Allow more "
                 "time with SNAKEBOT_FLASH_RESET_TIMEOUT_S"
             )
@@ -147,8 +157,8 @@ def enter_bootloader(
             raise FlashError(
                 f"the board answered '#' but kept sending for more than "
                 f"{timeouts.quiet_timeout:g} s ({shown(bytes(listener.heard))}): that is not "
-                "the bootloader's prompt (an application that prints?); press RESET while "
-                "snakebot flash waits, or raise SNAKEBOT_FLASH_QUIET_TIMEOUT_S"
+                f"the bootloader's prompt (an application that prints?); {RESET_HINT} "
+                "while snakebot flash waits, or raise SNAKEBOT_FLASH_QUIET_TIMEOUT_S"
             )
         listener.poll(min(timeouts.quiet, 0.05))
     return bytes(listener.heard)
@@ -162,10 +172,10 @@ def start_load(port: serial.SerialBase, timeouts: FlashTimeouts) -> bytes:
     if listener.until(READY, timeouts.ready) is None:
         raise FlashError(
             f"the bootloader did not answer the load command (\\nL\\n) with 'Ready..' "
-            f"within {timeouts.ready:g} s; it said: {shown(bytes(listener.heard))}. Press "
-            "RESET and run snakebot flash again; if it keeps failing, open the port in a "
-            f"terminal at {PC_LINK_BAUD} baud, send '#' while resetting and type L to see "
-            "what the bootloader says"
+            f"within {timeouts.ready:g} s; it said: {shown(bytes(listener.heard))}. Run "
+            f"snakebot flash again and {RESET_HINT} when asked; if it keeps failing, open the "
+            f"port in a terminal at {PC_LINK_BAUD} baud, send '#' while resetting and type L "
+            "to see what the bootloader says"
         )
     time.sleep(timeouts.ready_settle)
     return bytes(listener.heard)
@@ -240,25 +250,12 @@ def send_image(
     except serial.SerialTimeoutException:
         raise FlashError(
             f"the link stopped taking data after {reported} of {len(payload)} bytes: check "
-            "the cable, and that nothing else holds the port; then press RESET and flash again"
+            f"the cable, and that nothing else holds the port; then {RESET_HINT} and flash "
+            "again"
         ) from None
     finally:
         port.write_timeout = None
     return time.monotonic() - start
-
-
-@dataclass(frozen=True)
-class ChecksumReport:
-    """The bootloader's ``Checksum:`` line."""
-
-    value: int
-    digits: int  # how many hex digits it printed
-    reply: bytes  # everything it said after the image
-
-    @property
-    def modulus(self) -> int:
-        """Sums compare modulo this: a byte for one or two digits, else the digits' width."""
-        return max(256, 16**self.digits)
 
 
 def read_checksum(port: serial.SerialBase, nbytes: int, timeouts: FlashTimeouts) -> ChecksumReport:
@@ -270,42 +267,10 @@ def read_checksum(port: serial.SerialBase, nbytes: int, timeouts: FlashTimeouts)
         raise FlashError(
             f"the bootloader sent no 'Checksum:' report within {wait:.1f} s after the "
             f"{nbytes} byte image; it said: {shown(bytes(listener.heard))}. The upload did "
-            "not complete: press RESET and flash again (a slow adapter may need a longer "
+            f"not complete: {RESET_HINT} and flash again (a slow adapter may need a longer "
             "SNAKEBOT_FLASH_CHECKSUM_TIMEOUT_S)"
         )
-    digits = found.group(1)
-    return ChecksumReport(int(digits, 16), len(digits), bytes(listener.heard))
-
-
-@dataclass(frozen=True)
-class ChecksumMatch:
-    """How the bootloader's sum was matched."""
-
-    value: int
-    meaning: str  # which bytes the bootloader summed
-
-
-def verify_checksum(image: bytes, sent: bytes, report: ChecksumReport) -> ChecksumMatch:
-    """Compare the bootloader's sum with ours, or raise :class:`FlashError`.
-
-    The bootloader may sum every byte it received (the image and, when sent, the trailing
-    checksum byte) or only the image: which one the real CM-530 does is not confirmed, so
-    either is accepted and the result says which matched.
-    """
-    modulus = report.modulus
-    candidates = [(sum(sent) % modulus, "the sum of every byte sent")]
-    if sent != image:
-        candidates.append((sum(image) % modulus, "the sum of the image without its checksum byte"))
-    for value, meaning in candidates:
-        if value == report.value:
-            return ChecksumMatch(value, meaning)
-    width = max(2, report.digits)
-    ours = " or ".join(f"0x{v:0{width}X} ({m})" for v, m in candidates)
-    raise FlashError(
-        f"checksum mismatch: the bootloader reports 0x{report.value:0{width}X}, we expected "
-        f"{ours}. Bytes were lost or changed on the way: the application was NOT started. "
-        "Check the cable, press RESET and flash again"
-    )
+    return ChecksumReport(found.group(1).decode("latin-1"), bytes(listener.heard))
 
 
 def start_application(port: serial.SerialBase, timeouts: FlashTimeouts) -> bytes:
@@ -330,7 +295,7 @@ class FlashResult:
     seconds: float  # from the first image byte until the bootloader's checksum report
     send_seconds: float  # from the first image byte until the driver had sent the last
     banner: bytes
-    reported_checksum: int
+    reported_checksum: int | None  # None: a report in an unknown format, accepted by confirm
     checksum_meaning: str
     started: bool
     go_reply: bytes
@@ -351,8 +316,13 @@ def flash(
     timeouts: FlashTimeouts | None = None,
     say: Say = lambda _: None,
     progress: Progress = lambda _: None,
+    confirm: Confirm = lambda _: False,
 ) -> FlashResult:
-    """Flash ``image`` through the bootloader on the open ``port`` (57600 8N1)."""
+    """Flash ``image`` through the bootloader on the open ``port`` (57600 8N1).
+
+    A checksum report in a format this module does not know is put to ``confirm`` (the
+    warning as its argument): True starts the firmware anyway, False (the default) stops
+    with :class:`FlashError`, the board left in its bootloader."""
     timeouts = timeouts or FlashTimeouts.resolve()
     if not image:
         raise FlashError("the firmware image is empty: nothing to flash")
@@ -365,7 +335,7 @@ def flash(
     send_seconds = send_image(port, payload, progress)
     report = read_checksum(port, len(payload), timeouts)
     seconds = time.monotonic() - started
-    match = verify_checksum(image, payload, report)
+    match = _check_report(image, payload, report, confirm)
     go_reply = start_application(port, timeouts) if go else b""
     return FlashResult(
         port=port.name or "",
@@ -375,8 +345,24 @@ def flash(
         seconds=seconds,
         send_seconds=send_seconds,
         banner=banner,
-        reported_checksum=match.value,
-        checksum_meaning=match.meaning,
+        reported_checksum=None if match is None else match.value,
+        checksum_meaning="unverified (accepted)" if match is None else match.meaning,
         started=go,
         go_reply=go_reply,
+    )
+
+
+def _check_report(
+    image: bytes, sent: bytes, report: ChecksumReport, confirm: Confirm
+) -> ChecksumMatch | None:
+    """The match for a recognised report; None for an unknown one ``confirm`` accepted."""
+    if report.recognised:
+        return verify_checksum(image, sent, report)
+    warning = unrecognised_message(image, sent, report)
+    if confirm(warning):
+        return None
+    raise FlashError(
+        f"{warning}: the application was NOT started. If the bootloader printed a sum that "
+        f"matches ours, run again with --yes to start it anyway; otherwise {RESET_HINT} and "
+        "flash again"
     )

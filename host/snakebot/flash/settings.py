@@ -13,6 +13,7 @@ pause after "Ready.."                SNAKEBOT_FLASH_READY_SETTLE_S       0.05 s
 wait for "Checksum:" (base)          SNAKEBOT_FLASH_CHECKSUM_TIMEOUT_S   3 s
   ... plus, per 2 KB flash page      SNAKEBOT_FLASH_PAGE_TIME_S          0.05 s
 wait for an answer to GO             SNAKEBOT_FLASH_GO_TIMEOUT_S         0.5 s
+wait for the new firmware's PING     SNAKEBOT_FLASH_BOOT_TIMEOUT_S       10 s
 ===================================  ==================================  =======
 
 The checksum wait grows with the image, because the bootloader may still be erasing and
@@ -59,6 +60,10 @@ GO_TIMEOUT_S = 0.5
 """How long to listen for the bootloader's answer to GO (not required: the application
 may start at once and say nothing)."""
 
+BOOT_TIMEOUT_S = 10.0
+"""How long the new firmware may take to answer PING after GO (it starts in well under a
+second; the rest is for a loaded machine or a slow adapter)."""
+
 CHUNK_SIZE = 256
 """Image bytes written (and flushed) at a time; the progress bar moves per chunk."""
 
@@ -79,6 +84,7 @@ class FlashTimeouts:
     checksum: float = CHECKSUM_TIMEOUT_S
     page_time: float = PAGE_TIME_S
     go: float = GO_TIMEOUT_S
+    boot: float = BOOT_TIMEOUT_S
 
     @classmethod
     def resolve(cls, **overrides: float | None) -> FlashTimeouts:
@@ -114,6 +120,7 @@ ENV_NAMES = {
     "checksum": "SNAKEBOT_FLASH_CHECKSUM_TIMEOUT_S",
     "page_time": "SNAKEBOT_FLASH_PAGE_TIME_S",
     "go": "SNAKEBOT_FLASH_GO_TIMEOUT_S",
+    "boot": "SNAKEBOT_FLASH_BOOT_TIMEOUT_S",
 }
 
 

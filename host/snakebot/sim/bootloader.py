@@ -24,13 +24,17 @@ without a board:
   the low byte of the sum of *every* byte it received, including the checksum byte that
   RoboPlus Terminal appends (the real bootloader's exact sum is not confirmed; see
   docs/hardware.md). With ``sum_excludes_last`` it sums all but the last byte instead,
-  the other reading of the same descriptions.
+  the other reading of the same descriptions. How the sum is printed is not confirmed
+  either: ``checksum_format`` picks one of :data:`CHECKSUM_FORMATS` (8, 16 or 32 bits, hex
+  or decimal, and one the host cannot read).
 * It keeps every image it received (:attr:`Bootloader.images`), so a test can compare
   the stored bytes with the file, byte for byte.
 
 Faults for tests (:class:`BootloaderFaults`): ``mute`` never answers ``#``; ``no_ready``
 never answers the load command; ``corrupt`` flips one bit of the stored image, so the
-reported checksum is wrong.
+reported checksum is wrong; ``drop_every`` loses every Nth image byte on the way in (a
+line that drops bytes); ``reset_after`` resets the board once that many image bytes have
+arrived (a power glitch, or MODE pressed, during the transfer).
 
 The line runs at 57600 8N1. On the pseudo-terminal a client that set another baud rate
 is not understood (its bytes are dropped, as a UART at the wrong rate would garble them),
@@ -43,9 +47,13 @@ from __future__ import annotations
 import errno
 import os
 import select
+import socket
+import tempfile
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from snakebot.sim.transports.base import RawPty, Server
 from snakebot.sim.transports.pty import tty_baudrate
@@ -55,6 +63,9 @@ PC_LINK_BAUD = 57600
 
 APP_BASE = 0x08003000
 """Where the application starts (after the 12 KB bootloader)."""
+
+FLASH_BASE = 0x08000000
+"""Where the STM32's flash starts (the bootloader's own first byte)."""
 
 APP_AREA = 500 * 1024
 """The application area the bootloader writes: 0x08003000 up to the end of the 512 KB flash."""
@@ -90,6 +101,20 @@ HELP = (
 )
 
 
+CHECKSUM_FORMATS: dict[str, tuple[str, int]] = {
+    "hex8": ("Checksum: {:02X}", 8),
+    "hex16": ("Checksum: {:04X}", 16),
+    "hex32": ("Checksum: 0x{:08X}", 32),
+    "hex32-lower": ("Checksum:{:x}", 32),
+    "dec8": ("Checksum: {:d}", 8),
+    "dec16": ("Checksum : {:d}", 16),
+    "dec32": ("CHECKSUM {:d}", 32),
+    "unknown": ("Checksum: OK", 8),
+}
+"""Ways the report may be printed: name -> (line template, sum width in bits). "unknown"
+prints no number at all."""
+
+
 @dataclass(frozen=True)
 class BootloaderFaults:
     """What to get wrong, for tests of the host's error paths."""
@@ -97,6 +122,9 @@ class BootloaderFaults:
     mute: bool = False  # never answer '#'
     no_ready: bool = False  # never answer the load command
     corrupt: bool = False  # flip one bit of the stored image (middle byte)
+    drop_every: int = 0  # lose every Nth image byte (0: none)
+    flash_corrupt: bool = False  # report the sum of what arrived, but store one bit wrong
+    reset_after: int | None = None  # reset once this many image bytes have arrived
 
 
 @dataclass
@@ -111,6 +139,7 @@ class Bootloader:
     faults: BootloaderFaults = field(default_factory=BootloaderFaults)
     silence_s: float = DEFAULT_SILENCE_S
     sum_excludes_last: bool = False
+    checksum_format: str = "hex8"
     hash_window_s: float | None = None
     capacity: int = APP_AREA
     boot_mode: str = "app"
@@ -121,6 +150,7 @@ class Bootloader:
     _line: bytearray = field(default_factory=bytearray)
     _rx: bytearray = field(default_factory=bytearray)
     _overflow: int = 0
+    _arrived: int = 0  # image bytes that reached the line, dropped ones included
     _last_rx: float = 0.0
     _window_end: float | None = None
 
@@ -132,9 +162,14 @@ class Bootloader:
         return self.images[-1] if self.images else None
 
     @staticmethod
-    def reported_sum(data: bytes, excludes_last: bool = False) -> int:
-        """The sum this bootloader reports for ``data``."""
-        return sum(data[:-1] if excludes_last else data) & 0xFF
+    def reported_sum(data: bytes, excludes_last: bool = False, bits: int = 8) -> int:
+        """The sum this bootloader reports for ``data``, ``bits`` wide."""
+        return sum(data[:-1] if excludes_last else data) % (1 << bits)
+
+    def report_line(self, data: bytes) -> str:
+        """The ``Checksum`` line for a stored image, in :attr:`checksum_format`."""
+        template, bits = CHECKSUM_FORMATS[self.checksum_format]
+        return template.format(self.reported_sum(data, self.sum_excludes_last, bits))
 
     # -- events ---------------------------------------------------------------------------
 
@@ -154,7 +189,7 @@ class Bootloader:
         out = bytearray(self.poll(now))
         for i, byte in enumerate(data):
             if self.state == "receive":
-                self._receive(data[i:], now)
+                out += self._receive(data[i:], now)
                 break
             out += self._byte(byte, now)
         return bytes(out)
@@ -215,6 +250,7 @@ class Bootloader:
             self.state = "receive"
             self._rx.clear()
             self._overflow = 0
+            self._arrived = 0
             self._last_rx = now
             return b"\r\nReady..\r\n"
         if word == "GO" and not arg:
@@ -240,11 +276,19 @@ class Bootloader:
         self.state = "app"
         return f"\r\nGo 0x{address:08X}\r\n".encode()
 
-    def _receive(self, data: bytes, now: float) -> None:
+    def _receive(self, data: bytes, now: float) -> bytes:
+        faults = self.faults
+        first = self._arrived
+        self._arrived += len(data)
+        if faults.reset_after is not None and self._arrived >= faults.reset_after:
+            return self.reset(now)  # the rest of the image meets a restarted board
+        if faults.drop_every:
+            data = bytes(b for n, b in enumerate(data, first + 1) if n % faults.drop_every)
         room = self.capacity + 1 - len(self._rx)  # one extra: the optional checksum byte
         self._rx += data[:room]
         self._overflow += max(0, len(data) - room)
         self._last_rx = now
+        return b""
 
     def _store(self) -> bytes:
         self.state = "prompt"
@@ -260,9 +304,49 @@ class Bootloader:
         self._rx.clear()
         if self.faults.corrupt:
             data[len(data) // 2] ^= 0x01
+        report = self.report_line(data)
+        if self.faults.flash_corrupt:
+            data[-2] ^= 0x01  # the image's last byte (the last is the checksum byte)
         self.images.append(bytes(data))
-        total = self.reported_sum(data, self.sum_excludes_last)
-        return f"\r\nSize: {len(data)}\r\nChecksum: {total:02X}\r\n{PROMPT}".encode()
+        return f"\r\nSize: {len(data)}\r\n{report}\r\n{PROMPT}".encode()
+
+
+Handover = Callable[[bytes], socket.socket]
+"""Starts the application the bootloader stored (its bytes as received) and returns a
+connected socket to its PC link."""
+
+
+class QemuHandover:
+    """A :data:`Handover` to QEMU: the qemu board's boot stub, then the stored image at the
+    application base, with the PC link on a Unix socket. So `snakebot flash` can be tested
+    end to end: the firmware it sent is the firmware that then answers."""
+
+    def __init__(self) -> None:
+        self.firmware = None
+        self._dir: tempfile.TemporaryDirectory[str] | None = None
+
+    def __call__(self, image: bytes) -> socket.socket:
+        from snakebot.firmware import image as firmware_image
+        from snakebot.sim.qemu import Endpoint, QemuFirmware
+
+        stub = firmware_image("qemu", "stub.bin").read_bytes()
+        self._dir = tempfile.TemporaryDirectory(prefix="snakebot-handover-")
+        flash = Path(self._dir.name) / "flash.bin"
+        flash.write_bytes(stub + b"\xff" * (APP_BASE - FLASH_BASE - len(stub)) + image)
+        self.firmware = QemuFirmware(flash, pc_link=Endpoint.unix_server())
+        ports = self.firmware.start()
+        link = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        link.connect(ports.pc_link)
+        link.setblocking(False)
+        return link
+
+    def close(self) -> None:
+        if self.firmware is not None:
+            self.firmware.stop()
+            self.firmware = None
+        if self._dir is not None:
+            self._dir.cleanup()
+            self._dir = None
 
 
 class BootloaderPty(Server):
@@ -275,6 +359,8 @@ class BootloaderPty(Server):
     seconds after :meth:`start`, then resets, as when a user presses RESET; None resets at
     once. ``pace``: take the client's bytes at the line's speed (False: as fast as they
     come, for quick tests). ``link``: also make a symlink at this path to the device.
+    ``on_go``: after GO, start the stored image with this :data:`Handover` and relay the
+    line to it from then on (until a reset).
     """
 
     def __init__(
@@ -284,8 +370,12 @@ class BootloaderPty(Server):
         reset_after_s: float | None = None,
         pace: bool = True,
         link: str | os.PathLike[str] | None = None,
+        on_go: Handover | None = None,
     ) -> None:
         self.bootloader = bootloader or Bootloader()
+        self.on_go = on_go
+        self._app: socket.socket | None = None
+        self._handed = 0  # jumps already handed over
         self.reset_after_s = reset_after_s
         self.pace = pace
         self._pty = RawPty(link)
@@ -364,6 +454,7 @@ class BootloaderPty(Server):
                 if self._pending_reset or (self._reset_at is not None and now >= self._reset_at):
                     self._pending_reset = False
                     self._reset_at = None
+                    self._stop_app()
                     self._send(boot.reset(now))
                 self._send(boot.poll(now))
                 due = [t for t in (boot.next_deadline(), self._reset_at) if t is not None]
@@ -378,12 +469,16 @@ class BootloaderPty(Server):
                     wait = min(wait, (PACE_BLOCK - credit) * byte_s)
             else:
                 watch.append(self._pty.master)
+            if self._app is not None:
+                watch.append(self._app)
             try:
                 ready, _, _ = select.select(watch, [], [], wait)
             except (OSError, ValueError):
                 return
             if self._wake_r in ready and b"x" in os.read(self._wake_r, 64):
                 return
+            if self._app is not None and self._app in ready:
+                self._relay_from_app()
             if self._pty.master not in ready:
                 continue
             try:
@@ -400,7 +495,34 @@ class BootloaderPty(Server):
                 if baud is not None and baud != PC_LINK_BAUD:
                     self.dropped += len(data)
                     continue
+                if self._app is not None:
+                    self._app.sendall(data)
+                    continue
                 self._send(boot.feed(data, time.monotonic()))
+                jumped = self.on_go is not None and len(boot.started) > self._handed
+                self._handed = len(boot.started)
+                image = boot.image
+            if jumped and image is not None:
+                assert self.on_go is not None
+                self._app = self.on_go(image)
+
+    def _relay_from_app(self) -> None:
+        assert self._app is not None
+        try:
+            data = self._app.recv(4096)
+        except BlockingIOError:
+            return
+        except OSError:
+            data = b""
+        if data:
+            self._send(data)
+        else:
+            self._stop_app()  # the application went away
+
+    def _stop_app(self) -> None:
+        if self._app is not None:
+            self._app.close()
+            self._app = None
 
     def close(self) -> None:
         """Stop serving and remove the device (and the link)."""
@@ -409,6 +531,7 @@ class BootloaderPty(Server):
                 os.write(self._wake_w, b"x")
             self._thread.join(5.0)
             self._thread = None
+        self._stop_app()
         self._pty.close()
         for fd in (self._wake_r, self._wake_w):
             if fd >= 0:

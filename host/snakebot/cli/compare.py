@@ -1,0 +1,66 @@
+"""`snakebot compare`: a recorded run against the gait's prediction."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from snakebot.cli.compare_run import compare, load_run
+from snakebot.cli.output import dumps
+from snakebot.cli.params import PLOT_PATH
+from snakebot.extras import require
+from snakebot.gaittable import read_gait
+from snakebot.sim.predict import resolve_robot
+
+
+@click.command("compare")
+@click.argument("run", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("gait", type=click.Path(dir_okay=False, path_type=Path))
+@click.option(
+    "--robot",
+    help="The robot (built-in name or TOML) whose calibration turns ticks into angles; "
+    "default: the one the gait's metadata names.",
+)
+@click.option("--plot", type=PLOT_PATH, help="Write a picture of the joints and their error.")
+@click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
+def compare_command(
+    run: Path, gait: Path, robot: str | None, plot: Path | None, as_json: bool
+) -> None:
+    """Line up RUN (snakebot monitor --csv or --mcap output) against GAIT (the table that
+    was played) and report how far each joint was from the prediction.
+
+    \b
+        snakebot monitor --port /dev/ttyUSB0 --csv run.csv      # while the gait plays
+        snakebot compare run.csv walk.gait --plot compare.png
+
+    The prediction is the joint angles the table asks for (linear between frames, as the
+    controller plays them). The run's start within the gait is found by
+    cross-correlating the first joint; then each joint's RMS and largest error in
+    degrees are reported. A run with an external pose (columns pose_x, pose_y in metres
+    and pose_theta in radians, e.g. added from motion capture) is also compared with
+    the body path the table's motion predicts.
+    """
+    recorded = load_run(run)
+    table = read_gait(gait)
+    result = compare(recorded, table, resolve_robot(table, robot))
+    summary = {"run": str(run), "gait": str(gait), **result.summary()}
+    if plot is not None:
+        require("matplotlib", "--plot")
+        from snakebot.cli.compare_plot import plot_comparison
+
+        summary["plot"] = str(plot_comparison(result, plot))
+    if as_json:
+        click.echo(dumps(summary))
+        return
+    click.echo(
+        f"{summary['samples']} samples over {summary['duration_s']} s; the run starts "
+        f"{summary['start_in_gait_s']} s into the gait"
+    )
+    for j in summary["joints"]:
+        click.echo(f"  {j['joint']:>10}  RMS {j['rms_deg']:7.2f} deg   max {j['max_deg']:7.2f} deg")
+    if "pose" in summary:
+        p = summary["pose"]
+        click.echo(f"  pose: RMS {p['rms_m']} m, max {p['max_m']} m, at the end {p['final_m']} m")
+    if plot is not None:
+        click.echo(f"wrote {summary['plot']}")

@@ -1,0 +1,92 @@
+"""`snakebot doctor`: bring-up checks on a port, each with a verdict and a fix."""
+
+from __future__ import annotations
+
+import sys
+
+import click
+
+from snakebot import servo_ops
+from snakebot.cli import doctor_checks as checks
+from snakebot.cli.controller_link import controller_id_option
+from snakebot.cli.output import dumps
+from snakebot.flash.settings import FlashTimeouts
+
+MARKS = {"ok": "ok  ", "warn": "WARN", "fail": "FAIL", "skip": "skip"}
+
+
+@click.command("doctor")
+@click.option(
+    "--port",
+    "-p",
+    required=True,
+    help="The port to examine: the CM-530's PC link, a USB2Dynamixel's servo bus, a "
+    "pyserial URL (sim://...) or an emulator's pseudo-terminal.",
+)
+@controller_id_option
+@click.option(
+    "--ids", default="0-253", show_default=True, help="Servo IDs to look for on a servo bus."
+)
+@click.option(
+    "--bauds",
+    default="1000000",
+    show_default=True,
+    help="Rates to scan a servo bus at, comma-separated, or 'common' / 'all' (the AX-12 "
+    "leaves the factory at 1000000).",
+)
+@click.option(
+    "--bootloader",
+    "check_bootloader",
+    is_flag=True,
+    help="Instead of the controller or the servos, check that the CM-530's bootloader "
+    "answers: it asks you to press MODE or power-cycle the board, then starts the "
+    "application again.",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print the checks as JSON.")
+def doctor(
+    port: str, controller_id: int, ids: str, bauds: str, check_bootloader: bool, as_json: bool
+) -> None:
+    """Check a robot's wiring and settings before a first run.
+
+    \b
+        snakebot doctor --port /dev/ttyUSB0             # the CM-530, or a servo bus
+        snakebot doctor --port /dev/ttyUSB0 --bootloader
+
+    Checks, each ok / WARN / FAIL with what to do: the USB adapter's latency timer (an
+    FTDI adapter's, through /sys); then, if a snakebot controller answers PING at --id
+    (57600 baud), its model, firmware version and state; otherwise the port is taken
+    for a servo bus and scanned at --bauds: the rates servos answer at, IDs two servos
+    share, and each servo's model, firmware, return delay, voltage and temperature
+    (against the servo's own limits) and torque limit. Exit status 1 if any check fails.
+    """
+    id_list = servo_ops.parse_ids(ids)
+    rates = servo_ops.parse_bauds(bauds)
+    out = sys.stderr if as_json else sys.stdout
+    found = [checks.adapter(port)]
+    if check_bootloader:
+        click.echo("Press MODE on the CM-530 or power-cycle it now.", file=out)
+        found.append(checks.bootloader(port, FlashTimeouts.resolve()))
+    else:
+        on_controller = checks.controller(port, controller_id)
+        if on_controller is not None:
+            found += on_controller
+        else:
+            click.echo(
+                f"No controller at ID {controller_id}: scanning a servo bus at "
+                f"{', '.join(map(str, rates))} bit/s...",
+                file=out,
+            )
+            found += checks.servo_bus(port, id_list, rates)
+    failed = [c.name for c in found if c.verdict == "fail"]
+    if as_json:
+        click.echo(dumps({"port": port, "ok": not failed, "checks": [c.as_dict() for c in found]}))
+    else:
+        for c in found:
+            click.echo(f"{MARKS[c.verdict]}  {c.name}: {c.detail}")
+            if c.fix:
+                click.echo(f"      fix: {c.fix}")
+    if failed:
+        click.echo(
+            f"error: {len(failed)} check(s) failed ({', '.join(failed)}): see the fixes", err=True
+        )
+        sys.exit(1)

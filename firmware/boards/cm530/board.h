@@ -23,6 +23,12 @@
 /* The 4 KB below it keep the robot's limits (two slots of one page each). */
 #define BOARD_LIMITS_STORE_BASE 0x08077000UL
 #define BOARD_LIMITS_STORE_SIZE (4UL * 1024UL)
+/* Below them, the gait library (app/store_lib.h): its directory (two slots of one page),
+ * then STORE_LIB_SLOTS + 1 = 9 data areas of 32 KB, ending where the limits begin. */
+#define BOARD_HAS_FLASH_LIBRARY 1
+#define BOARD_LIB_DIR_BASE 0x0802E000UL
+#define BOARD_LIB_DIR_SIZE (4UL * 1024UL)
+#define BOARD_LIB_AREA_SIZE (32UL * 1024UL)
 
 #include "cm530_io.h" /* bus and PC-link USARTs and pins */
 

@@ -382,6 +382,11 @@ static void command(ctl_device *d, uint8_t cmd, uint32_t now_ms)
     bus_request_torque(&d->bus, BUS_TORQUE_ON);
 }
 
+void ctl_command(ctl_device *d, uint8_t cmd, uint32_t now_ms)
+{
+    command(d, cmd, now_ms);
+}
+
 /* ---- WRITE ------------------------------------------------------------------------------ */
 
 static const field *register_at(uint8_t addr)

@@ -85,6 +85,9 @@ uint8_t ctl_id(const ctl_device *d);
 bool ctl_table_changed(ctl_device *d);
 /* The active table's bytes (NULL and *len = 0 if none). */
 const uint8_t *ctl_active_table(const ctl_device *d, size_t *len);
+/* Carry out a Command (CTL_COMMAND_*) as if the PC link had written it, e.g. for the
+ * robot's own buttons; a refusal raises Error Flags REFUSED likewise. */
+void ctl_command(ctl_device *d, uint8_t cmd, uint32_t now_ms);
 /* cffi:end */
 
 /* The robot's limits as staged: a count, then per servo its ID, min tick, max tick. */

@@ -748,16 +748,16 @@ static void step(src *s)
     case 3: { /* a roster record in the servo window */
         uint8_t data[1 + CTL_SERVO_RECORD_SIZE];
         uint8_t slot = u8(s) % CTL_SERVO_RECORDS;
-        data[0] = u8(s) % 3u; /* Servo Page, written in the same packet */
+        data[0] = u8(s) % CTL_SERVO_PAGES; /* Window Page, written in the same packet */
         bytes(s, data + 1, 8);
         put16(data + 1 + CTL_REC_ZERO_TICK, u16(s) % 1024u);
         put16(data + 1 + CTL_REC_MIN_TICK, u16(s) % 1024u);
         put16(data + 1 + CTL_REC_MAX_TICK, u16(s) % 1024u);
         data[1 + CTL_REC_REVERSE] &= 1u;
         if (slot == 0) {
-            write_to_me(CTL_SERVO_PAGE, data, 1 + 8);
+            write_to_me(CTL_WINDOW_PAGE, data, 1 + 8);
         } else {
-            write_to_me(CTL_SERVO_PAGE, data, 1);
+            write_to_me(CTL_WINDOW_PAGE, data, 1);
             write_to_me((uint8_t)(CTL_SERVO_WINDOW + slot * CTL_SERVO_RECORD_SIZE), data + 1, 8);
         }
         break;

@@ -8,7 +8,7 @@ range and unit factor is written once.
 
 Outputs: firmware/core/ax12_table.h (the AX-12 registers and the fixed-point unit
 constants the player computes with), firmware/core/ctl_table.h (the controller's table,
-servo window, value names and range X-macros) and the generated part of
+servo window and window pages, value names and range X-macros) and the generated part of
 protocol/controller.md. The loader it uses (snakebot.devices) needs only the standard
 library, so this runs before snakebot is installed.
 """
@@ -173,13 +173,21 @@ def render_controller(device: Device) -> str:
     out += [
         "",
         "/* The servo window: CTL_SERVO_RECORDS records of CTL_SERVO_RECORD_SIZE bytes",
-        " * showing roster joints 6 * Servo Page ..; CTL_REC_* are offsets in a record. */",
+        " * showing roster joints 6 * Window Page .. on the first CTL_SERVO_PAGES pages;",
+        " * CTL_REC_* are offsets in a record. */",
         f"#define CTL_SERVO_WINDOW {window.address}",
         f"#define CTL_SERVO_RECORD_SIZE {window.record_size}",
         f"#define CTL_SERVO_RECORDS {window.records}",
+        f"#define CTL_SERVO_PAGES {-(-device.limits['max_joints'] // window.records)}",
     ]
     for f in window.fields:
         out.append(f"#define CTL_REC_{macro(f.name)} {f.address}")
+    out += ["", "/* The other window pages: their numbers, and each field's absolute address. */"]
+    for page in device.pages:
+        out.append(f"#define CTL_PAGE_{macro(page.name)} {page.number}")
+        for f in page.fields:
+            out.append(f"#define CTL_{macro(f.name)} {page.base + f.address}")
+            out.append(f"#define CTL_{macro(f.name)}_SIZE {f.size}")
     out += ["", "/* Values. */"]
     for name, values in device.enums.items():
         for value_name, value in values.items():
@@ -190,6 +198,16 @@ def render_controller(device: Device) -> str:
     out += ["", "#define CTL_SERVO_FIELDS(X) \\"]
     rows = [_xrow(f"CTL_REC_{macro(f.name)}", f) for f in window.fields]
     out += [row + " \\" for row in rows[:-1]] + [rows[-1]]
+    out += [
+        "",
+        "/* Every field of the described pages: X(page, offset, size, access, min, max,",
+        " * is_signed, default), offset from CTL_SERVO_WINDOW. */",
+        "#define CTL_PAGE_FIELDS(X) \\",
+    ]
+    rows = [
+        _xrow(f"CTL_PAGE_{macro(p.name)}, {f.address}", f) for p in device.pages for f in p.fields
+    ]
+    out += [row + " \\" for row in rows[:-1]] + rows[-1:]
     out += ["", "#endif", ""]
     defined = [line.split()[1] for line in out if line.startswith("#define ")]
     clashes = sorted({n for n in defined if defined.count(n) > 1})
@@ -238,6 +256,17 @@ def render_doc_tables(device: Device) -> str:
         rule,
     ]
     out += _rows(window.fields)
+    for page in device.pages:
+        out += [
+            "",
+            f"### Window page {page.number}: {page.name} (from address {page.base})",
+            "",
+            page.description[:1].upper() + page.description[1:] + ".",
+            "",
+            head.format("offset"),
+            rule,
+        ]
+        out += _rows(page.fields)
     out += ["", "### Values", ""]
     for name, values in device.enums.items():
         flags = name in device.flags

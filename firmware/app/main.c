@@ -21,6 +21,7 @@ int main(void)
 {
     platform_init();
     ctl_init(&ctl);
+    ctl_set_capacity(&ctl, BOARD_TABLE_CAPACITY);
     (void)store_load(&ctl);
     (void)ctl_table_changed(&ctl); /* loading from the store is not a change to store */
     (void)ctl_limits_changed(&ctl);

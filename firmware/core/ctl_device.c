@@ -16,12 +16,22 @@ typedef struct {
     int32_t def;
 } field;
 
+/* A field of a described window page (offset from CTL_SERVO_WINDOW in f.addr). */
+typedef struct {
+    uint8_t page;
+    field f;
+} page_field;
+
 #define FIELD(a, s, acc, lo, hi, sg, dflt) {a, s, acc, sg, (int32_t)(lo), (int32_t)(hi), (int32_t)(dflt)},
+#define PAGE_FIELD(pg, a, s, acc, lo, hi, sg, dflt) {pg, FIELD(a, s, acc, lo, hi, sg, dflt)},
 static const field registers[] = {CTL_REGISTERS(FIELD)};
 static const field servo_fields[] = {CTL_SERVO_FIELDS(FIELD)};
+static const page_field page_fields[] = {CTL_PAGE_FIELDS(PAGE_FIELD)};
+#undef PAGE_FIELD
 #undef FIELD
 #define N_REGISTERS (sizeof registers / sizeof registers[0])
 #define N_SERVO_FIELDS (sizeof servo_fields / sizeof servo_fields[0])
+#define N_PAGE_FIELDS (sizeof page_fields / sizeof page_fields[0])
 
 #define WINDOW_END (CTL_SERVO_WINDOW + CTL_SERVO_RECORDS * CTL_SERVO_RECORD_SIZE)
 #define UPLOAD_FLAGS                                                                 \
@@ -186,6 +196,7 @@ static void defaults(ctl_device *d)
     roster_defaults(d);
     play_stop(&d->player);
     d->staged_end = 0;
+    d->refusal = CTL_REFUSAL_REASON_NONE;
 }
 
 /* Mirror the active table's header into the registers, and the roster from it. */
@@ -313,7 +324,7 @@ static void commit(ctl_device *d, uint8_t what)
     uint32_t crc = reg(d, CTL_UPLOAD_CRC, 4);
     gt_info info;
     uint8_t result;
-    if (len == 0 || len > CTL_MAX_TABLE_BYTES) {
+    if (len == 0 || len > d->capacity) {
         result = CTL_UPLOAD_RESULT_BAD_LENGTH;
     } else if (len > d->staged_end) {
         result = CTL_UPLOAD_RESULT_INCOMPLETE;
@@ -348,22 +359,48 @@ static bool roster_ok(const ctl_device *d)
     return true;
 }
 
+/* Why PLAY cannot run now (CTL_REFUSAL_REASON_*; NONE: it can). */
+static uint8_t play_refusal(const ctl_device *d)
+{
+    gt_info info;
+    if (state(d) == CTL_STATE_SAFE) return CTL_REFUSAL_REASON_SAFE_STATE;
+    if (d->active_len == 0) return CTL_REFUSAL_REASON_NO_TABLE;
+    if (!limits_ready(d)) return CTL_REFUSAL_REASON_LIMITS_NOT_VERIFIED;
+    /* robot limits set after the table may be narrower than its own */
+    if (check_table(d, d->active, d->active_len, &info) != GT_OK) {
+        return CTL_REFUSAL_REASON_TABLE_OUTSIDE_LIMITS;
+    }
+    return CTL_REFUSAL_REASON_NONE;
+}
+
+/* Why SERPENOID cannot run now (CTL_REFUSAL_REASON_*; NONE: it can). */
+static uint8_t serpenoid_refusal(const ctl_device *d)
+{
+    if (state(d) == CTL_STATE_SAFE) return CTL_REFUSAL_REASON_SAFE_STATE;
+    if (joint_count(d) == 0) return CTL_REFUSAL_REASON_EMPTY_ROSTER;
+    if (!roster_ok(d)) return CTL_REFUSAL_REASON_BAD_JOINT_LIMITS;
+    if (!limits_ready(d)) return CTL_REFUSAL_REASON_LIMITS_NOT_VERIFIED;
+    return CTL_REFUSAL_REASON_NONE;
+}
+
 static void command(ctl_device *d, uint8_t cmd, uint32_t now_ms)
 {
     bool started = false;
+    uint8_t why = CTL_REFUSAL_REASON_NONE;
     switch (cmd) {
     case CTL_COMMAND_PLAY:
-        if (state(d) == CTL_STATE_SAFE || d->active_len == 0 || !limits_ready(d)) break;
-        gt_info info;
-        /* robot limits set after the table may be narrower than its own */
-        if (check_table(d, d->active, d->active_len, &info) != GT_OK) break;
+        why = play_refusal(d);
+        if (why != CTL_REFUSAL_REASON_NONE) break;
         started = play_start_table(&d->player, d->active, d->active_len, now_ms);
         if (started) set_state(d, CTL_STATE_PLAYING);
+        else why = CTL_REFUSAL_REASON_NO_TABLE;
         break;
     case CTL_COMMAND_SERPENOID:
-        if (state(d) == CTL_STATE_SAFE || !roster_ok(d) || !limits_ready(d)) break;
+        why = serpenoid_refusal(d);
+        if (why != CTL_REFUSAL_REASON_NONE) break;
         started = play_start_serpenoid(&d->player, joint_count(d), now_ms);
         if (started) set_state(d, CTL_STATE_SERPENOID);
+        else why = CTL_REFUSAL_REASON_EMPTY_ROSTER;
         break;
     case CTL_COMMAND_STOP: stop_motion(d); return;
     case CTL_COMMAND_CLEAR:
@@ -374,6 +411,7 @@ static void command(ctl_device *d, uint8_t cmd, uint32_t now_ms)
         return;
     default: return;
     }
+    d->refusal = why;
     if (!started) {
         raise_flags(d, CTL_ERROR_FLAGS_REFUSED);
         return;
@@ -441,15 +479,76 @@ static bool check_record(const ctl_device *d, uint8_t slot, uint8_t page, uint8_
     return true;
 }
 
-/* Servo Page as an index that is always in bounds (its range check keeps it so anyway). */
-static uint8_t safe_page(uint8_t page)
+/* ---- window pages beyond the servo records --------------------------------------------- */
+
+static bool page_known(uint8_t page)
 {
-    return page < CTL_MAX_JOINTS / CTL_SERVO_RECORDS ? page : 0;
+    if (page < CTL_SERVO_PAGES) return true;
+    for (size_t i = 0; i < N_PAGE_FIELDS; i++) {
+        if (page_fields[i].page == page) return true;
+    }
+    return false;
+}
+
+/* The field of described page `page` holding window byte `offset`, or NULL. */
+static const field *page_field_at(uint8_t page, uint8_t offset)
+{
+    for (size_t i = 0; i < N_PAGE_FIELDS; i++) {
+        const field *f = &page_fields[i].f;
+        if (page_fields[i].page == page && offset >= f->addr && offset < f->addr + f->size) {
+            return f;
+        }
+    }
+    return NULL;
+}
+
+/* The value field `addr` (absolute) of described page `page` shows. */
+static uint32_t page_value(const ctl_device *d, uint8_t page, uint8_t addr)
+{
+    if (page == CTL_PAGE_PROGRAM) {
+        switch (addr) {
+        case CTL_TABLE_CAPACITY: return d->capacity;
+        case CTL_MAX_SEGMENTS: return CTL_MAX_PROGRAM_SEGMENTS;
+        case CTL_REFUSAL_REASON: return d->refusal;
+        default: return 0;
+        }
+    }
+    return 0;
+}
+
+/* Check (apply: and apply) the part of a write of data[0..n) at start that falls on the
+ * window while it shows described page `page`: every byte in a writable field, each
+ * field touched in range as it would become. */
+static uint8_t write_page(ctl_device *d, uint8_t page, uint8_t start, const uint8_t *data,
+                          size_t n, bool apply)
+{
+    uint16_t end = (uint16_t)(start + n);
+    uint16_t a = start > CTL_SERVO_WINDOW ? start : CTL_SERVO_WINDOW;
+    for (; a < end && a < WINDOW_END; a++) {
+        const field *f = page_field_at(page, (uint8_t)(a - CTL_SERVO_WINDOW));
+        if (f == NULL || (f->access & CTL_ACCESS_W) == 0) return DXL_ERR_RANGE;
+        uint8_t at = (uint8_t)(CTL_SERVO_WINDOW + f->addr);
+        uint8_t now[4];
+        put_le(now, f->size, page_value(d, page, at));
+        for (uint8_t i = 0; i < f->size; i++) {
+            uint16_t b = (uint16_t)(at + i);
+            if (b >= start && b < end) now[i] = data[b - start];
+        }
+        uint32_t value = get_le(now, f->size);
+        if (!in_range(f, value)) return DXL_ERR_RANGE;
+        /* no described field is writable yet: pages that get one apply it here */
+        (void)apply;
+        a = (uint16_t)(at + f->size - 1u);
+    }
+    return 0;
 }
 
 static uint8_t write_window(ctl_device *d, uint8_t start, const uint8_t *data, size_t n, bool apply)
 {
-    uint8_t page = safe_page(byte_after(d, CTL_SERVO_PAGE, start, data, n));
+    uint8_t page = byte_after(d, CTL_WINDOW_PAGE, start, data, n);
+    if (!page_known(page)) return DXL_ERR_RANGE;
+    if (start + n <= CTL_SERVO_WINDOW) return 0;
+    if (page >= CTL_SERVO_PAGES) return write_page(d, page, start, data, n, apply);
     for (uint8_t slot = 0; slot < CTL_SERVO_RECORDS; slot++) {
         uint16_t base = (uint16_t)(CTL_SERVO_WINDOW + slot * CTL_SERVO_RECORD_SIZE);
         if (base >= start + n || base + CTL_SERVO_RECORD_SIZE <= start) continue;
@@ -481,7 +580,7 @@ static uint8_t write_bytes(ctl_device *d, uint8_t start, const uint8_t *data, si
         uint16_t f_end = (uint16_t)(f->addr + f->size);
         uint16_t last = (uint16_t)((f_end < end ? f_end : end) - 1u);
         if (f->addr == CTL_UPLOAD_DATA) {
-            if (offset + (last - CTL_UPLOAD_DATA) >= CTL_MAX_TABLE_BYTES) {
+            if (offset + (last - CTL_UPLOAD_DATA) >= d->capacity) {
                 raise_flags(d, CTL_ERROR_FLAGS_UPLOAD_LENGTH);
                 return DXL_ERR_RANGE;
             }
@@ -539,12 +638,16 @@ static void refresh(ctl_device *d)
 static void read_bytes(ctl_device *d, uint8_t start, uint8_t n, uint8_t *out)
 {
     refresh(d);
-    uint8_t page = safe_page(d->regs[CTL_SERVO_PAGE]);
+    uint8_t page = d->regs[CTL_WINDOW_PAGE]; /* a known page: writes check it */
     uint8_t rec[CTL_SERVO_RECORD_SIZE];
     int16_t shown = -1;
     for (uint16_t i = 0; i < n; i++) {
         uint16_t a = (uint16_t)(start + i);
-        if (a >= CTL_SERVO_WINDOW && a < WINDOW_END) {
+        if (a >= CTL_SERVO_WINDOW && a < WINDOW_END && page >= CTL_SERVO_PAGES) {
+            const field *f = page_field_at(page, (uint8_t)(a - CTL_SERVO_WINDOW));
+            uint8_t at = f ? (uint8_t)(CTL_SERVO_WINDOW + f->addr) : 0u;
+            out[i] = f ? (uint8_t)(page_value(d, page, at) >> (8u * (a - at))) : 0u;
+        } else if (a >= CTL_SERVO_WINDOW && a < WINDOW_END) {
             uint8_t slot = (uint8_t)((a - CTL_SERVO_WINDOW) / CTL_SERVO_RECORD_SIZE);
             if (shown != slot) {
                 record_read(d, (uint8_t)(page * CTL_SERVO_RECORDS + slot), rec);
@@ -665,11 +768,17 @@ void ctl_init(ctl_device *d)
     d->out_count = 0;
     d->table_changed = 0;
     d->limits_changed = 0;
+    d->capacity = CTL_MAX_TABLE_BYTES;
+}
+
+void ctl_set_capacity(ctl_device *d, uint16_t bytes)
+{
+    d->capacity = bytes < CTL_MAX_TABLE_BYTES ? bytes : CTL_MAX_TABLE_BYTES;
 }
 
 bool ctl_load_table(ctl_device *d, const uint8_t *table, size_t len)
 {
-    if (len == 0 || len > CTL_MAX_TABLE_BYTES) return false;
+    if (len == 0 || len > d->capacity) return false;
     gt_info info;
     if (check_table(d, table, len, &info) != GT_OK) return false;
     activate(d, table, len, crc32_compute(table, len), &info);

@@ -42,8 +42,12 @@ typedef struct ctl_device ctl_device;
 
 /* Bytes to allocate for a ctl_device. */
 size_t ctl_device_size(void);
-/* Factory state: registers at their defaults, no table, idle. */
+/* Factory state: registers at their defaults, no table, idle; tables of up to
+ * CTL_MAX_TABLE_BYTES accepted. */
 void ctl_init(ctl_device *d);
+/* The board's table capacity in bytes (at most the core's buffers hold; Table Capacity
+ * on the Program page shows it): commits and uploads beyond it are refused. */
+void ctl_set_capacity(ctl_device *d, uint16_t bytes);
 /* Make table[0..len) the active table without an upload (e.g. one kept in flash);
  * false, and nothing changed, if it does not validate. */
 bool ctl_load_table(ctl_device *d, const uint8_t *table, size_t len);
@@ -103,6 +107,8 @@ struct ctl_device {
     uint32_t last_link_ms;
     uint16_t staged_end;    /* staging bytes written since the upload began at offset 0 */
     uint16_t active_len;    /* 0: no active table */
+    uint16_t capacity;      /* the board's table capacity (<= CTL_MAX_TABLE_BYTES) */
+    uint8_t refusal;        /* CTL_REFUSAL_REASON_* of the last command */
     uint8_t out_count;      /* goals to send this tick */
     uint8_t table_changed;
     uint8_t limits_changed;

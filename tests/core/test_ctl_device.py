@@ -274,7 +274,7 @@ def test_commands_that_cannot_run_are_refused(dev):
 def test_servo_window_pages_and_roster_writes(dev):
     assert dev.set("Joint Count", 8) == 0
     page, slot = CTL.servo_page(7)
-    assert dev.set("Servo Page", page) == 0
+    assert dev.set("Window Page", page) == 0
     rec = CTL.servo_address(slot, "ID")
     # ID, Reverse, Zero Tick in one write
     assert dev.one(write(CTL_ID, rec, bytes([42, 1]) + (300).to_bytes(2, "little"))).error == 0
@@ -282,14 +282,14 @@ def test_servo_window_pages_and_roster_writes(dev):
     assert (joint7["ID"], joint7["Reverse"], joint7["Zero Tick"]) == (42, 1, 300)
     assert dev.servo_window(0)[slot]["ID"] == 0  # page 0 shows other joints
     # telemetry fields are read-only; ranges are checked
-    assert dev.set("Servo Page", page) == 0
+    assert dev.set("Window Page", page) == 0
     pos = CTL.servo_address(slot, "Present Position")
     assert dev.one(write(CTL_ID, pos, b"\x00\x02")).error == ErrorFlags.RANGE
     zero = CTL.servo_address(slot, "Zero Tick")
     assert dev.one(write(CTL_ID, zero, (1024).to_bytes(2, "little"))).error == ErrorFlags.RANGE
     # page and record in one write: the new page applies
-    payload = bytes([1, 77])  # Servo Page = 1, then record 0's ID = 77 -> joint 6
-    assert dev.one(write(CTL_ID, CTL.register("Servo Page").address, payload)).error == 0
+    payload = bytes([1, 77])  # Window Page = 1, then record 0's ID = 77 -> joint 6
+    assert dev.one(write(CTL_ID, CTL.register("Window Page").address, payload)).error == 0
     assert dev.servo_window(1)[0]["ID"] == 77
 
 

@@ -44,7 +44,7 @@ def test_registers_fit_without_overlap():
     assert offsets[0][0] == 0 and offsets[-1][1] == CTL.servo_record_size
     assert all(a[1] == b[0] for a, b in zip(offsets, offsets[1:], strict=False))
     # the servo window shows every roster joint on some page
-    pages = CTL.register("Servo Page").max + 1
+    pages = CTL.servo_pages
     assert pages * CTL.servo_records == CTL.limits["max_joints"]
 
 

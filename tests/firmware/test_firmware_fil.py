@@ -131,7 +131,7 @@ def test_plays_an_uploaded_table_and_the_virtual_servos_follow(rig):
         assert frames_seen >= {0, 1, 2, 3}  # every frame was played
 
         # The controller's telemetry mirrors the emulated servos.
-        c.write_u8(CONTROLLER_ID, reg("Servo Page"), 0)
+        c.write_u8(CONTROLLER_ID, reg("Window Page"), 0)
         window = c.read(CONTROLLER_ID, CTL.servo_window_address, CTL.servo_record_size * len(IDS))
         records = CTL.decode_servo_window(window)
         assert [r["ID"] for r in records] == list(IDS)

@@ -114,7 +114,7 @@ class Device:
         return self.one(write(CTL_ID, reg.address, data)).error
 
     def servo_window(self, page: int = 0) -> list[dict[str, int]]:
-        assert self.set("Servo Page", page) == 0
+        assert self.set("Window Page", page) == 0
         size = CTL.servo_records * CTL.servo_record_size
         return CTL.decode_servo_window(self.read(CTL.servo_window_address, size))
 

@@ -15,6 +15,8 @@
 /* Memory. The ROBOTIS bootloader owns 0x08000000-0x08002FFF and jumps to BOARD_APP_BASE. */
 #define BOARD_APP_BASE 0x08003000UL
 #define BOARD_RAM_SIZE (64UL * 1024UL)
+/* Bytes a gait table may take (Table Capacity on the Program page). */
+#define BOARD_TABLE_CAPACITY 2048U
 #define BOARD_FLASH_PAGE_SIZE 2048UL
 /* The last 32 KB of flash keep the committed gait table (kept out of the image by cm530.ld). */
 #define BOARD_HAS_FLASH_STORE 1

@@ -197,15 +197,31 @@ class ControllerClient:
     def registers(self, names: Iterable[str]) -> list[Register]:
         return [self.table.register(n) for n in names]
 
+    def _by_page(self, names: Iterable[str]) -> dict[int | None, list[str]]:
+        """``names`` grouped by the window page that shows them (None: no page needed)."""
+        groups: dict[int | None, list[str]] = {}
+        for name in names:
+            groups.setdefault(self.table.page_number(name), []).append(name)
+        return groups
+
+    def show_page(self, page: int) -> None:
+        """WRITE Window Page = ``page``."""
+        selector = self.table.register("Window Page")
+        self.write_block(selector.address, selector.encode(page))
+
     def read(self, *names: str) -> dict[str, int]:
-        """The named registers, fetched with one READ spanning them all."""
-        regs = self.registers(names)
-        if not regs:
-            return {}
-        start = min(r.address for r in regs)
-        end = max(r.end for r in regs)
-        data = self.read_block(start, end - start)
-        return {r.name: r.decode(data[r.address - start : r.end - start]) for r in regs}
+        """The named registers, fetched with one READ spanning them all (per window page:
+        a field of a page is read after writing its page to Window Page)."""
+        values: dict[str, int] = {}
+        for page, group in self._by_page(names).items():
+            regs = self.registers(group)
+            if page is not None:
+                self.show_page(page)
+            start = min(r.address for r in regs)
+            end = max(r.end for r in regs)
+            data = self.read_block(start, end - start)
+            values.update({r.name: r.decode(data[r.address - start : r.end - start]) for r in regs})
+        return {self.table.register(n).name: values[self.table.register(n).name] for n in names}
 
     def read_all(self) -> dict[str, int]:
         """Every readable register below the upload window (one READ)."""
@@ -214,13 +230,21 @@ class ControllerClient:
 
     def write(self, values: Mapping[str, int]) -> None:
         """WRITE registers by name; each value is range-checked first (ControllerTableError
-        names the range), and adjacent registers go out in one packet, in address order."""
-        encoded = sorted(
-            (
-                (reg.address, reg.encode(int(value)))
-                for reg, value in ((self.table.register(n), v) for n, v in values.items())
-            ),
-        )
+        names the range), and adjacent registers go out in one packet, in address order.
+        Fields of a window page go after their page: Window Page travels in the same
+        packet when the window's first field is written."""
+        for page, group in self._by_page(values).items():
+            encoded = [
+                (r.address, r.encode(int(values[n])))
+                for n, r in zip(group, self.registers(group), strict=True)
+            ]
+            if page is not None:
+                selector = self.table.register("Window Page")
+                encoded.append((selector.address, selector.encode(page)))
+            self._write_runs(sorted(encoded))
+
+    def _write_runs(self, encoded: list[tuple[int, bytes]]) -> None:
+        """WRITE (address, bytes) pairs in address order, adjacent ones in one packet."""
         run_start, run = -1, b""
         for address, data in encoded:
             if run and address == run_start + len(run):
@@ -279,7 +303,7 @@ class ControllerClient:
             count = self.read("Joint Count")["Joint Count"]
         per_page = self.table.servo_records
         size = self.table.servo_record_size
-        page_reg = self.table.register("Servo Page")
+        page_reg = self.table.register("Window Page")
         records: list[JointRecord] = []
         for first in range(0, count, per_page):
             page, _ = self.table.servo_page(first)
@@ -298,7 +322,7 @@ class ControllerClient:
             raise ControllerError(
                 f"a roster needs 1..{limit} joints, got {len(entries)}: check the robot file"
             )
-        page_reg = self.table.register("Servo Page")
+        page_reg = self.table.register("Window Page")
         fields = [self.table.servo_field(n) for n in ROSTER_FIELDS]
         shown_page = -1
         for joint, entry in enumerate(entries):

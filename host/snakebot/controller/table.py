@@ -77,16 +77,40 @@ class Controller:
     def servo_fields(self) -> tuple[Register, ...]:
         return self._window.fields
 
+    @property
+    def servo_pages(self) -> int:
+        """Window pages showing servo records (0 .. servo_pages - 1)."""
+        return -(-self.limits["max_joints"] // self.servo_records)
+
+    @property
+    def pages(self) -> tuple[devices.Page, ...]:
+        """The window's described pages (Program, ...)."""
+        return self.device.pages
+
+    def page(self, name: str | int) -> devices.Page:
+        """The window page called or numbered ``name``."""
+        return self.device.page(name)
+
     def register(self, name: str) -> Register:
-        """The register called ``name`` (case-insensitive), e.g. "Speed Scale"."""
+        """The register called ``name`` (case-insensitive), e.g. "Speed Scale"; a field of
+        a window page ("Table Capacity") comes at its absolute address, shown only while
+        Window Page holds its page (:meth:`page_number`)."""
+        page = self.device.page_of(name)
+        if page is not None:
+            return page.register(name)
         return self.device.register(name)
+
+    def page_number(self, name: str) -> int | None:
+        """The Window Page value that shows register ``name``; None for an ordinary one."""
+        page = self.device.page_of(name)
+        return None if page is None else page.number
 
     def servo_field(self, name: str) -> Register:
         """The servo-record field called ``name`` (its address is the offset in a record)."""
         return find(self.servo_fields, name, "no servo-window field")
 
     def servo_page(self, joint: int) -> tuple[int, int]:
-        """(page, slot): write ``page`` to Servo Page, then the joint is record ``slot``."""
+        """(page, slot): write ``page`` to Window Page, then the joint is record ``slot``."""
         if not 0 <= joint < self.limits["max_joints"]:
             raise ControllerTableError(
                 f"joint index {joint} is outside the roster: the controller has joints "

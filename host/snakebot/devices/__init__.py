@@ -17,7 +17,7 @@ same files. Nothing else types a register address or a unit factor.
 
 from __future__ import annotations
 
-from snakebot.devices.device import Baud, Device, Position, ServoWindow
+from snakebot.devices.device import Baud, Device, Page, Position, ServoWindow
 from snakebot.devices.errors import DeviceError
 from snakebot.devices.loader import by_model_number, load, names, source
 from snakebot.devices.register import Register
@@ -47,6 +47,7 @@ __all__ = [
     "Device",
     "DeviceError",
     "Encoding",
+    "Page",
     "Position",
     "Register",
     "Scale",

@@ -5,7 +5,7 @@ range)."""
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from snakebot.devices.errors import DeviceError
 from snakebot.devices.register import Register
@@ -109,6 +109,27 @@ class ServoWindow:
 
 
 @dataclass(frozen=True)
+class Page:
+    """A page of the controller's window: what addresses ``base`` .. show while Window
+    Page holds ``number``. Each field's address is its offset from ``base``."""
+
+    number: int
+    name: str
+    description: str
+    base: int
+    fields: tuple[Register, ...]
+
+    def field(self, name: str) -> Register:
+        """The field called ``name`` (its address is the offset in the page)."""
+        return find(self.fields, name, f"page {self.name} has no field")
+
+    def register(self, name: str) -> Register:
+        """Field ``name`` as a register at its absolute address (while this page is shown)."""
+        reg = self.field(name)
+        return replace(reg, address=self.base + reg.address)
+
+
+@dataclass(frozen=True)
 class Device:
     """One device: a servo model or the snakebot controller."""
 
@@ -128,6 +149,7 @@ class Device:
     servo_model: str | None = None  # the controller: the servo model it drives
     limits: dict[str, int] = field(default_factory=dict)
     servo_window: ServoWindow | None = None
+    pages: tuple[Page, ...] = ()  # the window's described pages beyond the servo records
     enums: dict[str, dict[str, int]] = field(default_factory=dict)
     flags: tuple[str, ...] = ()  # the enums whose values are bit flags
 
@@ -137,6 +159,22 @@ class Device:
     def register(self, name: str) -> Register:
         """The register called ``name`` (case-insensitive), e.g. "Goal Position"."""
         return find(self.registers, name, f"{self.name} has no register")
+
+    def page(self, name: str | int) -> Page:
+        """The window page called ``name`` (case-insensitive) or numbered ``name``."""
+        for page in self.pages:
+            if page.number == name or (isinstance(name, str) and page.name.lower() == name.lower()):
+                return page
+        known = ", ".join(f"{p.number} ({p.name})" for p in self.pages)
+        raise DeviceError(f"{self.name} has no window page {name!r}: known are {known}")
+
+    def page_of(self, name: str) -> Page | None:
+        """The window page holding the field called ``name``, or None (no page has it)."""
+        key = name.strip().lower()
+        for page in self.pages:
+            if any(f.name.lower() == key for f in page.fields):
+                return page
+        return None
 
     def span(self, first: str, last: str) -> tuple[int, int]:
         """(address, length) of the bytes from register ``first`` through ``last``, for a

@@ -15,7 +15,7 @@ from functools import cache
 from importlib import resources
 from typing import Any
 
-from snakebot.devices.device import Baud, Device, Position, ServoWindow
+from snakebot.devices.device import Baud, Device, Page, Position, ServoWindow
 from snakebot.devices.errors import DeviceError
 from snakebot.devices.register import Register
 from snakebot.devices.units import Encoding, Scale, exact, shown
@@ -185,6 +185,56 @@ def _check(file: str, device: Device) -> None:
         end = reg.end
 
 
+def _page(
+    file: str,
+    raw: dict[str, Any],
+    scales: dict[str, Scale],
+    servo: Device | None,
+    window: dict[str, Any] | None,
+) -> Page:
+    """One described page of the window (``pages`` in the controller's file)."""
+    if window is None:
+        raise DeviceError(f'{file}: "pages" need a "servo_window" to show them: add one')
+    return Page(
+        number=raw["page"],
+        name=raw["name"],
+        description=raw.get("description", ""),
+        base=window["address"],
+        fields=tuple(_register(file, f, scales, servo) for f in raw["fields"]),
+    )
+
+
+def _check_pages(file: str, device: Device) -> None:
+    """Refuse pages that clash with the servo records, with each other or with the
+    registers' names, and fields that overlap or leave the window."""
+    window = device.servo_window
+    if not device.pages or window is None:
+        return
+    size = window.records * window.record_size
+    selector = device.register("Window Page")
+    low, high = selector.value_range()
+    servo_pages = -(-device.limits["max_joints"] // window.records)
+    names = {r.name.lower() for r in device.registers}
+    numbers: set[int] = set()
+    for page in device.pages:
+        where = f"{file}: window page {page.number} ({page.name})"
+        if not servo_pages <= page.number <= high or page.number < low:
+            raise DeviceError(f"{where}: numbers run {servo_pages}..{high}: renumber it")
+        if page.number in numbers:
+            raise DeviceError(f"{where}: the number is taken twice: renumber one")
+        numbers.add(page.number)
+        end = 0
+        for f in sorted(page.fields, key=lambda r: r.address):
+            if f.address < end or f.end > size or f.size > 4:
+                raise DeviceError(
+                    f"{where}: field {f.name!r} overlaps, leaves the window or passes 4 bytes"
+                )
+            if f.name.lower() in names:
+                raise DeviceError(f"{where}: field {f.name!r} is also a register's name")
+            names.add(f.name.lower())
+            end = f.end
+
+
 @cache
 def _build(name: str) -> Device:
     """The device called exactly ``name``, built once."""
@@ -238,6 +288,7 @@ def _build(name: str) -> Device:
                 window["records"],
                 tuple(_register(file, f, scales, servo) for f in window["fields"]),
             ),
+            pages=tuple(_page(file, p, scales, servo, window) for p in doc.get("pages", [])),
             enums={k: dict(v["values"]) for k, v in doc.get("enums", {}).items()},
             flags=tuple(k for k, v in doc.get("enums", {}).items() if v["kind"] == "flags"),
         )
@@ -253,4 +304,5 @@ def _build(name: str) -> Device:
                 f"{file}: the position needs a register with a scale and a centre in its range"
             )
     _check(file, device)
+    _check_pages(file, device)
     return device

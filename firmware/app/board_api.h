@@ -14,10 +14,10 @@ hal_clocks_t board_clock_init(void);
  * bus, the PC link). The direction pins are configured by the USART driver. */
 void board_pins_init(void);
 
-/* The buttons held down now, as a BUTTON_* mask (core/buttons.h); undebounced. */
+/* The buttons held down now, as a CTL_BUTTONS_* mask (the Buttons register); undebounced. */
 uint8_t board_buttons(void);
 
-/* Light the LEDs whose bits are set in `on` (lib_panel_leds() order), darken the others. */
+/* Light the LEDs whose CTL_LEDS_* bits are set in `on`, darken the others. */
 void board_leds(uint8_t on);
 
 #endif

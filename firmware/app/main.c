@@ -27,7 +27,7 @@ int main(void)
     (void)ctl_limits_changed(&ctl);
     pclink_init();
     busport_init();
-    store_play_init();
+    store_play_init(&ctl);
 
     uint32_t next_tick = hal_millis();
     for (;;) {

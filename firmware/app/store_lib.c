@@ -78,12 +78,8 @@ store_lib_status_t store_lib_entry(const store_lib_t *lib, uint8_t slot, store_l
     out->len = (uint16_t)(e[E_LEN] | e[E_LEN + 1U] << 8);
     out->crc = get32(e + E_CRC);
     out->addr = lib->areas.base + e[E_AREA] * lib->area_size;
-    out->name_len = 0;
     for (uint32_t i = 0; i < STORE_LIB_NAME_MAX; i++) {
-        out->name[i] = (char)e[E_NAME + i];
-        if (e[E_NAME + i] != 0U) {
-            out->name_len = (uint8_t)(i + 1U);
-        }
+        out->name[i] = e[E_NAME + i];
     }
     return store_slots_flash_crc(out->addr, out->len) == out->crc ? STORE_LIB_OK : STORE_LIB_DAMAGED;
 }
@@ -118,15 +114,13 @@ static uint8_t free_area(const store_lib_t *lib, const uint8_t *dir, uint8_t aft
 }
 
 store_lib_status_t store_lib_put(const store_lib_t *lib, uint8_t slot, uint8_t kind,
-                                 const char *name, uint8_t name_len, const uint8_t *data,
-                                 uint32_t len)
+                                 const uint8_t *name, const uint8_t *data, uint32_t len)
 {
     if (slot >= STORE_LIB_SLOTS) {
         return STORE_LIB_BAD_SLOT;
     }
     if (kind == STORE_LIB_KIND_EMPTY || data == NULL || len == 0U ||
-        len > store_lib_capacity(lib) || name_len > STORE_LIB_NAME_MAX ||
-        (name == NULL && name_len != 0U)) {
+        len > store_lib_capacity(lib) || name == NULL) {
         return STORE_LIB_BAD_BLOB;
     }
     uint8_t dir[STORE_LIB_DIR_BYTES];
@@ -145,7 +139,7 @@ store_lib_status_t store_lib_put(const store_lib_t *lib, uint8_t slot, uint8_t k
     e[E_LEN + 1U] = (uint8_t)(len >> 8);
     put32(e + E_CRC, crc32_compute(data, len));
     for (uint32_t i = 0; i < STORE_LIB_NAME_MAX; i++) {
-        e[E_NAME + i] = i < name_len ? (uint8_t)name[i] : 0U;
+        e[E_NAME + i] = name[i];
     }
     return save_dir(lib, dir);
 }

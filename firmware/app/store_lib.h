@@ -18,10 +18,11 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "ctl_table.h"
 #include "hal_flash.h"
 
-#define STORE_LIB_SLOTS 8U
-#define STORE_LIB_NAME_MAX 16U
+#define STORE_LIB_SLOTS CTL_MAX_LIBRARY_SLOTS
+#define STORE_LIB_NAME_MAX CTL_SLOT_NAME_SIZE
 /* Bytes of one directory entry: kind, area, length (u16), CRC-32 (u32), name. */
 #define STORE_LIB_ENTRY_BYTES (8U + STORE_LIB_NAME_MAX)
 #define STORE_LIB_DIR_BYTES (STORE_LIB_SLOTS * STORE_LIB_ENTRY_BYTES)
@@ -40,17 +41,16 @@ typedef enum {
     STORE_LIB_EMPTY = 1,     /* the slot holds nothing */
     STORE_LIB_DAMAGED = 2,   /* the slot's data no longer matches its CRC (e.g. erased) */
     STORE_LIB_BAD_SLOT = 3,  /* slot index out of range */
-    STORE_LIB_BAD_BLOB = 4,  /* kind 0, length 0, larger than an area, or bad name */
+    STORE_LIB_BAD_BLOB = 4,  /* kind 0, length 0, larger than an area, or no name */
     STORE_LIB_FLASH = 5      /* the flash driver failed (a half-written area is unused) */
 } store_lib_status_t;
 
 typedef struct {
     uint8_t kind;
-    uint8_t name_len;
     uint16_t len;
     uint32_t crc;
     uint32_t addr; /* where the blob lies (memory-mapped flash) */
-    char name[STORE_LIB_NAME_MAX];
+    uint8_t name[STORE_LIB_NAME_MAX]; /* zero-padded */
 } store_lib_entry_t;
 
 /* Bytes a slot takes at most. */
@@ -60,12 +60,11 @@ uint32_t store_lib_capacity(const store_lib_t *lib);
  * (then out->addr holds it). *out is filled for DAMAGED too (name, kind, length). */
 store_lib_status_t store_lib_entry(const store_lib_t *lib, uint8_t slot, store_lib_entry_t *out);
 
-/* Store data[0..len) as slot `slot` with the given kind and name (name_len bytes, at most
- * STORE_LIB_NAME_MAX; not NUL-terminated), replacing what it held. Blocks while flash is
- * erased and programmed. */
+/* Store data[0..len) as slot `slot` with the given kind and name (STORE_LIB_NAME_MAX
+ * bytes, zero-padded), replacing what it held. Blocks while flash is erased and
+ * programmed. */
 store_lib_status_t store_lib_put(const store_lib_t *lib, uint8_t slot, uint8_t kind,
-                                 const char *name, uint8_t name_len, const uint8_t *data,
-                                 uint32_t len);
+                                 const uint8_t *name, const uint8_t *data, uint32_t len);
 
 /* Empty slot `slot` (a no-op, OK, if it is empty already). */
 store_lib_status_t store_lib_delete(const store_lib_t *lib, uint8_t slot);

@@ -1,5 +1,6 @@
 /* Debounced push buttons, scanned once a control tick. The board reads its pins into a
- * mask of the buttons held down (BUTTON_*), whatever their electrical level; a change
+ * mask of the buttons held down (CTL_BUTTONS_*: the Buttons register's bits), whatever
+ * their electrical level; a change
  * counts once it has been seen on BUTTONS_DEBOUNCE_SCANS scans in a row, so contact
  * bounce shorter than that (3 ticks: 30 ms at the 10 ms tick) is ignored. Each button
  * has its own 2-bit counter, kept "vertically" (bit k of cnt0/cnt1 is button k's counter),
@@ -10,11 +11,6 @@
 #include <stdint.h>
 
 /* cffi:begin */
-#define BUTTON_U 1
-#define BUTTON_D 2
-#define BUTTON_L 4
-#define BUTTON_R 8
-#define BUTTON_START 16
 /* Scans in a row a change must last to count. */
 #define BUTTONS_DEBOUNCE_SCANS 4
 
@@ -26,7 +22,7 @@ typedef struct {
 
 /* All released. */
 void buttons_init(buttons_t *b);
-/* One scan of `raw` (BUTTON_* held now, undebounced); returns the buttons that have just
+/* One scan of `raw` (CTL_BUTTONS_* held now, undebounced); returns the buttons that have just
  * become pressed (debounced), each once per press. */
 uint8_t buttons_scan(buttons_t *b, uint8_t raw);
 /* cffi:end */

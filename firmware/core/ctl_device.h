@@ -30,6 +30,7 @@
 #include "ctl_table.h"
 #include "dxl_parser.h"
 #include "gt_table.h"
+#include "lib_regs.h"
 #include "play_player.h"
 
 /* cffi:begin */
@@ -89,9 +90,7 @@ uint8_t ctl_id(const ctl_device *d);
 bool ctl_table_changed(ctl_device *d);
 /* The active table's bytes (NULL and *len = 0 if none). */
 const uint8_t *ctl_active_table(const ctl_device *d, size_t *len);
-/* Carry out a Command (CTL_COMMAND_*) as if the PC link had written it, e.g. for the
- * robot's own buttons; a refusal raises Error Flags REFUSED likewise. */
-void ctl_command(ctl_device *d, uint8_t cmd, uint32_t now_ms);
+/* The gait library's ctl_set_library() and ctl_buttons(): in lib_regs.h. */
 /* cffi:end */
 
 /* The robot's limits as staged: a count, then per servo its ID, min tick, max tick. */
@@ -112,6 +111,7 @@ struct ctl_device {
     uint8_t out_count;      /* goals to send this tick */
     uint8_t table_changed;
     uint8_t limits_changed;
+    lib_device lib;
     uint8_t staging[CTL_MAX_TABLE_BYTES];
     uint8_t active[CTL_MAX_TABLE_BYTES];
 };

@@ -1,9 +1,11 @@
 #include "lib_panel.h"
 
-typedef char slot_bits_below_the_playing_led[(1U << LIB_PANEL_LED_SLOT_BITS) ==
-                                                     LIB_PANEL_LED_PLAYING
-                                                 ? 1
-                                                 : -1];
+/* The slot LEDs count in binary up to the PLAY LED, enough for every slot. */
+#define SLOT_LEDS (CTL_LEDS_SLOT_1 | CTL_LEDS_SLOT_2 | CTL_LEDS_SLOT_4)
+typedef char slot_leds_show_every_slot[SLOT_LEDS + 1 >= CTL_MAX_LIBRARY_SLOTS &&
+                                               SLOT_LEDS + 1 == CTL_LEDS_PLAY
+                                           ? 1
+                                           : -1];
 
 void lib_panel_init(lib_panel_t *p)
 {
@@ -21,13 +23,13 @@ uint8_t lib_panel_tick(lib_panel_t *p, uint8_t raw, uint8_t slots, bool playing)
     if (p->slot >= slots) {
         p->slot = 0;
     }
-    if (pressed & BUTTON_U) {
+    if (pressed & CTL_BUTTONS_U) {
         p->slot = (uint8_t)((p->slot + 1U) % slots);
     }
-    if (pressed & BUTTON_D) {
+    if (pressed & CTL_BUTTONS_D) {
         p->slot = (uint8_t)((p->slot + slots - 1U) % slots);
     }
-    if (pressed & BUTTON_START) {
+    if (pressed & CTL_BUTTONS_START) {
         return playing ? LIB_PANEL_STOP : LIB_PANEL_PLAY;
     }
     return LIB_PANEL_NOTHING;
@@ -35,6 +37,6 @@ uint8_t lib_panel_tick(lib_panel_t *p, uint8_t raw, uint8_t slots, bool playing)
 
 uint8_t lib_panel_leds(const lib_panel_t *p, bool playing)
 {
-    uint8_t leds = (uint8_t)(p->slot & (LIB_PANEL_LED_PLAYING - 1U));
-    return playing ? (uint8_t)(leds | LIB_PANEL_LED_PLAYING) : leds;
+    uint8_t leds = (uint8_t)(p->slot & SLOT_LEDS);
+    return playing ? (uint8_t)(leds | CTL_LEDS_PLAY) : leds;
 }

@@ -9,14 +9,12 @@
 #include <stdint.h>
 
 #include "buttons.h"
+#include "ctl_table.h"
 
 /* cffi:begin */
 #define LIB_PANEL_NOTHING 0
 #define LIB_PANEL_PLAY 1
 #define LIB_PANEL_STOP 2
-/* lib_panel_leds(): the slot number in the low bits, and one bit for "playing". */
-#define LIB_PANEL_LED_SLOT_BITS 3
-#define LIB_PANEL_LED_PLAYING 8
 
 typedef struct {
     buttons_t keys;
@@ -25,11 +23,11 @@ typedef struct {
 
 /* Released buttons, slot 0 picked. */
 void lib_panel_init(lib_panel_t *p);
-/* One control tick: `raw` = the BUTTON_* held now, `slots` = how many slots there are,
+/* One control tick: `raw` = the CTL_BUTTONS_* held now, `slots` = how many slots there are,
  * `playing` = whether a gait plays. Returns LIB_PANEL_PLAY (play p->slot),
  * LIB_PANEL_STOP or LIB_PANEL_NOTHING. */
 uint8_t lib_panel_tick(lib_panel_t *p, uint8_t raw, uint8_t slots, bool playing);
-/* The LEDs to light (bit k of the slot number as bit k, LIB_PANEL_LED_PLAYING). */
+/* The LEDs to light (CTL_LEDS_*: the slot number in binary, PLAY while playing). */
 uint8_t lib_panel_leds(const lib_panel_t *p, bool playing);
 /* cffi:end */
 

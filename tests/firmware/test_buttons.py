@@ -9,9 +9,9 @@ from hypothesis import strategies as st
 
 from snakebot.core import ffi, lib
 
-U, D, START = lib.BUTTON_U, lib.BUTTON_D, lib.BUTTON_START
+U, D, START = lib.CTL_BUTTONS_U, lib.CTL_BUTTONS_D, lib.CTL_BUTTONS_START
 SCANS = lib.BUTTONS_DEBOUNCE_SCANS
-ALL = lib.BUTTON_U | lib.BUTTON_D | lib.BUTTON_L | lib.BUTTON_R | lib.BUTTON_START
+ALL = U | D | lib.CTL_BUTTONS_L | lib.CTL_BUTTONS_R | START
 
 
 def scanner():
@@ -132,7 +132,7 @@ def test_start_plays_the_picked_slot_then_stops():
     panel.press(U)
     assert panel.press(START) == lib.LIB_PANEL_PLAY and panel.p.slot == 2
     panel.playing = True
-    assert panel.leds == 2 | lib.LIB_PANEL_LED_PLAYING
+    assert panel.leds == 2 | lib.CTL_LEDS_PLAY
     panel.press(U)  # picking another slot while playing does not stop it
     assert panel.p.slot == 3
     assert panel.press(START) == lib.LIB_PANEL_STOP

@@ -34,14 +34,14 @@
 
 #include "cm530_io.h" /* bus and PC-link USARTs and pins */
 
-/* Buttons, active low with the pull-ups on, in BUTTON_* bit order (core/buttons.h): U PC11,
+/* Buttons, active low with the pull-ups on, in the Buttons register's bit order: U PC11,
  * D PC10, L PA15, R PA14, START PB3. R is left out ({0, 0}): PA14 is SWCLK, readable only
  * with SWD off, and SWD stays on for a debugger. PA15 and PB3 are JTAG pins that
  * cm530_io_init frees. */
 #define BOARD_BUTTON_PINS                                                                  \
     {{HAL_GPIOC_BASE, 11}, {HAL_GPIOC_BASE, 10}, {HAL_GPIOA_BASE, 15}, {0U, 0U},            \
      {HAL_GPIOB_BASE, 3}}
-/* LEDs, active low, in lib_panel_leds() bit order: AUX PB12, MANAGE PB13, PROGRAM PB14 show
+/* LEDs, active low, in the LEDs register's bit order: AUX PB12, MANAGE PB13, PROGRAM PB14 show
  * the library slot picked (binary), PLAY PB15 that a gait plays. */
 #define BOARD_LED_PINS                                                                     \
     {{HAL_GPIOB_BASE, 12}, {HAL_GPIOB_BASE, 13}, {HAL_GPIOB_BASE, 14}, {HAL_GPIOB_BASE, 15}}

@@ -700,7 +700,8 @@ static void read_bytes(ctl_device *d, uint8_t start, uint8_t n, uint8_t *out)
     refresh(d);
     uint8_t page = d->regs[CTL_WINDOW_PAGE]; /* a known page: writes check it */
     lib_slot slot_shown;
-    if (page == CTL_PAGE_LIBRARY) lib_shown(&d->lib, &slot_shown);
+    const uint8_t *slot_data = NULL;
+    if (page == CTL_PAGE_LIBRARY) lib_shown(&d->lib, &slot_shown, &slot_data);
     uint8_t rec[CTL_SERVO_RECORD_SIZE];
     int16_t shown = -1;
     for (uint16_t i = 0; i < n; i++) {
@@ -709,7 +710,7 @@ static void read_bytes(ctl_device *d, uint8_t start, uint8_t n, uint8_t *out)
             const field *f = page_field_at(page, (uint8_t)(a - CTL_SERVO_WINDOW));
             uint8_t at = f ? (uint8_t)(CTL_SERVO_WINDOW + f->addr) : 0u;
             if (page == CTL_PAGE_LIBRARY) {
-                out[i] = lib_page_byte(&d->lib, &slot_shown, (uint8_t)a);
+                out[i] = lib_page_byte(&d->lib, &slot_shown, slot_data, (uint8_t)a);
             } else {
                 out[i] = f ? (uint8_t)(page_value(d, page, at) >> (8u * (a - at))) : 0u;
             }

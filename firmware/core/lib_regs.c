@@ -16,6 +16,7 @@ void lib_init(lib_device *l, const lib_store *store)
     l->result = CTL_UPLOAD_RESULT_OK;
     l->buttons = 0;
     l->leds = 0;
+    l->offset = 0;
     for (size_t i = 0; i < sizeof l->name; i++) l->name[i] = 0;
 }
 
@@ -42,10 +43,9 @@ static void fetch(const lib_device *l, uint8_t slot, lib_slot *out, const uint8_
     if (slot < slots(l)) l->store->get(slot, out, data);
 }
 
-void lib_shown(const lib_device *l, lib_slot *out)
+void lib_shown(const lib_device *l, lib_slot *out, const uint8_t **data)
 {
-    const uint8_t *data;
-    fetch(l, l->slot, out, &data);
+    fetch(l, l->slot, out, data);
 }
 
 uint32_t lib_page_value(const lib_device *l, const lib_slot *shown, uint8_t addr)
@@ -67,6 +67,7 @@ uint32_t lib_page_value(const lib_device *l, const lib_slot *shown, uint8_t addr
     case CTL_BUTTONS: return l->panel.keys.held;
     case CTL_PANEL_SLOT: return l->panel.slot;
     case CTL_LEDS: return l->leds;
+    case CTL_SLOT_OFFSET: return l->offset;
     default: return 0;
     }
 }
@@ -78,8 +79,14 @@ static const struct {
 } fields[] = {CTL_PAGE_FIELDS(LIB_FIELD)};
 #undef LIB_FIELD
 
-uint8_t lib_page_byte(const lib_device *l, const lib_slot *shown, uint8_t addr)
+uint8_t lib_page_byte(const lib_device *l, const lib_slot *shown, const uint8_t *data,
+                      uint8_t addr)
 {
+    if (addr >= CTL_SLOT_DATA && addr < CTL_SLOT_DATA + CTL_SLOT_DATA_SIZE) {
+        uint32_t at = (uint32_t)l->offset + (uint32_t)(addr - CTL_SLOT_DATA);
+        bool there = data != NULL && shown->status == CTL_SLOT_STATUS_OK && at < shown->len;
+        return there ? data[at] : 0u;
+    }
     if (addr >= CTL_SLOT_NAME && addr < CTL_SLOT_NAME + CTL_SLOT_NAME_SIZE) {
         return shown->name[addr - CTL_SLOT_NAME];
     }
@@ -111,6 +118,9 @@ bool lib_page_write(lib_device *l, uint8_t start, const uint8_t *data, uint16_t 
     }
     l->store_kind = after(start, data, n, CTL_STORE_KIND, l->store_kind);
     l->buttons = after(start, data, n, CTL_BUTTONS, l->buttons);
+    l->offset = (uint16_t)(after(start, data, n, CTL_SLOT_OFFSET, (uint8_t)l->offset) |
+                           after(start, data, n, CTL_SLOT_OFFSET + 1u, (uint8_t)(l->offset >> 8))
+                               << 8);
     l->slot = slot;
     return true;
 }

@@ -43,6 +43,7 @@ typedef struct {
     uint8_t result;     /* Library Result */
     uint8_t buttons;    /* held through the Buttons register */
     uint8_t leds;       /* LEDs */
+    uint16_t offset;    /* Slot Offset */
     uint8_t name[16];   /* Store Name */
 } lib_device;
 
@@ -58,14 +59,16 @@ uint8_t ctl_buttons(struct ctl_device *d, uint8_t held, uint32_t now_ms);
 
 /* No store, nothing picked; registers at their defaults. */
 void lib_init(lib_device *l, const lib_store *store);
-/* Slot Library Slot as the store has it now (read once per READ of the page: not kept,
- * for RAM's sake). */
-void lib_shown(const lib_device *l, lib_slot *out);
+/* Slot Library Slot as the store has it now, and where its blob lies if it is OK (read
+ * once per READ of the page: not kept, for RAM's sake). */
+void lib_shown(const lib_device *l, lib_slot *out, const uint8_t **data);
 /* The value of the Library page's numeric field at absolute address `addr`; `shown` (or
  * NULL: an empty slot) gives the slot's fields. */
 uint32_t lib_page_value(const lib_device *l, const lib_slot *shown, uint8_t addr);
-/* The byte at absolute address `addr` of the window showing the Library page. */
-uint8_t lib_page_byte(const lib_device *l, const lib_slot *shown, uint8_t addr);
+/* The byte at absolute address `addr` of the window showing the Library page, with
+ * `shown` and `data` from lib_shown(). */
+uint8_t lib_page_byte(const lib_device *l, const lib_slot *shown, const uint8_t *data,
+                      uint8_t addr);
 /* A write of data[0..n) at `start` onto the Library page, fields already known writable
  * and in their static range: false if it picks a slot the library does not have; with
  * `apply`, carried out. */

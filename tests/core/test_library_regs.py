@@ -247,3 +247,19 @@ def test_any_write_to_the_page_leaves_it_consistent(data, start_offset):
             writable |= set(range(f.address, f.address + f.size))
     changed = {i for i, (a, b) in enumerate(zip(before, after, strict=True)) if a != b}
     assert changed <= writable
+
+
+def test_a_slot_reads_back_through_the_slot_data_window():
+    store = PyStore()
+    c = Lib(store)
+    blob = bytes(range(256)) * 3 + b"tail"
+    assert c.store_blob(4, b"prog", blob, kind=3) == OK
+    window = CTL.register("Slot Data")
+    got = b""
+    for at in range(0, len(blob) + window.size, window.size):
+        assert c.dev.set("Slot Offset", at) == 0
+        got += c.text("Slot Data")
+    assert got[: len(blob)] == blob and set(got[len(blob) :]) == {0}
+    store.damaged.add(4)  # a damaged slot shows nothing
+    assert c.dev.set("Slot Offset", 0) == 0
+    assert set(c.text("Slot Data")) == {0}

@@ -33,6 +33,7 @@ from snakebot.cli.bus_play import bus_play  # noqa: E402
 from snakebot.cli.demo import demo  # noqa: E402
 from snakebot.cli.flash import flash_command  # noqa: E402
 from snakebot.cli.gait import gait  # noqa: E402
+from snakebot.cli.library import library  # noqa: E402
 from snakebot.cli.limits import limits  # noqa: E402
 from snakebot.cli.model import model  # noqa: E402
 from snakebot.cli.monitor import monitor  # noqa: E402
@@ -62,7 +63,7 @@ for command in (
     demo,
 ):
     main.add_command(command)
-for command in (plan_command, robot):
+for command in (plan_command, robot, library):
     main.add_command(command)
 bus.add_command(bus_play)
 for command in (predict, serve, bootloader, goto, thesis, friction):

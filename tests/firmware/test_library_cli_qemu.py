@@ -14,6 +14,7 @@ from firmware_support import served_firmware
 from snakebot.controller import load
 from snakebot.controller.client import ControllerClient
 from snakebot.controller.library import backup, delete_slot, read_slot, restore
+from snakebot.flash.library_backup import backup_library, restore_library
 
 pytestmark = pytest.mark.qemu
 
@@ -86,3 +87,29 @@ def test_the_buttons_play_and_stop_and_a_backup_restores(firmware, tmp_path):
         assert [(s.slot, s.status, s.crc) for s in written] == [
             (0, "OK", zlib.crc32(path.read_bytes()))
         ]
+
+
+def test_flash_backup_saves_the_library_and_restores_what_flashing_lost(
+    firmware, tmp_path, monkeypatch
+):
+    """The two halves `snakebot flash` wraps around the bootloader, against the firmware:
+    QEMU cannot run the ROBOTIS bootloader, so the erase it might do is a LIBRARY_DELETE."""
+    monkeypatch.setenv("SNAKEBOT_LIBRARY_BACKUP_DIR", str(tmp_path / "backups"))
+    path = save(wave_table(frames=30), tmp_path, "crawl.gait")
+    assert cli("library", "store", "0", path, "--port", firmware, env=ENV).exit_code == 0
+    said: list[str] = []
+    warned: list[str] = []
+    saved = backup_library(firmware, said.append, warned.append)
+    assert saved is not None and saved.parent == tmp_path / "backups" and warned == []
+    assert said == [f"Backed up 1 gait-library slot(s) to {saved}"]
+    restore_library(firmware, saved, said.append, warned.append)
+    assert said[-1] == "The gait library survived flashing: nothing to restore."
+    assert cli("library", "delete", "0", "--port", firmware, env=ENV).exit_code == 0
+    restore_library(firmware, saved, said.append, warned.append)
+    assert said[-1] == f"Restored 1 gait-library slot(s) from {saved}" and warned == []
+    listed = cli_json("library", "list", "--port", firmware, env=ENV)["slots"]
+    assert listed[0]["name"] == "crawl" and listed[0]["crc"] == zlib.crc32(path.read_bytes())
+    # and the command that restores by hand
+    assert cli("library", "delete", "0", "--port", firmware, env=ENV).exit_code == 0
+    by_hand = cli_json("library", "restore", saved, "--port", firmware, env=ENV)
+    assert [s["name"] for s in by_hand["restored"]] == ["crawl"]

@@ -11,6 +11,7 @@ from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType, controller_port
 from snakebot.firmware import image as firmware_image
 from snakebot.flash import PC_LINK_BAUD, FlashTimeouts, board_layout, flash, load_image
+from snakebot.flash.library_backup import backup_library, restore_library
 from snakebot.flash.loader import last_line
 from snakebot.transport import open_port
 
@@ -74,6 +75,13 @@ class _LazyBar:
     "linked at 0x08003000 (vector table, board name and length in its identity block).",
 )
 @click.option(
+    "--no-library-backup",
+    is_flag=True,
+    help="Do not back the controller's gait library up before flashing (and restore it "
+    "after): by default every stored slot is saved to a file first, in case the "
+    "bootloader erases it.",
+)
+@click.option(
     "--json",
     "as_json",
     is_flag=True,
@@ -86,6 +94,7 @@ def flash_command(
     no_checksum_byte: bool,
     reset_timeout: float | None,
     force: bool,
+    no_library_backup: bool,
     as_json: bool,
 ) -> None:
     """Flash FIRMWARE (a raw .bin) onto the CM-530 through its ROBOTIS bootloader.
@@ -101,6 +110,11 @@ def flash_command(
         snakebot flash --port /dev/ttyUSB0
         snakebot flash build/cm530/firmware.bin --port /dev/ttyUSB0
 
+    Before asking for RESET, the gait library stored in the running controller (`snakebot
+    library`) is saved to a file (its path is printed) and, once the new firmware
+    answers, written back where the flashing lost it; a controller that does not answer
+    is skipped with a warning.
+
     The link runs at 57600 baud, so 100 KB takes about 18 s. Timeouts can be raised with
     the SNAKEBOT_FLASH_*_S environment variables (see snakebot.flash.settings). Give the
     .bin, not the .hex or .elf: the bootloader takes raw bytes.
@@ -109,6 +123,9 @@ def flash_command(
 
     def say(message: str) -> None:
         click.echo(message, file=out)
+
+    def warn(message: str) -> None:
+        click.echo(message, err=True)
 
     if firmware is None:
         firmware = str(firmware_image("cm530", "firmware.bin"))
@@ -120,6 +137,7 @@ def flash_command(
         f"of the {layout.app_size // 1024} KB application area) via {port} at "
         f"{PC_LINK_BAUD} baud."
     )
+    saved = None if no_library_backup else backup_library(port, say, warn)
     bar = _LazyBar(len(image) + (0 if no_checksum_byte else 1), out)
     try:
         with open_port(port, PC_LINK_BAUD, timeout=0) as link:
@@ -141,6 +159,10 @@ def flash_command(
         say(f"Sent GO: the new firmware is starting (the bootloader said: {said})")
     else:
         say("Left the board in the bootloader (--no-go): press RESET or send GO to start it.")
+    if saved is not None and result.started:
+        restore_library(port, saved, say, warn)
+    elif saved is not None:
+        say(f"Once it runs: `snakebot library restore {saved} --port {port}`")
     if as_json:
         click.echo(
             dumps(

@@ -9,7 +9,8 @@ import click
 
 from snakebot.cli.controller_link import controller_options, open_controller
 from snakebot.cli.output import dumps
-from snakebot.controller.library import delete_slot, list_slots, play_slot, store_slot
+from snakebot.controller.library import delete_slot, list_slots, play_slot, restore, store_slot
+from snakebot.flash.library_backup import read_backup
 from snakebot.gaittable import read_gait
 
 SLOT = click.argument("slot", type=click.IntRange(0, 255), metavar="SLOT")
@@ -95,3 +96,23 @@ def delete_command(slot: int, port: str, baud: int, controller_id: int, as_json:
         ctl.identify()
         delete_slot(ctl, slot)
     click.echo(dumps({"slot": slot, "deleted": True}) if as_json else f"slot {slot} emptied")
+
+
+@library.command("restore")
+@click.argument("backup_file", metavar="FILE", type=click.Path(dir_okay=False, path_type=Path))
+@controller_options
+def restore_command(
+    backup_file: Path, port: str, baud: int, controller_id: int, as_json: bool
+) -> None:
+    """Write the slots saved in FILE (a backup `snakebot flash` made) back to the
+    controller, each where it is not already in place."""
+    saved = read_backup(backup_file)  # a bad file fails here, before the port is opened
+    with open_controller(port, baud, controller_id) as ctl:
+        ctl.identify()
+        written = restore(ctl, saved)
+    if as_json:
+        click.echo(dumps({"restored": [s.as_dict() for s in written]}))
+    else:
+        click.echo(f"restored {len(written)} slot(s)")
+        for s in written:
+            click.echo(s.line())

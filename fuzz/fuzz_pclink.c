@@ -11,7 +11,9 @@
  * time and a control tick; the device's next bus packet; the reply to the READ in flight
  * (correct, damaged, echoed, garbage, or none), possibly after PC packets changed the
  * roster; a whole tick's bus schedule; a playback register; a power cycle (the table the
- * store kept is loaded again, or rejected if its bytes went bad) (speed, steering, serpenoid, safety settings).
+ * store kept is loaded again, or rejected if its bytes went bad); a gait-library store,
+ * delete or play through the Library page (on a three-slot library in RAM that survives
+ * power cycles); the robot's buttons for a tick (speed, steering, serpenoid, safety settings).
  * fuzz/seeds.py writes seed programs in this language (fuzz/corpus/fuzz_pclink/seed-*). PC packets, ticks and bus transactions interleave freely, as they do
  * in the firmware's main loop.
  *
@@ -138,6 +140,75 @@ static struct {
     uint8_t bytes[CTL_MAX_TABLE_BYTES];
 } snapshot, flash; /* the active table as last seen; what the app would have persisted */
 
+/* ---- the gait library: a store in RAM, kept across power cycles as flash would be ------------ */
+
+#define KNOWN_FLAGS                                                                           \
+    (CTL_ERROR_FLAGS_UPLOAD_LENGTH | CTL_ERROR_FLAGS_UPLOAD_CRC | CTL_ERROR_FLAGS_UPLOAD_LAYOUT | \
+     CTL_ERROR_FLAGS_UPLOAD_TOO_BIG | CTL_ERROR_FLAGS_SERVO_ERROR | CTL_ERROR_FLAGS_BUS_LOSS |    \
+     CTL_ERROR_FLAGS_LINK_LOSS | CTL_ERROR_FLAGS_REFUSED | CTL_ERROR_FLAGS_LIMITS |               \
+     CTL_ERROR_FLAGS_LIBRARY)
+#define LIB_SLOTS 3u
+
+static struct {
+    uint8_t kind; /* 0: empty */
+    uint8_t name[CTL_SLOT_NAME_SIZE];
+    uint16_t len;
+    uint8_t bytes[CTL_MAX_TABLE_BYTES];
+} library[LIB_SLOTS];
+
+static void lib_get(uint8_t slot, lib_slot *out, const uint8_t **data)
+{
+    CHECK(slot < LIB_SLOTS); /* the core asks only for slots the store has */
+    if (library[slot].kind == 0) return;
+    out->status = CTL_SLOT_STATUS_OK;
+    out->kind = library[slot].kind;
+    out->len = library[slot].len;
+    out->crc = crc32_compute(library[slot].bytes, library[slot].len);
+    memcpy(out->name, library[slot].name, sizeof out->name);
+    *data = library[slot].bytes;
+}
+
+static uint8_t lib_put(uint8_t slot, uint8_t kind, const uint8_t *name, const uint8_t *data,
+                       uint16_t len)
+{
+    CHECK(slot < LIB_SLOTS && kind != 0 && kind != CTL_UPLOAD_COMMIT_LIMITS);
+    CHECK(len > 0 && len <= CTL_MAX_TABLE_BYTES);
+    for (size_t i = 0; i < CTL_SLOT_NAME_SIZE; i++) {
+        CHECK(name[i] == 0 || (name[i] >= 0x20 && name[i] <= 0x7e)); /* names were checked */
+    }
+    if (kind == CTL_UPLOAD_COMMIT_TABLE) {
+        gt_info info;
+        CHECK(gt_validate(data, len, &info) == GT_OK); /* only whole tables are kept as such */
+    }
+    library[slot].kind = kind;
+    memcpy(library[slot].name, name, CTL_SLOT_NAME_SIZE);
+    library[slot].len = len;
+    memcpy(library[slot].bytes, data, len);
+    return CTL_UPLOAD_RESULT_OK;
+}
+
+static uint8_t lib_remove(uint8_t slot)
+{
+    CHECK(slot < LIB_SLOTS);
+    library[slot].kind = 0;
+    return CTL_UPLOAD_RESULT_OK;
+}
+
+static const lib_store fuzz_library = {LIB_SLOTS, CTL_MAX_TABLE_BYTES, lib_get, lib_put,
+                                       lib_remove};
+
+/* Whether table[0..len) is what a library slot keeps as a table. */
+static bool in_library(const uint8_t *table, uint16_t len)
+{
+    for (unsigned k = 0; k < LIB_SLOTS; k++) {
+        if (library[k].kind == CTL_UPLOAD_COMMIT_TABLE && library[k].len == len &&
+            memcmp(library[k].bytes, table, len) == 0) {
+            return true;
+        }
+    }
+    return false;
+}
+
 /* What validating the snapshot's bytes gave, so the checks after every step recompute it
  * (a CRC and a validation of up to 2 KB) only when the active table's bytes change. */
 static struct {
@@ -184,7 +255,7 @@ static void check_state(void)
     CHECK((state == CTL_STATE_PLAYING) == (mode == PLAY_MODE_TABLE));
     CHECK((state == CTL_STATE_SERPENOID) == (mode == PLAY_MODE_SERPENOID));
     if (state == CTL_STATE_PLAYING) CHECK(d->active_len > 0);
-    CHECK((ctl_error_flags(d) & 0xFF00u) == 0);
+    CHECK((ctl_error_flags(d) & ~(uint16_t)KNOWN_FLAGS) == 0);
     CHECK(d->regs[CTL_JOINT_COUNT] <= CTL_MAX_JOINTS);
     CHECK(bus_roster_count(&d->bus) == d->regs[CTL_JOINT_COUNT]);
     CHECK(d->staged_end <= d->capacity && d->capacity <= CTL_MAX_TABLE_BYTES);
@@ -203,7 +274,8 @@ static void check_state(void)
 }
 
 /* The active table after any step: valid, described by its registers, and changed only
- * by a successful commit of exactly the staged bytes. */
+ * by a successful commit of exactly the staged bytes, or by playing a library slot that
+ * keeps exactly those bytes as a table (which the app need not persist). */
 static void check_table(void)
 {
     bool changed = d->active_len != snapshot.len ||
@@ -224,13 +296,18 @@ static void check_table(void)
     }
     if (snapshot.len > 0) CHECK(d->active_len > 0); /* a table is never lost */
     if (changed) {
-        CHECK(d->regs[CTL_UPLOAD_RESULT] == GT_OK);
-        CHECK(memcmp(d->active, d->staging, d->active_len) == 0);
-        CHECK(reg16(CTL_UPLOAD_LENGTH) == d->active_len);
-        CHECK(ctl_table_changed(d)); /* and the app is told to persist it */
+        bool persist = true;
+        if (in_library(d->active, d->active_len)) {
+            persist = ctl_table_changed(d); /* only if a commit in the same step asked */
+        } else {
+            CHECK(d->regs[CTL_UPLOAD_RESULT] == GT_OK);
+            CHECK(memcmp(d->active, d->staging, d->active_len) == 0);
+            CHECK(reg16(CTL_UPLOAD_LENGTH) == d->active_len);
+            CHECK(ctl_table_changed(d)); /* and the app is told to persist it */
+        }
         take_snapshot();
         facts.known = d->active_len > 0; /* worked out above for exactly these bytes */
-        flash = snapshot; /* as the firmware's store_save() does */
+        if (persist) flash = snapshot; /* as the firmware's store_save() does */
     }
 }
 
@@ -404,7 +481,7 @@ static size_t make_table(src *s, uint8_t *t)
     return len;
 }
 
-static void commit_with(uint16_t len, uint32_t crc)
+static void commit_as(uint16_t len, uint32_t crc, uint8_t what)
 {
     uint8_t c[7];
     put16(c, len);
@@ -412,8 +489,13 @@ static void commit_with(uint16_t len, uint32_t crc)
     c[3] = (uint8_t)(crc >> 8);
     c[4] = (uint8_t)(crc >> 16);
     c[5] = (uint8_t)(crc >> 24);
-    c[6] = 1;
+    c[6] = what;
     write_to_me(CTL_UPLOAD_LENGTH, c, sizeof c);
+}
+
+static void commit_with(uint16_t len, uint32_t crc)
+{
+    commit_as(len, crc, CTL_UPLOAD_COMMIT_TABLE);
 }
 
 /* Upload as the host does: 64-byte chunks at Upload Offset, then the commit. Faults from
@@ -739,6 +821,7 @@ static void power_cycle(uint8_t damage, uint8_t where, uint8_t flip)
     if (bad) flash.bytes[where % flash.len] ^= (uint8_t)(flip | 1u);
     memset(d, 0, sizeof *d);
     ctl_init(d);
+    ctl_set_library(d, &fuzz_library);
     bool loaded = flash.len > 0 && ctl_load_table(d, flash.bytes, flash.len);
     CHECK(loaded == (flash.len > 0 && !bad)); /* a whole table always comes back */
     if (loaded) {
@@ -757,7 +840,7 @@ static void power_cycle(uint8_t damage, uint8_t where, uint8_t flip)
 
 static void step(src *s)
 {
-    uint8_t op = u8(s) % 15u;
+    uint8_t op = u8(s) % 17u;
     uint8_t buf[256];
     switch (op) {
     case 0: { /* raw bytes */
@@ -867,6 +950,35 @@ static void step(src *s)
         power_cycle(damage, where, u8(s));
         break;
     }
+    case 15: { /* a library operation on a slot (maybe one the library lacks) */
+        uint8_t sel = u8(s);
+        uint8_t page[CTL_STORE_KIND + 1 - CTL_WINDOW_PAGE];
+        memset(page, 0, sizeof page);
+        page[0] = CTL_PAGE_LIBRARY;
+        page[CTL_LIBRARY_SLOT - CTL_WINDOW_PAGE] = u8(s) % (LIB_SLOTS + 1u);
+        bytes(s, page + (CTL_STORE_NAME - CTL_WINDOW_PAGE), CTL_STORE_NAME_SIZE);
+        page[CTL_STORE_KIND - CTL_WINDOW_PAGE] = (uint8_t)(1u + u8(s) % 3u);
+        /* Window Page, then every field up to Store Kind, in one packet */
+        write_to_me(CTL_WINDOW_PAGE, page, CTL_STORE_KIND + 1u - CTL_WINDOW_PAGE);
+        if (sel % 3u == 0u) {
+            uint8_t cmd = CTL_COMMAND_LIBRARY_PLAY;
+            write_to_me(CTL_COMMAND, &cmd, 1);
+        } else {
+            uint16_t len = (uint16_t)(u16(s) % (CTL_MAX_TABLE_BYTES + 8u));
+            uint32_t crc = len <= CTL_MAX_TABLE_BYTES ? crc32_compute(d->staging, len) : 0;
+            commit_as(len, crc,
+                      sel % 3u == 1u ? CTL_UPLOAD_COMMIT_LIBRARY_STORE
+                                     : CTL_UPLOAD_COMMIT_LIBRARY_DELETE);
+        }
+        break;
+    }
+    case 16: { /* the robot's buttons, held for a control tick */
+        now_ms += u8(s) % 20u;
+        uint8_t leds = ctl_buttons(d, u8(s), now_ms);
+        CHECK((leds & ~(CTL_LEDS_SLOT_1 | CTL_LEDS_SLOT_2 | CTL_LEDS_SLOT_4 | CTL_LEDS_PLAY)) == 0);
+        CHECK(d->lib.panel.slot < LIB_SLOTS);
+        break;
+    }
     default: CHECK(0);
     }
     check_all();
@@ -887,6 +999,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
      * ctl_init() again, which rebuilt every register's default (power_cycle() still runs
      * ctl_init() itself, so its coverage stays in the runs) */
     memcpy(d, fresh, sizeof *d);
+    memset(library, 0, sizeof library);
+    ctl_set_library(d, &fuzz_library);
     now_ms = (uint32_t)u16(&s) << 16; /* any starting time, including near the wrap */
     memset(&tick, 0, sizeof tick);
     memset(&rd, 0, sizeof rd);

@@ -41,7 +41,9 @@ VECTORS = HERE.parent / "protocol" / "vectors"
     KNOB,
     ANSWER,
     POWER,
-) = range(15)
+    LIBRARY,
+    BUTTONS,
+) = range(17)
 # instruction selectors of the PACKET step (its table of common instructions)
 PING, READ, WRITE_I, SYNC_WRITE, RESET_I, REG_WRITE = range(6)
 # commands
@@ -50,6 +52,9 @@ PLAY, SERPENOID, STOP, CLEAR = 1, 2, 3, 4
 SPEED, STEERING, LOOP, AMPLITUDE, OMEGA, DELTA, PHI0, SAFE_ACTION, BUS_LOSS, ERROR_MASK, LINK = (
     range(11)
 )
+# LIBRARY step selectors (sel % 3) and the CM-530's buttons
+LIB_PLAY, LIB_STORE, LIB_DELETE = range(3)
+BUTTON_U, BUTTON_D, BUTTON_START = 1, 2, 16
 # bus answers
 SILENCE, REPLY, ECHO_REPLY, DAMAGED, OTHER_SERVO, RAW_BYTES = range(6)
 
@@ -154,6 +159,27 @@ class Program:
         self.b += bytes([POWER, 1 if damage_flash else 0, where, 0x40])
         return self
 
+    def library(
+        self, sel: int, slot: int = 0, name: bytes = b"walk", kind: int = 1, length: int = 0
+    ) -> Program:
+        """Pick ``slot`` on the Library page (with Store Name and Store Kind), then PLAY it,
+        or commit ``length`` staged bytes into it, or delete it."""
+        self.b += bytes([LIBRARY, sel, slot]) + name.ljust(16, b"\0") + bytes([kind - 1])
+        if sel != LIB_PLAY:
+            self.b += u16(length)
+        return self
+
+    def buttons(self, held: int, dt: int = 10) -> Program:
+        self.b += bytes([BUTTONS, dt, held])
+        return self
+
+    def press(self, held: int) -> Program:
+        """Hold buttons for the debounce time, then release them as long."""
+        for b in (held, 0):
+            for _ in range(4):
+                self.buttons(b)
+        return self
+
     def knob(self, which: int, value: int) -> Program:
         self.b += bytes([KNOB, which]) + u16(value)
         return self
@@ -227,6 +253,28 @@ def pclink_seeds() -> dict[str, bytes]:
         .power_cycle(damage_flash=True, where=20)
         .command(PLAY)
         .run(2)
+        .b
+    )
+    table_bytes = 16 + 3 * 6 + 4 * 3 * 2  # what upload() sends: 3 joints, 4 frames
+    s["library"] = (
+        Program()
+        .upload()
+        .library(LIB_STORE, 0, b"wave", length=table_bytes)
+        .library(LIB_STORE, 1, b"bad\x01name", length=table_bytes)
+        .library(LIB_STORE, 2, b"prog", kind=3, length=7)
+        .upload(seed=2)
+        .library(LIB_PLAY, 0)
+        .run(3)
+        .press(BUTTON_U)
+        .press(BUTTON_START)
+        .press(BUTTON_D)
+        .press(BUTTON_START)
+        .run(2)
+        .power_cycle()
+        .library(LIB_PLAY, 2)
+        .library(LIB_DELETE, 0)
+        .library(LIB_PLAY, 0)
+        .library(LIB_PLAY, 3)
         .b
     )
     s["long-bus-garbage"] = (

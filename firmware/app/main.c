@@ -13,6 +13,7 @@
 #include "pclink.h"
 #include "platform.h"
 #include "store.h"
+#include "store_play.h"
 
 static ctl_device ctl;
 
@@ -26,12 +27,15 @@ int main(void)
     (void)ctl_limits_changed(&ctl);
     pclink_init();
     busport_init();
+    store_play_init(&ctl);
 
     uint32_t next_tick = hal_millis();
     for (;;) {
         uint32_t now = hal_millis();
         bool worked = pclink_poll(&ctl, now);
+        bool ticked = false;
         if (busport_idle() && (int32_t)(now - next_tick) >= 0) {
+            ticked = true;
             ctl_tick(&ctl, now);
             busport_begin();
             next_tick += BOARD_CONTROL_TICK_MS;
@@ -46,6 +50,9 @@ int main(void)
         }
         if (ctl_limits_changed(&ctl)) {
             (void)store_save_limits(&ctl);
+        }
+        if (ticked) {
+            store_play_tick(&ctl, now); /* the buttons: after persisting, see store_play.h */
         }
         platform_service();
         platform_idle(!worked);

@@ -30,6 +30,36 @@ typedef char limits_slot_holds_the_limits[(BOARD_LIMITS_STORE_SIZE / 2U) % BOARD
                                               ? 1
                                               : -1];
 
+#if BOARD_HAS_FLASH_LIBRARY
+#define LIB_AREAS_BASE (BOARD_LIB_DIR_BASE + BOARD_LIB_DIR_SIZE)
+#define LIB_AREAS_SIZE ((STORE_LIB_SLOTS + 1U) * BOARD_LIB_AREA_SIZE)
+static const store_lib_t library = {
+    {BOARD_LIB_DIR_BASE, BOARD_LIB_DIR_SIZE, BOARD_FLASH_PAGE_SIZE},
+    {LIB_AREAS_BASE, LIB_AREAS_SIZE, BOARD_FLASH_PAGE_SIZE},
+    BOARD_LIB_AREA_SIZE,
+};
+
+/* The library fills the flash from its directory to the limits' store, in whole pages,
+ * and an area holds anything the staging area can. */
+typedef char library_fits_below_the_limits
+    [LIB_AREAS_BASE + LIB_AREAS_SIZE == BOARD_LIMITS_STORE_BASE &&
+             BOARD_LIB_AREA_SIZE % BOARD_FLASH_PAGE_SIZE == 0U &&
+             BOARD_LIB_DIR_SIZE / 2U >= STORE_SLOTS_HEADER_BYTES + STORE_LIB_DIR_BYTES &&
+             BOARD_LIB_AREA_SIZE >= CTL_MAX_TABLE_BYTES
+         ? 1
+         : -1];
+
+const store_lib_t *store_library(void)
+{
+    return &library;
+}
+#else
+const store_lib_t *store_library(void)
+{
+    return NULL;
+}
+#endif
+
 bool store_load(ctl_device *ctl)
 {
     store_record_t rec;
@@ -66,6 +96,11 @@ bool store_save_limits(const ctl_device *ctl)
 }
 
 #else
+
+const store_lib_t *store_library(void)
+{
+    return NULL;
+}
 
 bool store_load(ctl_device *ctl)
 {

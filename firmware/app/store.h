@@ -9,6 +9,7 @@
 #include <stdbool.h>
 
 #include "ctl_device.h"
+#include "store_lib.h"
 
 /* At start-up: the stored robot's limits, then the stored table (if it fits them), if
  * there are valid ones. */
@@ -21,5 +22,8 @@ bool store_save(const ctl_device *ctl);
 
 /* After the robot's limits were set: write them to their own store (blocks likewise). */
 bool store_save_limits(const ctl_device *ctl);
+
+/* The board's gait library in flash; NULL on boards without one (qemu). */
+const store_lib_t *store_library(void);
 
 #endif

@@ -23,6 +23,17 @@ uint32_t store_slots_capacity(const hal_flash_region_t *r)
     return s > STORE_SLOTS_HEADER_BYTES ? s - STORE_SLOTS_HEADER_BYTES : 0U;
 }
 
+uint32_t store_slots_flash_crc(uint32_t addr, uint32_t len)
+{
+    uint32_t crc = CRC32_INIT;
+    for (uint32_t i = 0; i < len; i += 2U) {
+        uint16_t hw = hal_io_read16(addr + i);
+        uint8_t bytes[2] = {(uint8_t)hw, (uint8_t)(hw >> 8)};
+        crc = crc32_update(crc, bytes, (i + 1U < len) ? 2U : 1U);
+    }
+    return crc32_final(crc);
+}
+
 static uint16_t read16(const hal_flash_region_t *r, uint32_t offset)
 {
     return hal_io_read16(r->base + offset);
@@ -43,14 +54,8 @@ static bool slot_record(const hal_flash_region_t *r, uint32_t slot, store_record
     if (len == 0U || len > store_slots_capacity(r)) {
         return false;
     }
-    uint32_t crc = CRC32_INIT;
     uint32_t data = slot + STORE_SLOTS_HEADER_BYTES;
-    for (uint32_t i = 0; i < len; i += 2U) {
-        uint16_t hw = read16(r, data + i);
-        uint8_t bytes[2] = {(uint8_t)hw, (uint8_t)(hw >> 8)};
-        crc = crc32_update(crc, bytes, (i + 1U < len) ? 2U : 1U);
-    }
-    if (crc32_final(crc) != read32(r, slot + OFF_CRC)) {
+    if (store_slots_flash_crc(r->base + data, len) != read32(r, slot + OFF_CRC)) {
         return false;
     }
     out->offset = data;

@@ -32,6 +32,9 @@ uint32_t store_slots_capacity(const hal_flash_region_t *r);
 /* The newest valid record into *out; false if there is none. */
 bool store_slots_newest(const hal_flash_region_t *r, store_record_t *out);
 
+/* CRC-32 of the flash bytes [addr, addr + len) (addr even), read half-word by half-word. */
+uint32_t store_slots_flash_crc(uint32_t addr, uint32_t len);
+
 /* Write data[0..len) as a new record in the slot not holding the newest one. */
 hal_flash_status_t store_slots_save(const hal_flash_region_t *r, const uint8_t *data,
                                     uint32_t len);

@@ -249,6 +249,10 @@ static void activate(ctl_device *d, const uint8_t *table, size_t len, uint32_t c
 
 static uint16_t upload_flag(uint8_t result)
 {
+    if (result >= CTL_UPLOAD_RESULT_LIBRARY_NONE &&
+        result <= CTL_UPLOAD_RESULT_LIBRARY_NOT_PLAYABLE) {
+        return CTL_ERROR_FLAGS_LIBRARY;
+    }
     switch (result) {
     case GT_ERR_TRUNCATED:
     case GT_ERR_TRAILING:
@@ -353,7 +357,9 @@ static void commit(ctl_device *d, uint8_t what)
         d->regs[CTL_UPLOAD_RESULT] = ctl_firmware_check(len, crc);
         return;
     }
-    if (len == 0 || len > d->capacity) {
+    if (what == CTL_UPLOAD_COMMIT_LIBRARY_DELETE) {
+        result = lib_delete(&d->lib); /* takes no staged bytes */
+    } else if (len == 0 || len > d->capacity) {
         result = CTL_UPLOAD_RESULT_BAD_LENGTH;
     } else if (len > d->staged_end) {
         result = CTL_UPLOAD_RESULT_INCOMPLETE;
@@ -361,12 +367,22 @@ static void commit(ctl_device *d, uint8_t what)
         result = CTL_UPLOAD_RESULT_TRANSFER_CRC;
     } else if (what == CTL_UPLOAD_COMMIT_LIMITS) {
         result = apply_limits(d, d->staging, len);
+    } else if (what == CTL_UPLOAD_COMMIT_LIBRARY_STORE) {
+        /* a table is checked as TABLE would check it before it is kept */
+        result = d->lib.store_kind == CTL_UPLOAD_COMMIT_TABLE
+                     ? check_table(d, d->staging, len, &info)
+                     : CTL_UPLOAD_RESULT_OK;
+        if (result == GT_OK) result = lib_store_blob(&d->lib, d->staging, (uint16_t)len);
     } else {
         result = check_table(d, d->staging, len, &info);
         if (result == GT_OK) activate(d, d->staging, len, crc, &info);
     }
     set_reg(d, CTL_ERROR_FLAGS, 2, reg(d, CTL_ERROR_FLAGS, 2) & ~(uint32_t)UPLOAD_FLAGS);
     if (result != GT_OK) raise_flags(d, upload_flag(result));
+    if ((what == CTL_UPLOAD_COMMIT_LIBRARY_STORE || what == CTL_UPLOAD_COMMIT_LIBRARY_DELETE) &&
+        lib_note(&d->lib, result)) {
+        raise_flags(d, CTL_ERROR_FLAGS_LIBRARY);
+    }
     d->regs[CTL_UPLOAD_RESULT] = result;
 }
 
@@ -422,6 +438,33 @@ static uint8_t serpenoid_refusal(const ctl_device *d)
     return serpenoid_fits(d);
 }
 
+static void command(ctl_device *d, uint8_t cmd, uint32_t now_ms);
+
+/* Make library slot `slot`'s table active, without it counting as a new table to persist
+ * (it is kept in the library already), and PLAY it. */
+static void library_play(ctl_device *d, uint8_t slot, uint32_t now_ms)
+{
+    const uint8_t *blob = NULL;
+    uint16_t len = 0;
+    uint32_t crc = 0;
+    uint8_t result = lib_playable(&d->lib, slot, &blob, &len, &crc);
+    gt_info info;
+    if (result == CTL_UPLOAD_RESULT_OK && len > d->capacity) result = CTL_UPLOAD_RESULT_BAD_LENGTH;
+    if (result == CTL_UPLOAD_RESULT_OK && blob != d->active) {
+        result = check_table(d, blob, len, &info);
+        if (result == GT_OK) {
+            uint8_t pending = d->table_changed;
+            activate(d, blob, len, crc, &info);
+            d->table_changed = pending;
+        }
+    }
+    if (lib_note(&d->lib, result)) {
+        raise_flags(d, CTL_ERROR_FLAGS_LIBRARY | CTL_ERROR_FLAGS_REFUSED);
+        return;
+    }
+    command(d, CTL_COMMAND_PLAY, now_ms);
+}
+
 static void command(ctl_device *d, uint8_t cmd, uint32_t now_ms)
 {
     bool started = false;
@@ -441,6 +484,7 @@ static void command(ctl_device *d, uint8_t cmd, uint32_t now_ms)
         if (started) set_state(d, CTL_STATE_SERPENOID);
         else why = CTL_REFUSAL_REASON_EMPTY_ROSTER;
         break;
+    case CTL_COMMAND_LIBRARY_PLAY: library_play(d, d->lib.slot, now_ms); return;
     case CTL_COMMAND_STOP: stop_motion(d); return;
     case CTL_COMMAND_CLEAR:
         set_reg(d, CTL_ERROR_FLAGS, 2, 0);
@@ -457,6 +501,21 @@ static void command(ctl_device *d, uint8_t cmd, uint32_t now_ms)
     }
     d->last_link_ms = now_ms;
     bus_request_torque(&d->bus, BUS_TORQUE_ON);
+}
+
+void ctl_set_library(ctl_device *d, const lib_store *store)
+{
+    lib_init(&d->lib, store);
+}
+
+uint8_t ctl_buttons(ctl_device *d, uint8_t held, uint32_t now_ms)
+{
+    uint8_t slots = d->lib.store != NULL ? d->lib.store->slots : 0u;
+    uint8_t action = lib_panel_tick(&d->lib.panel, held | d->lib.buttons, slots, moving(d));
+    if (action == LIB_PANEL_STOP) command(d, CTL_COMMAND_STOP, now_ms);
+    if (action == LIB_PANEL_PLAY) library_play(d, d->lib.panel.slot, now_ms);
+    d->lib.leds = lib_panel_leds(&d->lib.panel, moving(d));
+    return d->lib.leds;
 }
 
 /* ---- WRITE ------------------------------------------------------------------------------ */
@@ -522,6 +581,7 @@ static const field *page_field_at(uint8_t page, uint8_t offset)
 /* The value field `addr` (absolute) of described page `page` shows. */
 static uint32_t page_value(const ctl_device *d, uint8_t page, uint8_t addr)
 {
+    if (page == CTL_PAGE_LIBRARY) return lib_page_value(&d->lib, NULL, addr);
     if (page == CTL_PAGE_PROGRAM) {
         switch (addr) {
         case CTL_TABLE_CAPACITY: return d->capacity;
@@ -545,6 +605,10 @@ static uint8_t write_page(ctl_device *d, uint8_t page, uint8_t start, const uint
         const field *f = page_field_at(page, (uint8_t)(a - CTL_SERVO_WINDOW));
         if (f == NULL || (f->access & CTL_ACCESS_W) == 0) return DXL_ERR_RANGE;
         uint8_t at = (uint8_t)(CTL_SERVO_WINDOW + f->addr);
+        if (f->size > 4) { /* a byte string: any bytes */
+            a = (uint16_t)(at + f->size - 1u);
+            continue;
+        }
         uint8_t now[4];
         put_le(now, f->size, page_value(d, page, at));
         for (uint8_t i = 0; i < f->size; i++) {
@@ -553,9 +617,10 @@ static uint8_t write_page(ctl_device *d, uint8_t page, uint8_t start, const uint
         }
         uint32_t value = get_le(now, f->size);
         if (!in_range(f, value)) return DXL_ERR_RANGE;
-        /* no described field is writable yet: pages that get one apply it here */
-        (void)apply;
         a = (uint16_t)(at + f->size - 1u);
+    }
+    if (page == CTL_PAGE_LIBRARY && !lib_page_write(&d->lib, start, data, (uint16_t)n, apply)) {
+        return DXL_ERR_RANGE;
     }
     return 0;
 }
@@ -692,6 +757,9 @@ static void read_bytes(ctl_device *d, uint8_t start, uint8_t n, uint8_t *out)
 {
     refresh(d);
     uint8_t page = d->regs[CTL_WINDOW_PAGE]; /* a known page: writes check it */
+    lib_slot slot_shown;
+    const uint8_t *slot_data = NULL;
+    if (page == CTL_PAGE_LIBRARY) lib_shown(&d->lib, &slot_shown, &slot_data);
     uint8_t rec[CTL_SERVO_RECORD_SIZE];
     int16_t shown = -1;
     for (uint16_t i = 0; i < n; i++) {
@@ -699,7 +767,11 @@ static void read_bytes(ctl_device *d, uint8_t start, uint8_t n, uint8_t *out)
         if (a >= CTL_SERVO_WINDOW && a < WINDOW_END && page >= CTL_SERVO_PAGES) {
             const field *f = page_field_at(page, (uint8_t)(a - CTL_SERVO_WINDOW));
             uint8_t at = f ? (uint8_t)(CTL_SERVO_WINDOW + f->addr) : 0u;
-            out[i] = f ? (uint8_t)(page_value(d, page, at) >> (8u * (a - at))) : 0u;
+            if (page == CTL_PAGE_LIBRARY) {
+                out[i] = lib_page_byte(&d->lib, &slot_shown, slot_data, (uint8_t)a);
+            } else {
+                out[i] = f ? (uint8_t)(page_value(d, page, at) >> (8u * (a - at))) : 0u;
+            }
         } else if (a >= CTL_SERVO_WINDOW && a < WINDOW_END) {
             uint8_t slot = (uint8_t)((a - CTL_SERVO_WINDOW) / CTL_SERVO_RECORD_SIZE);
             if (shown != slot) {
@@ -822,6 +894,7 @@ void ctl_init(ctl_device *d)
     d->table_changed = 0;
     d->limits_changed = 0;
     d->capacity = CTL_MAX_TABLE_BYTES;
+    lib_init(&d->lib, NULL);
 }
 
 void ctl_set_capacity(ctl_device *d, uint16_t bytes)

@@ -30,6 +30,7 @@
 #include "ctl_table.h"
 #include "dxl_parser.h"
 #include "gt_table.h"
+#include "lib_regs.h"
 #include "play_player.h"
 
 /* cffi:begin */
@@ -89,6 +90,7 @@ uint8_t ctl_id(const ctl_device *d);
 bool ctl_table_changed(ctl_device *d);
 /* The active table's bytes (NULL and *len = 0 if none). */
 const uint8_t *ctl_active_table(const ctl_device *d, size_t *len);
+/* The gait library's ctl_set_library() and ctl_buttons(): in lib_regs.h. */
 /* cffi:end */
 
 /* Upload Commit FIRMWARE_CHECK: the Upload Result for the firmware image's own CRC-32
@@ -115,6 +117,7 @@ struct ctl_device {
     uint8_t out_count;      /* goals to send this tick */
     uint8_t table_changed;
     uint8_t limits_changed;
+    lib_device lib;
     uint8_t staging[CTL_MAX_TABLE_BYTES];
     uint8_t active[CTL_MAX_TABLE_BYTES];
 };

@@ -11,16 +11,7 @@ import zlib
 
 import pytest
 from controller_cli_support import cli, cli_json, save, wave_table
-from firmware_support import (
-    QEMU_DIR,
-    assert_healthy_bus,
-    build_firmware,
-    wait_for_boot,
-)
-
-from snakebot.sim.options import SimOptions
-from snakebot.sim.qemu import Endpoint, QemuFirmware
-from snakebot.sim.transports.unixsock import UnixSocketServer
+from firmware_support import assert_healthy_bus, served_firmware
 
 pytestmark = pytest.mark.qemu
 
@@ -30,17 +21,8 @@ ENV = {"SNAKEBOT_MARGIN_MS": "300"}
 
 @pytest.fixture(scope="module")
 def firmware(tmp_path_factory):
-    build_firmware()
-    sock = tmp_path_factory.mktemp("bus") / "bus.sock"
-    bus = SimOptions(robot="snake5").build_bus()
-    with (
-        UnixSocketServer(bus, sock) as server,
-        QemuFirmware(QEMU_DIR / "flash.bin", bus=Endpoint.unix_client(sock)) as fw,
-    ):
-        port = fw.ports.pc_link
-        wait_for_boot(port)
+    with served_firmware(tmp_path_factory.mktemp("bus")) as port:
         yield port
-        assert server.running
 
 
 def records(port: str, duration: float, interval: float = 0.1) -> list[dict]:

@@ -50,6 +50,28 @@ def build_firmware() -> str:
     return done.stdout
 
 
+@contextlib.contextmanager
+def served_firmware(sock_dir: Path, robot: str = "snake5") -> Iterator[str]:
+    """The QEMU image with its Dynamixel bus on a Unix socket served by ``robot``'s
+    emulated servos (as `snakebot sim serve` runs it); yields its PC link's port once the
+    firmware answers there."""
+    from snakebot.sim.options import SimOptions
+    from snakebot.sim.qemu import Endpoint, QemuFirmware
+    from snakebot.sim.transports.unixsock import UnixSocketServer
+
+    build_firmware()
+    sock = sock_dir / "bus.sock"
+    bus = SimOptions(robot=robot).build_bus()
+    with (
+        UnixSocketServer(bus, sock) as server,
+        QemuFirmware(QEMU_DIR / "flash.bin", bus=Endpoint.unix_client(sock)) as fw,
+    ):
+        port = fw.ports.pc_link
+        wait_for_boot(port)
+        yield port
+        assert server.running
+
+
 def symbols(elf: Path) -> dict[str, int]:
     """Symbol name -> address, from arm-none-eabi-nm."""
     out = subprocess.run(

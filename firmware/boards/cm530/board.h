@@ -25,8 +25,26 @@
 /* The 4 KB below it keep the robot's limits (two slots of one page each). */
 #define BOARD_LIMITS_STORE_BASE 0x08077000UL
 #define BOARD_LIMITS_STORE_SIZE (4UL * 1024UL)
+/* Below them, the gait library (app/store_lib.h): its directory (two slots of one page),
+ * then STORE_LIB_SLOTS + 1 = 9 data areas of 32 KB, ending where the limits begin. */
+#define BOARD_HAS_FLASH_LIBRARY 1
+#define BOARD_LIB_DIR_BASE 0x0802E000UL
+#define BOARD_LIB_DIR_SIZE (4UL * 1024UL)
+#define BOARD_LIB_AREA_SIZE (32UL * 1024UL)
 
 #include "cm530_io.h" /* bus and PC-link USARTs and pins */
+
+/* Buttons, active low with the pull-ups on, in the Buttons register's bit order: U PC11,
+ * D PC10, L PA15, R PA14, START PB3. R is left out ({0, 0}): PA14 is SWCLK, readable only
+ * with SWD off, and SWD stays on for a debugger. PA15 and PB3 are JTAG pins that
+ * cm530_io_init frees. */
+#define BOARD_BUTTON_PINS                                                                  \
+    {{HAL_GPIOC_BASE, 11}, {HAL_GPIOC_BASE, 10}, {HAL_GPIOA_BASE, 15}, {0U, 0U},            \
+     {HAL_GPIOB_BASE, 3}}
+/* LEDs, active low, in the LEDs register's bit order: AUX PB12, MANAGE PB13, PROGRAM PB14 show
+ * the library slot picked (binary), PLAY PB15 that a gait plays. */
+#define BOARD_LED_PINS                                                                     \
+    {{HAL_GPIOB_BASE, 12}, {HAL_GPIOB_BASE, 13}, {HAL_GPIOB_BASE, 14}, {HAL_GPIOB_BASE, 15}}
 
 /* Ring sizes (powers of two). A whole Protocol 1.0 packet is at most 250 bytes. */
 #define BOARD_BUS_RX_RING 512

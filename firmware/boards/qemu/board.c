@@ -19,3 +19,13 @@ void board_pins_init(void)
 {
     cm530_io_init(); /* the CM-530's wiring, unchanged: QEMU ignores it */
 }
+
+uint8_t board_buttons(void)
+{
+    return 0; /* QEMU models no GPIO (its pins read 0, which would be every button held) */
+}
+
+void board_leds(uint8_t on)
+{
+    (void)on;
+}

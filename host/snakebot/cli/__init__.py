@@ -37,6 +37,7 @@ from snakebot.cli.doctor import doctor  # noqa: E402
 from snakebot.cli.drive import drive  # noqa: E402
 from snakebot.cli.flash import flash_command  # noqa: E402
 from snakebot.cli.gait import gait  # noqa: E402
+from snakebot.cli.library import library  # noqa: E402
 from snakebot.cli.limits import limits  # noqa: E402
 from snakebot.cli.model import model  # noqa: E402
 from snakebot.cli.monitor import monitor  # noqa: E402
@@ -66,7 +67,7 @@ for command in (
     demo,
 ):
     main.add_command(command)
-for command in (plan_command, robot, drive, config, doctor, compare_command):
+for command in (plan_command, robot, drive, config, doctor, compare_command, library):
     main.add_command(command)
 bus.add_command(bus_play)
 for command in (predict, serve, bootloader, goto, thesis, friction):

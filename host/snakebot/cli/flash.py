@@ -14,6 +14,7 @@ from snakebot.firmware import image as firmware_image
 from snakebot.flash import PC_LINK_BAUD, FlashTimeouts, board_layout, flash, load_image
 from snakebot.flash.errors import FlashError
 from snakebot.flash.image import image_info
+from snakebot.flash.library_backup import backup_library, restore_library
 from snakebot.flash.loader import RESET_HINT, last_line
 from snakebot.flash.verify import Verified, verify_firmware
 from snakebot.transport import open_port
@@ -111,6 +112,13 @@ def _confirm_unverified(warning: str, yes: bool, out: TextIO) -> bool:
     "in a format snakebot does not know (it is then not verified).",
 )
 @click.option(
+    "--no-library-backup",
+    is_flag=True,
+    help="Do not back the controller's gait library up before flashing (and restore it "
+    "after): by default every stored slot is saved to a file first, in case the "
+    "bootloader erases it.",
+)
+@click.option(
     "--json",
     "as_json",
     is_flag=True,
@@ -125,6 +133,7 @@ def flash_command(
     reset_timeout: float | None,
     force: bool,
     yes: bool,
+    no_library_backup: bool,
     as_json: bool,
 ) -> None:
     """Flash FIRMWARE (a .bin, .hex or .elf) onto the CM-530 through its ROBOTIS bootloader.
@@ -146,6 +155,11 @@ def flash_command(
         snakebot flash build/cm530/firmware.bin --port /dev/ttyUSB0
         snakebot flash build/cm530/firmware.elf --port /dev/ttyUSB0
 
+    Before asking for RESET, the gait library stored in the running controller (`snakebot
+    library`) is saved to a file (its path is printed) and, once the new firmware
+    answers, written back where the flashing lost it; a controller that does not answer
+    is skipped with a warning.
+
     The link runs at 57600 baud, so 100 KB takes about 18 s. Timeouts can be raised with
     the SNAKEBOT_FLASH_*_S environment variables (see snakebot.flash.settings). A .hex or
     .elf is turned into the raw bytes the bootloader takes (the .elf's loadable segments at
@@ -155,6 +169,9 @@ def flash_command(
 
     def say(message: str) -> None:
         click.echo(message, file=out)
+
+    def warn(message: str) -> None:
+        click.echo(message, err=True)
 
     if firmware is None:
         firmware = str(firmware_image("cm530", "firmware.bin"))
@@ -166,6 +183,7 @@ def flash_command(
         f"of the {layout.app_size // 1024} KB application area) via {port} at "
         f"{PC_LINK_BAUD} baud."
     )
+    saved = None if no_library_backup else backup_library(port, say, warn)
     bar = _LazyBar(len(image) + (0 if no_checksum_byte else 1), out)
     try:
         with open_port(port, PC_LINK_BAUD, timeout=0) as link:
@@ -194,6 +212,10 @@ def flash_command(
     verified = None
     if result.started and not no_verify:
         verified = _verify(port, image, layout.app_base, timeouts, say)
+    if saved is not None and result.started:
+        restore_library(port, saved, say, warn)
+    elif saved is not None:
+        say(f"Once it runs: `snakebot library restore {saved} --port {port}`")
     if as_json:
         click.echo(
             dumps(

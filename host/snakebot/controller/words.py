@@ -20,6 +20,7 @@ FLAG_MEANINGS: dict[str, str] = {
     "servos do not yet hold the robot's limits)",
     "LIMITS": "a servo would not take the robot's limits as its CW/CCW Angle Limit (or did "
     "not answer while they were checked)",
+    "LIBRARY": "a gait-library operation failed (Library Result on the Library page says why)",
 }
 
 SAFE_FIXES: dict[str, str] = {

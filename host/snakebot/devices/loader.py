@@ -257,9 +257,12 @@ def _check_pages(file: str, device: Device) -> None:
         numbers.add(page.number)
         end = 0
         for f in sorted(page.fields, key=lambda r: r.address):
-            if f.address < end or f.end > size or f.size > 4:
+            # a field longer than a number is a byte string: no unit, no value names
+            text = f.size > 4 and f.scale is None and f.enum is None
+            if f.address < end or f.end > size or (f.size > 4 and not text):
                 raise DeviceError(
                     f"{where}: field {f.name!r} overlaps, leaves the window or passes 4 bytes"
+                    " without being a byte string (no scale, no enum)"
                 )
             if f.name.lower() in names:
                 raise DeviceError(f"{where}: field {f.name!r} is also a register's name")

@@ -1,0 +1,118 @@
+"""`snakebot library list|store|play|delete`: the gait library kept in the controller's
+flash (protocol/library.md)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from snakebot.cli.controller_link import controller_options, open_controller
+from snakebot.cli.output import dumps
+from snakebot.controller.library import delete_slot, list_slots, play_slot, restore, store_slot
+from snakebot.flash.library_backup import read_backup
+from snakebot.gaittable import read_gait
+
+SLOT = click.argument("slot", type=click.IntRange(0, 255), metavar="SLOT")
+
+
+@click.group("library")
+def library() -> None:
+    """The gait library: named gait tables kept in the controller's flash, in slots
+    that survive power-off, so the robot can walk without a PC: on the CM-530, U and D
+    pick a slot (the AUX, MANAGE and PROGRAM LEDs show its number in binary) and START
+    plays it or stops.
+
+    \b
+        snakebot gait serpenoid snake5 -A 30deg -w 180deg -d 90deg -o walk.gait
+        snakebot library store 0 walk.gait --name "walk" --port /dev/ttyUSB0
+        snakebot library list --port /dev/ttyUSB0
+        snakebot library play 0 --port /dev/ttyUSB0
+        snakebot library delete 0 --port /dev/ttyUSB0
+
+    The CM-530 has 8 slots; the emulated controller of `snakebot sim serve` has one,
+    which is its active table.
+    """
+
+
+@library.command("list")
+@controller_options
+def list_command(port: str, baud: int, controller_id: int, as_json: bool) -> None:
+    """Every slot: its name, kind, length, CRC-32, and whether its bytes are whole
+    (DAMAGED: the flash no longer matches the CRC; store the table again)."""
+    with open_controller(port, baud, controller_id) as ctl:
+        ctl.identify()
+        slots = list_slots(ctl)
+    if as_json:
+        click.echo(dumps({"slots": [s.as_dict() for s in slots]}))
+    elif not slots:
+        click.echo("this controller has no gait library")
+    else:
+        for s in slots:
+            click.echo(s.line())
+
+
+@library.command("store")
+@SLOT
+@click.argument("gait", type=click.Path(dir_okay=False, path_type=Path))
+@click.option(
+    "--name",
+    "-n",
+    help="The slot's name, up to 16 printable ASCII characters (default: the file's name).",
+)
+@controller_options
+def store_command(
+    slot: int, gait: Path, name: str | None, port: str, baud: int, controller_id: int, as_json: bool
+) -> None:
+    """Keep the gait table GAIT (a .gait file from `snakebot gait`) in slot SLOT,
+    replacing what it held. The table is checked as `snakebot upload` checks it; the
+    active table is left alone. A power cut while storing leaves the slot as it was or
+    as stored, and every other slot untouched."""
+    blob = read_gait(gait).encode()  # a bad file fails here, before the port is opened
+    with open_controller(port, baud, controller_id) as ctl:
+        ctl.identify()
+        stored = store_slot(ctl, slot, name if name is not None else gait.stem, blob)
+    click.echo(dumps(stored.as_dict()) if as_json else f"stored: {stored.line()}")
+
+
+@library.command("play")
+@SLOT
+@controller_options
+def play_command(slot: int, port: str, baud: int, controller_id: int, as_json: bool) -> None:
+    """Make slot SLOT's table the active one and play it (stop with `snakebot stop`).
+    The table played is not written over the controller's saved active table."""
+    with open_controller(port, baud, controller_id) as ctl:
+        ctl.identify()
+        state = play_slot(ctl, slot)
+    click.echo(dumps({"slot": slot, "state": state}) if as_json else f"slot {slot}: {state}")
+
+
+@library.command("delete")
+@SLOT
+@controller_options
+def delete_command(slot: int, port: str, baud: int, controller_id: int, as_json: bool) -> None:
+    """Empty slot SLOT."""
+    with open_controller(port, baud, controller_id) as ctl:
+        ctl.identify()
+        delete_slot(ctl, slot)
+    click.echo(dumps({"slot": slot, "deleted": True}) if as_json else f"slot {slot} emptied")
+
+
+@library.command("restore")
+@click.argument("backup_file", metavar="FILE", type=click.Path(dir_okay=False, path_type=Path))
+@controller_options
+def restore_command(
+    backup_file: Path, port: str, baud: int, controller_id: int, as_json: bool
+) -> None:
+    """Write the slots saved in FILE (a backup `snakebot flash` made) back to the
+    controller, each where it is not already in place."""
+    saved = read_backup(backup_file)  # a bad file fails here, before the port is opened
+    with open_controller(port, baud, controller_id) as ctl:
+        ctl.identify()
+        written = restore(ctl, saved)
+    if as_json:
+        click.echo(dumps({"restored": [s.as_dict() for s in written]}))
+    else:
+        click.echo(f"restored {len(written)} slot(s)")
+        for s in written:
+            click.echo(s.line())

@@ -1,0 +1,265 @@
+"""The gait library as the controller core shows it (firmware/core/lib_regs.c with its
+hooks in ctl_device.c): the Library window page, Upload Commit LIBRARY_STORE and
+LIBRARY_DELETE, Command LIBRARY_PLAY and the button panel, on a store kept here in Python
+(the firmware's flash store has its own tests, tests/firmware/test_library_store.py)."""
+
+from __future__ import annotations
+
+import zlib
+
+import numpy as np
+import pytest
+from ctl_support import CTL, CTL_ID, Device, lib_value
+from hypothesis import given
+from hypothesis import strategies as st
+
+from snakebot.controller import ControllerErrors
+from snakebot.core import ffi, lib
+from snakebot.gaittable import GaitTable
+from snakebot.protocol import ErrorFlags, write
+
+LIBRARY = CTL.page("Library")
+NAME_BYTES = CTL.register("Slot Name").size
+OK = lib_value("Upload Result", "OK")
+TABLE = lib_value("Upload Commit", "TABLE")
+SCANS = lib.BUTTONS_DEBOUNCE_SCANS
+
+
+def result(name: str) -> int:
+    return lib_value("Upload Result", name)
+
+
+class PyStore:
+    """A lib_store whose slots live in a dict, with the calls it received."""
+
+    def __init__(self, slots: int = CTL.limits["max_library_slots"], capacity: int = 2048):
+        self.slots: dict[int, tuple[int, bytes, bytes]] = {}  # slot -> kind, name, data
+        self.damaged: set[int] = set()
+        self.calls: list[tuple] = []
+        self._keep: list = []
+        self.data_buffers: dict[int, object] = {}
+        get = ffi.callback("void(uint8_t, lib_slot *, const uint8_t **)", self._get)
+        put = ffi.callback(
+            "uint8_t(uint8_t, uint8_t, const uint8_t *, const uint8_t *, uint16_t)", self._put
+        )
+        remove = ffi.callback("uint8_t(uint8_t)", self._remove)
+        self._keep += [get, put, remove]
+        self.c = ffi.new("lib_store *", {"slots": slots, "capacity": capacity})
+        self.c.get, self.c.put, self.c.remove = get, put, remove
+
+    def _get(self, slot, out, data) -> None:
+        if slot not in self.slots:
+            return
+        kind, name, blob = self.slots[slot]
+        out.status = lib.CTL_SLOT_STATUS_DAMAGED if slot in self.damaged else lib.CTL_SLOT_STATUS_OK
+        out.kind, out.len, out.crc = kind, len(blob), zlib.crc32(blob)
+        ffi.memmove(out.name, name, len(name))
+        buf = self.data_buffers.setdefault(slot, ffi.new("uint8_t[]", blob))
+        data[0] = ffi.NULL if slot in self.damaged else buf
+
+    def _put(self, slot, kind, name, data, length) -> int:
+        blob = bytes(ffi.buffer(data, length))
+        self.calls.append(("put", slot, kind))
+        self.slots[slot] = (kind, bytes(ffi.buffer(name, NAME_BYTES)).rstrip(b"\0"), blob)
+        self.data_buffers.pop(slot, None)
+        return OK
+
+    def _remove(self, slot) -> int:
+        self.calls.append(("remove", slot))
+        self.slots.pop(slot, None)
+        return OK
+
+
+def table(frames: int = 3, low: int = 400) -> bytes:
+    values = np.array([[low + f, 600 - f] for f in range(frames)])
+    return GaitTable((1, 2), 50, True, ((300, 700), (300, 700)), values, {}).encode()
+
+
+class Lib:
+    """A ctl_device with a PyStore, spoken to through the Library page."""
+
+    def __init__(self, store: PyStore | None = None) -> None:
+        self.dev = Device()
+        self.store = store
+        lib.ctl_set_library(self.dev.d, store.c if store else ffi.NULL)
+        assert self.dev.set("Window Page", LIBRARY.number) == 0
+
+    def get(self, name: str) -> int:
+        return self.dev.get(name)
+
+    def text(self, name: str) -> bytes:
+        reg = CTL.register(name)
+        return self.dev.read(reg.address, reg.size)
+
+    def name(self, text: bytes) -> int:
+        reg = CTL.register("Store Name")
+        return self.dev.one(write(CTL_ID, reg.address, text.ljust(reg.size, b"\0"))).error
+
+    def stage(self, blob: bytes) -> None:
+        assert self.dev.upload(blob, commit=False) is not None
+
+    def commit(self, what: str, blob: bytes = b"") -> int:
+        start = CTL.register("Upload Length").address
+        payload = len(blob).to_bytes(2, "little") + zlib.crc32(blob).to_bytes(4, "little")
+        payload += bytes([lib_value("Upload Commit", what)])
+        assert self.dev.one(write(CTL_ID, start, payload)).error == 0
+        return self.get("Upload Result")
+
+    def store_blob(self, slot: int, name: bytes, blob: bytes, kind: int = TABLE) -> int:
+        assert self.dev.set("Library Slot", slot) == 0
+        assert self.name(name) == 0
+        assert self.dev.set("Store Kind", kind) == 0
+        self.stage(blob)
+        return self.commit("LIBRARY_STORE", blob)
+
+    def press(self, buttons: int) -> None:
+        """Hold ``buttons`` through the Buttons register long enough, then let go."""
+        for held in (buttons, 0):
+            assert self.dev.set("Buttons", held) == 0
+            for _ in range(SCANS):
+                self.dev.now += 10
+                lib.ctl_buttons(self.dev.d, 0, self.dev.now)
+
+
+def test_without_a_library_everything_is_refused_by_name():
+    c = Lib(None)
+    assert c.get("Library Slots") == 0 and c.get("Slot Capacity") == 0
+    assert c.dev.set("Library Slot", 1) == ErrorFlags.RANGE
+    assert c.commit("LIBRARY_DELETE") == result("LIBRARY_NONE")
+    assert c.dev.flags & ControllerErrors.LIBRARY
+    assert not c.dev.flags & ControllerErrors.UPLOAD_LAYOUT
+    assert c.dev.command("CLEAR") == 0
+    assert c.dev.command("LIBRARY_PLAY") == 0
+    assert c.dev.flags & ControllerErrors.LIBRARY and c.dev.flags & ControllerErrors.REFUSED
+    assert c.get("Library Result") == result("LIBRARY_NONE")
+
+
+def test_store_shows_and_deletes_a_slot():
+    store = PyStore()
+    c = Lib(store)
+    assert c.get("Library Slots") == 8 and c.get("Slot Capacity") == 2048
+    walk = table()
+    assert c.store_blob(5, b"walk forward", walk) == OK
+    assert store.slots[5] == (TABLE, b"walk forward", walk)
+    assert c.get("Library Result") == OK and not c.dev.flags & ControllerErrors.LIBRARY
+    shown = {f.name: c.get(f.name) for f in LIBRARY.fields if f.size <= 4}
+    assert shown["Library Slot"] == 5
+    assert shown["Slot Status"] == lib.CTL_SLOT_STATUS_OK
+    assert shown["Slot Kind"] == TABLE
+    assert shown["Slot Length"] == len(walk) and shown["Slot CRC"] == zlib.crc32(walk)
+    assert c.text("Slot Name") == b"walk forward".ljust(NAME_BYTES, b"\0")
+    assert c.text("Store Name") == b"walk forward".ljust(NAME_BYTES, b"\0")
+    # storing into the library leaves the active table alone
+    assert lib.ctl_active_table(c.dev.d, ffi.new("size_t *")) == ffi.NULL
+    assert c.dev.set("Library Slot", 4) == 0
+    assert c.get("Slot Status") == lib.CTL_SLOT_STATUS_EMPTY and c.get("Slot Length") == 0
+    assert c.dev.set("Library Slot", 5) == 0
+    assert c.commit("LIBRARY_DELETE") == OK
+    assert store.calls[-1] == ("remove", 5) and 5 not in store.slots
+    assert c.get("Slot Status") == lib.CTL_SLOT_STATUS_EMPTY
+    assert c.dev.set("Library Slot", 8) == ErrorFlags.RANGE
+    assert c.get("Library Slot") == 5
+
+
+@pytest.mark.parametrize(
+    ("name", "blob", "kind", "expected"),
+    [
+        (b"bad\x01name", table(), TABLE, "LIBRARY_BAD_NAME"),
+        (b"a\0b", table(), TABLE, "LIBRARY_BAD_NAME"),  # text after the padding
+        (b"limits", table(), lib_value("Upload Commit", "LIMITS"), "LIBRARY_BAD_KIND"),
+        (b"broken", table()[:-3], TABLE, "TRUNCATED"),  # checked as TABLE checks it
+    ],
+)
+def test_a_bad_store_is_refused_and_stores_nothing(name, blob, kind, expected):
+    store = PyStore()
+    c = Lib(store)
+    assert c.store_blob(2, name, blob, kind) == result(expected)
+    assert store.calls == [] and c.dev.flags & ControllerErrors.LIBRARY
+    assert c.get("Library Result") == result(expected)
+
+
+def test_a_program_blob_is_stored_unchecked_but_not_played():
+    store = PyStore()
+    c = Lib(store)
+    assert c.store_blob(1, b"prog", b"\x01\x02\x03", kind=3) == OK
+    assert store.slots[1][0] == 3
+    assert c.dev.set("Library Slot", 1) == 0
+    assert c.dev.command("LIBRARY_PLAY") == 0
+    assert c.get("Library Result") == result("LIBRARY_NOT_PLAYABLE")
+    assert c.dev.flags & ControllerErrors.REFUSED
+
+
+def test_library_play_makes_the_slot_active_without_persisting_it_and_plays():
+    store = PyStore()
+    c = Lib(store)
+    walk, turn = table(3), table(5, low=450)
+    assert c.store_blob(0, b"walk", walk) == OK
+    assert c.store_blob(3, b"turn", turn) == OK
+    assert c.dev.set("Library Slot", 3) == 0
+    assert c.dev.command("LIBRARY_PLAY") == 0
+    assert c.dev.state == lib.CTL_STATE_PLAYING, hex(c.dev.flags)
+    n = ffi.new("size_t *")
+    active = lib.ctl_active_table(c.dev.d, n)
+    assert bytes(ffi.buffer(active, n[0])) == turn
+    assert not lib.ctl_table_changed(c.dev.d)
+    # an empty or damaged slot is refused, and what plays keeps playing
+    store.damaged.add(0)
+    for slot, why in ((0, "LIBRARY_DAMAGED"), (6, "LIBRARY_EMPTY")):
+        assert c.dev.set("Library Slot", slot) == 0
+        assert c.dev.command("LIBRARY_PLAY") == 0
+        assert c.get("Library Result") == result(why)
+    assert c.dev.state == lib.CTL_STATE_PLAYING
+
+
+def test_the_buttons_pick_a_slot_play_it_and_stop():
+    store = PyStore()
+    c = Lib(store)
+    assert c.store_blob(2, b"two", table()) == OK
+    c.press(lib.CTL_BUTTONS_U)
+    c.press(lib.CTL_BUTTONS_U)
+    assert c.get("Panel Slot") == 2 and c.get("LEDs") == 2
+    c.press(lib.CTL_BUTTONS_START)
+    assert c.dev.state == lib.CTL_STATE_PLAYING
+    assert c.get("LEDs") == 2 | lib.CTL_LEDS_PLAY
+    c.press(lib.CTL_BUTTONS_START)
+    assert c.dev.state == lib.CTL_STATE_IDLE and c.get("LEDs") == 2
+    c.press(lib.CTL_BUTTONS_D)
+    c.press(lib.CTL_BUTTONS_START)  # slot 1 is empty
+    assert c.dev.state == lib.CTL_STATE_IDLE
+    assert c.get("Library Result") == result("LIBRARY_EMPTY")
+
+
+@given(st.binary(min_size=1, max_size=40), st.integers(0, 255))
+def test_any_write_to_the_page_leaves_it_consistent(data, start_offset):
+    """Bytes written anywhere on the page: refused with RANGE, or the writable fields
+    take them; the read-only ones never change."""
+    c = Lib(PyStore())
+    before = c.dev.read(CTL.servo_window_address, 126)
+    start = CTL.servo_window_address + start_offset % 126
+    data = data[: CTL.servo_window_address + 126 - start]
+    err = c.dev.one(write(CTL_ID, start, data)).error
+    after = c.dev.read(CTL.servo_window_address, 126)
+    if err:
+        assert after == before
+    writable = set()
+    for f in LIBRARY.fields:  # addresses relative to the window
+        if "W" in f.access and f.name != "Buttons":  # it reads back the debounced buttons
+            writable |= set(range(f.address, f.address + f.size))
+    changed = {i for i, (a, b) in enumerate(zip(before, after, strict=True)) if a != b}
+    assert changed <= writable
+
+
+def test_a_slot_reads_back_through_the_slot_data_window():
+    store = PyStore()
+    c = Lib(store)
+    blob = bytes(range(256)) * 3 + b"tail"
+    assert c.store_blob(4, b"prog", blob, kind=3) == OK
+    window = CTL.register("Slot Data")
+    got = b""
+    for at in range(0, len(blob) + window.size, window.size):
+        assert c.dev.set("Slot Offset", at) == 0
+        got += c.text("Slot Data")
+    assert got[: len(blob)] == blob and set(got[len(blob) :]) == {0}
+    store.damaged.add(4)  # a damaged slot shows nothing
+    assert c.dev.set("Slot Offset", 0) == 0
+    assert set(c.text("Slot Data")) == {0}

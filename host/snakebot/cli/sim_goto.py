@@ -115,7 +115,8 @@ def goto(
 def _print(s: dict[str, Any]) -> None:
     t, f, e = s["target"], s["final"], s["error"]
     click.echo(
-        f"{s['robot']} on the {s['world']} world: {len(s['segments'])} segments in "
+        f"{s['robot']} on the {s['world']} world: {len(s['segments'])} segments "
+        f"({s['iterations']} loops, each re-planned from the pose read) in "
         f"{s['duration_s']:.2f} s of bus time ({s['wall_s']:.2f} s wall)"
     )
     for label, p in (("target", t), ("reached", f)):

@@ -23,7 +23,7 @@ from snakebot.gait.common import path as sample_path
 from snakebot.gaittable import GaitTable
 from snakebot.kinematics import Trajectory
 from snakebot.plan import se2
-from snakebot.plan.loops import PlanError, path_motion
+from snakebot.plan.loops import Loop, PlanError, path_motion
 from snakebot.plan.planner import (
     DEFAULT_HEADING_TOLERANCE,
     DEFAULT_TOLERANCE,
@@ -34,6 +34,7 @@ from snakebot.plan.planner import (
     frame_period_ms,
     loop_counts,
     loop_target,
+    motion_dict,
     pose_dict,
     pose_error,
     solve_accuracy,
@@ -66,6 +67,8 @@ MAX_SLOWDOWN = 20
 #: Loops go on until leaving would end within this share of the tolerance (if they
 #: run out first, the end is still judged against the whole tolerance).
 STOP_SHARE = 0.5
+#: Bounds of the size factor between one loop and the next one's first guess.
+SHRINK_MIN, SHRINK_MAX = 0.2, 1.5
 
 
 class GotoError(SnakebotError):
@@ -117,6 +120,7 @@ class GotoResult:
             "target": pose_dict(self.target),
             "final": pose_dict(self.final),
             "error": self.tolerance.report(self.error),
+            "iterations": sum(1 for s in self.segments if s["kind"] == "loop"),
             "segments": self.segments,
             "duration_s": float(self.path.t[-1]) if len(self.path.t) else 0.0,
             "wall_s": self.wall_s,
@@ -220,6 +224,7 @@ def _follow(
     what is left (at least 2, so a loop never aims at all of it and a loop that moved
     more or less than the model said is made up for by the next)."""
     robot = runner.robot
+    scale = body_length(robot)
     loop = route.loop
     leave = route.leave
     back = path_motion(robot, leave) if len(leave) > 1 else np.zeros(3)
@@ -228,19 +233,15 @@ def _follow(
     pose = np.zeros(3)
     done = 0
 
-    def play(kind: str, angles: np.ndarray) -> None:
+    def play(kind: str, angles: np.ndarray, planned: np.ndarray | None = None) -> None:
         nonlocal pose, done
         before = pose
         pose = runner.play(angles, period_ms)
         moved = se2.relative(before, pose)
-        segments.append(
-            {
-                "kind": kind,
-                "frames": len(angles) - 1,
-                "pose": pose_dict(pose),
-                "motion": {"dx": float(moved[0]), "dy": float(moved[1]), "dtheta": float(moved[2])},
-            }
-        )
+        segments.append({"kind": kind, "frames": len(angles) - 1, "pose": pose_dict(pose)})
+        segments[-1]["motion"] = motion_dict(moved)
+        if planned is not None:
+            segments[-1]["planned"] = motion_dict(planned)
         done += 1
         if progress is not None:
             progress(done, total)
@@ -258,12 +259,24 @@ def _follow(
             robot,
             loop.hub,
             wanted,
-            body_length(robot),
-            [loop.coefficients],
+            scale,
+            [shrunk(loop, wanted, scale), loop.coefficients],
             solve_accuracy(robot, tol),
         )
         loop = refit or loop  # a failed fit keeps the last loop: the next one corrects
-        play("loop", loop.angles())
+        play("loop", loop.angles(), loop.motion)
     if len(leave) > 1:
         play("to start", leave)
     return pose
+
+
+def shrunk(loop: Loop, wanted: np.ndarray, scale: float) -> np.ndarray:
+    """The loop's coefficients scaled to the size a loop moving the body by ``wanted``
+    has: a loop's motion grows with its area, the square of its size. A loop fitted
+    from the last one unscaled keeps its size and moves the body a little by large
+    motions that nearly cancel, which a slipping world does not reproduce."""
+    w = np.array([1.0 / scale, 1.0 / scale, 1.0])
+    have = float(np.linalg.norm(loop.motion * w))
+    want = float(np.linalg.norm(wanted * w))
+    factor = 1.0 if have <= 0 else float(np.clip(np.sqrt(want / have), SHRINK_MIN, SHRINK_MAX))
+    return loop.coefficients * factor

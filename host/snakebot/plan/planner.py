@@ -268,6 +268,11 @@ def pose_dict(q: np.ndarray) -> dict[str, float]:
     return {"x": float(q[0]), "y": float(q[1]), "theta": float(q[2])}
 
 
+def motion_dict(moved: np.ndarray) -> dict[str, float]:
+    """A body displacement (x, y, theta) as the reports give it."""
+    return {"dx": float(moved[0]), "dy": float(moved[1]), "dtheta": float(moved[2])}
+
+
 def _segments(robot: Robot, route: Route, ticks: np.ndarray, period_s: float) -> list[dict]:
     """Each segment's frames and its motion as played from the rounded ticks."""
     out, first = [], 0
@@ -281,7 +286,7 @@ def _segments(robot: Robot, route: Route, ticks: np.ndarray, period_s: float) ->
                 "first_frame": first,
                 "frames": len(piece) - 1,
                 "duration_s": round((len(piece) - 1) * period_s, 6),
-                "motion": {"dx": float(moved[0]), "dy": float(moved[1]), "dtheta": float(moved[2])},
+                "motion": motion_dict(moved),
             }
         )
         first = last

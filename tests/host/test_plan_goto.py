@@ -61,24 +61,24 @@ def test_closed_loop_runs_on_the_physics_world():
     assert e["position"] <= 2 * e["position_tolerance"]
 
 
-#: Seeded targets on the physics world, per robot family; each run takes a few seconds.
+#: Seeded targets on the physics world, per robot family; each run takes seconds.
 PHYSICS_SEEDS = (31, 32, 33, 34, 35, 36)
+#: Where the closed loop is known not to get there (docs/goto.md has the figures).
+PHYSICS_MISSES = {
+    **{
+        ("snake5", seed): "snake5's loops move it on MuJoCo nothing like the minimum-slip "
+        "model says (a loop played backwards still moves it forwards), so no correction of "
+        "the model's loops converges"
+        for seed in PHYSICS_SEEDS
+    },
+}
 
 
 def physics_cases():
     for name in ("trident", "snake3", "snake5"):
         for seed in PHYSICS_SEEDS:
-            marks = []
-            if name != "trident":
-                marks.append(
-                    pytest.mark.xfail(
-                        reason="issue #14's goal not met for every target yet: with "
-                        "loops shrunk to their share of the way the 3-link snake met it at 4 "
-                        "of these 6 targets, snake5 at none (its loops move it nothing like "
-                        "the minimum-slip model says)",
-                        strict=False,
-                    )
-                )
+            miss = PHYSICS_MISSES.get((name, seed))
+            marks = [pytest.mark.xfail(reason=miss, strict=True)] if miss else []
             yield pytest.param(name, seed, marks=marks, id=f"{name}-{seed}")
 
 

@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from snakebot.gait.common import (
+    NEAR_SINGULAR_RCOND,
     Gait,
     motion,
     motion_frame,
@@ -357,9 +358,11 @@ def routes(
     count: int | None = None,
     hub: np.ndarray | None = None,
     previous: np.ndarray | None = None,
+    keep_off: float = NEAR_SINGULAR_RCOND,
 ) -> Iterator[Route]:
     """Routes (hub, loop, count) whose joint path as planned reaches ``target``: each
-    hub in turn, each loop count to try."""
+    hub in turn, each loop count to try; the loops keep off configurations whose
+    reciprocal condition number is below ``keep_off``."""
     scale = body_length(robot)
     accuracy = solve_accuracy(robot, tol)
     for h in [hub] if hub is not None else hubs(robot, start):
@@ -373,7 +376,7 @@ def routes(
                 wanted = loop_target(robot, start, h, target, k)
             except KinematicsError:
                 break
-            loop = solve_loop(robot, h, wanted, scale, guesses(robot, previous), accuracy)
+            loop = solve_loop(robot, h, wanted, scale, guesses(robot, previous), accuracy, keep_off)
             if loop is not None:
                 yield Route(robot, start, loop, k)
 

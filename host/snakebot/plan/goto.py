@@ -256,7 +256,6 @@ def _follow(
     the world made of the loops so far (``learn.Response``)."""
     robot = runner.robot
     scale = body_length(robot)
-    weights = np.array([1.0 / scale, 1.0 / scale, 1.0])
     loop = route.loop
     leave = route.leave
     back = path_motion(robot, leave) if len(leave) > 1 else np.zeros(3)
@@ -292,9 +291,13 @@ def _follow(
             loop_target(robot, route.start, loop.hub, remaining, count, entered=True)
         )
         accuracy = max(
-            solve_accuracy(robot, tol), STEP_ACCURACY * float(np.linalg.norm(wanted * weights))
+            solve_accuracy(robot, tol),
+            STEP_ACCURACY * float(np.linalg.norm(wanted * response.weights)),
         )
-        for tries in ([shrunk(loop, wanted, scale), loop.coefficients], guesses(robot, None)):
+        for tries in (
+            [shrunk(loop, wanted, response.weights), loop.coefficients],
+            guesses(robot, None),
+        ):
             refit = solve_loop(robot, loop.hub, wanted, scale, tries, accuracy, keep_off)
             if refit is not None:
                 loop = refit
@@ -306,13 +309,13 @@ def _follow(
     return pose
 
 
-def shrunk(loop: Loop, wanted: np.ndarray, scale: float) -> np.ndarray:
+def shrunk(loop: Loop, wanted: np.ndarray, weights: np.ndarray) -> np.ndarray:
     """The loop's coefficients scaled to the size a loop moving the body by ``wanted``
     has: a loop's motion grows with its area, the square of its size. A loop fitted
     from the last one unscaled keeps its size and moves the body a little by large
-    motions that nearly cancel, which a slipping world does not reproduce."""
-    w = np.array([1.0 / scale, 1.0 / scale, 1.0])
-    have = float(np.linalg.norm(loop.motion * w))
-    want = float(np.linalg.norm(wanted * w))
+    motions that nearly cancel, which a slipping world does not reproduce. ``weights``
+    make a motion's position and heading comparable."""
+    have = float(np.linalg.norm(loop.motion * weights))
+    want = float(np.linalg.norm(wanted * weights))
     factor = 1.0 if have <= 0 else float(np.clip(np.sqrt(want / have), SHRINK_MIN, SHRINK_MAX))
     return loop.coefficients * factor

@@ -61,19 +61,38 @@ def test_closed_loop_runs_on_the_physics_world():
     assert e["position"] <= 2 * e["position_tolerance"]
 
 
+#: Seeded targets on the physics world, per robot family; each run takes seconds.
+PHYSICS_SEEDS = (31, 32, 33, 34, 35, 36)
+#: Where the closed loop is known not to get there (docs/goto.md has the figures).
+PHYSICS_MISSES = {
+    **{
+        ("snake5", seed): "snake5's loops move it on MuJoCo nothing like the minimum-slip "
+        "model says (a loop played backwards still moves it forwards), so no correction of "
+        "the model's loops converges"
+        for seed in PHYSICS_SEEDS
+    },
+}
+
+
+def physics_cases():
+    for name in ("trident", "snake3", "snake5"):
+        for seed in PHYSICS_SEEDS:
+            miss = PHYSICS_MISSES.get((name, seed))
+            marks = [pytest.mark.xfail(reason=miss, strict=True)] if miss else []
+            yield pytest.param(name, seed, marks=marks, id=f"{name}-{seed}")
+
+
 @PHYSICS
-@pytest.mark.xfail(
-    reason="issue #14's goal not met for every target yet: on MuJoCo a loop moves the body "
-    "differently from the minimum-slip model the loops are fitted with (snake5 at full "
-    "speed: 2x as far, 4x the turn); with loops 3x slower the trident's closed loop met "
-    "the tolerance at 3 of 4 seeded targets, the 3-link snake's at 1 of 2, snake5's at 0 of 1",
-    strict=False,
-)
-@pytest.mark.parametrize(("robot_name", "seed"), [("trident", 31), ("snake3", 31), ("snake5", 31)])
+@pytest.mark.slow
+@pytest.mark.parametrize(("robot_name", "seed"), list(physics_cases()))
 def test_closed_loop_on_physics_within_twice_the_tolerance(robot_name, seed):
-    e = goto_physics(robot_name, seed)["error"]
-    assert e["position"] <= 2 * e["position_tolerance"]
-    assert abs(e["heading_rad"]) <= 2 * e["heading_tolerance_rad"]
+    """Where open-loop plans miss because the wheels slip, the closed loop ends within
+    twice the tolerance (issue #14), re-planning after every loop."""
+    report = goto_physics(robot_name, seed)
+    e = report["error"]
+    assert e["position"] <= 2 * e["position_tolerance"], e
+    assert abs(e["heading_rad"]) <= 2 * e["heading_tolerance_rad"], e
+    assert report["iterations"] == sum(s["kind"] == "loop" for s in report["segments"]) > 0
 
 
 def test_unknown_world_physics_missing_is_one_line(tmp_path):

@@ -66,9 +66,11 @@ def goto(
     on the emulated bus, the host as bus master running the controller's player. After
     each segment the body's pose is read from the world, as a camera or motion capture
     would on the real robot, and the next loop is fitted again to its share of what is
-    left of the way; loops go on until the move back would end within half the tolerance
-    (five times the planned loops at most). The report gives the final error and the
-    path; the exit status is 1 if the end is outside the tolerance.
+    left of the way, corrected by what the world made of the loops so far (a floor that
+    slips moves the body shorter or askew); loops go on until the move back would end
+    within half the tolerance (five times the planned loops at most). The report gives
+    the final error, the loops played (iterations) and the path; the exit status is 1
+    if the end is outside the tolerance. docs/goto.md has what it achieves on MuJoCo.
 
     \b
     Example:
@@ -115,7 +117,8 @@ def goto(
 def _print(s: dict[str, Any]) -> None:
     t, f, e = s["target"], s["final"], s["error"]
     click.echo(
-        f"{s['robot']} on the {s['world']} world: {len(s['segments'])} segments in "
+        f"{s['robot']} on the {s['world']} world: {len(s['segments'])} segments "
+        f"({s['iterations']} loops, each re-planned from the pose read) in "
         f"{s['duration_s']:.2f} s of bus time ({s['wall_s']:.2f} s wall)"
     )
     for label, p in (("target", t), ("reached", f)):

@@ -19,11 +19,13 @@ from typing import Any
 import numpy as np
 
 from snakebot.errors import SnakebotError
+from snakebot.gait.common import NEAR_SINGULAR_RCOND
 from snakebot.gait.common import path as sample_path
 from snakebot.gaittable import GaitTable
 from snakebot.kinematics import Trajectory
 from snakebot.plan import se2
-from snakebot.plan.loops import PlanError, path_motion
+from snakebot.plan.learn import Response
+from snakebot.plan.loops import Loop, PlanError, path_motion
 from snakebot.plan.planner import (
     DEFAULT_HEADING_TOLERANCE,
     DEFAULT_TOLERANCE,
@@ -32,13 +34,16 @@ from snakebot.plan.planner import (
     body_length,
     default_start,
     frame_period_ms,
+    guesses,
     loop_counts,
     loop_target,
+    motion_dict,
     pose_dict,
     pose_error,
+    routes,
     solve_accuracy,
     solve_loop,
-    solve_route,
+    unreachable,
     validate_start,
 )
 from snakebot.protocol import sync_write
@@ -66,6 +71,16 @@ MAX_SLOWDOWN = 20
 #: Loops go on until leaving would end within this share of the tolerance (if they
 #: run out first, the end is still judged against the whole tolerance).
 STOP_SHARE = 0.5
+#: On a physics world loops keep this far from singular configurations (reciprocal
+#: condition number of the wheel model) where a route allows: the 3-link snake's loops
+#: that came nearer its singular line (0.01 .. 0.017) threw the body a body length in
+#: one loop on MuJoCo, those above 0.04 followed the model to 10 %.
+PHYSICS_KEEP_OFF = 0.04
+#: A loop refitted in closed loop need only be this near its share of the way (relative
+#: to the share): the next loop corrects what it misses.
+STEP_ACCURACY = 0.2
+#: Bounds of the size factor between one loop and the next one's first guess.
+SHRINK_MIN, SHRINK_MAX = 0.2, 1.5
 
 
 class GotoError(SnakebotError):
@@ -117,6 +132,7 @@ class GotoResult:
             "target": pose_dict(self.target),
             "final": pose_dict(self.final),
             "error": self.tolerance.report(self.error),
+            "iterations": sum(1 for s in self.segments if s["kind"] == "loop"),
             "segments": self.segments,
             "duration_s": float(self.path.t[-1]) if len(self.path.t) else 0.0,
             "wall_s": self.wall_s,
@@ -127,12 +143,17 @@ class GotoResult:
 class Runner:
     """Plays tables back to back on one bus while one world samples the body."""
 
-    def __init__(self, client: DxlClient, bus: Bus, robot: Robot, world: Any) -> None:
+    def __init__(
+        self, client: DxlClient, bus: Bus, robot: Robot, world: Any, slowdown: int = 1
+    ) -> None:
         self.client, self.bus, self.robot, self.world = client, bus, robot, world
+        self.slowdown = slowdown
 
     def play(self, angles: np.ndarray, period_ms: int) -> np.ndarray:
-        """Play joint frames once; the body pose the world reports at the end."""
+        """Play joint frames once, each at least ``period_ms`` and no faster than the
+        servos' speed allows (slowed down); the body pose the world reports at the end."""
         robot = self.robot
+        period_ms = max(period_ms, frame_period_ms(robot, angles) * self.slowdown)
         table = GaitTable(
             robot.servo_ids,
             period_ms,
@@ -176,7 +197,8 @@ def goto(
     phi0 = default_start(robot) if start is None else np.asarray(start, dtype=float)
     validate_start(robot, phi0)
     tol = Tolerance.for_target(robot, goal, tolerance, heading_tolerance)
-    route = solve_route(robot, phi0, goal, tol)
+    keep_off = NEAR_SINGULAR_RCOND if world == "kinematic" else PHYSICS_KEEP_OFF
+    route, keep_off = _route(robot, phi0, goal, tol, keep_off)
     if slowdown is None:
         slowdown = 1 if world == "kinematic" else PHYSICS_SLOWDOWN
     if not (isinstance(slowdown, int) and 1 <= slowdown <= MAX_SLOWDOWN):
@@ -192,8 +214,8 @@ def goto(
         move_to_start(client, bus, robot, robot.angles_to_ticks(phi0))
         tick = TICK_MS / 1000.0
         w = make_world(world, bus, robot, 1.0 / world_hz, bus.now + tick)
-        runner = Runner(client, bus, robot, w)
-        pose = _follow(runner, route, goal, tol, period_ms, segments, progress)
+        runner = Runner(client, bus, robot, w, slowdown)
+        pose = _follow(runner, route, goal, tol, keep_off, period_ms, segments, progress)
         w.stop()
         record = w.record()
     finally:
@@ -202,11 +224,23 @@ def goto(
     return GotoResult(robot, world, goal, tol, pose, segments, path, time.perf_counter() - wall0)
 
 
+def _route(
+    robot: Robot, start: np.ndarray, goal: np.ndarray, tol: Tolerance, keep_off: float
+) -> tuple[Route, float]:
+    """The first route, its loops ``keep_off`` from singular configurations if one
+    reaches the goal so, else the planner's; and the distance its loops keep."""
+    for rcond in dict.fromkeys((keep_off, NEAR_SINGULAR_RCOND)):
+        for route in routes(robot, start, goal, tol, keep_off=rcond):
+            return route, rcond
+    raise unreachable(robot, goal)
+
+
 def _follow(
     runner: Runner,
     route: Route,
     goal: np.ndarray,
     tol: Tolerance,
+    keep_off: float,
     period_ms: int,
     segments: list[dict[str, Any]],
     progress: Any,
@@ -218,8 +252,10 @@ def _follow(
     count. Before each loop the pose the world reports sets what is left, and the loop
     is fitted again to its share of it: the k-th root with k the nominal loop count for
     what is left (at least 2, so a loop never aims at all of it and a loop that moved
-    more or less than the model said is made up for by the next)."""
+    more or less than the model said is made up for by the next), corrected by what
+    the world made of the loops so far (``learn.Response``)."""
     robot = runner.robot
+    scale = body_length(robot)
     loop = route.loop
     leave = route.leave
     back = path_motion(robot, leave) if len(leave) > 1 else np.zeros(3)
@@ -227,20 +263,18 @@ def _follow(
     total = most + 2
     pose = np.zeros(3)
     done = 0
+    response = Response(scale)
 
-    def play(kind: str, angles: np.ndarray) -> None:
+    def play(kind: str, angles: np.ndarray, planned: np.ndarray | None = None) -> None:
         nonlocal pose, done
         before = pose
         pose = runner.play(angles, period_ms)
         moved = se2.relative(before, pose)
-        segments.append(
-            {
-                "kind": kind,
-                "frames": len(angles) - 1,
-                "pose": pose_dict(pose),
-                "motion": {"dx": float(moved[0]), "dy": float(moved[1]), "dtheta": float(moved[2])},
-            }
-        )
+        segments.append({"kind": kind, "frames": len(angles) - 1, "pose": pose_dict(pose)})
+        segments[-1]["motion"] = motion_dict(moved)
+        if planned is not None:
+            segments[-1]["planned"] = motion_dict(planned)
+            response.add(planned, moved)
         done += 1
         if progress is not None:
             progress(done, total)
@@ -253,17 +287,35 @@ def _follow(
             break
         remaining = se2.relative(pose, goal)
         count = loop_counts(robot, remaining, most)[0]
-        wanted = loop_target(robot, route.start, loop.hub, remaining, count, entered=True)
-        refit = solve_loop(
-            robot,
-            loop.hub,
-            wanted,
-            body_length(robot),
-            [loop.coefficients],
-            solve_accuracy(robot, tol),
+        wanted = response.command(
+            loop_target(robot, route.start, loop.hub, remaining, count, entered=True)
         )
-        loop = refit or loop  # a failed fit keeps the last loop: the next one corrects
-        play("loop", loop.angles())
+        accuracy = max(
+            solve_accuracy(robot, tol),
+            STEP_ACCURACY * float(np.linalg.norm(wanted * response.weights)),
+        )
+        for tries in (
+            [shrunk(loop, wanted, response.weights), loop.coefficients],
+            guesses(robot, None),
+        ):
+            refit = solve_loop(robot, loop.hub, wanted, scale, tries, accuracy, keep_off)
+            if refit is not None:
+                loop = refit
+                break
+        # a failed fit keeps the last loop: the next one corrects
+        play("loop", loop.angles(), loop.motion)
     if len(leave) > 1:
         play("to start", leave)
     return pose
+
+
+def shrunk(loop: Loop, wanted: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """The loop's coefficients scaled to the size a loop moving the body by ``wanted``
+    has: a loop's motion grows with its area, the square of its size. A loop fitted
+    from the last one unscaled keeps its size and moves the body a little by large
+    motions that nearly cancel, which a slipping world does not reproduce. ``weights``
+    make a motion's position and heading comparable."""
+    have = float(np.linalg.norm(loop.motion * weights))
+    want = float(np.linalg.norm(wanted * weights))
+    factor = 1.0 if have <= 0 else float(np.clip(np.sqrt(want / have), SHRINK_MIN, SHRINK_MAX))
+    return loop.coefficients * factor

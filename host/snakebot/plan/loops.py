@@ -106,11 +106,13 @@ def solve_loop(
     scale: float,
     guesses: list[np.ndarray],
     accuracy: float,
+    keep_off: float = NEAR_SINGULAR_RCOND,
 ) -> Loop | None:
     """A loop through ``hub`` moving the body by ``wanted`` (x, y, theta), or None.
 
     ``scale`` is the length that weighs position against heading (radians); the first
-    guess whose solution reaches ``accuracy`` (scaled residual) wins."""
+    guess whose solution reaches ``accuracy`` (scaled residual) wins. The loop keeps off
+    configurations whose reciprocal condition number is below ``keep_off``."""
     try:
         from scipy.optimize import least_squares  # the planner's optional dependency
     except ImportError:  # pragma: no cover - make setup installs it
@@ -127,7 +129,7 @@ def solve_loop(
         except KinematicsError:
             return np.r_[np.full(3, FAILED), 10.0 * outside, FAILED]
         # near a singular configuration the motion is hypersensitive to rounding: keep off
-        near = max(0.0, NEAR_SINGULAR_RCOND - rcond) / NEAR_SINGULAR_RCOND
+        near = max(0.0, keep_off - rcond) / keep_off
         return np.r_[(moved - wanted) * weights, 10.0 * outside, near]
 
     best = None

@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from snakebot.gait.common import (
+    NEAR_SINGULAR_RCOND,
     Gait,
     motion,
     motion_frame,
@@ -268,6 +269,11 @@ def pose_dict(q: np.ndarray) -> dict[str, float]:
     return {"x": float(q[0]), "y": float(q[1]), "theta": float(q[2])}
 
 
+def motion_dict(moved: np.ndarray) -> dict[str, float]:
+    """A body displacement (x, y, theta) as the reports give it."""
+    return {"dx": float(moved[0]), "dy": float(moved[1]), "dtheta": float(moved[2])}
+
+
 def _segments(robot: Robot, route: Route, ticks: np.ndarray, period_s: float) -> list[dict]:
     """Each segment's frames and its motion as played from the rounded ticks."""
     out, first = [], 0
@@ -281,7 +287,7 @@ def _segments(robot: Robot, route: Route, ticks: np.ndarray, period_s: float) ->
                 "first_frame": first,
                 "frames": len(piece) - 1,
                 "duration_s": round((len(piece) - 1) * period_s, 6),
-                "motion": {"dx": float(moved[0]), "dy": float(moved[1]), "dtheta": float(moved[2])},
+                "motion": motion_dict(moved),
             }
         )
         first = last
@@ -352,9 +358,11 @@ def routes(
     count: int | None = None,
     hub: np.ndarray | None = None,
     previous: np.ndarray | None = None,
+    keep_off: float = NEAR_SINGULAR_RCOND,
 ) -> Iterator[Route]:
     """Routes (hub, loop, count) whose joint path as planned reaches ``target``: each
-    hub in turn, each loop count to try."""
+    hub in turn, each loop count to try; the loops keep off configurations whose
+    reciprocal condition number is below ``keep_off``."""
     scale = body_length(robot)
     accuracy = solve_accuracy(robot, tol)
     for h in [hub] if hub is not None else hubs(robot, start):
@@ -368,7 +376,7 @@ def routes(
                 wanted = loop_target(robot, start, h, target, k)
             except KinematicsError:
                 break
-            loop = solve_loop(robot, h, wanted, scale, guesses(robot, previous), accuracy)
+            loop = solve_loop(robot, h, wanted, scale, guesses(robot, previous), accuracy, keep_off)
             if loop is not None:
                 yield Route(robot, start, loop, k)
 

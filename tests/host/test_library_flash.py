@@ -27,7 +27,7 @@ def test_flash_warns_when_no_controller_answers_and_flashes_anyway(tmp_path, bac
     boot = Bootloader(silence_s=0.3)
     with BootloaderPty(boot, reset_after_s=0.3, pace=False) as server:
         extra = [] if backup else ["--no-library-backup"]
-        result = CliRunner().invoke(main, ["flash", "--port", server.device, *extra])
+        result = CliRunner().invoke(main, ["flash", "--no-verify", "--port", server.device, *extra])
         with server.lock:
             stored = boot.image
     assert result.exit_code == 0, result.output

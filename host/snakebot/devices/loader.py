@@ -225,9 +225,12 @@ def _check_pages(file: str, device: Device) -> None:
         numbers.add(page.number)
         end = 0
         for f in sorted(page.fields, key=lambda r: r.address):
-            if f.address < end or f.end > size or f.size > 4:
+            # a field past 4 bytes is a data window (like Upload Data): written, never a value
+            wide = f.size > 4 and (f.access != "W" or f.min is not None or f.max is not None)
+            if f.address < end or f.end > size or wide:
                 raise DeviceError(
-                    f"{where}: field {f.name!r} overlaps, leaves the window or passes 4 bytes"
+                    f"{where}: field {f.name!r} overlaps, leaves the window or passes 4 bytes "
+                    "without being a write-only data window"
                 )
             if f.name.lower() in names:
                 raise DeviceError(f"{where}: field {f.name!r} is also a register's name")

@@ -646,7 +646,8 @@ static uint8_t write_bytes(ctl_device *d, uint8_t start, const uint8_t *data, si
         /* the register's bytes this write touches are a..last: one check covers them */
         uint16_t f_end = (uint16_t)(f->addr + f->size);
         uint16_t last = (uint16_t)((f_end < end ? f_end : end) - 1u);
-        if (f->addr != CTL_UPLOAD_DATA && !in_range(f, value_after(d, f->addr, f->size, start, data, n))) {
+        if (f->addr != CTL_UPLOAD_DATA && /* its bytes: stage_chunk checks them */
+            !in_range(f, value_after(d, f->addr, f->size, start, data, n))) {
             return DXL_ERR_RANGE;
         }
         a = last;

@@ -10,16 +10,13 @@ import zlib
 
 import pytest
 from controller_cli_support import SNAKE5_IDS, cli_json, constant_table, save, wave_table
-from firmware_support import CONTROLLER_ID, QEMU_DIR, build_firmware, client, wait_for_boot
+from firmware_support import CONTROLLER_ID, booted_qemu, client
 
 from snakebot.controller import ControllerErrors, UploadResult, load
 from snakebot.controller.upload import chunk_limit, chunk_writes, commit_write
 from snakebot.gaittable import max_frames
 from snakebot.protocol import ErrorFlags, ServoError, write
 from snakebot.sim.faults import FaultConfig
-from snakebot.sim.options import SimOptions
-from snakebot.sim.qemu import Endpoint, QemuFirmware
-from snakebot.sim.transports.unixsock import UnixSocketServer
 
 pytestmark = [pytest.mark.qemu, pytest.mark.timeout(300)]
 
@@ -31,17 +28,9 @@ CORRUPT = 0.01  # the fault campaigns' corrupt-1pct
 
 @pytest.fixture(scope="module")
 def firmware(tmp_path_factory):
-    build_firmware()
-    sock = tmp_path_factory.mktemp("bus") / "bus.sock"
-    bus = SimOptions(robot="snake5", faults=FaultConfig(seed=7, corrupt=CORRUPT)).build_bus()
-    with (
-        UnixSocketServer(bus, sock) as server,
-        QemuFirmware(QEMU_DIR / "flash.bin", bus=Endpoint.unix_client(sock)) as fw,
-    ):
-        port = fw.ports.pc_link
-        wait_for_boot(port)
+    faults = FaultConfig(seed=7, corrupt=CORRUPT)
+    with booted_qemu(tmp_path_factory.mktemp("bus"), faults=faults) as port:
         yield port
-        assert server.running
 
 
 def test_the_largest_table_uploads_in_long_chunks_on_the_firmware(firmware, tmp_path):

@@ -189,11 +189,13 @@ def main() -> int:
         with ControllerClient.open(server.device, BAUD) as ctl:
             line = line_capacity(ctl)
             pipelined = upload_rate(ctl, table, window=8)
-            floor = table.size / upload_exchanges(server, ctl, table)
+            exchanges = upload_exchanges(server, ctl, table)
+            floor = table.size / exchanges
             stream = stream_rate(ctl, table, window=8)
             stop_and_wait = upload_rate(ctl, table, window=1)
             smalls = [(t.size, upload_rate(ctl, t, window=8)) for t in small]
             packets = stream_packets(ctl, table)
+            outside = exchanges - sum(len(p) for p in packets)
             without_the_page(server, ctl)
             short_chunks = upload_rate(ctl, table, window=8)
             short_floor = table.size / upload_exchanges(server, ctl, table)
@@ -214,6 +216,11 @@ def main() -> int:
     print(
         f"  the best its exchanges allow (READs and WRITEs before and after the stream "
         f"waiting for their answers, no latency): {100 * floor:.1f} % of the wire"
+    )
+    print(
+        f"    of its {exchanges} byte times at best, {outside} ({100 * outside / exchanges:.1f} %) "
+        "are the exchanges outside the chunk stream (identify, the checks, the roster, the "
+        "page question, the verification) and the stream's last acknowledgement"
     )
     for size, rate in smalls:
         print(f"small table ({size:4d} bytes), whole upload:  {percent(rate)}")

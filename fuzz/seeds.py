@@ -190,6 +190,16 @@ class Program:
         return self
 
 
+def long_chunk(at: int, fill: int, page: int = 19, to: int = 200) -> bytes:
+    """A raw WRITE packet of one long upload chunk for the controller (ID ``to``): at
+    Upload Offset (60) the offset, Upload Data's 64 bytes, Window Page = ``page`` (19:
+    Upload Data 2, whose 126 window bytes continue the chunk), the window's bytes."""
+    data = bytes((fill + 3 * i) & 0xFF for i in range(190))
+    params = bytes([60]) + u16(at) + data[:64] + bytes([page]) + data[64:]
+    body = bytes([to, len(params) + 2, 3]) + params
+    return b"\xff\xff" + body + bytes([~sum(body) & 0xFF])
+
+
 def pclink_seeds() -> dict[str, bytes]:
     s = {}
     s["play-table"] = (
@@ -240,6 +250,18 @@ def pclink_seeds() -> dict[str, bytes]:
     s["invalid-tables"] = p.b
     s["staging-end"] = (
         Program().write(60, bytes([0xF8, 0x07]) + bytes(range(10))).commit_staged(2048).b
+    )
+    s["long-chunks"] = (
+        Program()
+        .upload(joints=18, frames=5, period=20)
+        .raw(long_chunk(0, 7))
+        .raw(long_chunk(190, 9))
+        .raw(long_chunk(2048 - 189, 3))  # one byte past the staging area: refused whole
+        .raw(long_chunk(380, 5, page=16))  # the window on a read-only page: refused
+        .commit_staged(380)
+        .command(PLAY)
+        .run(3)
+        .b
     )
     s["power-cycles"] = (
         Program()

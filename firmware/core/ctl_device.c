@@ -630,6 +630,7 @@ static uint8_t write_window(ctl_device *d, uint8_t start, const uint8_t *data, s
     uint8_t page = byte_after(d, CTL_WINDOW_PAGE, start, data, n);
     if (!page_known(page)) return DXL_ERR_RANGE;
     if (start + n <= CTL_SERVO_WINDOW) return 0;
+    if (page == CTL_PAGE_UPLOAD_DATA_2) return 0; /* table bytes: stage_chunk checks them */
     if (page >= CTL_SERVO_PAGES) return write_page(d, page, start, data, n, apply);
     for (uint8_t slot = 0; slot < CTL_SERVO_RECORDS; slot++) {
         uint16_t base = (uint16_t)(CTL_SERVO_WINDOW + slot * CTL_SERVO_RECORD_SIZE);
@@ -673,13 +674,56 @@ static uint8_t serpenoid_fits_after(const ctl_device *d, uint8_t start, const ui
     return CTL_REFUSAL_REASON_NONE;
 }
 
+/* ---- upload chunks ------------------------------------------------------------------------ */
+
+/* The staging byte that byte `a` of a write fills, or -1: Upload Data byte i fills
+ * staging[offset + i] and, while the window shows page Upload Data 2, window byte i goes on
+ * at staging[offset + CTL_UPLOAD_DATA_SIZE + i], so one WRITE at Upload Offset running
+ * through Window Page into the window carries one long chunk. */
+static int32_t staging_at(uint32_t offset, uint8_t page, uint16_t a)
+{
+    if (a >= CTL_UPLOAD_DATA && a < CTL_UPLOAD_DATA + CTL_UPLOAD_DATA_SIZE) {
+        return (int32_t)(offset + (a - CTL_UPLOAD_DATA));
+    }
+    if (page == CTL_PAGE_UPLOAD_DATA_2 && a >= CTL_UPLOAD_DATA_MORE &&
+        a < CTL_UPLOAD_DATA_MORE + CTL_UPLOAD_DATA_MORE_SIZE) {
+        return (int32_t)(offset + CTL_UPLOAD_DATA_SIZE + (a - CTL_UPLOAD_DATA_MORE));
+    }
+    return -1;
+}
+
+/* Check (apply: and stage) the table bytes a write of data[0..n) at start carries: they
+ * must end inside the board's capacity (else UPLOAD_LENGTH and RANGE, nothing staged).
+ * A chunk at offset 0 starts an upload; the others extend what was staged. */
+static uint8_t stage_chunk(ctl_device *d, uint8_t start, const uint8_t *data, size_t n,
+                           bool apply)
+{
+    uint32_t offset = value_after(d, CTL_UPLOAD_OFFSET, 2, start, data, n);
+    uint8_t page = byte_after(d, CTL_WINDOW_PAGE, start, data, n);
+    int32_t lo = -1, hi = -1; /* the staging bytes filled: lo..hi, contiguous */
+    for (uint16_t a = start; a < start + n; a++) {
+        int32_t at = staging_at(offset, page, a);
+        if (at < 0) continue;
+        if (lo < 0) lo = at;
+        hi = at;
+        if (apply) d->staging[at] = data[a - start];
+    }
+    if (lo < 0) return 0;
+    if (!apply && (uint32_t)hi >= d->capacity) {
+        raise_flags(d, CTL_ERROR_FLAGS_UPLOAD_LENGTH);
+        return DXL_ERR_RANGE;
+    }
+    if (apply && lo == 0) d->staged_end = (uint16_t)(hi + 1);
+    else if (apply && hi + 1 > d->staged_end) d->staged_end = (uint16_t)(hi + 1);
+    return 0;
+}
+
 /* Range-check then apply a write of data[0..n) at start: all of it, or nothing. */
 static uint8_t write_bytes(ctl_device *d, uint8_t start, const uint8_t *data, size_t n,
                            uint32_t now_ms)
 {
     if (n == 0 || start + n > CTL_CONTROL_TABLE_BYTES) return DXL_ERR_RANGE;
     uint16_t end = (uint16_t)(start + n);
-    uint32_t offset = value_after(d, CTL_UPLOAD_OFFSET, 2, start, data, n);
     /* every byte must belong to a writable register or the servo window; each register
      * touched is range-checked as it would become (so a write of half a register is too) */
     for (uint16_t a = start; a < end; a++) {
@@ -689,17 +733,14 @@ static uint8_t write_bytes(ctl_device *d, uint8_t start, const uint8_t *data, si
         /* the register's bytes this write touches are a..last: one check covers them */
         uint16_t f_end = (uint16_t)(f->addr + f->size);
         uint16_t last = (uint16_t)((f_end < end ? f_end : end) - 1u);
-        if (f->addr == CTL_UPLOAD_DATA) {
-            if (offset + (last - CTL_UPLOAD_DATA) >= d->capacity) {
-                raise_flags(d, CTL_ERROR_FLAGS_UPLOAD_LENGTH);
-                return DXL_ERR_RANGE;
-            }
-        } else if (!in_range(f, value_after(d, f->addr, f->size, start, data, n))) {
+        if (f->addr != CTL_UPLOAD_DATA && /* its bytes: stage_chunk checks them */
+            !in_range(f, value_after(d, f->addr, f->size, start, data, n))) {
             return DXL_ERR_RANGE;
         }
         a = last;
     }
     if (write_window(d, start, data, n, false) != 0) return DXL_ERR_RANGE;
+    if (stage_chunk(d, start, data, n, false) != 0) return DXL_ERR_RANGE;
     /* a running serpenoid's live parameters and roster change only within the limits */
     if (state(d) == CTL_STATE_SERPENOID) {
         uint8_t why = serpenoid_fits_after(d, start, data, n);
@@ -716,7 +757,7 @@ static uint8_t write_bytes(ctl_device *d, uint8_t start, const uint8_t *data, si
         uint8_t v = data[a - start];
         if (a >= CTL_SERVO_WINDOW && a < WINDOW_END) continue;
         if (a >= CTL_UPLOAD_DATA && a < CTL_UPLOAD_DATA + CTL_UPLOAD_DATA_SIZE) {
-            d->staging[offset + (a - CTL_UPLOAD_DATA)] = v;
+            continue; /* stage_chunk stages it */
         } else if (a == CTL_COMMAND) {
             cmd = v;
         } else if (a == CTL_UPLOAD_COMMIT) {
@@ -725,15 +766,7 @@ static uint8_t write_bytes(ctl_device *d, uint8_t start, const uint8_t *data, si
             d->regs[a] = v;
         }
     }
-    if (start + n > CTL_UPLOAD_DATA && start < CTL_UPLOAD_DATA + CTL_UPLOAD_DATA_SIZE) {
-        uint16_t lo = start > CTL_UPLOAD_DATA ? start : CTL_UPLOAD_DATA;
-        uint16_t window_end = CTL_UPLOAD_DATA + CTL_UPLOAD_DATA_SIZE;
-        uint16_t hi = end < window_end ? end : window_end;
-        uint16_t chunk_start = (uint16_t)(offset + (lo - CTL_UPLOAD_DATA));
-        uint16_t chunk_end = (uint16_t)(offset + (hi - CTL_UPLOAD_DATA));
-        if (chunk_start == 0) d->staged_end = chunk_end;
-        else if (chunk_end > d->staged_end) d->staged_end = chunk_end;
-    }
+    stage_chunk(d, start, data, n, true);
     write_window(d, start, data, n, true);
     sync_bus_roster(d);
     if (do_commit != CTL_UPLOAD_COMMIT_NONE) commit(d, do_commit);
@@ -770,7 +803,8 @@ static void read_bytes(ctl_device *d, uint8_t start, uint8_t n, uint8_t *out)
             if (page == CTL_PAGE_LIBRARY) {
                 out[i] = lib_page_byte(&d->lib, &slot_shown, slot_data, (uint8_t)a);
             } else {
-                out[i] = f ? (uint8_t)(page_value(d, page, at) >> (8u * (a - at))) : 0u;
+                bool shows = f != NULL && (f->access & CTL_ACCESS_R) != 0; /* not a data window */
+                out[i] = shows ? (uint8_t)(page_value(d, page, at) >> (8u * (a - at))) : 0u;
             }
         } else if (a >= CTL_SERVO_WINDOW && a < WINDOW_END) {
             uint8_t slot = (uint8_t)((a - CTL_SERVO_WINDOW) / CTL_SERVO_RECORD_SIZE);

@@ -20,7 +20,10 @@ from controller_cli_support import (
     wave_table,
 )
 
+from snakebot.controller import load
+from snakebot.controller.upload import chunk_limit, chunk_writes
 from snakebot.gaittable import max_frames
+from snakebot.protocol import write
 from snakebot.sim.controller_pty import (
     ControllerPty,
     CorruptOnce,
@@ -28,6 +31,11 @@ from snakebot.sim.controller_pty import (
     is_commit,
     is_upload_chunk,
 )
+
+CTL = load()
+CHUNK = chunk_limit(CTL, long_chunks=True)  # table bytes per chunk WRITE (the emulator has it)
+_FIRST = chunk_writes(bytes(CHUNK), controller=CTL, long_chunks=True)[0]
+CHUNK_SHARE = CHUNK / len(write(CTL.default_id, *_FIRST))  # table bytes per byte sent
 
 
 @pytest.mark.parametrize("window", ["1", "8"])
@@ -47,7 +55,7 @@ def test_round_trip_controller_crc_equals_ours(controller, tmp_path, window):
     # link, so they are looked at in the device itself)
     assert controller.active_table() == path.read_bytes()
     chunks = [p for p in controller.host_packets if is_upload_chunk(p)]
-    assert len(chunks) == -(-size // 64)  # each sent once: nothing was lost
+    assert len(chunks) == -(-size // CHUNK)  # each sent once: nothing was lost
 
 
 def test_json_report_carries_the_controllers_figures(controller, tmp_path):
@@ -69,12 +77,14 @@ def test_on_a_paced_link_the_report_gives_the_whole_uploads_share_of_the_wire(tm
         report = cli_json("upload", path, "--port", server.device)
     assert report["paced"] is True
     # the whole command (checks, chunks, commit, verification) against the wire's
-    # 5760 bytes/s: at most the chunk stream's 64 of every 73 bytes
+    # 5760 bytes/s: at most the chunk stream's share of table bytes in what it sends
     assert report["wire_percent"] == pytest.approx(100 * report["bytes_per_s"] / 5760, abs=0.1)
-    assert 30 < report["wire_percent"] < 100 * 64 / 73
+    assert report["chunk_bytes"] == CHUNK
+    assert 30 < report["wire_percent"] < 100 * CHUNK_SHARE
 
 
-@pytest.mark.parametrize("k", [0, 1, 12])
+# 4: the last chunk of the 840-byte table (long chunks)
+@pytest.mark.parametrize("k", [0, 1, 4])
 def test_upload_cut_after_kth_chunk_leaves_old_table_playing(
     controller_with_table,
     old_table,
@@ -83,7 +93,7 @@ def test_upload_cut_after_kth_chunk_leaves_old_table_playing(
 ):
     server = controller_with_table
     new = save(constant_table(700), tmp_path)
-    cut = CutAfter(lambda p: is_upload_chunk(p, 64 * k))
+    cut = CutAfter(lambda p: is_upload_chunk(p, CHUNK * k))
     with server.lock:
         server.line_filter = cut
     result = cli("upload", new, "--port", server.device, env=FAST_ENV)
@@ -119,7 +129,7 @@ def test_link_lost_right_after_the_commit_is_not_reported_as_success(
 
 @pytest.mark.parametrize(
     "which",
-    [lambda p: is_upload_chunk(p, 0), lambda p: is_upload_chunk(p, 128), is_commit],
+    [lambda p: is_upload_chunk(p, 0), lambda p: is_upload_chunk(p, 2 * CHUNK), is_commit],
     ids=["first chunk", "third chunk", "commit"],
 )
 def test_a_damaged_packet_is_dropped_by_the_controller_and_sent_again(
@@ -152,7 +162,7 @@ def test_failure_reads_the_error_register_and_says_it_in_words(
     new = save(wave_table(), tmp_path)
     # the third chunk is lost every time, the commit still arrives
     with server.lock:
-        server.line_filter = lambda i, p: None if is_upload_chunk(p, 128) else p
+        server.line_filter = lambda i, p: None if is_upload_chunk(p, 2 * CHUNK) else p
     result = cli("upload", new, "--port", server.device, env=FAST_ENV)
     assert result.exit_code == 1
     err = result.stderr
@@ -237,7 +247,7 @@ def test_progress_counts_only_acknowledged_bytes(controller):
     calls: list[tuple[int, int]] = []  # (attempt, bytes)
     attempt = [1]
     with controller.lock:
-        controller.line_filter = CorruptOnce(lambda p: is_upload_chunk(p, 640))
+        controller.line_filter = CorruptOnce(lambda p: is_upload_chunk(p, 3 * CHUNK))
     with ControllerClient.open(controller.device, margin_s=0.2) as ctl:
         report = upload_gait(
             ctl,

@@ -17,6 +17,7 @@ import pytest
 from snakebot import devices
 from snakebot.paths import REPO_ROOT
 from snakebot.protocol import DxlTimeout
+from snakebot.sim.faults import FaultConfig
 from snakebot.sim.options import SimOptions
 from snakebot.sim.qemu import Endpoint, QemuFirmware
 from snakebot.sim.transports.unixsock import UnixSocketServer
@@ -137,13 +138,17 @@ def wait_for_boot(port: str, timeout: float = 20.0) -> None:
 
 
 @contextlib.contextmanager
-def booted_qemu(folder: Path, robot: str = "snake5") -> Iterator[str]:
+def booted_qemu(
+    folder: Path, robot: str = "snake5", faults: FaultConfig | None = None
+) -> Iterator[str]:
     """The firmware image under QEMU, its bus served by ``robot``'s emulated servos on a
-    Unix socket in ``folder``: yields the PC link's pty once the firmware answers."""
+    Unix socket in ``folder`` (with ``faults`` on the wire, if given): yields the PC
+    link's pty once the firmware answers."""
     build_firmware()
     sock = folder / "bus.sock"
+    options = SimOptions(robot=robot, faults=faults or FaultConfig())
     with (
-        UnixSocketServer(SimOptions(robot=robot).build_bus(), sock),
+        UnixSocketServer(options.build_bus(), sock),
         QemuFirmware(QEMU_DIR / "flash.bin", bus=Endpoint.unix_client(sock)) as fw,
     ):
         wait_for_boot(fw.ports.pc_link)

@@ -11,17 +11,45 @@ import zlib
 
 from snakebot.controller.table import Controller, ControllerTableError, load
 
+LONG_CHUNK_PAGE = "Upload Data 2"
+"""The window page whose bytes continue Upload Data: a WRITE at Upload Offset that runs on
+through Window Page (set to this page) into the window carries one long chunk."""
+
+
+def chunk_limit(controller: Controller | None = None, *, long_chunks: bool = False) -> int:
+    """The most table bytes one chunk WRITE carries: Upload Data's size, plus the window's
+    when ``long_chunks`` (the controller has the page :data:`LONG_CHUNK_PAGE`)."""
+    ctl = controller or load()
+    data = ctl.register("Upload Data")
+    if not long_chunks:
+        return data.size
+    selector = ctl.register("Window Page")
+    page = ctl.page(LONG_CHUNK_PAGE)
+    (more,) = page.fields
+    if not (data.end == selector.address and selector.end == page.base + more.address):
+        raise ControllerTableError(
+            f"the controller's description: Upload Data, Window Page and {LONG_CHUNK_PAGE} "
+            "must be adjacent for long chunks"
+        )
+    return data.size + more.size
+
 
 def chunk_writes(
-    table: bytes, chunk: int | None = None, controller: Controller | None = None
+    table: bytes,
+    chunk: int | None = None,
+    controller: Controller | None = None,
+    *,
+    long_chunks: bool = False,
 ) -> list[tuple[int, bytes]]:
     """One WRITE per chunk: at Upload Offset, the chunk's offset (2 bytes) then its bytes.
-    The first chunk is at offset 0 (which starts an upload on the controller)."""
+    The first chunk is at offset 0 (which starts an upload on the controller). With
+    ``long_chunks`` a chunk may pass Upload Data's size: its WRITE then carries the
+    Window Page byte (:data:`LONG_CHUNK_PAGE`) between Upload Data's bytes and the rest."""
     ctl = controller or load()
-    window = ctl.register("Upload Data").size
-    size = window if chunk is None else chunk
-    if not 1 <= size <= window:
-        raise ControllerTableError(f"upload chunk must be 1..{window} bytes, got {size}")
+    limit = chunk_limit(ctl, long_chunks=long_chunks)
+    size = limit if chunk is None else chunk
+    if not 1 <= size <= limit:
+        raise ControllerTableError(f"upload chunk must be 1..{limit} bytes, got {size}")
     capacity = ctl.limits["max_table_bytes"]
     if not 1 <= len(table) <= capacity:
         raise ControllerTableError(
@@ -29,10 +57,15 @@ def chunk_writes(
             f"{capacity} bytes; use fewer frames"
         )
     offset = ctl.register("Upload Offset")
-    return [
-        (offset.address, at.to_bytes(offset.size, "little") + table[at : at + size])
-        for at in range(0, len(table), size)
-    ]
+    window = ctl.register("Upload Data").size
+    writes = []
+    for at in range(0, len(table), size):
+        piece = table[at : at + size]
+        if len(piece) > window:
+            page = ctl.register("Window Page").encode(ctl.page(LONG_CHUNK_PAGE).number)
+            piece = piece[:window] + page + piece[window:]
+        writes.append((offset.address, offset.encode(at) + piece))
+    return writes
 
 
 def commit_write(

@@ -25,7 +25,6 @@ import time
 import zlib
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
-from itertools import accumulate
 from typing import Any
 
 from snakebot import protocol
@@ -34,7 +33,7 @@ from snakebot.controller.client import ControllerClient, JointRecord
 from snakebot.controller.errors import ControllerError, ControllerLinkError, UploadError
 from snakebot.controller.settings import resolve_upload_retries, resolve_upload_window
 from snakebot.controller.transfer import StreamResult, stream_writes
-from snakebot.controller.upload import chunk_writes, commit_write
+from snakebot.controller.upload import LONG_CHUNK_PAGE, chunk_limit, chunk_writes, commit_write
 from snakebot.gaittable import GaitTable
 from snakebot.transport.timing import BITS_PER_BYTE
 
@@ -82,6 +81,8 @@ class UploadReport:
     previous_crc: int | None = None
     sent_bytes: int = 0
     """Bytes of the chunk and commit WRITEs put on the link, every attempt counted."""
+    chunk_bytes: int = 0
+    """Table bytes per chunk WRITE (long chunks when the controller has the page)."""
 
     @property
     def bytes_per_s(self) -> float:
@@ -211,9 +212,9 @@ def upload_gait(
     roster = ctl.roster(before["Joint Count"]) if before["Joint Count"] else []
     new_servos = check_servos(table, roster, allow_new_servos)
 
-    chunks = chunk_writes(data, controller=ctl.table)
-    offset_size = ctl.table.register("Upload Offset").size
-    acked_bytes = [0, *accumulate(len(payload) - offset_size for _, payload in chunks)]
+    size = chunk_size(ctl)
+    chunks = chunk_writes(data, size, ctl.table, long_chunks=True)
+    acked_bytes = [min(len(data), k * size) for k in range(len(chunks) + 1)]
     commit_address, commit_payload = commit_write(data, ctl.table)
     packets = [protocol.write(ctl.id, address, payload) for address, payload in chunks]
     packets.append(protocol.write(ctl.id, commit_address, commit_payload))
@@ -266,6 +267,7 @@ def upload_gait(
                 in ("PLAYING", "SERPENOID"),
                 previous_crc=before["Table CRC"] if before["Table Size"] else None,
                 sent_bytes=sent_bytes,
+                chunk_bytes=size,
             )
         if result.error:
             raise _refused(ctl, result, len(packets), after, before)
@@ -278,6 +280,19 @@ def upload_gait(
         + "Check the USB cable and that nothing else uses the port, then upload again "
         "(SNAKEBOT_UPLOAD_RETRIES sets the attempts). " + _old_table_words(after, before)
     )
+
+
+def chunk_size(ctl: ControllerClient) -> int:
+    """Table bytes per chunk WRITE: Upload Data and the window together when the controller
+    has window page Upload Data 2, asked with one WRITE of Window Page (a firmware without
+    the page refuses it with RANGE); Upload Data alone otherwise."""
+    try:
+        ctl.show_page(ctl.table.page(LONG_CHUNK_PAGE).number)
+    except ControllerLinkError:
+        raise
+    except ControllerError:
+        return chunk_limit(ctl.table)
+    return chunk_limit(ctl.table, long_chunks=True)
 
 
 def _shortfall(ctl: ControllerClient, result: StreamResult, packets: int, code: int) -> str:

@@ -50,10 +50,13 @@ class _Transmission:
     """Bytes one driver puts on the wire, back to back from ``start``; also what a
     receiver at the same rate hears of them (byte i complete at :meth:`arrival`)."""
 
-    __slots__ = ("source", "start", "period", "baud", "data", "end")
+    __slots__ = ("source", "start", "period", "baud", "data", "end", "unheard")
 
     def __init__(self, source: object, start: float, baud: float, data: bytearray) -> None:
         self.source = source
+        self.unheard: _Group | None = None
+        """The group whose delivery was skipped as nobody there would act on it (see
+        ``Bus._transmit``); delivered after all if a collision damages the bytes."""
         self.start = start
         self.baud = baud
         self.period = BITS_PER_BYTE / baud  # clock.byte_time
@@ -114,12 +117,13 @@ class _Receiver:
     """The servos that share one baud rate, and the receive state they share (they hear
     the same bytes, so they find the same packets)."""
 
-    __slots__ = ("baud", "parser", "last_t")
+    __slots__ = ("baud", "parser", "last_t", "queued")
 
     def __init__(self, baud: float) -> None:
         self.baud = baud
         self.parser = ServoReceiver()
         self.last_t = -math.inf
+        self.queued = 0  # deliveries scheduled and not yet made
 
 
 class _Group:
@@ -365,7 +369,22 @@ class Bus:
         return whether any have. What a blocking read does in virtual time."""
         events = self._events
         while True:
-            if self._master_rx:
+            streams = self._master_rx
+            if len(streams) == 1:
+                # one stream on its way (a status packet), worked out in place: what
+                # master_in_waiting and next_master_arrival say of it
+                h = streams[0]
+                k = h.count_by(self.now)
+                available = k - h.pos
+                if available >= count:
+                    return True
+                last = len(h.data) - 1
+                if k > last:
+                    t_byte = None
+                else:
+                    i = k + count - available - 1
+                    t_byte = h.arrival(i if i < last else last)
+            elif streams:
                 available = self.master_in_waiting()
                 if available >= count:
                     return True
@@ -378,7 +397,10 @@ class Bus:
             if t_byte is not None and t_byte <= t_event:
                 if t_byte > deadline:
                     break
-                self.run_until(t_byte)
+                if t_byte < t_event:
+                    self.now = t_byte  # no event on the way: run_until(t_byte) in short
+                else:
+                    self.run_until(t_byte)
                 continue
             if t_event > deadline:
                 break
@@ -493,12 +515,10 @@ class Bus:
             self.faults.corrupt(data)
         tx = _Transmission(source, start, baud, data)
         now = self.now
-        wire = []  # what is still on the wire, oldest first
-        for other in self._wire:
-            if other.end > now:
-                wire.append(other)
-                if other.end > tx.start and other.start < tx.end:
-                    self._collide(other, tx)
+        wire = [other for other in self._wire if other.end > now]  # still on the wire
+        for other in wire:
+            if other.end > tx.start and other.start < tx.end:
+                self._collide(other, tx)
         wire.append(tx)
         self._wire = wire
         # the master hears servos and noise, and its own bytes when the line echoes
@@ -512,15 +532,26 @@ class Bus:
         if groups is None:
             groups = self._listeners()
         events = self._events
+        n = len(data)
+        whole = n >= 6 and data[0] == 0xFF and data[1] == 0xFF and data[2] != 0xFF
+        whole = whole and data[3] + 4 == n
         for group in groups:
             rx = group.rx
             if len(group.members) == 1 and group.members[0] is source:
+                continue
+            if whole and baud == rx.baud:
+                # one whole frame heard at the sender's rate, the usual case: delivered
+                # when its last byte is in (tx.end), unless nobody there would act on it
+                if source is MASTER or not self._unheard(group, tx, source):
+                    job = (group, tx, 0, n, source)
+                    heapq.heappush(events, (tx.end, next(self._seq), self._deliver, job))
+                    rx.queued += 1
                 continue
             heard: _Heard | _Transmission = tx if baud == rx.baud else _Heard.of(tx, rx.baud)
             hd = heard.data
             n = len(hd)
             if n >= 6 and hd[0] == 0xFF and hd[1] == 0xFF and hd[2] != 0xFF and hd[3] + 4 == n:
-                ends: Iterable[int] = (n,)  # one whole frame, the usual case
+                ends: Iterable[int] = (n,)  # one whole frame
             else:
                 ends = frame_ends(hd)
             i0 = 0
@@ -530,16 +561,43 @@ class Bus:
                     heapq.heappush(
                         events, (heard.arrival(end - 1), next(self._seq), self._deliver, job)
                     )
+                    rx.queued += 1
                 i0 = end
         if source is MASTER:
             self.stats.instructions += 1
         return tx
+
+    def _unheard(self, group: _Group, tx: _Transmission, source: object) -> bool:
+        """Whether the whole frame ``tx`` need not be delivered to ``group``: a servo's
+        status packet, heard at its own rate by a group where no other servo has its ID,
+        arriving at an idle receiver with nothing else due before it. ``_deliver`` would
+        drop it unparsed; skipping it spares an event per reply. A collision can still
+        damage the bytes, and then ``_collide`` delivers them after all."""
+        if source is NOISE:
+            return False
+        rx = group.rx
+        if rx.queued or rx.parser.pending or group.epoch != self._link_epoch:
+            return False
+        data = tx.data
+        if len(data) > MAX_PACKET_LEN:
+            return False
+        hearers = group.by_id.get(data[2])
+        if hearers is None or len(hearers) != 1 or hearers[0] is not source:
+            return False
+        tx.unheard = group
+        return True
 
     def _collide(self, a: _Transmission, b: _Transmission) -> None:
         lo = max(a.start, b.start)
         hi = min(a.end, b.end)
         self.stats.collisions += 1
         for tx in (a, b):
+            group = tx.unheard
+            if group is not None:  # damaged now: the group hears it after all
+                tx.unheard = None
+                job = (group, tx, 0, len(tx.data), tx.source)
+                heapq.heappush(self._events, (tx.end, next(self._seq), self._deliver, job))
+                group.rx.queued += 1
             i0 = max(0, math.floor((lo - tx.start) / tx.period))
             i1 = min(len(tx.data), math.ceil((hi - tx.start) / tx.period))
             for i in range(i0, i1):
@@ -550,6 +608,7 @@ class Bus:
         if group.epoch != self._link_epoch:
             group.reindex(self._link_epoch)
         rx = group.rx
+        rx.queued -= 1
         parser = rx.parser
         if parser.pending and heard.arrival(i0) - rx.last_t > INTER_BYTE_GAP_S:
             parser.reset()
@@ -569,12 +628,19 @@ class Bus:
             # acts on it, and the parse is skipped.
             target = data[i0 + 2]
             hearers = group.by_id.get(target)
-            if (
-                target != BROADCAST_ID
-                and target != 0xFF
-                and (hearers is None or (len(hearers) == 1 and hearers[0] is source))
-            ):
-                return
+            if target != BROADCAST_ID and target != 0xFF:
+                if hearers is None or (len(hearers) == 1 and hearers[0] is source):
+                    return
+                frame = data[i0:i1]
+                if ~sum(frame[2:-1]) & 0xFF == frame[-1]:
+                    # a good packet for one ID: what the parser would yield, unparsed
+                    code, params = frame[4], bytes(frame[5:-1])
+                    for s in hearers:
+                        if s is not source:
+                            reply = s.handle(target, code, params, t)
+                            if reply is not None:
+                                self._reply(s, reply, t)
+                    return
         for event in parser.feed(data[i0:i1]):  # a slice is a copy
             if group.epoch != self._link_epoch:  # the packet before changed an ID
                 group.reindex(self._link_epoch)

@@ -48,6 +48,7 @@ from snakebot.protocol import (
     Packet,
     Rejected,
 )
+from snakebot.protocol.instructions import HEADER as _HEADER
 from snakebot.protocol.instructions import frame
 from snakebot.sim import motor
 from snakebot.sim.errors import SimOptionError
@@ -223,6 +224,7 @@ class VirtualServo:
             raise SimOptionError(f"start position must be 0..1023 ticks, got {position}")
         self.model = self.table.model
         self.regs = RegisterFile(self.table)
+        self._size = self.table.size
         self.ideal = ideal
         self.t = start_time
         self.powered = True
@@ -572,14 +574,30 @@ class VirtualServo:
             return None
         if isinstance(event, Rejected):
             return self._rejected(event, t)
+        return self.handle(event.id, event.code, event.params, t)
+
+    def handle(self, target: int, code: int, params: bytes, t: float) -> Reply | None:
+        """:meth:`receive` of a good packet given by its fields (the bus's whole-packet
+        path, which checks the frame itself and builds no :class:`Packet`)."""
+        if not self.powered:
+            return None
         my_id = self._id
-        target = event.id
         if target != my_id and target != BROADCAST_ID:
             return None
-        self.advance(t)
-        code = event.code
-        params = event.params
+        if t > self.t:
+            self.advance(t)
         baud = self.baudrate
+        if code == _READ and target != BROADCAST_ID and self._srl and len(params) == 2:
+            # The hot path (every telemetry READ): as below, with the status packet
+            # built here; a READ leaves no error of its own to latch when it succeeds.
+            address, length = params[0], params[1]
+            self._refresh_present(address, address + length)
+            if 0 < length and address + length <= self._size:
+                body = (
+                    bytes((my_id, length + 2, self._conditions() | self.latched))
+                    + self.regs.image[address : address + length]
+                )
+                return _HEADER + body + bytes((~sum(body) & 0xFF,)), baud
         data = b""
         if code == _SYNC_WRITE:
             self._sync_write(params, my_id)

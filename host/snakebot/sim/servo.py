@@ -200,9 +200,11 @@ def sync_write_shape(params: bytes) -> tuple[int, int] | None:
     return address, length + 1
 
 
-class VirtualServo:
-    """One emulated servo. The bus feeds it packets (:meth:`receive`) and asks it where it
-    is (:meth:`advance`, :attr:`present_position`); times are bus seconds."""
+class ReferenceServo:
+    """One emulated servo, all in Python: the reference model. The bus feeds it packets
+    (:meth:`receive`) and asks it where it is (:meth:`advance`,
+    :attr:`present_position`); times are bus seconds. :class:`VirtualServo`, what the
+    emulator uses, behaves the same with its hot path in C."""
 
     def __init__(
         self,
@@ -250,8 +252,8 @@ class VirtualServo:
         self._moving_load = spec.moving_load
         self._stall_rise = spec.stall_rise_c
         self._thermal_tau = spec.thermal_tau_s
-        self.on_eeprom_change: Callable[[VirtualServo], None] | None = None
-        self.on_link_change: Callable[[VirtualServo], None] | None = None
+        self.on_eeprom_change: Callable[[ReferenceServo], None] | None = None
+        self.on_link_change: Callable[[ReferenceServo], None] | None = None
         """Called when what the bus needs to know changes: baud rate, power, ID."""
         self.pos = float(position)
         self.vel = 0.0
@@ -787,3 +789,17 @@ class VirtualServo:
         self._power_on_ram()
         if (self.baudrate, self._id) != link:
             self._link_changed()
+
+
+# The emulator's servo: this model with its hot path in C (defined there, as it builds
+# on ReferenceServo; imported last so that it can).
+from snakebot.sim.fast_servo import VirtualServo  # noqa: E402
+
+__all__ = [
+    "MAX_STEP_S",
+    "ReferenceServo",
+    "Reply",
+    "VirtualServo",
+    "baud_from_register",
+    "sync_write_shape",
+]

@@ -19,6 +19,7 @@ from hypothesis import strategies as st
 from snakebot import devices
 from snakebot import protocol as P
 from snakebot.protocol import Instruction, Packet, Rejected
+from snakebot.protocol.instructions import frame
 from snakebot.sim.bus import Bus
 from snakebot.sim.servo import ReferenceServo, VirtualServo
 
@@ -145,6 +146,52 @@ def test_the_c_servo_answers_and_moves_as_the_reference_model(
         t += op[1]
         assert apply(fast, op, t) == apply(ref, op, t), op
         assert state(fast) == state(ref), op
+
+
+def bus_frames() -> st.SearchStrategy:
+    """Frames a master might send three servos (IDs 1-3, and 4 that nobody has): READs,
+    goal and other WRITEs, SYNC_WRITEs, other instructions, now and then a bad checksum."""
+    ids = st.sampled_from([1, 2, 3, 4, P.BROADCAST_ID])
+    blocks = {2: goals, 4: st.tuples(goals, speeds).map(b"".join)}
+    sync = st.sampled_from([2, 4]).flatmap(  # an ID may be named twice: the first counts
+        lambda width: st.lists(st.tuples(st.integers(1, 4), blocks[width]), min_size=1).map(
+            lambda named: frame(
+                P.BROADCAST_ID,
+                int(Instruction.SYNC_WRITE),
+                bytes((GOAL, width)) + b"".join(bytes((i,)) + d for i, d in named),
+            )
+        )
+    )
+    body = st.one_of(
+        st.tuples(ids, st.just(int(Instruction.READ)), reads),
+        st.tuples(ids, st.just(int(Instruction.WRITE)), writes),
+        st.tuples(ids, codes, st.binary(max_size=4)),
+    ).map(lambda f: frame(*f))
+    damaged = body.map(lambda b: b[:-1] + bytes((b[-1] ^ 0x5A,)))
+    return st.one_of(body, body, sync, damaged)
+
+
+def bus_run(servo_class: type, delay: int, stream: list[tuple[float, bytes]]) -> tuple:
+    servos = [servo_class(i) for i in (1, 2, 3)]
+    for s in servos:
+        s.set_register("Return Delay Time", delay)
+    bus = Bus(servos)
+    heard = []
+    for wait, packet in stream:
+        bus.master_write(packet)
+        end = bus.now + wait
+        while bus.run_until_master_data(end):
+            heard += [(bus.now, b) for b in bus.master_read(1)]
+    return heard, [state(s) for s in servos]
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    delay=st.sampled_from([0, 5, 250]),
+    stream=st.lists(st.tuples(st.floats(0.0, 0.02), bus_frames()), max_size=30),
+)
+def test_on_the_bus_the_c_servos_answer_the_same_bytes_at_the_same_instants(delay, stream):
+    assert bus_run(VirtualServo, delay, stream) == bus_run(ReferenceServo, delay, stream)
 
 
 def closed_loop(servo_class: type, ticks: int) -> list[tuple[float, bytes]]:

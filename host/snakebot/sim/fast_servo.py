@@ -106,6 +106,11 @@ class VirtualServo(ReferenceServo):
         super().__init__(*args, **kwargs)
 
     @property
+    def c_struct(self) -> Any:
+        """The C struct holding this servo's state (``sim_servo *``)."""
+        return self._c
+
+    @property
     def regs(self) -> RegisterFile:
         """The control table (the C struct points into its bytes)."""
         return self._regs

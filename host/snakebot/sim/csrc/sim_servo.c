@@ -272,3 +272,34 @@ int sim_servo_sync_block(sim_servo *s, double t, int address, const uint8_t *dat
     }
     return flags < 0 ? -1 : 0;
 }
+
+int sim_servo_sync_write(sim_servo *const *by_id, const uint8_t *params, int n, double t) {
+    int address = params[0], length = params[1], block = length + 1;
+    if (address != AX12_GOAL_POSITION || (length != 2 && length != 4)) {
+        return -1;
+    }
+    uint8_t done[256] = {0};
+    for (int i = 2; i + block <= n; i += block) {
+        int id = params[i];
+        sim_servo *s = by_id[id];
+        if (s == NULL || done[id]) { /* nobody, or not the first block naming it */
+            continue;
+        }
+        done[id] = 1;
+        sim_servo_sync_block(s, t, address, params + i + 1, length);
+    }
+    return 0;
+}
+
+int sim_servo_deliver_read(sim_servo *const *by_id, const uint8_t *frame, int n, double t,
+                           uint8_t *out, int cap) {
+    /* FF FF ID LEN=4 READ address length CHK */
+    if (n != 8 || frame[3] != 4 || frame[4] != DXL_INST_READ) {
+        return 0;
+    }
+    sim_servo *s = by_id[frame[2]];
+    if (s == NULL || !s->powered || !s->srl || dxl_checksum(frame + 2, 5) != frame[7]) {
+        return 0;
+    }
+    return sim_servo_read(s, t, frame[5], frame[6], out, cap);
+}

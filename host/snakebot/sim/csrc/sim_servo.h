@@ -63,6 +63,17 @@ int sim_servo_write_goal(sim_servo *s, int address, const uint8_t *data, int n);
  * motion is brought up to t, errors taken as alarms; 0, or -1 as above (the motion
  * is brought up to t all the same). */
 int sim_servo_sync_block(sim_servo *s, double t, int address, const uint8_t *data, int n);
+/* A broadcast SYNC_WRITE (params: address, length, then ID + length bytes per servo, n
+ * bytes in all, whole blocks) heard at time t: if it writes Goal Position (+ Moving
+ * Speed), each servo named gets the first block that names it (sim_servo_sync_block)
+ * and 0 is returned; otherwise nothing happens and -1 is returned (the general path
+ * handles it). by_id[id] is the servo with that ID on the line, NULL if none. */
+int sim_servo_sync_write(sim_servo *const *by_id, const uint8_t *params, int n, double t);
+/* A whole frame of n bytes heard at time t by the servos of by_id (as above): if it is a
+ * good READ for a servo there that answers READs, its status packet (sim_servo_read)
+ * into out, and its length; 0 if the general path must handle the frame. */
+int sim_servo_deliver_read(sim_servo *const *by_id, const uint8_t *frame, int n, double t,
+                           uint8_t *out, int cap);
 /* cffi:end */
 
 #endif

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -229,4 +230,11 @@ def test_the_c_servo_compiles_clean_with_warnings_as_errors():
         capture_output=True,
         text=True,
     )
+    assert result.returncode == 0, result.stderr
+
+
+@pytest.mark.parametrize("first", ["snakebot.sim.fast_servo", "snakebot.sim.servo"])
+def test_either_servo_module_may_be_imported_first(first):
+    code = f"import {first}; from snakebot.sim.servo import VirtualServo; VirtualServo(1)"
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr

@@ -791,15 +791,12 @@ class ReferenceServo:
             self._link_changed()
 
 
-# The emulator's servo: this model with its hot path in C (defined there, as it builds
-# on ReferenceServo; imported last so that it can).
-from snakebot.sim.fast_servo import VirtualServo  # noqa: E402
+def __getattr__(name: str) -> type:
+    # The emulator's servo, VirtualServo: this model with its hot path in C. It is
+    # defined in snakebot.sim.fast_servo, which builds on ReferenceServo, and looked up
+    # here on first use, so either module may be imported first.
+    if name == "VirtualServo":
+        from snakebot.sim.fast_servo import VirtualServo
 
-__all__ = [
-    "MAX_STEP_S",
-    "ReferenceServo",
-    "Reply",
-    "VirtualServo",
-    "baud_from_register",
-    "sync_write_shape",
-]
+        return VirtualServo
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -8,8 +8,17 @@ Delay Time 0, 1 Mbps, no faults. Measured at 5, 18 and 50 servos:
 * the emulator alone: the master is a bare loop on the bus's own interface (packets
   built once, ``master_write``, ``run_until_master_data``, ``master_read``), so the
   figure is what the bus and the virtual servos cost;
+* the same bare loop with the servos of the all-Python reference model
+  (``ReferenceServo``): what the emulator cost before its servos' hot path moved to
+  C, for the speed-up;
 * the same loop through ``DxlClient`` on ``sim://``, as a Python controller runs it
   (the client's own work included), for reference.
+
+The emulator's servos (``VirtualServo``) run their hot path in C whatever the bus
+does: faults, echo, other baud rates and the physics world change nothing about which
+code runs (the bus's own timing and fault code is Python throughout). A SYNC_WRITE of
+goals is handed to the C servos in one call when every servo on its line is a C
+servo with an ID of its own (as here); otherwise servo by servo.
 
 Printed: emulated seconds per CPU second of this process (real-time factor; the wall
 clock figure is printed too, lower on a loaded machine), each against its goal (200x
@@ -30,7 +39,9 @@ import numpy as np
 
 import snakebot.transport.ports  # noqa: F401  (registers sim://)
 from snakebot import protocol
+from snakebot.sim.bus import Bus
 from snakebot.sim.options import SimOptions
+from snakebot.sim.servo import ReferenceServo
 from snakebot.transport import DxlClient
 
 CONTROL_HZ = 100
@@ -58,9 +69,21 @@ def url(count: int) -> str:
     return f"sim://?ids={','.join(map(str, range(1, count + 1)))}&return_delay=0"
 
 
-def bare(count: int, ticks: int) -> tuple[float, float]:
-    """(bus seconds per CPU second, per wall second) of the bare master's loop."""
-    bus = SimOptions.from_query(url(count).split("?", 1)[1]).build_bus()
+def reference_bus(count: int) -> Bus:
+    """The bus of :func:`url` with ReferenceServo (the all-Python model) servos."""
+    servos = [ReferenceServo(i) for i in range(1, count + 1)]
+    for s in servos:
+        s.set_register("Return Delay Time", 0)
+    return Bus(servos)
+
+
+def bare(count: int, ticks: int, reference: bool = False) -> tuple[float, float]:
+    """(bus seconds per CPU second, per wall second) of the bare master's loop, on the
+    emulator's servos or (``reference``) on the all-Python model's."""
+    if reference:
+        bus = reference_bus(count)
+    else:
+        bus = SimOptions.from_query(url(count).split("?", 1)[1]).build_bus()
     ids = [s.id for s in bus.servos]
     syncs = [goals_packet(ids, k) for k in range(ticks)]  # built before the clock starts
     reads = [protocol.read(sid, PRESENT_ADDR, 2) for sid in ids]
@@ -99,6 +122,11 @@ def best(fn, count: int, ticks: int, rounds: int) -> tuple[float, float]:  # noq
     return max(r[0] for r in results), max(r[1] for r in results)
 
 
+def reference_bare(count: int, ticks: int) -> tuple[float, float]:
+    """:func:`bare` on the all-Python reference servos."""
+    return bare(count, ticks, reference=True)
+
+
 def verdict(value: float, goal: float) -> str:
     return f"ratio {value / goal:.2f} of the goal {goal:.0f}x: {'met' if value >= goal else 'MISS'}"
 
@@ -119,12 +147,17 @@ def main() -> int:
     for count in SIZES:
         ticks = int(seconds * CONTROL_HZ)
         cpu, wall = best(bare, count, ticks, rounds)
+        r_cpu, r_wall = best(reference_bare, count, ticks, rounds)
         c_cpu, c_wall = best(client, count, ticks, rounds)
         per_tick.append(1.0 / (CONTROL_HZ * cpu))
         goal = GOALS.get(count)
         print(
             f"   {count:2d} servos: emulator {cpu:6.1f}x per CPU second ({wall:6.1f}x wall)"
             + (f", {verdict(cpu, goal)}" if goal else "")
+        )
+        print(
+            f"             all-Python reference servos {r_cpu:6.1f}x per CPU second "
+            f"({r_wall:6.1f}x wall): the C servos are {cpu / r_cpu:.2f}x as fast"
         )
         print(
             f"             through DxlClient on sim:// {c_cpu:6.1f}x per CPU second "

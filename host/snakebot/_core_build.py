@@ -14,6 +14,8 @@ from pathlib import Path
 from cffi import FFI
 
 CORE_DIR = Path(__file__).resolve().parents[2] / "firmware" / "core"
+SIM_DIR = Path(__file__).resolve().parent / "sim" / "csrc"
+"""Host-only C of the emulator (never in the firmware), published the same way."""
 FENCE = re.compile(r"/\* cffi:begin \*/(.*?)/\* cffi:end \*/", re.S)
 
 
@@ -27,8 +29,8 @@ def _relative(path: Path) -> str:
     return str(path.relative_to(CORE_DIR.parents[1]))
 
 
-headers = sorted(CORE_DIR.glob("*.h"))
-sources = sorted(CORE_DIR.glob("*.c"))
+headers = sorted(CORE_DIR.glob("*.h")) + sorted(SIM_DIR.glob("*.h"))
+sources = sorted(CORE_DIR.glob("*.c")) + sorted(SIM_DIR.glob("*.c"))
 
 ffibuilder = FFI()
 ffibuilder.cdef("\n".join(filter(None, (published_declarations(h) for h in headers))))
@@ -36,7 +38,7 @@ ffibuilder.set_source(
     "snakebot._core",
     "\n".join(f'#include "{h.name}"' for h in headers),
     sources=[_relative(s) for s in sources],
-    include_dirs=[_relative(CORE_DIR)],
+    include_dirs=[_relative(CORE_DIR), _relative(SIM_DIR)],
     extra_compile_args=["-std=c99", "-O2", "-Wall", "-Wextra", "-Wno-unused-parameter"],
     libraries=["m"],
 )

@@ -29,6 +29,7 @@ import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
+from snakebot.core import ffi, lib
 from snakebot.protocol import BROADCAST_ID, FRAME_RESET_S, MAX_PACKET_LEN, Instruction, Packet
 from snakebot.sim.clock import BITS_PER_BYTE
 from snakebot.sim.faults import FaultConfig, FaultInjector
@@ -50,10 +51,13 @@ class _Transmission:
     """Bytes one driver puts on the wire, back to back from ``start``; also what a
     receiver at the same rate hears of them (byte i complete at :meth:`arrival`)."""
 
-    __slots__ = ("source", "start", "period", "baud", "data", "end")
+    __slots__ = ("source", "start", "period", "baud", "data", "end", "unheard")
 
     def __init__(self, source: object, start: float, baud: float, data: bytearray) -> None:
         self.source = source
+        self.unheard: _Group | None = None
+        """The group whose delivery was skipped as nobody there would act on it (see
+        ``Bus._transmit``); delivered after all if a collision damages the bytes."""
         self.start = start
         self.baud = baud
         self.period = BITS_PER_BYTE / baud  # clock.byte_time
@@ -114,12 +118,13 @@ class _Receiver:
     """The servos that share one baud rate, and the receive state they share (they hear
     the same bytes, so they find the same packets)."""
 
-    __slots__ = ("baud", "parser", "last_t")
+    __slots__ = ("baud", "parser", "last_t", "queued")
 
     def __init__(self, baud: float) -> None:
         self.baud = baud
         self.parser = ServoReceiver()
         self.last_t = -math.inf
+        self.queued = 0  # deliveries scheduled and not yet made
 
 
 class _Group:
@@ -132,7 +137,7 @@ class _Group:
     index is rebuilt when IDs have changed since (``epoch``: the bus's count of link
     changes it was built at)."""
 
-    __slots__ = ("rx", "members", "by_id", "epoch")
+    __slots__ = ("rx", "members", "by_id", "c_by_id", "epoch")
 
     def __init__(self, rx: _Receiver, members: list[VirtualServo], epoch: int) -> None:
         self.rx = rx
@@ -144,6 +149,14 @@ class _Group:
         for s in self.members:
             self.by_id.setdefault(s.id, []).append(s)
         self.epoch = epoch
+        # The same index for the C servos (a SYNC_WRITE handled in one call), when every
+        # servo here is one and no two share an ID; None otherwise.
+        self.c_by_id = None
+        structs = [getattr(s, "c_struct", None) for s in self.members]
+        if None not in structs and len(self.by_id) == len(self.members):
+            self.c_by_id = ffi.new("sim_servo *[256]")
+            for s, struct in zip(self.members, structs, strict=True):
+                self.c_by_id[s.id] = struct
 
 
 class Schedule:
@@ -239,6 +252,8 @@ class Bus:
         self._events: list[tuple[float, int, Callable, object]] = []
         self._seq = itertools.count()
         self._wire: list[_Transmission] = []
+        self._wire_end = -math.inf  # when the last of them ends
+        self._c_reply = ffi.new("uint8_t[]", 256)  # a C servo's status packet
         self._master_rx: list[_Heard] = []
         self._master_tx_free = 0.0
         self._servo_tx_free: dict[int, float] = {}
@@ -365,7 +380,28 @@ class Bus:
         return whether any have. What a blocking read does in virtual time."""
         events = self._events
         while True:
-            if self._master_rx:
+            streams = self._master_rx
+            if len(streams) == 1:
+                # one stream on its way (a status packet), worked out in place: what
+                # master_in_waiting and next_master_arrival say of it
+                h = streams[0]
+                n = len(h.data)
+                if h.times is None:  # count_by and arrival at one rate, inline
+                    k = math.floor((self.now - h.start) / h.period + 1e-6)
+                    k = 0 if k < 0 else (k if k < n else n)
+                else:
+                    k = h.count_by(self.now)
+                available = k - h.pos
+                if available >= count:
+                    return True
+                if k >= n:
+                    t_byte = None
+                else:
+                    i = k + count - available - 1
+                    if i >= n:
+                        i = n - 1
+                    t_byte = h.start + (i + 1) * h.period if h.times is None else h.times[i]
+            elif streams:
                 available = self.master_in_waiting()
                 if available >= count:
                     return True
@@ -378,7 +414,10 @@ class Bus:
             if t_byte is not None and t_byte <= t_event:
                 if t_byte > deadline:
                     break
-                self.run_until(t_byte)
+                if t_byte < t_event:
+                    self.now = t_byte  # no event on the way: run_until(t_byte) in short
+                else:
+                    self.run_until(t_byte)
                 continue
             if t_event > deadline:
                 break
@@ -493,14 +532,18 @@ class Bus:
             self.faults.corrupt(data)
         tx = _Transmission(source, start, baud, data)
         now = self.now
-        wire = []  # what is still on the wire, oldest first
-        for other in self._wire:
-            if other.end > now:
-                wire.append(other)
+        if self._wire_end > now:  # something may still be on the wire
+            wire = [other for other in self._wire if other.end > now]
+            for other in wire:
                 if other.end > tx.start and other.start < tx.end:
                     self._collide(other, tx)
-        wire.append(tx)
-        self._wire = wire
+            wire.append(tx)
+            self._wire = wire
+            if tx.end > self._wire_end:
+                self._wire_end = tx.end
+        else:  # the line is quiet (the usual case): nothing to collide with
+            self._wire = [tx]
+            self._wire_end = tx.end
         # the master hears servos and noise, and its own bytes when the line echoes
         if source is not MASTER or self.echo:
             if baud == self.baudrate:
@@ -511,35 +554,82 @@ class Bus:
         groups = self._groups
         if groups is None:
             groups = self._listeners()
-        events = self._events
-        for group in groups:
-            rx = group.rx
-            if len(group.members) == 1 and group.members[0] is source:
-                continue
-            heard: _Heard | _Transmission = tx if baud == rx.baud else _Heard.of(tx, rx.baud)
-            hd = heard.data
-            n = len(hd)
-            if n >= 6 and hd[0] == 0xFF and hd[1] == 0xFF and hd[2] != 0xFF and hd[3] + 4 == n:
-                ends: Iterable[int] = (n,)  # one whole frame, the usual case
-            else:
-                ends = frame_ends(hd)
-            i0 = 0
-            for end in ends:
-                if end > i0:
-                    job = (group, heard, i0, end, source)
-                    heapq.heappush(
-                        events, (heard.arrival(end - 1), next(self._seq), self._deliver, job)
-                    )
-                i0 = end
+        n = len(data)
+        whole = n >= 6 and data[0] == 0xFF and data[1] == 0xFF and data[2] != 0xFF
+        if whole and data[3] + 4 == n:
+            # one whole frame, the usual case: a group at the sender's rate hears it
+            # whole when its last byte is in (tx.end)
+            for group in groups:
+                rx = group.rx
+                members = group.members
+                if len(members) == 1 and members[0] is source:
+                    continue
+                if baud != rx.baud:
+                    self._schedule(group, tx, source)
+                    continue
+                if source is not MASTER and source is not NOISE and self._unheard(group, tx):
+                    continue
+                job = (group, tx, 0, n, source)
+                heapq.heappush(self._events, (tx.end, next(self._seq), self._deliver, job))
+                rx.queued += 1
+        else:
+            for group in groups:
+                if not (len(group.members) == 1 and group.members[0] is source):
+                    self._schedule(group, tx, source)
         if source is MASTER:
             self.stats.instructions += 1
         return tx
+
+    def _schedule(self, group: _Group, tx: _Transmission, source: object) -> None:
+        """Schedule what ``group`` hears of ``tx``: the bytes at its own rate, handed
+        over frame by frame as each one's last byte arrives."""
+        rx = group.rx
+        heard: _Heard | _Transmission = tx if tx.baud == rx.baud else _Heard.of(tx, rx.baud)
+        hd = heard.data
+        n = len(hd)
+        if n >= 6 and hd[0] == 0xFF and hd[1] == 0xFF and hd[2] != 0xFF and hd[3] + 4 == n:
+            ends: Iterable[int] = (n,)  # one whole frame
+        else:
+            ends = frame_ends(hd)
+        i0 = 0
+        for end in ends:
+            if end > i0:
+                job = (group, heard, i0, end, source)
+                heapq.heappush(
+                    self._events, (heard.arrival(end - 1), next(self._seq), self._deliver, job)
+                )
+                rx.queued += 1
+            i0 = end
+
+    def _unheard(self, group: _Group, tx: _Transmission) -> bool:
+        """Whether the whole frame ``tx``, a servo's status packet heard at its own rate,
+        need not be delivered to ``group``: no other servo there has its ID, and it
+        arrives at an idle receiver with nothing else due before it. ``_deliver`` would
+        drop it unparsed; skipping it spares an event per reply. A collision can still
+        damage the bytes, and then ``_collide`` delivers them after all."""
+        rx = group.rx
+        if rx.queued or rx.parser.state or group.epoch != self._link_epoch:
+            return False
+        data = tx.data
+        if len(data) > MAX_PACKET_LEN:
+            return False
+        hearers = group.by_id.get(data[2])
+        if hearers is None or len(hearers) != 1 or hearers[0] is not tx.source:
+            return False
+        tx.unheard = group
+        return True
 
     def _collide(self, a: _Transmission, b: _Transmission) -> None:
         lo = max(a.start, b.start)
         hi = min(a.end, b.end)
         self.stats.collisions += 1
         for tx in (a, b):
+            group = tx.unheard
+            if group is not None:  # damaged now: the group hears it after all
+                tx.unheard = None
+                job = (group, tx, 0, len(tx.data), tx.source)
+                heapq.heappush(self._events, (tx.end, next(self._seq), self._deliver, job))
+                group.rx.queued += 1
             i0 = max(0, math.floor((lo - tx.start) / tx.period))
             i1 = min(len(tx.data), math.ceil((hi - tx.start) / tx.period))
             for i in range(i0, i1):
@@ -550,15 +640,16 @@ class Bus:
         if group.epoch != self._link_epoch:
             group.reindex(self._link_epoch)
         rx = group.rx
+        rx.queued -= 1
         parser = rx.parser
-        if parser.pending and heard.arrival(i0) - rx.last_t > INTER_BYTE_GAP_S:
+        if parser.state and heard.arrival(i0) - rx.last_t > INTER_BYTE_GAP_S:
             parser.reset()
         rx.last_t = t
         data = heard.data
         n = i1 - i0
         if (
             n >= 6
-            and not parser.pending
+            and not parser.state
             and data[i0] == 0xFF
             and data[i0 + 1] == 0xFF
             and data[i0 + 3] + 4 == n <= MAX_PACKET_LEN
@@ -569,12 +660,28 @@ class Bus:
             # acts on it, and the parse is skipped.
             target = data[i0 + 2]
             hearers = group.by_id.get(target)
-            if (
-                target != BROADCAST_ID
-                and target != 0xFF
-                and (hearers is None or (len(hearers) == 1 and hearers[0] is source))
-            ):
-                return
+            if target != BROADCAST_ID and target != 0xFF:
+                if hearers is None or (len(hearers) == 1 and hearers[0] is source):
+                    return
+                frame = bytes(data[i0:i1])
+                if n == 8 and group.c_by_id is not None:
+                    # a READ, the commonest packet, goes to the C servo whole (checksum,
+                    # status packet); the one servo with this ID is not the sender
+                    out = self._c_reply
+                    size = lib.sim_servo_deliver_read(group.c_by_id, frame, n, t, out, 256)
+                    if size:
+                        servo = hearers[0]
+                        self._reply(servo, (ffi.buffer(out, size)[:], servo.baudrate), t)
+                        return
+                if ~sum(frame[2:-1]) & 0xFF == frame[-1]:
+                    # a good packet for one ID: what the parser would yield, unparsed
+                    code, params = frame[4], bytes(frame[5:-1])
+                    for s in hearers:
+                        if s is not source:
+                            reply = s.handle(target, code, params, t)
+                            if reply is not None:
+                                self._reply(s, reply, t)
+                    return
         for event in parser.feed(data[i0:i1]):  # a slice is a copy
             if group.epoch != self._link_epoch:  # the packet before changed an ID
                 group.reindex(self._link_epoch)
@@ -604,6 +711,10 @@ class Bus:
         shape = sync_write_shape(params)
         if shape is None:
             return  # malformed: no servo can find its slice
+        index = group.c_by_id
+        if index is not None and source is MASTER:
+            if lib.sim_servo_sync_write(index, params, len(params), t) == 0:
+                return  # goals (and speeds): all handled in C
         address, block = shape
         by_id = group.by_id
         done = set()

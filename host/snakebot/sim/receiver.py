@@ -26,25 +26,27 @@ class ServoReceiver:
     (and ``Rejected`` for damaged frames, so a servo can answer a bad checksum)."""
 
     def __init__(self) -> None:
-        self._state = _HEADER1
+        self.state = _HEADER1
+        """Where in a frame the receiver is: 0 (false) between frames, else looking for
+        the rest of one (the bus checks this on every packet; ``pending`` says more)."""
         self._frame = bytearray()
         self._need = 0
 
     @property
     def pending(self) -> int:
         """Bytes of a frame begun but not finished (0 between frames)."""
-        return 0 if self._state == _HEADER1 else len(self._frame) or 1
+        return 0 if self.state == _HEADER1 else len(self._frame) or 1
 
     def reset(self) -> None:
         """Abandon a frame in progress (e.g. after a pause of over 100 ms)."""
-        self._state = _HEADER1
+        self.state = _HEADER1
         self._frame.clear()
 
     def feed(self, data: bytes) -> list[Packet | Rejected]:
         """Hear ``data``; return the events its bytes complete, in order."""
         n = len(data)
         if (
-            self._state == _HEADER1
+            self.state == _HEADER1
             and n >= 6
             and data[0] == 0xFF
             and data[1] == 0xFF
@@ -60,16 +62,16 @@ class ServoReceiver:
         return events
 
     def _byte(self, b: int, events: list[Packet | Rejected]) -> None:
-        state = self._state
+        state = self.state
         if state == _HEADER1:
             if b == 0xFF:
-                self._state = _HEADER2
+                self.state = _HEADER2
         elif state == _HEADER2:
-            self._state = _ID if b == 0xFF else _HEADER1
+            self.state = _ID if b == 0xFF else _HEADER1
         elif state == _ID:
             if b != 0xFF:  # FF FF FF..: the last two FFs are the header
                 self._frame[:] = b"\xff\xff" + bytes((b,))
-                self._state = _LEN
+                self.state = _LEN
         elif state == _LEN:
             self._frame.append(b)
             if b < 2 or b + 4 > MAX_PACKET_LEN:
@@ -77,7 +79,7 @@ class ServoReceiver:
                 self.reset()
             else:
                 self._need = b
-                self._state = _BODY
+                self.state = _BODY
         else:
             frame = self._frame
             frame.append(b)

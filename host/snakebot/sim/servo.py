@@ -48,6 +48,7 @@ from snakebot.protocol import (
     Packet,
     Rejected,
 )
+from snakebot.protocol.instructions import HEADER as _HEADER
 from snakebot.protocol.instructions import frame
 from snakebot.sim import motor
 from snakebot.sim.errors import SimOptionError
@@ -199,9 +200,11 @@ def sync_write_shape(params: bytes) -> tuple[int, int] | None:
     return address, length + 1
 
 
-class VirtualServo:
-    """One emulated servo. The bus feeds it packets (:meth:`receive`) and asks it where it
-    is (:meth:`advance`, :attr:`present_position`); times are bus seconds."""
+class ReferenceServo:
+    """One emulated servo, all in Python: the reference model. The bus feeds it packets
+    (:meth:`receive`) and asks it where it is (:meth:`advance`,
+    :attr:`present_position`); times are bus seconds. :class:`VirtualServo`, what the
+    emulator uses, behaves the same with its hot path in C."""
 
     def __init__(
         self,
@@ -223,6 +226,7 @@ class VirtualServo:
             raise SimOptionError(f"start position must be 0..1023 ticks, got {position}")
         self.model = self.table.model
         self.regs = RegisterFile(self.table)
+        self._size = self.table.size
         self.ideal = ideal
         self.t = start_time
         self.powered = True
@@ -248,8 +252,8 @@ class VirtualServo:
         self._moving_load = spec.moving_load
         self._stall_rise = spec.stall_rise_c
         self._thermal_tau = spec.thermal_tau_s
-        self.on_eeprom_change: Callable[[VirtualServo], None] | None = None
-        self.on_link_change: Callable[[VirtualServo], None] | None = None
+        self.on_eeprom_change: Callable[[ReferenceServo], None] | None = None
+        self.on_link_change: Callable[[ReferenceServo], None] | None = None
         """Called when what the bus needs to know changes: baud rate, power, ID."""
         self.pos = float(position)
         self.vel = 0.0
@@ -572,14 +576,30 @@ class VirtualServo:
             return None
         if isinstance(event, Rejected):
             return self._rejected(event, t)
+        return self.handle(event.id, event.code, event.params, t)
+
+    def handle(self, target: int, code: int, params: bytes, t: float) -> Reply | None:
+        """:meth:`receive` of a good packet given by its fields (the bus's whole-packet
+        path, which checks the frame itself and builds no :class:`Packet`)."""
+        if not self.powered:
+            return None
         my_id = self._id
-        target = event.id
         if target != my_id and target != BROADCAST_ID:
             return None
-        self.advance(t)
-        code = event.code
-        params = event.params
+        if t > self.t:
+            self.advance(t)
         baud = self.baudrate
+        if code == _READ and target != BROADCAST_ID and self._srl and len(params) == 2:
+            # The hot path (every telemetry READ): as below, with the status packet
+            # built here; a READ leaves no error of its own to latch when it succeeds.
+            address, length = params[0], params[1]
+            self._refresh_present(address, address + length)
+            if 0 < length and address + length <= self._size:
+                body = (
+                    bytes((my_id, length + 2, self._conditions() | self.latched))
+                    + self.regs.image[address : address + length]
+                )
+                return _HEADER + body + bytes((~sum(body) & 0xFF,)), baud
         data = b""
         if code == _SYNC_WRITE:
             self._sync_write(params, my_id)
@@ -769,3 +789,14 @@ class VirtualServo:
         self._power_on_ram()
         if (self.baudrate, self._id) != link:
             self._link_changed()
+
+
+def __getattr__(name: str) -> type:
+    # The emulator's servo, VirtualServo: this model with its hot path in C. It is
+    # defined in snakebot.sim.fast_servo, which builds on ReferenceServo, and looked up
+    # here on first use, so either module may be imported first.
+    if name == "VirtualServo":
+        from snakebot.sim.fast_servo import VirtualServo
+
+        return VirtualServo
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -569,6 +569,21 @@ def baud_register(bps: float) -> int:
     )
 
 
+def check_bus_baud(bps: int) -> None:
+    """BusCommandError unless some servo described runs at ``bps`` (within its UART's
+    tolerance): a rate none does finds nothing, and at a few bits a second every
+    unanswered packet would wait for seconds."""
+    for name in devices.names("servo"):
+        baud = devices.load(name).baud
+        if baud is not None and (baud.value_for(bps) is not None or bps in baud.fixed.values()):
+            return
+    examples = ", ".join(str(rate) for rate in COMMON_BAUDS)
+    raise BusCommandError(
+        f"no Dynamixel servo described runs at {bps} bit/s (an AX-12's rate is "
+        f"{_baud().describe()}): give one of the servos' rates, e.g. {examples}"
+    )
+
+
 def baud_from_register(value: int) -> float:
     """The AX-12's bit rate for Baud Rate register ``value``."""
     return _baud().rate(value)

@@ -25,6 +25,15 @@ PORT_HELP = (
 )
 
 
+def _servo_baud(ctx: click.Context, param: click.Parameter, value: int) -> int:
+    """--baud: a rate some described servo runs at."""
+    try:
+        servo_ops.check_bus_baud(value)
+    except BusCommandError as exc:
+        raise click.BadParameter(str(exc), ctx, param) from None
+    return value
+
+
 def bus_options(func: Callable[..., Any]) -> Callable[..., Any]:
     """--port, --baud and --json, shared by every bus command."""
 
@@ -37,6 +46,7 @@ def bus_options(func: Callable[..., Any]) -> Callable[..., Any]:
         type=click.IntRange(min=1),
         default=DEFAULT_BAUDRATE,
         show_default=True,
+        callback=_servo_baud,
         help="Bit rate of the bus (AX-12 factory setting: 1000000).",
     )
     @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")

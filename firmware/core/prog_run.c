@@ -86,6 +86,14 @@ uint8_t prog_joint_id(const uint8_t *blob, uint8_t j)
     return joint_rec(blob, j)[0];
 }
 
+prog_joint prog_joint_at(const uint8_t *blob, uint8_t j)
+{
+    const uint8_t *r = joint_rec(blob, j);
+    prog_joint out = {r[0], (uint8_t)(r[1] & PROG_JOINT_REVERSE), rd16(r + 2), rd16(r + 4),
+                      rd16(r + 6)};
+    return out;
+}
+
 static const uint8_t *segment_rec(const uint8_t *blob, uint8_t s)
 {
     return blob + layout_of(blob).segments + PROG_SEGMENT_SIZE * (size_t)s;
@@ -150,14 +158,19 @@ static int32_t generate(const uint8_t *blob, const uint8_t *seg, uint32_t s, uin
     return goal_q4(joint, angle);
 }
 
-/* The carries for entering segment next after prev (whose carries are in carry). */
-static void carry_into(const uint8_t *blob, const uint8_t *prev, const uint8_t *next,
-                       int32_t *carry)
+/* Replace prev's carries with those for entering segment next after it; false if one
+ * does not fit an int16 (only an invalid program's can't). */
+static bool carry_into(const uint8_t *blob, const uint8_t *prev, const uint8_t *next,
+                       int16_t *carry)
 {
     uint32_t end = duration(prev);
+    bool ok = true;
     for (uint8_t k = 0; k < blob[5]; k++) {
-        carry[k] = generate(blob, prev, end, k) + carry[k] - generate(blob, next, 0, k);
+        int32_t c = generate(blob, prev, end, k) + carry[k] - generate(blob, next, 0, k);
+        if (c > MAX_CARRY || c < -MAX_CARRY) ok = false;
+        carry[k] = (int16_t)(c > MAX_CARRY ? MAX_CARRY : (c < -MAX_CARRY ? -MAX_CARRY : c));
     }
+    return ok;
 }
 
 static uint8_t check_header(const uint8_t *blob, size_t len, size_t capacity)
@@ -270,14 +283,15 @@ static uint8_t check_motion(const uint8_t *blob, const uint8_t *seg, uint8_t k, 
 
 static uint8_t check_segments(const uint8_t *blob, uint8_t *bad_segment)
 {
-    int32_t carry[GT_MAX_JOINTS] = {0};
+    int16_t carry[GT_MAX_JOINTS] = {0};
     for (uint8_t s = 0; s < blob[6]; s++) {
         const uint8_t *seg = segment_rec(blob, s);
         if (bad_segment != NULL) *bad_segment = s;
         if (!segment_well_formed(blob, seg)) return PROG_ERR_SEGMENT;
-        if (s > 0) carry_into(blob, segment_rec(blob, (uint8_t)(s - 1u)), seg, carry);
+        if (s > 0 && !carry_into(blob, segment_rec(blob, (uint8_t)(s - 1u)), seg, carry)) {
+            return PROG_ERR_OUT_OF_RANGE;
+        }
         for (uint8_t k = 0; k < blob[5]; k++) {
-            if (carry[k] > MAX_CARRY || carry[k] < -MAX_CARRY) return PROG_ERR_OUT_OF_RANGE;
             uint8_t status = check_motion(blob, seg, k, carry[k]);
             if (status != PROG_OK) return status;
         }
@@ -330,10 +344,7 @@ bool prog_advance(const uint8_t *blob, prog_cursor *c, uint32_t steps)
             c->done = 1;
             break;
         }
-        int32_t carry[GT_MAX_JOINTS];
-        for (uint8_t k = 0; k < blob[5]; k++) carry[k] = c->carry[k];
-        carry_into(blob, seg, segment_rec(blob, (uint8_t)(c->segment + 1u)), carry);
-        for (uint8_t k = 0; k < blob[5]; k++) c->carry[k] = (int16_t)carry[k];
+        (void)carry_into(blob, seg, segment_rec(blob, (uint8_t)(c->segment + 1u)), c->carry);
         c->segment++;
         c->step = 0;
     }

@@ -17,6 +17,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "ctl_table.h"
 #include "gt_table.h"
 
 /* cffi:begin */
@@ -33,29 +34,12 @@
 #define PROG_MAX_PERIOD_MS 1000
 /* Joint record flag: the joint angle grows as the tick falls. */
 #define PROG_JOINT_REVERSE 1
-/* Carry resolution: goals are worked out in 1/PROG_CARRY_ONE tick. */
+/* Carry resolution: goals are worked out in 1/2^PROG_CARRY_SHIFT tick. */
 #define PROG_CARRY_SHIFT 4
 
 #define PROG_KIND_TABLE 1
 #define PROG_KIND_SERPENOID 2
 #define PROG_KIND_PERIODIC 3
-
-/* prog_validate() results: 0 or an Upload Result code 40..59, in check order. */
-#define PROG_OK 0
-#define PROG_ERR_TRUNCATED 40
-#define PROG_ERR_MAGIC 41
-#define PROG_ERR_VERSION 42
-#define PROG_ERR_JOINT_COUNT 43
-#define PROG_ERR_SEGMENT_COUNT 44
-#define PROG_ERR_PERIOD 45
-#define PROG_ERR_TOO_BIG 46
-#define PROG_ERR_TRAILING 47
-#define PROG_ERR_CRC 48
-#define PROG_ERR_JOINT 49
-#define PROG_ERR_FRAME_RANGE 50
-#define PROG_ERR_SEGMENT 51
-#define PROG_ERR_OUT_OF_RANGE 52
-#define PROG_ERR_TOO_FAST 53
 
 /* Where a running program is: segment, step within it, the milliseconds towards the next
  * step, and each joint's carry in 1/16 tick. */
@@ -78,6 +62,15 @@ uint8_t prog_segment_count(const uint8_t *blob);
 uint16_t prog_period_ms(const uint8_t *blob);
 /* Servo ID of joint j of a validated program. */
 uint8_t prog_joint_id(const uint8_t *blob, uint8_t j);
+/* Joint j's record of a validated program. */
+typedef struct {
+    uint8_t id;
+    uint8_t reverse; /* 1: the joint angle grows as the tick falls */
+    uint16_t zero;   /* tick at angle 0 */
+    uint16_t min;
+    uint16_t max;
+} prog_joint;
+prog_joint prog_joint_at(const uint8_t *blob, uint8_t j);
 /* Program start: segment 0, step 0, no carry. */
 void prog_start(prog_cursor *c);
 /* The goals (ticks, one per joint) at the cursor; valid blobs only. */
@@ -88,5 +81,23 @@ bool prog_advance(const uint8_t *blob, prog_cursor *c, uint32_t steps);
 /* Advance by dt_ms of time (whole steps of the period; the rest is kept); as prog_advance. */
 bool prog_tick(const uint8_t *blob, prog_cursor *c, uint32_t dt_ms);
 /* cffi:end */
+
+/* prog_validate() results, in check order: the controller's Upload Result codes
+ * (CTL_UPLOAD_RESULT_PROGRAM_*, from controller.json). */
+#define PROG_OK CTL_UPLOAD_RESULT_OK
+#define PROG_ERR_TRUNCATED CTL_UPLOAD_RESULT_PROGRAM_TRUNCATED
+#define PROG_ERR_MAGIC CTL_UPLOAD_RESULT_PROGRAM_BAD_MAGIC
+#define PROG_ERR_VERSION CTL_UPLOAD_RESULT_PROGRAM_BAD_VERSION
+#define PROG_ERR_JOINT_COUNT CTL_UPLOAD_RESULT_PROGRAM_BAD_JOINT_COUNT
+#define PROG_ERR_SEGMENT_COUNT CTL_UPLOAD_RESULT_PROGRAM_BAD_SEGMENT_COUNT
+#define PROG_ERR_PERIOD CTL_UPLOAD_RESULT_PROGRAM_BAD_PERIOD
+#define PROG_ERR_TOO_BIG CTL_UPLOAD_RESULT_PROGRAM_TOO_BIG
+#define PROG_ERR_TRAILING CTL_UPLOAD_RESULT_PROGRAM_TRAILING_BYTES
+#define PROG_ERR_CRC CTL_UPLOAD_RESULT_PROGRAM_CRC_MISMATCH
+#define PROG_ERR_JOINT CTL_UPLOAD_RESULT_PROGRAM_BAD_JOINT
+#define PROG_ERR_FRAME_RANGE CTL_UPLOAD_RESULT_PROGRAM_FRAME_OUT_OF_LIMITS
+#define PROG_ERR_SEGMENT CTL_UPLOAD_RESULT_PROGRAM_BAD_SEGMENT
+#define PROG_ERR_OUT_OF_RANGE CTL_UPLOAD_RESULT_PROGRAM_OUT_OF_RANGE
+#define PROG_ERR_TOO_FAST CTL_UPLOAD_RESULT_PROGRAM_TOO_FAST
 
 #endif

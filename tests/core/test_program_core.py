@@ -155,7 +155,9 @@ def test_amplitude_plus_offset_beyond_the_limits_is_refused() -> None:
     fits = SerpenoidSegment(int(room_mrad) - 305, 1000, 0, 300, 10)
     check(Program(20, joints(3), (fits,)).encode())
     wide = SerpenoidSegment(int(room_mrad) - 295, 1000, 0, 300, 10)
-    assert refusal_code(Program(20, joints(3), (wide,))) == lib.PROG_ERR_OUT_OF_RANGE
+    assert (
+        refusal_code(Program(20, joints(3), (wide,))) == lib.CTL_UPLOAD_RESULT_PROGRAM_OUT_OF_RANGE
+    )
 
 
 def test_a_ramp_that_walks_out_of_range_is_refused() -> None:
@@ -163,7 +165,7 @@ def test_a_ramp_that_walks_out_of_range_is_refused() -> None:
     short = Program(20, joints(1), (PeriodicSegment(0, 0, 100),), (block,))
     check(short.encode())
     long = Program(20, joints(1), (PeriodicSegment(0, 0, 150),), (block,))
-    assert refusal_code(long) == lib.PROG_ERR_OUT_OF_RANGE
+    assert refusal_code(long) == lib.CTL_UPLOAD_RESULT_PROGRAM_OUT_OF_RANGE
 
 
 def test_motion_faster_than_the_servo_is_refused() -> None:
@@ -172,10 +174,10 @@ def test_motion_faster_than_the_servo_is_refused() -> None:
     ok = SerpenoidSegment(1000, limit, 0, 0, 10)
     check(Program(20, joints(1), (ok,)).encode())
     fast = SerpenoidSegment(1000, limit + 1, 0, 0, 10)
-    assert refusal_code(Program(20, joints(1), (fast,))) == lib.PROG_ERR_TOO_FAST
+    assert refusal_code(Program(20, joints(1), (fast,))) == lib.CTL_UPLOAD_RESULT_PROGRAM_TOO_FAST
     block = ((limit - 500, 100, 0),)
     periodic = Program(20, joints(1), (PeriodicSegment(0, 5001, 10),), (block,))
-    assert refusal_code(periodic) == lib.PROG_ERR_TOO_FAST
+    assert refusal_code(periodic) == lib.CTL_UPLOAD_RESULT_PROGRAM_TOO_FAST
 
 
 def test_malformed_blobs_are_refused_with_their_code() -> None:
@@ -183,19 +185,19 @@ def test_malformed_blobs_are_refused_with_their_code() -> None:
     blob = bytearray(program.encode())
     check(bytes(blob))
     assert refusal_code(Program(20, joints(2), (TableSegment(0, 2),), frames=((500, 500),))) == (
-        lib.PROG_ERR_SEGMENT
+        lib.CTL_UPLOAD_RESULT_PROGRAM_BAD_SEGMENT
     )
     assert refusal_code(Program(0, joints(2), (TableSegment(0, 1),), frames=((500, 500),))) == (
-        lib.PROG_ERR_PERIOD
+        lib.CTL_UPLOAD_RESULT_PROGRAM_BAD_PERIOD
     )
     assert refusal_code(Program(20, joints(2), (TableSegment(0, 1),), frames=((10, 500),))) == (
-        lib.PROG_ERR_FRAME_RANGE
+        lib.CTL_UPLOAD_RESULT_PROGRAM_FRAME_OUT_OF_LIMITS
     )
     for data, code in (
-        (blob[:-1], lib.PROG_ERR_TRUNCATED),
-        (blob + b"\0", lib.PROG_ERR_TRAILING),
-        (b"SNKG" + blob[4:], lib.PROG_ERR_MAGIC),
-        (blob[:16] + bytes([blob[16] ^ 1]) + blob[17:], lib.PROG_ERR_CRC),
+        (blob[:-1], lib.CTL_UPLOAD_RESULT_PROGRAM_TRUNCATED),
+        (blob + b"\0", lib.CTL_UPLOAD_RESULT_PROGRAM_TRAILING_BYTES),
+        (b"SNKG" + blob[4:], lib.CTL_UPLOAD_RESULT_PROGRAM_BAD_MAGIC),
+        (blob[:16] + bytes([blob[16] ^ 1]) + blob[17:], lib.CTL_UPLOAD_RESULT_PROGRAM_CRC_MISMATCH),
     ):
         with pytest.raises(ProgramError) as caught:
             check(bytes(data))
@@ -205,7 +207,7 @@ def test_malformed_blobs_are_refused_with_their_code() -> None:
 
 def test_a_program_larger_than_the_buffer_is_refused() -> None:
     program = Program(20, joints(4), (TableSegment(0, 1),), frames=((500,) * 4,) * 300)
-    assert refusal_code(program) == lib.PROG_ERR_TOO_BIG
+    assert refusal_code(program) == lib.CTL_UPLOAD_RESULT_PROGRAM_TOO_BIG
 
 
 def test_encode_decode_round_trip() -> None:

@@ -178,11 +178,11 @@ def check(data: bytes, capacity: int = CAPACITY) -> None:
     (prog_validate, the C core) accepts ``data``."""
     bad = ffi.new("uint8_t *")
     code = lib.prog_validate(data, len(data), capacity, bad)
-    if code != lib.PROG_OK:
+    if code != lib.CTL_UPLOAD_RESULT_OK:
         in_segments = code in (
-            lib.PROG_ERR_SEGMENT,
-            lib.PROG_ERR_OUT_OF_RANGE,
-            lib.PROG_ERR_TOO_FAST,
+            lib.CTL_UPLOAD_RESULT_PROGRAM_BAD_SEGMENT,
+            lib.CTL_UPLOAD_RESULT_PROGRAM_OUT_OF_RANGE,
+            lib.CTL_UPLOAD_RESULT_PROGRAM_TOO_FAST,
         )
         raise refusal(code, bad[0] if in_segments else None)
 

@@ -95,6 +95,18 @@ class Program:
     def total_steps(self) -> int:
         return sum(s.steps for s in self.segments)
 
+    @property
+    def joint_ids(self) -> tuple[int, ...]:
+        return tuple(j.servo_id for j in self.joints)
+
+    @property
+    def joint_count(self) -> int:
+        return len(self.joints)
+
+    @property
+    def duration_s(self) -> float:
+        return self.total_steps * self.period_ms / 1000.0
+
     def encode(self) -> bytes:
         """The blob's bytes, CRC included (not checked: see ``check``)."""
         body = bytearray()

@@ -343,15 +343,22 @@ static uint8_t check_table(const ctl_device *d, const uint8_t *table, size_t len
     return result;
 }
 
+/* A validated program's joint limits within the robot's. */
+static bool program_fits(const ctl_device *d, const uint8_t *blob)
+{
+    for (uint8_t j = 0; j < prog_joint_count(blob); j++) {
+        prog_joint pj = prog_joint_at(blob, j);
+        if (!within_robot(d, pj.id, pj.min, pj.max)) return false;
+    }
+    return true;
+}
+
 /* A program checked (prog_validate), then its joints' limits against the robot's. */
 static uint8_t check_program(const ctl_device *d, const uint8_t *blob, size_t len)
 {
     uint8_t result = prog_validate(blob, len, d->capacity, NULL);
-    for (uint8_t j = 0; result == PROG_OK && j < prog_joint_count(blob); j++) {
-        prog_joint pj = prog_joint_at(blob, j);
-        if (!within_robot(d, pj.id, pj.min, pj.max)) {
-            result = CTL_UPLOAD_RESULT_OUTSIDE_ROBOT_LIMITS;
-        }
+    if (result == PROG_OK && !program_fits(d, blob)) {
+        result = CTL_UPLOAD_RESULT_OUTSIDE_ROBOT_LIMITS;
     }
     return result;
 }
@@ -480,10 +487,9 @@ static uint8_t program_refusal(const ctl_device *d)
     if (state(d) == CTL_STATE_SAFE) return CTL_REFUSAL_REASON_SAFE_STATE;
     if (!active_is_program(d)) return CTL_REFUSAL_REASON_NO_TABLE;
     if (!limits_ready(d)) return CTL_REFUSAL_REASON_LIMITS_NOT_VERIFIED;
-    /* robot limits set after the program may be narrower than its joints' */
-    if (check_program(d, d->active, d->active_len) != PROG_OK) {
-        return CTL_REFUSAL_REASON_TABLE_OUTSIDE_LIMITS;
-    }
+    /* robot limits set after the program may be narrower than its joints' (the program
+     * itself was validated when it became active and has not changed since) */
+    if (!program_fits(d, d->active)) return CTL_REFUSAL_REASON_TABLE_OUTSIDE_LIMITS;
     return CTL_REFUSAL_REASON_NONE;
 }
 

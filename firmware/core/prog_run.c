@@ -249,13 +249,21 @@ static uint8_t check_motion(const uint8_t *blob, const uint8_t *seg, uint8_t k, 
 {
     const uint8_t *joint = joint_rec(blob, k);
     if (seg[0] == PROG_KIND_TABLE) {
-        int32_t lo = INT32_MAX, hi = INT32_MIN;
-        for (uint16_t f = 0; f < rd16(seg + 4); f++) {
-            int32_t g = generate(blob, seg, f, k);
+        /* a plain scan down the joint's column: this is the check's bulk (up to 64
+         * segments over ~1000 frame values), and it runs in the PC link's time */
+        layout l = layout_of(blob);
+        size_t stride = 2u * l.joint_count;
+        const uint8_t *v = blob + l.frames + 2u * ((size_t)rd16(seg + 2) * l.joint_count + k);
+        uint16_t lo = UINT16_MAX, hi = 0;
+        for (uint16_t f = rd16(seg + 4); f > 0; f--, v += stride) {
+            uint16_t g = rd16(v);
             lo = g < lo ? g : lo;
             hi = g > hi ? g : hi;
         }
-        return fits(blob, k, lo, hi, carry) ? PROG_OK : PROG_ERR_OUT_OF_RANGE;
+        return fits(blob, k, (int32_t)lo << PROG_CARRY_SHIFT, (int32_t)hi << PROG_CARRY_SHIFT,
+                    carry)
+                   ? PROG_OK
+                   : PROG_ERR_OUT_OF_RANGE;
     }
     if (seg[0] == PROG_KIND_SERPENOID) {
         int64_t amp = (int64_t)rd16(seg + 2) * PLAY_SIN_ONE;

@@ -10,6 +10,7 @@ import numpy as np
 from ctl_support import CTL, CTL_ID, Device, lib_value, telemetry_reply
 from test_ctl_bus import decode_sync_write
 
+from snakebot.controller.limits import encode_limits
 from snakebot.gaittable import GaitTable
 from snakebot.program import (
     JointRecord,
@@ -127,3 +128,18 @@ def test_play_and_program_run_refuse_the_other_kind() -> None:
     assert page(dev, "Refusal Reason") == lib_value("Refusal Reason", "NO_TABLE")
     # a table committed as a program is refused for its magic
     assert commit_program(dev, table.encode()) == lib_value("Upload Result", "PROGRAM_BAD_MAGIC")
+
+
+def test_a_program_beyond_the_robots_limits_is_refused_at_commit() -> None:
+    dev = Device()
+    narrow = encode_limits({i: (300, 700) for i in IDS})
+    dev.upload(narrow, commit=False)
+    start = CTL.register("Upload Length").address
+    what = lib_value("Upload Commit", "LIMITS").to_bytes(1, "little")
+    payload = len(narrow).to_bytes(2, "little") + zlib.crc32(narrow).to_bytes(4, "little") + what
+    assert dev.one(write(CTL_ID, start, payload)).error == 0
+    assert dev.get("Upload Result") == lib_value("Upload Result", "OK")
+    # program() lets its joints range over 150..874: wider than the robot's
+    outside = lib_value("Upload Result", "OUTSIDE_ROBOT_LIMITS")
+    assert commit_program(dev, program().encode()) == outside
+    assert dev.get("Table Size") == 0

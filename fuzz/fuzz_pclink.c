@@ -7,7 +7,9 @@
  * (right checksum) with any ID, instruction and parameters; register and servo-window
  * WRITEs; a gait table built from the input and uploaded chunk by chunk as the host does
  * (optionally damaged or cut short) and committed; a commit of whatever is staged with its
- * true CRC (so gait-table validation sees arbitrary bytes); commands; RESET; the passage of
+ * true CRC (so gait-table validation sees arbitrary bytes); a program (protocol/program.md)
+ * built from the input, optionally damaged (its own CRC made right again or not), uploaded
+ * and committed as PROGRAM; commands; RESET; the passage of
  * time and a control tick; the device's next bus packet; the reply to the READ in flight
  * (correct, damaged, echoed, garbage, or none), possibly after PC packets changed the
  * roster; a whole tick's bus schedule; a playback register; a power cycle (the table the
@@ -22,14 +24,15 @@
  *    the packet arrived, within the caller's buffer; nothing answers a broadcast or
  *    another ID; Status Return Level is honoured; READ returns the length asked for;
  *  - PC Packets + PC Errors count every parser event exactly once;
- *  - the active table always validates and its registers (size, CRC) describe it; it
- *    never disappears, and it changes only by a commit that reported OK with exactly the
- *    staged bytes;
+ *  - the active table (or program) always validates and its registers (size, CRC)
+ *    describe it; it never disappears, and it changes only by a commit that reported OK
+ *    with exactly the staged bytes; a program commit reports what prog_validate finds;
  *  - State always says what the player is doing;
  *  - every bus packet is a well-formed instruction; a READ is the telemetry READ of one
  *    servo with the right reply length; goals go out only after a tick that was moving,
  *    each within the limits in force for its joint at that tick (the table header's in
- *    table mode, the roster's in serpenoid mode) and never past 1023; entering SAFE with
+ *    table mode, the program's joint records in program mode, the roster's in serpenoid
+ *    mode) and never past 1023; entering SAFE with
  *    Safe Action TORQUE_OFF sends the broadcast torque-off next;
  *  - each telemetry READ the device sends ends as exactly one read or one timeout, and a
  *    correct reply is taken as a read with its values mirrored in that servo's slot; no
@@ -48,6 +51,7 @@
 #include "dxl_parser.h"
 #include "gt_table.h"
 #include "prog_limits.h"
+#include "prog_run.h"
 
 #include "fuzz_check.h"
 
@@ -146,7 +150,7 @@ static struct {
     (CTL_ERROR_FLAGS_UPLOAD_LENGTH | CTL_ERROR_FLAGS_UPLOAD_CRC | CTL_ERROR_FLAGS_UPLOAD_LAYOUT | \
      CTL_ERROR_FLAGS_UPLOAD_TOO_BIG | CTL_ERROR_FLAGS_SERVO_ERROR | CTL_ERROR_FLAGS_BUS_LOSS |    \
      CTL_ERROR_FLAGS_LINK_LOSS | CTL_ERROR_FLAGS_REFUSED | CTL_ERROR_FLAGS_LIMITS |               \
-     CTL_ERROR_FLAGS_LIBRARY)
+     CTL_ERROR_FLAGS_PROGRAM | CTL_ERROR_FLAGS_LIBRARY)
 #define LIB_SLOTS 3u
 
 static struct {
@@ -213,6 +217,7 @@ static bool in_library(const uint8_t *table, uint16_t len)
  * (a CRC and a validation of up to 2 KB) only when the active table's bytes change. */
 static struct {
     bool known;
+    bool program; /* the bytes are a program, not a table */
     uint32_t crc;
     gt_info info;
 } facts;
@@ -240,6 +245,11 @@ static uint32_t crc_of(const uint8_t *p, size_t n)
     return crc;
 }
 
+static bool is_program(const uint8_t *blob, size_t len)
+{
+    return len >= 4 && blob[0] == 'S' && blob[1] == 'N' && blob[2] == 'K' && blob[3] == 'P';
+}
+
 static void take_snapshot(void)
 {
     snapshot.len = d->active_len;
@@ -252,7 +262,7 @@ static void check_state(void)
     uint8_t state = ctl_state(d);
     uint8_t mode = play_mode(&d->player);
     CHECK(state <= CTL_STATE_SAFE);
-    CHECK((state == CTL_STATE_PLAYING) == (mode == PLAY_MODE_TABLE));
+    CHECK((state == CTL_STATE_PLAYING) == (mode == PLAY_MODE_TABLE || mode == PLAY_MODE_PROGRAM));
     CHECK((state == CTL_STATE_SERPENOID) == (mode == PLAY_MODE_SERPENOID));
     if (state == CTL_STATE_PLAYING) CHECK(d->active_len > 0);
     CHECK((ctl_error_flags(d) & ~(uint16_t)KNOWN_FLAGS) == 0);
@@ -284,7 +294,14 @@ static void check_table(void)
     if (d->active_len > 0) {
         CHECK(d->active_len <= CTL_MAX_TABLE_BYTES);
         if (changed || !facts.known) {
-            CHECK(gt_validate(d->active, d->active_len, &facts.info) == GT_OK);
+            facts.program = is_program(d->active, d->active_len);
+            if (facts.program) {
+                CHECK(prog_validate(d->active, d->active_len, d->capacity, NULL) == PROG_OK);
+                facts.info.joint_count = prog_joint_count(d->active);
+                facts.info.frame_count = 0; /* what the registers show for a program */
+            } else {
+                CHECK(gt_validate(d->active, d->active_len, &facts.info) == GT_OK);
+            }
             facts.crc = crc_of(d->active, d->active_len);
             facts.known = true;
         }
@@ -413,13 +430,18 @@ static void pc_packet(uint8_t id, uint8_t inst, const uint8_t *params, size_t np
     }
 }
 
-static void write_to_me(uint8_t addr, const uint8_t *data, size_t n)
+/* A WRITE to the controller's ID; whether its packet hid another (hides_packet), so
+ * that it may not have landed. */
+static bool write_to_me(uint8_t addr, const uint8_t *data, size_t n)
 {
     uint8_t params[1 + DXL_MAX_PARAMS];
+    uint8_t pkt[DXL_MAX_PACKET];
     if (n > DXL_MAX_PARAMS - 1) n = DXL_MAX_PARAMS - 1;
     params[0] = addr;
     memcpy(params + 1, data, n);
+    size_t len = dxl_encode(pkt, sizeof pkt, ctl_id(d), DXL_INST_WRITE, params, n + 1);
     pc_packet(ctl_id(d), DXL_INST_WRITE, params, n + 1);
+    return hides_packet(pkt, len);
 }
 
 /* ---- gait tables ------------------------------------------------------------------------------ */
@@ -482,7 +504,7 @@ static size_t make_table(src *s, uint8_t *t)
     return len;
 }
 
-static void commit_as(uint16_t len, uint32_t crc, uint8_t what)
+static bool commit_as(uint16_t len, uint32_t crc, uint8_t what)
 {
     uint8_t c[7];
     put16(c, len);
@@ -491,7 +513,7 @@ static void commit_as(uint16_t len, uint32_t crc, uint8_t what)
     c[4] = (uint8_t)(crc >> 16);
     c[5] = (uint8_t)(crc >> 24);
     c[6] = what;
-    write_to_me(CTL_UPLOAD_LENGTH, c, sizeof c);
+    return write_to_me(CTL_UPLOAD_LENGTH, c, sizeof c);
 }
 
 static void commit_with(uint16_t len, uint32_t crc)
@@ -539,7 +561,7 @@ static void upload(src *s)
     }
     uint32_t crc = crc_of(t, len);
     if (fault == 4) crc ^= 1u;
-    commit_with((uint16_t)len, crc);
+    (void)commit_as((uint16_t)len, crc, CTL_UPLOAD_COMMIT_TABLE);
     if (fault == 5 || fault == 6) {
         CHECK(d->regs[CTL_UPLOAD_RESULT] == expect);
         if (expect != GT_OK) CHECK(memcmp(d->active, t, len) != 0 || d->active_len != len);
@@ -556,6 +578,112 @@ static void upload(src *s)
         CHECK(d->regs[CTL_UPLOAD_RESULT] != GT_OK || memcmp(d->staging, t, len) == 0);
         if (fault != 1) CHECK(d->regs[CTL_UPLOAD_RESULT] != GT_OK);
     }
+}
+
+/* A program from the input (protocol/program.md): 1..4 joints with limits around a zero
+ * tick, up to 4 frames, 2 periodic blocks and 6 segments of any kind with fields from
+ * the input, most of them beyond what the joints allow; its CRC made right. */
+static size_t make_program(src *s, uint8_t *t)
+{
+    uint8_t joints = (uint8_t)(u8(s) % 4u + 1u);
+    uint8_t segments = (uint8_t)(u8(s) % 6u + 1u);
+    uint8_t blocks = (uint8_t)(u8(s) % 3u);
+    uint16_t frames = (uint16_t)(u8(s) % 5u);
+    memset(t, 0, PROG_HEADER_SIZE);
+    memcpy(t, "SNKP", 4);
+    t[4] = PROG_VERSION;
+    t[5] = joints;
+    t[6] = segments;
+    t[7] = blocks;
+    put16(t + 8, (uint16_t)(u8(s) % 100u + 1u));
+    put16(t + 10, frames);
+    uint8_t *p = t + PROG_HEADER_SIZE;
+    uint16_t lo[4];
+    uint16_t hi[4];
+    uint8_t first_id = u8(s);
+    for (uint8_t j = 0; j < joints; j++, p += PROG_JOINT_SIZE) {
+        uint16_t a = u16(s) % 1024u;
+        uint16_t b = u16(s) % 1024u;
+        lo[j] = a < b ? a : b;
+        hi[j] = a < b ? b : a;
+        p[0] = (uint8_t)((first_id + j) % (GT_MAX_ID + 1u));
+        p[1] = u8(s) & PROG_JOINT_REVERSE;
+        put16(p + 2, (uint16_t)(lo[j] + u16(s) % (hi[j] - lo[j] + 1u)));
+        put16(p + 4, lo[j]);
+        put16(p + 6, hi[j]);
+    }
+    for (uint8_t k = 0; k < segments; k++, p += PROG_SEGMENT_SIZE) {
+        memset(p, 0, PROG_SEGMENT_SIZE);
+        p[0] = (uint8_t)(u8(s) % 3u + 1u);
+        if (p[0] == PROG_KIND_TABLE && frames == 0) p[0] = PROG_KIND_SERPENOID;
+        if (p[0] == PROG_KIND_PERIODIC && blocks == 0) p[0] = PROG_KIND_SERPENOID;
+        if (p[0] == PROG_KIND_TABLE) {
+            uint16_t first = (uint16_t)(u8(s) % frames);
+            put16(p + 2, first);
+            put16(p + 4, (uint16_t)(u8(s) % (frames - first) + 1u));
+            put16(p + 6, (uint16_t)(u8(s) % 4u + 1u));
+        } else if (p[0] == PROG_KIND_SERPENOID) {
+            for (unsigned f = 0; f < 4; f++) put16(p + 2 + 2 * f, u16(s));
+            put16(p + 10, (uint16_t)(u8(s) % 50u + 1u));
+        } else {
+            put16(p + 2, (uint16_t)(u8(s) % blocks));
+            put16(p + 4, u16(s));
+            put16(p + 6, (uint16_t)(u8(s) % 50u + 1u));
+        }
+    }
+    for (size_t k = 0; k < (size_t)blocks * joints * 3u; k++, p += 2) {
+        int16_t v = (int16_t)u16(s);
+        uint8_t shift = u8(s) % 16u;
+        put16(p, (uint16_t)(v / (1 << shift))); /* any size, mostly small */
+    }
+    for (uint16_t f = 0; f < frames; f++) {
+        for (uint8_t j = 0; j < joints; j++, p += 2) {
+            put16(p, (uint16_t)(lo[j] + u16(s) % (hi[j] - lo[j] + 1u)));
+        }
+    }
+    size_t len = (size_t)(p - t);
+    uint32_t crc = gt_crc(t, len);
+    for (unsigned b = 0; b < 4; b++) t[PROG_CRC_OFFSET + b] = (uint8_t)(crc >> (8 * b));
+    return len;
+}
+
+/* Upload a program from the input (optionally with one byte damaged, its CRC made right
+ * again or not) whole, and commit it as PROGRAM: the commit must report what
+ * prog_validate finds (or OUTSIDE_ROBOT_LIMITS for a sound one the robot's limits do not
+ * cover), and only a program that validates may become active. */
+static void upload_program(src *s)
+{
+    static uint8_t t[CTL_MAX_TABLE_BYTES];
+    size_t len = make_program(s, t);
+    uint8_t fault = u8(s) % 3u;
+    uint8_t where = u8(s);
+    uint8_t flip = (uint8_t)(u8(s) | 1u);
+    if (fault != 0) t[where % len] ^= flip;
+    if (fault == 2) {
+        uint32_t crc = gt_crc(t, len);
+        for (unsigned b = 0; b < 4; b++) t[PROG_CRC_OFFSET + b] = (uint8_t)(crc >> (8 * b));
+    }
+    uint8_t expect = prog_validate(t, len, d->capacity, NULL);
+    bool hidden = false; /* a chunk carried what parses as a packet of its own */
+    for (size_t at = 0; at < len; at += CTL_UPLOAD_WINDOW) {
+        uint8_t data[2 + CTL_UPLOAD_WINDOW];
+        size_t n = len - at < CTL_UPLOAD_WINDOW ? len - at : CTL_UPLOAD_WINDOW;
+        put16(data, (uint16_t)at);
+        memcpy(data + 2, t + at, n);
+        hidden |= write_to_me(CTL_UPLOAD_OFFSET, data, n + 2);
+    }
+    hidden |= commit_as((uint16_t)len, crc32_compute(t, len), CTL_UPLOAD_COMMIT_PROGRAM);
+    /* a packet that did not land as sent leaves nothing to predict (check_table still
+     * holds the active program to prog_validate) */
+    if (hidden) return;
+    uint8_t result = d->regs[CTL_UPLOAD_RESULT];
+    if (expect == PROG_OK) {
+        bool limited = bus_limits_count(&d->bus) > 0;
+        CHECK(result == PROG_OK || (limited && result == CTL_UPLOAD_RESULT_OUTSIDE_ROBOT_LIMITS));
+    } else {
+        CHECK(result == expect);
+    }
+    if (result == PROG_OK) CHECK(d->active_len == len && memcmp(d->active, t, len) == 0);
 }
 
 /* ---- time, ticks and the bus ------------------------------------------------------------------- */
@@ -581,7 +709,14 @@ static void do_tick(uint32_t dt)
     const gt_info info = facts.info;
     for (uint8_t j = 0; j < tick.count; j++) {
         tick.id[j] = p->out_id[j];
-        if (table_mode) {
+        if (table_mode && facts.program) {
+            CHECK(p->table == d->active);
+            CHECK(tick.count == prog_joint_count(d->active));
+            prog_joint pj = prog_joint_at(d->active, j);
+            CHECK(tick.id[j] == pj.id);
+            tick.lo[j] = pj.min;
+            tick.hi[j] = pj.max;
+        } else if (table_mode) {
             CHECK(p->table == d->active); /* the player reads the active table itself */
             CHECK(tick.count == info.joint_count);
             CHECK(tick.id[j] == gt_joint_id(d->active, &info, j));
@@ -841,7 +976,7 @@ static void power_cycle(uint8_t damage, uint8_t where, uint8_t flip)
 
 static void step(src *s)
 {
-    uint8_t op = u8(s) % 17u;
+    uint8_t op = u8(s) % 18u;
     uint8_t buf[256];
     switch (op) {
     case 0: { /* raw bytes */
@@ -900,7 +1035,7 @@ static void step(src *s)
         break;
     }
     case 6: { /* a command */
-        uint8_t cmd = u8(s) % 5u;
+        uint8_t cmd = u8(s) % 7u; /* NONE..LIBRARY_PLAY */
         write_to_me(CTL_COMMAND, &cmd, 1);
         break;
     }
@@ -980,6 +1115,7 @@ static void step(src *s)
         CHECK(d->lib.panel.slot < LIB_SLOTS);
         break;
     }
+    case 17: upload_program(s); break;
     default: CHECK(0);
     }
     check_all();

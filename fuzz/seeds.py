@@ -43,11 +43,12 @@ VECTORS = HERE.parent / "protocol" / "vectors"
     POWER,
     LIBRARY,
     BUTTONS,
-) = range(17)
+    PROGRAM,
+) = range(18)
 # instruction selectors of the PACKET step (its table of common instructions)
 PING, READ, WRITE_I, SYNC_WRITE, RESET_I, REG_WRITE = range(6)
 # commands
-PLAY, SERPENOID, STOP, CLEAR = 1, 2, 3, 4
+PLAY, SERPENOID, STOP, CLEAR, PROGRAM_RUN = 1, 2, 3, 4, 5
 # KNOB registers, by index in the step's table
 SPEED, STEERING, LOOP, AMPLITUDE, OMEGA, DELTA, PHI0, SAFE_ACTION, BUS_LOSS, ERROR_MASK, LINK = (
     range(11)
@@ -113,6 +114,23 @@ class Program:
             x = (x * 1103515245 + 12345) & 0x7FFFFFFF
             self.b += u16(x >> 8)
         self.b += bytes([fault, where, 0x11])  # damage, where, the bits flipped
+        return self
+
+    def program(self, fault: int = 0, where: int = 0) -> Program:
+        """A program of three segments (periodic, serpenoid, table) on 3 joints with wide
+        limits, small enough to pass the controller's checks (protocol/program.md)."""
+        self.b += bytes([PROGRAM, 3 - 1, 3 - 1, 1, 2, 20 - 1, 1])  # joints, segments, ...
+        for j in range(3):
+            self.b += u16(200) + u16(824) + bytes([j % 2]) + u16(312)  # limits, zero 512
+        self.b += bytes([2]) + bytes([0]) + u16(3142) + bytes([40 - 1])  # periodic
+        self.b += bytes([1]) + u16(300) + u16(3142) + u16(1047) + u16(0) + bytes([40 - 1])
+        self.b += bytes([0, 0, 2 - 1, 2 - 1])  # table: frames 0..1, twice
+        for j in range(3):
+            self.b += u16(50 * (1 - 2 * (j % 2))) + bytes([0])  # offset rate
+            self.b += u16(200) + bytes([0]) + u16(100) + bytes([0])  # sine, cosine
+        for f in range(2):
+            self.b += b"".join(u16(300 + 20 * f + 5 * j) for j in range(3))  # 500.. ticks
+        self.b += bytes([fault, where, 0x11])
         return self
 
     def commit_staged(self, length: int) -> Program:
@@ -217,6 +235,9 @@ def pclink_seeds() -> dict[str, bytes]:
         .run(30, dt=35)  # past the table's end; the program stays within 128 steps
         .b
     )
+    # 84 steps of 20 ms: the program ends (DONE) within the run
+    s["run-program"] = Program().program().command(PROGRAM_RUN).run(190).b
+    s["program-damaged"] = Program().program(fault=1, where=40).program(fault=2, where=70).b
     s["play-once-big-table"] = (
         Program().upload(joints=18, frames=5, period=20, loop=False).command(PLAY).run(20).b
     )

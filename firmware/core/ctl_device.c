@@ -4,6 +4,7 @@
 #include "dxl_packet.h"
 #include "play_safety.h"
 #include "prog_limits.h"
+#include "prog_run.h"
 
 /* ---- register descriptors (from the generated X-macros) ---------------------------- */
 
@@ -236,15 +237,57 @@ static void show_table(ctl_device *d, const gt_info *info, uint32_t crc)
     sync_bus_roster(d);
 }
 
+/* Copy blob[0..len) (a table or a program) into the active buffer, motion stopped. */
+static void store_active(ctl_device *d, const uint8_t *blob, size_t len)
+{
+    stop_motion(d);
+    for (size_t i = 0; i < len; i++) d->active[i] = blob[i];
+    d->active_len = (uint16_t)len;
+    d->table_changed = 1;
+}
+
 /* Make table[0..len) active; `info` is what gt_validate found for it. */
 static void activate(ctl_device *d, const uint8_t *table, size_t len, uint32_t crc,
                      const gt_info *info)
 {
-    stop_motion(d);
-    for (size_t i = 0; i < len; i++) d->active[i] = table[i];
-    d->active_len = (uint16_t)len;
-    d->table_changed = 1;
+    store_active(d, table, len);
     show_table(d, info, crc);
+}
+
+/* Whether blob[0..len) is a program (protocol/program.md) rather than a table. */
+static bool is_program(const uint8_t *blob, size_t len)
+{
+    return len >= 4 && get_le(blob, 4) == PROG_MAGIC;
+}
+
+static bool active_is_program(const ctl_device *d)
+{
+    return is_program(d->active, d->active_len);
+}
+
+/* Mirror the active program into the table registers, and its joints into the roster. */
+static void show_program(ctl_device *d, uint32_t crc)
+{
+    const uint8_t *blob = d->active;
+    uint8_t n = prog_joint_count(blob);
+    set_reg(d, CTL_TABLE_SIZE, 2, d->active_len);
+    set_reg(d, CTL_TABLE_CRC, 4, crc);
+    set_reg(d, CTL_TABLE_JOINTS, 1, n);
+    set_reg(d, CTL_TABLE_FLAGS, 1, 0);
+    set_reg(d, CTL_TABLE_FRAMES, 2, 0);
+    set_reg(d, CTL_TABLE_PERIOD, 2, prog_period_ms(blob));
+    set_reg(d, CTL_LOOP, 1, 0);
+    set_reg(d, CTL_JOINT_COUNT, 1, n);
+    for (uint8_t j = 0; j < n; j++) {
+        prog_joint pj = prog_joint_at(blob, j);
+        play_joint *r = &d->roster[j];
+        r->id = pj.id;
+        r->reverse = pj.reverse;
+        r->zero = pj.zero;
+        r->min = pj.min;
+        r->max = pj.max;
+    }
+    sync_bus_roster(d);
 }
 
 static uint16_t upload_flag(uint8_t result)
@@ -256,11 +299,20 @@ static uint16_t upload_flag(uint8_t result)
     switch (result) {
     case GT_ERR_TRUNCATED:
     case GT_ERR_TRAILING:
+    case PROG_ERR_TRUNCATED:
+    case PROG_ERR_TRAILING:
     case CTL_UPLOAD_RESULT_BAD_LENGTH:
     case CTL_UPLOAD_RESULT_INCOMPLETE: return CTL_ERROR_FLAGS_UPLOAD_LENGTH;
     case GT_ERR_CRC:
+    case PROG_ERR_CRC:
     case CTL_UPLOAD_RESULT_TRANSFER_CRC: return CTL_ERROR_FLAGS_UPLOAD_CRC;
+    case PROG_ERR_TOO_BIG:
     case GT_ERR_TOO_BIG: return CTL_ERROR_FLAGS_UPLOAD_TOO_BIG;
+    case PROG_ERR_JOINT:
+    case PROG_ERR_FRAME_RANGE:
+    case PROG_ERR_SEGMENT:
+    case PROG_ERR_OUT_OF_RANGE:
+    case PROG_ERR_TOO_FAST: return CTL_ERROR_FLAGS_PROGRAM;
     default: return CTL_ERROR_FLAGS_UPLOAD_LAYOUT;
     }
 }
@@ -291,6 +343,46 @@ static uint8_t check_table(const ctl_device *d, const uint8_t *table, size_t len
     uint8_t result = (uint8_t)gt_validate(table, len, info);
     if (result == GT_OK && !table_fits(d, table, info)) {
         result = CTL_UPLOAD_RESULT_OUTSIDE_ROBOT_LIMITS;
+    }
+    return result;
+}
+
+/* A validated program's joint limits within the robot's. */
+static bool program_fits(const ctl_device *d, const uint8_t *blob)
+{
+    for (uint8_t j = 0; j < prog_joint_count(blob); j++) {
+        prog_joint pj = prog_joint_at(blob, j);
+        if (!within_robot(d, pj.id, pj.min, pj.max)) return false;
+    }
+    return true;
+}
+
+/* A program checked (prog_validate), then its joints' limits against the robot's. */
+static uint8_t check_program(const ctl_device *d, const uint8_t *blob, size_t len)
+{
+    uint8_t result = prog_validate(blob, len, d->capacity, NULL);
+    if (result == PROG_OK && !program_fits(d, blob)) {
+        result = CTL_UPLOAD_RESULT_OUTSIDE_ROBOT_LIMITS;
+    }
+    return result;
+}
+
+/* Check blob[0..len) as what the commit says (a program, else a table) and make it
+ * active; 0 (OK) or the refusal code. */
+static uint8_t load_active(ctl_device *d, const uint8_t *blob, size_t len, uint32_t crc,
+                           uint8_t what)
+{
+    gt_info info;
+    uint8_t result;
+    if (what == CTL_UPLOAD_COMMIT_PROGRAM) {
+        result = check_program(d, blob, len);
+        if (result == PROG_OK) {
+            store_active(d, blob, len);
+            show_program(d, crc);
+        }
+    } else {
+        result = check_table(d, blob, len, &info);
+        if (result == GT_OK) activate(d, blob, len, crc, &info);
     }
     return result;
 }
@@ -351,7 +443,6 @@ static void commit(ctl_device *d, uint8_t what)
 {
     uint32_t len = reg(d, CTL_UPLOAD_LENGTH, 2);
     uint32_t crc = reg(d, CTL_UPLOAD_CRC, 4);
-    gt_info info;
     uint8_t result;
     if (what == CTL_UPLOAD_COMMIT_FIRMWARE_CHECK) { /* checks the flash, not the staging */
         d->regs[CTL_UPLOAD_RESULT] = ctl_firmware_check(len, crc);
@@ -368,14 +459,17 @@ static void commit(ctl_device *d, uint8_t what)
     } else if (what == CTL_UPLOAD_COMMIT_LIMITS) {
         result = apply_limits(d, d->staging, len);
     } else if (what == CTL_UPLOAD_COMMIT_LIBRARY_STORE) {
-        /* a table is checked as TABLE would check it before it is kept */
+        /* a table or a program is checked as its own commit would check it before it is
+         * kept */
+        gt_info info;
         result = d->lib.store_kind == CTL_UPLOAD_COMMIT_TABLE
                      ? check_table(d, d->staging, len, &info)
+                 : d->lib.store_kind == CTL_UPLOAD_COMMIT_PROGRAM
+                     ? check_program(d, d->staging, len)
                      : CTL_UPLOAD_RESULT_OK;
         if (result == GT_OK) result = lib_store_blob(&d->lib, d->staging, (uint16_t)len);
     } else {
-        result = check_table(d, d->staging, len, &info);
-        if (result == GT_OK) activate(d, d->staging, len, crc, &info);
+        result = load_active(d, d->staging, len, crc, what);
     }
     set_reg(d, CTL_ERROR_FLAGS, 2, reg(d, CTL_ERROR_FLAGS, 2) & ~(uint32_t)UPLOAD_FLAGS);
     if (result != GT_OK) raise_flags(d, upload_flag(result));
@@ -409,12 +503,24 @@ static uint8_t play_refusal(const ctl_device *d)
 {
     gt_info info;
     if (state(d) == CTL_STATE_SAFE) return CTL_REFUSAL_REASON_SAFE_STATE;
-    if (d->active_len == 0) return CTL_REFUSAL_REASON_NO_TABLE;
+    if (d->active_len == 0 || active_is_program(d)) return CTL_REFUSAL_REASON_NO_TABLE;
     if (!limits_ready(d)) return CTL_REFUSAL_REASON_LIMITS_NOT_VERIFIED;
     /* robot limits set after the table may be narrower than its own */
     if (check_table(d, d->active, d->active_len, &info) != GT_OK) {
         return CTL_REFUSAL_REASON_TABLE_OUTSIDE_LIMITS;
     }
+    return CTL_REFUSAL_REASON_NONE;
+}
+
+/* Why PROGRAM_RUN cannot run now (CTL_REFUSAL_REASON_*; NONE: it can). */
+static uint8_t program_refusal(const ctl_device *d)
+{
+    if (state(d) == CTL_STATE_SAFE) return CTL_REFUSAL_REASON_SAFE_STATE;
+    if (!active_is_program(d)) return CTL_REFUSAL_REASON_NO_TABLE;
+    if (!limits_ready(d)) return CTL_REFUSAL_REASON_LIMITS_NOT_VERIFIED;
+    /* robot limits set after the program may be narrower than its joints' (the program
+     * itself was validated when it became active and has not changed since) */
+    if (!program_fits(d, d->active)) return CTL_REFUSAL_REASON_TABLE_OUTSIDE_LIMITS;
     return CTL_REFUSAL_REASON_NONE;
 }
 
@@ -448,21 +554,22 @@ static void library_play(ctl_device *d, uint8_t slot, uint32_t now_ms)
     uint16_t len = 0;
     uint32_t crc = 0;
     uint8_t result = lib_playable(&d->lib, slot, &blob, &len, &crc);
-    gt_info info;
     if (result == CTL_UPLOAD_RESULT_OK && len > d->capacity) result = CTL_UPLOAD_RESULT_BAD_LENGTH;
+    /* a program starts with its magic (protocol/program.md), a table never does */
+    bool program = result == CTL_UPLOAD_RESULT_OK && len >= 4 &&
+                   ((uint32_t)blob[0] | (uint32_t)blob[1] << 8 | (uint32_t)blob[2] << 16 |
+                    (uint32_t)blob[3] << 24) == PROG_MAGIC;
     if (result == CTL_UPLOAD_RESULT_OK && blob != d->active) {
-        result = check_table(d, blob, len, &info);
-        if (result == GT_OK) {
-            uint8_t pending = d->table_changed;
-            activate(d, blob, len, crc, &info);
-            d->table_changed = pending;
-        }
+        uint8_t pending = d->table_changed;
+        result = load_active(d, blob, len, crc,
+                             program ? CTL_UPLOAD_COMMIT_PROGRAM : CTL_UPLOAD_COMMIT_TABLE);
+        d->table_changed = pending; /* kept in the library already, not a new table */
     }
     if (lib_note(&d->lib, result)) {
         raise_flags(d, CTL_ERROR_FLAGS_LIBRARY | CTL_ERROR_FLAGS_REFUSED);
         return;
     }
-    command(d, CTL_COMMAND_PLAY, now_ms);
+    command(d, program ? CTL_COMMAND_PROGRAM_RUN : CTL_COMMAND_PLAY, now_ms);
 }
 
 static void command(ctl_device *d, uint8_t cmd, uint32_t now_ms)
@@ -485,6 +592,13 @@ static void command(ctl_device *d, uint8_t cmd, uint32_t now_ms)
         else why = CTL_REFUSAL_REASON_EMPTY_ROSTER;
         break;
     case CTL_COMMAND_LIBRARY_PLAY: library_play(d, d->lib.slot, now_ms); return;
+    case CTL_COMMAND_PROGRAM_RUN:
+        why = program_refusal(d);
+        if (why != CTL_REFUSAL_REASON_NONE) break;
+        play_start_program(&d->player, d->active, now_ms);
+        set_state(d, CTL_STATE_PLAYING);
+        started = true;
+        break;
     case CTL_COMMAND_STOP: stop_motion(d); return;
     case CTL_COMMAND_CLEAR:
         set_reg(d, CTL_ERROR_FLAGS, 2, 0);
@@ -587,6 +701,11 @@ static uint32_t page_value(const ctl_device *d, uint8_t page, uint8_t addr)
         case CTL_TABLE_CAPACITY: return d->capacity;
         case CTL_MAX_SEGMENTS: return CTL_MAX_PROGRAM_SEGMENTS;
         case CTL_REFUSAL_REASON: return d->refusal;
+        case CTL_PROGRAM_SEGMENT: return play_program_segment(&d->player);
+        case CTL_PROGRAM_STATE:
+            if (play_mode(&d->player) == PLAY_MODE_PROGRAM) return CTL_PROGRAM_STATE_RUNNING;
+            if (play_finished(&d->player) && active_is_program(d)) return CTL_PROGRAM_STATE_DONE;
+            return CTL_PROGRAM_STATE_IDLE;
         default: return 0;
         }
     }
@@ -825,7 +944,11 @@ static void reset_device(ctl_device *d)
 {
     defaults(d);
     bus_clear_faults(&d->bus);
-    if (d->active_len > 0) {
+    if (active_is_program(d)) {
+        if (check_program(d, d->active, d->active_len) == PROG_OK) {
+            show_program(d, crc32_compute(d->active, d->active_len));
+        }
+    } else if (d->active_len > 0) {
         gt_info info;
         if (check_table(d, d->active, d->active_len, &info) == GT_OK) {
             show_table(d, &info, crc32_compute(d->active, d->active_len));
@@ -939,10 +1062,8 @@ void ctl_set_capacity(ctl_device *d, uint16_t bytes)
 bool ctl_load_table(ctl_device *d, const uint8_t *table, size_t len)
 {
     if (len == 0 || len > d->capacity) return false;
-    gt_info info;
-    if (check_table(d, table, len, &info) != GT_OK) return false;
-    activate(d, table, len, crc32_compute(table, len), &info);
-    return true;
+    uint8_t what = is_program(table, len) ? CTL_UPLOAD_COMMIT_PROGRAM : CTL_UPLOAD_COMMIT_TABLE;
+    return load_active(d, table, len, crc32_compute(table, len), what) == GT_OK;
 }
 
 bool ctl_load_limits(ctl_device *d, const uint8_t *blob, size_t len)

@@ -49,8 +49,8 @@ void ctl_init(ctl_device *d);
 /* The board's table capacity in bytes (at most the core's buffers hold; Table Capacity
  * on the Program page shows it): commits and uploads beyond it are refused. */
 void ctl_set_capacity(ctl_device *d, uint16_t bytes);
-/* Make table[0..len) the active table without an upload (e.g. one kept in flash);
- * false, and nothing changed, if it does not validate. */
+/* Make table[0..len) (a table, or a program: protocol/program.md) active without an
+ * upload (e.g. one kept in flash); false, and nothing changed, if it does not validate. */
 bool ctl_load_table(ctl_device *d, const uint8_t *table, size_t len);
 /* The robot's limits as Upload Commit LIMITS takes them (protocol/controller.md), e.g.
  * kept in flash; false, and nothing changed, if they are malformed. */

@@ -185,7 +185,9 @@ uint8_t lib_playable(const lib_device *l, uint8_t slot, const uint8_t **data, ui
     fetch(l, slot, &s, data);
     if (s.status == CTL_SLOT_STATUS_EMPTY) return CTL_UPLOAD_RESULT_LIBRARY_EMPTY;
     if (s.status != CTL_SLOT_STATUS_OK || *data == NULL) return CTL_UPLOAD_RESULT_LIBRARY_DAMAGED;
-    if (s.kind != CTL_UPLOAD_COMMIT_TABLE) return CTL_UPLOAD_RESULT_LIBRARY_NOT_PLAYABLE;
+    if (s.kind != CTL_UPLOAD_COMMIT_TABLE && s.kind != CTL_UPLOAD_COMMIT_PROGRAM) {
+        return CTL_UPLOAD_RESULT_LIBRARY_NOT_PLAYABLE;
+    }
     *len = s.len;
     *crc = s.crc;
     return CTL_UPLOAD_RESULT_OK;

@@ -45,6 +45,11 @@ static int64_t round_shift(int64_t v, unsigned shift)
     return -(int64_t)(((uint64_t)(-v) + (uint64_t)half - 1u) >> shift);
 }
 
+int64_t play_round_shift(int64_t v, unsigned shift)
+{
+    return round_shift(v, shift);
+}
+
 int16_t play_sin_q15(uint32_t angle)
 {
     uint32_t quadrant = angle >> 30;

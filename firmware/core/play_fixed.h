@@ -38,6 +38,8 @@ uint16_t play_speed_units(uint32_t ticks_per_s_q8);
  * A |omega| |cos(theta)| * scale / 256, in ticks. */
 uint32_t play_serp_rate_q8(uint16_t amp_mrad, int16_t omega_mrad_s, uint16_t scale_q8,
                            uint32_t theta);
+/* v / 2^shift rounded to nearest, halves away from zero (shift >= 1). */
+int64_t play_round_shift(int64_t v, unsigned shift);
 /* cffi:end */
 
 /* The ceiling: the largest joint-mode Moving Speed (from ax12_table.h). */

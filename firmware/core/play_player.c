@@ -18,6 +18,15 @@ void play_init(play_state *p)
     *p = zero;
 }
 
+/* Start mode on table (NULL for none) at now_ms. */
+static void begin(play_state *p, uint8_t mode, const uint8_t *table, uint32_t now_ms)
+{
+    p->table = table;
+    p->mode = mode;
+    p->finished = 0;
+    p->last_ms = now_ms;
+}
+
 bool play_start_table(play_state *p, const uint8_t *table, size_t len, uint32_t now_ms)
 {
     gt_info info;
@@ -25,13 +34,10 @@ bool play_start_table(play_state *p, const uint8_t *table, size_t len, uint32_t 
         p->mode = PLAY_MODE_IDLE;
         return false;
     }
-    p->table = table;
+    begin(p, PLAY_MODE_TABLE, table, now_ms);
     p->info = info;
-    p->mode = PLAY_MODE_TABLE;
-    p->finished = 0;
     p->frame = 0;
     p->offset_q8 = 0;
-    p->last_ms = now_ms;
     return true;
 }
 
@@ -41,13 +47,17 @@ bool play_start_serpenoid(play_state *p, uint8_t count, uint32_t now_ms)
         p->mode = PLAY_MODE_IDLE;
         return false;
     }
-    p->table = NULL;
-    p->mode = PLAY_MODE_SERPENOID;
-    p->finished = 0;
+    begin(p, PLAY_MODE_SERPENOID, NULL, now_ms);
     p->phase = 0;
-    p->last_ms = now_ms;
     play_slew_reset(&p->slew);
     return true;
+}
+
+void play_start_program(play_state *p, const uint8_t *blob, uint32_t now_ms)
+{
+    begin(p, PLAY_MODE_PROGRAM, blob, now_ms);
+    p->out_count = 0;
+    prog_start(&p->program);
 }
 
 void play_stop(play_state *p)
@@ -163,11 +173,39 @@ static uint8_t tick_serpenoid(play_state *p, const play_params *params, const pl
     return count;
 }
 
+static uint8_t tick_program(play_state *p, uint32_t dt)
+{
+    const uint8_t *blob = p->table;
+    uint8_t count = prog_joint_count(blob);
+    uint16_t goals[GT_MAX_JOINTS];
+    uint32_t period = prog_period_ms(blob);
+    bool first = p->out_count == 0;
+    if (!prog_tick(blob, &p->program, dt)) {
+        p->finished = 1;
+        p->mode = PLAY_MODE_IDLE;
+    }
+    prog_goals(blob, &p->program, goals);
+    for (uint8_t j = 0; j < count; j++) {
+        /* speed: cover the goal's change within one program step (ticks/s * 256); kept
+         * while the goal holds, so a servo still on its way is not slowed down; the
+         * first goal is approached at the floor speed */
+        uint32_t change = (uint32_t)(goals[j] > p->out_goal[j] ? goals[j] - p->out_goal[j]
+                                                               : p->out_goal[j] - goals[j]);
+        if (first) p->out_speed[j] = PLAY_MIN_SPEED;
+        else if (change != 0) p->out_speed[j] = play_speed_units(change * 256000u / period);
+        p->out_id[j] = prog_joint_id(blob, j);
+        p->out_goal[j] = goals[j];
+    }
+    p->out_count = count;
+    return count;
+}
+
 uint8_t play_tick(play_state *p, const play_params *params, const play_joint *roster,
                   uint8_t roster_count, uint32_t now_ms)
 {
     uint32_t dt = elapsed(p, now_ms);
     if (p->mode == PLAY_MODE_TABLE) return tick_table(p, params, roster, roster_count, dt);
+    if (p->mode == PLAY_MODE_PROGRAM) return tick_program(p, dt);
     if (p->mode == PLAY_MODE_SERPENOID) {
         play_params live = *params;
         uint32_t extra = slew_live(p, &live, dt);
@@ -184,6 +222,11 @@ uint8_t play_mode(const play_state *p)
 bool play_finished(const play_state *p)
 {
     return p->finished != 0;
+}
+
+uint8_t play_program_segment(const play_state *p)
+{
+    return p->program.segment;
 }
 
 uint16_t play_frame_index(const play_state *p)

@@ -5,7 +5,8 @@
  * linearly in ticks between frames, looping or once; serpenoid mode computes
  * phi_k = A sin(omega t + k delta) + phi0 per roster joint in fixed point. Goals get the
  * steering offset (negated for reversed joints) and are clamped to the joint's limits
- * (the table header's in table mode, the roster's in serpenoid mode). Moving speeds come
+ * (the table header's in table mode, the roster's in serpenoid mode). Program mode sends
+ * the program's goals (prog_run.h) for the step the elapsed time has reached. Moving speeds come
  * from the motion until the next frame (table) or the wave's derivative (serpenoid), so
  * the servos move smoothly instead of jumping at full speed.
  *
@@ -20,11 +21,13 @@
 
 #include "gt_table.h"
 #include "play_slew.h"
+#include "prog_run.h"
 
 /* cffi:begin */
 #define PLAY_MODE_IDLE 0
 #define PLAY_MODE_TABLE 1
 #define PLAY_MODE_SERPENOID 2
+#define PLAY_MODE_PROGRAM 3
 /* A gap between two ticks longer than this counts as this (after a stall, the gait
  * resumes instead of jumping far ahead). */
 #define PLAY_MAX_STEP_MS 1000
@@ -63,6 +66,9 @@ bool play_start_table(play_state *p, const uint8_t *table, size_t len, uint32_t 
 /* Run the serpenoid on the first count roster joints from phase 0; false (and idle) if
  * count is 0 or above the maximum. */
 bool play_start_serpenoid(play_state *p, uint8_t count, uint32_t now_ms);
+/* Run the program in blob (validated with prog_validate; it must stay put while it runs)
+ * from its first step; the speed scale and steering do not apply to it. */
+void play_start_program(play_state *p, const uint8_t *blob, uint32_t now_ms);
 /* Stop; the last outputs stay readable. */
 void play_stop(play_state *p);
 /* Advance to now_ms and compute the outputs; returns how many joints have a goal to send
@@ -71,8 +77,10 @@ uint8_t play_tick(play_state *p, const play_params *params, const play_joint *ro
                   uint8_t roster_count, uint32_t now_ms);
 /* PLAY_MODE_*. */
 uint8_t play_mode(const play_state *p);
-/* True once a table played once has reached its last frame. */
+/* True once a table played once has reached its last frame, or a program its last step. */
 bool play_finished(const play_state *p);
+/* The segment the program is running (or ran last). */
+uint8_t play_program_segment(const play_state *p);
 /* Table mode: the frame being played. */
 uint16_t play_frame_index(const play_state *p);
 /* Outputs of the last tick: joint count, and per joint j the servo ID, goal and speed. */
@@ -91,6 +99,7 @@ struct play_state {
     uint32_t last_ms;
     uint64_t phase;           /* serpenoid: omega t as a 48-bit binary angle */
     play_slew slew;           /* serpenoid: working copies of the live parameters */
+    prog_cursor program;      /* program: where it is (the blob is in table) */
     const uint8_t *table;
     gt_info info;
     uint8_t out_id[GT_MAX_JOINTS];

@@ -27,7 +27,9 @@ def quick_waits(monkeypatch):
 
 
 def flash(path, device):
-    return CliRunner().invoke(main, ["flash", "--no-verify", "--no-library-backup", str(path), "--port", device])
+    return CliRunner().invoke(
+        main, ["flash", "--no-verify", "--no-library-backup", str(path), "--port", device]
+    )
 
 
 @pytest.mark.parametrize(

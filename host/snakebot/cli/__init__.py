@@ -43,6 +43,7 @@ from snakebot.cli.model import model  # noqa: E402
 from snakebot.cli.monitor import monitor  # noqa: E402
 from snakebot.cli.plan import plan_command  # noqa: E402
 from snakebot.cli.playback import play, serpenoid, stop  # noqa: E402
+from snakebot.cli.program import program  # noqa: E402
 from snakebot.cli.robot import robot  # noqa: E402
 from snakebot.cli.sim import sim  # noqa: E402
 from snakebot.cli.sim_bootloader import bootloader  # noqa: E402
@@ -67,7 +68,7 @@ for command in (
     demo,
 ):
     main.add_command(command)
-for command in (plan_command, robot, drive, config, doctor, compare_command, library):
+for command in (plan_command, robot, drive, program, config, doctor, compare_command, library):
     main.add_command(command)
 bus.add_command(bus_play)
 for command in (predict, serve, bootloader, goto, thesis, friction):

@@ -50,14 +50,23 @@ def play(
     speed: float,
     steer: float,
 ) -> None:
-    """Play the controller's gait table from its first frame.
+    """Play the controller's gait table from its first frame, or run its program.
 
-    Upload a table first (`snakebot upload`). Speed and steering apply at once and can
-    be changed by running play again; `snakebot stop` stops.
+    Upload a table or a program first (`snakebot upload`). Speed and steering apply to a
+    table at once and can be changed by running play again; a program runs as built
+    (they do not apply). `snakebot stop` stops.
     """
     with open_controller(port, baud, controller_id) as ctl:
         status = playback.play(ctl, loop=loop, speed=speed, steer=steer)
     t = status["table"]
+    if status.get("program"):
+        _emit(
+            status,
+            as_json,
+            f"{status['state']}: the program ({t['joints']} joints, a step every "
+            f"{t['period_ms']} ms). Stop it with `snakebot stop --port {port}`.",
+        )
+        return
     how = "looping" if status["loop"] else "once"
     _emit(
         status,

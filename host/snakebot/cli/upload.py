@@ -1,4 +1,5 @@
-"""`snakebot upload`: send a gait table to the controller and make it the active table."""
+"""`snakebot upload`: send a gait table (or a program) to the controller and make it the
+active one."""
 
 from __future__ import annotations
 
@@ -11,7 +12,9 @@ import click
 from snakebot.cli.controller_link import controller_options, open_controller
 from snakebot.cli.output import dumps
 from snakebot.controller.uploader import UploadReport, upload_gait
-from snakebot.gaittable import read_gait
+from snakebot.gaittable import GaitTable, read_gait
+from snakebot.program import Program
+from snakebot.program.files import is_program_file, read_program
 
 
 @click.command("upload")
@@ -26,7 +29,9 @@ from snakebot.gaittable import read_gait
 def upload(
     gait: Path, port: str, baud: int, controller_id: int, as_json: bool, new_servos: bool
 ) -> None:
-    """Upload the gait table GAIT (a .gait file from `snakebot gait`) to the controller.
+    """Upload the gait table GAIT (a .gait file from `snakebot gait`) to the controller,
+    or a program (a .prog file from `snakebot program build`), which takes the table's
+    place; `snakebot play` then runs whichever is active.
 
     Before anything is sent, the table is checked against what the controller takes and
     the servos it knows (its roster). The chunks are sent with several in flight, each
@@ -45,7 +50,8 @@ def upload(
         snakebot upload walk.gait --port /dev/ttyUSB0
         snakebot play --port /dev/ttyUSB0
     """
-    table = read_gait(gait)  # a bad file fails here, before the port is opened
+    # a bad file fails here, before the port is opened
+    table: GaitTable | Program = read_program(gait) if is_program_file(gait) else read_gait(gait)
     err = sys.stderr
     show_bar = not as_json and err.isatty()
     bar: Any = None
@@ -76,21 +82,33 @@ def upload(
     finally:
         if bar is not None:
             bar.__exit__(None, None, None)
-    _print(report, gait, port, as_json)
+    _print(report, gait, port, as_json, table)
 
 
-def _print(report: UploadReport, gait: Path, port: str, as_json: bool) -> None:
+def _print(
+    report: UploadReport, gait: Path, port: str, as_json: bool, table: GaitTable | Program
+) -> None:
+    program = isinstance(table, Program)
     if as_json:
-        click.echo(dumps({"file": str(gait), "port": port, **report.as_dict()}))
+        kind = "program" if program else "table"
+        click.echo(dumps({"file": str(gait), "port": port, "kind": kind, **report.as_dict()}))
         return
     click.echo(report.summary())
-    how = "looping" if report.loop else "played once"
-    click.echo(
-        f"The controller confirmed it: its active table has the file's size and file "
-        f"CRC-32 (0x{report.crc:08x}, not the header CRC): {report.frames} frames x "
-        f"{report.joints} joints every "
-        f"{report.period_ms} ms, {how}."
-    )
+    if isinstance(table, Program):
+        click.echo(
+            f"The controller confirmed it: its active program has the file's size and "
+            f"CRC-32 (0x{report.crc:08x}): {len(table.segments)} segments for "
+            f"{report.joints} joints, a step every {report.period_ms} ms, "
+            f"{table.duration_s:.2f} s in all."
+        )
+    else:
+        how = "looping" if report.loop else "played once"
+        click.echo(
+            f"The controller confirmed it: its active table has the file's size and file "
+            f"CRC-32 (0x{report.crc:08x}, not the header CRC): {report.frames} frames x "
+            f"{report.joints} joints every "
+            f"{report.period_ms} ms, {how}."
+        )
     if report.attempts > 1:
         click.echo(f"(took {report.attempts} attempts: see the messages above)")
     if not report.roster_before:

@@ -208,7 +208,8 @@ def play(
 ) -> dict[str, Any]:
     """Play the active table from its first frame. ``loop``: None keeps the table's own
     setting. ``speed``: factor on the table's time; ``steer``: radians added to every
-    joint (negated for reversed joints)."""
+    joint (negated for reversed joints). An active program (protocol/program.md) is run
+    with PROGRAM_RUN instead; loop, speed and steering do not apply to it."""
     values = {
         "Speed Scale": speed_scale(ctl, speed),
         "Steering Offset": steering_offset(ctl, steer),
@@ -221,6 +222,9 @@ def play(
             "the controller has no gait table to play: generate one with `snakebot gait ...` "
             "and upload it with `snakebot upload GAIT --port ...`"
         )
+    if is_program(before):
+        # a short program may be over before the state is read back: IDLE is fine then
+        return {**_start(ctl, before, "PROGRAM_RUN", "PLAYING", finished_ok=0.0), "program": True}
     values["Loop"] = (before["Table Flags"] & 1) if loop is None else int(loop)
     ctl.write(values)
     once_s = None
@@ -229,6 +233,12 @@ def play(
         speed = ctl.table.register("Speed Scale").to_units(values["Speed Scale"], SPEED)
         once_s = (before["Table Frames"] - 1) * period_s / speed
     return _start(ctl, before, "PLAY", "PLAYING", finished_ok=once_s)
+
+
+def is_program(regs: dict[str, int]) -> bool:
+    """Whether the active table registers describe a program: a table always has frames,
+    a program shows Table Frames 0 (protocol/controller.md, "Uploading a program")."""
+    return regs["Table Size"] > 0 and regs["Table Frames"] == 0
 
 
 def roster_from_robot(robot: Robot) -> list[RosterEntry]:

@@ -35,6 +35,7 @@ from snakebot.controller.settings import resolve_upload_retries, resolve_upload_
 from snakebot.controller.transfer import StreamResult, stream_writes
 from snakebot.controller.upload import LONG_CHUNK_PAGE, chunk_limit, chunk_writes, commit_write
 from snakebot.gaittable import GaitTable
+from snakebot.program import Program
 from snakebot.transport.timing import BITS_PER_BYTE
 
 VERIFY_REGISTERS = (
@@ -125,7 +126,7 @@ class UploadReport:
 
 
 def check_fits(
-    ctl: ControllerClient, table: GaitTable, size: int, capacity: int | None = None
+    ctl: ControllerClient, table: GaitTable | Program, size: int, capacity: int | None = None
 ) -> None:
     """ControllerError unless the controller can take ``table``: its control table (Upload
     Length's range, the largest board's) and, when given, the ``capacity`` it reports
@@ -147,7 +148,9 @@ def check_fits(
         )
 
 
-def check_servos(table: GaitTable, roster: list[JointRecord], allow_new: bool) -> list[int]:
+def check_servos(
+    table: GaitTable | Program, roster: list[JointRecord], allow_new: bool
+) -> list[int]:
     """The table's servo IDs that the controller's roster does not list; UploadError if
     there are any and ``allow_new`` is False. An empty roster knows no servos: anything
     goes (the commit makes the table's servos the roster)."""
@@ -190,7 +193,7 @@ def _old_table_words(after: dict[str, int] | None, before: dict[str, int]) -> st
 
 def upload_gait(
     ctl: ControllerClient,
-    table: GaitTable,
+    table: GaitTable | Program,
     *,
     retries: int | None = None,
     window: int | None = None,
@@ -198,7 +201,8 @@ def upload_gait(
     on_progress: ProgressCallback | None = None,
     on_retry: RetryCallback | None = None,
 ) -> UploadReport:
-    """Upload ``table`` to the controller and make it the active table (see the module)."""
+    """Upload ``table`` to the controller and make it the active table (see the module);
+    a Program is committed as PROGRAM and takes the table's place."""
     start = time.monotonic()  # the whole command: checks, transfer, verification
     retries = resolve_upload_retries(retries)
     window = resolve_upload_window(window)
@@ -215,7 +219,8 @@ def upload_gait(
     size = chunk_size(ctl)
     chunks = chunk_writes(data, size, ctl.table, long_chunks=True)
     acked_bytes = [min(len(data), k * size) for k in range(len(chunks) + 1)]
-    commit_address, commit_payload = commit_write(data, ctl.table)
+    what = "PROGRAM" if isinstance(table, Program) else "TABLE"
+    commit_address, commit_payload = commit_write(data, ctl.table, what=what)
     packets = [protocol.write(ctl.id, address, payload) for address, payload in chunks]
     packets.append(protocol.write(ctl.id, commit_address, commit_payload))
 

@@ -5,6 +5,7 @@ sentences (what happened, and what to do) are written here once."""
 from __future__ import annotations
 
 from snakebot.controller.table import Controller, load
+from snakebot.program.errors import RESULTS as PROGRAM_RESULTS
 from snakebot.protocol import ErrorFlags
 
 FLAG_MEANINGS: dict[str, str] = {
@@ -18,6 +19,8 @@ FLAG_MEANINGS: dict[str, str] = {
     "LINK_LOSS": "the PC link went quiet for longer than Link Timeout while moving",
     "REFUSED": "a command could not run (no table, empty roster, the safe state, or the "
     "servos do not yet hold the robot's limits)",
+    "PROGRAM": "the last uploaded program was refused: a joint, frame or segment outside "
+    "what the controller can play (Upload Result says which)",
     "LIMITS": "a servo would not take the robot's limits as its CW/CCW Angle Limit (or did "
     "not answer while they were checked)",
     "LIBRARY": "a gait-library operation failed (Library Result on the Library page says why)",
@@ -68,6 +71,7 @@ UPLOAD_RESULTS: dict[str, tuple[str, str]] = {
     ),
     "NONE": ("no table has been committed since the controller started", ""),
 }
+UPLOAD_RESULTS.update({f"PROGRAM_{name}": text for name, text in PROGRAM_RESULTS.items()})
 
 LAYOUT_FIX = (
     "the file passed snakebot's own checks, so the firmware and this snakebot disagree: "

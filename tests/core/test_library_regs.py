@@ -12,6 +12,7 @@ import pytest
 from ctl_support import CTL, CTL_ID, Device, lib_value
 from hypothesis import given
 from hypothesis import strategies as st
+from test_program_controller import program
 
 from snakebot.controller import ControllerErrors
 from snakebot.core import ffi, lib
@@ -178,15 +179,21 @@ def test_a_bad_store_is_refused_and_stores_nothing(name, blob, kind, expected):
     assert c.get("Library Result") == result(expected)
 
 
-def test_a_program_blob_is_stored_unchecked_but_not_played():
+def test_a_program_is_checked_as_its_commit_checks_it_and_plays_from_its_slot():
     store = PyStore()
     c = Lib(store)
-    assert c.store_blob(1, b"prog", b"\x01\x02\x03", kind=3) == OK
-    assert store.slots[1][0] == 3
+    kind = lib_value("Upload Commit", "PROGRAM")
+    assert c.store_blob(1, b"junk", b"\x01\x02\x03", kind=kind) == result("PROGRAM_TRUNCATED")
+    assert 1 not in store.slots
+    blob = program().encode()
+    assert c.store_blob(1, b"plan", blob, kind=kind) == OK
+    assert store.slots[1] == (kind, b"plan", blob)
     assert c.dev.set("Library Slot", 1) == 0
     assert c.dev.command("LIBRARY_PLAY") == 0
-    assert c.get("Library Result") == result("LIBRARY_NOT_PLAYABLE")
-    assert c.dev.flags & ControllerErrors.REFUSED
+    assert c.get("Library Result") == OK and not c.dev.flags & ControllerErrors.REFUSED
+    assert c.dev.state == lib.CTL_STATE_PLAYING, hex(c.dev.flags)
+    assert c.dev.set("Window Page", CTL.page("Program").number) == 0
+    assert c.get("Program State") == lib_value("Program State", "RUNNING")
 
 
 def test_library_play_makes_the_slot_active_without_persisting_it_and_plays():
@@ -252,8 +259,8 @@ def test_any_write_to_the_page_leaves_it_consistent(data, start_offset):
 def test_a_slot_reads_back_through_the_slot_data_window():
     store = PyStore()
     c = Lib(store)
-    blob = bytes(range(256)) * 3 + b"tail"
-    assert c.store_blob(4, b"prog", blob, kind=3) == OK
+    blob = table(frames=150)  # several windows' worth
+    assert c.store_blob(4, b"long", blob) == OK
     window = CTL.register("Slot Data")
     got = b""
     for at in range(0, len(blob) + window.size, window.size):

@@ -18,7 +18,10 @@ def limits() -> None:
     Once set, the controller makes every servo's CW/CCW Angle Limit equal to the
     robot's limits (writing a servo's EEPROM only where it differs), so a servo refuses
     a goal outside them even if the bus damages a packet; it refuses gait tables that
-    reach beyond them, and it will not play until every servo holds them.
+    reach beyond them, and it will not play until every servo holds them. A robot file
+    may also set one torque limit for all servos (`[limits] torque = "60%"`, of stall
+    torque): the controller holds every servo's Torque Limit to it, and writes it again
+    after a servo's power cycle resets it.
 
     \b
         snakebot limits set snake5 --port /dev/ttyUSB0
@@ -36,10 +39,10 @@ def set_command(robot: str, port: str, baud: int, controller_id: int, as_json: b
     Stops any motion. Tables generated from another robot file (wider limits, or other
     servo IDs) are refused afterwards: regenerate them with `snakebot gait` from ROBOT.
     """
-    wanted = robot_limits(load_robot(robot))  # a bad robot file fails before the port opens
+    model = load_robot(robot)  # a bad robot file fails before the port opens
     with open_controller(port, baud, controller_id) as ctl:
         ctl.identify()
-        report = set_limits(ctl, wanted)
+        report = set_limits(ctl, robot_limits(model), torque=model.torque_limit)
     click.echo(dumps(report.as_dict()) if as_json else report.summary())
 
 

@@ -31,6 +31,7 @@ from snakebot.controller.upload import chunk_writes, commit_write
 from snakebot.gaittable import GaitTable
 from snakebot.protocol import read, status, write
 from snakebot.robots import load_robot
+from snakebot.robots.model import TORQUE_LIMIT
 from snakebot.sim.faults import FaultConfig
 from snakebot.sim.options import SimOptions
 from snakebot.sim.qemu import Endpoint, QemuFirmware
@@ -114,6 +115,46 @@ def test_servos_take_the_robot_limits_written_only_where_they_differ(rig):
     assert held(rig) == list(LIMITS)
     assert writes(rig) == [0, 2, 2]
     assert settled(rig) == "VERIFIED"
+
+
+def torques(rig: Rig) -> list[int]:
+    with rig.server.lock:
+        return [s.regs.get("Torque Limit") for s in rig.servos]
+
+
+def test_servos_take_the_robot_torque_limit_and_get_it_back_after_a_power_cycle(rig):
+    torque = TORQUE_LIMIT.from_units(60.0)  # 60 % of stall torque
+    full = TORQUE_LIMIT.value_range()[1]
+    with rig.server.lock:
+        rig.servos[0].set_register("Torque Limit", torque)  # servo 1 holds it already
+    assert torques(rig) == [torque, full, full]
+
+    report = set_limits(rig.ctl, ROBOT, torque=torque)
+
+    assert (report.state, report.count, report.torque_limit) == ("VERIFIED", 3, torque)
+    assert torques(rig) == [torque] * 3
+    assert held(rig) == list(LIMITS)
+    # while it plays, a servo that lost power (Torque Limit back to Max Torque) is found
+    # by the audit and written again; its angle limits (EEPROM) were kept: not rewritten
+    assert rig.upload(gait_table()) == UploadResult.OK
+    assert settled(rig) == "VERIFIED"
+    rig.command(Command.PLAY)
+    assert rig.ctl.read("State")["State"] == State.PLAYING
+    eeprom_writes = writes(rig)
+    with rig.server.lock:
+        servo = rig.servos[2]
+        servo.power_off(servo.t)
+        servo.power_on(servo.t)
+    assert torques(rig)[2] == full
+    deadline = time.monotonic() + 20
+    while torques(rig) != [torque] * 3 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert torques(rig) == [torque] * 3
+    assert writes(rig) == eeprom_writes
+    assert settled(rig) == "VERIFIED"
+    # limits set again without a torque limit leave the servos' Torque Limit alone
+    assert set_limits(rig.ctl, ROBOT).torque_limit is None
+    assert torques(rig) == [torque] * 3
 
 
 def test_a_table_wider_than_the_robot_limits_is_refused(rig):

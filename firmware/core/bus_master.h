@@ -65,7 +65,8 @@
 #define BUS_LIMIT_TRIES 16
 #define BUS_LIMIT_SILENT 48
 #define BUS_LIMIT_AUDIT_TICKS 25
-/* No robot-wide Torque Limit: the servos' own is left alone. */
+/* No robot-wide Torque Limit: the servos' own is left alone (what the Limits page's
+ * Robot Torque Limit shows then). */
 #define BUS_TORQUE_LIMIT_NONE 0xFFFF
 
 /* What bus_next() produced. */

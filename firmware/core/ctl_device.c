@@ -596,6 +596,9 @@ static const field *page_field_at(uint8_t page, uint8_t offset)
 static uint32_t page_value(const ctl_device *d, uint8_t page, uint8_t addr)
 {
     if (page == CTL_PAGE_LIBRARY) return lib_page_value(&d->lib, NULL, addr);
+    if (page == CTL_PAGE_LIMITS && addr == CTL_ROBOT_TORQUE_LIMIT) {
+        return bus_torque_limit(&d->bus);
+    }
     if (page == CTL_PAGE_PROGRAM) {
         switch (addr) {
         case CTL_TABLE_CAPACITY: return d->capacity;

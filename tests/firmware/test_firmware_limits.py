@@ -230,7 +230,12 @@ def test_limits_set_from_the_robot_file_then_a_wider_table_is_refused(tmp_path):
     ):
         port = fw.ports.pc_link
         wait_for_boot(port)
-        assert cli_json("limits", "show", "--port", port, env=ENV) == {"state": "NONE", "count": 0}
+        assert cli_json("limits", "show", "--port", port, env=ENV) == {
+            "state": "NONE",
+            "count": 0,
+            "torque_limit": None,
+            "torque_limit_percent": None,
+        }
         report = cli_json("limits", "set", "snake5", "--port", port, env=ENV)
         assert (report["state"], report["count"]) == ("VERIFIED", len(wanted))
         with server.lock:
@@ -240,7 +245,12 @@ def test_limits_set_from_the_robot_file_then_a_wider_table_is_refused(tmp_path):
             ]
         assert held == wanted
         shown = cli_json("limits", "show", "--port", port, env=ENV)
-        assert shown == {"state": "VERIFIED", "count": len(wanted)}
+        assert shown == {
+            "state": "VERIFIED",
+            "count": len(wanted),
+            "torque_limit": None,
+            "torque_limit_percent": None,
+        }
 
         # +-145 degrees (24..1000) on the same servos, goals out to 896 and 198
         wave = wave_table(robot.servo_ids)

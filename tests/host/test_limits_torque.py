@@ -12,12 +12,15 @@ from pathlib import Path
 import pytest
 from controller_cli_support import cli, cli_json
 
+from snakebot.controller import load
+from snakebot.core import lib
 from snakebot.robots import RobotError, load_robot, parse_robot
 from snakebot.robots.model import TORQUE_LIMIT
 from snakebot.sim.controller_pty import ControllerPty
 
 pytestmark = pytest.mark.timeout(120)
 
+CTL = load()
 SNAKE5 = resources.files("snakebot.robots").joinpath("snake5.toml").read_text()
 
 
@@ -88,11 +91,20 @@ def test_limits_set_sends_the_torque_limit_and_the_servos_hold_it(tmp_path):
     with ControllerPty(robot="snake5") as server:
         assert server.bus is not None
         assert torque_held(server, robot.servo_ids) == [TORQUE_LIMIT.default] * robot.n_joints
+        shown = cli_json("limits", "show", "--port", server.device)
+        assert (shown["count"], shown["torque_limit"], shown["torque_limit_percent"]) == (
+            0,
+            None,
+            None,
+        )
         report = cli_json("limits", "set", robot_file(tmp_path, '"60%"'), "--port", server.device)
         assert (report["state"], report["count"]) == ("VERIFIED", robot.n_joints)
         assert report["torque_limit"] == raw
         assert report["torque_limit_percent"] == pytest.approx(60.0, abs=0.1)
         assert torque_held(server, robot.servo_ids) == [raw] * robot.n_joints
+        shown = cli_json("limits", "show", "--port", server.device)
+        assert (shown["state"], shown["torque_limit"]) == ("VERIFIED", raw)
+        assert shown["torque_limit_percent"] == pytest.approx(60.0, abs=0.1)
 
         # a servo's power cycle sets its Torque Limit back to Max Torque: the controller's
         # audit finds it and writes it again, with no help from the host
@@ -111,3 +123,15 @@ def test_limits_set_sends_the_torque_limit_and_the_servos_hold_it(tmp_path):
         assert text.exit_code == 0, text.output
         assert "torque limit 60% of stall torque" in text.stdout
         assert "angle and torque limits are VERIFIED" in text.stdout
+
+        shown = cli("limits", "show", "--port", server.device)
+        assert "torque limit 60% of stall torque" in shown.stdout
+        assert "angle and torque limits are VERIFIED" in shown.stdout
+
+
+def test_none_on_the_limits_page_is_the_firmware_none():
+    """The Limits page's Robot Torque Limit says "none" with the value the bus master
+    uses for none, which no servo takes as a Torque Limit."""
+    none = CTL.register("Robot Torque Limit").default
+    assert none == lib.BUS_TORQUE_LIMIT_NONE
+    assert not TORQUE_LIMIT.accepts(none)

@@ -82,9 +82,7 @@ class LimitsReport:
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
         d["limits"] = {str(k): list(v) for k, v in self.limits.items()}
-        d["torque_limit_percent"] = (
-            None if self.torque_limit is None else TORQUE_LIMIT.to_units(self.torque_limit)
-        )
+        d.update(torque_fields(self.torque_limit))
         return d
 
     def summary(self) -> str:
@@ -108,6 +106,19 @@ def limits_state(ctl: ControllerClient) -> tuple[str, int]:
     """(Limits State by name, Limits Count)."""
     r = ctl.read("Limits Count", "Limits State")
     return _state_name(ctl, r["Limits State"]), r["Limits Count"]
+
+
+def robot_torque_limit(ctl: ControllerClient) -> int | None:
+    """The raw Torque Limit the controller holds its servos to (Limits page), or None."""
+    register = ctl.table.register("Robot Torque Limit")
+    value = ctl.read(register.name)[register.name]
+    return None if value == register.default else value
+
+
+def torque_fields(torque: int | None) -> dict[str, Any]:
+    """The torque limit for --json: raw, and in the servo's unit (% of stall torque)."""
+    percent = None if torque is None else TORQUE_LIMIT.to_units(torque)
+    return {"torque_limit": torque, "torque_limit_percent": percent}
 
 
 def wait_settled(ctl: ControllerClient, timeout_s: float = VERIFY_TIMEOUT_S) -> tuple[str, int]:

@@ -272,7 +272,7 @@ static void check_state(void)
     /* the window only ever shows a servo page or a described one */
     uint8_t page = d->regs[CTL_WINDOW_PAGE];
     CHECK(page < CTL_SERVO_PAGES || page == CTL_PAGE_PROGRAM || page == CTL_PAGE_LIBRARY ||
-          page == CTL_PAGE_UPLOAD_DATA_2);
+          page == CTL_PAGE_UPLOAD_DATA_2 || page == CTL_PAGE_LIMITS);
     CHECK(d->refusal <= CTL_REFUSAL_REASON_SPEED);
     /* a serpenoid runs only within the limits (it never relies on clamping) */
     if (ctl_state(d) == CTL_STATE_SERPENOID) {

@@ -71,11 +71,15 @@ def fixed_point(device: Device) -> dict[str, tuple[int, str]]:
     low, high = position.range
     assert device.max_speed_rpm is not None, device.name
     max_speed = device.max_speed_rpm * conversion("rpm", "rad/s") * conversion("rad", "mrad")
+    torque = device.register("Torque Limit")
+    assert torque.min is not None and torque.max is not None
     return {
         "POSITION_MIN": (low, "lowest goal tick"),
         "POSITION_MAX": (high, "highest goal tick"),
         "POSITION_CENTRE": (position.centre, "tick of the middle of the range"),
         "SPEED_MAX": (speed.encoding.magnitude_mask, "largest joint-mode Moving Speed"),
+        "TORQUE_LIMIT_MIN": (torque.min, "lowest Torque Limit a servo takes"),
+        "TORQUE_LIMIT_MAX": (torque.max, "highest Torque Limit (the servo's full torque)"),
         "MAX_SPEED_MRAD_S": (
             round(max_speed),
             f"no-load joint speed ({device.max_speed_rpm:g} rpm) in mrad/s: the fastest a "

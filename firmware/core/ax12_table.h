@@ -84,6 +84,10 @@
 #define AX12_POSITION_CENTRE             512
 /* largest joint-mode Moving Speed */
 #define AX12_SPEED_MAX                   1023
+/* lowest Torque Limit a servo takes */
+#define AX12_TORQUE_LIMIT_MIN            0
+/* highest Torque Limit (the servo's full torque) */
+#define AX12_TORQUE_LIMIT_MAX            1023
 /* no-load joint speed (59 rpm) in mrad/s: the fastest a joint may be asked to move */
 #define AX12_MAX_SPEED_MRAD_S            6178
 /* position ticks per milliradian (195.379 ticks a radian), Q24 */

@@ -18,17 +18,40 @@ typedef char bus_reply_bytes_match[(BUS_REPLY_BYTES == BUS_TELEMETRY_LENGTH + 6)
 #define AWAIT_LIMITS 1u
 #define AWAIT_ACK 2u
 #define AWAIT_AUDIT 3u
+#define AWAIT_TORQUE 4u
+#define AWAIT_AUDIT_TORQUE 5u
 /* A status packet: FF FF ID LEN ERR, the data, CHK. */
 #define STATUS_OVERHEAD (BUS_REPLY_BYTES - BUS_TELEMETRY_LENGTH)
 #define LIMITS_BYTES (AX12_CW_ANGLE_LIMIT_SIZE + AX12_CCW_ANGLE_LIMIT_SIZE)
-/* Steps of the limits check of one servo. */
+/* Steps of the limits check of one servo: its angle limits, then its Torque Limit. */
 #define LIM_READ 0u
 #define LIM_WRITE 1u
 #define LIM_VERIFY 2u
+#define LIM_T_READ 3u
+#define LIM_T_WRITE 4u
+#define LIM_T_VERIFY 5u
 
 static uint8_t await_data_bytes(uint8_t kind)
 {
-    return kind == AWAIT_TELEMETRY ? BUS_TELEMETRY_LENGTH : kind == AWAIT_ACK ? 0u : LIMITS_BYTES;
+    if (kind == AWAIT_TELEMETRY) return BUS_TELEMETRY_LENGTH;
+    if (kind == AWAIT_ACK) return 0u;
+    if (kind == AWAIT_TORQUE || kind == AWAIT_AUDIT_TORQUE) return AX12_TORQUE_LIMIT_SIZE;
+    return LIMITS_BYTES;
+}
+
+static bool has_torque(const bus_master *b)
+{
+    return b->lim_torque != BUS_TORQUE_LIMIT_NONE;
+}
+
+static bool is_audit(uint8_t kind)
+{
+    return kind == AWAIT_AUDIT || kind == AWAIT_AUDIT_TORQUE;
+}
+
+static bool torque_phase(const bus_master *b)
+{
+    return b->lim_phase >= LIM_T_READ;
 }
 
 size_t bus_master_size(void)
@@ -42,6 +65,7 @@ void bus_init(bus_master *b)
     *b = zero;
     b->awaiting = NO_READ;
     b->step = STEP_DONE;
+    b->lim_torque = BUS_TORQUE_LIMIT_NONE;
 }
 
 void bus_set_roster(bus_master *b, const uint8_t *ids, uint8_t count)
@@ -150,33 +174,48 @@ static bool audit_turn(bus_master *b)
     return true;
 }
 
-static size_t audit_packet(bus_master *b, uint8_t *out, size_t cap, bus_txn *txn)
+/* A READ of servo slot k's angle limits (torque false) or Torque Limit, awaited as kind. */
+static size_t limits_read_packet(bus_master *b, uint8_t k, bool torque, uint8_t kind,
+                                 uint8_t *out, size_t cap, bus_txn *txn)
 {
-    uint8_t k = (uint8_t)(b->lim_audit_k % b->lim_count);
-    size_t n = dxl_read(out, cap, b->lim_id[k], AX12_CW_ANGLE_LIMIT, LIMITS_BYTES);
-    if (n > 0) await_reply(b, k, b->lim_id[k], AWAIT_AUDIT, txn);
+    uint8_t id = b->lim_id[k];
+    size_t n = torque ? dxl_read(out, cap, id, AX12_TORQUE_LIMIT, AX12_TORQUE_LIMIT_SIZE)
+                      : dxl_read(out, cap, id, AX12_CW_ANGLE_LIMIT, LIMITS_BYTES);
+    if (n > 0) await_reply(b, k, id, kind, txn);
     return n;
 }
 
-/* The next step of the limits check: READ the angle limits, or WRITE the robot's. */
+static size_t audit_packet(bus_master *b, uint8_t *out, size_t cap, bus_txn *txn)
+{
+    uint8_t k = (uint8_t)(b->lim_audit_k % b->lim_count);
+    bool torque = b->lim_audit_torque != 0;
+    return limits_read_packet(b, k, torque, torque ? AWAIT_AUDIT_TORQUE : AWAIT_AUDIT, out,
+                              cap, txn);
+}
+
+/* The next step of the limits check: READ the angle limits or Torque Limit, or WRITE the
+ * robot's. */
 static size_t limits_packet(bus_master *b, uint8_t *out, size_t cap, bus_txn *txn)
 {
     uint8_t k = b->lim_next;
     uint8_t id = b->lim_id[k];
-    if (b->lim_phase == LIM_WRITE) {
-        uint8_t data[LIMITS_BYTES] = {
-            (uint8_t)(b->lim_min[k] & 0xFFu), (uint8_t)(b->lim_min[k] >> 8),
-            (uint8_t)(b->lim_max[k] & 0xFFu), (uint8_t)(b->lim_max[k] >> 8)};
-        size_t n = dxl_write(out, cap, id, AX12_CW_ANGLE_LIMIT, data, LIMITS_BYTES);
+    bool torque = torque_phase(b);
+    if (b->lim_phase == LIM_WRITE || b->lim_phase == LIM_T_WRITE) {
+        uint16_t first = torque ? b->lim_torque : b->lim_min[k];
+        uint8_t data[LIMITS_BYTES] = {(uint8_t)(first & 0xFFu), (uint8_t)(first >> 8),
+                                      (uint8_t)(b->lim_max[k] & 0xFFu),
+                                      (uint8_t)(b->lim_max[k] >> 8)};
+        size_t n = torque ? dxl_write(out, cap, id, AX12_TORQUE_LIMIT, data,
+                                      AX12_TORQUE_LIMIT_SIZE)
+                          : dxl_write(out, cap, id, AX12_CW_ANGLE_LIMIT, data, LIMITS_BYTES);
         if (n > 0) {
-            b->lim_writes++;
+            if (!torque) b->lim_writes++; /* EEPROM writes; Torque Limit is RAM */
             await_reply(b, k, id, AWAIT_ACK, txn);
         }
         return n;
     }
-    size_t n = dxl_read(out, cap, id, AX12_CW_ANGLE_LIMIT, LIMITS_BYTES);
-    if (n > 0) await_reply(b, k, id, AWAIT_LIMITS, txn);
-    return n;
+    return limits_read_packet(b, k, torque, torque ? AWAIT_TORQUE : AWAIT_LIMITS, out, cap,
+                              txn);
 }
 
 size_t bus_next(bus_master *b, const uint8_t *ids, const uint16_t *goals,
@@ -225,19 +264,33 @@ static void limits_advance(bus_master *b, bool failed)
 }
 
 
-/* A READ of the angle limits came back with data[0..4). */
+/* Whether data (the reply to a READ of slot k's Torque Limit, or of its angle limits)
+ * holds the robot's. */
+static bool holds(const bus_master *b, uint8_t k, bool torque, const uint8_t *data)
+{
+    if (torque) return rd16(data) == b->lim_torque;
+    return rd16(data) == b->lim_min[k] && rd16(data + 2) == b->lim_max[k];
+}
+
+/* A READ of the angle limits (data[0..4)) or Torque Limit (data[0..2)) came back. */
 static void limits_read(bus_master *b, const uint8_t *data)
 {
-    uint8_t k = b->lim_next;
+    bool torque = torque_phase(b);
+    uint8_t first = torque ? LIM_T_READ : LIM_READ;
     b->lim_silent = 0;
-    if (rd16(data) == b->lim_min[k] && rd16(data + 2) == b->lim_max[k]) {
-        limits_advance(b, false);
-    } else if (b->lim_phase == LIM_READ) {
-        b->lim_phase = LIM_WRITE; /* differs: write once, then read back */
+    if (holds(b, b->lim_next, torque, data)) {
+        if (torque || !has_torque(b)) {
+            limits_advance(b, false);
+        } else {
+            b->lim_phase = LIM_T_READ; /* angle limits verified: now its Torque Limit */
+            b->lim_tries = 0;
+        }
+    } else if (b->lim_phase == first) {
+        b->lim_phase = first + 1u; /* differs: write once, then read back */
     } else if (++b->lim_tries >= BUS_LIMIT_TRIES) {
         limits_advance(b, true); /* written again and again, never taken */
     } else {
-        b->lim_phase = LIM_WRITE;
+        b->lim_phase = first + 1u;
     }
 }
 
@@ -246,7 +299,8 @@ static void limits_done(bus_master *b, const uint8_t *data)
 {
     if (b->awaiting != b->lim_next || !limits_pending(b)) return; /* the check restarted */
     if (b->awaiting_kind == AWAIT_ACK) {
-        b->lim_phase = LIM_VERIFY; /* the read back decides, acknowledged or not */
+        /* the read back decides, acknowledged or not */
+        b->lim_phase = torque_phase(b) ? LIM_T_VERIFY : LIM_VERIFY;
     } else if (data != NULL) {
         limits_read(b, data);
     } else if (++b->lim_silent >= BUS_LIMIT_SILENT) {
@@ -254,18 +308,21 @@ static void limits_done(bus_master *b, const uint8_t *data)
     }
 }
 
-/* An audit READ came back with data[0..4): on to the next servo, or, if this one's
- * angle limits changed, check it (and those after it) again. */
+/* An audit READ came back with data: on to this servo's Torque Limit or the next servo,
+ * or, if what it read changed, check it (and the servos after it) again. */
 static void audit_done(bus_master *b, const uint8_t *data)
 {
     uint8_t k = b->awaiting;
+    bool torque = b->awaiting_kind == AWAIT_AUDIT_TORQUE;
     if (k >= b->lim_count || limits_pending(b) || b->lim_id[k] != b->awaiting_id) return;
-    if (rd16(data) == b->lim_min[k] && rd16(data + 2) == b->lim_max[k]) {
-        b->lim_audit_k = (uint8_t)((k + 1u) % b->lim_count);
+    b->lim_audit_torque = 0;
+    if (holds(b, k, torque, data)) {
+        if (!torque && has_torque(b)) b->lim_audit_torque = 1;
+        else b->lim_audit_k = (uint8_t)((k + 1u) % b->lim_count);
         return;
     }
     b->lim_next = k;
-    b->lim_phase = LIM_WRITE;
+    b->lim_phase = torque ? LIM_T_WRITE : LIM_WRITE;
     b->lim_tries = 0;
     b->lim_silent = 0;
 }
@@ -274,7 +331,7 @@ static void take_reply(bus_master *b, const uint8_t *packet)
 {
     if (b->awaiting_kind != AWAIT_TELEMETRY) {
         b->taken = 1;
-        if (b->awaiting_kind == AWAIT_AUDIT) audit_done(b, packet + 5);
+        if (is_audit(b->awaiting_kind)) audit_done(b, packet + 5);
         else limits_done(b, packet + 5);
         return;
     }
@@ -332,7 +389,7 @@ void bus_rx_done(bus_master *b)
     if (b->awaiting == NO_READ) return;
     if (b->awaiting_kind != AWAIT_TELEMETRY) {
         /* an unanswered audit READ is asked again at the next audit */
-        if (!b->taken && b->awaiting_kind != AWAIT_AUDIT) limits_done(b, NULL);
+        if (!b->taken && !is_audit(b->awaiting_kind)) limits_done(b, NULL);
     } else if (!b->taken) {
         bus_servo *s = &b->servo[b->awaiting];
         if (s->timeout_count < 0xFFu) s->timeout_count++;
@@ -362,7 +419,19 @@ void bus_set_limits(bus_master *b, const uint8_t *ids, const uint16_t *mins,
         b->lim_max[k] = maxs[k];
     }
     b->lim_count = count;
+    b->lim_torque = BUS_TORQUE_LIMIT_NONE;
     bus_recheck_limits(b);
+}
+
+void bus_set_torque_limit(bus_master *b, uint16_t torque)
+{
+    b->lim_torque = torque;
+    bus_recheck_limits(b);
+}
+
+uint16_t bus_torque_limit(const bus_master *b)
+{
+    return b->lim_torque;
 }
 
 void bus_recheck_limits(bus_master *b)
@@ -377,6 +446,7 @@ void bus_recheck_limits(bus_master *b)
     b->lim_tries = 0;
     b->lim_silent = 0;
     b->lim_failed = 0;
+    b->lim_audit_torque = 0;
 }
 
 uint8_t bus_limits_state(const bus_master *b)

@@ -24,7 +24,13 @@
  * answer (BUS_LIMIT_SILENT reads), leaves the check FAILED. The check runs again after
  * every roster change; and once VERIFIED, every BUS_LIMIT_AUDIT_TICKS ticks one servo's
  * angle limits are read again (round robin), since a damaged packet could have changed
- * them: one found changed is checked (and written) again. */
+ * them: one found changed is checked (and written) again.
+ *
+ * A robot-wide Torque Limit (bus_set_torque_limit) is checked the same way, for each
+ * servo once its angle limits are verified: READ, WRITE only if it differs, READ back;
+ * and the audit reads it too (after the servo's angle limits). Torque Limit is RAM on an
+ * AX-12: a power cycle sets it back to Max Torque, an alarm shutdown to 0; the audit
+ * finds that and writes it again. */
 #ifndef SNAKEBOT_BUS_MASTER_H
 #define SNAKEBOT_BUS_MASTER_H
 
@@ -59,6 +65,9 @@
 #define BUS_LIMIT_TRIES 16
 #define BUS_LIMIT_SILENT 48
 #define BUS_LIMIT_AUDIT_TICKS 25
+/* No robot-wide Torque Limit: the servos' own is left alone (what the Limits page's
+ * Robot Torque Limit shows then). */
+#define BUS_TORQUE_LIMIT_NONE 0xFFFF
 
 /* What bus_next() produced. */
 typedef struct {
@@ -110,6 +119,10 @@ const bus_servo *bus_servo_at(const bus_master *b, uint8_t k);
  * starts the check of the servos' angle limits. */
 void bus_set_limits(bus_master *b, const uint8_t *ids, const uint16_t *mins,
                     const uint16_t *maxs, uint8_t count);
+/* The robot's Torque Limit for every covered servo (BUS_TORQUE_LIMIT_NONE = none; set
+ * after bus_set_limits, which forgets it); starts the check again. */
+void bus_set_torque_limit(bus_master *b, uint16_t torque);
+uint16_t bus_torque_limit(const bus_master *b);
 /* Run the check again from the first servo (e.g. after CLEAR). */
 void bus_recheck_limits(bus_master *b);
 /* CTL_LIMITS_STATE_* (the Limits State register), the servos the limits cover, and those of servo id (false: none). */
@@ -155,6 +168,8 @@ struct bus_master {
     uint8_t lim_audit_k;   /* the servo the next audit READ asks */
     uint8_t lim_audit_wait; /* ticks since the last audit READ */
     uint16_t lim_writes;
+    uint16_t lim_torque;      /* the robot's Torque Limit, or BUS_TORQUE_LIMIT_NONE */
+    uint8_t lim_audit_torque; /* the next audit READ asks Torque Limit */
 };
 
 #endif

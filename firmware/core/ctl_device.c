@@ -397,12 +397,25 @@ static uint16_t top_tick(void)
 }
 
 /* Robot limits as staged: a count N (1..18), then N records of servo ID, min tick, max
- * tick (u8, u16, u16); IDs distinct, min < max <= the top position tick. */
+ * tick (u8, u16, u16); IDs distinct, min < max <= the top position tick; then, if the
+ * blob is 2 bytes longer, the robot's Torque Limit (u16) within the servo's range. */
 static uint8_t apply_limits(ctl_device *d, const uint8_t *blob, size_t len)
 {
     uint8_t n = len > 0 ? blob[0] : 0u;
-    if (n == 0 || n > CTL_MAX_JOINTS || len != 1u + CTL_LIMITS_RECORD * n) {
+    size_t records = 1u + CTL_LIMITS_RECORD * n;
+    if (n == 0 || n > CTL_MAX_JOINTS ||
+        (len != records && len != records + CTL_LIMITS_TORQUE)) {
         return CTL_UPLOAD_RESULT_BAD_ROBOT_LIMITS;
+    }
+    uint16_t torque = BUS_TORQUE_LIMIT_NONE;
+    if (len > records) {
+        torque = (uint16_t)get_le(blob + records, CTL_LIMITS_TORQUE);
+        /* one unsigned comparison: below the minimum wraps above the span (and a
+         * minimum of 0 needs no comparison a compiler would call always false) */
+        if ((uint16_t)(torque - AX12_TORQUE_LIMIT_MIN) >
+            AX12_TORQUE_LIMIT_MAX - AX12_TORQUE_LIMIT_MIN) {
+            return CTL_UPLOAD_RESULT_BAD_ROBOT_LIMITS;
+        }
     }
     uint8_t ids[CTL_MAX_JOINTS];
     uint16_t mins[CTL_MAX_JOINTS], maxs[CTL_MAX_JOINTS];
@@ -420,6 +433,7 @@ static uint8_t apply_limits(ctl_device *d, const uint8_t *blob, size_t len)
     }
     stop_motion(d);
     bus_set_limits(&d->bus, ids, mins, maxs, n);
+    bus_set_torque_limit(&d->bus, torque);
     /* the serpenoid's clamps stay within the robot's limits */
     for (uint8_t k = 0; k < CTL_MAX_JOINTS; k++) {
         play_joint *j = &d->roster[k];
@@ -696,6 +710,9 @@ static const field *page_field_at(uint8_t page, uint8_t offset)
 static uint32_t page_value(const ctl_device *d, uint8_t page, uint8_t addr)
 {
     if (page == CTL_PAGE_LIBRARY) return lib_page_value(&d->lib, NULL, addr);
+    if (page == CTL_PAGE_LIMITS && addr == CTL_ROBOT_TORQUE_LIMIT) {
+        return bus_torque_limit(&d->bus);
+    }
     if (page == CTL_PAGE_PROGRAM) {
         switch (addr) {
         case CTL_TABLE_CAPACITY: return d->capacity;
@@ -1074,7 +1091,10 @@ bool ctl_load_limits(ctl_device *d, const uint8_t *blob, size_t len)
 size_t ctl_robot_limits(const ctl_device *d, uint8_t *out, size_t cap)
 {
     uint8_t n = bus_limits_count(&d->bus);
-    if (n == 0 || cap < 1u + CTL_LIMITS_RECORD * n) return 0;
+    uint16_t torque = bus_torque_limit(&d->bus);
+    size_t records = 1u + CTL_LIMITS_RECORD * n;
+    size_t len = records + (torque != BUS_TORQUE_LIMIT_NONE ? CTL_LIMITS_TORQUE : 0u);
+    if (n == 0 || cap < len) return 0;
     out[0] = n;
     for (uint8_t k = 0; k < n; k++) {
         uint8_t *r = out + 1 + CTL_LIMITS_RECORD * k;
@@ -1082,7 +1102,8 @@ size_t ctl_robot_limits(const ctl_device *d, uint8_t *out, size_t cap)
         put_le(r + 1, 2, d->bus.lim_min[k]);
         put_le(r + 3, 2, d->bus.lim_max[k]);
     }
-    return 1u + CTL_LIMITS_RECORD * n;
+    if (len > records) put_le(out + records, CTL_LIMITS_TORQUE, torque);
+    return len;
 }
 
 bool ctl_limits_changed(ctl_device *d)

@@ -99,9 +99,11 @@ const uint8_t *ctl_active_table(const ctl_device *d, size_t *len);
  * (the host build), answers FIRMWARE_UNAVAILABLE. */
 uint8_t ctl_firmware_check(uint32_t len, uint32_t crc);
 
-/* The robot's limits as staged: a count, then per servo its ID, min tick, max tick. */
+/* The robot's limits as staged: a count, then per servo its ID, min tick, max tick;
+ * then, optionally, the robot-wide Torque Limit (u16). */
 #define CTL_LIMITS_RECORD 5u
-#define CTL_LIMITS_BLOB_MAX (1u + CTL_LIMITS_RECORD * CTL_MAX_JOINTS)
+#define CTL_LIMITS_TORQUE AX12_TORQUE_LIMIT_SIZE
+#define CTL_LIMITS_BLOB_MAX (1u + CTL_LIMITS_RECORD * CTL_MAX_JOINTS + CTL_LIMITS_TORQUE)
 
 struct ctl_device {
     uint8_t regs[CTL_CONTROL_TABLE_BYTES]; /* the stored registers (windows excluded) */

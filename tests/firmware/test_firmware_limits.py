@@ -31,6 +31,7 @@ from snakebot.controller.upload import chunk_writes, commit_write
 from snakebot.gaittable import GaitTable
 from snakebot.protocol import read, status, write
 from snakebot.robots import load_robot
+from snakebot.robots.model import TORQUE_LIMIT
 from snakebot.sim.faults import FaultConfig
 from snakebot.sim.options import SimOptions
 from snakebot.sim.qemu import Endpoint, QemuFirmware
@@ -116,6 +117,46 @@ def test_servos_take_the_robot_limits_written_only_where_they_differ(rig):
     assert settled(rig) == "VERIFIED"
 
 
+def torques(rig: Rig) -> list[int]:
+    with rig.server.lock:
+        return [s.regs.get("Torque Limit") for s in rig.servos]
+
+
+def test_servos_take_the_robot_torque_limit_and_get_it_back_after_a_power_cycle(rig):
+    torque = TORQUE_LIMIT.from_units(60.0)  # 60 % of stall torque
+    full = TORQUE_LIMIT.value_range()[1]
+    with rig.server.lock:
+        rig.servos[0].set_register("Torque Limit", torque)  # servo 1 holds it already
+    assert torques(rig) == [torque, full, full]
+
+    report = set_limits(rig.ctl, ROBOT, torque=torque)
+
+    assert (report.state, report.count, report.torque_limit) == ("VERIFIED", 3, torque)
+    assert torques(rig) == [torque] * 3
+    assert held(rig) == list(LIMITS)
+    # while it plays, a servo that lost power (Torque Limit back to Max Torque) is found
+    # by the audit and written again; its angle limits (EEPROM) were kept: not rewritten
+    assert rig.upload(gait_table()) == UploadResult.OK
+    assert settled(rig) == "VERIFIED"
+    rig.command(Command.PLAY)
+    assert rig.ctl.read("State")["State"] == State.PLAYING
+    eeprom_writes = writes(rig)
+    with rig.server.lock:
+        servo = rig.servos[2]
+        servo.power_off(servo.t)
+        servo.power_on(servo.t)
+    assert torques(rig)[2] == full
+    deadline = time.monotonic() + 20
+    while torques(rig) != [torque] * 3 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert torques(rig) == [torque] * 3
+    assert writes(rig) == eeprom_writes
+    assert settled(rig) == "VERIFIED"
+    # limits set again without a torque limit leave the servos' Torque Limit alone
+    assert set_limits(rig.ctl, ROBOT).torque_limit is None
+    assert torques(rig) == [torque] * 3
+
+
 def test_a_table_wider_than_the_robot_limits_is_refused(rig):
     set_limits(rig.ctl, ROBOT)
     assert rig.upload(gait_table()) == UploadResult.OK
@@ -189,7 +230,12 @@ def test_limits_set_from_the_robot_file_then_a_wider_table_is_refused(tmp_path):
     ):
         port = fw.ports.pc_link
         wait_for_boot(port)
-        assert cli_json("limits", "show", "--port", port, env=ENV) == {"state": "NONE", "count": 0}
+        assert cli_json("limits", "show", "--port", port, env=ENV) == {
+            "state": "NONE",
+            "count": 0,
+            "torque_limit": None,
+            "torque_limit_percent": None,
+        }
         report = cli_json("limits", "set", "snake5", "--port", port, env=ENV)
         assert (report["state"], report["count"]) == ("VERIFIED", len(wanted))
         with server.lock:
@@ -199,7 +245,12 @@ def test_limits_set_from_the_robot_file_then_a_wider_table_is_refused(tmp_path):
             ]
         assert held == wanted
         shown = cli_json("limits", "show", "--port", port, env=ENV)
-        assert shown == {"state": "VERIFIED", "count": len(wanted)}
+        assert shown == {
+            "state": "VERIFIED",
+            "count": len(wanted),
+            "torque_limit": None,
+            "torque_limit_percent": None,
+        }
 
         # +-145 degrees (24..1000) on the same servos, goals out to 896 and 198
         wave = wave_table(robot.servo_ids)

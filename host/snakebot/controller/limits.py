@@ -8,8 +8,13 @@ every covered servo's CW/CCW Angle Limit equal to them (so the servo itself refu
 goal outside, whatever the bus does to the packet), refuses tables that reach beyond
 them, and refuses to move until the servos are known to hold them.
 
+A robot may also set one Torque Limit for all its servos (``[limits] torque`` in its
+file): the firmware holds every covered servo's Torque Limit to it the same way, and
+writes it again when a servo's power cycle resets it to Max Torque.
+
 They travel like a table: staged through Upload Data, then committed with Upload Commit
-LIMITS; the staged bytes are a count, then one record per servo.
+LIMITS; the staged bytes are a count, then one record per servo, then (if set) the
+Torque Limit.
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ from snakebot.controller.client import ControllerClient
 from snakebot.controller.errors import ControllerError
 from snakebot.controller.upload import chunk_writes, commit_write
 from snakebot.robots import Robot
+from snakebot.robots.model import TORQUE_LIMIT
 
 RECORD = struct.Struct("<BHH")
 """One servo's limits as staged: servo ID, min tick, max tick."""
@@ -45,11 +51,21 @@ def robot_limits(robot: Robot) -> dict[int, tuple[int, int]]:
     return dict(zip(robot.servo_ids, robot.tick_limits, strict=True))
 
 
-def encode_limits(limits: Limits) -> bytes:
-    """The staged form: the servo count, then a :data:`RECORD` per servo."""
-    return bytes([len(limits)]) + b"".join(
+def encode_limits(limits: Limits, torque: int | None = None) -> bytes:
+    """The staged form: the servo count, then a :data:`RECORD` per servo, then the raw
+    Torque Limit (the servo register's size, little-endian) when ``torque`` is given."""
+    blob = bytes([len(limits)]) + b"".join(
         RECORD.pack(sid, lo, hi) for sid, (lo, hi) in sorted(limits.items())
     )
+    return blob if torque is None else blob + torque.to_bytes(TORQUE_LIMIT.size, "little")
+
+
+def torque_text(torque: int | None) -> str:
+    """A raw Torque Limit in the servo's unit ("60% of stall torque (614)")."""
+    if torque is None:
+        return "none (the servos keep their own)"
+    unit = TORQUE_LIMIT.scale.unit if TORQUE_LIMIT.scale is not None else ""
+    return f"{TORQUE_LIMIT.to_units(torque):.3g}{unit} ({torque})"
 
 
 @dataclass
@@ -61,17 +77,21 @@ class LimitsReport:
     count: int
     seconds: float
     error_flags: list[str] = field(default_factory=list)
+    torque_limit: int | None = None  # raw Torque Limit; None: not set
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
         d["limits"] = {str(k): list(v) for k, v in self.limits.items()}
+        d.update(torque_fields(self.torque_limit))
         return d
 
     def summary(self) -> str:
         servos = ", ".join(f"{sid}: {lo}..{hi}" for sid, (lo, hi) in sorted(self.limits.items()))
+        held = "angle limits" if self.torque_limit is None else "angle and torque limits"
         return (
-            f"robot limits set for {self.count} servos ({servos}); the servos' angle limits "
-            f"are {self.state} after {self.seconds:.1f} s"
+            f"robot limits set for {self.count} servos ({servos}; torque limit "
+            f"{torque_text(self.torque_limit)}); the servos' {held} are {self.state} after "
+            f"{self.seconds:.1f} s"
         )
 
 
@@ -86,6 +106,19 @@ def limits_state(ctl: ControllerClient) -> tuple[str, int]:
     """(Limits State by name, Limits Count)."""
     r = ctl.read("Limits Count", "Limits State")
     return _state_name(ctl, r["Limits State"]), r["Limits Count"]
+
+
+def robot_torque_limit(ctl: ControllerClient) -> int | None:
+    """The raw Torque Limit the controller holds its servos to (Limits page), or None."""
+    register = ctl.table.register("Robot Torque Limit")
+    value = ctl.read(register.name)[register.name]
+    return None if value == register.default else value
+
+
+def torque_fields(torque: int | None) -> dict[str, Any]:
+    """The torque limit for --json: raw, and in the servo's unit (% of stall torque)."""
+    percent = None if torque is None else TORQUE_LIMIT.to_units(torque)
+    return {"torque_limit": torque, "torque_limit_percent": percent}
 
 
 def wait_settled(ctl: ControllerClient, timeout_s: float = VERIFY_TIMEOUT_S) -> tuple[str, int]:
@@ -112,13 +145,17 @@ def not_held(ctl: ControllerClient, state: str, timeout_s: float) -> str:
 
 
 def set_limits(
-    ctl: ControllerClient, limits: Limits, *, timeout_s: float = VERIFY_TIMEOUT_S
+    ctl: ControllerClient,
+    limits: Limits,
+    *,
+    torque: int | None = None,
+    timeout_s: float = VERIFY_TIMEOUT_S,
 ) -> LimitsReport:
-    """Make ``limits`` the controller's robot limits and wait until its servos hold them
-    (Limits State VERIFIED). Stops any motion. Raises :class:`LimitsError` with the
-    reason and the fix."""
+    """Make ``limits`` (and the robot-wide raw Torque Limit ``torque``, if given) the
+    controller's robot limits and wait until its servos hold them (Limits State
+    VERIFIED). Stops any motion. Raises :class:`LimitsError` with the reason and the fix."""
     t0 = time.monotonic()
-    blob = encode_limits(limits)
+    blob = encode_limits(limits, torque)
     for address, data in chunk_writes(blob, controller=ctl.table):
         ctl.write_block(address, data)
     ctl.write_block(*commit_write(blob, ctl.table, what="LIMITS"))
@@ -131,5 +168,10 @@ def set_limits(
     if state != "VERIFIED":
         raise LimitsError(not_held(ctl, state, timeout_s))
     return LimitsReport(
-        dict(limits), state, count, time.monotonic() - t0, words.flag_names(flags, ctl.table)
+        dict(limits),
+        state,
+        count,
+        time.monotonic() - t0,
+        words.flag_names(flags, ctl.table),
+        torque,
     )

@@ -13,6 +13,8 @@ Schema (see the built-in files beside this module for complete examples)::
     [physics]                     # optional; the physics world needs it: unit_m (> 0), and
                                   # link_mass_kg, wheel_radius_m, wheel_mass_kg, mu,
                                   # rolling_damping (PHYSICS_DEFAULTS when left out)
+    [limits]                      # optional: torque, the Torque Limit every servo is
+                                  # held to, in % of stall torque ("60%" or 60; above 0)
     [[joints]]                    # one per actuated joint, in order phi_1, phi_2, ...
     name, servo_id (0-253), zero_tick (0-1023), sign (1 or -1), min_deg, max_deg
 """
@@ -36,6 +38,7 @@ from snakebot.robots.model import (
     SERVO_MAX_RPM,
     TICK_MAX,
     TICK_MIN,
+    TORQUE_LIMIT,
     Joint,
     Physics,
     Robot,
@@ -66,12 +69,14 @@ SCHEMA: dict[str, Any] = {
     "friction": {"c_n", "c_t"},
     "servo": {"model", "max_speed_rpm"},
     "physics": {"unit_m", *PHYSICS_DEFAULTS},
+    "limits": {"torque"},
     "joints": [{"name", "servo_id", "zero_tick", "sign", "min_deg", "max_deg"}],
 }
 """The keys a robot file may have: None for a value, a set for a table's keys, a list
 holding that set for an array of tables. A key not here is refused with a "did you mean"
 (a misspelt optional key would otherwise be silently ignored)."""
 
+_PERCENT = re.compile(r"^\s*([0-9]+(?:\.[0-9]*)?|\.[0-9]+)\s*%\s*$")
 _ARRAY_HEADER = re.compile(r"^\s*\[\[\s*([A-Za-z0-9_.\-]+)\s*\]\]")
 _TABLE_HEADER = re.compile(r"^\s*\[\s*([A-Za-z0-9_.\-]+)\s*\]")
 _KEY_LINE = re.compile(r'^\s*"?([A-Za-z0-9_\-]+)"?\s*=')
@@ -217,6 +222,29 @@ def _joint(reader: _Reader, index: int) -> Joint:
     return joint
 
 
+def _torque_limit(reader: _Reader) -> int | None:
+    """``[limits] torque`` as a raw Torque Limit (None when not given): a percentage of
+    stall torque, written "60%" or 60, above 0 (a servo held to 0 cannot move)."""
+    path = ("limits", "torque")
+    value = reader.get(path, (str, float), None)
+    if value is None:
+        return None
+    unit = TORQUE_LIMIT.scale.unit if TORQUE_LIMIT.scale is not None else "%"
+    if isinstance(value, str):
+        match = _PERCENT.match(value)
+        if match is None:
+            raise reader.fail(path, f'must be a percentage such as "60%", not {_brief(value)}')
+        value = float(match.group(1))
+    if not math.isfinite(value):
+        raise reader.fail(path, f"must be a finite percentage, not {value}")
+    raw = TORQUE_LIMIT.from_units(value)
+    low, high = TORQUE_LIMIT.value_range()
+    top = TORQUE_LIMIT.to_units(high)
+    if raw <= low or raw > high:
+        raise reader.fail(path, f"must be above 0 and at most {top:g}{unit}, not {value:g}%")
+    return raw
+
+
 def _physics(reader: _Reader) -> Physics | None:
     if "physics" not in reader.data:
         return None
@@ -274,6 +302,7 @@ def parse_robot(text: str, source: str = "<robot>") -> Robot:
         c_t=reader.number(("friction", "c_t"), 0.0, 0.0),
         description=reader.get(("description",), str, ""),
         physics=_physics(reader),
+        torque_limit=_torque_limit(reader),
         source=source,
     )
     if kind == "snake":

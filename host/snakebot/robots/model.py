@@ -14,6 +14,9 @@ _POSITION = devices.ax12().require_position()
 #: AX-12 position units, from its device description (the AX-12 family shares them).
 TICKS_PER_RAD = _POSITION.ticks_per_rad
 TICK_MIN, TICK_MAX = _POSITION.range
+#: The servo's Torque Limit register, whose range and unit a robot's torque limit takes
+#: (the firmware's range check is generated from the same description).
+TORQUE_LIMIT = devices.ax12().register("Torque Limit")
 
 #: No-load maximum joint speed per servo model (ROBOTIS e-Manual: AX-12A 59 rpm at 12 V,
 #: AX-12W 54 rpm in joint mode), from the device descriptions, which the firmware shares.
@@ -100,6 +103,7 @@ class Robot:
     c_t: float = 0.0
     description: str = ""
     physics: Physics | None = None  # None: the TOML has no [physics] table
+    torque_limit: int | None = None  # raw Torque Limit for every servo; None: leave theirs
     source: str = field(default="", compare=False)  # file it came from
 
     @property
@@ -122,6 +126,13 @@ class Robot:
     @property
     def tick_limits(self) -> tuple[tuple[int, int], ...]:
         return tuple(j.tick_range for j in self.joints)
+
+    @property
+    def torque_limit_percent(self) -> float | None:
+        """The robot-wide torque limit in the servo's unit (% of stall torque), if set."""
+        if self.torque_limit is None:
+            return None
+        return TORQUE_LIMIT.to_units(self.torque_limit)
 
     def angles_to_ticks(self, phi: np.ndarray) -> np.ndarray:
         """Joint angles (radians, last axis = joints) to AX-12 goal ticks (int64, rounded)."""

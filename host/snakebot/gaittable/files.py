@@ -207,6 +207,11 @@ def _motion(value: Any) -> bool:
     return _mapping(value) and all(_number(value.get(k)) for k in ("dx", "dy", "dtheta"))
 
 
+def _warnings(value: Any) -> bool:
+    """a list of objects each with a string message"""
+    return isinstance(value, list) and all(_mapping(w) and _text(w.get("message")) for w in value)
+
+
 def _path(value: Any) -> bool:
     """an object of equally long number lists x, y and theta"""
     if not _mapping(value) or not all(_numbers(value.get(k)) for k in ("x", "y", "theta")):
@@ -243,6 +248,8 @@ METADATA_SCHEMA: dict[str, Any] = {
     "table_path": _path,
     "joints": _joints,
     "state_names": _texts,
+    "warnings": _warnings,
+    "frame": _text,
     "final_q": _numbers,
     "moved_q": _numbers,
 }

@@ -66,9 +66,10 @@ PHYSICS_SEEDS = (31, 32, 33, 34, 35, 36)
 #: Where the closed loop is known not to get there (docs/goto.md has the figures).
 PHYSICS_MISSES = {
     **{
-        ("snake5", seed): "snake5's loops move it on MuJoCo nothing like the minimum-slip "
-        "model says (a loop played backwards still moves it forwards), so no correction of "
-        "the model's loops converges"
+        ("snake5", seed): "snake5 steers serpenoid cycles on MuJoCo (its loops move it "
+        "nothing like the minimum-slip model says), but a fractional cycle moves it by what "
+        "the learned car model does not predict well enough: it ends 9x..27x the tolerance "
+        "off (docs/goto.md)"
         for seed in PHYSICS_SEEDS
     },
 }
@@ -92,7 +93,8 @@ def test_closed_loop_on_physics_within_twice_the_tolerance(robot_name, seed):
     e = report["error"]
     assert e["position"] <= 2 * e["position_tolerance"], e
     assert abs(e["heading_rad"]) <= 2 * e["heading_tolerance_rad"], e
-    assert report["iterations"] == sum(s["kind"] == "loop" for s in report["segments"]) > 0
+    played = sum(s["kind"] in ("loop", "cycles") for s in report["segments"])
+    assert report["iterations"] == played > 0
 
 
 def test_unknown_world_physics_missing_is_one_line(tmp_path):

@@ -70,7 +70,9 @@ def goto(
     slips moves the body shorter or askew); loops go on until the move back would end
     within half the tolerance (five times the planned loops at most). The report gives
     the final error, the loops played (iterations) and the path; the exit status is 1
-    if the end is outside the tolerance. docs/goto.md has what it achieves on MuJoCo.
+    if the end is outside the tolerance. On a physics world an N-link snake (snake5)
+    steers serpenoid cycles with a steering offset instead of loops, their distance and
+    turn learned as they run. docs/goto.md has what it achieves on MuJoCo.
 
     \b
     Example:

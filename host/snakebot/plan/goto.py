@@ -23,7 +23,7 @@ from snakebot.gait.common import NEAR_SINGULAR_RCOND
 from snakebot.gait.common import path as sample_path
 from snakebot.gaittable import GaitTable
 from snakebot.kinematics import Trajectory
-from snakebot.plan import se2
+from snakebot.plan import se2, serpenoid_goto
 from snakebot.plan.learn import Response
 from snakebot.plan.loops import Loop, PlanError, path_motion
 from snakebot.plan.planner import (
@@ -68,6 +68,8 @@ LOOPS_FACTOR = 5
 #: speed its wheels slip 10 % short; measured on MuJoCo).
 PHYSICS_SLOWDOWN = 3
 MAX_SLOWDOWN = 20
+#: Segment kinds that are the closed loop's iterations (each planned from the pose read).
+ITERATIONS = ("loop", "cycles")
 #: Loops go on until leaving would end within this share of the tolerance (if they
 #: run out first, the end is still judged against the whole tolerance).
 STOP_SHARE = 0.5
@@ -132,7 +134,7 @@ class GotoResult:
             "target": pose_dict(self.target),
             "final": pose_dict(self.final),
             "error": self.tolerance.report(self.error),
-            "iterations": sum(1 for s in self.segments if s["kind"] == "loop"),
+            "iterations": sum(1 for s in self.segments if s["kind"] in ITERATIONS),
             "segments": self.segments,
             "duration_s": float(self.path.t[-1]) if len(self.path.t) else 0.0,
             "wall_s": self.wall_s,
@@ -197,15 +199,17 @@ def goto(
     phi0 = default_start(robot) if start is None else np.asarray(start, dtype=float)
     validate_start(robot, phi0)
     tol = Tolerance.for_target(robot, goal, tolerance, heading_tolerance)
+    waves = uses_serpenoid(robot, world)
     keep_off = NEAR_SINGULAR_RCOND if world == "kinematic" else PHYSICS_KEEP_OFF
-    route, keep_off = _route(robot, phi0, goal, tol, keep_off)
+    if not waves:
+        route, keep_off = _route(robot, phi0, goal, tol, keep_off)
     if slowdown is None:
         slowdown = 1 if world == "kinematic" else PHYSICS_SLOWDOWN
     if not (isinstance(slowdown, int) and 1 <= slowdown <= MAX_SLOWDOWN):
         raise PlanError(
             f"--slowdown must be a whole number from 1 to {MAX_SLOWDOWN}, not {slowdown}"
         )
-    period_ms = frame_period_ms(robot, route.frames()) * slowdown
+    period_ms = 0 if waves else frame_period_ms(robot, route.frames()) * slowdown
     client = DxlClient(sim_url(robot, ideal), echo=False)
     wall0 = time.perf_counter()
     segments: list[dict[str, Any]] = []
@@ -214,14 +218,25 @@ def goto(
         move_to_start(client, bus, robot, robot.angles_to_ticks(phi0))
         tick = TICK_MS / 1000.0
         w = make_world(world, bus, robot, 1.0 / world_hz, bus.now + tick)
-        runner = Runner(client, bus, robot, w, slowdown)
-        pose = _follow(runner, route, goal, tol, keep_off, period_ms, segments, progress)
+        if waves:
+            # the wave's frames are timed by its omega, within the servos' speed
+            runner = Runner(client, bus, robot, w, 1)
+            pose = serpenoid_goto.follow(runner, phi0, goal, tol, segments, progress)
+        else:
+            runner = Runner(client, bus, robot, w, slowdown)
+            pose = _follow(runner, route, goal, tol, keep_off, period_ms, segments, progress)
         w.stop()
         record = w.record()
     finally:
         client.close()
     path = Trajectory(record.t, record.q)
     return GotoResult(robot, world, goal, tol, pose, segments, path, time.perf_counter() - wall0)
+
+
+def uses_serpenoid(robot: Robot, world: str) -> bool:
+    """N-link snakes on a physics world steer serpenoid cycles (``serpenoid_goto``):
+    there their loops move the body nothing like the minimum-slip model says."""
+    return robot.kind == "snake" and robot.n_joints > 2 and world != "kinematic"
 
 
 def _route(

@@ -9,7 +9,7 @@ from types import FrameType
 import click
 
 from snakebot.cli.output import dumps
-from snakebot.cli.params import ANGLE
+from snakebot.cli.params import wave_options
 from snakebot.demo import DemoSettings, run_demo, summary_lines
 from snakebot.sim.physics.select import WORLDS
 
@@ -28,30 +28,7 @@ def _sigterm(signum: int, frame: FrameType | None) -> None:
     show_default=True,
     help="The snake to emulate: snake5, snake3 or a robot TOML file.",
 )
-@click.option(
-    "--amplitude",
-    "-A",
-    type=ANGLE,
-    default="30deg",
-    show_default=True,
-    help="Serpenoid amplitude (rad, or deg with 'deg').",
-)
-@click.option(
-    "--omega",
-    "-w",
-    type=ANGLE,
-    default="180deg",
-    show_default=True,
-    help="Serpenoid temporal frequency (rad/s, or deg/s with 'deg').",
-)
-@click.option(
-    "--delta",
-    "-d",
-    type=ANGLE,
-    default="90deg",
-    show_default=True,
-    help="Serpenoid phase step between joints (rad or deg).",
-)
+@wave_options
 @click.option(
     "--cycles",
     type=click.IntRange(1, 20),

@@ -17,7 +17,7 @@ import click
 
 from snakebot.cli.controller_link import controller_options, open_controller
 from snakebot.cli.output import dumps
-from snakebot.cli.params import ANGLE
+from snakebot.cli.params import wave_options
 from snakebot.controller import playback
 from snakebot.controller.drive import SPEED_STEP, STEER_STEP, Driver, Wait, parse_keys
 from snakebot.robots import load_robot
@@ -53,25 +53,7 @@ does, stopping the robot. Example:
     help="Set the controller's roster (servo IDs, directions, zero ticks, limits) from "
     "this robot first: snake3, snake5, trident or a .toml file.",
 )
-@click.option(
-    "--amplitude", "-A", type=ANGLE, default="30deg", show_default=True, help="Wave amplitude A."
-)
-@click.option(
-    "--omega",
-    "-w",
-    type=ANGLE,
-    default="180deg",
-    show_default=True,
-    help="Angular frequency omega (rad/s, or deg/s with a deg suffix).",
-)
-@click.option(
-    "--delta",
-    "-d",
-    type=ANGLE,
-    default="90deg",
-    show_default=True,
-    help="Phase step from one joint to the next.",
-)
+@wave_options
 @click.option(
     "--keys",
     help='Drive without a terminal: these keys, e.g. "LLRR U 2s space q" (left, right, up, '

@@ -74,6 +74,43 @@ class AngleListType(click.ParamType):
 ANGLE = AngleType()
 ANGLES = AngleListType()
 
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def wave_options(func: F) -> F:
+    """--amplitude, --omega and --delta of a serpenoid with the demo's wave as defaults,
+    for the commands that run one without a gait file (`demo`, `drive`)."""
+    for option in reversed(
+        (
+            click.option(
+                "--amplitude",
+                "-A",
+                type=ANGLE,
+                default="30deg",
+                show_default=True,
+                help="Serpenoid amplitude A (rad, or deg with 'deg').",
+            ),
+            click.option(
+                "--omega",
+                "-w",
+                type=ANGLE,
+                default="180deg",
+                show_default=True,
+                help="Serpenoid temporal frequency omega (rad/s, or deg/s with 'deg').",
+            ),
+            click.option(
+                "--delta",
+                "-d",
+                type=ANGLE,
+                default="90deg",
+                show_default=True,
+                help="Serpenoid phase step from one joint to the next (rad or deg).",
+            ),
+        )
+    ):
+        func = option(func)
+    return func
+
 
 class NumberType(click.ParamType):
     """A finite real number, optionally within ``low``..``high`` (open ends with

@@ -16,7 +16,8 @@ from snakebot.controller.client import ControllerClient
 from snakebot.controller.library import backup, delete_slot, read_slot, restore
 from snakebot.flash.library_backup import backup_library, restore_library
 
-pytestmark = pytest.mark.qemu
+# QEMU behind a pty: its replies come late when another worker loads the machine
+pytestmark = [pytest.mark.qemu, pytest.mark.serial]
 
 ENV = {"SNAKEBOT_MARGIN_MS": "300"}
 CTL = load()

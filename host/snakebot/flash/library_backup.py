@@ -40,10 +40,11 @@ def backup_dir() -> Path:
 
 
 def _answers(ctl: ControllerClient) -> bool:
-    """Whether a controller answers one quick PING (no retries: a silent board must not
-    delay flashing past the moment its user presses MODE or power-cycles the board)."""
+    """Whether a controller answers a PING, tried three times (a busy link may drop one;
+    a silent board costs only three reply timeouts, well before its user presses MODE or
+    power-cycles it)."""
     try:
-        ctl.link.ping(ctl.id, retries=0)
+        ctl.link.ping(ctl.id, retries=2)
     except (ProtocolError, OSError):
         return False
     return True

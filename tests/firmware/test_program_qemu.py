@@ -50,6 +50,7 @@ def _record_goals(robot: EmulatedRobot, ids: tuple[int, ...]) -> list[list[int]]
     write, one column per servo in ``ids``)."""
     rows: list[list[int]] = []
     with robot.lock:
+        robot.bus.tap()  # goals through the Python handlers wrapped here, not whole to C
         servos = [robot.servo(i) for i in ids]
         pending: dict[int, int] = {}
         for column, servo in enumerate(servos):

@@ -31,6 +31,7 @@ def _record_goals(robot: EmulatedRobot) -> dict[int, list[tuple[float, int]]]:
     """From now on, each servo's received Goal Positions with their bus times."""
     received: dict[int, list[tuple[float, int]]] = {}
     with robot.lock:
+        robot.bus.tap()  # goals through the Python handlers wrapped here, not whole to C
         for joint in robot.robot.joints:
             servo = robot.servo(joint.servo_id)
             log = received.setdefault(joint.servo_id, [])

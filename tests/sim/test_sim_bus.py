@@ -209,3 +209,24 @@ def test_a_packet_sent_before_an_id_change_lands_reaches_the_servo_by_its_new_id
     bus.run_until(bus.now + 0.01)
     events = PacketParser().feed(bus.master_read(1 << 16))
     assert [(e.id, len(e.params)) for e in events if isinstance(e, Packet)] == [(7, 0), (7, 2)]
+
+
+def test_a_tapped_bus_hands_every_packet_to_the_python_handlers(monkeypatch):
+    # whole goals SYNC_WRITEs and READs go to the C servos past the Python handlers; a
+    # test or tool that wraps those handlers calls tap() and then hears every one
+    for tapped in (False, True):
+        bus = make_bus(1, 2)
+        if tapped:
+            bus.tap()
+        heard = []
+        for s in bus.servos:
+            f = s.sync_write_block
+            monkeypatch.setattr(
+                s,
+                "sync_write_block",
+                lambda *a, s=s, f=f, heard=heard: (heard.append(s.id), f(*a))[1],
+            )
+        goals = {1: (400).to_bytes(2, "little"), 2: (600).to_bytes(2, "little")}
+        exchange(bus, P.sync_write(30, 2, goals))
+        assert [s.regs.get("Goal Position") for s in bus.servos] == [400, 600]
+        assert heard == ([1, 2] if tapped else [])

@@ -137,11 +137,14 @@ class _Group:
     index is rebuilt when IDs have changed since (``epoch``: the bus's count of link
     changes it was built at)."""
 
-    __slots__ = ("rx", "members", "by_id", "c_by_id", "epoch")
+    __slots__ = ("rx", "members", "by_id", "c_by_id", "epoch", "c_path")
 
-    def __init__(self, rx: _Receiver, members: list[VirtualServo], epoch: int) -> None:
+    def __init__(
+        self, rx: _Receiver, members: list[VirtualServo], epoch: int, c_path: bool = True
+    ) -> None:
         self.rx = rx
         self.members = members
+        self.c_path = c_path
         self.reindex(epoch)
 
     def reindex(self, epoch: int) -> None:
@@ -153,7 +156,7 @@ class _Group:
         # servo here is one and no two share an ID; None otherwise.
         self.c_by_id = None
         structs = [getattr(s, "c_struct", None) for s in self.members]
-        if None not in structs and len(self.by_id) == len(self.members):
+        if self.c_path and None not in structs and len(self.by_id) == len(self.members):
             self.c_by_id = ffi.new("sim_servo *[256]")
             for s, struct in zip(self.members, structs, strict=True):
                 self.c_by_id[s.id] = struct
@@ -259,6 +262,7 @@ class Bus:
         self._servo_tx_free: dict[int, float] = {}
         self._receivers: dict[float, _Receiver] = {}
         self._groups: list[_Group] | None = None
+        self._c_path = True  # whole packets to the C servos (tap() turns it off)
         self._link_epoch = 0  # link changes so far (_Group.epoch)
         self._by_id: dict[int, VirtualServo] | None = None  # the first servo with each ID
         self._indexed = 0  # how many servos the index was built from
@@ -287,6 +291,13 @@ class Bus:
         self._by_id = None
         return servo
 
+    def tap(self) -> None:
+        """From now on every packet goes through the servos' Python handlers
+        (``receive``, ``sync_write_block``), slower than handing whole packets to the C
+        servos, so that a test or a tool that wraps those handlers hears every one."""
+        self._c_path = False
+        self._groups = None
+
     def _link_changed(self, _servo: VirtualServo) -> None:
         # a servo changed baud rate or ID, or lost/regained power
         self._groups = None
@@ -305,7 +316,7 @@ class Bus:
                 rx = self._receivers.get(baud)
                 if rx is None:
                     rx = self._receivers[baud] = _Receiver(baud)
-                groups.append(_Group(rx, members, self._link_epoch))
+                groups.append(_Group(rx, members, self._link_epoch, self._c_path))
             self._groups = groups
         return self._groups
 

@@ -115,9 +115,10 @@ def test_drive_on_a_terminal(served):
         tmux.keys("Up")
         tmux.wait_for(lambda s: f"speed {1 + SPEED_STEP:.2f}x" in s, "the new speed")
         tmux.keys("Space")
-        stopped = tmux.wait_for(lambda s: "State IDLE" in s and "(stopped)" in s, "stopped")
-        held = joints(stopped)
-        time.sleep(0.6)  # stopped: the servos hold
+        tmux.wait_for(lambda s: "State IDLE" in s and "(stopped)" in s, "stopped")
+        time.sleep(0.5)  # the servos finish the way to their last goal...
+        held = joints(tmux.screen())
+        time.sleep(0.6)  # ...and then hold it
         assert joints(tmux.screen()) == held
         tmux.keys("Space")
         tmux.wait_for(lambda s: "State SERPENOID" in s and "(started)" in s, "started again")

@@ -569,10 +569,7 @@ static void library_play(ctl_device *d, uint8_t slot, uint32_t now_ms)
     uint32_t crc = 0;
     uint8_t result = lib_playable(&d->lib, slot, &blob, &len, &crc);
     if (result == CTL_UPLOAD_RESULT_OK && len > d->capacity) result = CTL_UPLOAD_RESULT_BAD_LENGTH;
-    /* a program starts with its magic (protocol/program.md), a table never does */
-    bool program = result == CTL_UPLOAD_RESULT_OK && len >= 4 &&
-                   ((uint32_t)blob[0] | (uint32_t)blob[1] << 8 | (uint32_t)blob[2] << 16 |
-                    (uint32_t)blob[3] << 24) == PROG_MAGIC;
+    bool program = result == CTL_UPLOAD_RESULT_OK && is_program(blob, len);
     if (result == CTL_UPLOAD_RESULT_OK && blob != d->active) {
         uint8_t pending = d->table_changed;
         result = load_active(d, blob, len, crc,

@@ -32,7 +32,7 @@ def c_ticks(program: Program) -> np.ndarray:
     lib.prog_start(cursor)
     out = []
     for _ in range(program.total_steps):
-        lib.prog_goals(blob, cursor, goals)
+        lib.prog_goals(blob, cursor, 0, goals)
         out.append(list(goals))
         lib.prog_advance(blob, cursor, 1)
     return np.array(out)

@@ -51,8 +51,11 @@ def test_program_plan_ends_at_the_target_on_ideal_servos(tmp_path: Path, robot: 
     )
     kinds = {s["kind"] for s in plan["segments"]}
     assert "periodic" in kinds  # the hold and the moves at least are on-board generators
-    if robot != "snake3":
-        assert kinds == {"periodic"}  # their loops too: one harmonic reaches the target
+    if robot == "snake5":  # serpenoid arcs at their offsets
+        assert kinds == {"periodic", "serpenoid"} and plan["loop_kind"] == "serpenoid"
+        assert len(plan["hubs_rad"]) == 2
+    if robot == "trident":  # the loops too: one harmonic reaches the target
+        assert kinds == {"periodic"}
 
     predicted = run("sim", "predict", str(out), "--ideal", "--json")
     assert predicted.exit_code == 0, predicted.output

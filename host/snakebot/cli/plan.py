@@ -134,13 +134,15 @@ def plan_command(
     to end within the tolerance.
 
     With -o FILE.prog the plan is a controller program instead (protocol/program.md):
-    the start held, the moves to and from the hub as offset rates, the loops as one
-    periodic-input block (one harmonic per joint, fitted to the target with the hub);
-    where no such loop reaches the target (the 3-link snake, often), the table plan's
-    loop is played as a table segment. The program's goals, as the controller rounds
-    them at every step, are integrated and must end within the tolerance; the loop is
-    corrected by the error a few times, and a program still outside is not written
-    (exit 1). --json reports its size in bytes.
+    the start held, the straight joint moves as offset rates; for N-link snakes two arcs
+    of serpenoid waves, each at its own offset (A, delta and the offsets fitted to the
+    target); for the trident and the 3-link snake the loops as one periodic-input block
+    (one harmonic per joint, fitted with its hub); where no such loop reaches the target
+    (the 3-link snake, often), the table plan's loop is played as a table segment. The
+    program's goals, as the controller rounds them at every step, are integrated and
+    must end within the tolerance; the route is fitted again to make up for the error a
+    few times, and a program still outside is not written (exit 1). --json reports its
+    size in bytes.
 
     When no plan inside the limits and the controller's table reaches the target, the
     command says so and exits with status 1; nothing is written.
@@ -210,11 +212,11 @@ def _write_program(plan: Any, output: Path, as_json: bool) -> None:
         click.echo(dumps(s, indent=2))
         return
     kinds = ", ".join(f"{seg['kind']} ({seg['steps']} steps)" for seg in s["segments"])
+    hubs = "; ".join(", ".join(f"{math.degrees(v):.1f}" for v in h) for h in s["hubs_rad"])
     click.echo(
-        f"program for {s['robot']}: {s['loops']} {s['loop_kind']} loops through hub "
-        f"({', '.join(f'{math.degrees(v):.1f}' for v in s['hub_rad'])}) deg, "
-        f"{s['program_bytes']} bytes, a step every {s['step_period_ms']} ms "
-        f"({s['duration_s']:.2f} s): {kinds}"
+        f"program for {s['robot']}: {s['loops']} {s['loop_kind']} loops through "
+        f"hub(s) ({hubs}) deg, {s['program_bytes']} bytes, a step every "
+        f"{s['step_period_ms']} ms ({s['duration_s']:.2f} s): {kinds}"
     )
     _print_pose(s, "the program's goals as the controller rounds them")
     click.echo(f"wrote {s['file']}")

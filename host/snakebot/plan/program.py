@@ -1,23 +1,26 @@
-"""Plans written as controller programs (``snakebot plan ... -o FILE.prog``): the same
-route as a table plan (start -> hub, k loops, hub -> start; ``planner``), each part an
-on-board generator, so a plan costs a hundred bytes or so instead of a table's kilobyte.
+"""Plans written as controller programs (``snakebot plan ... -o FILE.prog``): routes like
+the table plan's (start -> hub, k loops, back; ``planner``), each part an on-board
+generator, so a plan costs a couple of hundred bytes instead of a table's kilobytes.
 
 - the start is held for one step, absolute (a periodic block at omega 0: its cosine
-  amplitude is the start angle), and the moves to and from the hub are periodic blocks
-  with an offset rate only: straight joint moves, as the table's ramps;
-- the k loops are one segment: for the trident and the 3-link snake a periodic block
-  with one harmonic per joint (``phi = hub + a sin s + b (1 - cos s)``, the field and
-  bracket motion), fitted by ``loops.solve_loop``; for N-link snakes first a serpenoid
-  (``a_j = A cos j delta``, ``b_j = -A sin j delta``: the wave started at the hub, its
-  offsets the hub less ``A sin j delta``), the amplitude, phase step and a common offset
-  fitted to the target, else the one-harmonic block.
+  amplitude is the start angle), and every straight joint move (to a hub, between hubs,
+  back to the start) is a periodic block with an offset rate only;
+- N-link snakes go by **serpenoid segments with their offsets**: two arcs of k waves
+  each, ``phi_j = psi_i + A sin(omega t + j delta)``, the offset psi_i steering arc i,
+  reached by a straight move (the segment's carry then keeps it); A, delta, psi_1 and
+  psi_2 are fitted to the target;
+- the trident and the 3-link snake (and a snake the serpenoid does not reach) go by
+  field and bracket motions: one periodic-input block per joint, one harmonic,
+  ``phi = hub + a sin s + b (1 - cos s)``, fitted with its hub;
+- where no one-harmonic loop reaches the target (the 3-link snake, often), the table
+  plan's two-harmonic loop, which no on-board generator makes, is a table segment.
 
-The program's carry (protocol/program.md) makes each segment start where the previous
-one was heading, so only the hold is absolute. Rounding (mrad, mrad/s, a whole number of
-steps per loop, goals to ticks at every step) moves the end a little: the end pose is
-integrated from the reference goals the controller sends (``program.motion.end_pose``)
-and the loop's wanted motion corrected by the error a few times; a program still outside
-the tolerance is refused (``Unreachable``), never written.
+The loops are fitted on their frames, as the table planner's (``loops``), with the exact
+motion; the program differs by its rounding (mrad, mrad/s, a whole number of steps per
+loop, goals to ticks at every step), so its end pose is integrated from the goals the
+controller sends (``program.motion.end_pose``) and the route fitted again to a target
+moved by the error a few times; a program still outside the tolerance is refused
+(``Unreachable``), never written.
 """
 
 from __future__ import annotations
@@ -74,14 +77,80 @@ from snakebot.robots import Robot
 from snakebot.sim.controller_pty import TICK_MS
 
 MRAD = 1000.0
-#: Loops at most in one program (the loop segment's steps fit a u16).
+#: The most steps a segment has (a u16).
 MAX_STEPS = 0xFFFF
 #: Steps per loop at least: the wave sampled finely enough to follow the fit.
 MIN_LOOP_STEPS = 24
-#: Loop counts a periodic route is fitted for: the nominal one and its doublings.
-PERIODIC_COUNTS = 3
-#: Corrections of the loop's wanted motion by the program's integrated end error.
+#: Loop counts a route is fitted for: the nominal one and its doublings.
+COUNTS = 3
+#: Fits of the route to a target moved by the program's integrated end error.
 CORRECTIONS = 8
+#: The serpenoid's amplitude range (rad) and its offsets' (the joints' own limits
+#: bound them further, through the fit's penalty).
+SERPENOID_AMPLITUDE = (0.05, 1.2)
+SERPENOID_OFFSET = 1.2
+
+
+@dataclass(frozen=True)
+class Wave:
+    """k loops through a hub: per joint one-harmonic coefficients (a, b); a serpenoid's
+    A and delta when it is one; a table loop's frames (ticks, first and last at the hub)
+    and its two-harmonic coefficients instead."""
+
+    hub: np.ndarray
+    coefficients: np.ndarray
+    count: int
+    serpenoid: tuple[float, float] | None = None
+    ticks: np.ndarray | None = None
+
+    def angles(self) -> np.ndarray:
+        return loop_angles(self.hub, np.ravel(self.coefficients))
+
+
+@dataclass(frozen=True)
+class Route:
+    """From the start through each wave's hub and back: ``kind`` names how its loops
+    are made (serpenoid, periodic or table)."""
+
+    kind: str
+    start: np.ndarray
+    waves: tuple[Wave, ...]
+
+    @classmethod
+    def fitted(cls, robot: Robot, start: np.ndarray, kind: str, k: int, x: np.ndarray) -> Route:
+        """The route a fit's parameters describe: a serpenoid's (A, delta, psi_1, psi_2),
+        each arc's hub the wave's phase 0 about start + psi_i; a periodic loop's (hub,
+        coefficients)."""
+        n = robot.n_joints
+        if kind == "serpenoid":
+            amplitude, delta, *offsets = x
+            j = np.arange(n)
+            c = np.column_stack([amplitude * np.cos(j * delta), -amplitude * np.sin(j * delta)])
+            shift = amplitude * np.sin(j * delta)
+            waves = tuple(Wave(start + psi + shift, c, k, (amplitude, delta)) for psi in offsets)
+            return cls(kind, start, waves)
+        return cls(kind, start, (Wave(np.asarray(x[:n]), np.asarray(x[n:]).reshape(n, 2), k),))
+
+    @property
+    def hubs(self) -> list[np.ndarray]:
+        return [w.hub for w in self.waves]
+
+    def moves(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """The straight moves: to the first hub, between hubs, back to the start."""
+        points = [self.start, *self.hubs, self.start]
+        return list(itertools.pairwise(points))
+
+    def motion(self, robot: Robot) -> np.ndarray:
+        """Where the route, its loops as their frames, takes the body."""
+        out = np.zeros(3)
+        for (a, b), wave in itertools.zip_longest(self.moves(), self.waves):
+            if not np.allclose(a, b):
+                out = se2.compose(out, path_motion(robot, ramp(a, b)))
+            if wave is not None:
+                one = path_motion(robot, wave.angles())
+                for _ in range(wave.count):
+                    out = se2.compose(out, one)
+        return out
 
 
 @dataclass(frozen=True)
@@ -92,9 +161,7 @@ class ProgramPlan:
     target: np.ndarray
     tolerance: Tolerance
     program: Program
-    hub: np.ndarray
-    loops: int
-    loop_kind: str
+    route: Route
     reached: np.ndarray
 
     @property
@@ -112,9 +179,9 @@ class ProgramPlan:
             "target": pose_dict(self.target),
             "predicted_final": pose_dict(self.reached),
             "error": self.tolerance.report(self.error),
-            "hub_rad": self.hub.tolist(),
-            "loops": self.loops,
-            "loop_kind": self.loop_kind,
+            "hubs_rad": [h.tolist() for h in self.route.hubs],
+            "loops": sum(w.count for w in self.route.waves),
+            "loop_kind": self.route.kind,
             "segments": [_describe(s) for s in p.segments],
             "program_bytes": len(p.encode()),
             "steps": p.total_steps,
@@ -136,17 +203,11 @@ def _mrad(value: float) -> int:
     return scaled
 
 
-def _ramp_steps(robot: Robot, a: np.ndarray, b: np.ndarray, period_ms: int) -> int:
-    """Program steps for a straight move from a to b at the gait's speed margin."""
-    seconds = float(np.abs(b - a).max()) / (SPEED_MARGIN * robot.max_speed_rad_s)
-    return max(1, math.ceil(seconds * 1000.0 / period_ms - 1e-9))
-
-
 def loop_timing(robot: Robot, coefficients: np.ndarray) -> tuple[int, int]:
     """(steps per loop, omega in mrad/s) for a one-harmonic loop stepped every TICK_MS:
-    the fewest steps that keep the peak joint speed ``omega (|a| + |b|)`` inside the
-    speed margin, nudged (up to a tenth more) to where 2 pi / (steps * period) is nearest
-    a whole mrad/s, so that k loops end nearest the hub."""
+    the fewest steps that keep the peak joint speed, at most ``omega (|a| + |b|)``,
+    inside the speed margin, nudged (up to a tenth more) to where 2 pi / (steps * period)
+    is nearest a whole mrad/s, so that k loops end nearest the hub."""
     p = np.abs(np.asarray(coefficients).reshape(robot.n_joints, 2)).sum(axis=1).max()
     fastest = SPEED_MARGIN * robot.max_speed_rad_s
     least = max(MIN_LOOP_STEPS, math.ceil(2.0 * math.pi * p / fastest * 1000.0 / TICK_MS))
@@ -164,7 +225,8 @@ def loop_timing(robot: Robot, coefficients: np.ndarray) -> tuple[int, int]:
 class _Builder:
     """Segments and periodic blocks appended in order (protocol/program.md)."""
 
-    def __init__(self, period_ms: int) -> None:
+    def __init__(self, robot: Robot, period_ms: int) -> None:
+        self.robot = robot
         self.period_ms = period_ms
         self.segments: list[Segment] = []
         self.blocks: list[Block] = []
@@ -174,103 +236,82 @@ class _Builder:
             self.blocks.append(block)
         self.segments.append(PeriodicSegment(self.blocks.index(block), omega, steps))
 
-    def ramp(self, robot: Robot, a: np.ndarray, b: np.ndarray) -> None:
-        """A straight move from a to b: an offset rate only."""
+    def move(self, a: np.ndarray, b: np.ndarray) -> None:
+        """A straight move from a to b at the gait's speed margin: an offset rate only."""
         if np.allclose(a, b):
             return
-        steps = _ramp_steps(robot, a, b, self.period_ms)
+        seconds = float(np.abs(b - a).max()) / (SPEED_MARGIN * self.robot.max_speed_rad_s)
+        steps = max(1, math.ceil(seconds * 1000.0 / self.period_ms - 1e-9))
         seconds = steps * self.period_ms / 1000.0
-        self.periodic(
-            tuple((_mrad((y - x) / seconds), 0, 0) for x, y in zip(a, b, strict=True)), 0, steps
-        )
+        rates = tuple((_mrad((y - x) / seconds), 0, 0) for x, y in zip(a, b, strict=True))
+        self.periodic(rates, 0, steps)
+
+    def loops(self, wave: Wave) -> None:
+        if wave.ticks is not None:  # the frames are the program's own table
+            self.segments.append(TableSegment(0, len(wave.ticks) - 1, wave.count))
+            return
+        per_loop, omega = loop_timing(self.robot, wave.coefficients)
+        steps = per_loop * wave.count
+        if steps > MAX_STEPS:
+            raise PlanError(f"{wave.count} loops of {per_loop} steps do not fit one segment")
+        if wave.serpenoid is not None:
+            amplitude, delta = wave.serpenoid
+            self.segments.append(SerpenoidSegment(_mrad(amplitude), omega, _mrad(delta), 0, steps))
+            return
+        block = tuple((0, _mrad(a), _mrad(-b)) for a, b in wave.coefficients)
+        self.periodic(block, omega, steps)
 
 
-def build_program(robot: Robot, start: np.ndarray, shape: Shape, k: int) -> Program:
-    """The program: hold the start (absolute: a periodic block at omega 0 whose cosine
-    amplitude is the start), move to the hub, k loops, move back; ProgramError if the
-    controller's check refuses it (its range check is conservative)."""
-    frames: tuple[tuple[int, ...], ...] = ()
-    if shape.ticks is None:
-        build = _Builder(TICK_MS)
-    else:
-        build = _Builder(frame_period_ms(robot, robot.ticks_to_angles(shape.ticks)))
-    build.periodic(tuple((0, 0, _mrad(v)) for v in start), 0, 1)
-    build.ramp(robot, start, shape.hub)
-    if shape.ticks is None:
-        per_loop, omega = loop_timing(robot, shape.coefficients)
-        if per_loop * k > MAX_STEPS:
-            raise PlanError(f"{k} loops of {per_loop} steps do not fit one segment")
-        build.periodic(
-            tuple((0, _mrad(a), _mrad(-b)) for a, b in shape.coefficients), omega, per_loop * k
-        )
-    else:
-        frames = tuple(tuple(int(v) for v in row) for row in shape.ticks[:-1])
-        build.segments.append(TableSegment(0, len(frames), k))
-    build.ramp(robot, shape.hub, start)
-    program = Program(
-        build.period_ms, joints_of(robot), tuple(build.segments), tuple(build.blocks), frames
-    )
+def build_program(robot: Robot, route: Route) -> Program:
+    """The route as a program: the start held (absolute), each straight move and each
+    wave's loops a segment; ProgramError if the controller's check refuses it (its
+    range check is conservative)."""
+    table = next((w.ticks for w in route.waves if w.ticks is not None), None)
+    period = TICK_MS if table is None else frame_period_ms(robot, robot.ticks_to_angles(table))
+    build = _Builder(robot, period)
+    build.periodic(tuple((0, 0, _mrad(v)) for v in route.start), 0, 1)
+    for (a, b), wave in itertools.zip_longest(route.moves(), route.waves):
+        build.move(a, b)
+        if wave is not None:
+            build.loops(wave)
+    frames = () if table is None else tuple(tuple(int(v) for v in row) for row in table[:-1])
+    program = Program(period, joints_of(robot), tuple(build.segments), tuple(build.blocks), frames)
     check(program.encode())
     return program
-
-
-@dataclass(frozen=True)
-class Shape:
-    """A route's loop: its kind, hub and per joint coefficients (a, b per harmonic);
-    a table loop also has its frames in ticks (first and last at the hub)."""
-
-    kind: str
-    hub: np.ndarray
-    coefficients: np.ndarray
-    ticks: np.ndarray | None = None
-
-    @classmethod
-    def periodic(cls, robot: Robot, x: np.ndarray) -> Shape:
-        """A one-harmonic loop from the fit's parameters (hub, coefficients)."""
-        n = robot.n_joints
-        return cls("periodic", np.asarray(x[:n]), np.asarray(x[n:]).reshape(n, 2))
-
-    def angles(self) -> np.ndarray:
-        return loop_angles(self.hub, self.coefficients.ravel())
-
-
-def route_motion(robot: Robot, start: np.ndarray, shape: Shape, k: int) -> np.ndarray:
-    """Where the route (to the hub, k loops as their frames, back) takes the body."""
-    moves = not np.allclose(start, shape.hub)
-    out = path_motion(robot, ramp(start, shape.hub)) if moves else np.zeros(3)
-    one = path_motion(robot, shape.angles())
-    for _ in range(k):
-        out = se2.compose(out, one)
-    if moves:
-        out = se2.compose(out, path_motion(robot, ramp(shape.hub, start)))
-    return out
 
 
 def fit_route(
     robot: Robot,
     start: np.ndarray,
     target: np.ndarray,
+    kind: str,
     k: int,
     guesses: list[np.ndarray],
     accuracy: float,
 ) -> np.ndarray | None:
-    """The parameters (hub, one-harmonic coefficients) of a route with k loops that
-    ends at ``target`` (the loops' frames inside the limits less the margin): the first
-    guess's solution within ``accuracy`` (scaled residual per loop), or None."""
+    """The parameters of a ``kind`` route with k loops a wave that ends at ``target``
+    (the loops' frames inside the limits less the margin): the first guess's solution
+    within ``accuracy`` (scaled residual per loop), or None."""
     try:
         from scipy.optimize import least_squares  # the planner's optional dependency
     except ImportError:  # pragma: no cover - make setup installs it
         raise PlanError("planning needs SciPy: pip install 'snakebot[plan]'") from None
     lo, hi = limits(robot)
-    scale = body_length(robot)
-    weights = np.array([1.0 / scale, 1.0 / scale, 1.0]) / k
+    weights = np.array([1.0 / body_length(robot), 1.0 / body_length(robot), 1.0]) / k
+    bounds: tuple[Any, Any] = (-np.inf, np.inf)
+    if kind == "serpenoid":
+        low, high = SERPENOID_AMPLITUDE
+        bounds = (
+            [low, -math.pi, *[-SERPENOID_OFFSET] * 2],
+            [high, math.pi, *[SERPENOID_OFFSET] * 2],
+        )
 
     def residual(x: np.ndarray) -> np.ndarray:
-        shape = Shape.periodic(robot, x)
-        angles = np.vstack([shape.angles(), shape.hub[None, :]])
+        route = Route.fitted(robot, start, kind, k, x)
+        angles = np.vstack([w.angles() for w in route.waves])
         outside = np.maximum(angles - hi, 0).sum() + np.maximum(lo - angles, 0).sum()
         try:
-            d = route_motion(robot, start, shape, k) - target
+            d = route.motion(robot) - target
         except KinematicsError:
             return np.r_[np.full(3, 10.0), 10.0 * outside]
         d[2] = (d[2] + math.pi) % (2 * math.pi) - math.pi
@@ -278,7 +319,7 @@ def fit_route(
 
     best = None
     for guess in guesses:
-        sol = least_squares(residual, guess, method="trf", max_nfev=80, x_scale=0.3)
+        sol = least_squares(residual, guess, method="trf", max_nfev=80, x_scale=0.3, bounds=bounds)
         if best is None or sol.cost < best.cost:
             best = sol
         if np.abs(sol.fun).max() <= accuracy:
@@ -288,74 +329,97 @@ def fit_route(
     return np.asarray(best.x)
 
 
-def _guesses(robot: Robot, start: np.ndarray) -> list[np.ndarray]:
-    """Starting parameters at each of the planner's hubs: a small loop of each joint a
-    quarter turn after the last, either way round."""
-    n = robot.n_joints
+def _guesses(robot: Robot, start: np.ndarray, kind: str) -> list[np.ndarray]:
+    """Starting parameters: a serpenoid's, turning one way then the other; a periodic
+    loop's at each of the planner's hubs, a small loop of each joint a quarter turn
+    after the last, either way round."""
+    if kind == "serpenoid":
+        return [np.array(g) for g in ((0.5, 1.0, 0.1, -0.1), (0.5, 1.0, -0.1, 0.1))]
     out = []
     for hub in hubs(robot, start):
         for sign in (1.0, -1.0):
             c = [
                 (0.15 * math.cos(j * math.pi / 2), sign * 0.15 * math.sin(j * math.pi / 2))
-                for j in range(n)
+                for j in range(robot.n_joints)
             ]
             out.append(np.r_[hub, np.ravel(c)])
     return out
 
 
-def _realise(
-    robot: Robot, start: np.ndarray, target: np.ndarray, tol: Tolerance, k: int, shape: Shape
-) -> ProgramPlan | None:
+def _fitted_routes(
+    robot: Robot, start: np.ndarray, target: np.ndarray, accuracy: float
+) -> Iterator[Route]:
+    """Serpenoid routes first for N-link snakes, then one-harmonic periodic ones, for a
+    nominal loop count and its doublings."""
+    kinds = ["periodic"]
+    if robot.kind == "snake" and robot.n_joints > 2:
+        kinds.insert(0, "serpenoid")
+    nominal = loop_counts(robot, target, MAX_STEPS)[0]
+    for kind in kinds:
+        for k in [nominal * 2**i for i in range(COUNTS)]:
+            per_wave = max(1, k // 2) if kind == "serpenoid" else k
+            x = fit_route(
+                robot, start, target, kind, per_wave, _guesses(robot, start, kind), accuracy
+            )
+            if x is not None:
+                yield Route.fitted(robot, start, kind, per_wave, x)
+
+
+def _table_routes(
+    robot: Robot, start: np.ndarray, target: np.ndarray, tol: Tolerance
+) -> Iterator[Route]:
+    """The table planner's routes (two harmonics: no on-board generator) as table loops."""
+    for route in routes(robot, start, target, tol):
+        loop = route.loop
+        wave = Wave(
+            loop.hub, loop.coefficients, route.count, None, robot.angles_to_ticks(loop.angles())
+        )
+        yield Route("table", start, (wave,))
+
+
+def _realise(robot: Robot, target: np.ndarray, tol: Tolerance, route: Route) -> ProgramPlan | None:
     """The route as a program; while its goals (as the controller rounds them) end
-    outside the tolerance, the loop is made again for a target moved by the error: a
-    periodic loop fitted again, a table loop's ticks nudged (``refine_ticks``)."""
+    outside the tolerance, the route is made again for a target moved by the error: a
+    fitted one fitted again, a table loop's ticks nudged (``refine_ticks``)."""
     accuracy = solve_accuracy(robot, tol)
     aim = target
     best: ProgramPlan | None = None
+    x: np.ndarray | None = None
     for attempt in range(CORRECTIONS + 1):
         try:
-            program = build_program(robot, start, shape, k)
+            program = build_program(robot, route)
         except (ProgramError, PlanError):
             return best
         reached = end_pose(robot, program)
-        plan = ProgramPlan(robot, target, tol, program, shape.hub, k, shape.kind, reached)
+        plan = ProgramPlan(robot, target, tol, program, route, reached)
         if best is None or plan.error[0] / tol.position < best.error[0] / tol.position:
             best = plan
         if plan.within or attempt == CORRECTIONS:
             break
         aim = se2.compose(aim, se2.relative(reached, target))
-        if shape.ticks is not None:
-            wanted = loop_target(robot, start, shape.hub, aim, k)
-            ticks, _ = refine_ticks(robot, shape.ticks, wanted, body_length(robot), accuracy)
-            shape = replace(shape, ticks=ticks)
+        wave = route.waves[0]
+        if wave.ticks is not None:
+            wanted = loop_target(robot, route.start, wave.hub, aim, wave.count)
+            ticks, _ = refine_ticks(robot, wave.ticks, wanted, body_length(robot), accuracy)
+            route = replace(route, waves=(replace(wave, ticks=ticks),))
             continue
-        x = np.r_[shape.hub, shape.coefficients.ravel()]
-        refit = fit_route(robot, start, aim, k, [x], accuracy)
-        if refit is None:
+        x = _parameters(route) if x is None else x
+        x = fit_route(robot, route.start, aim, route.kind, wave.count, [x], accuracy)
+        if x is None:
             break
-        shape = Shape.periodic(robot, refit)
+        route = Route.fitted(robot, route.start, route.kind, wave.count, x)
     return best
 
 
-def _periodic_shapes(
-    robot: Robot, start: np.ndarray, target: np.ndarray, accuracy: float
-) -> Iterator[tuple[int, Shape]]:
-    """One-harmonic routes (periodic blocks) for a nominal loop count and its doublings."""
-    nominal = loop_counts(robot, target, MAX_STEPS)[0]
-    for k in [nominal * 2**i for i in range(PERIODIC_COUNTS)]:
-        x = fit_route(robot, start, target, k, _guesses(robot, start), accuracy)
-        if x is not None:
-            yield k, Shape.periodic(robot, x)
-
-
-def _table_shapes(
-    robot: Robot, start: np.ndarray, target: np.ndarray, tol: Tolerance
-) -> Iterator[tuple[int, Shape]]:
-    """The table planner's routes (two harmonics: no on-board generator) as table loops."""
-    for route in routes(robot, start, target, tol):
-        loop = route.loop
-        ticks = robot.angles_to_ticks(loop.angles())
-        yield route.count, Shape("table", loop.hub, loop.coefficients, ticks)
+def _parameters(route: Route) -> np.ndarray:
+    """The fit's parameters of a fitted route (the inverse of ``Route.fitted``)."""
+    first = route.waves[0]
+    if first.serpenoid is None:
+        return np.r_[first.hub, np.ravel(first.coefficients)]
+    amplitude, delta = first.serpenoid
+    shift = amplitude * np.sin(np.arange(len(first.hub)) * delta)
+    offsets = [float(np.mean(w.hub - shift - route.start)) for w in route.waves]
+    return np.array([amplitude, delta, *offsets])
 
 
 def plan_program(
@@ -376,10 +440,11 @@ def plan_program(
     tol = Tolerance.for_target(robot, goal, tolerance, heading_tolerance)
     best: ProgramPlan | None = None
     accuracy = solve_accuracy(robot, tol)
-    for k, shape in itertools.chain(
-        _periodic_shapes(robot, phi0, goal, accuracy), _table_shapes(robot, phi0, goal, tol)
-    ):
-        plan = _realise(robot, phi0, goal, tol, k, shape)
+    candidates = itertools.chain(
+        _fitted_routes(robot, phi0, goal, accuracy), _table_routes(robot, phi0, goal, tol)
+    )
+    for route in candidates:
+        plan = _realise(robot, goal, tol, route)
         if plan is None:
             continue
         if best is None or plan.error[0] / tol.position < best.error[0] / tol.position:
@@ -403,4 +468,4 @@ def plan_program(
     )
 
 
-__all__ = ["ProgramPlan", "plan_program"]
+__all__ = ["ProgramPlan", "Route", "Wave", "plan_program"]

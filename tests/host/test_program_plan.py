@@ -81,13 +81,18 @@ def test_a_program_the_rounding_moves_out_of_tolerance_is_not_written(tmp_path: 
     assert not out.exists()
 
 
-def test_a_program_goes_further_than_a_table_holds(tmp_path: Path) -> None:
-    # 10 body lengths: more loops than the controller's table has frames for
-    out = tmp_path / "far.prog"
-    result = run("plan", "trident", "--to", "40,0,0", "-o", str(out), "--json")
-    assert result.exit_code == 0, result.output
-    plan = json.loads(result.output)
-    assert plan["error"]["within"] and plan["loops"] * FRAMES > max_frames(3)
+def test_a_long_way_costs_a_program_no_more_bytes(tmp_path: Path) -> None:
+    # 10 body lengths: a hundred loops or more, in one segment, in the bytes of a few
+    sizes, loops = [], []
+    for name, target in (("near", "0.5,0.2,0.1"), ("far", "40,0,0")):
+        out = tmp_path / f"{name}.prog"
+        result = run("plan", "trident", "--to", target, "-o", str(out), "--json")
+        assert result.exit_code == 0, result.output
+        plan = json.loads(result.output)
+        assert plan["error"]["within"]
+        sizes.append(plan["program_bytes"])
+        loops.append(plan["loops"])
+    assert sizes[0] == sizes[1] and loops[1] * FRAMES > max_frames(3) > 10 * loops[0]
 
 
 def test_plot_of_a_program_plan_is_bad_input(tmp_path: Path) -> None:

@@ -1,15 +1,19 @@
 """`snakebot drive` while the controller runs a program (the controller's C device logic
 behind a pty): the keys steer and speed the program instead of starting the serpenoid,
-its serpenoid segment's goals carry the steering, and space runs it again."""
+its serpenoid segment's goals carry the steering, and space runs it again; `snakebot play
+--speed` runs a program faster or slower."""
 
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
+import pytest
 from controller_cli_support import cli, cli_json
 
 from snakebot.controller import State
+from snakebot.controller.client import ControllerClient
 
 SPEC = """
 robot = "snake5"
@@ -54,3 +58,21 @@ def test_drive_steers_a_running_program(controller, tmp_path: Path) -> None:
     goals = [j["goal_deg"] for j in out[4]["joints"]]
     assert max(abs(g) for g in goals) > 17.2 + 5
     assert controller.state() == State.IDLE
+
+
+@pytest.mark.serial
+@pytest.mark.parametrize(("speed", "state"), [("4", "DONE"), ("0.25", "RUNNING")])
+def test_play_speed_runs_a_program_faster_or_slower(
+    controller, tmp_path: Path, speed: str, state: str
+) -> None:
+    # a 2 s program: at 4x it is over well within 1.5 s, at a quarter still running
+    spec = tmp_path / "plan.toml"
+    spec.write_text(SPEC.replace("duration = 60.0", "duration = 2.0"))
+    prog = tmp_path / "plan.prog"
+    assert cli("program", "build", spec, "-o", prog).exit_code == 0
+    assert cli_json("upload", prog, "--port", controller.device)["kind"] == "program"
+    assert cli_json("play", "--port", controller.device, "--speed", speed)["program"] is True
+    time.sleep(1.5)
+    with ControllerClient.open(controller.device) as ctl:
+        now = ctl.read("Program State")["Program State"]
+    assert now == ctl.table.enums["Program State"][state]

@@ -147,10 +147,19 @@ class Route:
             if not np.allclose(a, b):
                 out = se2.compose(out, path_motion(robot, ramp(a, b)))
             if wave is not None:
-                one = path_motion(robot, wave.angles())
-                for _ in range(wave.count):
-                    out = se2.compose(out, one)
+                out = se2.compose(out, _power(path_motion(robot, wave.angles()), wave.count))
         return out
+
+
+def _power(g: np.ndarray, k: int) -> np.ndarray:
+    """g composed with itself k times (by squaring: a route may have thousands of loops)."""
+    out = np.zeros(3)
+    while k:
+        if k & 1:
+            out = se2.compose(out, g)
+        g = se2.compose(g, g)
+        k >>= 1
+    return out
 
 
 @dataclass(frozen=True)
@@ -358,6 +367,8 @@ def _fitted_routes(
     for kind in kinds:
         for k in [nominal * 2**i for i in range(COUNTS)]:
             per_wave = max(1, k // 2) if kind == "serpenoid" else k
+            if per_wave * MIN_LOOP_STEPS > MAX_STEPS:
+                break  # more loops than one segment steps through
             x = fit_route(
                 robot, start, target, kind, per_wave, _guesses(robot, start, kind), accuracy
             )

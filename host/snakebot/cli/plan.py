@@ -152,7 +152,7 @@ def plan_command(
       snakebot plan trident --to 2,1,30deg -o go.gait
       snakebot sim predict go.gait --ideal
       snakebot plan trident --to 1,0.5,30deg -o go.prog
-      snakebot upload go.prog && snakebot play
+      snakebot upload go.prog --port /dev/ttyUSB0 && snakebot play --port /dev/ttyUSB0
     """
     from snakebot.plan import make_plan
     from snakebot.plan.program import plan_program

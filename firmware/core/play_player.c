@@ -58,6 +58,7 @@ void play_start_program(play_state *p, const uint8_t *blob, uint32_t now_ms)
     begin(p, PLAY_MODE_PROGRAM, blob, now_ms);
     p->out_count = 0;
     prog_start(&p->program);
+    play_slew_reset(&p->slew);
 }
 
 void play_stop(play_state *p)
@@ -173,26 +174,47 @@ static uint8_t tick_serpenoid(play_state *p, const play_params *params, const pl
     return count;
 }
 
-static uint8_t tick_program(play_state *p, uint32_t dt)
+/* Live steering of a program (protocol/program.md): the speed scale runs its time, the
+ * steering offset applies while a SERPENOID segment runs and slews back to 0 in the
+ * others, both slewed as the plain serpenoid's (play_slew.h) with the running wave's
+ * A and omega (none outside serpenoid segments: the scale then applies at once, as in
+ * table mode). The slew's working copies are the player's (program mode leaves the
+ * serpenoid's idle). */
+static uint32_t slew_program(play_state *p, const play_params *params, uint32_t dt)
+{
+    play_slew target = {0, 0, 0, 0, params->speed_scale, 1};
+    if (prog_serpenoid_at(p->table, &p->program, &target.amp_mrad, &target.omega_mrad_s)) {
+        target.steering = params->steering;
+    }
+    /* the wave's own parameters are the segment's: the slew takes them as they are */
+    p->slew.amp_mrad = target.amp_mrad;
+    p->slew.omega_mrad_s = target.omega_mrad_s;
+    return play_slew_toward(&p->slew, &target, dt);
+}
+
+static uint8_t tick_program(play_state *p, const play_params *params, uint32_t dt)
 {
     const uint8_t *blob = p->table;
     uint8_t count = prog_joint_count(blob);
     uint16_t goals[GT_MAX_JOINTS];
     uint32_t period = prog_period_ms(blob);
     bool first = p->out_count == 0;
-    if (!prog_tick(blob, &p->program, dt)) {
+    uint32_t extra = slew_program(p, params, dt);
+    if (!prog_tick(blob, &p->program, dt, p->slew.speed_scale)) {
         p->finished = 1;
         p->mode = PLAY_MODE_IDLE;
     }
-    prog_goals(blob, &p->program, goals);
+    prog_goals(blob, &p->program, p->slew.steering, goals);
     for (uint8_t j = 0; j < count; j++) {
-        /* speed: cover the goal's change within one program step (ticks/s * 256); kept
-         * while the goal holds, so a servo still on its way is not slowed down; the
-         * first goal is approached at the floor speed */
+        /* speed: cover the goal's change within one program step at the speed scale
+         * (ticks/s * 256), plus what the steering's slew adds; kept while the goal
+         * holds, so a servo still on its way is not slowed down; the first goal is
+         * approached at the floor speed */
         uint32_t change = (uint32_t)(goals[j] > p->out_goal[j] ? goals[j] - p->out_goal[j]
                                                                : p->out_goal[j] - goals[j]);
+        uint32_t rate = change * 1000u * p->slew.speed_scale / period + extra;
         if (first) p->out_speed[j] = PLAY_MIN_SPEED;
-        else if (change != 0) p->out_speed[j] = play_speed_units(change * 256000u / period);
+        else if (change != 0) p->out_speed[j] = play_speed_units(rate);
         p->out_id[j] = prog_joint_id(blob, j);
         p->out_goal[j] = goals[j];
     }
@@ -205,7 +227,7 @@ uint8_t play_tick(play_state *p, const play_params *params, const play_joint *ro
 {
     uint32_t dt = elapsed(p, now_ms);
     if (p->mode == PLAY_MODE_TABLE) return tick_table(p, params, roster, roster_count, dt);
-    if (p->mode == PLAY_MODE_PROGRAM) return tick_program(p, dt);
+    if (p->mode == PLAY_MODE_PROGRAM) return tick_program(p, params, dt);
     if (p->mode == PLAY_MODE_SERPENOID) {
         play_params live = *params;
         uint32_t extra = slew_live(p, &live, dt);

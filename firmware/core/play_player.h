@@ -67,7 +67,8 @@ bool play_start_table(play_state *p, const uint8_t *table, size_t len, uint32_t 
  * count is 0 or above the maximum. */
 bool play_start_serpenoid(play_state *p, uint8_t count, uint32_t now_ms);
 /* Run the program in blob (validated with prog_validate; it must stay put while it runs)
- * from its first step; the speed scale and steering do not apply to it. */
+ * from its first step; the speed scale runs its time and the steering offset applies to
+ * its serpenoid segments, slewed as in serpenoid mode (protocol/program.md). */
 void play_start_program(play_state *p, const uint8_t *blob, uint32_t now_ms);
 /* Stop; the last outputs stay readable. */
 void play_stop(play_state *p);
@@ -98,7 +99,7 @@ struct play_state {
     uint32_t offset_q8;       /* table: ms * 256 into the current frame */
     uint32_t last_ms;
     uint64_t phase;           /* serpenoid: omega t as a 48-bit binary angle */
-    play_slew slew;           /* serpenoid: working copies of the live parameters */
+    play_slew slew;           /* serpenoid, program: working copies of the live parameters */
     prog_cursor program;      /* program: where it is (the blob is in table) */
     const uint8_t *table;
     gt_info info;

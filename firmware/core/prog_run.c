@@ -323,14 +323,15 @@ void prog_start(prog_cursor *c)
     *c = zero;
 }
 
-void prog_goals(const uint8_t *blob, const prog_cursor *c, uint16_t *goals)
+void prog_goals(const uint8_t *blob, const prog_cursor *c, int16_t steering, uint16_t *goals)
 {
     const uint8_t *seg = segment_rec(blob, c->segment);
     for (uint8_t k = 0; k < blob[5]; k++) {
         const uint8_t *j = joint_rec(blob, k);
         int64_t g = play_round_shift(generate(blob, seg, c->step, k) + c->carry[k],
                                      PROG_CARRY_SHIFT);
-        /* a validated program never needs the clamp; it guards the servos all the same */
+        g += (j[1] & PROG_JOINT_REVERSE) ? -(int32_t)steering : steering;
+        /* a validated program needs the clamp only for the steering; it guards the servos */
         if (g < rd16(j + 4)) g = rd16(j + 4);
         if (g > rd16(j + 6)) g = rd16(j + 6);
         goals[k] = (uint16_t)g;
@@ -359,11 +360,23 @@ bool prog_advance(const uint8_t *blob, prog_cursor *c, uint32_t steps)
     return false;
 }
 
-bool prog_tick(const uint8_t *blob, prog_cursor *c, uint32_t dt_ms)
+bool prog_serpenoid_at(const uint8_t *blob, const prog_cursor *c, uint16_t *amp_mrad,
+                       int16_t *omega_mrad_s)
 {
-    uint16_t period = rd16(blob + 8);
-    /* the caller bounds dt (PLAY_MAX_STEP_MS); this bound only keeps acc_ms exact */
-    uint32_t acc = c->acc_ms + (dt_ms > UINT16_MAX / 2u ? UINT16_MAX / 2u : dt_ms);
-    c->acc_ms = (uint16_t)(acc % period);
-    return prog_advance(blob, c, acc / period);
+    const uint8_t *seg = segment_rec(blob, c->segment);
+    if (seg[0] != PROG_KIND_SERPENOID) return false;
+    *amp_mrad = rd16(seg + 2);
+    *omega_mrad_s = rd16s(seg + 4);
+    return true;
+}
+
+bool prog_tick(const uint8_t *blob, prog_cursor *c, uint32_t dt_ms, uint16_t speed_scale)
+{
+    uint32_t span = (uint32_t)rd16(blob + 8) << 8; /* one step, ms * 256 */
+    /* the caller bounds dt (PLAY_MAX_STEP_MS) and the scale (1..1024); these bounds only
+     * keep the sum below 2^32 whatever they pass */
+    uint32_t dt = dt_ms > UINT16_MAX ? UINT16_MAX : dt_ms;
+    uint32_t acc = c->acc_q8 + dt * (speed_scale > 0xFFFu ? 0xFFFu : speed_scale);
+    c->acc_q8 = acc % span;
+    return prog_advance(blob, c, acc / span);
 }

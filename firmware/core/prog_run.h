@@ -41,11 +41,11 @@
 #define PROG_KIND_SERPENOID 2
 #define PROG_KIND_PERIODIC 3
 
-/* Where a running program is: segment, step within it, the milliseconds towards the next
- * step, and each joint's carry in 1/16 tick. */
+/* Where a running program is: segment, step within it, the time towards the next step
+ * (ms * 256: time runs at the speed scale, 1/256), and each joint's carry in 1/16 tick. */
 typedef struct {
+    uint32_t acc_q8;
     uint16_t step;
-    uint16_t acc_ms;
     uint8_t segment;
     uint8_t done;
     int16_t carry[CTL_MAX_JOINTS];
@@ -73,13 +73,19 @@ typedef struct {
 prog_joint prog_joint_at(const uint8_t *blob, uint8_t j);
 /* Program start: segment 0, step 0, no carry. */
 void prog_start(prog_cursor *c);
-/* The goals (ticks, one per joint) at the cursor; valid blobs only. */
-void prog_goals(const uint8_t *blob, const prog_cursor *c, uint16_t *goals);
+/* The goals (ticks, one per joint) at the cursor, plus the steering offset (ticks,
+ * negated for reversed joints), clamped to the joints' limits; valid blobs only. */
+void prog_goals(const uint8_t *blob, const prog_cursor *c, int16_t steering, uint16_t *goals);
+/* Whether the segment at the cursor is a SERPENOID one; if so its A (mrad) and omega
+ * (mrad/s) in *amp_mrad and *omega_mrad_s (the live steering's slew needs its speed). */
+bool prog_serpenoid_at(const uint8_t *blob, const prog_cursor *c, uint16_t *amp_mrad,
+                       int16_t *omega_mrad_s);
 /* Advance by steps program steps, entering later segments as their turn comes; false once
  * the program has ended (the cursor then stays on the last step of the last segment). */
 bool prog_advance(const uint8_t *blob, prog_cursor *c, uint32_t steps);
-/* Advance by dt_ms of time (whole steps of the period; the rest is kept); as prog_advance. */
-bool prog_tick(const uint8_t *blob, prog_cursor *c, uint32_t dt_ms);
+/* Advance by dt_ms of time run at speed_scale / 256 (whole steps of the period; the rest
+ * is kept); as prog_advance. */
+bool prog_tick(const uint8_t *blob, prog_cursor *c, uint32_t dt_ms, uint16_t speed_scale);
 /* cffi:end */
 
 /* prog_validate() results, in check order: the controller's Upload Result codes

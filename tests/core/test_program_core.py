@@ -37,7 +37,7 @@ def c_goals(program: Program) -> np.ndarray:
     lib.prog_start(cursor)
     out = np.empty((program.total_steps, n), dtype=np.int64)
     for step in range(program.total_steps):
-        lib.prog_goals(blob, cursor, goals)
+        lib.prog_goals(blob, cursor, 0, goals)
         out[step] = list(goals)
         running = lib.prog_advance(blob, cursor, 1)
         assert running == (step + 1 < program.total_steps)
@@ -136,9 +136,11 @@ def test_the_program_ends_on_its_last_step() -> None:
     blob = program.encode()
     cursor = ffi.new("prog_cursor *")
     lib.prog_start(cursor)
-    assert lib.prog_tick(blob, cursor, 35)  # 3 steps, 5 ms kept
-    assert (cursor.step, cursor.acc_ms) == (3, 5)
-    assert not lib.prog_tick(blob, cursor, 100)
+    assert lib.prog_tick(blob, cursor, 35, 256)  # 3 steps, 5 ms kept
+    assert (cursor.step, cursor.acc_q8) == (3, 5 * 256)
+    assert lib.prog_tick(blob, cursor, 10, 128)  # at half speed: 5 ms more, one step
+    assert (cursor.step, cursor.acc_q8) == (4, 0)
+    assert not lib.prog_tick(blob, cursor, 100, 256)
     assert (cursor.step, cursor.done) == (6, 1)
 
 

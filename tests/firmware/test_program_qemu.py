@@ -2,7 +2,8 @@
 three-segment program (periodic input, serpenoid, table) uploaded with the host's
 uploader (Upload Commit PROGRAM) and started as `snakebot play` starts it (PROGRAM_RUN)
 reaches the emulated servos as the host predicts, every goal within one tick, in order,
-and the controller reports it DONE at its end."""
+and the controller reports it DONE at its end; a planned program moves the world's body
+where `sim predict` says."""
 
 from __future__ import annotations
 
@@ -16,8 +17,12 @@ from snakebot.controller import playback
 from snakebot.controller.client import ControllerClient
 from snakebot.controller.uploader import upload_gait
 from snakebot.devices import ax12
+from snakebot.plan.program import plan_program
 from snakebot.program import PeriodicSegment, Program, SerpenoidSegment, TableSegment, predict
+from snakebot.program.files import write_program
+from snakebot.program.motion import predict_program
 from snakebot.program.spec import joints_of
+from snakebot.robots import load_robot
 from snakebot.sim.serve import EmulatedRobot
 
 pytestmark = [pytest.mark.qemu, pytest.mark.slow, pytest.mark.serial]
@@ -105,3 +110,38 @@ def test_a_program_reaches_the_servos_as_predicted():
         seen.append(step)
     assert seen[0] <= 1 and seen[-1] == total - 1
     assert len(set(seen)) >= 0.8 * total  # nearly every step reached the servos
+
+
+def test_a_planned_program_takes_the_robot_where_predicted(tmp_path):
+    """`snakebot plan trident --to ... -o go.prog`, uploaded to the firmware in QEMU and
+    run there: the world's body ends where `sim predict go.prog` says, on the same
+    modelled servos (the controller's player in process), and near the plan's target."""
+    build_firmware()
+    target = (0.4, 0.15, 0.25)
+    plan = plan_program(load_robot("trident"), target)
+    path = tmp_path / "go.prog"
+    write_program(path, plan.program)
+    predicted = predict_program(path).summary()
+    with EmulatedRobot("trident") as robot:
+        ctl = ControllerClient.open(robot.info.pc_link)
+        try:
+            upload_gait(ctl, plan.program)
+            assert playback.play(ctl).get("program")
+            time.sleep(plan.program.duration_s + 1.0)
+            assert ctl.read("Program State")["Program State"] == 2  # DONE
+        finally:
+            ctl.close()
+        with robot.lock:
+            moved = robot.record().displacement()
+
+    end = np.array([moved["dx"], moved["dy"], moved["dtheta"]])
+    emulated = predicted["emulated"]  # modelled AX-12s, as in QEMU's world
+    expected = np.array([emulated["dx"], emulated["dy"], emulated["dtheta"]])
+    tolerance = plan.tolerance
+    assert np.hypot(*(end[:2] - expected[:2])) <= tolerance.position, (end, expected)
+    assert abs(end[2] - expected[2]) <= tolerance.heading, (end, expected)
+    # and the prediction from the reference goals is the plan's, at the target
+    reference = predicted["predicted"]
+    assert np.hypot(reference["dx"] - target[0], reference["dy"] - target[1]) <= (
+        tolerance.position
+    )

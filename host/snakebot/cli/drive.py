@@ -36,6 +36,11 @@ and starts again, q stops the robot and quits. The screen shows the state, error
 and each joint's goal and present angle in degrees, load and errors, a few times a
 second. The firmware slews each change, so no servo is asked to jump.
 
+If the controller is running a program already (`snakebot upload X.prog` then `play`),
+that program is driven instead: up and down change its speed, left and right steer its
+serpenoid segments (its other segments are not steered), space stops it and runs it
+again from its start.
+
 With --keys or --script the same keys are handled without a terminal and each is
 reported as it is done (with --json, one JSON record per line); the script ends as q
 does, stopping the robot. Example:

@@ -1,4 +1,5 @@
-"""``snakebot plan``: a gait table that takes the robot to a target pose."""
+"""``snakebot plan``: a gait table, or a controller program, that takes the robot to a
+target pose."""
 
 from __future__ import annotations
 
@@ -97,8 +98,9 @@ def unreachable(exc: Unreachable) -> None:
     "--output",
     "-o",
     type=click.Path(dir_okay=False, path_type=Path),
-    help="the gait table to write (FILE.json gets the metadata); without it the plan is "
-    "only reported",
+    help="the gait table to write (FILE.json gets the metadata), or with a .prog suffix "
+    "the controller program (on-board generators: a few hundred bytes); without it the "
+    "plan is only reported",
 )
 @click.option(
     "--plot",
@@ -131,6 +133,17 @@ def plan_command(
     speed; its table, rounded to ticks and played as the controller plays it, is checked
     to end within the tolerance.
 
+    With -o FILE.prog the plan is a controller program instead (protocol/program.md):
+    the start held, the straight joint moves as offset rates; for N-link snakes two arcs
+    of serpenoid waves, each at its own offset (A, delta and the offsets fitted to the
+    target); for the trident and the 3-link snake the loops as one periodic-input block
+    (one harmonic per joint, fitted with its hub); where no such loop reaches the target
+    (the 3-link snake, often), the table plan's loop is played as a table segment. The
+    program's goals, as the controller rounds them at every step, are integrated and
+    must end within the tolerance; the route is fitted again to make up for the error a
+    few times, and a program still outside is not written (exit 1). --json reports its
+    size in bytes.
+
     When no plan inside the limits and the controller's table reaches the target, the
     command says so and exits with status 1; nothing is written.
 
@@ -138,15 +151,24 @@ def plan_command(
     Example:
       snakebot plan trident --to 2,1,30deg -o go.gait
       snakebot sim predict go.gait --ideal
+      snakebot plan trident --to 1,0.5,30deg -o go.prog
+      snakebot upload go.prog --port /dev/ttyUSB0 && snakebot play --port /dev/ttyUSB0
     """
     from snakebot.plan import make_plan
+    from snakebot.plan.program import plan_program
     from snakebot.robots import load_robot
 
     if plot is not None and output is None:
         raise click.UsageError("--plot needs -o FILE: the plot is drawn from the written table")
+    as_program = output is not None and output.suffix == ".prog"
+    if as_program and plot is not None:
+        raise click.UsageError(
+            "--plot draws a gait table: for a program, use "
+            "`snakebot sim predict FILE.prog --plot PNG`"
+        )
     chosen = load_robot(robot)
     try:
-        plan = make_plan(
+        plan = (plan_program if as_program else make_plan)(
             chosen,
             target,
             start=tuple(start) if start else None,
@@ -155,6 +177,10 @@ def plan_command(
         )
     except Unreachable as exc:
         unreachable(exc)
+        return
+    if as_program:
+        assert output is not None
+        _write_program(plan, output, as_json)
         return
     summary = plan.summary()
     if output is not None:
@@ -175,26 +201,51 @@ def plan_command(
     _print(summary)
 
 
-def _print(s: dict[str, Any]) -> None:
-    t, f, e = s["target"], s["predicted_final"], s["error"]
+def _write_program(plan: Any, output: Path, as_json: bool) -> None:
+    """Write the plan's program (its goals end within the tolerance) and report it."""
+    from snakebot.program.files import write_program
+
+    write_program(output, plan.program)
+    s = plan.summary()
+    s["file"] = str(output)
+    if as_json:
+        click.echo(dumps(s, indent=2))
+        return
+    kinds = ", ".join(f"{seg['kind']} ({seg['steps']} steps)" for seg in s["segments"])
+    hubs = "; ".join(", ".join(f"{math.degrees(v):.1f}" for v in h) for h in s["hubs_rad"])
     click.echo(
-        f"plan for {s['robot']}: {s['loops']} loops through hub "
-        f"({', '.join(f'{math.degrees(v):.1f}' for v in s['hub_rad'])}) deg, "
-        f"{s['frames']} frames every {s['frame_period_ms']} ms ({s['duration_s']:.2f} s)"
+        f"program for {s['robot']}: {s['loops']} {s['loop_kind']} loops through "
+        f"hub(s) ({hubs}) deg, {s['program_bytes']} bytes, a step every "
+        f"{s['step_period_ms']} ms ({s['duration_s']:.2f} s): {kinds}"
     )
+    _print_pose(s, "the program's goals as the controller rounds them")
+    click.echo(f"wrote {s['file']}")
+
+
+def _print_pose(s: dict[str, Any], how: str) -> None:
+    t, f, e = s["target"], s["predicted_final"], s["error"]
     click.echo(
         f"  target     x = {t['x']: .4f}  y = {t['y']: .4f}  theta = "
         f"{math.degrees(t['theta']): .2f} deg"
     )
     click.echo(
         f"  predicted  x = {f['x']: .4f}  y = {f['y']: .4f}  theta = "
-        f"{math.degrees(f['theta']): .2f} deg (the table as the controller plays it)"
+        f"{math.degrees(f['theta']): .2f} deg ({how})"
     )
     click.echo(
         f"  error {e['position']:.4g} (tolerance {e['position_tolerance']:.4g}), heading "
         f"{math.degrees(e['heading_rad']):.3f} deg (tolerance "
         f"{math.degrees(e['heading_tolerance_rad']):.2f} deg)"
     )
+
+
+def _print(s: dict[str, Any]) -> None:
+    click.echo(
+        f"plan for {s['robot']}: {s['loops']} loops through hub "
+        f"({', '.join(f'{math.degrees(v):.1f}' for v in s['hub_rad'])}) deg, "
+        f"{s['frames']} frames every {s['frame_period_ms']} ms ({s['duration_s']:.2f} s)"
+    )
+    _print_pose(s, "the table as the controller plays it")
     if "file" in s:
         click.echo(f"wrote {s['file']} and {s['metadata_file']}")
     if "plot" in s:

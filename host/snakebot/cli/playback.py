@@ -53,8 +53,9 @@ def play(
     """Play the controller's gait table from its first frame, or run its program.
 
     Upload a table or a program first (`snakebot upload`). Speed and steering apply to a
-    table at once and can be changed by running play again; a program runs as built
-    (they do not apply). `snakebot stop` stops.
+    table at once and can be changed by running play again; a program runs at the speed
+    (all its segments) and with the steering (its serpenoid segments only; `snakebot
+    drive` changes both while it runs). `snakebot stop` stops.
     """
     with open_controller(port, baud, controller_id) as ctl:
         status = playback.play(ctl, loop=loop, speed=speed, steer=steer)

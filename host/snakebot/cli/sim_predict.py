@@ -1,5 +1,5 @@
-"""``snakebot sim predict``: play a gait table on the emulated robot and compare the body's
-path with the prediction from the same table."""
+"""``snakebot sim predict``: play a gait table or a controller program on the emulated
+robot and compare the body's path with the prediction from the same file."""
 
 from __future__ import annotations
 
@@ -13,6 +13,8 @@ import snakebot.transport.ports  # noqa: F401  (registers sim://)
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NUMBER, PLOT_PATH, NumberType
 from snakebot.extras import require
+from snakebot.program.files import is_program_file
+from snakebot.program.motion import predict_program
 from snakebot.sim.physics.select import DEFAULT_WORLD, WORLDS
 from snakebot.sim.physics.video import StateMotion, check_video_path, write_video
 from snakebot.sim.predict import DEFAULT_WORLD_HZ, predict_gait
@@ -24,13 +26,14 @@ def _motion(label: str, m: dict[str, Any]) -> str:
 
 @click.command("predict")
 @click.argument(
-    "gait_file", metavar="GAIT", type=click.Path(exists=True, dir_okay=False, path_type=Path)
+    "gait_file", metavar="FILE", type=click.Path(exists=True, dir_okay=False, path_type=Path)
 )
 @click.option(
     "--robot",
     "-r",
     help="robot to emulate: snake3, trident, snake5 or a robot "
-    "TOML file (default: the one named in GAIT.json)",
+    "TOML file (default: the one named in GAIT.json; for a program, the built-in robot "
+    "whose joints it carries)",
 )
 @click.option(
     "--ideal",
@@ -82,8 +85,9 @@ def predict(
     video: Path | None,
     as_json: bool,
 ) -> None:
-    """Play the gait table GAIT on the emulated robot and compare the body's path with
-    the prediction integrated from the same table.
+    """Play the gait table or controller program FILE (.gait, or .prog from `snakebot
+    program build` or `snakebot plan -o X.prog`) on the emulated robot and compare the
+    body's path with the prediction integrated from the same file.
 
     The host is the bus master, as with a USB2Dynamixel adapter and no controller: it
     puts the virtual servos at the first frame, then runs the controller's own gait
@@ -93,6 +97,11 @@ def predict(
     or, with --world mujoco, the servos drive a body with mass on wheels that can slip,
     and the report adds each wheel's sideways slip, each joint's energy and peak load.
     Everything runs on the emulator's clock, many times faster than real time.
+
+    A program is run by the controller's own player in program mode (its fixed-point
+    generators, one control tick at a time); the prediction takes the goals the host's
+    reference of those generators gives at every program step (within a tick of the
+    controller's), each step a frame, and integrates them as a table's frames.
 
     The report gives the body's displacement (in the start pose's frame: for a snake,
     +x along link 1 from the tail end (x, y) towards the head) emulated and
@@ -108,11 +117,22 @@ def predict(
     Example:
       snakebot gait serpenoid snake5 -A 30deg -w 180deg -d 90deg --cycles 1 -o s.gait
       snakebot sim predict s.gait --plot s.png
+      snakebot plan trident --to 0.3,0.1,20deg -o go.prog
+      snakebot sim predict go.prog --ideal
     """
     if video is not None:
         check_video_path(video)
-    result = predict_gait(gait_file, robot, ideal=ideal, world_hz=world_rate, world=world, mu=mu)
+    options: dict[str, Any] = {"ideal": ideal, "world_hz": world_rate, "world": world, "mu": mu}
+    if is_program_file(gait_file):
+        result = predict_program(gait_file, robot, **options)
+    else:
+        result = predict_gait(gait_file, robot, **options)
     summary = result.summary()
+    if is_program_file(gait_file):
+        summary["predicted"]["source"] = (
+            "integrated from the program's goals at every step (the host's reference of "
+            "the controller's generators), linear from step to step"
+        )
     if video is not None:
         click.echo("writing the video ...", err=True)
         summary["video"] = str(
@@ -136,10 +156,11 @@ def predict(
         return
     diff = summary["difference"]
     em = summary["emulated"]
+    unit = "program steps" if is_program_file(gait_file) else "frames"
     click.echo(
         f"played {gait_file} on the emulated {summary['robot']} in the {world} world "
         f"({summary['servos']} servos, host as bus master): {summary['frames']} "
-        f"frames every {summary['frame_period_ms']} ms, "
+        f"{unit} every {summary['frame_period_ms']} ms, "
         f"{'one loop' if summary['loop'] else 'once'}, {summary['duration_s']:.3f} s"
     )
     click.echo(f"body motion ({summary['frame']}):")

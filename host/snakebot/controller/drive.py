@@ -1,5 +1,8 @@
 """Driving the controller's on-board serpenoid live: keys turn, change speed, stop and
 start; a look at the controller shows the joints (degrees), load, error flags and state.
+A program the controller is running already (``snakebot play`` of a .prog) is driven
+instead of the serpenoid: the same keys steer its serpenoid segments and run it faster or
+slower.
 
     driver = Driver(ctl, settings, roster=roster_from_robot(robot))
     driver.start()                      # the serpenoid runs
@@ -123,17 +126,33 @@ class Driver:
     steer: float = 0.0
     quit: bool = field(default=False, init=False)
 
+    program: bool = field(default=False, init=False)
+
     def start(self) -> dict[str, Any]:
-        """Start (or restart) the serpenoid with the current speed and steering."""
+        """Start (or restart) the serpenoid with the current speed and steering; a
+        program the controller is running already is steered instead (the controller
+        applies Speed Scale to all its segments and Steering Offset to its serpenoid
+        ones, protocol/program.md), and restarted by a later start."""
+        if self.program or self._program_running():
+            self.program = True
+            self._set("Speed Scale", "speed", self.speed, playback.SPEED)
+            self._set("Steering Offset", "steer", self.steer, "rad")
+            if not self.running():
+                self.ctl.command("PROGRAM_RUN")
+            return {"program": True}
         status = playback.serpenoid(
             self.ctl, self.settings, speed=self.speed, steer=self.steer, roster=self.roster
         )
         self.roster = None  # set once
         return status
 
+    def _program_running(self) -> bool:
+        state = self.ctl.read("Program State")["Program State"]
+        return bool(state == self.ctl.table.enums["Program State"]["RUNNING"])
+
     def running(self) -> bool:
-        state = self.ctl.read("State")["State"]
-        return words.state_name(state, self.ctl.table) == "SERPENOID"
+        state = words.state_name(self.ctl.read("State")["State"], self.ctl.table)
+        return state == ("PLAYING" if self.program else "SERPENOID")
 
     def press(self, key: str) -> dict[str, Any]:
         """Do what ``key`` (a name of :data:`ACTIONS`) does; returns what was done."""

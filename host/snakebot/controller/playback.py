@@ -209,7 +209,8 @@ def play(
     """Play the active table from its first frame. ``loop``: None keeps the table's own
     setting. ``speed``: factor on the table's time; ``steer``: radians added to every
     joint (negated for reversed joints). An active program (protocol/program.md) is run
-    with PROGRAM_RUN instead; loop, speed and steering do not apply to it."""
+    with PROGRAM_RUN instead: speed runs its time and steering steers its serpenoid
+    segments (protocol/program.md, "Live steering"); loop does not apply."""
     values = {
         "Speed Scale": speed_scale(ctl, speed),
         "Steering Offset": steering_offset(ctl, steer),
@@ -223,6 +224,7 @@ def play(
             "and upload it with `snakebot upload GAIT --port ...`"
         )
     if is_program(before):
+        ctl.write(values)
         # a short program may be over before the state is read back: IDLE is fine then
         return {**_start(ctl, before, "PROGRAM_RUN", "PLAYING", finished_ok=0.0), "program": True}
     values["Loop"] = (before["Table Flags"] & 1) if loop is None else int(loop)

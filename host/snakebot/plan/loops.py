@@ -66,11 +66,13 @@ class Loop:
 
 
 def loop_angles(hub: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
-    """The loop's frames, first and last at the hub: (FRAMES + 1) x joints."""
-    p = coefficients.reshape(len(hub), 2 * HARMONICS)
+    """The loop's frames, first and last at the hub: (FRAMES + 1) x joints. The harmonics
+    are as many as the coefficients hold (HARMONICS for a table's loops; a program's
+    periodic blocks have one)."""
+    p = coefficients.reshape(len(hub), -1)
     s = np.arange(FRAMES + 1) * (2.0 * math.pi / FRAMES)
     out = np.repeat(np.asarray(hub, dtype=float)[None, :], FRAMES + 1, axis=0)
-    for k in range(1, HARMONICS + 1):
+    for k in range(1, p.shape[1] // 2 + 1):
         out += (
             np.sin(k * s)[:, None] * p[:, 2 * k - 2]
             + (1.0 - np.cos(k * s))[:, None] * p[:, 2 * k - 1]

@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 
+from snakebot.core import ffi, lib
 from snakebot.program.layout import (
     JointRecord,
     PeriodicSegment,
@@ -64,3 +65,45 @@ def predict(program: Program) -> np.ndarray:
 def predicted_ticks(program: Program) -> np.ndarray:
     """The prediction rounded to whole ticks: goals[step, joint] as the servos get them."""
     return np.rint(predict(program)).astype(np.int64)
+
+
+def live_ticks(program: Program, schedule: list[tuple[int, int, int]]) -> np.ndarray:
+    """goals[tick, joint] (whole ticks) the controller sends over a run of control ticks
+    while the host changes Speed Scale and Steering Offset (protocol/program.md, "Live
+    steering"): ``schedule`` gives per tick (dt ms since the last, the speed scale
+    register, the steering register); the first tick starts the program (dt 0 there).
+
+    The program's step is the scaled time's whole steps (``predict``'s goals for that
+    step); the steering, added to the rounded goal as on the controller, is its slewed
+    value, the target being the register while a serpenoid segment runs and 0 in the
+    others; the slew is the controller's own (``play_slew_toward``, integer rules shared
+    by the plain serpenoid), so what this checks is the generators under live changes."""
+    goals = predict(program)
+    starts = np.cumsum([0] + [s.steps for s in program.segments])
+    low = np.array([j.low for j in program.joints])
+    high = np.array([j.high for j in program.joints])
+    sign = np.array([j.sign for j in program.joints])
+    span = program.period_ms * 256
+    slew = ffi.new("play_slew *")
+    target = ffi.new("play_slew *")
+    lib.play_slew_reset(slew)
+    step, acc, running = 0, 0, True
+    out = np.empty((len(schedule), len(program.joints)), dtype=np.int64)
+    for row, (dt, scale, steering) in enumerate(schedule):
+        if not running:  # the program has ended: its last goals stay
+            out[row] = out[row - 1]
+            continue
+        segment = program.segments[int(np.searchsorted(starts, step, side="right")) - 1]
+        serpenoid = isinstance(segment, SerpenoidSegment)
+        target.amp_mrad = slew.amp_mrad = segment.amp_mrad if serpenoid else 0
+        target.omega_mrad_s = slew.omega_mrad_s = segment.omega_mrad_s if serpenoid else 0
+        target.phi0_mrad = 0
+        target.steering = steering if serpenoid else 0
+        target.speed_scale = scale
+        lib.play_slew_toward(slew, target, dt)
+        acc += dt * slew.speed_scale
+        running = step + acc // span < program.total_steps
+        step = min(step + acc // span, program.total_steps - 1)
+        acc %= span
+        out[row] = np.clip(np.rint(goals[step]) + sign * slew.steering, low, high)
+    return out

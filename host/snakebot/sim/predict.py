@@ -256,16 +256,18 @@ def play(
     batch: int = DEFAULT_BATCH,
     world: str = DEFAULT_WORLD,
     mu: float | None = None,
+    writes: tuple[float, list[dict[int, bytes]]] | None = None,
 ) -> tuple[WorldRecord, float, float]:
     """Play ``table`` once from the servos' current state (``ideal``: they are ideal
     servos, so the world samples at the frame instants); returns the world's record,
-    its sampling period and the wall time the play took."""
+    its sampling period and the wall time the play took. ``writes``: the tick period
+    and blocks to send instead of the table player's (a program's, say)."""
     if not world_hz > 0:
         raise PredictError(f"the world's sampling rate must be positive, not {world_hz} Hz")
     period = table.frame_period_ms / 1000.0
     per_frame = 1 if ideal else max(1, math.ceil(period * world_hz - 1e-9))
     world_period = period / per_frame
-    tick, blocks = player_writes(table)
+    tick, blocks = player_writes(table) if writes is None else writes
     # the packets are known before the play starts: encode them once, as a host loop should
     packets = [
         (n, sync_write(GOAL_POSITION_ADDR, GOAL_BLOCK, b)) for n, b in enumerate(blocks) if b
@@ -321,8 +323,23 @@ def predict_table(robot: Robot, table: GaitTable, samples: int) -> tuple[Traject
 
 
 def predict_gait(
-    gait: str | Path | GaitTable,
-    robot: str | Robot | None = None,
+    gait: str | Path | GaitTable, robot: str | Robot | None = None, **options: Any
+) -> Prediction:
+    """Play a gait table (a file or a ``GaitTable``) on an emulated robot and compare;
+    ``options`` as ``emulate``'s."""
+    table = gait if isinstance(gait, GaitTable) else read_gait(gait)
+    name = "<table>" if isinstance(gait, GaitTable) else str(gait)
+    chosen = resolve_robot(table, robot)
+    if table.frame_count < 2:
+        raise PredictError("the table has a single frame: nothing moves; give it two or more")
+    return emulate(name, chosen, table, None, **options)
+
+
+def emulate(
+    name: str,
+    robot: Robot,
+    table: Any,
+    writes: tuple[float, list[dict[int, bytes]]] | None,
     *,
     ideal: bool = False,
     world_hz: float = DEFAULT_WORLD_HZ,
@@ -330,32 +347,32 @@ def predict_gait(
     world: str = DEFAULT_WORLD,
     mu: float | None = None,
 ) -> Prediction:
-    """Play a gait table (a file or a ``GaitTable``) on an emulated robot and compare.
-    ``batch``: samples the world integrates per C call (results do not depend on it);
-    ``world``: "kinematic" or "mujoco" (``mu``: its wheel-floor friction)."""
-    table = gait if isinstance(gait, GaitTable) else read_gait(gait)
-    name = "<table>" if isinstance(gait, GaitTable) else str(gait)
-    chosen = resolve_robot(table, robot)
-    if table.frame_count < 2:
-        raise PredictError("the table has a single frame: nothing moves; give it two or more")
+    """Put the emulated robot at the table's first frame, play it (``writes``: the blocks
+    to send instead of the table player's, see ``play``) and compare with the table's
+    prediction. ``table`` is a GaitTable or anything with its frames, frame_period_ms,
+    frame_count, loop and metadata (a program's steps, ``program.motion``). ``ideal``:
+    ideal servos; ``batch``: samples the world integrates per C call (results do not
+    depend on it); ``world``: "kinematic" or "mujoco" (``mu``: its wheel-floor
+    friction)."""
     if ideal and world != "kinematic":
         raise PredictError(f"ideal servos have no torque: drop --ideal for the {world} world")
-    client = DxlClient(sim_url(chosen, ideal), echo=False)
+    client = DxlClient(sim_url(robot, ideal), echo=False)
     try:
         bus: Bus = client.port.bus
-        move_to_start(client, bus, chosen, table.frames[0])
+        move_to_start(client, bus, robot, table.frames[0])
         record, world_period, wall = play(
             client,
             bus,
-            chosen,
+            robot,
             table,
             ideal=ideal,
             world_hz=world_hz,
             batch=batch,
             world=world,
             mu=mu,
+            writes=writes,
         )
     finally:
         client.close()
-    predicted, played = predict_table(chosen, table, len(record.t))
-    return Prediction(name, chosen, table, ideal, world_period, record, predicted, played, wall)
+    predicted, played = predict_table(robot, table, len(record.t))
+    return Prediction(name, robot, table, ideal, world_period, record, predicted, played, wall)

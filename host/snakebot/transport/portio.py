@@ -6,7 +6,8 @@ few microseconds there matter. pyserial's POSIX port costs more than the operati
 system requires: every ``write`` is followed by a ``select`` that waits for the bytes
 to drain, every ``read`` builds timeout bookkeeping, and setting ``timeout`` re-applies
 the whole termios configuration. On such a port :class:`PortIO` writes with one
-``os.write`` and reads with one ``select`` and one ``os.read``, on the file descriptor
+``os.write`` and reads with one ``select`` and one ``os.read`` (a read that times out
+polls its last moments, :data:`POLLED_TAIL_S`), on the file descriptor
 pyserial opened (pyserial still owns it: opening, settings, closing). Any other port
 (``sim://``, ``loop://``, sockets, a port handed in by the caller of another kind) goes
 through pyserial unchanged.
@@ -32,9 +33,9 @@ TIMEOUT_TOLERANCE_S = 1e-4
 POLLED_TAIL_S = 2e-4
 """The last stretch of a timed read that is polled rather than slept through. A thread
 asleep in ``select`` wakes 50-150 us after its timeout (the kernel's timer slack, then
-the scheduler), and a bus scan ends one such wait per silent ID: 254 of them add more
-than the whole wire time at 1 Mbps. Polling costs CPU only in this tail, and only when
-nothing arrives before it."""
+the scheduler), and a bus scan ends one such wait per silent ID: at 1 Mbps, where a
+silent ID needs about 0.6 ms of wire and return delay, that is a sixth more per ID.
+Polling costs CPU only in this tail, and only when nothing arrives before it."""
 
 
 class PortIO:

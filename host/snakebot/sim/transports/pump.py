@@ -141,7 +141,8 @@ class Pump:
                 arrival = bus.next_master_arrival(1 << 20)
                 if arrival is not None:
                     first = bus.next_master_arrival(1)
-                    arrival = min(arrival, first + BURST_WINDOW_S) if first else arrival
+                    if first is not None:
+                        arrival = min(arrival, first + BURST_WINDOW_S)
                 event = bus.next_event_time()
             wait = IDLE_WAKE_S
             if arrival is not None or event is not None:

@@ -79,6 +79,7 @@ _NEEDS_LEVEL = {
 }
 
 
+@functools.cache
 def _instruction_name(code: int) -> str:
     try:
         return Instruction(code).name
@@ -495,7 +496,7 @@ class DxlClient:
         """
         _require_device(servo_id, "PING")
         return self.transact(
-            protocol.ping(servo_id), servo_id, 0, check=check, retries=retries, silence_s=silence_s
+            _ping_packet(servo_id), servo_id, 0, check=check, retries=retries, silence_s=silence_s
         )
 
     def read(self, servo_id: int, address: int, length: int) -> bytes:
@@ -638,6 +639,12 @@ class DxlClient:
         self.send(protocol.sync_write(address, length, data))
         for servo_id, chunk in data.items():
             self._after_write(servo_id, address, bytes(chunk))
+
+
+@functools.lru_cache(maxsize=256)
+def _ping_packet(servo_id: int) -> bytes:
+    """``protocol.ping``, built once per ID: a scan sends one to every ID, again and again."""
+    return protocol.ping(servo_id)
 
 
 @functools.lru_cache(maxsize=1024)

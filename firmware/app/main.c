@@ -25,6 +25,7 @@ int main(void)
     (void)store_load(&ctl);
     (void)ctl_table_changed(&ctl); /* loading from the store is not a change to store */
     (void)ctl_limits_changed(&ctl);
+    ctl_set_board(&ctl, BOARD_ID);
     pclink_init();
     busport_init();
     store_play_init(&ctl);

@@ -715,6 +715,7 @@ static uint32_t page_value(const ctl_device *d, uint8_t page, uint8_t addr)
         case CTL_TABLE_CAPACITY: return d->capacity;
         case CTL_MAX_SEGMENTS: return CTL_MAX_PROGRAM_SEGMENTS;
         case CTL_REFUSAL_REASON: return d->refusal;
+        case CTL_BOARD: return d->board;
         case CTL_PROGRAM_SEGMENT: return play_program_segment(&d->player);
         case CTL_PROGRAM_STATE:
             if (play_mode(&d->player) == PLAY_MODE_PROGRAM) return CTL_PROGRAM_STATE_RUNNING;
@@ -1065,7 +1066,13 @@ void ctl_init(ctl_device *d)
     d->table_changed = 0;
     d->limits_changed = 0;
     d->capacity = CTL_MAX_TABLE_BYTES;
+    d->board = CTL_BOARD_NONE;
     lib_init(&d->lib, NULL);
+}
+
+void ctl_set_board(ctl_device *d, uint8_t board)
+{
+    d->board = board;
 }
 
 void ctl_set_capacity(ctl_device *d, uint16_t bytes)

@@ -49,6 +49,9 @@ void ctl_init(ctl_device *d);
 /* The board's table capacity in bytes (at most the core's buffers hold; Table Capacity
  * on the Program page shows it): commits and uploads beyond it are refused. */
 void ctl_set_capacity(ctl_device *d, uint16_t bytes);
+/* The board the firmware runs on (CTL_BOARD_*, from the board's BOARD_ID; Board on the
+ * Program page shows it): the core knows no board itself, so the app names it. */
+void ctl_set_board(ctl_device *d, uint8_t board);
 /* Make table[0..len) (a table, or a program: protocol/program.md) active without an
  * upload (e.g. one kept in flash); false, and nothing changed, if it does not validate. */
 bool ctl_load_table(ctl_device *d, const uint8_t *table, size_t len);
@@ -119,6 +122,7 @@ struct ctl_device {
     uint8_t out_count;      /* goals to send this tick */
     uint8_t table_changed;
     uint8_t limits_changed;
+    uint8_t board;          /* CTL_BOARD_* the app named (NONE until it does) */
     lib_device lib;
     uint8_t staging[CTL_MAX_TABLE_BYTES];
     uint8_t active[CTL_MAX_TABLE_BYTES];

@@ -37,7 +37,7 @@ from snakebot.protocol import (
     ErrorFlags,
     Packet,
 )
-from snakebot.transport import DxlClient, settings
+from snakebot.transport import DxlClient, settings, timing
 
 BASE_MODEL = "AX-12A"
 """The table used to check names and ranges before a servo has been asked its model
@@ -316,11 +316,46 @@ class Probe:
         return {"id": self.id, "baud": self.baud}
 
 
-def probe(client: DxlClient, servo_id: int, *, retries: int = SCAN_RETRIES) -> Probe:
+def longest_return_delay_us() -> float:
+    """The longest Return Delay Time any servo described can be set to (an AX-12's
+    254 x 2 us), or the one snakebot is told to assume if that is longer: a scan knows
+    nothing of the servos' settings, so it waits this long for each reply to begin."""
+    longest = settings.resolve_return_delay_us()
+    for name in devices.names("servo"):
+        delay = devices.load(name).register("Return Delay Time")
+        if delay.scale is not None and delay.max is not None:
+            longest = max(longest, delay.max * float(delay.scale.factor))
+    return longest
+
+
+def silence_s(client: DxlClient) -> float:
+    """How long after a PING leaves the host a scan takes a silent line for a missing
+    servo: the PING on the wire, :func:`longest_return_delay_us`, the first byte of a
+    status packet, and the adapter's latency and the host's margin (the client's). It
+    scales with the baud rate, so slow rates cost what their wire needs."""
+    return timing.reply_timeout_s(
+        len(protocol.ping(0)),
+        1,
+        client.baudrate,
+        return_delay_us=longest_return_delay_us(),
+        latency_s=client.timing.latency_s,
+        margin_s=client.timing.margin_s,
+    )
+
+
+def probe(
+    client: DxlClient,
+    servo_id: int,
+    *,
+    retries: int = SCAN_RETRIES,
+    silence: float | None = None,
+) -> Probe:
     """Identify ``servo_id`` for a scan: one PING for a silent ID (silence is the rule),
     up to ``retries`` more after a damaged reply (a corrupted echo on a one-wire
     adapter, noise on the line), which means something may be there, or after an
-    echo that never came back intact (the instruction itself was damaged).
+    echo that never came back intact (the instruction itself was damaged). ``silence``:
+    seconds of silence that mean nobody answers (:func:`silence_s`; default: the
+    client's whole reply timeout).
 
     Before each retry the line is left quiet for :data:`~snakebot.protocol.FRAME_RESET_S`:
     a damaged length byte leaves the servos waiting for the rest of a packet that never
@@ -330,7 +365,7 @@ def probe(client: DxlClient, servo_id: int, *, retries: int = SCAN_RETRIES) -> P
         if garbled:
             _quiet(client.port)
         try:
-            reply = client.ping(servo_id, check=False, retries=0)
+            reply = client.ping(servo_id, check=False, retries=0, silence_s=silence)
             return Probe(servo_id, client.baudrate, _identified(client, servo_id, reply))
         except CorruptPacket:
             garbled = True
@@ -391,10 +426,11 @@ def scan_probes(
     echo = detect_echo(port, bauds[0]) if bauds else False
     for n, baud in enumerate(bauds):
         client = DxlClient(port, baud, echo=echo)
+        silence = silence_s(client)
         if n:  # servos at this rate heard the last one's PINGs as garbage: let them reset
             _quiet(port)
         for servo_id in ids:
-            yield probe(client, servo_id)
+            yield probe(client, servo_id, silence=silence)
 
 
 def scan(port: serial.SerialBase, ids: Iterable[int], bauds: Sequence[int]) -> list[ServoInfo]:

@@ -11,7 +11,7 @@ import serial
 
 import snakebot.transport.ports  # noqa: F401  (registers sim://)
 from snakebot import protocol
-from snakebot.transport.portio import PortIO
+from snakebot.transport.portio import POLLED_TAIL_S, PortIO
 
 
 @pytest.fixture
@@ -58,3 +58,15 @@ def test_other_ports_go_through_pyserial_with_the_timeout_applied():
         assert protocol.PacketParser().feed(reply)[0].id == 1
     finally:
         port.close()
+
+
+def test_a_read_within_the_polled_tail_waits_its_whole_timeout_and_sees_what_came(pty_port):
+    master, port = pty_port
+    io = PortIO(port)
+    short = POLLED_TAIL_S / 2  # no sleep at all: polled from the start
+    for timeout in (short, POLLED_TAIL_S * 20):
+        start = time.monotonic()
+        assert io.read(8, timeout) == b""
+        assert time.monotonic() - start >= timeout  # never gives up early
+        os.write(master, b"xy")
+        assert io.read(8, timeout) == b"xy"

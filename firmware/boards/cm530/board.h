@@ -7,6 +7,7 @@
 #include "hal_regs.h"
 
 #define BOARD_NAME "cm530"
+#define BOARD_ID CTL_BOARD_CM530 /* the Board register's value (enum in ctl_table.h) */
 
 /* Clock: HSE 8 MHz x9 = 72 MHz; APB1 36 MHz (USART3), APB2 72 MHz (USART1). */
 #define BOARD_HSE_HZ 8000000UL

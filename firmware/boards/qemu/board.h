@@ -16,6 +16,7 @@
 #include "hal_regs.h"
 
 #define BOARD_NAME "qemu"
+#define BOARD_ID CTL_BOARD_QEMU /* the Board register's value (enum in ctl_table.h) */
 
 #define BOARD_HSE_HZ 8000000UL
 #define BOARD_PLL_MUL 9U

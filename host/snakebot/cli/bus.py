@@ -112,9 +112,12 @@ def scan_command(
     stopping the scan. Ctrl-C stops early and still lists what was found (exit 130).
     Exit status 1 when no servo answers.
 
-    Each silent ID costs one reply timeout, so a scan of all 254 IDs takes a few
-    seconds per baud rate through a USB adapter. A servo whose baud rate you do not
-    know turns up with --bauds common, or --bauds all.
+    A silent ID costs the PING, the longest Return Delay Time a servo may have and the
+    first byte of a reply on the wire, plus the USB adapter's latency and the host's
+    margin (SNAKEBOT_LATENCY_MS, SNAKEBOT_MARGIN_MS): at 1000000 baud all 254 IDs take
+    about 1 s with an adapter whose latency timer is lowered to 1 ms, about 5 s at an
+    FTDI adapter's default 16 ms. A servo whose baud rate you do not know turns up with
+    --bauds common, or --bauds all.
     """
     id_list = servo_ops.parse_ids(ids)
     rates = servo_ops.parse_bauds(bauds) if bauds else [baud]

@@ -42,9 +42,24 @@ MARKS = {"ok": "ok  ", "warn": "WARN", "fail": "FAIL", "skip": "skip"}
     "answers: it asks you to press MODE or power-cycle the board, then starts the "
     "application again.",
 )
+@click.option(
+    "--board",
+    "expected_board",
+    type=click.Choice([checks.ANY_BOARD, *checks.board_names()]),
+    default=checks.ANY_BOARD,
+    show_default=True,
+    help="The board the controller should name: cm530 for the robot, qemu for `snakebot "
+    "sim serve`; any accepts either (and says which answered).",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print the checks as JSON.")
 def doctor(
-    port: str, controller_id: int, ids: str, bauds: str, check_bootloader: bool, as_json: bool
+    port: str,
+    controller_id: int,
+    ids: str,
+    bauds: str,
+    check_bootloader: bool,
+    expected_board: str,
+    as_json: bool,
 ) -> None:
     """Check a robot's wiring and settings before a first run.
 
@@ -54,7 +69,9 @@ def doctor(
 
     Checks, each ok / WARN / FAIL with what to do: the USB adapter's latency timer (an
     FTDI adapter's, through /sys); then, if a snakebot controller answers PING at --id
-    (57600 baud), its model, firmware version and state; otherwise the port is taken
+    (57600 baud), its model, firmware version, the board its firmware was built for
+    (against --board; a QEMU image answering on a hardware port is a warning) and its
+    state; otherwise the port is taken
     for a servo bus and scanned at --bauds: the rates servos answer at, IDs two servos
     share, and each servo's model, firmware, return delay, voltage and temperature
     (against the servo's own limits) and torque limit. Exit status 1 if any check fails.
@@ -63,13 +80,15 @@ def doctor(
     rates = servo_ops.parse_bauds(bauds)
     out = sys.stderr if as_json else sys.stdout
     found = [checks.adapter(port)]
+    board = None
     if check_bootloader:
         click.echo("Press MODE on the CM-530 or power-cycle it now.", file=out)
         found.append(checks.bootloader(port, FlashTimeouts.resolve()))
     else:
-        on_controller = checks.controller(port, controller_id)
+        on_controller = checks.controller(port, controller_id, expected_board)
         if on_controller is not None:
-            found += on_controller
+            found += on_controller.checks
+            board = on_controller.board
         else:
             click.echo(
                 f"No controller at ID {controller_id}: scanning a servo bus at "
@@ -79,7 +98,8 @@ def doctor(
             found += checks.servo_bus(port, id_list, rates)
     failed = [c.name for c in found if c.verdict == "fail"]
     if as_json:
-        click.echo(dumps({"port": port, "ok": not failed, "checks": [c.as_dict() for c in found]}))
+        report = {"port": port, "ok": not failed, "board": board}
+        click.echo(dumps({**report, "checks": [c.as_dict() for c in found]}))
     else:
         for c in found:
             click.echo(f"{MARKS[c.verdict]}  {c.name}: {c.detail}")

@@ -13,6 +13,7 @@ from typing import Any
 import serial
 
 from snakebot import servo_ops
+from snakebot.controller import load as load_controller
 from snakebot.controller.client import PC_LINK_BAUD, ControllerClient
 from snakebot.errors import SnakebotError
 from snakebot.flash.loader import RESET_HINT, enter_bootloader, first_line, start_application
@@ -22,6 +23,19 @@ from snakebot.transport import DxlClient, open_port, settings
 
 USB_SERIAL_SYSFS = Path("/sys/bus/usb-serial/devices")
 """Where Linux lists USB-serial adapters; an FTDI adapter has a latency_timer file there."""
+
+TTY_SYSFS = Path("/sys/class/tty")
+"""Where Linux lists terminals; one backed by hardware (a USB adapter, a UART) has a
+``device`` link there, a pseudo-terminal (an emulator's) has none."""
+
+ANY_BOARD = "any"
+"""``--board`` value that accepts whichever board answers."""
+
+NO_BOARD = "NONE"
+"""The Board value of a controller that names no board."""
+
+HARDWARE_BOARD = "CM530"
+"""The board a real adapter should lead to."""
 
 FAST_LATENCY_MS = 2
 """A latency timer at most this many milliseconds keeps replies prompt."""
@@ -76,9 +90,35 @@ def adapter(port: str, sysfs: Path = USB_SERIAL_SYSFS) -> Check:
     )
 
 
-def controller(port: str, controller_id: int, baud: int = PC_LINK_BAUD) -> list[Check] | None:
-    """The controller at ``controller_id``: model, firmware version, state; None when
-    nothing answers PING there (the port is a servo bus, or no controller runs)."""
+@dataclass(frozen=True)
+class ControllerFound:
+    """The controller's checks, and the board it named (lower case; None if unread)."""
+
+    checks: list[Check]
+    board: str | None = None
+
+
+def board_names() -> list[str]:
+    """The boards a controller may name, in lower case (``--board`` takes them)."""
+    names = load_controller().enums["Board"]
+    return [n.lower() for n in names if n != NO_BOARD]
+
+
+def on_hardware(port: str, sysfs: Path = TTY_SYSFS) -> bool:
+    """Whether ``port`` is a terminal backed by hardware (not a URL, not a pty)."""
+    if "://" in port:
+        return False
+    return (sysfs / Path(os.path.realpath(port)).name / "device").exists()
+
+
+def controller(
+    port: str,
+    controller_id: int,
+    expected_board: str = ANY_BOARD,
+    baud: int = PC_LINK_BAUD,
+) -> ControllerFound | None:
+    """The controller at ``controller_id``: model, firmware version, board, state; None
+    when nothing answers PING there (the port is a servo bus, or no controller runs)."""
     # echo "auto": on a one-wire servo bus the PING's own echo must not pass for a reply
     with ControllerClient.open(port, baud, controller_id, retries=1, echo="auto") as ctl:
         try:
@@ -89,8 +129,11 @@ def controller(port: str, controller_id: int, baud: int = PC_LINK_BAUD) -> list[
         try:
             with ctl.link_errors("the doctor's reads"):
                 found = ctl.read("Model Number", "Firmware Version", "State", "Error Flags")
+                if found["Model Number"] == table.model_number:  # a page only ours has
+                    found |= ctl.read("Board")
         except SnakebotError as exc:
-            return [Check("controller", "fail", str(exc), "check the cable and --baud")]
+            fail = Check("controller", "fail", str(exc), "check the cable and --baud")
+            return ControllerFound([fail])
     checks = [Check("controller", "ok", f"answers PING at ID {controller_id}, {baud} baud")]
     if found["Model Number"] != table.model_number:
         checks.append(
@@ -102,7 +145,7 @@ def controller(port: str, controller_id: int, baud: int = PC_LINK_BAUD) -> list[
                 "flash the snakebot firmware: snakebot flash --port ...",
             )
         )
-        return checks
+        return ControllerFound(checks)
     checks.append(Check("controller model", "ok", f"snakebot controller ({table.model_number})"))
     version = found["Firmware Version"]
     if version != table.firmware_version:
@@ -117,6 +160,8 @@ def controller(port: str, controller_id: int, baud: int = PC_LINK_BAUD) -> list[
         )
     else:
         checks.append(Check("controller firmware", "ok", f"version {version}"))
+    named = {v: k for k, v in table.enums["Board"].items()}.get(found["Board"])
+    checks.append(board(port, named or f"value {found['Board']}", expected_board))
     states = {v: k for k, v in table.enums["State"].items()}
     state = states.get(found["State"], str(found["State"]))
     if state == "SAFE":
@@ -131,7 +176,27 @@ def controller(port: str, controller_id: int, baud: int = PC_LINK_BAUD) -> list[
         )
     else:
         checks.append(Check("controller state", "ok", state))
-    return checks
+    return ControllerFound(checks, None if named in (None, NO_BOARD) else named.lower())
+
+
+def board(port: str, named: str, expected: str = ANY_BOARD, sysfs: Path = TTY_SYSFS) -> Check:
+    """The board the controller named (a Board enum name), against ``expected`` (a
+    :func:`board_names` entry or :data:`ANY_BOARD`) and against the port: on a hardware
+    adapter anything but the CM-530's image is not what a robot runs."""
+    name = "controller board"
+    shown = named.lower()
+    hardware = HARDWARE_BOARD.lower()
+    flash = f"flash the {hardware} image `make firmware` builds: snakebot flash --port {port}"
+    detail = shown
+    if named == NO_BOARD:
+        detail = "none named (the controller's logic run on the host, or older firmware)"
+    if expected not in (ANY_BOARD, shown):
+        fix = flash if expected == hardware else f"point --port at a {expected} controller"
+        return Check(name, "fail", f"{detail}, not the {expected} expected", fix)
+    if shown != hardware and on_hardware(port, sysfs):
+        device = Path(os.path.realpath(port)).name
+        return Check(name, "warn", f"{detail}, answering on {device}, a hardware port", flash)
+    return Check(name, "ok", detail)
 
 
 def servo_bus(port: str, ids: Iterable[int], bauds: Sequence[int]) -> list[Check]:

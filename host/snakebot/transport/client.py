@@ -79,6 +79,7 @@ _NEEDS_LEVEL = {
 }
 
 
+@functools.cache
 def _instruction_name(code: int) -> str:
     try:
         return Instruction(code).name
@@ -258,6 +259,7 @@ class DxlClient:
         *,
         check: bool = True,
         retries: int | None = None,
+        silence_s: float | None = None,
     ) -> Packet:
         """Send ``packet`` and return the status packet from ``expect_id`` carrying
         ``expect_params_len`` parameter bytes.
@@ -265,6 +267,11 @@ class DxlClient:
         Retries timed-out or corrupt replies (``retries`` overrides the client's count)
         and then raises :class:`DxlTimeout` or :class:`CorruptPacket`. A reply with error
         bits raises :class:`ServoError` at once unless ``check`` is False.
+
+        ``silence_s``: end an attempt this long after the write if nothing but the
+        instruction's echo has been heard (a scan, where most IDs never answer: by then
+        the first byte of any reply has arrived); once something is heard, the whole
+        reply timeout applies.
         """
         packet = bytes(packet)
         if len(packet) < 6 or packet[:2] != b"\xff\xff":
@@ -274,7 +281,9 @@ class DxlClient:
         attempts: list[_Attempt] = []
         with self._lock:
             for _ in range(tries):
-                reply, attempt = self._attempt(packet, expect_id, expect_params_len, timeout)
+                reply, attempt = self._attempt(
+                    packet, expect_id, expect_params_len, timeout, silence_s
+                )
                 if reply is None and self._echo is None and attempt.echo is not None:
                     reply = self._settle_echo(attempt.echo, expect_id, expect_params_len)
                 if reply is not None:
@@ -300,7 +309,12 @@ class DxlClient:
         return timeout
 
     def _attempt(
-        self, packet: bytes, expect_id: int, expect_len: int, timeout: float
+        self,
+        packet: bytes,
+        expect_id: int,
+        expect_len: int,
+        timeout: float,
+        silence_s: float | None = None,
     ) -> tuple[Packet | None, _Attempt]:
         port = self._port
         parser = self._parser
@@ -310,10 +324,21 @@ class DxlClient:
         port.reset_input_buffer()
         parser.reset()
         io.write(packet)
-        deadline = time.monotonic() + timeout
+        start = time.monotonic()
+        deadline = start + timeout
+        # Waiting for silence: bytes that may come back without a reply starting (our echo).
+        unheard = len(packet) if echo is True else 0
+        if silence_s is not None and silence_s < timeout:
+            deadline = start + silence_s
+        else:
+            unheard = -1
         status_len = STATUS_OVERHEAD + expect_len
         data = b""
         while True:
+            if unheard >= 0 and data:
+                unheard -= len(data)
+                if unheard < 0:  # a reply has begun: it gets its whole time
+                    deadline = start + timeout
             for event in parser.feed(data) if data else ():
                 if isinstance(event, Rejected):
                     seen.rejected.append(event)
@@ -456,14 +481,23 @@ class DxlClient:
 
     # -- instructions ---------------------------------------------------------------------
 
-    def ping(self, servo_id: int, *, check: bool = True, retries: int | None = None) -> Packet:
+    def ping(
+        self,
+        servo_id: int,
+        *,
+        check: bool = True,
+        retries: int | None = None,
+        silence_s: float | None = None,
+    ) -> Packet:
         """PING ``servo_id`` and return its status packet (``.error`` holds its flags).
 
-        With ``check=False`` a servo in alarm is reported, not raised; ``retries=0`` suits
-        a bus scan, where most IDs are expected to be silent.
+        With ``check=False`` a servo in alarm is reported, not raised; ``retries=0`` and
+        ``silence_s`` (:meth:`transact`) suit a bus scan, where most IDs are silent.
         """
         _require_device(servo_id, "PING")
-        return self.transact(protocol.ping(servo_id), servo_id, 0, check=check, retries=retries)
+        return self.transact(
+            _ping_packet(servo_id), servo_id, 0, check=check, retries=retries, silence_s=silence_s
+        )
 
     def read(self, servo_id: int, address: int, length: int) -> bytes:
         """READ ``length`` bytes of ``servo_id``'s control table from ``address``."""
@@ -605,6 +639,12 @@ class DxlClient:
         self.send(protocol.sync_write(address, length, data))
         for servo_id, chunk in data.items():
             self._after_write(servo_id, address, bytes(chunk))
+
+
+@functools.lru_cache(maxsize=256)
+def _ping_packet(servo_id: int) -> bytes:
+    """``protocol.ping``, built once per ID: a scan sends one to every ID, again and again."""
+    return protocol.ping(servo_id)
 
 
 @functools.lru_cache(maxsize=1024)

@@ -32,6 +32,12 @@ MAX_WAKE_LATENESS_S = 0.0002
 """The most a pump sleeps short of a deadline (and polls instead) to make up for the
 kernel waking it late."""
 
+BURST_WINDOW_S = 1e-4
+"""Longest a byte that has reached the master waits for the rest of its burst: bytes that
+follow each other closely (a status packet at 1 Mbps) go over in one piece, as from a
+USB adapter, but at a slow rate each goes as it arrives, as from an adapter with a low
+latency timer, so a client hears a reply begin (a scan's wait ends at a first byte)."""
+
 LATENESS_SMOOTHING = 0.1
 """Weight of the newest measurement in the running average of that lateness."""
 
@@ -130,8 +136,13 @@ class Pump:
                 return
             with self.lock:
                 # wake for the next event, or when everything on its way to the client
-                # has arrived (bytes go over in bursts, as from a USB adapter)
+                # has arrived (bytes go over in bursts, as from a USB adapter), or a
+                # burst window after the next byte does
                 arrival = bus.next_master_arrival(1 << 20)
+                if arrival is not None:
+                    first = bus.next_master_arrival(1)
+                    if first is not None:
+                        arrival = min(arrival, first + BURST_WINDOW_S)
                 event = bus.next_event_time()
             wait = IDLE_WAKE_S
             if arrival is not None or event is not None:

@@ -9,6 +9,7 @@
 
 #if BOARD_HAS_FLASH_STORE
 
+#include "hal_iwdg.h"
 #include "store_slots.h"
 
 static const hal_flash_region_t region = {BOARD_STORE_BASE, BOARD_STORE_SIZE,
@@ -40,6 +41,12 @@ typedef char limits_slot_holds_the_limits[(BOARD_LIMITS_STORE_SIZE / 2U) % BOARD
                                               : -1];
 
 #if BOARD_HAS_FLASH_LIBRARY
+/* A library store blocks the main loop page by page: the watchdog is fed between them. */
+void store_lib_pause(void)
+{
+    hal_iwdg_feed();
+}
+
 #define LIB_AREAS_BASE (BOARD_LIB_DIR_BASE + BOARD_LIB_DIR_SIZE)
 #define LIB_AREAS_SIZE ((STORE_LIB_SLOTS + 1U) * BOARD_LIB_AREA_SIZE)
 static const store_lib_t library = {

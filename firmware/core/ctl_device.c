@@ -243,6 +243,20 @@ static uint8_t *staging(ctl_device *d)
     return d->active + (d->arena_size - d->capacity);
 }
 
+/* Whether the player reads the active table's bytes (a table or a program plays). */
+static bool table_in_use(const ctl_device *d)
+{
+    uint8_t mode = play_mode(&d->player);
+    return mode == PLAY_MODE_TABLE || mode == PLAY_MODE_PROGRAM;
+}
+
+/* Whether the active table reaches into the staging area while it plays: then no chunk
+ * can be staged (stage_chunk refuses them) and no commit can take staged bytes. */
+static bool staging_blocked(ctl_device *d)
+{
+    return table_in_use(d) && staging(d) < d->active + d->active_len;
+}
+
 /* Copy blob[0..len) (a table or a program) to the arena's start, motion stopped. The copy
  * runs forward, so the staging area, higher up in the arena, may overlap its destination:
  * staged bytes the copy overwrote are gone (a repeated commit finds the upload
@@ -312,7 +326,8 @@ static uint16_t upload_flag(uint8_t result)
     case PROG_ERR_TRUNCATED:
     case PROG_ERR_TRAILING:
     case CTL_UPLOAD_RESULT_BAD_LENGTH:
-    case CTL_UPLOAD_RESULT_INCOMPLETE: return CTL_ERROR_FLAGS_UPLOAD_LENGTH;
+    case CTL_UPLOAD_RESULT_INCOMPLETE:
+    case CTL_UPLOAD_RESULT_NO_ROOM_WHILE_PLAYING: return CTL_ERROR_FLAGS_UPLOAD_LENGTH;
     case GT_ERR_CRC:
     case PROG_ERR_CRC:
     case CTL_UPLOAD_RESULT_TRANSFER_CRC: return CTL_ERROR_FLAGS_UPLOAD_CRC;
@@ -474,6 +489,8 @@ static void commit(ctl_device *d, uint8_t what)
     }
     if (what == CTL_UPLOAD_COMMIT_LIBRARY_DELETE) {
         result = lib_delete(&d->lib); /* takes no staged bytes */
+    } else if (staging_blocked(d)) {
+        result = CTL_UPLOAD_RESULT_NO_ROOM_WHILE_PLAYING; /* nothing could be staged */
     } else if (len == 0 || len > d->capacity) {
         result = CTL_UPLOAD_RESULT_BAD_LENGTH;
     } else if (len > d->staged_end) {
@@ -833,13 +850,6 @@ static int32_t staging_at(uint32_t offset, uint8_t page, uint16_t a)
         return (int32_t)(offset + CTL_UPLOAD_DATA_SIZE + (a - CTL_UPLOAD_DATA_MORE));
     }
     return -1;
-}
-
-/* Whether the player reads the active table's bytes (a table or a program plays). */
-static bool table_in_use(const ctl_device *d)
-{
-    uint8_t mode = play_mode(&d->player);
-    return mode == PLAY_MODE_TABLE || mode == PLAY_MODE_PROGRAM;
 }
 
 /* The active table gives way to an upload staged over it: no table (the registers say

@@ -122,6 +122,9 @@ def test_an_upload_that_would_land_on_the_playing_table_is_refused_until_stopped
     assert r.error == ErrorFlags.RANGE
     assert dev.get("Upload Result") == UploadResult.NO_ROOM_WHILE_PLAYING
     assert dev.flags & ControllerErrors.UPLOAD_LENGTH
+    # a commit meanwhile says why too (a pipelined upload sends it after the refusal)
+    assert dev.commit(len(new), zlib.crc32(new)) == 0
+    assert dev.get("Upload Result") == UploadResult.NO_ROOM_WHILE_PLAYING
     # the table is untouched and still plays
     assert active_bytes(dev) == old and dev.state == State.PLAYING
     assert play_to(dev, playing.frame_count - 1) == frame_goals(playing, playing.frame_count - 1)

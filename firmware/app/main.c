@@ -20,30 +20,29 @@
 static union {
     ctl_device d;
     uint8_t bytes[sizeof(ctl_device) + BOARD_TABLE_ARENA];
-} device;
-static ctl_device *const ctl = &device.d;
+} ctl;
 
 int main(void)
 {
     platform_init();
-    ctl_init(ctl);
-    ctl_set_tables(ctl, BOARD_TABLE_ARENA, BOARD_TABLE_CAPACITY);
-    (void)store_load(ctl);
-    (void)ctl_table_changed(ctl); /* loading from the store is not a change to store */
-    (void)ctl_limits_changed(ctl);
+    ctl_init(&ctl.d);
+    ctl_set_tables(&ctl.d, BOARD_TABLE_ARENA, BOARD_TABLE_CAPACITY);
+    (void)store_load(&ctl.d);
+    (void)ctl_table_changed(&ctl.d); /* loading from the store is not a change to store */
+    (void)ctl_limits_changed(&ctl.d);
     pclink_init();
     busport_init();
-    store_play_init(ctl);
+    store_play_init(&ctl.d);
 
     uint32_t next_tick = hal_millis();
     bool flash_due = false; /* this tick's step of a table save is still to run */
     for (;;) {
         uint32_t now = hal_millis();
-        bool worked = pclink_poll(ctl, now);
+        bool worked = pclink_poll(&ctl.d, now);
         bool ticked = false;
         if (busport_idle() && (int32_t)(now - next_tick) >= 0) {
             ticked = true;
-            ctl_tick(ctl, now);
+            ctl_tick(&ctl.d, now);
             busport_begin();
             next_tick += BOARD_CONTROL_TICK_MS;
             if ((int32_t)(now - next_tick) >= 0) {
@@ -52,21 +51,21 @@ int main(void)
             flash_due = true;
             worked = true;
         }
-        worked |= busport_poll(ctl);
-        if (ctl_table_changed(ctl)) {
-            store_save_begin(ctl);
+        worked |= busport_poll(&ctl.d);
+        if (ctl_table_changed(&ctl.d)) {
+            store_save_begin(&ctl.d);
         }
         /* one bounded step per tick, once the bus is quiet: the CPU stalls while the flash
          * is busy, and a servo's reply must not arrive meanwhile */
         if (flash_due && busport_idle()) {
             flash_due = false;
-            (void)store_save_step(ctl);
+            (void)store_save_step(&ctl.d);
         }
-        if (ctl_limits_changed(ctl)) {
-            (void)store_save_limits(ctl);
+        if (ctl_limits_changed(&ctl.d)) {
+            (void)store_save_limits(&ctl.d);
         }
         if (ticked) {
-            store_play_tick(ctl, now); /* the buttons, see store_play.h */
+            store_play_tick(&ctl.d, now); /* the buttons, see store_play.h */
         }
         platform_service();
         platform_idle(!worked);

@@ -137,13 +137,18 @@ def test_a_committed_32_kb_table_is_saved_over_ticks_and_loads_at_the_next_start
     assert board.stored() == second
 
 
-def test_a_save_overtaken_by_an_upload_over_the_table_keeps_the_stored_one(app):
+def saving_over(app, ticks: int) -> Board:
+    """A board that stored table 1 and is `ticks` ticks into saving table 2."""
     board = Board(app)
-    first = table(1)
-    board.make_active(first)
+    board.make_active(table(1))
     board.ticks()
     board.make_active(table(2))
-    board.ticks(30)  # part of the way
+    board.ticks(ticks)
+    return board
+
+
+def test_a_save_overtaken_by_an_upload_over_the_table_keeps_the_stored_one(app):
+    board = saving_over(app, 10)  # erasing the slot still
     # a chunk of a new upload lands on the (stopped) table and displaces it
     offset = CTL.register("Upload Offset")
     params = bytes([offset.address]) + offset.encode(0) + bytes(16)
@@ -151,19 +156,14 @@ def test_a_save_overtaken_by_an_upload_over_the_table_keeps_the_stored_one(app):
     app.lib.ctl_handle_packet(board.d, 200, WRITE, params, len(params), 0, out, 250)
     assert board.active() == b""
     assert board.ticks() == 0  # the save ended at once
-    assert board.stored() == first
+    assert board.stored() == table(1)
 
 
 def test_a_save_overtaken_by_a_table_made_active_without_commit_keeps_the_stored_one(app):
-    board = Board(app)
-    first = table(1)
-    board.make_active(first)
-    board.ticks()
-    board.make_active(table(2))
-    board.ticks(100)
+    board = saving_over(app, 100)  # programming
     # as LIBRARY_PLAY does: another table of the same size, nothing to persist
     third = table(3)
     assert app.lib.ctl_load_table(board.d, third, len(third))
     board.ticks()
-    assert board.stored() == first
+    assert board.stored() == table(1)
     assert zlib.crc32(board.active()) == zlib.crc32(third)

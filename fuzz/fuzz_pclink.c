@@ -59,6 +59,12 @@
  * of 128; a cap keeps the long tail from dominating the run time (docs/reliability.md). */
 #define MAX_STEPS 128
 #define NO_READ 0xFFu
+/* The device's tables: the QEMU board's capacity (a CRC or a validation costs up to that
+ * much after a change), in an arena of twice that, so no upload displaces the active
+ * table (the checks below hold that a table is never lost). */
+#define FUZZ_CAPACITY 2048u
+#define FUZZ_ARENA (2u * FUZZ_CAPACITY)
+#define STAGING (d->active + FUZZ_ARENA - FUZZ_CAPACITY)
 
 /* ---- the input --------------------------------------------------------------------------- */
 
@@ -141,7 +147,7 @@ static void check_reply(const uint8_t *out, size_t n, size_t cap, uint8_t from_i
 
 static struct {
     uint16_t len;
-    uint8_t bytes[CTL_MAX_TABLE_BYTES];
+    uint8_t bytes[FUZZ_CAPACITY];
 } snapshot, flash; /* the active table as last seen; what the app would have persisted */
 
 /* ---- the gait library: a store in RAM, kept across power cycles as flash would be ------------ */
@@ -157,7 +163,7 @@ static struct {
     uint8_t kind; /* 0: empty */
     uint8_t name[CTL_SLOT_NAME_SIZE];
     uint16_t len;
-    uint8_t bytes[CTL_MAX_TABLE_BYTES];
+    uint8_t bytes[FUZZ_CAPACITY];
 } library[LIB_SLOTS];
 
 static void lib_get(uint8_t slot, lib_slot *out, const uint8_t **data)
@@ -176,7 +182,7 @@ static uint8_t lib_put(uint8_t slot, uint8_t kind, const uint8_t *name, const ui
                        uint16_t len)
 {
     CHECK(slot < LIB_SLOTS && kind != 0 && kind != CTL_UPLOAD_COMMIT_LIMITS);
-    CHECK(len > 0 && len <= CTL_MAX_TABLE_BYTES);
+    CHECK(len > 0 && len <= FUZZ_CAPACITY);
     for (size_t i = 0; i < CTL_SLOT_NAME_SIZE; i++) {
         CHECK(name[i] == 0 || (name[i] >= 0x20 && name[i] <= 0x7e)); /* names were checked */
     }
@@ -198,7 +204,7 @@ static uint8_t lib_remove(uint8_t slot)
     return CTL_UPLOAD_RESULT_OK;
 }
 
-static const lib_store fuzz_library = {LIB_SLOTS, CTL_MAX_TABLE_BYTES, lib_get, lib_put,
+static const lib_store fuzz_library = {LIB_SLOTS, FUZZ_CAPACITY, lib_get, lib_put,
                                        lib_remove};
 
 /* Whether table[0..len) is what a library slot keeps as a table. */
@@ -228,16 +234,16 @@ static struct {
 static struct {
     uint16_t len;
     uint32_t crc;
-    uint8_t bytes[CTL_MAX_TABLE_BYTES];
+    uint8_t bytes[FUZZ_CAPACITY];
 } memo;
 
 static uint32_t crc_of(const uint8_t *p, size_t n)
 {
-    if (n <= CTL_MAX_TABLE_BYTES && memo.len == n && memcmp(memo.bytes, p, n) == 0) {
+    if (n <= FUZZ_CAPACITY && memo.len == n && memcmp(memo.bytes, p, n) == 0) {
         return memo.crc;
     }
     uint32_t crc = crc32_compute(p, n);
-    if (n <= CTL_MAX_TABLE_BYTES) {
+    if (n <= FUZZ_CAPACITY) {
         memo.len = (uint16_t)n;
         memo.crc = crc;
         memcpy(memo.bytes, p, n);
@@ -268,7 +274,7 @@ static void check_state(void)
     CHECK((ctl_error_flags(d) & ~(uint16_t)KNOWN_FLAGS) == 0);
     CHECK(d->regs[CTL_JOINT_COUNT] <= CTL_MAX_JOINTS);
     CHECK(bus_roster_count(&d->bus) == d->regs[CTL_JOINT_COUNT]);
-    CHECK(d->staged_end <= d->capacity && d->capacity <= CTL_MAX_TABLE_BYTES);
+    CHECK(d->staged_end <= d->capacity && d->capacity <= FUZZ_CAPACITY);
     /* the window only ever shows a servo page or a described one */
     uint8_t page = d->regs[CTL_WINDOW_PAGE];
     CHECK(page < CTL_SERVO_PAGES || page == CTL_PAGE_PROGRAM || page == CTL_PAGE_LIBRARY ||
@@ -292,7 +298,7 @@ static void check_table(void)
     bool changed = d->active_len != snapshot.len ||
                    memcmp(d->active, snapshot.bytes, d->active_len) != 0;
     if (d->active_len > 0) {
-        CHECK(d->active_len <= CTL_MAX_TABLE_BYTES);
+        CHECK(d->active_len <= FUZZ_CAPACITY);
         if (changed || !facts.known) {
             facts.program = is_program(d->active, d->active_len);
             if (facts.program) {
@@ -319,7 +325,7 @@ static void check_table(void)
             persist = ctl_table_changed(d); /* only if a commit in the same step asked */
         } else {
             CHECK(d->regs[CTL_UPLOAD_RESULT] == GT_OK);
-            CHECK(memcmp(d->active, d->staging, d->active_len) == 0);
+            CHECK(memcmp(d->active, STAGING, d->active_len) == 0);
             CHECK(reg16(CTL_UPLOAD_LENGTH) == d->active_len);
             CHECK(ctl_table_changed(d)); /* and the app is told to persist it */
         }
@@ -457,7 +463,7 @@ static size_t make_table(src *s, uint8_t *t)
 {
     uint8_t joints = (uint8_t)(u8(s) % CTL_MAX_JOINTS + 1u);
     size_t per_frame = 2u * joints;
-    size_t room = (CTL_MAX_TABLE_BYTES - GT_HEADER_SIZE - (size_t)GT_JOINT_SIZE * joints) /
+    size_t room = (FUZZ_CAPACITY - GT_HEADER_SIZE - (size_t)GT_JOINT_SIZE * joints) /
                   per_frame;
     uint16_t frames = (uint16_t)(u8(s) % (room < 40 ? room : 40) + 1u);
     uint16_t period = (uint16_t)(u16(s) % 1000u + 1u);
@@ -528,7 +534,7 @@ static void commit_with(uint16_t len, uint32_t crc)
  * gt_validate finds, and only a table that still validates may become active. */
 static void upload(src *s)
 {
-    static uint8_t t[CTL_MAX_TABLE_BYTES];
+    static uint8_t t[FUZZ_CAPACITY];
     size_t len = make_table(s, t);
     uint8_t fault = u8(s);
     uint8_t where = u8(s);
@@ -575,7 +581,7 @@ static void upload(src *s)
     if (fault == 1 || fault == 2 || fault == 4) {
         /* a damaged upload is refused (CRC-32 catches the flipped bit), a lost chunk only
          * passes if the staging area already held those very bytes */
-        CHECK(d->regs[CTL_UPLOAD_RESULT] != GT_OK || memcmp(d->staging, t, len) == 0);
+        CHECK(d->regs[CTL_UPLOAD_RESULT] != GT_OK || memcmp(STAGING, t, len) == 0);
         if (fault != 1) CHECK(d->regs[CTL_UPLOAD_RESULT] != GT_OK);
     }
 }
@@ -653,7 +659,7 @@ static size_t make_program(src *s, uint8_t *t)
  * cover), and only a program that validates may become active. */
 static void upload_program(src *s)
 {
-    static uint8_t t[CTL_MAX_TABLE_BYTES];
+    static uint8_t t[FUZZ_CAPACITY];
     size_t len = make_program(s, t);
     uint8_t fault = u8(s) % 3u;
     uint8_t where = u8(s);
@@ -957,6 +963,7 @@ static void power_cycle(uint8_t damage, uint8_t where, uint8_t flip)
     if (bad) flash.bytes[where % flash.len] ^= (uint8_t)(flip | 1u);
     memset(d, 0, sizeof *d);
     ctl_init(d);
+    ctl_set_tables(d, FUZZ_ARENA, FUZZ_CAPACITY);
     ctl_set_library(d, &fuzz_library);
     bool loaded = flash.len > 0 && ctl_load_table(d, flash.bytes, flash.len);
     CHECK(loaded == (flash.len > 0 && !bad)); /* a whole table always comes back */
@@ -1029,8 +1036,8 @@ static void step(src *s)
     }
     case 4: upload(s); break;
     case 5: { /* commit whatever is staged, with its true CRC */
-        uint16_t len = (uint16_t)(u16(s) % (CTL_MAX_TABLE_BYTES + 8u));
-        uint32_t crc = len <= CTL_MAX_TABLE_BYTES ? crc_of(d->staging, len) : 0;
+        uint16_t len = (uint16_t)(u16(s) % (FUZZ_CAPACITY + 8u));
+        uint32_t crc = len <= FUZZ_CAPACITY ? crc_of(STAGING, len) : 0;
         commit_with(len, crc);
         break;
     }
@@ -1100,8 +1107,8 @@ static void step(src *s)
             uint8_t cmd = CTL_COMMAND_LIBRARY_PLAY;
             write_to_me(CTL_COMMAND, &cmd, 1);
         } else {
-            uint16_t len = (uint16_t)(u16(s) % (CTL_MAX_TABLE_BYTES + 8u));
-            uint32_t crc = len <= CTL_MAX_TABLE_BYTES ? crc32_compute(d->staging, len) : 0;
+            uint16_t len = (uint16_t)(u16(s) % (FUZZ_CAPACITY + 8u));
+            uint32_t crc = len <= FUZZ_CAPACITY ? crc32_compute(STAGING, len) : 0;
             commit_as(len, crc,
                       sel % 3u == 1u ? CTL_UPLOAD_COMMIT_LIBRARY_STORE
                                      : CTL_UPLOAD_COMMIT_LIBRARY_DELETE);
@@ -1126,11 +1133,13 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     src s = {data, size};
     static ctl_device *fresh; /* the device as ctl_init() leaves it after power-on */
     if (d == NULL) { /* one device for the whole run: a fresh allocation per input cost */
-        d = malloc(ctl_device_size()); /* exact size: ASan catches a write past the end */
-        fresh = malloc(ctl_device_size());
+        /* exact size: ASan catches a write past the end */
+        d = malloc(ctl_device_bytes(FUZZ_ARENA));
+        fresh = malloc(ctl_device_bytes(FUZZ_ARENA));
         CHECK(d != NULL && fresh != NULL && ctl_device_size() == sizeof(ctl_device));
         memset(fresh, 0, sizeof *fresh); /* the MCU's .bss */
         ctl_init(fresh);
+        ctl_set_tables(fresh, FUZZ_ARENA, FUZZ_CAPACITY);
     }
     /* every input starts from power-on: a copy of the initialised device rather than
      * ctl_init() again, which rebuilt every register's default (power_cycle() still runs

@@ -15,10 +15,17 @@
  * there are valid ones. */
 bool store_load(ctl_device *ctl);
 
-/* After a commit: write the active table (blocks for the erase and programming, about
- * 100 ms; the PC link may lose bytes meanwhile, since the F103 stalls while its flash is
- * busy). */
-bool store_save(const ctl_device *ctl);
+/* After a commit: start writing the active table to flash (replacing a save under way);
+ * store_save_step() does the work. */
+void store_save_begin(const ctl_device *ctl);
+
+/* Once per control tick, with the bus idle: the next step of the save under way, bounded
+ * (STORE_SAVE_HALFWORDS; docs/hardware.md has the figures): the F103 stalls while its
+ * flash is busy, so a step holds up the loop for at most one page erase (20-40 ms) and
+ * the PC link may lose bytes meanwhile. A save the active table's replacement (a library
+ * play) overtook ends without touching the previous record. True while a save is under
+ * way. */
+bool store_save_step(const ctl_device *ctl);
 
 /* After the robot's limits were set: write them to their own store (blocks likewise). */
 bool store_save_limits(const ctl_device *ctl);

@@ -13,6 +13,10 @@
 #define E_NAME 8U
 #define AREAS (STORE_LIB_SLOTS + 1U)
 
+__attribute__((weak)) void store_lib_pause(void)
+{
+}
+
 uint32_t store_lib_capacity(const store_lib_t *lib)
 {
     return lib->area_size < 0xFFFFU ? lib->area_size : 0xFFFFU;
@@ -128,10 +132,17 @@ store_lib_status_t store_lib_put(const store_lib_t *lib, uint8_t slot, uint8_t k
     uint8_t *e = dir + slot * STORE_LIB_ENTRY_BYTES;
     uint8_t area = free_area(lib, dir, entry_used(lib, e) ? e[E_AREA] : (uint8_t)slot);
     uint32_t offset = area * lib->area_size;
-    /* The data first, into an area nothing committed refers to; then the directory. */
-    if (hal_flash_erase(&lib->areas, offset, len) != HAL_FLASH_OK ||
-        hal_flash_write(&lib->areas, offset, data, len) != HAL_FLASH_OK) {
-        return STORE_LIB_FLASH;
+    /* The data first, into an area nothing committed refers to; then the directory. A
+     * page at a time, with a pause after each for the board (a 32 KB blob holds the CPU
+     * for over a second, longer than the watchdog waits). */
+    uint32_t page = lib->areas.page_size;
+    for (uint32_t at = 0; at < len; at += page) {
+        uint32_t n = len - at < page ? len - at : page;
+        if (hal_flash_erase(&lib->areas, offset + at, n) != HAL_FLASH_OK ||
+            hal_flash_write(&lib->areas, offset + at, data + at, n) != HAL_FLASH_OK) {
+            return STORE_LIB_FLASH;
+        }
+        store_lib_pause();
     }
     e[E_KIND] = kind;
     e[E_AREA] = area;

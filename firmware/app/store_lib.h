@@ -62,9 +62,14 @@ store_lib_status_t store_lib_entry(const store_lib_t *lib, uint8_t slot, store_l
 
 /* Store data[0..len) as slot `slot` with the given kind and name (STORE_LIB_NAME_MAX
  * bytes, zero-padded), replacing what it held. Blocks while flash is erased and
- * programmed. */
+ * programmed (up to about 0.1 s a page: 1.8 s for 32 KB), calling store_lib_pause()
+ * after each page. */
 store_lib_status_t store_lib_put(const store_lib_t *lib, uint8_t slot, uint8_t kind,
                                  const uint8_t *name, const uint8_t *data, uint32_t len);
+
+/* Called between the pages store_lib_put() writes; the board's feeds the watchdog (the
+ * default, weak, does nothing). */
+void store_lib_pause(void);
 
 /* Empty slot `slot` (a no-op, OK, if it is empty already). */
 store_lib_status_t store_lib_delete(const store_lib_t *lib, uint8_t slot);

@@ -14,8 +14,9 @@
 /* Give `ctl` the board's library (once, at start-up). */
 void store_play_init(ctl_device *ctl);
 
-/* One control tick of the buttons and LEDs. Call it after anything the PC link committed
- * has been persisted: playing a slot replaces the active table without persisting it. */
+/* One control tick of the buttons and LEDs. Playing a slot replaces the active table
+ * without persisting it; a save of the table it replaced that is still under way then
+ * ends without touching the stored table (store.h). */
 void store_play_tick(ctl_device *ctl, uint32_t now_ms);
 
 #endif

@@ -96,42 +96,138 @@ static void put_le32(uint8_t *p, uint32_t v)
     }
 }
 
-hal_flash_status_t store_slots_save(const hal_flash_region_t *r, const uint8_t *data,
-                                    uint32_t len)
+/* The phases of a save, in order. */
+enum { P_FIND, P_ERASE, P_DATA, P_HEADER, P_MAGIC, P_VERIFY, P_DONE };
+
+hal_flash_status_t store_slots_begin(store_slots_job_t *job, const hal_flash_region_t *r,
+                                     const uint8_t *data, uint32_t len)
 {
+    job->phase = P_DONE;
+    job->status = HAL_FLASH_ERR_RANGE;
     if (data == NULL || len == 0U || len > store_slots_capacity(r) || len > 0xFFFFU) {
         return HAL_FLASH_ERR_RANGE;
     }
-    store_record_t newest;
-    int keep = newest_slot(r, &newest);
-    uint32_t seq = keep >= 0 ? newest.seq + 1U : 1U;
-    uint32_t slot = (keep == 0 ? 1U : 0U) * slot_size(r);
+    job->r = r;
+    job->data = data;
+    job->len = len;
+    job->slot = 0;
+    job->seq = 0;
+    job->done = 0;
+    job->expect = crc32_compute(data, len);
+    job->crc = CRC32_INIT;
+    job->phase = P_FIND;
+    job->status = HAL_FLASH_OK;
+    return HAL_FLASH_OK;
+}
 
-    uint8_t header[STORE_SLOTS_HEADER_BYTES];
-    put_le32(header + OFF_MAGIC, MAGIC);
-    put_le32(header + OFF_SEQ, seq);
-    header[OFF_LEN] = (uint8_t)len;
-    header[OFF_LEN + 1U] = (uint8_t)(len >> 8);
-    header[OFF_LEN + 2U] = 0xFF;
-    header[OFF_LEN + 3U] = 0xFF;
-    put_le32(header + OFF_CRC, crc32_compute(data, len));
+/* P_FIND: read slot job->done; once both are read, aim at the one not holding the newest. */
+static void find_step(store_slots_job_t *job)
+{
+    const hal_flash_region_t *r = job->r;
+    store_record_t rec;
+    uint32_t i = job->done++;
+    if (slot_record(r, i * slot_size(r), &rec) &&
+        (job->slot == 0U || (int32_t)(rec.seq - job->seq) > 0)) {
+        job->slot = i + 1U;
+        job->seq = rec.seq;
+    }
+    if (job->done == 2U) {
+        uint32_t keep = job->slot; /* 0: none, else the newest's slot + 1 */
+        job->seq = keep != 0U ? job->seq + 1U : 1U;
+        job->slot = (keep == 1U ? 1U : 0U) * slot_size(r);
+        job->done = 0;
+        job->phase = P_ERASE;
+    }
+}
 
-    /* Everything but the magic, then the magic: until its last half-word is programmed
-     * the slot does not count, and the other slot still holds the previous record. */
-    hal_flash_status_t st = hal_flash_erase(r, slot, STORE_SLOTS_HEADER_BYTES + len);
-    if (st == HAL_FLASH_OK) {
-        st = hal_flash_write(r, slot + OFF_SEQ, header + OFF_SEQ,
-                             STORE_SLOTS_HEADER_BYTES - OFF_SEQ);
+/* P_DATA: program up to `bytes` more of the data, adding them to the running CRC. */
+static hal_flash_status_t data_step(store_slots_job_t *job, uint32_t bytes)
+{
+    uint32_t n = job->len - job->done;
+    if (n > bytes) {
+        n = bytes;
     }
+    hal_flash_status_t st = hal_flash_write(job->r, job->slot + STORE_SLOTS_HEADER_BYTES +
+                                                        job->done,
+                                            job->data + job->done, n);
     if (st == HAL_FLASH_OK) {
-        st = hal_flash_write(r, slot + STORE_SLOTS_HEADER_BYTES, data, len);
-    }
-    if (st == HAL_FLASH_OK) {
-        st = hal_flash_write(r, slot + OFF_MAGIC, header + OFF_MAGIC, 4U);
-    }
-    store_record_t check;
-    if (st == HAL_FLASH_OK && (newest_slot(r, &check) != (int)(slot != 0U) || check.seq != seq)) {
-        st = HAL_FLASH_ERR_VERIFY;
+        job->crc = crc32_update(job->crc, job->data + job->done, n);
+        job->done += n;
     }
     return st;
+}
+
+/* P_HEADER: everything but the magic, if the bytes programmed are the data as it began. */
+static hal_flash_status_t header_step(store_slots_job_t *job)
+{
+    if (crc32_final(job->crc) != job->expect) {
+        return HAL_FLASH_ERR_VERIFY; /* the data changed under the save */
+    }
+    uint8_t header[STORE_SLOTS_HEADER_BYTES];
+    put_le32(header + OFF_SEQ, job->seq);
+    header[OFF_LEN] = (uint8_t)job->len;
+    header[OFF_LEN + 1U] = (uint8_t)(job->len >> 8);
+    header[OFF_LEN + 2U] = 0xFF;
+    header[OFF_LEN + 3U] = 0xFF;
+    put_le32(header + OFF_CRC, job->expect);
+    return hal_flash_write(job->r, job->slot + OFF_SEQ, header + OFF_SEQ,
+                           STORE_SLOTS_HEADER_BYTES - OFF_SEQ);
+}
+
+bool store_slots_step(store_slots_job_t *job, uint32_t halfwords)
+{
+    const hal_flash_region_t *r = job->r;
+    hal_flash_status_t st = HAL_FLASH_OK;
+    uint8_t magic[4];
+    store_record_t check;
+    switch (job->phase) {
+    case P_FIND: find_step(job); break;
+    case P_ERASE:
+        st = hal_flash_erase(r, job->slot + job->done, 1U);
+        job->done += r->page_size;
+        if (job->done >= STORE_SLOTS_HEADER_BYTES + job->len) {
+            job->done = 0;
+            job->phase = P_DATA;
+        }
+        break;
+    case P_DATA:
+        st = data_step(job, halfwords > 0x7FFFFFFFU ? 0xFFFFFFFEU : 2U * halfwords);
+        if (job->done == job->len) {
+            job->phase = P_HEADER;
+        }
+        break;
+    case P_HEADER:
+        st = header_step(job);
+        job->phase = P_MAGIC;
+        break;
+    case P_MAGIC:
+        /* until its last half-word is programmed the slot does not count, and the other
+         * slot still holds the previous record */
+        put_le32(magic, MAGIC);
+        st = hal_flash_write(r, job->slot + OFF_MAGIC, magic, 4U);
+        job->phase = P_VERIFY;
+        break;
+    case P_VERIFY:
+        if (!slot_record(r, job->slot, &check) || check.seq != job->seq) {
+            st = HAL_FLASH_ERR_VERIFY;
+        }
+        job->phase = P_DONE;
+        break;
+    default: return false;
+    }
+    if (st != HAL_FLASH_OK) {
+        job->status = (uint8_t)st;
+        job->phase = P_DONE;
+    }
+    return job->phase != P_DONE;
+}
+
+hal_flash_status_t store_slots_save(const hal_flash_region_t *r, const uint8_t *data,
+                                    uint32_t len)
+{
+    store_slots_job_t job;
+    hal_flash_status_t st = store_slots_begin(&job, r, data, len);
+    while (st == HAL_FLASH_OK && store_slots_step(&job, 0xFFFFFFFFU)) {
+    }
+    return st == HAL_FLASH_OK ? (hal_flash_status_t)job.status : st;
 }

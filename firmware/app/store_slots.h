@@ -35,8 +35,39 @@ bool store_slots_newest(const hal_flash_region_t *r, store_record_t *out);
 /* CRC-32 of the flash bytes [addr, addr + len) (addr even), read half-word by half-word. */
 uint32_t store_slots_flash_crc(uint32_t addr, uint32_t len);
 
-/* Write data[0..len) as a new record in the slot not holding the newest one. */
+/* Write data[0..len) as a new record in the slot not holding the newest one (all of
+ * store_slots_begin() and store_slots_step() at once). */
 hal_flash_status_t store_slots_save(const hal_flash_region_t *r, const uint8_t *data,
                                     uint32_t len);
+
+/* The same save, a bounded step at a time, so that a large record never holds up the
+ * control loop for long: the caller runs one step per control tick, and may abandon the
+ * job at any point (the half-written slot has no magic: the previous record stays).
+ * Order: find the newest record (reading one slot per step), erase the other slot a page
+ * per step, program the data, then the header but the magic, then the magic, then read
+ * the new record back. data[0..len) must not change meanwhile: if the bytes programmed
+ * do not have the CRC the data had at the start, the magic is never written and the job
+ * ends in HAL_FLASH_ERR_VERIFY. */
+typedef struct {
+    const hal_flash_region_t *r;
+    const uint8_t *data;
+    uint32_t len;
+    uint32_t slot;   /* while finding: the newest record's slot + 1 (0: none); then the
+                      * offset of the slot being written */
+    uint32_t seq;    /* while finding: the newest record's; then the new record's */
+    uint32_t done;   /* the phase's progress: slots read, slot bytes erased, data bytes
+                      * programmed */
+    uint32_t expect; /* CRC-32 of data[0..len) when the save began */
+    uint32_t crc;    /* CRC-32 state of the data bytes programmed so far */
+    uint8_t phase;   /* internal */
+    uint8_t status;  /* hal_flash_status_t: the first failure, else OK */
+} store_slots_job_t;
+
+/* Start saving data[0..len): HAL_FLASH_OK, or HAL_FLASH_ERR_RANGE (nothing to do). */
+hal_flash_status_t store_slots_begin(store_slots_job_t *job, const hal_flash_region_t *r,
+                                     const uint8_t *data, uint32_t len);
+/* One step: the CRC of one slot read, or one page erased, or at most max(halfwords, 6)
+ * half-words programmed. True while steps remain; then job->status tells the outcome. */
+bool store_slots_step(store_slots_job_t *job, uint32_t halfwords);
 
 #endif

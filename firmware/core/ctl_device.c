@@ -237,11 +237,35 @@ static void show_table(ctl_device *d, const gt_info *info, uint32_t crc)
     sync_bus_roster(d);
 }
 
-/* Copy blob[0..len) (a table or a program) into the active buffer, motion stopped. */
+/* The staging area: the arena's last `capacity` bytes. */
+static uint8_t *staging(ctl_device *d)
+{
+    return d->active + (d->arena_size - d->capacity);
+}
+
+/* Whether the player reads the active table's bytes (a table or a program plays). */
+static bool table_in_use(const ctl_device *d)
+{
+    uint8_t mode = play_mode(&d->player);
+    return mode == PLAY_MODE_TABLE || mode == PLAY_MODE_PROGRAM;
+}
+
+/* Whether the active table reaches into the staging area while it plays: then no chunk
+ * can be staged (stage_chunk refuses them) and no commit can take staged bytes. */
+static bool staging_blocked(ctl_device *d)
+{
+    return table_in_use(d) && staging(d) < d->active + d->active_len;
+}
+
+/* Copy blob[0..len) (a table or a program) to the arena's start, motion stopped. The copy
+ * runs forward, so the staging area, higher up in the arena, may overlap its destination:
+ * staged bytes the copy overwrote are gone (a repeated commit finds the upload
+ * INCOMPLETE). */
 static void store_active(ctl_device *d, const uint8_t *blob, size_t len)
 {
     stop_motion(d);
     for (size_t i = 0; i < len; i++) d->active[i] = blob[i];
+    if (staging(d) < d->active + len) d->staged_end = 0;
     d->active_len = (uint16_t)len;
     d->table_changed = 1;
 }
@@ -302,7 +326,8 @@ static uint16_t upload_flag(uint8_t result)
     case PROG_ERR_TRUNCATED:
     case PROG_ERR_TRAILING:
     case CTL_UPLOAD_RESULT_BAD_LENGTH:
-    case CTL_UPLOAD_RESULT_INCOMPLETE: return CTL_ERROR_FLAGS_UPLOAD_LENGTH;
+    case CTL_UPLOAD_RESULT_INCOMPLETE:
+    case CTL_UPLOAD_RESULT_NO_ROOM_WHILE_PLAYING: return CTL_ERROR_FLAGS_UPLOAD_LENGTH;
     case GT_ERR_CRC:
     case PROG_ERR_CRC:
     case CTL_UPLOAD_RESULT_TRANSFER_CRC: return CTL_ERROR_FLAGS_UPLOAD_CRC;
@@ -464,26 +489,28 @@ static void commit(ctl_device *d, uint8_t what)
     }
     if (what == CTL_UPLOAD_COMMIT_LIBRARY_DELETE) {
         result = lib_delete(&d->lib); /* takes no staged bytes */
+    } else if (staging_blocked(d)) {
+        result = CTL_UPLOAD_RESULT_NO_ROOM_WHILE_PLAYING; /* nothing could be staged */
     } else if (len == 0 || len > d->capacity) {
         result = CTL_UPLOAD_RESULT_BAD_LENGTH;
     } else if (len > d->staged_end) {
         result = CTL_UPLOAD_RESULT_INCOMPLETE;
-    } else if (crc32_compute(d->staging, len) != crc) {
+    } else if (crc32_compute(staging(d), len) != crc) {
         result = CTL_UPLOAD_RESULT_TRANSFER_CRC;
     } else if (what == CTL_UPLOAD_COMMIT_LIMITS) {
-        result = apply_limits(d, d->staging, len);
+        result = apply_limits(d, staging(d), len);
     } else if (what == CTL_UPLOAD_COMMIT_LIBRARY_STORE) {
         /* a table or a program is checked as its own commit would check it before it is
          * kept */
         gt_info info;
         result = d->lib.store_kind == CTL_UPLOAD_COMMIT_TABLE
-                     ? check_table(d, d->staging, len, &info)
+                     ? check_table(d, staging(d), len, &info)
                  : d->lib.store_kind == CTL_UPLOAD_COMMIT_PROGRAM
-                     ? check_program(d, d->staging, len)
+                     ? check_program(d, staging(d), len)
                      : CTL_UPLOAD_RESULT_OK;
-        if (result == GT_OK) result = lib_store_blob(&d->lib, d->staging, (uint16_t)len);
+        if (result == GT_OK) result = lib_store_blob(&d->lib, staging(d), (uint16_t)len);
     } else {
-        result = load_active(d, d->staging, len, crc, what);
+        result = load_active(d, staging(d), len, crc, what);
     }
     set_reg(d, CTL_ERROR_FLAGS, 2, reg(d, CTL_ERROR_FLAGS, 2) & ~(uint32_t)UPLOAD_FLAGS);
     if (result != GT_OK) raise_flags(d, upload_flag(result));
@@ -826,27 +853,51 @@ static int32_t staging_at(uint32_t offset, uint8_t page, uint16_t a)
     return -1;
 }
 
+/* The active table gives way to an upload staged over it: no table (the registers say
+ * so); the roster stays as it was. */
+static void drop_active(ctl_device *d)
+{
+    d->active_len = 0;
+    set_reg(d, CTL_TABLE_SIZE, 2, 0);
+    set_reg(d, CTL_TABLE_CRC, 4, 0);
+    set_reg(d, CTL_TABLE_JOINTS, 1, 0);
+    set_reg(d, CTL_TABLE_FLAGS, 1, 0);
+    set_reg(d, CTL_TABLE_FRAMES, 2, 0);
+    set_reg(d, CTL_TABLE_PERIOD, 2, 0);
+}
+
 /* Check (apply: and stage) the table bytes a write of data[0..n) at start carries: they
- * must end inside the board's capacity (else UPLOAD_LENGTH and RANGE, nothing staged).
- * A chunk at offset 0 starts an upload; the others extend what was staged. */
+ * must end inside the board's capacity (else UPLOAD_LENGTH and RANGE, nothing staged),
+ * and may land on the active table's bytes (when the arena is less than twice the
+ * capacity) only while no table plays (else Upload Result NO_ROOM_WHILE_PLAYING,
+ * UPLOAD_LENGTH and RANGE); landing there drops the active table. A chunk at offset 0
+ * starts an upload; the others extend what was staged. */
 static uint8_t stage_chunk(ctl_device *d, uint8_t start, const uint8_t *data, size_t n,
                            bool apply)
 {
     uint32_t offset = value_after(d, CTL_UPLOAD_OFFSET, 2, start, data, n);
     uint8_t page = byte_after(d, CTL_WINDOW_PAGE, start, data, n);
+    uint8_t *stage = staging(d);
     int32_t lo = -1, hi = -1; /* the staging bytes filled: lo..hi, contiguous */
     for (uint16_t a = start; a < start + n; a++) {
         int32_t at = staging_at(offset, page, a);
         if (at < 0) continue;
         if (lo < 0) lo = at;
         hi = at;
-        if (apply) d->staging[at] = data[a - start];
+        if (apply) stage[at] = data[a - start];
     }
     if (lo < 0) return 0;
+    bool over_active = stage + lo < d->active + d->active_len;
     if (!apply && (uint32_t)hi >= d->capacity) {
         raise_flags(d, CTL_ERROR_FLAGS_UPLOAD_LENGTH);
         return DXL_ERR_RANGE;
     }
+    if (!apply && over_active && table_in_use(d)) {
+        d->regs[CTL_UPLOAD_RESULT] = CTL_UPLOAD_RESULT_NO_ROOM_WHILE_PLAYING;
+        raise_flags(d, CTL_ERROR_FLAGS_UPLOAD_LENGTH);
+        return DXL_ERR_RANGE;
+    }
+    if (apply && over_active) drop_active(d);
     if (apply && lo == 0) d->staged_end = (uint16_t)(hi + 1);
     else if (apply && hi + 1 > d->staged_end) d->staged_end = (uint16_t)(hi + 1);
     return 0;
@@ -1065,7 +1116,8 @@ void ctl_init(ctl_device *d)
     d->out_count = 0;
     d->table_changed = 0;
     d->limits_changed = 0;
-    d->capacity = CTL_MAX_TABLE_BYTES;
+    d->arena_size = 0;
+    d->capacity = 0;
     d->board = CTL_BOARD_NONE;
     lib_init(&d->lib, NULL);
 }
@@ -1075,9 +1127,25 @@ void ctl_set_board(ctl_device *d, uint8_t board)
     d->board = board;
 }
 
+size_t ctl_device_bytes(size_t arena)
+{
+    return sizeof(ctl_device) + arena;
+}
+
+void ctl_set_tables(ctl_device *d, size_t arena, uint16_t capacity)
+{
+    stop_motion(d);
+    if (d->active_len > 0) drop_active(d);
+    d->staged_end = 0;
+    d->arena_size = (uint16_t)(arena < 0xFFFFu ? arena : 0xFFFFu);
+    ctl_set_capacity(d, capacity);
+}
+
 void ctl_set_capacity(ctl_device *d, uint16_t bytes)
 {
-    d->capacity = bytes < CTL_MAX_TABLE_BYTES ? bytes : CTL_MAX_TABLE_BYTES;
+    uint16_t most = d->arena_size < CTL_MAX_TABLE_BYTES ? d->arena_size : CTL_MAX_TABLE_BYTES;
+    d->capacity = bytes < most ? bytes : most;
+    d->staged_end = 0; /* the staging area moved */
 }
 
 bool ctl_load_table(ctl_device *d, const uint8_t *table, size_t len)

@@ -1,10 +1,12 @@
 /* The controller as a Protocol 1.0 device on the PC link, and the glue of the control
  * loop: control table (protocol/controller.md), upload and commit, commands, safety,
- * player and bus master. The app owns one ctl_device (size: ctl_device_size(), about
- * 5.5 KB: the 2 KB staging area and the 2 KB active table are inside) and only moves
- * bytes:
+ * player and bus master. The app owns one ctl_device followed by its table arena, which
+ * holds the active table and the staging area (ctl_device_bytes(arena): about 1.6 KB plus
+ * the arena; the board sizes the arena, see ctl_set_tables()), and only moves bytes:
  *
- *     ctl_init(&ctl);                       // once; then maybe ctl_load_limits() and
+ *     ctl_init(&ctl);                       // once, then
+ *     ctl_set_tables(&ctl, arena, capacity);
+ *                                           // then maybe ctl_load_limits() and
  *                                           // ctl_load_table() from flash, in that order
  *     // PC link, for each received byte (main loop draining the USART3 RX ring):
  *     ctl_pc_feed(&ctl, byte);
@@ -41,13 +43,21 @@
 
 typedef struct ctl_device ctl_device;
 
-/* Bytes to allocate for a ctl_device. */
+/* Bytes of a ctl_device without its table arena. */
 size_t ctl_device_size(void);
-/* Factory state: registers at their defaults, no table, idle; tables of up to
- * CTL_MAX_TABLE_BYTES accepted. */
+/* Bytes to allocate for a ctl_device followed by a table arena of `arena` bytes. */
+size_t ctl_device_bytes(size_t arena);
+/* Factory state: registers at their defaults, no table, idle; no table arena yet (every
+ * upload is refused until ctl_set_tables()). */
 void ctl_init(ctl_device *d);
-/* The board's table capacity in bytes (at most the core's buffers hold; Table Capacity
- * on the Program page shows it): commits and uploads beyond it are refused. */
+/* The device's table arena: the `arena` bytes that follow it in memory (see
+ * ctl_device_bytes()), at most 65535; and its table capacity (at most the arena and
+ * CTL_MAX_TABLE_BYTES). The active table lies at the arena's start, the staging area is
+ * its last `capacity` bytes (protocol/controller.md, "Where a table is staged"): an
+ * arena of twice the capacity never refuses an upload. Drops any table. */
+void ctl_set_tables(ctl_device *d, size_t arena, uint16_t capacity);
+/* The board's table capacity in bytes (at most the arena holds; Table Capacity on the
+ * Program page shows it): commits and uploads beyond it are refused. */
 void ctl_set_capacity(ctl_device *d, uint16_t bytes);
 /* The board the firmware runs on (CTL_BOARD_*, from the board's BOARD_ID; Board on the
  * Program page shows it): the core knows no board itself, so the app names it. */
@@ -115,17 +125,20 @@ struct ctl_device {
     bus_master bus;
     dxl_parser pc;
     uint32_t last_link_ms;
+    uint16_t arena_size;    /* bytes of the table arena (active[]) */
     uint16_t staged_end;    /* staging bytes written since the upload began at offset 0 */
     uint16_t active_len;    /* 0: no active table */
-    uint16_t capacity;      /* the board's table capacity (<= CTL_MAX_TABLE_BYTES) */
+    uint16_t capacity;      /* the board's table capacity (<= arena_size) */
     uint8_t refusal;        /* CTL_REFUSAL_REASON_* of the last command */
     uint8_t out_count;      /* goals to send this tick */
     uint8_t table_changed;
     uint8_t limits_changed;
     uint8_t board;          /* CTL_BOARD_* the app named (NONE until it does) */
     lib_device lib;
-    uint8_t staging[CTL_MAX_TABLE_BYTES];
-    uint8_t active[CTL_MAX_TABLE_BYTES];
+    /* The table arena, as long as the app made it: the active table at its start, the
+     * staging area its last `capacity` bytes. Not a pointer: that would cost the QEMU
+     * board RAM it does not have. */
+    uint8_t active[];
 };
 
 #endif

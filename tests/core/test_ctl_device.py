@@ -248,7 +248,8 @@ def test_a_good_commit_clears_the_upload_error(dev):
 
 def test_writing_past_the_staging_area_is_refused(dev):
     offset = CTL.register("Upload Offset").address
-    r = dev.one(write(CTL_ID, offset, (2040).to_bytes(2, "little") + bytes(16)))
+    end = CTL.limits["max_table_bytes"]  # the host devices' capacity: the largest board's
+    r = dev.one(write(CTL_ID, offset, (end - 8).to_bytes(2, "little") + bytes(16)))
     assert r.error == ErrorFlags.RANGE
     assert dev.flags & ControllerErrors.UPLOAD_LENGTH
 
@@ -311,5 +312,5 @@ def test_host_upload_writes_refuse_what_cannot_fit():
     with pytest.raises(ControllerTableError, match="chunk must be 1..64"):
         chunk_writes(b"x" * 10, 65)
     with pytest.raises(ControllerTableError, match="cannot be uploaded"):
-        chunk_writes(b"x" * 2049)
+        chunk_writes(b"x" * (CTL.limits["max_table_bytes"] + 1))
     assert [len(p) for _, p in chunk_writes(b"x" * 130)] == [66, 66, 4]

@@ -161,7 +161,7 @@ def _set16(raw: bytearray, at: int, value: int) -> None:
         (lambda r: r.__setitem__(7, 1), "bad_flags"),
         (lambda r: _set16(r, 8, 0), "bad_period"),
         (lambda r: _set16(r, 10, 0), "bad_frame_count"),
-        (lambda r: _set16(r, 10, 400), "too_big"),
+        (lambda r: _set16(r, 10, 0xFFFF), "too_big"),
         (lambda r: _set16(r, 10, 4), "truncated"),
         (lambda r: _set16(r, 10, 2), "trailing_bytes"),
         (lambda r: r.__setitem__(17, 1), "bad_flags"),  # joint 0's reserved byte
@@ -191,9 +191,10 @@ def test_crc_mismatch_message_names_problem_and_fix():
 
 
 def test_constructor_refuses_what_the_controller_would():
-    with pytest.raises(GaitTableError, match="too large.*at most 251 frames for 4 joints"):
-        GaitTable((1, 2, 3, 4), 20, True, ((0, 1023),) * 4, np.full((252, 4), 512))
-    GaitTable((1, 2, 3, 4), 20, True, ((0, 1023),) * 4, np.full((251, 4), 512))
+    most = (MAX_TABLE_BYTES - HEADER_SIZE - JOINT_SIZE * 4) // (2 * 4)
+    with pytest.raises(GaitTableError, match=f"too large.*at most {most} frames for 4 joints"):
+        GaitTable((1, 2, 3, 4), 20, True, ((0, 1023),) * 4, np.full((most + 1, 4), 512))
+    GaitTable((1, 2, 3, 4), 20, True, ((0, 1023),) * 4, np.full((most, 4), 512))
     with pytest.raises(GaitTableError) as caught:
         simple(frames=np.array([[512, 512, 512], [50, 400, 0]]))
     assert caught.value.reason == "frame_out_of_limits" and "frame 1, joint 0" in str(caught.value)

@@ -208,7 +208,8 @@ def test_malformed_blobs_are_refused_with_their_code() -> None:
 
 
 def test_a_program_larger_than_the_buffer_is_refused() -> None:
-    program = Program(20, joints(4), (TableSegment(0, 1),), frames=((500,) * 4,) * 300)
+    frames = lib.CTL_MAX_TABLE_BYTES // (2 * 4) + 1  # 4 joints' frames alone pass the buffer
+    program = Program(20, joints(4), (TableSegment(0, 1),), frames=((500,) * 4,) * frames)
     assert refusal_code(program) == lib.CTL_UPLOAD_RESULT_PROGRAM_TOO_BIG
 
 

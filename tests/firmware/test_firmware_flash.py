@@ -38,6 +38,21 @@ typedef struct { uint32_t offset; uint32_t len; uint32_t seq; } store_record_t;
 uint32_t store_slots_capacity(const hal_flash_region_t *r);
 bool store_slots_newest(const hal_flash_region_t *r, store_record_t *out);
 int store_slots_save(const hal_flash_region_t *r, const uint8_t *data, uint32_t len);
+typedef struct {
+    const hal_flash_region_t *r;
+    const uint8_t *data;
+    uint32_t len;
+    uint32_t slot;
+    uint32_t seq;
+    uint32_t done;
+    uint32_t expect;
+    uint32_t crc;
+    uint8_t phase;
+    uint8_t status;
+} store_slots_job_t;
+int store_slots_begin(store_slots_job_t *job, const hal_flash_region_t *r,
+                      const uint8_t *data, uint32_t len);
+bool store_slots_step(store_slots_job_t *job, uint32_t halfwords);
 """
 
 
@@ -204,10 +219,11 @@ def test_any_writes_into_erased_flash_read_back(hal, chunks):
 
 
 def stored(hal, mem: bytes) -> tuple[bytes, int] | None:
-    """What a fresh start finds in flash holding ``mem``: (table, sequence) or None."""
+    """What a fresh start finds in flash holding ``mem`` (a store of all of it): (table,
+    sequence) or None."""
     with MODELS.use(PowerCutModel(mem)) as m:
         rec = hal.ffi.new("store_record_t *")
-        if not hal.lib.store_slots_newest(region(hal), rec):
+        if not hal.lib.store_slots_newest(region(hal, size=len(mem)), rec):
             return None
         assert m.unexpected == []
         return bytes(m.mem[rec.offset : rec.offset + rec.len]), rec.seq

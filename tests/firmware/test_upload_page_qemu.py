@@ -10,7 +10,7 @@ import zlib
 
 import pytest
 from controller_cli_support import SNAKE5_IDS, cli_json, constant_table, save, wave_table
-from firmware_support import CONTROLLER_ID, booted_qemu, client
+from firmware_support import CONTROLLER_ID, board_value, booted_qemu, client
 
 from snakebot.controller import ControllerErrors, UploadResult, load
 from snakebot.controller.upload import chunk_limit, chunk_writes, commit_write
@@ -24,6 +24,7 @@ ENV = {"SNAKEBOT_MARGIN_MS": "300"}  # QEMU shares a loaded machine
 CTL = load()
 LONG = chunk_limit(CTL, long_chunks=True)
 CORRUPT = 0.01  # the fault campaigns' corrupt-1pct
+CAPACITY = board_value("qemu", "BOARD_TABLE_CAPACITY")  # the QEMU board's Table Capacity
 
 
 @pytest.fixture(scope="module")
@@ -34,7 +35,7 @@ def firmware(tmp_path_factory):
 
 
 def test_the_largest_table_uploads_in_long_chunks_on_the_firmware(firmware, tmp_path):
-    path = save(wave_table(frames=max_frames(4)), tmp_path)
+    path = save(wave_table(frames=max_frames(4, CAPACITY)), tmp_path)
     crc = zlib.crc32(path.read_bytes())
     for _ in range(2):  # the second replaces the first the same way
         report = cli_json("upload", path, "--port", firmware, env=ENV)
@@ -45,7 +46,7 @@ def test_the_largest_table_uploads_in_long_chunks_on_the_firmware(firmware, tmp_
 
 def test_a_damaged_long_chunk_is_dropped_and_a_refused_one_stages_nothing(firmware, tmp_path):
     # not the table the staging area holds from the test before: a lost chunk must show
-    data = constant_table(600, frames=max_frames(len(SNAKE5_IDS))).encode()
+    data = constant_table(600, frames=max_frames(len(SNAKE5_IDS), CAPACITY)).encode()
     writes = chunk_writes(data, controller=CTL, long_chunks=True)
     length = CTL.register("Upload Length").address
     with client(firmware) as c:

@@ -22,7 +22,7 @@ from controller_cli_support import (
 
 from snakebot.controller import load
 from snakebot.controller.upload import chunk_limit, chunk_writes
-from snakebot.gaittable import max_frames
+from snakebot.gaittable import MAX_TABLE_BYTES, max_frames
 from snakebot.protocol import write
 from snakebot.sim.controller_pty import (
     ControllerPty,
@@ -181,7 +181,7 @@ def test_oversized_table_is_refused_before_the_port_is_opened(controller, tmp_pa
     path.write_bytes(bytes(big) + bytes(8))
     result = cli("upload", path, "--port", controller.device)
     assert result.exit_code == 2
-    assert "2048" in result.stderr and "error: " in result.stderr
+    assert str(MAX_TABLE_BYTES) in result.stderr and "error: " in result.stderr
     assert controller.host_packets == []
 
 

@@ -22,7 +22,7 @@ def test_layout_comes_from_the_cm530_linker_script():
     layout = board_layout()
     assert layout.source.endswith("firmware/boards/cm530/cm530.ld")
     assert layout.app_base == 0x08003000
-    assert layout.flash_end == 0x08080000  # the gait-table store runs to the end of flash
+    assert layout.flash_end == 0x08080000  # the stores and a free region run to the end
     assert layout.app_size == 500 * 1024
     assert (layout.ram_base, layout.ram_end) == (0x20000000, 0x20010000)
 

@@ -81,7 +81,7 @@ def test_refusals():
     with pytest.raises(GaitError, match="trident"):
         serpenoid(load_robot("trident"), 0.5, 1.0, 1.0, cycles=1)
     with pytest.raises(GaitError, match=f"controller holds at most {max_frames(4)} for 4"):
-        serpenoid(SNAKE5, 0.3, 2 * math.pi, 1.0, cycles=5, rate_hz=100)
+        serpenoid(SNAKE5, 0.3, 2 * math.pi, 1.0, cycles=50, rate_hz=100)
     with pytest.raises(GaitError, match="positive"):
         serpenoid(SNAKE5, -0.3, 1.0, 1.0, cycles=1)
 

@@ -87,7 +87,7 @@ def test_random_target_reached_as_planned_and_as_played(tmp_path, robot_name, ta
 def test_unreachable_target_exits_1_and_writes_nothing(tmp_path):
     out = tmp_path / "far.gait"
     length = body_length(load_robot("trident"))
-    result = run("plan", "trident", "--to", f"{60 * length},0,0", "-o", out)
+    result = run("plan", "trident", "--to", f"{1000 * length},0,0", "-o", out)
     assert result.exit_code == 1
     assert result.output.startswith("error: ") and result.output.count("\n") == 1
     assert "no file was written" in result.output

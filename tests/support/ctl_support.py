@@ -15,6 +15,7 @@ from snakebot.controller import load as load_controller
 from snakebot.core import ffi, lib
 from snakebot.gaittable import GaitTable, max_frames
 from snakebot.protocol import BROADCAST_ID, Instruction, PacketParser, ping, read, status, write
+from snakebot.sim.controller_pty import TABLE_ARENA, TABLE_CAPACITY
 
 CTL = load_controller()
 CTL_ID = CTL.default_id
@@ -66,10 +67,11 @@ class Reply:
 class Device:
     """A ctl_device in C memory, spoken to in Protocol 1.0 bytes."""
 
-    def __init__(self) -> None:
-        self._mem = ffi.new("uint8_t[]", lib.ctl_device_size())
+    def __init__(self, capacity: int = TABLE_CAPACITY, arena: int = TABLE_ARENA) -> None:
+        self._mem = ffi.new("uint8_t[]", lib.ctl_device_bytes(arena))
         self.d = ffi.cast("ctl_device *", self._mem)
         lib.ctl_init(self.d)
+        lib.ctl_set_tables(self.d, arena, capacity)
         self._out = ffi.new("uint8_t[]", lib.CTL_PC_REPLY_MAX)
         self._len = ffi.new("size_t *")
         self.now = 0

@@ -5,6 +5,7 @@ emulated PC link with time limits fit for a loaded machine."""
 from __future__ import annotations
 
 import contextlib
+import re
 import shutil
 import subprocess
 import time
@@ -24,6 +25,19 @@ from snakebot.sim.transports.unixsock import UnixSocketServer
 from snakebot.transport import DxlClient
 
 BUILD = REPO_ROOT / "build"
+FIRMWARE = REPO_ROOT / "firmware"
+
+
+def board_value(board: str, name: str) -> int:
+    """The number ``#define name`` stands for in firmware/boards/<board>/board.h (an
+    expression of literals and the board's other numbers)."""
+    text = (FIRMWARE / "boards" / board / "board.h").read_text()
+    expr = re.search(rf"#define {name} (.+)", text)[1]
+    expr = re.sub(r"(\d+)U?L?\b", r"\1", expr).replace("(unsigned long)", "")
+    names = set(re.findall(r"BOARD_\w+", expr))
+    return eval(expr, {"__builtins__": {}}, {n: board_value(board, n) for n in names})  # noqa: S307
+
+
 QEMU_DIR = BUILD / "qemu"
 CM530_DIR = BUILD / "cm530"
 APP_BASE = 0x08003000

@@ -16,15 +16,16 @@ KEY1, KEY2 = 0x45670123, 0xCDEF89AB
 SR_BSY, SR_PGERR, SR_WRPRTERR, SR_EOP = 1 << 0, 1 << 2, 1 << 4, 1 << 5
 CR_PG, CR_PER, CR_STRT, CR_LOCK = 1 << 0, 1 << 1, 1 << 6, 1 << 7
 
-BASE = 0x08078000  # the CM-530's table store
+BASE = 0x08078000  # where the models put flash unless told (a page-aligned CM-530 address)
 PAGE = 2048
 PAGES = 4
 
 
 class FlashModel:
-    """The FPEC's registers and PAGES pages of flash at BASE."""
+    """The FPEC's registers and PAGES pages of flash at ``base`` (BASE unless given)."""
 
-    def __init__(self, busy_reads: int = 3) -> None:
+    def __init__(self, busy_reads: int = 3, base: int = BASE) -> None:
+        self.base = base
         self.mem = bytearray(b"\xa5" * (PAGE * PAGES))  # old content, not erased
         self.cr = CR_LOCK
         self.sr = 0
@@ -47,7 +48,7 @@ class FlashModel:
         return bool(self.cr & CR_LOCK)
 
     def in_flash(self, addr: int) -> bool:
-        return BASE <= addr < BASE + len(self.mem)
+        return self.base <= addr < self.base + len(self.mem)
 
     # -- bus ----------------------------------------------------------------------------
     def read32(self, addr: int) -> int:
@@ -103,7 +104,7 @@ class FlashModel:
         if not self.in_flash(addr):
             self.unexpected.append(f"erase outside the store: {addr:#x}")
             return
-        page = (addr - BASE) // PAGE
+        page = (addr - self.base) // PAGE
         if page in self.protected_pages:
             self.sr |= SR_WRPRTERR
             return
@@ -114,7 +115,7 @@ class FlashModel:
         if not self.in_flash(addr) or addr & 1:
             self.unexpected.append(f"read16 {addr:#x}")
             return 0
-        off = addr - BASE
+        off = addr - self.base
         return self.mem[off] | self.mem[off + 1] << 8
 
     def write16(self, addr: int, value: int) -> None:
@@ -126,7 +127,7 @@ class FlashModel:
             self.unexpected.append(f"flash written without PG at {addr:#x}")
             return
         self.start()
-        off = addr - BASE
+        off = addr - self.base
         if off // PAGE in self.protected_pages:
             self.sr |= SR_WRPRTERR
             return
@@ -161,8 +162,10 @@ class PowerCutModel(FlashModel):
     it should), and nothing changes flash after it. ``cut_at=None`` never cuts; ``ops``
     counts the operations started, so a run without a cut tells how many there are."""
 
-    def __init__(self, mem: bytes | None = None, cut_at: int | None = None, seed: int = 0):
-        super().__init__(busy_reads=1)
+    def __init__(
+        self, mem: bytes | None = None, cut_at: int | None = None, seed: int = 0, base: int = BASE
+    ):
+        super().__init__(busy_reads=1, base=base)
         if mem is not None:
             self.mem[:] = mem
         self.cut_at = cut_at
@@ -185,7 +188,7 @@ class PowerCutModel(FlashModel):
         if step == "run":
             super().erase(addr)
         elif step == "tear" and self.in_flash(addr):
-            page = (addr - BASE) // PAGE
+            page = (addr - self.base) // PAGE
             for i in range(page * PAGE, (page + 1) * PAGE):
                 self.mem[i] |= self.rng.getrandbits(8)
 
@@ -194,7 +197,7 @@ class PowerCutModel(FlashModel):
         if step == "run":
             super().write16(addr, value)
         elif step == "tear" and self.in_flash(addr):
-            off = addr - BASE
+            off = addr - self.base
             keep = value | self.rng.getrandbits(16)
             self.mem[off] &= keep & 0xFF
             self.mem[off + 1] &= keep >> 8

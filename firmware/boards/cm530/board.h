@@ -16,22 +16,32 @@
 /* Memory. The ROBOTIS bootloader owns 0x08000000-0x08002FFF and jumps to BOARD_APP_BASE. */
 #define BOARD_APP_BASE 0x08003000UL
 #define BOARD_RAM_SIZE (64UL * 1024UL)
-/* Bytes a gait table may take (Table Capacity on the Program page). */
-#define BOARD_TABLE_CAPACITY 2048U
+/* Bytes a gait table may take (Table Capacity on the Program page), and the RAM arena that
+ * holds the active table and the staging area side by side (ctl_set_tables): an upload of
+ * up to 16 KB always fits beside a playing table; a larger one beside a larger playing
+ * table is refused until playback stops (protocol/controller.md). */
+#define BOARD_TABLE_CAPACITY 32768U
+#define BOARD_TABLE_ARENA (48U * 1024U)
 #define BOARD_FLASH_PAGE_SIZE 2048UL
-/* The last 32 KB of flash keep the committed gait table (kept out of the image by cm530.ld). */
+/* Flash map (cm530.ld agrees), from the top: 0x08078000-0x0807FFFF is free (it kept the
+ * table while tables were 2 KB; the library and the limits stayed where they were, so a
+ * firmware update keeps them). The 4 KB at 0x08077000 keep the robot's limits (two slots
+ * of one page each). */
 #define BOARD_HAS_FLASH_STORE 1
-#define BOARD_STORE_BASE 0x08078000UL
-#define BOARD_STORE_SIZE (32UL * 1024UL)
-/* The 4 KB below it keep the robot's limits (two slots of one page each). */
 #define BOARD_LIMITS_STORE_BASE 0x08077000UL
 #define BOARD_LIMITS_STORE_SIZE (4UL * 1024UL)
 /* Below them, the gait library (app/store_lib.h): its directory (two slots of one page),
- * then STORE_LIB_SLOTS + 1 = 9 data areas of 32 KB, ending where the limits begin. */
+ * then STORE_LIB_SLOTS + 1 = 9 data areas of one table capacity each (32 KB), ending where
+ * the limits begin. */
 #define BOARD_HAS_FLASH_LIBRARY 1
 #define BOARD_LIB_DIR_BASE 0x0802E000UL
 #define BOARD_LIB_DIR_SIZE (4UL * 1024UL)
-#define BOARD_LIB_AREA_SIZE (32UL * 1024UL)
+#define BOARD_LIB_AREA_SIZE ((unsigned long)BOARD_TABLE_CAPACITY)
+/* Below the library, the committed gait table (app/store.c, kept out of the image by
+ * cm530.ld): two store_slots slots of a capacity plus one page (the record's header) each,
+ * 68 KB, at 0x0801D000. */
+#define BOARD_STORE_SIZE (2UL * (BOARD_TABLE_CAPACITY + BOARD_FLASH_PAGE_SIZE))
+#define BOARD_STORE_BASE (BOARD_LIB_DIR_BASE - BOARD_STORE_SIZE)
 
 #include "cm530_io.h" /* bus and PC-link USARTs and pins */
 

@@ -27,8 +27,9 @@
 #define BOARD_APP_BASE 0x08003000UL
 #define BOARD_RAM_SIZE (8UL * 1024UL)
 /* Bytes a gait table may take: the 8 KB of RAM hold the staging area and the active
- * table (ctl_device) at this size, and no more. */
+ * table side by side (the arena, ctl_set_tables) at this size, and no more. */
 #define BOARD_TABLE_CAPACITY 2048U
+#define BOARD_TABLE_ARENA (2U * BOARD_TABLE_CAPACITY)
 #define BOARD_FLASH_PAGE_SIZE 1024UL
 /* No flash controller in QEMU: the committed table lives in RAM only. */
 #define BOARD_HAS_FLASH_STORE 0

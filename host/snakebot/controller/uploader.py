@@ -183,6 +183,12 @@ def _old_table_words(after: dict[str, int] | None, before: dict[str, int]) -> st
             )
             + " unless the commit got through complete; `snakebot monitor` shows which."
         )
+    if after["Table Size"] == 0 and before["Table Size"]:
+        return (
+            "The upload took the place of the controller's previous table in its memory, "
+            "so it has no table until an upload completes (a CM-530 loads the one it keeps "
+            "in flash at its next start)."
+        )
     if after["Table Size"] == 0:
         return "The controller has no table, as before."
     return (
@@ -337,6 +343,9 @@ def _refused(
     before: dict[str, int],
 ) -> UploadError:
     which = "the commit" if result.error_at == packets - 1 else f"WRITE {result.error_at + 1}"
+    if words.upload_result_name(after["Upload Result"], ctl.table) == "NO_ROOM_WHILE_PLAYING":
+        what, fix = words.UPLOAD_RESULTS["NO_ROOM_WHILE_PLAYING"]
+        return UploadError(f"the controller refused {which} of {packets}: {what}: {fix}")
     return UploadError(
         f"the controller refused {which} of {packets} "
         f"({protocol.ErrorFlags(result.error).describe()}); "

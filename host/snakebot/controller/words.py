@@ -36,7 +36,8 @@ SAFE_FIXES: dict[str, str] = {
 UPLOAD_RESULTS: dict[str, tuple[str, str]] = {
     "BAD_LENGTH": (
         "the commit gave a length the controller cannot hold",
-        "regenerate the table with `snakebot gait` so it fits (at most 2048 bytes)",
+        "regenerate the table with `snakebot gait` with fewer frames (`snakebot upload` "
+        "names the controller's Table Capacity when a table does not fit)",
     ),
     "INCOMPLETE": (
         "fewer bytes reached the controller than the table holds (chunks were lost)",
@@ -53,7 +54,13 @@ UPLOAD_RESULTS: dict[str, tuple[str, str]] = {
     "BAD_FLAGS": ("unknown flag bits or a reserved byte that is not 0", ""),
     "BAD_PERIOD": ("the frame period is 0", ""),
     "BAD_FRAME_COUNT": ("the table has no frames", ""),
-    "TOO_BIG": ("the table needs more than 2048 bytes", ""),
+    "TOO_BIG": ("the table needs more bytes than any controller holds", ""),
+    "NO_ROOM_WHILE_PLAYING": (
+        "the new table would land on the table playing (a table larger than half the "
+        "controller's Table Capacity leaves no room beside it); the playing table is "
+        "untouched",
+        "stop playback (`snakebot stop`), then upload again",
+    ),
     "TRAILING_BYTES": ("there are bytes after the last frame", ""),
     "CRC_MISMATCH": ("the table's own CRC does not match its bytes", ""),
     "BAD_JOINT_ID": ("a servo ID above 253 or used twice", ""),

@@ -6,7 +6,8 @@ The board facts come from the linker script ``firmware/boards/cm530/cm530.ld`` (
 source of the memory layout): the application starts at the FLASH region's origin
 (0x08003000, after the 12 KB ROBOTIS bootloader) and may run to the end of flash (the
 end of the last flash region, 0x08080000), so the bootloader accepts at most 500 KB.
-Our own firmware stops short of that (the gait-table store lives in the last 32 KB), but
+Our own firmware stops short of that (its table store, gait library and limits take the
+flash above 0x0801D000), but
 another application may use the whole area. When the linker script is not there (snakebot
 installed without its repository) the numbers in :data:`FALLBACK_LAYOUT` are used.
 

@@ -38,9 +38,11 @@ def table_size(joints: int, frames: int) -> int:
     return HEADER_SIZE + JOINT_SIZE * joints + 2 * joints * frames
 
 
-def max_frames(joints: int) -> int:
-    """The most frames a table of ``joints`` joints can have and still fit the controller."""
-    return (MAX_TABLE_BYTES - HEADER_SIZE - JOINT_SIZE * joints) // (2 * joints)
+def max_frames(joints: int, capacity: int = MAX_TABLE_BYTES) -> int:
+    """The most frames a table of ``joints`` joints can have and still fit ``capacity``
+    bytes (by default the largest board's; a controller reports its own as Table
+    Capacity)."""
+    return (capacity - HEADER_SIZE - JOINT_SIZE * joints) // (2 * joints)
 
 
 def table_crc(data: bytes) -> int:

@@ -191,13 +191,29 @@ class PacedWire:
         return self.queue[0][0] if self.queue else None
 
 
-class ControllerDevice:
-    """One ``ctl_device`` in C memory with its bus side wired to ``bus`` (or to nothing)."""
+TABLE_CAPACITY = lib.CTL_MAX_TABLE_BYTES
+"""The emulated controller's Table Capacity: the largest board's (the CM-530's)."""
+TABLE_ARENA = TABLE_CAPACITY * 3 // 2
+"""Bytes of its table arena, laid out as the CM-530's (``BOARD_TABLE_ARENA``): an upload
+lands on the active table, and is refused while it plays, once that is larger than half
+the capacity (protocol/controller.md, "Where a table is staged")."""
 
-    def __init__(self, bus: Bus | None = None, table: bytes | None = None) -> None:
-        self._mem = ffi.new("uint8_t[]", lib.ctl_device_size())
+
+class ControllerDevice:
+    """One ``ctl_device`` in C memory with its bus side wired to ``bus`` (or to nothing),
+    and a table arena of ``arena`` bytes holding tables of up to ``capacity``."""
+
+    def __init__(
+        self,
+        bus: Bus | None = None,
+        table: bytes | None = None,
+        capacity: int = TABLE_CAPACITY,
+        arena: int = TABLE_ARENA,
+    ) -> None:
+        self._mem = ffi.new("uint8_t[]", lib.ctl_device_bytes(arena))
         self.d = ffi.cast("ctl_device *", self._mem)
         lib.ctl_init(self.d)
+        lib.ctl_set_tables(self.d, arena, capacity)
         self.bus = bus
         self._out = ffi.new("uint8_t[]", lib.CTL_PC_REPLY_MAX)
         self._out_len = ffi.new("size_t *")

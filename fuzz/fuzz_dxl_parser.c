@@ -1,14 +1,16 @@
 /* libFuzzer target: the streaming Protocol 1.0 parser (firmware/core/dxl_parser.c).
  *
  * Input byte 0 picks how the stream is delivered: how many bytes go in between polls
- * (1..8, or "until the parser refuses a byte"), and whether a reset happens at a point
- * chosen by byte 1. The rest of the input is the byte stream. Byte 0 = 0xFF instead
+ * (1..8, or "until the parser refuses a byte"), whether a reset happens at a point
+ * chosen by byte 1, and whether each drain ends, as the PC link's does, by looking for a
+ * packet hidden behind a false header (dxl_parser_skip_to_hidden). The rest of the input is the byte stream. Byte 0 = 0xFF instead
  * selects the encoder round trip (see round_trip()).
  *
  * Oracle: an independent reference of the resynchronisation rule over a flat array
  * (protocol/README.md; the same rule snakebot.protocol.parser follows). Every event the
  * parser reports must equal the reference's next event byte for byte, in the same order,
- * whenever the bytes are polled, and the bytes it holds back must be the reference's.
+ * whenever the bytes are polled, and the bytes it holds back must be the reference's; a
+ * hidden packet is taken exactly when the reference finds one, and the same one.
  * Besides: after a refused byte, polling always frees room (no deadlock); an event's pointers stay
  * inside the parser; a reported packet has a valid length and checksum. Any violation
  * aborts (a crash for libFuzzer). */
@@ -92,10 +94,28 @@ static bool ref_next(ref_parser *r, ref_event *ev)
     }
 }
 
+/* dxl_parser_skip_to_hidden's rule, literally: the first later header among the bytes held
+ * back where a whole packet with a good checksum starts; the bytes before it are dropped. */
+static bool ref_skip(ref_parser *r)
+{
+    const uint8_t *b = r->bytes;
+    for (size_t i = r->pos + 1; i + 4 <= r->end; i++) {
+        if (b[i] != 0xFF || b[i + 1] != 0xFF || b[i + 2] == 0xFF) continue;
+        size_t len = b[i + 3];
+        if (len < 2 || len + 4 > DXL_MAX_PACKET || i + len + 4 > r->end) continue;
+        if (ref_sum(b + i + 2, len + 1) == b[i + len + 3]) {
+            r->pos = i;
+            return true;
+        }
+    }
+    return false;
+}
+
 /* ---- comparing the parser with the reference --------------------------------------------- */
 
 static dxl_parser parser;
 static ref_parser ref;
+static bool hunt; /* drains end with dxl_parser_skip_to_hidden */
 
 static void check_event(const dxl_event *ev, const ref_event *want)
 {
@@ -129,13 +149,20 @@ static unsigned drain(void)
     dxl_event ev;
     ref_event want;
     unsigned n = 0;
-    while (dxl_parser_poll(&parser, &ev)) {
-        CHECK(ref_next(&ref, &want)); /* the parser saw an event the reference did not */
-        check_event(&ev, &want);
-        n++;
-        CHECK(n <= 2u * DXL_MAX_PACKET + 2u); /* bounded: at most one event per byte held */
+    for (;;) {
+        while (dxl_parser_poll(&parser, &ev)) {
+            CHECK(ref_next(&ref, &want)); /* the parser saw an event the reference did not */
+            check_event(&ev, &want);
+            n++;
+            CHECK(n <= 2u * DXL_MAX_PACKET + 2u); /* bounded: at most one event per byte held */
+        }
+        CHECK(!ref_next(&ref, &want)); /* the reference had an event the parser did not report */
+        if (!hunt) break;
+        bool took = dxl_parser_skip_to_hidden(&parser);
+        CHECK(took == ref_skip(&ref)); /* and then the same bytes are held (below, or next poll) */
+        CHECK(dxl_parser_pending(&parser) == ref.end - ref.pos);
+        if (!took) break;
     }
-    CHECK(!ref_next(&ref, &want)); /* the reference had an event the parser did not report */
     CHECK(dxl_parser_pending(&parser) == ref.end - ref.pos);
     CHECK(dxl_parser_pending(&parser) <= DXL_MAX_PACKET);
     return n;
@@ -190,6 +217,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     unsigned burst = (mode & 0x07u) + 1u; /* bytes between polls */
     bool greedy = (mode & 0x08u) != 0;    /* poll only when a byte is refused */
     bool with_reset = (mode & 0x10u) != 0;
+    hunt = (mode & 0x20u) != 0;
     size_t reset_at = data[1];
     const uint8_t *stream = data + 2;
     size_t n = size - 2;

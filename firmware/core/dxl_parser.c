@@ -15,16 +15,25 @@ static uint8_t at(const dxl_parser *p, uint16_t i)
     return p->storage[(uint8_t)(p->start + i)];
 }
 
+/* `waiting` when the bytes a hunt looked at hold no candidate short of bytes. */
+#define NO_CANDIDATE UINT8_MAX
+
 static void drop(dxl_parser *p, uint16_t n)
 {
     p->start = (uint8_t)(p->start + n);
     p->count = (uint16_t)(p->count - n);
     p->hunted = p->hunted > n ? (uint16_t)(p->hunted - n) : 0u;
+    /* The stretch known to hold no candidate that may yet complete moves down with the
+     * bytes; with the first such candidate dropped (or now at the front) nothing is known. */
+    if (p->waiting != NO_CANDIDATE) {
+        p->waiting = p->waiting > n ? (uint8_t)(p->waiting - n) : 0u;
+    }
 }
 
 void dxl_parser_reset(dxl_parser *p)
 {
     p->start = 0;
+    p->waiting = 0;
     p->count = 0;
     p->hunted = 0;
 }
@@ -105,22 +114,29 @@ bool dxl_parser_poll(dxl_parser *p, dxl_event *ev)
     return true;
 }
 
-/* A whole packet with a good checksum starts at b[i] and ends at or before b[count]. */
-static bool good_packet_at(const dxl_parser *p, const uint8_t *b, uint16_t i)
+/* What starts at a header byte b[i] (i + 3 < count) for dxl_parser_skip_to_hidden. */
+#define NOT_A_PACKET 0 /* and never will be: no header or LEN, or checked and found bad */
+#define SHORT 1        /* a candidate still short of bytes */
+#define GOOD 2         /* a whole packet with a good checksum */
+
+static uint8_t candidate_at(const dxl_parser *p, const uint8_t *b, uint16_t i)
 {
     if (b[i + 1u] != DXL_HEADER_BYTE || b[i + 2u] == DXL_HEADER_BYTE) {
-        return false;
+        return NOT_A_PACKET;
     }
     uint8_t len = b[i + 3u];
     if (len < DXL_MIN_LEN_FIELD || len > DXL_MAX_LEN_FIELD) {
-        return false;
+        return NOT_A_PACKET;
     }
     uint16_t end = (uint16_t)(i + len + 4u);
-    if (end > p->count || end <= p->hunted) {
-        return false; /* not complete yet, or already checked and found bad */
+    if (end > p->count) {
+        return SHORT;
+    }
+    if (end <= p->hunted) {
+        return NOT_A_PACKET; /* already checked */
     }
     uint8_t expected = dxl_checksum(&b[i + 2u], (size_t)len + 1u);
-    return expected == b[end - 1u];
+    return expected == b[end - 1u] ? GOOD : NOT_A_PACKET;
 }
 
 bool dxl_parser_skip_to_hidden(dxl_parser *p)
@@ -133,17 +149,28 @@ bool dxl_parser_skip_to_hidden(dxl_parser *p)
     }
     const uint8_t *b = &p->storage[p->start];
     const uint8_t *limit = b + p->count - 3; /* a header needs 4 bytes to say its LEN */
-    for (const uint8_t *q = b + 1; q < limit; q++) {
+    /* The last hunt looked at 1 .. hunted - 4, and the first candidate there still short
+     * of bytes starts at `waiting`: before that nothing can complete, so a packet arriving
+     * byte by byte costs a step per byte here, not a pass over all of it. */
+    uint16_t seen = p->hunted > 3u ? (uint16_t)(p->hunted - 3u) : 0u;
+    uint16_t from = p->waiting < seen ? p->waiting : seen;
+    uint8_t first = NO_CANDIDATE;
+    for (const uint8_t *q = b + (from > 1u ? from : 1u); q < limit; q++) {
         q = memchr(q, DXL_HEADER_BYTE, (size_t)(limit - q));
         if (q == NULL) {
             break;
         }
         uint16_t i = (uint16_t)(q - b);
-        if (good_packet_at(p, b, i)) {
+        uint8_t found = candidate_at(p, b, i);
+        if (found == GOOD) {
             drop(p, i);
             return true;
         }
+        if (found == SHORT && first == NO_CANDIDATE) {
+            first = (uint8_t)i;
+        }
     }
     p->hunted = p->count;
+    p->waiting = first;
     return false;
 }

@@ -3,14 +3,17 @@
  * Input byte 0 picks how the stream is delivered: how many bytes go in between polls
  * (1..8, or "until the parser refuses a byte"), whether a reset happens at a point
  * chosen by byte 1, and whether each drain ends, as the PC link's does, by looking for a
- * packet hidden behind a false header (dxl_parser_skip_to_hidden). The rest of the input is the byte stream. Byte 0 = 0xFF instead
+ * packet hidden behind a false header (dxl_parser_skip_to_hidden), and then whether
+ * bytes go in through dxl_parser_feed_quiet where it takes them. The rest of the input is the byte stream. Byte 0 = 0xFF instead
  * selects the encoder round trip (see round_trip()).
  *
  * Oracle: an independent reference of the resynchronisation rule over a flat array
  * (protocol/README.md; the same rule snakebot.protocol.parser follows). Every event the
  * parser reports must equal the reference's next event byte for byte, in the same order,
  * whenever the bytes are polled, and the bytes it holds back must be the reference's; a
- * hidden packet is taken exactly when the reference finds one, and the same one.
+ * hidden packet is taken exactly when the reference finds one, and the same one; each
+ * byte dxl_parser_feed_quiet takes is one after which the reference, polled and hunting,
+ * has nothing to report.
  * Besides: after a refused byte, polling always frees room (no deadlock); an event's pointers stay
  * inside the parser; a reported packet has a valid length and checksum. Any violation
  * aborts (a crash for libFuzzer). */
@@ -218,6 +221,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     bool greedy = (mode & 0x08u) != 0;    /* poll only when a byte is refused */
     bool with_reset = (mode & 0x10u) != 0;
     hunt = (mode & 0x20u) != 0;
+    bool quiet = hunt && (mode & 0x40u) != 0; /* as a receiver that polls every byte may */
     size_t reset_at = data[1];
     const uint8_t *stream = data + 2;
     size_t n = size - 2;
@@ -230,6 +234,22 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             dxl_parser_reset(&parser);
             ref.pos = ref.end;
             CHECK(dxl_parser_pending(&parser) == 0);
+        }
+        if (quiet) {
+            size_t upto = with_reset && reset_at > i && reset_at < n ? reset_at : n;
+            size_t k = dxl_parser_feed_quiet(&parser, stream + i, upto - i);
+            CHECK(k <= upto - i);
+            for (size_t j = 0; j < k; j++) {
+                ref_event want;
+                ref.bytes[ref.end++] = stream[i + j];
+                CHECK(!ref_next(&ref, &want) && !ref_skip(&ref)); /* nothing was due */
+            }
+            CHECK(dxl_parser_pending(&parser) == ref.end - ref.pos);
+            i += k;
+            if (i == upto) {
+                i--; /* the reset (or the end) comes next */
+                continue;
+            }
         }
         feed(stream[i]);
         if (!greedy && (i + 1) % burst == 0) drain();

@@ -1,7 +1,5 @@
 #include "dxl_parser.h"
 
-#include <string.h>
-
 /* Compile-time checks: the storage holds the ring twice, and a window of a whole packet
  * starting at any slot stays inside it. */
 typedef char dxl_parser_storage_check[
@@ -141,26 +139,24 @@ static uint8_t candidate_at(const dxl_parser *p, const uint8_t *b, uint16_t i)
 
 bool dxl_parser_skip_to_hidden(dxl_parser *p)
 {
-    /* The unconsumed bytes are contiguous in storage (each byte is stored twice), so
-     * memchr can look for header bytes: usually there are none past the first. */
     if (p->count < 5u) { /* FF FF at index 1 or later, with its LEN */
         p->hunted = p->count;
         return false;
     }
+    /* The unconsumed bytes are contiguous in storage (each byte is stored twice). */
     const uint8_t *b = &p->storage[p->start];
-    const uint8_t *limit = b + p->count - 3; /* a header needs 4 bytes to say its LEN */
+    uint16_t limit = (uint16_t)(p->count - 3u); /* a header needs 4 bytes to say its LEN */
     /* The last hunt looked at 1 .. hunted - 4, and the first candidate there still short
      * of bytes starts at `waiting`: before that nothing can complete, so a packet arriving
-     * byte by byte costs a step per byte here, not a pass over all of it. */
+     * byte by byte costs a step per byte here, not a pass over all of it (which is why a
+     * plain loop serves: memchr's call cost more than the byte or two it looked at). */
     uint16_t seen = p->hunted > 3u ? (uint16_t)(p->hunted - 3u) : 0u;
     uint16_t from = p->waiting < seen ? p->waiting : seen;
     uint8_t first = NO_CANDIDATE;
-    for (const uint8_t *q = b + (from > 1u ? from : 1u); q < limit; q++) {
-        q = memchr(q, DXL_HEADER_BYTE, (size_t)(limit - q));
-        if (q == NULL) {
-            break;
+    for (uint16_t i = from > 1u ? from : 1u; i < limit; i++) {
+        if (b[i] != DXL_HEADER_BYTE) {
+            continue;
         }
-        uint16_t i = (uint16_t)(q - b);
         uint8_t found = candidate_at(p, b, i);
         if (found == GOOD) {
             drop(p, i);
@@ -173,4 +169,37 @@ bool dxl_parser_skip_to_hidden(dxl_parser *p)
     p->hunted = p->count;
     p->waiting = first;
     return false;
+}
+
+size_t dxl_parser_feed_quiet(dxl_parser *p, const uint8_t *bytes, size_t n)
+{
+    /* Right after a hunt that found nothing (hunted == count) and left no candidate short
+     * of bytes, with a whole header in front whose packet is still short: until its last
+     * byte, only a header byte (in the last three held, not yet looked at as a start, or
+     * among the new ones) could begin anything a poll or a hunt would report. */
+    if (p->hunted != p->count || p->waiting != NO_CANDIDATE || p->count < 5u) {
+        return 0;
+    }
+    if (at(p, 0) != DXL_HEADER_BYTE || at(p, 1) != DXL_HEADER_BYTE ||
+        at(p, 2) == DXL_HEADER_BYTE) {
+        return 0;
+    }
+    uint8_t len = at(p, 3);
+    uint16_t total = (uint16_t)(len + 4u);
+    if (len < DXL_MIN_LEN_FIELD || len > DXL_MAX_LEN_FIELD || p->count >= total) {
+        return 0;
+    }
+    for (uint16_t i = (uint16_t)(p->count - 3u); i < p->count; i++) {
+        if (at(p, i) == DXL_HEADER_BYTE) {
+            return 0;
+        }
+    }
+    size_t room = (size_t)(total - 1u - p->count); /* the last byte goes the usual way */
+    size_t k = 0;
+    for (; k < room && k < n && bytes[k] != DXL_HEADER_BYTE; k++) {
+        (void)dxl_parser_feed(p, bytes[k]); /* room: count stays below total */
+    }
+    /* as a hunt after each of them would have left it (it looked at nothing new) */
+    p->hunted = p->count;
+    return k;
 }

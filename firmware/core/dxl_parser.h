@@ -75,6 +75,13 @@ uint16_t dxl_parser_pending(const dxl_parser *p);
  * FF FF, a plausible LEN and a matching checksum at the right place, which the checksum
  * makes rare. */
 bool dxl_parser_skip_to_hidden(dxl_parser *p);
+/* For such a receiver, polling and hunting after every byte: append the bytes from
+ * bytes[0..n) that can arrive with nothing to report, so they need no poll; returns how
+ * many it took (0 when the next byte may matter: feed it and poll as usual). It takes
+ * bytes only right after a poll and a hunt that found nothing, in the middle of a packet
+ * whose header is in front, up to the byte before its last and before any header byte;
+ * the parser is then as polling after each of them would have left it. */
+size_t dxl_parser_feed_quiet(dxl_parser *p, const uint8_t *bytes, size_t n);
 /* cffi:end */
 
 #endif

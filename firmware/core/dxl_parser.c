@@ -1,5 +1,7 @@
 #include "dxl_parser.h"
 
+#include <string.h>
+
 /* Compile-time checks: the storage holds the ring twice, and a window of a whole packet
  * starting at any slot stays inside it. */
 typedef char dxl_parser_storage_check[
@@ -194,11 +196,23 @@ size_t dxl_parser_feed_quiet(dxl_parser *p, const uint8_t *bytes, size_t n)
             return 0;
         }
     }
-    size_t room = (size_t)(total - 1u - p->count); /* the last byte goes the usual way */
-    size_t k = 0;
-    for (; k < room && k < n && bytes[k] != DXL_HEADER_BYTE; k++) {
-        (void)dxl_parser_feed(p, bytes[k]); /* room: count stays below total */
+    size_t k = (size_t)(total - 1u - p->count); /* the last byte goes the usual way */
+    if (k > n) {
+        k = n;
     }
+    const uint8_t *header = k > 0 ? memchr(bytes, DXL_HEADER_BYTE, k) : NULL;
+    if (header != NULL) {
+        k = (size_t)(header - bytes);
+    }
+    /* in at most two runs (the ring wraps), each in both of its places */
+    uint8_t slot = (uint8_t)(p->start + p->count);
+    size_t to_wrap = (size_t)(DXL_PARSER_RING - slot);
+    size_t run = to_wrap < k ? to_wrap : k;
+    memcpy(&p->storage[slot], bytes, run);
+    memcpy(&p->storage[slot + DXL_PARSER_RING], bytes, run);
+    memcpy(&p->storage[0], bytes + run, k - run);
+    memcpy(&p->storage[DXL_PARSER_RING], bytes + run, k - run);
+    p->count = (uint16_t)(p->count + k); /* still below total <= DXL_MAX_PACKET */
     /* as a hunt after each of them would have left it (it looked at nothing new) */
     p->hunted = p->count;
     return k;

@@ -13,11 +13,11 @@ PIP_QUIET   := $(if $(filter 1,$(V)),,-q)
 export V
 
 # The demo needs the C compiler and headers for snakebot._core, the ARM cross-compiler
-# and QEMU; the tests and the fuzzer add clang (libFuzzer and the sanitizers), and tmux
-# (the `snakebot drive` terminal test).
+# and QEMU; the tests and the fuzzer add clang (libFuzzer and the sanitizers), zlib (the
+# PC-link fuzz target's CRC-32) and tmux (the `snakebot drive` terminal test).
 DEMO_APT    := gcc python3-dev python3-venv gcc-arm-none-eabi libnewlib-arm-none-eabi \
                qemu-system-arm
-TEST_APT    := $(DEMO_APT) clang libclang-rt-14-dev tmux
+TEST_APT    := $(DEMO_APT) clang libclang-rt-14-dev zlib1g-dev tmux
 
 # pytest workers: the suite waits on ptys, QEMU and timeouts as much as it computes.
 TEST_JOBS   ?= 2

@@ -44,8 +44,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <zlib.h>
 
-#include "crc32.h"
 #include "ctl_device.h"
 #include "dxl_packet.h"
 #include "dxl_parser.h"
@@ -88,7 +88,11 @@ static uint16_t u16(src *s)
 
 static void bytes(src *s, uint8_t *out, size_t n)
 {
-    for (size_t i = 0; i < n; i++) out[i] = u8(s);
+    size_t have = n < s->n ? n : s->n;
+    memcpy(out, s->p, have);
+    memset(out + have, 0, n - have); /* missing bytes read as 0 */
+    s->p += have;
+    s->n -= have;
 }
 
 /* ---- the world around the device ----------------------------------------------------------- */
@@ -121,17 +125,16 @@ static uint32_t reg32(uint8_t addr)
 
 /* ---- invariants ---------------------------------------------------------------------------- */
 
-/* One well-formed packet filling buf[0..n), returned as an event. */
-static dxl_event parse_one(const uint8_t *buf, size_t n, dxl_parser *p)
+/* One well-formed packet filling buf[0..n), returned as an event: header, an ID that is
+ * not FF, LEN = n - 4, the checksum (what a parser reports for exactly these bytes, and
+ * nothing else), checked in place rather than fed through a parser byte by byte. */
+static dxl_event parse_one(const uint8_t *buf, size_t n)
 {
-    dxl_event ev;
-    dxl_parser_reset(p);
     CHECK(n >= 6 && n <= DXL_MAX_PACKET);
-    for (size_t i = 0; i < n; i++) CHECK(dxl_parser_feed(p, buf[i]));
-    CHECK(dxl_parser_poll(p, &ev));
-    CHECK(ev.kind == DXL_EVENT_PACKET);
-    CHECK(ev.raw_len == n);
-    CHECK(dxl_parser_pending(p) == 0);
+    CHECK(buf[0] == DXL_HEADER_BYTE && buf[1] == DXL_HEADER_BYTE && buf[2] != DXL_HEADER_BYTE);
+    CHECK(buf[3] == n - 4u && dxl_checksum(buf + 2, n - 3u) == buf[n - 1u]);
+    dxl_event ev = {DXL_EVENT_PACKET, buf[2], buf[4], (uint8_t)(n - 6u), buf + 5, buf,
+                    (uint16_t)n};
     return ev;
 }
 
@@ -139,8 +142,7 @@ static void check_reply(const uint8_t *out, size_t n, size_t cap, uint8_t from_i
 {
     if (n == 0) return;
     CHECK(n <= cap && n <= CTL_PC_REPLY_MAX);
-    dxl_parser p;
-    dxl_event ev = parse_one(out, n, &p);
+    dxl_event ev = parse_one(out, n);
     CHECK(ev.id == from_id && from_id <= DXL_MAX_ID);
     CHECK((ev.code & 0x80u) == 0); /* only defined error bits */
 }
@@ -149,6 +151,14 @@ static struct {
     uint16_t len;
     uint8_t bytes[FUZZ_CAPACITY];
 } snapshot, flash; /* the active table as last seen; what the app would have persisted */
+
+/* CRC-32 as the host works it out, by zlib's crc32 (the same IEEE 802.3 CRC): an
+ * implementation independent of the core's crc32.c, and uninstrumented, so checking the
+ * registers' Table CRC against it costs a small part of the core's bytewise loop. */
+static uint32_t crc_of(const uint8_t *p, size_t n)
+{
+    return (uint32_t)crc32(0uL, p, (uInt)n);
+}
 
 /* ---- the gait library: a store in RAM, kept across power cycles as flash would be ------------ */
 
@@ -163,6 +173,7 @@ static struct {
     uint8_t kind; /* 0: empty */
     uint8_t name[CTL_SLOT_NAME_SIZE];
     uint16_t len;
+    uint32_t crc; /* worked out once, when stored: the core asks for it on every look */
     uint8_t bytes[FUZZ_CAPACITY];
 } library[LIB_SLOTS];
 
@@ -173,7 +184,7 @@ static void lib_get(uint8_t slot, lib_slot *out, const uint8_t **data)
     out->status = CTL_SLOT_STATUS_OK;
     out->kind = library[slot].kind;
     out->len = library[slot].len;
-    out->crc = crc32_compute(library[slot].bytes, library[slot].len);
+    out->crc = library[slot].crc;
     memcpy(out->name, library[slot].name, sizeof out->name);
     *data = library[slot].bytes;
 }
@@ -193,6 +204,7 @@ static uint8_t lib_put(uint8_t slot, uint8_t kind, const uint8_t *name, const ui
     library[slot].kind = kind;
     memcpy(library[slot].name, name, CTL_SLOT_NAME_SIZE);
     library[slot].len = len;
+    library[slot].crc = crc_of(data, len);
     memcpy(library[slot].bytes, data, len);
     return CTL_UPLOAD_RESULT_OK;
 }
@@ -227,29 +239,6 @@ static struct {
     uint32_t crc;
     gt_info info;
 } facts;
-
-/* The last CRC-32 the harness worked out and the bytes it covers: the CRC of a table it
- * commits serves again for the active table when that is exactly those bytes (a memcmp
- * costs a small part of a bytewise CRC), so a commit is not followed by a second CRC. */
-static struct {
-    uint16_t len;
-    uint32_t crc;
-    uint8_t bytes[FUZZ_CAPACITY];
-} memo;
-
-static uint32_t crc_of(const uint8_t *p, size_t n)
-{
-    if (n <= FUZZ_CAPACITY && memo.len == n && memcmp(memo.bytes, p, n) == 0) {
-        return memo.crc;
-    }
-    uint32_t crc = crc32_compute(p, n);
-    if (n <= FUZZ_CAPACITY) {
-        memo.len = (uint16_t)n;
-        memo.crc = crc;
-        memcpy(memo.bytes, p, n);
-    }
-    return crc;
-}
 
 static bool is_program(const uint8_t *blob, size_t len)
 {
@@ -346,7 +335,9 @@ static void check_all(void)
 
 /* ---- the PC link ---------------------------------------------------------------------------- */
 
-/* Poll after every byte, as the firmware's pclink does; check replies and counters. */
+/* Poll after every byte, as the firmware's pclink does; check replies and counters. The
+ * bytes the parser shows could not make a poll report anything (dxl_parser_feed_quiet:
+ * the middle of a packet) go in without one; fuzz_dxl_parser holds that to the rule. */
 static void pc_bytes(const uint8_t *buf, size_t n, size_t *last_reply_len)
 {
     uint8_t out[CTL_PC_REPLY_MAX];
@@ -356,6 +347,8 @@ static void pc_bytes(const uint8_t *buf, size_t n, size_t *last_reply_len)
     uint16_t errors = reg16(CTL_PC_ERRORS);
     uint8_t id_before = ctl_id(d);
     for (size_t i = 0; i < n; i++) {
+        i += dxl_parser_feed_quiet(&d->pc, buf + i, n - i);
+        if (i == n) break;
         CHECK(ctl_pc_feed(d, buf[i])); /* never full when polled after every byte */
         for (unsigned rounds = 0;; rounds++) {
             CHECK(rounds <= DXL_MAX_PACKET + 1u);
@@ -399,12 +392,13 @@ static bool hides_packet(const uint8_t *pkt, size_t n)
     return false;
 }
 
-/* A well-formed packet; checks whether and how it was answered. */
-static void pc_packet(uint8_t id, uint8_t inst, const uint8_t *params, size_t nparams)
+/* A well-formed packet; checks whether and how it was answered. Returns whether it hid
+ * another (hides_packet), so that it may not have landed as sent. */
+static bool pc_packet(uint8_t id, uint8_t inst, const uint8_t *params, size_t nparams)
 {
     uint8_t pkt[DXL_MAX_PACKET];
     size_t n = dxl_encode(pkt, sizeof pkt, id, inst, params, nparams);
-    if (n == 0) return;
+    if (n == 0) return false;
     /* The host pauses before a transaction; after 100 ms of silence the firmware drops a
      * partial packet (pclink.c), so the packet is parsed from a clean start. */
     if (dxl_parser_pending(&d->pc) > 0) dxl_parser_reset(&d->pc);
@@ -413,14 +407,14 @@ static void pc_packet(uint8_t id, uint8_t inst, const uint8_t *params, size_t np
     size_t reply_len = SIZE_MAX; /* no event at all would leave this */
     if (hides_packet(pkt, n)) {
         pc_bytes(pkt, n, NULL); /* the hidden one is taken first: nothing to predict */
-        return;
+        return true;
     }
     pc_bytes(pkt, n, &reply_len);
     CHECK(reply_len != SIZE_MAX); /* a well-formed packet is always parsed */
     bool to_me = id == me;
     if (!to_me) {
         CHECK(reply_len == 0); /* broadcast or another device: silence */
-        return;
+        return false;
     }
     switch (inst) {
     case DXL_INST_PING: CHECK(reply_len == 6); break;
@@ -434,20 +428,18 @@ static void pc_packet(uint8_t id, uint8_t inst, const uint8_t *params, size_t np
     case DXL_INST_SYNC_WRITE: CHECK(reply_len == 0); break;
     default: CHECK(reply_len == (level >= 2 ? 6 : 0)); break;
     }
+    return false;
 }
 
-/* A WRITE to the controller's ID; whether its packet hid another (hides_packet), so
- * that it may not have landed. */
+/* A WRITE to the controller's ID; whether its packet hid another, so that it may not
+ * have landed. */
 static bool write_to_me(uint8_t addr, const uint8_t *data, size_t n)
 {
     uint8_t params[1 + DXL_MAX_PARAMS];
-    uint8_t pkt[DXL_MAX_PACKET];
     if (n > DXL_MAX_PARAMS - 1) n = DXL_MAX_PARAMS - 1;
     params[0] = addr;
     memcpy(params + 1, data, n);
-    size_t len = dxl_encode(pkt, sizeof pkt, ctl_id(d), DXL_INST_WRITE, params, n + 1);
-    pc_packet(ctl_id(d), DXL_INST_WRITE, params, n + 1);
-    return hides_packet(pkt, len);
+    return pc_packet(ctl_id(d), DXL_INST_WRITE, params, n + 1);
 }
 
 /* ---- gait tables ------------------------------------------------------------------------------ */
@@ -678,7 +670,7 @@ static void upload_program(src *s)
         memcpy(data + 2, t + at, n);
         hidden |= write_to_me(CTL_UPLOAD_OFFSET, data, n + 2);
     }
-    hidden |= commit_as((uint16_t)len, crc32_compute(t, len), CTL_UPLOAD_COMMIT_PROGRAM);
+    hidden |= commit_as((uint16_t)len, crc_of(t, len), CTL_UPLOAD_COMMIT_PROGRAM);
     /* a packet that did not land as sent leaves nothing to predict (check_table still
      * holds the active program to prog_validate) */
     if (hidden) return;
@@ -846,8 +838,7 @@ static void bus_send(void)
     }
     CHECK(n <= CTL_BUS_TX_MAX);
     CHECK(tx[n] == 0xCC); /* nothing written past the packet */
-    dxl_parser p;
-    dxl_event ev = parse_one(tx, n, &p);
+    dxl_event ev = parse_one(tx, n);
     if (torque_off_due) {
         CHECK(ev.id == DXL_BROADCAST_ID && ev.code == DXL_INST_WRITE && ev.nparams == 2);
         CHECK(ev.params[0] == 24 && ev.params[1] == 0); /* AX-12 Torque Enable = 0 */
@@ -1108,7 +1099,7 @@ static void step(src *s)
             write_to_me(CTL_COMMAND, &cmd, 1);
         } else {
             uint16_t len = (uint16_t)(u16(s) % (FUZZ_CAPACITY + 8u));
-            uint32_t crc = len <= FUZZ_CAPACITY ? crc32_compute(STAGING, len) : 0;
+            uint32_t crc = len <= FUZZ_CAPACITY ? crc_of(STAGING, len) : 0;
             commit_as(len, crc,
                       sel % 3u == 1u ? CTL_UPLOAD_COMMIT_LIBRARY_STORE
                                      : CTL_UPLOAD_COMMIT_LIBRARY_DELETE);

@@ -15,16 +15,25 @@ static uint8_t at(const dxl_parser *p, uint16_t i)
     return p->storage[(uint8_t)(p->start + i)];
 }
 
+/* `waiting` when the bytes a hunt looked at hold no candidate short of bytes. */
+#define NO_CANDIDATE UINT8_MAX
+
 static void drop(dxl_parser *p, uint16_t n)
 {
     p->start = (uint8_t)(p->start + n);
     p->count = (uint16_t)(p->count - n);
     p->hunted = p->hunted > n ? (uint16_t)(p->hunted - n) : 0u;
+    /* The stretch known to hold no candidate that may yet complete moves down with the
+     * bytes; with the first such candidate dropped (or now at the front) nothing is known. */
+    if (p->waiting != NO_CANDIDATE) {
+        p->waiting = p->waiting > n ? (uint8_t)(p->waiting - n) : 0u;
+    }
 }
 
 void dxl_parser_reset(dxl_parser *p)
 {
     p->start = 0;
+    p->waiting = 0;
     p->count = 0;
     p->hunted = 0;
 }
@@ -105,45 +114,106 @@ bool dxl_parser_poll(dxl_parser *p, dxl_event *ev)
     return true;
 }
 
-/* A whole packet with a good checksum starts at b[i] and ends at or before b[count]. */
-static bool good_packet_at(const dxl_parser *p, const uint8_t *b, uint16_t i)
+/* What starts at a header byte b[i] (i + 3 < count) for dxl_parser_skip_to_hidden. */
+#define NOT_A_PACKET 0 /* and never will be: no header or LEN, or checked and found bad */
+#define SHORT 1        /* a candidate still short of bytes */
+#define GOOD 2         /* a whole packet with a good checksum */
+
+static uint8_t candidate_at(const dxl_parser *p, const uint8_t *b, uint16_t i)
 {
     if (b[i + 1u] != DXL_HEADER_BYTE || b[i + 2u] == DXL_HEADER_BYTE) {
-        return false;
+        return NOT_A_PACKET;
     }
     uint8_t len = b[i + 3u];
     if (len < DXL_MIN_LEN_FIELD || len > DXL_MAX_LEN_FIELD) {
-        return false;
+        return NOT_A_PACKET;
     }
     uint16_t end = (uint16_t)(i + len + 4u);
-    if (end > p->count || end <= p->hunted) {
-        return false; /* not complete yet, or already checked and found bad */
+    if (end > p->count) {
+        return SHORT;
+    }
+    if (end <= p->hunted) {
+        return NOT_A_PACKET; /* already checked */
     }
     uint8_t expected = dxl_checksum(&b[i + 2u], (size_t)len + 1u);
-    return expected == b[end - 1u];
+    return expected == b[end - 1u] ? GOOD : NOT_A_PACKET;
 }
 
 bool dxl_parser_skip_to_hidden(dxl_parser *p)
 {
-    /* The unconsumed bytes are contiguous in storage (each byte is stored twice), so
-     * memchr can look for header bytes: usually there are none past the first. */
     if (p->count < 5u) { /* FF FF at index 1 or later, with its LEN */
         p->hunted = p->count;
         return false;
     }
+    /* The unconsumed bytes are contiguous in storage (each byte is stored twice). */
     const uint8_t *b = &p->storage[p->start];
-    const uint8_t *limit = b + p->count - 3; /* a header needs 4 bytes to say its LEN */
-    for (const uint8_t *q = b + 1; q < limit; q++) {
-        q = memchr(q, DXL_HEADER_BYTE, (size_t)(limit - q));
-        if (q == NULL) {
-            break;
+    uint16_t limit = (uint16_t)(p->count - 3u); /* a header needs 4 bytes to say its LEN */
+    /* The last hunt looked at 1 .. hunted - 4, and the first candidate there still short
+     * of bytes starts at `waiting`: before that nothing can complete, so a packet arriving
+     * byte by byte costs a step per byte here, not a pass over all of it (which is why a
+     * plain loop serves: memchr's call cost more than the byte or two it looked at). */
+    uint16_t seen = p->hunted > 3u ? (uint16_t)(p->hunted - 3u) : 0u;
+    uint16_t from = p->waiting < seen ? p->waiting : seen;
+    uint8_t first = NO_CANDIDATE;
+    for (uint16_t i = from > 1u ? from : 1u; i < limit; i++) {
+        if (b[i] != DXL_HEADER_BYTE) {
+            continue;
         }
-        uint16_t i = (uint16_t)(q - b);
-        if (good_packet_at(p, b, i)) {
+        uint8_t found = candidate_at(p, b, i);
+        if (found == GOOD) {
             drop(p, i);
             return true;
         }
+        if (found == SHORT && first == NO_CANDIDATE) {
+            first = (uint8_t)i;
+        }
     }
     p->hunted = p->count;
+    p->waiting = first;
     return false;
+}
+
+size_t dxl_parser_feed_quiet(dxl_parser *p, const uint8_t *bytes, size_t n)
+{
+    /* Right after a hunt that found nothing (hunted == count) and left no candidate short
+     * of bytes, with a whole header in front whose packet is still short: until its last
+     * byte, only a header byte (in the last three held, not yet looked at as a start, or
+     * among the new ones) could begin anything a poll or a hunt would report. */
+    if (p->hunted != p->count || p->waiting != NO_CANDIDATE || p->count < 5u) {
+        return 0;
+    }
+    if (at(p, 0) != DXL_HEADER_BYTE || at(p, 1) != DXL_HEADER_BYTE ||
+        at(p, 2) == DXL_HEADER_BYTE) {
+        return 0;
+    }
+    uint8_t len = at(p, 3);
+    uint16_t total = (uint16_t)(len + 4u);
+    if (len < DXL_MIN_LEN_FIELD || len > DXL_MAX_LEN_FIELD || p->count >= total) {
+        return 0;
+    }
+    for (uint16_t i = (uint16_t)(p->count - 3u); i < p->count; i++) {
+        if (at(p, i) == DXL_HEADER_BYTE) {
+            return 0;
+        }
+    }
+    size_t k = (size_t)(total - 1u - p->count); /* the last byte goes the usual way */
+    if (k > n) {
+        k = n;
+    }
+    const uint8_t *header = k > 0 ? memchr(bytes, DXL_HEADER_BYTE, k) : NULL;
+    if (header != NULL) {
+        k = (size_t)(header - bytes);
+    }
+    /* in at most two runs (the ring wraps), each in both of its places */
+    uint8_t slot = (uint8_t)(p->start + p->count);
+    size_t to_wrap = (size_t)(DXL_PARSER_RING - slot);
+    size_t run = to_wrap < k ? to_wrap : k;
+    memcpy(&p->storage[slot], bytes, run);
+    memcpy(&p->storage[slot + DXL_PARSER_RING], bytes, run);
+    memcpy(&p->storage[0], bytes + run, k - run);
+    memcpy(&p->storage[DXL_PARSER_RING], bytes + run, k - run);
+    p->count = (uint16_t)(p->count + k); /* still below total <= DXL_MAX_PACKET */
+    /* as a hunt after each of them would have left it (it looked at nothing new) */
+    p->hunted = p->count;
+    return k;
 }

@@ -49,6 +49,8 @@ typedef struct {
 typedef struct {
     uint8_t storage[512];   /* DXL_PARSER_STORAGE */
     uint8_t start;          /* slot of the oldest unconsumed byte */
+    uint8_t waiting;        /* dxl_parser_skip_to_hidden: where the first candidate it saw
+                             * still short of bytes starts (UINT8_MAX: none) */
     uint16_t count;         /* unconsumed bytes, at most DXL_MAX_PACKET */
     uint16_t hunted;        /* dxl_parser_skip_to_hidden: packets ending here were checked */
 } dxl_parser;
@@ -67,10 +69,19 @@ uint16_t dxl_parser_pending(const dxl_parser *p);
  * for a whole packet with a good checksum starting at a later header among the bytes
  * held back; if there is one, drop everything before it and return true (the next poll
  * reports it). Each later candidate is checksummed once, when its last byte is there,
- * so the cost per byte stays O(DXL_MAX_PACKET). A good packet hidden inside a longer
- * real one is taken too: a real packet's payload with FF FF, a plausible LEN and a
- * matching checksum at the right place, which the checksum makes rare. */
+ * and bytes are looked at again only from the first candidate still short of bytes on,
+ * so the cost per byte stays O(DXL_MAX_PACKET), and is O(1) while none is held. A good
+ * packet hidden inside a longer real one is taken too: a real packet's payload with
+ * FF FF, a plausible LEN and a matching checksum at the right place, which the checksum
+ * makes rare. */
 bool dxl_parser_skip_to_hidden(dxl_parser *p);
+/* For such a receiver, polling and hunting after every byte: append the bytes from
+ * bytes[0..n) that can arrive with nothing to report, so they need no poll; returns how
+ * many it took (0 when the next byte may matter: feed it and poll as usual). It takes
+ * bytes only right after a poll and a hunt that found nothing, in the middle of a packet
+ * whose header is in front, up to the byte before its last and before any header byte;
+ * the parser is then as polling after each of them would have left it. */
+size_t dxl_parser_feed_quiet(dxl_parser *p, const uint8_t *bytes, size_t n);
 /* cffi:end */
 
 #endif

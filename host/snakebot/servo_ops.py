@@ -642,6 +642,12 @@ def all_bauds() -> list[int]:
     return [first, *sorted(rates - {first}, reverse=True)]
 
 
+def slowest_bps() -> int:
+    """The slowest bit rate a described device answers at: its slowest tabulated rate,
+    less the clock error the device tolerates (so a nominal 9600 passes for 9615)."""
+    return int(min(all_bauds()) * (1.0 - _baud().tolerance))
+
+
 @dataclass(frozen=True)
 class BaudChange:
     """The outcome of :func:`set_baud`."""

@@ -256,6 +256,15 @@ def test_controller_commands_refuse_non_finite_numbers(args: list[str]) -> None:
     assert_one_line_error(run(*args, "--port", "/dev/nonexistent-port"), mentions="finite")
 
 
+@pytest.mark.parametrize("command", [["library", "play", "0"], ["stop"], ["monitor"]])
+def test_a_pc_link_slower_than_any_dynamixel_rate_is_refused_at_once(command: list[str]) -> None:
+    # The CLI fuzz found `library play 0 --port loop:// --baud 1`: a reply's timeout scales
+    # with the byte time, so it waited 200 s for an answer that could never come.
+    result = run(*command, "--port", "loop://", "--baud", "1")
+    assert_one_line_error(result, mentions="slower than any Dynamixel")
+    assert run("stop", "--port", "loop://", "--baud", "9600").exit_code == 1  # nominal 9600 ok
+
+
 # -- the emulator's options -----------------------------------------------------------------
 
 

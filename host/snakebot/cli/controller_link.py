@@ -20,6 +20,22 @@ PORT_HELP = (
 )
 
 
+def _link_baud(ctx: click.Context, param: click.Parameter, value: int) -> int:
+    """A rate no slower than the slowest a Dynamixel device is tabulated at: below it a
+    reply's timeout (which scales with the byte time) would run to minutes."""
+    from snakebot.servo_ops import slowest_bps
+
+    slowest = slowest_bps()
+    if value < slowest:
+        raise click.BadParameter(
+            f"{value} bit/s is slower than any Dynamixel device runs (the slowest: {slowest}); "
+            f"the firmware's PC link runs at {PC_LINK_BAUD}",
+            ctx,
+            param,
+        )
+    return value
+
+
 controller_id_option = click.option(
     "--id",
     "controller_id",
@@ -48,6 +64,7 @@ def controller_options(func: Callable[..., Any]) -> Callable[..., Any]:
         "--baud",
         "-b",
         type=click.IntRange(min=1),
+        callback=_link_baud,
         default=PC_LINK_BAUD,
         show_default=True,
         help="Bit rate of the PC link (the firmware's: 57600).",

@@ -101,7 +101,7 @@ class _Transmission(_Heard):
 
     __slots__ = ("source", "baud", "end", "unheard")
 
-    def __init__(self, source: object, start: float, baud: float, data: bytearray) -> None:
+    def __init__(self, source: object, start: float, baud: float, data: bytearray | bytes) -> None:
         self.source = source
         self.unheard: _Group | None = None
         """The group whose delivery was skipped as nobody there would act on it (see
@@ -258,6 +258,7 @@ class Bus:
         self._wire: list[_Transmission] = []
         self._wire_end = -math.inf  # when the last of them ends
         self._c_reply = ffi.new("uint8_t[]", 256)  # a C servo's status packet
+        self._c_reply_bytes = ffi.buffer(self._c_reply)  # sliced: a copy as bytes
         self._master_rx: list[_Heard] = []
         self._master_tx_free = 0.0
         self._servo_tx_free: dict[int, float] = {}
@@ -458,10 +459,36 @@ class Bus:
         """The master sends ``data`` (starting now, or when its UART is free)."""
         if not data:
             return
-        start = self.now if self.now > self._master_tx_free else self._master_tx_free
-        tx = self._transmit(MASTER, start, self.baudrate, bytearray(data))
-        self._master_tx_free = tx.end
-        self.stats.master_bytes_out += len(data)
+        now = self.now
+        start = now if now > self._master_tx_free else self._master_tx_free
+        group = self._quiet_reply
+        n = len(data)
+        if (
+            n == 8
+            and data[4] == _READ
+            and group is not None
+            and self._wire_end <= now
+            and not self.echo
+            and group.c_by_id is not None
+            and self._groups is not None
+            and group.rx.baud == self.baudrate
+            and data[0] == data[1] == 0xFF != data[2]
+            and data[3] == 4
+        ):
+            # a READ on a quiet line to the one group (see _deliver_read): what
+            # _transmit does with it, in short
+            # bytes, shared: _collide makes a bytearray of them if they get damaged
+            frame = data if type(data) is bytes else bytes(data)
+            tx = _Transmission(MASTER, start, group.rx.baud, frame)
+            self._wire = [tx]
+            self._wire_end = end = tx.end
+            heapq.heappush(self._events, (end, next(self._seq), self._deliver_read, (group, tx)))
+            group.rx.queued += 1
+            self.stats.instructions += 1
+        else:
+            end = self._transmit(MASTER, start, self.baudrate, bytearray(data)).end
+        self._master_tx_free = end
+        self.stats.master_bytes_out += n
 
     @property
     def master_tx_done(self) -> float:
@@ -511,10 +538,17 @@ class Bus:
         now = self.now
         if len(streams) == 1:
             h = streams[0]
-            k = min(h.count_by(now), h.pos + size)
-            out = bytes(h.data[h.pos : k])
-            h.pos = k
-            if k >= len(h.data):
+            data = h.data
+            pos = h.pos
+            if h.times is None:  # count_by at one rate, inline (the usual case)
+                k = math.floor((now - h.start) / h.period + 1e-6)
+            else:
+                k = h.count_by(now)
+            if k > pos + size:
+                k = pos + size
+            out = bytes(data[pos:k]) if k > pos else b""
+            h.pos = k if k > pos else pos
+            if h.pos >= len(data):
                 streams.clear()
         else:
             # several streams (a collision, noise, echo): merge what has arrived by time
@@ -655,8 +689,12 @@ class Bus:
                 group.rx.queued += 1
             i0 = max(0, math.floor((lo - tx.start) / tx.period))
             i1 = min(len(tx.data), math.ceil((hi - tx.start) / tx.period))
+            data = tx.data
+            if type(data) is bytes:
+                # a fast path's frame, heard by nobody but through ``tx`` itself
+                tx.data = data = bytearray(data)
             for i in range(i0, i1):
-                tx.data[i] = self.faults.collision_byte()
+                data[i] = self.faults.collision_byte()
 
     def _deliver_read(self, t: float, job: tuple[_Group, _Transmission]) -> None:
         """The master's READ frame, whole, to a group of C servos at its rate: when it
@@ -670,14 +708,17 @@ class Bus:
         if rx.parser.state or group.epoch != self._link_epoch or index is None:
             self._deliver(t, (group, tx, 0, 8, MASTER))
             return
+        frame = tx.data
         out = self._c_reply
-        size = lib.sim_servo_deliver_read(index, bytes(tx.data), 8, t, out, 256)
+        size = lib.sim_servo_deliver_read(
+            index, frame if type(frame) is bytes else bytes(frame), 8, t, out, 256
+        )
         if not size:
             self._deliver(t, (group, tx, 0, 8, MASTER))
             return
         rx.queued -= 1
         rx.last_t = t
-        servo = group.by_id[tx.data[2]][0]
+        servo = group.by_id[frame[2]][0]
         if (
             rx.queued
             or self._wire_end > t
@@ -685,13 +726,13 @@ class Bus:
             or self._quiet_reply is not group
             or rx.baud != self.baudrate
         ):
-            self._reply(servo, (ffi.buffer(out, size)[:], servo.baudrate), t)
+            self._reply(servo, (self._c_reply_bytes[:size], servo.baudrate), t)
             return
         # The usual case, what _reply and _transmit would do, in short: the line is
         # quiet, no faults, one group at the master's rate and nothing else due to it,
         # so the status packet meets nobody, the master hears it as sent, and the
         # group would drop it unheard.
-        packet = bytearray(ffi.buffer(out, size))
+        packet = self._c_reply_bytes[:size]  # bytes, as the master's READ above
         reply = _Transmission(servo, t + servo.return_delay_s, rx.baud, packet)
         reply.unheard = group
         self._wire = [reply]

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from sim_support import hear
 
 from snakebot import protocol as P
 from snakebot.sim.bus import Bus
@@ -60,12 +61,7 @@ def run(
     world: list[tuple[float, list[float]]] = []
     if config["world"]:
         bus.every(0.0013, lambda t: world.append((t, bus.positions())))
-    heard = []
-    for wait, packet in stream:
-        bus.master_write(packet)
-        end = bus.now + wait
-        while bus.run_until_master_data(end):
-            heard += [(bus.now, b) for b in bus.master_read(1)]
+    heard = hear(bus, stream)
     stats = bus.stats
     counters = (
         stats.master_bytes_out,

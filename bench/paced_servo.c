@@ -12,7 +12,6 @@
 
 #include <errno.h>
 #include <fcntl.h>
-#include <poll.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -43,11 +42,10 @@ static size_t unhex(const char *text, uint8_t *out, size_t cap) {
 }
 
 int main(int argc, char **argv) {
-    if (argc != 4 && argc != 5) {
-        fprintf(stderr, "usage: %s REQUEST_HEX REPLY_HEX DELAY_NS [block]\n", argv[0]);
+    if (argc != 4) {
+        fprintf(stderr, "usage: %s REQUEST_HEX REPLY_HEX DELAY_NS\n", argv[0]);
         return 2;
     }
-    int block = argc == 5 && strcmp(argv[4], "block") == 0;
     uint8_t request[MAX_PACKET], reply[MAX_PACKET];
     size_t request_len = unhex(argv[1], request, sizeof request);
     size_t reply_len = unhex(argv[2], reply, sizeof reply);
@@ -87,12 +85,6 @@ int main(int argc, char **argv) {
             }
             if ((++polls & 0xFFFFF) == 0 && getppid() != parent) {
                 return 0; /* the benchmark has gone */
-            }
-            if (block) {
-                struct pollfd fds = {master, POLLIN, 0};
-                if (poll(&fds, 1, 1000) == 0 && getppid() != parent) {
-                    return 0;
-                }
             }
             continue;
         }

@@ -97,6 +97,10 @@ class _Attempt:
     stale: int = 0
 
 
+_CLEAN = _Attempt()
+"""What an attempt that heard nothing but its reply returns (shared; never changed)."""
+
+
 class DxlClient:
     """A Protocol 1.0 client for Dynamixel AX-12 servos (and any device speaking 1.0).
 
@@ -270,13 +274,19 @@ class DxlClient:
         if len(packet) < 6 or packet[:2] != b"\xff\xff":
             raise ProtocolError(f"not an instruction packet: {packet.hex(' ')}")
         tries = 1 + (self.retries if retries is None else settings.resolve_retries(retries))
-        timeout = self._reply_timeout(len(packet), expect_params_len)
+        return self._transact(packet, expect_id, expect_params_len, check, tries)
+
+    def _transact(
+        self, packet: bytes, expect_id: int, expect_len: int, check: bool, tries: int
+    ) -> Packet:
+        """:meth:`transact` of an instruction packet known to be well formed."""
+        timeout = self._reply_timeout(len(packet), expect_len)
         attempts: list[_Attempt] = []
         with self._lock:
             for _ in range(tries):
-                reply, attempt = self._attempt(packet, expect_id, expect_params_len, timeout)
+                reply, attempt = self._attempt(packet, expect_id, expect_len, timeout)
                 if reply is None and self._echo is None and attempt.echo is not None:
-                    reply = self._settle_echo(attempt.echo, expect_id, expect_params_len)
+                    reply = self._settle_echo(attempt.echo, expect_id, expect_len)
                 if reply is not None:
                     if reply.code & _RESEND_MASK and len(attempts) + 1 < tries:
                         attempts.append(attempt)  # the servo heard a damaged instruction
@@ -285,7 +295,7 @@ class DxlClient:
                         raise ServoError(reply.id, reply.code)
                     return reply
                 attempts.append(attempt)
-        raise self._failure(packet, expect_id, expect_params_len, timeout, attempts)
+        raise self._failure(packet, expect_id, expect_len, timeout, attempts)
 
     def _reply_timeout(self, tx_len: int, params_len: int) -> float:
         """``self.timing.reply_timeout_s``, remembered per packet shape."""
@@ -302,18 +312,19 @@ class DxlClient:
     def _attempt(
         self, packet: bytes, expect_id: int, expect_len: int, timeout: float
     ) -> tuple[Packet | None, _Attempt]:
-        port = self._port
         parser = self._parser
-        seen = _Attempt()
+        seen = _CLEAN  # replaced by an _Attempt of its own once anything else is heard
         echo = self._echo
         io = self._io
-        port.reset_input_buffer()
+        io.flush_input()
         parser.reset()
         io.write(packet)
         deadline = time.monotonic() + timeout
         status_len = STATUS_OVERHEAD + expect_len
         data = b""
         while True:
+            if data and seen is _CLEAN:
+                seen = _Attempt()
             for event in parser.feed(data) if data else ():
                 if isinstance(event, Rejected):
                     seen.rejected.append(event)
@@ -343,7 +354,7 @@ class DxlClient:
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 self._recent.append(packet)
-                return None, seen
+                return None, _Attempt() if seen is _CLEAN else seen
             # Read exactly what completes the reply (and our echo, if the line echoes and
             # it has not been heard yet): one read when all goes well. What arrives
             # beyond that is flushed before the next instruction.
@@ -468,15 +479,16 @@ class DxlClient:
     def read(self, servo_id: int, address: int, length: int) -> bytes:
         """READ ``length`` bytes of ``servo_id``'s control table from ``address``."""
         _require_device(servo_id, "READ")
-        if self.status_return_level(servo_id) < 1:
+        if self._levels.get(servo_id, self._default_level) < 1:  # status_return_level
             raise ProtocolError(
                 f"servo {servo_id} is set to Status Return Level 0, so it never answers "
                 "READ: write 1 or 2 to its Status Return Level, then call "
                 "set_status_return_level"
             )
         packet = _read_packet(servo_id, address, length)
-        for _ in range(1 + self.retries):
-            data = self.transact(packet, servo_id, length).params
+        tries = 1 + self.retries
+        for _ in range(tries):
+            data = self._transact(packet, servo_id, length, True, tries).params
             wrong = self._out_of_range(address, data)
             if wrong is None:
                 return data

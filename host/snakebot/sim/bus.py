@@ -538,17 +538,10 @@ class Bus:
         now = self.now
         if len(streams) == 1:
             h = streams[0]
-            data = h.data
-            pos = h.pos
-            if h.times is None:  # count_by at one rate, inline (the usual case)
-                k = math.floor((now - h.start) / h.period + 1e-6)
-            else:
-                k = h.count_by(now)
-            if k > pos + size:
-                k = pos + size
-            out = bytes(data[pos:k]) if k > pos else b""
-            h.pos = k if k > pos else pos
-            if h.pos >= len(data):
+            k = min(h.count_by(now), h.pos + size)
+            out = bytes(h.data[h.pos : k])
+            h.pos = k
+            if k >= len(h.data):
                 streams.clear()
         else:
             # several streams (a collision, noise, echo): merge what has arrived by time

@@ -16,9 +16,12 @@ Delay Time 0, 1 Mbps, no faults. Measured at 5, 18 and 50 servos:
 
 The emulator's servos (``VirtualServo``) run their hot path in C whatever the bus
 does: faults, echo, other baud rates and the physics world change nothing about which
-code runs (the bus's own timing and fault code is Python throughout). A SYNC_WRITE of
-goals is handed to the C servos in one call when every servo on its line is a C
-servo with an ID of its own (as here); otherwise servo by servo.
+code runs. A SYNC_WRITE of goals is handed to the C servos in one call when every
+servo on its line is a C servo with an ID of its own (as here); otherwise servo by
+servo. The bus's timing and fault code is Python; a READ on a quiet line with no
+faults takes its short path (``Bus._deliver_read``: the frame to the C servo whole,
+the status packet straight onto the wire and to the master), the same bytes at the
+same instants as the general path (``tests/sim/test_bus_fast_path.py``).
 
 Printed: emulated seconds per CPU second of this process (real-time factor; the wall
 clock figure is printed too, lower on a loaded machine), each against its goal (200x

@@ -93,7 +93,10 @@ def start_server() -> tuple[subprocess.Popen[str], str]:
 
 
 def snakebot_rate(device: str, n: int) -> float:
-    with DxlClient(device, latency_s=0.002) as c:
+    # a generous allowance: on a loaded machine the server (whose bus clock follows the
+    # wall clock) may be descheduled for a while, which must cost a slow round, not a
+    # failure (the rate does not depend on it)
+    with DxlClient(device, latency_s=0.1) as c:
         c.read_u16(10, PRESENT.address)
         start = time.perf_counter()
         for _ in range(n):

@@ -70,3 +70,31 @@ def test_a_read_within_the_polled_tail_waits_its_whole_timeout_and_sees_what_cam
         assert time.monotonic() - start >= timeout  # never gives up early
         os.write(master, b"xy")
         assert io.read(8, timeout) == b"xy"
+
+
+def test_flush_input_discards_what_has_arrived_and_nothing_sent_after(pty_port):
+    master, port = pty_port
+    io = PortIO(port)
+    os.write(master, b"stale")
+    deadline = time.monotonic() + 2.0
+    while port.in_waiting < 5 and time.monotonic() < deadline:  # the pty hands them over
+        time.sleep(0.001)
+    assert port.in_waiting == 5
+    io.flush_input()
+    assert port.in_waiting == 0
+    os.write(master, b"new")
+    assert io.read(16, 1.0) == b"new"
+
+
+def test_flush_input_on_other_ports_goes_through_pyserial():
+    port = serial.serial_for_url("sim://?ids=1&return_delay=0", baudrate=1_000_000)
+    try:
+        io = PortIO(port)
+        io.write(protocol.ping(1))
+        port.bus.run_until(port.bus.now + 0.01)  # the whole reply has arrived
+        assert port.in_waiting == 6
+        io.flush_input()
+        assert port.in_waiting == 0
+        assert io.read(16, 0.001) == b""
+    finally:
+        port.close()

@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from sim_support import hear
 
 from snakebot import devices
 from snakebot import protocol as P
@@ -177,13 +178,7 @@ def bus_run(servo_class: type, delay: int, stream: list[tuple[float, bytes]]) ->
     for s in servos:
         s.set_register("Return Delay Time", delay)
     bus = Bus(servos)
-    heard = []
-    for wait, packet in stream:
-        bus.master_write(packet)
-        end = bus.now + wait
-        while bus.run_until_master_data(end):
-            heard += [(bus.now, b) for b in bus.master_read(1)]
-    return heard, [state(s) for s in servos]
+    return hear(bus, stream), [state(s) for s in servos]
 
 
 @settings(max_examples=150, deadline=None)

@@ -29,3 +29,15 @@ def reply(bus: Bus, packet: bytes, wait: float = REPLY_WAIT_S) -> Packet:
     events = exchange(bus, packet, wait)
     assert len(events) == 1 and isinstance(events[0], Packet), events
     return events[0]
+
+
+def hear(bus: Bus, stream: list[tuple[float, bytes]]) -> list[tuple[float, int]]:
+    """Send each packet of ``stream`` as the master, then run the bus for its wait:
+    every byte the master gets and the bus time it arrived, one byte at a time."""
+    heard = []
+    for wait, packet in stream:
+        bus.master_write(packet)
+        end = bus.now + wait
+        while bus.run_until_master_data(end):
+            heard += [(bus.now, b) for b in bus.master_read(1)]
+    return heard

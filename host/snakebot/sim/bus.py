@@ -45,27 +45,7 @@ NOISE = "noise"
 
 _EPS = 1e-12
 _SYNC_WRITE = int(Instruction.SYNC_WRITE)
-
-
-class _Transmission:
-    """Bytes one driver puts on the wire, back to back from ``start``; also what a
-    receiver at the same rate hears of them (byte i complete at :meth:`arrival`)."""
-
-    __slots__ = ("source", "start", "period", "baud", "data", "end", "unheard")
-
-    def __init__(self, source: object, start: float, baud: float, data: bytearray) -> None:
-        self.source = source
-        self.unheard: _Group | None = None
-        """The group whose delivery was skipped as nobody there would act on it (see
-        ``Bus._transmit``); delivered after all if a collision damages the bytes."""
-        self.start = start
-        self.baud = baud
-        self.period = BITS_PER_BYTE / baud  # clock.byte_time
-        self.data = data
-        self.end = start + len(data) * self.period
-
-    def arrival(self, i: int) -> float:
-        return self.start + (i + 1) * self.period
+_READ = int(Instruction.READ)
 
 
 class _Heard:
@@ -112,6 +92,27 @@ class _Heard:
         while k < n and self.times[k] <= t + _EPS:
             k += 1
         return k
+
+
+class _Transmission(_Heard):
+    """Bytes one driver puts on the wire, back to back from ``start``; also what a
+    receiver at the same rate hears of them (byte i complete at :meth:`arrival`), the
+    master included (``pos``: how many of them it has read)."""
+
+    __slots__ = ("source", "baud", "end", "unheard")
+
+    def __init__(self, source: object, start: float, baud: float, data: bytearray | bytes) -> None:
+        self.source = source
+        self.unheard: _Group | None = None
+        """The group whose delivery was skipped as nobody there would act on it (see
+        ``Bus._transmit``); delivered after all if a collision damages the bytes."""
+        self.start = start
+        self.baud = baud
+        self.period = period = BITS_PER_BYTE / baud  # clock.byte_time
+        self.data = data
+        self.end = start + len(data) * period
+        self.times = None
+        self.pos = 0
 
 
 class _Receiver:
@@ -257,11 +258,13 @@ class Bus:
         self._wire: list[_Transmission] = []
         self._wire_end = -math.inf  # when the last of them ends
         self._c_reply = ffi.new("uint8_t[]", 256)  # a C servo's status packet
+        self._c_reply_bytes = ffi.buffer(self._c_reply)  # sliced: a copy as bytes
         self._master_rx: list[_Heard] = []
         self._master_tx_free = 0.0
         self._servo_tx_free: dict[int, float] = {}
         self._receivers: dict[float, _Receiver] = {}
         self._groups: list[_Group] | None = None
+        self._quiet_reply: _Group | None = None  # the group of _listeners, when alone
         self._c_path = True  # whole packets to the C servos (tap() turns it off)
         self._link_epoch = 0  # link changes so far (_Group.epoch)
         self._by_id: dict[int, VirtualServo] | None = None  # the first servo with each ID
@@ -318,6 +321,9 @@ class Bus:
                     rx = self._receivers[baud] = _Receiver(baud)
                 groups.append(_Group(rx, members, self._link_epoch, self._c_path))
             self._groups = groups
+            # see _deliver_read
+            plain = len(groups) == 1 and not (self._corrupting or self._reply_faults)
+            self._quiet_reply = groups[0] if plain else None
         return self._groups
 
     def servo(self, servo_id: int) -> VirtualServo:
@@ -453,10 +459,36 @@ class Bus:
         """The master sends ``data`` (starting now, or when its UART is free)."""
         if not data:
             return
-        start = self.now if self.now > self._master_tx_free else self._master_tx_free
-        tx = self._transmit(MASTER, start, self.baudrate, bytearray(data))
-        self._master_tx_free = tx.end
-        self.stats.master_bytes_out += len(data)
+        now = self.now
+        start = now if now > self._master_tx_free else self._master_tx_free
+        group = self._quiet_reply
+        n = len(data)
+        if (
+            n == 8
+            and data[4] == _READ
+            and group is not None
+            and self._wire_end <= now
+            and not self.echo
+            and group.c_by_id is not None
+            and self._groups is not None
+            and group.rx.baud == self.baudrate
+            and data[0] == data[1] == 0xFF != data[2]
+            and data[3] == 4
+        ):
+            # a READ on a quiet line to the one group (see _deliver_read): what
+            # _transmit does with it, in short
+            # bytes, shared: _collide makes a bytearray of them if they get damaged
+            frame = data if type(data) is bytes else bytes(data)
+            tx = _Transmission(MASTER, start, group.rx.baud, frame)
+            self._wire = [tx]
+            self._wire_end = end = tx.end
+            heapq.heappush(self._events, (end, next(self._seq), self._deliver_read, (group, tx)))
+            group.rx.queued += 1
+            self.stats.instructions += 1
+        else:
+            end = self._transmit(MASTER, start, self.baudrate, bytearray(data)).end
+        self._master_tx_free = end
+        self.stats.master_bytes_out += n
 
     @property
     def master_tx_done(self) -> float:
@@ -558,7 +590,7 @@ class Bus:
         # the master hears servos and noise, and its own bytes when the line echoes
         if source is not MASTER or self.echo:
             if baud == self.baudrate:
-                self._master_rx.append(_Heard(data, tx.start, tx.period))
+                self._master_rx.append(tx)  # heard as sent
             else:
                 self._master_rx.append(_Heard.of(tx, self.baudrate))
         # the servos hear everything but their own voice
@@ -578,10 +610,17 @@ class Bus:
                 if baud != rx.baud:
                     self._schedule(group, tx, source)
                     continue
-                if source is not MASTER and source is not NOISE and self._unheard(group, tx):
+                if source is MASTER:
+                    if n == 8 and data[4] == _READ and group.c_by_id is not None:
+                        job = (group, tx)  # the commonest packet: see _deliver_read
+                        deliver = self._deliver_read
+                    else:
+                        job, deliver = (group, tx, 0, n, source), self._deliver
+                elif source is not NOISE and self._unheard(group, tx):
                     continue
-                job = (group, tx, 0, n, source)
-                heapq.heappush(self._events, (tx.end, next(self._seq), self._deliver, job))
+                else:
+                    job, deliver = (group, tx, 0, n, source), self._deliver
+                heapq.heappush(self._events, (tx.end, next(self._seq), deliver, job))
                 rx.queued += 1
         else:
             for group in groups:
@@ -643,8 +682,57 @@ class Bus:
                 group.rx.queued += 1
             i0 = max(0, math.floor((lo - tx.start) / tx.period))
             i1 = min(len(tx.data), math.ceil((hi - tx.start) / tx.period))
+            data = tx.data
+            if type(data) is bytes:
+                # a fast path's frame, heard by nobody but through ``tx`` itself
+                tx.data = data = bytearray(data)
             for i in range(i0, i1):
-                tx.data[i] = self.faults.collision_byte()
+                data[i] = self.faults.collision_byte()
+
+    def _deliver_read(self, t: float, job: tuple[_Group, _Transmission]) -> None:
+        """The master's READ frame, whole, to a group of C servos at its rate: when it
+        comes to an idle receiver and is good, the servo it names answers in one C call
+        (``_deliver`` would get there through more checks); anything else (a damaged
+        frame, a receiver mid-packet, an ID change on the way, nobody with that ID)
+        takes ``_deliver``."""
+        group, tx = job
+        rx = group.rx
+        index = group.c_by_id
+        if rx.parser.state or group.epoch != self._link_epoch or index is None:
+            self._deliver(t, (group, tx, 0, 8, MASTER))
+            return
+        frame = tx.data
+        out = self._c_reply
+        size = lib.sim_servo_deliver_read(
+            index, frame if type(frame) is bytes else bytes(frame), 8, t, out, 256
+        )
+        if not size:
+            self._deliver(t, (group, tx, 0, 8, MASTER))
+            return
+        rx.queued -= 1
+        rx.last_t = t
+        servo = group.by_id[frame[2]][0]
+        if (
+            rx.queued
+            or self._wire_end > t
+            or self._groups is None
+            or self._quiet_reply is not group
+            or rx.baud != self.baudrate
+        ):
+            self._reply(servo, (self._c_reply_bytes[:size], servo.baudrate), t)
+            return
+        # The usual case, what _reply and _transmit would do, in short: the line is
+        # quiet, no faults, one group at the master's rate and nothing else due to it,
+        # so the status packet meets nobody, the master hears it as sent, and the
+        # group would drop it unheard.
+        packet = self._c_reply_bytes[:size]  # bytes, as the master's READ above
+        reply = _Transmission(servo, t + servo.return_delay_s, rx.baud, packet)
+        reply.unheard = group
+        self._wire = [reply]
+        self._wire_end = end = reply.end
+        self._master_rx.append(reply)
+        self._servo_tx_free[id(servo)] = end
+        self.stats.replies += 1
 
     def _deliver(self, t: float, job: tuple) -> None:
         group, heard, i0, i1, source = job

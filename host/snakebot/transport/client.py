@@ -98,6 +98,10 @@ class _Attempt:
     stale: int = 0
 
 
+_CLEAN = _Attempt()
+"""What an attempt that heard nothing but its reply returns (shared; never changed)."""
+
+
 class DxlClient:
     """A Protocol 1.0 client for Dynamixel AX-12 servos (and any device speaking 1.0).
 
@@ -277,15 +281,25 @@ class DxlClient:
         if len(packet) < 6 or packet[:2] != b"\xff\xff":
             raise ProtocolError(f"not an instruction packet: {packet.hex(' ')}")
         tries = 1 + (self.retries if retries is None else settings.resolve_retries(retries))
-        timeout = self._reply_timeout(len(packet), expect_params_len)
+        return self._transact(packet, expect_id, expect_params_len, check, tries, silence_s)
+
+    def _transact(
+        self,
+        packet: bytes,
+        expect_id: int,
+        expect_len: int,
+        check: bool,
+        tries: int,
+        silence_s: float | None = None,
+    ) -> Packet:
+        """:meth:`transact` of an instruction packet known to be well formed."""
+        timeout = self._reply_timeout(len(packet), expect_len)
         attempts: list[_Attempt] = []
         with self._lock:
             for _ in range(tries):
-                reply, attempt = self._attempt(
-                    packet, expect_id, expect_params_len, timeout, silence_s
-                )
+                reply, attempt = self._attempt(packet, expect_id, expect_len, timeout, silence_s)
                 if reply is None and self._echo is None and attempt.echo is not None:
-                    reply = self._settle_echo(attempt.echo, expect_id, expect_params_len)
+                    reply = self._settle_echo(attempt.echo, expect_id, expect_len)
                 if reply is not None:
                     if reply.code & _RESEND_MASK and len(attempts) + 1 < tries:
                         attempts.append(attempt)  # the servo heard a damaged instruction
@@ -294,7 +308,7 @@ class DxlClient:
                         raise ServoError(reply.id, reply.code)
                     return reply
                 attempts.append(attempt)
-        raise self._failure(packet, expect_id, expect_params_len, timeout, attempts)
+        raise self._failure(packet, expect_id, expect_len, timeout, attempts)
 
     def _reply_timeout(self, tx_len: int, params_len: int) -> float:
         """``self.timing.reply_timeout_s``, remembered per packet shape."""
@@ -316,12 +330,11 @@ class DxlClient:
         timeout: float,
         silence_s: float | None = None,
     ) -> tuple[Packet | None, _Attempt]:
-        port = self._port
         parser = self._parser
-        seen = _Attempt()
+        seen = _CLEAN  # replaced by an _Attempt of its own once anything else is heard
         echo = self._echo
         io = self._io
-        port.reset_input_buffer()
+        io.flush_input()
         parser.reset()
         io.write(packet)
         start = time.monotonic()
@@ -335,6 +348,8 @@ class DxlClient:
         status_len = STATUS_OVERHEAD + expect_len
         data = b""
         while True:
+            if data and seen is _CLEAN:
+                seen = _Attempt()
             if unheard >= 0 and data:
                 unheard -= len(data)
                 if unheard < 0:  # a reply has begun: it gets its whole time
@@ -368,7 +383,7 @@ class DxlClient:
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 self._recent.append(packet)
-                return None, seen
+                return None, _Attempt() if seen is _CLEAN else seen
             # Read exactly what completes the reply (and our echo, if the line echoes and
             # it has not been heard yet): one read when all goes well. What arrives
             # beyond that is flushed before the next instruction.
@@ -495,22 +510,22 @@ class DxlClient:
         ``silence_s`` (:meth:`transact`) suit a bus scan, where most IDs are silent.
         """
         _require_device(servo_id, "PING")
-        return self.transact(
-            _ping_packet(servo_id), servo_id, 0, check=check, retries=retries, silence_s=silence_s
-        )
+        tries = 1 + (self.retries if retries is None else settings.resolve_retries(retries))
+        return self._transact(_ping_packet(servo_id), servo_id, 0, check, tries, silence_s)
 
     def read(self, servo_id: int, address: int, length: int) -> bytes:
         """READ ``length`` bytes of ``servo_id``'s control table from ``address``."""
         _require_device(servo_id, "READ")
-        if self.status_return_level(servo_id) < 1:
+        if self._levels.get(servo_id, self._default_level) < 1:  # status_return_level
             raise ProtocolError(
                 f"servo {servo_id} is set to Status Return Level 0, so it never answers "
                 "READ: write 1 or 2 to its Status Return Level, then call "
                 "set_status_return_level"
             )
         packet = _read_packet(servo_id, address, length)
-        for _ in range(1 + self.retries):
-            data = self.transact(packet, servo_id, length).params
+        tries = 1 + self.retries
+        for _ in range(tries):
+            data = self._transact(packet, servo_id, length, True, tries).params
             wrong = self._out_of_range(address, data)
             if wrong is None:
                 return data

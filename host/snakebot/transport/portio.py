@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import os
 import select
+import termios
 import time
 
 import serial
@@ -63,6 +64,17 @@ class PortIO:
             raise SerialException(f"write failed: {exc}") from exc
         if n < len(data):
             port.write(data[n:])  # the output queue is full: let pyserial wait for room
+
+    def flush_input(self) -> None:
+        """Discard what has arrived and not been read."""
+        port = self.port
+        if not self._direct or not port.is_open:
+            port.reset_input_buffer()
+            return
+        try:
+            termios.tcflush(port.fd, termios.TCIFLUSH)
+        except termios.error as exc:
+            raise SerialException(f"flush failed: {exc}") from exc
 
     def read(self, size: int, timeout: float) -> bytes:
         """Up to ``size`` bytes, waiting at most ``timeout`` seconds for the first."""

@@ -185,8 +185,9 @@ def test_oversized_table_is_refused_before_the_port_is_opened(controller, tmp_pa
     assert controller.host_packets == []
 
 
-def test_unknown_servos_are_refused_before_any_upload_packet(
+def test_unknown_servos_are_refused_before_the_commit(
     controller_with_table,
+    old_table,
     tmp_path,
 ):
     server = controller_with_table
@@ -196,7 +197,8 @@ def test_unknown_servos_are_refused_before_any_upload_packet(
     assert "IDs 1, 2, 3, which the controller does not have" in result.stderr
     assert "roster" in result.stderr and "10, 11, 15, 16" in result.stderr
     assert "--new-servos" in result.stderr
-    assert upload_packets(server) == []
+    assert not [p for p in upload_packets(server) if is_commit(p)]
+    assert server.active_table() == old_table.encode()
     # the user says the servos are really there
     result = cli("upload", path, "--port", server.device, "--new-servos")
     assert result.exit_code == 0, result.output

@@ -3,14 +3,16 @@ U2D2 in Protocol 1.0, or the emulator): scan, ping, read, write, set-id, set-bau
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import sys
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Iterator
+from typing import Any, NoReturn
 
 import click
 
 from snakebot import servo_ops
+from snakebot.cli.errors import EXIT_RUNTIME
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType
 from snakebot.servo_ops import BusCommandError, Probe, ServoInfo
@@ -55,6 +57,24 @@ def bus_options(func: Callable[..., Any]) -> Callable[..., Any]:
         return func(*args, **kwargs)
 
     return wrapper
+
+
+@contextlib.contextmanager
+def _on_the_bus(port: str, baud: int) -> Iterator[DxlClient]:
+    """The bus at ``port``. A :class:`BusCommandError` raised while it is open is the
+    servos' failure (no reply, a write not taken), not bad input: ``error: ...`` and exit
+    status 1. Checks of the command line itself come before this, so they keep status 2."""
+    with DxlClient(port, baud) as client:
+        try:
+            yield client
+        except BusCommandError as exc:
+            _device_failure(str(exc))
+
+
+def _device_failure(message: str) -> NoReturn:
+    """``error: message`` and exit status 1: the servos failed, the command line was fine."""
+    click.echo(f"error: {' '.join(message.split())}", err=True)
+    raise click.exceptions.Exit(EXIT_RUNTIME)
 
 
 def _emit(as_json: bool, data: object, text: str) -> None:
@@ -185,9 +205,9 @@ def scan_command(
 def ping_command(port: str, baud: int, as_json: bool, ids: tuple[int, ...]) -> None:
     """PING servo IDS (one or more) and report model, firmware and error bits.
 
-    Fails (exit status 2) if any of them does not answer.
+    Fails (exit status 1) if any of them does not answer.
     """
-    with DxlClient(port, baud) as client:
+    with _on_the_bus(port, baud) as client:
         results = {servo_id: servo_ops.identify(client, servo_id) for servo_id in ids}
     found = [info for info in results.values() if info is not None]
     missing = [servo_id for servo_id, info in results.items() if info is None]
@@ -208,10 +228,11 @@ def ping_command(port: str, baud: int, as_json: bool, ids: tuple[int, ...]) -> N
             click.echo(_servo_line(info))
     if missing:
         who = ", ".join(map(str, missing))
-        raise BusCommandError(
+        _device_failure(
             f"no reply from servo{'s' if len(missing) > 1 else ''} {who} at {baud} baud: "
-            "check power and cabling, the baud rate (snakebot bus scan --bauds common finds "
-            "it) and the ID (snakebot bus scan lists them)"
+            "check that the servos are powered (USB does not power them) and cabled, the "
+            "baud rate (snakebot bus scan --bauds common finds it) and the ID (snakebot bus "
+            "scan lists them)"
         )
 
 
@@ -229,7 +250,7 @@ def read_command(
         snakebot bus read 1 36 --port /dev/ttyUSB0        # the same register by address
     """
     entries = [servo_ops.resolve_register(r) for r in registers]
-    with DxlClient(port, baud) as client:
+    with _on_the_bus(port, baud) as client:
         table, values = servo_ops.read_registers(client, servo_id, entries)
     if as_json:
         click.echo(dumps({"id": servo_id, "model": table.model, "registers": values}))
@@ -270,7 +291,7 @@ def write_command(
             "(and, for an ID, that no other servo has it)"
         )
     servo_ops.check_write(entry, number)
-    with DxlClient(port, baud) as client:
+    with _on_the_bus(port, baud) as client:
         back = servo_ops.write_register(client, servo_id, entry, number)
     decoded = servo_ops.decode(entry, number)
     if as_json:
@@ -307,7 +328,11 @@ def set_id_command(port: str, baud: int, as_json: bool, old_id: int, new_id: int
     \b
         snakebot bus set-id 1 10 --port /dev/ttyUSB0
     """
-    with DxlClient(port, baud) as client:
+    if old_id == new_id:
+        raise BusCommandError(
+            f"ID and NEW_ID are both {old_id}: give NEW_ID the ID the servo should take"
+        )
+    with _on_the_bus(port, baud) as client:
         info = servo_ops.set_id(client, old_id, new_id)
     _emit(
         as_json,
@@ -349,7 +374,7 @@ def set_baud_command(
         host_baud = round(rate)
     else:
         host_baud = round(servo_ops.baud_from_register(register))
-    with DxlClient(port, baud) as client:
+    with _on_the_bus(port, baud) as client:
         change = servo_ops.set_baud(client, servo_id, register, host_baud)
     _emit(
         as_json,

@@ -33,12 +33,14 @@ def upload(
     or a program (a .prog file from `snakebot program build`), which takes the table's
     place; `snakebot play` then runs whichever is active.
 
-    Before anything is sent, the table is checked against what the controller takes and
-    the servos it knows (its roster). The chunks are sent with several in flight, each
-    acknowledged; lost or damaged ones make the whole table go again
-    (SNAKEBOT_UPLOAD_RETRIES times, default 3). Success is reported only once the
-    controller's own CRC-32 and size of its active table equal the file's. If the
-    upload fails, the controller keeps its previous table.
+    The table is checked against what the controller takes (its Table Capacity) and the
+    servos it knows (its roster); those questions travel with the first chunks, and the
+    commit waits for their answers, so a table that fails them is never made active.
+    The chunks are sent with several in flight, each acknowledged; lost or damaged ones
+    make the whole table go again (SNAKEBOT_UPLOAD_RETRIES times, default 3). Success is
+    reported only once the controller's own CRC-32 and size of its active table, read
+    right after the commit, equal the file's. If the upload fails, the controller keeps
+    its previous table.
 
     The report gives the rate of the whole command (checks, transfer, verification) and
     its share of what the link's baud rate allows; a link that carried the bytes faster

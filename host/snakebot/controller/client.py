@@ -35,6 +35,9 @@ from snakebot.transport import DxlClient
 PC_LINK_BAUD = 57600
 """The CM-530 firmware's PC link (USART3) rate, as on the ROBOTIS controllers."""
 
+IDENTITY_REGISTERS = ("Model Number", "Firmware Version", "ID", "Status Return Level", "State")
+"""What :meth:`ControllerClient.identify` reads and checks."""
+
 ROSTER_FIELDS = ("ID", "Reverse", "Zero Tick", "Min Tick", "Max Tick")
 """The writable head of a servo-window record (the roster configuration), in order."""
 
@@ -280,7 +283,13 @@ class ControllerClient:
         """Check that a snakebot controller of our table version answers at our ID and that
         it acknowledges WRITEs; returns Model Number, Firmware Version, ID, Status Return
         Level and State."""
-        info = self.read("Model Number", "Firmware Version", "ID", "Status Return Level", "State")
+        info = self.read(*IDENTITY_REGISTERS)
+        self.check_identity(info)
+        return info
+
+    def check_identity(self, info: Mapping[str, int]) -> None:
+        """The checks of :meth:`identify` on registers already read (the
+        :data:`IDENTITY_REGISTERS`, e.g. within a longer READ)."""
         if info["Model Number"] != self.table.model_number:
             raise NotAController(
                 f"the device at ID {self.id} on {self.port_name} reports model number "
@@ -301,7 +310,6 @@ class ControllerClient:
                 "does not acknowledge WRITEs and nothing can be checked: power-cycle it (the "
                 "level returns to 2) or write 2 to its register 4"
             )
-        return info
 
     # -- the roster -------------------------------------------------------------------------
 

@@ -471,12 +471,14 @@ def parse_bauds(text: str) -> list[int]:
         return all_bauds()
     try:
         bauds = [int(float(b)) for b in text.split(",") if b.strip()]
-    except ValueError:
+    except (ValueError, OverflowError):
         bauds = []
     if not bauds or any(b <= 0 for b in bauds):
         raise BusCommandError(
             f"cannot read the baud rates {text!r}: write e.g. 1000000,57600, common or all"
         )
+    for bps in bauds:  # a rate no servo runs at would wait seconds per ID for nothing
+        check_bus_baud(bps)
     return bauds
 
 

@@ -265,6 +265,19 @@ def test_a_pc_link_slower_than_any_dynamixel_rate_is_refused_at_once(command: li
     assert run("stop", "--port", "loop://", "--baud", "9600").exit_code == 1  # nominal 9600 ok
 
 
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["bus", "scan", "--port", "sim://?ids=1", "--bauds", "1,2,3"],
+        ["doctor", "--port", "sim://?ids=1,2", "--ids", "1-3", "--bauds", "1,2,3"],
+        ["bus", "scan", "--port", "sim://?ids=1", "--bauds", "1e400"],
+    ],
+)
+def test_scan_rates_no_servo_runs_at_are_refused_at_once(args: list[str]) -> None:
+    # The CLI fuzz found `doctor --bauds 1,2,3` waiting two minutes per unanswered PING.
+    assert_one_line_error(run(*args))
+
+
 # -- the emulator's options -----------------------------------------------------------------
 
 

@@ -173,11 +173,8 @@ static int joint_rates(joint_ctx *c, double t, const double *pose, double *xi, d
     q[1] = pose[1];
     q[2] = pose[2];
     joint_schedule(c, t, q + 3, dphi);
-    int rc = kin_geom_rows(c->rb, q, dphi, &w);
-    if (rc != KIN_OK) {
-        return rc;
-    }
-    rc = kin_geom_solve(c->rb, &w, xi, slip, rcond);
+    kin_geom_rows_unchecked(c->rb, q, dphi, &w);
+    const int rc = kin_geom_solve(c->rb, &w, xi, slip, rcond);
     if (*rcond < c->stats->min_rcond) {
         c->stats->min_rcond = *rcond;
     }
@@ -339,22 +336,26 @@ typedef struct {
     const kin_robot *rb;
     const kin_inputs *u;
     int32_t inputs;
-    int32_t n;
     double corners[9];
+    /* The inputs at the last time asked: Dormand-Prince evaluates its last two stages at
+     * the same time, so every sixth evaluation takes them from here. */
+    double t_last;
+    double u_last[KIN_MAX_INPUTS];
 } field_ctx;
 
 static int field_rhs(void *ctx, double t, const double *y, double *dy)
 {
-    const field_ctx *c = (const field_ctx *)ctx;
-    double u[KIN_MAX_INPUTS];
-    const double sn = sin(c->u->omega * t), cs = cos(c->u->omega * t);
-    const double sn2 = 2.0 * sn * cs, cs2 = cs * cs - sn * sn;
-    for (int32_t i = 0; i < c->inputs; i++) {
-        u[i] = c->u->c[i] + c->u->a[i] * sn + c->u->b[i] * cs + c->u->a2[i] * sn2
-               + c->u->b2[i] * cs2;
+    field_ctx *c = (field_ctx *)ctx;
+    if (t != c->t_last) {
+        const double sn = sin(c->u->omega * t), cs = cos(c->u->omega * t);
+        const double sn2 = 2.0 * sn * cs, cs2 = cs * cs - sn * sn;
+        for (int32_t i = 0; i < c->inputs; i++) {
+            c->u_last[i] = c->u->c[i] + c->u->a[i] * sn + c->u->b[i] * cs + c->u->a2[i] * sn2
+                           + c->u->b2[i] * cs2;
+        }
+        c->t_last = t;
     }
-    return kin_fields_velocity_unchecked(c->rb, c->corners, c->u->form, c->n, c->inputs, y, u,
-                                         dy);
+    return kin_fields_velocity_unchecked(c->rb, c->corners, c->u->form, y, c->u_last, dy);
 }
 
 int kin_integrate_fields(const kin_robot *rb, const kin_inputs *u, const double *q0,
@@ -390,7 +391,7 @@ int kin_integrate_fields(const kin_robot *rb, const kin_inputs *u, const double 
         }
     }
     stats_start(st, t0);
-    field_ctx c = {rb, u, inputs, n, {0.0}};
+    field_ctx c = {rb, u, inputs, {0.0}, NAN, {0.0}};
     kin_fields_corners(rb, c.corners);
     kin_ode ode;
     if ((rc = kin_ode_init(&ode, n, field_rhs, &c, opt, st)) != KIN_OK) {

@@ -107,37 +107,36 @@ class Trajectory:
 
 
 def _c_schedule(robot: Robot, schedule: Sines | Table) -> tuple[Any, list[Any]]:
-    s = ffi.new("kin_schedule *")
     n = robot.n_joints
-    s.joints = n
     keep: list[Any] = []
     if isinstance(schedule, Sines):
-        s.type = lib.KIN_SCHED_SINES
-        s.omega = schedule.omega
+        init: dict[str, Any] = {"type": lib.KIN_SCHED_SINES, "joints": n, "omega": schedule.omega}
         for name in ("amp", "phase", "offset", "rate"):
-            values = getattr(schedule, name) or (0.0,) * n
-            if len(values) != n:
+            values = getattr(schedule, name)
+            if values and len(values) != n:
                 raise ValueError(
                     f"Sines.{name} needs {n} values for {robot.name}, got {len(values)}"
                 )
-            arr = getattr(s, name)
-            for j, v in enumerate(values):
-                arr[j] = v
-    else:
-        samples = np.ascontiguousarray(schedule.samples, dtype=np.float64)
-        if samples.ndim != 2 or samples.shape[1] != n or samples.shape[0] < 1:
-            raise ValueError(f"Table.samples must have shape (rows, {n}), got {samples.shape}")
-        keep.append(samples)
-        s.type = lib.KIN_SCHED_TABLE
-        s.samples = dptr(samples)
-        s.rows = samples.shape[0]
-        s.dt = schedule.dt
-        s.loop = int(schedule.loop)
+            init[name] = list(values)
+        return ffi.new("kin_schedule *", init), keep
+    samples = np.ascontiguousarray(schedule.samples, dtype=np.float64)
+    if samples.ndim != 2 or samples.shape[1] != n or samples.shape[0] < 1:
+        raise ValueError(f"Table.samples must have shape (rows, {n}), got {samples.shape}")
+    keep.append(samples)
+    s = ffi.new("kin_schedule *")
+    s.joints = n
+    s.type = lib.KIN_SCHED_TABLE
+    s.samples = dptr(samples)
+    s.rows = samples.shape[0]
+    s.dt = schedule.dt
+    s.loop = int(schedule.loop)
     return s, keep
 
 
 def _times(t0: float, t1: float, samples: int) -> np.ndarray:
     """The output times the core uses: t0 + k (t1 - t0) / (samples - 1), t1 exactly last."""
+    if samples == 2:  # the common whole-trajectory call: no arithmetic on arrays
+        return np.array((t0, t1))
     times = t0 + (t1 - t0) * (np.arange(samples) / (samples - 1))
     times[-1] = t1
     return times
@@ -196,7 +195,8 @@ def integrate_joints(
         dptr(slip) if slip is not None else ffi.NULL,
         st,
     )
-    check(code, f"{robot.name}, joint schedule, at t = {st.t_fail:.6g} s")
+    if code != lib.KIN_OK:
+        check(code, f"{robot.name}, joint schedule, at t = {st.t_fail:.6g} s")
     return Trajectory(_times(t0, t1, samples), out, slip, _stats(st))
 
 
@@ -217,23 +217,21 @@ def integrate_fields(
         raise ValueError("samples must be at least 2 (the start and the end)")
     n = 3 + robot.n_joints
     m = 2 if robot.kind == "snake" else 3
-    u = ffi.new("kin_inputs *")
-    u.form = _c_form(robot, inputs.form)
-    u.omega = inputs.omega
+    init: dict[str, Any] = {"form": _c_form(robot, inputs.form), "omega": inputs.omega}
     for name in ("c", "a", "b", "a2", "b2"):
-        values = getattr(inputs, name) or (0.0,) * m
-        if len(values) != m:
+        values = getattr(inputs, name)
+        if values and len(values) != m:
             raise KinematicsError(
                 lib.KIN_EINVAL, f"{robot.name} has {m} inputs: Inputs.{name} has {len(values)}"
             )
-        arr = getattr(u, name)
-        for i, v in enumerate(values):
-            arr[i] = v
+        init[name] = list(values)
+    u = ffi.new("kin_inputs *", init)
     qa = as_doubles(np.zeros(n) if q0 is None else q0, n, "q0")
     out = np.empty((samples, n))
     st = ffi.new("kin_stats *")
     code = lib.kin_integrate_fields(
         c_robot(robot), u, dptr(qa), t0, t1, samples, (options or Options()).to_c(), dptr(out), st
     )
-    check(code, f"{robot.name}, field inputs, at t = {st.t_fail:.6g} s")
+    if code != lib.KIN_OK:
+        check(code, f"{robot.name}, field inputs, at t = {st.t_fail:.6g} s")
     return Trajectory(_times(t0, t1, samples), out, None, _stats(st))

@@ -16,7 +16,7 @@
 #define KIN_TRIG_BLOCK 4
 
 /* sn[i] = sin(x[i]), cs[i] = cos(x[i]) for i < n, rounded to the block size
- * (n_padded = KIN_TRIG_BLOCK * ceil(n / KIN_TRIG_BLOCK) entries are read and written).
+ * (n_padded = KIN_TRIG_BLOCK * ceil(n / KIN_TRIG_BLOCK) entries may be read and written).
  * Within 2 ulp of libm's values; angles beyond |x| = 2^19 pi / 2 and non-finite ones
  * are passed to libm. */
 void kin_sincos(int32_t n, const double *restrict x, double *restrict sn,

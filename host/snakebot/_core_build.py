@@ -41,12 +41,12 @@ ffibuilder.set_source(
     include_dirs=[_relative(CORE_DIR), _relative(SIM_DIR)],
     # -O3 for the kinematics' small fixed loops; -fno-math-errno lets sqrt be one
     # instruction (errno is never read). No -march: the module must run on any x86-64;
-    # KIN_TRIG_CLONES adds an AVX2 copy of the batch sine (kin_trig.c) picked at load time.
+    # KIN_TRIG_DISPATCH lets the batch sine (kin_trig.c) use AVX2 where the CPU has it.
     extra_compile_args=[
         "-std=c99",
         "-O3",
         "-fno-math-errno",
-        "-DKIN_TRIG_CLONES",
+        "-DKIN_TRIG_DISPATCH",
         "-Wall",
         "-Wextra",
         "-Wno-unused-parameter",

@@ -8,6 +8,12 @@
 #define SAFETY 0.9
 #define FAC_MIN 0.2
 #define FAC_MAX 5.0
+/* Proportional-integral step control (Gustafsson; the stabilisation of Hairer's DOPRI5):
+ * the new step also leans on the previous step's error, which damps the oscillation of
+ * step sizes around the tolerance that otherwise ends in rejected steps. */
+#define PI_BETA 0.04
+#define PI_EXPO (0.2 - 0.75 * PI_BETA)
+#define LOG_ERR_PREV_MIN (-9.210340371976184) /* log(1e-4) */
 
 static int all_finite(const double *v, int32_t n)
 {
@@ -19,13 +25,13 @@ static int all_finite(const double *v, int32_t n)
     return 1;
 }
 
+/* f at (t, y). Not checked for NaN here: a non-finite derivative makes the step's
+ * error estimate (Dormand-Prince) or its result (RK4) non-finite, which is checked once
+ * per step instead of once per evaluation. */
 static int eval(kin_ode *ode, double t, const double *y, double *dy)
 {
     ode->stats->evals++;
-    int rc = ode->f(ode->ctx, t, y, dy);
-    if (rc == KIN_OK && !all_finite(dy, ode->n)) {
-        rc = KIN_ENONFINITE;
-    }
+    const int rc = ode->f(ode->ctx, t, y, dy);
     if (rc != KIN_OK) {
         ode->stats->t_fail = t;
     }
@@ -40,10 +46,12 @@ int kin_ode_init(kin_ode *ode, int32_t n, kin_rhs_fn f, void *ctx, const kin_opt
     }
     ode->n = n;
     ode->f = f;
+    ode->times = NULL;
     ode->ctx = ctx;
     ode->opt = *opt;
     ode->stats = stats;
     ode->have_k1 = 0;
+    ode->log_err_prev = LOG_ERR_PREV_MIN;
     if (opt->method == KIN_RK4) {
         if (!(opt->h > 0.0) || !isfinite(opt->h)) {
             return KIN_EINVAL;
@@ -85,6 +93,10 @@ static int rk4_advance(kin_ode *ode, double *y, double t, double t_end)
     const double h = (t_end - t) / steps;
     for (int32_t s = 0; s < count; s++) {
         const double ts = t + s * h;
+        if (ode->times != NULL) {
+            const double stage_t[3] = {ts, ts + 0.5 * h, ts + h};
+            ode->times(ode->ctx, stage_t, 3);
+        }
         int rc = eval(ode, ts, y, k1);
         for (int32_t i = 0; rc == KIN_OK && i < n; i++) {
             tmp[i] = y[i] + 0.5 * h * k1[i];
@@ -110,10 +122,14 @@ static int rk4_advance(kin_ode *ode, double *y, double t, double t_end)
         for (int32_t i = 0; i < n; i++) {
             y[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
         }
+        if (!all_finite(y, n)) {
+            ode->stats->t_fail = ts;
+            return KIN_ENONFINITE;
+        }
         ode->budget--;
         ode->stats->steps++;
     }
-    return all_finite(y, n) ? KIN_OK : KIN_ENONFINITE;
+    return KIN_OK;
 }
 
 /* ---- Dormand-Prince 5(4) ---- */
@@ -214,6 +230,11 @@ static int dopri_advance(kin_ode *ode, double *y, double t, double t_end)
             return KIN_ESTEPSIZE;
         }
         const double *k1 = ode->k1;
+        if (ode->times != NULL) { /* the same expressions as the stages' times below */
+            const double stage_t[KIN_ODE_MAX_TIMES] = {t + C2 * h, t + C3 * h, t + C4 * h,
+                                                       t + C5 * h, t + h};
+            ode->times(ode->ctx, stage_t, KIN_ODE_MAX_TIMES);
+        }
         for (int32_t i = 0; i < n; i++) {
             tmp[i] = y[i] + h * A21 * k1[i];
         }
@@ -262,8 +283,10 @@ static int dopri_advance(kin_ode *ode, double *y, double t, double t_end)
             ode->stats->t_fail = t;
             return KIN_ENONFINITE;
         }
-        double fac = e > 0.0 ? SAFETY * pow(e, -1.0 / 5.0) : FAC_MAX;
+        /* SAFETY e^-PI_EXPO e_prev^PI_BETA, one log and one exp */
+        const double log_e = e > 0.0 ? log(e) : -INFINITY;
         if (e <= 1.0) {
+            double fac = SAFETY * exp(PI_BETA * ode->log_err_prev - PI_EXPO * log_e);
             t = hits_end ? t_end : t + h;
             for (int32_t i = 0; i < n; i++) {
                 y[i] = y1[i];
@@ -282,10 +305,11 @@ static int dopri_advance(kin_ode *ode, double *y, double t, double t_end)
                 h_next = h < 0.5 * ode->h ? ode->h : fmin(h_next, ode->h);
             }
             ode->h = h_next;
+            ode->log_err_prev = log_e > LOG_ERR_PREV_MIN ? log_e : LOG_ERR_PREV_MIN;
         } else {
             ode->stats->rejected++;
             last_rejected = 1;
-            ode->h = h * fmax(FAC_MIN, fac);
+            ode->h = h * fmax(FAC_MIN, SAFETY * exp(-PI_EXPO * log_e));
             if (ode->h < h_min) {
                 ode->stats->t_fail = t;
                 return KIN_ESTEPSIZE;

@@ -7,16 +7,25 @@
 #include "kin_core.h"
 
 typedef int (*kin_rhs_fn)(void *ctx, double t, const double *y, double *dy);
+/* Optional, called before each step with the times at which its stages will call f:
+ * a right-hand side can then evaluate its parts that depend on time alone for all of
+ * them in one go (the inputs' sines), and look them up by t. */
+typedef void (*kin_times_fn)(void *ctx, const double *t, int32_t count);
+
+/* Most distinct stage times of one step (Dormand-Prince: 5). */
+#define KIN_ODE_MAX_TIMES 5
 
 typedef struct {
     int32_t n;            /* state dimension, <= KIN_MAX_STATE */
     kin_rhs_fn f;
+    kin_times_fn times;   /* may be NULL; kin_ode_init sets NULL, set it after */
     void *ctx;
     kin_options opt;      /* validated copy, defaults filled in */
     kin_stats *stats;     /* never NULL once initialised */
     double h;             /* DOPRI5: the step to try next (0 = choose one) */
     int32_t budget;       /* steps left (accepted + rejected) */
     int32_t have_k1;      /* DOPRI5 FSAL: k1 holds f(t, y) for the current (t, y) */
+    double log_err_prev;  /* DOPRI5: log of the last accepted step's scaled error */
     double k1[KIN_MAX_STATE];
 } kin_ode;
 

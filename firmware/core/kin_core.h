@@ -146,6 +146,16 @@ int kin_schedule_eval(const kin_schedule *s, double t, double *phi, double *dphi
 int kin_integrate_joints(const kin_robot *rb, const kin_schedule *s, const double *pose0,
                          double t0, double t1, int32_t n_out, const kin_options *opt,
                          double *out, double *slip, kin_stats *stats);
+/* kin_integrate_joints for each of `count` schedules s[0..count-1] (a gait search's
+ * parameter grid) in one call: trajectory k writes its n_out rows to
+ * out + k * n_out * (3 + joints), its status to status[k] (KIN_OK, or the error that
+ * stopped it: the others still run) and, unless stats is NULL, its counters to stats[k].
+ * Returns KIN_OK when every trajectory ran to the end, else the first failure's status
+ * (KIN_EINVAL at once for a bad shared argument). */
+int kin_integrate_joints_batch(const kin_robot *rb, const kin_schedule *s, int32_t count,
+                               const double *pose0, double t0, double t1, int32_t n_out,
+                               const kin_options *opt, double *out, int32_t *status,
+                               kin_stats *stats);
 /* The field-driven system qdot = sum_i u_i(t) g_i(q) from q0 at t0 to t1; writes n_out
  * rows of q at evenly spaced times to out. */
 int kin_integrate_fields(const kin_robot *rb, const kin_inputs *u, const double *q0,

@@ -380,6 +380,35 @@ int kin_integrate_joints(const kin_robot *rb, const kin_schedule *s, const doubl
     return KIN_OK;
 }
 
+int kin_integrate_joints_batch(const kin_robot *rb, const kin_schedule *s, int32_t count,
+                               const double *pose0, double t0, double t1, int32_t n_out,
+                               const kin_options *opt, double *out, int32_t *status,
+                               kin_stats *stats)
+{
+    int32_t joints;
+    int rc = kin_check_robot(rb, &joints);
+    if (rc != KIN_OK) {
+        return rc;
+    }
+    if (count < 0 || (count > 0 && (s == NULL || status == NULL))) {
+        return KIN_EINVAL;
+    }
+    if ((rc = check_span(t0, t1, n_out, out)) != KIN_OK) {
+        return rc;
+    }
+    const size_t rows = (size_t)n_out * (size_t)(3 + joints);
+    int first = KIN_OK;
+    for (int32_t k = 0; k < count; k++) {
+        status[k] = kin_integrate_joints(rb, s + k, pose0, t0, t1, n_out, opt,
+                                         out + (size_t)k * rows, NULL,
+                                         stats != NULL ? stats + k : NULL);
+        if (first == KIN_OK) {
+            first = status[k];
+        }
+    }
+    return first;
+}
+
 /* ---- field-driven systems ---- */
 
 typedef struct {

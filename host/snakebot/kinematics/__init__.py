@@ -6,12 +6,14 @@ from __future__ import annotations
 
 from snakebot.kinematics.ccore import KinematicsError, Options, SingularConfiguration
 from snakebot.kinematics.integrate import (
+    Batch,
     Inputs,
     Sines,
     Table,
     Trajectory,
     integrate_fields,
     integrate_joints,
+    integrate_joints_batch,
     schedule_eval,
 )
 from snakebot.kinematics.model import (
@@ -30,6 +32,7 @@ from snakebot.kinematics.model import (
 
 __all__ = [
     "BRACKETS",
+    "Batch",
     "FIELD_NAMES",
     "BodyVelocity",
     "FieldSet",
@@ -47,6 +50,7 @@ __all__ = [
     "fields",
     "integrate_fields",
     "integrate_joints",
+    "integrate_joints_batch",
     "schedule_eval",
     "wheel_speeds",
     "wheels",

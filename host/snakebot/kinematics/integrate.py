@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -106,9 +107,9 @@ class Trajectory:
         return self.q[-1] - self.q[0]
 
 
-def _c_schedule(robot: Robot, schedule: Sines | Table) -> tuple[Any, list[Any]]:
+def _schedule_init(robot: Robot, schedule: Sines | Table) -> tuple[dict[str, Any], list[Any]]:
+    """The fields of a ``kin_schedule`` for ``schedule``, and what must outlive it."""
     n = robot.n_joints
-    keep: list[Any] = []
     if isinstance(schedule, Sines):
         init: dict[str, Any] = {"type": lib.KIN_SCHED_SINES, "joints": n, "omega": schedule.omega}
         for name in ("amp", "phase", "offset", "rate"):
@@ -118,19 +119,24 @@ def _c_schedule(robot: Robot, schedule: Sines | Table) -> tuple[Any, list[Any]]:
                     f"Sines.{name} needs {n} values for {robot.name}, got {len(values)}"
                 )
             init[name] = list(values)
-        return ffi.new("kin_schedule *", init), keep
+        return init, []
     samples = np.ascontiguousarray(schedule.samples, dtype=np.float64)
     if samples.ndim != 2 or samples.shape[1] != n or samples.shape[0] < 1:
         raise ValueError(f"Table.samples must have shape (rows, {n}), got {samples.shape}")
-    keep.append(samples)
-    s = ffi.new("kin_schedule *")
-    s.joints = n
-    s.type = lib.KIN_SCHED_TABLE
-    s.samples = dptr(samples)
-    s.rows = samples.shape[0]
-    s.dt = schedule.dt
-    s.loop = int(schedule.loop)
-    return s, keep
+    init = {
+        "type": lib.KIN_SCHED_TABLE,
+        "joints": n,
+        "samples": dptr(samples),
+        "rows": samples.shape[0],
+        "dt": schedule.dt,
+        "loop": int(schedule.loop),
+    }
+    return init, [samples]
+
+
+def _c_schedule(robot: Robot, schedule: Sines | Table) -> tuple[Any, list[Any]]:
+    init, keep = _schedule_init(robot, schedule)
+    return ffi.new("kin_schedule *", init), keep
 
 
 def _times(t0: float, t1: float, samples: int) -> np.ndarray:
@@ -198,6 +204,70 @@ def integrate_joints(
     if code != lib.KIN_OK:
         check(code, f"{robot.name}, joint schedule, at t = {st.t_fail:.6g} s")
     return Trajectory(_times(t0, t1, samples), out, slip, _stats(st))
+
+
+@dataclass(frozen=True)
+class Batch:
+    """Trajectories of one robot under many schedules: ``q[k, i]`` is the state at ``t[i]``
+    under schedule k; ``status[k]`` is 0 where it ran to the end, else the core's error
+    code (``q[k]`` is then NaN); ``evals[k]`` counts its right-hand-side evaluations."""
+
+    t: np.ndarray
+    q: np.ndarray
+    status: np.ndarray
+    evals: np.ndarray
+
+    def error(self, k: int) -> str | None:
+        """Why trajectory k failed, in words (None if it did not)."""
+        code = int(self.status[k])
+        return None if code == lib.KIN_OK else str(KinematicsError(code))
+
+
+def integrate_joints_batch(
+    robot: Robot,
+    schedules: Sequence[Sines | Table],
+    t1: float,
+    *,
+    t0: float = 0.0,
+    pose0: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    samples: int = 2,
+    options: Options | None = None,
+    c_t: float | None = None,
+) -> Batch:
+    """``integrate_joints`` for every schedule in one call into the core, no Python between
+    trajectories (a parameter grid, a gait search's batch); a failed trajectory does not
+    stop the others."""
+    if samples < 2:
+        raise ValueError("samples must be at least 2 (the start and the end)")
+    inits, keep = [], []
+    for schedule in schedules:
+        init, kept = _schedule_init(robot, schedule)
+        inits.append(init)
+        keep += kept
+    count = len(inits)
+    s = ffi.new("kin_schedule[]", inits) if count else ffi.NULL
+    out = np.empty((count, samples, 3 + robot.n_joints))
+    status = np.zeros(count, dtype=np.int32)
+    stats = ffi.new("kin_stats[]", max(count, 1))
+    p0 = as_doubles(pose0, 3, "pose0")
+    code = lib.kin_integrate_joints_batch(
+        c_robot(robot, c_t),
+        s,
+        count,
+        dptr(p0),
+        t0,
+        t1,
+        samples,
+        (options or Options()).to_c(),
+        dptr(out),
+        ffi.from_buffer("int32_t[]", status) if count else ffi.NULL,
+        stats,
+    )
+    if code == lib.KIN_EINVAL and not status.any():
+        check(code, f"{robot.name}, batch of {count} schedules")
+    out[status != lib.KIN_OK] = np.nan
+    evals = np.array([stats[k].evals for k in range(count)], dtype=np.int64)
+    return Batch(_times(t0, t1, samples), out, status, evals)
 
 
 def integrate_fields(

@@ -1,6 +1,6 @@
 /* Kinematic core: wheeled snake and trident models, their control vector fields and
  * Lie brackets, and whole-trajectory integrators (fixed-step RK4, adaptive
- * Dormand-Prince 5(4)). Conventions: docs/models.md.
+ * Dormand-Prince 5(4) and 8(5,3)). Conventions: docs/models.md.
  *
  * Portable C99, double precision, no heap, no hardware: every buffer is the caller's
  * and every size is bounded by the KIN_MAX_* constants. Functions return a KIN_*
@@ -41,6 +41,7 @@
 /* Integration methods. */
 #define KIN_RK4 0
 #define KIN_DOPRI5 1
+#define KIN_DOP853 2 /* Dormand-Prince 8(5,3): fewer evaluations at tight tolerances */
 
 /* Joint schedules (joint angles prescribed as functions of time). */
 #define KIN_SCHED_SINES 0  /* phi_j = offset_j + rate_j t + amp_j sin(omega t + phase_j) */
@@ -89,17 +90,17 @@ typedef struct {
 } kin_inputs;
 
 typedef struct {
-    int32_t method;    /* KIN_RK4 or KIN_DOPRI5 */
-    double h;          /* RK4: step; DOPRI5: first step (0 = automatic) */
-    double rtol;       /* DOPRI5 relative tolerance */
-    double atol;       /* DOPRI5 absolute tolerance */
-    double h_min;      /* DOPRI5: smallest step before KIN_ESTEPSIZE (0 = automatic) */
+    int32_t method;    /* KIN_RK4, KIN_DOPRI5 or KIN_DOP853 */
+    double h;          /* RK4: step; adaptive: first step (0 = automatic) */
+    double rtol;       /* adaptive: relative tolerance */
+    double atol;       /* adaptive: absolute tolerance */
+    double h_min;      /* adaptive: smallest step before KIN_ESTEPSIZE (0 = automatic) */
     int32_t max_steps; /* step budget for the whole call (0 = 1000000) */
 } kin_options;
 
 typedef struct {
     int32_t steps;     /* accepted steps */
-    int32_t rejected;  /* rejected steps (DOPRI5) */
+    int32_t rejected;  /* rejected steps (adaptive methods) */
     int32_t evals;     /* right-hand-side evaluations */
     int32_t fallbacks; /* evaluations near a singular configuration done by extrapolation in time */
     double min_rcond;  /* smallest conditioning of the minimum-slip problem seen */

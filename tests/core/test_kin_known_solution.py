@@ -1,6 +1,7 @@
-"""Dormand-Prince 5(4) as the core runs it (PI step control, the inputs' phase taken
-from its per-step table) meets its tolerance on a motion with a closed-form solution,
-and the batch entry point gives exactly what one call per schedule gives."""
+"""The core's adaptive methods, Dormand-Prince 5(4) and 8(5,3) as it runs them (PI step
+control, the inputs' phase taken from a per-step table), meet their tolerance on a
+motion with a closed-form solution, the higher order with fewer evaluations; and the
+batch entry point gives exactly what one call per schedule gives."""
 
 from __future__ import annotations
 
@@ -39,16 +40,21 @@ def exact(t: np.ndarray) -> np.ndarray:
     return np.column_stack((big_u, zeros, zeros, nu - alphas))
 
 
-@pytest.mark.parametrize("rtol", [1e-6, 1e-9, 1e-12])
-def test_dopri5_meets_its_tolerance_on_a_closed_form_motion(rtol):
-    traj = integrate_fields(
+def run(method: str, rtol: float, samples: int = 41):
+    return integrate_fields(
         TRIDENT,
         Inputs((C, 0.0, 0.0), (A, 0.0, 0.0), omega=OMEGA),
         SPAN,
         q0=np.concatenate(([0.0, 0.0, 0.0], PHI0)),
-        samples=41,
-        options=Options("dopri5", rtol=rtol, atol=rtol / 100),
+        samples=samples,
+        options=Options(method, rtol=rtol, atol=rtol / 100),
     )
+
+
+@pytest.mark.parametrize("method", ["dopri5", "dop853"])
+@pytest.mark.parametrize("rtol", [1e-6, 1e-9, 1e-12])
+def test_adaptive_methods_meet_their_tolerance_on_a_closed_form_motion(method, rtol):
+    traj = run(method, rtol)
     want = exact(traj.t)
     scale = rtol * np.maximum(np.abs(want), 1.0)  # what the tolerance allows per state
     err = np.abs(traj.q - want)
@@ -56,14 +62,18 @@ def test_dopri5_meets_its_tolerance_on_a_closed_form_motion(rtol):
     # and not met by luck: a run ten times looser is measurably worse
     assert (err <= 5 * scale).all(), f"error {err.max():.2e} at rtol {rtol:g}"
     if rtol > 1e-12:
-        loose = integrate_fields(
-            TRIDENT,
-            Inputs((C, 0.0, 0.0), (A, 0.0, 0.0), omega=OMEGA),
-            SPAN,
-            q0=np.concatenate(([0.0, 0.0, 0.0], PHI0)),
-            options=Options("dopri5", rtol=rtol * 100, atol=rtol),
-        )
+        loose = run(method, rtol * 100, samples=2)
         assert np.abs(loose.q[-1] - want[-1]).max() > np.abs(traj.q[-1] - want[-1]).max()
+
+
+def test_the_eighth_order_method_needs_fewer_evaluations_for_the_same_error():
+    # at a tight tolerance the order tells: DOP853 is at least as accurate with
+    # little more than half of DOPRI5's evaluations (measured: 5x as accurate, 56%)
+    low, high = run("dopri5", 1e-11, samples=2), run("dop853", 1e-11, samples=2)
+    want = exact(np.array([SPAN]))[0]
+    err_low, err_high = (np.abs(r.q[-1] - want).max() for r in (low, high))
+    assert err_high <= err_low
+    assert high.stats["evals"] < 0.65 * low.stats["evals"]
 
 
 def test_batch_is_one_call_per_schedule_bit_for_bit():

@@ -14,7 +14,7 @@ from snakebot.errors import SnakebotError
 from snakebot.robots import Robot
 
 FORMS = {"body": lib.KIN_FORM_BODY, "world": lib.KIN_FORM_WORLD}
-METHODS = {"rk4": lib.KIN_RK4, "dopri5": lib.KIN_DOPRI5}
+METHODS = {"rk4": lib.KIN_RK4, "dopri5": lib.KIN_DOPRI5, "dop853": lib.KIN_DOP853}
 
 _HINTS = {
     lib.KIN_ESINGULAR: "move the joints away from that configuration, or give the wheels "
@@ -98,7 +98,9 @@ def c_robot(robot: Robot, c_t: float | None = None) -> Any:
 
 @dataclass(frozen=True)
 class Options:
-    """Integrator settings: ``method`` "dopri5" (adaptive, rtol/atol) or "rk4" (step h)."""
+    """Integrator settings: ``method`` "dopri5" or "dop853" (adaptive Dormand-Prince 5(4)
+    and 8(5,3), rtol/atol; the second needs fewer evaluations at tight tolerances) or
+    "rk4" (step h)."""
 
     method: str = "dopri5"
     rtol: float = 1e-9

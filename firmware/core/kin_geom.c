@@ -10,7 +10,6 @@
  *   t_i.v_i = t_i.(dx, dy) - dtheta n_i.(W_i - p) - sum_j dphi_j n_i.(W_i - P_j). */
 #include "kin_core.h"
 #include "kin_geom.h"
-#include "kin_trig.h"
 
 #include <math.h>
 
@@ -66,55 +65,53 @@ static int finite_vec(const double *v, int32_t n)
     return 1;
 }
 
-/* Wheel i at (x, y) + (rx, ry) rolling along (tx, ty): its position, direction and the
- * coefficients of dtheta in its normal and tangential speeds. */
+/* Wheel i at (wx, wy) rolling along (tx, ty): its position, direction and the
+ * coefficients of dtheta in its normal and tangential speeds (q: the reference point). */
 static void set_wheel(kin_wheel_rows *w, int32_t i, const double *q, double tx, double ty,
-                      double rx, double ry)
+                      double wx, double wy)
 {
-    w->px[i] = q[0] + rx;
-    w->py[i] = q[1] + ry;
+    const double rx = wx - q[0], ry = wy - q[1];
+    w->px[i] = wx;
+    w->py[i] = wy;
     w->tx[i] = tx;
     w->ty[i] = ty;
     w->n_theta[i] = tx * rx + ty * ry;
     w->t_theta[i] = ty * rx - tx * ry;
 }
 
-/* Snake rows. Joint j (0-based) sits at the far end of link j. Wheel k's joint terms
- * sum_{j<k} dphi_j t.(W_k - P_j) are t.(D_k W_k - S_k) with the running sums
- * D_k = sum dphi_j and S_k = sum dphi_j P_j: one pass instead of one per wheel. Positions
- * are taken relative to the reference point, so that the running sums stay body-sized
- * however far the snake has gone (no cancellation between large coordinates). */
+/* Snake rows. Joint k (0-based) sits at the far end of link k: (jx[k], jy[k]). Sines
+ * from libm and joint terms summed joint by joint in world coordinates, as the
+ * planners' pinned results were computed: kin_sincos and a rearrangement into running
+ * sums were both measured to move closed-loop routes near the singular line at the
+ * level of rounding, and neither was faster here for five links. */
 static void snake_rows(const kin_robot *rb, const double *q, const double *dphi,
                        kin_wheel_rows *w)
 {
+    const double px = q[0], py = q[1];
     const int32_t links = rb->links;
-    double psi[KIN_TRIG_PADDED(KIN_MAX_LINKS)], sn[KIN_TRIG_PADDED(KIN_MAX_LINKS)];
-    double cs[KIN_TRIG_PADDED(KIN_MAX_LINKS)];
-    psi[0] = q[2];
-    for (int32_t k = 1; k < links; k++) {
-        psi[k] = psi[k - 1] + q[2 + k];
-    }
-    for (int32_t k = links; k < KIN_TRIG_PADDED(links); k++) {
-        psi[k] = 0.0;
-    }
-    kin_sincos(links, psi, sn, cs);
-    const double l = rb->l;
-    double ax = 0.0, ay = 0.0;             /* start of link k, relative to (x, y) */
-    double d = 0.0, sx = 0.0, sy = 0.0;    /* running sums D_k, S_k */
+    double jx[KIN_MAX_JOINTS], jy[KIN_MAX_JOINTS];
+    double psi = q[2], ax = px, ay = py;
     w->count = links;
     for (int32_t k = 0; k < links; k++) {
-        const double tx = cs[k], ty = sn[k];
-        const double rx = ax + l * tx, ry = ay + l * ty; /* wheel k - (x, y) */
-        set_wheel(w, k, q, tx, ty, rx, ry);
-        const double jx = d * rx - sx, jy = d * ry - sy;
-        w->n_joint[k] = tx * jx + ty * jy;
-        w->t_joint[k] = ty * jx - tx * jy;
-        ax += 2.0 * l * tx;
-        ay += 2.0 * l * ty;
-        if (dphi != NULL && k < links - 1) { /* joint k at the end of link k */
-            d += dphi[k];
-            sx += dphi[k] * ax;
-            sy += dphi[k] * ay;
+        if (k > 0) {
+            psi += q[2 + k];
+        }
+        const double tx = cos(psi), ty = sin(psi);
+        const double wx = ax + rb->l * tx, wy = ay + rb->l * ty;
+        double nd = 0.0, td = 0.0;
+        for (int32_t j = 0; j < k && dphi != NULL; j++) {
+            const double dx = wx - jx[j], dy = wy - jy[j];
+            nd += dphi[j] * (tx * dx + ty * dy);
+            td -= dphi[j] * (-ty * dx + tx * dy);
+        }
+        set_wheel(w, k, q, tx, ty, wx, wy);
+        w->n_joint[k] = nd;
+        w->t_joint[k] = td;
+        ax += 2.0 * rb->l * tx;
+        ay += 2.0 * rb->l * ty;
+        if (k < KIN_MAX_JOINTS) {
+            jx[k] = ax;
+            jy[k] = ay;
         }
     }
 }
@@ -122,20 +119,12 @@ static void snake_rows(const kin_robot *rb, const double *q, const double *dphi,
 static void trident_rows(const kin_robot *rb, const double *q, const double *dphi,
                          kin_wheel_rows *w)
 {
-    double angle[KIN_TRIG_PADDED(6)], sn[KIN_TRIG_PADDED(6)], cs[KIN_TRIG_PADDED(6)];
-    for (int32_t i = 0; i < 3; i++) {
-        angle[i] = q[2] + rb->alpha[i];    /* the arm's corner */
-        angle[3 + i] = angle[i] + q[3 + i]; /* the arm */
-    }
-    for (int32_t k = 6; k < KIN_TRIG_PADDED(6); k++) {
-        angle[k] = 0.0;
-    }
-    kin_sincos(6, angle, sn, cs);
     w->count = 3;
     for (int32_t i = 0; i < 3; i++) {
-        const double tx = cs[3 + i], ty = sn[3 + i];
-        const double rx = rb->r * cs[i] + rb->l * tx, ry = rb->r * sn[i] + rb->l * ty;
-        set_wheel(w, i, q, tx, ty, rx, ry);
+        const double mu = q[2] + rb->alpha[i], nu = mu + q[3 + i]; /* corner, arm */
+        const double tx = cos(nu), ty = sin(nu);
+        const double ax = q[0] + rb->r * cos(mu), ay = q[1] + rb->r * sin(mu);
+        set_wheel(w, i, q, tx, ty, ax + rb->l * tx, ay + rb->l * ty);
         /* W - A = l t: normal part l dphi, tangential part 0. */
         w->n_joint[i] = dphi != NULL ? rb->l * dphi[i] : 0.0;
         w->t_joint[i] = 0.0;

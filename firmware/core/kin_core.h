@@ -1,6 +1,6 @@
 /* Kinematic core: wheeled snake and trident models, their control vector fields and
  * Lie brackets, and whole-trajectory integrators (fixed-step RK4, adaptive
- * Dormand-Prince 5(4)). Conventions: docs/models.md.
+ * Dormand-Prince 5(4) and 8(5,3)). Conventions: docs/models.md.
  *
  * Portable C99, double precision, no heap, no hardware: every buffer is the caller's
  * and every size is bounded by the KIN_MAX_* constants. Functions return a KIN_*
@@ -41,6 +41,7 @@
 /* Integration methods. */
 #define KIN_RK4 0
 #define KIN_DOPRI5 1
+#define KIN_DOP853 2 /* Dormand-Prince 8(5,3): fewer evaluations at tight tolerances */
 
 /* Joint schedules (joint angles prescribed as functions of time). */
 #define KIN_SCHED_SINES 0  /* phi_j = offset_j + rate_j t + amp_j sin(omega t + phase_j) */
@@ -89,17 +90,17 @@ typedef struct {
 } kin_inputs;
 
 typedef struct {
-    int32_t method;    /* KIN_RK4 or KIN_DOPRI5 */
-    double h;          /* RK4: step; DOPRI5: first step (0 = automatic) */
-    double rtol;       /* DOPRI5 relative tolerance */
-    double atol;       /* DOPRI5 absolute tolerance */
-    double h_min;      /* DOPRI5: smallest step before KIN_ESTEPSIZE (0 = automatic) */
+    int32_t method;    /* KIN_RK4, KIN_DOPRI5 or KIN_DOP853 */
+    double h;          /* RK4: step; adaptive: first step (0 = automatic) */
+    double rtol;       /* adaptive: relative tolerance */
+    double atol;       /* adaptive: absolute tolerance */
+    double h_min;      /* adaptive: smallest step before KIN_ESTEPSIZE (0 = automatic) */
     int32_t max_steps; /* step budget for the whole call (0 = 1000000) */
 } kin_options;
 
 typedef struct {
     int32_t steps;     /* accepted steps */
-    int32_t rejected;  /* rejected steps (DOPRI5) */
+    int32_t rejected;  /* rejected steps (adaptive methods) */
     int32_t evals;     /* right-hand-side evaluations */
     int32_t fallbacks; /* evaluations near a singular configuration done by extrapolation in time */
     double min_rcond;  /* smallest conditioning of the minimum-slip problem seen */
@@ -146,6 +147,16 @@ int kin_schedule_eval(const kin_schedule *s, double t, double *phi, double *dphi
 int kin_integrate_joints(const kin_robot *rb, const kin_schedule *s, const double *pose0,
                          double t0, double t1, int32_t n_out, const kin_options *opt,
                          double *out, double *slip, kin_stats *stats);
+/* kin_integrate_joints for each of `count` schedules s[0..count-1] (a gait search's
+ * parameter grid) in one call: trajectory k writes its n_out rows to
+ * out + k * n_out * (3 + joints), its status to status[k] (KIN_OK, or the error that
+ * stopped it: the others still run) and, unless stats is NULL, its counters to stats[k].
+ * Returns KIN_OK when every trajectory ran to the end, else the first failure's status
+ * (KIN_EINVAL at once for a bad shared argument). */
+int kin_integrate_joints_batch(const kin_robot *rb, const kin_schedule *s, int32_t count,
+                               const double *pose0, double t0, double t1, int32_t n_out,
+                               const kin_options *opt, double *out, int32_t *status,
+                               kin_stats *stats);
 /* The field-driven system qdot = sum_i u_i(t) g_i(q) from q0 at t0 to t1; writes n_out
  * rows of q at evenly spaced times to out. */
 int kin_integrate_fields(const kin_robot *rb, const kin_inputs *u, const double *q0,

@@ -119,29 +119,21 @@ void kin_fields_corners(const kin_robot *rb, double corners[9])
     }
 }
 
-/* qdot = sum_i u_i g_i(q) without argument checks (callers validate once). */
+/* qdot = sum_i u_i g_i(q) without argument checks (callers validate once), from the
+ * generated velocity functions: no field is stored only to be summed. */
 int kin_fields_velocity_unchecked(const kin_robot *rb, const double *corners, int32_t form,
-                                  int32_t n, int32_t m, const double *q, const double *u,
-                                  double *qdot)
+                                  const double *q, const double *u, double *qdot)
 {
-    double g[KIN_MAX_INPUTS * KIN_MAX_STATE];
     if (rb->kind == KIN_SNAKE) {
         int rc = snake3_det(rb, q, NULL);
         if (rc != KIN_OK) {
             return rc;
         }
-        kin_gen_snake3_g(rb->l, q, g);
+        kin_gen_snake3_v(rb->l, q, u, qdot);
     } else if (form == KIN_FORM_BODY) {
-        kin_gen_trident_body_g(rb->r, rb->l, corners, q, g);
+        kin_gen_trident_body_v(rb->r, rb->l, corners, q, u, qdot);
     } else {
-        kin_gen_trident_world_g(rb->r, rb->l, corners, q, g);
-    }
-    for (int32_t k = 0; k < n; k++) {
-        double s = 0.0;
-        for (int32_t i = 0; i < m; i++) {
-            s += u[i] * g[i * n + k];
-        }
-        qdot[k] = s;
+        kin_gen_trident_world_v(rb->r, rb->l, corners, q, u, qdot);
     }
     return KIN_OK;
 }
@@ -162,7 +154,7 @@ int kin_field_velocity(const kin_robot *rb, int32_t form, const double *q, const
     }
     double corners[9];
     kin_fields_corners(rb, corners);
-    if ((rc = kin_fields_velocity_unchecked(rb, corners, form, n, m, q, u, qdot)) != KIN_OK) {
+    if ((rc = kin_fields_velocity_unchecked(rb, corners, form, q, u, qdot)) != KIN_OK) {
         return rc;
     }
     return finite_out(qdot, n);

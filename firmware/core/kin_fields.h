@@ -8,11 +8,10 @@
  * cosines, then their sines. */
 void kin_fields_corners(const kin_robot *rb, double corners[9]);
 
-/* qdot = sum_i u_i g_i(q) for a robot already validated (n = 3 + joints, m inputs, form
- * KIN_FORM_BODY or KIN_FORM_WORLD, corners from kin_fields_corners); still KIN_ESINGULAR
- * on the 3-link singular line. */
+/* qdot = sum_i u_i g_i(q) for a robot already validated (form KIN_FORM_BODY or
+ * KIN_FORM_WORLD, corners from kin_fields_corners); still KIN_ESINGULAR on the 3-link
+ * singular line. */
 int kin_fields_velocity_unchecked(const kin_robot *rb, const double *corners, int32_t form,
-                                  int32_t n, int32_t m, const double *q, const double *u,
-                                  double *qdot);
+                                  const double *q, const double *u, double *qdot);
 
 #endif

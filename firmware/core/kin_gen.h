@@ -6,20 +6,20 @@
 #ifndef SNAKEBOT_KIN_GEN_H
 #define SNAKEBOT_KIN_GEN_H
 
-/* 3-link snake, half-link l, q = (x, y, theta, phi1, phi2): writes g1, g2 (5 components each) to out. */
-void kin_gen_snake3_g(double l, const double *q, double *out);
+/* 3-link snake, half-link l, q = (x, y, theta, phi1, phi2): writes the velocity qdot = u[0] g1 + u[1] g2 (5 components) to out. */
+void kin_gen_snake3_v(double l, const double *q, const double *u, double *out);
 
 /* 3-link snake, half-link l, q = (x, y, theta, phi1, phi2): writes g1, g2, h1, h2, h3 (5 components each) to out. */
 void kin_gen_snake3_all(double l, const double *q, double *out);
 
-/* Trident, body-velocity inputs, q = (x, y, theta, phi1..3), alpha = (alpha1..3, cos alpha1..3, sin alpha1..3): writes g1, g2, g3 (6 components each) to out. */
-void kin_gen_trident_body_g(double r, double l, const double *alpha, const double *q, double *out);
+/* Trident, body-velocity inputs, q = (x, y, theta, phi1..3), alpha = (alpha1..3, cos alpha1..3, sin alpha1..3): writes the velocity qdot = u[0] g1 + u[1] g2 + u[2] g3 to out. */
+void kin_gen_trident_body_v(double r, double l, const double *alpha, const double *q, const double *u, double *out);
 
 /* Trident, body-velocity inputs, q = (x, y, theta, phi1..3), alpha = (alpha1..3, cos alpha1..3, sin alpha1..3): writes g1, g2, g3, h1, h2, h3 (6 components each) to out. */
 void kin_gen_trident_body_all(double r, double l, const double *alpha, const double *q, double *out);
 
-/* Trident, world-velocity inputs, q = (x, y, theta, phi1..3), alpha = (alpha1..3): writes g1, g2, g3 (6 components each) to out. */
-void kin_gen_trident_world_g(double r, double l, const double *alpha, const double *q, double *out);
+/* Trident, world-velocity inputs, q = (x, y, theta, phi1..3), alpha = (alpha1..3): writes the velocity qdot = u[0] g1 + u[1] g2 + u[2] g3 to out. */
+void kin_gen_trident_world_v(double r, double l, const double *alpha, const double *q, const double *u, double *out);
 
 /* Trident, world-velocity inputs, q = (x, y, theta, phi1..3), alpha = (alpha1..3): writes g1, g2, g3, h1, h2, h3 (6 components each) to out. */
 void kin_gen_trident_world_all(double r, double l, const double *alpha, const double *q, double *out);

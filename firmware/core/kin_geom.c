@@ -65,6 +65,82 @@ static int finite_vec(const double *v, int32_t n)
     return 1;
 }
 
+/* Wheel i at (wx, wy) rolling along (tx, ty): its position, direction and the
+ * coefficients of dtheta in its normal and tangential speeds (q: the reference point). */
+static void set_wheel(kin_wheel_rows *w, int32_t i, const double *q, double tx, double ty,
+                      double wx, double wy)
+{
+    const double rx = wx - q[0], ry = wy - q[1];
+    w->px[i] = wx;
+    w->py[i] = wy;
+    w->tx[i] = tx;
+    w->ty[i] = ty;
+    w->n_theta[i] = tx * rx + ty * ry;
+    w->t_theta[i] = ty * rx - tx * ry;
+}
+
+/* Snake rows. Joint k (0-based) sits at the far end of link k: (jx[k], jy[k]). Sines
+ * from libm and joint terms summed joint by joint in world coordinates, as the
+ * planners' pinned results were computed: kin_sincos and a rearrangement into running
+ * sums were both measured to move closed-loop routes near the singular line at the
+ * level of rounding, and neither was faster here for five links. */
+static void snake_rows(const kin_robot *rb, const double *q, const double *dphi,
+                       kin_wheel_rows *w)
+{
+    const double px = q[0], py = q[1];
+    const int32_t links = rb->links;
+    double jx[KIN_MAX_JOINTS], jy[KIN_MAX_JOINTS];
+    double psi = q[2], ax = px, ay = py;
+    w->count = links;
+    for (int32_t k = 0; k < links; k++) {
+        if (k > 0) {
+            psi += q[2 + k];
+        }
+        const double tx = cos(psi), ty = sin(psi);
+        const double wx = ax + rb->l * tx, wy = ay + rb->l * ty;
+        double nd = 0.0, td = 0.0;
+        for (int32_t j = 0; j < k && dphi != NULL; j++) {
+            const double dx = wx - jx[j], dy = wy - jy[j];
+            nd += dphi[j] * (tx * dx + ty * dy);
+            td -= dphi[j] * (-ty * dx + tx * dy);
+        }
+        set_wheel(w, k, q, tx, ty, wx, wy);
+        w->n_joint[k] = nd;
+        w->t_joint[k] = td;
+        ax += 2.0 * rb->l * tx;
+        ay += 2.0 * rb->l * ty;
+        if (k < KIN_MAX_JOINTS) {
+            jx[k] = ax;
+            jy[k] = ay;
+        }
+    }
+}
+
+static void trident_rows(const kin_robot *rb, const double *q, const double *dphi,
+                         kin_wheel_rows *w)
+{
+    w->count = 3;
+    for (int32_t i = 0; i < 3; i++) {
+        const double mu = q[2] + rb->alpha[i], nu = mu + q[3 + i]; /* corner, arm */
+        const double tx = cos(nu), ty = sin(nu);
+        const double ax = q[0] + rb->r * cos(mu), ay = q[1] + rb->r * sin(mu);
+        set_wheel(w, i, q, tx, ty, ax + rb->l * tx, ay + rb->l * ty);
+        /* W - A = l t: normal part l dphi, tangential part 0. */
+        w->n_joint[i] = dphi != NULL ? rb->l * dphi[i] : 0.0;
+        w->t_joint[i] = 0.0;
+    }
+}
+
+void kin_geom_rows_unchecked(const kin_robot *rb, const double *q, const double *dphi,
+                             kin_wheel_rows *w)
+{
+    if (rb->kind == KIN_SNAKE) {
+        snake_rows(rb, q, dphi, w);
+    } else {
+        trident_rows(rb, q, dphi, w);
+    }
+}
+
 int kin_geom_rows(const kin_robot *rb, const double *q, const double *dphi, kin_wheel_rows *w)
 {
     int32_t joints;
@@ -78,58 +154,7 @@ int kin_geom_rows(const kin_robot *rb, const double *q, const double *dphi, kin_
     if (!finite_vec(q, 3 + joints) || (dphi != NULL && !finite_vec(dphi, joints))) {
         return KIN_ENONFINITE;
     }
-    const double px = q[0], py = q[1], theta = q[2];
-    const double *phi = q + 3;
-    if (rb->kind == KIN_SNAKE) {
-        /* Joint k (0-based) sits at the far end of link k: jx[k], jy[k]. */
-        double jx[KIN_MAX_JOINTS], jy[KIN_MAX_JOINTS];
-        double psi = theta, ax = px, ay = py;
-        w->count = rb->links;
-        for (int32_t k = 0; k < rb->links; k++) {
-            if (k > 0) {
-                psi += phi[k - 1];
-            }
-            const double tx = cos(psi), ty = sin(psi);
-            const double wx = ax + rb->l * tx, wy = ay + rb->l * ty;
-            double nd = 0.0, td = 0.0;
-            for (int32_t j = 0; j < k && dphi != NULL; j++) {
-                const double dx = wx - jx[j], dy = wy - jy[j];
-                nd += dphi[j] * (tx * dx + ty * dy);
-                td -= dphi[j] * (-ty * dx + tx * dy);
-            }
-            w->px[k] = wx;
-            w->py[k] = wy;
-            w->tx[k] = tx;
-            w->ty[k] = ty;
-            w->n_theta[k] = tx * (wx - px) + ty * (wy - py);
-            w->t_theta[k] = -(-ty * (wx - px) + tx * (wy - py));
-            w->n_joint[k] = nd;
-            w->t_joint[k] = td;
-            ax += 2.0 * rb->l * tx;
-            ay += 2.0 * rb->l * ty;
-            if (k < KIN_MAX_JOINTS) {
-                jx[k] = ax;
-                jy[k] = ay;
-            }
-        }
-    } else {
-        w->count = 3;
-        for (int32_t i = 0; i < 3; i++) {
-            const double mu = theta + rb->alpha[i], nu = mu + phi[i];
-            const double ax = px + rb->r * cos(mu), ay = py + rb->r * sin(mu);
-            const double tx = cos(nu), ty = sin(nu);
-            const double wx = ax + rb->l * tx, wy = ay + rb->l * ty;
-            w->px[i] = wx;
-            w->py[i] = wy;
-            w->tx[i] = tx;
-            w->ty[i] = ty;
-            w->n_theta[i] = tx * (wx - px) + ty * (wy - py);
-            w->t_theta[i] = -(-ty * (wx - px) + tx * (wy - py));
-            /* W - A = l t: normal part l dphi, tangential part 0. */
-            w->n_joint[i] = dphi != NULL ? rb->l * dphi[i] : 0.0;
-            w->t_joint[i] = 0.0;
-        }
-    }
+    kin_geom_rows_unchecked(rb, q, dphi, w);
     return KIN_OK;
 }
 
@@ -182,6 +207,13 @@ int kin_wheel_speeds(const kin_robot *rb, const double *q, const double *qdot, d
     return KIN_OK;
 }
 
+/* fmax() as the hot paths need it, without a libm call: the larger, or the one that is
+ * not NaN. */
+static double max2(double a, double b)
+{
+    return (b > a || isnan(a)) ? b : a;
+}
+
 /* Reciprocal 1-norm condition number of the upper triangular R = (r00 r01 r02; r11 r12;
  * r22), given as r[] = {r00, r01, r02, r11, r12, r22}, and its inverse, in the same
  * order, in inv[]: the caller has put the diagonal's reciprocals in inv[0], inv[3] and
@@ -191,9 +223,9 @@ static double r_rcond(const double r[6], double inv[6])
     inv[1] = -r[1] * inv[0] * inv[3];
     inv[4] = -r[4] * inv[3] * inv[5];
     inv[2] = -(r[1] * inv[4] + r[2] * inv[5]) * inv[0];
-    const double n_r = fmax(fabs(r[0]), fmax(fabs(r[1]) + fabs(r[3]),
+    const double n_r = max2(fabs(r[0]), max2(fabs(r[1]) + fabs(r[3]),
                                              fabs(r[2]) + fabs(r[4]) + fabs(r[5])));
-    const double n_i = fmax(fabs(inv[0]), fmax(fabs(inv[1]) + fabs(inv[3]),
+    const double n_i = max2(fabs(inv[0]), max2(fabs(inv[1]) + fabs(inv[3]),
                                                fabs(inv[2]) + fabs(inv[4]) + fabs(inv[5])));
     return 1.0 / (n_r * n_i);
 }
@@ -261,42 +293,28 @@ static void lsq3(double m[][3], double *b, int32_t rows, double x[3], double *rc
 /* The same problem through the normal equations M^T M x = M^T b, when that is as
  * accurate: their Cholesky factor is QR's R up to the signs of its rows (so the same
  * rcond), and they lose accuracy only as rcond^-2, at most NORMAL_RCOND^-2 = 1e4 ulps
- * here. Three running sums per matrix entry instead of Householder's chain of
- * dependent dot products: about a third of the time. Returns 0 (x untouched) when
- * rcond is below NORMAL_RCOND or the factorisation breaks down: then QR decides. */
-static int lsq3_normal(double m[][3], const double *b, int32_t rows, double x[3],
-                       double *rcond)
+ * here. a = M^T M as {a00, a01, a02, a11, a12, a22}, c = M^T b: sums the caller forms
+ * straight from the wheel rows, about a third of Householder's time. Returns 0 (x
+ * untouched) when rcond is below NORMAL_RCOND or the factorisation breaks down: then
+ * QR decides. */
+static int normal_solve(const double a[6], const double c[3], double x[3], double *rcond)
 {
-    double a00 = 0.0, a01 = 0.0, a02 = 0.0, a11 = 0.0, a12 = 0.0, a22 = 0.0;
-    double c0 = 0.0, c1 = 0.0, c2 = 0.0;
-    for (int32_t i = 0; i < rows; i++) {
-        const double u = m[i][0], v = m[i][1], w = m[i][2];
-        a00 += u * u;
-        a01 += u * v;
-        a02 += u * w;
-        a11 += v * v;
-        a12 += v * w;
-        a22 += w * w;
-        c0 += u * b[i];
-        c1 += v * b[i];
-        c2 += w * b[i];
-    }
-    if (!(a00 > 0.0)) {
+    if (!(a[0] > 0.0)) {
         return 0;
     }
     double r[6], inv[6];
-    r[0] = sqrt(a00);
+    r[0] = sqrt(a[0]);
     inv[0] = 1.0 / r[0];
-    r[1] = a01 * inv[0];
-    r[2] = a02 * inv[0];
-    const double d11 = a11 - r[1] * r[1];
+    r[1] = a[1] * inv[0];
+    r[2] = a[2] * inv[0];
+    const double d11 = a[3] - r[1] * r[1];
     if (!(d11 > 0.0)) {
         return 0;
     }
     r[3] = sqrt(d11);
     inv[3] = 1.0 / r[3];
-    r[4] = (a12 - r[1] * r[2]) * inv[3];
-    const double d22 = a22 - r[2] * r[2] - r[4] * r[4];
+    r[4] = (a[4] - r[1] * r[2]) * inv[3];
+    const double d22 = a[5] - r[2] * r[2] - r[4] * r[4];
     if (!(d22 > 0.0)) {
         return 0;
     }
@@ -307,9 +325,9 @@ static int lsq3_normal(double m[][3], const double *b, int32_t rows, double x[3]
         return 0;
     }
     /* R^T z = M^T b, then R x = z */
-    const double z0 = c0 * inv[0];
-    const double z1 = (c1 - r[1] * z0) * inv[3];
-    const double z2 = (c2 - r[2] * z0 - r[4] * z1) * inv[5];
+    const double z0 = c[0] * inv[0];
+    const double z1 = (c[1] - r[1] * z0) * inv[3];
+    const double z2 = (c[2] - r[2] * z0 - r[4] * z1) * inv[5];
     x[2] = z2 * inv[5];
     x[1] = (z1 - r[4] * x[2]) * inv[3];
     x[0] = (z0 - r[1] * x[1] - r[2] * x[2]) * inv[0];
@@ -317,21 +335,14 @@ static int lsq3_normal(double m[][3], const double *b, int32_t rows, double x[3]
     return 1;
 }
 
-int kin_geom_solve(const kin_robot *rb, const kin_wheel_rows *w, double *xi, double *slip,
-                   double *rcond)
+/* The weighted rows of the least-squares problem in the unknowns (dx, dy, len dtheta):
+ * M (rows x 3) and b, for Householder QR. */
+static int32_t weighted_rows(const kin_robot *rb, const kin_wheel_rows *w, double len,
+                             double m[][3], double *b)
 {
-    double m[2 * KIN_MAX_WHEELS][3];
-    double b[2 * KIN_MAX_WHEELS];
-    int32_t rows = 0;
     const double wn = sqrt(rb->c_n), wt = sqrt(rb->c_t);
-    /* Unknowns (dx, dy, L dtheta): L, the farthest wheel's distance from the reference
-     * point, makes the rotation column a speed like the others. */
-    double len2 = rb->l * rb->l; /* squared: one square root, not one per wheel */
-    for (int32_t i = 0; i < w->count; i++) {
-        len2 = fmax(len2, w->n_theta[i] * w->n_theta[i] + w->t_theta[i] * w->t_theta[i]);
-    }
-    const double len = sqrt(len2);
     const double wn_len = wn / len, wt_len = wt / len;
+    int32_t rows = 0;
     for (int32_t i = 0; i < w->count; i++) {
         m[rows][0] = -w->ty[i] * wn;
         m[rows][1] = w->tx[i] * wn;
@@ -344,13 +355,46 @@ int kin_geom_solve(const kin_robot *rb, const kin_wheel_rows *w, double *xi, dou
             b[rows++] = -w->t_joint[i] * wt;
         }
     }
-    double x[3], rc;
+    return rows;
+}
+
+int kin_geom_solve(const kin_robot *rb, const kin_wheel_rows *w, double *xi, double *slip,
+                   double *rcond)
+{
+    /* Unknowns (dx, dy, L dtheta): L, the farthest wheel's distance from the reference
+     * point, makes the rotation column a speed like the others. The normal equations'
+     * sums are formed in (dx, dy, dtheta) and scaled after: each wheel's normal row is
+     * sqrt(c_n) (-ty, tx, n_theta | -n_joint), its tangential row sqrt(c_t) (tx, ty,
+     * t_theta | -t_joint). */
+    const double cn = rb->c_n, ct = rb->c_t;
+    double len2 = rb->l * rb->l; /* squared: one square root, not one per wheel */
+    double a[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0}, c[3] = {0.0, 0.0, 0.0};
     int at_rest = 1;
-    for (int32_t i = 0; i < rows; i++) {
-        at_rest = at_rest && b[i] == 0.0;
+    for (int32_t i = 0; i < w->count; i++) {
+        const double tx = w->tx[i], ty = w->ty[i], nth = w->n_theta[i], tth = w->t_theta[i];
+        const double nj = w->n_joint[i], tj = ct > 0.0 ? w->t_joint[i] : 0.0;
+        len2 = max2(len2, nth * nth + tth * tth);
+        a[0] += cn * ty * ty + ct * tx * tx;
+        a[1] += (ct - cn) * tx * ty;
+        a[2] += ct * tx * tth - cn * ty * nth;
+        a[3] += cn * tx * tx + ct * ty * ty;
+        a[4] += cn * tx * nth + ct * ty * tth;
+        a[5] += cn * nth * nth + ct * tth * tth;
+        c[0] += cn * ty * nj - ct * tx * tj;
+        c[1] -= cn * tx * nj + ct * ty * tj;
+        c[2] -= cn * nth * nj + ct * tth * tj;
+        at_rest = at_rest && nj == 0.0 && tj == 0.0;
     }
-    if (!lsq3_normal(m, b, rows, x, &rc)) {
-        lsq3(m, b, rows, x, &rc);
+    const double len = sqrt(len2), inv_len = 1.0 / len;
+    a[2] *= inv_len;
+    a[4] *= inv_len;
+    a[5] *= inv_len * inv_len;
+    c[2] *= inv_len;
+    double x[3], rc;
+    if (!normal_solve(a, c, x, &rc)) {
+        double m[2 * KIN_MAX_WHEELS][3];
+        double b[2 * KIN_MAX_WHEELS];
+        lsq3(m, b, weighted_rows(rb, w, len, m, b), x, &rc);
     }
     if (rcond != NULL) {
         *rcond = rc;

@@ -17,6 +17,10 @@ typedef struct {
 
 /* Fill the rows at q for joint velocities dphi (NULL: zero). */
 int kin_geom_rows(const kin_robot *rb, const double *q, const double *dphi, kin_wheel_rows *w);
+/* The same for a robot already validated, q and dphi not checked (the right-hand side's
+ * path: a non-finite value comes out in the rows, and the integrator reports it). */
+void kin_geom_rows_unchecked(const kin_robot *rb, const double *q, const double *dphi,
+                             kin_wheel_rows *w);
 /* Solve the minimum-slip problem for those rows (see kin_body_velocity). */
 int kin_geom_solve(const kin_robot *rb, const kin_wheel_rows *w, double *xi, double *slip,
                    double *rcond);

@@ -14,6 +14,7 @@
 #include "kin_fields.h"
 #include "kin_geom.h"
 #include "kin_ode.h"
+#include "kin_trig.h"
 
 #include <math.h>
 
@@ -22,6 +23,44 @@
 #define RCOND_FALLBACK 1e-8
 #define FALLBACK_EPS 1e-4
 #define FALLBACK_TRIES 5
+
+/* ---- sines of the phase omega t at a step's stage times ---- */
+
+typedef struct {
+    double omega;
+    int32_t count;
+    double t[KIN_TRIG_PADDED(KIN_ODE_MAX_TIMES)];
+    double sn[KIN_TRIG_PADDED(KIN_ODE_MAX_TIMES)], cs[KIN_TRIG_PADDED(KIN_ODE_MAX_TIMES)];
+} phase_table;
+
+#define PHASE_ZERO {0.0, 0, {0.0}, {0.0}, {0.0}}
+
+/* The integrator's times hook: sin and cos of omega t for all stages in one call. */
+static void phase_fill(phase_table *p, const double *t, int32_t count)
+{
+    double angle[KIN_TRIG_PADDED(KIN_ODE_MAX_TIMES)];
+    for (int32_t k = 0; k < KIN_TRIG_PADDED(count); k++) {
+        p->t[k] = k < count ? t[k] : t[0];
+        angle[k] = p->omega * p->t[k];
+    }
+    p->count = count;
+    kin_sincos(count, angle, p->sn, p->cs);
+}
+
+/* sin and cos of omega t: from the table when t is one of the step's stage times (the
+ * integrator computes them with the same expression), otherwise directly. */
+static void phase_at(const phase_table *p, double t, double *sn, double *cs)
+{
+    for (int32_t k = 0; k < p->count; k++) {
+        if (p->t[k] == t) {
+            *sn = p->sn[k];
+            *cs = p->cs[k];
+            return;
+        }
+    }
+    *sn = sin(p->omega * t);
+    *cs = cos(p->omega * t);
+}
 
 /* ---- schedules ---- */
 
@@ -138,6 +177,7 @@ typedef struct {
     /* Sines: cos and sin of each joint's phase, so that one sin and cos of omega t serve
      * every joint (the addition theorem) instead of a pair per joint and evaluation. */
     double cos_phase[KIN_MAX_JOINTS], sin_phase[KIN_MAX_JOINTS];
+    phase_table phase;
 } joint_ctx;
 
 static void joint_ctx_phases(joint_ctx *c)
@@ -157,7 +197,8 @@ static void joint_schedule(const joint_ctx *c, double t, double *phi, double *dp
         schedule_at(s, c->seg, t, phi, dphi);
         return;
     }
-    const double sw = sin(s->omega * t), cw = cos(s->omega * t);
+    double sw, cw;
+    phase_at(&c->phase, t, &sw, &cw);
     for (int32_t j = 0; j < c->joints; j++) {
         sine_joint(s, j, t, sw * c->cos_phase[j] + cw * c->sin_phase[j],
                    cw * c->cos_phase[j] - sw * c->sin_phase[j], phi, dphi);
@@ -173,11 +214,8 @@ static int joint_rates(joint_ctx *c, double t, const double *pose, double *xi, d
     q[1] = pose[1];
     q[2] = pose[2];
     joint_schedule(c, t, q + 3, dphi);
-    int rc = kin_geom_rows(c->rb, q, dphi, &w);
-    if (rc != KIN_OK) {
-        return rc;
-    }
-    rc = kin_geom_solve(c->rb, &w, xi, slip, rcond);
+    kin_geom_rows_unchecked(c->rb, q, dphi, &w);
+    const int rc = kin_geom_solve(c->rb, &w, xi, slip, rcond);
     if (*rcond < c->stats->min_rcond) {
         c->stats->min_rcond = *rcond;
     }
@@ -245,6 +283,11 @@ static int joint_rhs(void *ctx, double t, const double *y, double *dy)
     return joint_rates_robust((joint_ctx *)ctx, t, y, dy, NULL);
 }
 
+static void joint_times(void *ctx, const double *t, int32_t count)
+{
+    phase_fill(&((joint_ctx *)ctx)->phase, t, count);
+}
+
 static int check_span(double t0, double t1, int32_t n_out, const double *out)
 {
     if (out == NULL || n_out < 2 || !isfinite(t0) || !isfinite(t1) || !(t1 >= t0)) {
@@ -279,8 +322,9 @@ int kin_integrate_joints(const kin_robot *rb, const kin_schedule *s, const doubl
         return KIN_ENONFINITE;
     }
     stats_start(st, t0);
-    joint_ctx c = {rb, s, joints, segment_of(s, t0), 1.0, st, {0.0}, {0.0}};
+    joint_ctx c = {rb, s, joints, segment_of(s, t0), 1.0, st, {0.0}, {0.0}, PHASE_ZERO};
     joint_ctx_phases(&c);
+    c.phase.omega = s->omega;
     if (s->type == KIN_SCHED_TABLE) {
         c.tscale = s->dt;
     } else if (s->omega != 0.0) {
@@ -289,6 +333,9 @@ int kin_integrate_joints(const kin_robot *rb, const kin_schedule *s, const doubl
     kin_ode ode;
     if ((rc = kin_ode_init(&ode, 3, joint_rhs, &c, opt, st)) != KIN_OK) {
         return rc;
+    }
+    if (s->type == KIN_SCHED_SINES) {
+        ode.times = joint_times;
     }
     const int32_t width = 3 + joints;
     const int32_t wheels = kin_wheel_count(rb);
@@ -333,28 +380,61 @@ int kin_integrate_joints(const kin_robot *rb, const kin_schedule *s, const doubl
     return KIN_OK;
 }
 
+int kin_integrate_joints_batch(const kin_robot *rb, const kin_schedule *s, int32_t count,
+                               const double *pose0, double t0, double t1, int32_t n_out,
+                               const kin_options *opt, double *out, int32_t *status,
+                               kin_stats *stats)
+{
+    int32_t joints;
+    int rc = kin_check_robot(rb, &joints);
+    if (rc != KIN_OK) {
+        return rc;
+    }
+    if (count < 0 || (count > 0 && (s == NULL || status == NULL))) {
+        return KIN_EINVAL;
+    }
+    if ((rc = check_span(t0, t1, n_out, out)) != KIN_OK) {
+        return rc;
+    }
+    const size_t rows = (size_t)n_out * (size_t)(3 + joints);
+    int first = KIN_OK;
+    for (int32_t k = 0; k < count; k++) {
+        status[k] = kin_integrate_joints(rb, s + k, pose0, t0, t1, n_out, opt,
+                                         out + (size_t)k * rows, NULL,
+                                         stats != NULL ? stats + k : NULL);
+        if (first == KIN_OK) {
+            first = status[k];
+        }
+    }
+    return first;
+}
+
 /* ---- field-driven systems ---- */
 
 typedef struct {
     const kin_robot *rb;
     const kin_inputs *u;
     int32_t inputs;
-    int32_t n;
     double corners[9];
+    phase_table phase;
 } field_ctx;
 
 static int field_rhs(void *ctx, double t, const double *y, double *dy)
 {
     const field_ctx *c = (const field_ctx *)ctx;
-    double u[KIN_MAX_INPUTS];
-    const double sn = sin(c->u->omega * t), cs = cos(c->u->omega * t);
+    double u[KIN_MAX_INPUTS], sn, cs;
+    phase_at(&c->phase, t, &sn, &cs);
     const double sn2 = 2.0 * sn * cs, cs2 = cs * cs - sn * sn;
     for (int32_t i = 0; i < c->inputs; i++) {
         u[i] = c->u->c[i] + c->u->a[i] * sn + c->u->b[i] * cs + c->u->a2[i] * sn2
                + c->u->b2[i] * cs2;
     }
-    return kin_fields_velocity_unchecked(c->rb, c->corners, c->u->form, c->n, c->inputs, y, u,
-                                         dy);
+    return kin_fields_velocity_unchecked(c->rb, c->corners, c->u->form, y, u, dy);
+}
+
+static void field_times(void *ctx, const double *t, int32_t count)
+{
+    phase_fill(&((field_ctx *)ctx)->phase, t, count);
 }
 
 int kin_integrate_fields(const kin_robot *rb, const kin_inputs *u, const double *q0,
@@ -390,12 +470,14 @@ int kin_integrate_fields(const kin_robot *rb, const kin_inputs *u, const double 
         }
     }
     stats_start(st, t0);
-    field_ctx c = {rb, u, inputs, n, {0.0}};
+    field_ctx c = {rb, u, inputs, {0.0}, PHASE_ZERO};
+    c.phase.omega = u->omega;
     kin_fields_corners(rb, c.corners);
     kin_ode ode;
     if ((rc = kin_ode_init(&ode, n, field_rhs, &c, opt, st)) != KIN_OK) {
         return rc;
     }
+    ode.times = field_times;
     double y[KIN_MAX_STATE];
     for (int32_t i = 0; i < n; i++) {
         y[i] = q0[i];

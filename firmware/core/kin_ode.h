@@ -1,5 +1,6 @@
 /* Internal to the kinematic core: a generic ODE stepper (fixed-step RK4 and adaptive
- * Dormand-Prince 5(4) with FSAL and error control) over a right-hand-side callback.
+ * Dormand-Prince 5(4) and 8(5,3), with FSAL and error control) over a right-hand-side
+ * callback.
  * Not published to Python; the kin_integrate_* functions drive it. */
 #ifndef SNAKEBOT_KIN_ODE_H
 #define SNAKEBOT_KIN_ODE_H
@@ -7,16 +8,25 @@
 #include "kin_core.h"
 
 typedef int (*kin_rhs_fn)(void *ctx, double t, const double *y, double *dy);
+/* Optional, called before each step with the times at which its stages will call f:
+ * a right-hand side can then evaluate its parts that depend on time alone for all of
+ * them in one go (the inputs' sines), and look them up by t. */
+typedef void (*kin_times_fn)(void *ctx, const double *t, int32_t count);
+
+/* Most distinct stage times of one step (Dormand-Prince 5(4): 5, 8(5,3): 11). */
+#define KIN_ODE_MAX_TIMES 11
 
 typedef struct {
     int32_t n;            /* state dimension, <= KIN_MAX_STATE */
     kin_rhs_fn f;
+    kin_times_fn times;   /* may be NULL; kin_ode_init sets NULL, set it after */
     void *ctx;
     kin_options opt;      /* validated copy, defaults filled in */
     kin_stats *stats;     /* never NULL once initialised */
-    double h;             /* DOPRI5: the step to try next (0 = choose one) */
+    double h;             /* adaptive: the step to try next (0 = choose one) */
     int32_t budget;       /* steps left (accepted + rejected) */
-    int32_t have_k1;      /* DOPRI5 FSAL: k1 holds f(t, y) for the current (t, y) */
+    int32_t have_k1;      /* adaptive FSAL: k1 holds f(t, y) for the current (t, y) */
+    double log_err_prev;  /* adaptive: log of the last accepted step's scaled error */
     double k1[KIN_MAX_STATE];
 } kin_ode;
 

@@ -1,17 +1,20 @@
 """Numeric kinematics through the C core (``snakebot._core``): wheel geometry, the
 minimum-slip body velocity, the control vector fields and their Lie brackets, and
-whole-trajectory integrators (RK4, Dormand-Prince 5(4))."""
+whole-trajectory integrators (RK4, Dormand-Prince 5(4) and 8(5,3)), one trajectory or
+a grid of schedules per call."""
 
 from __future__ import annotations
 
 from snakebot.kinematics.ccore import KinematicsError, Options, SingularConfiguration
 from snakebot.kinematics.integrate import (
+    Batch,
     Inputs,
     Sines,
     Table,
     Trajectory,
     integrate_fields,
     integrate_joints,
+    integrate_joints_batch,
     schedule_eval,
 )
 from snakebot.kinematics.model import (
@@ -30,6 +33,7 @@ from snakebot.kinematics.model import (
 
 __all__ = [
     "BRACKETS",
+    "Batch",
     "FIELD_NAMES",
     "BodyVelocity",
     "FieldSet",
@@ -47,6 +51,7 @@ __all__ = [
     "fields",
     "integrate_fields",
     "integrate_joints",
+    "integrate_joints_batch",
     "schedule_eval",
     "wheel_speeds",
     "wheels",

@@ -3,6 +3,7 @@ into exceptions that say what went wrong and what to do."""
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Any
 
@@ -13,7 +14,7 @@ from snakebot.errors import SnakebotError
 from snakebot.robots import Robot
 
 FORMS = {"body": lib.KIN_FORM_BODY, "world": lib.KIN_FORM_WORLD}
-METHODS = {"rk4": lib.KIN_RK4, "dopri5": lib.KIN_DOPRI5}
+METHODS = {"rk4": lib.KIN_RK4, "dopri5": lib.KIN_DOPRI5, "dop853": lib.KIN_DOP853}
 
 _HINTS = {
     lib.KIN_ESINGULAR: "move the joints away from that configuration, or give the wheels "
@@ -76,22 +77,30 @@ def c_robot(robot: Robot, c_t: float | None = None) -> Any:
             f"(snakebot model fields {robot.name}); gaits and the emulator drive snakes "
             "and tridents"
         )
-    rb = ffi.new("kin_robot *")
-    rb.kind = lib.KIN_SNAKE if robot.kind == "snake" else lib.KIN_TRIDENT
-    rb.links = robot.links if robot.kind == "snake" else 0
-    rb.l = robot.l
-    rb.r = robot.r
-    for i, a in enumerate(robot.alphas[:3]):
-        rb.alpha[i] = a
-    rb.c_n = robot.c_n
-    rb.c_t = robot.c_t if c_t is None else c_t
-    check(lib.kin_check_robot(rb, ffi.NULL), f"robot {robot.name}")
+    # one initialiser, not a Python round trip per field: this runs once per trajectory
+    rb = ffi.new(
+        "kin_robot *",
+        {
+            "kind": lib.KIN_SNAKE if robot.kind == "snake" else lib.KIN_TRIDENT,
+            "links": robot.links if robot.kind == "snake" else 0,
+            "l": robot.l,
+            "r": robot.r,
+            "alpha": list(robot.alphas[:3]),
+            "c_n": robot.c_n,
+            "c_t": robot.c_t if c_t is None else c_t,
+        },
+    )
+    code = lib.kin_check_robot(rb, ffi.NULL)
+    if code != lib.KIN_OK:
+        check(code, f"robot {robot.name}")
     return rb
 
 
 @dataclass(frozen=True)
 class Options:
-    """Integrator settings: ``method`` "dopri5" (adaptive, rtol/atol) or "rk4" (step h)."""
+    """Integrator settings: ``method`` "dopri5" or "dop853" (adaptive Dormand-Prince 5(4)
+    and 8(5,3), rtol/atol; the second needs fewer evaluations at tight tolerances) or
+    "rk4" (step h)."""
 
     method: str = "dopri5"
     rtol: float = 1e-9
@@ -101,15 +110,27 @@ class Options:
     max_steps: int = 0
 
     def to_c(self) -> Any:
-        if self.method not in METHODS:
-            raise KinematicsError(
-                lib.KIN_EINVAL, f"unknown method {self.method!r}: use one of {', '.join(METHODS)}"
-            )
-        opt = ffi.new("kin_options *")
-        opt.method = METHODS[self.method]
-        opt.h, opt.rtol, opt.atol, opt.h_min = self.h, self.rtol, self.atol, self.h_min
-        opt.max_steps = self.max_steps
-        return opt
+        """The ``kin_options`` struct (one per distinct settings: the core only reads it)."""
+        return _c_options(self)
+
+
+@functools.lru_cache(maxsize=64)
+def _c_options(options: Options) -> Any:
+    if options.method not in METHODS:
+        raise KinematicsError(
+            lib.KIN_EINVAL, f"unknown method {options.method!r}: use one of {', '.join(METHODS)}"
+        )
+    return ffi.new(
+        "kin_options *",
+        {
+            "method": METHODS[options.method],
+            "h": options.h,
+            "rtol": options.rtol,
+            "atol": options.atol,
+            "h_min": options.h_min,
+            "max_steps": options.max_steps,
+        },
+    )
 
 
 def as_doubles(values: Any, length: int, what: str) -> np.ndarray:
@@ -121,5 +142,5 @@ def as_doubles(values: Any, length: int, what: str) -> np.ndarray:
 
 
 def dptr(arr: np.ndarray) -> Any:
-    """A ``double *`` into a contiguous float64 numpy array."""
-    return ffi.cast("double *", ffi.from_buffer(arr))
+    """A ``double[]`` over a contiguous float64 numpy array (what a ``double *`` takes)."""
+    return ffi.from_buffer("double[]", arr)

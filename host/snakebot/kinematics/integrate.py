@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -106,38 +107,42 @@ class Trajectory:
         return self.q[-1] - self.q[0]
 
 
-def _c_schedule(robot: Robot, schedule: Sines | Table) -> tuple[Any, list[Any]]:
-    s = ffi.new("kin_schedule *")
+def _schedule_init(robot: Robot, schedule: Sines | Table) -> tuple[dict[str, Any], list[Any]]:
+    """The fields of a ``kin_schedule`` for ``schedule``, and what must outlive it."""
     n = robot.n_joints
-    s.joints = n
-    keep: list[Any] = []
     if isinstance(schedule, Sines):
-        s.type = lib.KIN_SCHED_SINES
-        s.omega = schedule.omega
+        init: dict[str, Any] = {"type": lib.KIN_SCHED_SINES, "joints": n, "omega": schedule.omega}
         for name in ("amp", "phase", "offset", "rate"):
-            values = getattr(schedule, name) or (0.0,) * n
-            if len(values) != n:
+            values = getattr(schedule, name)
+            if values and len(values) != n:
                 raise ValueError(
                     f"Sines.{name} needs {n} values for {robot.name}, got {len(values)}"
                 )
-            arr = getattr(s, name)
-            for j, v in enumerate(values):
-                arr[j] = v
-    else:
-        samples = np.ascontiguousarray(schedule.samples, dtype=np.float64)
-        if samples.ndim != 2 or samples.shape[1] != n or samples.shape[0] < 1:
-            raise ValueError(f"Table.samples must have shape (rows, {n}), got {samples.shape}")
-        keep.append(samples)
-        s.type = lib.KIN_SCHED_TABLE
-        s.samples = dptr(samples)
-        s.rows = samples.shape[0]
-        s.dt = schedule.dt
-        s.loop = int(schedule.loop)
-    return s, keep
+            init[name] = list(values)
+        return init, []
+    samples = np.ascontiguousarray(schedule.samples, dtype=np.float64)
+    if samples.ndim != 2 or samples.shape[1] != n or samples.shape[0] < 1:
+        raise ValueError(f"Table.samples must have shape (rows, {n}), got {samples.shape}")
+    init = {
+        "type": lib.KIN_SCHED_TABLE,
+        "joints": n,
+        "samples": dptr(samples),
+        "rows": samples.shape[0],
+        "dt": schedule.dt,
+        "loop": int(schedule.loop),
+    }
+    return init, [samples]
+
+
+def _c_schedule(robot: Robot, schedule: Sines | Table) -> tuple[Any, list[Any]]:
+    init, keep = _schedule_init(robot, schedule)
+    return ffi.new("kin_schedule *", init), keep
 
 
 def _times(t0: float, t1: float, samples: int) -> np.ndarray:
     """The output times the core uses: t0 + k (t1 - t0) / (samples - 1), t1 exactly last."""
+    if samples == 2:  # the common whole-trajectory call: no arithmetic on arrays
+        return np.array((t0, t1))
     times = t0 + (t1 - t0) * (np.arange(samples) / (samples - 1))
     times[-1] = t1
     return times
@@ -196,8 +201,73 @@ def integrate_joints(
         dptr(slip) if slip is not None else ffi.NULL,
         st,
     )
-    check(code, f"{robot.name}, joint schedule, at t = {st.t_fail:.6g} s")
+    if code != lib.KIN_OK:
+        check(code, f"{robot.name}, joint schedule, at t = {st.t_fail:.6g} s")
     return Trajectory(_times(t0, t1, samples), out, slip, _stats(st))
+
+
+@dataclass(frozen=True)
+class Batch:
+    """Trajectories of one robot under many schedules: ``q[k, i]`` is the state at ``t[i]``
+    under schedule k; ``status[k]`` is 0 where it ran to the end, else the core's error
+    code (``q[k]`` is then NaN); ``evals[k]`` counts its right-hand-side evaluations."""
+
+    t: np.ndarray
+    q: np.ndarray
+    status: np.ndarray
+    evals: np.ndarray
+
+    def error(self, k: int) -> str | None:
+        """Why trajectory k failed, in words (None if it did not)."""
+        code = int(self.status[k])
+        return None if code == lib.KIN_OK else str(KinematicsError(code))
+
+
+def integrate_joints_batch(
+    robot: Robot,
+    schedules: Sequence[Sines | Table],
+    t1: float,
+    *,
+    t0: float = 0.0,
+    pose0: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    samples: int = 2,
+    options: Options | None = None,
+    c_t: float | None = None,
+) -> Batch:
+    """``integrate_joints`` for every schedule in one call into the core, no Python between
+    trajectories (a parameter grid, a gait search's batch); a failed trajectory does not
+    stop the others."""
+    if samples < 2:
+        raise ValueError("samples must be at least 2 (the start and the end)")
+    inits, keep = [], []
+    for schedule in schedules:
+        init, kept = _schedule_init(robot, schedule)
+        inits.append(init)
+        keep += kept
+    count = len(inits)
+    s = ffi.new("kin_schedule[]", inits) if count else ffi.NULL
+    out = np.empty((count, samples, 3 + robot.n_joints))
+    status = np.zeros(count, dtype=np.int32)
+    stats = ffi.new("kin_stats[]", max(count, 1))
+    p0 = as_doubles(pose0, 3, "pose0")
+    code = lib.kin_integrate_joints_batch(
+        c_robot(robot, c_t),
+        s,
+        count,
+        dptr(p0),
+        t0,
+        t1,
+        samples,
+        (options or Options()).to_c(),
+        dptr(out),
+        ffi.from_buffer("int32_t[]", status) if count else ffi.NULL,
+        stats,
+    )
+    if code == lib.KIN_EINVAL and not status.any():
+        check(code, f"{robot.name}, batch of {count} schedules")
+    out[status != lib.KIN_OK] = np.nan
+    evals = np.array([stats[k].evals for k in range(count)], dtype=np.int64)
+    return Batch(_times(t0, t1, samples), out, status, evals)
 
 
 def integrate_fields(
@@ -217,23 +287,21 @@ def integrate_fields(
         raise ValueError("samples must be at least 2 (the start and the end)")
     n = 3 + robot.n_joints
     m = 2 if robot.kind == "snake" else 3
-    u = ffi.new("kin_inputs *")
-    u.form = _c_form(robot, inputs.form)
-    u.omega = inputs.omega
+    init: dict[str, Any] = {"form": _c_form(robot, inputs.form), "omega": inputs.omega}
     for name in ("c", "a", "b", "a2", "b2"):
-        values = getattr(inputs, name) or (0.0,) * m
-        if len(values) != m:
+        values = getattr(inputs, name)
+        if values and len(values) != m:
             raise KinematicsError(
                 lib.KIN_EINVAL, f"{robot.name} has {m} inputs: Inputs.{name} has {len(values)}"
             )
-        arr = getattr(u, name)
-        for i, v in enumerate(values):
-            arr[i] = v
+        init[name] = list(values)
+    u = ffi.new("kin_inputs *", init)
     qa = as_doubles(np.zeros(n) if q0 is None else q0, n, "q0")
     out = np.empty((samples, n))
     st = ffi.new("kin_stats *")
     code = lib.kin_integrate_fields(
         c_robot(robot), u, dptr(qa), t0, t1, samples, (options or Options()).to_c(), dptr(out), st
     )
-    check(code, f"{robot.name}, field inputs, at t = {st.t_fail:.6g} s")
+    if code != lib.KIN_OK:
+        check(code, f"{robot.name}, field inputs, at t = {st.t_fail:.6g} s")
     return Trajectory(_times(t0, t1, samples), out, None, _stats(st))

@@ -54,25 +54,67 @@ def _trig_of_corners(
     return [e.subs(rewrite) for e in exprs], (*cos_a, *sin_a)
 
 
-def _c_function(name: str, model: SymbolicModel, names: tuple[str, ...]) -> tuple[str, str]:
-    """(prototype, definition) of a function writing the named fields of model at q."""
+def _batched_trig(exprs: list[sp.Expr]) -> tuple[list[sp.Expr], list[str], set[sp.Symbol]]:
+    """Replace every sin(a) and cos(a) by an entry of the arrays ``sn`` and ``cs`` that one
+    ``kin_sincos`` call fills for all the angles a at once (the core evaluates a block of
+    angles in the time libm takes for about two). Also returns the C lines of that call
+    and the symbols the angles use."""
+    angles = sorted(
+        {f.args[0] for e in exprs for f in e.atoms(sp.sin, sp.cos)}, key=sp.default_sort_key
+    )
+    if not angles:
+        return exprs, [], set()
+    table: dict[sp.Expr, sp.Symbol] = {}
+    for j, a in enumerate(angles):
+        table[sp.sin(a)] = sp.Symbol(f"sn[{j}]", real=True)
+        table[sp.cos(a)] = sp.Symbol(f"cs[{j}]", real=True)
+    printer = _Printer()
+    values = ", ".join(printer.doprint(a) for a in angles)
+    size = f"KIN_TRIG_PADDED({len(angles)})"
+    lines = [
+        f"    const double angle[{size}] = {{{values}}};",
+        f"    double sn[{size}], cs[{size}];",
+        f"    kin_sincos({len(angles)}, angle, sn, cs);",
+    ]
+    return [e.xreplace(table) for e in exprs], lines, set().union(*(a.free_symbols for a in angles))
+
+
+def _c_function(
+    name: str, model: SymbolicModel, names: tuple[str, ...], velocity: bool = False
+) -> tuple[str, str]:
+    """(prototype, definition) of a function writing the named fields of model at q, or
+    with ``velocity`` their combination sum_i u[i] field_i (one vector, no field stored)."""
     n = len(model.q)
-    exprs = [c for f in names for c in model.fields[f]]
+    if velocity:
+        inputs = [sp.Symbol(f"u[{i}]", real=True) for i in range(len(names))]
+        exprs = [
+            sum((u * model.fields[f][k] for u, f in zip(inputs, names, strict=True)), sp.S.Zero)
+            for k in range(n)
+        ]
+    else:
+        exprs = [c for f in names for c in model.fields[f]]
     params = model.params
     if model.name == "trident" and model.form == "body":
         exprs, extra = _trig_of_corners(model, exprs)
         params = (*params, *extra)
+    if model.name == "snake3":
+        # sines and cosines of the angle sums from those of the joint angles (the
+        # addition theorem): three angles to evaluate instead of five
+        exprs = [sp.expand_trig(e) for e in exprs]
+    exprs, trig_lines, angle_symbols = _batched_trig(exprs)
     temps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("t"), optimizations="basic")
     printer = _Printer()
+    out_args = "const double *u, double *out" if velocity else "double *out"
     if model.name == "snake3":
-        signature = f"void {name}(double l, const double *q, double *out)"
+        signature = f"void {name}(double l, const double *q, {out_args})"
         bound = {params[0]: None}
     else:
         signature = (
-            f"void {name}(double r, double l, const double *alpha, const double *q, double *out)"
+            f"void {name}(double r, double l, const double *alpha, const double *q, {out_args})"
         )
         bound = {params[0]: None, params[1]: None}
     used = set().union(*(e.free_symbols for _, e in temps), *(e.free_symbols for e in reduced))
+    used |= angle_symbols
     lines = [signature, "{"]
     for i, s in enumerate(model.q):
         if s in used:
@@ -83,11 +125,13 @@ def _c_function(name: str, model: SymbolicModel, names: tuple[str, ...]) -> tupl
     unused = [str(s) for s in params if s in bound and s not in used]
     for s in unused:
         lines.append(f"    (void){s};")
+    lines += trig_lines
     for sym, expr in temps:
         lines.append(f"    const double {sym} = {printer.doprint(expr)};")
     for k, expr in enumerate(reduced):
         field, comp = divmod(k, n)
-        lines.append(f"    out[{k}] = {printer.doprint(expr)};  /* {names[field]}[{comp}] */")
+        what = f"qdot[{comp}]" if velocity else f"{names[field]}[{comp}]"
+        lines.append(f"    out[{k}] = {printer.doprint(expr)};  /* {what} */")
     lines.append("}")
     return signature + ";", "\n".join(lines)
 
@@ -96,25 +140,30 @@ def _functions() -> list[tuple[str, str, str]]:
     """(doc comment, prototype, definition) for every generated function."""
     out = []
     s3 = snake3()
-    for suffix, names in (("g", s3.inputs), ("all", tuple(s3.fields))):
-        doc = (
-            f"3-link snake, half-link l, q = (x, y, theta, phi1, phi2): writes "
-            f"{', '.join(names)} (5 components each) to out."
-        )
-        out.append((doc, *_c_function(f"kin_gen_snake3_{suffix}", s3, names)))
+    doc = (
+        "3-link snake, half-link l, q = (x, y, theta, phi1, phi2): writes the velocity "
+        "qdot = u[0] g1 + u[1] g2 (5 components) to out."
+    )
+    out.append((doc, *_c_function("kin_gen_snake3_v", s3, s3.inputs, velocity=True)))
+    names = tuple(s3.fields)
+    doc = (
+        f"3-link snake, half-link l, q = (x, y, theta, phi1, phi2): writes "
+        f"{', '.join(names)} (5 components each) to out."
+    )
+    out.append((doc, *_c_function("kin_gen_snake3_all", s3, names)))
     for form in ("body", "world"):
         tri = trident(form)
-        for suffix, names in (("g", tri.inputs), ("all", tuple(tri.fields))):
-            corners = (
-                "alpha = (alpha1..3, cos alpha1..3, sin alpha1..3)"
-                if form == "body"
-                else "alpha = (alpha1..3)"
-            )
-            doc = (
-                f"Trident, {form}-velocity inputs, q = (x, y, theta, phi1..3), {corners}: "
-                f"writes {', '.join(names)} (6 components each) to out."
-            )
-            out.append((doc, *_c_function(f"kin_gen_trident_{form}_{suffix}", tri, names)))
+        corners = (
+            "alpha = (alpha1..3, cos alpha1..3, sin alpha1..3)"
+            if form == "body"
+            else "alpha = (alpha1..3)"
+        )
+        where = f"Trident, {form}-velocity inputs, q = (x, y, theta, phi1..3), {corners}"
+        doc = f"{where}: writes the velocity qdot = u[0] g1 + u[1] g2 + u[2] g3 to out."
+        out.append((doc, *_c_function(f"kin_gen_trident_{form}_v", tri, tri.inputs, velocity=True)))
+        names = tuple(tri.fields)
+        doc = f"{where}: writes {', '.join(names)} (6 components each) to out."
+        out.append((doc, *_c_function(f"kin_gen_trident_{form}_all", tri, names)))
     return out
 
 
@@ -132,7 +181,14 @@ def generate() -> dict[str, str]:
     for doc, proto, _ in functions:
         header += [f"/* {doc} */", proto, ""]
     header += ["#endif", ""]
-    source = [BANNER, "#include <math.h>", "", f'#include "{HEADER_NAME}"', ""]
+    source = [
+        BANNER,
+        "#include <math.h>",
+        "",
+        f'#include "{HEADER_NAME}"',
+        '#include "kin_trig.h"',
+        "",
+    ]
     for _, _, body in functions:
         source += [body, ""]
     return {HEADER_NAME: "\n".join(header), SOURCE_NAME: "\n".join(source)}

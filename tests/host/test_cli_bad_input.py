@@ -278,6 +278,24 @@ def test_scan_rates_no_servo_runs_at_are_refused_at_once(args: list[str]) -> Non
     assert_one_line_error(run(*args))
 
 
+def test_an_output_that_is_a_pipe_or_device_is_refused_and_left_alone(tmp_path: Path) -> None:
+    # `-o /dev/zero` once replaced the device with a regular file (written beside it and
+    # moved over it).
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    assert_one_line_error(run(*SERPENOID, "--cycles", "1", "-o", fifo), mentions="not a file")
+    assert fifo.is_fifo() and not (tmp_path / "pipe.json").exists()
+
+
+def test_monitor_without_a_controller_removes_only_files_it_created(tmp_path: Path) -> None:
+    # `monitor --csv /dev/zero` with no controller once unlinked /dev/zero.
+    mine, new = tmp_path / "mine.csv", tmp_path / "new.mcap"
+    mine.write_text("the user's\n")
+    result = run("monitor", "--port", "loop://", "--csv", mine, "--mcap", new)
+    assert result.exit_code == 1, result.output
+    assert mine.exists() and not new.exists()
+
+
 # -- the emulator's options -----------------------------------------------------------------
 
 

@@ -9,7 +9,7 @@ import zlib
 
 import pytest
 from controller_cli_support import cli, cli_json, constant_table, save, wave_table
-from firmware_support import CONTROLLER_ID, booted_qemu, client
+from firmware_support import CONTROLLER_ID, board_value, booted_qemu, client
 
 from snakebot.controller import load
 from snakebot.gaittable import max_frames
@@ -18,6 +18,7 @@ pytestmark = [pytest.mark.qemu, pytest.mark.timeout(300)]
 
 ENV = {"SNAKEBOT_MARGIN_MS": "300"}  # QEMU shares a loaded machine
 CTL = load()
+LARGEST = max_frames(4, board_value("qemu", "BOARD_TABLE_CAPACITY"))  # QEMU's own
 
 
 @pytest.fixture(scope="module")
@@ -33,7 +34,7 @@ def active_crc(port: str) -> int:
 
 
 def test_the_largest_table_in_one_stream_says_the_link_is_not_paced(firmware, tmp_path):
-    path = save(wave_table(frames=max_frames(4)), tmp_path)
+    path = save(wave_table(frames=LARGEST), tmp_path)
     report = cli_json("upload", path, "--port", firmware, env=ENV)
     assert report["crc"] == f"0x{zlib.crc32(path.read_bytes()):08x}"
     assert report["attempts"] == 1
@@ -43,7 +44,7 @@ def test_the_largest_table_in_one_stream_says_the_link_is_not_paced(firmware, tm
 
 
 def test_a_failing_check_with_chunks_in_flight_keeps_the_firmwares_table(firmware, tmp_path):
-    kept = save(wave_table(frames=max_frames(4)), tmp_path, "kept.gait")
+    kept = save(wave_table(frames=LARGEST), tmp_path, "kept.gait")
     assert cli("upload", kept, "--port", firmware, env=ENV).exit_code == 0
     strangers = save(constant_table(512, ids=(1, 2, 3, 4), frames=250), tmp_path)
     result = cli("upload", strangers, "--port", firmware, env=ENV)

@@ -9,7 +9,7 @@ from types import FrameType
 import click
 
 from snakebot.cli.output import dumps
-from snakebot.cli.params import wave_options
+from snakebot.cli.params import OUTPUT_PATH, wave_options
 from snakebot.demo import DemoSettings, run_demo, summary_lines
 from snakebot.sim.physics.select import WORLDS
 
@@ -61,7 +61,7 @@ def _sigterm(signum: int, frame: FrameType | None) -> None:
 )
 @click.option(
     "--video",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=OUTPUT_PATH,
     help="Write a GIF (or MP4, with ffmpeg) of the emulated robot seen from above.",
 )
 @click.option(

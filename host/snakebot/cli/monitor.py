@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import os
 import shutil
 import sys
 import time
@@ -78,6 +79,9 @@ def monitor(
     """
     live = sys.stdout.isatty() and not as_json
     shown = 0
+    # Only files this run creates may be removed again: a path that was there before
+    # (a file of the user's, a device such as /dev/null) is never unlinked.
+    created = [p for p in (csv_path, mcap_path) if p is not None and not os.path.lexists(p)]
     with contextlib.ExitStack() as stack:
         recorder = None
         if csv_path is not None:  # opened first: a path that cannot be written fails at once
@@ -91,10 +95,9 @@ def monitor(
             ctl = stack.enter_context(open_controller(port, baud, controller_id))
             ctl.identify()
         except BaseException:
-            stack.close()  # no controller, no recording: leave no empty file
-            for path in (csv_path, mcap_path):
-                if path is not None:
-                    path.unlink(missing_ok=True)
+            stack.close()  # no controller, no recording: leave no empty file of ours
+            for path in created:
+                path.unlink(missing_ok=True)
             raise
         if recorder is not None:
             recorder.writeheader()

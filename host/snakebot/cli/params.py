@@ -5,6 +5,8 @@ infinities and absurd magnitudes are refused while parsing, before anything is o
 from __future__ import annotations
 
 import math
+import os
+import stat
 from collections.abc import Callable, Collection
 from pathlib import Path
 from typing import Any, TypeVar
@@ -185,6 +187,14 @@ class OutputPathType(click.Path):
         if not str(value).strip():
             self.fail("an empty path: name the file to write", param, ctx)
         path = super().convert(value, param, ctx)
+        if os.path.exists(path) and not stat.S_ISREG(os.stat(path).st_mode):
+            # Files are written beside the target and moved over it: that would put a
+            # regular file in place of a device or a pipe.
+            self.fail(
+                f"{str(path)!r} is a device or a pipe, not a file: name a file to write",
+                param,
+                ctx,
+            )
         if self.suffixes is not None:
             known = self.suffixes()
             suffix = Path(path).suffix.lower().lstrip(".")

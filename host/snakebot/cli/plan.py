@@ -10,7 +10,7 @@ from typing import Any
 import click
 
 from snakebot.cli.output import dumps
-from snakebot.cli.params import ANGLE, ANGLES, NUMBER
+from snakebot.cli.params import ANGLE, ANGLES, NUMBER, OUTPUT_PATH
 from snakebot.gait.values import InputError, parse_angle, parse_number
 from snakebot.plan import Unreachable
 from snakebot.plan.planner import DEFAULT_HEADING_TOLERANCE, DEFAULT_TOLERANCE
@@ -97,7 +97,7 @@ def unreachable(exc: Unreachable) -> None:
 @click.option(
     "--output",
     "-o",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=OUTPUT_PATH,
     help="the gait table to write (FILE.json gets the metadata), or with a .prog suffix "
     "the controller program (on-board generators: a few hundred bytes); without it the "
     "plan is only reported",

@@ -10,6 +10,7 @@ from typing import Any
 import click
 
 from snakebot.cli.output import dumps
+from snakebot.cli.params import OUTPUT_PATH
 from snakebot.program import PeriodicSegment, Program, SerpenoidSegment, TableSegment
 from snakebot.program.files import read_program, write_program
 from snakebot.program.spec import build_program, load_spec
@@ -36,7 +37,7 @@ def program() -> None:
 @click.option(
     "-o",
     "--output",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=OUTPUT_PATH,
     required=True,
     help="The program file to write (.prog).",
 )

@@ -11,7 +11,7 @@ import click
 
 import snakebot.transport.ports  # noqa: F401  (registers sim://)
 from snakebot.cli.output import dumps
-from snakebot.cli.params import NUMBER, PLOT_PATH, NumberType
+from snakebot.cli.params import NUMBER, OUTPUT_PATH, PLOT_PATH, NumberType
 from snakebot.extras import require
 from snakebot.program.files import is_program_file
 from snakebot.program.motion import predict_program
@@ -69,7 +69,7 @@ def _motion(label: str, m: dict[str, Any]) -> str:
 )
 @click.option(
     "--video",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=OUTPUT_PATH,
     help="write a GIF (or an MP4, with ffmpeg) of the emulated robot seen from above, "
     "the predicted one beside it",
 )

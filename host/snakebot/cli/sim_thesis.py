@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from snakebot.cli.output import dumps
+from snakebot.cli.params import OUTPUT_PATH
 from snakebot.errors import SnakebotError
 from snakebot.sim.physics.video import check_video_path, write_video
 
@@ -47,7 +48,7 @@ def _floats(text: str) -> tuple[float, ...]:
 )
 @click.option(
     "--video",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=OUTPUT_PATH,
     help="Write a GIF (or MP4, with ffmpeg) per run, seen from above, both worlds "
     "overlaid: FILE for one run, FILE's name with -NAME added for several.",
 )

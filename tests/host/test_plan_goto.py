@@ -72,9 +72,6 @@ PHYSICS_MISSES = {
         "off (docs/goto.md)"
         for seed in PHYSICS_SEEDS
     },
-    ("snake3", 31): "no route keeps snake3's loops off the singular line within what one "
-    "gait table holds at this target: the closed loop ends about 40x the tolerance off "
-    "(docs/goto.md)",
 }
 
 

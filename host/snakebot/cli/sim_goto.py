@@ -68,7 +68,9 @@ def goto(
     would on the real robot, and the next loop is fitted again to its share of what is
     left of the way, corrected by what the world made of the loops so far (a floor that
     slips moves the body shorter or askew); loops go on until the move back would end
-    within half the tolerance (five times the planned loops at most). The report gives
+    within half the tolerance (five times the planned loops at most). On a physics world,
+    where no route's loops keep well off singular configurations, it goes by the
+    half-way pose: one closed loop there, a second from there on. The report gives
     the final error, the loops played (iterations) and the path; the exit status is 1
     if the end is outside the tolerance. On a physics world an N-link snake (snake5)
     steers serpenoid cycles with a steering offset instead of loops, their distance and

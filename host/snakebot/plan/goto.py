@@ -81,6 +81,12 @@ PHYSICS_KEEP_OFF = 0.04
 #: A loop refitted in closed loop need only be this near its share of the way (relative
 #: to the share): the next loop corrects what it misses.
 STEP_ACCURACY = 0.2
+#: Where no route to the target keeps its loops ``PHYSICS_KEEP_OFF`` from singular
+#: configurations, the closed loop goes first to this share of the target pose (of its
+#: displacement and of its turn), then from there to the target: other loops. On MuJoCo
+#: the 3-link snake's loops stalled short of such a target (seed 31) and the next threw
+#: the body a body length (42x the tolerance); by the half-way pose it ended at 0.1x.
+WAYPOINT_SHARE = 0.5
 #: Bounds of the size factor between one loop and the next one's first guess.
 SHRINK_MIN, SHRINK_MAX = 0.2, 1.5
 
@@ -201,8 +207,17 @@ def goto(
     tol = Tolerance.for_target(robot, goal, tolerance, heading_tolerance)
     waves = uses_serpenoid(robot, world)
     keep_off = NEAR_SINGULAR_RCOND if world == "kinematic" else PHYSICS_KEEP_OFF
+    way = None
     if not waves:
-        route, keep_off = _route(robot, phi0, goal, tol, keep_off)
+        route, kept = _route(robot, phi0, goal, tol, keep_off)
+        if kept < keep_off:
+            # no route keeps off: go by a waypoint, closed loop to it, then from there
+            way = WAYPOINT_SHARE * goal
+            way_tol = Tolerance.for_target(robot, way, tolerance, heading_tolerance)
+            # (its refits keep off as far as ever, even if this route does not)
+            route = _route(robot, phi0, way, way_tol, keep_off)[0]
+        else:
+            keep_off = kept
     if slowdown is None:
         slowdown = 1 if world == "kinematic" else PHYSICS_SLOWDOWN
     if not (isinstance(slowdown, int) and 1 <= slowdown <= MAX_SLOWDOWN):
@@ -224,7 +239,13 @@ def goto(
             pose = serpenoid_goto.follow(runner, phi0, goal, tol, segments, progress)
         else:
             runner = Runner(client, bus, robot, w, slowdown)
-            pose = _follow(runner, route, goal, tol, keep_off, period_ms, segments, progress)
+            pose = np.zeros(3)
+            if way is not None:
+                pose = _follow(runner, route, way, way_tol, keep_off, period_ms, segments, progress)
+                # on from wherever the first closed loop ended
+                remaining = se2.relative(pose, goal)
+                route, keep_off = _route(robot, phi0, remaining, tol, keep_off)
+            pose = _follow(runner, route, goal, tol, keep_off, period_ms, segments, progress, pose)
         w.stop()
         record = w.record()
     finally:
@@ -259,8 +280,10 @@ def _follow(
     period_ms: int,
     segments: list[dict[str, Any]],
     progress: Any,
+    origin: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Play the route in closed loop; returns the pose at the end.
+    """Play the route in closed loop from the pose ``origin`` (default: the start) to
+    ``goal`` (both in the start's frame); returns the pose at the end.
 
     After the move to the hub, loops go on while leaving now (the move back to the
     start) would end outside the tolerance, up to ``LOOPS_FACTOR`` times the planned
@@ -276,7 +299,7 @@ def _follow(
     back = path_motion(robot, leave) if len(leave) > 1 else np.zeros(3)
     most = LOOPS_FACTOR * route.count
     total = most + 2
-    pose = np.zeros(3)
+    pose = np.zeros(3) if origin is None else origin
     done = 0
     response = Response(scale)
 

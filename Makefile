@@ -23,7 +23,7 @@ TEST_APT    := $(DEMO_APT) clang libclang-rt-14-dev zlib1g-dev tmux
 TEST_JOBS   ?= 2
 
 .PHONY: help setup system-packages demo-packages python-env runtime-env core firmware \
-        test test-parallel test-serial lint fuzz-targets bench demo flash flash-image clean fuzz docs
+        test test-parallel lint fuzz-targets bench demo flash flash-image clean fuzz docs
 
 help:
 	@echo "make demo      run the main job on the emulated robot (does its own set-up)"
@@ -85,40 +85,30 @@ core: $(VENV)/.core
 firmware: demo-packages
 	$(Q)$(MAKE) --no-print-directory -C firmware
 
-# The static checks, the firmware and the fuzz targets side by side; then, all at once:
-# the suite on TEST_JOBS workers (--dist loadgroup: each test file whole in one worker, so
-# module fixtures such as the package check's wheel are made once, except the long files
-# tests/conftest.py spreads), the fuzz tests split in two, and the tests marked `serial`
-# (fault campaigns whose counts need QEMU to keep pace in real time, dynamixel-sdk's fixed
-# waits). The serial pass mostly waits on the emulated robot's clock, so it runs at normal
-# priority and takes the CPU whenever it wants it; the parallel pass runs niced under it
-# and the fuzzing passes (which last their fixed time whatever their priority) lowest of
-# all. Building first means no two processes compile the same files at the same time.
+# The static checks, the firmware and the fuzz targets side by side; then the suite on
+# TEST_JOBS workers (--dist loadgroup: each test file whole in one worker, so module
+# fixtures such as the package check's wheel are made once, except the long files
+# tests/conftest.py spreads) beside the fuzz tests split in two, so that the two fuzzing
+# passes overlap; then the tests marked `serial` (fault campaigns whose counts need QEMU
+# to keep pace, dynamixel-sdk's fixed waits) with nothing beside them. A fuzzing pass
+# lasts its fixed time whatever its priority, so it runs niced and yields the CPU to the
+# tests beside it. Building first means no two processes compile the same files at the
+# same time.
 FUZZ_TESTS  := tests/reliability/test_fuzz_targets.py
 FUZZ_K_1    := fuzz_pclink
 FUZZ_K_2    := not fuzz_pclink
 test: system-packages python-env
 	$(Q)$(MAKE) --no-print-directory -j$(TEST_JOBS) lint firmware fuzz-targets
-	$(Q)$(MAKE) --no-print-directory -j4 PARALLEL_LAUNCH="nice -n 10" \
-	    test-parallel test-serial test-fuzz-1 test-fuzz-2
+	$(Q)$(MAKE) --no-print-directory -j3 test-parallel test-fuzz-1 test-fuzz-2
+	$(Q)$(PY) -m pytest -m serial
 
 test-parallel:
-	$(Q)$(PARALLEL_LAUNCH) $(PY) -m pytest -n $(TEST_JOBS) --dist loadgroup -m "not serial" \
-	    --ignore=$(FUZZ_TESTS)
-
-# `make test` runs the parallel pass niced under the serial one; alone it runs as it is.
-PARALLEL_LAUNCH ?=
-
-test-serial:
-	@mkdir -p build
-	$(Q)$(PY) -m pytest -p no:cacheprovider -m serial > build/test-serial.log 2>&1 \
-	    && echo "serial tests: $$(tail -n1 build/test-serial.log)" \
-	    || { cat build/test-serial.log; exit 1; }
+	$(Q)$(PY) -m pytest -n $(TEST_JOBS) --dist loadgroup -m "not serial" --ignore=$(FUZZ_TESTS)
 
 # Each half writes a log, shown whole if it fails (one line if not), so outputs do not mix.
 test-fuzz-%:
 	@mkdir -p build
-	$(Q)FUZZ_LAUNCH="nice -n 19" $(PY) -m pytest -q -p no:cacheprovider $(FUZZ_TESTS) \
+	$(Q)FUZZ_LAUNCH="nice -n 10" $(PY) -m pytest -q -p no:cacheprovider $(FUZZ_TESTS) \
 	    -k "$(FUZZ_K_$*)" > build/test-fuzz-$*.log 2>&1 \
 	    && echo "fuzz tests ($(FUZZ_K_$*)): $$(tail -n1 build/test-fuzz-$*.log)" \
 	    || { cat build/test-fuzz-$*.log; exit 1; }

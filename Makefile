@@ -86,9 +86,8 @@ firmware: demo-packages
 	$(Q)$(MAKE) --no-print-directory -C firmware
 
 # The static checks, the firmware and the fuzz targets side by side; then the suite on
-# TEST_JOBS workers (--dist loadgroup: each test file whole in one worker, so module
-# fixtures such as the package check's wheel are made once, except the long files
-# tests/conftest.py spreads) beside the fuzz tests split in two, so that the two fuzzing
+# TEST_JOBS workers (--dist loadfile: each test file whole in one worker, so module
+# fixtures such as the package check's wheel are made once) beside the fuzz tests split in two, so that the two fuzzing
 # passes overlap; then the tests marked `serial` (fault campaigns whose counts need QEMU
 # to keep pace, dynamixel-sdk's fixed waits) with nothing beside them. A fuzzing pass
 # lasts its fixed time whatever its priority, so it runs niced and yields the CPU to the
@@ -103,7 +102,7 @@ test: system-packages python-env
 	$(Q)$(PY) -m pytest -m serial
 
 test-parallel:
-	$(Q)$(PY) -m pytest -n $(TEST_JOBS) --dist loadgroup -m "not serial" --ignore=$(FUZZ_TESTS)
+	$(Q)$(PY) -m pytest -n $(TEST_JOBS) --dist loadfile -m "not serial" --ignore=$(FUZZ_TESTS)
 
 # Each half writes a log, shown whole if it fails (one line if not), so outputs do not mix.
 test-fuzz-%:

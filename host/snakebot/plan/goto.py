@@ -29,6 +29,7 @@ from snakebot.plan.loops import Loop, PlanError, path_motion
 from snakebot.plan.planner import (
     DEFAULT_HEADING_TOLERANCE,
     DEFAULT_TOLERANCE,
+    EndsNearTarget,
     Route,
     Tolerance,
     body_length,
@@ -113,7 +114,7 @@ def make_world(name: str, bus: Bus, robot: Robot, period: float, start: float) -
 
 
 @dataclass
-class GotoResult:
+class GotoResult(EndsNearTarget):
     """What the closed loop did: per segment the pose the world reported, the path."""
 
     robot: Robot
@@ -126,12 +127,8 @@ class GotoResult:
     wall_s: float
 
     @property
-    def error(self) -> tuple[float, float]:
-        return pose_error(self.final, self.target)
-
-    @property
-    def within(self) -> bool:
-        return self.tolerance.admits(self.error)
+    def end(self) -> np.ndarray:
+        return self.final
 
     def summary(self) -> dict[str, Any]:
         return {

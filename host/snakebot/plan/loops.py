@@ -25,7 +25,9 @@ above the tools' warning threshold).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -115,11 +117,6 @@ def solve_loop(
     ``scale`` is the length that weighs position against heading (radians); the first
     guess whose solution reaches ``accuracy`` (scaled residual) wins. The loop keeps off
     configurations whose reciprocal condition number is below ``keep_off``."""
-    try:
-        from scipy.optimize import least_squares  # the planner's optional dependency
-    except ImportError:  # pragma: no cover - make setup installs it
-        raise PlanError("planning needs SciPy: pip install 'snakebot[plan]'") from None
-
     lo, hi = limits(robot)
     weights = np.array([1.0 / scale, 1.0 / scale, 1.0])
 
@@ -134,26 +131,35 @@ def solve_loop(
         near = max(0.0, keep_off - rcond) / keep_off
         return np.r_[(moved - wanted) * weights, 10.0 * outside, near]
 
+    tight = {"max_nfev": MAX_EVALS, "xtol": 1e-12, "ftol": 1e-12, "gtol": 1e-12}
+    p = best_fit(residual, guesses, accuracy, **tight)
+    if p is None:
+        return None
+    return Loop(np.asarray(hub, dtype=float), p, path_motion(robot, loop_angles(hub, p)))
+
+
+def best_fit(
+    residual: Callable[[np.ndarray], np.ndarray],
+    guesses: Iterable[np.ndarray],
+    accuracy: float,
+    **options: Any,
+) -> np.ndarray | None:
+    """Least squares from each guess in turn (SciPy's trust-region method, ``options``
+    passed on): the first solution whose residuals all reach ``accuracy``, else None."""
+    try:
+        from scipy.optimize import least_squares  # the planner's optional dependency
+    except ImportError:  # pragma: no cover - make setup installs it
+        raise PlanError("planning needs SciPy: pip install 'snakebot[plan]'") from None
     best = None
     for guess in guesses:
-        sol = least_squares(
-            residual,
-            guess,
-            method="trf",
-            x_scale=0.3,
-            max_nfev=MAX_EVALS,
-            xtol=1e-12,
-            ftol=1e-12,
-            gtol=1e-12,
-        )
+        sol = least_squares(residual, guess, method="trf", x_scale=0.3, **options)
         if best is None or sol.cost < best.cost:
             best = sol
         if np.abs(sol.fun).max() <= accuracy:
             break
     if best is None or np.abs(best.fun).max() > accuracy:
         return None
-    angles = loop_angles(hub, best.x)
-    return Loop(np.asarray(hub, dtype=float), best.x, path_motion(robot, angles))
+    return np.asarray(best.x)
 
 
 def refine_ticks(

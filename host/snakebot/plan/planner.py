@@ -227,8 +227,28 @@ def frame_period_ms(robot: Robot, angles: np.ndarray) -> int:
     return max(1, math.ceil(seconds * 1000.0 / TICK_MS - 1e-9)) * TICK_MS
 
 
+class EndsNearTarget:
+    """The error and verdict of something that ends at a pose (``end``, by default its
+    ``reached`` attribute) aiming at ``target`` within ``tolerance``."""
+
+    target: np.ndarray
+    tolerance: Tolerance
+
+    @property
+    def end(self) -> np.ndarray:
+        return self.reached  # type: ignore[attr-defined, no-any-return]
+
+    @property
+    def error(self) -> tuple[float, float]:
+        return pose_error(self.end, self.target)
+
+    @property
+    def within(self) -> bool:
+        return self.tolerance.admits(self.error)
+
+
 @dataclass
-class Plan:
+class Plan(EndsNearTarget):
     """A plan and what is known about it; ``gait`` is the table to write."""
 
     robot: Robot
@@ -238,14 +258,6 @@ class Plan:
     gait: Gait
     reached: np.ndarray
     segments: list[dict[str, Any]] = field(default_factory=list)
-
-    @property
-    def error(self) -> tuple[float, float]:
-        return pose_error(self.reached, self.target)
-
-    @property
-    def within(self) -> bool:
-        return self.tolerance.admits(self.error)
 
     def summary(self) -> dict[str, Any]:
         return {

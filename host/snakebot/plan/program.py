@@ -39,6 +39,7 @@ from snakebot.plan import se2
 from snakebot.plan.loops import (
     LIMIT_MARGIN,
     PlanError,
+    best_fit,
     limits,
     loop_angles,
     path_motion,
@@ -47,6 +48,7 @@ from snakebot.plan.loops import (
 from snakebot.plan.planner import (
     DEFAULT_HEADING_TOLERANCE,
     DEFAULT_TOLERANCE,
+    EndsNearTarget,
     Tolerance,
     Unreachable,
     body_length,
@@ -56,7 +58,6 @@ from snakebot.plan.planner import (
     loop_counts,
     loop_target,
     pose_dict,
-    pose_error,
     ramp,
     routes,
     solve_accuracy,
@@ -163,7 +164,7 @@ def _power(g: np.ndarray, k: int) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class ProgramPlan:
+class ProgramPlan(EndsNearTarget):
     """A plan as a program and what is known about it."""
 
     robot: Robot
@@ -172,14 +173,6 @@ class ProgramPlan:
     program: Program
     route: Route
     reached: np.ndarray
-
-    @property
-    def error(self) -> tuple[float, float]:
-        return pose_error(self.reached, self.target)
-
-    @property
-    def within(self) -> bool:
-        return self.tolerance.admits(self.error)
 
     def summary(self) -> dict[str, Any]:
         p = self.program
@@ -301,10 +294,6 @@ def fit_route(
     """The parameters of a ``kind`` route with k loops a wave that ends at ``target``
     (the loops' frames inside the limits less the margin): the first guess's solution
     within ``accuracy`` (scaled residual per loop), or None."""
-    try:
-        from scipy.optimize import least_squares  # the planner's optional dependency
-    except ImportError:  # pragma: no cover - make setup installs it
-        raise PlanError("planning needs SciPy: pip install 'snakebot[plan]'") from None
     lo, hi = limits(robot)
     weights = np.array([1.0 / body_length(robot), 1.0 / body_length(robot), 1.0]) / k
     bounds: tuple[Any, Any] = (-np.inf, np.inf)
@@ -326,16 +315,7 @@ def fit_route(
         d[2] = (d[2] + math.pi) % (2 * math.pi) - math.pi
         return np.r_[d * weights, 10.0 * outside]
 
-    best = None
-    for guess in guesses:
-        sol = least_squares(residual, guess, method="trf", max_nfev=80, x_scale=0.3, bounds=bounds)
-        if best is None or sol.cost < best.cost:
-            best = sol
-        if np.abs(sol.fun).max() <= accuracy:
-            break
-    if best is None or np.abs(best.fun).max() > accuracy:
-        return None
-    return np.asarray(best.x)
+    return best_fit(residual, guesses, accuracy, max_nfev=80, bounds=bounds)
 
 
 def _guesses(robot: Robot, start: np.ndarray, kind: str) -> list[np.ndarray]:

@@ -280,8 +280,12 @@ class DxlClient:
         packet = bytes(packet)
         if len(packet) < 6 or packet[:2] != b"\xff\xff":
             raise ProtocolError(f"not an instruction packet: {packet.hex(' ')}")
-        tries = 1 + (self.retries if retries is None else settings.resolve_retries(retries))
+        tries = self._tries(retries)
         return self._transact(packet, expect_id, expect_params_len, check, tries, silence_s)
+
+    def _tries(self, retries: int | None) -> int:
+        """Attempts for a transaction: the client's retries, or ``retries`` if given."""
+        return 1 + (self.retries if retries is None else settings.resolve_retries(retries))
 
     def _transact(
         self,
@@ -510,7 +514,7 @@ class DxlClient:
         ``silence_s`` (:meth:`transact`) suit a bus scan, where most IDs are silent.
         """
         _require_device(servo_id, "PING")
-        tries = 1 + (self.retries if retries is None else settings.resolve_retries(retries))
+        tries = self._tries(retries)
         return self._transact(_ping_packet(servo_id), servo_id, 0, check, tries, silence_s)
 
     def read(self, servo_id: int, address: int, length: int) -> bytes:

@@ -25,8 +25,14 @@ CTL = load()
 
 @pytest.fixture(scope="module")
 def firmware(tmp_path_factory):
-    with served_firmware(tmp_path_factory.mktemp("bus")) as port:
-        yield port
+    # The clients these tests open themselves (ControllerClient, the flash backup) wait
+    # as long as the CLI's do: with the default margin a loaded machine makes QEMU's
+    # reply late and the controller look silent.
+    with pytest.MonkeyPatch.context() as env:
+        for name, value in ENV.items():
+            env.setenv(name, value)
+        with served_firmware(tmp_path_factory.mktemp("bus")) as port:
+            yield port
 
 
 def test_store_list_play_stop_delete(firmware, tmp_path):

@@ -217,7 +217,7 @@ static uint8_t lib_remove(uint8_t slot)
 }
 
 static const lib_store fuzz_library = {LIB_SLOTS, FUZZ_CAPACITY, lib_get, lib_put,
-                                       lib_remove};
+                                       lib_remove, NULL};
 
 /* Whether table[0..len) is what a library slot keeps as a table. */
 static bool in_library(const uint8_t *table, uint16_t len)

@@ -47,6 +47,26 @@ class PyStore:
         self._keep += [get, put, remove]
         self.c = ffi.new("lib_store *", {"slots": slots, "capacity": capacity})
         self.c.get, self.c.put, self.c.remove = get, put, remove
+        # a store that writes in the background, as the CM-530's does: what it writes
+        self.writing = lib.CTL_STORE_STATE_IDLE
+        self.percent = 0
+        self.background = False  # put and remove begin a write rather than finish it
+
+    def write_in_background(self) -> None:
+        saving = ffi.callback("uint8_t(uint8_t *)", self._saving)
+        self._keep.append(saving)
+        self.c.saving = saving
+        self.background = True
+
+    def _saving(self, percent) -> int:
+        percent[0] = self.percent
+        return self.writing
+
+    def _begun(self) -> int:
+        if not self.background:
+            return OK
+        self.writing, self.percent = lib.CTL_STORE_STATE_LIBRARY, 0
+        return result("LIBRARY_STORING")
 
     def _get(self, slot, out, data) -> None:
         if slot not in self.slots:
@@ -63,12 +83,12 @@ class PyStore:
         self.calls.append(("put", slot, kind))
         self.slots[slot] = (kind, bytes(ffi.buffer(name, NAME_BYTES)).rstrip(b"\0"), blob)
         self.data_buffers.pop(slot, None)
-        return OK
+        return self._begun()
 
     def _remove(self, slot) -> int:
         self.calls.append(("remove", slot))
         self.slots.pop(slot, None)
-        return OK
+        return self._begun()
 
 
 def table(frames: int = 3, low: int = 400) -> bytes:
@@ -270,3 +290,110 @@ def test_a_slot_reads_back_through_the_slot_data_window():
     store.damaged.add(4)  # a damaged slot shows nothing
     assert c.dev.set("Slot Offset", 0) == 0
     assert set(c.text("Slot Data")) == {0}
+
+
+def program_page(c: Lib, *names: str) -> dict[str, int]:
+    """Registers of the Program page (the window shows it meanwhile), then back to the
+    Library page."""
+    assert c.dev.set("Window Page", CTL.page("Program").number) == 0
+    values = {n: c.get(n) for n in names}
+    assert c.dev.set("Window Page", LIBRARY.number) == 0
+    return values
+
+
+def test_a_store_written_in_the_background_shows_its_state_and_ends_with_its_result():
+    store = PyStore()
+    store.write_in_background()
+    c = Lib(store)
+    assert program_page(c, "Store State", "Store Progress") == {
+        "Store State": lib.CTL_STORE_STATE_IDLE,
+        "Store Progress": 0,
+    }
+    assert c.store_blob(3, b"walk", table()) == result("LIBRARY_STORING")
+    assert c.get("Library Result") == result("LIBRARY_STORING")
+    assert not c.dev.flags & ControllerErrors.LIBRARY  # begun, not failed
+    store.percent = 40
+    assert program_page(c, "Store State", "Store Progress") == {
+        "Store State": lib.CTL_STORE_STATE_LIBRARY,
+        "Store Progress": 40,
+    }
+    store.writing = lib.CTL_STORE_STATE_IDLE
+    lib.ctl_library_stored(c.dev.d, OK)
+    assert c.get("Upload Result") == OK and c.get("Library Result") == OK
+    assert not c.dev.flags & ControllerErrors.LIBRARY
+    # a store that fails in flash says so when it ends
+    assert c.store_blob(3, b"walk", table()) == result("LIBRARY_STORING")
+    store.writing = lib.CTL_STORE_STATE_IDLE
+    lib.ctl_library_stored(c.dev.d, result("LIBRARY_FLASH"))
+    assert c.get("Upload Result") == result("LIBRARY_FLASH")
+    assert c.get("Library Result") == result("LIBRARY_FLASH")
+    assert c.dev.flags & ControllerErrors.LIBRARY
+
+
+def test_while_a_library_store_runs_its_staged_blob_and_the_library_are_left_alone():
+    """The store reads the staging area until it ends: chunks, commits, other library
+    operations and plays (from the page or the buttons) are refused with STORE_BUSY."""
+    store = PyStore()
+    store.write_in_background()
+    c = Lib(store)
+    walk = table()
+    store.background = False
+    assert c.store_blob(1, b"walk", walk) == OK  # something to play
+    store.background = True
+    assert c.store_blob(2, b"turn", table(5)) == result("LIBRARY_STORING")
+    busy = result("STORE_BUSY")
+    chunk = CTL.register("Upload Offset")
+    refused = c.dev.one(write(CTL_ID, chunk.address, bytes(2) + bytes(16)))
+    assert refused.error == ErrorFlags.RANGE and c.get("Upload Result") == busy
+    assert c.dev.flags & ControllerErrors.LIBRARY
+    assert c.dev.command("CLEAR") == 0
+    assert c.commit("TABLE", walk) == busy
+    for what in ("LIBRARY_STORE", "LIBRARY_DELETE"):
+        assert c.commit(what, walk) == busy and c.get("Library Result") == busy
+    assert c.dev.set("Library Slot", 1) == 0
+    assert c.dev.command("LIBRARY_PLAY") == 0
+    assert c.get("Library Result") == busy and c.dev.state == lib.CTL_STATE_IDLE
+    assert c.dev.flags & ControllerErrors.REFUSED
+    c.press(lib.CTL_BUTTONS_U)
+    c.press(lib.CTL_BUTTONS_START)
+    assert c.get("Library Result") == busy and c.dev.state == lib.CTL_STATE_IDLE
+    assert [call[0] for call in store.calls] == ["put", "put"]  # nothing more reached it
+    store.writing = lib.CTL_STORE_STATE_IDLE
+    lib.ctl_library_stored(c.dev.d, OK)
+    c.press(lib.CTL_BUTTONS_START)  # now it plays
+    assert c.get("Library Result") == OK and c.dev.state == lib.CTL_STATE_PLAYING
+
+
+def test_while_the_committed_table_is_saved_library_operations_wait_but_commits_do_not():
+    """A play would replace the table the save reads (abandoning it), a store would
+    stage over it: both are refused until the save ends. A newer commit just restarts
+    the save (the app's job), so it is taken."""
+    store = PyStore()
+    store.write_in_background()
+    store.background = False
+    c = Lib(store)
+    walk = table()
+    assert c.store_blob(1, b"walk", walk) == OK
+    # committed, and the app has not begun to save it yet: that counts as saving too
+    assert c.dev.upload(table(4)) == OK
+    assert program_page(c, "Store State")["Store State"] == lib.CTL_STORE_STATE_TABLE
+    assert c.dev.set("Library Slot", 1) == 0
+    assert c.dev.command("LIBRARY_PLAY") == 0
+    assert c.get("Library Result") == result("STORE_BUSY")
+    assert lib.ctl_table_changed(c.dev.d)  # the app begins the save
+    store.writing, store.percent = lib.CTL_STORE_STATE_TABLE, 70
+    assert program_page(c, "Store State", "Store Progress") == {
+        "Store State": lib.CTL_STORE_STATE_TABLE,
+        "Store Progress": 70,
+    }
+    assert c.dev.command("LIBRARY_PLAY") == 0
+    assert c.get("Library Result") == result("STORE_BUSY")
+    assert c.store_blob(2, b"turn", table(5)) == result("STORE_BUSY")
+    assert c.commit("LIBRARY_DELETE") == result("STORE_BUSY")
+    assert [call[0] for call in store.calls] == ["put"]
+    assert c.dev.upload(table(6)) == OK  # a newer table: the app restarts the save
+    store.writing = lib.CTL_STORE_STATE_IDLE
+    assert lib.ctl_table_changed(c.dev.d)
+    assert c.dev.set("Library Slot", 1) == 0
+    assert c.dev.command("LIBRARY_PLAY") == 0
+    assert c.get("Library Result") == OK and c.dev.state == lib.CTL_STATE_PLAYING

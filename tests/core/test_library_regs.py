@@ -12,6 +12,7 @@ import pytest
 from ctl_support import CTL, CTL_ID, Device, lib_value
 from hypothesis import given
 from hypothesis import strategies as st
+from py_library import NAME_BYTES, PyStore
 from test_program_controller import program
 
 from snakebot.controller import ControllerErrors
@@ -20,7 +21,7 @@ from snakebot.gaittable import GaitTable
 from snakebot.protocol import ErrorFlags, write
 
 LIBRARY = CTL.page("Library")
-NAME_BYTES = CTL.register("Slot Name").size
+
 OK = lib_value("Upload Result", "OK")
 TABLE = lib_value("Upload Commit", "TABLE")
 SCANS = lib.BUTTONS_DEBOUNCE_SCANS
@@ -28,67 +29,6 @@ SCANS = lib.BUTTONS_DEBOUNCE_SCANS
 
 def result(name: str) -> int:
     return lib_value("Upload Result", name)
-
-
-class PyStore:
-    """A lib_store whose slots live in a dict, with the calls it received."""
-
-    def __init__(self, slots: int = CTL.limits["max_library_slots"], capacity: int = 2048):
-        self.slots: dict[int, tuple[int, bytes, bytes]] = {}  # slot -> kind, name, data
-        self.damaged: set[int] = set()
-        self.calls: list[tuple] = []
-        self._keep: list = []
-        self.data_buffers: dict[int, object] = {}
-        get = ffi.callback("void(uint8_t, lib_slot *, const uint8_t **)", self._get)
-        put = ffi.callback(
-            "uint8_t(uint8_t, uint8_t, const uint8_t *, const uint8_t *, uint16_t)", self._put
-        )
-        remove = ffi.callback("uint8_t(uint8_t)", self._remove)
-        self._keep += [get, put, remove]
-        self.c = ffi.new("lib_store *", {"slots": slots, "capacity": capacity})
-        self.c.get, self.c.put, self.c.remove = get, put, remove
-        # a store that writes in the background, as the CM-530's does: what it writes
-        self.writing = lib.CTL_STORE_STATE_IDLE
-        self.percent = 0
-        self.background = False  # put and remove begin a write rather than finish it
-
-    def write_in_background(self) -> None:
-        saving = ffi.callback("uint8_t(uint8_t *)", self._saving)
-        self._keep.append(saving)
-        self.c.saving = saving
-        self.background = True
-
-    def _saving(self, percent) -> int:
-        percent[0] = self.percent
-        return self.writing
-
-    def _begun(self) -> int:
-        if not self.background:
-            return OK
-        self.writing, self.percent = lib.CTL_STORE_STATE_LIBRARY, 0
-        return result("LIBRARY_STORING")
-
-    def _get(self, slot, out, data) -> None:
-        if slot not in self.slots:
-            return
-        kind, name, blob = self.slots[slot]
-        out.status = lib.CTL_SLOT_STATUS_DAMAGED if slot in self.damaged else lib.CTL_SLOT_STATUS_OK
-        out.kind, out.len, out.crc = kind, len(blob), zlib.crc32(blob)
-        ffi.memmove(out.name, name, len(name))
-        buf = self.data_buffers.setdefault(slot, ffi.new("uint8_t[]", blob))
-        data[0] = ffi.NULL if slot in self.damaged else buf
-
-    def _put(self, slot, kind, name, data, length) -> int:
-        blob = bytes(ffi.buffer(data, length))
-        self.calls.append(("put", slot, kind))
-        self.slots[slot] = (kind, bytes(ffi.buffer(name, NAME_BYTES)).rstrip(b"\0"), blob)
-        self.data_buffers.pop(slot, None)
-        return self._begun()
-
-    def _remove(self, slot) -> int:
-        self.calls.append(("remove", slot))
-        self.slots.pop(slot, None)
-        return self._begun()
 
 
 def table(frames: int = 3, low: int = 400) -> bytes:

@@ -38,8 +38,13 @@ static uint8_t flash_remove(uint8_t slot)
     return store_library_begin(slot, STORE_LIB_KIND_EMPTY, NULL, NULL, 0);
 }
 
-static const lib_store library = {STORE_LIB_SLOTS, BOARD_LIB_AREA_SIZE, flash_get,
-                                  flash_put,       flash_remove,        store_saving};
+static const lib_store library = {.slots = STORE_LIB_SLOTS,
+                                  .memory = CTL_LIBRARY_MEMORY_FLASH,
+                                  .capacity = BOARD_LIB_AREA_SIZE,
+                                  .get = flash_get,
+                                  .put = flash_put,
+                                  .remove = flash_remove,
+                                  .saving = store_saving};
 
 void store_play_init(ctl_device *ctl)
 {
@@ -102,8 +107,13 @@ static uint8_t alias_remove(uint8_t slot)
 }
 
 /* No background writes: QEMU keeps the library in RAM (saving NULL: Store State IDLE). */
-static const lib_store library = {1U, BOARD_TABLE_CAPACITY, alias_get, alias_put, alias_remove,
-                                  NULL};
+static const lib_store library = {.slots = 1U,
+                                  .memory = CTL_LIBRARY_MEMORY_RAM,
+                                  .capacity = BOARD_TABLE_CAPACITY,
+                                  .get = alias_get,
+                                  .put = alias_put,
+                                  .remove = alias_remove,
+                                  .saving = NULL};
 
 void store_play_init(ctl_device *ctl)
 {

@@ -756,6 +756,8 @@ static uint32_t page_value(const ctl_device *d, uint8_t page, uint8_t addr)
         case CTL_MAX_SEGMENTS: return CTL_MAX_PROGRAM_SEGMENTS;
         case CTL_REFUSAL_REASON: return d->refusal;
         case CTL_BOARD: return d->board;
+        case CTL_LIBRARY_MEMORY:
+            return d->lib.store != NULL ? d->lib.store->memory : CTL_LIBRARY_MEMORY_NONE;
         case CTL_STORE_STATE: return lib_saving(&d->lib, d->table_changed != 0, NULL);
         case CTL_STORE_PROGRESS: {
             uint8_t percent = 0;

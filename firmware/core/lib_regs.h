@@ -27,6 +27,7 @@ typedef struct {
 /* What the app's store does. Results are CTL_UPLOAD_RESULT_OK or _LIBRARY_*. */
 typedef struct {
     uint8_t slots;     /* how many slots (at most CTL_MAX_LIBRARY_SLOTS) */
+    uint8_t memory;    /* where they are kept: CTL_LIBRARY_MEMORY_RAM or _FLASH */
     uint32_t capacity; /* bytes a slot takes */
     /* Slot `slot` (< slots) into *out; *data = where an OK slot's blob lies. */
     void (*get)(uint8_t slot, lib_slot *out, const uint8_t **data);

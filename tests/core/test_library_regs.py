@@ -337,3 +337,15 @@ def test_while_the_committed_table_is_saved_library_operations_wait_but_commits_
     assert c.dev.set("Library Slot", 1) == 0
     assert c.dev.command("LIBRARY_PLAY") == 0
     assert c.get("Library Result") == OK and c.dev.state == lib.CTL_STATE_PLAYING
+
+
+def test_library_memory_says_where_the_slots_are_kept():
+    assert program_page(Lib(None), "Library Memory")["Library Memory"] == 0  # NONE
+    store = PyStore()
+    assert program_page(Lib(store), "Library Memory")["Library Memory"] == (
+        lib.CTL_LIBRARY_MEMORY_RAM
+    )
+    store.write_in_background()
+    assert program_page(Lib(store), "Library Memory")["Library Memory"] == (
+        lib.CTL_LIBRARY_MEMORY_FLASH
+    )

@@ -55,7 +55,7 @@ def test_store_waits_for_the_write_and_reports_the_stored_slot(flash, tmp_path):
     assert "stored: 2  wave" in done.stdout and "OK" in done.stdout
     assert store.writing == lib.CTL_STORE_STATE_IDLE  # it returned once the write ended
     listed = cli_json("library", "list", "--port", port)
-    assert listed["store"] == {"state": "IDLE", "percent": 0}
+    assert listed["store"] == {"state": "IDLE", "percent": 0} and listed["memory"] == "FLASH"
     assert listed["slots"][2]["name"] == "wave" and listed["slots"][2]["status"] == "OK"
     deleted = cli_json("library", "delete", "2", "--port", port)
     assert deleted == {"slot": 2, "deleted": True} and 2 not in store.slots

@@ -33,7 +33,8 @@ class PyStore:
         )
         remove = ffi.callback("uint8_t(uint8_t)", self._remove)
         self._keep += [get, put, remove]
-        self.c = ffi.new("lib_store *", {"slots": slots, "capacity": capacity})
+        memory = lib.CTL_LIBRARY_MEMORY_RAM
+        self.c = ffi.new("lib_store *", {"slots": slots, "memory": memory, "capacity": capacity})
         self.c.get, self.c.put, self.c.remove = get, put, remove
         # a store that writes in the background, as the CM-530's does: what it writes
         self.writing = lib.CTL_STORE_STATE_IDLE
@@ -46,6 +47,7 @@ class PyStore:
         saving = ffi.callback("uint8_t(uint8_t *)", self._saving)
         self._keep.append(saving)
         self.c.saving = saving
+        self.c.memory = lib.CTL_LIBRARY_MEMORY_FLASH  # as the CM-530's
         self.background = True
 
     def _saving(self, percent) -> int:

@@ -12,7 +12,9 @@ import click
 from snakebot.cli.controller_link import controller_options, open_controller
 from snakebot.cli.output import dumps
 from snakebot.controller.library import (
+    IN_RAM,
     delete_slot,
+    library_memory,
     list_slots,
     play_slot,
     restore,
@@ -86,20 +88,25 @@ def library() -> None:
 @controller_options
 def list_command(port: str, baud: int, controller_id: int, as_json: bool) -> None:
     """Every slot: its name, kind, length, CRC-32, and whether its bytes are whole
-    (DAMAGED: the flash no longer matches the CRC; store the table again). While the
+    (DAMAGED: the flash no longer matches the CRC; store the table again), and where
+    the library is kept (--json: memory FLASH, or RAM on the QEMU board). While the
     controller writes its flash (a store under way), says so: the slot being stored
     shows its previous content until the write ends."""
     with open_controller(port, baud, controller_id) as ctl:
         ctl.identify()
         slots = list_slots(ctl)
         writing = store_state(ctl)
+        memory = library_memory(ctl)
     if as_json:
-        click.echo(dumps({"slots": [s.as_dict() for s in slots], "store": writing.as_dict()}))
+        listed = {"slots": [s.as_dict() for s in slots], "memory": memory}
+        click.echo(dumps({**listed, "store": writing.as_dict()}))
         return
     if not slots:
         click.echo("this controller has no gait library")
     for s in slots:
         click.echo(s.line())
+    if memory == "RAM":
+        click.echo(f"({IN_RAM})")
     if writing.state != "IDLE":
         click.echo(writing.line())
 

@@ -110,6 +110,17 @@ def _text(ctl: ControllerClient, name: str) -> bytes:
     return ctl.read_block(reg.address, reg.size)
 
 
+IN_RAM = (
+    "this controller keeps its library in RAM (the QEMU board): one slot, 0, which is its "
+    "active table; it empties when another table becomes active and at power-off"
+)
+
+
+def library_memory(ctl: ControllerClient) -> str:
+    """Where the library keeps its slots (Library Memory): FLASH, RAM or NONE."""
+    return _enum_name(ctl, "Library Memory", ctl.read("Library Memory")["Library Memory"])
+
+
 def library_size(ctl: ControllerClient) -> tuple[int, int]:
     """(Library Slots, Slot Capacity): 0 slots when the controller has no library."""
     r = ctl.read("Library Slots", "Slot Capacity")
@@ -186,6 +197,8 @@ def _check_slot(ctl: ControllerClient, slot: int) -> None:
     if count == 0:
         raise LibraryError(f"the controller refused ({_reason(ctl, 'LIBRARY_NONE')})")
     if not 0 <= slot < count:
+        if library_memory(ctl) == "RAM":
+            raise LibraryError(f"slot {slot} does not exist: {IN_RAM}; use slot 0")
         raise LibraryError(f"slot {slot} does not exist: this controller has slots 0..{count - 1}")
 
 

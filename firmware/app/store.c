@@ -34,6 +34,9 @@ typedef char store_slot_holds_a_table[(BOARD_STORE_SIZE / 2U) % BOARD_FLASH_PAGE
  * does (lib_regs.h). */
 static store_lib_job_t job;
 static uint8_t writing;
+/* A table committed while a library store ran: saved once the store ends. (The core
+ * refuses commits during a library store, so this is a belt to those braces.) */
+static bool table_waiting;
 
 /* A library store's outcome as Upload Result. */
 static uint8_t library_result(store_lib_status_t st)
@@ -117,7 +120,8 @@ bool store_load(ctl_device *ctl)
 void store_save_begin(const ctl_device *ctl)
 {
     if (writing == CTL_STORE_STATE_LIBRARY) {
-        return; /* cannot happen: no commit is taken while a library store runs */
+        table_waiting = true;
+        return;
     }
     size_t len = 0;
     const uint8_t *table = ctl_active_table(ctl, &len);
@@ -140,6 +144,10 @@ bool store_save_step(ctl_device *ctl)
     } else if (writing == CTL_STORE_STATE_LIBRARY && !store_lib_step(&job, STORE_SAVE_HALFWORDS)) {
         writing = CTL_STORE_STATE_IDLE;
         ctl_library_stored(ctl, library_result((store_lib_status_t)job.status));
+        if (table_waiting) {
+            table_waiting = false;
+            store_save_begin(ctl);
+        }
     }
     return writing != CTL_STORE_STATE_IDLE;
 }

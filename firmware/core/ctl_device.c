@@ -493,7 +493,7 @@ static void commit(ctl_device *d, uint8_t what)
         /* the staging area is the library store's until it ends */
         result = CTL_UPLOAD_RESULT_STORE_BUSY;
     } else if (what == CTL_UPLOAD_COMMIT_LIBRARY_DELETE) {
-        result = lib_delete(&d->lib); /* takes no staged bytes */
+        result = lib_delete(&d->lib, d->table_changed != 0); /* takes no staged bytes */
     } else if (staging_blocked(d)) {
         result = CTL_UPLOAD_RESULT_NO_ROOM_WHILE_PLAYING; /* nothing could be staged */
     } else if (len == 0 || len > d->capacity) {
@@ -513,7 +513,9 @@ static void commit(ctl_device *d, uint8_t what)
                  : d->lib.store_kind == CTL_UPLOAD_COMMIT_PROGRAM
                      ? check_program(d, staging(d), len)
                      : CTL_UPLOAD_RESULT_OK;
-        if (result == GT_OK) result = lib_store_blob(&d->lib, staging(d), (uint16_t)len);
+        if (result == GT_OK) {
+            result = lib_store_blob(&d->lib, d->table_changed != 0, staging(d), (uint16_t)len);
+        }
     } else {
         result = load_active(d, staging(d), len, crc, what);
     }

@@ -165,7 +165,7 @@ static uint8_t slot_problem(const lib_device *l)
     return CTL_UPLOAD_RESULT_OK;
 }
 
-uint8_t lib_store_blob(lib_device *l, const uint8_t *data, uint16_t len)
+uint8_t lib_store_blob(lib_device *l, bool table_pending, const uint8_t *data, uint16_t len)
 {
     uint8_t r = slot_problem(l);
     if (r == CTL_UPLOAD_RESULT_OK && !name_ok(l->name)) r = CTL_UPLOAD_RESULT_LIBRARY_BAD_NAME;
@@ -175,7 +175,7 @@ uint8_t lib_store_blob(lib_device *l, const uint8_t *data, uint16_t len)
     if (r == CTL_UPLOAD_RESULT_OK && len > l->store->capacity) {
         r = CTL_UPLOAD_RESULT_BAD_LENGTH;
     }
-    if (r == CTL_UPLOAD_RESULT_OK && lib_saving(l, false, NULL) != CTL_STORE_STATE_IDLE) {
+    if (r == CTL_UPLOAD_RESULT_OK && lib_saving(l, table_pending, NULL) != CTL_STORE_STATE_IDLE) {
         r = CTL_UPLOAD_RESULT_STORE_BUSY; /* one flash write at a time */
     }
     if (r == CTL_UPLOAD_RESULT_OK) r = l->store->put(l->slot, l->store_kind, l->name, data, len);
@@ -183,10 +183,10 @@ uint8_t lib_store_blob(lib_device *l, const uint8_t *data, uint16_t len)
     return r;
 }
 
-uint8_t lib_delete(lib_device *l)
+uint8_t lib_delete(lib_device *l, bool table_pending)
 {
     uint8_t r = slot_problem(l);
-    if (r == CTL_UPLOAD_RESULT_OK && lib_saving(l, false, NULL) != CTL_STORE_STATE_IDLE) {
+    if (r == CTL_UPLOAD_RESULT_OK && lib_saving(l, table_pending, NULL) != CTL_STORE_STATE_IDLE) {
         r = CTL_UPLOAD_RESULT_STORE_BUSY;
     }
     if (r == CTL_UPLOAD_RESULT_OK) r = l->store->remove(l->slot);

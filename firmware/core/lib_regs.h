@@ -88,10 +88,10 @@ bool lib_page_write(lib_device *l, uint8_t start, const uint8_t *data, uint16_t 
  * TABLE, on a store that saves in the background. */
 uint8_t lib_saving(const lib_device *l, bool table_pending, uint8_t *percent);
 /* Upload Commit LIBRARY_STORE of data[0..len) (checked by the caller) and
- * LIBRARY_DELETE: the result (STORE_BUSY while the store writes; LIBRARY_STORING once it
- * has begun to), also kept as Library Result. */
-uint8_t lib_store_blob(lib_device *l, const uint8_t *data, uint16_t len);
-uint8_t lib_delete(lib_device *l);
+ * LIBRARY_DELETE: the result (STORE_BUSY while the store writes, `table_pending` as for
+ * lib_saving; LIBRARY_STORING once it has begun to), also kept as Library Result. */
+uint8_t lib_store_blob(lib_device *l, bool table_pending, const uint8_t *data, uint16_t len);
+uint8_t lib_delete(lib_device *l, bool table_pending);
 /* The blob slot `slot` would play (a whole table): CTL_UPLOAD_RESULT_OK and *data, *len,
  * *crc, or why not (STORE_BUSY while the store writes, see lib_saving: a play would
  * replace the table a save reads, or land on the staged blob a store reads). */

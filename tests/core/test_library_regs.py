@@ -317,6 +317,8 @@ def test_while_the_committed_table_is_saved_library_operations_wait_but_commits_
     # committed, and the app has not begun to save it yet: that counts as saving too
     assert c.dev.upload(table(4)) == OK
     assert program_page(c, "Store State")["Store State"] == lib.CTL_STORE_STATE_TABLE
+    assert c.store_blob(2, b"turn", table(5)) == result("STORE_BUSY")
+    assert c.commit("LIBRARY_DELETE") == result("STORE_BUSY")
     assert c.dev.set("Library Slot", 1) == 0
     assert c.dev.command("LIBRARY_PLAY") == 0
     assert c.get("Library Result") == result("STORE_BUSY")

@@ -296,3 +296,19 @@ def test_a_library_store_asked_during_the_table_save_waits_for_it(app):
     assert board.get("Library Result") == result("OK")
     assert board.get("Slot CRC") == zlib.crc32(walk)
     assert board.stored() == committed
+
+
+def test_a_table_made_active_during_a_library_store_is_saved_after_it(app):
+    """The core refuses commits while a library store runs; should a table still become
+    active meanwhile (here: directly), the app saves it once the store has ended rather
+    than dropping the save."""
+    board = Board(app)
+    walk, committed = table(7, CAPACITY // 4), table(8, CAPACITY // 4)
+    assert board.store(1, walk) == result("LIBRARY_STORING")
+    board.ticks(10)
+    board.make_active(committed)  # as a commit would: the app is told to save it
+    assert board.get("Store State") == STORE_STATE["LIBRARY"]
+    board.ticks()
+    assert board.get("Library Result") == result("OK")
+    assert board.get("Slot CRC") == zlib.crc32(walk)
+    assert board.stored() == committed

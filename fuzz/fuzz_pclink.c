@@ -216,8 +216,13 @@ static uint8_t lib_remove(uint8_t slot)
     return CTL_UPLOAD_RESULT_OK;
 }
 
-static const lib_store fuzz_library = {LIB_SLOTS, FUZZ_CAPACITY, lib_get, lib_put,
-                                       lib_remove};
+static const lib_store fuzz_library = {.slots = LIB_SLOTS,
+                                       .memory = CTL_LIBRARY_MEMORY_RAM,
+                                       .capacity = FUZZ_CAPACITY,
+                                       .get = lib_get,
+                                       .put = lib_put,
+                                       .remove = lib_remove,
+                                       .saving = NULL};
 
 /* Whether table[0..len) is what a library slot keeps as a table. */
 static bool in_library(const uint8_t *table, uint16_t len)

@@ -8,8 +8,9 @@ range and unit factor is written once.
 
 Outputs: firmware/core/ax12_table.h (the AX-12 registers and the fixed-point unit
 constants the player computes with), firmware/core/ctl_table.h (the controller's table,
-servo window and window pages, value names and range X-macros) and the generated part of
-protocol/controller.md. The loader it uses (snakebot.devices) needs only the standard
+servo window and window pages, value names and range X-macros), the generated part of
+protocol/controller.md, and the boards' figures in the docs (protocol/board_figures.py,
+from firmware/boards/*/board.h). The loader it uses (snakebot.devices) needs only the standard
 library, so this runs before snakebot is installed.
 """
 
@@ -23,6 +24,9 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(ROOT / "host"))
+
+sys.path.insert(0, str(HERE))
+import board_figures  # noqa: E402
 
 from snakebot.devices import (  # noqa: E402
     Device,
@@ -300,11 +304,15 @@ def splice_doc(text: str, tables: str) -> str:
 def rendered() -> dict[Path, str]:
     """Each generated file's expected text."""
     controller = load("controller")
-    return {
+    out = {
         AX12_HEADER: render_ax12(load(SERVO)),
         CTL_HEADER: render_controller(controller),
         DOC: splice_doc(DOC.read_text(), render_doc_tables(controller)),
     }
+    # the boards' figures in the docs, from board.h (protocol/board_figures.py)
+    for path in board_figures.DOCS:
+        out[path] = board_figures.splice(out[path] if path in out else path.read_text())
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:

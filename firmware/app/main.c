@@ -1,7 +1,8 @@
 /* CM-530 controller firmware: the main loop. Interrupt handlers only move bytes between
  * the USARTs and ring buffers; everything else happens here, in order, every pass:
  * the PC link, the control tick (player, safety, bus schedule), the bus transactions,
- * a bounded step of persisting a newly committed table, the drivers' polled work, then
+ * a bounded step of the flash write under way (a newly committed table's save, a library
+ * store or delete), the drivers' polled work, then
  * sleep until the next interrupt if there was nothing to do. */
 #include <stdbool.h>
 #include <stdint.h>
@@ -36,7 +37,7 @@ int main(void)
     store_play_init(&ctl.d);
 
     uint32_t next_tick = hal_millis();
-    bool flash_due = false; /* this tick's step of a table save is still to run */
+    bool flash_due = false; /* this tick's step of a flash write is still to run */
     for (;;) {
         uint32_t now = hal_millis();
         bool worked = pclink_poll(&ctl.d, now);

@@ -9,7 +9,6 @@
 
 #if BOARD_HAS_FLASH_STORE
 
-#include "hal_iwdg.h"
 #include "store_slots.h"
 
 static const hal_flash_region_t region = {BOARD_STORE_BASE, BOARD_STORE_SIZE,
@@ -29,9 +28,26 @@ typedef char store_slot_holds_a_table[(BOARD_STORE_SIZE / 2U) % BOARD_FLASH_PAGE
  * takes 256 ticks of programming after its 17 page erases (a tick each, 20-40 ms). */
 #define STORE_SAVE_HALFWORDS 64U
 
-/* The table save under way, if any (job.status tells how the last one ended). */
-static store_slots_job_t job;
-static bool saving;
+/* The one flash write under way (writing: CTL_STORE_STATE_*): the committed table's save
+ * (job.write alone) or a library store or delete (all of job). One at a time: the core
+ * refuses a library operation while either runs, and a commit while a library store
+ * does (lib_regs.h). */
+static store_lib_job_t job;
+static uint8_t writing;
+/* A table committed while a library store ran: saved once the store ends. (The core
+ * refuses commits during a library store, so this is a belt to those braces.) */
+static bool table_waiting;
+
+/* A library store's outcome as Upload Result. */
+static uint8_t library_result(store_lib_status_t st)
+{
+    switch (st) {
+    case STORE_LIB_OK: return CTL_UPLOAD_RESULT_OK;
+    case STORE_LIB_BAD_SLOT: return CTL_UPLOAD_RESULT_LIBRARY_BAD_SLOT;
+    case STORE_LIB_BAD_BLOB: return CTL_UPLOAD_RESULT_BAD_LENGTH;
+    default: return CTL_UPLOAD_RESULT_LIBRARY_FLASH;
+    }
+}
 
 typedef char limits_slot_holds_the_limits[(BOARD_LIMITS_STORE_SIZE / 2U) % BOARD_FLASH_PAGE_SIZE ==
                                                       0U &&
@@ -41,12 +57,6 @@ typedef char limits_slot_holds_the_limits[(BOARD_LIMITS_STORE_SIZE / 2U) % BOARD
                                               : -1];
 
 #if BOARD_HAS_FLASH_LIBRARY
-/* A library store blocks the main loop page by page: the watchdog is fed between them. */
-void store_lib_pause(void)
-{
-    hal_iwdg_feed();
-}
-
 #define LIB_AREAS_BASE (BOARD_LIB_DIR_BASE + BOARD_LIB_DIR_SIZE)
 #define LIB_AREAS_SIZE ((STORE_LIB_SLOTS + 1U) * BOARD_LIB_AREA_SIZE)
 static const store_lib_t library = {
@@ -68,6 +78,22 @@ typedef char library_fits_below_the_limits
 const store_lib_t *store_library(void)
 {
     return &library;
+}
+
+uint8_t store_library_begin(uint8_t slot, uint8_t kind, const uint8_t *name,
+                            const uint8_t *data, uint16_t len)
+{
+    if (writing != CTL_STORE_STATE_IDLE) {
+        return CTL_UPLOAD_RESULT_STORE_BUSY;
+    }
+    store_lib_status_t st = kind == STORE_LIB_KIND_EMPTY
+                                ? store_lib_begin_delete(&job, &library, slot)
+                                : store_lib_begin_put(&job, &library, slot, kind, name, data, len);
+    if (st != STORE_LIB_OK) {
+        return library_result(st);
+    }
+    writing = CTL_STORE_STATE_LIBRARY;
+    return CTL_UPLOAD_RESULT_LIBRARY_STORING;
 }
 #else
 const store_lib_t *store_library(void)
@@ -93,23 +119,45 @@ bool store_load(ctl_device *ctl)
 
 void store_save_begin(const ctl_device *ctl)
 {
+    if (writing == CTL_STORE_STATE_LIBRARY) {
+        table_waiting = true;
+        return;
+    }
     size_t len = 0;
     const uint8_t *table = ctl_active_table(ctl, &len);
-    saving = table != NULL &&
-             store_slots_begin(&job, &region, table, (uint32_t)len) == HAL_FLASH_OK;
+    writing = table != NULL &&
+                      store_slots_begin(&job.write, &region, table, (uint32_t)len) == HAL_FLASH_OK
+                  ? CTL_STORE_STATE_TABLE
+                  : CTL_STORE_STATE_IDLE;
 }
 
-bool store_save_step(const ctl_device *ctl)
+bool store_save_step(ctl_device *ctl)
 {
-    size_t len = 0;
-    const uint8_t *table = ctl_active_table(ctl, &len);
-    if (saving && (table != job.data || len != job.len)) {
-        saving = false; /* dropped or replaced: what is left to write is not that table */
+    if (writing == CTL_STORE_STATE_TABLE) {
+        size_t len = 0;
+        const uint8_t *table = ctl_active_table(ctl, &len);
+        /* dropped (an upload landed on it): what is left to write is not that table */
+        if (table != job.write.data || len != job.write.len ||
+            !store_slots_step(&job.write, STORE_SAVE_HALFWORDS)) {
+            writing = CTL_STORE_STATE_IDLE;
+        }
+    } else if (writing == CTL_STORE_STATE_LIBRARY && !store_lib_step(&job, STORE_SAVE_HALFWORDS)) {
+        writing = CTL_STORE_STATE_IDLE;
+        ctl_library_stored(ctl, library_result((store_lib_status_t)job.status));
+        if (table_waiting) {
+            table_waiting = false;
+            store_save_begin(ctl);
+        }
     }
-    if (saving) {
-        saving = store_slots_step(&job, STORE_SAVE_HALFWORDS);
-    }
-    return saving;
+    return writing != CTL_STORE_STATE_IDLE;
+}
+
+uint8_t store_saving(uint8_t *percent)
+{
+    *percent = writing == CTL_STORE_STATE_TABLE     ? store_slots_progress(&job.write)
+               : writing == CTL_STORE_STATE_LIBRARY ? store_lib_progress(&job)
+                                                    : 0U;
+    return writing;
 }
 
 bool store_save_limits(const ctl_device *ctl)
@@ -140,11 +188,18 @@ void store_save_begin(const ctl_device *ctl)
     (void)ctl;
 }
 
-bool store_save_step(const ctl_device *ctl)
+bool store_save_step(ctl_device *ctl)
 {
     (void)ctl;
     return false;
 }
+
+uint8_t store_saving(uint8_t *percent)
+{
+    *percent = 0;
+    return CTL_STORE_STATE_IDLE;
+}
+
 
 bool store_save_limits(const ctl_device *ctl)
 {

@@ -2,9 +2,7 @@
 
 #include <stddef.h>
 
-#include "crc32.h"
 #include "hal_io.h"
-#include "store_slots.h"
 
 #define E_KIND 0U
 #define E_AREA 1U
@@ -12,10 +10,6 @@
 #define E_CRC 4U
 #define E_NAME 8U
 #define AREAS (STORE_LIB_SLOTS + 1U)
-
-__attribute__((weak)) void store_lib_pause(void)
-{
-}
 
 uint32_t store_lib_capacity(const store_lib_t *lib)
 {
@@ -88,14 +82,6 @@ store_lib_status_t store_lib_entry(const store_lib_t *lib, uint8_t slot, store_l
     return store_slots_flash_crc(out->addr, out->len) == out->crc ? STORE_LIB_OK : STORE_LIB_DAMAGED;
 }
 
-/* Write dir as the new committed directory. */
-static store_lib_status_t save_dir(const store_lib_t *lib, const uint8_t *dir)
-{
-    return store_slots_save(&lib->dir, dir, STORE_LIB_DIR_BYTES) == HAL_FLASH_OK
-               ? STORE_LIB_OK
-               : STORE_LIB_FLASH;
-}
-
 /* An area no used entry points at, starting after the slot's current one so that writes
  * wander over all areas rather than wearing one. There are AREAS > STORE_LIB_SLOTS. */
 static uint8_t free_area(const store_lib_t *lib, const uint8_t *dir, uint8_t after)
@@ -117,57 +103,127 @@ static uint8_t free_area(const store_lib_t *lib, const uint8_t *dir, uint8_t aft
     return a;
 }
 
-store_lib_status_t store_lib_put(const store_lib_t *lib, uint8_t slot, uint8_t kind,
-                                 const uint8_t *name, const uint8_t *data, uint32_t len)
+/* The job's stages, in order. */
+enum { S_AREA, S_DIR, S_DONE };
+
+/* Commit job->dir: the directory's steps from now on. */
+static void begin_dir(store_lib_job_t *job)
 {
+    job->stage = S_DIR;
+    if (store_slots_begin(&job->write, &job->lib->dir, job->dir, STORE_LIB_DIR_BYTES) !=
+        HAL_FLASH_OK) {
+        job->stage = S_DONE; /* cannot happen: the board checks the directory fits */
+        job->status = STORE_LIB_FLASH;
+    }
+}
+
+/* The committed directory into job->dir, and slot `slot`'s entry in it (NULL: no slot). */
+static uint8_t *begin(store_lib_job_t *job, const store_lib_t *lib, uint8_t slot)
+{
+    job->lib = lib;
+    job->stage = S_DONE;
+    job->status = STORE_LIB_BAD_SLOT;
     if (slot >= STORE_LIB_SLOTS) {
+        return NULL;
+    }
+    job->status = STORE_LIB_OK;
+    load_dir(lib, job->dir);
+    return job->dir + slot * STORE_LIB_ENTRY_BYTES;
+}
+
+store_lib_status_t store_lib_begin_put(store_lib_job_t *job, const store_lib_t *lib, uint8_t slot,
+                                       uint8_t kind, const uint8_t *name, const uint8_t *data,
+                                       uint32_t len)
+{
+    uint8_t *e = begin(job, lib, slot);
+    if (e == NULL) {
         return STORE_LIB_BAD_SLOT;
     }
     if (kind == STORE_LIB_KIND_EMPTY || data == NULL || len == 0U ||
         len > store_lib_capacity(lib) || name == NULL) {
+        job->status = STORE_LIB_BAD_BLOB;
         return STORE_LIB_BAD_BLOB;
     }
-    uint8_t dir[STORE_LIB_DIR_BYTES];
-    load_dir(lib, dir);
-    uint8_t *e = dir + slot * STORE_LIB_ENTRY_BYTES;
-    uint8_t area = free_area(lib, dir, entry_used(lib, e) ? e[E_AREA] : (uint8_t)slot);
-    uint32_t offset = area * lib->area_size;
-    /* The data first, into an area nothing committed refers to; then the directory. A
-     * page at a time, with a pause after each for the board (a 32 KB blob holds the CPU
-     * for over a second, longer than the watchdog waits). */
-    uint32_t page = lib->areas.page_size;
-    for (uint32_t at = 0; at < len; at += page) {
-        uint32_t n = len - at < page ? len - at : page;
-        if (hal_flash_erase(&lib->areas, offset + at, n) != HAL_FLASH_OK ||
-            hal_flash_write(&lib->areas, offset + at, data + at, n) != HAL_FLASH_OK) {
-            return STORE_LIB_FLASH;
-        }
-        store_lib_pause();
+    /* The data first, into an area nothing committed refers to; then the directory. */
+    uint8_t area = free_area(lib, job->dir, entry_used(lib, e) ? e[E_AREA] : (uint8_t)slot);
+    if (store_slots_begin_bare(&job->write, &lib->areas, area * lib->area_size, data, len) !=
+        HAL_FLASH_OK) {
+        job->status = STORE_LIB_BAD_BLOB;
+        return STORE_LIB_BAD_BLOB;
     }
     e[E_KIND] = kind;
     e[E_AREA] = area;
     e[E_LEN] = (uint8_t)len;
     e[E_LEN + 1U] = (uint8_t)(len >> 8);
-    put32(e + E_CRC, crc32_compute(data, len));
+    put32(e + E_CRC, job->write.expect);
     for (uint32_t i = 0; i < STORE_LIB_NAME_MAX; i++) {
         e[E_NAME + i] = name[i];
     }
-    return save_dir(lib, dir);
+    job->stage = S_AREA;
+    return STORE_LIB_OK;
+}
+
+store_lib_status_t store_lib_begin_delete(store_lib_job_t *job, const store_lib_t *lib,
+                                          uint8_t slot)
+{
+    uint8_t *e = begin(job, lib, slot);
+    if (e == NULL) {
+        return STORE_LIB_BAD_SLOT;
+    }
+    if (entry_used(lib, e)) {
+        for (uint32_t i = 0; i < STORE_LIB_ENTRY_BYTES; i++) {
+            e[i] = 0;
+        }
+        begin_dir(job);
+    }
+    return STORE_LIB_OK;
+}
+
+bool store_lib_step(store_lib_job_t *job, uint32_t halfwords)
+{
+    if (job->stage == S_DONE) {
+        return false;
+    }
+    if (!store_slots_step(&job->write, halfwords)) {
+        if (job->write.status != HAL_FLASH_OK) {
+            job->status = STORE_LIB_FLASH; /* the committed directory is untouched */
+            job->stage = S_DONE;
+        } else if (job->stage == S_AREA) {
+            begin_dir(job);
+        } else {
+            job->stage = S_DONE;
+        }
+    }
+    return job->stage != S_DONE;
+}
+
+uint8_t store_lib_progress(const store_lib_job_t *job)
+{
+    /* the area is nearly all the work; the directory is a page and 192 bytes */
+    switch (job->stage) {
+    case S_AREA: return (uint8_t)(store_slots_progress(&job->write) * 9U / 10U);
+    case S_DIR: return (uint8_t)(90U + store_slots_progress(&job->write) / 10U);
+    default: return 100U;
+    }
+}
+
+/* Run job to its end. */
+static store_lib_status_t finish(store_lib_job_t *job, store_lib_status_t st)
+{
+    while (st == STORE_LIB_OK && store_lib_step(job, 0xFFFFFFFFU)) {
+    }
+    return st == STORE_LIB_OK ? (store_lib_status_t)job->status : st;
+}
+
+store_lib_status_t store_lib_put(const store_lib_t *lib, uint8_t slot, uint8_t kind,
+                                 const uint8_t *name, const uint8_t *data, uint32_t len)
+{
+    store_lib_job_t job;
+    return finish(&job, store_lib_begin_put(&job, lib, slot, kind, name, data, len));
 }
 
 store_lib_status_t store_lib_delete(const store_lib_t *lib, uint8_t slot)
 {
-    if (slot >= STORE_LIB_SLOTS) {
-        return STORE_LIB_BAD_SLOT;
-    }
-    uint8_t dir[STORE_LIB_DIR_BYTES];
-    load_dir(lib, dir);
-    uint8_t *e = dir + slot * STORE_LIB_ENTRY_BYTES;
-    if (!entry_used(lib, e)) {
-        return STORE_LIB_OK;
-    }
-    for (uint32_t i = 0; i < STORE_LIB_ENTRY_BYTES; i++) {
-        e[i] = 0;
-    }
-    return save_dir(lib, dir);
+    store_lib_job_t job;
+    return finish(&job, store_lib_begin_delete(&job, lib, slot));
 }

@@ -20,6 +20,7 @@
 
 #include "ctl_table.h"
 #include "hal_flash.h"
+#include "store_slots.h"
 
 #define STORE_LIB_SLOTS CTL_MAX_LIBRARY_SLOTS
 #define STORE_LIB_NAME_MAX CTL_SLOT_NAME_SIZE
@@ -60,18 +61,38 @@ uint32_t store_lib_capacity(const store_lib_t *lib);
  * (then out->addr holds it). *out is filled for DAMAGED too (name, kind, length). */
 store_lib_status_t store_lib_entry(const store_lib_t *lib, uint8_t slot, store_lib_entry_t *out);
 
-/* Store data[0..len) as slot `slot` with the given kind and name (STORE_LIB_NAME_MAX
- * bytes, zero-padded), replacing what it held. Blocks while flash is erased and
- * programmed (up to about 0.1 s a page: 1.8 s for 32 KB), calling store_lib_pause()
- * after each page. */
+/* A store or delete under way, run a bounded step at a time (store_lib_step) so that a
+ * 32 KB blob never holds up the control loop: the blob's area a page erase or a run of
+ * half-words per step (store_slots' bare steps), then the directory as a store_slots
+ * record (its steps). A job abandoned at any step, or cut by a power failure, leaves the
+ * committed directory, hence every slot, as it was. */
+typedef struct {
+    const store_lib_t *lib;
+    store_slots_job_t write;          /* the area's, then the directory's */
+    uint8_t dir[STORE_LIB_DIR_BYTES]; /* the directory to commit */
+    uint8_t stage;                    /* internal */
+    uint8_t status;                   /* store_lib_status_t, once no steps remain */
+} store_lib_job_t;
+
+/* Start storing data[0..len) as slot `slot` with the given kind and name
+ * (STORE_LIB_NAME_MAX bytes, zero-padded), replacing what it held: STORE_LIB_OK and the
+ * job to step, or why not (nothing written). data[0..len) must stay as it is until the
+ * job ends (if it changes, the job ends in STORE_LIB_FLASH and nothing changed). */
+store_lib_status_t store_lib_begin_put(store_lib_job_t *job, const store_lib_t *lib, uint8_t slot,
+                                       uint8_t kind, const uint8_t *name, const uint8_t *data,
+                                       uint32_t len);
+/* Start emptying slot `slot` (a job with no steps if it is empty already). */
+store_lib_status_t store_lib_begin_delete(store_lib_job_t *job, const store_lib_t *lib,
+                                          uint8_t slot);
+/* One step, as store_slots_step() bounds it. True while steps remain; then job->status
+ * tells the outcome. */
+bool store_lib_step(store_lib_job_t *job, uint32_t halfwords);
+/* How far the job is, 0..100. */
+uint8_t store_lib_progress(const store_lib_job_t *job);
+
+/* The same, all steps at once (tests and tools; the firmware steps). */
 store_lib_status_t store_lib_put(const store_lib_t *lib, uint8_t slot, uint8_t kind,
                                  const uint8_t *name, const uint8_t *data, uint32_t len);
-
-/* Called between the pages store_lib_put() writes; the board's feeds the watchdog (the
- * default, weak, does nothing). */
-void store_lib_pause(void);
-
-/* Empty slot `slot` (a no-op, OK, if it is empty already). */
 store_lib_status_t store_lib_delete(const store_lib_t *lib, uint8_t slot);
 
 #endif

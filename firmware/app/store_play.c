@@ -27,29 +27,24 @@ static void flash_get(uint8_t slot, lib_slot *out, const uint8_t **data)
     *data = st == STORE_LIB_OK ? (const uint8_t *)(uintptr_t)e.addr : NULL;
 }
 
-static uint8_t flash_result(store_lib_status_t st)
-{
-    switch (st) {
-    case STORE_LIB_OK: return CTL_UPLOAD_RESULT_OK;
-    case STORE_LIB_BAD_SLOT: return CTL_UPLOAD_RESULT_LIBRARY_BAD_SLOT;
-    case STORE_LIB_BAD_BLOB: return CTL_UPLOAD_RESULT_BAD_LENGTH;
-    default: return CTL_UPLOAD_RESULT_LIBRARY_FLASH;
-    }
-}
-
 static uint8_t flash_put(uint8_t slot, uint8_t kind, const uint8_t *name, const uint8_t *data,
                          uint16_t len)
 {
-    return flash_result(store_lib_put(store_library(), slot, kind, name, data, len));
+    return store_library_begin(slot, kind, name, data, len);
 }
 
 static uint8_t flash_remove(uint8_t slot)
 {
-    return flash_result(store_lib_delete(store_library(), slot));
+    return store_library_begin(slot, STORE_LIB_KIND_EMPTY, NULL, NULL, 0);
 }
 
-static const lib_store library = {STORE_LIB_SLOTS, BOARD_LIB_AREA_SIZE, flash_get, flash_put,
-                                  flash_remove};
+static const lib_store library = {.slots = STORE_LIB_SLOTS,
+                                  .memory = CTL_LIBRARY_MEMORY_FLASH,
+                                  .capacity = BOARD_LIB_AREA_SIZE,
+                                  .get = flash_get,
+                                  .put = flash_put,
+                                  .remove = flash_remove,
+                                  .saving = store_saving};
 
 void store_play_init(ctl_device *ctl)
 {
@@ -111,8 +106,14 @@ static uint8_t alias_remove(uint8_t slot)
     return CTL_UPLOAD_RESULT_OK;
 }
 
-static const lib_store library = {1U, BOARD_TABLE_CAPACITY, alias_get, alias_put,
-                                  alias_remove};
+/* No background writes: QEMU keeps the library in RAM (saving NULL: Store State IDLE). */
+static const lib_store library = {.slots = 1U,
+                                  .memory = CTL_LIBRARY_MEMORY_RAM,
+                                  .capacity = BOARD_TABLE_CAPACITY,
+                                  .get = alias_get,
+                                  .put = alias_put,
+                                  .remove = alias_remove,
+                                  .saving = NULL};
 
 void store_play_init(ctl_device *ctl)
 {

@@ -99,14 +99,10 @@ static void put_le32(uint8_t *p, uint32_t v)
 /* The phases of a save, in order. */
 enum { P_FIND, P_ERASE, P_DATA, P_HEADER, P_MAGIC, P_VERIFY, P_DONE };
 
-hal_flash_status_t store_slots_begin(store_slots_job_t *job, const hal_flash_region_t *r,
-                                     const uint8_t *data, uint32_t len)
+/* Aim job at writing data[0..len) (checked by the caller), from phase `phase`. */
+static void start(store_slots_job_t *job, const hal_flash_region_t *r, const uint8_t *data,
+                  uint32_t len, uint8_t phase)
 {
-    job->phase = P_DONE;
-    job->status = HAL_FLASH_ERR_RANGE;
-    if (data == NULL || len == 0U || len > store_slots_capacity(r) || len > 0xFFFFU) {
-        return HAL_FLASH_ERR_RANGE;
-    }
     job->r = r;
     job->data = data;
     job->len = len;
@@ -115,8 +111,35 @@ hal_flash_status_t store_slots_begin(store_slots_job_t *job, const hal_flash_reg
     job->done = 0;
     job->expect = crc32_compute(data, len);
     job->crc = CRC32_INIT;
-    job->phase = P_FIND;
+    job->phase = phase;
     job->status = HAL_FLASH_OK;
+    job->bare = 0;
+}
+
+hal_flash_status_t store_slots_begin(store_slots_job_t *job, const hal_flash_region_t *r,
+                                     const uint8_t *data, uint32_t len)
+{
+    job->phase = P_DONE;
+    job->status = HAL_FLASH_ERR_RANGE;
+    if (data == NULL || len == 0U || len > store_slots_capacity(r) || len > 0xFFFFU) {
+        return HAL_FLASH_ERR_RANGE;
+    }
+    start(job, r, data, len, P_FIND);
+    return HAL_FLASH_OK;
+}
+
+hal_flash_status_t store_slots_begin_bare(store_slots_job_t *job, const hal_flash_region_t *r,
+                                          uint32_t offset, const uint8_t *data, uint32_t len)
+{
+    job->phase = P_DONE;
+    job->status = HAL_FLASH_ERR_RANGE;
+    if (data == NULL || len == 0U || len > 0xFFFFU || offset % r->page_size != 0U ||
+        offset > r->size || len > r->size - offset) {
+        return HAL_FLASH_ERR_RANGE;
+    }
+    start(job, r, data, len, P_ERASE);
+    job->slot = offset;
+    job->bare = 1;
     return HAL_FLASH_OK;
 }
 
@@ -140,6 +163,12 @@ static void find_step(store_slots_job_t *job)
     }
 }
 
+/* Bytes before the data in the slot being written: a record's header, or none. */
+static uint32_t header_bytes(const store_slots_job_t *job)
+{
+    return job->bare ? 0U : STORE_SLOTS_HEADER_BYTES;
+}
+
 /* P_DATA: program up to `bytes` more of the data, adding them to the running CRC. */
 static hal_flash_status_t data_step(store_slots_job_t *job, uint32_t bytes)
 {
@@ -147,8 +176,7 @@ static hal_flash_status_t data_step(store_slots_job_t *job, uint32_t bytes)
     if (n > bytes) {
         n = bytes;
     }
-    hal_flash_status_t st = hal_flash_write(job->r, job->slot + STORE_SLOTS_HEADER_BYTES +
-                                                        job->done,
+    hal_flash_status_t st = hal_flash_write(job->r, job->slot + header_bytes(job) + job->done,
                                             job->data + job->done, n);
     if (st == HAL_FLASH_OK) {
         job->crc = crc32_update(job->crc, job->data + job->done, n);
@@ -157,11 +185,15 @@ static hal_flash_status_t data_step(store_slots_job_t *job, uint32_t bytes)
     return st;
 }
 
-/* P_HEADER: everything but the magic, if the bytes programmed are the data as it began. */
+/* P_HEADER: everything but the magic, if the bytes programmed are the data as it began
+ * (bare data: only that check). */
 static hal_flash_status_t header_step(store_slots_job_t *job)
 {
     if (crc32_final(job->crc) != job->expect) {
         return HAL_FLASH_ERR_VERIFY; /* the data changed under the save */
+    }
+    if (job->bare) {
+        return HAL_FLASH_OK;
     }
     uint8_t header[STORE_SLOTS_HEADER_BYTES];
     put_le32(header + OFF_SEQ, job->seq);
@@ -185,7 +217,7 @@ bool store_slots_step(store_slots_job_t *job, uint32_t halfwords)
     case P_ERASE:
         st = hal_flash_erase(r, job->slot + job->done, 1U);
         job->done += r->page_size;
-        if (job->done >= STORE_SLOTS_HEADER_BYTES + job->len) {
+        if (job->done >= header_bytes(job) + job->len) {
             job->done = 0;
             job->phase = P_DATA;
         }
@@ -198,7 +230,7 @@ bool store_slots_step(store_slots_job_t *job, uint32_t halfwords)
         break;
     case P_HEADER:
         st = header_step(job);
-        job->phase = P_MAGIC;
+        job->phase = job->bare ? P_VERIFY : P_MAGIC;
         break;
     case P_MAGIC:
         /* until its last half-word is programmed the slot does not count, and the other
@@ -208,7 +240,8 @@ bool store_slots_step(store_slots_job_t *job, uint32_t halfwords)
         job->phase = P_VERIFY;
         break;
     case P_VERIFY:
-        if (!slot_record(r, job->slot, &check) || check.seq != job->seq) {
+        if (job->bare ? store_slots_flash_crc(r->base + job->slot, job->len) != job->expect
+                      : !slot_record(r, job->slot, &check) || check.seq != job->seq) {
             st = HAL_FLASH_ERR_VERIFY;
         }
         job->phase = P_DONE;
@@ -220,6 +253,16 @@ bool store_slots_step(store_slots_job_t *job, uint32_t halfwords)
         job->phase = P_DONE;
     }
     return job->phase != P_DONE;
+}
+
+uint8_t store_slots_progress(const store_slots_job_t *job)
+{
+    switch (job->phase) {
+    case P_FIND: return 0U;
+    case P_ERASE: return (uint8_t)(50U * job->done / (header_bytes(job) + job->len));
+    case P_DATA: return (uint8_t)(50U + 50U * job->done / job->len);
+    default: return 100U;
+    }
 }
 
 hal_flash_status_t store_slots_save(const hal_flash_region_t *r, const uint8_t *data,

@@ -61,13 +61,24 @@ typedef struct {
     uint32_t crc;    /* CRC-32 state of the data bytes programmed so far */
     uint8_t phase;   /* internal */
     uint8_t status;  /* hal_flash_status_t: the first failure, else OK */
+    uint8_t bare;    /* store_slots_begin_bare(): no record, only the data */
 } store_slots_job_t;
 
 /* Start saving data[0..len): HAL_FLASH_OK, or HAL_FLASH_ERR_RANGE (nothing to do). */
 hal_flash_status_t store_slots_begin(store_slots_job_t *job, const hal_flash_region_t *r,
                                      const uint8_t *data, uint32_t len);
+/* The same steps for bare data (a library blob): erase the pages of r covering
+ * [offset, offset + len) (offset page-aligned) a page per step, program data[0..len)
+ * there, then read it back; HAL_FLASH_ERR_VERIFY if the bytes programmed or read back do
+ * not have the CRC the data had at the start (job->expect). No header, no magic: what
+ * refers to the data is written after it, by the caller. */
+hal_flash_status_t store_slots_begin_bare(store_slots_job_t *job, const hal_flash_region_t *r,
+                                          uint32_t offset, const uint8_t *data, uint32_t len);
 /* One step: the CRC of one slot read, or one page erased, or at most max(halfwords, 6)
  * half-words programmed. True while steps remain; then job->status tells the outcome. */
 bool store_slots_step(store_slots_job_t *job, uint32_t halfwords);
+/* How far the job is, 0..100: erasing counts for the first half, programming for the
+ * second (100 once the data is programmed). */
+uint8_t store_slots_progress(const store_slots_job_t *job);
 
 #endif

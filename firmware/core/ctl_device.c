@@ -316,10 +316,12 @@ static void show_program(ctl_device *d, uint32_t crc)
 
 static uint16_t upload_flag(uint8_t result)
 {
-    if (result >= CTL_UPLOAD_RESULT_LIBRARY_NONE &&
-        result <= CTL_UPLOAD_RESULT_LIBRARY_NOT_PLAYABLE) {
+    if ((result >= CTL_UPLOAD_RESULT_LIBRARY_NONE &&
+         result <= CTL_UPLOAD_RESULT_LIBRARY_NOT_PLAYABLE) ||
+        result == CTL_UPLOAD_RESULT_STORE_BUSY) {
         return CTL_ERROR_FLAGS_LIBRARY;
     }
+    if (result == CTL_UPLOAD_RESULT_LIBRARY_STORING) return 0; /* begun, not failed */
     switch (result) {
     case GT_ERR_TRUNCATED:
     case GT_ERR_TRAILING:
@@ -487,8 +489,11 @@ static void commit(ctl_device *d, uint8_t what)
         d->regs[CTL_UPLOAD_RESULT] = ctl_firmware_check(len, crc);
         return;
     }
-    if (what == CTL_UPLOAD_COMMIT_LIBRARY_DELETE) {
-        result = lib_delete(&d->lib); /* takes no staged bytes */
+    if (lib_saving(&d->lib, false, NULL) == CTL_STORE_STATE_LIBRARY) {
+        /* the staging area is the library store's until it ends */
+        result = CTL_UPLOAD_RESULT_STORE_BUSY;
+    } else if (what == CTL_UPLOAD_COMMIT_LIBRARY_DELETE) {
+        result = lib_delete(&d->lib, d->table_changed != 0); /* takes no staged bytes */
     } else if (staging_blocked(d)) {
         result = CTL_UPLOAD_RESULT_NO_ROOM_WHILE_PLAYING; /* nothing could be staged */
     } else if (len == 0 || len > d->capacity) {
@@ -508,7 +513,9 @@ static void commit(ctl_device *d, uint8_t what)
                  : d->lib.store_kind == CTL_UPLOAD_COMMIT_PROGRAM
                      ? check_program(d, staging(d), len)
                      : CTL_UPLOAD_RESULT_OK;
-        if (result == GT_OK) result = lib_store_blob(&d->lib, staging(d), (uint16_t)len);
+        if (result == GT_OK) {
+            result = lib_store_blob(&d->lib, d->table_changed != 0, staging(d), (uint16_t)len);
+        }
     } else {
         result = load_active(d, staging(d), len, crc, what);
     }
@@ -594,7 +601,7 @@ static void library_play(ctl_device *d, uint8_t slot, uint32_t now_ms)
     const uint8_t *blob = NULL;
     uint16_t len = 0;
     uint32_t crc = 0;
-    uint8_t result = lib_playable(&d->lib, slot, &blob, &len, &crc);
+    uint8_t result = lib_playable(&d->lib, slot, d->table_changed != 0, &blob, &len, &crc);
     if (result == CTL_UPLOAD_RESULT_OK && len > d->capacity) result = CTL_UPLOAD_RESULT_BAD_LENGTH;
     bool program = result == CTL_UPLOAD_RESULT_OK && is_program(blob, len);
     if (result == CTL_UPLOAD_RESULT_OK && blob != d->active) {
@@ -658,6 +665,14 @@ static void command(ctl_device *d, uint8_t cmd, uint32_t now_ms)
 void ctl_set_library(ctl_device *d, const lib_store *store)
 {
     lib_init(&d->lib, store);
+}
+
+void ctl_library_stored(ctl_device *d, uint8_t result)
+{
+    if (lib_note(&d->lib, result)) raise_flags(d, CTL_ERROR_FLAGS_LIBRARY);
+    if (d->regs[CTL_UPLOAD_RESULT] == CTL_UPLOAD_RESULT_LIBRARY_STORING) {
+        d->regs[CTL_UPLOAD_RESULT] = result;
+    }
 }
 
 uint8_t ctl_buttons(ctl_device *d, uint8_t held, uint32_t now_ms)
@@ -743,6 +758,14 @@ static uint32_t page_value(const ctl_device *d, uint8_t page, uint8_t addr)
         case CTL_MAX_SEGMENTS: return CTL_MAX_PROGRAM_SEGMENTS;
         case CTL_REFUSAL_REASON: return d->refusal;
         case CTL_BOARD: return d->board;
+        case CTL_LIBRARY_MEMORY:
+            return d->lib.store != NULL ? d->lib.store->memory : CTL_LIBRARY_MEMORY_NONE;
+        case CTL_STORE_STATE: return lib_saving(&d->lib, d->table_changed != 0, NULL);
+        case CTL_STORE_PROGRESS: {
+            uint8_t percent = 0;
+            (void)lib_saving(&d->lib, d->table_changed != 0, &percent);
+            return percent;
+        }
         case CTL_PROGRAM_SEGMENT: return play_program_segment(&d->player);
         case CTL_PROGRAM_STATE:
             if (play_mode(&d->player) == PLAY_MODE_PROGRAM) return CTL_PROGRAM_STATE_RUNNING;
@@ -890,6 +913,12 @@ static uint8_t stage_chunk(ctl_device *d, uint8_t start, const uint8_t *data, si
     bool over_active = stage + lo < d->active + d->active_len;
     if (!apply && (uint32_t)hi >= d->capacity) {
         raise_flags(d, CTL_ERROR_FLAGS_UPLOAD_LENGTH);
+        return DXL_ERR_RANGE;
+    }
+    if (!apply && lib_saving(&d->lib, false, NULL) == CTL_STORE_STATE_LIBRARY) {
+        /* a library store reads the staged blob until it ends */
+        d->regs[CTL_UPLOAD_RESULT] = CTL_UPLOAD_RESULT_STORE_BUSY;
+        raise_flags(d, CTL_ERROR_FLAGS_LIBRARY);
         return DXL_ERR_RANGE;
     }
     if (!apply && over_active && table_in_use(d)) {

@@ -128,7 +128,19 @@ bool lib_page_write(lib_device *l, uint8_t start, const uint8_t *data, uint16_t 
 bool lib_note(lib_device *l, uint8_t result)
 {
     l->result = result;
-    return result != CTL_UPLOAD_RESULT_OK;
+    return result != CTL_UPLOAD_RESULT_OK && result != CTL_UPLOAD_RESULT_LIBRARY_STORING;
+}
+
+uint8_t lib_saving(const lib_device *l, bool table_pending, uint8_t *percent)
+{
+    uint8_t done = 0;
+    uint8_t state = CTL_STORE_STATE_IDLE;
+    if (l->store != NULL && l->store->saving != NULL) {
+        state = l->store->saving(&done);
+        if (state == CTL_STORE_STATE_IDLE && table_pending) state = CTL_STORE_STATE_TABLE;
+    }
+    if (percent != NULL) *percent = state == CTL_STORE_STATE_IDLE ? 0u : done;
+    return state;
 }
 
 /* Printable ASCII, then zero bytes only (an empty name is allowed). */
@@ -153,7 +165,7 @@ static uint8_t slot_problem(const lib_device *l)
     return CTL_UPLOAD_RESULT_OK;
 }
 
-uint8_t lib_store_blob(lib_device *l, const uint8_t *data, uint16_t len)
+uint8_t lib_store_blob(lib_device *l, bool table_pending, const uint8_t *data, uint16_t len)
 {
     uint8_t r = slot_problem(l);
     if (r == CTL_UPLOAD_RESULT_OK && !name_ok(l->name)) r = CTL_UPLOAD_RESULT_LIBRARY_BAD_NAME;
@@ -163,24 +175,33 @@ uint8_t lib_store_blob(lib_device *l, const uint8_t *data, uint16_t len)
     if (r == CTL_UPLOAD_RESULT_OK && len > l->store->capacity) {
         r = CTL_UPLOAD_RESULT_BAD_LENGTH;
     }
+    if (r == CTL_UPLOAD_RESULT_OK && lib_saving(l, table_pending, NULL) != CTL_STORE_STATE_IDLE) {
+        r = CTL_UPLOAD_RESULT_STORE_BUSY; /* one flash write at a time */
+    }
     if (r == CTL_UPLOAD_RESULT_OK) r = l->store->put(l->slot, l->store_kind, l->name, data, len);
     lib_note(l, r);
     return r;
 }
 
-uint8_t lib_delete(lib_device *l)
+uint8_t lib_delete(lib_device *l, bool table_pending)
 {
     uint8_t r = slot_problem(l);
+    if (r == CTL_UPLOAD_RESULT_OK && lib_saving(l, table_pending, NULL) != CTL_STORE_STATE_IDLE) {
+        r = CTL_UPLOAD_RESULT_STORE_BUSY;
+    }
     if (r == CTL_UPLOAD_RESULT_OK) r = l->store->remove(l->slot);
     lib_note(l, r);
     return r;
 }
 
-uint8_t lib_playable(const lib_device *l, uint8_t slot, const uint8_t **data, uint16_t *len,
-                     uint32_t *crc)
+uint8_t lib_playable(const lib_device *l, uint8_t slot, bool table_pending,
+                     const uint8_t **data, uint16_t *len, uint32_t *crc)
 {
     if (slots(l) == 0) return CTL_UPLOAD_RESULT_LIBRARY_NONE;
     if (slot >= slots(l)) return CTL_UPLOAD_RESULT_LIBRARY_BAD_SLOT;
+    if (lib_saving(l, table_pending, NULL) != CTL_STORE_STATE_IDLE) {
+        return CTL_UPLOAD_RESULT_STORE_BUSY;
+    }
     lib_slot s;
     fetch(l, slot, &s, data);
     if (s.status == CTL_SLOT_STATUS_EMPTY) return CTL_UPLOAD_RESULT_LIBRARY_EMPTY;

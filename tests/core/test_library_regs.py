@@ -12,6 +12,7 @@ import pytest
 from ctl_support import CTL, CTL_ID, Device, lib_value
 from hypothesis import given
 from hypothesis import strategies as st
+from py_library import NAME_BYTES, PyStore
 from test_program_controller import program
 
 from snakebot.controller import ControllerErrors
@@ -20,7 +21,7 @@ from snakebot.gaittable import GaitTable
 from snakebot.protocol import ErrorFlags, write
 
 LIBRARY = CTL.page("Library")
-NAME_BYTES = CTL.register("Slot Name").size
+
 OK = lib_value("Upload Result", "OK")
 TABLE = lib_value("Upload Commit", "TABLE")
 SCANS = lib.BUTTONS_DEBOUNCE_SCANS
@@ -28,47 +29,6 @@ SCANS = lib.BUTTONS_DEBOUNCE_SCANS
 
 def result(name: str) -> int:
     return lib_value("Upload Result", name)
-
-
-class PyStore:
-    """A lib_store whose slots live in a dict, with the calls it received."""
-
-    def __init__(self, slots: int = CTL.limits["max_library_slots"], capacity: int = 2048):
-        self.slots: dict[int, tuple[int, bytes, bytes]] = {}  # slot -> kind, name, data
-        self.damaged: set[int] = set()
-        self.calls: list[tuple] = []
-        self._keep: list = []
-        self.data_buffers: dict[int, object] = {}
-        get = ffi.callback("void(uint8_t, lib_slot *, const uint8_t **)", self._get)
-        put = ffi.callback(
-            "uint8_t(uint8_t, uint8_t, const uint8_t *, const uint8_t *, uint16_t)", self._put
-        )
-        remove = ffi.callback("uint8_t(uint8_t)", self._remove)
-        self._keep += [get, put, remove]
-        self.c = ffi.new("lib_store *", {"slots": slots, "capacity": capacity})
-        self.c.get, self.c.put, self.c.remove = get, put, remove
-
-    def _get(self, slot, out, data) -> None:
-        if slot not in self.slots:
-            return
-        kind, name, blob = self.slots[slot]
-        out.status = lib.CTL_SLOT_STATUS_DAMAGED if slot in self.damaged else lib.CTL_SLOT_STATUS_OK
-        out.kind, out.len, out.crc = kind, len(blob), zlib.crc32(blob)
-        ffi.memmove(out.name, name, len(name))
-        buf = self.data_buffers.setdefault(slot, ffi.new("uint8_t[]", blob))
-        data[0] = ffi.NULL if slot in self.damaged else buf
-
-    def _put(self, slot, kind, name, data, length) -> int:
-        blob = bytes(ffi.buffer(data, length))
-        self.calls.append(("put", slot, kind))
-        self.slots[slot] = (kind, bytes(ffi.buffer(name, NAME_BYTES)).rstrip(b"\0"), blob)
-        self.data_buffers.pop(slot, None)
-        return OK
-
-    def _remove(self, slot) -> int:
-        self.calls.append(("remove", slot))
-        self.slots.pop(slot, None)
-        return OK
 
 
 def table(frames: int = 3, low: int = 400) -> bytes:
@@ -270,3 +230,124 @@ def test_a_slot_reads_back_through_the_slot_data_window():
     store.damaged.add(4)  # a damaged slot shows nothing
     assert c.dev.set("Slot Offset", 0) == 0
     assert set(c.text("Slot Data")) == {0}
+
+
+def program_page(c: Lib, *names: str) -> dict[str, int]:
+    """Registers of the Program page (the window shows it meanwhile), then back to the
+    Library page."""
+    assert c.dev.set("Window Page", CTL.page("Program").number) == 0
+    values = {n: c.get(n) for n in names}
+    assert c.dev.set("Window Page", LIBRARY.number) == 0
+    return values
+
+
+def test_a_store_written_in_the_background_shows_its_state_and_ends_with_its_result():
+    store = PyStore()
+    store.write_in_background()
+    c = Lib(store)
+    assert program_page(c, "Store State", "Store Progress") == {
+        "Store State": lib.CTL_STORE_STATE_IDLE,
+        "Store Progress": 0,
+    }
+    assert c.store_blob(3, b"walk", table()) == result("LIBRARY_STORING")
+    assert c.get("Library Result") == result("LIBRARY_STORING")
+    assert not c.dev.flags & ControllerErrors.LIBRARY  # begun, not failed
+    store.percent = 40
+    assert program_page(c, "Store State", "Store Progress") == {
+        "Store State": lib.CTL_STORE_STATE_LIBRARY,
+        "Store Progress": 40,
+    }
+    store.writing = lib.CTL_STORE_STATE_IDLE
+    lib.ctl_library_stored(c.dev.d, OK)
+    assert c.get("Upload Result") == OK and c.get("Library Result") == OK
+    assert not c.dev.flags & ControllerErrors.LIBRARY
+    # a store that fails in flash says so when it ends
+    assert c.store_blob(3, b"walk", table()) == result("LIBRARY_STORING")
+    store.writing = lib.CTL_STORE_STATE_IDLE
+    lib.ctl_library_stored(c.dev.d, result("LIBRARY_FLASH"))
+    assert c.get("Upload Result") == result("LIBRARY_FLASH")
+    assert c.get("Library Result") == result("LIBRARY_FLASH")
+    assert c.dev.flags & ControllerErrors.LIBRARY
+
+
+def test_while_a_library_store_runs_its_staged_blob_and_the_library_are_left_alone():
+    """The store reads the staging area until it ends: chunks, commits, other library
+    operations and plays (from the page or the buttons) are refused with STORE_BUSY."""
+    store = PyStore()
+    store.write_in_background()
+    c = Lib(store)
+    walk = table()
+    store.background = False
+    assert c.store_blob(1, b"walk", walk) == OK  # something to play
+    store.background = True
+    assert c.store_blob(2, b"turn", table(5)) == result("LIBRARY_STORING")
+    busy = result("STORE_BUSY")
+    chunk = CTL.register("Upload Offset")
+    refused = c.dev.one(write(CTL_ID, chunk.address, bytes(2) + bytes(16)))
+    assert refused.error == ErrorFlags.RANGE and c.get("Upload Result") == busy
+    assert c.dev.flags & ControllerErrors.LIBRARY
+    assert c.dev.command("CLEAR") == 0
+    assert c.commit("TABLE", walk) == busy
+    for what in ("LIBRARY_STORE", "LIBRARY_DELETE"):
+        assert c.commit(what, walk) == busy and c.get("Library Result") == busy
+    assert c.dev.set("Library Slot", 1) == 0
+    assert c.dev.command("LIBRARY_PLAY") == 0
+    assert c.get("Library Result") == busy and c.dev.state == lib.CTL_STATE_IDLE
+    assert c.dev.flags & ControllerErrors.REFUSED
+    c.press(lib.CTL_BUTTONS_U)
+    c.press(lib.CTL_BUTTONS_START)
+    assert c.get("Library Result") == busy and c.dev.state == lib.CTL_STATE_IDLE
+    assert [call[0] for call in store.calls] == ["put", "put"]  # nothing more reached it
+    store.writing = lib.CTL_STORE_STATE_IDLE
+    lib.ctl_library_stored(c.dev.d, OK)
+    c.press(lib.CTL_BUTTONS_START)  # now it plays
+    assert c.get("Library Result") == OK and c.dev.state == lib.CTL_STATE_PLAYING
+
+
+def test_while_the_committed_table_is_saved_library_operations_wait_but_commits_do_not():
+    """A play would replace the table the save reads (abandoning it), a store would
+    stage over it: both are refused until the save ends. A newer commit just restarts
+    the save (the app's job), so it is taken."""
+    store = PyStore()
+    store.write_in_background()
+    store.background = False
+    c = Lib(store)
+    walk = table()
+    assert c.store_blob(1, b"walk", walk) == OK
+    # committed, and the app has not begun to save it yet: that counts as saving too
+    assert c.dev.upload(table(4)) == OK
+    assert program_page(c, "Store State")["Store State"] == lib.CTL_STORE_STATE_TABLE
+    assert c.store_blob(2, b"turn", table(5)) == result("STORE_BUSY")
+    assert c.commit("LIBRARY_DELETE") == result("STORE_BUSY")
+    assert c.dev.set("Library Slot", 1) == 0
+    assert c.dev.command("LIBRARY_PLAY") == 0
+    assert c.get("Library Result") == result("STORE_BUSY")
+    assert lib.ctl_table_changed(c.dev.d)  # the app begins the save
+    store.writing, store.percent = lib.CTL_STORE_STATE_TABLE, 70
+    assert program_page(c, "Store State", "Store Progress") == {
+        "Store State": lib.CTL_STORE_STATE_TABLE,
+        "Store Progress": 70,
+    }
+    assert c.dev.command("LIBRARY_PLAY") == 0
+    assert c.get("Library Result") == result("STORE_BUSY")
+    assert c.store_blob(2, b"turn", table(5)) == result("STORE_BUSY")
+    assert c.commit("LIBRARY_DELETE") == result("STORE_BUSY")
+    assert [call[0] for call in store.calls] == ["put"]
+    assert c.dev.upload(table(6)) == OK  # a newer table: the app restarts the save
+    store.writing = lib.CTL_STORE_STATE_IDLE
+    assert lib.ctl_table_changed(c.dev.d)
+    assert c.dev.set("Library Slot", 1) == 0
+    assert c.dev.command("LIBRARY_PLAY") == 0
+    assert c.get("Library Result") == OK and c.dev.state == lib.CTL_STATE_PLAYING
+
+
+def test_library_memory_says_where_the_slots_are_kept():
+    assert program_page(Lib(None), "Library Memory")["Library Memory"] == 0  # NONE
+    store = PyStore()
+    assert program_page(Lib(store), "Library Memory")["Library Memory"] == (
+        lib.CTL_LIBRARY_MEMORY_RAM
+    )
+    store.write_in_background()
+    assert program_page(Lib(store), "Library Memory")["Library Memory"] == (
+        lib.CTL_LIBRARY_MEMORY_FLASH
+    )

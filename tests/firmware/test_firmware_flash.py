@@ -49,6 +49,7 @@ typedef struct {
     uint32_t crc;
     uint8_t phase;
     uint8_t status;
+    uint8_t bare;
 } store_slots_job_t;
 int store_slots_begin(store_slots_job_t *job, const hal_flash_region_t *r,
                       const uint8_t *data, uint32_t len);

@@ -38,9 +38,12 @@ def firmware(tmp_path_factory):
 def test_store_list_play_stop_delete(firmware, tmp_path):
     path = save(wave_table(), tmp_path)
     blob = path.read_bytes()
-    assert cli_json("library", "list", "--port", firmware, env=ENV)["slots"] == [
+    listed = cli_json("library", "list", "--port", firmware, env=ENV)
+    assert listed["slots"] == [
         {"slot": 0, "status": "EMPTY", "kind": "NONE", "length": 0, "crc": 0, "name": ""}
     ]
+    # QEMU keeps its library in RAM and writes no flash in the background
+    assert listed["memory"] == "RAM" and listed["store"] == {"state": "IDLE", "percent": 0}
     stored = cli_json("library", "store", "0", path, "--name", "wave", "--port", firmware, env=ENV)
     assert stored == {
         "slot": 0,
@@ -52,15 +55,20 @@ def test_store_list_play_stop_delete(firmware, tmp_path):
     }
     listed = cli("library", "list", "--port", firmware, env=ENV)
     assert listed.exit_code == 0 and "wave" in listed.stdout and "OK" in listed.stdout
+    assert "keeps its library in RAM" in listed.stdout and "power-off" in listed.stdout
 
     played = cli_json("library", "play", "0", "--port", firmware, env=ENV)
     assert played == {"slot": 0, "state": "PLAYING"}
     assert cli("stop", "--port", firmware, env=ENV).exit_code == 0
 
     # QEMU's library has one slot: slot 1 is refused (bad input), by name, with the fix
-    refused = cli("library", "play", "1", "--port", firmware, env=ENV)
-    assert refused.exit_code == 2
-    assert refused.stderr.startswith("error: slot 1 does not exist") and "0..0" in refused.stderr
+    for refused in (
+        cli("library", "play", "1", "--port", firmware, env=ENV),
+        cli("library", "store", "1", path, "--port", firmware, env=ENV),
+    ):
+        assert refused.exit_code == 2
+        assert refused.stderr.startswith("error: slot 1 does not exist: this controller keeps")
+        assert "in RAM" in refused.stderr and "use slot 0" in refused.stderr
     bad_name = cli("library", "store", "0", path, "--name", "é", "--port", firmware, env=ENV)
     assert bad_name.exit_code == 2 and "printable ASCII" in bad_name.stderr
 

@@ -47,6 +47,20 @@ class CountingModel(PowerCutModel):
         super().write16(addr, value)
 
 
+def step_cut(models, ffi, step, job, recorded: tuple, rng: random.Random, seed: int) -> bytes:
+    """Replay one recorded step (flash and job bytes before it, its erases and programs)
+    with the power failing at one of its flash operations, chosen with rng and torn:
+    the flash after."""
+    mem, job_bytes, erases, programs = recorded[:4]
+    count = erases + programs
+    cut = rng.randrange(count) if count else None
+    with models.use(PowerCutModel(mem, cut_at=cut, seed=seed)) as m:
+        ffi.buffer(job)[:] = job_bytes
+        step(job, HALFWORDS)
+        assert m.unexpected == []
+        return bytes(m.mem)
+
+
 def region(hal):
     """The CM-530's table store, as board.h sizes it (at the model's flash)."""
     return flash_tests.region(hal, size=STORE_SIZE)
@@ -120,14 +134,8 @@ def test_a_cut_during_any_step_leaves_the_previous_table(hal, previous, run):
     job = hal.ffi.new("store_slots_job_t *")
     rng = random.Random(13)
     last = len(run["steps"]) - 1
-    for k, (mem, job_bytes, erases, programs) in enumerate(run["steps"]):
-        count = erases + programs
-        cut = rng.randrange(count) if count else None
-        with MODELS.use(PowerCutModel(mem, cut_at=cut, seed=k)) as m:
-            hal.ffi.buffer(job)[:] = job_bytes
-            hal.lib.store_slots_step(job, HALFWORDS)
-            assert m.unexpected == []
-            after = bytes(m.mem)
+    for k, recorded in enumerate(run["steps"]):
+        after = step_cut(MODELS, hal.ffi, hal.lib.store_slots_step, job, recorded, rng, k)
         found = stored(hal, after)
         magic = k >= last - 1  # the magic's step, and the read-back after it
         assert found == before or (magic and found == (run["new"], 2)), f"cut in step {k}"

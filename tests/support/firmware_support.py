@@ -5,7 +5,8 @@ emulated PC link with time limits fit for a loaded machine."""
 from __future__ import annotations
 
 import contextlib
-import re
+import functools
+import importlib.util
 import shutil
 import subprocess
 import time
@@ -28,14 +29,22 @@ BUILD = REPO_ROOT / "build"
 FIRMWARE = REPO_ROOT / "firmware"
 
 
+@functools.cache
+def board_figures() -> Any:
+    """protocol/board_figures.py as a module (a script's helper, not part of the package)."""
+    spec = importlib.util.spec_from_file_location(
+        "board_figures", REPO_ROOT / "protocol" / "board_figures.py"
+    )
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def board_value(board: str, name: str) -> int:
     """The number ``#define name`` stands for in firmware/boards/<board>/board.h (an
-    expression of literals and the board's other numbers)."""
-    text = (FIRMWARE / "boards" / board / "board.h").read_text()
-    expr = re.search(rf"#define {name} (.+)", text)[1]
-    expr = re.sub(r"(\d+)U?L?\b", r"\1", expr).replace("(unsigned long)", "")
-    names = set(re.findall(r"BOARD_\w+", expr))
-    return eval(expr, {"__builtins__": {}}, {n: board_value(board, n) for n in names})  # noqa: S307
+    expression of literals and the board's other numbers), evaluated as the docs'
+    generator evaluates it."""
+    return board_figures().board_value(board, name)
 
 
 QEMU_DIR = BUILD / "qemu"

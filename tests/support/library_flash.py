@@ -20,17 +20,38 @@ SIZE = PAGE * (DIR_PAGES + AREAS * AREA_PAGES)
 OK, EMPTY, DAMAGED, BAD_SLOT, BAD_BLOB, FLASH = range(6)
 TABLE, PROGRAM = 1, 2
 
-CDEF = """
-typedef struct { uint32_t base; uint32_t size; uint32_t page_size; } hal_flash_region_t;
-typedef struct { hal_flash_region_t dir; hal_flash_region_t areas; uint32_t area_size; }
+ENTRY_BYTES = 8 + NAME_MAX  # kind, area, length, CRC-32, name
+
+CDEF = f"""
+typedef struct {{ uint32_t base; uint32_t size; uint32_t page_size; }} hal_flash_region_t;
+typedef struct {{ hal_flash_region_t dir; hal_flash_region_t areas; uint32_t area_size; }}
     store_lib_t;
-typedef struct { uint8_t kind; uint16_t len; uint32_t crc; uint32_t addr; uint8_t name[16]; }
-    store_lib_entry_t;
+typedef struct {{
+    uint8_t kind; uint16_t len; uint32_t crc; uint32_t addr; uint8_t name[{NAME_MAX}];
+}} store_lib_entry_t;
 uint32_t store_lib_capacity(const store_lib_t *lib);
 int store_lib_entry(const store_lib_t *lib, uint8_t slot, store_lib_entry_t *out);
 int store_lib_put(const store_lib_t *lib, uint8_t slot, uint8_t kind, const uint8_t *name,
                   const uint8_t *data, uint32_t len);
 int store_lib_delete(const store_lib_t *lib, uint8_t slot);
+typedef struct {{
+    const hal_flash_region_t *r;
+    const uint8_t *data;
+    uint32_t len, slot, seq, done, expect, crc;
+    uint8_t phase, status, bare;
+}} store_slots_job_t;
+typedef struct {{
+    const store_lib_t *lib;
+    store_slots_job_t write;
+    uint8_t dir[{SLOTS * ENTRY_BYTES}];
+    uint8_t stage;
+    uint8_t status;
+}} store_lib_job_t;
+int store_lib_begin_put(store_lib_job_t *job, const store_lib_t *lib, uint8_t slot,
+                        uint8_t kind, const uint8_t *name, const uint8_t *data, uint32_t len);
+int store_lib_begin_delete(store_lib_job_t *job, const store_lib_t *lib, uint8_t slot);
+bool store_lib_step(store_lib_job_t *job, uint32_t halfwords);
+uint8_t store_lib_progress(const store_lib_job_t *job);
 """
 
 MODELS = RegisterModels()
@@ -67,13 +88,15 @@ def lib(hal: Any) -> Any:
 Slot = tuple[int, bytes, bytes]  # kind, name, data
 
 
-def contents(hal, mem: bytes) -> list[Slot | int]:
-    """What a fresh start finds in each slot: (kind, name, data), or the status if none."""
+def contents(hal, mem: bytes, layout: Any = None) -> list[Slot | int]:
+    """What a fresh start finds in each slot: (kind, name, data), or the status if none;
+    in the library :func:`lib` lays out unless ``layout`` (a store_lib_t) is given."""
     out: list[Slot | int] = []
+    layout = lib(hal) if layout is None else layout
     with MODELS.use(PowerCutModel(mem)) as m:
         e = hal.ffi.new("store_lib_entry_t *")
         for slot in range(SLOTS):
-            st = hal.lib.store_lib_entry(lib(hal), slot, e)
+            st = hal.lib.store_lib_entry(layout, slot, e)
             if st != OK:
                 out.append(st)
                 continue

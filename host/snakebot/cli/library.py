@@ -3,17 +3,64 @@ flash (protocol/library.md)."""
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
+from typing import Any
 
 import click
 
 from snakebot.cli.controller_link import controller_options, open_controller
 from snakebot.cli.output import dumps
-from snakebot.controller.library import delete_slot, list_slots, play_slot, restore, store_slot
+from snakebot.controller.library import (
+    IN_RAM,
+    delete_slot,
+    library_memory,
+    list_slots,
+    play_slot,
+    restore,
+    store_slot,
+    store_state,
+)
 from snakebot.flash.library_backup import read_backup
 from snakebot.gaittable import read_gait
 
 SLOT = click.argument("slot", type=click.IntRange(0, 255), metavar="SLOT")
+
+WAITING = {
+    "TABLE": "waiting for the controller to finish saving its active table",
+    "LIBRARY": "the controller is writing the slot to its flash",
+}
+
+
+class FlashWait:
+    """Shows the controller's flash write on stderr while a command waits for it: a bar
+    on a terminal, else one line per kind of write (nothing with --json)."""
+
+    def __init__(self, quiet: bool) -> None:
+        self.quiet = quiet
+        self.tty = sys.stderr.isatty()
+        self.state = ""
+        self.bar: Any = None
+
+    def __call__(self, state: str, percent: int) -> None:
+        if self.quiet:
+            return
+        if state != self.state:
+            self.close()
+            self.state = state
+            label = WAITING.get(state, f"waiting for the controller ({state})")
+            if not self.tty:
+                click.echo(f"{label} ...", err=True)
+                return
+            self.bar = click.progressbar(length=100, label=label, file=sys.stderr)
+            self.bar.__enter__()
+        if self.bar is not None:
+            self.bar.update(percent - self.bar.pos)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.__exit__(None, None, None)
+            self.bar = None
 
 
 @click.group("library")
@@ -30,8 +77,10 @@ def library() -> None:
         snakebot library play 0 --port /dev/ttyUSB0
         snakebot library delete 0 --port /dev/ttyUSB0
 
-    The CM-530 has 8 slots; the emulated controller of `snakebot sim serve` has one,
-    which is its active table.
+    The CM-530 has 8 slots, written to flash a step per control tick while the robot
+    keeps moving: store, delete and play wait for a write under way (the controller's
+    own save of a newly uploaded table, too) and show its progress. The QEMU firmware
+    keeps its library in RAM: one slot, which is its active table, lost at power-off.
     """
 
 
@@ -39,17 +88,27 @@ def library() -> None:
 @controller_options
 def list_command(port: str, baud: int, controller_id: int, as_json: bool) -> None:
     """Every slot: its name, kind, length, CRC-32, and whether its bytes are whole
-    (DAMAGED: the flash no longer matches the CRC; store the table again)."""
+    (DAMAGED: the flash no longer matches the CRC; store the table again), and where
+    the library is kept (--json: memory FLASH, or RAM on the QEMU board). While the
+    controller writes its flash (a store under way), says so: the slot being stored
+    shows its previous content until the write ends."""
     with open_controller(port, baud, controller_id) as ctl:
         ctl.identify()
         slots = list_slots(ctl)
+        writing = store_state(ctl)
+        memory = library_memory(ctl)
     if as_json:
-        click.echo(dumps({"slots": [s.as_dict() for s in slots]}))
-    elif not slots:
+        listed = {"slots": [s.as_dict() for s in slots], "memory": memory}
+        click.echo(dumps({**listed, "store": writing.as_dict()}))
+        return
+    if not slots:
         click.echo("this controller has no gait library")
-    else:
-        for s in slots:
-            click.echo(s.line())
+    for s in slots:
+        click.echo(s.line())
+    if memory == "RAM":
+        click.echo(f"({IN_RAM})")
+    if writing.state != "IDLE":
+        click.echo(writing.line())
 
 
 @library.command("store")
@@ -69,9 +128,14 @@ def store_command(
     active table is left alone. A power cut while storing leaves the slot as it was or
     as stored, and every other slot untouched."""
     blob = read_gait(gait).encode()  # a bad file fails here, before the port is opened
-    with open_controller(port, baud, controller_id) as ctl:
-        ctl.identify()
-        stored = store_slot(ctl, slot, name if name is not None else gait.stem, blob)
+    wait = FlashWait(as_json)
+    try:
+        with open_controller(port, baud, controller_id) as ctl:
+            ctl.identify()
+            name = name if name is not None else gait.stem
+            stored = store_slot(ctl, slot, name, blob, on_progress=wait)
+    finally:
+        wait.close()
     click.echo(dumps(stored.as_dict()) if as_json else f"stored: {stored.line()}")
 
 
@@ -80,10 +144,16 @@ def store_command(
 @controller_options
 def play_command(slot: int, port: str, baud: int, controller_id: int, as_json: bool) -> None:
     """Make slot SLOT's table the active one and play it (stop with `snakebot stop`).
-    The table played is not written over the controller's saved active table."""
-    with open_controller(port, baud, controller_id) as ctl:
-        ctl.identify()
-        state = play_slot(ctl, slot)
+    The table played is not written over the controller's saved active table; while the
+    controller is still saving a table just uploaded, this waits for the save to finish
+    (playing would replace the table being saved)."""
+    wait = FlashWait(as_json)
+    try:
+        with open_controller(port, baud, controller_id) as ctl:
+            ctl.identify()
+            state = play_slot(ctl, slot, on_progress=wait)
+    finally:
+        wait.close()
     click.echo(dumps({"slot": slot, "state": state}) if as_json else f"slot {slot}: {state}")
 
 
@@ -91,10 +161,14 @@ def play_command(slot: int, port: str, baud: int, controller_id: int, as_json: b
 @SLOT
 @controller_options
 def delete_command(slot: int, port: str, baud: int, controller_id: int, as_json: bool) -> None:
-    """Empty slot SLOT."""
-    with open_controller(port, baud, controller_id) as ctl:
-        ctl.identify()
-        delete_slot(ctl, slot)
+    """Empty slot SLOT (waiting, as store does, for a flash write under way)."""
+    wait = FlashWait(as_json)
+    try:
+        with open_controller(port, baud, controller_id) as ctl:
+            ctl.identify()
+            delete_slot(ctl, slot, on_progress=wait)
+    finally:
+        wait.close()
     click.echo(dumps({"slot": slot, "deleted": True}) if as_json else f"slot {slot} emptied")
 
 

@@ -7,12 +7,19 @@ Library window page.
     play_slot(ctl, 2)
     saved = backup(ctl)          # every slot's bytes, e.g. before flashing
     restore(ctl, saved)
+
+A controller that keeps its library in flash (the CM-530) writes it a step per control
+tick, after the call that began the write has been answered; so does it save a newly
+committed table. These functions wait for such a write (Store State, on the Program page)
+before they begin and until theirs has ended, telling ``on_progress(state, percent)``.
 """
 
 from __future__ import annotations
 
 import base64
+import time
 import zlib
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -48,7 +55,19 @@ LIBRARY_RESULTS: dict[str, tuple[str, str]] = {
         "try again; if it persists, the flash is worn: use another slot",
     ),
     "LIBRARY_NOT_PLAYABLE": ("the slot holds no gait table", "play a slot holding a table"),
+    "STORE_BUSY": (
+        "the controller is still writing its flash (a table it saves, or a library store)",
+        "wait for the save to finish (`snakebot library list` shows it), then try again",
+    ),
 }
+
+STORE_WAIT_S = 30.0
+"""How long to wait for a flash write to end: a 32 KB store takes about 3.5 s of control
+ticks on the CM-530; far longer means the controller is not stepping it."""
+
+Progress = Callable[[str, int], None]
+"""``on_progress(state, percent)``: the flash write under way (Store State's name, TABLE
+or LIBRARY) and how far it is, each time it is polled."""
 
 
 class LibraryError(ControllerError):
@@ -91,6 +110,17 @@ def _text(ctl: ControllerClient, name: str) -> bytes:
     return ctl.read_block(reg.address, reg.size)
 
 
+IN_RAM = (
+    "this controller keeps its library in RAM (the QEMU board): one slot, 0, which is its "
+    "active table; it empties when another table becomes active and at power-off"
+)
+
+
+def library_memory(ctl: ControllerClient) -> str:
+    """Where the library keeps its slots (Library Memory): FLASH, RAM or NONE."""
+    return _enum_name(ctl, "Library Memory", ctl.read("Library Memory")["Library Memory"])
+
+
 def library_size(ctl: ControllerClient) -> tuple[int, int]:
     """(Library Slots, Slot Capacity): 0 slots when the controller has no library."""
     r = ctl.read("Library Slots", "Slot Capacity")
@@ -118,11 +148,57 @@ def list_slots(ctl: ControllerClient) -> list[Slot]:
     return [read_slot(ctl, s) for s in range(count)]
 
 
+@dataclass(frozen=True)
+class StoreState:
+    """What the controller is writing to its flash (Store State, Store Progress)."""
+
+    state: str  # IDLE, TABLE (the committed table's save), LIBRARY (a store or delete)
+    percent: int
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    def line(self) -> str:
+        what = {"TABLE": "saving its active table", "LIBRARY": "storing a library slot"}
+        return f"the controller is {what.get(self.state, self.state)}: {self.percent}% done"
+
+
+def store_state(ctl: ControllerClient) -> StoreState:
+    """The flash write under way, if any (IDLE on a controller without a flash store)."""
+    r = ctl.read("Store State", "Store Progress")
+    return StoreState(_enum_name(ctl, "Store State", r["Store State"]), r["Store Progress"])
+
+
+def wait_for_store(
+    ctl: ControllerClient,
+    on_progress: Progress | None = None,
+    timeout: float = STORE_WAIT_S,
+    poll: float = 0.1,
+) -> None:
+    """Return once the controller writes nothing to its flash; LibraryError if a write
+    is still under way after ``timeout`` seconds."""
+    deadline = time.monotonic() + timeout
+    while True:
+        now = store_state(ctl)
+        if now.state == "IDLE":
+            return
+        if time.monotonic() > deadline:
+            raise LibraryError(
+                f"{now.line()} after {timeout:.0f} s: power-cycle the controller if this "
+                "persists (a power cut keeps the previous content)"
+            )
+        if on_progress is not None:
+            on_progress(now.state, now.percent)
+        time.sleep(poll)
+
+
 def _check_slot(ctl: ControllerClient, slot: int) -> None:
     count, _ = library_size(ctl)
     if count == 0:
         raise LibraryError(f"the controller refused ({_reason(ctl, 'LIBRARY_NONE')})")
     if not 0 <= slot < count:
+        if library_memory(ctl) == "RAM":
+            raise LibraryError(f"slot {slot} does not exist: {IN_RAM}; use slot 0")
         raise LibraryError(f"slot {slot} does not exist: this controller has slots 0..{count - 1}")
 
 
@@ -154,37 +230,62 @@ def encode_name(ctl: ControllerClient, name: str) -> bytes:
     return raw.ljust(size, b"\0")
 
 
+def _committed(
+    ctl: ControllerClient, blob: bytes, what: str, failed: str, on_progress: Progress | None
+) -> None:
+    """Commit the staged ``blob`` as ``what`` (LIBRARY_STORE, LIBRARY_DELETE); if the
+    controller writes it in the background, wait for that; LibraryError(``failed``) if it
+    was refused or failed."""
+    ctl.write_block(*commit_write(blob, ctl.table, what=what))
+    begun = ctl.read("Upload Result")["Upload Result"]
+    if _enum_name(ctl, "Upload Result", begun) != "LIBRARY_STORING":
+        _result(ctl, "Upload Result", failed)
+        return
+    wait_for_store(ctl, on_progress)
+    _result(ctl, "Library Result", failed)  # the write's outcome
+
+
 def store_slot(
-    ctl: ControllerClient, slot: int, name: str, blob: bytes, kind: str = "TABLE"
+    ctl: ControllerClient,
+    slot: int,
+    name: str,
+    blob: bytes,
+    kind: str = "TABLE",
+    on_progress: Progress | None = None,
 ) -> Slot:
     """Keep ``blob`` (a gait table's bytes, or a program's with ``kind`` PROGRAM) in slot
-    ``slot`` named ``name``; returns the slot as stored. Raises LibraryError if refused."""
+    ``slot`` named ``name``; returns the slot as stored. Raises LibraryError if refused.
+    Waits for a flash write under way first: staging the blob could land on a table the
+    controller is saving."""
     raw_name = encode_name(ctl, name)
     _check_slot(ctl, slot)
     kinds = ctl.table.enums["Upload Commit"]
     if kind not in kinds:
         raise LibraryError(f"no blob kind {kind!r}: use TABLE")
+    wait_for_store(ctl, on_progress)
     ctl.write({"Library Slot": slot, "Store Kind": kinds[kind]})
     store_name = ctl.table.register("Store Name")
     ctl.write_block(store_name.address, raw_name)
     for address, data in chunk_writes(blob, controller=ctl.table):
         ctl.write_block(address, data)
-    ctl.write_block(*commit_write(blob, ctl.table, what="LIBRARY_STORE"))
-    _result(ctl, "Upload Result", f"slot {slot} was not stored")
+    _committed(ctl, blob, "LIBRARY_STORE", f"slot {slot} was not stored", on_progress)
     return read_slot(ctl, slot)
 
 
-def delete_slot(ctl: ControllerClient, slot: int) -> None:
+def delete_slot(ctl: ControllerClient, slot: int, on_progress: Progress | None = None) -> None:
     """Empty slot ``slot``."""
     _check_slot(ctl, slot)
+    wait_for_store(ctl, on_progress)
     ctl.write({"Library Slot": slot})
-    ctl.write_block(*commit_write(b"", ctl.table, what="LIBRARY_DELETE"))
-    _result(ctl, "Upload Result", f"slot {slot} was not deleted")
+    _committed(ctl, b"", "LIBRARY_DELETE", f"slot {slot} was not deleted", on_progress)
 
 
-def play_slot(ctl: ControllerClient, slot: int) -> str:
-    """Make slot ``slot``'s table the active one and play it; returns the State by name."""
+def play_slot(ctl: ControllerClient, slot: int, on_progress: Progress | None = None) -> str:
+    """Make slot ``slot``'s table the active one and play it; returns the State by name.
+    The controller refuses while it writes its flash (a play would replace the table it
+    saves): this waits for that first."""
     _check_slot(ctl, slot)
+    wait_for_store(ctl, on_progress)
     ctl.write({"Library Slot": slot})
     ctl.command("LIBRARY_PLAY")
     _result(ctl, "Library Result", f"slot {slot} was not played")

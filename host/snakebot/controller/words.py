@@ -62,6 +62,11 @@ UPLOAD_RESULTS: dict[str, tuple[str, str]] = {
         "stop playback (`snakebot stop`), then upload again",
     ),
     "TRAILING_BYTES": ("there are bytes after the last frame", ""),
+    "STORE_BUSY": (
+        "the controller is storing a gait-library slot, which reads the staged bytes "
+        "until it ends (Store State on the Program page)",
+        "wait a few seconds for the store to finish, then upload again",
+    ),
     "CRC_MISMATCH": ("the table's own CRC does not match its bytes", ""),
     "BAD_JOINT_ID": ("a servo ID above 253 or used twice", ""),
     "BAD_LIMITS": ("a joint's min tick above its max", ""),

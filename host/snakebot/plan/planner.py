@@ -447,10 +447,18 @@ def routes(
 ) -> Iterator[Route]:
     """Routes (hub, loop, count) whose joint path as planned reaches ``target``, in the
     order of ``candidates``, each inside a table of ``capacity`` bytes; the loops keep
-    off configurations whose reciprocal condition number is below ``keep_off``."""
+    off configurations whose reciprocal condition number is below ``keep_off``.
+
+    ``growing``: a hub's fit at one count starts first from the loop that came nearest
+    at its last count, shrunk for the shorter way (a loop's motion grows with its area,
+    the square of its size); where the last count's loop could not reach its share
+    (too large a loop for the joints' range, or nearing a singular configuration), the
+    smaller one often can. Fitted from the generic guesses alone, the same 3-link snake
+    targets needed two to four times the loops, or more than a 2 KB table holds."""
     scale = body_length(robot)
     accuracy = solve_accuracy(robot, tol)
     dead: set[int] = set()
+    nearest: dict[int, tuple[int, np.ndarray]] = {}  # hub index: (count, coefficients)
     for i, h, k in candidates(
         robot, start, target, capacity, count=count, hub=hub, growing=growing
     ):
@@ -461,7 +469,15 @@ def routes(
         except KinematicsError:
             dead.add(i)  # the moves to or from this hub cross a singular configuration
             continue
-        loop = solve_loop(robot, h, wanted, scale, guesses(robot, previous), accuracy, keep_off)
+        starts = guesses(robot, previous)
+        if growing and i in nearest:
+            before, coefficients = nearest[i]
+            starts.insert(0, coefficients * math.sqrt(before / k))
+
+        def remember(coefficients: np.ndarray, i: int = i, k: int = k) -> None:
+            nearest[i] = (k, coefficients)
+
+        loop = solve_loop(robot, h, wanted, scale, starts, accuracy, keep_off, remember)
         if loop is not None:
             yield Route(robot, start, loop, k)
 

@@ -453,8 +453,9 @@ def routes(
     at its last count, shrunk for the shorter way (a loop's motion grows with its area,
     the square of its size); where the last count's loop could not reach its share
     (too large a loop for the joints' range, or nearing a singular configuration), the
-    smaller one often can. Fitted from the generic guesses alone, the same 3-link snake
-    targets needed two to four times the loops, or more than a 2 KB table holds."""
+    smaller one often can: of 30 seeded 3-link snake targets two failed at their first
+    counts, and from the generic guesses alone needed 48 and 24 loops (more than a 2 KB
+    table holds), from the nearest loop 12 and 20."""
     scale = body_length(robot)
     accuracy = solve_accuracy(robot, tol)
     dead: set[int] = set()

@@ -106,6 +106,7 @@ def test_unreachable_target_exits_1_and_writes_nothing(tmp_path):
         (("--to", "1,0,0", "--from", "0,0,100deg"), "outside its limits"),
         (("--to", "1,0,0", "--capacity", "2kB"), "neither a whole number of bytes nor a board"),
         (("--to", "1,0,0", "--capacity", "-1"), "neither a whole number of bytes nor a board"),
+        (("--to", "1,0,0", "--capacity", "\u00b2"), "neither a whole number of bytes nor a board"),
         (("--to", "1,0,0", "--capacity", "9" * 5000), "neither a whole number of bytes"),
         (("--to", "1,0,0", "--capacity", MAX_TABLE_BYTES + 1), f"to {MAX_TABLE_BYTES} (the"),
         (("--to", "1,0,0", "--capacity", "16"), "one loop of"),

@@ -62,7 +62,7 @@ class CapacityType(click.ParamType):
         text = str(value).strip().lower()
         if text in TABLE_CAPACITY:
             return TABLE_CAPACITY[text]
-        if len(text) > MAX_CAPACITY_CHARS or not text.isdigit():
+        if len(text) > MAX_CAPACITY_CHARS or not (text.isascii() and text.isdigit()):
             boards = ", ".join(sorted(TABLE_CAPACITY))
             shown = text if len(text) <= MAX_CAPACITY_CHARS else text[:MAX_CAPACITY_CHARS] + "..."
             self.fail(

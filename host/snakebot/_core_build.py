@@ -17,11 +17,32 @@ CORE_DIR = Path(__file__).resolve().parents[2] / "firmware" / "core"
 SIM_DIR = Path(__file__).resolve().parent / "sim" / "csrc"
 """Host-only C of the emulator (never in the firmware), published the same way."""
 FENCE = re.compile(r"/\* cffi:begin \*/(.*?)/\* cffi:end \*/", re.S)
+BOARDS_DIR = CORE_DIR.parent / "boards"
+"""One directory per board (``board.h``): the facts the host needs of each are published
+as ``BOARD_<NAME>_<FACT>`` (``board_facts``)."""
+BOARD_FACTS = ("TABLE_CAPACITY",)
+"""The ``BOARD_*`` numbers of each board.h published to Python, each a plain literal there."""
 
 
 def published_declarations(header: Path) -> str:
     """The cffi-visible part of one header (empty if it publishes nothing)."""
     return "\n".join(block.strip() for block in FENCE.findall(header.read_text()))
+
+
+def board_facts() -> str:
+    """``#define BOARD_<NAME>_<FACT> <value>`` for every board and fact in BOARD_FACTS,
+    read from the board's board.h: the host cannot include a board.h (it names the
+    hardware, and every board's defines the same names), so the literal is carried over
+    here, at build time, from the one place it is written."""
+    out = []
+    for board in sorted(p for p in BOARDS_DIR.iterdir() if (p / "board.h").is_file()):
+        text = (board / "board.h").read_text()
+        for fact in BOARD_FACTS:
+            found = re.search(rf"^#define BOARD_{fact} (\d+)U?L?\s*$", text, re.M)
+            if found is None:
+                raise SystemExit(f"{board / 'board.h'}: BOARD_{fact} is not a plain number")
+            out.append(f"#define BOARD_{board.name.upper()}_{fact} {found[1]}")
+    return "\n".join(out)
 
 
 def _relative(path: Path) -> str:
@@ -33,10 +54,13 @@ headers = sorted(CORE_DIR.glob("*.h")) + sorted(SIM_DIR.glob("*.h"))
 sources = sorted(CORE_DIR.glob("*.c")) + sorted(SIM_DIR.glob("*.c"))
 
 ffibuilder = FFI()
+BOARD_DEFINES = board_facts()
 ffibuilder.cdef("\n".join(filter(None, (published_declarations(h) for h in headers))))
+# the values come from the source below; cffi checks the C side has each name
+ffibuilder.cdef(re.sub(r"^(#define \w+) .*$", r"\1 ...", BOARD_DEFINES, flags=re.M))
 ffibuilder.set_source(
     "snakebot._core",
-    "\n".join(f'#include "{h.name}"' for h in headers),
+    "\n".join([*(f'#include "{h.name}"' for h in headers), BOARD_DEFINES]),
     sources=[_relative(s) for s in sources],
     include_dirs=[_relative(CORE_DIR), _relative(SIM_DIR)],
     # -O3 for the kinematics' small fixed loops; -fno-math-errno lets sqrt be one

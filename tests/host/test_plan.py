@@ -1,5 +1,6 @@
 """snakebot plan: seeded random targets per robot family end within the tolerance, as
-planned and as played on the emulated robot; unreachable targets write nothing."""
+planned and as played on the emulated robot; unreachable targets write nothing; a plan
+fits the table capacity it is made for (a board's, or the controller's own)."""
 
 from __future__ import annotations
 
@@ -9,9 +10,10 @@ import math
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from firmware_support import board_value
 
 from snakebot.cli import main
-from snakebot.gaittable import read_gait
+from snakebot.gaittable import MAX_TABLE_BYTES, read_gait
 from snakebot.plan import body_length, se2
 from snakebot.robots import load_robot
 
@@ -102,11 +104,19 @@ def test_unreachable_target_exits_1_and_writes_nothing(tmp_path):
         (("--to", "1,0,0", "--tolerance", "2"), "fraction"),
         (("--to", "1,0,0", "--from", "0,0"), "3 joint angles"),
         (("--to", "1,0,0", "--from", "0,0,100deg"), "outside its limits"),
+        (("--to", "1,0,0", "--capacity", "2kB"), "neither a whole number of bytes nor a board"),
+        (("--to", "1,0,0", "--capacity", "-1"), "neither a whole number of bytes nor a board"),
+        (("--to", "1,0,0", "--capacity", "\u00b2"), "neither a whole number of bytes nor a board"),
+        (("--to", "1,0,0", "--capacity", "9" * 5000), "neither a whole number of bytes"),
+        (("--to", "1,0,0", "--capacity", MAX_TABLE_BYTES + 1), f"to {MAX_TABLE_BYTES} (the"),
+        (("--to", "1,0,0", "--capacity", "16"), "one loop of"),
+        (("--to", "1,0,0", "--capacity", "qemu", "--port", "/dev/null"), "give one of them"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(tmp_path, args, words):
     result = run("plan", "trident", *args, "-o", tmp_path / "x.gait")
     assert result.exit_code == 2, result.output
+    assert result.output.startswith("error: ") and result.output.count("\n") == 1
     assert words in result.output
     assert "Traceback" not in result.output
     assert not (tmp_path / "x.gait").exists()
@@ -154,3 +164,67 @@ def test_a_plan_near_a_singular_configuration_is_warned_about(monkeypatch):
     (warning,) = json.loads(loud.stdout)["warnings"]
     assert warning["kind"] == "near_singular" and warning["condition"] > 0.5
     assert "plan as written" in loud.stderr and "condition number" in loud.stderr
+
+
+def test_a_target_beyond_the_small_board_exits_1_naming_capacity(tmp_path):
+    """The same target: beyond what the QEMU board's table holds (the default; exit 1,
+    the message says --capacity, nothing written), within the CM-530's, whose plan is
+    then larger than the QEMU board takes."""
+    to = "-6.1,16.94,37deg"  # about three body lengths of snake3
+    out = tmp_path / "far.gait"
+    small = run("plan", "snake3", "--to", to, "-o", out)
+    assert small.exit_code == 1, small.output
+    assert small.output.startswith("error: ") and small.output.count("\n") == 1
+    assert "--capacity cm530" in small.output and "no file was written" in small.output
+    assert not out.exists()
+
+    large = run("plan", "snake3", "--to", to, "--capacity", "cm530", "-o", out, "--json")
+    assert large.exit_code == 0, large.output
+    report = json.loads(large.stdout)
+    assert report["capacity_bytes"] == board_value("cm530", "BOARD_TABLE_CAPACITY")
+    assert report["error"]["within"]
+    qemu = board_value("qemu", "BOARD_TABLE_CAPACITY")
+    assert qemu < report["table_bytes"] == out.stat().st_size <= report["capacity_bytes"]
+
+
+@pytest.mark.parametrize(("board", "capacity"), [("qemu", 1000), ("qemu", None)])
+def test_a_plan_fits_the_capacity_it_is_made_for(tmp_path, board, capacity):
+    """Planned for a capacity (a board's or a number), the table fits it; snake5 one
+    body length away needs more loops than the QEMU board holds, so its plan there
+    has fewer, larger loops and still ends within the tolerance."""
+    robot = load_robot("snake5")
+    out = tmp_path / "plan.gait"
+    given = board if capacity is None else str(capacity)
+    want = board_value(board, "BOARD_TABLE_CAPACITY") if capacity is None else capacity
+    target = f"{body_length(robot)},0,0"
+    result = run("plan", "snake5", "--to", target, "--capacity", given, "-o", out, "--json")
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.stdout)
+    assert report["capacity_bytes"] == want and report["error"]["within"]
+    assert report["table_bytes"] == out.stat().st_size <= want
+
+
+@pytest.mark.qemu
+@pytest.mark.timeout(300)
+def test_a_plan_for_the_qemu_firmwares_capacity_fits_and_uploads(tmp_path):
+    """--port asks the firmware under QEMU for its Table Capacity: the plan fits it and
+    the firmware takes it, where the same target planned for the CM-530 would not fit."""
+    from controller_cli_support import cli_json
+    from firmware_support import booted_qemu
+
+    robot = load_robot("snake5")
+    target = f"{body_length(robot)},0,0"
+    qemu = board_value("qemu", "BOARD_TABLE_CAPACITY")
+    larger = run("plan", "snake5", "--to", target, "--capacity", "cm530", "--json")
+    assert larger.exit_code == 0, larger.output
+    assert json.loads(larger.stdout)["table_bytes"] > qemu
+
+    out = tmp_path / "plan.gait"
+    with booted_qemu(tmp_path, "snake5") as port:
+        result = run("plan", "snake5", "--to", target, "--port", port, "-o", out, "--json")
+        assert result.exit_code == 0, result.output
+        report = json.loads(result.stdout)
+        assert report["capacity_bytes"] == qemu
+        assert report["table_bytes"] == out.stat().st_size <= qemu
+        uploaded = cli_json("upload", out, "--port", port, env={"SNAKEBOT_MARGIN_MS": "300"})
+        assert uploaded["bytes"] == out.stat().st_size

@@ -48,6 +48,8 @@ def test_program_plan_ends_at_the_target_on_ideal_servos(tmp_path: Path, robot: 
     plan = json.loads(result.output)
     program = read_program(out)
     assert plan["program_bytes"] == len(out.read_bytes()) == len(program.encode())
+    # made for the smallest board unless told: it fits there
+    assert plan["program_bytes"] <= plan["capacity_bytes"] == QEMU_CAPACITY
     # far smaller than a table of the plan's steps (its loops would be frames)
     assert plan["program_bytes"] < 2 * program.joint_count * min(
         program.total_steps, max_frames(program.joint_count)

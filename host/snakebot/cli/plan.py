@@ -9,11 +9,18 @@ from typing import Any
 
 import click
 
+from snakebot.boards import TABLE_CAPACITY
+from snakebot.cli.controller_link import controller_id_option
 from snakebot.cli.output import dumps
-from snakebot.cli.params import ANGLE, ANGLES, NUMBER, OUTPUT_PATH
+from snakebot.cli.params import ANGLE, ANGLES, NUMBER, OUTPUT_PATH, controller_port
 from snakebot.gait.values import InputError, parse_angle, parse_number
 from snakebot.plan import Unreachable
-from snakebot.plan.planner import DEFAULT_HEADING_TOLERANCE, DEFAULT_TOLERANCE
+from snakebot.plan.planner import (
+    DEFAULT_BOARD,
+    DEFAULT_CAPACITY,
+    DEFAULT_HEADING_TOLERANCE,
+    DEFAULT_TOLERANCE,
+)
 
 #: Exit status when no plan reaches the target: a runtime failure, not bad input.
 EXIT_UNREACHABLE = 1
@@ -39,6 +46,35 @@ class PoseType(click.ParamType):
 
 
 POSE = PoseType()
+
+#: The longest --capacity worth reading (a number of bytes or a board's name).
+MAX_CAPACITY_CHARS = 32
+
+
+class CapacityType(click.ParamType):
+    """BYTES or a board's name: the table capacity a plan is made for, in bytes."""
+
+    name = "capacity"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> int:
+        if isinstance(value, int):
+            return value
+        text = str(value).strip().lower()
+        if text in TABLE_CAPACITY:
+            return TABLE_CAPACITY[text]
+        if len(text) > MAX_CAPACITY_CHARS or not (text.isascii() and text.isdigit()):
+            boards = ", ".join(sorted(TABLE_CAPACITY))
+            shown = text if len(text) <= MAX_CAPACITY_CHARS else text[:MAX_CAPACITY_CHARS] + "..."
+            self.fail(
+                f"{shown!r} is neither a whole number of bytes nor a board ({boards})", param, ctx
+            )
+        return int(text)
+
+    def get_metavar(self, param: click.Parameter, ctx: click.Context | None = None) -> str:
+        return "BYTES|" + "|".join(sorted(TABLE_CAPACITY))
+
+
+CAPACITY = CapacityType()
 
 TO_OPTION = click.option(
     "--to",
@@ -107,6 +143,23 @@ def unreachable(exc: Unreachable) -> None:
     type=click.Path(dir_okay=False, path_type=Path),
     help="also write a PNG of the joints and the body's path (needs -o)",
 )
+@click.option(
+    "--capacity",
+    type=CAPACITY,
+    help="the largest table (or program) the plan may take, in bytes or as a board's "
+    f"({', '.join(f'{b}: {n}' for b, n in sorted(TABLE_CAPACITY.items()))} bytes) "
+    f"[default: {DEFAULT_BOARD}'s {DEFAULT_CAPACITY}, the smallest board's, so that a "
+    "plan made without asking the controller plays on every board]",
+)
+@click.option(
+    "--port",
+    "-p",
+    callback=controller_port("snakebot sim serve"),
+    help="ask the controller on this port (its PC link, e.g. /dev/ttyUSB0, or the "
+    "pseudo-terminal of `snakebot sim serve`) for its Table Capacity and plan for that; "
+    "instead of --capacity",
+)
+@controller_id_option
 @click.option("--json", "as_json", is_flag=True, help="print the report as JSON")
 def plan_command(
     robot: str,
@@ -116,6 +169,9 @@ def plan_command(
     heading_tolerance: float,
     output: Path | None,
     plot: Path | None,
+    capacity: int | None,
+    port: str | None,
+    controller_id: int,
     as_json: bool,
 ) -> None:
     """Plan a gait table that takes ROBOT (snake3, trident, snake5 or a .toml) from rest
@@ -144,13 +200,19 @@ def plan_command(
     few times, and a program still outside is not written (exit 1). --json reports its
     size in bytes.
 
-    When no plan inside the limits and the controller's table reaches the target, the
-    command says so and exits with status 1; nothing is written.
+    The plan fits the table capacity it is made for: the smallest board's unless
+    --capacity names another (the CM-530 holds the largest tables, so a longer way goes
+    in one plan there) or --port asks the controller it is for. Routes of few loops are
+    tried first (at every hub the nominal count, then twice as many, up to what the
+    capacity holds). When no plan inside the limits and the capacity reaches the target,
+    the command says so and exits with status 1; nothing is written.
 
     \b
     Example:
       snakebot plan trident --to 2,1,30deg -o go.gait
       snakebot sim predict go.gait --ideal
+      snakebot plan snake3 --to 12,0,0 --capacity cm530 -o far.gait
+      snakebot plan snake3 --to 12,0,0 --port /dev/ttyUSB0 -o far.gait
       snakebot plan trident --to 1,0.5,30deg -o go.prog
       snakebot upload go.prog --port /dev/ttyUSB0 && snakebot play --port /dev/ttyUSB0
     """
@@ -166,7 +228,13 @@ def plan_command(
             "--plot draws a gait table: for a program, use "
             "`snakebot sim predict FILE.prog --plot PNG`"
         )
+    if capacity is not None and port is not None:
+        raise click.UsageError(
+            "--capacity and --port both set the capacity planned for: give one of them"
+        )
     chosen = load_robot(robot)
+    if port is not None:
+        capacity = controller_capacity(port, controller_id)
     try:
         plan = (plan_program if as_program else make_plan)(
             chosen,
@@ -174,6 +242,7 @@ def plan_command(
             start=tuple(start) if start else None,
             tolerance=tolerance,
             heading_tolerance=heading_tolerance,
+            capacity=DEFAULT_CAPACITY if capacity is None else capacity,
         )
     except Unreachable as exc:
         unreachable(exc)
@@ -201,6 +270,16 @@ def plan_command(
     _print(summary)
 
 
+def controller_capacity(port: str, controller_id: int) -> int:
+    """The Table Capacity of the controller on ``port`` (its PC link at the firmware's
+    rate): the largest table or program it takes."""
+    from snakebot.controller.client import PC_LINK_BAUD, ControllerClient
+    from snakebot.controller.uploader import CAPACITY as CAPACITY_REGISTER
+
+    with ControllerClient.open(port, PC_LINK_BAUD, controller_id) as ctl:
+        return ctl.read(CAPACITY_REGISTER)[CAPACITY_REGISTER]
+
+
 def _write_program(plan: Any, output: Path, as_json: bool) -> None:
     """Write the plan's program (its goals end within the tolerance) and report it."""
     from snakebot.program.files import write_program
@@ -215,7 +294,8 @@ def _write_program(plan: Any, output: Path, as_json: bool) -> None:
     hubs = "; ".join(", ".join(f"{math.degrees(v):.1f}" for v in h) for h in s["hubs_rad"])
     click.echo(
         f"program for {s['robot']}: {s['loops']} {s['loop_kind']} loops through "
-        f"hub(s) ({hubs}) deg, {s['program_bytes']} bytes, a step every "
+        f"hub(s) ({hubs}) deg, {s['program_bytes']} bytes of the {s['capacity_bytes']} "
+        "planned for, a step every "
         f"{s['step_period_ms']} ms ({s['duration_s']:.2f} s): {kinds}"
     )
     _print_pose(s, "the program's goals as the controller rounds them")
@@ -243,7 +323,8 @@ def _print(s: dict[str, Any]) -> None:
     click.echo(
         f"plan for {s['robot']}: {s['loops']} loops through hub "
         f"({', '.join(f'{math.degrees(v):.1f}' for v in s['hub_rad'])}) deg, "
-        f"{s['frames']} frames every {s['frame_period_ms']} ms ({s['duration_s']:.2f} s)"
+        f"{s['frames']} frames every {s['frame_period_ms']} ms ({s['duration_s']:.2f} s), "
+        f"{s['table_bytes']} bytes of the {s['capacity_bytes']} planned for"
     )
     _print_pose(s, "the table as the controller plays it")
     if "file" in s:

@@ -50,7 +50,7 @@ from snakebot.plan.planner import (
 from snakebot.protocol import sync_write
 from snakebot.robots import Robot
 from snakebot.sim.bus import Bus
-from snakebot.sim.controller_pty import TICK_MS
+from snakebot.sim.controller_pty import TABLE_CAPACITY, TICK_MS
 from snakebot.sim.predict import (
     DEFAULT_WORLD_HZ,
     GOAL_POSITION_ADDR,
@@ -261,11 +261,12 @@ def _route(
     robot: Robot, start: np.ndarray, goal: np.ndarray, tol: Tolerance, keep_off: float
 ) -> tuple[Route, float]:
     """The first route, its loops ``keep_off`` from singular configurations if one
-    reaches the goal so, else the planner's; and the distance its loops keep."""
+    reaches the goal so, else the planner's; and the distance its loops keep. The
+    loops are as many as a table of the emulated controller's capacity holds."""
     for rcond in dict.fromkeys((keep_off, NEAR_SINGULAR_RCOND)):
-        for route in routes(robot, start, goal, tol, keep_off=rcond):
+        for route in routes(robot, start, goal, tol, capacity=TABLE_CAPACITY, keep_off=rcond):
             return route, rcond
-    raise unreachable(robot, goal)
+    raise unreachable(robot, goal, TABLE_CAPACITY)
 
 
 def _follow(

@@ -111,12 +111,14 @@ def solve_loop(
     guesses: list[np.ndarray],
     accuracy: float,
     keep_off: float = NEAR_SINGULAR_RCOND,
+    closest: Callable[[np.ndarray], None] | None = None,
 ) -> Loop | None:
     """A loop through ``hub`` moving the body by ``wanted`` (x, y, theta), or None.
 
     ``scale`` is the length that weighs position against heading (radians); the first
     guess whose solution reaches ``accuracy`` (scaled residual) wins. The loop keeps off
-    configurations whose reciprocal condition number is below ``keep_off``."""
+    configurations whose reciprocal condition number is below ``keep_off``. ``closest``
+    is given the coefficients that came nearest, whether or not they reach it."""
     lo, hi = limits(robot)
     weights = np.array([1.0 / scale, 1.0 / scale, 1.0])
 
@@ -132,7 +134,7 @@ def solve_loop(
         return np.r_[(moved - wanted) * weights, 10.0 * outside, near]
 
     tight = {"max_nfev": MAX_EVALS, "xtol": 1e-12, "ftol": 1e-12, "gtol": 1e-12}
-    p = best_fit(residual, guesses, accuracy, **tight)
+    p = best_fit(residual, guesses, accuracy, closest=closest, **tight)
     if p is None:
         return None
     return Loop(np.asarray(hub, dtype=float), p, path_motion(robot, loop_angles(hub, p)))
@@ -142,10 +144,12 @@ def best_fit(
     residual: Callable[[np.ndarray], np.ndarray],
     guesses: Iterable[np.ndarray],
     accuracy: float,
+    closest: Callable[[np.ndarray], None] | None = None,
     **options: Any,
 ) -> np.ndarray | None:
     """Least squares from each guess in turn (SciPy's trust-region method, ``options``
-    passed on): the first solution whose residuals all reach ``accuracy``, else None."""
+    passed on): the first solution whose residuals all reach ``accuracy``, else None.
+    ``closest``, if given, is called with the solution of least cost found either way."""
     try:
         from scipy.optimize import least_squares  # the planner's optional dependency
     except ImportError:  # pragma: no cover - make setup installs it
@@ -157,6 +161,8 @@ def best_fit(
             best = sol
         if np.abs(sol.fun).max() <= accuracy:
             break
+    if best is not None and closest is not None:
+        closest(np.asarray(best.x))
     if best is None or np.abs(best.fun).max() > accuracy:
         return None
     return np.asarray(best.x)

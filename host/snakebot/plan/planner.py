@@ -10,8 +10,10 @@ small for large k, so the loop is small and the solve well conditioned; it is a
 least-squares fit of the loop's coefficients with the exact motion from the C core, the
 fields being re-evaluated all along the way by the integration, where the brackets give
 only the leading order. The solver starts from several deterministic guesses (for a
-snake, a serpenoid wave among them), tries the robot's hubs in turn and k from a nominal
-count up to what the controller's table holds.
+snake, a serpenoid wave among them). Routes are tried from the fewest loops up
+(``candidates``): the nominal count for the distance and turn at every hub, then twice
+as many at every hub, and so on up to what a table of the capacity planned for holds;
+a route of few loops is found first where one exists, and it is the shorter plan.
 
 The table is then written in ticks loop by loop, re-planned on the way as the thesis
 re-evaluates its fields: before each loop, what is left (from the pose the loops so
@@ -21,7 +23,8 @@ rounding does not compound over the loops. The table is timed to the servos' spe
 (frame period a whole number of controller ticks), checked against the joint limits,
 and its motion as played (``gait.common.table_motion``) must end at the target within
 the tolerance; else the next route is tried. A target that no hub and no k reaches
-within the table's size raises ``Unreachable``."""
+within the table's capacity (unless told, the smallest board's: ``DEFAULT_CAPACITY``)
+raises ``Unreachable``."""
 
 from __future__ import annotations
 
@@ -32,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from snakebot.boards import TABLE_CAPACITY, largest_board, smallest_board
 from snakebot.gait.common import (
     NEAR_SINGULAR_RCOND,
     Gait,
@@ -43,7 +47,7 @@ from snakebot.gait.common import (
 )
 from snakebot.gait.field import SPEED_MARGIN
 from snakebot.gait.limits import check_ticks
-from snakebot.gaittable import max_frames
+from snakebot.gaittable import MAX_TABLE_BYTES, max_frames, table_size
 from snakebot.kinematics import KinematicsError, Trajectory
 from snakebot.plan import se2
 from snakebot.plan.loops import (
@@ -72,6 +76,16 @@ STEP_TURN = 0.25
 TRANSITION_STEP = 0.08
 #: Share of the tolerance a refined loop's error may use, divided among the loops.
 REFINE_SHARE = 0.3
+#: Refits of a loop (a fresh least-squares fit when nudging its ticks is not enough)
+#: that may fail in one table before its other loops are only nudged: each failed
+#: refit costs as much as nudging dozens of loops, and in a route whose refits keep
+#: failing they rarely save the plan.
+REFIT_FAILURES = 3
+
+DEFAULT_BOARD = smallest_board()
+DEFAULT_CAPACITY = TABLE_CAPACITY[DEFAULT_BOARD]
+"""The table capacity (bytes) a plan is made for unless told: the smallest board's, so
+that a plan made without asking the controller plays on every board."""
 
 
 class Unreachable(PlanError):
@@ -257,6 +271,8 @@ class Plan(EndsNearTarget):
     route: Route
     gait: Gait
     reached: np.ndarray
+    capacity: int
+    """The table capacity (bytes) the plan was made for; its table fits it."""
     segments: list[dict[str, Any]] = field(default_factory=list)
 
     def summary(self) -> dict[str, Any]:
@@ -271,6 +287,8 @@ class Plan(EndsNearTarget):
             "loops": self.route.count,
             "segments": self.segments,
             "frames": len(self.gait.ticks),
+            "table_bytes": table_size(self.robot.n_joints, len(self.gait.ticks)),
+            "capacity_bytes": self.capacity,
             "frame_period_ms": self.gait.period_ms,
             "duration_s": round(self.gait.duration_s, 6),
             "warnings": self.gait.warnings,
@@ -361,61 +379,150 @@ def validate_start(robot: Robot, start: np.ndarray) -> None:
         )
 
 
+def growing_counts(robot: Robot, target: np.ndarray, most: int) -> list[int]:
+    """Loop counts from the fewest up: the nominal count, doubled while below the most a
+    table holds, then the most."""
+    counts = loop_counts(robot, target, most)
+    if not counts:
+        return []
+    out, k = [], counts[0]
+    while k < most:
+        out.append(k)
+        k *= 2
+    return [*out, most]
+
+
+def most_loops(robot: Robot, start: np.ndarray, hub: np.ndarray, capacity: int) -> int:
+    """The most loops through ``hub`` a table of ``capacity`` bytes holds beside the moves
+    from ``start`` to the hub and back."""
+    transition = len(ramp(start, hub)) - 1
+    return (max_frames(robot.n_joints, capacity) - 1 - 2 * transition) // FRAMES
+
+
+def candidates(
+    robot: Robot,
+    start: np.ndarray,
+    target: np.ndarray,
+    capacity: int,
+    *,
+    count: int | None = None,
+    hub: np.ndarray | None = None,
+    growing: bool = False,
+) -> Iterator[tuple[int, np.ndarray, int]]:
+    """(hub index, hub, loop count) to try, within what a table of ``capacity`` bytes
+    holds. By default hub by hub, each at its nominal count and then the most (the first
+    route that exists, whatever its size: the closed loop's choice). ``growing``: the
+    fewest loops first, a count at every hub before twice as many (``growing_counts``):
+    a route of few loops is quick to fit and to write, one of many loops is slow to
+    write (each loop nudged to its share), so the plan tries those last."""
+    chosen = [hub] if hub is not None else hubs(robot, start)
+    lists = []
+    for h in chosen:
+        most = most_loops(robot, start, h, capacity)
+        if count is not None:
+            lists.append([count] if 1 <= count <= most else [])
+        else:
+            lists.append((growing_counts if growing else loop_counts)(robot, target, most))
+    if growing:
+        order = [(r, i) for r in range(max(map(len, lists), default=0)) for i in range(len(lists))]
+    else:
+        order = [(r, i) for i, counts in enumerate(lists) for r in range(len(counts))]
+    for r, i in order:
+        if r < len(lists[i]):
+            yield i, chosen[i], lists[i][r]
+
+
 def routes(
     robot: Robot,
     start: np.ndarray,
     target: np.ndarray,
     tol: Tolerance,
     *,
+    capacity: int,
     count: int | None = None,
     hub: np.ndarray | None = None,
     previous: np.ndarray | None = None,
     keep_off: float = NEAR_SINGULAR_RCOND,
+    growing: bool = False,
 ) -> Iterator[Route]:
-    """Routes (hub, loop, count) whose joint path as planned reaches ``target``: each
-    hub in turn, each loop count to try; the loops keep off configurations whose
-    reciprocal condition number is below ``keep_off``."""
+    """Routes (hub, loop, count) whose joint path as planned reaches ``target``, in the
+    order of ``candidates``, each inside a table of ``capacity`` bytes; the loops keep
+    off configurations whose reciprocal condition number is below ``keep_off``.
+
+    ``growing``: a hub's fit at one count starts first from the loop that came nearest
+    at its last count, shrunk for the shorter way (a loop's motion grows with its area,
+    the square of its size); where the last count's loop could not reach its share
+    (too large a loop for the joints' range, or nearing a singular configuration), the
+    smaller one often can: of 30 seeded 3-link snake targets two failed at their first
+    counts, and from the generic guesses alone needed 48 and 24 loops (more than a 2 KB
+    table holds), from the nearest loop 12 and 20."""
     scale = body_length(robot)
     accuracy = solve_accuracy(robot, tol)
-    for h in [hub] if hub is not None else hubs(robot, start):
-        transition = len(ramp(start, h)) - 1
-        most = (max_frames(robot.n_joints) - 1 - 2 * transition) // FRAMES
-        counts = [count] if count is not None else loop_counts(robot, target, most)
-        for k in counts:
-            if k < 1 or k > most:
-                continue
-            try:
-                wanted = loop_target(robot, start, h, target, k)
-            except KinematicsError:
-                break
-            loop = solve_loop(robot, h, wanted, scale, guesses(robot, previous), accuracy, keep_off)
-            if loop is not None:
-                yield Route(robot, start, loop, k)
+    dead: set[int] = set()
+    nearest: dict[int, tuple[int, np.ndarray]] = {}  # hub index: (count, coefficients)
+    for i, h, k in candidates(
+        robot, start, target, capacity, count=count, hub=hub, growing=growing
+    ):
+        if i in dead:
+            continue
+        try:
+            wanted = loop_target(robot, start, h, target, k)
+        except KinematicsError:
+            dead.add(i)  # the moves to or from this hub cross a singular configuration
+            continue
+        starts = guesses(robot, previous)
+        if growing and i in nearest:
+            before, coefficients = nearest[i]
+            starts.insert(0, coefficients * math.sqrt(before / k))
+
+        def remember(coefficients: np.ndarray, i: int = i, k: int = k) -> None:
+            nearest[i] = (k, coefficients)
+
+        loop = solve_loop(robot, h, wanted, scale, starts, accuracy, keep_off, remember)
+        if loop is not None:
+            yield Route(robot, start, loop, k)
 
 
-def unreachable(robot: Robot, target: np.ndarray) -> Unreachable:
+def check_capacity(robot: Robot, capacity: int) -> None:
+    """PlanError unless a table of ``capacity`` bytes is one a controller may take and
+    holds at least one loop of ``robot``'s joints."""
+    least = table_size(robot.n_joints, FRAMES + 1)
+    if not least <= capacity <= MAX_TABLE_BYTES:
+        raise PlanError(
+            f"--capacity {capacity} bytes is outside what a plan for {robot.name} can use: "
+            f"from {least} (one loop of {FRAMES} frames of {robot.n_joints} joints) to "
+            f"{MAX_TABLE_BYTES} (the largest table a controller takes); give a number in "
+            f"that range or a board ({', '.join(sorted(TABLE_CAPACITY))})"
+        )
+
+
+def capacity_words(capacity: int) -> str:
+    """The capacity planned for, naming the board it is when it is one's."""
+    boards = [name for name, size in TABLE_CAPACITY.items() if size == capacity]
+    return f"a table of {capacity} bytes" + (f" (the {'/'.join(boards)} board's)" if boards else "")
+
+
+def remedies(capacity: int, *others: str) -> str:
+    """The ways out, ``others`` and, when a board holds more than ``capacity``, a plan
+    for a larger table: "a, b or c"."""
+    out = list(others)
+    largest = largest_board()
+    if capacity < TABLE_CAPACITY[largest]:
+        out.append(
+            f"plan for a larger table (--capacity {largest}: {TABLE_CAPACITY[largest]} "
+            "bytes; --port asks the controller for its own)"
+        )
+    return out[0] if len(out) == 1 else ", ".join(out[:-1]) + " or " + out[-1]
+
+
+def unreachable(robot: Robot, target: np.ndarray, capacity: int) -> Unreachable:
     return Unreachable(
         f"no plan for {robot.name} reaches x = {target[0]:.4g}, y = {target[1]:.4g}, "
         f"theta = {math.degrees(target[2]):.1f} deg inside its joint limits and servo speed "
-        f"within a table of {max_frames(robot.n_joints)} frames: choose a nearer target (or "
-        "go in steps with several plans); no file was written"
+        f"within {capacity_words(capacity)}: "
+        + remedies(capacity, "choose a nearer target", "go in steps with several plans")
+        + "; no file was written"
     )
-
-
-def solve_route(
-    robot: Robot,
-    start: np.ndarray,
-    target: np.ndarray,
-    tol: Tolerance,
-    *,
-    count: int | None = None,
-    hub: np.ndarray | None = None,
-    previous: np.ndarray | None = None,
-) -> Route:
-    """The first route that reaches ``target`` as planned, or Unreachable."""
-    for route in routes(robot, start, target, tol, count=count, hub=hub, previous=previous):
-        return route
-    raise unreachable(robot, target)
 
 
 def make_plan(
@@ -425,45 +532,55 @@ def make_plan(
     start: tuple[float, ...] | None = None,
     tolerance: float = DEFAULT_TOLERANCE,
     heading_tolerance: float = DEFAULT_HEADING_TOLERANCE,
+    capacity: int = DEFAULT_CAPACITY,
 ) -> Plan:
     """A plan taking ``robot`` from rest at ``start`` (joint angles) to ``target``
-    (x, y, theta relative to the start pose); raises Unreachable if none fits."""
+    (x, y, theta relative to the start pose) in a table of at most ``capacity`` bytes;
+    raises Unreachable if none fits."""
     goal = np.asarray(target, dtype=float)
     if goal.shape != (3,) or not np.all(np.isfinite(goal)):
         raise PlanError("--to needs three finite numbers X,Y,THETA")
     phi0 = default_start(robot) if start is None else np.asarray(start, dtype=float)
     validate_start(robot, phi0)
     tol = Tolerance.for_target(robot, goal, tolerance, heading_tolerance)
+    check_capacity(robot, capacity)
     best: Plan | None = None
-    for route in routes(robot, phi0, goal, tol):
-        plan = _table_plan(robot, goal, tol, phi0, route)
+    for route in routes(robot, phi0, goal, tol, capacity=capacity, growing=True):
+        plan = _table_plan(robot, goal, tol, phi0, route, capacity)
         if best is None or plan.error[0] / tol.position < best.error[0] / tol.position:
             best = plan
         if plan.within:
             break
     if best is None:
-        raise unreachable(robot, goal)
+        raise unreachable(robot, goal, capacity)
     plan = best
     gait = plan.gait
     if not plan.within:
         d, h = plan.error
         raise Unreachable(
-            f"the best plan for {robot.name} ends {d:.3g} from the target and "
-            f"{math.degrees(h):.2f} deg off its heading, outside the tolerance "
-            f"({tol.position:.3g}, {math.degrees(tol.heading):.2f} deg): loosen --tolerance "
-            "or choose another target; no file was written"
+            f"the best plan for {robot.name} in {capacity_words(capacity)} ends {d:.3g} "
+            f"from the target and {math.degrees(h):.2f} deg off its heading, outside the "
+            f"tolerance ({tol.position:.3g}, {math.degrees(tol.heading):.2f} deg): "
+            + remedies(capacity, "loosen --tolerance", "choose another target")
+            + "; no file was written"
         )
     gait.extra.update(plan.summary())
     return plan
 
 
 def _table_plan(
-    robot: Robot, goal: np.ndarray, tol: Tolerance, phi0: np.ndarray, route: Route
+    robot: Robot,
+    goal: np.ndarray,
+    tol: Tolerance,
+    phi0: np.ndarray,
+    route: Route,
+    capacity: int,
 ) -> Plan:
     """The route as a table, re-planned loop by loop on the ticks as played: the moves to
     and from the hub rounded, then each loop rounded and refined tick by tick
     (``refine_ticks``) to its share of what is left of the way (the k-th root, as at the
-    start), so each loop corrects what rounding did to the ones before; timed, and its
+    start), so each loop corrects what rounding did to the ones before (refitted when
+    that is not enough, until ``REFIT_FAILURES`` refits have failed); timed, and its
     motion as played checked."""
     enter = robot.angles_to_ticks(route.enter)
     leave = robot.angles_to_ticks(route.leave)
@@ -474,11 +591,14 @@ def _table_plan(
     loop = robot.angles_to_ticks(route.loop.angles())
     coefficients = route.loop.coefficients
     rows = [enter]
+    failed = 0
     for i in range(route.count):
         wanted = se2.root(se2.compose(se2.relative(pose, goal), back), route.count - i)
         loop, err = refine_ticks(robot, loop, wanted, scale, accuracy)
-        if err > accuracy:  # too far for a few ticks: fit the loop again, then round
+        if err > accuracy and failed < REFIT_FAILURES:
+            # too far for a few ticks: fit the loop again, then round
             fit = solve_loop(robot, route.loop.hub, wanted, scale, [coefficients], accuracy)
+            failed += fit is None
             if fit is not None:
                 again, err_again = refine_ticks(
                     robot, robot.angles_to_ticks(fit.angles()), wanted, scale, accuracy
@@ -495,7 +615,8 @@ def _table_plan(
     played = table_motion(robot, robot.ticks_to_angles(ticks), dt, False, per_interval=2)
     reached = played.trajectory.q[-1, :3]
     gait = _gait(robot, route, ticks, period_ms, played.trajectory, played.note())
-    return Plan(robot, goal, tol, route, gait, reached, _segments(robot, route, ticks, dt))
+    segments = _segments(robot, route, ticks, dt)
+    return Plan(robot, goal, tol, route, gait, reached, capacity, segments)
 
 
 def _ticks_motion(robot: Robot, ticks: np.ndarray) -> np.ndarray:

@@ -46,12 +46,15 @@ from snakebot.plan.loops import (
     refine_ticks,
 )
 from snakebot.plan.planner import (
+    DEFAULT_CAPACITY,
     DEFAULT_HEADING_TOLERANCE,
     DEFAULT_TOLERANCE,
     EndsNearTarget,
     Tolerance,
     Unreachable,
     body_length,
+    capacity_words,
+    check_capacity,
     default_start,
     frame_period_ms,
     hubs,
@@ -59,6 +62,7 @@ from snakebot.plan.planner import (
     loop_target,
     pose_dict,
     ramp,
+    remedies,
     routes,
     solve_accuracy,
     validate_start,
@@ -173,6 +177,8 @@ class ProgramPlan(EndsNearTarget):
     program: Program
     route: Route
     reached: np.ndarray
+    capacity: int
+    """The capacity (bytes) the program was made for; it fits it."""
 
     def summary(self) -> dict[str, Any]:
         p = self.program
@@ -186,6 +192,7 @@ class ProgramPlan(EndsNearTarget):
             "loop_kind": self.route.kind,
             "segments": [_describe(s) for s in p.segments],
             "program_bytes": len(p.encode()),
+            "capacity_bytes": self.capacity,
             "steps": p.total_steps,
             "step_period_ms": p.period_ms,
             "duration_s": round(p.duration_s, 6),
@@ -357,10 +364,11 @@ def _fitted_routes(
 
 
 def _table_routes(
-    robot: Robot, start: np.ndarray, target: np.ndarray, tol: Tolerance
+    robot: Robot, start: np.ndarray, target: np.ndarray, tol: Tolerance, capacity: int
 ) -> Iterator[Route]:
-    """The table planner's routes (two harmonics: no on-board generator) as table loops."""
-    for route in routes(robot, start, target, tol):
+    """The table planner's routes (two harmonics: no on-board generator) as table loops,
+    as many as a table plan for ``capacity`` would have."""
+    for route in routes(robot, start, target, tol, capacity=capacity):
         loop = route.loop
         wave = Wave(
             loop.hub, loop.coefficients, route.count, None, robot.angles_to_ticks(loop.angles())
@@ -368,7 +376,9 @@ def _table_routes(
         yield Route("table", start, (wave,))
 
 
-def _realise(robot: Robot, target: np.ndarray, tol: Tolerance, route: Route) -> ProgramPlan | None:
+def _realise(
+    robot: Robot, target: np.ndarray, tol: Tolerance, route: Route, capacity: int
+) -> ProgramPlan | None:
     """The route as a program; while its goals (as the controller rounds them) end
     outside the tolerance, the route is made again for a target moved by the error: a
     fitted one fitted again, a table loop's ticks nudged (``refine_ticks``)."""
@@ -382,7 +392,7 @@ def _realise(robot: Robot, target: np.ndarray, tol: Tolerance, route: Route) -> 
         except (ProgramError, PlanError):
             return best
         reached = end_pose(robot, program)
-        plan = ProgramPlan(robot, target, tol, program, route, reached)
+        plan = ProgramPlan(robot, target, tol, program, route, reached, capacity)
         if best is None or plan.error[0] / tol.position < best.error[0] / tol.position:
             best = plan
         if plan.within or attempt == CORRECTIONS:
@@ -420,42 +430,60 @@ def plan_program(
     start: tuple[float, ...] | None = None,
     tolerance: float = DEFAULT_TOLERANCE,
     heading_tolerance: float = DEFAULT_HEADING_TOLERANCE,
+    capacity: int = DEFAULT_CAPACITY,
 ) -> ProgramPlan:
-    """A program taking ``robot`` from rest at ``start`` to ``target`` whose goals, as the
-    controller sends them, end within the tolerance; Unreachable otherwise."""
+    """A program of at most ``capacity`` bytes taking ``robot`` from rest at ``start`` to
+    ``target`` whose goals, as the controller sends them, end within the tolerance;
+    Unreachable otherwise."""
     goal = np.asarray(target, dtype=float)
     if goal.shape != (3,) or not np.all(np.isfinite(goal)):
         raise PlanError("--to needs three finite numbers X,Y,THETA")
     phi0 = default_start(robot) if start is None else np.asarray(start, dtype=float)
     validate_start(robot, phi0)
     tol = Tolerance.for_target(robot, goal, tolerance, heading_tolerance)
+    check_capacity(robot, capacity)
     best: ProgramPlan | None = None
+    too_big = 0
     accuracy = solve_accuracy(robot, tol)
     candidates = itertools.chain(
-        _fitted_routes(robot, phi0, goal, accuracy), _table_routes(robot, phi0, goal, tol)
+        _fitted_routes(robot, phi0, goal, accuracy),
+        _table_routes(robot, phi0, goal, tol, capacity),
     )
     for route in candidates:
-        plan = _realise(robot, goal, tol, route)
+        plan = _realise(robot, goal, tol, route, capacity)
         if plan is None:
+            continue
+        size = len(plan.program.encode())
+        if size > capacity:
+            too_big = size if not too_big else min(too_big, size)
             continue
         if best is None or plan.error[0] / tol.position < best.error[0] / tol.position:
             best = plan
         if plan.within:
             return plan
+    if best is None and too_big:
+        raise Unreachable(
+            f"every program made for {robot.name} takes {too_big} bytes or more, more than "
+            f"{capacity_words(capacity)} holds: "
+            + remedies(capacity, "choose a nearer target")
+            + "; no file was written"
+        )
     if best is None:
         raise Unreachable(
             f"no program for {robot.name} reaches x = {goal[0]:.4g}, y = {goal[1]:.4g}, "
             f"theta = {math.degrees(goal[2]):.1f} deg inside its joint limits (with "
-            f"{LIMIT_MARGIN} rad to spare) and servo speed: choose a nearer target, or "
-            "write a table (-o FILE.gait); no file was written"
+            f"{LIMIT_MARGIN} rad to spare) and servo speed within {capacity_words(capacity)}: "
+            + remedies(capacity, "choose a nearer target", "write a table (-o FILE.gait)")
+            + "; no file was written"
         )
     d, h = best.error
     raise Unreachable(
         f"the best program for {robot.name} ends {d:.3g} from the target and "
         f"{math.degrees(h):.2f} deg off its heading once its goals are rounded as the "
         f"controller rounds them, outside the tolerance ({tol.position:.3g}, "
-        f"{math.degrees(tol.heading):.2f} deg): loosen --tolerance or write a table "
-        "(-o FILE.gait); no file was written"
+        f"{math.degrees(tol.heading):.2f} deg): "
+        + remedies(capacity, "loosen --tolerance", "write a table (-o FILE.gait)")
+        + "; no file was written"
     )
 
 

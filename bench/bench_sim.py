@@ -5,7 +5,9 @@
    emulated per wall second and per CPU second. Goal: at least 200x (the closed loop at
    several roster sizes is bench_bus_scaling.py's). Two loads: goals only (one SYNC_WRITE
    per tick, as when a gait is played straight onto the servos) and goals plus a READ
-   of every servo's present position per tick.
+   of every servo's present position per tick; for the second, what each layer adds to
+   a tick (the READ frames handed to the bus, through the sim:// port, through the
+   client), each measured with the same loop.
 2. The rate the pseudo-terminal transport allows: READ transactions per second through
    `snakebot sim bus --pty` (a separate process, as a user runs it), against the rate
    the wire itself allows at 1 Mbps with Return Delay Time 0 (16 bytes = 160 us).

@@ -5,7 +5,9 @@
    emulated per wall second and per CPU second. Goal: at least 200x (the closed loop at
    several roster sizes is bench_bus_scaling.py's). Two loads: goals only (one SYNC_WRITE
    per tick, as when a gait is played straight onto the servos) and goals plus a READ
-   of every servo's present position per tick.
+   of every servo's present position per tick; for the second, what each layer adds to
+   a tick (the READ frames handed to the bus, through the sim:// port, through the
+   client), each measured with the same loop.
 2. The rate the pseudo-terminal transport allows: READ transactions per second through
    `snakebot sim bus --pty` (a separate process, as a user runs it), against the rate
    the wire itself allows at 1 Mbps with Return Delay Time 0 (16 bytes = 160 us).
@@ -42,12 +44,21 @@ CONTROL_HZ = 100
 WIRE_READ_S = 16 * 10 / 1_000_000  # READ of 2 bytes: 8 + 8 bytes at 10 us
 
 
-def rtf(seconds: float, reads: bool) -> tuple[float, float]:
+def rtf(seconds: float, reads: bool | str) -> tuple[float, float]:
     """Bus seconds per wall second and per CPU second of this process, for a
-    ``seconds``-long 100 Hz loop driving snake5's joints along a travelling sine."""
+    ``seconds``-long 100 Hz loop driving snake5's joints along a travelling sine.
+
+    ``reads``: False for goals only; True (or "client") for a READ of every servo's
+    position each tick through the client; "port" for the same READ frames written and
+    read on the sim:// port directly, "bus" for them handed to the bus directly (what
+    each layer adds: see ``where_the_time_goes``)."""
     with DxlClient("sim://?robot=snake5&return_delay=0", latency_s=0.0) as c:
         bus = c.port.bus
+        port = c.port
         ids = [s.id for s in bus.servos]
+        frames = [protocol.read(sid, PRESENT.address, PRESENT.size) for sid in ids]
+        reply_len = len(protocol.status(ids[0], 0, bytes(PRESENT.size)))
+        port.timeout = 0.01  # "port": a READ's whole answer, however long the wire is busy
         ticks = int(seconds * CONTROL_HZ)
         wall0, cpu0 = time.perf_counter(), time.process_time()
         for k in range(ticks):
@@ -57,17 +68,52 @@ def rtf(seconds: float, reads: bool) -> tuple[float, float]:
                 for j, sid in enumerate(ids)
             }
             c.sync_write(GOAL.address, GOAL.size, {sid: GOAL.encode(g) for sid, g in goals.items()})
-            if reads:
+            if reads is True or reads == "client":
                 for sid in ids:
                     c.read_u16(sid, PRESENT.address)
+            elif reads == "port":
+                for frame in frames:
+                    port.reset_input_buffer()
+                    port.write(frame)
+                    port.read(reply_len)
+            elif reads == "bus":
+                for frame in frames:
+                    bus.master_flush_input()
+                    bus.master_write(frame)
+                    bus.run_until_master_data(math.inf, reply_len)
+                    bus.master_read(reply_len)
             bus.run_until((k + 1) / CONTROL_HZ)
         wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
         return bus.now / wall, bus.now / cpu
 
 
-def best_rtf(seconds: float, reads: bool, rounds: int = 3) -> tuple[float, float]:
+def best_rtf(seconds: float, reads: bool | str, rounds: int = 3) -> tuple[float, float]:
     results = [rtf(seconds, reads) for _ in range(rounds)]
     return max(r[0] for r in results), max(r[1] for r in results)
+
+
+def where_the_time_goes(seconds: float) -> None:
+    """CPU time of one tick of the closed loop, layer by layer (each the best of 3 runs
+    of the same loop, in this run): the goals and their SYNC_WRITE, then the 4 READs
+    handed to the bus, through the sim:// port, through the client. Prints what each
+    layer adds per READ and the most the loop could reach if the bus and the port cost
+    nothing (the client's own part and the rest of the tick as measured)."""
+    tick_us = {
+        layer: 1e6 / CONTROL_HZ / best_rtf(seconds, layer)[1]
+        for layer in (False, "bus", "port", "client")
+    }
+    reads = 4
+    bus = (tick_us["bus"] - tick_us[False]) / reads
+    port = (tick_us["port"] - tick_us["bus"]) / reads
+    client = (tick_us["client"] - tick_us["port"]) / reads
+    floor = 1e6 / CONTROL_HZ / (tick_us[False] + reads * client)
+    budget = 1e6 / CONTROL_HZ / 200
+    print(
+        f"   where the time goes, per tick: goals, SYNC_WRITE and bus {tick_us[False]:.1f} us; "
+        f"per READ: bus {bus:.1f} us, sim:// port {port:.1f} us, client {client:.1f} us "
+        f"(200 x allows {budget:.0f} us a tick; with the bus and the port free, the client "
+        f"and the rest would still allow at most {floor:.0f} x)"
+    )
 
 
 def start_server() -> tuple[subprocess.Popen[str], str]:
@@ -155,6 +201,7 @@ def main() -> int:
             f"second (goal 200 x: ratios {wall / 200:.2f}, {cpu / 200:.2f}; "
             f"{'met' if cpu >= 200 else 'MISS'} per CPU second)"
         )
+    where_the_time_goes(seconds / 5)
 
     print(
         f"== 2 and 3. READ transactions over a pty served by `snakebot sim bus` "

@@ -197,12 +197,21 @@ void kin_gen_trident_body_v(double r, double l, const double *alpha, const doubl
     double sn[KIN_TRIG_PADDED(4)], cs[KIN_TRIG_PADDED(4)];
     kin_sincos(4, angle, sn, cs);
     const double t0 = 1.0/(l);
+    const double t1 = r*u[2];
+    const double t2 = -u[0];
+    const double t3 = -u[2];
+    const double w0 = -t0*(cos_alpha1*t1 + u[1]);
+    const double w1 = -t0*(sin_alpha1*t1 + t2);
+    const double w2 = -t0*(cos_alpha2*t1 + u[1]);
+    const double w3 = -t0*(sin_alpha2*t1 + t2);
+    const double w4 = -t0*(cos_alpha3*t1 + u[1]);
+    const double w5 = -t0*(sin_alpha3*t1 + t2);
     out[0] = cs[0]*u[0] - sn[0]*u[1];  /* qdot[0] */
     out[1] = cs[0]*u[1] + sn[0]*u[0];  /* qdot[1] */
     out[2] = u[2];  /* qdot[2] */
-    out[3] = t0*(-cs[1]*u[1] + sn[1]*u[0] - u[2]*(l + r*(cos_alpha1*cs[1] + sin_alpha1*sn[1])));  /* qdot[3] */
-    out[4] = t0*(-cs[2]*u[1] + sn[2]*u[0] - u[2]*(l + r*(cos_alpha2*cs[2] + sin_alpha2*sn[2])));  /* qdot[4] */
-    out[5] = t0*(-cs[3]*u[1] + sn[3]*u[0] - u[2]*(l + r*(cos_alpha3*cs[3] + sin_alpha3*sn[3])));  /* qdot[5] */
+    out[3] = cs[1]*w0 + sn[1]*w1 + t3;  /* qdot[3] */
+    out[4] = cs[2]*w2 + sn[2]*w3 + t3;  /* qdot[4] */
+    out[5] = cs[3]*w4 + sn[3]*w5 + t3;  /* qdot[5] */
 }
 
 void kin_gen_trident_body_all(double r, double l, const double *alpha, const double *q, double *out)
@@ -282,12 +291,16 @@ void kin_gen_trident_world_v(double r, double l, const double *alpha, const doub
     double sn[KIN_TRIG_PADDED(6)], cs[KIN_TRIG_PADDED(6)];
     kin_sincos(6, angle, sn, cs);
     const double t0 = 1.0/(l);
+    const double t1 = -u[2];
+    const double w0 = -r*t0*u[2];
+    const double w1 = -t0*u[1];
+    const double w2 = t0*u[0];
     out[0] = u[0];  /* qdot[0] */
     out[1] = u[1];  /* qdot[1] */
     out[2] = u[2];  /* qdot[2] */
-    out[3] = t0*(-cs[3]*u[1] + sn[3]*u[0] - u[2]*(cs[0]*r + l));  /* qdot[3] */
-    out[4] = t0*(-cs[4]*u[1] + sn[4]*u[0] - u[2]*(cs[1]*r + l));  /* qdot[4] */
-    out[5] = t0*(-cs[5]*u[1] + sn[5]*u[0] - u[2]*(cs[2]*r + l));  /* qdot[5] */
+    out[3] = cs[0]*w0 + cs[3]*w1 + sn[3]*w2 + t1;  /* qdot[3] */
+    out[4] = cs[1]*w0 + cs[4]*w1 + sn[4]*w2 + t1;  /* qdot[4] */
+    out[5] = cs[2]*w0 + cs[5]*w1 + sn[5]*w2 + t1;  /* qdot[5] */
 }
 
 void kin_gen_trident_world_all(double r, double l, const double *alpha, const double *q, double *out)

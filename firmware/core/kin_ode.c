@@ -314,10 +314,13 @@ static const double D8_E5[DOP853_STAGES] = {
 #define D8_BHH9 0.733846688281611857341361741547
 #define D8_BHH12 0.220588235294117647058823529412e-1
 
-static int dop853_try(kin_ode *ode, const double *y, double t, double h, double *y1,
-                      double *k_end, double *e)
+/* The step for n states; inlined with n a constant for the common sizes (dop853_try),
+ * so that the loops over the state unroll and the zero weights drop out at compile time. */
+static inline __attribute__((always_inline)) int dop853_step(kin_ode *ode, const int32_t n,
+                                                             const double *y, double t,
+                                                             double h, double *y1,
+                                                             double *k_end, double *e)
 {
-    const int32_t n = ode->n;
     double k[DOP853_STAGES][KIN_MAX_STATE], tmp[KIN_MAX_STATE];
     int rc;
     if (ode->times != NULL) { /* distinct stage times: c2 .. c12 */
@@ -330,31 +333,46 @@ static int dop853_try(kin_ode *ode, const double *y, double t, double h, double 
     for (int32_t i = 0; i < n; i++) {
         k[0][i] = ode->k1[i];
     }
+    /* Stage s: y + h sum_j a_sj k_j, the stages before the last one summed first, one at a
+     * time across the state, zero weights skipped; the newest stage then adds in one
+     * multiply and one add, all that waits for the right-hand side just evaluated. */
     for (int32_t s = 1; s < DOP853_STAGES; s++) {
+        double acc[KIN_MAX_STATE];
         for (int32_t i = 0; i < n; i++) {
-            double sum = 0.0;
-            for (int32_t j = 0; j < s; j++) {
-                sum += D8_A[s][j] * k[j][i];
+            acc[i] = 0.0;
+        }
+        for (int32_t j = 0; j < s - 1; j++) {
+            const double a = D8_A[s][j];
+            for (int32_t i = 0; a != 0.0 && i < n; i++) {
+                acc[i] += a * k[j][i];
             }
-            tmp[i] = y[i] + h * sum;
+        }
+        const double h_last = h * D8_A[s][s - 1];
+        for (int32_t i = 0; i < n; i++) {
+            tmp[i] = (y[i] + h * acc[i]) + h_last * k[s - 1][i];
         }
         if ((rc = eval(ode, t + D8_C[s] * h, tmp, k[s])) != KIN_OK) {
             return rc;
         }
     }
-    /* error: Hairer's blend of the fifth- and third-order estimates,
-     * |h| e5^2 / sqrt(n (e5^2 + 0.01 e3^2)) in the scaled norm */
+    double sum[KIN_MAX_STATE], err5[KIN_MAX_STATE];
+    for (int32_t i = 0; i < n; i++) {
+        sum[i] = D8_B[0] * k[0][i];
+        err5[i] = D8_E5[0] * k[0][i];
+    }
+    for (int32_t j = 1; j < DOP853_STAGES; j++) {
+        const double b = D8_B[j], e = D8_E5[j];
+        for (int32_t i = 0; (b != 0.0 || e != 0.0) && i < n; i++) {
+            sum[i] += b * k[j][i];
+            err5[i] += e * k[j][i];
+        }
+    }
     double e5 = 0.0, e3 = 0.0;
     for (int32_t i = 0; i < n; i++) {
-        double sum = 0.0, err5 = 0.0;
-        for (int32_t j = 0; j < DOP853_STAGES; j++) {
-            sum += D8_B[j] * k[j][i];
-            err5 += D8_E5[j] * k[j][i];
-        }
-        const double err3 = sum - D8_BHH1 * k[0][i] - D8_BHH9 * k[8][i] - D8_BHH12 * k[11][i];
-        y1[i] = y[i] + h * sum;
+        const double err3 = sum[i] - D8_BHH1 * k[0][i] - D8_BHH9 * k[8][i] - D8_BHH12 * k[11][i];
+        y1[i] = y[i] + h * sum[i];
         const double sc = ode->opt.atol + ode->opt.rtol * fmax(fabs(y[i]), fabs(y1[i]));
-        e5 += (err5 / sc) * (err5 / sc);
+        e5 += (err5[i] / sc) * (err5[i] / sc);
         e3 += (err3 / sc) * (err3 / sc);
     }
     const double denom = e5 + 0.01 * e3;
@@ -363,6 +381,19 @@ static int dop853_try(kin_ode *ode, const double *y, double t, double h, double 
         return eval(ode, t + h, y1, k_end);
     }
     return KIN_OK;
+}
+
+static int dop853_try(kin_ode *ode, const double *y, double t, double h, double *y1,
+                      double *k_end, double *e)
+{
+    switch (ode->n) {
+    case 3: /* a body pose under a joint schedule */
+        return dop853_step(ode, 3, y, t, h, y1, k_end, e);
+    case 6: /* the trident's fields */
+        return dop853_step(ode, 6, y, t, h, y1, k_end, e);
+    default:
+        return dop853_step(ode, ode->n, y, t, h, y1, k_end, e);
+    }
 }
 
 /* Per method: its step, the order that sets the step-size exponent (that of the error

@@ -270,3 +270,18 @@ def test_bad_options_are_refused():
         integrate_fields(TRIDENT, Inputs((1, 0, 0)), 1.0, options=Options("rk4", h=0.0))
     with pytest.raises(KinematicsError, match="unknown method"):
         Options("euler").to_c()
+
+
+def test_structs_reused_across_calls_follow_the_values_they_were_built_from():
+    # The robot and input structs are cached by value: an equal robot with another c_t,
+    # or other inputs, must get its own; inputs in lists (unhashable) still work.
+    inputs = loop_inputs(0, 1, 0.3, 2.0)
+    first = integrate_fields(TRIDENT, inputs, 1.0).q[-1]
+    as_lists = Inputs(list(inputs.c), list(inputs.a), list(inputs.b), inputs.omega)
+    np.testing.assert_array_equal(integrate_fields(TRIDENT, as_lists, 1.0).q[-1], first)
+    other = integrate_fields(TRIDENT, loop_inputs(0, 1, 0.2, 2.0), 1.0).q[-1]
+    assert np.abs(other - first).max() > 1e-3
+    gait = Sines.serpenoid(4, 0.5, math.pi, math.pi / 2)
+    slips = [integrate_joints(SNAKE5, gait, 2.0, c_t=c_t).q[-1] for c_t in (0.01, 0.5, 0.01)]
+    assert np.abs(slips[0] - slips[1]).max() > 1e-3
+    np.testing.assert_array_equal(slips[0], slips[2])

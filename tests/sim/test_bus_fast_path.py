@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 from sim_support import hear
 
 from snakebot import protocol as P
-from snakebot.sim.bus import Bus
+from snakebot.sim.bus import MASTER, Bus
 from snakebot.sim.fast_servo import VirtualServo
 from snakebot.sim.faults import Brownout, FaultConfig
 from tests.sim.test_fast_servo import state
@@ -123,3 +123,27 @@ def test_the_fast_path_is_taken_for_a_plain_read():
     assert bus._master_rx == [reply]
     out = bus.master_read(8)
     assert out == P.status(2, 0, out[5:7])
+
+
+def test_a_read_right_after_a_sync_write_takes_the_fast_paths(monkeypatch):
+    """A closed loop's tick: the goals in a SYNC_WRITE, then a READ while the SYNC_WRITE
+    is still on the wire. The SYNC_WRITE reaches the C servos unparsed and the READ goes
+    out in short behind it, its status packet too (that they do what the general path
+    does is the comparison above, whose streams have such pairs)."""
+    bus = Bus([VirtualServo(i) for i in IDS])
+    transmitted, parsed = [], []
+    transmit = bus._transmit
+    monkeypatch.setattr(bus, "_transmit", lambda *a: transmitted.append(a[0]) or transmit(*a))
+    parser_type = type(bus._listeners()[0].rx.parser)
+    feed = parser_type.feed
+    monkeypatch.setattr(
+        parser_type, "feed", lambda self, data: parsed.append(bytes(data)) or feed(self, data)
+    )
+    bus.master_write(P.sync_write(30, 2, {i: (600 + i).to_bytes(2, "little") for i in IDS}))
+    bus.master_write(P.read(2, PRESENT, 2))
+    assert bus.run_until_master_data(bus.now + 0.01, 8)
+    out = bus.master_read(8)
+    assert out == P.status(2, 0, out[5:7])
+    assert transmitted == [MASTER]  # the SYNC_WRITE alone went the general way
+    assert parsed == []
+    assert [bus.servo(i)._goal for i in IDS] == [601, 602, 603]

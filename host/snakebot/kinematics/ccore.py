@@ -70,29 +70,54 @@ def check(code: int, context: str = "") -> None:
 
 
 def c_robot(robot: Robot, c_t: float | None = None) -> Any:
-    """A ``kin_robot`` struct for the robot (optionally overriding its c_t)."""
+    """A ``kin_robot`` struct for the robot (optionally overriding its c_t); the core only
+    reads it, so one struct serves every call with the same values."""
     if robot.kind not in ("snake", "trident"):
         raise UnsupportedModel(
             f"{robot.name} is a {robot.kind}: only its control fields are modelled "
             f"(snakebot model fields {robot.name}); gaits and the emulator drive snakes "
             "and tridents"
         )
-    # one initialiser, not a Python round trip per field: this runs once per trajectory
+    # keyed by the values the struct holds, not by the robot (whose hash walks all of
+    # it, as long as building the struct): a whole trajectory can take 80 us
+    return _c_robot(
+        robot.name,
+        robot.kind,
+        robot.links if robot.kind == "snake" else 0,
+        robot.l,
+        robot.r,
+        tuple(robot.alphas[:3]),
+        robot.c_n,
+        robot.c_t if c_t is None else c_t,
+    )
+
+
+@functools.lru_cache(maxsize=64)
+def _c_robot(
+    name: str,
+    kind: str,
+    links: int,
+    l: float,  # noqa: E741 (the model's name for the length)
+    r: float,
+    alpha: tuple[float, ...],
+    c_n: float,
+    c_t: float,
+) -> Any:
     rb = ffi.new(
         "kin_robot *",
         {
-            "kind": lib.KIN_SNAKE if robot.kind == "snake" else lib.KIN_TRIDENT,
-            "links": robot.links if robot.kind == "snake" else 0,
-            "l": robot.l,
-            "r": robot.r,
-            "alpha": list(robot.alphas[:3]),
-            "c_n": robot.c_n,
-            "c_t": robot.c_t if c_t is None else c_t,
+            "kind": lib.KIN_SNAKE if kind == "snake" else lib.KIN_TRIDENT,
+            "links": links,
+            "l": l,
+            "r": r,
+            "alpha": list(alpha),
+            "c_n": c_n,
+            "c_t": c_t,
         },
     )
     code = lib.kin_check_robot(rb, ffi.NULL)
     if code != lib.KIN_OK:
-        check(code, f"robot {robot.name}")
+        check(code, f"robot {name}")
     return rb
 
 

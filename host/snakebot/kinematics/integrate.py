@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -286,16 +287,11 @@ def integrate_fields(
     if samples < 2:
         raise ValueError("samples must be at least 2 (the start and the end)")
     n = 3 + robot.n_joints
-    m = 2 if robot.kind == "snake" else 3
-    init: dict[str, Any] = {"form": _c_form(robot, inputs.form), "omega": inputs.omega}
-    for name in ("c", "a", "b", "a2", "b2"):
-        values = getattr(inputs, name)
-        if values and len(values) != m:
-            raise KinematicsError(
-                lib.KIN_EINVAL, f"{robot.name} has {m} inputs: Inputs.{name} has {len(values)}"
-            )
-        init[name] = list(values)
-    u = ffi.new("kin_inputs *", init)
+    key = (robot.name, 2 if robot.kind == "snake" else 3, _c_form(robot, inputs.form), inputs)
+    try:
+        u = _c_inputs(*key)
+    except TypeError:  # inputs holding lists: unhashable, built for this call only
+        u = _c_inputs.__wrapped__(*key)
     qa = as_doubles(np.zeros(n) if q0 is None else q0, n, "q0")
     out = np.empty((samples, n))
     st = ffi.new("kin_stats *")
@@ -305,3 +301,18 @@ def integrate_fields(
     if code != lib.KIN_OK:
         check(code, f"{robot.name}, field inputs, at t = {st.t_fail:.6g} s")
     return Trajectory(_times(t0, t1, samples), out, None, _stats(st))
+
+
+@functools.lru_cache(maxsize=64)
+def _c_inputs(name: str, m: int, form: int, inputs: Inputs) -> Any:
+    """The ``kin_inputs`` struct of ``inputs`` for a robot with ``m`` inputs (the core
+    only reads it: one per distinct inputs, not one per trajectory)."""
+    init: dict[str, Any] = {"form": form, "omega": inputs.omega}
+    for field_name in ("c", "a", "b", "a2", "b2"):
+        values = getattr(inputs, field_name)
+        if values and len(values) != m:
+            raise KinematicsError(
+                lib.KIN_EINVAL, f"{name} has {m} inputs: Inputs.{field_name} has {len(values)}"
+            )
+        init[field_name] = list(values)
+    return ffi.new("kin_inputs *", init)

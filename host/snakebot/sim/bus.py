@@ -467,7 +467,7 @@ class Bus:
             n == 8
             and data[4] == _READ
             and group is not None
-            and self._wire_end <= now
+            and self._wire_end <= start
             and not self.echo
             and group.c_by_id is not None
             and self._groups is not None
@@ -475,12 +475,17 @@ class Bus:
             and data[0] == data[1] == 0xFF != data[2]
             and data[3] == 4
         ):
-            # a READ on a quiet line to the one group (see _deliver_read): what
-            # _transmit does with it, in short
+            # a READ to the one group (see _deliver_read) on a line that is quiet by the
+            # time it starts (after the master's own frame before it, a SYNC_WRITE say):
+            # what _transmit does with it, in short
             # bytes, shared: _collide makes a bytearray of them if they get damaged
             frame = data if type(data) is bytes else bytes(data)
             tx = _Transmission(MASTER, start, group.rx.baud, frame)
-            self._wire = [tx]
+            if self._wire_end > now:  # what is still on the wire stays there, untouched
+                self._wire = [other for other in self._wire if other.end > now]
+                self._wire.append(tx)
+            else:
+                self._wire = [tx]
             self._wire_end = end = tx.end
             heapq.heappush(self._events, (end, next(self._seq), self._deliver_read, (group, tx)))
             group.rx.queued += 1
@@ -780,6 +785,16 @@ class Bus:
                             reply = s.handle(target, code, params, t)
                             if reply is not None:
                                 self._reply(s, reply, t)
+                    return
+            elif (
+                target == BROADCAST_ID and data[i0 + 4] == _SYNC_WRITE and group.c_by_id is not None
+            ):
+                # a SYNC_WRITE to C servos, once a tick in a closed loop: when good, what
+                # the parser would yield goes to _sync_write unparsed (a tapped bus
+                # still parses it, the general path the fast ones are tested against)
+                frame = bytes(data[i0:i1])
+                if ~sum(frame[2:-1]) & 0xFF == frame[-1]:
+                    self._sync_write(group, frame[5:-1], t, source)
                     return
         for event in parser.feed(data[i0:i1]):  # a slice is a copy
             if group.epoch != self._link_epoch:  # the packet before changed an ID

@@ -79,6 +79,44 @@ def _batched_trig(exprs: list[sp.Expr]) -> tuple[list[sp.Expr], list[str], set[s
     return [e.xreplace(table) for e in exprs], lines, set().union(*(a.free_symbols for a in angles))
 
 
+def _collected(exprs: list[sp.Expr]) -> tuple[list[sp.Expr], list[sp.Expr], list[sp.Symbol]]:
+    """Each expression that is a polynomial in the ``sn``/``cs`` entries, as the sum of
+    its monomials in them, each coefficient a symbol ``w<k>`` of its own: the coefficients
+    depend on the inputs and constants alone, so they are computed while the sines are,
+    and a velocity takes one multiply per trig term and the additions after them (not a
+    chain of operations on each sine). Returns the expressions, the coefficients'
+    expressions and their symbols; others (a quotient of them) are left as they are."""
+    trig = sorted(
+        {s for e in exprs for s in e.free_symbols if s.name.startswith(("sn[", "cs["))},
+        key=sp.default_sort_key,
+    )
+    out: list[sp.Expr] = []
+    coefs: list[sp.Expr] = []
+    names: list[sp.Symbol] = []
+    for e in exprs:
+        try:
+            poly = sp.Poly(sp.expand(e), *trig) if trig else None
+        except sp.PolynomialError:
+            poly = None
+        if poly is None:
+            out.append(e)
+            continue
+        terms = []
+        for powers, coef in poly.terms():
+            monomial = sp.Mul(*(t**k for t, k in zip(trig, powers, strict=True)))
+            coef = sp.factor(coef)
+            if coef.is_Number or monomial == 1 or coef.is_Symbol or (-coef).is_Symbol:
+                terms.append(coef * monomial)
+            elif coef in coefs:
+                terms.append(names[coefs.index(coef)] * monomial)
+            else:
+                names.append(sp.Symbol(f"w{len(names)}", real=True))
+                coefs.append(coef)
+                terms.append(names[-1] * monomial)
+        out.append(sp.Add(*terms))
+    return out, coefs, names
+
+
 def _c_function(
     name: str, model: SymbolicModel, names: tuple[str, ...], velocity: bool = False
 ) -> tuple[str, str]:
@@ -102,7 +140,12 @@ def _c_function(
         # addition theorem): three angles to evaluate instead of five
         exprs = [sp.expand_trig(e) for e in exprs]
     exprs, trig_lines, angle_symbols = _batched_trig(exprs)
-    temps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("t"), optimizations="basic")
+    coefs: list[sp.Expr] = []
+    weights: list[sp.Symbol] = []
+    if velocity:
+        exprs, coefs, weights = _collected(exprs)
+    temps, reduced = sp.cse(coefs + exprs, symbols=sp.numbered_symbols("t"), optimizations="basic")
+    weight_values, reduced = reduced[: len(coefs)], reduced[len(coefs) :]
     printer = _Printer()
     out_args = "const double *u, double *out" if velocity else "double *out"
     if model.name == "snake3":
@@ -113,7 +156,9 @@ def _c_function(
             f"void {name}(double r, double l, const double *alpha, const double *q, {out_args})"
         )
         bound = {params[0]: None, params[1]: None}
-    used = set().union(*(e.free_symbols for _, e in temps), *(e.free_symbols for e in reduced))
+    used = set().union(
+        *(e.free_symbols for _, e in temps), *(e.free_symbols for e in (*weight_values, *reduced))
+    )
     used |= angle_symbols
     lines = [signature, "{"]
     for i, s in enumerate(model.q):
@@ -126,7 +171,7 @@ def _c_function(
     for s in unused:
         lines.append(f"    (void){s};")
     lines += trig_lines
-    for sym, expr in temps:
+    for sym, expr in (*temps, *zip(weights, weight_values, strict=True)):
         lines.append(f"    const double {sym} = {printer.doprint(expr)};")
     for k, expr in enumerate(reduced):
         field, comp = divmod(k, n)

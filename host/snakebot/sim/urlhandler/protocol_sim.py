@@ -160,20 +160,33 @@ class Serial(SerialBase):
             return self._read_realtime(size)
         with self._lock:
             bus = self.bus
-            out = bytearray(bus.master_read(size))
             timeout = self._timeout
-            if len(out) >= size:
-                return bytes(out)
-            if timeout == 0:
-                for _ in range(size - len(out)):
-                    before = bus.now
-                    self._poll_step()
-                    out += bus.master_read(size - len(out))
-                    if len(out) >= size or bus.now == before:
-                        break
-                return bytes(out)
             blocking = timeout is None
-            deadline = bus.now + (BLOCKING_SLICE_S if blocking else timeout)
+            if timeout:
+                # A timed read, as a client's transaction makes: the bus runs until the
+                # whole answer is in, which is then handed over in one piece (one call
+                # each, where the loop below would take two rounds).
+                deadline = bus.now + timeout
+                if bus.run_until_master_data(deadline, size):
+                    got = bus.master_read(size)
+                    if len(got) >= size:
+                        return got
+                    out = bytearray(got)
+                else:
+                    out = bytearray()
+            else:
+                out = bytearray(bus.master_read(size))
+                if len(out) >= size:
+                    return bytes(out)
+                if timeout == 0:
+                    for _ in range(size - len(out)):
+                        before = bus.now
+                        self._poll_step()
+                        out += bus.master_read(size - len(out))
+                        if len(out) >= size or bus.now == before:
+                            break
+                    return bytes(out)
+                deadline = bus.now + BLOCKING_SLICE_S
             while len(out) < size and self.is_open:
                 if bus.run_until_master_data(deadline, size - len(out)):
                     got = bus.master_read(size - len(out))

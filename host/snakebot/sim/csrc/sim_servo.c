@@ -293,8 +293,10 @@ int sim_servo_sync_write(sim_servo *const *by_id, const uint8_t *params, int n, 
 
 int sim_servo_deliver_read(sim_servo *const *by_id, const uint8_t *frame, int n, double t,
                            uint8_t *out, int cap) {
-    /* FF FF ID LEN=4 READ address length CHK */
-    if (n != 8 || frame[3] != 4 || frame[4] != DXL_INST_READ) {
+    /* FF FF ID LEN=4 READ address length CHK; the checksum does not cover the header,
+     * so a header damaged on the wire (a collision) must be caught here */
+    if (n != 8 || frame[0] != DXL_HEADER_BYTE || frame[1] != DXL_HEADER_BYTE || frame[3] != 4 ||
+        frame[4] != DXL_INST_READ) {
         return 0;
     }
     sim_servo *s = by_id[frame[2]];

@@ -520,9 +520,9 @@ class Rig:
         named = self.fw.monitor("info name").strip()
         if named != self.name:
             raise CampaignFailed(
-                f"QEMU's monitor answers for a machine named {named!r}, not this rig's "
-                f"{self.name!r}: another QEMU's monitor; stop stray qemu-system-arm "
-                "processes and run again"
+                f"asked for its name, QEMU's monitor answered {named!r}, not this rig's "
+                f"{self.name!r}: another QEMU's monitor, or answers out of step with the "
+                "questions; stop stray qemu-system-arm processes and run again"
             )
         for address, data in self.ram.flash:
             held = read_ram(self.fw, address, len(data))

@@ -86,7 +86,7 @@ def test_another_qemus_monitor_is_caught(ram: RamMap, workdir: Path, tmp_path: P
     ):
         rig.fw, mine = other.fw, rig.fw  # the rig now asks the other machine's monitor
         try:
-            with pytest.raises(CampaignFailed, match="not this rig's"):
+            with pytest.raises(CampaignFailed, match="answered 'snakebot-campaign-"):
                 rig.check_view()
         finally:
             rig.fw = mine

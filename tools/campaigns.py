@@ -30,6 +30,15 @@ counted
     long brown-out, PC Errors equal to the rejections the noise must cause, INCOMPLETE
     for every cut upload).
 
+The rig's own view: what it reads from RAM (through QEMU's monitor, at addresses from the
+symbols of ``build/qemu/firmware.elf``) counts only once it is shown to be the running
+firmware's: at start, the monitor must name this rig's QEMU, the flash must hold what that
+ELF loads (QEMU booted that very build), and the uptime counter must advance, never faster
+than the wall clock; right after the first commit, the table found in RAM must be the one
+Table Size and Table CRC describe. A mismatch stops the campaign with ``CampaignFailed``
+(exit 2 from the command line) naming it, instead of passing as a broken promise; a
+reboot is reported with the CPU's PC and SP and QEMU's log.
+
 The watchdog: QEMU does not model the STM32's IWDG (see firmware/boards/qemu/board.h),
 so it cannot fire here. What it guards against (a main loop that stops feeding it for
 500 ms) is checked directly instead: the loop's progress counter, PING, and the longest
@@ -49,6 +58,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import os
 import random
 import re
 import subprocess
@@ -63,6 +73,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from elftools.common.exceptions import ELFError
+from elftools.elf.elffile import ELFFile
 
 from snakebot import devices, protocol
 from snakebot.controller import Command, ControllerErrors, State, UploadResult, load
@@ -90,7 +102,7 @@ from snakebot.sim.transports.unixsock import UnixSocketServer
 
 BUILD = REPO_ROOT / "build" / "qemu"
 IMAGE = BUILD / "flash.bin"
-MAP_FILE = BUILD / "firmware.map"
+ELF_FILE = BUILD / "firmware.elf"
 CORE_DIR = REPO_ROOT / "firmware" / "core"
 
 IDS = (1, 2, 3)
@@ -103,6 +115,10 @@ PC_BAUD = 57600
 MARGIN_S = 0.3  # the PC-link client's allowance beyond the wire time (QEMU may be slow)
 SAMPLE_S = 0.1  # how often the watch loop looks
 STALL_MS = 100  # ten control ticks without a bus packet while the roster is polled
+UPTIME_SLACK_MS = 500  # SysTick counts QEMU's virtual time, which never runs ahead of ours
+UPTIME_STILL_S = 2.0  # how long the uptime counter may seem to stand still at the start
+LOG_TAIL = 2000  # characters of QEMU's log in a problem report
+REBUILD = "rebuild the firmware with `make firmware` and run again"
 CTL = load()
 MAX_LEN_FIELD = MAX_PACKET_LEN - 4  # the largest LEN byte a packet can carry
 _AX12 = devices.ax12()
@@ -268,8 +284,11 @@ class AuditedServo(VirtualServo):
 
 @dataclass(frozen=True)
 class RamMap:
-    """Where the firmware keeps what the campaigns read back (from the linker map, and a
-    probe compiled for the Cortex-M3 for the layout of ``ctl_device``)."""
+    """Where the firmware keeps what the campaigns read back: from the symbol table of the
+    ELF the flash image was made from (``build/qemu/firmware.elf``), and a probe compiled
+    for the Cortex-M3 for the layout of ``ctl_device``. ``flash`` holds what that ELF
+    loads into flash (address, bytes), so a rig can check that QEMU booted this very build
+    before it trusts an address (:meth:`Rig.check_view`)."""
 
     ticks_ms: int
     busport_stats: int
@@ -278,37 +297,67 @@ class RamMap:
     ctl_size: int
     active_offset: int
     active_len_offset: int
+    flash: tuple[tuple[int, bytes], ...] = ()
+    source: str = ""
 
     @classmethod
-    def from_build(cls, map_file: Path = MAP_FILE) -> RamMap:
-        text = map_file.read_text()
-        found: dict[tuple[str, str], tuple[int, int]] = {}
-        pattern = r"^ \.bss\.(\w+)\s+(0x[0-9a-f]+)\s+(0x[0-9a-f]+)\s+(\S+)"
-        for m in re.finditer(pattern, text, re.M):
-            found[(m[1], Path(m[4]).stem)] = (int(m[2], 16), int(m[3], 16))
+    def from_build(cls, elf_file: Path = ELF_FILE) -> RamMap:
+        try:
+            with elf_file.open("rb") as f:
+                elf = ELFFile(f)
+                found = _objects(elf)
+                flash = tuple(
+                    (seg["p_paddr"], seg.data())
+                    for seg in elf.iter_segments()
+                    if seg["p_type"] == "PT_LOAD" and seg["p_filesz"] > 0
+                )
+        except (OSError, ELFError) as exc:
+            raise CampaignFailed(f"cannot read {elf_file} ({exc}): {REBUILD}") from None
 
-        def where(name: str, obj: str) -> tuple[int, int]:
+        def where(name: str, source: str) -> tuple[int, int]:
             try:
-                return found[(name, obj)]
+                return found[(name, source)]
             except KeyError:
-                raise SimError(
-                    f"{name} ({obj}.c) is not in {map_file}: rebuild the firmware with "
-                    "`make firmware`"
-                ) from None
+                raise CampaignFailed(f"{name} ({source}) is not in {elf_file}: {REBUILD}") from None
 
-        ctl, ctl_size = where("ctl", "main")  # the device, then its table arena
+        ctl, ctl_size = where("ctl", "main.c")  # the device, then its table arena
         active, active_len, size = _ctl_layout()
         if size > ctl_size:
-            raise SimError(f"ctl_device is {size} bytes in the probe, {ctl_size} in the map")
+            raise CampaignFailed(
+                f"ctl_device is {size} bytes in the probe, {ctl_size} in {elf_file}: {REBUILD}"
+            )
         return cls(
-            ticks_ms=where("ticks_ms", "hal_systick")[0],
-            busport_stats=where("stats", "busport")[0],
-            pclink_stats=where("stats", "pclink")[0],
+            ticks_ms=where("ticks_ms", "hal_systick.c")[0],
+            busport_stats=where("stats", "busport.c")[0],
+            pclink_stats=where("stats", "pclink.c")[0],
             ctl=ctl,
             ctl_size=ctl_size,
             active_offset=active,
             active_len_offset=active_len,
+            flash=flash,
+            source=str(elf_file),
         )
+
+
+def _objects(elf: ELFFile) -> dict[tuple[str, str], tuple[int, int]]:
+    """(name, source file) -> (address, size) of the ELF's data objects. A file's static
+    objects follow its STT_FILE symbol in the table; globals come after every file's
+    locals, so they are keyed by no file."""
+    symtab = elf.get_section_by_name(".symtab")
+    if symtab is None:
+        raise ELFError("no symbol table (stripped?)")
+    found: dict[tuple[str, str], tuple[int, int]] = {}
+    source = ""
+    for sym in symtab.iter_symbols():
+        kind, bind = sym["st_info"]["type"], sym["st_info"]["bind"]
+        if kind == "STT_FILE":
+            source = sym.name
+        elif kind == "STT_OBJECT":
+            found[(sym.name, source if bind == "STB_LOCAL" else "")] = (
+                sym["st_value"],
+                sym["st_size"],
+            )
+    return found
 
 
 def _ctl_layout() -> tuple[int, int, int]:
@@ -391,21 +440,34 @@ class Health:
     servo_goals_outside: int = 0  # sampled servo goals outside the limits
     table_checks: int = 0
     table_failures: list[str] = field(default_factory=list)
+    reboot_details: list[str] = field(default_factory=list)  # registers and QEMU's log
 
 
 class Rig:
     """QEMU running the firmware, wired to a tapped emulated bus; a controller client on
     the PC link; the firmware's RAM within reach. Use as a context manager."""
 
-    def __init__(self, faults: FaultConfig, workdir: Path, play_s: float | None = None) -> None:
+    def __init__(
+        self,
+        faults: FaultConfig,
+        workdir: Path,
+        play_s: float | None = None,
+        ram: RamMap | None = None,
+    ) -> None:
         self.tap = Tap(dict(zip(IDS, LIMITS, strict=True)))
         self.servos = [AuditedServo(i, lim) for i, lim in zip(IDS, LIMITS, strict=True)]
         self.bus = TappedBus(self.tap, self.servos, faults=faults)
         self.play_s = play_s  # overrides how long the campaigns that play, play
         self.server = UnixSocketServer(self.bus, workdir / "bus.sock")
-        self.fw = QemuFirmware(IMAGE, bus=Endpoint.unix_client(workdir / "bus.sock"))
-        self.ram = RamMap.from_build()
+        # A name only this QEMU has: the monitor must be this machine's (check_view).
+        self.name = f"snakebot-campaign-{os.getpid()}-{workdir.name}"
+        self.fw = QemuFirmware(
+            IMAGE, bus=Endpoint.unix_client(workdir / "bus.sock"), extra_args=["-name", self.name]
+        )
+        self.ram = ram if ram is not None else RamMap.from_build()
         self.health = Health()
+        self._started = 0.0  # time.monotonic() when QEMU started
+        self._table_view_checked = False
         self.ctl: ControllerClient | None = None
         self.committed: tuple[int, int] | None = None  # (size, CRC) of the table on board
         self._uptime = -1
@@ -417,6 +479,7 @@ class Rig:
     def __enter__(self) -> Rig:
         self.server.start()
         try:
+            self._started = time.monotonic()
             self.fw.start()
             self.ctl = ControllerClient.open(
                 self.fw.ports.pc_link, PC_BAUD, CONTROLLER_ID, margin_s=MARGIN_S, retries=2
@@ -426,6 +489,7 @@ class Rig:
                 if time.monotonic() > deadline:
                     raise CampaignFailed(f"the firmware never answered PING: {self.fw.log()}")
                 time.sleep(0.05)
+            self.check_view()
         except BaseException:
             self.__exit__(None, None, None)
             raise
@@ -443,6 +507,93 @@ class Rig:
             return True
         except ProtocolError:
             return False
+
+    # -- the rig's own view of the machine ----------------------------------------------------
+
+    def check_view(self) -> None:
+        """Make sure that what this rig reads through QEMU's monitor is the running
+        firmware's RAM where the RAM map says, before any of it counts as a result: the
+        monitor answers for this rig's QEMU (its name), the flash holds what the ELF the
+        map comes from loads there (QEMU booted that very build), and the uptime counter
+        advances, never faster than the wall clock since QEMU started. A mismatch is
+        :class:`CampaignFailed` naming it, not a broken promise of the firmware."""
+        named = self.fw.monitor("info name").strip()
+        if named != self.name:
+            raise CampaignFailed(
+                f"asked for its name, QEMU's monitor answered {named!r}, not this rig's "
+                f"{self.name!r}: another QEMU's monitor, or answers out of step with the "
+                "questions; stop stray qemu-system-arm processes and run again"
+            )
+        for address, data in self.ram.flash:
+            held = read_ram(self.fw, address, len(data))
+            if held != data:
+                at = next(i for i in range(len(data)) if i >= len(held) or held[i] != data[i])
+                raise CampaignFailed(
+                    f"QEMU booted {IMAGE}, but its flash at {address + at:#x} differs from "
+                    f"{self.ram.source}, where the RAM map comes from: two different builds "
+                    f"(was the firmware rebuilt after the image was made?); {REBUILD}"
+                )
+        t0 = time.monotonic()
+        first = self._ticks()
+        while (now := self._ticks()) == first:
+            if time.monotonic() - t0 > UPTIME_STILL_S:
+                raise CampaignFailed(
+                    f"ticks_ms at {self.ram.ticks_ms:#x} stayed at {first} for "
+                    f"{UPTIME_STILL_S:.0f} s: not the firmware's uptime counter; {REBUILD}"
+                )
+            time.sleep(0.01)
+        if now < first:
+            raise CampaignFailed(
+                f"ticks_ms at {self.ram.ticks_ms:#x} went back from {first} to {now} "
+                f"between two reads: not the firmware's uptime counter; {REBUILD}"
+            )
+
+    def _ticks(self) -> int:
+        return self._plausible_uptime(
+            int.from_bytes(read_ram(self.fw, self.ram.ticks_ms, 4), "little")
+        )
+
+    def _plausible_uptime(self, ticks: int) -> int:
+        """``ticks``, if the firmware can have counted that far since QEMU started."""
+        ran_ms = (time.monotonic() - self._started) * 1000
+        if ticks > ran_ms + UPTIME_SLACK_MS:
+            raise CampaignFailed(
+                f"ticks_ms at {self.ram.ticks_ms:#x} reads {ticks} ms, but QEMU started "
+                f"{ran_ms:.0f} ms ago: the RAM map ({self.ram.source}) does not describe the "
+                f"running firmware; {REBUILD}"
+            )
+        return ticks
+
+    def _check_table_view(self) -> None:
+        """Right after a commit, the firmware's Table Size and Table CRC (set from the
+        active table in the same step) and the active table as the RAM map finds it
+        must agree; if the registers are right and RAM is not, the map is wrong."""
+        self._table_view_checked = True
+        assert self.committed is not None
+        regs = self.ctl.read("Table Size", "Table CRC")
+        if (regs["Table Size"], regs["Table CRC"]) != self.committed:
+            return  # the firmware's own fault: check_table reports it
+        ram = self.active_table()
+        if (len(ram), zlib.crc32(ram)) != self.committed:
+            raise CampaignFailed(
+                f"right after the commit the firmware reports a {self.committed[0]}-byte "
+                f"table CRC {self.committed[1]:#x}, but the RAM map (ctl at "
+                f"{self.ram.ctl:#x}, active +{self.ram.active_offset}, length "
+                f"+{self.ram.active_len_offset}) finds {len(ram)} bytes CRC "
+                f"{zlib.crc32(ram):#x}: the map or the ctl_device layout probe is not the "
+                f"running firmware's; {REBUILD}"
+            )
+
+    def machine_state(self) -> str:
+        """The CPU's PC and SP, and what QEMU logged, for a problem report."""
+        regs = dict(re.findall(r"(R1[35]|XPSR)=([0-9a-f]+)", self.fw.monitor("info registers")))
+        cpu = ", ".join(
+            f"{name} {regs[key]}"
+            for name, key in (("PC", "R15"), ("SP", "R13"), ("xPSR", "XPSR"))
+            if key in regs
+        )
+        log = self.fw.log().strip()[-LOG_TAIL:] or "nothing"
+        return f"CPU: {cpu or 'no registers'}; QEMU log: {log}"
 
     # -- the PC link ------------------------------------------------------------------------
 
@@ -469,12 +620,14 @@ class Rig:
         result = self.ctl.read("Upload Result")["Upload Result"]
         if result == UploadResult.OK:
             self.committed = (len(blob), zlib.crc32(blob))
+            if not self._table_view_checked:
+                self._check_table_view()
         return result
 
     # -- looking ----------------------------------------------------------------------------
 
     def ram_probe(self) -> dict[str, int]:
-        ticks = int.from_bytes(read_ram(self.fw, self.ram.ticks_ms, 4), "little")
+        ticks = self._ticks()
         bp = read_ram(self.fw, self.ram.busport_stats, 6)
         pc = read_ram(self.fw, self.ram.pclink_stats, 4)
         return {
@@ -489,6 +642,7 @@ class Rig:
     def active_table(self) -> bytes:
         base = self.ram.ctl
         n = int.from_bytes(read_ram(self.fw, base + self.ram.active_len_offset, 2), "little")
+        n = min(n, self.ram.ctl_size - self.ram.active_offset)  # no further than the arena
         return read_ram(self.fw, base + self.ram.active_offset, n) if n else b""
 
     def check_table(self, where: str) -> None:
@@ -521,6 +675,10 @@ class Rig:
         packets, uptime = probe["bus_packets"], probe["uptime_ms"]
         if uptime < self._uptime:
             h.reboots += 1
+            h.reboot_details.append(
+                f"uptime went from {self._uptime} to {uptime} ms; {self.machine_state()}"
+            )
+            self.check_view()  # a real reboot, not the rig's view of the machine failing
         self._uptime = uptime
         if not self.polling or self._progress is None or packets != self._progress[0]:
             self._progress = (packets, uptime)
@@ -699,7 +857,11 @@ def _common_checks(rig: Rig, out: Outcome, last: Sample) -> None:
     )
     out.check("limits", tap.goal_packets > 0, "no goals were sent at all")
     out.check("alive", h.ping_failures == 0, f"{h.ping_failures} PINGs unanswered")
-    out.check("alive", h.reboots == 0, f"the firmware rebooted {h.reboots} times")
+    out.check(
+        "alive",
+        h.reboots == 0,
+        f"the firmware rebooted {h.reboots} times ({'; '.join(h.reboot_details[:3])})",
+    )
     out.check("alive", h.stalls == 0, f"the control loop stalled in {h.stalls} samples")
     out.check(
         "alive", ram["bus_refused"] == 0 and ram["pc_tx_dropped"] == 0, f"buffers overflowed: {ram}"

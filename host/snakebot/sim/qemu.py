@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import itertools
 import json
 import os
 import shutil
@@ -149,15 +150,28 @@ def find_qemu() -> str:
 
 
 class _Qmp:
-    """Just enough of QEMU's machine protocol: a JSON object per line over a socket."""
+    """Just enough of QEMU's machine protocol: a JSON object per line over a socket.
+
+    Every command carries an ``id`` that QEMU echoes in its reply, and :meth:`execute`
+    returns only the reply with its own id. Taking "the next message that is not an
+    event" as the answer, one message left unread (an answer no one waited for, or one
+    taken for the greeting) makes every later command get the answer to the one before:
+    a fault campaign in CI read its uptime from the table length it had asked for a
+    moment earlier and reported a reboot and a lost table that never happened."""
 
     def __init__(self, path: str, timeout: float) -> None:
         self._sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-        self._sock.settimeout(timeout)
-        self._sock.connect(path)
+        self._ids = itertools.count(1)
         self._buf = b""
-        self._receive()  # the greeting
-        self.execute("qmp_capabilities")
+        try:
+            self._sock.settimeout(timeout)
+            self._sock.connect(path)
+            while "QMP" not in self._receive():  # the greeting
+                pass
+            self.execute("qmp_capabilities")
+        except BaseException:
+            self.close()  # a half-open session must not linger with an answer in it
+            raise
 
     def _receive(self) -> dict[str, Any]:
         while b"\n" not in self._buf:
@@ -169,14 +183,15 @@ class _Qmp:
         return json.loads(line)
 
     def execute(self, command: str, arguments: dict[str, Any] | None = None) -> Any:
-        message: dict[str, Any] = {"execute": command}
+        ident = f"snakebot-{next(self._ids)}"
+        message: dict[str, Any] = {"execute": command, "id": ident}
         if arguments:
             message["arguments"] = arguments
         self._sock.sendall(json.dumps(message).encode() + b"\n")
         while True:
             reply = self._receive()
-            if "event" in reply:
-                continue
+            if reply.get("id") != ident:
+                continue  # an event, a greeting, or the answer to another command
             if "error" in reply:
                 raise QemuError(f"QEMU refused {command}: {reply['error'].get('desc', reply)}")
             return reply.get("return")

@@ -356,7 +356,6 @@ static bool within_robot(const ctl_device *d, uint8_t id, uint16_t min, uint16_t
 /* A table's joint limits (its frames lie within them: gt_validate) within the robot's. */
 static bool table_fits(const ctl_device *d, const uint8_t *table, const gt_info *info)
 {
-    if (bus_limits_count(&d->bus) == 0) return true; /* without going through the joints */
     for (uint8_t j = 0; j < info->joint_count; j++) {
         if (!within_robot(d, gt_joint_id(table, info, j), gt_joint_min(table, info, j),
                           gt_joint_max(table, info, j))) {

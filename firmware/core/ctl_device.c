@@ -1,5 +1,7 @@
 #include "ctl_device.h"
 
+#include <string.h>
+
 #include "crc32.h"
 #include "dxl_packet.h"
 #include "play_safety.h"
@@ -205,7 +207,7 @@ static void stop_motion(ctl_device *d)
 
 static void defaults(ctl_device *d)
 {
-    for (size_t i = 0; i < CTL_CONTROL_TABLE_BYTES; i++) d->regs[i] = 0;
+    memset(d->regs, 0, CTL_CONTROL_TABLE_BYTES);
     for (size_t i = 0; i < N_REGISTERS; i++) {
         const field *f = &registers[i];
         if (f->size <= 4 && (f->access & CTL_ACCESS_R) != 0) {
@@ -1044,8 +1046,12 @@ static void reset_device(ctl_device *d)
             show_program(d, crc32_compute(d->active, d->active_len));
         }
     } else if (d->active_len > 0) {
+        /* The active table was validated when it became active, and its bytes have not
+         * changed since (a chunk staged over them drops it): its header says the rest.
+         * Only the robot's limits, which may have changed since, are checked again. */
         gt_info info;
-        if (check_table(d, d->active, d->active_len, &info) == GT_OK) {
+        if (gt_describe(d->active, d->active_len, &info) == GT_OK &&
+            table_fits(d, d->active, &info)) {
             show_table(d, &info, crc32_compute(d->active, d->active_len));
         }
     }

@@ -75,6 +75,16 @@ static int check_body(const uint8_t *t, const gt_info *info)
     return GT_OK;
 }
 
+int gt_describe(const uint8_t *table, size_t len, gt_info *info)
+{
+    gt_info found = {0};
+    *info = found;
+    if (table == NULL) return GT_ERR_TRUNCATED;
+    int status = check_header(table, len, &found);
+    if (status == GT_OK) *info = found;
+    return status;
+}
+
 int gt_validate(const uint8_t *table, size_t len, gt_info *info)
 {
     gt_info found = {0};

@@ -52,6 +52,9 @@ typedef struct {
 
 /* Check len bytes as a complete table; GT_OK fills *info (zeroed otherwise). */
 int gt_validate(const uint8_t *table, size_t len, gt_info *info);
+/* Only the header checks of gt_validate() (no CRC, limits or frames), filling *info the
+ * same way: for a table validated before whose bytes have not changed since. */
+int gt_describe(const uint8_t *table, size_t len, gt_info *info);
 /* One line of text for a gt_validate() result. */
 const char *gt_strerror(int status);
 /* The table CRC of len (>= 16) bytes: CRC-32 of bytes 0..11 then 16..len-1. */

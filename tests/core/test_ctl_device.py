@@ -20,6 +20,7 @@ from snakebot.controller import (
     chunk_writes,
     commit_write,
 )
+from snakebot.controller.limits import encode_limits
 from snakebot.gaittable import GaitTable
 from snakebot.protocol import (
     BROADCAST_ID,
@@ -143,6 +144,33 @@ def test_reset_restores_defaults_but_keeps_the_table(dev):
     assert r.error == 0
     assert dev.get("Speed Scale") == 256
     assert dev.get("Table CRC") == t.image_crc and dev.get("Joint Count") == 3
+
+
+def test_reset_shows_the_table_again_only_while_it_fits_the_robot_limits(dev):
+    """RESET re-reads the active table from its header (it was validated when it became
+    active), but checks it against the robot's limits again: they may have changed."""
+    t = table()
+    assert dev.upload(t.encode()) == UploadResult.OK
+
+    def set_limits(low: int, high: int) -> None:
+        blob = encode_limits({sid: (low, high) for sid in (11, 12, 13)})
+        for address, data in chunk_writes(blob, controller=CTL):
+            assert dev.one(write(CTL_ID, address, data)).error == 0
+        assert dev.one(write(CTL_ID, *commit_write(blob, CTL, what="LIMITS"))).error == 0
+        assert dev.get("Upload Result") == UploadResult.OK
+
+    set_limits(100, 900)  # the table's 200..824 fit
+    assert dev.one(reset(CTL_ID)).error == 0
+    assert (dev.get("Table Size"), dev.get("Table CRC")) == (t.size, t.image_crc)
+    assert [r["ID"] for r in dev.servo_window(0)[:3]] == [11, 12, 13]
+
+    set_limits(300, 700)  # they no longer do: the registers stop showing it
+    assert dev.one(reset(CTL_ID)).error == 0
+    assert (dev.get("Table Size"), dev.get("Table CRC"), dev.get("Joint Count")) == (0, 0, 0)
+
+    set_limits(100, 900)  # and show it again once they do
+    assert dev.one(reset(CTL_ID)).error == 0
+    assert (dev.get("Table Size"), dev.get("Table CRC")) == (t.size, t.image_crc)
 
 
 def test_broadcast_write_and_sync_write_apply_silently(dev):

@@ -65,13 +65,10 @@ def test_closed_loop_runs_on_the_physics_world():
 PHYSICS_SEEDS = (31, 32, 33, 34, 35, 36)
 #: Where the closed loop is known not to get there (docs/goto.md has the figures).
 PHYSICS_MISSES = {
-    **{
-        ("snake5", seed): "snake5 steers serpenoid cycles on MuJoCo (its loops move it "
-        "nothing like the minimum-slip model says), but a fractional cycle moves it by what "
-        "the learned car model does not predict well enough: it ends 9x..27x the tolerance "
-        "off (docs/goto.md)"
-        for seed in PHYSICS_SEEDS
-    },
+    ("snake5", 31): "snake5's whole serpenoid cycles carry it 0.1 m each, a cycle's turn "
+    "varies by 0.02 rad about the learned model and its length by 7 mm; the target is "
+    "0.21 m away (twice the tolerance: 8 mm) and the re-plans wander: 58x the tolerance "
+    "off after 50 cycles (docs/goto.md)",
 }
 
 

@@ -67,7 +67,7 @@ MAX_OFFSET = 0.6
 MAX_CHANGE = 0.3
 #: The most cycles one plan may have, and the most cycles played.
 HORIZON = 12
-MAX_CYCLES = 50
+MAX_CYCLES = 80
 #: Plans of up to this many cycles may reverse twice.
 TWO_REVERSALS = 6
 #: A new plan is taken when its end by the model is within this share of the tolerance;

@@ -370,8 +370,9 @@ def follow(
     wave.check()
     model = CycleModel.from_geometry(robot, PRIOR_DISTANCE * body_length(robot))
     plan = None
-    pose = np.asarray(runner.play(ramp(start, wave.angles_at(0.0, 0.0)), 0), dtype=float)
-    segments.append({"kind": "to wave", "frames": FRAMES_PER_CYCLE, "pose": pose_dict(pose)})
+    to_wave = ramp(start, wave.angles_at(0.0, 0.0))
+    pose = np.asarray(runner.play(to_wave, 0), dtype=float)
+    segments.append({"kind": "to wave", "frames": len(to_wave) - 1, "pose": pose_dict(pose)})
     shape = present_angles(runner)
     here = se2.compose(pose, middle(robot, shape))
     for done in range(MAX_CYCLES):

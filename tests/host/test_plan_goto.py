@@ -64,12 +64,7 @@ def test_closed_loop_runs_on_the_physics_world():
 #: Seeded targets on the physics world, per robot family; each run takes seconds.
 PHYSICS_SEEDS = (31, 32, 33, 34, 35, 36)
 #: Where the closed loop is known not to get there (docs/goto.md has the figures).
-PHYSICS_MISSES = {
-    ("snake5", 31): "snake5's whole serpenoid cycles carry it 0.1 m each, a cycle's turn "
-    "varies by 0.02 rad about the learned model and its length by 7 mm; the target is "
-    "0.21 m away (twice the tolerance: 8 mm) and the re-plans wander: 30.6x the "
-    "tolerance off in position, 3.2x in heading after 80 cycles (docs/goto.md)",
-}
+PHYSICS_MISSES: dict[tuple[str, int], str] = {}
 
 
 def physics_cases():

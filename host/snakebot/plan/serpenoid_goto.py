@@ -24,7 +24,8 @@ repeatable one (measured: ``docs/goto.md``):
   the rest no longer reaches the target), so the last cycles, planned from a state read
   one cycle before, carry only one cycle's model error.
 
-It meets twice the tolerance at 5 of the 6 test targets (``docs/goto.md``).
+It meets twice the tolerance at the six test targets, some only after wandering for
+many cycles (``docs/goto.md``).
 """
 
 from __future__ import annotations
@@ -67,7 +68,7 @@ MAX_OFFSET = 0.6
 MAX_CHANGE = 0.3
 #: The most cycles one plan may have, and the most cycles played.
 HORIZON = 12
-MAX_CYCLES = 80
+MAX_CYCLES = 150
 #: Plans of up to this many cycles may reverse twice.
 TWO_REVERSALS = 6
 #: A new plan is taken when its end by the model is within this share of the tolerance;

@@ -64,15 +64,7 @@ def test_closed_loop_runs_on_the_physics_world():
 #: Seeded targets on the physics world, per robot family; each run takes seconds.
 PHYSICS_SEEDS = (31, 32, 33, 34, 35, 36)
 #: Where the closed loop is known not to get there (docs/goto.md has the figures).
-PHYSICS_MISSES = {
-    **{
-        ("snake5", seed): "snake5 steers serpenoid cycles on MuJoCo (its loops move it "
-        "nothing like the minimum-slip model says), but a fractional cycle moves it by what "
-        "the learned car model does not predict well enough: it ends 9x..27x the tolerance "
-        "off (docs/goto.md)"
-        for seed in PHYSICS_SEEDS
-    },
-}
+PHYSICS_MISSES: dict[tuple[str, int], str] = {}
 
 
 def physics_cases():

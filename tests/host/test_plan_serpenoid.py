@@ -1,5 +1,5 @@
 """The serpenoid closed loop's parts (``snakebot.plan.serpenoid_goto``): the wave played
-segment by segment, the body's middle, the learned response and the car's path."""
+cycle by cycle, the body's middle, the learned cycle and the plans of whole cycles."""
 
 from __future__ import annotations
 
@@ -10,14 +10,19 @@ import pytest
 
 from snakebot.plan import se2
 from snakebot.plan.goto import uses_serpenoid
+from snakebot.plan.planner import Tolerance
 from snakebot.plan.serpenoid_goto import (
+    ACCEPT,
     FRAMES_PER_CYCLE,
+    MAX_CHANGE,
     MAX_OFFSET,
+    TWO_REVERSALS,
     CycleModel,
     Wave,
+    end_of,
     middle,
-    plan_moves,
-    predict,
+    plan_cycles,
+    ways_of,
 )
 from snakebot.robots import load_robot
 
@@ -57,42 +62,72 @@ def test_middle_of_a_straight_and_a_bent_body():
     assert bent[1] > 0 and bent[0] < straight[0]
 
 
-def test_the_model_learns_the_floor_from_its_segments():
-    truth = CycleModel(0.38, np.array([0.05, 2.2, 0.4]))
-    model = CycleModel(0.3, np.array([0.0, 1.0, 0.0]))
+def test_the_model_learns_the_floor_from_its_cycles():
+    truth = CycleModel(np.array([0.105, -0.02, -0.01, -0.08, 0.004, 0.46, 0.30]))
+    model = CycleModel.from_geometry(SNAKE5, 0.08)
     rng = np.random.default_rng(5)
-    offset = 0.0
-    for _ in range(25):
-        q, c = float(rng.uniform(-0.3, 0.3)), float(rng.choice([-0.5, 0.5]))
-        moved = truth.motion(q, c, q - offset)
-        model.add(q, c, q - offset, moved)
-        offset = q
-    assert model.distance == pytest.approx(truth.distance, rel=0.05)
-    # the bias and the change's turn are learned; the gain per offset (which half-cycle
-    # segments at offsets of at most 0.3 say little about) stays drawn to the prior
-    # from the geometry, but moves towards the floor's
-    miss = np.abs(model.coefficients - truth.coefficients) / np.abs(
-        model.prior - truth.coefficients
-    )
-    assert miss[0] < 0.2 and miss[2] < 0.2 and miss[1] < 0.7
+    p = 0.0
+    for _ in range(40):
+        q, way = float(rng.uniform(-MAX_OFFSET, MAX_OFFSET)), float(rng.choice([-1.0, 1.0]))
+        model.add(q, p, way, truth.motion(q, p, way))
+        p = q
+    # forty cycles outweigh the prior: the straight cycle's length and the turn's
+    # share of this cycle's and the last one's offset are the floor's
+    assert model.length(0.0, 0.0) == pytest.approx(truth.length(0.0, 0.0), rel=0.02)
+    assert model.coefficients[5:] == pytest.approx(truth.coefficients[5:], abs=0.02)
+    prior = CycleModel.from_geometry(SNAKE5, 0.08)
+    for q, p in ((0.5, 0.5), (-0.3, 0.2), (0.0, -0.6)):
+        want = truth.motion(q, p, -1.0)
+        learned = np.abs(model.motion(q, p, -1.0) - want).max()
+        assert learned < 0.01 and learned < 0.3 * np.abs(prior.motion(q, p, -1.0) - want).max()
 
 
-@pytest.mark.parametrize("remaining", [(0.5, 0.2, 0.6), (-0.3, 0.1, -0.4), (0.05, 0.3, 1.0)])
-def test_the_planned_moves_reach_the_pose_by_the_model(remaining):
-    model = CycleModel(0.38, np.array([0.0, 2.2, 0.3]))
-    goal = np.array(remaining)
-    moves = plan_moves(model, 0.0, goal, 0.7)
-    assert np.all(np.abs(moves[:, 0]) <= MAX_OFFSET + 1e-9)
-    end = predict(model, 0.0, moves)
-    assert np.hypot(*(end[:2] - goal[:2])) < 0.005
-    assert abs((end[2] - goal[2] + math.pi) % (2 * math.pi) - math.pi) < 0.01
-    # and the pose it reaches composes as the moves' motions do
-    one_by_one = np.zeros(3)
-    offset = 0.0
-    for q, c in moves:
-        one_by_one = se2.compose(one_by_one, model.motion(q, c, q - offset))
-        offset = q
-    assert one_by_one == pytest.approx(end)
+def test_a_cycle_backwards_retraces_the_arc_forwards():
+    model = CycleModel.from_geometry(SNAKE5, 0.1)
+    forwards = model.motion(0.4, 0.4, 1.0)
+    assert forwards[2] > 0  # a positive offset turns the body left
+    assert se2.compose(forwards, model.motion(0.4, 0.4, -1.0)) == pytest.approx(np.zeros(3))
+
+
+def test_the_ways_to_drive_reverse_at_most_twice():
+    for n in range(1, 9):
+        ways = ways_of(n)
+        assert len(set(ways)) == len(ways)
+        assert all(len(w) == n for w in ways)
+        reversals = [sum(a != b for a, b in zip(w[:-1], w[1:], strict=True)) for w in ways]
+        assert max(reversals) == min(n - 1, 1 if n > TWO_REVERSALS else 2)
+
+
+def _link1(q):
+    return (-0.35, 0.0, -2.0 * q)  # link 1 behind the middle, turned against the bend
+
+
+def test_end_of_composes_the_cycles_arcs():
+    model = CycleModel.from_geometry(SNAKE5, 0.1)
+    here = np.array([0.2, -0.1, 0.3])
+    ways, offsets = (1.0, 1.0, -1.0), np.array([0.2, -0.3, 0.1])
+    pose, p = here, 0.05
+    for way, q in zip(ways, offsets, strict=True):
+        pose = se2.compose(pose, model.motion(float(q), p, way))
+        p = float(q)
+    expected = se2.compose(pose, np.array(_link1(p)))
+    assert end_of(model, here, 0.05, ways, offsets, _link1) == pytest.approx(expected)
+
+
+@pytest.mark.parametrize("goal", [(0.5, 0.2, 0.6), (-0.3, 0.1, -0.4), (0.05, 0.3, 1.0)])
+def test_the_planned_cycles_reach_the_pose_by_the_model(goal):
+    model = CycleModel.from_geometry(SNAKE5, 0.105)
+    tol = Tolerance(0.01, math.radians(2))
+    start = se2.inverse(np.array(_link1(0.0)))  # link 1 at the origin
+    plan = plan_cycles(model, start, 0.0, np.array(goal), tol, _link1)
+    assert plan.miss <= ACCEPT
+    end = end_of(model, start, 0.0, plan.ways, np.array(plan.offsets), _link1)
+    assert math.hypot(end[0] - goal[0], end[1] - goal[1]) <= ACCEPT * tol.position * 1.01
+    offsets = np.r_[0.0, plan.offsets]
+    assert np.all(np.abs(offsets) <= MAX_OFFSET + 1e-9)
+    assert np.all(np.abs(np.diff(offsets)) <= MAX_CHANGE + 0.05)
+    # the fewest cycles: the straight way there takes at least this many
+    assert len(plan.ways) >= math.hypot(goal[0], goal[1]) / model.length(0.0, 0.0) - 1
 
 
 def test_only_n_link_snakes_on_a_physics_world_steer_waves():

@@ -73,8 +73,10 @@ def goto(
     half-way pose: one closed loop there, a second from there on. The report gives
     the final error, the loops played (iterations) and the path; the exit status is 1
     if the end is outside the tolerance. On a physics world an N-link snake (snake5)
-    steers serpenoid cycles with a steering offset instead of loops, their distance and
-    turn learned as they run. docs/goto.md has what it achieves on MuJoCo.
+    plays whole serpenoid cycles instead of loops, each at one steering offset: after
+    each it reads the pose and the joints' present positions and fits the cycles left
+    again, by a model of one cycle learned as it runs. docs/goto.md has what it
+    achieves on MuJoCo.
 
     \b
     Example:

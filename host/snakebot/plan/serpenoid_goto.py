@@ -1,29 +1,32 @@
-"""Closed loop for N-link snakes on a world that slips: serpenoid cycles with a steering
-offset, their distance and turn measured as they run.
+"""Closed loop for N-link snakes on a world that slips: whole serpenoid cycles, each at
+one steering offset, planned as a car's path over a model of one cycle learned in the
+world.
 
 On MuJoCo the minimum-slip model's loops move snake5 nothing like the model says, but
-its serpenoid behaves like a car: one cycle carries the body about a wavelength along
-(set by delta and the link length, hardly by the amplitude: 0.38 m for snake5),
-backwards when omega is negative, and a steering offset phi0 curves its path by about
-phi0 per link. The pose the world reports (link 1, the tail) swings with the wave
-within a cycle and turns about a cycle after the offset changes; the body's middle
-(``middle``: the links' centroid and mean heading, known from the joints) does
-neither. So the closed loop here:
+its serpenoid behaves like a car, and read at the same phase of the wave it is a very
+repeatable one (measured: ``docs/goto.md``):
 
-- **plays the serpenoid continuously**, segment by segment: each segment is a whole or
-  fractional number of cycles at one offset (blended in over the first quarter cycle,
-  the phase carried on), forwards or backwards; the pose is read after each;
-- **learns the floor's response** (``CycleModel``): the middle's distance per cycle and
-  its turn, linear in the offset, the cycles and the change of offset, fitted by least
-  squares from a calibration (one straight cycle, one turning cycle) and every
-  segment since;
-- **plans a car's path** for the middle to where it must be for link 1 to end at the
-  target: three arcs (turn, straight, turn; each forwards or backwards, offsets within
-  ``MAX_OFFSET``), the shortest found that meets it by the learned model, and plays only
-  the start of its first arc (at most ``MAX_STEP`` cycles, less near the goal) before
-  planning again.
+- **the state is read once per cycle, at phase 0**: the pose the world reports (link 1's)
+  and the joints' present positions read over the bus, as a real robot can. From both,
+  the body's ``middle`` (the links' centroid and mean heading): link 1 alone turns
+  against the body by twice a change of offset, the middle does not, and the servos lag
+  behind a loaded body, so the shape sent is not the shape there is;
+- **one cycle moves the middle along an arc** whose length shrinks with the offset and
+  whose turn is linear in this cycle's offset and the last one's (the body takes about a
+  cycle to bend to a new offset), the same curvature backwards; ``CycleModel`` fits
+  that by least squares to every cycle played, drawn towards a prior from the geometry
+  (an offset q at every joint curves the body by q per link);
+- **each plan is whole cycles only** (a fraction of a cycle is what the model predicts
+  worst): for the fewest cycles n, and each way of driving them (forwards, backwards,
+  one reversal, two in short plans), the offsets are fitted so that link 1 ends at the
+  target by the model, with the last cycle's shape; only the first cycle is played
+  before the state is read and the rest of the plan fitted again (a new plan only when
+  the rest no longer reaches the target), so the last cycles, planned from a state read
+  one cycle before, carry only one cycle's model error.
 
-It does not yet meet the goal on MuJoCo (``docs/goto.md`` has the figures)."""
+It meets twice the tolerance at the six test targets, some only after wandering for
+many cycles (``docs/goto.md``).
+"""
 
 from __future__ import annotations
 
@@ -33,33 +36,57 @@ from typing import Any
 
 import numpy as np
 
+from snakebot import devices
 from snakebot.gait.limits import check_serpenoid
 from snakebot.kinematics import Sines
 from snakebot.plan import se2
-from snakebot.plan.planner import Tolerance, body_length, motion_dict, pose_dict, pose_error, ramp
+from snakebot.plan.planner import (
+    Tolerance,
+    body_length,
+    motion_dict,
+    pose_dict,
+    pose_error,
+    ramp,
+)
 from snakebot.robots import Robot
 from snakebot.sim.controller_pty import TICK_MS
 
-#: The wave: ``snakebot drive``'s defaults (30 degrees, 180 deg/s, 90 degrees).
+#: The wave: 30 degrees, 180 deg/s and a lag of 150 degrees between joints: a short wave
+#: that carries snake5 0.105 m a cycle on MuJoCo and turns it 0.76 rad per cycle per
+#: radian of offset, where ``snakebot drive``'s 90 degrees carries it 0.4 m and a plan's
+#: last cycle could miss by centimetres.
 AMPLITUDE = math.radians(30.0)
 OMEGA = math.radians(180.0)
-DELTA = math.radians(90.0)
+DELTA = math.radians(150.0)
 #: Frames per cycle (the frame period is rounded to whole controller ticks).
 FRAMES_PER_CYCLE = 100
-#: The largest steering offset: with the amplitude it keeps the joints 30 degrees
-#: inside +-90; larger offsets than about twice the amplitude stall the body on MuJoCo.
-MAX_OFFSET = 0.3
-#: The most of a cycle one segment plays before the pose is read and the path re-planned.
-MAX_STEP = 0.5
-#: The least a segment plays (shorter ones move the body less than the servos' lag).
-MIN_STEP = 0.02
-#: Segments at most, calibration included.
-MAX_SEGMENTS = 40
-#: The offset of the calibration's turning cycle.
-CALIBRATION_OFFSET = 0.3
-#: Weight of the seed (calibration) against the segments' rows in the model's fit,
-#: and how much a row weighs against the next newer one.
-PRIOR_WEIGHT, FORGET = 0.2, 0.9
+#: The largest steering offset: with the amplitude the joints stay within 65 degrees of
+#: straight; measured turning the body 0.46 rad per cycle (a radius of 0.16 m).
+MAX_OFFSET = 0.6
+#: The most the offset changes from one cycle to the next in a plan: larger changes
+#: disturb the next cycles by more than the model says.
+MAX_CHANGE = 0.3
+#: The most cycles one plan may have, and the most cycles played.
+HORIZON = 12
+MAX_CYCLES = 150
+#: Plans of up to this many cycles may reverse twice.
+TWO_REVERSALS = 6
+#: A new plan is taken when its end by the model is within this share of the tolerance;
+#: the rest of the last plan, fitted again after a cycle, while it is within ``CONTINUE``
+#: (its last cycles correct the rest: re-planning from scratch for each cycle's error,
+#: about a tolerance, made the plans wander).
+ACCEPT = 0.3
+CONTINUE = 1.5
+#: Weight of a change of offset (rad) against a miss of one tolerance in a plan's fit:
+#: cycles after a change are the ones the model predicts worst.
+SMOOTH = 0.5
+#: Weight of the prior against one cycle's row in the model's fit, and the prior's
+#: distance per straight cycle in body lengths (measured on MuJoCo; the cycles played
+#: correct it).
+PRIOR_WEIGHT = 0.5
+PRIOR_DISTANCE = 0.15
+
+_PRESENT = devices.ax12().register("Present Position")
 
 
 @dataclass
@@ -115,8 +142,7 @@ class Wave:
 
 def middle(robot: Robot, angles: np.ndarray) -> np.ndarray:
     """The body's middle frame (the links' centroid, their mean heading) in the frame
-    of the pose the world reports (link 1's free end and heading): the world's pose
-    swings with the wave within a cycle, the middle hardly."""
+    of the pose the world reports (link 1's free end and heading)."""
     headings = np.r_[0.0, np.cumsum(angles)]
     ends = np.vstack(
         [np.zeros(2), np.cumsum(2 * robot.l * np.c_[np.cos(headings), np.sin(headings)], axis=0)]
@@ -125,94 +151,206 @@ def middle(robot: Robot, angles: np.ndarray) -> np.ndarray:
     return np.r_[centre, headings.mean()]
 
 
+def arc(turn: float, length: float) -> np.ndarray:
+    """The pose change along a circular arc of signed ``length`` that turns by ``turn``."""
+    if abs(turn) < 1e-9:
+        return np.array([length, 0.0, turn])
+    radius = length / turn
+    return np.array([radius * math.sin(turn), radius * (1.0 - math.cos(turn)), turn])
+
+
 @dataclass
 class CycleModel:
-    """What a segment does to the body's middle, learned: ``distance`` per cycle (as
-    far back as forwards) and its turn, c0 + c1 phi0 per cycle plus c2 times the change
-    of offset (which bends the body, and turns its middle, at once); least squares over
-    the segments (recent ones weighing more) drawn towards a ``prior``."""
+    """One whole cycle's motion of the body's middle, learned: an arc of length
+    ``d0 + d1 q^2 + d2 p^2 + d3 q p`` (as long backwards as forwards) turning by
+    ``c0 + c1 q + c2 p`` (q the cycle's offset, p the last cycle's; negated backwards,
+    where the path curves the same way); least squares over the cycles played, drawn
+    towards ``prior`` (d0..d3, c0..c2)."""
 
-    distance: float
-    prior: np.ndarray  # c0, c1, c2
-    rows: list[tuple[np.ndarray, float]] = field(default_factory=list)
-    lengths: list[tuple[float, float]] = field(default_factory=list)
+    prior: np.ndarray
+    rows: list[tuple[float, float, float, np.ndarray]] = field(default_factory=list)
     coefficients: np.ndarray = field(init=False)
 
     def __post_init__(self) -> None:
-        self.coefficients = np.array(self.prior, dtype=float)
+        self.prior = np.asarray(self.prior, dtype=float)
+        self.coefficients = self.prior.copy()
 
-    def motion(self, offset: float, cycles: float, change: float) -> np.ndarray:
-        """The middle's motion over ``cycles`` at ``offset`` after a ``change``."""
-        c0, c1, c2 = self.coefficients
-        kappa = (c0 + c1 * offset) / self.distance
-        return se2.compose(np.array([0.0, 0.0, c2 * change]), arc(kappa, cycles * self.distance))
+    @classmethod
+    def from_geometry(cls, robot: Robot, distance: float) -> CycleModel:
+        """The prior for a wave that carries the body ``distance`` a straight cycle: an
+        offset q at every joint curves it by q per link length, half of it at once."""
+        turn = distance / (2 * robot.l)
+        return cls(np.array([distance, 0.0, 0.0, 0.0, 0.0, 0.5 * turn, 0.5 * turn]))
 
-    def add(self, offset: float, cycles: float, change: float, moved: np.ndarray) -> None:
-        """A segment's observed motion of the middle ``moved`` (body frame)."""
-        self.lengths.append((abs(cycles), float(np.hypot(*moved[:2]))))
-        self.rows.append((np.array([cycles, offset * cycles, change]), float(moved[2])))
-        c, s = zip(*self.lengths, strict=True)
-        self.distance = float(np.dot(c, s) / np.dot(c, c))
-        a = [PRIOR_WEIGHT * np.eye(3)]
-        b = [PRIOR_WEIGHT * self.prior]
-        n = len(self.rows)
-        for i, (x, y) in enumerate(self.rows):
-            w = FORGET ** (n - 1 - i)
-            a.append(w * x[None, :])
-            b.append(np.array([w * y]))
-        self.coefficients = np.linalg.lstsq(np.vstack(a), np.concatenate(b), rcond=None)[0]
+    def length(self, q: float, p: float) -> float:
+        d0, d1, d2, d3 = self.coefficients[:4]
+        return d0 + d1 * q * q + d2 * p * p + d3 * q * p
 
+    def turn(self, q: float, p: float) -> float:
+        c0, c1, c2 = self.coefficients[4:]
+        return c0 + c1 * q + c2 * p
 
-def arc(kappa: float, length: float) -> np.ndarray:
-    """The pose change along an arc of curvature ``kappa`` and signed ``length``."""
-    turn = kappa * length
-    if abs(turn) < 1e-9:
-        return np.array([length, 0.5 * kappa * length**2, turn])
-    return np.array([math.sin(turn) / kappa, (1.0 - math.cos(turn)) / kappa, turn])
+    def motion(self, q: float, p: float, way: float) -> np.ndarray:
+        """The middle's motion over one cycle at offset ``q`` after one at ``p``,
+        forwards (``way`` 1) or backwards (-1)."""
+        return arc(way * self.turn(q, p), way * self.length(q, p))
 
-
-def predict(model: CycleModel, offset: float, moves: np.ndarray) -> np.ndarray:
-    """Where ``moves`` ((offset, cycles) rows) take the body's middle by the model, the
-    offset ``offset`` now."""
-    pose = np.zeros(3)
-    for q, c in moves:
-        pose = se2.compose(pose, model.motion(float(q), float(c), float(q) - offset))
-        offset = float(q)
-    return pose
-
-
-#: Whether the closed loop drives backwards too (1) or forwards only (0).
-BACKWARDS = 1
-#: The most cycles one planned move may have.
-MOST_CYCLES = 4.0
+    def add(self, q: float, p: float, way: float, moved: np.ndarray) -> None:
+        """One cycle's observed motion of the middle ``moved`` (in its frame at the start)."""
+        self.rows.append((q, p, way, np.asarray(moved, dtype=float)))
+        w = PRIOR_WEIGHT
+        a_len, b_len = [w * np.eye(4)], [w * self.prior[:4]]
+        a_turn, b_turn = [w * np.eye(3)], [w * self.prior[4:]]
+        for q_, p_, way_, m in self.rows:
+            turn = float(m[2])
+            chord = float(np.hypot(m[0], m[1]))
+            half = 0.5 * abs(turn)
+            length = chord * half / math.sin(half) if half > 1e-9 else chord
+            a_len.append(np.array([[1.0, q_ * q_, p_ * p_, q_ * p_]]))
+            b_len.append(np.array([length]))
+            a_turn.append(way_ * np.array([[1.0, q_, p_]]))
+            b_turn.append(np.array([turn]))
+        d = np.linalg.lstsq(np.vstack(a_len), np.concatenate(b_len), rcond=None)[0]
+        c = np.linalg.lstsq(np.vstack(a_turn), np.concatenate(b_turn), rcond=None)[0]
+        self.coefficients = np.r_[d, c]
 
 
-def plan_moves(model: CycleModel, offset: float, remaining: np.ndarray, scale: float) -> np.ndarray:
-    """Three moves ((offset, cycles) rows; turn, straight, turn, each either way) that
-    take the body to ``remaining`` by the model, the shortest found from a few starts."""
+@dataclass(frozen=True)
+class Plan:
+    """Whole cycles: each one's direction (1 forwards, -1 backwards) and offset, and
+    how far from the target link 1 ends by the model, in tolerances."""
+
+    ways: tuple[float, ...]
+    offsets: tuple[float, ...]
+    miss: float
+
+
+def ways_of(n: int) -> list[tuple[float, ...]]:
+    """The ways to drive ``n`` cycles: all forwards, all backwards, one reversal, and for
+    short plans two (as a car parks: small corrections near the goal)."""
+    out = [(1.0,) * n, (-1.0,) * n]
+    for k in range(1, n):
+        out += [(1.0,) * k + (-1.0,) * (n - k), (-1.0,) * k + (1.0,) * (n - k)]
+    if n <= TWO_REVERSALS:
+        for k in range(1, n):
+            for m in range(k + 1, n):
+                for way in (1.0, -1.0):
+                    out.append((way,) * k + (-way,) * (m - k) + (way,) * (n - m))
+    return out
+
+
+def end_of(
+    model: CycleModel,
+    here: np.ndarray,
+    offset: float,
+    ways: tuple[float, ...],
+    offsets: np.ndarray,
+    link1: Any,
+) -> tuple[float, float, float]:
+    """Where link 1 ends by the model: the middle from ``here`` after the cycles, then
+    link 1 from the middle with the shape ``link1(q)`` the last offset gives. (Plain
+    floats: the planner calls this thousands of times a step.)"""
+    d0, d1, d2, d3, c0, c1, c2 = (float(v) for v in model.coefficients)
+    x, y, t = (float(v) for v in here)
+    p = offset
+    for way, q in zip(ways, offsets, strict=True):
+        q = float(q)
+        length = way * (d0 + d1 * q * q + d2 * p * p + d3 * q * p)
+        turn = way * (c0 + c1 * q + c2 * p)
+        if abs(turn) < 1e-9:
+            dx, dy = length, 0.0
+        else:
+            r = length / turn
+            dx, dy = r * math.sin(turn), r * (1.0 - math.cos(turn))
+        c, s = math.cos(t), math.sin(t)
+        x, y, t = x + c * dx - s * dy, y + s * dx + c * dy, t + turn
+        p = q
+    lx, ly, lt = link1(p)
+    c, s = math.cos(t), math.sin(t)
+    return x + c * lx - s * ly, y + s * lx + c * ly, t + lt
+
+
+def plan_cycles(
+    model: CycleModel,
+    here: np.ndarray,
+    offset: float,
+    goal: np.ndarray,
+    tol: Tolerance,
+    link1: Any,
+    last: Plan | None = None,
+) -> Plan:
+    """The plan with the fewest whole cycles that ends link 1 within ``ACCEPT`` of the
+    tolerance at ``goal`` by the model, from the middle at ``here`` and the offset now
+    ``offset``; if none within ``HORIZON`` cycles does, the nearest one found. The rest
+    of the ``last`` plan is tried first."""
     from scipy.optimize import least_squares  # the planner's optional dependency
 
-    lo = np.tile([-MAX_OFFSET, -MOST_CYCLES * BACKWARDS], 3)
-    hi = np.tile([MAX_OFFSET, MOST_CYCLES], 3)
+    def residual(x: np.ndarray, ways: tuple[float, ...]) -> np.ndarray:
+        ex, ey, et = end_of(model, here, offset, ways, x, link1)
+        h = (et - goal[2] + math.pi) % (2 * math.pi) - math.pi
+        steps = np.abs(np.diff(np.r_[offset, x])) - MAX_CHANGE
+        return np.r_[
+            (ex - goal[0]) / tol.position,
+            (ey - goal[1]) / tol.position,
+            h / tol.heading,
+            10.0 * np.maximum(steps, 0.0),
+            SMOOTH * np.diff(np.r_[offset, x]),
+        ]
 
-    def residual(x: np.ndarray) -> np.ndarray:
-        end = predict(model, offset, x.reshape(-1, 2))
-        h = (end[2] - remaining[2] + math.pi) % (2 * math.pi) - math.pi
-        miss = np.r_[(end[:2] - remaining[:2]) / scale, h]
-        return np.r_[miss, 0.02 * x[1::2]]
+    def fit(ways: tuple[float, ...], x0: np.ndarray) -> Plan | None:
+        sol = least_squares(residual, x0, args=(ways,), bounds=(-MAX_OFFSET, MAX_OFFSET))
+        r = residual(sol.x, ways)
+        if np.any(r[3 : 3 + len(ways)] > 0.5):
+            return None  # breaks the limit on changes of offset
+        miss = float(np.hypot(np.hypot(r[0], r[1]), r[2]))
+        return Plan(ways, tuple(float(v) for v in sol.x), miss)
 
-    best, best_cost = None, math.inf
-    reach = float(np.hypot(*remaining[:2])) / model.distance
-    for q1 in (-0.5 * MAX_OFFSET, 0.5 * MAX_OFFSET):
-        for sign in (1.0, -1.0)[: 1 + BACKWARDS]:
-            x0 = np.array([q1, 0.5 * sign, 0.0, sign * reach, -q1, 0.5 * sign])
-            sol = least_squares(residual, np.clip(x0, lo, hi), bounds=(lo, hi))
-            r = residual(sol.x)
-            cost = 1e3 * float(np.sum(r[:3] ** 2)) + float(np.sum(np.abs(sol.x[1::2])))
-            if cost < best_cost:
-                best, best_cost = sol.x, cost
-    assert best is not None
-    return best.reshape(-1, 2)
+    if last is not None and len(last.ways) > 1:
+        # the rest of the last plan, fitted again from the state read: usually still good
+        plan = fit(last.ways[1:], np.array(last.offsets[1:]))
+        if plan is not None and plan.miss <= CONTINUE:
+            return plan
+    straight = model.length(0.0, 0.0)
+    start = max(1, math.floor(float(np.hypot(*se2.relative(here, goal)[:2])) / straight) - 1)
+    best = Plan((), (), math.inf)
+    for n in range(start, HORIZON + 1):
+        found = None
+        for ways in ways_of(n):
+            plan = fit(ways, np.zeros(n))
+            if plan is None:
+                continue
+            if plan.miss < best.miss:
+                best = plan
+            if plan.miss <= ACCEPT and (
+                found is None or sum(map(abs, plan.offsets)) < sum(map(abs, found.offsets))
+            ):
+                found = plan
+        if found is not None:
+            return found
+    return best
+
+
+def present_angles(runner: Any) -> np.ndarray:
+    """The joints' present positions, read over the bus (as the real robot's are)."""
+    robot = runner.robot
+    ticks = [runner.client.read_u16(sid, _PRESENT.address) for sid in robot.servo_ids]
+    return robot.ticks_to_angles(np.array(ticks, dtype=float))
+
+
+def link1_from_middle(wave: Wave, lag: np.ndarray) -> Any:
+    """Link 1's pose in the middle's frame after a cycle at offset q, as a function of q:
+    the wave's shape at phase 0 with the servos lagging by ``lag`` (as they lag now).
+    Interpolated in a table: the planner calls it thousands of times a step."""
+    grid = np.linspace(-MAX_OFFSET, MAX_OFFSET, 25)
+    table = np.array(
+        [se2.inverse(middle(wave.robot, wave.angles_at(0.0, q) + lag)) for q in grid]
+    ).T
+
+    def link1(q: float) -> tuple[float, float, float]:
+        x, y, t = (float(np.interp(q, grid, column)) for column in table)
+        return x, y, t
+
+    return link1
 
 
 def follow(
@@ -223,61 +361,51 @@ def follow(
     segments: list[dict[str, Any]],
     progress: Any,
 ) -> np.ndarray:
-    """Drive the snake to ``goal`` with serpenoid segments; the pose at the end."""
+    """Drive the snake to ``goal`` with whole serpenoid cycles; the pose at the end.
+
+    It stops within the tolerance, or within twice the tolerance when a plan has played
+    out (a new plan costs cycles whose errors are about a tolerance each), or after
+    ``MAX_CYCLES``."""
     robot = runner.robot
-    scale = body_length(robot)
     wave = Wave(robot)
     wave.check()
-    pose = np.zeros(3)
-    centre = se2.compose(pose, middle(robot, start))
-    steered: list[np.ndarray] = []
-    total = MAX_SEGMENTS + 1
-    done = 0
-
-    def play(kind: str, angles: np.ndarray, period_ms: int, extra: dict[str, Any]) -> np.ndarray:
-        nonlocal pose, done
-        before = pose
-        pose = np.asarray(runner.play(angles, period_ms), dtype=float)
-        nonlocal centre
-        was, centre = centre, se2.compose(pose, middle(robot, angles[-1]))
-        moved = se2.relative(before, pose)
-        steered.append(se2.relative(was, centre))
-        segments.append({"kind": kind, "frames": len(angles) - 1, "pose": pose_dict(pose)})
-        segments[-1]["motion"] = motion_dict(moved)
-        segments[-1].update(extra)
-        done += 1
+    model = CycleModel.from_geometry(robot, PRIOR_DISTANCE * body_length(robot))
+    plan = None
+    to_wave = ramp(start, wave.angles_at(0.0, 0.0))
+    pose = np.asarray(runner.play(to_wave, 0), dtype=float)
+    segments.append({"kind": "to wave", "frames": len(to_wave) - 1, "pose": pose_dict(pose)})
+    shape = present_angles(runner)
+    here = se2.compose(pose, middle(robot, shape))
+    for done in range(MAX_CYCLES):
         if progress is not None:
-            progress(done, total)
-        return moved
-
-    def step(offset: float, count: float) -> None:
-        """Play ``count`` cycles at ``offset`` and learn from what the middle did."""
-        change = offset - wave.offset
-        frames = wave.frames(offset, count)
-        play("cycles", frames, wave.period_ms, {"offset_rad": offset, "cycles": count})
-        model.add(offset, count, change, steered[-1])
-
-    play("to wave", ramp(start, wave.angles_at(0.0, 0.0)), 0, {})
-    # prior: a bend of phi0 at every joint curves the body by phi0 per link
-    distance_guess = 0.5 * scale
-    model = CycleModel(distance_guess, np.array([0.0, distance_guess / (2 * robot.l), 0.0]))
-    # calibration, measured in the world itself: one straight cycle, one turning
-    step(0.0, 1.0)
-    step(CALIBRATION_OFFSET, 1.0)
-    while done < total:
+            progress(done + 1, MAX_CYCLES + 1)
         d, h = pose_error(pose, goal)
         if d <= tol.position and abs(h) <= tol.heading:
             break
-        # where the middle must be for link 1 to end at the goal, with the joints where
-        # a segment ending now would leave them
-        aim = se2.compose(goal, middle(robot, wave.angles_at(wave.phase, wave.offset)))
-        remaining = se2.relative(centre, aim)
-        moves = plan_moves(model, wave.offset, remaining, scale)
-        offset, count = next(((q, c) for q, c in moves if abs(c) > MIN_STEP), moves[0])
-        # segments shrink near the goal: at most the cycles the way left would take
-        most = min(MAX_STEP, max(2 * MIN_STEP, float(np.hypot(*remaining[:2])) / model.distance))
-        count = float(np.clip(count, -most, most))
-        if abs(count) < MIN_STEP:
-            count = math.copysign(MIN_STEP, count)
-        step(float(offset), count)
+        played_out = plan is not None and len(plan.ways) == 1
+        if played_out and d <= 2 * tol.position and abs(h) <= 2 * tol.heading:
+            break
+        link1 = link1_from_middle(wave, shape - wave.angles_at(0.0, wave.offset))
+        plan = plan_cycles(model, here, wave.offset, goal, tol, link1, plan)
+        way, q, p = plan.ways[0], plan.offsets[0], wave.offset
+        before, was = pose, here
+        pose = np.asarray(runner.play(wave.frames(q, way), wave.period_ms), dtype=float)
+        shape = present_angles(runner)
+        here = se2.compose(pose, middle(robot, shape))
+        moved = se2.relative(was, here)
+        predicted = model.motion(q, p, way)
+        model.add(q, p, way, moved)
+        segments.append(
+            {
+                "kind": "cycles",
+                "frames": FRAMES_PER_CYCLE,
+                "pose": pose_dict(pose),
+                "motion": motion_dict(se2.relative(before, pose)),
+                "offset_rad": q,
+                "cycles": way,
+                "planned_cycles": len(plan.ways),
+                "joints_read": [float(v) for v in shape],
+                "middle": {"planned": motion_dict(predicted), "observed": motion_dict(moved)},
+            }
+        )
     return pose

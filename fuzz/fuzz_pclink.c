@@ -15,7 +15,8 @@
  * roster; a whole tick's bus schedule; a playback register; a power cycle (the table the
  * store kept is loaded again, or rejected if its bytes went bad); a gait-library store,
  * delete or play through the Library page (on a three-slot library in RAM that survives
- * power cycles); the robot's buttons for a tick (speed, steering, serpenoid, safety settings).
+ * power cycles; a store or delete may, as on the CM-530, write in the background over a
+ * few control ticks, and a power cut then leaves the slot as it was); the robot's buttons for a tick (speed, steering, serpenoid, safety settings).
  * fuzz/seeds.py writes seed programs in this language (fuzz/corpus/fuzz_pclink/seed-*). PC packets, ticks and bus transactions interleave freely, as they do
  * in the firmware's main loop.
  *
@@ -37,6 +38,9 @@
  *  - each telemetry READ the device sends ends as exactly one read or one timeout, and a
  *    correct reply is taken as a read with its values mirrored in that servo's slot; no
  *    slot ever shows what another servo said (the roster may change mid-READ);
+ *  - while a library write runs in the background, no chunk, commit or play lands (each
+ *    is refused STORE_BUSY), the store is never asked for a second write, and the blob it
+ *    reads from the staging area at the end is the one it accepted;
  *  - every loop in the harness is bounded (a stuck parser or bus schedule aborts). */
 #include <stdbool.h>
 #include <stddef.h>
@@ -189,6 +193,24 @@ static struct {
     uint8_t bytes[FUZZ_CAPACITY];
 } library[LIB_SLOTS];
 
+/* A store or delete that, like the CM-530's, writes in the background: put and remove
+ * only begin it (LIBRARY_STORING), and it ends after `ticks` control ticks, when the slot
+ * changes and ctl_library_stored() reports. The blob is read where the core left it (the
+ * staging area) only at the end, so a core that let the staging area change meanwhile
+ * stores other bytes than it accepted, which the CRC taken at the start catches. A power
+ * cut meanwhile leaves the slot as it was. */
+static bool background; /* whether the next put or remove writes in the background */
+static struct {
+    uint8_t ticks; /* 0: nothing under way */
+    uint8_t total;
+    bool remove;
+    uint8_t slot, kind;
+    uint8_t name[CTL_SLOT_NAME_SIZE];
+    const uint8_t *data;
+    uint16_t len;
+    uint32_t crc;
+} writing;
+
 static void lib_get(uint8_t slot, lib_slot *out, const uint8_t **data)
 {
     CHECK(slot < LIB_SLOTS); /* the core asks only for slots the store has */
@@ -213,6 +235,18 @@ static uint8_t lib_put(uint8_t slot, uint8_t kind, const uint8_t *name, const ui
         gt_info info;
         CHECK(gt_validate(data, len, &info) == GT_OK); /* only whole tables are kept as such */
     }
+    CHECK(writing.ticks == 0); /* one flash write at a time */
+    if (background) {
+        writing.remove = false;
+        writing.slot = slot;
+        writing.kind = kind;
+        memcpy(writing.name, name, CTL_SLOT_NAME_SIZE);
+        writing.data = data;
+        writing.len = len;
+        writing.crc = crc_of(data, len);
+        writing.ticks = writing.total;
+        return CTL_UPLOAD_RESULT_LIBRARY_STORING;
+    }
     library[slot].kind = kind;
     memcpy(library[slot].name, name, CTL_SLOT_NAME_SIZE);
     library[slot].len = len;
@@ -224,8 +258,39 @@ static uint8_t lib_put(uint8_t slot, uint8_t kind, const uint8_t *name, const ui
 static uint8_t lib_remove(uint8_t slot)
 {
     CHECK(slot < LIB_SLOTS);
+    CHECK(writing.ticks == 0);
+    if (background) {
+        writing.remove = true;
+        writing.slot = slot;
+        writing.ticks = writing.total;
+        return CTL_UPLOAD_RESULT_LIBRARY_STORING;
+    }
     library[slot].kind = 0;
     return CTL_UPLOAD_RESULT_OK;
+}
+
+static uint8_t fuzz_lib_saving(uint8_t *percent)
+{
+    if (writing.ticks == 0) return CTL_STORE_STATE_IDLE;
+    if (percent != NULL) *percent = (uint8_t)(100u * (writing.total - writing.ticks) / writing.total);
+    return CTL_STORE_STATE_LIBRARY;
+}
+
+/* A control tick of the background write: at the last, the slot changes. */
+static void lib_write_tick(void)
+{
+    if (writing.ticks == 0 || --writing.ticks > 0) return;
+    if (writing.remove) {
+        library[writing.slot].kind = 0;
+    } else {
+        CHECK(crc_of(writing.data, writing.len) == writing.crc); /* staging kept as accepted */
+        library[writing.slot].kind = writing.kind;
+        memcpy(library[writing.slot].name, writing.name, CTL_SLOT_NAME_SIZE);
+        library[writing.slot].len = writing.len;
+        library[writing.slot].crc = writing.crc;
+        memcpy(library[writing.slot].bytes, writing.data, writing.len);
+    }
+    ctl_library_stored(d, CTL_UPLOAD_RESULT_OK);
 }
 
 static const lib_store fuzz_library = {.slots = LIB_SLOTS,
@@ -234,7 +299,7 @@ static const lib_store fuzz_library = {.slots = LIB_SLOTS,
                                        .get = lib_get,
                                        .put = lib_put,
                                        .remove = lib_remove,
-                                       .saving = NULL};
+                                       .saving = fuzz_lib_saving};
 
 /* Whether table[0..len) is what a library slot keeps as a table. */
 static bool in_library(const uint8_t *table, uint16_t len)
@@ -545,6 +610,7 @@ static void upload(src *s)
     uint8_t where = u8(s);
     uint8_t flip = (uint8_t)(u8(s) | 1u);
     int expect = GT_OK;
+    bool busy = writing.ticks > 0; /* no tick passes during the upload */
     if (fault == 5 || fault == 6) {
         t[where % len] ^= flip;
         if (fault == 6) seal(t, len); /* the table's own CRC agrees with the damage */
@@ -567,6 +633,10 @@ static void upload(src *s)
     uint32_t crc = crc_of(t, len);
     if (fault == 4) crc ^= 1u;
     (void)commit_as((uint16_t)len, crc, CTL_UPLOAD_COMMIT_TABLE);
+    if (busy) { /* a library store reads the staging area: no chunk or commit lands */
+        CHECK(d->regs[CTL_UPLOAD_RESULT] == CTL_UPLOAD_RESULT_STORE_BUSY);
+        return;
+    }
     if (fault == 5 || fault == 6) {
         CHECK(d->regs[CTL_UPLOAD_RESULT] == expect);
         if (expect != GT_OK) CHECK(memcmp(d->active, t, len) != 0 || d->active_len != len);
@@ -665,6 +735,7 @@ static void upload_program(src *s)
     if (fault != 0) t[where % len] ^= flip;
     if (fault == 2) seal(t, len);
     uint8_t expect = prog_validate(t, len, d->capacity, NULL);
+    bool busy = writing.ticks > 0; /* no tick passes during the upload */
     bool hidden = false; /* a chunk carried what parses as a packet of its own */
     for (size_t at = 0; at < len; at += CTL_UPLOAD_WINDOW) {
         uint8_t data[2 + CTL_UPLOAD_WINDOW];
@@ -678,6 +749,10 @@ static void upload_program(src *s)
      * holds the active program to prog_validate) */
     if (hidden) return;
     uint8_t result = d->regs[CTL_UPLOAD_RESULT];
+    if (busy) { /* a library store reads the staging area: no chunk or commit lands */
+        CHECK(result == CTL_UPLOAD_RESULT_STORE_BUSY);
+        return;
+    }
     if (expect == PROG_OK) {
         bool limited = bus_limits_count(&d->bus) > 0;
         CHECK(result == PROG_OK || (limited && result == CTL_UPLOAD_RESULT_OUTSIDE_ROBOT_LIMITS));
@@ -694,6 +769,7 @@ static void do_tick(uint32_t dt)
     now_ms += dt;
     uint8_t before = ctl_state(d);
     ctl_tick(d, now_ms);
+    lib_write_tick(); /* as the firmware steps its flash write after the tick's bus work */
     uint8_t after = ctl_state(d);
     const play_state *p = &d->player;
     tick.valid = true;
@@ -955,6 +1031,7 @@ static void power_cycle(uint8_t damage, uint8_t where, uint8_t flip)
 {
     bool bad = (damage & 1u) != 0 && flash.len > 0;
     if (bad) flash.bytes[where % flash.len] ^= (uint8_t)(flip | 1u);
+    writing.ticks = 0; /* a library write cut short leaves its slot as it was */
     memset(d, 0, sizeof *d);
     ctl_init(d);
     ctl_set_tables(d, FUZZ_ARENA, FUZZ_CAPACITY);
@@ -1097,6 +1174,8 @@ static void step(src *s)
     }
     case 15: { /* a library operation on a slot (maybe one the library lacks) */
         uint8_t sel = u8(s);
+        background = (sel & 4u) != 0; /* a store or delete that takes 1..8 ticks */
+        if (writing.ticks == 0) writing.total = (uint8_t)(1u + (sel >> 3) % 8u);
         uint8_t page[CTL_STORE_KIND + 1 - CTL_WINDOW_PAGE];
         memset(page, 0, sizeof page);
         page[0] = CTL_PAGE_LIBRARY;
@@ -1107,7 +1186,12 @@ static void step(src *s)
         write_to_me(CTL_WINDOW_PAGE, page, CTL_STORE_KIND + 1u - CTL_WINDOW_PAGE);
         if (sel % 3u == 0u) {
             uint8_t cmd = CTL_COMMAND_LIBRARY_PLAY;
-            write_to_me(CTL_COMMAND, &cmd, 1);
+            bool busy = writing.ticks > 0;
+            uint8_t state = ctl_state(d);
+            uint16_t len = d->active_len;
+            if (!write_to_me(CTL_COMMAND, &cmd, 1) && busy) {
+                CHECK(ctl_state(d) == state && d->active_len == len); /* refused: STORE_BUSY */
+            }
         } else {
             uint16_t len = (uint16_t)(u16(s) % (FUZZ_CAPACITY + 8u));
             uint32_t crc = len <= FUZZ_CAPACITY ? crc_of(STAGING, len) : 0;
@@ -1148,6 +1232,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
      * ctl_init() itself, so its coverage stays in the runs) */
     memcpy(d, fresh, sizeof *d);
     for (unsigned k = 0; k < LIB_SLOTS; k++) library[k].kind = 0; /* the rest is read only when set */
+    writing.ticks = 0;
+    background = false;
     ctl_set_library(d, &fuzz_library);
     now_ms = (uint32_t)u16(&s) << 16; /* any starting time, including near the wrap */
     memset(&tick, 0, sizeof tick);

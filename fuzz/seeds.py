@@ -320,6 +320,24 @@ def pclink_seeds() -> dict[str, bytes]:
         .library(LIB_PLAY, 3)
         .b
     )
+    # sel 22: a store, in the background over 3 ticks; sel 20: a delete, likewise
+    # (fuzz_pclink.c, case 15); an upload and a play meanwhile are refused STORE_BUSY,
+    # and a power cut during the delete leaves the slot
+    s["library-background"] = (
+        Program()
+        .upload()
+        .library(22, 0, b"wave", length=table_bytes)
+        .upload(seed=2)
+        .library(LIB_PLAY, 0)
+        .run(3)
+        .library(LIB_PLAY, 0)
+        .run(1)
+        .library(20, 0)
+        .power_cycle()
+        .library(LIB_PLAY, 0)
+        .run(1)
+        .b
+    )
     s["long-bus-garbage"] = (
         Program().upload().tick().send().answer(RAW_BYTES, raw=bytes(range(50, 113))).run(2).b
     )

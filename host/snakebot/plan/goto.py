@@ -33,19 +33,18 @@ from snakebot.plan.planner import (
     Route,
     Tolerance,
     body_length,
-    default_start,
     frame_period_ms,
     guesses,
     loop_counts,
     loop_target,
     motion_dict,
+    plan_request,
     pose_dict,
     pose_error,
     routes,
     solve_accuracy,
     solve_loop,
     unreachable,
-    validate_start,
 )
 from snakebot.protocol import sync_write
 from snakebot.robots import Robot
@@ -196,12 +195,7 @@ def goto(
     loop, its frames ``slowdown`` times as long as the servos' speed allows (default: 1,
     or PHYSICS_SLOWDOWN on a physics world); ``progress(done, total)`` is called after
     each segment."""
-    goal = np.asarray(target, dtype=float)
-    if goal.shape != (3,) or not np.all(np.isfinite(goal)):
-        raise PlanError("--to needs three finite numbers X,Y,THETA")
-    phi0 = default_start(robot) if start is None else np.asarray(start, dtype=float)
-    validate_start(robot, phi0)
-    tol = Tolerance.for_target(robot, goal, tolerance, heading_tolerance)
+    goal, phi0, tol = plan_request(robot, target, start, tolerance, heading_tolerance)
     waves = uses_serpenoid(robot, world)
     keep_off = NEAR_SINGULAR_RCOND if world == "kinematic" else PHYSICS_KEEP_OFF
     way = None

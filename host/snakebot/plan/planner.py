@@ -359,6 +359,24 @@ def loop_counts(robot: Robot, target: np.ndarray, most: int) -> list[int]:
     return [k for k in out if k >= 1]
 
 
+def plan_request(
+    robot: Robot,
+    target: tuple[float, float, float],
+    start: tuple[float, ...] | None,
+    tolerance: float,
+    heading_tolerance: float,
+) -> tuple[np.ndarray, np.ndarray, Tolerance]:
+    """What every planner starts from, checked: the target pose, the start joints
+    (default_start unless given) and the tolerance for that target; PlanError if the
+    target is not three finite numbers or the start is not one the robot can plan from."""
+    goal = np.asarray(target, dtype=float)
+    if goal.shape != (3,) or not np.all(np.isfinite(goal)):
+        raise PlanError("--to needs three finite numbers X,Y,THETA")
+    phi0 = default_start(robot) if start is None else np.asarray(start, dtype=float)
+    validate_start(robot, phi0)
+    return goal, phi0, Tolerance.for_target(robot, goal, tolerance, heading_tolerance)
+
+
 def validate_start(robot: Robot, start: np.ndarray) -> None:
     """PlanError unless ``robot`` has a wheel model and ``start`` is inside its limits."""
     if robot.kind not in ("snake", "trident"):
@@ -537,12 +555,7 @@ def make_plan(
     """A plan taking ``robot`` from rest at ``start`` (joint angles) to ``target``
     (x, y, theta relative to the start pose) in a table of at most ``capacity`` bytes;
     raises Unreachable if none fits."""
-    goal = np.asarray(target, dtype=float)
-    if goal.shape != (3,) or not np.all(np.isfinite(goal)):
-        raise PlanError("--to needs three finite numbers X,Y,THETA")
-    phi0 = default_start(robot) if start is None else np.asarray(start, dtype=float)
-    validate_start(robot, phi0)
-    tol = Tolerance.for_target(robot, goal, tolerance, heading_tolerance)
+    goal, phi0, tol = plan_request(robot, target, start, tolerance, heading_tolerance)
     check_capacity(robot, capacity)
     best: Plan | None = None
     for route in routes(robot, phi0, goal, tol, capacity=capacity, growing=True):

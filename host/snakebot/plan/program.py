@@ -55,17 +55,16 @@ from snakebot.plan.planner import (
     body_length,
     capacity_words,
     check_capacity,
-    default_start,
     frame_period_ms,
     hubs,
     loop_counts,
     loop_target,
+    plan_request,
     pose_dict,
     ramp,
     remedies,
     routes,
     solve_accuracy,
-    validate_start,
 )
 from snakebot.program import (
     PeriodicSegment,
@@ -435,12 +434,7 @@ def plan_program(
     """A program of at most ``capacity`` bytes taking ``robot`` from rest at ``start`` to
     ``target`` whose goals, as the controller sends them, end within the tolerance;
     Unreachable otherwise."""
-    goal = np.asarray(target, dtype=float)
-    if goal.shape != (3,) or not np.all(np.isfinite(goal)):
-        raise PlanError("--to needs three finite numbers X,Y,THETA")
-    phi0 = default_start(robot) if start is None else np.asarray(start, dtype=float)
-    validate_start(robot, phi0)
-    tol = Tolerance.for_target(robot, goal, tolerance, heading_tolerance)
+    goal, phi0, tol = plan_request(robot, target, start, tolerance, heading_tolerance)
     check_capacity(robot, capacity)
     best: ProgramPlan | None = None
     too_big = 0

@@ -223,6 +223,17 @@ static void lib_get(uint8_t slot, lib_slot *out, const uint8_t **data)
     *data = library[slot].bytes;
 }
 
+/* The slot now keeps data[0..len), whose CRC-32 is crc. */
+static void lib_keep(uint8_t slot, uint8_t kind, const uint8_t *name, const uint8_t *data,
+                     uint16_t len, uint32_t crc)
+{
+    library[slot].kind = kind;
+    memcpy(library[slot].name, name, CTL_SLOT_NAME_SIZE);
+    library[slot].len = len;
+    library[slot].crc = crc;
+    memcpy(library[slot].bytes, data, len);
+}
+
 static uint8_t lib_put(uint8_t slot, uint8_t kind, const uint8_t *name, const uint8_t *data,
                        uint16_t len)
 {
@@ -247,11 +258,7 @@ static uint8_t lib_put(uint8_t slot, uint8_t kind, const uint8_t *name, const ui
         writing.ticks = writing.total;
         return CTL_UPLOAD_RESULT_LIBRARY_STORING;
     }
-    library[slot].kind = kind;
-    memcpy(library[slot].name, name, CTL_SLOT_NAME_SIZE);
-    library[slot].len = len;
-    library[slot].crc = crc_of(data, len);
-    memcpy(library[slot].bytes, data, len);
+    lib_keep(slot, kind, name, data, len, crc_of(data, len));
     return CTL_UPLOAD_RESULT_OK;
 }
 
@@ -284,11 +291,8 @@ static void lib_write_tick(void)
         library[writing.slot].kind = 0;
     } else {
         CHECK(crc_of(writing.data, writing.len) == writing.crc); /* staging kept as accepted */
-        library[writing.slot].kind = writing.kind;
-        memcpy(library[writing.slot].name, writing.name, CTL_SLOT_NAME_SIZE);
-        library[writing.slot].len = writing.len;
-        library[writing.slot].crc = writing.crc;
-        memcpy(library[writing.slot].bytes, writing.data, writing.len);
+        lib_keep(writing.slot, writing.kind, writing.name, writing.data, writing.len,
+                 writing.crc);
     }
     ctl_library_stored(d, CTL_UPLOAD_RESULT_OK);
 }

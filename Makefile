@@ -23,7 +23,7 @@ TEST_APT    := $(DEMO_APT) clang libclang-rt-14-dev zlib1g-dev tmux
 TEST_JOBS   ?= 2
 
 .PHONY: help setup system-packages demo-packages python-env runtime-env core firmware \
-        test test-parallel lint fuzz-targets bench demo flash flash-image clean fuzz docs
+        test test-parallel test-serial lint fuzz-targets bench demo flash flash-image clean fuzz docs
 
 help:
 	@echo "make demo      run the main job on the emulated robot (does its own set-up)"
@@ -85,29 +85,38 @@ core: $(VENV)/.core
 firmware: demo-packages
 	$(Q)$(MAKE) --no-print-directory -C firmware
 
-# The static checks, the firmware and the fuzz targets side by side; then the suite on
-# TEST_JOBS workers (--dist loadfile: each test file whole in one worker, so module
-# fixtures such as the package check's wheel are made once) beside the fuzz tests split in two, so that the two fuzzing
-# passes overlap; then the tests marked `serial` (fault campaigns whose counts need QEMU
-# to keep pace, dynamixel-sdk's fixed waits) with nothing beside them. A fuzzing pass
-# lasts its fixed time whatever its priority, so it runs niced and yields the CPU to the
-# tests beside it. Building first means no two processes compile the same files at the
-# same time.
+# The static checks, the firmware and the fuzz targets side by side (so no two processes
+# compile the same files at once); then three lanes at once:
+# - the tests marked `serial` (fault campaigns whose counts need QEMU to keep pace,
+#   real-time pty runs, dynamixel-sdk's fixed waits), one at a time at normal priority;
+# - the rest on TEST_JOBS workers (--dist loadfile: each test file whole in one worker, so
+#   module fixtures such as the package check's wheel are made once), and the fuzz tests
+#   split in two so that the two fuzzing passes overlap, all in the idle scheduling class
+#   (SCHED_IDLE): a serial test's process that wakes takes a core at once, as if nothing
+#   ran beside it, while the other lanes use every cycle it leaves. A fuzzing pass lasts
+#   its fixed time whatever its priority.
+# The serial and fuzz lanes write logs, shown whole if they fail and as one line if not,
+# so that outputs do not mix; the parallel lane prints its progress.
 FUZZ_TESTS  := tests/reliability/test_fuzz_targets.py
 FUZZ_K_1    := fuzz_pclink
 FUZZ_K_2    := not fuzz_pclink
+IDLE        := $(shell command -v chrt >/dev/null 2>&1 && echo "chrt --idle 0" || echo "nice -n 19")
 test: system-packages python-env
 	$(Q)$(MAKE) --no-print-directory -j$(TEST_JOBS) lint firmware fuzz-targets
-	$(Q)$(MAKE) --no-print-directory -j3 test-parallel test-fuzz-1 test-fuzz-2
-	$(Q)$(PY) -m pytest -m serial
+	$(Q)$(MAKE) --no-print-directory -j4 test-parallel test-serial test-fuzz-1 test-fuzz-2
 
 test-parallel:
-	$(Q)$(PY) -m pytest -n $(TEST_JOBS) --dist loadfile -m "not serial" --ignore=$(FUZZ_TESTS)
+	$(Q)$(IDLE) $(PY) -m pytest -n $(TEST_JOBS) --dist loadfile -m "not serial" --ignore=$(FUZZ_TESTS)
 
-# Each half writes a log, shown whole if it fails (one line if not), so outputs do not mix.
+test-serial:
+	@mkdir -p build
+	$(Q)$(PY) -m pytest -q -p no:cacheprovider -m serial > build/test-serial.log 2>&1 \
+	    && echo "serial tests: $$(tail -n1 build/test-serial.log)" \
+	    || { cat build/test-serial.log; exit 1; }
+
 test-fuzz-%:
 	@mkdir -p build
-	$(Q)FUZZ_LAUNCH="nice -n 10" $(PY) -m pytest -q -p no:cacheprovider $(FUZZ_TESTS) \
+	$(Q)FUZZ_LAUNCH="$(IDLE)" $(IDLE) $(PY) -m pytest -q -p no:cacheprovider $(FUZZ_TESTS) \
 	    -k "$(FUZZ_K_$*)" > build/test-fuzz-$*.log 2>&1 \
 	    && echo "fuzz tests ($(FUZZ_K_$*)): $$(tail -n1 build/test-fuzz-$*.log)" \
 	    || { cat build/test-fuzz-$*.log; exit 1; }

@@ -39,7 +39,8 @@ from snakebot.sim.transports.unixsock import UnixSocketServer
 from tools.campaigns import FRAMES, IDS, LIMITS, PERIOD_MS, Rig, gait_table, run
 
 # QEMU paces the PC link at 57600 baud in software: beside another worker on a 2-core
-# machine its replies can miss the client's deadline, so these run in the serial pass.
+# machine its replies can miss the client's deadline, so these are `serial` (nothing of
+# normal priority beside them).
 pytestmark = [pytest.mark.qemu, pytest.mark.serial]
 
 ROBOT = dict(zip(IDS, LIMITS, strict=True))

@@ -4,15 +4,24 @@ same outcome as before (real pseudo-terminal, a scripted device thread)."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import threading
+import time
 import tty
 from collections.abc import Callable, Iterator
 
 import pytest
 
 from snakebot import protocol
-from snakebot.protocol import CorruptPacket, Packet, PacketParser
+from snakebot.protocol import (
+    CorruptPacket,
+    DxlTimeout,
+    ErrorFlags,
+    Packet,
+    PacketParser,
+    ServoError,
+)
 from snakebot.transport import DxlClient
 
 POSITION = 36
@@ -112,3 +121,34 @@ def test_bad_checksums_every_time_are_corrupt_not_a_value(servo):
     client = servo(script)
     with pytest.raises(CorruptPacket):
         client.read_u16(1, POSITION)
+
+
+def test_a_whole_reply_with_an_alarm_bit_raises_at_once(servo):
+    client = servo(lambda n: [protocol.status(1, ErrorFlags.OVERHEATING, b"\x00\x02")])
+    with pytest.raises(ServoError) as info:
+        client.read_u16(1, POSITION)
+    assert info.value.flags == ErrorFlags.OVERHEATING
+    assert client.device_under_test.heard == 1
+
+
+def test_a_whole_reply_saying_the_instruction_was_damaged_is_resent(servo):
+    def script(n: int) -> list[bytes]:
+        if n == 0:
+            return [protocol.status(1, ErrorFlags.CHECKSUM, b"\x00\x00")]
+        return [good()]
+
+    client = servo(script)
+    assert client.read_u16(1, POSITION) == VALUE
+    assert client.device_under_test.heard == 2
+
+
+def test_new_timing_applies_to_reads_already_made(servo):
+    client = servo(lambda n: [good()] if n == 0 else [])
+    assert client.read_u16(1, POSITION) == VALUE  # the READ is made with a 0.5 s latency
+    client.timing = dataclasses.replace(client.timing, latency_s=0.01)
+    start = time.monotonic()
+    with pytest.raises(DxlTimeout):
+        client.read_u16(1, POSITION)  # the servo is silent now: 2 attempts of ~11 ms
+    # with the old timing, the first attempt alone would have waited 0.5 s
+    assert time.monotonic() - start < 0.4
+    assert client.device_under_test.heard == 3

@@ -606,23 +606,29 @@ class DxlClient:
         return plan
 
     def _read_once(self, plan: _ReadPlan) -> bytes:
-        """One READ transaction (with its retries): the data read. On a bus known not to
-        echo, a reply that arrives whole and clean in the first read is checked with a
-        slice and a sum and returned at once; anything else goes on in :meth:`_attempt`
+        """One READ transaction (with its retries): the data read. Once the client knows
+        whether the bus echoes, the first read asks for exactly the echo (if any) and the
+        reply; if that is what arrives, whole and clean, it is checked with a comparison
+        or two and a sum and returned at once. Anything else goes on in :meth:`_attempt`
         (the same attempt, so the same outcome as if it had started there)."""
         packet = plan.packet
         with self._lock:
             sent = None
-            if self._echo is False:
+            echo = self._echo
+            if echo is not None:
+                skip = len(packet) if echo else 0  # the echo comes first, whole
                 start = time.monotonic()
-                data = self._io.exchange(packet, plan.reply_len, plan.timeout)
+                data = self._io.exchange(packet, skip + plan.reply_len, plan.timeout)
                 if (
-                    len(data) == plan.reply_len
-                    and data.startswith(plan.head)
-                    and sum(data) & 0xFF == _INTACT_SUM
+                    len(data) == skip + plan.reply_len
+                    and data.startswith(plan.head, skip)
+                    and sum(data[skip:]) & 0xFF == _INTACT_SUM
+                    # with an echo: first exactly ours, then a reply that is not the late
+                    # echo of an earlier instruction (which _attempt would skip)
+                    and (not echo or (data.startswith(packet) and data[skip:] not in self._recent))
                 ):
                     self._recent.append(packet)
-                    return data[len(plan.head) : -1]
+                    return data[skip + len(plan.head) : -1]
                 sent = (start, data)
             tries = 1 + self.retries
             reply = self._transact(packet, plan.servo_id, plan.length, True, tries, None, sent)

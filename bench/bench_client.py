@@ -30,11 +30,11 @@ pseudo-terminal, polling for the instruction in a tight loop:
   kernel hands pty bytes over through a worker thread, so each direction costs some
   microseconds that a real wire would not: the round trip here caps any client at
   160 us / (160 us + that round trip) of the wire;
-* a bare client: os.write and os.read on the pty (blocking or polling, the faster),
-  no serial library, no parsing: the best any client can do through the operating
-  system here;
-* DxlClient through the pty (pyserial underneath), as an application uses it, and its
-  own cost per READ beyond the bare loop's.
+* a bare client: os.write and os.read on the pty, no serial library, no parsing, both
+  waiting in select and polling: the faster is the best any client can do through the
+  operating system here;
+* DxlClient through the pty (pyserial's descriptor underneath), as an application uses
+  it, and its own cost per READ beyond the bare loop that waits in select as it does.
 
 The paced devices spin: each needs a core, and on a loaded machine the figures drop
 (the CPU figures suffer least).

@@ -4,15 +4,24 @@ same outcome as before (real pseudo-terminal, a scripted device thread)."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import threading
+import time
 import tty
 from collections.abc import Callable, Iterator
 
 import pytest
 
 from snakebot import protocol
-from snakebot.protocol import CorruptPacket, Packet, PacketParser
+from snakebot.protocol import (
+    CorruptPacket,
+    DxlTimeout,
+    ErrorFlags,
+    Packet,
+    PacketParser,
+    ServoError,
+)
 from snakebot.transport import DxlClient
 
 POSITION = 36
@@ -58,9 +67,9 @@ def good(servo_id: int = 1, value: int = VALUE) -> bytes:
 def servo() -> Iterator[Callable[[Callable[[int], list[bytes]]], DxlClient]]:
     made: list[tuple[ScriptedServo, DxlClient]] = []
 
-    def make(script: Callable[[int], list[bytes]]) -> DxlClient:
+    def make(script: Callable[[int], list[bytes]], echo: bool = False) -> DxlClient:
         device = ScriptedServo(script)
-        client = DxlClient(device.path, echo=False, latency_s=0.5, margin_s=0.0, retries=1)
+        client = DxlClient(device.path, echo=echo, latency_s=0.5, margin_s=0.0, retries=1)
         client.device_under_test = device  # type: ignore[attr-defined]
         made.append((device, client))
         return client
@@ -112,3 +121,55 @@ def test_bad_checksums_every_time_are_corrupt_not_a_value(servo):
     client = servo(script)
     with pytest.raises(CorruptPacket):
         client.read_u16(1, POSITION)
+
+
+def test_a_whole_reply_with_an_alarm_bit_raises_at_once(servo):
+    client = servo(lambda n: [protocol.status(1, ErrorFlags.OVERHEATING, b"\x00\x02")])
+    with pytest.raises(ServoError) as info:
+        client.read_u16(1, POSITION)
+    assert info.value.flags == ErrorFlags.OVERHEATING
+    assert client.device_under_test.heard == 1
+
+
+def test_a_whole_reply_saying_the_instruction_was_damaged_is_resent(servo):
+    def script(n: int) -> list[bytes]:
+        if n == 0:
+            return [protocol.status(1, ErrorFlags.CHECKSUM, b"\x00\x00")]
+        return [good()]
+
+    client = servo(script)
+    assert client.read_u16(1, POSITION) == VALUE
+    assert client.device_under_test.heard == 2
+
+
+def test_new_timing_applies_to_reads_already_made(servo):
+    client = servo(lambda n: [good()] if n == 0 else [])
+    assert client.read_u16(1, POSITION) == VALUE  # the READ is made with a 0.5 s latency
+    client.timing = dataclasses.replace(client.timing, latency_s=0.01)
+    start = time.monotonic()
+    with pytest.raises(DxlTimeout):
+        client.read_u16(1, POSITION)  # the servo is silent now: 2 attempts of ~11 ms
+    # with the old timing, the first attempt alone would have waited 0.5 s
+    assert time.monotonic() - start < 0.4
+    assert client.device_under_test.heard == 3
+
+
+READ_POSITION = protocol.read(1, POSITION, 2)
+
+
+def test_on_an_echoing_bus_the_echo_and_the_reply_are_read_together(servo):
+    client = servo(lambda n: [READ_POSITION + good()], echo=True)
+    assert client.read_u16(1, POSITION) == VALUE
+    assert client.read_u16(1, POSITION) == VALUE
+    assert client.device_under_test.heard == 2
+
+
+def test_on_an_echoing_bus_a_late_echo_after_ours_is_not_the_reply(servo):
+    # An earlier instruction whose bytes are those of a clean reply to the READ; heard
+    # again after the READ's echo, it is that instruction's late echo, not the answer.
+    earlier = protocol.status(1, 0, b"\x00\x02")
+    client = servo(lambda n: [earlier] if n == 0 else [READ_POSITION + earlier], echo=True)
+    client.send(earlier)
+    with pytest.raises(DxlTimeout):
+        client.read_u16(1, POSITION)
+    assert client.device_under_test.heard == 3  # the earlier one, then the READ twice

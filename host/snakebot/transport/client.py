@@ -51,6 +51,7 @@ from snakebot.protocol import (
     Rejected,
     ServoError,
 )
+from snakebot.protocol.instructions import HEADER
 from snakebot.transport import settings
 from snakebot.transport.portio import PortIO
 from snakebot.transport.ports import open_port
@@ -68,6 +69,14 @@ _RESEND_MASK = int(RESEND_FLAGS)  # a plain int: IntFlag's & costs a Python call
 
 RECENT_SENDS = 8
 """How many earlier instructions are remembered, so that their late echoes are recognised."""
+
+READ_PLANS = 4096
+"""How many (servo, address, length) READs a client keeps ready-made (packet, timeout,
+expected reply header, range checks); more are made again as needed."""
+
+_INTACT_SUM = (sum(HEADER) + 0xFF) & 0xFF
+"""The low byte of the sum of every byte of an intact packet: the header's, plus ID to
+CHECKSUM, which the checksum makes 0xFF (mod 256). One sum checks a whole reply."""
 
 _NEEDS_LEVEL = {
     Instruction.PING: 0,
@@ -100,6 +109,23 @@ class _Attempt:
 
 _CLEAN = _Attempt()
 """What an attempt that heard nothing but its reply returns (shared; never changed)."""
+
+_RangeCheck = tuple[str, int, int, bool, int, int]
+"""(register name, offset in the data read, size, signed, lowest, highest)."""
+
+
+@dataclass(frozen=True, slots=True)
+class _ReadPlan:
+    """Everything a READ of one (servo, address, length) needs, made once: a control
+    loop reads the same registers of the same servos over and over."""
+
+    packet: bytes  # the instruction
+    servo_id: int
+    length: int
+    timeout: float  # the reply timeout for this instruction and reply
+    reply_len: int  # the whole status packet
+    head: bytes  # a clean reply's bytes before its data: header, ID, LEN, no error bits
+    checks: list[_RangeCheck]  # the registers with a range within the bytes read
 
 
 class DxlClient:
@@ -158,7 +184,7 @@ class DxlClient:
         self.device = device or devices.ax12()
         self._level_address = self.device.status_return_level_address
         self.check_ranges = check_ranges
-        self._range_checks: dict[tuple[int, int], list[tuple[str, int, int, bool, int, int]]] = {}
+        self._range_checks: dict[tuple[int, int], list[_RangeCheck]] = {}
         if isinstance(port, str):
             self._port = open_port(port, baudrate or DEFAULT_BAUDRATE, timeout=0)
             self._owns_port = True
@@ -174,9 +200,20 @@ class DxlClient:
         self._parser = PacketParser()
         self._recent: deque[bytes] = deque(maxlen=RECENT_SENDS)
         self._read_timeout: float | None = None
-        self._timeouts: dict[tuple[int, int], float] = {}
-        self._timeouts_for: BusTiming | None = None
         self._lock = threading.RLock()  # one transaction on the wire at a time
+
+    @property
+    def timing(self) -> BusTiming:
+        """The bus's timing terms; assigning new ones applies them to every later
+        transaction."""
+        return self._timing
+
+    @timing.setter
+    def timing(self, timing: BusTiming) -> None:
+        self._timing = timing
+        # both hold timeouts computed from the timing
+        self._timeouts: dict[tuple[int, int], float] = {}
+        self._read_plans: dict[tuple[int, int, int], _ReadPlan] = {}
 
     # -- the port -----------------------------------------------------------------------
 
@@ -295,13 +332,19 @@ class DxlClient:
         check: bool,
         tries: int,
         silence_s: float | None = None,
+        sent: tuple[float, bytes] | None = None,
     ) -> Packet:
-        """:meth:`transact` of an instruction packet known to be well formed."""
+        """:meth:`transact` of an instruction packet known to be well formed. ``sent``:
+        the first attempt's instruction is already written, at that time, and that is
+        what its first read returned (the caller holds the lock)."""
         timeout = self._reply_timeout(len(packet), expect_len)
         attempts: list[_Attempt] = []
         with self._lock:
             for _ in range(tries):
-                reply, attempt = self._attempt(packet, expect_id, expect_len, timeout, silence_s)
+                reply, attempt = self._attempt(
+                    packet, expect_id, expect_len, timeout, silence_s, sent
+                )
+                sent = None
                 if reply is None and self._echo is None and attempt.echo is not None:
                     reply = self._settle_echo(attempt.echo, expect_id, expect_len)
                 if reply is not None:
@@ -316,14 +359,10 @@ class DxlClient:
 
     def _reply_timeout(self, tx_len: int, params_len: int) -> float:
         """``self.timing.reply_timeout_s``, remembered per packet shape."""
-        timing = self.timing
-        if timing is not self._timeouts_for:
-            self._timeouts = {}
-            self._timeouts_for = timing
         key = (tx_len, params_len)
         timeout = self._timeouts.get(key)
         if timeout is None:
-            timeout = self._timeouts[key] = timing.reply_timeout_s(tx_len, params_len)
+            timeout = self._timeouts[key] = self._timing.reply_timeout_s(tx_len, params_len)
         return timeout
 
     def _attempt(
@@ -333,15 +372,19 @@ class DxlClient:
         expect_len: int,
         timeout: float,
         silence_s: float | None = None,
+        sent: tuple[float, bytes] | None = None,
     ) -> tuple[Packet | None, _Attempt]:
         parser = self._parser
         seen = _CLEAN  # replaced by an _Attempt of its own once anything else is heard
         echo = self._echo
         io = self._io
-        io.flush_input()
         parser.reset()
-        io.write(packet)
-        start = time.monotonic()
+        if sent is None:
+            io.flush_input()
+            io.write(packet)
+            start, data = time.monotonic(), b""
+        else:
+            start, data = sent
         deadline = start + timeout
         # Waiting for silence: bytes that may come back without a reply starting (our echo).
         unheard = len(packet) if echo is True else 0
@@ -350,7 +393,6 @@ class DxlClient:
         else:
             unheard = -1
         status_len = STATUS_OVERHEAD + expect_len
-        data = b""
         while True:
             if data and seen is _CLEAN:
                 seen = _Attempt()
@@ -519,18 +561,21 @@ class DxlClient:
 
     def read(self, servo_id: int, address: int, length: int) -> bytes:
         """READ ``length`` bytes of ``servo_id``'s control table from ``address``."""
-        _require_device(servo_id, "READ")
+        plan = self._read_plans.get((servo_id, address, length))
+        if plan is None:
+            plan = self._read_plan(servo_id, address, length)
         if self._levels.get(servo_id, self._default_level) < 1:  # status_return_level
             raise ProtocolError(
                 f"servo {servo_id} is set to Status Return Level 0, so it never answers "
                 "READ: write 1 or 2 to its Status Return Level, then call "
                 "set_status_return_level"
             )
-        packet = _read_packet(servo_id, address, length)
-        tries = 1 + self.retries
-        for _ in range(tries):
-            data = self._transact(packet, servo_id, length, True, tries).params
-            wrong = self._out_of_range(address, data)
+        checks = plan.checks
+        for _ in range(1 + self.retries):
+            data = self._read_once(plan)
+            if not checks:
+                return data
+            wrong = _violation(checks, data)
             if wrong is None:
                 return data
         raise CorruptPacket(
@@ -538,6 +583,56 @@ class DxlClient:
             "reply the checksum let through, or a servo that is not the model expected; check "
             "the cable and the servo's model number"
         )
+
+    def _read_plan(self, servo_id: int, address: int, length: int) -> _ReadPlan:
+        """What every READ of ``length`` bytes at ``address`` of ``servo_id`` needs, made
+        once (and kept, up to :data:`READ_PLANS` of them)."""
+        _require_device(servo_id, "READ")
+        packet = protocol.read(servo_id, address, length)
+        reply = protocol.status(servo_id, 0, bytes(length))  # the shape of a clean answer
+        plan = _ReadPlan(
+            packet=packet,
+            servo_id=servo_id,
+            length=length,
+            timeout=self._reply_timeout(len(packet), length),
+            reply_len=len(reply),
+            head=reply[: len(reply) - length - 1],
+            checks=self._checks_within(address, length),
+        )
+        plans = self._read_plans
+        if len(plans) >= READ_PLANS:
+            plans.clear()
+        plans[servo_id, address, length] = plan
+        return plan
+
+    def _read_once(self, plan: _ReadPlan) -> bytes:
+        """One READ transaction (with its retries): the data read. Once the client knows
+        whether the bus echoes, the first read asks for exactly the echo (if any) and the
+        reply; if that is what arrives, whole and clean, it is checked with a comparison
+        or two and a sum and returned at once. Anything else goes on in :meth:`_attempt`
+        (the same attempt, so the same outcome as if it had started there)."""
+        packet = plan.packet
+        with self._lock:
+            sent = None
+            echo = self._echo
+            if echo is not None:
+                skip = len(packet) if echo else 0  # the echo comes first, whole
+                start = time.monotonic()
+                data = self._io.exchange(packet, skip + plan.reply_len, plan.timeout)
+                if (
+                    len(data) == skip + plan.reply_len
+                    and data.startswith(plan.head, skip)
+                    and sum(data[skip:]) & 0xFF == _INTACT_SUM
+                    # with an echo: first exactly ours, then a reply that is not the late
+                    # echo of an earlier instruction (which _attempt would skip)
+                    and (not echo or (data.startswith(packet) and data[skip:] not in self._recent))
+                ):
+                    self._recent.append(packet)
+                    return data[skip + len(plan.head) : -1]
+                sent = (start, data)
+            tries = 1 + self.retries
+            reply = self._transact(packet, plan.servo_id, plan.length, True, tries, None, sent)
+            return reply.params
 
     def read_confirmed(self, servo_id: int, address: int, length: int) -> bytes:
         """READ until two replies in a row agree, and return that value: for reads that
@@ -558,19 +653,17 @@ class DxlClient:
     def _out_of_range(self, address: int, data: bytes) -> str | None:
         """What in ``data`` (read from ``address``) lies outside its register's range, in
         words, or None."""
-        key = (address, len(data))
+        return _violation(self._checks_within(address, len(data)), data)
+
+    def _checks_within(self, address: int, length: int) -> list[_RangeCheck]:
+        """:meth:`_ranges_within`, remembered per (address, length)."""
+        key = (address, length)
         checks = self._range_checks.get(key)
         if checks is None:
-            checks = self._range_checks[key] = self._ranges_within(address, len(data))
-        for name, offset, size, signed, low, high in checks:
-            value = int.from_bytes(data[offset : offset + size], "little", signed=signed)
-            if not low <= value <= high:
-                return f"{name} = {value}, outside its range {low}..{high}"
-        return None
+            checks = self._range_checks[key] = self._ranges_within(address, length)
+        return checks
 
-    def _ranges_within(
-        self, address: int, length: int
-    ) -> list[tuple[str, int, int, bool, int, int]]:
+    def _ranges_within(self, address: int, length: int) -> list[_RangeCheck]:
         """(name, offset, size, signed, low, high) of each readable register of the device
         with a known range (Register.read_range) that lies wholly within ``length`` bytes
         from ``address``."""
@@ -666,11 +759,13 @@ def _ping_packet(servo_id: int) -> bytes:
     return protocol.ping(servo_id)
 
 
-@functools.lru_cache(maxsize=1024)
-def _read_packet(servo_id: int, address: int, length: int) -> bytes:
-    """``protocol.read``, built once per (ID, address, length): a control loop reads the
-    same registers of the same servos over and over."""
-    return protocol.read(servo_id, address, length)
+def _violation(checks: list[_RangeCheck], data: bytes) -> str | None:
+    """The first value in ``data`` outside its register's range (``checks``), in words."""
+    for name, offset, size, signed, low, high in checks:
+        value = int.from_bytes(data[offset : offset + size], "little", signed=signed)
+        if not low <= value <= high:
+            return f"{name} = {value}, outside its range {low}..{high}"
+    return None
 
 
 def _exact_reply(data: bytes, expect_id: int, expect_len: int) -> Packet | None:

@@ -76,6 +76,18 @@ class PortIO:
         except termios.error as exc:
             raise SerialException(f"flush failed: {exc}") from exc
 
+    def exchange(self, packet: bytes, size: int, timeout: float) -> bytes:
+        """A transaction's first round in one call: discard what has arrived, write
+        ``packet``, and :meth:`read` up to ``size`` bytes within ``timeout`` seconds."""
+        port = self.port
+        if self._direct and port.is_open:
+            self.flush_input()
+            self.write(packet)
+        else:
+            port.reset_input_buffer()
+            port.write(packet)
+        return self.read(size, timeout)
+
     def read(self, size: int, timeout: float) -> bytes:
         """Up to ``size`` bytes, waiting at most ``timeout`` seconds for the first."""
         port = self.port

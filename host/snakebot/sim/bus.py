@@ -259,6 +259,8 @@ class Bus:
         self._wire_end = -math.inf  # when the last of them ends
         self._c_reply = ffi.new("uint8_t[]", 256)  # a C servo's status packet
         self._c_reply_bytes = ffi.buffer(self._c_reply)  # sliced: a copy as bytes
+        # one bound method, so that master_receive knows a READ's delivery by identity
+        self._deliver_read_cb = self._deliver_read
         self._master_rx: list[_Heard] = []
         self._master_tx_free = 0.0
         self._servo_tx_free: dict[int, float] = {}
@@ -464,8 +466,7 @@ class Bus:
         group = self._quiet_reply
         n = len(data)
         if (
-            n == 8
-            and data[4] == _READ
+            n >= 6
             and group is not None
             and self._wire_end <= start
             and not self.echo
@@ -473,11 +474,12 @@ class Bus:
             and self._groups is not None
             and group.rx.baud == self.baudrate
             and data[0] == data[1] == 0xFF != data[2]
-            and data[3] == 4
+            and data[3] + 4 == n
         ):
-            # a READ to the one group (see _deliver_read) on a line that is quiet by the
-            # time it starts (after the master's own frame before it, a SYNC_WRITE say):
-            # what _transmit does with it, in short
+            # one whole frame to the one group of C servos (see _deliver_read) on a line
+            # that is quiet by the time it starts (after the master's own frame before
+            # it, a SYNC_WRITE say): what _transmit does with it, in short; a READ and a
+            # SYNC_WRITE then go to the C servos whole, anything else to _deliver
             # bytes, shared: _collide makes a bytearray of them if they get damaged
             frame = data if type(data) is bytes else bytes(data)
             tx = _Transmission(MASTER, start, group.rx.baud, frame)
@@ -487,7 +489,15 @@ class Bus:
             else:
                 self._wire = [tx]
             self._wire_end = end = tx.end
-            heapq.heappush(self._events, (end, next(self._seq), self._deliver_read, (group, tx)))
+            code = frame[4]
+            if code == _READ and n == 8:
+                job: tuple = (group, tx)
+                deliver = self._deliver_read_cb
+            elif code == _SYNC_WRITE:
+                job, deliver = (group, tx), self._deliver_sync_write
+            else:
+                job, deliver = (group, tx, 0, n, MASTER), self._deliver
+            heapq.heappush(self._events, (end, next(self._seq), deliver, job))
             group.rx.queued += 1
             self.stats.instructions += 1
         else:
@@ -560,6 +570,64 @@ class Bus:
                 streams[n].pos = i + 1
             self._master_rx = [h for h in streams if h.pos < len(h.data)]
         self.stats.master_bytes_in += len(out)
+        return out
+
+    def master_receive(self, size: int, deadline: float) -> bytes:
+        """What a timed read gets: :meth:`run_until_master_data` for ``size`` bytes by
+        ``deadline``, then :meth:`master_read` of ``size``, in one call.
+
+        The closed loop's transaction takes a short way through it: when the next thing
+        due is the C servos' answer to a READ (``_deliver_read``) and the master has
+        nothing else on its way, the status packet is made and the clock goes straight
+        to the arrival of the byte that completes the read, if nothing else is due
+        before then; the same steps as the general loop's, without its rounds."""
+        events = self._events
+        while not self._master_rx and events and events[0][0] <= deadline:
+            et, _, fn, job = events[0]
+            if fn is not self._deliver_read_cb:
+                # nothing on its way yet: the general loop's step (the goals' SYNC_WRITE
+                # before the READ, say)
+                self.run_until(et)
+                continue
+            heapq.heappop(events)
+            if et > self.now:
+                self.now = et
+            self._deliver_read(self.now, job)
+            out = self._take_whole(size, deadline)
+            if out is not None:
+                return out
+            break
+        if self.run_until_master_data(deadline, size):
+            return self.master_read(size)
+        return b""
+
+    def _take_whole(self, size: int, deadline: float) -> bytes | None:
+        """The first ``size`` bytes of the one stream on its way to the master, nothing
+        read of it yet, with the clock moved to the last one's arrival, as
+        ``run_until_master_data`` and ``master_read`` would: when they arrive by
+        ``deadline`` with no event due before; None otherwise (nothing done)."""
+        streams = self._master_rx
+        if len(streams) != 1:
+            return None
+        h = streams[0]
+        data = h.data
+        n = len(data)
+        if h.times is not None or h.pos or not 0 < size <= n:
+            return None
+        t_byte = h.start + size * h.period  # arrival(size - 1)
+        events = self._events
+        if not self.now < t_byte <= deadline or (events and events[0][0] <= t_byte):
+            return None
+        if h.count_by(t_byte) < size:
+            return None  # rounding: leave it to the general loop
+        self.now = t_byte
+        if size == n:
+            streams.clear()
+            out = data if type(data) is bytes else bytes(data)
+        else:
+            h.pos = size
+            out = bytes(data[:size])
+        self.stats.master_bytes_in += size
         return out
 
     def master_flush_input(self) -> None:
@@ -738,6 +806,28 @@ class Bus:
         self._master_rx.append(reply)
         self._servo_tx_free[id(servo)] = end
         self.stats.replies += 1
+
+    def _deliver_sync_write(self, t: float, job: tuple[_Group, _Transmission]) -> None:
+        """The master's SYNC_WRITE frame, whole, to a group of C servos at its rate: a
+        good one of goals (and speeds) that comes to an idle receiver is handled in one C
+        call (what ``_deliver`` would do through more checks, the parse skipped);
+        anything else takes ``_deliver``."""
+        group, tx = job
+        rx = group.rx
+        index = group.c_by_id
+        frame = tx.data
+        if (
+            rx.parser.state
+            or group.epoch != self._link_epoch
+            or index is None
+            or lib.sim_servo_deliver_sync_write(
+                index, frame if type(frame) is bytes else bytes(frame), len(frame), t
+            )
+        ):
+            self._deliver(t, (group, tx, 0, len(frame), MASTER))
+            return
+        rx.queued -= 1
+        rx.last_t = t
 
     def _deliver(self, t: float, job: tuple) -> None:
         group, heard, i0, i1, source = job

@@ -167,13 +167,10 @@ class Serial(SerialBase):
                 # whole answer is in, which is then handed over in one piece (one call
                 # each, where the loop below would take two rounds).
                 deadline = bus.now + timeout
-                if bus.run_until_master_data(deadline, size):
-                    got = bus.master_read(size)
-                    if len(got) >= size:
-                        return got
-                    out = bytearray(got)
-                else:
-                    out = bytearray()
+                got = bus.master_receive(size, deadline)
+                if len(got) >= size:
+                    return got
+                out = bytearray(got)
             else:
                 out = bytearray(bus.master_read(size))
                 if len(out) >= size:

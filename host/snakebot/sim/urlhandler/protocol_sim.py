@@ -221,7 +221,8 @@ class Serial(SerialBase):
             raise PortNotOpenError()
         data = to_bytes(data)
         with self._lock:
-            self._sync()
+            if self._pacer is not None:  # (a call saved on the closed loop's path)
+                self._sync()
             self.bus.master_write(data)
         return len(data)
 
@@ -229,7 +230,8 @@ class Serial(SerialBase):
         if not self.is_open:
             raise PortNotOpenError()
         with self._lock:
-            self._sync()
+            if self._pacer is not None:
+                self._sync()
             self.bus.master_flush_input()
 
     def reset_output_buffer(self) -> None:

@@ -219,7 +219,8 @@ class Serial(SerialBase):
     def write(self, data: bytes) -> int:
         if not self.is_open:
             raise PortNotOpenError()
-        data = to_bytes(data)
+        if type(data) is not bytes:
+            data = to_bytes(data)
         with self._lock:
             if self._pacer is not None:  # (a call saved on the closed loop's path)
                 self._sync()

@@ -618,7 +618,12 @@ class Bus:
         while not self._master_rx:
             held = self._held
             if held is not None:
-                if (not events or events[0][:2] > held[1:3]) and held[1] <= deadline:
+                due = held[1]
+                if due <= deadline and (
+                    not events
+                    or events[0][0] > due
+                    or (events[0][0] == due and events[0][1] > held[2])
+                ):
                     out = self._answer_held(size, deadline)
                     if out is not None:
                         return out

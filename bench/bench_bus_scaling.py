@@ -6,8 +6,8 @@ the heaviest pattern a controller uses (the firmware reads one servo a tick). Re
 Delay Time 0, 1 Mbps, no faults. Measured at 5, 18 and 50 servos:
 
 * the emulator alone: the master is a bare loop on the bus's own interface (packets
-  built once, ``master_write``, ``run_until_master_data``, ``master_read``), so the
-  figure is what the bus and the virtual servos cost;
+  built once, ``master_write``, then ``master_receive``, the timed read the sim://
+  port makes), so the figure is what the bus and the virtual servos cost;
 * the same bare loop with the servos of the all-Python reference model
   (``ReferenceServo``): what the emulator cost before its servos' hot path moved to
   C, for the speed-up;
@@ -19,9 +19,9 @@ does: faults, echo, other baud rates and the physics world change nothing about 
 code runs. A SYNC_WRITE of goals is handed to the C servos in one call when every
 servo on its line is a C servo with an ID of its own (as here); otherwise servo by
 servo. The bus's timing and fault code is Python; a READ on a quiet line with no
-faults takes its short path (``Bus._deliver_read``: the frame to the C servo whole,
-the status packet straight onto the wire and to the master), the same bytes at the
-same instants as the general path (``tests/sim/test_bus_fast_path.py``).
+faults takes its short path (held until read, then ``Bus.master_receive`` hands the
+frame to the C servo whole and the status packet straight to the master), the same
+bytes at the same instants as the general path (``tests/sim/test_bus_fast_path.py``).
 
 Printed: emulated seconds per CPU second of this process (real-time factor; the wall
 clock figure is printed too, lower on a loaded machine), each against its goal (200x
@@ -96,8 +96,7 @@ def bare(count: int, ticks: int, reference: bool = False) -> tuple[float, float]
         bus.master_write(syncs[k])
         for packet in reads:
             bus.master_write(packet)
-            bus.run_until_master_data(bus.now + REPLY_WAIT_S, status_len)
-            if len(bus.master_read(status_len)) != status_len:
+            if len(bus.master_receive(status_len, bus.now + REPLY_WAIT_S)) != status_len:
                 raise SystemExit(f"no status packet on the emulated bus ({count} servos)")
         bus.run_until((k + 1) / CONTROL_HZ)
     cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0

@@ -6,8 +6,9 @@
    several roster sizes is bench_bus_scaling.py's). Two loads: goals only (one SYNC_WRITE
    per tick, as when a gait is played straight onto the servos) and goals plus a READ
    of every servo's present position per tick; for the second, what each layer adds to
-   a tick (the READ frames handed to the bus, through the sim:// port, through the
-   client), each measured with the same loop.
+   a tick (the loop's own goals, their SYNC_WRITE through the client and the bus; per
+   READ: the frame handed to the bus and its status packet taken as the sim:// port
+   takes it, the port itself, the client), each measured with the same loop.
 2. The rate the pseudo-terminal transport allows: READ transactions per second through
    `snakebot sim bus --pty` (a separate process, as a user runs it), against the rate
    the wire itself allows at 1 Mbps with Return Delay Time 0 (16 bytes = 160 us).
@@ -50,8 +51,10 @@ def rtf(seconds: float, reads: bool | str) -> tuple[float, float]:
 
     ``reads``: False for goals only; True (or "client") for a READ of every servo's
     position each tick through the client; "port" for the same READ frames written and
-    read on the sim:// port directly, "bus" for them handed to the bus directly (what
-    each layer adds: see ``where_the_time_goes``)."""
+    read on the sim:// port directly, "bus" for them handed to the bus directly and the
+    status packets taken as the port's timed read takes them (``Bus.master_receive``);
+    "goals" for the goals worked out and nothing sent (what each layer adds: see
+    ``where_the_time_goes``)."""
     with DxlClient("sim://?robot=snake5&return_delay=0", latency_s=0.0) as c:
         bus = c.port.bus
         port = c.port
@@ -67,7 +70,9 @@ def rtf(seconds: float, reads: bool | str) -> tuple[float, float]:
                 sid: (CENTRE + round(150 * math.sin(2 * math.pi * 0.5 * t + j * math.pi / 2)))
                 for j, sid in enumerate(ids)
             }
-            c.sync_write(GOAL.address, GOAL.size, {sid: GOAL.encode(g) for sid, g in goals.items()})
+            blocks = {sid: GOAL.encode(g) for sid, g in goals.items()}
+            if reads != "goals":
+                c.sync_write(GOAL.address, GOAL.size, blocks)
             if reads is True or reads == "client":
                 for sid in ids:
                     c.read_u16(sid, PRESENT.address)
@@ -80,8 +85,7 @@ def rtf(seconds: float, reads: bool | str) -> tuple[float, float]:
                 for frame in frames:
                     bus.master_flush_input()
                     bus.master_write(frame)
-                    bus.run_until_master_data(math.inf, reply_len)
-                    bus.master_read(reply_len)
+                    bus.master_receive(reply_len, bus.now + port.timeout)
             bus.run_until((k + 1) / CONTROL_HZ)
         wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
         return bus.now / wall, bus.now / cpu
@@ -94,25 +98,29 @@ def best_rtf(seconds: float, reads: bool | str, rounds: int = 3) -> tuple[float,
 
 def where_the_time_goes(seconds: float) -> None:
     """CPU time of one tick of the closed loop, layer by layer (each the best of 3 runs
-    of the same loop, in this run): the goals and their SYNC_WRITE, then the 4 READs
-    handed to the bus, through the sim:// port, through the client. Prints what each
-    layer adds per READ and the most the loop could reach if the bus and the port cost
-    nothing (the client's own part and the rest of the tick as measured)."""
+    of the same loop, in this run): the loop's own goals, then their SYNC_WRITE (through
+    the client, the port and the bus), then the 4 READs handed to the bus, through the
+    sim:// port, through the client. Prints what each layer adds (per READ for the
+    READs) and the most the loop could reach if the bus and the port cost nothing (the
+    client's own part and the rest of the tick as measured)."""
     tick_us = {
         layer: 1e6 / CONTROL_HZ / best_rtf(seconds, layer)[1]
-        for layer in (False, "bus", "port", "client")
+        for layer in ("goals", False, "bus", "port", "client")
     }
     reads = 4
+    goals = tick_us["goals"]
+    sync_write = tick_us[False] - goals
     bus = (tick_us["bus"] - tick_us[False]) / reads
     port = (tick_us["port"] - tick_us["bus"]) / reads
     client = (tick_us["client"] - tick_us["port"]) / reads
     floor = 1e6 / CONTROL_HZ / (tick_us[False] + reads * client)
     budget = 1e6 / CONTROL_HZ / 200
     print(
-        f"   where the time goes, per tick: goals, SYNC_WRITE and bus {tick_us[False]:.1f} us; "
-        f"per READ: bus {bus:.1f} us, sim:// port {port:.1f} us, client {client:.1f} us "
-        f"(200 x allows {budget:.0f} us a tick; with the bus and the port free, the client "
-        f"and the rest would still allow at most {floor:.0f} x)"
+        f"   where the time goes, per tick: the loop's goals {goals:.1f} us, their SYNC_WRITE "
+        f"(client, port, bus) {sync_write:.1f} us; per READ: bus {bus:.1f} us, sim:// port "
+        f"{port:.1f} us, client {client:.1f} us (200 x allows {budget:.0f} us a tick; with "
+        f"the bus and the port free, the client and the rest would still allow at most "
+        f"{floor:.0f} x)"
     )
 
 

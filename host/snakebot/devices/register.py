@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 from snakebot.devices.errors import DeviceError
 from snakebot.devices.units import Encoding, Scale
@@ -63,6 +64,11 @@ class Register:
 
     def value_range(self) -> tuple[int, int]:
         """The write range, or the full range of the field's type when none is given."""
+        return self._write_range
+
+    @cached_property
+    def _write_range(self) -> tuple[int, int]:
+        # worked out once: every encode (a control loop's goals, each tick) checks it
         bits = 8 * min(self.size, 4)
         if self.signed:
             low, high = -(1 << (bits - 1)), (1 << (bits - 1)) - 1

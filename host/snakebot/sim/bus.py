@@ -259,6 +259,11 @@ class Bus:
         self._wire_end = -math.inf  # when the last of them ends
         self._c_reply = ffi.new("uint8_t[]", 256)  # a C servo's status packet
         self._c_reply_bytes = ffi.buffer(self._c_reply)  # sliced: a copy as bytes
+        # one bound method, so that master_receive knows a READ's delivery by identity
+        self._deliver_read_cb = self._deliver_read
+        # a READ written and not yet on the wire or due (see master_write, _release):
+        # (start, end, event sequence number, group, frame)
+        self._held: tuple[float, float, int, _Group, bytes] | None = None
         self._master_rx: list[_Heard] = []
         self._master_tx_free = 0.0
         self._servo_tx_free: dict[int, float] = {}
@@ -372,10 +377,15 @@ class Bus:
 
     def next_event_time(self) -> float | None:
         """When the next scheduled event happens (None if none)."""
+        if self._held is not None:
+            self._release()
         return self._events[0][0] if self._events else None
 
     def run_until(self, t: float) -> None:
         """Run every event up to bus time ``t`` and leave the clock at ``t``."""
+        held = self._held
+        if held is not None and held[1] <= t:
+            self._release()
         events = self._events
         while events and events[0][0] <= t:
             et, _, fn, arg = heapq.heappop(events)
@@ -395,6 +405,8 @@ class Bus:
     def run_until_master_data(self, deadline: float, count: int = 1) -> bool:
         """Run until ``count`` bytes for the master have arrived or ``deadline`` passes;
         return whether any have. What a blocking read does in virtual time."""
+        if self._held is not None:
+            self._release()
         events = self._events
         while True:
             streams = self._master_rx
@@ -459,13 +471,14 @@ class Bus:
         """The master sends ``data`` (starting now, or when its UART is free)."""
         if not data:
             return
+        if self._held is not None:
+            self._release()
         now = self.now
         start = now if now > self._master_tx_free else self._master_tx_free
         group = self._quiet_reply
         n = len(data)
         if (
-            n == 8
-            and data[4] == _READ
+            n >= 6
             and group is not None
             and self._wire_end <= start
             and not self.echo
@@ -473,27 +486,57 @@ class Bus:
             and self._groups is not None
             and group.rx.baud == self.baudrate
             and data[0] == data[1] == 0xFF != data[2]
-            and data[3] == 4
+            and data[3] + 4 == n
         ):
-            # a READ to the one group (see _deliver_read) on a line that is quiet by the
-            # time it starts (after the master's own frame before it, a SYNC_WRITE say):
-            # what _transmit does with it, in short
+            # one whole frame to the one group of C servos (see _deliver_read) on a line
+            # that is quiet by the time it starts (after the master's own frame before
+            # it, a SYNC_WRITE say): what _transmit does with it, in short; a READ and a
+            # SYNC_WRITE then go to the C servos whole, anything else to _deliver
             # bytes, shared: _collide makes a bytearray of them if they get damaged
             frame = data if type(data) is bytes else bytes(data)
-            tx = _Transmission(MASTER, start, group.rx.baud, frame)
-            if self._wire_end > now:  # what is still on the wire stays there, untouched
-                self._wire = [other for other in self._wire if other.end > now]
-                self._wire.append(tx)
+            code = frame[4]
+            if code == _READ and n == 8:
+                # held (see _release): its transmission and delivery event are made
+                # only if something other than master_receive comes first
+                end = start + n * (BITS_PER_BYTE / group.rx.baud)  # as _Transmission
+                self._held = (start, end, next(self._seq), group, frame)
+                self._wire_end = end
             else:
-                self._wire = [tx]
-            self._wire_end = end = tx.end
-            heapq.heappush(self._events, (end, next(self._seq), self._deliver_read, (group, tx)))
+                tx = _Transmission(MASTER, start, group.rx.baud, frame)
+                self._put_on_wire(tx)
+                end = tx.end
+                if code == _SYNC_WRITE:
+                    job: tuple = (group, tx)
+                    deliver = self._deliver_sync_write
+                else:
+                    job, deliver = (group, tx, 0, n, MASTER), self._deliver
+                heapq.heappush(self._events, (end, next(self._seq), deliver, job))
             group.rx.queued += 1
             self.stats.instructions += 1
         else:
             end = self._transmit(MASTER, start, self.baudrate, bytearray(data)).end
         self._master_tx_free = end
         self.stats.master_bytes_out += n
+
+    def _put_on_wire(self, tx: _Transmission) -> None:
+        """The master's frame ``tx`` onto a line that is quiet by the time it starts:
+        what is still on the wire stays there, untouched."""
+        now = self.now
+        if self._wire_end > now:
+            self._wire = [other for other in self._wire if other.end > now]
+            self._wire.append(tx)
+        else:
+            self._wire = [tx]
+        self._wire_end = tx.end
+
+    def _release(self) -> None:
+        """The held READ (``master_write``) as the bus would have it had it not been
+        held: on the wire, its delivery due at its end (in its place in the order)."""
+        start, end, seq, group, frame = self._held
+        self._held = None
+        tx = _Transmission(MASTER, start, group.rx.baud, frame)
+        self._put_on_wire(tx)
+        heapq.heappush(self._events, (end, seq, self._deliver_read_cb, (group, tx)))
 
     @property
     def master_tx_done(self) -> float:
@@ -562,6 +605,111 @@ class Bus:
         self.stats.master_bytes_in += len(out)
         return out
 
+    def master_receive(self, size: int, deadline: float) -> bytes:
+        """What a timed read gets: :meth:`run_until_master_data` for ``size`` bytes by
+        ``deadline``, then :meth:`master_read` of ``size``, in one call.
+
+        The closed loop's transaction takes a short way through it: when the next thing
+        due is the C servos' answer to a READ (``_deliver_read``) and the master has
+        nothing else on its way, the status packet is made and the clock goes straight
+        to the arrival of the byte that completes the read, if nothing else is due
+        before then; the same steps as the general loop's, without its rounds."""
+        events = self._events
+        while not self._master_rx:
+            held = self._held
+            if held is not None:
+                due = held[1]
+                if due <= deadline and (
+                    not events
+                    or events[0][0] > due
+                    or (events[0][0] == due and events[0][1] > held[2])
+                ):
+                    out = self._answer_held(size, deadline)
+                    if out is not None:
+                        return out
+                    break  # taken some way: the general loop goes on from there
+                if not events or events[0][0] > deadline:
+                    break
+            elif not events or events[0][0] > deadline:
+                break
+            et, _, fn, job = events[0]
+            if fn is not self._deliver_read_cb:
+                # nothing on its way yet: the general loop's step (the goals' SYNC_WRITE
+                # before the READ, say)
+                self.run_until(et)
+                continue
+            heapq.heappop(events)
+            if et > self.now:
+                self.now = et
+            self._deliver_read(self.now, job)
+            out = self._take_whole(size, deadline)
+            if out is not None:
+                return out
+            break
+        if self.run_until_master_data(deadline, size):
+            return self.master_read(size)
+        return b""
+
+    def _answer_held(self, size: int, deadline: float) -> bytes | None:
+        """The held READ delivered now, due next: what ``_deliver_read`` and then
+        ``_take_whole`` do, and when the whole status packet is read at once and
+        nothing is due before its end, without making either transmission (the READ's
+        has ended; the status packet's is heard whole, and by nobody else). None if
+        the read is not done (the general loop goes on from the state left)."""
+        start, end, _, group, frame = self._held
+        self._held = None
+        if end > self.now:
+            self.now = end
+        t = self.now
+        n = self._c_read(group, frame, t)
+        if not n:
+            self._deliver(
+                t, (group, _Transmission(MASTER, start, group.rx.baud, frame), 0, 8, MASTER)
+            )
+            return None
+        servo = self._read_answered(group, frame, n, t)
+        if servo is None:
+            return None
+        reply_end = t + servo.return_delay_s + n * (BITS_PER_BYTE / group.rx.baud)
+        events = self._events
+        if size != n or reply_end > deadline or (events and events[0][0] <= reply_end):
+            self._quiet_reply_out(group, servo, n, t)
+            return self._take_whole(size, deadline)
+        self._wire_end = self._servo_tx_free[id(servo)] = self.now = reply_end
+        stats = self.stats
+        stats.replies += 1
+        stats.master_bytes_in += n
+        return self._c_reply_bytes[:n]
+
+    def _take_whole(self, size: int, deadline: float) -> bytes | None:
+        """The first ``size`` bytes of the one stream on its way to the master, nothing
+        read of it yet, with the clock moved to the last one's arrival, as
+        ``run_until_master_data`` and ``master_read`` would: when they arrive by
+        ``deadline`` with no event due before; None otherwise (nothing done)."""
+        streams = self._master_rx
+        if len(streams) != 1:
+            return None
+        h = streams[0]
+        data = h.data
+        n = len(data)
+        if h.times is not None or h.pos or not 0 < size <= n:
+            return None
+        t_byte = h.start + size * h.period  # arrival(size - 1)
+        events = self._events
+        if not self.now < t_byte <= deadline or (events and events[0][0] <= t_byte):
+            return None
+        if h.count_by(t_byte) < size:
+            return None  # rounding: leave it to the general loop
+        self.now = t_byte
+        if size == n:
+            streams.clear()
+            out = data if type(data) is bytes else bytes(data)
+        else:
+            h.pos = size
+            out = bytes(data[:size])
+        self.stats.master_bytes_in += size
+        return out
+
     def master_flush_input(self) -> None:
         """Discard what has reached the master (bytes still on the wire will arrive)."""
         if not self._master_rx:
@@ -576,6 +724,8 @@ class Bus:
     def _transmit(
         self, source: object, start: float, baud: float, data: bytearray
     ) -> _Transmission:
+        if self._held is not None:
+            self._release()  # on the wire: what this transmission may collide with
         if self._corrupting:
             self.faults.corrupt(data)
         tx = _Transmission(source, start, baud, data)
@@ -701,19 +851,31 @@ class Bus:
         frame, a receiver mid-packet, an ID change on the way, nobody with that ID)
         takes ``_deliver``."""
         group, tx = job
-        rx = group.rx
-        index = group.c_by_id
-        if rx.parser.state or group.epoch != self._link_epoch or index is None:
-            self._deliver(t, (group, tx, 0, 8, MASTER))
-            return
-        frame = tx.data
-        out = self._c_reply
-        size = lib.sim_servo_deliver_read(
-            index, frame if type(frame) is bytes else bytes(frame), 8, t, out, 256
-        )
+        size = self._c_read(group, tx.data, t)
         if not size:
             self._deliver(t, (group, tx, 0, 8, MASTER))
             return
+        servo = self._read_answered(group, tx.data, size, t)
+        if servo is not None:
+            self._quiet_reply_out(group, servo, size, t)
+
+    def _c_read(self, group: _Group, frame: bytes | bytearray, t: float) -> int:
+        """The length of the status packet the C servos make of the READ ``frame`` heard
+        at ``t`` (in ``_c_reply``), or 0 when the general path must take the frame."""
+        index = group.c_by_id
+        if group.rx.parser.state or group.epoch != self._link_epoch or index is None:
+            return 0
+        return lib.sim_servo_deliver_read(
+            index, frame if type(frame) is bytes else bytes(frame), 8, t, self._c_reply, 256
+        )
+
+    def _read_answered(
+        self, group: _Group, frame: bytes | bytearray, size: int, t: float
+    ) -> VirtualServo | None:
+        """The receiver's side of a READ the C servos answered (``_c_read``), and the
+        status packet sent the general way unless the line is quiet; the servo that
+        answers when it is (see ``_quiet_reply_out``), None otherwise."""
+        rx = group.rx
         rx.queued -= 1
         rx.last_t = t
         servo = group.by_id[frame[2]][0]
@@ -725,19 +887,44 @@ class Bus:
             or rx.baud != self.baudrate
         ):
             self._reply(servo, (self._c_reply_bytes[:size], servo.baudrate), t)
-            return
-        # The usual case, what _reply and _transmit would do, in short: the line is
-        # quiet, no faults, one group at the master's rate and nothing else due to it,
-        # so the status packet meets nobody, the master hears it as sent, and the
-        # group would drop it unheard.
-        packet = self._c_reply_bytes[:size]  # bytes, as the master's READ above
-        reply = _Transmission(servo, t + servo.return_delay_s, rx.baud, packet)
+            return None
+        return servo
+
+    def _quiet_reply_out(self, group: _Group, servo: VirtualServo, size: int, t: float) -> None:
+        """The usual case, what _reply and _transmit would do, in short: the line is
+        quiet, no faults, one group at the master's rate and nothing else due to it, so
+        the status packet meets nobody, the master hears it as sent, and the group
+        would drop it unheard."""
+        packet = self._c_reply_bytes[:size]  # bytes, as the master's READ
+        reply = _Transmission(servo, t + servo.return_delay_s, group.rx.baud, packet)
         reply.unheard = group
         self._wire = [reply]
         self._wire_end = end = reply.end
         self._master_rx.append(reply)
         self._servo_tx_free[id(servo)] = end
         self.stats.replies += 1
+
+    def _deliver_sync_write(self, t: float, job: tuple[_Group, _Transmission]) -> None:
+        """The master's SYNC_WRITE frame, whole, to a group of C servos at its rate: a
+        good one of goals (and speeds) that comes to an idle receiver is handled in one C
+        call (what ``_deliver`` would do through more checks, the parse skipped);
+        anything else takes ``_deliver``."""
+        group, tx = job
+        rx = group.rx
+        index = group.c_by_id
+        frame = tx.data
+        if (
+            rx.parser.state
+            or group.epoch != self._link_epoch
+            or index is None
+            or lib.sim_servo_deliver_sync_write(
+                index, frame if type(frame) is bytes else bytes(frame), len(frame), t
+            )
+        ):
+            self._deliver(t, (group, tx, 0, len(frame), MASTER))
+            return
+        rx.queued -= 1
+        rx.last_t = t
 
     def _deliver(self, t: float, job: tuple) -> None:
         group, heard, i0, i1, source = job

@@ -305,3 +305,22 @@ int sim_servo_deliver_read(sim_servo *const *by_id, const uint8_t *frame, int n,
     }
     return sim_servo_read(s, t, frame[5], frame[6], out, cap);
 }
+
+int sim_servo_deliver_sync_write(sim_servo *const *by_id, const uint8_t *frame, int n,
+                                 double t) {
+    /* FF FF FE LEN SYNC_WRITE address length (ID data...)... CHK, as the general path
+     * takes it unparsed: whole, within the packet cap, the checksum good, and the
+     * parameters split into whole blocks (else no servo finds its slice) */
+    if (n < 8 || n > DXL_MAX_PACKET || frame[0] != DXL_HEADER_BYTE ||
+        frame[1] != DXL_HEADER_BYTE || frame[2] != DXL_BROADCAST_ID || frame[3] + 4 != n ||
+        frame[4] != DXL_INST_SYNC_WRITE ||
+        dxl_checksum(frame + 2, (size_t)n - 3) != frame[n - 1]) {
+        return -1;
+    }
+    const uint8_t *params = frame + 5;
+    int length = params[1], count = n - 6;
+    if (length == 0 || (count - 2) % (length + 1)) {
+        return -1;
+    }
+    return sim_servo_sync_write(by_id, params, count, t);
+}

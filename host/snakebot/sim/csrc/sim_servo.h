@@ -74,6 +74,12 @@ int sim_servo_sync_write(sim_servo *const *by_id, const uint8_t *params, int n, 
  * into out, and its length; 0 if the general path must handle the frame. */
 int sim_servo_deliver_read(sim_servo *const *by_id, const uint8_t *frame, int n, double t,
                            uint8_t *out, int cap);
+/* A whole frame of n bytes heard at time t by the servos of by_id (as above): if it is a
+ * good broadcast SYNC_WRITE of Goal Position (+ Moving Speed) in whole blocks, it is
+ * handled (sim_servo_sync_write) and 0 returned; -1 if the general path must handle the
+ * frame (nothing has happened then). */
+int sim_servo_deliver_sync_write(sim_servo *const *by_id, const uint8_t *frame, int n,
+                                 double t);
 /* cffi:end */
 
 #endif

@@ -167,13 +167,10 @@ class Serial(SerialBase):
                 # whole answer is in, which is then handed over in one piece (one call
                 # each, where the loop below would take two rounds).
                 deadline = bus.now + timeout
-                if bus.run_until_master_data(deadline, size):
-                    got = bus.master_read(size)
-                    if len(got) >= size:
-                        return got
-                    out = bytearray(got)
-                else:
-                    out = bytearray()
+                got = bus.master_receive(size, deadline)
+                if len(got) >= size:
+                    return got
+                out = bytearray(got)
             else:
                 out = bytearray(bus.master_read(size))
                 if len(out) >= size:
@@ -222,9 +219,11 @@ class Serial(SerialBase):
     def write(self, data: bytes) -> int:
         if not self.is_open:
             raise PortNotOpenError()
-        data = to_bytes(data)
+        if type(data) is not bytes:
+            data = to_bytes(data)
         with self._lock:
-            self._sync()
+            if self._pacer is not None:  # (a call saved on the closed loop's path)
+                self._sync()
             self.bus.master_write(data)
         return len(data)
 
@@ -232,7 +231,8 @@ class Serial(SerialBase):
         if not self.is_open:
             raise PortNotOpenError()
         with self._lock:
-            self._sync()
+            if self._pacer is not None:
+                self._sync()
             self.bus.master_flush_input()
 
     def reset_output_buffer(self) -> None:

@@ -290,7 +290,8 @@ def plan_cycles(
         ex, ey, et = end_of(model, here, offset, ways, x, link1)
         h = (et - goal[2] + math.pi) % (2 * math.pi) - math.pi
         # plain floats: the solver calls this thousands of times a plan
-        changes = np.diff(x, prepend=offset).tolist()
+        values = x.tolist()
+        changes = [b - a for a, b in zip([offset, *values[:-1]], values, strict=True)]
         return np.array(
             [
                 (ex - goal[0]) / tol.position,

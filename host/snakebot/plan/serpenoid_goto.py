@@ -362,7 +362,7 @@ class Interpolated:
 
     def __call__(self, q: float) -> tuple[float, ...]:
         grid, rows = self.grid, self.rows
-        if not q < grid[-1]:
+        if not q < grid[-1]:  # past the end, or NaN (which np.interp answers with NaN)
             return tuple(rows[-1]) if q == q else (math.nan,) * len(rows[-1])
         if q <= grid[0]:
             return tuple(rows[0])

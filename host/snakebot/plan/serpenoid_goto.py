@@ -251,11 +251,25 @@ def end_of(
     """Where link 1 ends by the model: the middle from ``here`` after the cycles, then
     link 1 from the middle with the shape ``link1(q)`` the last offset gives. (Plain
     floats: the planner calls this thousands of times a step.)"""
-    d0, d1, d2, d3, c0, c1, c2 = (float(v) for v in model.coefficients)
-    x, y, t = (float(v) for v in here)
+    coefficients = tuple(float(v) for v in model.coefficients)
+    values = np.asarray(offsets, dtype=float).tolist()
+    return _end(coefficients, tuple(float(v) for v in here), offset, ways, values, link1)
+
+
+def _end(
+    coefficients: tuple[float, ...],
+    here: tuple[float, ...],
+    offset: float,
+    ways: tuple[float, ...],
+    offsets: list[float],
+    link1: Any,
+) -> tuple[float, float, float]:
+    """``end_of`` on plain floats throughout (a plan's fit converts the model and the
+    state once, not at each of its thousands of calls)."""
+    d0, d1, d2, d3, c0, c1, c2 = coefficients
+    x, y, t = here
     p = offset
     for way, q in zip(ways, offsets, strict=True):
-        q = float(q)
         length = way * (d0 + d1 * q * q + d2 * p * p + d3 * q * p)
         turn = way * (c0 + c1 * q + c2 * p)
         if abs(turn) < 1e-9:
@@ -286,11 +300,14 @@ def plan_cycles(
     of the ``last`` plan is tried first."""
     from scipy.optimize import least_squares  # the planner's optional dependency
 
+    coefficients = tuple(float(v) for v in model.coefficients)
+    state = tuple(float(v) for v in here)
+
     def residual(x: np.ndarray, ways: tuple[float, ...]) -> np.ndarray:
-        ex, ey, et = end_of(model, here, offset, ways, x, link1)
-        h = (et - goal[2] + math.pi) % (2 * math.pi) - math.pi
         # plain floats: the solver calls this thousands of times a plan
         values = x.tolist()
+        ex, ey, et = _end(coefficients, state, offset, ways, values, link1)
+        h = (et - goal[2] + math.pi) % (2 * math.pi) - math.pi
         changes = [b - a for a, b in zip([offset, *values[:-1]], values, strict=True)]
         return np.array(
             [

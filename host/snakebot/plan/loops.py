@@ -24,6 +24,7 @@ above the tools' warning threshold).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
@@ -72,14 +73,23 @@ def loop_angles(hub: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
     are as many as the coefficients hold (HARMONICS for a table's loops; a program's
     periodic blocks have one)."""
     p = coefficients.reshape(len(hub), -1)
-    s = np.arange(FRAMES + 1) * (2.0 * math.pi / FRAMES)
     out = np.repeat(np.asarray(hub, dtype=float)[None, :], FRAMES + 1, axis=0)
-    for k in range(1, p.shape[1] // 2 + 1):
-        out += (
-            np.sin(k * s)[:, None] * p[:, 2 * k - 2]
-            + (1.0 - np.cos(k * s))[:, None] * p[:, 2 * k - 1]
-        )
+    for k, (sin_ks, one_minus_cos_ks) in enumerate(_harmonics(p.shape[1] // 2), start=1):
+        out += sin_ks * p[:, 2 * k - 2] + one_minus_cos_ks * p[:, 2 * k - 1]
     return out
+
+
+@functools.cache
+def _harmonics(count: int) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+    """Per harmonic k, sin(k s) and 1 - cos(k s) over a loop's frames, as columns: the
+    solver builds a loop's frames some hundred thousand times a closed loop."""
+    s = np.arange(FRAMES + 1) * (2.0 * math.pi / FRAMES)
+    out = []
+    for k in range(1, count + 1):
+        sin_ks, one_minus_cos_ks = np.sin(k * s)[:, None], (1.0 - np.cos(k * s))[:, None]
+        sin_ks.flags.writeable = one_minus_cos_ks.flags.writeable = False
+        out.append((sin_ks, one_minus_cos_ks))
+    return tuple(out)
 
 
 def path_motion(robot: Robot, angles: np.ndarray, options: Options = SOLVE_OPTIONS) -> np.ndarray:
@@ -128,10 +138,10 @@ def solve_loop(
         try:
             moved, rcond = _integrate(robot, angles)
         except KinematicsError:
-            return np.r_[np.full(3, FAILED), 10.0 * outside, FAILED]
+            return np.array([FAILED, FAILED, FAILED, 10.0 * outside, FAILED])
         # near a singular configuration the motion is hypersensitive to rounding: keep off
         near = max(0.0, keep_off - rcond) / keep_off
-        return np.r_[(moved - wanted) * weights, 10.0 * outside, near]
+        return np.concatenate(((moved - wanted) * weights, (10.0 * outside, near)))
 
     tight = {"max_nfev": MAX_EVALS, "xtol": 1e-12, "ftol": 1e-12, "gtol": 1e-12}
     p = best_fit(residual, guesses, accuracy, closest=closest, **tight)

@@ -30,6 +30,7 @@ many cycles (``docs/goto.md``).
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -250,11 +251,25 @@ def end_of(
     """Where link 1 ends by the model: the middle from ``here`` after the cycles, then
     link 1 from the middle with the shape ``link1(q)`` the last offset gives. (Plain
     floats: the planner calls this thousands of times a step.)"""
-    d0, d1, d2, d3, c0, c1, c2 = (float(v) for v in model.coefficients)
-    x, y, t = (float(v) for v in here)
+    coefficients = tuple(float(v) for v in model.coefficients)
+    values = np.asarray(offsets, dtype=float).tolist()
+    return _end(coefficients, tuple(float(v) for v in here), offset, ways, values, link1)
+
+
+def _end(
+    coefficients: tuple[float, ...],
+    here: tuple[float, ...],
+    offset: float,
+    ways: tuple[float, ...],
+    offsets: list[float],
+    link1: Any,
+) -> tuple[float, float, float]:
+    """``end_of`` on plain floats throughout (a plan's fit converts the model and the
+    state once, not at each of its thousands of calls)."""
+    d0, d1, d2, d3, c0, c1, c2 = coefficients
+    x, y, t = here
     p = offset
     for way, q in zip(ways, offsets, strict=True):
-        q = float(q)
         length = way * (d0 + d1 * q * q + d2 * p * p + d3 * q * p)
         turn = way * (c0 + c1 * q + c2 * p)
         if abs(turn) < 1e-9:
@@ -285,17 +300,24 @@ def plan_cycles(
     of the ``last`` plan is tried first."""
     from scipy.optimize import least_squares  # the planner's optional dependency
 
+    coefficients = tuple(float(v) for v in model.coefficients)
+    state = tuple(float(v) for v in here)
+
     def residual(x: np.ndarray, ways: tuple[float, ...]) -> np.ndarray:
-        ex, ey, et = end_of(model, here, offset, ways, x, link1)
+        # plain floats: the solver calls this thousands of times a plan
+        values = x.tolist()
+        ex, ey, et = _end(coefficients, state, offset, ways, values, link1)
         h = (et - goal[2] + math.pi) % (2 * math.pi) - math.pi
-        steps = np.abs(np.diff(np.r_[offset, x])) - MAX_CHANGE
-        return np.r_[
-            (ex - goal[0]) / tol.position,
-            (ey - goal[1]) / tol.position,
-            h / tol.heading,
-            10.0 * np.maximum(steps, 0.0),
-            SMOOTH * np.diff(np.r_[offset, x]),
-        ]
+        changes = [b - a for a, b in zip([offset, *values[:-1]], values, strict=True)]
+        return np.array(
+            [
+                (ex - goal[0]) / tol.position,
+                (ey - goal[1]) / tol.position,
+                h / tol.heading,
+                *(10.0 * max(abs(c) - MAX_CHANGE, 0.0) for c in changes),
+                *(SMOOTH * c for c in changes),
+            ]
+        )
 
     def fit(ways: tuple[float, ...], x0: np.ndarray) -> Plan | None:
         sol = least_squares(residual, x0, args=(ways,), bounds=(-MAX_OFFSET, MAX_OFFSET))
@@ -342,15 +364,29 @@ def link1_from_middle(wave: Wave, lag: np.ndarray) -> Any:
     the wave's shape at phase 0 with the servos lagging by ``lag`` (as they lag now).
     Interpolated in a table: the planner calls it thousands of times a step."""
     grid = np.linspace(-MAX_OFFSET, MAX_OFFSET, 25)
-    table = np.array(
-        [se2.inverse(middle(wave.robot, wave.angles_at(0.0, q) + lag)) for q in grid]
-    ).T
+    table = np.array([se2.inverse(middle(wave.robot, wave.angles_at(0.0, q) + lag)) for q in grid])
+    return Interpolated(grid.tolist(), table.tolist())
 
-    def link1(q: float) -> tuple[float, float, float]:
-        x, y, t = (float(np.interp(q, grid, column)) for column in table)
-        return x, y, t
 
-    return link1
+@dataclass(frozen=True)
+class Interpolated:
+    """Rows of values at increasing ``grid`` points, linear in between and held beyond
+    the ends (``np.interp``'s arithmetic, on plain floats: one call costs a
+    microsecond where three ``np.interp`` calls cost ten)."""
+
+    grid: list[float]
+    rows: list[list[float]]
+
+    def __call__(self, q: float) -> tuple[float, ...]:
+        grid, rows = self.grid, self.rows
+        if not q < grid[-1]:  # past the end, or NaN (which np.interp answers with NaN)
+            return tuple(rows[-1]) if q == q else (math.nan,) * len(rows[-1])
+        if q <= grid[0]:
+            return tuple(rows[0])
+        j = bisect.bisect_right(grid, q) - 1
+        step = grid[j + 1] - grid[j]
+        lo, hi = rows[j], rows[j + 1]
+        return tuple((b - a) / step * (q - grid[j]) + a for a, b in zip(lo, hi, strict=True))
 
 
 def follow(

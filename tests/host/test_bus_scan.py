@@ -12,9 +12,10 @@ import pytest
 from click.testing import CliRunner
 
 import snakebot.transport.ports  # noqa: F401  (registers sim://)
-from snakebot import devices, servo_ops
+from snakebot import devices, protocol, servo_ops
 from snakebot.cli import main
-from snakebot.transport import open_port
+from snakebot.transport import DxlClient, open_port, settings
+from snakebot.transport.timing import wire_time_s
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -88,3 +89,20 @@ def test_ctrl_c_prints_what_was_found_and_exits_130():
     assert scan.returncode == 130, err
     assert "AX-12A" in "".join(lines)
     assert "Scan stopped by Ctrl-C" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("echo", [0, 1])
+def test_a_reply_later_than_its_window_is_still_attributed_to_its_id(monkeypatch, echo):
+    # The servo answers 1 ms after its Return Delay Time: past the silence window, so the
+    # next ID's PING is already out (on a real bus: an adapter slower than its setting),
+    # but after that PING, so the reply is intact. It names its ID; the scan takes it.
+    monkeypatch.setenv(settings.ENV_LATENCY_MS, "0")
+    monkeypatch.setenv(settings.ENV_MARGIN_MS, "0.5")
+    url = f"sim://?ids=7&return_delay=500&delay=1&echo={echo}"
+    with open_port(url, 1_000_000, timeout=0) as link:
+        silence = servo_ops.silence_s(DxlClient(link, 1_000_000, echo=bool(echo)))
+        reply_starts = wire_time_s(len(protocol.ping(7)), 1_000_000) + 500e-6 + 1e-3
+        assert reply_starts > silence  # the reply really is late
+        probes = list(servo_ops.scan_probes(link, range(5, 10), [1_000_000]))
+    assert sorted(p.id for p in probes) == [5, 6, 7, 8, 9]  # one result per ID
+    assert [(p.id, p.info.model) for p in probes if p.info] == [(7, "AX-12A")]

@@ -344,9 +344,10 @@ def silence_s(client: DxlClient) -> float:
     )
 
 
-def quiet_s(bus: BusTiming) -> float:  # noqa: ARG001
-    """How long a quiet pause lasts: a little over the servos' frame reset."""
-    return FRAME_RESET_S * 1.5
+def quiet_s(bus: BusTiming) -> float:
+    """How long a quiet pause lasts: the servos' frame reset and the host's margin (the
+    host may be late to send, never early, so the servos' pause is at least this)."""
+    return FRAME_RESET_S + bus.margin_s
 
 
 def _quiet(port: serial.SerialBase, seconds: float) -> None:

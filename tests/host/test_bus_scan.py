@@ -106,3 +106,22 @@ def test_a_reply_later_than_its_window_is_still_attributed_to_its_id(monkeypatch
         probes = list(servo_ops.scan_probes(link, range(5, 10), [1_000_000]))
     assert sorted(p.id for p in probes) == [5, 6, 7, 8, 9]  # one result per ID
     assert [(p.id, p.info.model) for p in probes if p.info] == [(7, "AX-12A")]
+
+
+@pytest.mark.parametrize("before, rate", [(3_000_000, 2_000_000), (400_000, 500_000)])
+def test_a_servo_that_heard_the_last_rate_as_garbage_answers_after_the_pause(
+    monkeypatch, before, rate
+):
+    # PINGs at `before` reach a servo at `rate` as garbage that leaves it inside a frame
+    # (without the pause between rates it swallows the first PINGs at its own rate and
+    # ID 0 is missed); the pause, a frame reset and the host's margin, clears it.
+    monkeypatch.setenv(settings.ENV_LATENCY_MS, "0")
+    monkeypatch.setenv(settings.ENV_MARGIN_MS, "0.5")
+    with open_port(f"sim://?ids=0&baud={rate}", before, timeout=0) as link:
+        windows = sum(servo_ops.silence_s(DxlClient(link, b)) for b in (before, rate))
+        start = link.bus.now
+        found = servo_ops.scan(link, range(0, 30), [before, rate])
+        took = link.bus.now - start
+    assert [(s.id, s.baud) for s in found] == [(0, rate)]
+    # the 30 silent windows at each rate, the pause, the reply and the READ identifying it
+    assert took < 30 * windows + protocol.FRAME_RESET_S + 5e-3

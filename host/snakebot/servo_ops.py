@@ -459,11 +459,11 @@ class _Sweep:
     def _listen(self, servo_id: int, pending: int | None) -> _Heard:
         """PING ``servo_id`` and listen until the silence window ends or, once a reply
         has begun, its whole reply timeout."""
-        io, parser, heard = self.io, self.parser, _Heard()
         packet = self.pings[servo_id]
-        echo_due = self.client.echo is True
-        io.write(packet)
+        self.io.write(packet)  # first: what follows is done while it is on the wire
         start = time.monotonic()
+        io, parser, heard = self.io, self.parser, _Heard()
+        echo_due = self.client.echo is True
         deadline = start + self.silence
         unheard = len(packet) if echo_due else 0  # bytes that may come back without a reply
         while (remaining := deadline - time.monotonic()) > 0:

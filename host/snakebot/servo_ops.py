@@ -56,7 +56,6 @@ fixed-rate values come from its description)."""
 SCAN_RETRIES = 3
 """Further PINGs a scan gives an ID whose reply came back damaged."""
 
-
 QUIET_READ_SIZE = 4096
 """Bytes one read of a quiet pause may drop (more than the line brings in the pause)."""
 
@@ -406,7 +405,7 @@ class _Sweep:
     """The PINGs of a scan at one rate, back to back, for :func:`scan_probes`.
 
     A silent ID (the rule) costs one write and a wait that ends when :func:`silence_s`
-    says: no flush, no exception, nothing built per ID. The line is parsed as one
+    says: no flush, no exception, no message. The line is parsed as one
     stream rather than flushed between IDs, so a reply that turns up after its ID's
     window (an adapter or a loaded host later than the margin allowed) still counts
     for the ID it names: an ID's result is given once the next ID's window is over.

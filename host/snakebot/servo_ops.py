@@ -468,7 +468,7 @@ class _Sweep:
         while (remaining := deadline - time.monotonic()) > 0:
             # exactly what completes a reply (and the echo): one read when all goes well
             want = timing.STATUS_OVERHEAD - parser.pending + (len(packet) if echo_due else 0)
-            data = io.read(want, remaining)
+            data = io.read(want if want > 1 else 1, remaining)
             if not data:
                 continue
             unheard -= len(data)

@@ -7,6 +7,8 @@ import os
 import signal
 import subprocess
 import sys
+import threading
+import tty
 
 import pytest
 from click.testing import CliRunner
@@ -125,3 +127,40 @@ def test_a_servo_that_heard_the_last_rate_as_garbage_answers_after_the_pause(
     assert [(s.id, s.baud) for s in found] == [(0, rate)]
     # the 30 silent windows at each rate, the pause, the reply and the READ identifying it
     assert took < 30 * windows + protocol.FRAME_RESET_S + 5e-3
+
+
+def test_a_reply_that_never_ends_is_garbled_not_an_error(monkeypatch):
+    # On a real pty, a "reply" to ID 1 whose LEN announces more bytes than ever come:
+    # the parser holds more than a status packet's worth, and the scan must still read
+    # on (one byte at least), then try the ID again and call it garbled.
+    monkeypatch.setenv(settings.ENV_LATENCY_MS, "0")
+    monkeypatch.setenv(settings.ENV_MARGIN_MS, "2")
+    monkeypatch.setenv(settings.ENV_ECHO, "off")
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    never_ends = bytes([0xFF, 0xFF, 1, 0xF0]) + bytes(8)
+
+    def answer() -> None:
+        heard = b""
+        while True:
+            try:
+                heard += os.read(master, 64)
+            except OSError:
+                return
+            while len(heard) >= 6:
+                if heard[:6] == protocol.ping(1):
+                    os.write(master, never_ends)
+                heard = heard[6:]
+
+    threading.Thread(target=answer, daemon=True).start()
+    try:
+        with open_port(os.ttyname(slave), 1_000_000, timeout=0) as link:
+            probes = list(servo_ops.scan_probes(link, range(0, 3), [1_000_000]))
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert sorted((p.id, p.info, p.garbled) for p in probes) == [
+        (0, None, False),
+        (1, None, True),
+        (2, None, False),
+    ]

@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 import re
 import time
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 
 import serial
@@ -36,8 +36,11 @@ from snakebot.protocol import (
     Entry,
     ErrorFlags,
     Packet,
+    PacketParser,
+    Rejected,
 )
-from snakebot.transport import DxlClient, settings, timing
+from snakebot.transport import BusTiming, DxlClient, settings, timing
+from snakebot.transport.portio import PortIO
 
 BASE_MODEL = "AX-12A"
 """The table used to check names and ranges before a servo has been asked its model
@@ -52,9 +55,6 @@ fixed-rate values come from its description)."""
 
 SCAN_RETRIES = 3
 """Further PINGs a scan gives an ID whose reply came back damaged."""
-
-QUIET_MARGIN = 1.5
-"""How much longer than the servos' frame reset a quiet pause lasts."""
 
 QUIET_READ_SIZE = 4096
 """Bytes one read of a quiet pause may drop (more than the line brings in the pause)."""
@@ -343,44 +343,17 @@ def silence_s(client: DxlClient) -> float:
     )
 
 
-def probe(
-    client: DxlClient,
-    servo_id: int,
-    *,
-    retries: int = SCAN_RETRIES,
-    silence: float | None = None,
-) -> Probe:
-    """Identify ``servo_id`` for a scan: one PING for a silent ID (silence is the rule),
-    up to ``retries`` more after a damaged reply (a corrupted echo on a one-wire
-    adapter, noise on the line), which means something may be there, or after an
-    echo that never came back intact (the instruction itself was damaged). ``silence``:
-    seconds of silence that mean nobody answers (:func:`silence_s`; default: the
-    client's whole reply timeout).
-
-    Before each retry the line is left quiet for :data:`~snakebot.protocol.FRAME_RESET_S`:
-    a damaged length byte leaves the servos waiting for the rest of a packet that never
-    comes, and they give up on it only after that pause."""
-    garbled = False
-    for _ in range(1 + retries):
-        if garbled:
-            _quiet(client.port)
-        try:
-            reply = client.ping(servo_id, check=False, retries=0, silence_s=silence)
-            return Probe(servo_id, client.baudrate, _identified(client, servo_id, reply))
-        except CorruptPacket:
-            garbled = True
-        except DxlTimeout as exc:
-            if not exc.echo_missing:
-                return Probe(servo_id, client.baudrate, None)
-            garbled = True
-    return Probe(servo_id, client.baudrate, None, garbled=True)
+def quiet_s(bus: BusTiming) -> float:
+    """How long a quiet pause lasts: the servos' frame reset and the host's margin (the
+    host may be late to send, never early, so the servos' pause is at least this)."""
+    return FRAME_RESET_S + bus.margin_s
 
 
-def _quiet(port: serial.SerialBase) -> None:
-    """Send nothing for a little over :data:`~snakebot.protocol.FRAME_RESET_S` (reading
-    and dropping whatever arrives), so every servo abandons a packet it was still
-    waiting for. Waiting in a read, not a sleep, lets an emulated bus's clock run too."""
-    deadline = time.monotonic() + FRAME_RESET_S * QUIET_MARGIN
+def _quiet(port: serial.SerialBase, seconds: float) -> None:
+    """Send nothing for ``seconds`` (reading and dropping whatever arrives), so every
+    servo abandons a packet it was still waiting for. Waiting in a read, not a sleep,
+    lets an emulated bus's clock run too."""
+    deadline = time.monotonic() + seconds
     while (remaining := deadline - time.monotonic()) > 0:
         port.timeout = remaining
         port.read(QUIET_READ_SIZE)
@@ -400,7 +373,8 @@ def detect_echo(port: serial.SerialBase, baud: int) -> bool:
         return bool(setting)
     packet = protocol.ping(BROADCAST_ID)
     # an echo comes back before any reply would: the reply timeout covers it
-    wait = DxlClient(port, baud, echo=False).timing.reply_timeout_s(len(packet), 0)
+    bus = DxlClient(port, baud, echo=False).timing
+    wait = bus.reply_timeout_s(len(packet), 0)
     for _ in range(1 + SCAN_RETRIES):
         port.reset_input_buffer()
         port.write(packet)
@@ -413,24 +387,160 @@ def detect_echo(port: serial.SerialBase, baud: int) -> bool:
             return False
         if heard == packet:
             return True
-        _quiet(port)
+        _quiet(port, quiet_s(bus))
     return True  # something came back every time, damaged: an echo on a noisy line
+
+
+@dataclass
+class _Heard:
+    """What one PING's window brought: the PINGed servo's reply, a late reply from the
+    ID PINGed before it, and whether anything came back damaged or incomplete."""
+
+    reply: Packet | None = None
+    late: Packet | None = None
+    trouble: bool = False
+
+
+class _Sweep:
+    """The PINGs of a scan at one rate, back to back, for :func:`scan_probes`.
+
+    A silent ID (the rule) costs one write and a wait that ends when :func:`silence_s`
+    says: no flush, no exception, no message. The line is parsed as one
+    stream rather than flushed between IDs, so a reply that turns up after its ID's
+    window (an adapter or a loaded host later than the margin allowed) still counts
+    for the ID it names: an ID's result is given once the next ID's window is over.
+
+    An ID whose PING brings something damaged (a corrupted echo on a one-wire adapter,
+    noise, a reply begun and never finished, two servos on one ID) gets up to
+    :data:`SCAN_RETRIES` more, each after a quiet pause (:func:`quiet_s`): a damaged
+    length byte leaves the servos waiting for the rest of a packet that never comes,
+    and they give up on it only after a pause. If every try is damaged, the result is
+    marked garbled: something is there."""
+
+    def __init__(self, client: DxlClient, silence: float, pings: Mapping[int, bytes]) -> None:
+        self.client = client
+        self.silence = silence
+        self.pings = pings
+        self.io = PortIO(client.port)
+        self.parser = PacketParser()
+        self.reply_timeout = client.timing.reply_timeout_s(len(protocol.ping(0)), 0)
+
+    def run(self, ids: Sequence[int]) -> Iterator[Probe]:
+        """Each of ``ids``' results, once."""
+        baud = self.client.baudrate
+        pending: int | None = None  # silent so far; its reply may still come
+        self.io.flush_input()
+        for servo_id in ids:
+            heard = self._listen(servo_id, pending)
+            if heard.late is not None and pending is not None:
+                yield self._found(pending, heard.late)
+                pending = None
+            if heard.trouble:
+                yield self._retry(servo_id)
+                if pending is not None:  # the damage may have been its reply
+                    yield self._retry(pending)
+                    pending = None
+            elif heard.reply is not None:
+                yield self._found(servo_id, heard.reply)
+            else:
+                if pending is not None:
+                    yield Probe(pending, baud, None)
+                pending = servo_id
+                continue
+            # The result above came first, so a caller that counts the bytes heard and
+            # sent between results charges the silent one below with none.
+            if pending is not None:
+                yield Probe(pending, baud, None)
+                pending = None
+        if pending is not None:
+            yield Probe(pending, baud, None)
+
+    def _listen(self, servo_id: int, pending: int | None) -> _Heard:
+        """PING ``servo_id`` and listen until the silence window ends or, once a reply
+        has begun, its whole reply timeout."""
+        packet = self.pings[servo_id]
+        self.io.write(packet)  # first: what follows is done while it is on the wire
+        start = time.monotonic()
+        io, parser, heard = self.io, self.parser, _Heard()
+        echo_due = self.client.echo is True
+        deadline = start + self.silence
+        unheard = len(packet) if echo_due else 0  # bytes that may come back without a reply
+        while (remaining := deadline - time.monotonic()) > 0:
+            # exactly what completes a reply (and the echo): one read when all goes well
+            want = timing.STATUS_OVERHEAD - parser.pending + (len(packet) if echo_due else 0)
+            data = io.read(want if want > 1 else 1, remaining)
+            if not data:
+                continue
+            unheard -= len(data)
+            if unheard < 0:  # a reply has begun: it gets its whole time
+                deadline = start + self.reply_timeout
+            for event in parser.feed(data):
+                if isinstance(event, Rejected):
+                    heard.trouble = True
+                elif echo_due and event.encode() == packet:
+                    echo_due = False  # our own PING: the first packet equal to it
+                elif event.id == servo_id:
+                    if event.params:  # no PING reply has parameters: not what it seems
+                        heard.trouble = True
+                    else:
+                        heard.reply = event
+                elif event.id == pending and not event.params:
+                    heard.late = event
+            if heard.reply is not None:
+                break
+        # A missing echo means the PING itself may have been damaged; bytes beyond the
+        # echo that made no reply are one damaged past recognition (a collision, noise).
+        heard.trouble |= echo_due or (unheard < 0 and heard.reply is None and heard.late is None)
+        return heard
+
+    def _identify(self, servo_id: int, reply: Packet) -> ServoInfo | None:
+        """The servo that answered with ``reply``, its model read through the client
+        (which flushes the line, so the parser starts afresh); None if that read kept
+        coming back damaged."""
+        try:
+            return _identified(self.client, servo_id, reply)
+        except CorruptPacket:
+            return None
+        finally:
+            self.parser.reset()
+
+    def _found(self, servo_id: int, reply: Packet) -> Probe:
+        info = self._identify(servo_id, reply)
+        if info is None:
+            return self._retry(servo_id)
+        return Probe(servo_id, self.client.baudrate, info)
+
+    def _retry(self, servo_id: int) -> Probe:
+        """The further tries of an ID whose PING (or identifying READ) came back damaged."""
+        client = self.client
+        for _ in range(SCAN_RETRIES):
+            _quiet(client.port, quiet_s(client.timing))  # ends with a flush
+            self.parser.reset()
+            heard = self._listen(servo_id, None)
+            if heard.trouble:
+                continue
+            if heard.reply is None:
+                return Probe(servo_id, client.baudrate, None)
+            info = self._identify(servo_id, heard.reply)
+            if info is not None:
+                return Probe(servo_id, client.baudrate, info)
+        return Probe(servo_id, client.baudrate, None, garbled=True)
 
 
 def scan_probes(
     port: serial.SerialBase, ids: Iterable[int], bauds: Sequence[int]
 ) -> Iterator[Probe]:
-    """:func:`probe` every ID in ``ids`` at each rate in ``bauds``, yielding each result as
-    it comes, so a caller can show progress and keep what was found if stopped."""
+    """PING every ID in ``ids`` at each rate in ``bauds`` and identify the servos that
+    answer (:class:`_Sweep` says how), yielding each result as it comes, so a caller
+    can show progress and keep what was found if stopped."""
     ids = list(ids)
+    pings = {servo_id: protocol.ping(servo_id) for servo_id in ids}
     echo = detect_echo(port, bauds[0]) if bauds else False
     for n, baud in enumerate(bauds):
         client = DxlClient(port, baud, echo=echo)
-        silence = silence_s(client)
         if n:  # servos at this rate heard the last one's PINGs as garbage: let them reset
-            _quiet(port)
-        for servo_id in ids:
-            yield probe(client, servo_id, silence=silence)
+            _quiet(port, quiet_s(client.timing))
+        yield from _Sweep(client, silence_s(client), pings).run(ids)
 
 
 def scan(port: serial.SerialBase, ids: Iterable[int], bauds: Sequence[int]) -> list[ServoInfo]:

@@ -7,14 +7,17 @@ import os
 import signal
 import subprocess
 import sys
+import threading
+import tty
 
 import pytest
 from click.testing import CliRunner
 
 import snakebot.transport.ports  # noqa: F401  (registers sim://)
-from snakebot import devices, servo_ops
+from snakebot import devices, protocol, servo_ops
 from snakebot.cli import main
-from snakebot.transport import open_port
+from snakebot.transport import DxlClient, open_port, settings
+from snakebot.transport.timing import wire_time_s
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -88,3 +91,76 @@ def test_ctrl_c_prints_what_was_found_and_exits_130():
     assert scan.returncode == 130, err
     assert "AX-12A" in "".join(lines)
     assert "Scan stopped by Ctrl-C" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("echo", [0, 1])
+def test_a_reply_later_than_its_window_is_still_attributed_to_its_id(monkeypatch, echo):
+    # The servo answers 1 ms after its Return Delay Time: past the silence window, so the
+    # next ID's PING is already out (on a real bus: an adapter slower than its setting),
+    # but after that PING, so the reply is intact. It names its ID; the scan takes it.
+    monkeypatch.setenv(settings.ENV_LATENCY_MS, "0")
+    monkeypatch.setenv(settings.ENV_MARGIN_MS, "0.5")
+    url = f"sim://?ids=7&return_delay=500&delay=1&echo={echo}"
+    with open_port(url, 1_000_000, timeout=0) as link:
+        silence = servo_ops.silence_s(DxlClient(link, 1_000_000, echo=bool(echo)))
+        reply_starts = wire_time_s(len(protocol.ping(7)), 1_000_000) + 500e-6 + 1e-3
+        assert reply_starts > silence  # the reply really is late
+        probes = list(servo_ops.scan_probes(link, range(5, 10), [1_000_000]))
+    assert sorted(p.id for p in probes) == [5, 6, 7, 8, 9]  # one result per ID
+    assert [(p.id, p.info.model) for p in probes if p.info] == [(7, "AX-12A")]
+
+
+@pytest.mark.parametrize("before, rate", [(3_000_000, 2_000_000), (400_000, 500_000)])
+def test_a_servo_that_heard_the_last_rate_as_garbage_answers_after_the_pause(
+    monkeypatch, before, rate
+):
+    # PINGs at `before` reach a servo at `rate` as garbage that leaves it inside a frame
+    # (without the pause between rates it swallows the first PINGs at its own rate and
+    # ID 0 is missed); the pause, a frame reset and the host's margin, clears it.
+    monkeypatch.setenv(settings.ENV_LATENCY_MS, "0")
+    monkeypatch.setenv(settings.ENV_MARGIN_MS, "0.5")
+    with open_port(f"sim://?ids=0&baud={rate}", before, timeout=0) as link:
+        windows = sum(servo_ops.silence_s(DxlClient(link, b)) for b in (before, rate))
+        start = link.bus.now
+        found = servo_ops.scan(link, range(0, 30), [before, rate])
+        took = link.bus.now - start
+    assert [(s.id, s.baud) for s in found] == [(0, rate)]
+    # the 30 silent windows at each rate, the pause, the reply and the READ identifying it
+    assert took < 30 * windows + protocol.FRAME_RESET_S + 5e-3
+
+
+def test_a_reply_that_never_ends_is_garbled_not_an_error(monkeypatch):
+    # On a real pty, a "reply" to ID 1 whose LEN announces more bytes than ever come:
+    # the parser holds more than a status packet's worth, and the scan must still read
+    # on (one byte at least), then try the ID again and call it garbled.
+    monkeypatch.setenv(settings.ENV_LATENCY_MS, "0")
+    monkeypatch.setenv(settings.ENV_MARGIN_MS, "2")
+    monkeypatch.setenv(settings.ENV_ECHO, "off")
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    never_ends = bytes([0xFF, 0xFF, 1, 0xF0]) + bytes(8)
+
+    def answer() -> None:
+        heard = b""
+        while True:
+            try:
+                heard += os.read(master, 64)
+            except OSError:
+                return
+            while len(heard) >= 6:
+                if heard[:6] == protocol.ping(1):
+                    os.write(master, never_ends)
+                heard = heard[6:]
+
+    threading.Thread(target=answer, daemon=True).start()
+    try:
+        with open_port(os.ttyname(slave), 1_000_000, timeout=0) as link:
+            probes = list(servo_ops.scan_probes(link, range(0, 3), [1_000_000]))
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert sorted((p.id, p.info, p.garbled) for p in probes) == [
+        (0, None, False),
+        (1, None, True),
+        (2, None, False),
+    ]

@@ -136,8 +136,10 @@ def scan_command(
     first byte of a reply on the wire, plus the USB adapter's latency and the host's
     margin (SNAKEBOT_LATENCY_MS, SNAKEBOT_MARGIN_MS): at 1000000 baud all 254 IDs take
     about 1 s with an adapter whose latency timer is lowered to 1 ms, about 5 s at an
-    FTDI adapter's default 16 ms. A servo whose baud rate you do not know turns up with
-    --bauds common, or --bauds all.
+    FTDI adapter's default 16 ms. A reply that comes after its ID's wait still counts
+    for the ID it names. A servo whose baud rate you do not know turns up with --bauds
+    common, or --bauds all (each further rate begins after a pause of 100 ms, the time
+    a servo takes to drop a packet begun by the last rate's bytes).
     """
     id_list = servo_ops.parse_ids(ids)
     rates = servo_ops.parse_bauds(bauds) if bauds else [baud]

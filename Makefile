@@ -19,11 +19,13 @@ DEMO_APT    := gcc python3-dev python3-venv gcc-arm-none-eabi libnewlib-arm-none
                qemu-system-arm
 TEST_APT    := $(DEMO_APT) clang libclang-rt-14-dev zlib1g-dev tmux
 
-# pytest workers: the suite waits on ptys, QEMU and timeouts as much as it computes.
-TEST_JOBS   ?= 2
+# pytest workers: twice the cores, as the suite waits on ptys, QEMU and timeouts as much
+# as it computes; the serial tests (see `test`) three at a time, measured to keep pace.
+TEST_JOBS   ?= $(shell echo $$(( $$(nproc) * 2 )))
+SERIAL_JOBS ?= 3
 
 .PHONY: help setup system-packages demo-packages python-env runtime-env core firmware \
-        test test-parallel test-serial lint fuzz-targets bench demo flash flash-image clean fuzz docs
+        test test-suite test-parallel test-serial test-fuzz lint fuzz-targets bench demo flash flash-image clean fuzz docs
 
 help:
 	@echo "make demo      run the main job on the emulated robot (does its own set-up)"
@@ -86,40 +88,45 @@ firmware: demo-packages
 	$(Q)$(MAKE) --no-print-directory -C firmware
 
 # The static checks, the firmware and the fuzz targets side by side (so no two processes
-# compile the same files at once); then three lanes at once:
-# - the tests marked `serial` (fault campaigns whose counts need QEMU to keep pace,
-#   real-time pty runs, dynamixel-sdk's fixed waits), one at a time at normal priority;
-# - the rest on TEST_JOBS workers (--dist loadfile: each test file whole in one worker, so
-#   module fixtures such as the package check's wheel are made once), and the fuzz tests
-#   split in two so that the two fuzzing passes overlap, all in the idle scheduling class
-#   (SCHED_IDLE): a serial test's process that wakes takes a core at once, as if nothing
-#   ran beside it, while the other lanes use every cycle it leaves. A fuzzing pass lasts
-#   its fixed time whatever its priority.
-# The serial and fuzz lanes write logs, shown whole if they fail and as one line if not,
-# so that outputs do not mix; the parallel lane prints its progress.
+# compile the same files at once); then two lanes at once:
+# - the tests, in two stages: those not marked `serial` on TEST_JOBS workers (--dist
+#   loadfile: each test file whole in one worker, so module fixtures such as the package
+#   check's wheel are made once), which wait on ptys, QEMU and timeouts as much as they
+#   compute; then those marked `serial` (fault campaigns whose counts need QEMU to keep
+#   pace, real-time pty runs, dynamixel-sdk's fixed waits) on SERIAL_JOBS workers: they
+#   use little CPU, and keep pace beside one busy process but not beside a CPU-bound
+#   suite (on a 2-core virtual machine both busy cores lose time to the host);
+# - the fuzz tests, the two fuzzing passes one after the other (the one busy process
+#   beside the serial stage), in the idle scheduling class (SCHED_IDLE) on the cycles
+#   the tests leave: a pass lasts its fixed time whatever its priority.
+# The serial stage and the fuzz lane write logs, shown whole if they fail and as one line
+# if not, so that outputs do not mix; the first stage prints its progress.
 FUZZ_TESTS  := tests/reliability/test_fuzz_targets.py
-FUZZ_K_1    := fuzz_pclink
-FUZZ_K_2    := not fuzz_pclink
 IDLE        := $(shell command -v chrt >/dev/null 2>&1 && echo "chrt --idle 0" || echo "nice -n 19")
 test: system-packages python-env
 	$(Q)$(MAKE) --no-print-directory -j$(TEST_JOBS) lint firmware fuzz-targets
-	$(Q)$(MAKE) --no-print-directory -j4 test-parallel test-serial test-fuzz-1 test-fuzz-2
+	$(Q)$(MAKE) --no-print-directory -j2 test-suite test-fuzz
+
+test-suite:
+	$(Q)$(MAKE) --no-print-directory test-parallel
+	$(Q)$(MAKE) --no-print-directory test-serial
 
 test-parallel:
-	$(Q)$(IDLE) $(PY) -m pytest -n $(TEST_JOBS) --dist loadfile -m "not serial" --ignore=$(FUZZ_TESTS)
+	$(Q)$(PY) -m pytest -n $(TEST_JOBS) --dist loadfile -m "not serial" --ignore=$(FUZZ_TESTS)
 
 test-serial:
 	@mkdir -p build
-	$(Q)$(PY) -m pytest -q -p no:cacheprovider -m serial > build/test-serial.log 2>&1 \
+	$(Q)$(PY) -m pytest -q -p no:cacheprovider -n $(SERIAL_JOBS) -m serial \
+	    > build/test-serial.log 2>&1 \
 	    && echo "serial tests: $$(tail -n1 build/test-serial.log)" \
 	    || { cat build/test-serial.log; exit 1; }
 
-test-fuzz-%:
+test-fuzz:
 	@mkdir -p build
 	$(Q)FUZZ_LAUNCH="$(IDLE)" $(IDLE) $(PY) -m pytest -q -p no:cacheprovider $(FUZZ_TESTS) \
-	    -k "$(FUZZ_K_$*)" > build/test-fuzz-$*.log 2>&1 \
-	    && echo "fuzz tests ($(FUZZ_K_$*)): $$(tail -n1 build/test-fuzz-$*.log)" \
-	    || { cat build/test-fuzz-$*.log; exit 1; }
+	    > build/test-fuzz.log 2>&1 \
+	    && echo "fuzz tests: $$(tail -n1 build/test-fuzz.log)" \
+	    || { cat build/test-fuzz.log; exit 1; }
 
 fuzz-targets:
 	$(Q)$(MAKE) --no-print-directory -C fuzz all

@@ -38,9 +38,9 @@ from snakebot.sim.qemu import Endpoint, QemuFirmware
 from snakebot.sim.transports.unixsock import UnixSocketServer
 from tools.campaigns import FRAMES, IDS, LIMITS, PERIOD_MS, Rig, gait_table, run
 
-# QEMU paces the PC link at 57600 baud in software: beside another worker on a 2-core
-# machine its replies can miss the client's deadline, so these are `serial` (nothing of
-# normal priority beside them).
+# QEMU paces the PC link at 57600 baud in software: beside a CPU-bound suite on a 2-core
+# machine its replies can miss the client's deadline, so these are `serial` (run apart
+# from the rest of the suite).
 pytestmark = [pytest.mark.qemu, pytest.mark.serial]
 
 ROBOT = dict(zip(IDS, LIMITS, strict=True))

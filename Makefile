@@ -19,13 +19,14 @@ DEMO_APT    := gcc python3-dev python3-venv gcc-arm-none-eabi libnewlib-arm-none
                qemu-system-arm
 TEST_APT    := $(DEMO_APT) clang libclang-rt-14-dev zlib1g-dev tmux
 
-# pytest workers: twice the cores, as the suite waits on ptys, QEMU and timeouts as much
-# as it computes; the serial tests (see `test`) three at a time, measured to keep pace.
+# pytest workers for the stages of `make test` (see there): twice the cores for most of
+# the suite, one per core for the tests that run QEMU, three for the serial tests.
 TEST_JOBS   ?= $(shell echo $$(( $$(nproc) * 2 )))
+QEMU_JOBS   ?= $(shell nproc)
 SERIAL_JOBS ?= 3
 
 .PHONY: help setup system-packages demo-packages python-env runtime-env core firmware \
-        test test-suite test-parallel test-serial test-fuzz lint fuzz-targets bench demo flash flash-image clean fuzz docs
+        test test-suite test-parallel test-qemu test-serial test-fuzz lint fuzz-targets bench demo flash flash-image clean fuzz docs
 
 help:
 	@echo "make demo      run the main job on the emulated robot (does its own set-up)"
@@ -89,18 +90,22 @@ firmware: demo-packages
 
 # The static checks, the firmware and the fuzz targets side by side (so no two processes
 # compile the same files at once); then two lanes at once:
-# - the tests, in two stages: those not marked `serial` on TEST_JOBS workers (--dist
-#   loadfile: each test file whole in one worker, so module fixtures such as the package
-#   check's wheel are made once), which wait on ptys, QEMU and timeouts as much as they
-#   compute; then those marked `serial` (fault campaigns whose counts need QEMU to keep
-#   pace, real-time pty runs, dynamixel-sdk's fixed waits) on SERIAL_JOBS workers: they
-#   use little CPU, and keep pace beside one busy process but not beside a CPU-bound
-#   suite (on a 2-core virtual machine both busy cores lose time to the host);
+# - the tests, in three stages, each measured on this project's 2-core virtual machine
+#   (where both busy cores lose time to the host): those that neither run QEMU nor are
+#   marked `serial` on TEST_JOBS workers, as they wait on ptys and timeouts as much as
+#   they compute; those that run the firmware in QEMU on QEMU_JOBS workers, which keeps
+#   each QEMU pacing its links in real time; then those marked `serial` (fault campaigns
+#   whose counts need QEMU to keep pace, real-time pty runs, dynamixel-sdk's fixed waits)
+#   on SERIAL_JOBS workers: they use little CPU, and keep pace beside one busy process
+#   but not beside a CPU-bound suite. The first stage hands tests out as workers free up
+#   (--dist worksteal), so one long test file does not keep the others waiting; the QEMU
+#   stage runs a test file whole in one worker (--dist loadfile), so the package check's
+#   wheel is built once; the serial tests are spread one by one;
 # - the fuzz tests, the two fuzzing passes one after the other (the one busy process
 #   beside the serial stage), in the idle scheduling class (SCHED_IDLE) on the cycles
 #   the tests leave: a pass lasts its fixed time whatever its priority.
-# The serial stage and the fuzz lane write logs, shown whole if they fail and as one line
-# if not, so that outputs do not mix; the first stage prints its progress.
+# The QEMU and serial stages and the fuzz lane write logs, shown whole if they fail and
+# as one line if not, so that outputs do not mix; the first stage prints its progress.
 FUZZ_TESTS  := tests/reliability/test_fuzz_targets.py
 IDLE        := $(shell command -v chrt >/dev/null 2>&1 && echo "chrt --idle 0" || echo "nice -n 19")
 test: system-packages python-env
@@ -109,17 +114,25 @@ test: system-packages python-env
 
 test-suite:
 	$(Q)$(MAKE) --no-print-directory test-parallel
+	$(Q)$(MAKE) --no-print-directory test-qemu
 	$(Q)$(MAKE) --no-print-directory test-serial
 
 test-parallel:
-	$(Q)$(PY) -m pytest -n $(TEST_JOBS) --dist loadfile -m "not serial" --ignore=$(FUZZ_TESTS)
+	$(Q)$(PY) -m pytest -n $(TEST_JOBS) --dist worksteal -m "not serial and not qemu" \
+	    --ignore=$(FUZZ_TESTS)
 
-test-serial:
+test-qemu test-serial: test-%:
 	@mkdir -p build
-	$(Q)$(PY) -m pytest -q -p no:cacheprovider -n $(SERIAL_JOBS) -m serial \
-	    > build/test-serial.log 2>&1 \
-	    && echo "serial tests: $$(tail -n1 build/test-serial.log)" \
-	    || { cat build/test-serial.log; exit 1; }
+	$(Q)$(PY) -m pytest -q -p no:cacheprovider -n $(STAGE_JOBS_$*) --dist $(STAGE_DIST_$*) \
+	    -m "$(STAGE_MARK_$*)" > build/test-$*.log 2>&1 \
+	    && echo "$* tests: $$(tail -n1 build/test-$*.log)" \
+	    || { cat build/test-$*.log; exit 1; }
+STAGE_JOBS_qemu    = $(QEMU_JOBS)
+STAGE_MARK_qemu   := qemu and not serial
+STAGE_DIST_qemu   := loadfile
+STAGE_JOBS_serial  = $(SERIAL_JOBS)
+STAGE_MARK_serial := serial
+STAGE_DIST_serial := load
 
 test-fuzz:
 	@mkdir -p build

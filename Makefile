@@ -26,7 +26,7 @@ QEMU_JOBS   ?= $(shell nproc)
 SERIAL_JOBS ?= 3
 
 .PHONY: help setup system-packages demo-packages python-env runtime-env core firmware \
-        test test-suite test-parallel test-qemu test-serial test-fuzz lint fuzz-targets bench demo flash flash-image clean fuzz docs
+        test test-suite test-parallel test-qemu test-serial test-fuzz-wheel test-fuzz test-wheel lint fuzz-targets bench demo flash flash-image clean fuzz docs
 
 help:
 	@echo "make demo      run the main job on the emulated robot (does its own set-up)"
@@ -89,28 +89,28 @@ firmware: demo-packages
 	$(Q)$(MAKE) --no-print-directory -C firmware
 
 # The static checks, the firmware and the fuzz targets side by side (so no two processes
-# compile the same files at once); then two lanes at once:
-# - the tests, in three stages, each measured on this project's 2-core virtual machine
-#   (where both busy cores lose time to the host): those that neither run QEMU nor are
-#   marked `serial` on TEST_JOBS workers, as they wait on ptys and timeouts as much as
-#   they compute; those that run the firmware in QEMU on QEMU_JOBS workers, which keeps
-#   each QEMU pacing its links in real time; then those marked `serial` (fault campaigns
-#   whose counts need QEMU to keep pace, real-time pty runs, dynamixel-sdk's fixed waits)
-#   on SERIAL_JOBS workers: they use little CPU, and keep pace beside one busy process
-#   but not beside a CPU-bound suite. The first stage hands tests out as workers free up
-#   (--dist worksteal), so one long test file does not keep the others waiting; the QEMU
-#   stage runs a test file whole in one worker (--dist loadfile), so the package check's
-#   wheel is built once; the serial tests are spread one by one;
-# - the fuzz tests, the two fuzzing passes one after the other (the one busy process
-#   beside the serial stage), in the idle scheduling class (SCHED_IDLE) on the cycles
-#   the tests leave: a pass lasts its fixed time whatever its priority.
-# The QEMU and serial stages and the fuzz lane write logs, shown whole if they fail and
-# as one line if not, so that outputs do not mix; the first stage prints its progress.
+# compile the same files at once); then two lanes at once, laid out by what was measured
+# on this project's 2-core virtual machine, where both busy cores lose time to the host:
+# - the tests in three stages: those that neither run QEMU nor are marked `serial`, on
+#   TEST_JOBS workers handed tests as they free up (--dist worksteal), as they wait on
+#   ptys and timeouts as much as they compute; those that run the firmware in QEMU, on
+#   QEMU_JOBS workers, a test file whole in each (--dist loadfile), which keeps each QEMU
+#   pacing its links in real time; then those marked `serial` (fault campaigns whose
+#   counts need QEMU to keep pace, real-time pty runs, dynamixel-sdk's fixed waits) on
+#   SERIAL_JOBS workers: they use little CPU, and keep pace beside one busy process but
+#   not beside a CPU-bound suite;
+# - the two fuzzing passes one after the other, in the idle scheduling class (SCHED_IDLE)
+#   on the cycles the tests leave (a pass lasts its fixed time whatever its priority),
+#   then the package check (it builds the wheel, then runs the demo from it in QEMU): by
+#   then the tests are in their serial stage, for which it is the one busy process.
+# Every lane but the first stage writes a log, shown whole if it fails and as one line if
+# not, so that outputs do not mix; the first stage prints its progress.
 FUZZ_TESTS  := tests/reliability/test_fuzz_targets.py
+WHEEL_TESTS := tests/packaging/test_wheel.py
 IDLE        := $(shell command -v chrt >/dev/null 2>&1 && echo "chrt --idle 0" || echo "nice -n 19")
 test: system-packages python-env
 	$(Q)$(MAKE) --no-print-directory -j$(TEST_JOBS) lint firmware fuzz-targets
-	$(Q)$(MAKE) --no-print-directory -j2 test-suite test-fuzz
+	$(Q)$(MAKE) --no-print-directory -j2 test-suite test-fuzz-wheel
 
 test-suite:
 	$(Q)$(MAKE) --no-print-directory test-parallel
@@ -124,7 +124,7 @@ test-parallel:
 test-qemu test-serial: test-%:
 	@mkdir -p build
 	$(Q)$(PY) -m pytest -q -p no:cacheprovider -n $(STAGE_JOBS_$*) --dist $(STAGE_DIST_$*) \
-	    -m "$(STAGE_MARK_$*)" > build/test-$*.log 2>&1 \
+	    -m "$(STAGE_MARK_$*)" --ignore=$(WHEEL_TESTS) > build/test-$*.log 2>&1 \
 	    && echo "$* tests: $$(tail -n1 build/test-$*.log)" \
 	    || { cat build/test-$*.log; exit 1; }
 STAGE_JOBS_qemu    = $(QEMU_JOBS)
@@ -134,12 +134,22 @@ STAGE_JOBS_serial  = $(SERIAL_JOBS)
 STAGE_MARK_serial := serial
 STAGE_DIST_serial := load
 
+test-fuzz-wheel:
+	$(Q)$(MAKE) --no-print-directory test-fuzz
+	$(Q)$(MAKE) --no-print-directory test-wheel
+
 test-fuzz:
 	@mkdir -p build
 	$(Q)FUZZ_LAUNCH="$(IDLE)" $(IDLE) $(PY) -m pytest -q -p no:cacheprovider $(FUZZ_TESTS) \
 	    > build/test-fuzz.log 2>&1 \
 	    && echo "fuzz tests: $$(tail -n1 build/test-fuzz.log)" \
 	    || { cat build/test-fuzz.log; exit 1; }
+
+test-wheel:
+	@mkdir -p build
+	$(Q)$(PY) -m pytest -q -p no:cacheprovider $(WHEEL_TESTS) > build/test-wheel.log 2>&1 \
+	    && echo "package check: $$(tail -n1 build/test-wheel.log)" \
+	    || { cat build/test-wheel.log; exit 1; }
 
 fuzz-targets:
 	$(Q)$(MAKE) --no-print-directory -C fuzz all

@@ -17,7 +17,7 @@ import time
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from firmware_support import build_firmware
+from firmware_support import QEMU_ENV, build_firmware
 
 from snakebot.cli import main
 from snakebot.demo import compare, table_phase
@@ -28,7 +28,7 @@ from snakebot.sim.serve import EmulatedRobot
 
 pytestmark = [pytest.mark.qemu, pytest.mark.slow]
 
-ENV = {"SNAKEBOT_MARGIN_MS": "300"}  # QEMU shares a loaded machine with other tests
+ENV = QEMU_ENV
 WARMUP_CYCLES = 1
 CYCLES = 2
 CONTROL_TICK_S = 0.010  # the firmware's control tick (firmware/boards/qemu/board.h)

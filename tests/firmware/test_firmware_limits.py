@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from controller_cli_support import cli, cli_json, save, wave_table
 from ctl_support import CTL, CTL_ID, Device, ffi, lib
-from firmware_support import QEMU_DIR, build_firmware, wait_for_boot
+from firmware_support import QEMU_DIR, QEMU_ENV, build_firmware, wait_for_boot
 
 from snakebot.controller import Command, ControllerErrors, LimitsState, State, UploadResult
 from snakebot.controller.limits import (
@@ -45,7 +45,7 @@ pytestmark = [pytest.mark.qemu, pytest.mark.serial]
 
 ROBOT = dict(zip(IDS, LIMITS, strict=True))
 FACTORY = (0, 1023)  # an AX-12's angle limits as shipped
-ENV = {"SNAKEBOT_MARGIN_MS": "300"}  # QEMU shares a loaded machine
+ENV = QEMU_ENV
 
 
 @pytest.fixture(scope="module", autouse=True)

@@ -15,7 +15,14 @@ import zlib
 
 import pytest
 from controller_cli_support import cli_json, save, wave_table
-from firmware_support import CONTROLLER_ID, QEMU_DIR, build_firmware, client, wait_for_boot
+from firmware_support import (
+    CONTROLLER_ID,
+    QEMU_DIR,
+    QEMU_ENV,
+    build_firmware,
+    client,
+    wait_for_boot,
+)
 
 from snakebot.protocol import Instruction, ProtocolError, read
 from snakebot.sim.options import SimOptions
@@ -24,7 +31,7 @@ from snakebot.sim.transports.unixsock import UnixSocketServer
 
 pytestmark = [pytest.mark.qemu, pytest.mark.timeout(300)]
 
-ENV = {"SNAKEBOT_MARGIN_MS": "300"}  # QEMU shares a loaded machine
+ENV = QEMU_ENV
 SYNC_WRITE_HEAD = bytes([0xFF, 0xFF, 0xFE])
 TICK_S = 0.010  # BOARD_CONTROL_TICK_MS
 FILL_TIMEOUT_S = 30.0  # replies leave at 57600 baud: about 4 s fill the terminal

@@ -9,7 +9,7 @@ import zlib
 
 import pytest
 from controller_cli_support import cli, cli_json, save, wave_table
-from firmware_support import served_firmware
+from firmware_support import QEMU_ENV, served_firmware
 
 from snakebot.controller import load
 from snakebot.controller.client import ControllerClient
@@ -19,7 +19,7 @@ from snakebot.flash.library_backup import backup_library, restore_library
 # QEMU behind a pty: its replies come late when another worker loads the machine
 pytestmark = [pytest.mark.qemu, pytest.mark.serial]
 
-ENV = {"SNAKEBOT_MARGIN_MS": "300"}
+ENV = QEMU_ENV
 CTL = load()
 
 

@@ -10,7 +10,7 @@ import zlib
 
 import pytest
 from controller_cli_support import SNAKE5_IDS, cli_json, constant_table, save, wave_table
-from firmware_support import CONTROLLER_ID, board_value, booted_qemu, client
+from firmware_support import CONTROLLER_ID, QEMU_ENV, board_value, booted_qemu, client
 
 from snakebot.controller import ControllerErrors, UploadResult, load
 from snakebot.controller.upload import chunk_limit, chunk_writes, commit_write
@@ -20,7 +20,7 @@ from snakebot.sim.faults import FaultConfig
 
 pytestmark = [pytest.mark.qemu, pytest.mark.timeout(300)]
 
-ENV = {"SNAKEBOT_MARGIN_MS": "300"}  # QEMU shares a loaded machine
+ENV = QEMU_ENV
 CTL = load()
 LONG = chunk_limit(CTL, long_chunks=True)
 CORRUPT = 0.01  # the fault campaigns' corrupt-1pct

@@ -9,14 +9,14 @@ import zlib
 
 import pytest
 from controller_cli_support import cli, cli_json, constant_table, save, wave_table
-from firmware_support import CONTROLLER_ID, board_value, booted_qemu, client
+from firmware_support import CONTROLLER_ID, QEMU_ENV, board_value, booted_qemu, client
 
 from snakebot.controller import load
 from snakebot.gaittable import max_frames
 
 pytestmark = [pytest.mark.qemu, pytest.mark.timeout(300)]
 
-ENV = {"SNAKEBOT_MARGIN_MS": "300"}  # QEMU shares a loaded machine
+ENV = QEMU_ENV
 CTL = load()
 LARGEST = max_frames(4, board_value("qemu", "BOARD_TABLE_CAPACITY"))  # QEMU's own
 

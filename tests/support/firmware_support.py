@@ -22,8 +22,9 @@ from snakebot.protocol import DxlTimeout
 from snakebot.sim.faults import FaultConfig
 from snakebot.sim.options import SimOptions
 from snakebot.sim.qemu import Endpoint, QemuFirmware
+from snakebot.sim.serve import PC_LINK_MARGIN_S
 from snakebot.sim.transports.unixsock import UnixSocketServer
-from snakebot.transport import DxlClient
+from snakebot.transport import DxlClient, settings
 
 BUILD = REPO_ROOT / "build"
 FIRMWARE = REPO_ROOT / "firmware"
@@ -56,7 +57,10 @@ PC_BAUD = 57600
 
 # Replies come within a millisecond or two; the margin only matters on a machine so busy
 # that QEMU is descheduled, and for the tests that wait for an answer that must not come.
-CLIENT_MARGIN_S = 0.5
+# It is the one the package gives programs that drive the emulated PC link.
+CLIENT_MARGIN_S = PC_LINK_MARGIN_S
+QEMU_ENV = {settings.ENV_MARGIN_MS: f"{CLIENT_MARGIN_S * 1e3:g}"}
+"""The same margin for the CLI run in process against QEMU."""
 
 
 def build_firmware() -> str:
@@ -79,10 +83,6 @@ def served_firmware(sock_dir: Path, robot: str = "snake5") -> Iterator[str]:
     """The QEMU image with its Dynamixel bus on a Unix socket served by ``robot``'s
     emulated servos (as `snakebot sim serve` runs it); yields its PC link's port once the
     firmware answers there."""
-    from snakebot.sim.options import SimOptions
-    from snakebot.sim.qemu import Endpoint, QemuFirmware
-    from snakebot.sim.transports.unixsock import UnixSocketServer
-
     build_firmware()
     sock = sock_dir / "bus.sock"
     bus = SimOptions(robot=robot).build_bus()

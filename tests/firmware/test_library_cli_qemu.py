@@ -9,7 +9,7 @@ import zlib
 
 import pytest
 from controller_cli_support import cli, cli_json, save, wave_table
-from firmware_support import QEMU_ENV, served_firmware
+from firmware_support import CLIENT_MARGIN_S, QEMU_ENV, served_firmware
 
 from snakebot.controller import load
 from snakebot.controller.client import ControllerClient
@@ -80,7 +80,9 @@ def test_store_list_play_stop_delete(firmware, tmp_path):
 def test_the_buttons_play_and_stop_and_a_backup_restores(firmware, tmp_path):
     path = save(wave_table(frames=50), tmp_path)
     assert cli("library", "store", "0", path, "--port", firmware, env=ENV).exit_code == 0
-    with ControllerClient.open(firmware, controller_id=CTL.default_id) as ctl:
+    with ControllerClient.open(
+        firmware, controller_id=CTL.default_id, margin_s=CLIENT_MARGIN_S
+    ) as ctl:
         start = CTL.enums["Buttons"]["START"]
         for held in (start, 0):  # hold START long enough to count, then let go
             ctl.write({"Buttons": held})

@@ -54,9 +54,8 @@ from snakebot.gaittable import GaitTable, write_gait
 from snakebot.robots import Robot, load_robot
 from snakebot.sim.physics.select import record_extras, world_of
 from snakebot.sim.physics.video import check_video_path, write_video
-from snakebot.sim.serve import PC_LINK_MARGIN_S, EmulatedRobot, ServeInfo
+from snakebot.sim.serve import EmulatedRobot, ServeInfo
 from snakebot.sim.world import WorldRecord
-from snakebot.transport.settings import resolve_margin_s
 
 FRAME_POLL_S = 0.1
 """Seconds between reads of the controller's Play Frame during playback."""
@@ -541,8 +540,7 @@ def run_demo(settings: DemoSettings | None = None, say: Say = print) -> DemoResu
             f"{info.qemu_pid}), servos {', '.join(map(str, info.servo_ids))} on the emulated "
             f"bus, PC link {info.pc_link}, the {settings.world} world"
         )
-        margin = max(resolve_margin_s(), PC_LINK_MARGIN_S)
-        with ControllerClient.open(info.pc_link, margin_s=margin) as ctl:
+        with ControllerClient.open(info.pc_link) as ctl:
             report = upload_gait(ctl, table, allow_new_servos=True)
             say(
                 f"3. upload: {report.summary()}; the controller's CRC 0x{report.crc:08x} "

@@ -11,12 +11,11 @@ import zlib
 
 import pytest
 from controller_cli_support import cli, cli_json, save, wave_table
-from firmware_support import QEMU_ENV, assert_healthy_bus, served_firmware
+from firmware_support import assert_healthy_bus, served_firmware
 
 pytestmark = pytest.mark.qemu
 
 # QEMU shares a loaded machine with other tests: allow for it being descheduled.
-ENV = QEMU_ENV
 
 
 @pytest.fixture(scope="module")
@@ -35,7 +34,6 @@ def records(port: str, duration: float, interval: float = 0.1) -> list[dict]:
         str(duration),
         "--interval",
         str(interval),
-        env=ENV,
     )
     assert result.exit_code == 0, result.output
     return [json.loads(line) for line in result.stdout.splitlines()]
@@ -44,14 +42,14 @@ def records(port: str, duration: float, interval: float = 0.1) -> list[dict]:
 def test_upload_play_monitor_stop_on_the_firmware(firmware, tmp_path):
     path = save(wave_table(), tmp_path)
     crc = zlib.crc32(path.read_bytes())
-    upload = cli("upload", path, "--port", firmware, "--json", env=ENV)
+    upload = cli("upload", path, "--port", firmware, "--json")
     assert upload.exit_code == 0, upload.output
     report = json.loads(upload.stdout)
     assert report["crc"] == f"0x{crc:08x}"
     assert report["attempts"] == 1, upload.stderr  # the retry's reason, if one was needed
     assert report["bytes"] == path.stat().st_size
 
-    played = cli_json("play", "--port", firmware, "--speed", "2", env=ENV)
+    played = cli_json("play", "--port", firmware, "--speed", "2")
     assert played["state"] == "PLAYING" and played["speed"] == 2.0
     assert played["table"]["crc"] == f"0x{crc:08x}"
 
@@ -72,7 +70,7 @@ def test_upload_play_monitor_stop_on_the_firmware(firmware, tmp_path):
     )
     assert len({s["position"] for s in last}) > 1  # the servos follow the wave
 
-    stopped = cli_json("stop", "--port", firmware, env=ENV)
+    stopped = cli_json("stop", "--port", firmware)
     assert stopped["state"] == "IDLE"
 
 
@@ -89,21 +87,20 @@ def test_serpenoid_on_the_firmware(firmware, tmp_path):
         "180deg",
         "-d",
         "90deg",
-        env=ENV,
     )
     assert status["state"] == "SERPENOID" and status["joint_count"] == 4
     samples = records(firmware, duration=0.4)
     goals = [s["servos"][0]["goal"] for s in samples]
     assert len(set(goals)) > 1
     assert all(s["controller"]["state"] == "SERPENOID" for s in samples)
-    assert cli_json("stop", "--port", firmware, env=ENV)["state"] == "IDLE"
+    assert cli_json("stop", "--port", firmware)["state"] == "IDLE"
 
 
 def test_unknown_servos_and_bad_values_are_refused_by_the_firmware_side(firmware, tmp_path):
     snake5 = save(wave_table(), tmp_path, "snake5.gait")
-    assert cli("upload", snake5, "--port", firmware, env=ENV).exit_code == 0  # the roster
+    assert cli("upload", snake5, "--port", firmware).exit_code == 0  # the roster
     path = save(wave_table(ids=(1, 2, 3, 4)), tmp_path)
-    result = cli("upload", path, "--port", firmware, env=ENV)
+    result = cli("upload", path, "--port", firmware)
     assert result.exit_code == 1 and "does not have" in result.stderr
-    result = cli("play", "--port", firmware, "--speed", "8", env=ENV)
+    result = cli("play", "--port", firmware, "--speed", "8")
     assert result.exit_code == 2 and "--speed 8 is outside" in result.stderr

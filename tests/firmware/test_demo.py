@@ -12,7 +12,7 @@ import sys
 import zlib
 
 import pytest
-from firmware_support import QEMU_ENV, build_firmware
+from firmware_support import build_firmware
 
 pytestmark = [pytest.mark.qemu, pytest.mark.slow]
 
@@ -31,7 +31,6 @@ def test_demo_json_reports_the_snake_advancing_and_writes_the_png(tmp_path, worl
         text=True,
         timeout=DEMO_TIMEOUT_S,
         check=False,
-        env={**os.environ, **QEMU_ENV},
     )
     assert done.returncode == 0, done.stderr
     result = json.loads(done.stdout)

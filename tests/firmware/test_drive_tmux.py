@@ -18,7 +18,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
-from firmware_support import CLIENT_MARGIN_S, QEMU_ENV, build_firmware
+from firmware_support import build_firmware
 
 from snakebot.controller.client import ControllerClient
 from snakebot.controller.drive import SPEED_STEP, STEER_STEP
@@ -101,8 +101,7 @@ def joints(screen: str) -> dict[str, float]:
 
 
 def test_drive_on_a_terminal(served):
-    margin = " ".join(f"{name}={value}" for name, value in QEMU_ENV.items())
-    command = f"{margin} {SNAKEBOT} drive --port {served} --robot snake5"
+    command = f"{SNAKEBOT} drive --port {served} --robot snake5"
     tmux = Tmux(f"{command}; echo EXIT=$?; sleep 60")
     try:
         first = tmux.wait_for(lambda s: "State SERPENOID" in s and len(joints(s)) == 4, "4 joints")
@@ -129,7 +128,7 @@ def test_drive_on_a_terminal(served):
     finally:
         tmux.close()
 
-    with ControllerClient.open(served, margin_s=CLIENT_MARGIN_S) as ctl:
+    with ControllerClient.open(served) as ctl:
         regs = ctl.read("State", "Steering Offset", "Speed Scale")
     steering = ctl.table.register("Steering Offset")
     assert regs["State"] == ctl.table.enums["State"]["IDLE"]  # q stopped the robot

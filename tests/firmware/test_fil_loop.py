@@ -17,7 +17,7 @@ import time
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from firmware_support import QEMU_ENV, build_firmware
+from firmware_support import build_firmware
 
 from snakebot.cli import main
 from snakebot.demo import compare, table_phase
@@ -28,7 +28,6 @@ from snakebot.sim.serve import EmulatedRobot
 
 pytestmark = [pytest.mark.qemu, pytest.mark.slow]
 
-ENV = QEMU_ENV
 WARMUP_CYCLES = 1
 CYCLES = 2
 CONTROL_TICK_S = 0.010  # the firmware's control tick (firmware/boards/qemu/board.h)
@@ -38,7 +37,7 @@ ALARM_TIMEOUT_S = 10.0
 
 
 def cli(*args: object) -> str:
-    result = CliRunner().invoke(main, [str(a) for a in args], env=ENV, catch_exceptions=False)
+    result = CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=False)
     assert result.exit_code == 0, result.output
     return result.stdout
 
@@ -163,7 +162,7 @@ def test_an_overload_puts_the_player_in_its_safe_state_and_monitor_shows_it(robo
     assert robot.positions() == first
 
     # PLAY is refused while the fault stands; the text monitor says why.
-    refused = CliRunner().invoke(main, ["play", "--port", port], env=ENV)
+    refused = CliRunner().invoke(main, ["play", "--port", port])
     assert refused.exit_code == 2 and "safe state" in refused.output
     text = cli("monitor", "--port", port, "--duration", "0")
     assert "SAFE" in text and "overload" in text.lower()

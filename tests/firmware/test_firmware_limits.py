@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from controller_cli_support import cli, cli_json, save, wave_table
 from ctl_support import CTL, CTL_ID, Device, ffi, lib
-from firmware_support import QEMU_DIR, QEMU_ENV, build_firmware, wait_for_boot
+from firmware_support import QEMU_DIR, build_firmware, wait_for_boot
 
 from snakebot.controller import Command, ControllerErrors, LimitsState, State, UploadResult
 from snakebot.controller.limits import (
@@ -45,7 +45,6 @@ pytestmark = [pytest.mark.qemu, pytest.mark.serial]
 
 ROBOT = dict(zip(IDS, LIMITS, strict=True))
 FACTORY = (0, 1023)  # an AX-12's angle limits as shipped
-ENV = QEMU_ENV
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -231,13 +230,13 @@ def test_limits_set_from_the_robot_file_then_a_wider_table_is_refused(tmp_path):
     ):
         port = fw.ports.pc_link
         wait_for_boot(port)
-        assert cli_json("limits", "show", "--port", port, env=ENV) == {
+        assert cli_json("limits", "show", "--port", port) == {
             "state": "NONE",
             "count": 0,
             "torque_limit": None,
             "torque_limit_percent": None,
         }
-        report = cli_json("limits", "set", "snake5", "--port", port, env=ENV)
+        report = cli_json("limits", "set", "snake5", "--port", port)
         assert (report["state"], report["count"]) == ("VERIFIED", len(wanted))
         with server.lock:
             held = [
@@ -245,7 +244,7 @@ def test_limits_set_from_the_robot_file_then_a_wider_table_is_refused(tmp_path):
                 for i in robot.servo_ids
             ]
         assert held == wanted
-        shown = cli_json("limits", "show", "--port", port, env=ENV)
+        shown = cli_json("limits", "show", "--port", port)
         assert shown == {
             "state": "VERIFIED",
             "count": len(wanted),
@@ -258,13 +257,13 @@ def test_limits_set_from_the_robot_file_then_a_wider_table_is_refused(tmp_path):
         frames = np.array(wave.frames)
         frames[0], frames[1] = 896, 198
         wide = GaitTable(wave.joint_ids, 20, True, ((24, 1000),) * len(wanted), frames, {})
-        result = cli("upload", save(wide, tmp_path, "wide.gait"), "--port", port, env=ENV)
+        result = cli("upload", save(wide, tmp_path, "wide.gait"), "--port", port)
         assert result.exit_code == 1, result.output  # refused by the controller: UploadError
         assert "OUTSIDE_ROBOT_LIMITS" in result.stderr and "limits set" in result.stderr
         own = GaitTable(wave.joint_ids, 20, True, tuple(wanted), wave.frames, {})
-        assert cli_json("upload", save(own, tmp_path), "--port", port, env=ENV)["bytes"] > 0
+        assert cli_json("upload", save(own, tmp_path), "--port", port)["bytes"] > 0
         # at once after the upload (a new roster: the servos are being checked) play waits
-        assert cli_json("play", "--port", port, env=ENV)["state"] == "PLAYING"
+        assert cli_json("play", "--port", port)["state"] == "PLAYING"
 
 
 def test_the_limits_kept_in_flash_come_back_as_they_were_set():

@@ -18,7 +18,6 @@ from controller_cli_support import cli_json, save, wave_table
 from firmware_support import (
     CONTROLLER_ID,
     QEMU_DIR,
-    QEMU_ENV,
     build_firmware,
     client,
     wait_for_boot,
@@ -31,7 +30,6 @@ from snakebot.sim.transports.unixsock import UnixSocketServer
 
 pytestmark = [pytest.mark.qemu, pytest.mark.timeout(300)]
 
-ENV = QEMU_ENV
 SYNC_WRITE_HEAD = bytes([0xFF, 0xFF, 0xFE])
 TICK_S = 0.010  # BOARD_CONTROL_TICK_MS
 FILL_TIMEOUT_S = 30.0  # replies leave at 57600 baud: about 4 s fill the terminal
@@ -114,7 +112,7 @@ def test_a_trickle_of_false_headers_does_not_lock_the_link(robot, tmp_path):
         try:
             t0 = time.monotonic()
             for _ in range(10):
-                report = cli_json("upload", path, "--port", fw.ports.pc_link, env=ENV)
+                report = cli_json("upload", path, "--port", fw.ports.pc_link)
                 assert report["crc"] == f"0x{crc:08x}"
             elapsed = time.monotonic() - t0
         finally:
@@ -134,8 +132,8 @@ def test_an_unread_read_flood_does_not_stop_the_control_loop(robot, tmp_path):
     and the emulator drops what the terminal cannot take; the link answers afterwards."""
     fw, server, goals = robot
     path = save(wave_table(), tmp_path)
-    cli_json("upload", path, "--port", fw.ports.pc_link, env=ENV)
-    cli_json("play", "--port", fw.ports.pc_link, env=ENV)
+    cli_json("upload", path, "--port", fw.ports.pc_link)
+    cli_json("play", "--port", fw.ports.pc_link)
 
     def bus_now() -> float:
         with server.lock:

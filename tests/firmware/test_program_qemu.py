@@ -11,7 +11,7 @@ import time
 
 import numpy as np
 import pytest
-from firmware_support import CLIENT_MARGIN_S, build_firmware
+from firmware_support import build_firmware
 
 from snakebot.controller import playback
 from snakebot.controller.client import ControllerClient
@@ -79,7 +79,7 @@ def test_a_program_reaches_the_servos_as_predicted():
     with EmulatedRobot("snake5") as robot:
         program = three_segments(robot)
         ids = program.joint_ids
-        ctl = ControllerClient.open(robot.info.pc_link, margin_s=CLIENT_MARGIN_S)
+        ctl = ControllerClient.open(robot.info.pc_link)
         try:
             report = upload_gait(ctl, program)
             assert report.bytes == len(program.encode())
@@ -123,7 +123,7 @@ def test_a_planned_program_takes_the_robot_where_predicted(tmp_path):
     write_program(path, plan.program)
     predicted = predict_program(path).summary()
     with EmulatedRobot("trident") as robot:
-        ctl = ControllerClient.open(robot.info.pc_link, margin_s=CLIENT_MARGIN_S)
+        ctl = ControllerClient.open(robot.info.pc_link)
         try:
             upload_gait(ctl, plan.program)
             assert playback.play(ctl).get("program")

@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from firmware_support import CLIENT_MARGIN_S, board_value, booted_qemu
+from firmware_support import board_value, booted_qemu
 
 from snakebot.controller.client import ControllerClient
 from snakebot.controller.errors import ControllerError
@@ -28,7 +28,7 @@ def port(tmp_path_factory):
 
 
 def test_the_issue_serpenoid_is_refused_on_board(port):
-    with ControllerClient.open(port, margin_s=CLIENT_MARGIN_S) as ctl:
+    with ControllerClient.open(port) as ctl:
         reasons = ctl.table.enums["Refusal Reason"]
         ctl.set_roster(roster_from_robot(load_robot("snake5")))
         ctl.command("CLEAR")

@@ -11,7 +11,7 @@ import time
 
 import numpy as np
 import pytest
-from firmware_support import CLIENT_MARGIN_S, build_firmware
+from firmware_support import build_firmware
 
 from snakebot.controller.client import ControllerClient
 from snakebot.controller.playback import SerpenoidSettings, roster_from_robot, serpenoid
@@ -48,7 +48,7 @@ def _record_goals(robot: EmulatedRobot) -> dict[int, list[tuple[float, int]]]:
 def test_a_large_phi0_step_reaches_the_servos_slewed():
     build_firmware()
     with EmulatedRobot("snake5") as robot:
-        ctl = ControllerClient.open(robot.info.pc_link, margin_s=CLIENT_MARGIN_S)
+        ctl = ControllerClient.open(robot.info.pc_link)
         try:
             wave = SerpenoidSettings(amplitude=math.radians(20), omega=OMEGA, delta=1.5)
             serpenoid(ctl, wave, roster=roster_from_robot(robot.robot))

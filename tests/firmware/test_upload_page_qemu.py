@@ -10,7 +10,7 @@ import zlib
 
 import pytest
 from controller_cli_support import SNAKE5_IDS, cli_json, constant_table, save, wave_table
-from firmware_support import CONTROLLER_ID, QEMU_ENV, board_value, booted_qemu, client
+from firmware_support import CONTROLLER_ID, board_value, booted_qemu, client
 
 from snakebot.controller import ControllerErrors, UploadResult, load
 from snakebot.controller.upload import chunk_limit, chunk_writes, commit_write
@@ -20,7 +20,6 @@ from snakebot.sim.faults import FaultConfig
 
 pytestmark = [pytest.mark.qemu, pytest.mark.timeout(300)]
 
-ENV = QEMU_ENV
 CTL = load()
 LONG = chunk_limit(CTL, long_chunks=True)
 CORRUPT = 0.01  # the fault campaigns' corrupt-1pct
@@ -38,7 +37,7 @@ def test_the_largest_table_uploads_in_long_chunks_on_the_firmware(firmware, tmp_
     path = save(wave_table(frames=max_frames(4, CAPACITY)), tmp_path)
     crc = zlib.crc32(path.read_bytes())
     for _ in range(2):  # the second replaces the first the same way
-        report = cli_json("upload", path, "--port", firmware, env=ENV)
+        report = cli_json("upload", path, "--port", firmware)
         assert report["chunk_bytes"] == LONG
         assert report["crc"] == f"0x{crc:08x}" and report["bytes"] == path.stat().st_size
         assert report["chunks"] == -(-report["bytes"] // LONG)

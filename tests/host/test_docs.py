@@ -173,4 +173,6 @@ def test_settings_page_defaults_are_the_codes(monkeypatch):
         expected[env] = getattr(defaults, field)
     for env, value in expected.items():
         assert _number(rows[env]) == pytest.approx(value), f"{env}: doc {rows[env]!r}"
+    pty_margin = f"({timing.PROGRAM_MARGIN_S * 1e3:g} for a controller on a pseudo-terminal)"
+    assert pty_margin in rows[transport_settings.ENV_MARGIN_MS]
     assert rows[transport_settings.ENV_ECHO] == "`auto`" == f"`{transport_settings.resolve_echo()}`"

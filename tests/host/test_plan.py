@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from firmware_support import QEMU_ENV, board_value
+from firmware_support import board_value
 
 from snakebot.cli import main
 from snakebot.gaittable import MAX_TABLE_BYTES, read_gait
@@ -226,5 +226,5 @@ def test_a_plan_for_the_qemu_firmwares_capacity_fits_and_uploads(tmp_path):
         report = json.loads(result.stdout)
         assert report["capacity_bytes"] == qemu
         assert report["table_bytes"] == out.stat().st_size <= qemu
-        uploaded = cli_json("upload", out, "--port", port, env=QEMU_ENV)
+        uploaded = cli_json("upload", out, "--port", port)
         assert uploaded["bytes"] == out.stat().st_size

@@ -9,14 +9,13 @@ import zlib
 
 import pytest
 from controller_cli_support import cli, cli_json, constant_table, save, wave_table
-from firmware_support import CONTROLLER_ID, QEMU_ENV, board_value, booted_qemu, client
+from firmware_support import CONTROLLER_ID, board_value, booted_qemu, client
 
 from snakebot.controller import load
 from snakebot.gaittable import max_frames
 
 pytestmark = [pytest.mark.qemu, pytest.mark.timeout(300)]
 
-ENV = QEMU_ENV
 CTL = load()
 LARGEST = max_frames(4, board_value("qemu", "BOARD_TABLE_CAPACITY"))  # QEMU's own
 
@@ -35,7 +34,7 @@ def active_crc(port: str) -> int:
 
 def test_the_largest_table_in_one_stream_says_the_link_is_not_paced(firmware, tmp_path):
     path = save(wave_table(frames=LARGEST), tmp_path)
-    report = cli_json("upload", path, "--port", firmware, env=ENV)
+    report = cli_json("upload", path, "--port", firmware)
     assert report["crc"] == f"0x{zlib.crc32(path.read_bytes()):08x}"
     assert report["attempts"] == 1
     # QEMU moves the bytes faster than 57600 baud would: no percentage, and it says so
@@ -45,11 +44,11 @@ def test_the_largest_table_in_one_stream_says_the_link_is_not_paced(firmware, tm
 
 def test_a_failing_check_with_chunks_in_flight_keeps_the_firmwares_table(firmware, tmp_path):
     kept = save(wave_table(frames=LARGEST), tmp_path, "kept.gait")
-    assert cli("upload", kept, "--port", firmware, env=ENV).exit_code == 0
+    assert cli("upload", kept, "--port", firmware).exit_code == 0
     strangers = save(constant_table(512, ids=(1, 2, 3, 4), frames=250), tmp_path)
-    result = cli("upload", strangers, "--port", firmware, env=ENV)
+    result = cli("upload", strangers, "--port", firmware)
     assert result.exit_code == 1
     assert "which the controller does not have" in result.stderr
     assert active_crc(firmware) == zlib.crc32(kept.read_bytes())
     # the link is clean for the next command
-    assert cli("upload", kept, "--port", firmware, env=ENV).exit_code == 0
+    assert cli("upload", kept, "--port", firmware).exit_code == 0

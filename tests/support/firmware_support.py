@@ -22,9 +22,9 @@ from snakebot.protocol import DxlTimeout
 from snakebot.sim.faults import FaultConfig
 from snakebot.sim.options import SimOptions
 from snakebot.sim.qemu import Endpoint, QemuFirmware
-from snakebot.sim.serve import PC_LINK_MARGIN_S
 from snakebot.sim.transports.unixsock import UnixSocketServer
-from snakebot.transport import DxlClient, settings
+from snakebot.transport import DxlClient
+from snakebot.transport.timing import PROGRAM_MARGIN_S
 
 BUILD = REPO_ROOT / "build"
 FIRMWARE = REPO_ROOT / "firmware"
@@ -57,10 +57,9 @@ PC_BAUD = 57600
 
 # Replies come within a millisecond or two; the margin only matters on a machine so busy
 # that QEMU is descheduled, and for the tests that wait for an answer that must not come.
-# It is the one the package gives programs that drive the emulated PC link.
-CLIENT_MARGIN_S = PC_LINK_MARGIN_S
-QEMU_ENV = {settings.ENV_MARGIN_MS: f"{CLIENT_MARGIN_S * 1e3:g}"}
-"""The same margin for the CLI run in process against QEMU."""
+# It is the one ControllerClient.open gives itself on a pseudo-terminal: the raw clients
+# below take it by hand.
+CLIENT_MARGIN_S = PROGRAM_MARGIN_S
 
 
 def build_firmware() -> str:

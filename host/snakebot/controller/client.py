@@ -30,7 +30,8 @@ from snakebot.controller.errors import (
 )
 from snakebot.controller.table import Controller, Register, load
 from snakebot.protocol import CorruptPacket, DxlTimeout, ErrorFlags, ServoError
-from snakebot.transport import DxlClient
+from snakebot.transport import DxlClient, settings, timing
+from snakebot.transport.ports import is_pseudo_terminal
 
 PC_LINK_BAUD = 57600
 """The CM-530 firmware's PC link (USART3) rate, as on the ROBOTIS controllers."""
@@ -128,8 +129,16 @@ class ControllerClient:
     ) -> ControllerClient:
         """Open ``port`` (device path or URL). The PC link never echoes, so the client is
         told so (``echo=False``) unless ``link_options`` say otherwise; and the device
-        there is the controller (its Status Return Level is not where a servo's is)."""
+        there is the controller (its Status Return Level is not where a servo's is).
+
+        On a pseudo-terminal the controller is a program on this host (`snakebot sim
+        serve`), which a busy host may deschedule far longer than a UART stalls: unless
+        ``margin_s`` or ``SNAKEBOT_MARGIN_MS`` says otherwise, replies there get
+        ``timing.PROGRAM_MARGIN_S`` of slack. It costs nothing while the controller
+        answers; the controller is one device at one ID, never scanned for."""
         link_options.setdefault("echo", False)
+        if link_options.get("margin_s") is None and is_pseudo_terminal(port):
+            link_options["margin_s"] = settings.resolve_margin_s(default=timing.PROGRAM_MARGIN_S)
         link_options.setdefault("device", devices.controller())
         link = DxlClient(port, baudrate, **link_options)
         return cls(link, controller_id, port_name=port)

@@ -80,10 +80,6 @@ BOOT_TIMEOUT_S = 20.0
 BOOT_PING_MARGIN_S = 0.2
 """Reply margin of the boot-time PINGs (QEMU may be descheduled on a busy machine)."""
 
-PC_LINK_MARGIN_S = 0.5
-"""Reply margin for programs driving the emulated PC link: QEMU answers within a
-millisecond or two, unless the host deschedules it for a while on a busy machine."""
-
 
 class ServeError(SimError):
     """The emulated robot could not be started as asked (the message says how to fix it)."""

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import errno
 import os
+import re
+import stat
 import sys
 import tempfile
 from pathlib import Path
@@ -107,6 +109,29 @@ class PortLock:
 
 def _is_device(url: str) -> bool:
     return "://" not in url
+
+
+LINUX_PTY_SLAVE_MAJORS = range(136, 144)
+"""Character-device major numbers of Unix98 pseudo-terminal slaves (/dev/pts/N) in Linux's
+list of allocated devices (Documentation/admin-guide/devices.txt)."""
+
+_MACOS_PTY = re.compile(r"/dev/ttys\d+")
+
+
+def is_pseudo_terminal(url: str) -> bool:
+    """Whether ``url`` is a pseudo-terminal (by way of any symlink): the device at its far
+    end is then a program on this host, such as the emulated controller, not a UART."""
+    if not _is_device(url):
+        return False
+    try:
+        mode = os.stat(url)
+    except OSError:
+        return False
+    if not stat.S_ISCHR(mode.st_mode):
+        return False
+    if sys.platform.startswith("linux"):
+        return os.major(mode.st_rdev) in LINUX_PTY_SLAVE_MAJORS
+    return _MACOS_PTY.fullmatch(os.path.realpath(url)) is not None
 
 
 def open_port(

@@ -6,7 +6,9 @@ setting                        environment variable   default
 =============================  =====================  ==========================
 retries after the first try    SNAKEBOT_RETRIES       ``DEFAULT_RETRIES``
 USB adapter latency            SNAKEBOT_LATENCY_MS    ``timing.USB_LATENCY_S``
-host scheduling margin         SNAKEBOT_MARGIN_MS     ``timing.HOST_MARGIN_S``
+host scheduling margin         SNAKEBOT_MARGIN_MS     ``timing.HOST_MARGIN_S`` (a
+                                                      controller on a pty:
+                                                      ``timing.PROGRAM_MARGIN_S``)
 servo Return Delay Time        SNAKEBOT_RETURN_DELAY_US ``timing.DEFAULT_RETURN_DELAY_US``
 instruction echo on the bus    SNAKEBOT_ECHO          ``auto`` (also on / off)
 shortest echo-probe wait       SNAKEBOT_ECHO_PROBE_MS ``timing.ECHO_PROBE_MIN_S``
@@ -99,9 +101,10 @@ def resolve_latency_s(value: float | None = None) -> float:
     return _resolve_seconds(value, ENV_LATENCY_MS, 1e-3, timing.USB_LATENCY_S, "latency_s")
 
 
-def resolve_margin_s(value: float | None = None) -> float:
-    """Host scheduling margin in seconds: keyword, else ``SNAKEBOT_MARGIN_MS``, else default."""
-    return _resolve_seconds(value, ENV_MARGIN_MS, 1e-3, timing.HOST_MARGIN_S, "margin_s")
+def resolve_margin_s(value: float | None = None, default: float = timing.HOST_MARGIN_S) -> float:
+    """Host scheduling margin in seconds: keyword, else ``SNAKEBOT_MARGIN_MS``, else
+    ``default``."""
+    return _resolve_seconds(value, ENV_MARGIN_MS, 1e-3, default, "margin_s")
 
 
 def resolve_return_delay_us(value: float | None = None) -> float:

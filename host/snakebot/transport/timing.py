@@ -32,6 +32,12 @@ HOST_MARGIN_S = 0.004
 """Allowance for the host operating system scheduling us late. Override with
 ``SNAKEBOT_MARGIN_MS``."""
 
+PROGRAM_MARGIN_S = 0.5
+"""Allowance when the device at the far end is a program on this host (the emulated
+controller under QEMU behind a pseudo-terminal): it answers within a millisecond or two,
+unless the host deschedules it for a while on a busy machine, for far longer than a UART
+ever stalls. ``SNAKEBOT_MARGIN_MS`` overrides it too."""
+
 ECHO_PROBE_MIN_S = 0.25
 """The shortest wait for the echo of the broadcast PING that "auto" echo detection sends
 once, when its first exchange is ambiguous. Missing that echo would make the client

@@ -53,7 +53,6 @@ def behind_firmware(table, robot) -> tuple[float, float]:  # noqa: ANN001
     from snakebot.controller.playback import stop
     from snakebot.controller.uploader import upload_gait
     from snakebot.sim.serve import EmulatedRobot
-    from snakebot.transport.timing import PROGRAM_MARGIN_S
 
     spent = [0.0]
     tick = PhysicsWorld._tick
@@ -67,7 +66,7 @@ def behind_firmware(table, robot) -> tuple[float, float]:  # noqa: ANN001
     emulated = EmulatedRobot(robot, world="mujoco")
     try:
         info = emulated.start()
-        with ControllerClient.open(info.pc_link, margin_s=PROGRAM_MARGIN_S) as ctl:
+        with ControllerClient.open(info.pc_link) as ctl:
             upload_gait(ctl, table, allow_new_servos=True)
             spent[0] = 0.0
             world0, wall0 = emulated.world_time(), time.perf_counter()

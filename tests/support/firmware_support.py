@@ -55,12 +55,6 @@ STUB_BASE = 0x08000000
 CONTROLLER_ID = 200
 PC_BAUD = 57600
 
-# Replies come within a millisecond or two; the margin only matters on a machine so busy
-# that QEMU is descheduled, and for the tests that wait for an answer that must not come.
-# It is the one ControllerClient.open gives itself on a pseudo-terminal: the raw clients
-# below take it by hand.
-CLIENT_MARGIN_S = PROGRAM_MARGIN_S
-
 
 def build_firmware() -> str:
     """Run `make -C firmware` (does nothing when up to date); returns its output."""
@@ -140,9 +134,10 @@ def assert_healthy_bus(reads: int, timeouts: int) -> None:
 
 def client(port: str) -> DxlClient:
     """A Protocol 1.0 client on the emulated PC link (a pty path)."""
-    # The controller, not an AX-12: its registers (and their ranges) are its own.
+    # The controller, not an AX-12: its registers (and their ranges) are its own. A raw
+    # client: it takes by hand the margin ControllerClient.open gives a pseudo-terminal.
     return DxlClient(
-        port, PC_BAUD, margin_s=CLIENT_MARGIN_S, echo=False, device=devices.controller()
+        port, PC_BAUD, margin_s=PROGRAM_MARGIN_S, echo=False, device=devices.controller()
     )
 
 

@@ -40,12 +40,12 @@ import time
 
 import numpy as np
 
-import snakebot.transport.ports  # noqa: F401  (registers sim://)
-from snakebot import protocol
-from snakebot.sim.bus import Bus
+import snakebot.link.transport.ports  # noqa: F401  (registers sim://)
+from snakebot.formats import protocol
+from snakebot.link.transport import DxlClient
+from snakebot.sim.bus.bus import Bus
 from snakebot.sim.options import SimOptions
-from snakebot.sim.servo import ReferenceServo
-from snakebot.transport import DxlClient
+from snakebot.sim.servo.reference import ReferenceServo
 
 CONTROL_HZ = 100
 SIZES = (5, 18, 50)

@@ -4,7 +4,7 @@ Each control tick the firmware's bus master sends one SYNC_WRITE of goal positio
 moving speeds to the whole roster, then one telemetry READ (Present Position through
 Present Temperature) of the next servo, round robin, and waits for its status packet. Here the
 firmware's own bus master (``firmware/core/bus_master.c`` through ``snakebot._core``)
-produces the packets, and they go onto the emulated bus (``snakebot.sim.bus``) with virtual
+produces the packets, and they go onto the emulated bus (``snakebot.sim.bus.bus``) with virtual
 AX-12As on its virtual clock, which times every byte at 10 bits at the servos' baud rate
 and honours their Return Delay Time. Measured: from the first byte of the tick's
 SYNC_WRITE to the last byte of the status packet, averaged over the ticks of two rounds
@@ -20,10 +20,11 @@ from __future__ import annotations
 
 import sys
 
-from snakebot import devices, protocol
 from snakebot.core import ffi, lib
-from snakebot.sim.bus import Bus
-from snakebot.sim.servo import VirtualServo
+from snakebot.facts import devices
+from snakebot.formats import protocol
+from snakebot.sim.bus.bus import Bus
+from snakebot.sim.servo.reference import VirtualServo
 
 AX12 = devices.ax12()
 BAUD = 1_000_000
@@ -116,11 +117,11 @@ def observed_in_qemu(seconds: float = 2.0) -> tuple[int, float, float] | None:
     import shutil
     import time
 
-    from snakebot.controller.client import ControllerClient
-    from snakebot.controller.playback import play, stop
-    from snakebot.controller.uploader import upload_gait
-    from snakebot.gait import serpenoid
-    from snakebot.robots import load_robot
+    from snakebot.link.controller.client import ControllerClient
+    from snakebot.link.controller.playback import play, stop
+    from snakebot.link.controller.upload import upload_gait
+    from snakebot.model.gait import serpenoid
+    from snakebot.model.robots import load_robot
     from snakebot.sim.serve import DEFAULT_FIRMWARE, EmulatedRobot
 
     if shutil.which("qemu-system-arm") is None or not DEFAULT_FIRMWARE.is_file():

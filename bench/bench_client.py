@@ -59,9 +59,9 @@ from dataclasses import dataclass
 import serial
 from ptyfloor import bare_rate
 
-from snakebot import protocol
-from snakebot.transport import DxlClient
-from snakebot.transport.timing import wire_time_s
+from snakebot.formats import protocol
+from snakebot.link.transport import DxlClient
+from snakebot.link.transport.timing import wire_time_s
 
 BAUD = 1_000_000
 SERVO_ID, ADDRESS, LENGTH = 1, 36, 2

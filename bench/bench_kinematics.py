@@ -24,7 +24,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from snakebot.kinematics import (
+from snakebot.model.kinematics import (
     Inputs,
     Options,
     Sines,
@@ -32,7 +32,7 @@ from snakebot.kinematics import (
     integrate_joints,
     integrate_joints_batch,
 )
-from snakebot.robots import load_robot
+from snakebot.model.robots import load_robot
 
 RTOL, ATOL = 1e-8, 1e-10
 METHOD = "dop853"  # the core's method; "dopri5" for Dormand-Prince 5(4)

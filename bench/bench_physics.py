@@ -20,12 +20,12 @@ import os
 import sys
 import time
 
-import snakebot.transport.ports  # noqa: F401  (registers sim://)
-from snakebot.gait import serpenoid
-from snakebot.robots import load_robot
+import snakebot.link.transport.ports  # noqa: F401  (registers sim://)
+from snakebot.link.transport import DxlClient
+from snakebot.model.gait import serpenoid
+from snakebot.model.robots import load_robot
 from snakebot.sim.physics.world import PhysicsWorld
-from snakebot.sim.predict import move_to_start, play, sim_url
-from snakebot.transport import DxlClient
+from snakebot.workflows.predict import move_to_start, play, sim_url
 
 GOAL_REALTIME = 100.0
 GOAL_CORE_SHARE = 0.10
@@ -48,10 +48,10 @@ def in_process(table, robot, world: str) -> tuple[float, float]:  # noqa: ANN001
 def behind_firmware(table, robot) -> tuple[float, float]:  # noqa: ANN001
     """(share of a core in the physics world's steps, firmware playback rate) while QEMU
     plays ``table`` in a loop for SERVE_SECONDS."""
-    from snakebot.controller.client import ControllerClient
-    from snakebot.controller.playback import play as play_table
-    from snakebot.controller.playback import stop
-    from snakebot.controller.uploader import upload_gait
+    from snakebot.link.controller.client import ControllerClient
+    from snakebot.link.controller.playback import play as play_table
+    from snakebot.link.controller.playback import stop
+    from snakebot.link.controller.upload import upload_gait
     from snakebot.sim.serve import EmulatedRobot
 
     spent = [0.0]

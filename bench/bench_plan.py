@@ -20,10 +20,10 @@ import time
 
 import numpy as np
 
-from snakebot.boards import TABLE_CAPACITY
-from snakebot.gait.common import table_motion
-from snakebot.plan import Unreachable, body_length, make_plan
-from snakebot.robots import load_robot
+from snakebot.facts.boards import TABLE_CAPACITY
+from snakebot.model.gait.common import table_motion
+from snakebot.model.plan import Unreachable, body_length, make_plan
+from snakebot.model.robots import load_robot
 
 GOAL_S = 2.0
 TARGETS = 3

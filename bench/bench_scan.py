@@ -44,9 +44,10 @@ from pathlib import Path
 import dynamixel_sdk
 import dynamixel_sdk.port_handler as sdk_port
 
-from snakebot import protocol, servo_ops
-from snakebot.transport import BusTiming, open_port, settings
-from snakebot.transport.timing import wire_time_s
+from snakebot.formats import protocol
+from snakebot.link.bus import servo_ops
+from snakebot.link.transport import BusTiming, open_port, settings
+from snakebot.link.transport.timing import wire_time_s
 
 BAUD = 1_000_000
 IDS = range(0, protocol.MAX_ID + 1)

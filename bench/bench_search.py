@@ -21,9 +21,9 @@ import os
 import sys
 import time
 
-from snakebot.search import LocalRunner, Request, Search, Settings, Space
-from snakebot.search.evaluate import evaluate_many
-from snakebot.search.runner import DaskRunner, Runner
+from snakebot.workflows.search import LocalRunner, Request, Search, Settings, Space
+from snakebot.workflows.search.evaluate import evaluate_many
+from snakebot.workflows.search.runner import DaskRunner, Runner
 
 GOAL_KINEMATIC = 1000.0
 GOAL_PHYSICS = 5.0

@@ -33,9 +33,10 @@ import time
 
 from ptyfloor import bare_rate
 
-import snakebot.transport.ports  # noqa: F401  (registers sim://)
-from snakebot import devices, protocol
-from snakebot.transport import DxlClient
+import snakebot.link.transport.ports  # noqa: F401  (registers sim://)
+from snakebot.facts import devices
+from snakebot.formats import protocol
+from snakebot.link.transport import DxlClient
 
 AX12 = devices.ax12()
 GOAL = AX12.register("Goal Position")

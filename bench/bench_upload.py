@@ -37,16 +37,16 @@ import time
 
 import numpy as np
 
-from snakebot import protocol
-from snakebot.controller.client import ControllerClient
-from snakebot.controller.transfer import stream_writes
-from snakebot.controller.upload import chunk_writes, commit_write
-from snakebot.controller.uploader import CAPACITY, upload_gait
 from snakebot.errors import SnakebotError
-from snakebot.gaittable import GaitTable, max_frames, table_size
-from snakebot.protocol import Instruction
+from snakebot.formats import protocol
+from snakebot.formats.gaittable import GaitTable, max_frames, table_size
+from snakebot.formats.protocol import Instruction
+from snakebot.formats.upload_writes import chunk_writes, commit_write
+from snakebot.link.controller.client import ControllerClient
+from snakebot.link.controller.upload import CAPACITY, upload_gait
+from snakebot.link.controller.upload_stream import stream_writes
+from snakebot.link.transport.timing import STATUS_OVERHEAD
 from snakebot.sim.controller_pty import ControllerPty, is_commit, is_upload_chunk
-from snakebot.transport.timing import STATUS_OVERHEAD
 
 BAUD = 57600
 WIRE_BYTES_PER_S = BAUD / 10

@@ -19,11 +19,12 @@ import os
 import sys
 import time
 
-import snakebot.transport.ports  # noqa: F401  (registers sim://)
-from snakebot.gait import serpenoid
-from snakebot.protocol import sync_write
-from snakebot.robots import load_robot
-from snakebot.sim.predict import (
+import snakebot.link.transport.ports  # noqa: F401  (registers sim://)
+from snakebot.formats.protocol import sync_write
+from snakebot.link.transport import DxlClient
+from snakebot.model.gait import serpenoid
+from snakebot.model.robots import load_robot
+from snakebot.workflows.predict import (
     GOAL_BLOCK,
     GOAL_POSITION_ADDR,
     move_to_start,
@@ -31,7 +32,6 @@ from snakebot.sim.predict import (
     player_writes,
     sim_url,
 )
-from snakebot.transport import DxlClient
 
 GOAL = 200.0
 CONTROL_HZ = 100

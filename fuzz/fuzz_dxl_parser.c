@@ -8,7 +8,7 @@
  * selects the encoder round trip (see round_trip()).
  *
  * Oracle: an independent reference of the resynchronisation rule over a flat array
- * (protocol/README.md; the same rule snakebot.protocol.parser follows). Every event the
+ * (protocol/README.md; the same rule snakebot.formats.protocol.parser follows). Every event the
  * parser reports must equal the reference's next event byte for byte, in the same order,
  * whenever the bytes are polled, and the bytes it holds back must be the reference's; a
  * hidden packet is taken exactly when the reference finds one, and the same one; each

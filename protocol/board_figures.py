@@ -20,7 +20,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 BOARDS = ROOT / "firmware" / "boards"
-CONTROLLER_JSON = ROOT / "host" / "snakebot" / "devices" / "data" / "controller.json"
+CONTROLLER_JSON = ROOT / "host" / "snakebot" / "facts" / "devices" / "data" / "controller.json"
 TITLES = {"qemu": "QEMU", "cm530": "CM-530"}  # in the order the docs list them
 KB = 1024
 

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Generate the firmware's C headers, and the register tables in protocol/controller.md,
-from the device descriptions in host/snakebot/devices/data/, so every register address,
+from the device descriptions in host/snakebot/facts/devices/data/, so every register address,
 range and unit factor is written once.
 
     python protocol/gen_headers.py          # (re)write every output
@@ -10,7 +10,7 @@ Outputs: firmware/core/ax12_table.h (the AX-12 registers and the fixed-point uni
 constants the player computes with), firmware/core/ctl_table.h (the controller's table,
 servo window and window pages, value names and range X-macros), the generated part of
 protocol/controller.md, and the boards' figures in the docs (protocol/board_figures.py,
-from firmware/boards/*/board.h). The loader it uses (snakebot.devices) needs only the standard
+from firmware/boards/*/board.h). The loader it uses (snakebot.facts.devices) needs only the standard
 library, so this runs before snakebot is installed.
 """
 
@@ -28,7 +28,7 @@ sys.path.insert(0, str(ROOT / "host"))
 sys.path.insert(0, str(HERE))
 import board_figures  # noqa: E402
 
-from snakebot.devices import (  # noqa: E402
+from snakebot.facts.devices import (  # noqa: E402
     Device,
     Encoding,
     Register,
@@ -41,7 +41,7 @@ from snakebot.devices import (  # noqa: E402
 AX12_HEADER = ROOT / "firmware" / "core" / "ax12_table.h"
 CTL_HEADER = ROOT / "firmware" / "core" / "ctl_table.h"
 DOC = HERE / "controller.md"
-DATA = "host/snakebot/devices/data"
+DATA = "host/snakebot/facts/devices/data"
 DOC_BEGIN = "<!-- generated:begin (protocol/gen_headers.py) -->"
 DOC_END = "<!-- generated:end -->"
 ACCESS = {"R": "CTL_ACCESS_R", "W": "CTL_ACCESS_W", "RW": "CTL_ACCESS_RW"}

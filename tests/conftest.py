@@ -7,3 +7,9 @@ settings.register_profile(
     "snakebot", deadline=None, suppress_health_check=[HealthCheck.too_slow], max_examples=200
 )
 settings.load_profile("snakebot")
+
+# Fixtures shared by the CLI and link tests: an emulated controller on a pty, with or
+# without a table already uploaded (defined in support/controller_cli_support.py).
+from controller_cli_support import controller, controller_with_table, old_table  # noqa: E402
+
+__all__ = ["controller", "controller_with_table", "old_table"]

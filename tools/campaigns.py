@@ -23,7 +23,7 @@ table
     the active table's bytes read back from the emulated RAM, equal the committed file's;
 counted
     every fault the controller can see shows up in its counters, read the way
-    ``snakebot monitor`` reads them (:func:`snakebot.controller.monitor.sample`): each
+    ``snakebot monitor`` reads them (:func:`snakebot.link.controller.monitor.sample`): each
     telemetry READ the firmware sent ends as exactly one Bus Read or Bus Timeout, no more
     Bus Reads than intact replies came back, no fewer Bus Timeouts than were lost, no more
     Bus Errors than damaged replies were heard; plus each campaign's own (BUS_LOSS for a
@@ -46,7 +46,7 @@ silence between the firmware's bus packets while the roster is polled (``max_bus
 reported; the control tick is 10 ms).
 
 Reproducibility: the faults are drawn from streams seeded by ``--seed``
-(:mod:`snakebot.sim.faults`; the PC-link noise from its own stream), so a seed fixes which
+(:mod:`snakebot.sim.bus.faults`; the PC-link noise from its own stream), so a seed fixes which
 byte of the wire's traffic is hit, which reply is dropped, what noise is sent. The bus
 runs on the wall clock against QEMU, so how many bytes flow in a campaign (and therefore
 the counts) varies by a few percent from run to run and machine to machine; the checks
@@ -76,16 +76,10 @@ import numpy as np
 from elftools.common.exceptions import ELFError
 from elftools.elf.elffile import ELFFile
 
-from snakebot import devices, protocol
-from snakebot.controller import Command, ControllerErrors, State, UploadResult, load
-from snakebot.controller.client import ControllerClient
-from snakebot.controller.errors import ControllerError
-from snakebot.controller.limits import LimitsError, limits_state, set_limits
-from snakebot.controller.monitor import Sample, sample
-from snakebot.controller.upload import chunk_writes, commit_write
-from snakebot.gaittable import GaitTable
-from snakebot.paths import REPO_ROOT
-from snakebot.protocol import (
+from snakebot.facts import devices
+from snakebot.formats import protocol
+from snakebot.formats.gaittable import GaitTable
+from snakebot.formats.protocol import (
     MAX_PACKET_LEN,
     Instruction,
     Packet,
@@ -93,11 +87,18 @@ from snakebot.protocol import (
     ProtocolError,
     Rejected,
 )
-from snakebot.sim.bus import Bus
+from snakebot.formats.upload_writes import chunk_writes, commit_write
+from snakebot.link.controller import Command, ControllerErrors, State, UploadResult, load
+from snakebot.link.controller.client import ControllerClient
+from snakebot.link.controller.errors import ControllerError
+from snakebot.link.controller.limits import LimitsError, limits_state, set_limits
+from snakebot.link.controller.monitor import Sample, sample
+from snakebot.paths import REPO_ROOT
+from snakebot.sim.bus.bus import Bus
+from snakebot.sim.bus.faults import FaultConfig
 from snakebot.sim.errors import SimError
-from snakebot.sim.faults import FaultConfig
 from snakebot.sim.qemu import Endpoint, QemuFirmware
-from snakebot.sim.servo import VirtualServo
+from snakebot.sim.servo.reference import VirtualServo
 from snakebot.sim.transports.unixsock import UnixSocketServer
 
 BUILD = REPO_ROOT / "build" / "qemu"
@@ -1040,7 +1041,7 @@ def _after_brownout(long: bool) -> Callable[[Rig, Outcome, Sample], None]:
 
 class PcLinkModel:
     """The controller's PC link as the firmware parses it, for predicting what noise does:
-    the shared resynchronisation rule (:class:`snakebot.protocol.PacketParser`), and after
+    the shared resynchronisation rule (:class:`snakebot.formats.protocol.PacketParser`), and after
     each byte the firmware's extra step (``dxl_parser_skip_to_hidden``): while a candidate
     is incomplete, the first later ``FF FF`` that starts a complete packet with a good
     checksum among the bytes held back wins, and what lay before it is one rejection."""

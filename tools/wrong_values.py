@@ -28,10 +28,10 @@ import random
 from collections import Counter
 from dataclasses import asdict, dataclass, field
 
-from snakebot.protocol import CorruptPacket, DxlTimeout, ErrorFlags, ServoError
-from snakebot.protocol.control_table import ControlTable
-from snakebot.transport import DxlClient
-from snakebot.transport import client as client_module
+from snakebot.formats.protocol import CorruptPacket, DxlTimeout, ErrorFlags, ServoError
+from snakebot.formats.protocol.control_table import ControlTable
+from snakebot.link.transport import DxlClient
+from snakebot.link.transport import client as client_module
 
 SERVO_ID = 1
 MODEL = "AX-12A"

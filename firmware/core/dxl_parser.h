@@ -8,7 +8,7 @@
  *     while (dxl_parser_poll(&p, &ev)) { ...handle ev... }
  *
  * One byte can complete several events (a rejected candidate may hide a packet), hence
- * feed-then-poll. Resynchronisation rule (the Python parser, snakebot.protocol.parser,
+ * feed-then-poll. Resynchronisation rule (the Python parser, snakebot.formats.protocol.parser,
  * follows it packet for packet; see protocol/README.md): with B the unconsumed bytes,
  * (1) drop bytes until B starts with FF FF (a lone trailing FF is kept); (2) while
  * B[2] == FF drop one byte; (3) if LEN = B[3] < 2 or LEN + 4 > DXL_MAX_PACKET report a

@@ -3,7 +3,7 @@
 ``protocol/`` (packet vectors, the gait-table layout) and ``firmware/`` sit at the
 repository root so the C and Python sides read the same files. They are not installed:
 what the package needs at run time ships inside it (package data: the control tables in
-:mod:`snakebot.devices`, the firmware images through :mod:`snakebot.firmware`). These
+:mod:`snakebot.facts.devices`, the firmware images through :mod:`snakebot.firmware`). These
 helpers serve code that runs from a checkout (an editable install): the tests, the code
 generators, the development harnesses. ``SNAKEBOT_PROTOCOL_DIR`` overrides the protocol
 directory.

@@ -20,8 +20,8 @@ from pathlib import Path
 import pytest
 from firmware_support import build_firmware
 
-from snakebot.controller.client import ControllerClient
-from snakebot.controller.drive import SPEED_STEP, STEER_STEP
+from snakebot.link.controller.client import ControllerClient
+from snakebot.link.controller.drive import SPEED_STEP, STEER_STEP
 
 pytestmark = [pytest.mark.qemu, pytest.mark.slow, pytest.mark.serial]
 

@@ -20,11 +20,11 @@ from click.testing import CliRunner
 from firmware_support import build_firmware
 
 from snakebot.cli import main
-from snakebot.demo import compare, table_phase
-from snakebot.gait import serpenoid
-from snakebot.gaittable import write_gait
-from snakebot.robots import load_robot
+from snakebot.formats.gaittable import write_gait
+from snakebot.model.gait import serpenoid
+from snakebot.model.robots import load_robot
 from snakebot.sim.serve import EmulatedRobot
+from snakebot.workflows.demo import compare, table_phase
 
 pytestmark = [pytest.mark.qemu, pytest.mark.slow]
 

@@ -19,7 +19,7 @@ from click.testing import CliRunner
 from firmware_support import CONTROLLER_ID, QEMU_DIR, build_firmware, client
 
 from snakebot.cli import main
-from snakebot.protocol import Packet
+from snakebot.formats.protocol import Packet
 from snakebot.sim.serve import flash_image
 
 START_TIMEOUT_S = 60.0  # QEMU start + boot on a loaded machine

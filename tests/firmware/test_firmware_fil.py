@@ -25,12 +25,12 @@ from firmware_support import (
     symbols,
 )
 
-from snakebot.controller import Command, ControllerErrors, State, UploadResult, load
-from snakebot.gaittable import GaitTable
-from snakebot.protocol import Packet
-from snakebot.sim.bus import Bus
+from snakebot.formats.gaittable import GaitTable
+from snakebot.formats.protocol import Packet
+from snakebot.link.controller import Command, ControllerErrors, State, UploadResult, load
+from snakebot.sim.bus.bus import Bus
 from snakebot.sim.qemu import Endpoint, QemuFirmware
-from snakebot.sim.servo import VirtualServo
+from snakebot.sim.servo.reference import VirtualServo
 from snakebot.sim.transports.unixsock import UnixSocketServer
 
 pytestmark = [pytest.mark.qemu, pytest.mark.slow]

@@ -19,20 +19,20 @@ from controller_cli_support import cli, cli_json, save, wave_table
 from ctl_support import CTL, CTL_ID, Device, ffi, lib
 from firmware_support import QEMU_DIR, build_firmware, wait_for_boot
 
-from snakebot.controller import Command, ControllerErrors, LimitsState, State, UploadResult
-from snakebot.controller.limits import (
+from snakebot.formats.gaittable import GaitTable
+from snakebot.formats.protocol import read, status, write
+from snakebot.formats.upload_writes import chunk_writes, commit_write
+from snakebot.link.controller import Command, ControllerErrors, LimitsState, State, UploadResult
+from snakebot.link.controller.limits import (
     LimitsError,
     encode_limits,
     limits_state,
     set_limits,
     wait_settled,
 )
-from snakebot.controller.upload import chunk_writes, commit_write
-from snakebot.gaittable import GaitTable
-from snakebot.protocol import read, status, write
-from snakebot.robots import load_robot
-from snakebot.robots.model import TORQUE_LIMIT
-from snakebot.sim.faults import FaultConfig
+from snakebot.model.robots import load_robot
+from snakebot.model.robots.model import TORQUE_LIMIT
+from snakebot.sim.bus.faults import FaultConfig
 from snakebot.sim.options import SimOptions
 from snakebot.sim.qemu import Endpoint, QemuFirmware
 from snakebot.sim.transports.unixsock import UnixSocketServer

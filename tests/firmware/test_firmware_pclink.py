@@ -23,7 +23,7 @@ from firmware_support import (
     wait_for_boot,
 )
 
-from snakebot.protocol import Instruction, ProtocolError, read
+from snakebot.formats.protocol import Instruction, ProtocolError, read
 from snakebot.sim.options import SimOptions
 from snakebot.sim.qemu import Endpoint, QemuFirmware
 from snakebot.sim.transports.unixsock import UnixSocketServer

@@ -21,8 +21,8 @@ from firmware_support import (
     symbols,
 )
 
-from snakebot.controller import load as load_controller
-from snakebot.protocol import DxlTimeout, Packet, PacketParser, encode_packet, ping, status
+from snakebot.formats.protocol import DxlTimeout, Packet, PacketParser, encode_packet, ping, status
+from snakebot.link.controller import load as load_controller
 from snakebot.sim.qemu import Endpoint, QemuError, QemuFirmware
 
 pytestmark = pytest.mark.qemu

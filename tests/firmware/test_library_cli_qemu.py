@@ -11,10 +11,10 @@ import pytest
 from controller_cli_support import cli, cli_json, save, wave_table
 from firmware_support import served_firmware
 
-from snakebot.controller import load
-from snakebot.controller.client import ControllerClient
-from snakebot.controller.library import backup, delete_slot, read_slot, restore
-from snakebot.flash.library_backup import backup_library, restore_library
+from snakebot.link.controller import load
+from snakebot.link.controller.client import ControllerClient
+from snakebot.link.controller.library import backup, delete_slot, read_slot, restore
+from snakebot.link.flash.library_backup import backup_library, restore_library
 
 # QEMU behind a pty: its replies come late when another worker loads the machine
 pytestmark = [pytest.mark.qemu, pytest.mark.serial]

@@ -13,16 +13,17 @@ import numpy as np
 import pytest
 from firmware_support import build_firmware
 
-from snakebot.controller import playback
-from snakebot.controller.client import ControllerClient
-from snakebot.controller.uploader import upload_gait
-from snakebot.devices import ax12
-from snakebot.plan.program import plan_program
-from snakebot.program import PeriodicSegment, Program, SerpenoidSegment, TableSegment, predict
-from snakebot.program.files import write_program
-from snakebot.program.motion import predict_program
-from snakebot.program.spec import joints_of
-from snakebot.robots import load_robot
+from snakebot.facts.devices import ax12
+from snakebot.formats.program import PeriodicSegment, Program, SerpenoidSegment, TableSegment
+from snakebot.formats.program.files import write_program
+from snakebot.link.controller import playback
+from snakebot.link.controller.client import ControllerClient
+from snakebot.link.controller.upload import upload_gait
+from snakebot.model.motion import predict_program
+from snakebot.model.plan.program import plan_program
+from snakebot.model.program_goals import predict
+from snakebot.model.program_spec import joints_of
+from snakebot.model.robots import load_robot
 from snakebot.sim.serve import EmulatedRobot
 
 pytestmark = [pytest.mark.qemu, pytest.mark.slow, pytest.mark.serial]

@@ -9,10 +9,10 @@ import math
 import pytest
 from firmware_support import board_value, booted_qemu
 
-from snakebot.controller.client import ControllerClient
-from snakebot.controller.errors import ControllerError
-from snakebot.controller.playback import roster_from_robot
-from snakebot.robots import load_robot
+from snakebot.link.controller.client import ControllerClient
+from snakebot.link.controller.errors import ControllerError
+from snakebot.link.controller.playback import roster_from_robot
+from snakebot.model.robots import load_robot
 
 pytestmark = pytest.mark.qemu
 

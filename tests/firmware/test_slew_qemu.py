@@ -2,7 +2,7 @@
 serpenoid runs reaches the emulated servos as a slew, every goal they receive within what
 the servo covers at its top speed in the time since the previous one (the bound the
 firmware derives from ax12_table.h, checked against the description in
-tests/core/test_slew.py), and the wave ends up offset by the new phi0."""
+tests/model/test_slew.py), and the wave ends up offset by the new phi0."""
 
 from __future__ import annotations
 
@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from firmware_support import build_firmware
 
-from snakebot.controller.client import ControllerClient
-from snakebot.controller.playback import SerpenoidSettings, roster_from_robot, serpenoid
 from snakebot.core import lib
+from snakebot.link.controller.client import ControllerClient
+from snakebot.link.controller.playback import SerpenoidSettings, roster_from_robot, serpenoid
 from snakebot.sim.serve import EmulatedRobot
 
 pytestmark = [pytest.mark.qemu, pytest.mark.slow, pytest.mark.serial]

@@ -17,9 +17,9 @@ import pytest
 from firmware_support import RegisterModels, board_value, build_hal_on_models
 from flash_model import PowerCutModel
 
-from snakebot.controller import chunk_writes, commit_write, load
-from snakebot.gaittable import GaitTable, max_frames
-from snakebot.protocol import PacketParser, read, write
+from snakebot.formats.gaittable import GaitTable, max_frames
+from snakebot.formats.protocol import PacketParser, read, write
+from snakebot.link.controller import chunk_writes, commit_write, load
 
 CDEF = """
 typedef struct ctl_device ctl_device;

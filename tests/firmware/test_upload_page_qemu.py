@@ -12,11 +12,11 @@ import pytest
 from controller_cli_support import SNAKE5_IDS, cli_json, constant_table, save, wave_table
 from firmware_support import CONTROLLER_ID, board_value, booted_qemu, client
 
-from snakebot.controller import ControllerErrors, UploadResult, load
-from snakebot.controller.upload import chunk_limit, chunk_writes, commit_write
-from snakebot.gaittable import max_frames
-from snakebot.protocol import ErrorFlags, ServoError, write
-from snakebot.sim.faults import FaultConfig
+from snakebot.formats.gaittable import max_frames
+from snakebot.formats.protocol import ErrorFlags, ServoError, write
+from snakebot.formats.upload_writes import chunk_limit, chunk_writes, commit_write
+from snakebot.link.controller import ControllerErrors, UploadResult, load
+from snakebot.sim.bus.faults import FaultConfig
 
 pytestmark = [pytest.mark.qemu, pytest.mark.timeout(300)]
 

@@ -79,9 +79,9 @@ def test_the_wheel_is_abi3_and_carries_the_firmware_and_the_license(installed):
             data = whl.read(f"snakebot/firmware/images/{board}/{name}")
             assert data == built_image(board, name).read_bytes(), f"{board}/{name} differs"
         assert any(n.endswith(".dist-info/licenses/LICENSE") for n in names)
-        devices = REPO_ROOT / "host" / "snakebot" / "devices" / "data"
+        devices = REPO_ROOT / "host" / "snakebot" / "facts" / "devices" / "data"
         for path in devices.glob("*.json"):  # the control tables the commands load
-            assert whl.read(f"snakebot/devices/data/{path.name}") == path.read_bytes()
+            assert whl.read(f"snakebot/facts/devices/data/{path.name}") == path.read_bytes()
         metadata = next(whl.read(n).decode() for n in names if n.endswith(".dist-info/METADATA"))
     assert "snakebot/_core_build.py" not in names  # a build script, not part of the package
     assert "License-Expression: Apache-2.0" in metadata

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 from firmware_support import build_firmware
 
-from snakebot.sim.faults import FaultConfig
+from snakebot.sim.bus.faults import FaultConfig
 from tools import campaigns
 from tools.campaigns import CampaignFailed, RamMap, Rig, gait_table
 

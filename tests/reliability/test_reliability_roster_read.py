@@ -13,8 +13,8 @@ import numpy as np
 from ctl_support import CTL, CTL_ID, Device, telemetry_reply
 
 from snakebot.core import ffi, lib
-from snakebot.gaittable import GaitTable
-from snakebot.protocol import Instruction, PacketParser, write
+from snakebot.formats.gaittable import GaitTable
+from snakebot.formats.protocol import Instruction, PacketParser, write
 
 IDS = (1, 2, 3)
 

@@ -39,8 +39,9 @@ from hypothesis import assume, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, initialize, rule
 
-from snakebot import devices, protocol
-from snakebot.protocol import (
+from snakebot.facts import devices
+from snakebot.formats import protocol
+from snakebot.formats.protocol import (
     BROADCAST_ID,
     CorruptPacket,
     DxlTimeout,
@@ -50,7 +51,7 @@ from snakebot.protocol import (
     PacketParser,
     ServoError,
 )
-from snakebot.transport import DxlClient
+from snakebot.link.transport import DxlClient
 
 IDS = (1, 2)
 TABLE_BYTES = 64

@@ -12,9 +12,9 @@ from collections.abc import Iterator
 
 import pytest
 
-from snakebot.transport import DxlClient
-from snakebot.transport.errors import PortError
-from snakebot.transport.ports import open_port
+from snakebot.link.transport import DxlClient
+from snakebot.link.transport.errors import PortError
+from snakebot.link.transport.ports import open_port
 
 
 @pytest.fixture
@@ -41,7 +41,7 @@ def test_a_second_process_is_refused_and_named(pty_device, tmp_path):
         [
             sys.executable,
             "-c",
-            "import sys; from snakebot.transport.ports import open_port; "
+            "import sys; from snakebot.link.transport.ports import open_port; "
             f"p = open_port({str(symlink)!r}, timeout=0); print('open', flush=True); "
             "sys.stdin.read()",
         ],

@@ -14,8 +14,8 @@ from types import SimpleNamespace
 
 import pytest
 
-from snakebot import protocol
-from snakebot.protocol import (
+from snakebot.formats import protocol
+from snakebot.formats.protocol import (
     CorruptPacket,
     ErrorFlags,
     Instruction,
@@ -23,9 +23,9 @@ from snakebot.protocol import (
     PacketParser,
     ServoError,
 )
-from snakebot.protocol.control_table import ControlTable
-from snakebot.robots.calibrate import read_zero_ticks
-from snakebot.transport import DxlClient
+from snakebot.formats.protocol.control_table import ControlTable
+from snakebot.link.bus.calibrate import read_zero_ticks
+from snakebot.link.transport import DxlClient
 
 PUNCH = ControlTable.for_model("AX-12A").by_name("Punch")
 LED = ControlTable.for_model("AX-12A").by_name("LED")

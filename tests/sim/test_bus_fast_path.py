@@ -15,12 +15,12 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from sim_support import hear
 
-from snakebot import protocol as P
-from snakebot.protocol.instructions import frame
-from snakebot.sim.bus import Bus
-from snakebot.sim.fast_servo import VirtualServo
-from snakebot.sim.faults import Brownout, FaultConfig
-from snakebot.transport import DxlClient
+from snakebot.formats import protocol as P
+from snakebot.formats.protocol.instructions import frame
+from snakebot.link.transport import DxlClient
+from snakebot.sim.bus.bus import Bus
+from snakebot.sim.bus.faults import Brownout, FaultConfig
+from snakebot.sim.servo.fast import VirtualServo
 from tests.sim.test_fast_servo import state
 
 IDS = (1, 2, 3)

@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 from physics_support import snake5_serpenoid
 
-from snakebot.protocol import ErrorFlags
-from snakebot.robots import RobotError, load_robot, parse_robot
+from snakebot.formats.protocol import ErrorFlags
+from snakebot.link.transport import DxlClient
+from snakebot.model.robots import RobotError, load_robot, parse_robot
 from snakebot.sim.physics import PhysicsError, PhysicsWorld
 from snakebot.sim.physics.mjcf import build_mjcf
-from snakebot.sim.predict import predict_gait, predict_table, sim_url
-from snakebot.transport import DxlClient
+from snakebot.workflows.predict import predict_gait, predict_table, sim_url
 
 pytest.importorskip("mujoco")
 
@@ -188,7 +188,7 @@ def test_a_blow_up_stops_the_run_with_an_error(bus_client):
 def load_robot_text(name):
     from importlib import resources
 
-    return resources.files("snakebot.robots").joinpath(f"{name}.toml").read_text()
+    return resources.files("snakebot.model.robots").joinpath(f"{name}.toml").read_text()
 
 
 def no_load_speed(voltage):

@@ -6,12 +6,12 @@ from __future__ import annotations
 import pytest
 from sim_support import exchange, make_bus, reply
 
-from snakebot import protocol as P
-from snakebot.protocol import Packet, PacketParser
-from snakebot.sim.bus import frame_ends
-from snakebot.sim.faults import Brownout, FaultConfig
+from snakebot.formats import protocol as P
+from snakebot.formats.protocol import Packet, PacketParser
+from snakebot.sim.bus.bus import frame_ends
+from snakebot.sim.bus.faults import Brownout, FaultConfig
+from snakebot.sim.bus.uart import resample
 from snakebot.sim.options import SimOptions
-from snakebot.sim.uart import resample
 
 
 def arrival_times(bus, packet: bytes, horizon: float = 0.05) -> list[float]:

@@ -13,10 +13,10 @@ import sys
 import dynamixel_sdk as sdk
 import pytest
 
-from snakebot import protocol as P
+from snakebot.formats import protocol as P
+from snakebot.link.transport import DxlClient
 from snakebot.sim.options import SimOptions
 from snakebot.sim.transports import PtyServer
-from snakebot.transport import DxlClient
 
 # dynamixel-sdk waits its own fixed time for a reply: run with nothing beside it.
 pytestmark = pytest.mark.serial

@@ -7,9 +7,9 @@ from __future__ import annotations
 import pytest
 from sim_support import make_bus, reply
 
-from snakebot import protocol as P
-from snakebot.protocol import ErrorFlags
-from snakebot.robots import load_robot
+from snakebot.formats import protocol as P
+from snakebot.formats.protocol import ErrorFlags
+from snakebot.model.robots import load_robot
 from snakebot.sim.options import SimOptions
 from snakebot.sim.world import World
 

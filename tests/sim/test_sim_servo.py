@@ -8,12 +8,12 @@ from hypothesis import given
 from hypothesis import strategies as st
 from sim_support import exchange, make_bus, reply
 
-from snakebot import protocol as P
-from snakebot.protocol import ControlTable, ErrorFlags, Instruction
-from snakebot.sim import motor
+from snakebot.formats import protocol as P
+from snakebot.formats.protocol import ControlTable, ErrorFlags, Instruction
 from snakebot.sim.errors import SimOptionError
 from snakebot.sim.options import SimOptions
-from snakebot.sim.servo import VirtualServo
+from snakebot.sim.servo import motor
+from snakebot.sim.servo.reference import VirtualServo
 
 TABLE = ControlTable.for_model("AX-12A")
 

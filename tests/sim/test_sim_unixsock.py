@@ -8,8 +8,8 @@ import time
 
 import pytest
 
-from snakebot import protocol as P
-from snakebot.protocol import PacketParser
+from snakebot.formats import protocol as P
+from snakebot.formats.protocol import PacketParser
 from snakebot.sim.options import SimOptions
 from snakebot.sim.transports import UnixSocketServer
 

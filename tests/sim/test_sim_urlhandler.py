@@ -7,11 +7,11 @@ import random
 import pytest
 import serial
 
-import snakebot.transport.ports  # noqa: F401  (registers sim://)
-from snakebot import protocol as P
-from snakebot.protocol import CorruptPacket, ErrorFlags, ProtocolError, ServoError
+import snakebot.link.transport.ports  # noqa: F401  (registers sim://)
+from snakebot.formats import protocol as P
+from snakebot.formats.protocol import CorruptPacket, ErrorFlags, ProtocolError, ServoError
+from snakebot.link.transport import DxlClient, PortError, open_port
 from snakebot.sim.urlhandler.protocol_sim import forget_named_buses, named_bus
-from snakebot.transport import DxlClient, PortError, open_port
 
 
 @pytest.fixture(autouse=True)
@@ -141,7 +141,7 @@ def test_a_blocking_read_on_an_idle_bus_returns_after_its_timeout():
 
 
 def test_every_option_of_the_url_is_understood():
-    from snakebot.sim.faults import Brownout, FaultConfig
+    from snakebot.sim.bus.faults import Brownout, FaultConfig
     from snakebot.sim.options import SimOptions
 
     options = SimOptions.from_query(

@@ -8,11 +8,11 @@ import math
 import numpy as np
 import pytest
 
-from snakebot.protocol import sync_write
-from snakebot.robots import TICKS_PER_RAD, load_robot
-from snakebot.sim.bus import Bus
+from snakebot.formats.protocol import sync_write
+from snakebot.model.robots import TICKS_PER_RAD, load_robot
+from snakebot.sim.bus.bus import Bus
 from snakebot.sim.options import SimOptions
-from snakebot.sim.servo import VirtualServo
+from snakebot.sim.servo.reference import VirtualServo
 from snakebot.sim.world import World, WorldError
 
 GOAL = 30  # Goal Position, then Moving Speed

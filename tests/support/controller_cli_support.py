@@ -12,7 +12,7 @@ import pytest
 from click.testing import CliRunner, Result
 
 from snakebot.cli import main
-from snakebot.gaittable import GaitTable, write_gait
+from snakebot.formats.gaittable import GaitTable, write_gait
 from snakebot.sim.controller_pty import ControllerPty, is_commit, is_upload_chunk
 
 SNAKE5_IDS = (10, 11, 15, 16)

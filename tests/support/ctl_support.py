@@ -9,12 +9,20 @@ from dataclasses import dataclass
 import numpy as np
 from hypothesis import strategies as st
 
-from snakebot import devices
-from snakebot.controller import chunk_writes
-from snakebot.controller import load as load_controller
 from snakebot.core import ffi, lib
-from snakebot.gaittable import GaitTable, max_frames
-from snakebot.protocol import BROADCAST_ID, Instruction, PacketParser, ping, read, status, write
+from snakebot.facts import devices
+from snakebot.formats.gaittable import GaitTable, max_frames
+from snakebot.formats.protocol import (
+    BROADCAST_ID,
+    Instruction,
+    PacketParser,
+    ping,
+    read,
+    status,
+    write,
+)
+from snakebot.link.controller import chunk_writes
+from snakebot.link.controller import load as load_controller
 from snakebot.sim.controller_pty import TABLE_ARENA, TABLE_CAPACITY
 
 CTL = load_controller()
@@ -121,7 +129,7 @@ class Device:
         return CTL.decode_servo_window(self.read(CTL.servo_window_address, size))
 
     def upload(self, table: bytes, chunk: int = 64, commit: bool = True) -> int:
-        """Upload through the window (snakebot.controller's WRITEs), then commit; returns
+        """Upload through the window (snakebot.link.controller's WRITEs), then commit; returns
         Upload Result."""
         for address, payload in chunk_writes(table, chunk):
             assert self.one(write(CTL_ID, address, payload)).error == 0

@@ -16,15 +16,15 @@ from typing import Any, TypeVar
 
 import pytest
 
-from snakebot import devices
+from snakebot.facts import devices
+from snakebot.formats.protocol import DxlTimeout
+from snakebot.link.transport import DxlClient
+from snakebot.link.transport.timing import PROGRAM_MARGIN_S
 from snakebot.paths import REPO_ROOT
-from snakebot.protocol import DxlTimeout
-from snakebot.sim.faults import FaultConfig
+from snakebot.sim.bus.faults import FaultConfig
 from snakebot.sim.options import SimOptions
 from snakebot.sim.qemu import Endpoint, QemuFirmware
 from snakebot.sim.transports.unixsock import UnixSocketServer
-from snakebot.transport import DxlClient
-from snakebot.transport.timing import PROGRAM_MARGIN_S
 
 BUILD = REPO_ROOT / "build"
 FIRMWARE = REPO_ROOT / "firmware"

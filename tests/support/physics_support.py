@@ -5,9 +5,9 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from snakebot.gait import serpenoid
-from snakebot.gaittable import GaitTable, write_gait
-from snakebot.robots import load_robot
+from snakebot.formats.gaittable import GaitTable, write_gait
+from snakebot.model.gait import serpenoid
+from snakebot.model.robots import load_robot
 
 
 def snake5_serpenoid() -> GaitTable:

@@ -6,9 +6,9 @@ import math
 
 import numpy as np
 
-from snakebot import devices
 from snakebot.core import ffi, lib
-from snakebot.gaittable import GaitTable
+from snakebot.facts import devices
+from snakebot.formats.gaittable import GaitTable
 
 # The exact values the fixed-point player approximates, from the AX-12A's description.
 _AX12 = devices.ax12()

@@ -9,8 +9,8 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from snakebot.core import ffi, lib
+from snakebot.formats.protocol import Packet, Rejected
 from snakebot.paths import REPO_ROOT, protocol_dir
-from snakebot.protocol import Packet, Rejected
 
 VECTOR_FILES = ("instructions.json", "status.json", "streams.json")
 

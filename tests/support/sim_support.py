@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from snakebot.protocol import Packet, PacketParser, Rejected
-from snakebot.sim.bus import Bus
-from snakebot.sim.servo import VirtualServo
+from snakebot.formats.protocol import Packet, PacketParser, Rejected
+from snakebot.sim.bus.bus import Bus
+from snakebot.sim.servo.reference import VirtualServo
 
 REPLY_WAIT_S = 0.01  # bus time: longer than any reply at 1 Mbps with the default delay
 

@@ -29,29 +29,29 @@ def main() -> None:
 # Command registration: each command lives in its own module. Imported here, after
 # `main` exists, because the `sim` subcommands attach to the `sim` group.
 from snakebot.cli.bus import bus  # noqa: E402
-from snakebot.cli.bus_play import bus_play  # noqa: E402
+from snakebot.cli.bus.play import bus_play  # noqa: E402
 from snakebot.cli.compare import compare_command  # noqa: E402
-from snakebot.cli.config import config  # noqa: E402
+from snakebot.cli.controller.config import config  # noqa: E402
+from snakebot.cli.controller.drive import drive  # noqa: E402
+from snakebot.cli.controller.library import library  # noqa: E402
+from snakebot.cli.controller.limits import limits  # noqa: E402
+from snakebot.cli.controller.monitor import monitor  # noqa: E402
+from snakebot.cli.controller.playback import play, serpenoid, stop  # noqa: E402
+from snakebot.cli.controller.upload import upload  # noqa: E402
 from snakebot.cli.demo import demo  # noqa: E402
 from snakebot.cli.doctor import doctor  # noqa: E402
-from snakebot.cli.drive import drive  # noqa: E402
 from snakebot.cli.flash import flash_command  # noqa: E402
 from snakebot.cli.gait import gait  # noqa: E402
-from snakebot.cli.library import library  # noqa: E402
-from snakebot.cli.limits import limits  # noqa: E402
 from snakebot.cli.model import model  # noqa: E402
-from snakebot.cli.monitor import monitor  # noqa: E402
 from snakebot.cli.plan import plan_command  # noqa: E402
-from snakebot.cli.playback import play, serpenoid, stop  # noqa: E402
 from snakebot.cli.program import program  # noqa: E402
 from snakebot.cli.robot import robot  # noqa: E402
 from snakebot.cli.sim import sim  # noqa: E402
-from snakebot.cli.sim_bootloader import bootloader  # noqa: E402
-from snakebot.cli.sim_goto import goto  # noqa: E402
-from snakebot.cli.sim_predict import predict  # noqa: E402
-from snakebot.cli.sim_serve import serve  # noqa: E402
-from snakebot.cli.sim_thesis import friction, thesis  # noqa: E402
-from snakebot.cli.upload import upload  # noqa: E402
+from snakebot.cli.sim.bootloader import bootloader  # noqa: E402
+from snakebot.cli.sim.goto import goto  # noqa: E402
+from snakebot.cli.sim.predict import predict  # noqa: E402
+from snakebot.cli.sim.serve import serve  # noqa: E402
+from snakebot.cli.sim.thesis import friction, thesis  # noqa: E402
 
 for command in (
     model,

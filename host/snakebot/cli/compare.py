@@ -6,12 +6,12 @@ from pathlib import Path
 
 import click
 
-from snakebot.cli.compare_run import compare, load_run
 from snakebot.cli.output import dumps
 from snakebot.cli.params import PLOT_PATH
 from snakebot.extras import require
-from snakebot.gaittable import read_gait
-from snakebot.sim.predict import resolve_robot
+from snakebot.formats.gaittable import read_gait
+from snakebot.workflows.compare import compare, load_run
+from snakebot.workflows.predict import resolve_robot
 
 
 @click.command("compare")
@@ -47,7 +47,7 @@ def compare_command(
     summary = {"run": str(run), "gait": str(gait), **result.summary()}
     if plot is not None:
         require("matplotlib", "--plot")
-        from snakebot.cli.compare_plot import plot_comparison
+        from snakebot.plots.compare import plot_comparison
 
         summary["plot"] = str(plot_comparison(result, plot))
     if as_json:

@@ -10,8 +10,8 @@ import click
 
 from snakebot.cli.output import dumps
 from snakebot.cli.params import OUTPUT_PATH, wave_options
-from snakebot.demo import DemoSettings, run_demo, summary_lines
 from snakebot.sim.physics.select import WORLDS
+from snakebot.workflows.demo import DemoSettings, run_demo, summary_lines
 
 EXIT_INTERRUPTED = 130  # as a shell reports a program stopped by Ctrl-C
 

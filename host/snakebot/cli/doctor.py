@@ -6,11 +6,11 @@ import sys
 
 import click
 
-from snakebot import servo_ops
-from snakebot.cli import doctor_checks as checks
-from snakebot.cli.controller_link import controller_id_option
+from snakebot.cli.controller.link import controller_id_option
 from snakebot.cli.output import dumps
-from snakebot.flash.settings import FlashTimeouts
+from snakebot.link.bus import doctor as checks
+from snakebot.link.bus import servo_ops
+from snakebot.link.flash.settings import FlashTimeouts
 
 MARKS = {"ok": "ok  ", "warn": "WARN", "fail": "FAIL", "skip": "skip"}
 

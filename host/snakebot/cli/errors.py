@@ -25,10 +25,10 @@ from typing import Any
 
 import click
 
-from snakebot.controller.errors import ControllerLinkError, UploadError
 from snakebot.errors import SnakebotError
-from snakebot.flash.errors import FlashError, FlashSettingError, ImageError
-from snakebot.protocol.errors import CorruptPacket, DxlTimeout, ServoError
+from snakebot.formats.protocol.errors import CorruptPacket, DxlTimeout, ServoError
+from snakebot.link.controller.errors import ControllerLinkError, UploadError
+from snakebot.link.flash.errors import FlashError, FlashSettingError, ImageError
 from snakebot.sim.errors import SimOptionError
 
 EXIT_RUNTIME = 1

@@ -11,13 +11,13 @@ import click
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType, controller_port
 from snakebot.firmware import image as firmware_image
-from snakebot.flash import PC_LINK_BAUD, FlashTimeouts, board_layout, flash, load_image
-from snakebot.flash.errors import FlashError
-from snakebot.flash.image import image_info
-from snakebot.flash.library_backup import backup_library, restore_library
-from snakebot.flash.loader import RESET_HINT, last_line
-from snakebot.flash.verify import Verified, verify_firmware
-from snakebot.transport import open_port
+from snakebot.link.flash import PC_LINK_BAUD, FlashTimeouts, board_layout, flash, load_image
+from snakebot.link.flash.bootloader import RESET_HINT, last_line
+from snakebot.link.flash.errors import FlashError
+from snakebot.link.flash.image import image_info
+from snakebot.link.flash.library_backup import backup_library, restore_library
+from snakebot.link.flash.verify import Verified, verify_firmware
+from snakebot.link.transport import open_port
 
 
 class _LazyBar:
@@ -161,7 +161,7 @@ def flash_command(
     is skipped with a warning.
 
     The link runs at 57600 baud, so 100 KB takes about 18 s. Timeouts can be raised with
-    the SNAKEBOT_FLASH_*_S environment variables (see snakebot.flash.settings). A .hex or
+    the SNAKEBOT_FLASH_*_S environment variables (see snakebot.link.flash.settings). A .hex or
     .elf is turned into the raw bytes the bootloader takes (the .elf's loadable segments at
     their load addresses), and refused if it puts anything outside the application area.
     """

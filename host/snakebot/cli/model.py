@@ -11,11 +11,11 @@ import numpy as np
 from snakebot.cli.output import dumps
 from snakebot.cli.params import ANGLES
 from snakebot.extras import require
-from snakebot.gait.common import NEAR_SINGULAR_RCOND
-from snakebot.kinematics import body_velocity, default_form, field_model, fields
-from snakebot.kinematics.lie import LieFields, lie_fields, lie_model
-from snakebot.kinematics.model import singular_reason
-from snakebot.robots import load_robot
+from snakebot.model.gait.common import NEAR_SINGULAR_RCOND
+from snakebot.model.kinematics import body_velocity, default_form, field_model, fields
+from snakebot.model.kinematics.lie import LieFields, lie_fields, lie_model
+from snakebot.model.kinematics.model import singular_reason
+from snakebot.model.robots import load_robot
 
 
 @click.group("model")
@@ -304,7 +304,7 @@ def _print_lie(rb: Any, lf: LieFields, as_json: bool) -> None:
 
 def _print_symbolic(rb: Any, form: str, as_json: bool) -> None:
     require("sympy", "--symbolic")
-    from snakebot.symbolic.display import field_expressions
+    from snakebot.model.symbolic.display import field_expressions
 
     ex = field_expressions(rb, form if rb.kind == "trident" else "body")
     names = [str(s) for s in ex.model.q]

@@ -13,7 +13,7 @@ from typing import Any, TypeVar
 
 import click
 
-from snakebot.gait.values import InputError, parse_angle, parse_angles
+from snakebot.model.gait.values import InputError, parse_angle, parse_angles
 
 
 def _parsed(

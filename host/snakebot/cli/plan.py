@@ -9,13 +9,13 @@ from typing import Any
 
 import click
 
-from snakebot.boards import TABLE_CAPACITY
-from snakebot.cli.controller_link import controller_id_option
+from snakebot.cli.controller.link import controller_id_option
 from snakebot.cli.output import dumps
 from snakebot.cli.params import ANGLE, ANGLES, NUMBER, OUTPUT_PATH, controller_port
-from snakebot.gait.values import InputError, parse_angle, parse_number
-from snakebot.plan import Unreachable
-from snakebot.plan.planner import (
+from snakebot.facts.boards import TABLE_CAPACITY
+from snakebot.model.gait.values import InputError, parse_angle, parse_number
+from snakebot.model.plan import Unreachable
+from snakebot.model.plan.planner import (
     DEFAULT_BOARD,
     DEFAULT_CAPACITY,
     DEFAULT_HEADING_TOLERANCE,
@@ -216,9 +216,9 @@ def plan_command(
       snakebot plan trident --to 1,0.5,30deg -o go.prog
       snakebot upload go.prog --port /dev/ttyUSB0 && snakebot play --port /dev/ttyUSB0
     """
-    from snakebot.plan import make_plan
-    from snakebot.plan.program import plan_program
-    from snakebot.robots import load_robot
+    from snakebot.model.plan import make_plan
+    from snakebot.model.plan.program import plan_program
+    from snakebot.model.robots import load_robot
 
     if plot is not None and output is None:
         raise click.UsageError("--plot needs -o FILE: the plot is drawn from the written table")
@@ -253,13 +253,13 @@ def plan_command(
         return
     summary = plan.summary()
     if output is not None:
-        from snakebot.gaittable import sidecar_path, write_gait
+        from snakebot.formats.gaittable import sidecar_path, write_gait
 
         table = plan.gait.gait_table()
         write_gait(output, table)
         summary.update(file=str(output), metadata_file=str(sidecar_path(output)))
         if plot is not None:
-            from snakebot.plots import plot_gait
+            from snakebot.plots.gait import plot_gait
 
             summary["plot"] = str(plot_gait(table, plot))
     for warning in summary["warnings"]:
@@ -273,8 +273,8 @@ def plan_command(
 def controller_capacity(port: str, controller_id: int) -> int:
     """The Table Capacity of the controller on ``port`` (its PC link at the firmware's
     rate): the largest table or program it takes."""
-    from snakebot.controller.client import PC_LINK_BAUD, ControllerClient
-    from snakebot.controller.uploader import CAPACITY as CAPACITY_REGISTER
+    from snakebot.link.controller.client import PC_LINK_BAUD, ControllerClient
+    from snakebot.link.controller.upload import CAPACITY as CAPACITY_REGISTER
 
     with ControllerClient.open(port, PC_LINK_BAUD, controller_id) as ctl:
         return ctl.read(CAPACITY_REGISTER)[CAPACITY_REGISTER]
@@ -282,7 +282,7 @@ def controller_capacity(port: str, controller_id: int) -> int:
 
 def _write_program(plan: Any, output: Path, as_json: bool) -> None:
     """Write the plan's program (its goals end within the tolerance) and report it."""
-    from snakebot.program.files import write_program
+    from snakebot.formats.program.files import write_program
 
     write_program(output, plan.program)
     s = plan.summary()

@@ -11,9 +11,9 @@ import click
 
 from snakebot.cli.output import dumps
 from snakebot.cli.params import OUTPUT_PATH
-from snakebot.program import PeriodicSegment, Program, SerpenoidSegment, TableSegment
-from snakebot.program.files import read_program, write_program
-from snakebot.program.spec import build_program, load_spec
+from snakebot.formats.program import PeriodicSegment, Program, SerpenoidSegment, TableSegment
+from snakebot.formats.program.files import read_program, write_program
+from snakebot.model.program_spec import build_program, load_spec
 
 MRAD = 1000.0
 

@@ -8,10 +8,10 @@ import click
 
 from snakebot.cli.bus import bus_options
 from snakebot.cli.output import dumps
-from snakebot.robots import load_robot
-from snakebot.robots.calibrate import JOG_DEG, calibrate, updated_text, write_atomically
-from snakebot.robots.model import Joint
-from snakebot.transport import DxlClient
+from snakebot.link.bus.calibrate import JOG_DEG, calibrate, updated_text, write_atomically
+from snakebot.link.transport import DxlClient
+from snakebot.model.robots import load_robot
+from snakebot.model.robots.model import Joint
 
 
 @click.group("robot")

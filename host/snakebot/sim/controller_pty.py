@@ -5,7 +5,7 @@ control table, upload and commit, commands, player, safety, bus master). Here it
 through the host's cffi build of the same C (``snakebot._core``), minus the HAL:
 
 * the PC link is a pseudo-terminal that host tools open like the CM-530's USB port;
-* the bus side drives an emulated servo bus (:class:`snakebot.sim.bus.Bus`, virtual AX-12s)
+* the bus side drives an emulated servo bus (:class:`snakebot.sim.bus.bus.Bus`, virtual AX-12s)
   in virtual time, one control tick every ``tick_ms`` of wall time, as the firmware's
   main loop does; or, with no bus, every telemetry READ times out;
 * optionally the line is paced at a baud rate (10 bits a byte, each direction on its own
@@ -32,10 +32,10 @@ import sys
 import time
 from collections.abc import Callable
 
-from snakebot.controller.player import TICK_MS
 from snakebot.core import ffi, lib
-from snakebot.sim.bus import Bus
-from snakebot.sim.clock import byte_time
+from snakebot.model.player import TICK_MS
+from snakebot.sim.bus.bus import Bus
+from snakebot.sim.bus.clock import byte_time
 from snakebot.sim.errors import SimError
 from snakebot.sim.options import SimOptions
 from snakebot.sim.transports.base import RawPty, ThreadedServer

@@ -1,5 +1,5 @@
 """Emulator options: one set, read from a ``sim://`` URL query or from command-line
-flags, and turned into a :class:`~snakebot.sim.bus.Bus` of virtual servos.
+flags, and turned into a :class:`~snakebot.sim.bus.bus.Bus` of virtual servos.
 
 ``sim://[NAME]?robot=snake5&echo=1&corrupt=0.01`` — see :data:`OPTIONS` for the list.
 """
@@ -10,11 +10,11 @@ import math
 from dataclasses import dataclass, field, replace
 from urllib.parse import parse_qsl
 
-from snakebot import devices
-from snakebot.sim.bus import Bus
+from snakebot.facts import devices
+from snakebot.sim.bus.bus import Bus
+from snakebot.sim.bus.faults import Brownout, FaultConfig
 from snakebot.sim.errors import SimOptionError
-from snakebot.sim.faults import Brownout, FaultConfig
-from snakebot.sim.servo import VirtualServo
+from snakebot.sim.servo.reference import VirtualServo
 
 URL_FORM = "sim://[NAME][?robot=NAME|ids=1,2,3][&option=value...]"
 
@@ -178,7 +178,7 @@ class SimOptions:
         if self.robot and self.ids:
             raise SimOptionError("give either a robot or a list of servo IDs, not both")
         if self.robot:
-            from snakebot.robots import load_robot  # the robot layer is only needed here
+            from snakebot.model.robots import load_robot  # the robot layer is only needed here
 
             robot = load_robot(self.robot)
             model = self.model or robot.servo_model
@@ -218,7 +218,7 @@ class SimOptions:
             raise SimOptionError(
                 f"ideal servos have no torque: drop ideal=1 for world={self.world}"
             )
-        from snakebot.robots import load_robot
+        from snakebot.model.robots import load_robot
         from snakebot.sim.physics.select import make_world
 
         make_world(self.world, bus, load_robot(self.robot), period=WORLD_PERIOD_S, keep=1)

@@ -16,7 +16,7 @@ QEMU's lifetime, so clients may open and close it as often as they like. QEMU ge
 end of a socket pair and a relay thread (:class:`snakebot.sim.transports.relay.PtyRelay`)
 carries bytes between it and the terminal's master side without ever making QEMU wait:
 bytes the firmware sends while no client reads wait in the terminal's buffer (clients
-flush their input before a transaction; :class:`snakebot.transport.DxlClient` does), and
+flush their input before a transaction; :class:`snakebot.link.transport.DxlClient` does), and
 once that is full they are dropped and counted (:meth:`QemuFirmware.dropped`), as a
 USB-serial adapter drops what the PC does not read, instead of stalling the CPU.
 

@@ -2,7 +2,7 @@
 
 :class:`EmulatedRobot` starts, in this order,
 
-1. the robot's virtual AX-12s on an emulated bus (:mod:`snakebot.sim.bus`), served on a Unix
+1. the robot's virtual AX-12s on an emulated bus (:mod:`snakebot.sim.bus.bus`), served on a Unix
    socket in a private work directory (:class:`~snakebot.sim.transports.unixsock.UnixSocketServer`,
    the bus clock tied to the wall clock);
 2. the world (:class:`snakebot.sim.world.World`, or with ``world="mujoco"``
@@ -46,19 +46,19 @@ from typing import Any
 import numpy as np
 
 from snakebot.firmware import image as firmware_image
-from snakebot.protocol import DxlTimeout, ProtocolError
-from snakebot.robots import Robot, load_robot
-from snakebot.sim.bus import Bus
+from snakebot.formats.protocol import DxlTimeout, ProtocolError
+from snakebot.link.transport import DxlClient
+from snakebot.model.robots import Robot, load_robot
+from snakebot.sim.bus.bus import Bus
 from snakebot.sim.errors import SimError
 from snakebot.sim.options import SimOptions
 from snakebot.sim.physics import PhysicsWorld
 from snakebot.sim.physics.select import DEFAULT_WORLD, check_world, make_world
 from snakebot.sim.qemu import Endpoint, QemuFirmware
-from snakebot.sim.servo import VirtualServo
+from snakebot.sim.servo.reference import VirtualServo
 from snakebot.sim.transports.unixsock import UnixSocketServer
 from snakebot.sim.workdirs import make_workdir
 from snakebot.sim.world import World, WorldRecord
-from snakebot.transport import DxlClient
 
 DEFAULT_FIRMWARE = firmware_image("qemu", "firmware.elf")
 """The qemu board's application image: ``make firmware``'s in a checkout, else the one

@@ -1,9 +1,9 @@
 """The world: the robot's body on the floor, moved by its virtual servos.
 
 The servos' present positions (ticks, through each joint's zero tick and sign) are the
-joint angles; the kinematic core's minimum-slip model (``snakebot.kinematics``, in C)
+joint angles; the kinematic core's minimum-slip model (``snakebot.model.kinematics``, in C)
 turns the joint motion into body motion. The world samples the positions every
-``period`` seconds of bus time (:meth:`snakebot.sim.bus.Bus.every`), takes the joints as
+``period`` seconds of bus time (:meth:`snakebot.sim.bus.bus.Bus.every`), takes the joints as
 moving linearly between samples, and integrates the body over the samples in batches:
 one C call per batch of intervals (the core steps each interval separately, so the
 kinks between intervals cost no accuracy), never a Python loop per step.
@@ -28,11 +28,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from snakebot.errors import SnakebotError
-from snakebot.gait.common import PREDICT_OPTIONS, REGULARISING_CT
-from snakebot.kinematics import KinematicsError, Options, Table, integrate_joints
-from snakebot.kinematics.ccore import SINGULAR_CODES
-from snakebot.robots import Robot
-from snakebot.sim.bus import Bus
+from snakebot.model.gait.common import PREDICT_OPTIONS, REGULARISING_CT
+from snakebot.model.kinematics import KinematicsError, Options, Table, integrate_joints
+from snakebot.model.kinematics.ccore import SINGULAR_CODES
+from snakebot.model.robots import Robot
+from snakebot.sim.bus.bus import Bus
 
 DEFAULT_PERIOD_S = 0.01
 """How often the world samples the servos: 100 Hz of bus time."""

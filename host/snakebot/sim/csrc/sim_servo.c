@@ -1,5 +1,5 @@
 /* The emulated AX-12's hot path (see sim_servo.h); every step mirrors
- * snakebot.sim.servo.ReferenceServo, operation for operation, so the two agree to the
+ * snakebot.sim.servo.reference.ReferenceServo, operation for operation, so the two agree to the
  * last bit (rounding half to even as Python's round does, Python's float modulo). */
 #include "sim_servo.h"
 

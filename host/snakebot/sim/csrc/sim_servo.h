@@ -1,4 +1,4 @@
-/* The hot path of an emulated AX-12 (snakebot.sim.servo.VirtualServo) in C: its motion,
+/* The hot path of an emulated AX-12 (snakebot.sim.servo.reference.VirtualServo) in C: its motion,
  * heat and alarms between packets, the telemetry READ, and the write of Goal Position
  * (+ Moving Speed) that every SYNC_WRITE carries. The Python object keeps its state in
  * this struct (one store), so its own methods and these functions see the same servo;

@@ -17,7 +17,7 @@ load, to zero at the stall torque. The physics world applies the first term as a
 force and the second as the joint's damping (MuJoCo integrates damping implicitly, which
 keeps a stiff gear train stable at a coarse time step). The gear train's reflected rotor
 inertia is the joint's armature. Stall torque and no-load speed are the servo model's
-(``snakebot.sim.motor.SPECS``).
+(``snakebot.sim.servo.motor.SPECS``).
 """
 
 from __future__ import annotations
@@ -25,8 +25,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from snakebot.robots import TICKS_PER_RAD
-from snakebot.sim import motor
+from snakebot.model.robots import TICKS_PER_RAD
+from snakebot.sim.servo import motor
 
 ARMATURE_KG_M2 = 0.002
 """Reflected inertia of the motor and gears at the output shaft (a model choice: the

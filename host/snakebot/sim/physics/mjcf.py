@@ -21,7 +21,7 @@ import math
 from dataclasses import dataclass
 from xml.etree import ElementTree as ET
 
-from snakebot.robots import Physics, Robot, RobotError
+from snakebot.model.robots import Physics, Robot, RobotError
 from snakebot.sim.physics.actuator import ARMATURE_KG_M2, Actuator
 
 TIMESTEP_S = 0.01

@@ -6,8 +6,8 @@ from __future__ import annotations
 from typing import Any
 
 from snakebot.extras import require
-from snakebot.robots import Robot
-from snakebot.sim.bus import Bus
+from snakebot.model.robots import Robot
+from snakebot.sim.bus.bus import Bus
 from snakebot.sim.errors import SimOptionError
 from snakebot.sim.world import World, WorldRecord
 

@@ -7,7 +7,7 @@ servos do not move themselves: every control period (``control_period`` of bus t
 world reads each servo's controller registers, works out its motor's drive
 (:mod:`snakebot.sim.physics.actuator`), steps MuJoCo over the period, and reports the
 joint's position, speed and load back to the servo
-(:meth:`snakebot.sim.servo.VirtualServo.set_motion`), so a master reading Present
+(:meth:`snakebot.sim.servo.reference.VirtualServo.set_motion`), so a master reading Present
 Position, Present Speed or Present Load over the bus sees the physics, and a joint that
 cannot deliver the torque asked of it reports overload.
 
@@ -30,8 +30,8 @@ from typing import Any
 
 import numpy as np
 
-from snakebot.robots import TICKS_PER_RAD, Robot
-from snakebot.sim.bus import Bus
+from snakebot.model.robots import TICKS_PER_RAD, Robot
+from snakebot.sim.bus.bus import Bus
 from snakebot.sim.physics.actuator import OVERLOAD_HOLD_S, STALLED_FRACTION, Actuator
 from snakebot.sim.physics.mjcf import CONTROL_PERIOD_S, TIMESTEP_S, build_mjcf, physics_of
 from snakebot.sim.world import DEFAULT_PERIOD_S, WorldError, WorldRecord, require_servos

@@ -17,7 +17,7 @@ import os
 import sys
 import termios
 
-from snakebot.sim.bus import Bus
+from snakebot.sim.bus.bus import Bus
 from snakebot.sim.transports.base import RawPty, ThreadedServer
 from snakebot.sim.transports.pump import Pump, ServerThread
 

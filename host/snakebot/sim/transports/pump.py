@@ -1,6 +1,6 @@
 """The loop that connects an emulated bus to a byte stream (a pty master, a socket).
 
-The bus clock follows the wall clock (``snakebot.sim.clock.WallClockPacer``): bytes read
+The bus clock follows the wall clock (``snakebot.sim.bus.clock.WallClockPacer``): bytes read
 from the client go on the wire at the moment they arrive, and bytes for the client are
 handed over when the emulated wire has delivered them, so a client's reply timeouts
 mean what they do on real hardware. Between events the thread sleeps in ``select``;
@@ -20,8 +20,8 @@ import threading
 import time
 from collections.abc import Callable
 
-from snakebot.sim.bus import Bus
-from snakebot.sim.clock import WallClockPacer
+from snakebot.sim.bus.bus import Bus
+from snakebot.sim.bus.clock import WallClockPacer
 
 IDLE_WAKE_S = 0.05
 """Longest sleep when the bus has nothing scheduled (it keeps the clock moving)."""

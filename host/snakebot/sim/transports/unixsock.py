@@ -18,7 +18,7 @@ import socket
 import time
 from pathlib import Path
 
-from snakebot.sim.bus import Bus
+from snakebot.sim.bus.bus import Bus
 from snakebot.sim.errors import SimError
 from snakebot.sim.transports.base import ThreadedServer
 from snakebot.sim.transports.pump import Pump, ServerThread

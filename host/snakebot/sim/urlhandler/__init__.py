@@ -1,6 +1,6 @@
 """pyserial URL handlers of the emulator: ``sim://`` (module ``protocol_sim``).
 
-:mod:`snakebot.transport.ports` adds this package to ``serial.protocol_handler_packages``
+:mod:`snakebot.link.transport.ports` adds this package to ``serial.protocol_handler_packages``
 (the one registration), after which ``serial.serial_for_url("sim://...")`` opens an
 emulated bus.
 """

@@ -26,8 +26,8 @@ from urllib.parse import urlsplit
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes
 
 from snakebot.errors import SnakebotError
-from snakebot.sim.bus import Bus
-from snakebot.sim.clock import WallClockPacer
+from snakebot.sim.bus.bus import Bus
+from snakebot.sim.bus.clock import WallClockPacer
 from snakebot.sim.options import URL_FORM, SimOptions
 
 POLL_HORIZON_S = 0.1

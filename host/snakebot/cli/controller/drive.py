@@ -1,0 +1,207 @@
+"""`snakebot drive`: steer the controller's on-board serpenoid live from the keyboard, or
+from a script of keys."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import sys
+import termios
+import time
+import tty
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import click
+
+from snakebot.cli.controller.link import controller_options, open_controller
+from snakebot.cli.output import dumps
+from snakebot.cli.params import wave_options
+from snakebot.link.controller import playback
+from snakebot.link.controller.drive import SPEED_STEP, STEER_STEP, Driver, Wait, parse_keys
+from snakebot.model.robots import load_robot
+
+REFRESH_S = 0.25
+"""Seconds between two looks at the controller on the terminal."""
+
+_KEY_HELP = "left/right steer   up/down speed   space stop/start   q quit"
+
+
+HELP = f"""Run the controller's serpenoid and steer it live.
+
+On a terminal: left and right arrows turn (Steering Offset, {math.degrees(STEER_STEP):g} deg
+a press), up and down change the speed (Speed Scale, {SPEED_STEP:g}x a press), space stops
+and starts again, q stops the robot and quits. The screen shows the state, error flags,
+and each joint's goal and present angle in degrees, load and errors, a few times a
+second. The firmware slews each change, so no servo is asked to jump.
+
+If the controller is running a program already (`snakebot upload X.prog` then `play`),
+that program is driven instead: up and down change its speed, left and right steer its
+serpenoid segments (its other segments are not steered), space stops it and runs it
+again from its start.
+
+With --keys or --script the same keys are handled without a terminal and each is
+reported as it is done (with --json, one JSON record per line); the script ends as q
+does, stopping the robot. Example:
+
+\b
+    snakebot drive --port /dev/ttyUSB0 --robot snake5
+    snakebot drive --port /dev/pts/3 --robot snake5 --keys "LL 1s RR 1s q" --json
+"""
+
+
+@click.command("drive", help=HELP)
+@controller_options
+@click.option(
+    "--robot",
+    help="Set the controller's roster (servo IDs, directions, zero ticks, limits) from "
+    "this robot first: snake3, snake5, trident or a .toml file.",
+)
+@wave_options
+@click.option(
+    "--keys",
+    help='Drive without a terminal: these keys, e.g. "LLRR U 2s space q" (left, right, up, '
+    "down or the letters L R U D, space, q, and waits such as 0.5s).",
+)
+@click.option(
+    "--script",
+    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    help="Drive without a terminal: the keys in this file, as --keys takes them (# starts "
+    "a comment).",
+)
+def drive(
+    port: str,
+    baud: int,
+    controller_id: int,
+    as_json: bool,
+    robot: str | None,
+    amplitude: float,
+    omega: float,
+    delta: float,
+    keys: str | None,
+    script: Path | None,
+) -> None:
+    if keys is not None and script is not None:
+        raise click.UsageError("give --keys or --script, not both")
+    text = script.read_text(errors="replace") if script is not None else keys
+    try:
+        scripted = parse_keys(text) if text is not None else None
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint="--script" if script else "--keys") from None
+    if scripted is None and not (sys.stdin.isatty() and sys.stdout.isatty()):
+        raise click.UsageError(
+            "snakebot drive needs a terminal for its keys: run it in one, or pass "
+            '--keys "..." or --script FILE'
+        )
+    settings = playback.SerpenoidSettings(amplitude, omega, delta)
+    roster = playback.roster_from_robot(load_robot(robot)) if robot else None
+    with open_controller(port, baud, controller_id) as ctl:
+        driver = Driver(ctl, settings, roster=roster)
+        driver.start()
+        try:
+            if scripted is None:
+                _terminal(driver)
+            else:
+                _scripted(driver, scripted, as_json)
+        finally:
+            if not driver.quit:  # Ctrl-C or a lost link: leave the robot stopped if we can
+                with contextlib.suppress(Exception):
+                    driver.press("q")
+
+
+def _scripted(driver: Driver, keys: list[str | Wait], as_json: bool) -> None:
+    t0 = time.monotonic()
+    for key in [*keys, "q"]:
+        if driver.quit:
+            break
+        if isinstance(key, Wait):
+            time.sleep(key.seconds)
+            record: dict[str, Any] = {"wait_s": key.seconds}
+        else:
+            record = driver.press(key)
+        record = {"t": round(time.monotonic() - t0, 3), **record, **driver.look()}
+        click.echo(dumps(record) if as_json else _line(record))
+
+
+def _line(r: dict[str, Any]) -> str:
+    what = f"wait {r['wait_s']:g}s" if "wait_s" in r else f"{r['key']}: {r['done']}"
+    angles = " ".join(f"{j['name']} {j['position_deg']:+.1f}" for j in r["joints"])
+    flags = ",".join(r["error_flags"]) or "none"
+    return (
+        f"{r['t']:7.2f}s {what} | {r['state']} flags {flags} speed {r['speed']:.2f}x "
+        f"steering {r['steer_deg']:+.1f} deg | {angles}"
+    )
+
+
+@contextlib.contextmanager
+def _cbreak(fd: int) -> Iterator[None]:
+    """Keys arrive one at a time, unechoed; the terminal is restored afterwards."""
+    saved = termios.tcgetattr(fd)
+    try:
+        tty.setcbreak(fd)
+        yield
+    finally:
+        termios.tcsetattr(fd, termios.TCSADRAIN, saved)
+
+
+def _terminal(driver: Driver) -> None:
+    try:
+        from rich.console import Console
+        from rich.live import Live
+    except ImportError:
+        raise click.ClickException(
+            "the terminal UI needs rich: pip install 'snakebot[drive]', or drive with "
+            "--keys/--script"
+        ) from None
+    from snakebot.link.controller.drive import read_key
+
+    fd = sys.stdin.fileno()
+    last: dict[str, Any] | None = None
+    view = driver.look()
+    with _cbreak(fd), Live(_screen(view, last), console=Console(), auto_refresh=False) as live:
+        due = time.monotonic() + REFRESH_S
+        while not driver.quit:
+            key = read_key(fd, max(0.0, due - time.monotonic()))
+            if key:
+                last = driver.press(key)
+            if driver.quit:
+                break
+            if time.monotonic() >= due:
+                view = driver.look()
+                due = time.monotonic() + REFRESH_S
+            live.update(_screen(view, last), refresh=True)
+        live.update(_screen(driver.look(), last), refresh=True)
+
+
+def _screen(view: dict[str, Any], last: dict[str, Any] | None) -> Any:
+    """The terminal screen: the controller's line, the keys, the last action, the joints."""
+    from rich.console import Group
+    from rich.table import Table
+    from rich.text import Text
+
+    flags = ", ".join(view["error_flags"]) or "none"
+    head = Text.assemble(
+        ("State ", "bold"),
+        view["state"],
+        ("   error flags ", "bold"),
+        (flags, "red" if view["error_flags"] else ""),
+        ("   speed ", "bold"),
+        f"{view['speed']:.2f}x",
+        ("   steering ", "bold"),
+        f"{view['steer_deg']:+.1f} deg",
+    )
+    done = "" if last is None else f"last key: {last['key']} ({last['done']})"
+    table = Table(box=None, header_style="bold")
+    for column in ("joint", "id", "goal deg", "angle deg", "load %", "errors"):
+        table.add_column(column, justify="left" if column in ("joint", "errors") else "right")
+    for j in view["joints"]:
+        table.add_row(
+            j["name"],
+            str(j["id"]),
+            f"{j['goal_deg']:+.1f}",
+            f"{j['position_deg']:+.1f}",
+            f"{j['load_percent']:+.1f}",
+            ", ".join(j["error"]) or "-",
+        )
+    return Group(head, Text(_KEY_HELP, style="dim"), Text(done), table)

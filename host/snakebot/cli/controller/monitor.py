@@ -1,0 +1,146 @@
+"""`snakebot monitor`: watch the controller and its servos live."""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import os
+import shutil
+import sys
+import time
+from pathlib import Path
+from typing import IO, Any
+
+import click
+
+from snakebot.cli.controller.link import controller_options, open_controller
+from snakebot.cli.output import dumps
+from snakebot.cli.params import NumberType
+from snakebot.link.controller.mcap_log import McapLog
+from snakebot.link.controller.monitor import CSV_COLUMNS, csv_rows, render, sample
+
+MIN_INTERVAL_S = 0.02
+CLEAR_BELOW = "\x1b[J"
+GRID_SLACK = 1e-9
+"""Lets a --duration that is a whole number of intervals count as one (0.3 / 0.1 is
+2.9999999999999996 in floating point)."""
+
+
+def _cursor_up(lines: int) -> str:
+    return f"\x1b[{lines}F" if lines else ""
+
+
+@click.command("monitor")
+@controller_options
+@click.option(
+    "--duration",
+    type=NumberType(0),
+    default=None,
+    help="Stop after this many seconds (default: until Ctrl-C).",
+)
+@click.option(
+    "--interval",
+    type=NumberType(MIN_INTERVAL_S),
+    default=0.5,
+    show_default=True,
+    help="Seconds between samples.",
+)
+@click.option(
+    "--csv",
+    "csv_path",
+    type=click.Path(dir_okay=False, writable=True, path_type=Path),
+    help="Also record every sample to this CSV file, one row per servo (t, state, joint "
+    "name, ticks and degrees, speed, load, voltage, temperature, errors).",
+)
+@click.option(
+    "--mcap",
+    "mcap_path",
+    type=click.Path(dir_okay=False, writable=True, path_type=Path),
+    help="Also record every sample to this MCAP file (Foxglove Studio, PlotJuggler): one "
+    "JSON message per sample, as --json prints it. Needs the mcap package.",
+)
+def monitor(
+    port: str,
+    baud: int,
+    controller_id: int,
+    as_json: bool,
+    duration: float | None,
+    interval: float,
+    csv_path: Path | None,
+    mcap_path: Path | None,
+) -> None:
+    """Show the controller's state and error flags, and each roster servo's position,
+    load, voltage, temperature and errors, as the controller last read them.
+
+    On a terminal the table refreshes in place; otherwise (or with --json, one JSON
+    record per line: JSON Lines) every sample is printed after the last. With --csv
+    each sample is also written to a file as it is taken, so a run stopped with Ctrl-C
+    keeps everything up to then; --mcap does the same in MCAP.
+    """
+    live = sys.stdout.isatty() and not as_json
+    shown = 0
+    # Only files this run creates may be removed again: a path that was there before
+    # (a file of the user's, a device such as /dev/null) is never unlinked.
+    created = [p for p in (csv_path, mcap_path) if p is not None and not os.path.lexists(p)]
+    with contextlib.ExitStack() as stack:
+        recorder = None
+        if csv_path is not None:  # opened first: a path that cannot be written fails at once
+            out = stack.enter_context(_open_record(csv_path, "--csv", "w", newline=""))
+            recorder = csv.DictWriter(out, fieldnames=CSV_COLUMNS)
+        mcap_log = None
+        try:
+            if mcap_path is not None:
+                mcap_log = McapLog(stack.enter_context(_open_record(mcap_path, "--mcap", "wb")))
+                stack.enter_context(mcap_log)
+            ctl = stack.enter_context(open_controller(port, baud, controller_id))
+            ctl.identify()
+        except BaseException:
+            stack.close()  # no controller, no recording: leave no empty file of ours
+            for path in created:
+                path.unlink(missing_ok=True)
+            raise
+        if recorder is not None:
+            recorder.writeheader()
+        t0 = time.monotonic()
+        taken = 0
+        try:
+            while True:
+                s = sample(ctl, t0)
+                if recorder is not None:
+                    recorder.writerows(csv_rows(s))
+                    out.flush()
+                if mcap_log is not None:
+                    mcap_log.write(s.as_record())
+                if as_json:
+                    click.echo(dumps(s.as_record()))
+                else:
+                    lines = render(s)
+                    if live:  # lines cut to the width, so none wraps and the count holds
+                        width = max(20, shutil.get_terminal_size().columns - 1)
+                        lines = [line[:width] for line in lines]
+                        click.echo(_cursor_up(shown) + CLEAR_BELOW + "\n".join(lines))
+                        shown = len(lines)
+                    else:
+                        click.echo("\n".join(lines) + "\n")
+                taken += 1
+                # Sample k is due at t0 + k * interval, counted on an integer grid: comparing
+                # accumulated float times would drop the last sample at random.
+                if duration is not None and taken > duration / interval + GRID_SLACK:
+                    break
+                wait = t0 + taken * interval - time.monotonic()
+                if wait > 0:
+                    time.sleep(wait)  # a link slower than the interval samples back to back
+        except KeyboardInterrupt:
+            pass
+
+
+def _open_record(path: Path, option: str, mode: str, **kwargs: Any) -> IO[Any]:
+    """Open a recording file; a path that cannot be written is bad input (exit 2)."""
+    try:
+        return path.open(mode, **kwargs)
+    except OSError as exc:
+        raise click.BadParameter(
+            f"cannot write {path}: {exc.strerror or exc}; choose a file in an existing, "
+            "writable directory",
+            param_hint=option,
+        ) from exc

@@ -1,0 +1,186 @@
+"""`snakebot sim thesis` and `snakebot sim friction`: the physics world's studies."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import click
+
+from snakebot.cli.output import dumps
+from snakebot.cli.params import OUTPUT_PATH
+from snakebot.errors import SnakebotError
+from snakebot.plots.video import check_video_path, write_video
+
+
+def _floats(text: str) -> tuple[float, ...]:
+    try:
+        values = tuple(float(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        values = ()
+    if not values or not all(math.isfinite(v) and v > 0 for v in values):
+        raise SnakebotError(
+            f"--mu {text!r}: give positive numbers separated by commas, e.g. 0.1,1,10"
+        )
+    return values
+
+
+@click.command("thesis")
+@click.option(
+    "--output",
+    "-o",
+    "out_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("out/thesis"),
+    show_default=True,
+    help="Directory for one PNG per run (NAME.png).",
+)
+@click.option(
+    "--only",
+    type=click.Choice(["g1", "g2", "g3", "h1", "h2", "h3", "serpenoid"]),
+    multiple=True,
+    help="Run only this one (repeatable); default: all seven.",
+)
+@click.option(
+    "--mu",
+    type=click.FloatRange(min=0, min_open=True),
+    help="Wheel-floor friction coefficient in the physics world (default: the robot's).",
+)
+@click.option(
+    "--video",
+    type=OUTPUT_PATH,
+    help="Write a GIF (or MP4, with ffmpeg) per run, seen from above, both worlds "
+    "overlaid: FILE for one run, FILE's name with -NAME added for several.",
+)
+@click.option("--json", "as_json", is_flag=True, help='Print {"runs": [...]} as JSON.')
+def thesis(
+    out_dir: Path, only: tuple[str, ...], mu: float | None, video: Path | None, as_json: bool
+) -> None:
+    """Rerun the thesis's chapter 4 simulations in the kinematic and the MuJoCo world.
+
+    \b
+    g1, g2, g3  the trident driven along one control field (u_i = 1) for 2 s
+    h1, h2, h3  its periodic inputs (A, omega) = (0.3, 3), (0.2, 3), (0.25, 2)
+                on the input pairs (1,2), (1,3), (2,3) for 2 x 2.5 pi/omega
+    serpenoid   the 3-link snake's serpenoid of the thesis's Figure 20
+
+    Each run is played as a gait table on the emulated robot (host as bus master),
+    once in each world, with the thesis's own settings, including the run times that
+    are not whole periods (which `gait field` refuses). The trident and the 3-link
+    snake are dimensionless; the physics world builds their physical twins from the
+    [physics] tables of their robot files. Writes OUT/NAME.png: x, y, theta and the
+    joints against t, both worlds overlaid, the model's ideal path dashed.
+    docs/thesis.md compares the results with what the thesis saw.
+    """
+    from snakebot.plots.thesis import plot_thesis_run
+    from snakebot.workflows.thesis import RUNS, run_thesis
+
+    runs = [r for r in RUNS if not only or r.name in only]
+    if video is not None:
+        check_video_path(video)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    summaries = []
+    for i, run in enumerate(runs, start=1):
+        click.echo(f"[{i}/{len(runs)}] {run.name} on {run.robot} ...", err=as_json, nl=False)
+        result = run_thesis(run, mu=mu)
+        summary = result.summary()
+        summary["png"] = str(plot_thesis_run(result, out_dir / f"{run.name}.png"))
+        if video is not None:
+            name = video if len(runs) == 1 else video.with_stem(f"{video.stem}-{run.name}")
+            motions = {world: p.emulated for world, p in result.worlds.items()}
+            summary["video"] = str(
+                write_video(name, result.robot, motions, f"thesis run {run.name}")
+            )
+        summaries.append(summary)
+        click.echo(" done", err=as_json)
+        if not as_json:
+            for line in _run_lines(summary):
+                click.echo(line)
+    if as_json:
+        click.echo(dumps({"runs": summaries}, indent=2))
+
+
+def _run_lines(s: dict) -> list[str]:
+    def state(d: dict) -> str:
+        phi = ", ".join(f"{v:+.2f}" for v in d["phi"])
+        return f"x {d['x']:+.3f}  y {d['y']:+.3f}  theta {d['theta']:+.3f}  phi ({phi})"
+
+    lines = [f"  thesis saw: {s['thesis_observed']}"]
+    if "model" in s:
+        lines.append(f"  model     : {state(s['model'])}")
+    for world in ("kinematic", "mujoco"):
+        if world in s:
+            lines.append(f"  {world:10}: {state(s[world])}")
+    if s["clipped_frames"]:
+        lines.append(f"  {s['clipped_frames']} of {s['frames']} frames clipped at the joint limits")
+    lines.append(f"  wrote {s['png']}" + (f" and {s['video']}" if "video" in s else ""))
+    return lines
+
+
+@click.command("friction")
+@click.argument(
+    "gait_file", metavar="GAIT", type=click.Path(exists=True, dir_okay=False, path_type=Path)
+)
+@click.option("--robot", "-r", help="Robot (default: the one named in GAIT.json).")
+@click.option(
+    "--mu",
+    "mu_text",
+    default="0.02,0.05,0.1,0.2,0.5,1,2,5,10",
+    show_default=True,
+    help="Friction coefficients to try, comma-separated.",
+)
+@click.option(
+    "--plot",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write a PNG: distance per cycle against mu, and the wheels' sideways slide.",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print the study as JSON.")
+def friction(
+    gait_file: Path, robot: str | None, mu_text: str, plot: Path | None, as_json: bool
+) -> None:
+    """Play GAIT in the MuJoCo world over a range of wheel-floor friction coefficients
+    and compare its distance per cycle with the kinematic world's.
+
+    The kinematic prediction depends on a guessed rolling friction (the robot's c_t);
+    the physics twin's wheels spin freely and hold sideways by Coulomb friction mu. On
+    a grippy floor the physics meets the free-wheel kinematic prediction; as mu falls
+    the wheels slide and the snake goes less far.
+
+    \b
+    Example:
+      snakebot gait serpenoid snake5 -A 30deg -w 180deg -d 90deg --cycles 1 -o s.gait
+      snakebot sim friction s.gait --plot friction.png
+    """
+    from snakebot.formats.gaittable import read_gait
+    from snakebot.plots.thesis import plot_friction
+    from snakebot.workflows.friction import friction_study
+
+    values = _floats(mu_text)
+    table = read_gait(gait_file)
+
+    def progress(mu: float, _result: object) -> None:
+        click.echo(f"  mu = {mu:g} done", err=True)
+
+    study = friction_study(table, robot, values, str(gait_file), progress)
+    if plot is not None:
+        study["plot"] = str(plot_friction(study, plot))
+    if as_json:
+        click.echo(dumps(study, indent=2))
+        return
+    u = study["units"]
+    kin, free = study["kinematic"], study["kinematic_free_wheels"]
+    click.echo(f"{gait_file} on {study['robot']}: distance per cycle ({u})")
+    click.echo(f"  kinematic, c_t = {study['c_t']:g}: {kin['distance_per_cycle']:.4f}")
+    click.echo(f"  kinematic, free wheels:  {free['distance_per_cycle']:.4f}")
+    for p in study["points"]:
+        ratio = (
+            p["distance_per_cycle"] / free["distance_per_cycle"]
+            if free["distance_per_cycle"]
+            else math.nan
+        )
+        click.echo(
+            f"  MuJoCo, mu = {p['mu']:<6g}     {p['distance_per_cycle']:.4f} "
+            f"({100 * ratio:.0f} % of free wheels), slid {p['slip_distance_per_cycle']:.4f}"
+        )
+    if plot is not None:
+        click.echo(f"plot written to {study['plot']}")

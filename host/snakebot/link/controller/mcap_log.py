@@ -1,0 +1,75 @@
+"""Telemetry samples as an MCAP file (for Foxglove Studio and PlotJuggler): one JSON
+message per sample on one topic, described by a JSON Schema, stamped with the wall
+clock. Needs the optional ``mcap`` package (``pip install 'snakebot[record]'``)."""
+
+from __future__ import annotations
+
+import json
+import time
+from types import TracebackType
+from typing import IO, Any
+
+from snakebot.errors import SnakebotError
+
+TOPIC = "/snakebot/telemetry"
+SCHEMA_NAME = "snakebot.Telemetry"
+SCHEMA = {
+    "type": "object",
+    "title": SCHEMA_NAME,
+    "properties": {
+        "t": {"type": "number", "description": "seconds since monitoring began"},
+        "controller": {"type": "object"},
+        "servos": {"type": "array", "items": {"type": "object"}},
+    },
+}
+"""What each message holds: :meth:`snakebot.link.controller.monitor.Sample.as_record`."""
+
+
+class McapUnavailable(SnakebotError):
+    """The mcap package is not installed."""
+
+
+class McapLog:
+    """Writes telemetry records to an open binary stream; :meth:`close` writes the index
+    (a file cut short without it still holds every finished chunk)."""
+
+    def __init__(self, stream: IO[bytes]) -> None:
+        try:
+            from mcap.writer import Writer
+        except ImportError:
+            raise McapUnavailable(
+                "--mcap needs the mcap package: pip install 'snakebot[record]' (or pip "
+                "install mcap), or record with --csv"
+            ) from None
+        self._writer = Writer(stream)
+        self._writer.start(profile="", library="snakebot")
+        schema = self._writer.register_schema(
+            name=SCHEMA_NAME, encoding="jsonschema", data=json.dumps(SCHEMA).encode()
+        )
+        self._channel = self._writer.register_channel(
+            topic=TOPIC, message_encoding="json", schema_id=schema
+        )
+
+    def write(self, record: dict[str, Any], stamp_ns: int | None = None) -> None:
+        """One sample's record, at ``stamp_ns`` (default: now)."""
+        stamp = time.time_ns() if stamp_ns is None else stamp_ns
+        self._writer.add_message(
+            channel_id=self._channel,
+            log_time=stamp,
+            publish_time=stamp,
+            data=json.dumps(record).encode(),
+        )
+
+    def close(self) -> None:
+        self._writer.finish()
+
+    def __enter__(self) -> McapLog:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()

@@ -1,0 +1,115 @@
+"""Keeping the controller's gait library across `snakebot flash`.
+
+It is not known whether the ROBOTIS bootloader's ``L`` erases the whole application area,
+which holds the library (protocol/library.md), so before flashing every stored slot is
+read through the running controller into a file in the user's application directory, and
+afterwards, once the new firmware answers, written back where it is missing. A controller
+that does not answer (no snakebot firmware yet, or a board already in its bootloader) is
+skipped with a warning: flashing must not depend on it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import click
+
+from snakebot.errors import SnakebotError
+from snakebot.formats.protocol.errors import ProtocolError
+from snakebot.link.controller.client import ControllerClient
+from snakebot.link.controller.library import backup, restore
+
+BACKUP_DIR_ENV = "SNAKEBOT_LIBRARY_BACKUP_DIR"
+"""Overrides where backups go (default: ``library-backups`` in click's application
+directory for snakebot, e.g. ~/.config/snakebot on Linux)."""
+
+BOOT_WAIT_S = 5.0
+"""How long the new firmware may take to answer after GO before the restore gives up."""
+
+Say = Callable[[str], None]
+
+
+def backup_dir() -> Path:
+    override = os.environ.get(BACKUP_DIR_ENV)
+    return Path(override) if override else Path(click.get_app_dir("snakebot")) / "library-backups"
+
+
+def _answers(ctl: ControllerClient) -> bool:
+    """Whether a controller answers a PING, tried three times (a busy link may drop one;
+    a silent board costs only three reply timeouts, well before its user presses MODE or
+    power-cycles it)."""
+    try:
+        ctl.link.ping(ctl.id, retries=2)
+    except (ProtocolError, OSError):
+        return False
+    return True
+
+
+def backup_library(port: str, say: Say, warn: Say) -> Path | None:
+    """Save every stored slot of the controller on ``port`` to a new file; its path, or
+    None if there was nothing to save or the controller did not answer."""
+    try:
+        with ControllerClient.open(port) as ctl:
+            if not _answers(ctl):
+                warn(
+                    f"warning: no snakebot controller answered on {port}: its gait library "
+                    "(if any) is not backed up"
+                )
+                return None
+            ctl.identify()
+            saved = backup(ctl)
+    except (SnakebotError, OSError) as exc:
+        warn(f"warning: the gait library could not be backed up ({exc}); flashing anyway")
+        return None
+    stored = [s for s in saved["slots"] if "data" in s]
+    if not stored:
+        say("The controller's gait library is empty: nothing to back up.")
+        return None
+    folder = backup_dir()
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"library-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}.json"
+    path.write_text(json.dumps(saved, indent=1) + "\n")
+    say(f"Backed up {len(stored)} gait-library slot(s) to {path}")
+    return path
+
+
+def read_backup(path: Path) -> dict[str, Any]:
+    """A backup file's contents; SnakebotError naming the problem if it is not one."""
+    try:
+        saved = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise SnakebotError(f"cannot read the library backup {path}: {exc}") from exc
+    if not isinstance(saved, dict):
+        raise SnakebotError(f"{path} is not a snakebot library backup: pass a file flash wrote")
+    return saved
+
+
+def restore_library(
+    port: str, path: Path, say: Say, warn: Say, wait_s: float = BOOT_WAIT_S
+) -> None:
+    """Write the slots saved in ``path`` back to the controller on ``port`` (waiting up to
+    ``wait_s`` for the new firmware to answer); warns, with the command to run later, if
+    it cannot."""
+    later = f"restore it later with `snakebot library restore {path} --port {port}`"
+    try:
+        with ControllerClient.open(port) as ctl:
+            deadline = time.monotonic() + wait_s
+            while not _answers(ctl):
+                if time.monotonic() > deadline:
+                    warn(f"warning: the new firmware did not answer on {port}: {later}")
+                    return
+                time.sleep(0.1)
+            ctl.identify()
+            written = restore(ctl, read_backup(path))
+    except (SnakebotError, OSError) as exc:
+        warn(f"warning: the gait library was not restored ({exc}): {later}")
+        return
+    if written:
+        say(f"Restored {len(written)} gait-library slot(s) from {path}")
+    else:
+        say("The gait library survived flashing: nothing to restore.")

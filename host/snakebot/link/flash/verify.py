@@ -1,0 +1,111 @@
+"""After GO: the new firmware answers, is the image that was sent, and says so itself.
+
+The controller must answer PING at its ID within ``timeouts.boot``, report the model number
+of a snakebot controller and the firmware version the image's identity block carries, and
+then, asked with Upload Commit FIRMWARE_CHECK, compute the CRC-32 of its own image in
+flash and find it equal to the CRC-32 of the bytes sent (protocol/controller.md).
+"""
+
+from __future__ import annotations
+
+import time
+import zlib
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from snakebot.errors import SnakebotError
+from snakebot.formats.protocol import DxlTimeout
+from snakebot.formats.upload_writes import commit_write
+from snakebot.link.controller import UploadResult
+from snakebot.link.controller.client import ControllerClient
+from snakebot.link.flash.bootloader import RESET_HINT
+from snakebot.link.flash.errors import FlashError
+from snakebot.link.flash.image import ImageInfo
+from snakebot.link.flash.settings import FlashTimeouts
+
+PING_EVERY_S = 0.2
+"""How often the new firmware is pinged while it starts."""
+
+Waited = Callable[[float], None]
+
+REFLASH = f"flash it again ({RESET_HINT} when asked)"
+
+
+@dataclass(frozen=True)
+class Verified:
+    """What the running firmware confirmed."""
+
+    controller_id: int
+    model_number: int
+    firmware_version: int
+    crc: int  # CRC-32 of the image, as the controller computed it over its flash
+    boot_seconds: float  # from the start of the wait until the first answer to PING
+
+
+def _wait_for_ping(ctl: ControllerClient, timeouts: FlashTimeouts, waited: Waited) -> float:
+    start = time.monotonic()
+    while True:
+        try:
+            ctl.link.ping(ctl.id, retries=0)
+            return time.monotonic() - start
+        except (DxlTimeout, SnakebotError):
+            elapsed = time.monotonic() - start
+            if elapsed >= timeouts.boot:
+                raise FlashError(
+                    f"the new firmware did not answer PING at ID {ctl.id} within "
+                    f"{timeouts.boot:g} s of GO: it may not have started (the bootloader did "
+                    f"not jump, or the image faults at start-up); {REFLASH}, or raise "
+                    "SNAKEBOT_FLASH_BOOT_TIMEOUT_S if the machine is slow"
+                ) from None
+            waited(elapsed)
+            time.sleep(PING_EVERY_S)
+
+
+def verify_firmware(
+    port: str,
+    image: bytes,
+    info: ImageInfo,
+    timeouts: FlashTimeouts,
+    waited: Waited = lambda _: None,
+) -> Verified:
+    """Check the firmware started from ``image`` on the controller at ``port`` (see the
+    module), or raise :class:`FlashError` naming what differs and the fix. ``waited`` is
+    called with the seconds waited so far while the firmware does not answer yet."""
+    with ControllerClient.open(port, retries=1) as ctl:
+        boot_s = _wait_for_ping(ctl, timeouts, waited)
+        table = ctl.table
+        length = table.register("Upload Length")
+        if len(image) > length.max:
+            raise FlashError(
+                f"the image is {len(image)} bytes, more than the {length.max} the controller "
+                "can be asked to check (Upload Length): it started but is not verified"
+            )
+        try:
+            with ctl.link_errors("the firmware check"):
+                found = ctl.read("Model Number", "Firmware Version")
+                if found["Model Number"] != table.model_number:
+                    raise FlashError(
+                        f"the device answering at ID {ctl.id} after GO reports model number "
+                        f"{found['Model Number']}, not a snakebot controller "
+                        f"({table.model_number}): the new firmware did not start; {REFLASH}"
+                    )
+                if found["Firmware Version"] != info.firmware_version:
+                    raise FlashError(
+                        f"the controller runs firmware version {found['Firmware Version']}, "
+                        f"the image sent is version {info.firmware_version}: the old firmware "
+                        f"is still running (the bootloader kept it); {REFLASH}"
+                    )
+                ctl.write_block(*commit_write(image, table, what="FIRMWARE_CHECK"))
+                result = ctl.read("Upload Result")["Upload Result"]
+        except FlashError:
+            raise
+        except SnakebotError as exc:
+            raise FlashError(f"checking the new firmware failed: {exc}") from None
+    if result != UploadResult.OK:
+        name = UploadResult(result).name if result in UploadResult._value2member_map_ else result
+        raise FlashError(
+            f"the controller finds its firmware in flash differs from the image sent "
+            f"(Upload Result {name}): flash was written wrongly or another image runs; "
+            f"{REFLASH}"
+        )
+    return Verified(ctl.id, found["Model Number"], info.firmware_version, zlib.crc32(image), boot_s)

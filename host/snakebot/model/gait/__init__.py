@@ -1,0 +1,25 @@
+"""Gait generators: serpenoid (joint-space sines) and field-following (vector fields and
+Lie brackets through periodic inputs). Each returns a ``Gait`` that becomes a gait table
+(``Gait.gait_table()``) after passing the robot's joint-limit and speed checks."""
+
+from __future__ import annotations
+
+from snakebot.model.gait.common import Gait, GaitError
+from snakebot.model.gait.field import field_gait
+from snakebot.model.gait.limits import GaitLimitError, check_motion, check_ticks
+from snakebot.model.gait.serpenoid import serpenoid
+from snakebot.model.gait.values import InputError, parse_angle, parse_angles, parse_field_expression
+
+__all__ = [
+    "Gait",
+    "GaitError",
+    "GaitLimitError",
+    "InputError",
+    "check_motion",
+    "check_ticks",
+    "field_gait",
+    "parse_angle",
+    "parse_angles",
+    "parse_field_expression",
+    "serpenoid",
+]

@@ -1,0 +1,58 @@
+"""Numeric kinematics through the C core (``snakebot._core``): wheel geometry, the
+minimum-slip body velocity, the control vector fields and their Lie brackets, and
+whole-trajectory integrators (RK4, Dormand-Prince 5(4) and 8(5,3)), one trajectory or
+a grid of schedules per call."""
+
+from __future__ import annotations
+
+from snakebot.model.kinematics.ccore import KinematicsError, Options, SingularConfiguration
+from snakebot.model.kinematics.integrate import (
+    Batch,
+    Inputs,
+    Sines,
+    Table,
+    Trajectory,
+    integrate_fields,
+    integrate_joints,
+    integrate_joints_batch,
+    schedule_eval,
+)
+from snakebot.model.kinematics.model import (
+    BRACKETS,
+    FIELD_NAMES,
+    BodyVelocity,
+    FieldSet,
+    body_velocity,
+    default_form,
+    field_model,
+    field_velocity,
+    fields,
+    wheel_speeds,
+    wheels,
+)
+
+__all__ = [
+    "BRACKETS",
+    "Batch",
+    "FIELD_NAMES",
+    "BodyVelocity",
+    "FieldSet",
+    "Inputs",
+    "KinematicsError",
+    "Options",
+    "SingularConfiguration",
+    "Sines",
+    "Table",
+    "Trajectory",
+    "body_velocity",
+    "default_form",
+    "field_model",
+    "field_velocity",
+    "fields",
+    "integrate_fields",
+    "integrate_joints",
+    "integrate_joints_batch",
+    "schedule_eval",
+    "wheel_speeds",
+    "wheels",
+]

@@ -1,0 +1,159 @@
+"""Robot descriptions as plain data: geometry, friction, and one ``Joint`` per servo."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from snakebot.errors import SnakebotError
+from snakebot.facts import devices
+
+_POSITION = devices.ax12().require_position()
+#: AX-12 position units, from its device description (the AX-12 family shares them).
+TICKS_PER_RAD = _POSITION.ticks_per_rad
+TICK_MIN, TICK_MAX = _POSITION.range
+#: The servo's Torque Limit register, whose range and unit a robot's torque limit takes
+#: (the firmware's range check is generated from the same description).
+TORQUE_LIMIT = devices.ax12().register("Torque Limit")
+
+#: No-load maximum joint speed per servo model (ROBOTIS e-Manual: AX-12A 59 rpm at 12 V,
+#: AX-12W 54 rpm in joint mode), from the device descriptions, which the firmware shares.
+SERVO_MAX_RPM = {
+    name: rpm
+    for name in devices.names("servo")
+    if (rpm := devices.load(name).max_speed_rpm) is not None
+}
+
+
+class RobotError(SnakebotError):
+    """A robot description that cannot be used (file missing, malformed, inconsistent)."""
+
+
+def joint_name(index: int) -> str:
+    """The name of joint ``index`` (0 = the first) when a description gives none: phi1, ..."""
+    return f"phi{index + 1}"
+
+
+@dataclass(frozen=True)
+class Joint:
+    """One actuated joint: the servo driving it and how its ticks map to the angle."""
+
+    name: str
+    servo_id: int
+    zero_tick: int  # tick value at phi = 0
+    sign: int  # +1: ticks grow with phi; -1: the servo is mounted the other way round
+    min_rad: float
+    max_rad: float
+
+    def angle_to_tick(self, phi: float) -> int:
+        return int(round(self.zero_tick + self.sign * phi * TICKS_PER_RAD))
+
+    def tick_to_angle(self, tick: float) -> float:
+        return (tick - self.zero_tick) / (self.sign * TICKS_PER_RAD)
+
+    @property
+    def tick_range(self) -> tuple[int, int]:
+        """(min_tick, max_tick) covering the joint's allowed angles."""
+        a, b = self.angle_to_tick(self.min_rad), self.angle_to_tick(self.max_rad)
+        return (min(a, b), max(a, b))
+
+
+@dataclass(frozen=True)
+class Physics:
+    """What the physics world needs beyond the geometry (the robot TOML's ``[physics]``
+    table). ``unit_m``: metres per length unit of ``[geometry]`` (1 for a robot measured
+    in metres; a dimensionless thesis robot gets the size a lab would build). Masses in
+    kg, the wheel radius in metres; ``mu`` is the wheel-floor friction coefficient (it
+    holds the wheels sideways); ``rolling_damping`` (N m s/rad) resists each wheel's spin.
+    """
+
+    unit_m: float
+    link_mass_kg: float
+    wheel_radius_m: float
+    wheel_mass_kg: float
+    mu: float
+    rolling_damping: float
+
+
+@dataclass(frozen=True)
+class Robot:
+    """A wheeled snake (``kind == "snake"``), trident (``kind == "trident"``) or car
+    (``kind == "car"``).
+
+    Snake: ``links`` links of length ``2 * l``, a wheel at each link's middle; link 1's
+    free end (the reference point) is the tail, link N's the head.
+    Trident: base radius ``r``, arm length ``l``, arm corners at ``alphas`` (radians).
+    Car (the thesis's first chapter): wheelbase ``l``; its one joint is the steering
+    angle Phi, and the drive is an input, not a joint. It has a field model only
+    (``snakebot model fields``), no wheel-by-wheel model in the C core.
+    """
+
+    name: str
+    kind: Literal["snake", "trident", "car"]
+    joints: tuple[Joint, ...]
+    servo_model: str
+    max_speed_rad_s: float
+    l: float  # noqa: E741 - the thesis's symbol: half-link (snake) or arm length (trident)
+    r: float = 0.0
+    alphas: tuple[float, ...] = ()
+    links: int = 0
+    c_n: float = 1.0
+    c_t: float = 0.0
+    description: str = ""
+    physics: Physics | None = None  # None: the TOML has no [physics] table
+    torque_limit: int | None = None  # raw Torque Limit for every servo; None: leave theirs
+    source: str = field(default="", compare=False)  # file it came from
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.joints)
+
+    @property
+    def n_wheels(self) -> int:
+        return {"snake": self.links, "trident": 3, "car": 4}[self.kind]
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        """Names of the state coordinates q = (x, y, theta, phi_1, ...)."""
+        return ("x", "y", "theta") + tuple(j.name for j in self.joints)
+
+    @property
+    def servo_ids(self) -> tuple[int, ...]:
+        return tuple(j.servo_id for j in self.joints)
+
+    @property
+    def tick_limits(self) -> tuple[tuple[int, int], ...]:
+        return tuple(j.tick_range for j in self.joints)
+
+    @property
+    def torque_limit_percent(self) -> float | None:
+        """The robot-wide torque limit in the servo's unit (% of stall torque), if set."""
+        if self.torque_limit is None:
+            return None
+        return TORQUE_LIMIT.to_units(self.torque_limit)
+
+    def angles_to_ticks(self, phi: np.ndarray) -> np.ndarray:
+        """Joint angles (radians, last axis = joints) to AX-12 goal ticks (int64, rounded)."""
+        phi = np.asarray(phi, dtype=float)
+        if phi.shape[-1:] != (self.n_joints,):
+            raise RobotError(
+                f"{self.name} has {self.n_joints} joints but got angles of shape {phi.shape}: "
+                "give one angle per joint in the last axis"
+            )
+        zero = np.array([j.zero_tick for j in self.joints], dtype=float)
+        sign = np.array([j.sign for j in self.joints], dtype=float)
+        return np.rint(zero + sign * phi * TICKS_PER_RAD).astype(np.int64)
+
+    def ticks_to_angles(self, ticks: np.ndarray) -> np.ndarray:
+        """AX-12 ticks (last axis = joints) to joint angles in radians."""
+        ticks = np.asarray(ticks, dtype=float)
+        if ticks.shape[-1:] != (self.n_joints,):
+            raise RobotError(
+                f"{self.name} has {self.n_joints} joints but got ticks of shape {ticks.shape}: "
+                "give one tick value per joint in the last axis"
+            )
+        zero = np.array([j.zero_tick for j in self.joints], dtype=float)
+        sign = np.array([j.sign for j in self.joints], dtype=float)
+        return (ticks - zero) / (sign * TICKS_PER_RAD)

@@ -1,0 +1,73 @@
+"""Pictures of the physics studies (matplotlib, Agg: no display needed): a thesis run's
+time series in both worlds, and the friction study."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from snakebot.workflows.thesis import ThesisResult
+
+WORLD_STYLE = {"kinematic": ("tab:blue", "-"), "mujoco": ("tab:orange", "-")}
+
+
+def plot_thesis_run(result: ThesisResult, out: str | Path) -> Path:
+    """PNG: x, y, theta and each joint against t, as the thesis's figures show them, with
+    both worlds overlaid and the model's ideal path (field runs) dashed."""
+    names = ["x", "y", "theta", *(j.name for j in result.robot.joints)]
+    fig = Figure(figsize=(4 * len(names), 3.6), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, len(names))
+    for world, prediction in result.worlds.items():
+        rec = prediction.emulated
+        color, style = WORLD_STYLE.get(world, ("tab:green", "-"))
+        series = np.hstack([rec.pose, rec.phi])
+        for k, ax in enumerate(axes):
+            ax.plot(rec.t, series[:, k], style, color=color, label=world)
+    if result.model_q is not None:
+        for k, ax in enumerate(axes):
+            ax.plot(result.t, result.model_q[:, k], "--", color="gray", label="model (ideal)")
+    for ax, name in zip(axes, names, strict=True):
+        ax.set_title(name)
+        ax.set_xlabel("t (s)")
+        ax.set_ylabel("robot length units" if name in ("x", "y") else "rad")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize="small")
+    fig.suptitle(
+        f"thesis run {result.run.name} on {result.robot.name}: kinematic and MuJoCo worlds"
+    )
+    out = Path(out)
+    fig.savefig(out, dpi=90)
+    return out
+
+
+def plot_friction(study: dict[str, Any], out: str | Path) -> Path:
+    """PNG: distance per cycle in the physics world against the friction coefficient,
+    with the kinematic world's as a line, and the wheels' sideways slide."""
+    fig = Figure(figsize=(10, 4), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax_d, ax_s = fig.subplots(1, 2)
+    mu = [p["mu"] for p in study["points"]]
+    ax_d.semilogx(mu, [p["distance_per_cycle"] for p in study["points"]], "o-", label="MuJoCo")
+    for key, label, style in (
+        ("kinematic", f"kinematic (c_t = {study['c_t']:g})", "--"),
+        ("kinematic_free_wheels", "kinematic, free wheels (c_t = 0)", ":"),
+    ):
+        ax_d.axhline(study[key]["distance_per_cycle"], linestyle=style, color="gray", label=label)
+    ax_d.set_xlabel("wheel-floor friction coefficient mu")
+    ax_d.set_ylabel(f"distance per cycle ({study['units']})")
+    ax_d.set_title(f"{study['gait']} on {study['robot']}")
+    ax_d.legend(fontsize="small")
+    ax_d.grid(alpha=0.3, which="both")
+    ax_s.loglog(mu, [max(p["slip_distance_per_cycle"], 1e-12) for p in study["points"]], "o-")
+    ax_s.set_xlabel("wheel-floor friction coefficient mu")
+    ax_s.set_ylabel(f"sideways slide per cycle, all wheels ({study['units']})")
+    ax_s.set_title("how far the wheels slid sideways")
+    ax_s.grid(alpha=0.3, which="both")
+    out = Path(out)
+    fig.savefig(out, dpi=90)
+    return out

@@ -1,0 +1,3 @@
+"""The emulated Dynamixel bus: its virtual clock (``clock``), the wire and its timing
+(``uart``, ``receiver``), seeded faults (``faults``) and the bus that ties servos to a
+master port (``bus``)."""

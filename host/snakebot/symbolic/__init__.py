@@ -1,8 +1,0 @@
-"""Symbolic models (sympy): the control vector fields, their Lie brackets, and the C
-generated from them for the kinematic core."""
-
-from __future__ import annotations
-
-from snakebot.symbolic.models import FORMS, SymbolicModel, lie_bracket, model_for, snake3, trident
-
-__all__ = ["FORMS", "SymbolicModel", "lie_bracket", "model_for", "snake3", "trident"]

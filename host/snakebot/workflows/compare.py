@@ -1,0 +1,237 @@
+"""A recorded run (``snakebot monitor --csv`` or ``--mcap``) lined up against the gait's
+prediction: the joint angles the table asks for at each moment (ticks to angles through
+the robot's calibration, linear between frames, as the controller plays them) and, when
+the run carries an external pose (columns ``pose_x``, ``pose_y`` in metres and
+``pose_theta`` in radians, e.g. from motion capture), the body pose the table's motion
+integrates to. The run's start is found by cross-correlating its first joint with the
+prediction; errors are reported per joint in degrees."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from snakebot.errors import SnakebotError
+from snakebot.formats.gaittable import GaitTable
+from snakebot.model.robots.model import Robot
+from snakebot.userfiles import FileTooLarge, read_bounded
+from snakebot.workflows.predict import predict_table
+
+RUN_MAX = 256 * 1024 * 1024
+"""The largest run file read."""
+
+POSE_COLUMNS = ("pose_x", "pose_y", "pose_theta")
+
+
+class CompareError(SnakebotError):
+    """A run or gait that cannot be compared (exit 2)."""
+
+
+@dataclass(frozen=True)
+class Run:
+    """A recording: sample times (s), servo IDs, position ticks per sample and servo, and
+    the external pose per sample (None without one)."""
+
+    t: np.ndarray
+    ids: tuple[int, ...]
+    ticks: np.ndarray  # (samples, servos)
+    pose: np.ndarray | None  # (samples, 3): x, y (m), theta (rad)
+
+
+def _read(path: Path) -> bytes:
+    try:
+        return read_bounded(path, RUN_MAX, "recorded run")
+    except FileTooLarge as exc:
+        raise CompareError(str(exc)) from None
+    except OSError as exc:
+        raise CompareError(f"cannot read the run {path}: {exc.strerror or exc}") from None
+
+
+def _rows_from_csv(path: Path, data: bytes) -> list[dict[str, Any]]:
+    try:
+        rows = list(csv.DictReader(data.decode("utf-8").splitlines()))
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise CompareError(f"{path} is not a CSV file ({exc}): give monitor --csv output") from None
+    missing = {"t", "id", "position"} - set(rows[0] if rows else {})
+    if missing:
+        raise CompareError(
+            f"{path} has no column {', '.join(sorted(missing))}: give snakebot monitor --csv output"
+        )
+    return rows
+
+
+def _rows_from_mcap(path: Path, data: bytes) -> list[dict[str, Any]]:
+    try:
+        from mcap.reader import make_reader
+    except ImportError:
+        raise CompareError(
+            "reading --mcap runs needs the mcap package: pip install 'snakebot[record]'"
+        ) from None
+    import io
+
+    rows: list[dict[str, Any]] = []
+    try:
+        for _schema, _channel, message in make_reader(io.BytesIO(data)).iter_messages():
+            record = json.loads(message.data)
+            extra = {k: record[k] for k in POSE_COLUMNS if k in record}
+            for servo in record["servos"]:
+                rows.append({"t": record["t"], **servo, **extra})
+    except (KeyError, ValueError, TypeError) as exc:
+        raise CompareError(f"{path} does not hold monitor records ({exc})") from None
+    except Exception as exc:  # the mcap reader raises its own errors for damaged files
+        raise CompareError(f"{path} is not a readable MCAP file ({exc})") from None
+    return rows
+
+
+def load_run(path: str | Path) -> Run:
+    """The run at ``path`` (MCAP by its magic, else CSV), one row per servo per sample."""
+    path = Path(path)
+    data = _read(path)
+    rows = _rows_from_mcap(path, data) if data[:5] == b"\x89MCAP" else _rows_from_csv(path, data)
+    try:
+        times = sorted({float(r["t"]) for r in rows})
+        ids = tuple(sorted({int(r["id"]) for r in rows}))
+        index = {t: i for i, t in enumerate(times)}
+        ticks = np.full((len(times), len(ids)), np.nan)
+        col = {i: k for k, i in enumerate(ids)}
+        has_pose = all(r.get(c) not in (None, "") for r in rows for c in POSE_COLUMNS)
+        pose = np.full((len(times), 3), np.nan) if has_pose and rows else None
+        for r in rows:
+            n = index[float(r["t"])]
+            ticks[n, col[int(r["id"])]] = float(r["position"])
+            if pose is not None:
+                pose[n] = [float(r[c]) for c in POSE_COLUMNS]
+    except (ValueError, KeyError, TypeError) as exc:
+        raise CompareError(f"{path}: a row has a value that is not a number ({exc})") from None
+    if len(times) < 3:
+        raise CompareError(f"{path} holds {len(times)} samples: record a longer run")
+    keep = ~np.isnan(ticks).any(axis=1)  # samples where a servo was missing are dropped
+    return Run(np.array(times)[keep], ids, ticks[keep], None if pose is None else pose[keep])
+
+
+def table_angles(robot: Robot, table: GaitTable, t: np.ndarray) -> np.ndarray:
+    """The joint angles (rad) the table asks for at times ``t`` (s) from its start: linear
+    between frames; a loop wraps, a single pass holds its last frame."""
+    frames = robot.ticks_to_angles(table.frames)
+    period = table.frame_period_ms / 1000.0
+    if table.loop:
+        frames = np.vstack([frames, frames[:1]])
+        span = period * table.frame_count
+        t = np.mod(t, span)
+    grid = np.arange(len(frames)) * period
+    return np.column_stack([np.interp(t, grid, frames[:, j]) for j in range(frames.shape[1])])
+
+
+def best_lag(
+    t: np.ndarray, measured: np.ndarray, predicted: Callable[[np.ndarray], np.ndarray], span: float
+) -> float:
+    """The start time in the prediction (0..span s) that makes ``predicted(t + lag)`` best
+    match ``measured`` (normalised cross-correlation of the zero-mean signals)."""
+    dt = float(np.median(np.diff(t)))
+    lags = np.arange(0.0, max(span, dt), dt / 2)
+    m = measured - measured.mean()
+    scores = []
+    for lag in lags:
+        p = predicted(t + lag)
+        p = p - p.mean()
+        denom = math.sqrt(float(m @ m) * float(p @ p)) or 1.0
+        scores.append(float(m @ p) / denom)
+    return float(lags[int(np.argmax(scores))])
+
+
+def _pose_at(robot: Robot, table: GaitTable, t: np.ndarray) -> np.ndarray:
+    """The body pose the table's motion integrates to at times ``t`` (from its start),
+    passes composed for a looping table."""
+    intervals = table.frame_count if table.loop else table.frame_count - 1
+    traj, _ = predict_table(robot, table, intervals * 8 + 1)
+    one = traj.q[:, :3]
+    span = float(traj.t[-1])
+    passes = np.floor(t / span).astype(int) if table.loop else np.zeros(len(t), int)
+    within = t - passes * span if table.loop else np.minimum(t, span)
+    x, y, th = (np.interp(within, traj.t, one[:, k]) for k in range(3))
+    end = one[-1] - one[0]
+    out = np.empty((len(t), 3))
+    for i, n in enumerate(passes):
+        px = py = pth = 0.0
+        for _ in range(n):  # compose whole passes: each moves by `end` in its own frame
+            c, s = math.cos(pth), math.sin(pth)
+            px, py, pth = px + c * end[0] - s * end[1], py + s * end[0] + c * end[1], pth + end[2]
+        c, s = math.cos(pth), math.sin(pth)
+        dx, dy = x[i] - one[0, 0], y[i] - one[0, 1]
+        out[i] = [px + c * dx - s * dy, py + s * dx + c * dy, pth + th[i] - one[0, 2]]
+    return out
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """The run against the prediction, after alignment."""
+
+    lag_s: float
+    t: np.ndarray  # run times from its first sample
+    measured_deg: np.ndarray
+    predicted_deg: np.ndarray
+    names: tuple[str, ...]
+    pose_error: np.ndarray | None  # distance (m) per sample, when the run has a pose
+
+    def summary(self) -> dict[str, Any]:
+        err = self.measured_deg - self.predicted_deg
+        joints = [
+            {
+                "joint": name,
+                "rms_deg": round(float(np.sqrt(np.mean(err[:, j] ** 2))), 3),
+                "max_deg": round(float(np.abs(err[:, j]).max()), 3),
+            }
+            for j, name in enumerate(self.names)
+        ]
+        out: dict[str, Any] = {
+            "samples": len(self.t),
+            "duration_s": round(float(self.t[-1] - self.t[0]), 3),
+            "start_in_gait_s": round(self.lag_s, 4),
+            "joints": joints,
+        }
+        if self.pose_error is not None:
+            out["pose"] = {
+                "rms_m": round(float(np.sqrt(np.mean(self.pose_error**2))), 4),
+                "max_m": round(float(self.pose_error.max()), 4),
+                "final_m": round(float(self.pose_error[-1]), 4),
+            }
+        return out
+
+
+def compare(run: Run, table: GaitTable, robot: Robot) -> Comparison:
+    """Line ``run`` up against ``table`` played on ``robot``."""
+    missing = [i for i in table.joint_ids if i not in run.ids]
+    if missing:
+        raise CompareError(
+            f"the run has no servo {', '.join(map(str, missing))} of the gait's joints "
+            f"{', '.join(map(str, table.joint_ids))}: give the run of this gait"
+        )
+    cols = [run.ids.index(i) for i in table.joint_ids]
+    measured = robot.ticks_to_angles(run.ticks[:, cols])
+    t = run.t - run.t[0]
+    span = (
+        table.frame_period_ms
+        / 1000.0
+        * (table.frame_count if table.loop else table.frame_count - 1)
+    )
+    lag = best_lag(t, measured[:, 0], lambda tt: table_angles(robot, table, tt)[:, 0], span)
+    predicted = table_angles(robot, table, t + lag)
+    pose_error = None
+    if run.pose is not None:
+        pred = _pose_at(robot, table, t + lag)
+        ref = _pose_at(robot, table, np.array([lag]))[0]
+        # the run's pose is where the robot was; the prediction's is relative to its start
+        c, s = math.cos(run.pose[0, 2] - ref[2]), math.sin(run.pose[0, 2] - ref[2])
+        dx, dy = pred[:, 0] - ref[0], pred[:, 1] - ref[1]
+        px = run.pose[0, 0] + c * dx - s * dy
+        py = run.pose[0, 1] + s * dx + c * dy
+        pose_error = np.hypot(run.pose[:, 0] - px, run.pose[:, 1] - py)
+    names = tuple(j.name for j in robot.joints)
+    return Comparison(lag, t, np.degrees(measured), np.degrees(predicted), names, pose_error)

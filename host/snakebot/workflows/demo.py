@@ -1,0 +1,686 @@
+"""The demo: the whole chain on the emulated 5-link robot, with the real firmware in QEMU.
+
+1. Generate a serpenoid gait table for the robot (:func:`snakebot.model.gait.serpenoid`) and
+   write it under ``out/``.
+2. Start the emulated robot (:class:`snakebot.sim.serve.EmulatedRobot`): the firmware image
+   under ``qemu-system-arm``, its Dynamixel bus on the emulated AX-12s, its PC link on a
+   pseudo-terminal, and the world that moves the body from the servos' positions.
+3. Upload the table over the PC link (:func:`snakebot.link.controller.upload.upload_gait`),
+   play it in a loop (:func:`snakebot.link.controller.playback.play`) for a warm-up cycle and
+   then the measured cycles, printing monitor lines, and stop it.
+4. Compare: how far and in which direction the body went over the measured cycles, in the
+   emulated world and as predicted from the table (:func:`compare`), and why they differ:
+   the servos trail the commands (their lag). Write a PNG of both paths and of the joint
+   angles, commanded beside measured.
+
+Times: the comparison runs on the firmware's own timeline. The goals the firmware sent
+(each servo's Goal Position, sampled with the world) say where in the table it was at
+each instant, so the measured cycles are whole cycles of what it played (QEMU's clock
+may run a little slow on a loaded machine, so wall time alone would not do). The body's
+motion per cycle depends on the joint path, not on how fast it is played, so the
+prediction holds at any playback rate.
+
+How the difference is explained (:class:`Comparison`): the measured joint angles are
+fitted as the commanded ones delayed by ``lag`` (least squares over the measured cycles),
+leaving a residual tracking error. The prediction for joints delayed by ``lag`` differs
+from the plain prediction by ``lag_effect``; what the residual can add is bounded by its
+largest value times the body's sensitivity to a joint-path error (displacement change per
+radian of joint deviation, measured on the model with delayed joint paths), doubled for
+safety. ``tolerance = lag_effect + 2 * sensitivity * residual``: the emulated result is
+expected within it of the prediction.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from snakebot.errors import SnakebotError
+from snakebot.extras import available, install_hint
+from snakebot.formats.gaittable import GaitTable, write_gait
+from snakebot.link.controller import load as load_controller
+from snakebot.link.controller.client import ControllerClient
+from snakebot.link.controller.monitor import Sample, render, sample
+from snakebot.link.controller.playback import play, stop
+from snakebot.link.controller.upload import UploadReport, upload_gait
+from snakebot.model.gait import serpenoid
+from snakebot.model.gait.common import motion_frame, table_motion
+from snakebot.model.robots import Robot, load_robot
+from snakebot.plots.video import check_video_path, write_video
+from snakebot.sim.physics.select import record_extras, world_of
+from snakebot.sim.serve import EmulatedRobot, ServeInfo
+from snakebot.sim.world import WorldRecord
+
+FRAME_POLL_S = 0.1
+"""Seconds between reads of the controller's Play Frame during playback."""
+
+MONITOR_EVERY_S = 1.0
+"""Seconds between the monitor lines printed during playback."""
+
+LAG_SEARCH_S = (-0.05, 0.3)
+"""Range of servo lags tried when fitting the measured joints to the commanded ones."""
+
+LAG_STEP_S = 0.001
+
+PHASE_SEARCH_FRAMES = (-0.5, 10.0)
+"""Where the next sample's table position is looked for, relative to the last one."""
+
+PHASE_STEP_FRAMES = 0.02
+
+SENSITIVITY_DELAYS_S = (0.01, 0.02, 0.04)
+"""Delays of the joint path used to measure the body's sensitivity to joint-path error."""
+
+STALL_FACTOR = 3.0
+"""Give up when playing takes this many times the table's nominal duration."""
+
+RESIDUAL_SAFETY = 2.0
+"""Factor on the residual-error term of the tolerance (see the module docstring)."""
+
+Say = Callable[[str], None]
+
+
+class DemoError(SnakebotError):
+    """The demo could not run to the end (the message says what went wrong and what to do)."""
+
+
+@dataclass(frozen=True)
+class DemoSettings:
+    """What the demo plays. Angles in radians, omega in rad/s."""
+
+    robot: str = "snake5"
+    amplitude: float = math.radians(30.0)
+    omega: float = math.pi  # a cycle every 2 s
+    delta: float = math.radians(90.0)
+    rate_hz: float = 50.0
+    warmup_cycles: int = 1
+    cycles: int = 3
+    out_dir: Path = Path("out")
+    firmware: Path | None = None
+    world: str = "mujoco"
+    """The emulated world: "mujoco" (the physics, so the prediction is checked against
+    something other than itself) or "kinematic" (the model the prediction uses)."""
+    video: Path | None = None
+    """Where to write a GIF/MP4 of the emulated robot seen from above (None: none)."""
+
+
+# -- the firmware's timeline --------------------------------------------------------------
+
+
+def table_phase(
+    angles: np.ndarray, goal_t: np.ndarray, goal_angles: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Where in the looping table (fractional frames since PLAY, unwrapped) the firmware's
+    goals were at each sample, from the first sample whose goals changed (PLAY) on: the
+    nearest point of the table's path (linear between frames) a little ahead of the
+    previous one. Returns (times, phases); phases never decrease."""
+    changed = np.flatnonzero(np.abs(goal_angles - goal_angles[0]).max(axis=1) > 0)
+    if not len(changed):
+        raise DemoError(
+            "the servos never got a goal from the firmware: is the robot's bus "
+            "connected? (check `snakebot monitor`)"
+        )
+    begin = int(changed[0])
+    steps = np.arange(PHASE_SEARCH_FRAMES[0], PHASE_SEARCH_FRAMES[1], PHASE_STEP_FRAMES)
+    phases = np.empty(len(goal_t) - begin)
+    p = 0.0
+    for i, row in enumerate(goal_angles[begin:]):
+        candidates = p + steps
+        candidates = candidates[candidates >= 0]
+        err = np.abs(commanded(angles, candidates) - row).max(axis=1)
+        p = float(candidates[int(np.argmin(err))])
+        phases[i] = p
+    return goal_t[begin:], np.maximum.accumulate(phases)
+
+
+def commanded(angles: np.ndarray, phase: np.ndarray) -> np.ndarray:
+    """Joint angles of a looping table (rows = frames, radians) at fractional frame
+    positions ``phase``: linear between frames, the last wrapping to the first."""
+    n = len(angles)
+    closed = np.vstack([angles, angles[:1]])
+    p = np.mod(phase, n)
+    k = np.minimum(np.floor(p).astype(int), n - 1)
+    w = (p - k)[:, None]
+    return closed[k] * (1 - w) + closed[k + 1] * w
+
+
+# -- the comparison -----------------------------------------------------------------------
+
+
+def _motion(q_end: np.ndarray) -> dict[str, float]:
+    dx, dy, dth = (float(v) for v in q_end[:3])
+    return {
+        "dx": dx,
+        "dy": dy,
+        "dtheta": dth,
+        "distance": math.hypot(dx, dy),
+        "direction_deg": math.degrees(math.atan2(dy, dx)),
+        "turn_deg": math.degrees(dth),
+    }
+
+
+def _relative(pose0: np.ndarray, poses: np.ndarray) -> np.ndarray:
+    """Poses in the frame of ``pose0`` (+x along its heading: gait.common.motion_frame)."""
+    c, s = math.cos(pose0[2]), math.sin(pose0[2])
+    d = poses[:, :2] - pose0[:2]
+    return np.column_stack(
+        [c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], poses[:, 2] - pose0[2]]
+    )
+
+
+def predicted_motion(
+    robot: Robot,
+    angles: np.ndarray,
+    period_s: float,
+    cycles: int,
+    delay_s: float = 0.0,
+    samples: int = 2,
+) -> np.ndarray:
+    """Body poses (x, y, theta) over ``cycles`` whole cycles of the looping table, the joints
+    delayed by ``delay_s``, from the origin (``gait.common.table_motion``, the prediction
+    ``gait`` and ``sim predict`` make); at least ``samples`` rows evenly in time."""
+    per_interval = max(1, math.ceil((samples - 1) / (cycles * len(angles))))
+    played = table_motion(
+        robot,
+        angles,
+        period_s,
+        True,
+        per_interval=per_interval,
+        # the joints at window start are where the table was delay_s ago
+        start_s=len(angles) * period_s - delay_s,
+        passes=cycles,
+    )
+    return played.trajectory.q[:, :3]
+
+
+@dataclass
+class Comparison:
+    """The emulated body's motion over the measured cycles beside the prediction."""
+
+    emulated: dict[str, float]
+    predicted: dict[str, float]
+    difference_m: float
+    lag_s: float
+    tracking_max_rad: float
+    tracking_rms_rad: float
+    residual_max_rad: float
+    lag_effect_m: float
+    sensitivity_m_per_rad: float
+    tolerance_m: float
+    playback_rate: float
+    window_s: tuple[float, float]
+    emulated_path: np.ndarray = field(repr=False)
+    predicted_path: np.ndarray = field(repr=False)
+    joint_t: np.ndarray = field(repr=False)
+    joint_commanded: np.ndarray = field(repr=False)
+    joint_measured: np.ndarray = field(repr=False)
+    physics: dict[str, Any] | None = None
+    """With the physics world: what it adds (see :func:`physics_effects`)."""
+
+    @property
+    def within_tolerance(self) -> bool:
+        return self.difference_m <= self.tolerance_m
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "emulated": _rounded(self.emulated),
+            "predicted": _rounded(self.predicted),
+            "difference_m": round(self.difference_m, 6),
+            "tolerance_m": round(self.tolerance_m, 6),
+            "within_tolerance": self.within_tolerance,
+            "reason": "servo lag" if self.physics is None else "servo lag and physics",
+            "servo_lag_ms": round(1000 * self.lag_s, 1),
+            "tracking_error_deg": {
+                "max": round(math.degrees(self.tracking_max_rad), 3),
+                "rms": round(math.degrees(self.tracking_rms_rad), 3),
+                "max_after_lag": round(math.degrees(self.residual_max_rad), 3),
+            },
+            "lag_effect_m": round(self.lag_effect_m, 6),
+            "sensitivity_m_per_rad": round(self.sensitivity_m_per_rad, 6),
+            "playback_rate": round(self.playback_rate, 4),
+            "window_s": [round(self.window_s[0], 3), round(self.window_s[1], 3)],
+            **({} if self.physics is None else {"physics": self.physics}),
+        }
+
+
+def _rounded(d: dict[str, float]) -> dict[str, float]:
+    return {k: round(v, 6) for k, v in d.items()}
+
+
+def _interp_rows(t: np.ndarray, ts: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    return np.column_stack([np.interp(t, ts, rows[:, j]) for j in range(rows.shape[1])])
+
+
+def compare(
+    robot: Robot,
+    table: GaitTable,
+    record: WorldRecord,
+    goal_t: np.ndarray,
+    goal_ticks: np.ndarray,
+    warmup_cycles: int,
+    cycles: int,
+) -> Comparison:
+    """The body's motion over ``cycles`` cycles of the table after ``warmup_cycles`` (as the
+    firmware's goals went through them), emulated (the world's record) beside predicted
+    (the table, linear between frames), with the servo lag that explains the difference
+    (see the module docstring). ``goal_t``, ``goal_ticks``: the goals the servos received,
+    sampled at the world's sample times."""
+    angles = robot.ticks_to_angles(table.frames.astype(float))
+    frames = len(angles)
+    period_s = table.frame_period_ms / 1000.0
+    goal_angles = robot.ticks_to_angles(goal_ticks)
+    phase_t, phase = table_phase(angles, goal_t, goal_angles)
+    target_a, target_b = warmup_cycles * frames, (warmup_cycles + cycles) * frames
+    if phase[-1] < target_b:
+        raise DemoError(
+            f"the firmware played {phase[-1] / frames:.2f} cycles, fewer than the "
+            f"{warmup_cycles + cycles} asked for: play longer"
+        )
+    t_a = float(np.interp(target_a, phase, phase_t))
+    t_b = float(np.interp(target_b, phase, phase_t))
+    inside = (record.t >= t_a) & (record.t <= t_b)
+    t = record.t[inside]
+    measured = record.phi[inside]
+
+    def cmd(delay: float) -> np.ndarray:  # the firmware's goals, ``delay`` seconds ago
+        return np.column_stack(
+            [np.interp(t - delay, goal_t, goal_angles[:, j]) for j in range(goal_angles.shape[1])]
+        )
+
+    plain = cmd(0.0)
+    lags = np.arange(LAG_SEARCH_S[0], LAG_SEARCH_S[1] + LAG_STEP_S / 2, LAG_STEP_S)
+    errors = [float(np.mean((measured - cmd(lag)) ** 2)) for lag in lags]
+    lag = float(lags[int(np.argmin(errors))])
+    residual_max = float(np.abs(measured - cmd(lag)).max())
+
+    pose_a = _interp_rows(np.array([t_a]), record.t, record.pose)[0]
+    em_t = np.concatenate([[t_a], t, [t_b]])
+    em_pose = _relative(pose_a, _interp_rows(em_t, record.t, record.pose))
+    emulated = _motion(em_pose[-1])
+
+    # The table's own time runs at ``rate`` x world time (QEMU's clock may lag the wall).
+    rate = (target_b - target_a) * period_s / (t_b - t_a)
+    path = predicted_motion(robot, angles, period_s, cycles, samples=200 * cycles + 1)
+    predicted = _motion(path[-1])
+
+    def shift(delay_s: float) -> float:
+        moved = _motion(predicted_motion(robot, angles, period_s, cycles, delay_s * rate)[-1])
+        return math.hypot(moved["dx"] - predicted["dx"], moved["dy"] - predicted["dy"])
+
+    lag_effect = shift(lag)
+    sensitivity = 0.0
+    one_cycle = np.linspace(0.0, frames, 20 * frames, endpoint=False)
+    for d in SENSITIVITY_DELAYS_S:
+        deviation = float(
+            np.abs(
+                commanded(angles, one_cycle) - commanded(angles, one_cycle - d * rate / period_s)
+            ).max()
+        )
+        if deviation > 0:
+            sensitivity = max(sensitivity, shift(d) / deviation)
+    return Comparison(
+        emulated=emulated,
+        predicted=predicted,
+        difference_m=math.hypot(emulated["dx"] - predicted["dx"], emulated["dy"] - predicted["dy"]),
+        lag_s=lag,
+        tracking_max_rad=float(np.abs(measured - plain).max()),
+        tracking_rms_rad=float(np.sqrt(np.mean((measured - plain) ** 2))),
+        residual_max_rad=residual_max,
+        lag_effect_m=lag_effect,
+        sensitivity_m_per_rad=sensitivity,
+        tolerance_m=lag_effect + RESIDUAL_SAFETY * sensitivity * residual_max,
+        playback_rate=rate,
+        window_s=(t_a, t_b),
+        emulated_path=em_pose,
+        predicted_path=path,
+        joint_t=t,
+        joint_commanded=plain,
+        joint_measured=measured,
+    )
+
+
+def physics_effects(
+    robot: Robot, table: GaitTable, record: WorldRecord, comparison: Comparison, cycles: int
+) -> dict[str, Any]:
+    """What the physics world adds to the comparison: the prediction for the physical
+    twin's free-rolling wheels (c_t = 0, where the prediction takes the robot's c_t), the
+    wheels' sideways slide over the measured cycles (m), and each joint's energy (J)
+    and peak load over the whole run."""
+    angles = robot.ticks_to_angles(table.frames.astype(float))
+    free = _motion(
+        predicted_motion(replace(robot, c_t=0.0), angles, table.frame_period_ms / 1000.0, cycles)[
+            -1
+        ]
+    )
+    e = comparison.emulated
+    t_a, t_b = comparison.window_s
+    inside = (record.t >= t_a) & (record.t <= t_b)
+    slid = WorldRecord(
+        record.t[inside],
+        record.pose[inside],
+        record.phi[inside],
+        record.slip[inside],
+        record.regularised[inside],
+        record.c_t,
+        record.fallback_c_t,
+    ).slip_distance()
+    extras = record_extras(record)
+    return {
+        "c_t": robot.c_t,
+        "predicted_free_wheels": _rounded(free),
+        "difference_free_wheels_m": round(
+            math.hypot(e["dx"] - free["dx"], e["dy"] - free["dy"]), 6
+        ),
+        "wheel_slide_m": [round(float(v) * _unit(robot), 6) for v in slid],
+        "energy_j": [round(v, 6) for v in extras["energy_j"]],
+        "peak_load": [round(v, 4) for v in extras["peak_load"]],
+        "mu": extras["mu"],
+    }
+
+
+def _why(c: Comparison) -> str:
+    """What the plot's title names as the cause of the difference: the servos' lag alone
+    in the kinematic world; with physics, mostly what the physics adds (free-rolling
+    wheels, slide), which the lag is small beside."""
+    lag = f"servo lag {1000 * c.lag_s:.0f} ms"
+    if c.physics is None:
+        return lag
+    free = 100 * c.physics["difference_free_wheels_m"]
+    slide = 100 * sum(c.physics["wheel_slide_m"])
+    return f"free-wheel prediction {free:.1f} cm off; wheels slid {slide:.1f} cm; {lag}"
+
+
+def _unit(robot: Robot) -> float:
+    return robot.physics.unit_m if robot.physics is not None else 1.0
+
+
+# -- the picture --------------------------------------------------------------------------
+
+
+def plot_demo(robot: Robot, comparison: Comparison, out: Path) -> Path:
+    """PNG: the body's path (emulated, predicted) and the joint angles (commanded, measured)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(13, 5), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax_path, ax_joints = fig.subplots(1, 2, width_ratios=(1, 1.4))
+    em, pr = comparison.emulated_path, comparison.predicted_path
+    ax_path.plot(pr[:, 0], pr[:, 1], "--", color="tab:blue", label="predicted (table)")
+    ax_path.plot(em[:, 0], em[:, 1], "-", color="tab:red", label="emulated (firmware in QEMU)")
+    ax_path.plot([0], [0], "o", color="black", label="start")
+    ax_path.set_aspect("equal", adjustable="datalim")
+    ax_path.set_xlabel("x (m, along link 1 from the tail towards the head, at the start)")
+    ax_path.set_ylabel("y (m)")
+    ax_path.set_title(
+        f"{robot.name}: body path over the measured cycles\n"
+        f"difference {100 * comparison.difference_m:.1f} cm\n{_why(comparison)}"
+    )
+    ax_path.legend(fontsize="small")
+    ax_path.grid(alpha=0.3)
+    t = comparison.joint_t - comparison.window_s[0]
+    colours = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown"]
+    for j, joint in enumerate(robot.joints):
+        c = colours[j % len(colours)]
+        ax_joints.plot(
+            t,
+            np.degrees(comparison.joint_commanded[:, j]),
+            "--",
+            color=c,
+            linewidth=1,
+            label=f"{joint.name} commanded",
+        )
+        ax_joints.plot(
+            t,
+            np.degrees(comparison.joint_measured[:, j]),
+            "-",
+            color=c,
+            linewidth=1.5,
+            alpha=0.7,
+            label=f"{joint.name} measured",
+        )
+    ax_joints.set_xlabel("time since the measured cycles began (s)")
+    ax_joints.set_ylabel("joint angle (deg)")
+    ax_joints.set_title("joint angles: commanded by the firmware vs the servos' positions")
+    ax_joints.legend(fontsize="x-small", ncol=2)
+    ax_joints.grid(alpha=0.3)
+    fig.savefig(out, dpi=100)
+    return out
+
+
+# -- the operation ------------------------------------------------------------------------
+
+
+@dataclass
+class DemoResult:
+    """Everything the demo did and measured."""
+
+    settings: DemoSettings
+    info: dict[str, Any]
+    gait_file: Path
+    gait: dict[str, Any]
+    upload: UploadReport
+    comparison: Comparison
+    png: Path | None  # None without matplotlib
+    seconds: float
+    monitor: list[dict[str, Any]]
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "robot": self.settings.robot,
+            "world": self.settings.world,
+            "firmware": self.info["firmware"],
+            "qemu_pid": self.info["qemu_pid"],
+            "gait_file": str(self.gait_file),
+            "gait": self.gait,
+            "upload": self.upload.as_dict(),
+            "cycles": {"warmup": self.settings.warmup_cycles, "measured": self.settings.cycles},
+            **self.comparison.as_dict(),
+            "png": None if self.png is None else str(self.png),
+            **({"video": str(self.settings.video)} if self.settings.video else {}),
+            "monitor": self.monitor,
+            "seconds": round(self.seconds, 2),
+        }
+
+
+def _monitor_line(s: Sample) -> str:
+    c = s.controller_record()
+    servos = "  ".join(f"{j.id}:{j.position:4d}" for j in s.servos)
+    load = load_controller().servo_field("Present Load")
+    loads = max((abs(load.to_units(j.load)) for j in s.servos), default=0.0)
+    errors = ",".join(c["error_flags"]) or "none"
+    return (
+        f"  t={s.t:5.2f} s  {c['state']:<8} frame {c['play_frame']:3d}  positions {servos}"
+        f"  max load {loads:4.1f} %  bus reads {c['bus_reads']}  "
+        f"timeouts {c['bus_timeouts']}  errors {errors}"
+    )
+
+
+def run_demo(settings: DemoSettings | None = None, say: Say = print) -> DemoResult:
+    """Run the demo end to end (see the module docstring); ``say`` gets progress lines.
+    The emulated robot is always stopped, also on Ctrl-C."""
+    settings = settings or DemoSettings()
+    began = time.monotonic()
+    robot = load_robot(settings.robot)
+    out_dir = Path(settings.out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    if settings.video is not None:
+        check_video_path(settings.video)
+
+    gait = serpenoid(
+        robot,
+        settings.amplitude,
+        settings.omega,
+        settings.delta,
+        cycles=1,
+        rate_hz=settings.rate_hz,
+        loop=True,
+    )
+    table = gait.gait_table()
+    gait_file = out_dir / "demo.gait"
+    write_gait(gait_file, table)
+    cycle_s = len(table.frames) * table.frame_period_ms / 1000.0
+    say(
+        f"1. gait: serpenoid for {robot.name}, A = {math.degrees(settings.amplitude):.0f} deg, "
+        f"omega = {math.degrees(gait.parameters['omega_rad_s']):.1f} deg/s, "
+        f"delta = {math.degrees(settings.delta):.0f} deg: {len(table.frames)} frames every "
+        f"{table.frame_period_ms} ms ({cycle_s:.2f} s a cycle, looping) -> {gait_file}"
+    )
+
+    emulated = EmulatedRobot(robot, settings.firmware, world=settings.world)
+    try:
+        info: ServeInfo = emulated.start()
+        say(
+            f"2. emulated {robot.name} running: firmware {info.firmware} in QEMU (pid "
+            f"{info.qemu_pid}), servos {', '.join(map(str, info.servo_ids))} on the emulated "
+            f"bus, PC link {info.pc_link}, the {settings.world} world"
+        )
+        with ControllerClient.open(info.pc_link) as ctl:
+            report = upload_gait(ctl, table, allow_new_servos=True)
+            say(
+                f"3. upload: {report.summary()}; the controller's CRC 0x{report.crc:08x} "
+                "matches the file (QEMU does not pace the PC link at its baud rate)"
+            )
+            total = settings.warmup_cycles + settings.cycles
+            say(
+                f"4. play: {total} cycles ({settings.warmup_cycles} to settle, "
+                f"{settings.cycles} measured), monitoring:"
+            )
+            monitor = _play(ctl, len(table.frames), total, say)
+            stop(ctl)
+        record = emulated.record()
+        goal_t, goal_ticks = emulated.goals()
+    finally:
+        emulated.stop()
+    comparison = compare(
+        robot, table, record, goal_t, goal_ticks, settings.warmup_cycles, settings.cycles
+    )
+    if world_of(record) != "kinematic":
+        comparison.physics = physics_effects(robot, table, record, comparison, settings.cycles)
+    # The picture needs the `plot` extra; without it the demo still runs and says so.
+    png = plot_demo(robot, comparison, out_dir / "demo.png") if available("matplotlib") else None
+    if settings.video is not None:
+        say(f"   writing the video {settings.video} ...")
+        write_video(settings.video, robot, {f"emulated ({settings.world})": record})
+    return DemoResult(
+        settings,
+        info.as_dict(),
+        gait_file,
+        gait.summary(),
+        report,
+        comparison,
+        png,
+        time.monotonic() - began,
+        monitor,
+    )
+
+
+def _play(
+    ctl: ControllerClient, frames_per_cycle: int, cycles: int, say: Say
+) -> list[dict[str, Any]]:
+    """Play the uploaded table in a loop until the firmware's Play Frame has gone through
+    ``cycles`` cycles, printing a monitor line every second; returns the monitor records."""
+    status = play(ctl, loop=True)
+    if status["state"] != "PLAYING":
+        raise DemoError(f"the controller did not start playing (state {status['state']})")
+    monitor: list[dict[str, Any]] = []
+    t0 = time.monotonic()
+    next_monitor = t0 + MONITOR_EVERY_S / 2  # after the first telemetry round
+    played, last = 0, 0
+    nominal_s = cycles * frames_per_cycle * status["table"]["period_ms"] / 1000.0
+    deadline = t0 + STALL_FACTOR * nominal_s
+    while played < cycles * frames_per_cycle + 2:
+        time.sleep(FRAME_POLL_S)
+        frame = ctl.read("Play Frame")["Play Frame"]
+        played += frame - last if frame >= last else frames_per_cycle - last + frame
+        last = frame
+        now = time.monotonic()
+        if now >= next_monitor:
+            s = sample(ctl, t0)
+            monitor.append(s.as_record())
+            say(_monitor_line(s))
+            if s.registers["State"] != ctl.table.enums["State"]["PLAYING"]:
+                raise DemoError("the controller stopped playing: " + render(s)[1])
+            next_monitor += MONITOR_EVERY_S
+        if now > deadline:
+            raise DemoError(
+                f"the firmware played {played} frames in {now - t0:.0f} s, far "
+                "slower than real time: the machine is overloaded; run the demo "
+                "again when it is quieter"
+            )
+    return monitor
+
+
+def _physics_lines(c: Comparison) -> list[str]:
+    """The physics world's part of the explanation (none for the kinematic world)."""
+    if c.physics is None:
+        return []
+    ph = c.physics
+    free = ph["predicted_free_wheels"]
+    return [
+        f"   physics (MuJoCo, wheel-floor mu = {ph['mu']:g}): the body has mass and its "
+        f"wheels slid sideways {100 * sum(ph['wheel_slide_m']):.1f} cm in all; its wheels "
+        f"roll freely where the prediction takes rolling friction c_t = {ph['c_t']:g}. "
+        f"Predicted with free wheels (c_t = 0): {100 * free['distance']:.1f} cm, "
+        f"{100 * ph['difference_free_wheels_m']:.1f} cm from the physics.",
+        "   net work per joint "
+        + ", ".join(f"{e:.3f}" for e in ph["energy_j"])
+        + " J (below 0: the others drove it backwards); peak load "
+        + ", ".join(f"{100 * v:.0f}" for v in ph["peak_load"])
+        + " % of stall torque.",
+    ]
+
+
+def summary_lines(result: DemoResult) -> list[str]:
+    """What the demo found, in words."""
+    c = result.comparison
+    e, p = c.emulated, c.predicted
+    n = result.settings.cycles
+
+    def where(m: dict[str, float]) -> str:
+        return (
+            f"{100 * m['distance']:6.1f} cm towards {m['direction_deg']:+6.1f} deg "
+            f"(dx {100 * m['dx']:+6.1f} cm, dy {100 * m['dy']:+6.1f} cm), "
+            f"heading turned {m['turn_deg']:+6.1f} deg"
+        )
+
+    return [
+        f"5. over the {n} measured cycles "
+        f"({motion_frame(load_robot(result.settings.robot))}; angles counter-clockwise):",
+        f"   emulated : {where(e)}",
+        f"   predicted: {where(p)}",
+        f"   difference {100 * c.difference_m:.1f} cm "
+        f"({100 * c.difference_m / max(p['distance'], 1e-12):.0f} % of the predicted distance), "
+        + (
+            f"within the {100 * c.tolerance_m:.1f} cm the servo lag explains"
+            if c.within_tolerance
+            else f"MORE than the {100 * c.tolerance_m:.1f} cm the servo lag explains"
+        ),
+        f"   reason: servo lag. The servos trail the commanded joints by "
+        f"{1000 * c.lag_s:.0f} ms (largest joint error {math.degrees(c.tracking_max_rad):.1f}"
+        f" deg, rms {math.degrees(c.tracking_rms_rad):.1f} deg); a delay that long moves the "
+        f"prediction by {100 * c.lag_effect_m:.1f} cm, and the rest of the tracking error "
+        f"(at most {math.degrees(c.residual_max_rad):.2f} deg) can add "
+        f"{100 * RESIDUAL_SAFETY * c.sensitivity_m_per_rad * c.residual_max_rad:.1f} cm.",
+        *_physics_lines(c),
+        f"   the firmware played at {c.playback_rate:.2f}x wall-clock speed (its clock in QEMU);"
+        " the motion per cycle does not depend on it.",
+        (
+            f"6. wrote {result.png} (body path: emulated vs predicted; joint angles: commanded "
+            f"vs measured){_video_words(result)} and {result.gait_file}"
+            if result.png is not None
+            else f"6. wrote {result.gait_file}{_video_words(result)}; no picture "
+            f"({install_hint('matplotlib')} draws one)"
+        )
+        + f"; took {result.seconds:.1f} s; nothing left running.",
+    ]
+
+
+def _video_words(result: DemoResult) -> str:
+    video = result.settings.video
+    return f", {video} (the robot seen from above)" if video is not None else ""

@@ -1,0 +1,82 @@
+"""The friction study: one gait in the physics world over a range of wheel-floor friction
+coefficients, its distance per cycle beside the kinematic world's.
+
+The kinematic prediction hinges on the wheels' rolling friction ``c_t`` (a guess); the
+physics twin's wheels spin freely and hold sideways by Coulomb friction ``mu``. The study
+shows where the physics meets the kinematic model (grippy floors: the free-wheel
+prediction) and how fast it falls away as the wheels start to slide.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from snakebot.formats.gaittable import GaitTable
+from snakebot.model.robots import Robot
+from snakebot.workflows.predict import Prediction, predict_gait, predict_table, resolve_robot
+
+DEFAULT_MU = (0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0)
+
+
+def _per_cycle(dx: float, dy: float, cycles: float) -> float:
+    return math.hypot(dx, dy) / cycles
+
+
+def gait_cycles(table: GaitTable) -> float:
+    """How many gait cycles one pass of the table holds (its metadata's, else 1)."""
+    parameters = table.metadata.get("parameters")
+    cycles = parameters.get("cycles") if isinstance(parameters, dict) else None
+    return float(cycles) if isinstance(cycles, int | float) and cycles > 0 else 1.0
+
+
+def friction_study(
+    table: GaitTable,
+    robot: str | Robot | None,
+    mu_values: Sequence[float] = DEFAULT_MU,
+    name: str = "<table>",
+    progress: Callable[[float, Prediction], None] | None = None,
+) -> dict[str, Any]:
+    """Play ``table`` in the kinematic world once and in the physics world at each
+    friction coefficient; JSON-able results (distances in the robot's length units)."""
+    chosen = resolve_robot(table, robot)
+    cycles = gait_cycles(table)
+    kinematic = predict_gait(table, chosen)
+    samples = len(kinematic.emulated.t)
+    free, _ = predict_table(replace(chosen, c_t=0.0), table, samples)
+    em = kinematic.emulated.displacement()
+    points = []
+    for mu in mu_values:
+        result = predict_gait(table, chosen, world="mujoco", mu=mu)
+        d = result.emulated.displacement()
+        points.append(
+            {
+                "mu": mu,
+                "dx": d["dx"],
+                "dy": d["dy"],
+                "dtheta": d["dtheta"],
+                "distance_per_cycle": _per_cycle(d["dx"], d["dy"], cycles),
+                "slip_distance_per_cycle": float(np.sum(result.emulated.slip_distance())) / cycles,
+            }
+        )
+        if progress is not None:
+            progress(mu, result)
+    free_d = free.q[-1, :2] - free.q[0, :2]
+    return {
+        "gait": name,
+        "robot": chosen.name,
+        "cycles": cycles,
+        "units": "m" if chosen.physics and chosen.physics.unit_m == 1.0 else "robot units",
+        "c_t": chosen.c_t,
+        "kinematic": {**em, "distance_per_cycle": _per_cycle(em["dx"], em["dy"], cycles)},
+        "kinematic_free_wheels": {
+            "dx": float(free_d[0]),
+            "dy": float(free_d[1]),
+            "distance_per_cycle": _per_cycle(float(free_d[0]), float(free_d[1]), cycles),
+        },
+        "points": points,
+    }

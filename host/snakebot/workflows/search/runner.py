@@ -1,0 +1,115 @@
+"""Where the runs happen: a process pool on this machine, or a Dask distributed
+scheduler. Both take batches of runs and hand back each batch's rows as it finishes."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from typing import Any, Protocol
+
+from snakebot.workflows.search.evaluate import Settings, evaluate_many
+from snakebot.workflows.search.space import SearchError
+
+Rows = list[dict[str, Any]]
+Batch = list[dict[str, float]]
+CONNECT_TIMEOUT_S = 5.0
+
+
+class Runner(Protocol):
+    """Runs batches of points; yields (batch index, rows) as batches finish."""
+
+    workers: int
+
+    def run(self, settings: Settings, batches: list[Batch]) -> Iterator[tuple[int, Rows]]: ...
+
+    def close(self) -> None: ...
+
+
+class InlineRunner:
+    """Everything in this process (one worker: no start-up cost, easiest to debug)."""
+
+    workers = 1
+
+    def run(self, settings: Settings, batches: list[Batch]) -> Iterator[tuple[int, Rows]]:
+        for i, batch in enumerate(batches):
+            yield i, evaluate_many(settings, batch)
+
+    def close(self) -> None:
+        pass
+
+
+class LocalRunner:
+    """A pool of ``workers`` processes on this machine (default: one per core)."""
+
+    def __init__(self, workers: int | None = None) -> None:
+        self.workers = workers or os.cpu_count() or 1
+        self._pool = ProcessPoolExecutor(self.workers)
+
+    def run(self, settings: Settings, batches: list[Batch]) -> Iterator[tuple[int, Rows]]:
+        futures = {self._pool.submit(evaluate_many, settings, b): i for i, b in enumerate(batches)}
+        try:
+            for future in as_completed(futures):
+                yield futures[future], future.result()
+        finally:
+            for future in futures:
+                future.cancel()
+
+    def close(self) -> None:
+        self._pool.shutdown(cancel_futures=True)
+
+
+class DaskRunner:
+    """The same runs on a Dask distributed scheduler (``tcp://HOST:8786``); its workers
+    need snakebot installed."""
+
+    def __init__(self, address: str) -> None:
+        try:
+            from distributed import Client
+        except ImportError:
+            raise SearchError("--cluster needs Dask: pip install 'snakebot[search]'") from None
+        try:
+            self._client = Client(address, timeout=CONNECT_TIMEOUT_S)
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise SearchError(
+                f"cannot reach the Dask scheduler at {address} ({exc}): start one with "
+                "`dask scheduler` and workers with `dask worker ADDRESS`, or drop --cluster "
+                "to search on this machine"
+            ) from None
+        self.workers = max(1, sum(self._client.nthreads().values()))
+
+    def run(self, settings: Settings, batches: list[Batch]) -> Iterator[tuple[int, Rows]]:
+        from distributed import as_completed as dask_completed
+
+        futures = [self._client.submit(evaluate_many, settings, b, pure=False) for b in batches]
+        index = {f.key: i for i, f in enumerate(futures)}
+        try:
+            for future in dask_completed(futures):
+                yield index[future.key], future.result()
+        finally:
+            self._client.cancel(futures)
+
+    def close(self) -> None:
+        self._client.close()
+
+
+def make_runner(workers: int | None, cluster: str | None) -> Runner:
+    """The runner asked for: a Dask client, this process (``workers == 1``) or a pool."""
+    if cluster:
+        return DaskRunner(cluster)
+    if workers == 1:
+        return InlineRunner()
+    return LocalRunner(workers)
+
+
+def batches_of(points: Batch, runner: Runner, per_run_s: float) -> list[Batch]:
+    """Split ``points`` so each worker gets several batches (for balance and progress)
+    of at least ~0.1 s of work each (so the hand-over costs little)."""
+    if not points:
+        return []
+    size = max(1, int(0.1 / per_run_s))
+    size = min(size, max(1, len(points) // (4 * runner.workers)))
+    return [points[i : i + size] for i in range(0, len(points), size)]
+
+
+ProgressFn = Callable[[int], None]

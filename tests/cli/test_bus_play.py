@@ -1,0 +1,93 @@
+"""`snakebot bus play`: the host as bus master, running the controller's gait player,
+on the emulated bus in process (sim://) and on a pseudo-terminal in real time."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import snakebot.link.transport.ports  # noqa: F401  (registers sim://)
+from snakebot.cli import main
+from snakebot.formats.gaittable import GaitTable, write_gait
+from snakebot.model.player import TICK_MS
+from snakebot.sim.options import SimOptions
+from snakebot.sim.transports import PtyServer
+
+pytestmark = pytest.mark.timeout(120)
+
+FRAMES = np.array([[500, 600], [560, 640], [620, 700]], dtype=np.uint16)
+LIMITS = ((0, 1023), (0, 1023))
+PERIOD_MS = 100
+
+
+def gait_file(tmp_path, loop: bool):
+    path = tmp_path / ("loop.gait" if loop else "once.gait")
+    write_gait(path, GaitTable((1, 2), PERIOD_MS, loop, LIMITS, FRAMES))
+    return str(path)
+
+
+def test_play_once_ends_on_the_last_frame(tmp_path):
+    result = CliRunner().invoke(
+        main,
+        ["bus", "play", gait_file(tmp_path, False), "--port", "sim://?ids=1,2&ideal=1"]
+        + ["--json"],
+    )
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.stdout)
+    assert report["present_position"] == {"1": 620, "2": 700}
+    # one tick per 10 ms over the 200 ms pass, both ends included
+    assert report["ticks"] == (len(FRAMES) - 1) * PERIOD_MS // TICK_MS + 1
+    assert report["stopped_by_user"] is False
+
+
+def test_loop_needs_a_looping_gait(tmp_path):
+    result = CliRunner().invoke(
+        main, ["bus", "play", gait_file(tmp_path, False), "--port", "sim://?ids=1,2", "--loop"]
+    )
+    assert result.exit_code == 2
+    assert "error:" in result.stderr and "drop --loop" in result.stderr
+
+
+def test_play_refuses_when_a_servo_of_the_gait_is_missing(tmp_path):
+    result = CliRunner().invoke(
+        main, ["bus", "play", gait_file(tmp_path, True), "--port", "sim://?ids=1"]
+    )
+    assert result.exit_code == 2
+    assert "servo 2 of the gait does not answer" in result.stderr
+
+
+@pytest.mark.serial  # a real-time pty run: the stop's timing suffers beside another worker
+def test_ctrl_c_on_a_pty_stops_smoothly_and_the_servos_hold(tmp_path):
+    path = gait_file(tmp_path, True)
+    with PtyServer(SimOptions.from_query("ids=1,2").build_bus()) as server:
+        play = subprocess.Popen(
+            [sys.executable, "-m", "snakebot", "bus", "play", path, "--loop", "--json"]
+            + ["--port", server.device],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env={**os.environ, "SNAKEBOT_LATENCY_MS": "50"},
+        )
+        time.sleep(3.0)  # the move to the first frame, then more than one pass
+        assert play.poll() is None  # --loop plays until stopped
+        play.send_signal(signal.SIGINT)
+        out, err = play.communicate(timeout=30)
+        assert play.returncode == 130, err
+        assert "Traceback" not in err
+        report = json.loads(out)
+        assert report["stopped_by_user"] is True
+        held = report["present_position"]
+        time.sleep(0.3)
+        after = server.bus.positions([1, 2])
+    # the servos stopped inside the gait's range and stayed there
+    for sid, (low, high) in zip(("1", "2"), ((500, 620), (600, 700)), strict=True):
+        assert low - 2 <= held[sid] <= high + 2
+    assert np.allclose(after, [held["1"], held["2"]], atol=2)

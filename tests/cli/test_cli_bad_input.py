@@ -1,0 +1,420 @@
+"""Bad input on the command line ends in one line `error: ...` and exit 2, never in a
+traceback or a hang (issue #17: every case below once did)."""
+
+from __future__ import annotations
+
+import json
+import os
+import pty
+import re
+import signal
+import subprocess
+import sys
+import tty
+import zlib
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from snakebot.cli import main
+from snakebot.model.robots import load_robot
+
+pytestmark = pytest.mark.timeout(60)
+
+SERPENOID = ["gait", "serpenoid", "snake3", "-A", "20deg", "-w", "90deg", "-d", "90deg"]
+EMULATED_CONTROLLER = "sim://?robot=snake3"  # no controller behind a bus: refused, exit 2
+
+
+def run(*args: object, input: str | None = None):
+    return CliRunner().invoke(main, [str(a) for a in args], input=input)
+
+
+def assert_one_line_error(result, code: int = 2, mentions: str = "") -> str:
+    """The run ended in exit ``code`` with exactly one line `error: ...` on stderr."""
+    assert result.exception is None or isinstance(result.exception, SystemExit), repr(
+        result.exception
+    )
+    assert "Traceback" not in result.output
+    assert result.exit_code == code, (result.exit_code, result.output)
+    lines = [line for line in result.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
+    assert mentions.lower() in lines[0].lower(), lines[0]
+    return lines[0]
+
+
+@pytest.fixture
+def gait_file(tmp_path: Path) -> Path:
+    out = tmp_path / "walk.gait"
+    result = run(*SERPENOID, "--cycles", "1", "-o", out)
+    assert result.exit_code == 0, result.output
+    return out
+
+
+def _sidecar(gait: Path) -> Path:
+    return gait.with_name(gait.name + ".json")
+
+
+# -- gait sidecars -------------------------------------------------------------------------
+
+
+def test_sidecar_crc_as_a_string(gait_file: Path) -> None:
+    doc = json.loads(_sidecar(gait_file).read_text())
+    doc["table"]["crc32"] = "0x1234"
+    _sidecar(gait_file).write_text(json.dumps(doc))
+    assert_one_line_error(run("gait", "show", gait_file), mentions="crc32")
+
+
+def test_sidecar_nested_100000_deep(gait_file: Path) -> None:
+    _sidecar(gait_file).write_text("[" * 100_000 + "]" * 100_000)
+    assert_one_line_error(run("gait", "show", gait_file), mentions=str(_sidecar(gait_file)))
+
+
+@pytest.mark.parametrize(
+    "key, value",
+    [("parameters", 5), ("predicted", "far"), ("table", [1, 2]), ("gait", {"x": 1})],
+)
+def test_sidecar_metadata_of_the_wrong_type(gait_file: Path, key: str, value: object) -> None:
+    doc = json.loads(_sidecar(gait_file).read_text())
+    doc["metadata"][key] = value
+    _sidecar(gait_file).write_text(json.dumps(doc))
+    assert_one_line_error(run("gait", "show", gait_file), mentions=key)
+
+
+def test_sidecar_never_overrides_what_the_table_says(gait_file: Path) -> None:
+    truth = json.loads(run("gait", "show", gait_file, "--json").stdout)
+    doc = json.loads(_sidecar(gait_file).read_text())
+    doc["metadata"].update(
+        {"header_crc": "0x0", "file_crc32": "0xDEADBEEF", "bytes": 1, "frames": 7, "loop": False}
+    )
+    _sidecar(gait_file).write_text(json.dumps(doc))
+    result = run("gait", "show", gait_file, "--json")
+    assert result.exit_code == 0, result.output
+    shown = json.loads(result.stdout)
+    for key in ("header_crc", "file_crc32", "bytes", "frames", "loop"):
+        assert shown[key] == truth[key]
+
+
+def test_show_labels_the_header_crc_and_the_file_crc(gait_file: Path) -> None:
+    result = run("gait", "show", gait_file)
+    assert result.exit_code == 0, result.output
+    first = result.stdout.splitlines()[0]
+    data = gait_file.read_bytes()
+    assert f"file CRC-32 0x{zlib.crc32(data):08X}" in first, first
+    header_crc = int.from_bytes(data[12:16], "little")
+    assert f"header CRC 0x{header_crc:08X}" in first, first
+
+
+# -- unbounded reads -----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["gait", "show", "/dev/zero"],
+        ["upload", "/dev/zero", "--port", "loop://"],
+        ["flash", "/dev/zero", "--port", "loop://", "--force"],
+    ],
+    ids=["gait-show", "upload", "flash"],
+)
+def test_dev_zero_is_refused_without_reading_it_all(args: list[str]) -> None:
+    assert_one_line_error(run(*args), mentions="more than")
+
+
+# -- output paths --------------------------------------------------------------------------
+
+
+def test_plot_with_an_unknown_extension(gait_file: Path, tmp_path: Path) -> None:
+    assert_one_line_error(
+        run("gait", "show", gait_file, "--plot", tmp_path / "x.xyz"), mentions="xyz"
+    )
+    assert not (tmp_path / "x.xyz").exists()
+
+
+def test_empty_output_path(tmp_path: Path) -> None:
+    assert_one_line_error(run(*SERPENOID, "--cycles", "1", "-o", ""), mentions="output")
+
+
+def test_output_files_follow_the_umask(tmp_path: Path) -> None:
+    old = os.umask(0o022)
+    try:
+        out = tmp_path / "u.gait"
+        assert run(*SERPENOID, "--cycles", "1", "-o", out).exit_code == 0
+        state = tmp_path / "eeprom.json"  # the emulator's servo state file
+        assert run("bus", "ping", "1", "--port", f"sim://?ids=1&state={state}").exit_code == 0
+    finally:
+        os.umask(old)
+    for written in (out, _sidecar(out), state):
+        assert written.stat().st_mode & 0o777 == 0o644, written
+
+
+# -- robot TOML ----------------------------------------------------------------------------
+
+
+def _robot_text(**replace: str) -> str:
+    from importlib import resources
+
+    text = resources.files("snakebot.model.robots").joinpath("snake3.toml").read_text()
+    for old, new in replace.items():
+        assert old in text
+        text = text.replace(old, new, 1)
+    return text
+
+
+def _show_robot(tmp_path: Path, data: bytes):
+    path = tmp_path / "r.toml"
+    path.write_bytes(data)
+    return run("model", "info", path)
+
+
+def test_robot_toml_not_utf8(tmp_path: Path) -> None:
+    assert_one_line_error(_show_robot(tmp_path, b'name = "\xff\xfe"\n'), mentions="UTF-8")
+
+
+def test_robot_toml_geometry_as_an_array(tmp_path: Path) -> None:
+    text = re.sub(r"\[geometry\][^\[]*", "geometry = [1, 2]\n", _robot_text(), count=1)
+    assert_one_line_error(_show_robot(tmp_path, text.encode()), mentions="geometry")
+
+
+def test_robot_toml_absurd_limits(tmp_path: Path) -> None:
+    text = re.sub(r"min_deg\s*=\s*[-0-9.]+", "min_deg = -1e307", _robot_text(), count=1)
+    text = re.sub(r"max_deg\s*=\s*[-0-9.]+", "max_deg = 1e307", text, count=1)
+    assert_one_line_error(_show_robot(tmp_path, text.encode()), mentions="min_deg")
+
+
+def test_robot_toml_unknown_key_says_did_you_mean(tmp_path: Path) -> None:
+    text = _robot_text(**{"half_link": "half_lenk"})
+    line = assert_one_line_error(_show_robot(tmp_path, text.encode()), mentions="half_lenk")
+    assert "did you mean 'half_link'" in line
+
+
+def test_robot_toml_servo_faster_than_its_datasheet(tmp_path: Path) -> None:
+    text = _robot_text() + "\n"
+    if "[servo]" in text:
+        text = re.sub(r"\[servo\]", "[servo]\nmax_speed_rpm = 70", text, count=1)
+    else:
+        text += '[servo]\nmodel = "AX-12A"\nmax_speed_rpm = 70\n'
+    line = assert_one_line_error(_show_robot(tmp_path, text.encode()), mentions="max_speed_rpm")
+    assert "59" in line  # the AX-12A's datasheet figure it exceeds
+
+
+# -- numbers -------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "extra",
+    [
+        ["--cycles", "1e308"],
+        ["--cycles", "nan"],
+        ["--cycles", "1", "--rate", "inf"],
+    ],
+)
+def test_serpenoid_absurd_numbers(tmp_path: Path, extra: list[str]) -> None:
+    args = [*SERPENOID, *extra, "-o", tmp_path / "x.gait"]
+    assert_one_line_error(run(*args))
+    assert not (tmp_path / "x.gait").exists()
+
+
+@pytest.mark.parametrize(
+    "option, value",
+    [("-w", "1e-320"), ("-A", "9" * 400), ("-A", "-" * 5000 + "1")],
+    ids=["tiny-omega", "400-digits", "5000-minus"],
+)
+def test_serpenoid_absurd_angles(tmp_path: Path, option: str, value: str) -> None:
+    args = [
+        "gait",
+        "serpenoid",
+        "snake3",
+        "-A",
+        "20deg",
+        "-w",
+        "90deg",
+        "-d",
+        "90deg",
+        "--cycles",
+        "1",
+        option,
+        value,
+        "-o",
+        tmp_path / "x.gait",
+    ]
+    assert_one_line_error(run(*args))
+    assert not (tmp_path / "x.gait").exists()
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["play", "--speed", "nan"],
+        ["monitor", "--duration", "nan"],
+        ["monitor", "--interval", "nan"],
+        ["serpenoid", "-A", "1", "-w", "1", "-d", "1", "--speed", "inf"],
+    ],
+)
+def test_controller_commands_refuse_non_finite_numbers(args: list[str]) -> None:
+    # Refused while parsing: the port (nothing behind it) is never opened.
+    assert_one_line_error(run(*args, "--port", "/dev/nonexistent-port"), mentions="finite")
+
+
+@pytest.mark.parametrize("command", [["library", "play", "0"], ["stop"], ["monitor"]])
+def test_a_pc_link_slower_than_any_dynamixel_rate_is_refused_at_once(command: list[str]) -> None:
+    # The CLI fuzz found `library play 0 --port loop:// --baud 1`: a reply's timeout scales
+    # with the byte time, so it waited 200 s for an answer that could never come.
+    result = run(*command, "--port", "loop://", "--baud", "1")
+    assert_one_line_error(result, mentions="slower than any Dynamixel")
+    assert run("stop", "--port", "loop://", "--baud", "9600").exit_code == 1  # nominal 9600 ok
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["bus", "scan", "--port", "sim://?ids=1", "--bauds", "1,2,3"],
+        ["doctor", "--port", "sim://?ids=1,2", "--ids", "1-3", "--bauds", "1,2,3"],
+        ["bus", "scan", "--port", "sim://?ids=1", "--bauds", "1e400"],
+    ],
+)
+def test_scan_rates_no_servo_runs_at_are_refused_at_once(args: list[str]) -> None:
+    # The CLI fuzz found `doctor --bauds 1,2,3` waiting two minutes per unanswered PING.
+    assert_one_line_error(run(*args))
+
+
+def test_an_output_that_is_a_pipe_or_device_is_refused_and_left_alone(tmp_path: Path) -> None:
+    # `-o /dev/zero` once replaced the device with a regular file (written beside it and
+    # moved over it).
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    assert_one_line_error(run(*SERPENOID, "--cycles", "1", "-o", fifo), mentions="not a file")
+    assert fifo.is_fifo() and not (tmp_path / "pipe.json").exists()
+
+
+def test_monitor_without_a_controller_removes_only_files_it_created(tmp_path: Path) -> None:
+    # `monitor --csv /dev/zero` with no controller once unlinked /dev/zero.
+    mine, new = tmp_path / "mine.csv", tmp_path / "new.mcap"
+    mine.write_text("the user's\n")
+    result = run("monitor", "--port", "loop://", "--csv", mine, "--mcap", new)
+    assert result.exit_code == 1, result.output
+    assert mine.exists() and not new.exists()
+
+
+# -- the emulator's options -----------------------------------------------------------------
+
+
+def test_sim_state_file_holding_a_list(tmp_path: Path) -> None:
+    state = tmp_path / "state.json"
+    state.write_text("[]")
+    result = run("bus", "scan", "--port", f"sim://?ids=1&state={state}", "--ids", "1")
+    assert_one_line_error(result, mentions=str(state))
+
+
+def test_documented_brownout_in_a_sim_url_with_a_plus() -> None:
+    from snakebot.sim.options import SimOptions
+
+    options = SimOptions.from_query("ids=10&brownout=10@5+1")
+    (brownout,) = options.faults.brownouts
+    assert (brownout.servo_id, brownout.start_s, brownout.duration_s) == (10, 5.0, 1.0)
+
+
+def test_sim_url_brownout_is_accepted_by_a_command() -> None:
+    result = run("bus", "ping", "1", "--port", "sim://?ids=1&brownout=1@50+1", "--json")
+    assert result.exit_code == 0, result.output
+
+
+# -- JSON ----------------------------------------------------------------------------------
+
+
+def test_json_output_never_holds_nan(gait_file: Path) -> None:
+    doc = json.loads(_sidecar(gait_file).read_text())
+    doc["metadata"]["note"] = 1e308 * 10  # json.dumps writes Infinity
+    _sidecar(gait_file).write_text(json.dumps(doc))
+    result = run("gait", "show", gait_file, "--json")
+    text = result.stdout
+    assert "Infinity" not in text and "NaN" not in text
+    if result.exit_code == 0:
+        json.loads(text, parse_constant=lambda c: pytest.fail(f"{c} in JSON output"))
+    else:
+        assert_one_line_error(result)
+
+
+# -- exit codes, pipes ---------------------------------------------------------------------
+
+
+def _cli(*args: str, timeout: float = 60, **kwargs) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "snakebot", *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        **kwargs,
+    )
+
+
+def test_runtime_failure_exits_1_usage_error_exits_2() -> None:
+    usage = _cli("gait", "serpenoid", "snake3", "--bogus")
+    assert usage.returncode == 2 and "Traceback" not in usage.stderr
+    # A controller that does not answer is a runtime failure, not bad input.
+    master, slave = pty.openpty()  # a port with nobody behind it
+    tty.setraw(slave)
+    try:
+        env = {**os.environ, "SNAKEBOT_RETRIES": "0"}
+        runtime = _cli("stop", "--port", os.ttyname(slave), timeout=120, env=env)
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert runtime.returncode == 1, runtime.stderr
+    assert runtime.stderr.startswith("error: ") and "Traceback" not in runtime.stderr
+
+
+@pytest.mark.parametrize(
+    "args, server",
+    [
+        (["monitor"], "snakebot sim serve"),
+        (["upload", "x.gait"], "snakebot sim serve"),
+        (["flash", "x.bin"], "snakebot sim bootloader"),
+    ],
+)
+def test_controller_commands_on_a_servo_bus_say_what_to_run(args: list[str], server: str) -> None:
+    line = assert_one_line_error(run(*args, "--port", "sim://?robot=snake5"))
+    assert f"run `{server}`" in line
+
+
+def test_broken_pipe_is_quiet() -> None:
+    # The reader is gone before the command prints anything (as `snakebot ... | head`
+    # once head has had its lines).
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "snakebot", "bus", "read", "1", "--port", "sim://?ids=1"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=60) == 141
+    assert err == "", err
+
+
+def test_the_builtin_robots_still_load() -> None:
+    for name in ("snake3", "snake5", "trident"):
+        assert load_robot(name).joints
+
+
+def test_ctrl_c_exits_130(tmp_path: Path) -> None:
+    image = tmp_path / "fw.bin"
+    image.write_bytes(bytes(1024))
+    master, slave = pty.openpty()  # a board that never answers: flash waits for RESET
+    tty.setraw(slave)
+    try:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "snakebot", "flash", str(image), "--force"]
+            + ["--port", os.ttyname(slave), "--reset-timeout", "60"],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        assert proc.stdout is not None and proc.stdout.readline().startswith("Flashing")
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert proc.returncode == 130, err
+    assert err.strip().splitlines()[-1] == "interrupted" and "Traceback" not in err

@@ -1,0 +1,360 @@
+"""Fuzzing the command line: whatever the arguments, robot file or gait metadata, a command
+ends in bounded time with exit 0, 1 or 2 and, when it fails, one line `error: ...`:
+never a traceback, never snakebot's own "internal error" (a bug caught at the last
+moment), never NaN in JSON.
+
+The argument lists are drawn from the click command tree itself (every command, every
+option and argument, values from a pool of hostile ones), so a new command or option is
+fuzzed without touching this file. Budget: SNAKEBOT_CLI_FUZZ_EXAMPLES argument lists
+(default 40), four times as many robot files and metadata files; about a minute in all
+on a loaded machine.
+"""
+
+from __future__ import annotations
+
+import atexit
+import json
+import os
+import re
+import shutil
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from importlib import resources
+from pathlib import Path
+
+import click
+import pytest
+from click.testing import CliRunner
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from snakebot.cli import main
+from snakebot.cli.errors import INTERNAL_ERROR
+from snakebot.cli.params import AngleListType, AngleType, NumberType, OutputPathType
+
+EXAMPLES = int(os.environ.get("SNAKEBOT_CLI_FUZZ_EXAMPLES", "40"))
+FUZZ = settings(
+    max_examples=EXAMPLES,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+FUZZ_FILES = settings(FUZZ, max_examples=4 * EXAMPLES)  # files: much faster per example
+pytestmark = pytest.mark.timeout(max(300, 6 * EXAMPLES))
+
+SERVING = {
+    ("sim", "bus"),
+    ("sim", "serve"),
+    ("sim", "bootloader"),
+    ("demo",),
+    ("gait", "search"),
+    ("bus", "play"),
+    ("sim", "goto"),
+    ("sim", "thesis"),
+    ("sim", "friction"),
+}
+"""Commands that serve until interrupted, play in real time (`bus play --loop` never
+ends), run the whole emulated robot or many physics runs: not fuzzed here (their options
+are parsed by the same types; the serving ones run in tests/cli/test_cli_resources.py,
+the others in their own tests)."""
+
+SLOW_FLAGS = {"--symbolic"}  # sympy at full size: minutes on a loaded machine
+ENV = {
+    "SNAKEBOT_RETRIES": "0",
+    "SNAKEBOT_FLASH_RESET_TIMEOUT_S": "0.2",
+    "SNAKEBOT_PORT": None,
+}
+
+NUMBERS = [
+    "0",
+    "1",
+    "-1",
+    "2",
+    "50",
+    "0.5",
+    "nan",
+    "inf",
+    "-inf",
+    "1e308",
+    "1e-320",
+    "9" * 400,
+    "-" * 300 + "1",
+    "pi/0",
+    "2**9999",
+    "30deg",
+    "pi/3",
+    "",
+    "x",
+]
+PORTS = ["/dev/nonexistent-port", "sim://?ids=1", "sim://?ids=1&brownout=1@5+1", "loop://", ""]
+TEXTS = ["snake3", "snake5", "trident", "g1", "h1", "2*g1-h3", "AX-12W", "1,2,3", "Goal Position"]
+PATHS = ["/dev/zero", "/dev/null", "/", "missing.gait", "out.gait", "x.xyz", "plot.png", ""]
+
+
+@contextmanager
+def _cwd(path: Path) -> Iterator[None]:
+    old = os.getcwd()
+    os.chdir(path)
+    try:
+        yield
+    finally:
+        os.chdir(old)
+
+
+def _leaves(
+    command: click.Command, path: tuple[str, ...] = ()
+) -> list[tuple[tuple[str, ...], click.Command]]:
+    if isinstance(command, click.Group):
+        return [
+            leaf for name, sub in command.commands.items() for leaf in _leaves(sub, (*path, name))
+        ]
+    return [(path, command)]
+
+
+COMMANDS = [(path, cmd) for path, cmd in _leaves(main) if path not in SERVING]
+
+
+def _hostile(param: click.Parameter, name: str) -> st.SearchStrategy[str]:
+    if "port" in name:
+        return st.sampled_from(PORTS)
+    if isinstance(param.type, click.Path) or name in ("--output", "--plot", "--out", "-o"):
+        return st.sampled_from(PATHS)
+    pool = st.sampled_from(NUMBERS + TEXTS + PATHS)
+    return st.one_of(pool, st.text(max_size=20).filter(lambda s: "\x00" not in s))
+
+
+def _usual(param: click.Parameter, name: str) -> st.SearchStrategy[str]:
+    """Values the command takes, so that most runs get past parsing into the command."""
+    kind = param.type
+    if "port" in name and param.callback is None:  # a servo bus
+        return st.sampled_from(["sim://?ids=1,2", "sim://?robot=snake3", "loop://"])
+    if "port" in name:  # a controller or its bootloader: nothing answers on these
+        return st.sampled_from(["loop://", "/dev/nonexistent-port"])
+    if isinstance(kind, click.Choice):
+        return st.sampled_from([str(c) for c in kind.choices])
+    if isinstance(kind, click.IntRange):
+        low = kind.min if kind.min is not None else 0
+        high = kind.max if kind.max is not None else low + 300
+        return st.integers(low, min(high, low + 300)).map(str)
+    if isinstance(kind, NumberType):
+        low = kind.low if kind.low is not None else -10.0
+        high = kind.high if kind.high is not None else low + 100.0
+        return st.floats(low, high, exclude_min=kind.low_open, exclude_max=kind.high_open).map(repr)
+    if isinstance(kind, AngleListType):
+        return st.sampled_from(["0.3,-0.2", "pi/3,-pi/3", "0,0,0", "10deg"])
+    if isinstance(kind, AngleType):
+        return st.sampled_from(["0.3", "30deg", "-20deg", "pi/6", "1e-3", "3"])
+    if isinstance(kind, OutputPathType):  # written: never the shared sample files
+        return st.sampled_from(["plot.png", "plot.svg"] if "plot" in name else ["out.gait"])
+    if isinstance(kind, click.Path):
+        gait, firmware = _sample_files()
+        return st.just(firmware if "firmware" in name else gait)
+    by_name = {
+        "robot": ["snake3", "snake5", "trident"],
+        "--robot": ["snake3", "snake5", "trident"],
+        "--field": ["g1", "h1", "2*g1-h3", "g3+2*h1"],
+        "--ids": ["1", "1-3", "1,2"],
+        "--bauds": ["1000000", "57600,1000000"],
+        "registers": ["Goal Position", "Present Temperature", "LED"],
+        "register": ["Goal Position", "LED", "Moving Speed"],
+        "value": ["512", "1", "0", "2000"],
+        "--model": ["AX-12A", "AX-12W"],
+    }
+    return st.sampled_from(by_name.get(name, ["1", "snake3"]))
+
+
+_FILES: list[str] = []
+
+
+def _sample_files() -> list[str]:
+    """A gait table (with its metadata) and a firmware-sized blob, made once per run."""
+    if not _FILES:
+        where = Path(tempfile.mkdtemp(prefix="snakebot-cli-fuzz-"))
+        atexit.register(shutil.rmtree, where, True)
+        gait = where / "walk.gait"
+        args = ["gait", "serpenoid", "snake3", "-A", "20deg", "-w", "90deg", "-d", "90deg"]
+        assert invoke([*args, "--cycles", "1", "-o", str(gait)]).exit_code == 0
+        blob = where / "fw.bin"
+        blob.write_bytes(bytes(1024))
+        _FILES.extend([str(gait), str(blob)])
+    return _FILES
+
+
+@st.composite
+def invocations(draw: st.DrawFn) -> list[str]:
+    path, command = draw(st.sampled_from(COMMANDS))
+    args = list(path)
+    # One parameter at most gets a hostile value, so most runs get into the command.
+    hostile = draw(st.integers(-1, len(command.params) - 1))
+
+    def value(param: click.Parameter, name: str) -> str:
+        bad = command.params.index(param) == hostile
+        return draw((_hostile if bad else _usual)(param, name))
+
+    for param in command.params:
+        if isinstance(param, click.Option):
+            name = param.opts[0]
+            given = draw(st.integers(0, 9)) < (9 if param.required else 4)
+            if name == "--help" or name in SLOW_FLAGS or not given:
+                continue
+            if param.is_flag:
+                args.append(draw(st.sampled_from(param.opts + param.secondary_opts)))
+            else:
+                args += [name, value(param, name)]
+        elif draw(st.integers(0, 9)):  # arguments, usually given
+            count = 1 if param.nargs == 1 else draw(st.integers(0, 3))
+            args += [value(param, param.name or "") for _ in range(count)]
+    return args
+
+
+def check(result: click.testing.Result) -> None:
+    """The oracle: exit 0, 1 or 2; a failure is one line `error: ...`; JSON is JSON."""
+    exc = result.exception
+    assert exc is None or isinstance(exc, SystemExit), repr(exc)
+    assert "Traceback" not in result.output
+    assert INTERNAL_ERROR not in result.stderr, result.stderr
+    assert result.exit_code in (0, 1, 2), (result.exit_code, result.output)
+    if result.exit_code:
+        lines = [line for line in result.stderr.splitlines() if line.strip()]
+        assert lines and lines[-1].startswith("error: "), result.stderr
+    assert not re.search(r"\b(NaN|-?Infinity)\b", result.stdout), result.stdout
+
+
+def invoke(args: list[str]) -> click.testing.Result:
+    return CliRunner().invoke(main, args, env=ENV)
+
+
+@FUZZ
+@given(args=invocations())
+def test_any_arguments_to_any_command(args: list[str]) -> None:
+    with tempfile.TemporaryDirectory() as tmp, _cwd(Path(tmp)):
+        check(invoke(args))
+
+
+# -- robot files ---------------------------------------------------------------------------
+
+TOML_VALUES = [
+    "1",
+    "0",
+    "-1",
+    "1e307",
+    "-1e307",
+    "nan",
+    "inf",
+    "10" + "0" * 400,
+    '"text"',
+    "[]",
+    "[1, 2]",
+    "{}",
+    "true",
+    '"AX-12W"',
+    '"snake"',
+    '"trident"',
+    "70",
+]
+
+
+@st.composite
+def robot_texts(draw: st.DrawFn) -> bytes:
+    name = draw(st.sampled_from(["snake3", "snake5", "trident"]))
+    lines = (
+        resources.files("snakebot.model.robots").joinpath(f"{name}.toml").read_text().splitlines()
+    )
+    for _ in range(draw(st.integers(1, 4))):
+        i = draw(st.integers(0, len(lines) - 1))
+        how = draw(st.sampled_from(["value", "key", "drop", "copy", "table"]))
+        key, eq, _ = lines[i].partition("=")
+        if how == "value" and eq:
+            lines[i] = f"{key}= {draw(st.sampled_from(TOML_VALUES))}"
+        elif how == "key" and eq:
+            mangled = draw(st.sampled_from([key.strip()[:-1], key.strip() + "s", "extra"]))
+            lines[i] = f"{mangled} ={lines[i].partition('=')[2]}"
+        elif how == "drop":
+            del lines[i]
+        elif how == "copy":
+            lines.insert(i, lines[i])
+        elif how == "table":
+            lines.insert(i, draw(st.sampled_from(["[geometry]", "[[joints]]", "[servo]", "[x]"])))
+        if not lines:
+            lines = [""]
+    data = "\n".join(lines).encode()
+    if draw(st.booleans()):
+        cut = draw(st.integers(0, len(data)))
+        data = data[:cut] + draw(st.sampled_from([b"", b"\xff", b"\x00", b"\xc3"])) + data[cut:]
+    return data
+
+
+@FUZZ_FILES
+@given(text=robot_texts(), command=st.sampled_from(["info", "serpenoid", "fields"]))
+def test_any_robot_file(text: bytes, command: str) -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        robot = Path(tmp) / "robot.toml"
+        robot.write_bytes(text)
+        if command == "info":
+            args = ["model", "info", str(robot), "--json"]
+        elif command == "fields":
+            args = ["model", "fields", str(robot), "--json"]
+        else:
+            out = str(Path(tmp) / "g.gait")
+            args = ["gait", "serpenoid", str(robot), "-A", "0.3", "-w", "3", "-d", "1"]
+            args += ["--cycles", "1", "-o", out, "--json"]
+        check(invoke(args))
+
+
+# -- gait metadata -------------------------------------------------------------------------
+
+json_values = st.recursive(
+    st.none()
+    | st.booleans()
+    | st.integers(-(2**70), 2**70)
+    | st.floats(allow_nan=True, allow_infinity=True)
+    | st.text(max_size=8),
+    lambda inner: (
+        st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner, max_size=4)
+    ),
+    max_leaves=12,
+)
+
+
+@pytest.fixture(scope="module")
+def gait_dir() -> Iterator[Path]:
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "walk.gait"
+        args = ["gait", "serpenoid", "snake3", "-A", "20deg", "-w", "90deg", "-d", "90deg"]
+        result = invoke([*args, "--cycles", "1", "-o", str(out)])
+        assert result.exit_code == 0, result.output
+        yield Path(tmp)
+
+
+def _paths(node: object, here: tuple = ()) -> Iterator[tuple]:
+    yield here
+    if isinstance(node, dict):
+        for k, v in node.items():
+            yield from _paths(v, (*here, k))
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            yield from _paths(v, (*here, i))
+
+
+@FUZZ_FILES
+@given(data=st.data())
+def test_any_gait_metadata(gait_dir: Path, data: st.DataObject) -> None:
+    gait = gait_dir / "walk.gait"
+    original = json.loads((gait_dir / "walk.gait.json").read_text())
+    doc = json.loads(json.dumps(original))
+    for _ in range(data.draw(st.integers(1, 3))):
+        where = data.draw(st.sampled_from(list(_paths(doc))[1:]))
+        parent = doc
+        for part in where[:-1]:
+            parent = parent[part]
+        parent[where[-1]] = data.draw(json_values)
+    text = json.dumps(doc)
+    if data.draw(st.booleans()):
+        depth = data.draw(st.sampled_from([10, 1000, 100_000]))
+        text = text[:-1] + ', "deep": ' + "[" * depth + "]" * depth + "}"
+    with tempfile.TemporaryDirectory() as tmp:
+        copy = Path(tmp) / "walk.gait"
+        copy.write_bytes(gait.read_bytes())
+        (Path(tmp) / "walk.gait.json").write_text(text)
+        result = invoke(["gait", "show", str(copy), *data.draw(st.sampled_from([[], ["--json"]]))])
+    check(result)

@@ -1,0 +1,172 @@
+"""What the long-running commands leave behind (issue #17, resources): the world's record
+is bounded, work directories go on SIGHUP and after a SIGKILL, and `sim bus --link` never
+replaces a path it did not make."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from snakebot.cli import main
+from snakebot.formats.protocol import sync_write
+from snakebot.model.robots import load_robot
+from snakebot.sim.options import SimOptions
+from snakebot.sim.qemu import DEFAULT_IMAGE
+from snakebot.sim.workdirs import make_workdir, sweep_stale
+from snakebot.sim.world import World
+
+GOAL_AND_SPEED = 30
+
+
+def _walk(keep: int | None, seconds: float) -> World:
+    """snake5 on a serpenoid for ``seconds`` of bus time, its world keeping ``keep``."""
+    robot = load_robot("snake5")
+    bus = SimOptions(robot="snake5", ideal=True).build_bus()
+    world = World(bus, robot, period=0.01, batch=64, keep=keep)
+    for k, t in enumerate(np.arange(0, seconds, 0.02)):
+        phi = 0.4 * np.sin(3 * t + np.arange(4) * 1.2)
+        ticks = robot.angles_to_ticks(phi)
+        block = {
+            sid: int(g).to_bytes(2, "little") + (0).to_bytes(2, "little")
+            for sid, g in zip(robot.servo_ids, ticks, strict=True)
+        }
+        bus.run_until(k * 0.02)
+        bus.master_write(sync_write(GOAL_AND_SPEED, 4, block))
+    bus.run_until(seconds)
+    return world
+
+
+def test_the_world_record_is_bounded_and_ends_where_the_whole_one_does():
+    bounded, whole = _walk(keep=200, seconds=20.0), _walk(keep=None, seconds=20.0)
+    small, full = bounded.record(), whole.record()
+    assert len(full.t) == 2001
+    assert 200 <= len(small.t) <= 200 + bounded.batch
+    assert bounded.samples == whole.samples == 2001
+    # The newest samples are the same ones, at the same times, with the same poses.
+    n = len(small.t)
+    assert np.array_equal(small.t, full.t[-n:])
+    assert np.abs(small.pose - full.pose[-n:]).max() < 1e-12
+    assert np.array_equal(bounded.pose, whole.pose)
+
+
+def test_the_bounded_record_stays_small_however_long_the_world_runs():
+    world = _walk(keep=100, seconds=60.0)
+    assert world.samples == 6001
+    assert len(world.record().t) <= 100 + world.batch
+    assert sum(len(q) for q in world._q) <= 100 + world.batch  # what is held, not just shown
+
+
+def test_stale_work_directories_are_removed_on_the_next_start():
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    stale = Path(tempfile.mkdtemp(prefix=f"snakebot-serve-{dead.pid}-"))
+    (stale / "flash.bin").write_bytes(b"\0" * 16)
+    live = Path(make_workdir("serve"))  # ours: this process is alive
+    try:
+        assert not stale.exists()
+        assert live.is_dir() and str(os.getpid()) in live.name
+        assert sweep_stale("serve") == []
+    finally:
+        live.rmdir()
+
+
+def test_sim_bus_link_refuses_a_symlink_it_did_not_make(tmp_path):
+    target = tmp_path / "precious"
+    target.write_text("keep me")
+    link = tmp_path / "ttyDXL"
+    link.symlink_to(target)
+    result = CliRunner().invoke(main, ["sim", "bus", "--ids", "1", "--link", str(link)])
+    assert result.exit_code == 2
+    assert result.stderr.startswith(f"error: {link} is a symlink to {target}")
+    assert os.readlink(link) == str(target) and target.read_text() == "keep me"
+
+
+def test_sim_bus_link_replaces_a_dangling_link_left_by_a_killed_server(tmp_path):
+    link = tmp_path / "ttyDXL"
+    link.symlink_to("/dev/pts/999999")  # a pseudo-terminal that is gone
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "snakebot", "sim", "bus", "--ids", "1", "--link", str(link)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert proc.stdout is not None
+        while "serving on" not in (line := proc.stdout.readline()):
+            assert line, proc.stderr.read() if proc.stderr else ""
+        assert os.readlink(link).startswith("/dev/pts/") and os.path.exists(link)
+        proc.send_signal(signal.SIGHUP)
+        assert proc.wait(timeout=30) == 0
+        assert not os.path.lexists(link)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+def _workdirs(pid: int) -> list[Path]:
+    return [
+        p
+        for kind in ("serve", "qemu")
+        for p in Path(tempfile.gettempdir()).glob(f"snakebot-{kind}-{pid}-*")
+    ]
+
+
+def _serve() -> tuple[subprocess.Popen[str], dict]:
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "snakebot", "sim", "serve", "--robot", "snake3", "--json"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    assert proc.stdout is not None
+    line = proc.stdout.readline()
+    assert line, proc.stderr.read() if proc.stderr else ""
+    return proc, json.loads(line)
+
+
+@pytest.mark.qemu
+@pytest.mark.skipif(not DEFAULT_IMAGE.is_file(), reason="needs `make firmware`")
+@pytest.mark.parametrize("how", [signal.SIGHUP, signal.SIGKILL], ids=["SIGHUP", "SIGKILL"])
+def test_sim_serve_leaves_no_work_directories(how):
+    proc, info = _serve()
+    try:
+        assert Path(info["bus_socket"]).exists()
+        assert len(_workdirs(proc.pid)) == 2  # the server's and QEMU's
+        proc.send_signal(how)
+        proc.wait(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    if how == signal.SIGKILL:
+        assert len(_workdirs(proc.pid)) == 2  # no chance to clean up...
+        sweep_stale("serve"), sweep_stale("qemu")  # ...so the next start does
+    assert _workdirs(proc.pid) == []
+
+
+@pytest.mark.qemu
+@pytest.mark.skipif(not DEFAULT_IMAGE.is_file(), reason="needs `make firmware`")
+def test_a_served_robot_keeps_only_its_recent_history():
+    import time
+
+    from snakebot.sim.serve import EmulatedRobot
+
+    with EmulatedRobot("snake3", history_s=0.5) as robot:
+        time.sleep(4.0)  # about 400 world samples on the bus clock
+        world = robot.world
+        with robot.lock:  # the bus runs on in its thread: take both at one instant
+            record, samples = world.record(), world.samples
+        t, goals = robot.goals()
+    assert samples > 50 + world.batch
+    assert len(record.t) <= 50 + world.batch and len(t) == len(goals) <= 50
+    assert record.t[-1] == pytest.approx((samples - 1) * world.period)

@@ -1,0 +1,165 @@
+"""`snakebot compare`: a run recorded with `snakebot monitor` while the controller's real C
+logic played a gait on emulated servos lines up with that gait's prediction within a few
+degrees, and not with another gait's; a run shifted by a known time is found at that
+shift; an external pose column is compared with the body path the table predicts, over
+several passes of a looping gait; bad runs are refused in one line (exit 2)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from controller_cli_support import cli
+
+from snakebot.formats.gaittable import GaitTable, read_gait
+from snakebot.model.robots import load_robot
+from snakebot.sim.controller_pty import ControllerPty
+from snakebot.workflows.compare import table_angles
+from snakebot.workflows.predict import predict_table
+
+pytestmark = pytest.mark.timeout(120)
+
+
+def serpenoid(tmp_path: Path, name: str, amplitude: str) -> Path:
+    path = tmp_path / name
+    made = cli(
+        "gait",
+        "serpenoid",
+        "snake5",
+        "-A",
+        amplitude,
+        "-w",
+        "180deg",
+        "-d",
+        "60deg",
+        "--cycles",
+        "1",
+        "-o",
+        path,
+    )
+    assert made.exit_code == 0, made.output
+    return path
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    """A gait, and a run of it recorded from the controller (CSV and MCAP)."""
+    tmp = tmp_path_factory.mktemp("compare")
+    gait = serpenoid(tmp, "s.gait", "20deg")
+    with ControllerPty(table=read_gait(gait).encode()) as server:
+        assert cli("play", "--port", server.device, "--loop").exit_code == 0
+        time.sleep(0.5)
+        done = cli(
+            "monitor",
+            "--port",
+            server.device,
+            "--duration",
+            "2.5",
+            "--interval",
+            "0.02",
+            "--csv",
+            tmp / "run.csv",
+            "--mcap",
+            tmp / "run.mcap",
+        )
+        assert done.exit_code == 0, done.output
+    return tmp, gait
+
+
+def compare_json(*args) -> dict:
+    result = cli("compare", *args, "--json")
+    assert result.exit_code == 0, result.output
+    return json.loads(result.stdout)
+
+
+def test_a_recorded_run_matches_its_gait_and_not_another(recorded):
+    tmp, gait = recorded
+    same = compare_json(tmp / "run.csv", gait, "--plot", tmp / "c.png")
+    assert same["samples"] > 50
+    assert all(j["rms_deg"] < 3 for j in same["joints"]), same["joints"]
+    assert (tmp / "c.png").stat().st_size > 10_000
+    other = compare_json(tmp / "run.csv", serpenoid(tmp, "big.gait", "40deg"))
+    assert all(j["rms_deg"] > 5 for j in other["joints"]), other["joints"]
+
+
+def test_the_mcap_recording_gives_the_same_answer(recorded):
+    tmp, gait = recorded
+    from_csv = compare_json(tmp / "run.csv", gait)
+    from_mcap = compare_json(tmp / "run.mcap", gait)
+    for key in ("samples", "start_in_gait_s", "joints"):
+        assert from_mcap[key] == from_csv[key]
+
+
+def write_run(path: Path, t: np.ndarray, ids, ticks: np.ndarray, pose=None) -> Path:
+    with open(path, "w", newline="") as f:
+        columns = ["t", "id", "position"] + (
+            ["pose_x", "pose_y", "pose_theta"] if pose is not None else []
+        )
+        out = csv.writer(f)
+        out.writerow(columns)
+        for n, tn in enumerate(t):
+            for k, servo in enumerate(ids):
+                extra = list(pose[n]) if pose is not None else []
+                out.writerow([f"{tn:.3f}", servo, int(round(ticks[n, k])), *extra])
+    return path
+
+
+def test_a_run_shifted_by_a_known_time_is_found_there(recorded, tmp_path):
+    _, gait = recorded
+    table = read_gait(gait)
+    robot = load_robot("snake5")
+    t = np.arange(0, 3.0, 0.02)
+    shift = 0.62
+    phi = table_angles(robot, table, t + shift)
+    ticks = np.array([robot.angles_to_ticks(row) for row in phi])
+    run = write_run(tmp_path / "shifted.csv", t + 100.0, table.joint_ids, ticks)
+    report = compare_json(run, gait)
+    assert abs(report["start_in_gait_s"] - shift) <= 0.011
+    assert all(j["max_deg"] < 0.4 for j in report["joints"])  # tick rounding only
+
+
+def test_an_external_pose_is_compared_over_several_passes(recorded, tmp_path):
+    _, gait = recorded
+    table = read_gait(gait)
+    robot = load_robot("snake5")
+    # The reference: the table unrolled into two passes, played once, integrated whole.
+    unrolled = GaitTable(
+        table.joint_ids,
+        table.frame_period_ms,
+        False,
+        table.limits,
+        np.vstack([table.frames] * 2 + [table.frames[:1]]),
+        table.metadata,
+    )
+    traj, _ = predict_table(robot, unrolled, 2 * table.frame_count * 2 + 1)
+    t = np.arange(0, 3.9, 0.02)  # nearly two passes of the 2 s gait
+    pose = np.column_stack([np.interp(t, traj.t, traj.q[:, k]) for k in range(3)])
+    ticks = np.array([robot.angles_to_ticks(row) for row in table_angles(robot, table, t)])
+    moved = pose + [1.0, -2.0, 0.0]  # the motion capture's origin is elsewhere
+    ok = compare_json(write_run(tmp_path / "pose.csv", t, table.joint_ids, ticks, moved), gait)
+    assert ok["start_in_gait_s"] == 0
+    assert ok["pose"]["max_m"] < 0.002, ok["pose"]
+    drift = moved + np.column_stack([0.05 * t, 0 * t, 0 * t])  # slipping 5 cm/s
+    bad = compare_json(write_run(tmp_path / "drift.csv", t, table.joint_ids, ticks, drift), gait)
+    assert bad["pose"]["final_m"] == pytest.approx(0.05 * t[-1], abs=0.01)
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        ("t,id\n0,10\n", "no column position"),
+        ("t,id,position\n0,99,512\n0.1,99,512\n0.2,99,512\n", "has no servo 10"),
+        ("t,id,position\n0,10,512\n", "record a longer run"),
+        ("t,id,position\n0,10,abc\n", "not a number"),
+    ],
+)
+def test_bad_runs_are_refused_in_one_line(recorded, tmp_path, content, message):
+    _, gait = recorded
+    (tmp_path / "bad.csv").write_text(content)
+    result = cli("compare", tmp_path / "bad.csv", gait)
+    assert result.exit_code == 2, result.output
+    assert message in result.stderr and result.stderr.count("\n") == 1

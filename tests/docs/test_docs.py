@@ -1,0 +1,178 @@
+"""The documents: the API reference builds (`make docs`, pdoc), nothing in the repository
+points outside it, and docs/settings.md lists exactly the environment variables the
+code reads, with the code's defaults."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from snakebot.link.controller import load as load_controller_table
+from snakebot.link.controller import settings as upload_settings
+from snakebot.link.flash import settings as flash_settings
+from snakebot.link.transport import settings as transport_settings
+from snakebot.link.transport import timing
+from snakebot.paths import REPO_ROOT
+
+SETTINGS_MD = REPO_ROOT / "docs" / "settings.md"
+
+# Patterns are split so that this file does not match them itself.
+OUTSIDE = {
+    "a path into the shared folder beside the repository": re.compile(r"\.\./shared\b"),
+    "an absolute path on one machine": re.compile(r"(?<![\w.:/])/(?:work|home)/\w"),
+}
+DOC_REFERENCE = re.compile(r"(?<![\w/.-])docs/([\w.-]+\.md)\b")
+MD_LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
+MD_CODE = re.compile(r"```.*?```|`[^`\n]*`", re.DOTALL)
+ENV_NAME = re.compile(r"\bSNAKEBOT_[A-Z0-9_]+\b")
+
+
+def tracked_text_files() -> dict[str, str]:
+    """Every file git tracks (relative path -> text), binary files left out."""
+    if shutil.which("git") is None or not (REPO_ROOT / ".git").exists():
+        pytest.skip("needs a git checkout of the repository")
+    names = subprocess.run(
+        ["git", "ls-files", "-z"], cwd=REPO_ROOT, capture_output=True, check=True
+    ).stdout.split(b"\0")
+    files = {}
+    for raw in filter(None, names):
+        name = raw.decode()
+        path = REPO_ROOT / name
+        if not path.is_file():
+            continue  # deleted in the work tree, not yet committed
+        try:
+            files[name] = path.read_text(encoding="utf-8")
+        except UnicodeDecodeError:
+            continue
+    assert len(files) > 50, "git ls-files found too few files: is this the snakebot repository?"
+    return files
+
+
+def test_make_docs_builds_the_api_reference(tmp_path: Path):
+    out = tmp_path / "api"
+    # -o python-env: the environment running this test is already set up.
+    result = subprocess.run(
+        ["make", "-s", "-o", "python-env", "docs", f"DOCS_DIR={out}", f"PY={sys.executable}"],
+        cwd=REPO_ROOT,
+        capture_output=True,
+        text=True,
+        timeout=240,
+    )
+    assert result.returncode == 0, result.stderr
+    # page -> a name it must document (pdoc gives each an anchor)
+    expected = {
+        "snakebot.html": 'href="snakebot/kinematics.html"',
+        "snakebot/transport.html": 'id="DxlClient"',
+        "snakebot/controller.html": 'id="Controller"',
+        "snakebot/kinematics.html": 'id="body_velocity"',
+        "snakebot/robots.html": 'id="Robot"',
+        "snakebot/symbolic.html": 'id="lie_bracket"',
+        "snakebot/gait.html": 'id="Gait"',
+        "snakebot/flash.html": 'id="BoardLayout"',
+        "snakebot/sim/world.html": "snakebot.sim.world",
+        "snakebot/cli.html": "snakebot.cli",
+    }
+    for page, word in expected.items():
+        path = out / page
+        assert path.is_file(), f"{page} missing from the API reference"
+        assert word in path.read_text(encoding="utf-8"), f"{page} does not document {word}"
+    assert not list(out.rglob("_core*.html")), "private modules leaked into the reference"
+
+
+def test_nothing_points_outside_the_repository():
+    problems = []
+    for name, text in tracked_text_files().items():
+        for what, pattern in OUTSIDE.items():
+            for m in pattern.finditer(text):
+                line = text.count("\n", 0, m.start()) + 1
+                problems.append(f"{name}:{line}: {what} ({m.group(0)!r})")
+    assert not problems, "\n".join(problems)
+
+
+def test_every_cited_document_exists():
+    files = tracked_text_files()
+    problems = []
+    for name, text in files.items():
+        for m in DOC_REFERENCE.finditer(text):
+            if f"docs/{m.group(1)}" not in files:
+                line = text.count("\n", 0, m.start()) + 1
+                problems.append(f"{name}:{line}: docs/{m.group(1)} does not exist")
+        if name.endswith(".md"):
+            prose = MD_CODE.sub(lambda c: "\n" * c.group(0).count("\n"), text)
+            for m in MD_LINK.finditer(prose):
+                target = m.group(1)
+                if "://" in target or target.startswith("mailto:"):
+                    continue
+                if not (REPO_ROOT / name).parent.joinpath(target).resolve().exists():
+                    line = prose.count("\n", 0, m.start()) + 1
+                    problems.append(f"{name}:{line}: link to {target} does not resolve")
+    assert not problems, "\n".join(problems)
+
+
+def test_the_documents_index_lists_every_document():
+    readme = (REPO_ROOT / "README.md").read_text(encoding="utf-8")
+    documents = sorted(p.name for p in (REPO_ROOT / "docs").glob("*.md"))
+    assert {"models.md", "hardware.md", "settings.md"} <= set(documents)
+    missing = [d for d in documents if f"docs/{d}" not in readme]
+    assert not missing, f"README's Documents section does not list {missing}"
+
+
+def variables_read_by_the_code() -> set[str]:
+    """SNAKEBOT_* names in the Python sources (C header guards are not variables)."""
+    names = set()
+    for name, text in tracked_text_files().items():
+        if name.endswith(".py") and name.startswith(("host/", "tests/", "tools/", "bench/")):
+            names |= set(ENV_NAME.findall(text))
+    # A docstring's "SNAKEBOT_FLASH_*_S" wildcard is a family, not a variable.
+    return {n for n in names if not n.endswith("_H") and not n.endswith("_")}
+
+
+def documented_defaults() -> dict[str, str]:
+    """Variable -> the default column of its row in docs/settings.md."""
+    rows = {}
+    for line in SETTINGS_MD.read_text(encoding="utf-8").splitlines():
+        m = re.match(r"\|\s*`(SNAKEBOT_[A-Z0-9_]+)`\s*\|([^|]*)\|", line)
+        if m:
+            assert m.group(1) not in rows, f"{m.group(1)} has two rows in docs/settings.md"
+            rows[m.group(1)] = m.group(2).strip()
+    return rows
+
+
+def test_settings_page_lists_exactly_the_variables_the_code_reads():
+    code = variables_read_by_the_code()
+    documented = set(documented_defaults())
+    assert len(code) >= 20  # the search works
+    assert code - documented == set(), "read by the code but not in docs/settings.md"
+    assert documented - code == set(), "in docs/settings.md but read nowhere"
+
+
+def _number(text: str) -> float:
+    return float(text.split()[0])
+
+
+def test_settings_page_defaults_are_the_codes(monkeypatch):
+    monkeypatch.delenv(transport_settings.ENV_ECHO, raising=False)
+    rows = documented_defaults()
+    expected = {
+        transport_settings.ENV_RETRIES: transport_settings.DEFAULT_RETRIES,
+        transport_settings.ENV_LATENCY_MS: timing.USB_LATENCY_S * 1e3,
+        transport_settings.ENV_MARGIN_MS: timing.HOST_MARGIN_S * 1e3,
+        transport_settings.ENV_RETURN_DELAY_US: timing.DEFAULT_RETURN_DELAY_US,
+        transport_settings.ENV_ECHO_PROBE_MS: timing.ECHO_PROBE_MIN_S * 1e3,
+        upload_settings.ENV_UPLOAD_RETRIES: upload_settings.DEFAULT_UPLOAD_RETRIES,
+        upload_settings.ENV_UPLOAD_WINDOW: upload_settings.DEFAULT_UPLOAD_WINDOW,
+        "SNAKEBOT_CONTROLLER_ID": load_controller_table().default_id,
+    }
+    defaults = flash_settings.FlashTimeouts()
+    for field, env in flash_settings.ENV_NAMES.items():
+        expected[env] = getattr(defaults, field)
+    for env, value in expected.items():
+        assert _number(rows[env]) == pytest.approx(value), f"{env}: doc {rows[env]!r}"
+    pty_margin = f"({timing.PROGRAM_MARGIN_S * 1e3:g} for a controller on a pseudo-terminal)"
+    assert pty_margin in rows[transport_settings.ENV_MARGIN_MS]
+    assert rows[transport_settings.ENV_ECHO] == "`auto`" == f"`{transport_settings.resolve_echo()}`"

@@ -1,0 +1,100 @@
+"""PortIO: the client's write and timed read, direct on a POSIX serial port (a real
+pty here) and through pyserial on any other port."""
+
+from __future__ import annotations
+
+import os
+import time
+
+import pytest
+import serial
+
+import snakebot.link.transport.ports  # noqa: F401  (registers sim://)
+from snakebot.formats import protocol
+from snakebot.link.transport.portio import POLLED_TAIL_S, PortIO
+
+
+@pytest.fixture
+def pty_port():
+    master, slave = os.openpty()
+    port = serial.Serial(os.ttyname(slave), 1_000_000, timeout=0)
+    os.close(slave)
+    yield master, port
+    port.close()
+    try:
+        os.close(master)
+    except OSError:
+        pass
+
+
+def test_on_a_pty_bytes_go_both_ways_and_a_read_waits_at_most_its_timeout(pty_port):
+    master, port = pty_port
+    io = PortIO(port)
+    io.write(b"\xff\xff\x01\x02\x01\xfb")
+    assert os.read(master, 64) == b"\xff\xff\x01\x02\x01\xfb"
+    os.write(master, b"abcdef")
+    assert io.read(4, 1.0) == b"abcd"  # no more than asked for
+    assert io.read(16, 1.0) == b"ef"  # what there is, at once
+    start = time.monotonic()
+    assert io.read(8, 0.05) == b""
+    assert 0.04 < time.monotonic() - start < 1.0
+
+
+def test_a_hung_up_pty_is_a_serial_error_not_an_empty_read(pty_port):
+    master, port = pty_port
+    io = PortIO(port)
+    os.close(master)
+    with pytest.raises(serial.SerialException):
+        io.read(8, 0.5)
+
+
+def test_other_ports_go_through_pyserial_with_the_timeout_applied():
+    port = serial.serial_for_url("sim://?ids=1&return_delay=0", baudrate=1_000_000)
+    try:
+        io = PortIO(port)
+        io.write(protocol.ping(1))
+        reply = io.read(6, 0.01)
+        assert port.timeout == pytest.approx(0.01)
+        assert protocol.PacketParser().feed(reply)[0].id == 1
+    finally:
+        port.close()
+
+
+def test_a_read_within_the_polled_tail_waits_its_whole_timeout_and_sees_what_came(pty_port):
+    master, port = pty_port
+    io = PortIO(port)
+    short = POLLED_TAIL_S / 2  # no sleep at all: polled from the start
+    for timeout in (short, POLLED_TAIL_S * 20):
+        start = time.monotonic()
+        assert io.read(8, timeout) == b""
+        assert time.monotonic() - start >= timeout  # never gives up early
+        os.write(master, b"xy")
+        assert io.read(8, timeout) == b"xy"
+
+
+def test_flush_input_discards_what_has_arrived_and_nothing_sent_after(pty_port):
+    master, port = pty_port
+    io = PortIO(port)
+    os.write(master, b"stale")
+    deadline = time.monotonic() + 2.0
+    while port.in_waiting < 5 and time.monotonic() < deadline:  # the pty hands them over
+        time.sleep(0.001)
+    assert port.in_waiting == 5
+    io.flush_input()
+    assert port.in_waiting == 0
+    os.write(master, b"new")
+    assert io.read(16, 1.0) == b"new"
+
+
+def test_flush_input_on_other_ports_goes_through_pyserial():
+    port = serial.serial_for_url("sim://?ids=1&return_delay=0", baudrate=1_000_000)
+    try:
+        io = PortIO(port)
+        io.write(protocol.ping(1))
+        port.bus.run_until(port.bus.now + 0.01)  # the whole reply has arrived
+        assert port.in_waiting == 6
+        io.flush_input()
+        assert port.in_waiting == 0
+        assert io.read(16, 0.001) == b""
+    finally:
+        port.close()

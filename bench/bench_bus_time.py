@@ -24,7 +24,7 @@ from snakebot.core import ffi, lib
 from snakebot.facts import devices
 from snakebot.formats import protocol
 from snakebot.sim.bus.bus import Bus
-from snakebot.sim.servo.reference import VirtualServo
+from snakebot.sim.servo.fast import VirtualServo
 
 AX12 = devices.ax12()
 BAUD = 1_000_000

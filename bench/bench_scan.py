@@ -44,15 +44,15 @@ from pathlib import Path
 import dynamixel_sdk
 import dynamixel_sdk.port_handler as sdk_port
 
-from snakebot.formats import protocol
-from snakebot.link.bus import servo_ops
+from snakebot.formats import protocol, register_values
+from snakebot.link.bus import scan as bus_scan
 from snakebot.link.transport import BusTiming, open_port, settings
 from snakebot.link.transport.timing import wire_time_s
 
 BAUD = 1_000_000
 IDS = range(0, protocol.MAX_ID + 1)
 SERVOS = (1, 2, 3)
-RETURN_DELAY_US = servo_ops.longest_return_delay_us()  # the servos are set to it
+RETURN_DELAY_US = bus_scan.longest_return_delay_us()  # the servos are set to it
 PHYSICAL_GOAL = 3.0
 ALL_RATES_GOAL_S = 5.0
 TIGHT_MARGIN_MS = 0.5
@@ -116,7 +116,7 @@ def snakebot_scan(
     os.environ[settings.ENV_ECHO] = echo
     with open_port(device, bauds[0], timeout=0) as link:
         start = time.perf_counter()
-        found = servo_ops.scan(link, IDS, bauds)
+        found = bus_scan.scan(link, IDS, bauds)
         return time.perf_counter() - start, [s.id for s in found]
 
 
@@ -164,7 +164,7 @@ def main() -> int:
             runs["sdk"].append(sdk_scan(device))
             runs["equal"].append(snakebot_scan(device, [BAUD], equal_margin_ms(BAUD), echo="off"))
             runs["tight"].append(snakebot_scan(device, [BAUD], TIGHT_MARGIN_MS))
-        rates = servo_ops.all_bauds()
+        rates = register_values.all_bauds()
         every_runs = [
             snakebot_scan(device, rates, TIGHT_MARGIN_MS) for _ in range(ALL_RATES_ROUNDS)
         ]
@@ -205,7 +205,7 @@ def main() -> int:
         f"({every / floor:.2f}x the limit; goal {ALL_RATES_GOAL_S:g} s: "
         f"{verdict(every < ALL_RATES_GOAL_S, found)})"
     )
-    pause = servo_ops.quiet_s(BusTiming(margin_s=TIGHT_MARGIN_MS * 1e-3))
+    pause = bus_scan.quiet_s(BusTiming(margin_s=TIGHT_MARGIN_MS * 1e-3))
     pauses = (len(rates) - 1) * pause
     probes = len(rates) * len(IDS)
     margins = probes * TIGHT_MARGIN_MS * 1e-3

@@ -77,6 +77,7 @@ from elftools.common.exceptions import ELFError
 from elftools.elf.elffile import ELFFile
 
 from snakebot.facts import devices
+from snakebot.facts.boards import PC_LINK_BAUD as PC_BAUD
 from snakebot.formats import protocol
 from snakebot.formats.gaittable import GaitTable
 from snakebot.formats.protocol import (
@@ -98,7 +99,7 @@ from snakebot.sim.bus.bus import Bus
 from snakebot.sim.bus.faults import FaultConfig
 from snakebot.sim.errors import SimError
 from snakebot.sim.qemu import Endpoint, QemuFirmware
-from snakebot.sim.servo.reference import VirtualServo
+from snakebot.sim.servo.fast import VirtualServo
 from snakebot.sim.transports.unixsock import UnixSocketServer
 
 BUILD = REPO_ROOT / "build" / "qemu"
@@ -111,8 +112,7 @@ LIMITS = ((300, 724), (320, 700), (300, 724))
 FRAMES = np.array([[724, 320, 724], [300, 700, 300], [512, 510, 512], [700, 330, 650]], np.uint16)
 PERIOD_MS = 150
 STEERING = 150  # ticks added to every goal: half the goals would leave the limits unclamped
-CONTROLLER_ID = 200
-PC_BAUD = 57600
+CONTROLLER_ID = load().default_id
 MARGIN_S = 0.3  # the PC-link client's allowance beyond the wire time (QEMU may be slow)
 SAMPLE_S = 0.1  # how often the watch loop looks
 STALL_MS = 100  # ten control ticks without a bus packet while the roster is polled

@@ -20,8 +20,9 @@ FENCE = re.compile(r"/\* cffi:begin \*/(.*?)/\* cffi:end \*/", re.S)
 BOARDS_DIR = CORE_DIR.parent / "boards"
 """One directory per board (``board.h``): the facts the host needs of each are published
 as ``BOARD_<NAME>_<FACT>`` (``board_facts``)."""
-BOARD_FACTS = ("TABLE_CAPACITY",)
-"""The ``BOARD_*`` numbers of each board.h published to Python, each a plain literal there."""
+BOARD_FACTS = ("TABLE_CAPACITY", "CONTROL_TICK_MS", "PC_BAUD", "APP_BASE")
+"""The ``BOARD_*`` numbers of each board published to Python, each a plain literal (decimal
+or hexadecimal) in its board.h or a header of the board that board.h includes."""
 
 
 def published_declarations(header: Path) -> str:
@@ -36,13 +37,24 @@ def board_facts() -> str:
     here, at build time, from the one place it is written."""
     out = []
     for board in sorted(p for p in BOARDS_DIR.iterdir() if (p / "board.h").is_file()):
-        text = (board / "board.h").read_text()
+        text = _board_text(board / "board.h")
         for fact in BOARD_FACTS:
-            found = re.search(rf"^#define BOARD_{fact} (\d+)U?L?\s*$", text, re.M)
+            found = re.search(rf"^#define BOARD_{fact} (0x[0-9A-Fa-f]+|\d+)U?L?\s*$", text, re.M)
             if found is None:
                 raise SystemExit(f"{board / 'board.h'}: BOARD_{fact} is not a plain number")
-            out.append(f"#define BOARD_{board.name.upper()}_{fact} {found[1]}")
+            out.append(f"#define BOARD_{board.name.upper()}_{fact} {int(found[1], 0)}")
     return "\n".join(out)
+
+
+def _board_text(header: Path) -> str:
+    """A board header with the board's own headers it includes (``#include "x.h"`` found
+    beside it), so a fact may sit in the header that holds its peripheral's set-up."""
+    text = header.read_text()
+    for name in re.findall(r'^#include "([^"]+)"', text, re.M):
+        included = header.parent / name
+        if included.is_file() and BOARDS_DIR in included.resolve().parents:
+            text += "\n" + _board_text(included)
+    return text
 
 
 def _relative(path: Path) -> str:

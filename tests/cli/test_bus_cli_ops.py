@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from snakebot.formats.protocol import ControlTable
-from snakebot.link.bus.servo_ops import (
+from snakebot.formats.register_values import (
     COMMON_BAUDS,
     BusCommandError,
     baud_from_register,

@@ -20,7 +20,7 @@ from controller_cli_support import (
 
 from snakebot.link.controller import State
 from snakebot.sim.controller_pty import ControllerPty
-from snakebot.sim.servo.reference import VirtualServo
+from snakebot.sim.servo.fast import VirtualServo
 
 TICKS_PER_DEG = 1023 / 300
 

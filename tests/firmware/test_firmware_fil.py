@@ -30,7 +30,7 @@ from snakebot.formats.protocol import Packet
 from snakebot.link.controller import Command, ControllerErrors, State, UploadResult, load
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.qemu import Endpoint, QemuFirmware
-from snakebot.sim.servo.reference import VirtualServo
+from snakebot.sim.servo.fast import VirtualServo
 from snakebot.sim.transports.unixsock import UnixSocketServer
 
 pytestmark = [pytest.mark.qemu, pytest.mark.slow]

@@ -19,12 +19,12 @@ from snakebot.formats.program.files import write_program
 from snakebot.link.controller import playback
 from snakebot.link.controller.client import ControllerClient
 from snakebot.link.controller.upload import upload_gait
-from snakebot.model.motion import predict_program
 from snakebot.model.plan.program import plan_program
 from snakebot.model.program_goals import predict
 from snakebot.model.program_spec import joints_of
 from snakebot.model.robots import load_robot
 from snakebot.sim.serve import EmulatedRobot
+from snakebot.workflows.predict import predict_program
 
 pytestmark = [pytest.mark.qemu, pytest.mark.slow, pytest.mark.serial]
 

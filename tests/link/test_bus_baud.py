@@ -10,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from snakebot.cli import main
-from snakebot.link.bus.servo_ops import all_bauds
+from snakebot.formats.register_values import all_bauds
 
 
 @pytest.mark.parametrize("command", [["scan"], ["ping", "1"], ["write", "1", "LED", "1"]])

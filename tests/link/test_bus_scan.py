@@ -16,8 +16,8 @@ from click.testing import CliRunner
 import snakebot.link.transport.ports  # noqa: F401  (registers sim://)
 from snakebot.cli import main
 from snakebot.facts import devices
-from snakebot.formats import protocol
-from snakebot.link.bus import servo_ops
+from snakebot.formats import protocol, register_values
+from snakebot.link.bus import scan as bus_scan
 from snakebot.link.transport import DxlClient, open_port, settings
 from snakebot.link.transport.timing import wire_time_s
 
@@ -30,7 +30,7 @@ NOISY = "sim://?robot=snake5&echo=1&corrupt=0.01&seed={seed}"
 @pytest.mark.parametrize("seed", [0, 3])
 def test_scan_through_a_noisy_one_wire_adapter_finds_every_servo(seed):
     with open_port(NOISY.format(seed=seed), 1_000_000, timeout=0) as link:
-        found = servo_ops.scan(link, range(0, 254), [1_000_000])
+        found = bus_scan.scan(link, range(0, 254), [1_000_000])
         damaged = link.bus.faults.corrupted_bytes
     assert damaged > 0  # the line really did damage bytes during this scan
     assert [s.id for s in found] == SNAKE5_IDS
@@ -54,17 +54,17 @@ def test_scan_that_finds_nothing_fails_with_advice():
 
 
 def test_bauds_all_covers_every_tabulated_ax_and_mx_rate():
-    rates = servo_ops.parse_bauds("all")
+    rates = register_values.parse_bauds("all")
     assert rates[0] == 1_000_000 and len(rates) == len(set(rates))
-    assert set(servo_ops.COMMON_BAUDS) <= set(rates)
+    assert set(register_values.COMMON_BAUDS) <= set(rates)
     mx = devices.load("MX-28").require_baud()
     assert {round(mx.rate(v)) for v in mx.fixed} <= set(rates)
-    assert min(rates) == min(servo_ops.COMMON_BAUDS)
+    assert min(rates) == min(register_values.COMMON_BAUDS)
 
 
 def test_scan_with_bauds_all_finds_a_servo_common_misses():
     port = "sim://?ids=3&baud=2000000"
-    assert 2_000_000 not in servo_ops.COMMON_BAUDS
+    assert 2_000_000 not in register_values.COMMON_BAUDS
     args = ["bus", "scan", "--port", port, "--ids", "2-3", "--json", "--bauds"]
     assert CliRunner().invoke(main, [*args, "common"]).exit_code == 1
     result = CliRunner().invoke(main, [*args, "all"])
@@ -104,10 +104,10 @@ def test_a_reply_later_than_its_window_is_still_attributed_to_its_id(monkeypatch
     monkeypatch.setenv(settings.ENV_MARGIN_MS, "0.5")
     url = f"sim://?ids=7&return_delay=500&delay=1&echo={echo}"
     with open_port(url, 1_000_000, timeout=0) as link:
-        silence = servo_ops.silence_s(DxlClient(link, 1_000_000, echo=bool(echo)))
+        silence = bus_scan.silence_s(DxlClient(link, 1_000_000, echo=bool(echo)))
         reply_starts = wire_time_s(len(protocol.ping(7)), 1_000_000) + 500e-6 + 1e-3
         assert reply_starts > silence  # the reply really is late
-        probes = list(servo_ops.scan_probes(link, range(5, 10), [1_000_000]))
+        probes = list(bus_scan.scan_probes(link, range(5, 10), [1_000_000]))
     assert sorted(p.id for p in probes) == [5, 6, 7, 8, 9]  # one result per ID
     assert [(p.id, p.info.model) for p in probes if p.info] == [(7, "AX-12A")]
 
@@ -122,9 +122,9 @@ def test_a_servo_that_heard_the_last_rate_as_garbage_answers_after_the_pause(
     monkeypatch.setenv(settings.ENV_LATENCY_MS, "0")
     monkeypatch.setenv(settings.ENV_MARGIN_MS, "0.5")
     with open_port(f"sim://?ids=0&baud={rate}", before, timeout=0) as link:
-        windows = sum(servo_ops.silence_s(DxlClient(link, b)) for b in (before, rate))
+        windows = sum(bus_scan.silence_s(DxlClient(link, b)) for b in (before, rate))
         start = link.bus.now
-        found = servo_ops.scan(link, range(0, 30), [before, rate])
+        found = bus_scan.scan(link, range(0, 30), [before, rate])
         took = link.bus.now - start
     assert [(s.id, s.baud) for s in found] == [(0, rate)]
     # the 30 silent windows at each rate, the pause, the reply and the READ identifying it
@@ -158,7 +158,7 @@ def test_a_reply_that_never_ends_is_garbled_not_an_error(monkeypatch):
     threading.Thread(target=answer, daemon=True).start()
     try:
         with open_port(os.ttyname(slave), 1_000_000, timeout=0) as link:
-            probes = list(servo_ops.scan_probes(link, range(0, 3), [1_000_000]))
+            probes = list(bus_scan.scan_probes(link, range(0, 3), [1_000_000]))
     finally:
         os.close(master)
         os.close(slave)

@@ -10,8 +10,8 @@ from __future__ import annotations
 import pytest
 
 import snakebot.link.transport.ports  # noqa: F401  (registers sim://)
-from snakebot.formats import protocol
-from snakebot.link.bus import servo_ops
+from snakebot.formats import protocol, register_values
+from snakebot.link.bus import scan as bus_scan
 from snakebot.link.transport import DxlClient, open_port, settings
 from snakebot.link.transport.timing import wire_time_s
 from snakebot.sim.options import SimOptions
@@ -19,7 +19,7 @@ from snakebot.sim.transports import PtyServer
 
 pytestmark = pytest.mark.timeout(120)
 
-SLOWEST = min(servo_ops.all_bauds())
+SLOWEST = min(register_values.all_bauds())
 LONGEST_DELAY_US = 508.0  # an AX-12's Return Delay Time 254
 
 
@@ -32,17 +32,17 @@ def tight(monkeypatch):
 
 
 def test_the_longest_return_delay_comes_from_the_descriptions(monkeypatch):
-    assert servo_ops.longest_return_delay_us() == LONGEST_DELAY_US
+    assert bus_scan.longest_return_delay_us() == LONGEST_DELAY_US
     monkeypatch.setenv(settings.ENV_RETURN_DELAY_US, "900")  # told of a longer one
-    assert servo_ops.longest_return_delay_us() == 900
+    assert bus_scan.longest_return_delay_us() == 900
 
 
 @pytest.mark.usefixtures("tight")
 def test_the_silence_window_ends_before_a_whole_status_would():
-    for baud in servo_ops.all_bauds():
+    for baud in register_values.all_bauds():
         with open_port("sim://?ids=1", baud, timeout=0) as link:
             client = DxlClient(link, baud, echo=False)
-            silence = servo_ops.silence_s(client)
+            silence = bus_scan.silence_s(client)
             ping_len = len(protocol.ping(1))
             # a reply's first byte can be due no later than this
             assert silence > wire_time_s(ping_len + 1, baud) + LONGEST_DELAY_US * 1e-6
@@ -55,7 +55,7 @@ def test_the_silence_window_ends_before_a_whole_status_would():
 def test_the_emulated_bus_at_the_slowest_rate_finds_a_servo_with_the_longest_delay(echo):
     url = f"sim://?ids=7&baud={SLOWEST}&return_delay={LONGEST_DELAY_US:g}&echo={echo}"
     with open_port(url, SLOWEST, timeout=0) as link:
-        found = servo_ops.scan(link, range(5, 10), [SLOWEST])
+        found = bus_scan.scan(link, range(5, 10), [SLOWEST])
     assert [(s.id, s.baud, s.model) for s in found] == [(7, SLOWEST, "AX-12A")]
 
 
@@ -64,10 +64,10 @@ def test_silent_ids_cost_the_silence_window_in_bus_time(monkeypatch):
     monkeypatch.setenv(settings.ENV_ECHO, "off")  # no echo probe before the scan
     ids = range(20, 40)
     with open_port(f"sim://?ids=1&baud={SLOWEST}", SLOWEST, timeout=0) as link:
-        silence = servo_ops.silence_s(DxlClient(link, SLOWEST, echo=False))
+        silence = bus_scan.silence_s(DxlClient(link, SLOWEST, echo=False))
         full = DxlClient(link, SLOWEST, echo=False).timing.reply_timeout_s(6, 0)
         start = link.bus.now
-        assert servo_ops.scan(link, ids, [SLOWEST]) == []
+        assert bus_scan.scan(link, ids, [SLOWEST]) == []
         per_id = (link.bus.now - start) / len(ids)
     assert wire_time_s(len(protocol.ping(1)), SLOWEST) < per_id <= silence < full
 
@@ -80,12 +80,12 @@ def test_the_paced_pty_at_the_slowest_rate_finds_a_servo_with_the_longest_delay(
     monkeypatch.setenv(settings.ENV_LATENCY_MS, "0")
     monkeypatch.setenv(settings.ENV_MARGIN_MS, "4.5")
     with DxlClient("sim://?ids=3", SLOWEST) as client:
-        silence = servo_ops.silence_s(client)
+        silence = bus_scan.silence_s(client)
     assert silence < wire_time_s(12, SLOWEST) + LONGEST_DELAY_US * 1e-6
     query = f"ids=3&baud={SLOWEST}&return_delay={LONGEST_DELAY_US:g}&echo={int(echo)}"
     with (
         PtyServer(SimOptions.from_query(query).build_bus()) as server,
         open_port(server.device, SLOWEST, timeout=0) as link,
     ):
-        found = servo_ops.scan(link, range(0, 6), [SLOWEST])
+        found = bus_scan.scan(link, range(0, 6), [SLOWEST])
     assert [(s.id, s.baud) for s in found] == [(3, SLOWEST)]

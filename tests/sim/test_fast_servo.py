@@ -23,7 +23,8 @@ from snakebot.formats import protocol as P
 from snakebot.formats.protocol import Instruction, Packet, Rejected
 from snakebot.formats.protocol.instructions import frame
 from snakebot.sim.bus.bus import Bus
-from snakebot.sim.servo.reference import ReferenceServo, VirtualServo
+from snakebot.sim.servo.fast import VirtualServo
+from snakebot.sim.servo.reference import ReferenceServo
 
 ROOT = Path(__file__).resolve().parents[2]
 AX12 = devices.ax12()
@@ -230,6 +231,6 @@ def test_the_c_servo_compiles_clean_with_warnings_as_errors():
 
 @pytest.mark.parametrize("first", ["snakebot.sim.servo.fast", "snakebot.sim.servo.reference"])
 def test_either_servo_module_may_be_imported_first(first):
-    code = f"import {first}; from snakebot.sim.servo.reference import VirtualServo; VirtualServo(1)"
+    code = f"import {first}; from snakebot.sim.servo.fast import VirtualServo; VirtualServo(1)"
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr

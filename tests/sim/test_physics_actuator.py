@@ -10,7 +10,7 @@ import pytest
 from snakebot.model.robots import TICKS_PER_RAD
 from snakebot.sim.physics.actuator import Actuator
 from snakebot.sim.servo import motor
-from snakebot.sim.servo.reference import VirtualServo
+from snakebot.sim.servo.fast import VirtualServo
 
 AX12A = Actuator.for_model("AX-12A")
 PUNCH = 32 / 1023  # the factory Punch

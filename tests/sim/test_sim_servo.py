@@ -13,7 +13,7 @@ from snakebot.formats.protocol import ControlTable, ErrorFlags, Instruction
 from snakebot.sim.errors import SimOptionError
 from snakebot.sim.options import SimOptions
 from snakebot.sim.servo import motor
-from snakebot.sim.servo.reference import VirtualServo
+from snakebot.sim.servo.fast import VirtualServo
 
 TABLE = ControlTable.for_model("AX-12A")
 

@@ -12,7 +12,7 @@ from snakebot.formats.protocol import sync_write
 from snakebot.model.robots import TICKS_PER_RAD, load_robot
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.options import SimOptions
-from snakebot.sim.servo.reference import VirtualServo
+from snakebot.sim.servo.fast import VirtualServo
 from snakebot.sim.world import World, WorldError
 
 GOAL = 30  # Goal Position, then Moving Speed

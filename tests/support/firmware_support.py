@@ -17,6 +17,8 @@ from typing import Any, TypeVar
 import pytest
 
 from snakebot.facts import devices
+from snakebot.facts.boards import PC_LINK_BAUD
+from snakebot.facts.controller import load as load_controller
 from snakebot.formats.protocol import DxlTimeout
 from snakebot.link.transport import DxlClient
 from snakebot.link.transport.timing import PROGRAM_MARGIN_S
@@ -50,10 +52,9 @@ def board_value(board: str, name: str) -> int:
 
 QEMU_DIR = BUILD / "qemu"
 CM530_DIR = BUILD / "cm530"
-APP_BASE = 0x08003000
 STUB_BASE = 0x08000000
-CONTROLLER_ID = 200
-PC_BAUD = 57600
+CONTROLLER_ID = load_controller().default_id
+PC_BAUD = PC_LINK_BAUD
 
 
 def build_firmware() -> str:

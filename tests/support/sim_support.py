@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from snakebot.formats.protocol import Packet, PacketParser, Rejected
 from snakebot.sim.bus.bus import Bus
-from snakebot.sim.servo.reference import VirtualServo
+from snakebot.sim.servo.fast import VirtualServo
 
 REPLY_WAIT_S = 0.01  # bus time: longer than any reply at 1 Mbps with the default delay
 

@@ -10,6 +10,8 @@ import click
 
 from snakebot.cli.output import dumps
 from snakebot.cli.params import OUTPUT_PATH, wave_options
+from snakebot.plots.demo import draw_demo
+from snakebot.plots.video import check_video_path
 from snakebot.sim.physics.select import WORLDS
 from snakebot.workflows.demo import DemoSettings, run_demo, summary_lines
 
@@ -102,9 +104,12 @@ def demo(
         world=world,
         video=video,
     )
+    if video is not None:
+        check_video_path(video)
+    say = (lambda _line: None) if as_json else click.echo
     previous = signal.signal(signal.SIGTERM, _sigterm)
     try:
-        result = run_demo(settings, say=(lambda _line: None) if as_json else click.echo)
+        result = draw_demo(run_demo(settings, say=say), say=say)
     except KeyboardInterrupt:
         click.echo(
             "interrupted: the emulated robot (QEMU, the bus) was stopped; nothing is left running",

@@ -8,8 +8,8 @@ import click
 
 from snakebot.cli.controller.link import controller_id_option
 from snakebot.cli.output import dumps
+from snakebot.formats import register_values
 from snakebot.link.bus import doctor as checks
-from snakebot.link.bus import servo_ops
 from snakebot.link.flash.settings import FlashTimeouts
 
 MARKS = {"ok": "ok  ", "warn": "WARN", "fail": "FAIL", "skip": "skip"}
@@ -76,8 +76,8 @@ def doctor(
     share, and each servo's model, firmware, return delay, voltage and temperature
     (against the servo's own limits) and torque limit. Exit status 1 if any check fails.
     """
-    id_list = servo_ops.parse_ids(ids)
-    rates = servo_ops.parse_bauds(bauds)
+    id_list = register_values.parse_ids(ids)
+    rates = register_values.parse_bauds(bauds)
     out = sys.stderr if as_json else sys.stdout
     found = [checks.adapter(port)]
     board = None

@@ -10,8 +10,9 @@ import click
 
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType, controller_port
+from snakebot.facts.boards import PC_LINK_BAUD
 from snakebot.firmware import image as firmware_image
-from snakebot.link.flash import PC_LINK_BAUD, FlashTimeouts, board_layout, flash, load_image
+from snakebot.link.flash import FlashTimeouts, board_layout, flash, load_image
 from snakebot.link.flash.bootloader import RESET_HINT, last_line
 from snakebot.link.flash.errors import FlashError
 from snakebot.link.flash.image import image_info

@@ -273,7 +273,8 @@ def plan_command(
 def controller_capacity(port: str, controller_id: int) -> int:
     """The Table Capacity of the controller on ``port`` (its PC link at the firmware's
     rate): the largest table or program it takes."""
-    from snakebot.link.controller.client import PC_LINK_BAUD, ControllerClient
+    from snakebot.facts.boards import PC_LINK_BAUD
+    from snakebot.link.controller.client import ControllerClient
     from snakebot.link.controller.upload import CAPACITY as CAPACITY_REGISTER
 
     with ControllerClient.open(port, PC_LINK_BAUD, controller_id) as ctl:

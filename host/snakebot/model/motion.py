@@ -13,14 +13,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from snakebot.core import ffi, lib
 from snakebot.formats.program.errors import ProgramError
-from snakebot.formats.program.files import read_program
 from snakebot.formats.program.layout import Program
 from snakebot.model.gait.common import TableMotion, table_motion
 from snakebot.model.kinematics import KinematicsError
@@ -132,20 +130,3 @@ def player_writes(program: Program) -> tuple[float, list[dict[int, bytes]]]:
         for n in range(math.ceil(pass_ms / TICK_MS) + 1)
     ]
     return TICK_MS / 1000.0, blocks
-
-
-def predict_program(
-    path: str | Path,
-    robot: str | Robot | None = None,
-    **options: Any,
-) -> Any:
-    """``sim.predict.predict_gait`` for a program file: the controller's player runs it on
-    the emulated robot (``options`` as there), beside the body path its reference goals
-    predict."""
-    from snakebot.workflows.predict import emulate
-
-    program = read_program(path)
-    chosen = program_robot(program, robot)
-    if program.total_steps < 2:
-        raise ProgramError("the program has a single step: nothing moves; give it two or more")
-    return emulate(str(path), chosen, ProgramFrames.of(program), player_writes(program), **options)

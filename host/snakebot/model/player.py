@@ -8,6 +8,7 @@ from __future__ import annotations
 from snakebot.core import ffi, lib
 from snakebot.errors import SnakebotError
 from snakebot.facts import devices
+from snakebot.facts.boards import CONTROL_TICK_MS
 from snakebot.formats.gaittable import GaitTable
 
 _AX12 = devices.ax12()
@@ -23,8 +24,8 @@ START_SETTLE_S = 0.1
 START_TOLERANCE_TICKS = 1
 """How far from the first frame a servo may stop (the factory compliance margin)."""
 
-TICK_MS = 10
-"""Control tick, as BOARD_CONTROL_TICK_MS on both boards."""
+TICK_MS = CONTROL_TICK_MS
+"""Control tick (``BOARD_CONTROL_TICK_MS``, the same on every board)."""
 
 FULL_SPEED = 256
 """The player's speed scale for the gait as written (its unit is 1/256)."""

@@ -55,14 +55,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from snakebot.facts.boards import APP_BASE, PC_LINK_BAUD
 from snakebot.sim.transports.base import RawPty, Server
 from snakebot.sim.transports.pty import tty_baudrate
-
-PC_LINK_BAUD = 57600
-"""The CM-530's PC link speed, bootloader included."""
-
-APP_BASE = 0x08003000
-"""Where the application starts (after the 12 KB bootloader)."""
 
 FLASH_BASE = 0x08000000
 """Where the STM32's flash starts (the bootloader's own first byte)."""

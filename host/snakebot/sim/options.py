@@ -14,7 +14,7 @@ from snakebot.facts import devices
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.bus.faults import Brownout, FaultConfig
 from snakebot.sim.errors import SimOptionError
-from snakebot.sim.servo.reference import VirtualServo
+from snakebot.sim.servo.fast import VirtualServo
 
 URL_FORM = "sim://[NAME][?robot=NAME|ids=1,2,3][&option=value...]"
 

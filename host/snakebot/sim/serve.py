@@ -45,6 +45,8 @@ from typing import Any
 
 import numpy as np
 
+from snakebot.facts.boards import APP_BASE, PC_LINK_BAUD
+from snakebot.facts.controller import load as load_controller
 from snakebot.firmware import image as firmware_image
 from snakebot.formats.protocol import DxlTimeout, ProtocolError
 from snakebot.link.transport import DxlClient
@@ -55,7 +57,7 @@ from snakebot.sim.options import SimOptions
 from snakebot.sim.physics import PhysicsWorld
 from snakebot.sim.physics.select import DEFAULT_WORLD, check_world, make_world
 from snakebot.sim.qemu import Endpoint, QemuFirmware
-from snakebot.sim.servo.reference import VirtualServo
+from snakebot.sim.servo.fast import VirtualServo
 from snakebot.sim.transports.unixsock import UnixSocketServer
 from snakebot.sim.workdirs import make_workdir
 from snakebot.sim.world import World, WorldRecord
@@ -66,13 +68,8 @@ shipped in the package (:mod:`snakebot.firmware`)."""
 
 FLASH_BASE = 0x08000000
 FLASH_SIZE = 128 * 1024  # stm32vldiscovery (STM32F100RB)
-APP_BASE = 0x08003000
-"""Where the application starts (after the boot stub), as on the CM-530."""
-
-CONTROLLER_ID = 200
+CONTROLLER_ID = load_controller().default_id
 """The firmware's Protocol 1.0 ID on the PC link (factory default)."""
-
-PC_LINK_BAUD = 57600
 
 BOOT_TIMEOUT_S = 20.0
 """How long :meth:`EmulatedRobot.start` waits for the firmware to answer on the PC link."""

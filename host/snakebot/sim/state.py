@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from snakebot.sim.errors import SimError
-from snakebot.sim.servo.reference import VirtualServo
+from snakebot.sim.servo.fast import VirtualServo
 from snakebot.userfiles import new_file_mode
 
 FORMAT = "snakebot.sim-eeprom/1"

@@ -42,7 +42,7 @@ from typing import Any
 import numpy as np
 
 from snakebot.errors import SnakebotError
-from snakebot.extras import available, install_hint
+from snakebot.extras import install_hint
 from snakebot.formats.gaittable import GaitTable, write_gait
 from snakebot.link.controller import load as load_controller
 from snakebot.link.controller.client import ControllerClient
@@ -52,7 +52,6 @@ from snakebot.link.controller.upload import UploadReport, upload_gait
 from snakebot.model.gait import serpenoid
 from snakebot.model.gait.common import motion_frame, table_motion
 from snakebot.model.robots import Robot, load_robot
-from snakebot.plots.video import check_video_path, write_video
 from snakebot.sim.physics.select import record_extras, world_of
 from snakebot.sim.serve import EmulatedRobot, ServeInfo
 from snakebot.sim.world import WorldRecord
@@ -399,60 +398,6 @@ def _unit(robot: Robot) -> float:
     return robot.physics.unit_m if robot.physics is not None else 1.0
 
 
-# -- the picture --------------------------------------------------------------------------
-
-
-def plot_demo(robot: Robot, comparison: Comparison, out: Path) -> Path:
-    """PNG: the body's path (emulated, predicted) and the joint angles (commanded, measured)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(13, 5), layout="constrained")
-    FigureCanvasAgg(fig)
-    ax_path, ax_joints = fig.subplots(1, 2, width_ratios=(1, 1.4))
-    em, pr = comparison.emulated_path, comparison.predicted_path
-    ax_path.plot(pr[:, 0], pr[:, 1], "--", color="tab:blue", label="predicted (table)")
-    ax_path.plot(em[:, 0], em[:, 1], "-", color="tab:red", label="emulated (firmware in QEMU)")
-    ax_path.plot([0], [0], "o", color="black", label="start")
-    ax_path.set_aspect("equal", adjustable="datalim")
-    ax_path.set_xlabel("x (m, along link 1 from the tail towards the head, at the start)")
-    ax_path.set_ylabel("y (m)")
-    ax_path.set_title(
-        f"{robot.name}: body path over the measured cycles\n"
-        f"difference {100 * comparison.difference_m:.1f} cm\n{_why(comparison)}"
-    )
-    ax_path.legend(fontsize="small")
-    ax_path.grid(alpha=0.3)
-    t = comparison.joint_t - comparison.window_s[0]
-    colours = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown"]
-    for j, joint in enumerate(robot.joints):
-        c = colours[j % len(colours)]
-        ax_joints.plot(
-            t,
-            np.degrees(comparison.joint_commanded[:, j]),
-            "--",
-            color=c,
-            linewidth=1,
-            label=f"{joint.name} commanded",
-        )
-        ax_joints.plot(
-            t,
-            np.degrees(comparison.joint_measured[:, j]),
-            "-",
-            color=c,
-            linewidth=1.5,
-            alpha=0.7,
-            label=f"{joint.name} measured",
-        )
-    ax_joints.set_xlabel("time since the measured cycles began (s)")
-    ax_joints.set_ylabel("joint angle (deg)")
-    ax_joints.set_title("joint angles: commanded by the firmware vs the servos' positions")
-    ax_joints.legend(fontsize="x-small", ncol=2)
-    ax_joints.grid(alpha=0.3)
-    fig.savefig(out, dpi=100)
-    return out
-
-
 # -- the operation ------------------------------------------------------------------------
 
 
@@ -466,9 +411,10 @@ class DemoResult:
     gait: dict[str, Any]
     upload: UploadReport
     comparison: Comparison
-    png: Path | None  # None without matplotlib
     seconds: float
     monitor: list[dict[str, Any]]
+    record: WorldRecord
+    png: Path | None = None  # drawn by snakebot.plots.demo; None without matplotlib
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -509,8 +455,6 @@ def run_demo(settings: DemoSettings | None = None, say: Say = print) -> DemoResu
     robot = load_robot(settings.robot)
     out_dir = Path(settings.out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    if settings.video is not None:
-        check_video_path(settings.video)
 
     gait = serpenoid(
         robot,
@@ -562,11 +506,6 @@ def run_demo(settings: DemoSettings | None = None, say: Say = print) -> DemoResu
     )
     if world_of(record) != "kinematic":
         comparison.physics = physics_effects(robot, table, record, comparison, settings.cycles)
-    # The picture needs the `plot` extra; without it the demo still runs and says so.
-    png = plot_demo(robot, comparison, out_dir / "demo.png") if available("matplotlib") else None
-    if settings.video is not None:
-        say(f"   writing the video {settings.video} ...")
-        write_video(settings.video, robot, {f"emulated ({settings.world})": record})
     return DemoResult(
         settings,
         info.as_dict(),
@@ -574,9 +513,9 @@ def run_demo(settings: DemoSettings | None = None, say: Say = print) -> DemoResu
         gait.summary(),
         report,
         comparison,
-        png,
         time.monotonic() - began,
         monitor,
+        record,
     )
 
 

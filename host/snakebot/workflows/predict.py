@@ -35,6 +35,8 @@ import numpy as np
 
 from snakebot.facts import devices
 from snakebot.formats.gaittable import GaitTable, read_gait
+from snakebot.formats.program.errors import ProgramError
+from snakebot.formats.program.files import read_program
 from snakebot.formats.protocol import sync_write
 from snakebot.link.transport import DxlClient
 from snakebot.model.gait.common import (
@@ -45,6 +47,8 @@ from snakebot.model.gait.common import (
     table_motion,
 )
 from snakebot.model.kinematics import KinematicsError, Trajectory
+from snakebot.model.motion import ProgramFrames, program_robot
+from snakebot.model.motion import player_writes as program_player_writes
 from snakebot.model.player import (
     GOAL_BLOCK,
     GOAL_POSITION_ADDR,
@@ -376,3 +380,20 @@ def emulate(
         client.close()
     predicted, played = predict_table(robot, table, len(record.t))
     return Prediction(name, robot, table, ideal, world_period, record, predicted, played, wall)
+
+
+def predict_program(
+    path: str | Path,
+    robot: str | Robot | None = None,
+    **options: Any,
+) -> Any:
+    """:func:`predict_gait` for a program file: the controller's player runs it on the
+    emulated robot (``options`` as there), beside the body path its reference goals
+    predict (:mod:`snakebot.model.motion`)."""
+    program = read_program(path)
+    chosen = program_robot(program, robot)
+    if program.total_steps < 2:
+        raise ProgramError("the program has a single step: nothing moves; give it two or more")
+    return emulate(
+        str(path), chosen, ProgramFrames.of(program), program_player_writes(program), **options
+    )

@@ -15,7 +15,7 @@ from snakebot.formats.protocol import Instruction, PacketParser, write
 from snakebot.formats.upload_writes import chunk_writes, commit_write
 from snakebot.link.controller import LimitsState, UploadResult
 from snakebot.link.controller.limits import encode_limits
-from snakebot.sim.servo.reference import VirtualServo
+from snakebot.sim.servo.fast import VirtualServo
 
 AX12 = devices.ax12()
 CW, TORQUE, MAX_TORQUE = (

@@ -14,8 +14,12 @@ import click
 from snakebot.cli.errors import EXIT_RUNTIME
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType
-from snakebot.link.bus import servo_ops
-from snakebot.link.bus.servo_ops import BusCommandError, Probe, ServoInfo
+from snakebot.formats import register_values
+from snakebot.formats.register_values import BusCommandError
+from snakebot.link.bus import ids as bus_ids
+from snakebot.link.bus import registers as bus_registers
+from snakebot.link.bus import scan as bus_scan
+from snakebot.link.bus.scan import Probe, ServoInfo
 from snakebot.link.transport import DEFAULT_BAUDRATE, DxlClient, open_port
 
 EXIT_INTERRUPTED = 130
@@ -30,7 +34,7 @@ PORT_HELP = (
 def _servo_baud(ctx: click.Context, param: click.Parameter, value: int) -> int:
     """--baud: a rate some described servo runs at."""
     try:
-        servo_ops.check_bus_baud(value)
+        register_values.check_bus_baud(value)
     except BusCommandError as exc:
         raise click.BadParameter(str(exc), ctx, param) from None
     return value
@@ -141,8 +145,8 @@ def scan_command(
     common, or --bauds all (each further rate begins after a pause of 100 ms, the time
     a servo takes to drop a packet begun by the last rate's bytes).
     """
-    id_list = servo_ops.parse_ids(ids)
-    rates = servo_ops.parse_bauds(bauds) if bauds else [baud]
+    id_list = register_values.parse_ids(ids)
+    rates = register_values.parse_bauds(bauds) if bauds else [baud]
     found: list[ServoInfo] = []
     garbled: list[Probe] = []
     interrupted = False
@@ -155,7 +159,7 @@ def scan_command(
     )
     with open_port(port, rates[0], timeout=0) as link, bar:
         try:
-            for result in servo_ops.scan_probes(link, id_list, rates):
+            for result in bus_scan.scan_probes(link, id_list, rates):
                 bar.update(1)
                 if result.info is not None:
                     if not found and not as_json:
@@ -184,7 +188,7 @@ def scan_command(
         for g in garbled:
             click.echo(
                 f"ID {g.id} at {g.baud} baud: only damaged replies "
-                f"({1 + servo_ops.SCAN_RETRIES} tries); check the cabling, or two servos "
+                f"({1 + bus_scan.SCAN_RETRIES} tries); check the cabling, or two servos "
                 "sharing this ID"
             )
         if found:
@@ -203,14 +207,14 @@ def scan_command(
 
 @bus.command("ping")
 @bus_options
-@click.argument("ids", nargs=-1, required=True, type=click.IntRange(0, servo_ops.MAX_ID))
+@click.argument("ids", nargs=-1, required=True, type=click.IntRange(0, register_values.MAX_ID))
 def ping_command(port: str, baud: int, as_json: bool, ids: tuple[int, ...]) -> None:
     """PING servo IDS (one or more) and report model, firmware and error bits.
 
     Fails (exit status 1) if any of them does not answer.
     """
     with _on_the_bus(port, baud) as client:
-        results = {servo_id: servo_ops.identify(client, servo_id) for servo_id in ids}
+        results = {servo_id: bus_scan.identify(client, servo_id) for servo_id in ids}
     found = [info for info in results.values() if info is not None]
     missing = [servo_id for servo_id, info in results.items() if info is None]
     if as_json:
@@ -240,7 +244,7 @@ def ping_command(port: str, baud: int, as_json: bool, ids: tuple[int, ...]) -> N
 
 @bus.command("read")
 @bus_options
-@click.argument("servo_id", metavar="ID", type=click.IntRange(0, servo_ops.MAX_ID))
+@click.argument("servo_id", metavar="ID", type=click.IntRange(0, register_values.MAX_ID))
 @click.argument("registers", nargs=-1)
 def read_command(
     port: str, baud: int, as_json: bool, servo_id: int, registers: tuple[str, ...]
@@ -251,21 +255,21 @@ def read_command(
         snakebot bus read 1 present-position present-voltage --port /dev/ttyUSB0
         snakebot bus read 1 36 --port /dev/ttyUSB0        # the same register by address
     """
-    entries = [servo_ops.resolve_register(r) for r in registers]
+    entries = [register_values.resolve_register(r) for r in registers]
     with _on_the_bus(port, baud) as client:
-        table, values = servo_ops.read_registers(client, servo_id, entries)
+        table, values = bus_registers.read_registers(client, servo_id, entries)
     if as_json:
         click.echo(dumps({"id": servo_id, "model": table.model, "registers": values}))
         return
     click.echo(f"servo {servo_id} ({table.model}):")
     for v in values:
         rw = "" if v["access"] == "RW" else "  (read-only)"
-        click.echo(f"  {v['address']:>3}  {v['name']:<22} {servo_ops.describe_value(v)}{rw}")
+        click.echo(f"  {v['address']:>3}  {v['name']:<22} {register_values.describe_value(v)}{rw}")
 
 
 @bus.command("write")
 @bus_options
-@click.argument("servo_id", metavar="ID", type=click.IntRange(0, servo_ops.MAX_ID))
+@click.argument("servo_id", metavar="ID", type=click.IntRange(0, register_values.MAX_ID))
 @click.argument("register")
 @click.argument("value")
 def write_command(
@@ -284,18 +288,18 @@ def write_command(
         snakebot bus write 1 moving-speed 50rpm --port /dev/ttyUSB0
         snakebot bus write 1 led 1 --port /dev/ttyUSB0
     """
-    entry = servo_ops.resolve_register(register)
-    number = servo_ops.parse_value(entry, value)
+    entry = register_values.resolve_register(register)
+    number = register_values.parse_value(entry, value)
     redirect = {"ID": "set-id", "Baud Rate": "set-baud"}.get(entry.name)
     if redirect:
         raise BusCommandError(
             f"change {entry.name} with `snakebot bus {redirect}`, which checks the result "
             "(and, for an ID, that no other servo has it)"
         )
-    servo_ops.check_write(entry, number)
+    register_values.check_write(entry, number)
     with _on_the_bus(port, baud) as client:
-        back = servo_ops.write_register(client, servo_id, entry, number)
-    decoded = servo_ops.decode(entry, number)
+        back = bus_registers.write_register(client, servo_id, entry, number)
+    decoded = register_values.decode(entry, number)
     if as_json:
         click.echo(
             dumps(
@@ -309,7 +313,8 @@ def write_command(
             )
         )
         return
-    text = f"servo {servo_id}: {entry.name} ({entry.address}) = {servo_ops.describe_value(decoded)}"
+    shown = register_values.describe_value(decoded)
+    text = f"servo {servo_id}: {entry.name} ({entry.address}) = {shown}"
     if back is not None:
         text += ", reads back " + ("the same" if back == number else str(back))
     click.echo(text)
@@ -319,8 +324,8 @@ def write_command(
 
 @bus.command("set-id")
 @bus_options
-@click.argument("old_id", metavar="ID", type=click.IntRange(0, servo_ops.MAX_ID))
-@click.argument("new_id", metavar="NEW_ID", type=click.IntRange(0, servo_ops.MAX_ID))
+@click.argument("old_id", metavar="ID", type=click.IntRange(0, register_values.MAX_ID))
+@click.argument("new_id", metavar="NEW_ID", type=click.IntRange(0, register_values.MAX_ID))
 def set_id_command(port: str, baud: int, as_json: bool, old_id: int, new_id: int) -> None:
     """Give servo ID the ID NEW_ID (stored in its EEPROM).
 
@@ -335,7 +340,7 @@ def set_id_command(port: str, baud: int, as_json: bool, old_id: int, new_id: int
             f"ID and NEW_ID are both {old_id}: give NEW_ID the ID the servo should take"
         )
     with _on_the_bus(port, baud) as client:
-        info = servo_ops.set_id(client, old_id, new_id)
+        info = bus_ids.set_id(client, old_id, new_id)
     _emit(
         as_json,
         {"old_id": old_id, "new_id": new_id, "servo": info.as_dict()},
@@ -345,7 +350,7 @@ def set_id_command(port: str, baud: int, as_json: bool, old_id: int, new_id: int
 
 @bus.command("set-baud")
 @bus_options
-@click.argument("servo_id", metavar="ID", type=click.IntRange(0, servo_ops.MAX_ID))
+@click.argument("servo_id", metavar="ID", type=click.IntRange(0, register_values.MAX_ID))
 @click.argument("rate", required=False, type=NumberType(1))
 @click.option(
     "--value",
@@ -372,12 +377,12 @@ def set_baud_command(
         raise BusCommandError("give either RATE (bit/s) or --value N, e.g. set-baud 1 500000")
     if register is None:
         assert rate is not None
-        register = servo_ops.baud_register(rate)
+        register = register_values.baud_register(rate)
         host_baud = round(rate)
     else:
-        host_baud = round(servo_ops.baud_from_register(register))
+        host_baud = round(register_values.baud_from_register(register))
     with _on_the_bus(port, baud) as client:
-        change = servo_ops.set_baud(client, servo_id, register, host_baud)
+        change = bus_ids.set_baud(client, servo_id, register, host_baud)
     _emit(
         as_json,
         {

@@ -12,7 +12,8 @@ from snakebot.cli.bus import EXIT_INTERRUPTED, bus_options
 from snakebot.cli.output import dumps
 from snakebot.facts import devices
 from snakebot.formats.gaittable import GaitTable, read_gait
-from snakebot.link.bus.servo_ops import BusCommandError, identify
+from snakebot.formats.register_values import BusCommandError
+from snakebot.link.bus.scan import identify
 from snakebot.link.transport import DxlClient
 from snakebot.model.player import (
     FULL_SPEED,

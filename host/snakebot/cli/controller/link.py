@@ -10,8 +10,9 @@ from typing import Any
 import click
 
 from snakebot.cli.params import controller_port
+from snakebot.facts.boards import PC_LINK_BAUD
 from snakebot.link.controller import load
-from snakebot.link.controller.client import PC_LINK_BAUD, ControllerClient
+from snakebot.link.controller.client import ControllerClient
 
 PORT_HELP = (
     "The controller's PC link: the CM-530's USB-serial device (/dev/ttyUSB0, COM3), a "
@@ -23,7 +24,7 @@ PORT_HELP = (
 def _link_baud(ctx: click.Context, param: click.Parameter, value: int) -> int:
     """A rate no slower than the slowest a Dynamixel device is tabulated at: below it a
     reply's timeout (which scales with the byte time) would run to minutes."""
-    from snakebot.link.bus.servo_ops import slowest_bps
+    from snakebot.formats.register_values import slowest_bps
 
     slowest = slowest_bps()
     if value < slowest:

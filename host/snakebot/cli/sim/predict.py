@@ -14,10 +14,9 @@ from snakebot.cli.output import dumps
 from snakebot.cli.params import NUMBER, OUTPUT_PATH, PLOT_PATH, NumberType
 from snakebot.extras import require
 from snakebot.formats.program.files import is_program_file
-from snakebot.model.motion import predict_program
 from snakebot.plots.video import StateMotion, check_video_path, write_video
 from snakebot.sim.physics.select import DEFAULT_WORLD, WORLDS
-from snakebot.workflows.predict import DEFAULT_WORLD_HZ, predict_gait
+from snakebot.workflows.predict import DEFAULT_WORLD_HZ, predict_gait, predict_program
 
 
 def _motion(label: str, m: dict[str, Any]) -> str:

@@ -12,8 +12,8 @@ import zlib
 import numpy as np
 
 from snakebot.facts import devices
+from snakebot.facts.controller import load as load_controller
 from snakebot.formats.gaittable.errors import GaitTableError
-from snakebot.link.controller import load as load_controller
 
 MAGIC = b"SNKG"
 VERSION = 1

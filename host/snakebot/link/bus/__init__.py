@@ -1,2 +1,4 @@
 """Servo chores on a Dynamixel bus: scan, register reads and writes, ID and baud changes
-(``servo_ops``), calibration (``calibrate``) and the doctor's checks (``doctor``)."""
+(``scan``, ``registers``, ``ids``; the values they take and show are
+:mod:`snakebot.formats.register_values`), calibration (``calibrate``) and the doctor's
+checks (``doctor``)."""

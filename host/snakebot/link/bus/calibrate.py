@@ -18,7 +18,8 @@ from pathlib import Path
 import tomlkit
 
 from snakebot.facts import devices
-from snakebot.link.bus.servo_ops import BusCommandError, identify
+from snakebot.formats.register_values import BusCommandError
+from snakebot.link.bus.scan import identify
 from snakebot.link.transport import DxlClient
 from snakebot.model.robots.loader import parse_robot
 from snakebot.model.robots.model import Joint, Robot

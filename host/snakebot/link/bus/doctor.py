@@ -13,10 +13,12 @@ from typing import Any
 import serial
 
 from snakebot.errors import SnakebotError
+from snakebot.facts.boards import PC_LINK_BAUD
+from snakebot.formats import register_values
 from snakebot.formats.protocol import ControlTable, CorruptPacket, DxlTimeout, ServoError, read
-from snakebot.link.bus import servo_ops
+from snakebot.link.bus import scan as bus_scan
 from snakebot.link.controller import load as load_controller
-from snakebot.link.controller.client import PC_LINK_BAUD, ControllerClient
+from snakebot.link.controller.client import ControllerClient
 from snakebot.link.flash.bootloader import (
     RESET_HINT,
     enter_bootloader,
@@ -210,7 +212,7 @@ def servo_bus(port: str, ids: Iterable[int], bauds: Sequence[int]) -> list[Check
     with open_port(port, bauds[0]) as link:
         tap = _Tap(link)
         probes = []
-        for p in servo_ops.scan_probes(tap, ids, bauds):  # type: ignore[arg-type]
+        for p in bus_scan.scan_probes(tap, ids, bauds):  # type: ignore[arg-type]
             heard, sent = tap.take()
             # Colliding replies can merge into bytes that never make a packet: the client
             # then reports silence, but more came back than the echo of what was sent.
@@ -265,7 +267,7 @@ class _Tap:
         return counts
 
 
-def _bauds_found(found: list[servo_ops.ServoInfo], bauds: Sequence[int]) -> Check:
+def _bauds_found(found: list[bus_scan.ServoInfo], bauds: Sequence[int]) -> Check:
     if not found:
         return Check(
             "servo bus",
@@ -285,7 +287,7 @@ def _bauds_found(found: list[servo_ops.ServoInfo], bauds: Sequence[int]) -> Chec
     return Check("servo bus", "ok", detail)
 
 
-def _servo(client: DxlClient, info: servo_ops.ServoInfo) -> list[Check]:
+def _servo(client: DxlClient, info: bus_scan.ServoInfo) -> list[Check]:
     name = f"servo {info.id}"
     ident = Check(name, "ok", f"{info.label}, firmware {info.firmware}")
     if info.model is None:
@@ -297,7 +299,7 @@ def _servo(client: DxlClient, info: servo_ops.ServoInfo) -> list[Check]:
     # registers, and they say why.
     reply = client.transact(read(info.id, start, end - start), info.id, end - start, check=False)
     v = {
-        e.name: servo_ops.decode(
+        e.name: register_values.decode(
             e,
             int.from_bytes(reply.params[e.address - start : e.address + e.size - start], "little"),
             table,

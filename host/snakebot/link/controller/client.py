@@ -22,6 +22,7 @@ from types import TracebackType
 from typing import Any
 
 from snakebot.facts import devices
+from snakebot.facts.boards import PC_LINK_BAUD
 from snakebot.facts.controller import Controller, Register, load
 from snakebot.formats import protocol
 from snakebot.formats.protocol import CorruptPacket, DxlTimeout, ErrorFlags, ServoError
@@ -33,9 +34,6 @@ from snakebot.link.controller.errors import (
 )
 from snakebot.link.transport import DxlClient, settings, timing
 from snakebot.link.transport.ports import is_pseudo_terminal
-
-PC_LINK_BAUD = 57600
-"""The CM-530 firmware's PC link (USART3) rate, as on the ROBOTIS controllers."""
 
 IDENTITY_REGISTERS = ("Model Number", "Firmware Version", "ID", "Status Return Level", "State")
 """What :meth:`ControllerClient.identify` reads and checks."""

@@ -12,7 +12,7 @@ from snakebot.errors import SnakebotError
 from snakebot.facts.controller import Controller
 from snakebot.facts.devices import Register
 from snakebot.formats.protocol import ErrorFlags
-from snakebot.link.bus.servo_ops import check_write, decode, describe_value, parse_value
+from snakebot.formats.register_values import check_write, decode, describe_value, parse_value
 
 
 class ConfigError(SnakebotError):

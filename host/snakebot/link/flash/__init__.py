@@ -23,10 +23,9 @@ from snakebot.link.flash.bootloader import (
 from snakebot.link.flash.errors import FlashError, FlashSettingError, ImageError
 from snakebot.link.flash.image import BoardLayout, board_layout, checksum, load_image
 from snakebot.link.flash.report import ChecksumMatch, ChecksumReport, parse_report, verify_checksum
-from snakebot.link.flash.settings import PC_LINK_BAUD, FlashTimeouts
+from snakebot.link.flash.settings import FlashTimeouts
 
 __all__ = [
-    "PC_LINK_BAUD",
     "BoardLayout",
     "ChecksumMatch",
     "ChecksumReport",

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import serial
 
+from snakebot.facts.boards import PC_LINK_BAUD
 from snakebot.link.flash.errors import FlashError
 from snakebot.link.flash.image import checksum
 from snakebot.link.flash.report import (
@@ -33,7 +34,7 @@ from snakebot.link.flash.report import (
     unrecognised_message,
     verify_checksum,
 )
-from snakebot.link.flash.settings import CHUNK_SIZE, PC_LINK_BAUD, FlashTimeouts
+from snakebot.link.flash.settings import CHUNK_SIZE, FlashTimeouts
 
 HASH = b"#"
 LOAD_COMMAND = b"\nL\n"

@@ -24,6 +24,7 @@ import struct
 from dataclasses import dataclass
 from pathlib import Path
 
+from snakebot.facts.boards import APP_BASE
 from snakebot.link.flash.errors import ImageError
 from snakebot.link.flash.formats import elf_chunks, flat_image, hex_chunks, kind_of
 from snakebot.paths import REPO_ROOT
@@ -74,7 +75,7 @@ class BoardLayout:
 
 
 FALLBACK_LAYOUT = BoardLayout(
-    app_base=0x08003000,
+    app_base=APP_BASE,
     flash_end=0x08080000,  # STM32F103RE: 512 KB of flash
     ram_base=SRAM_BASE,
     ram_end=SRAM_BASE + 64 * 1024,

@@ -29,9 +29,6 @@ from dataclasses import dataclass, fields
 
 from snakebot.link.flash.errors import FlashSettingError
 
-PC_LINK_BAUD = 57600
-"""The CM-530's PC link (USART3) runs at 57600 8N1, bootloader and application alike."""
-
 RESET_TIMEOUT_S = 20.0
 """How long to keep sending '#' while the user presses RESET."""
 

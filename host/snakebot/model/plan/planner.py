@@ -60,8 +60,8 @@ from snakebot.model.plan.loops import (
     refine_ticks,
     solve_loop,
 )
+from snakebot.model.player import TICK_MS
 from snakebot.model.robots import TICKS_PER_RAD, Robot
-from snakebot.sim.controller_pty import TICK_MS
 
 #: Default tolerance: a fraction of the distance to the target, and a heading (rad).
 DEFAULT_TOLERANCE = 0.02

@@ -76,9 +76,9 @@ from snakebot.model.plan.planner import (
     routes,
     solve_accuracy,
 )
+from snakebot.model.player import TICK_MS
 from snakebot.model.program_spec import joints_of
 from snakebot.model.robots import Robot
-from snakebot.sim.controller_pty import TICK_MS
 
 MRAD = 1000.0
 #: The most steps a segment has (a u16).

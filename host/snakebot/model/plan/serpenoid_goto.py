@@ -49,8 +49,8 @@ from snakebot.model.plan.planner import (
     pose_error,
     ramp,
 )
+from snakebot.model.player import TICK_MS
 from snakebot.model.robots import Robot
-from snakebot.sim.controller_pty import TICK_MS
 
 #: The wave: 30 degrees, 180 deg/s and a lag of 150 degrees between joints: a short wave
 #: that carries snake5 0.105 m a cycle on MuJoCo and turns it 0.76 rad per cycle per

@@ -41,7 +41,8 @@ from snakebot.sim.bus.clock import BITS_PER_BYTE
 from snakebot.sim.bus.faults import FaultConfig, FaultInjector
 from snakebot.sim.bus.receiver import ServoReceiver
 from snakebot.sim.bus.uart import resample, same_baud
-from snakebot.sim.servo.reference import VirtualServo, sync_write_shape
+from snakebot.sim.servo.fast import VirtualServo
+from snakebot.sim.servo.reference import sync_write_shape
 
 INTER_BYTE_GAP_S = FRAME_RESET_S
 """A pause longer than this inside a packet makes a servo drop the partial packet."""

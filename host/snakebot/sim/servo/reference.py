@@ -789,14 +789,3 @@ class ReferenceServo:
         self._power_on_ram()
         if (self.baudrate, self._id) != link:
             self._link_changed()
-
-
-def __getattr__(name: str) -> type:
-    # The emulator's servo, VirtualServo: this model with its hot path in C. It is
-    # defined in snakebot.sim.servo.fast, which builds on ReferenceServo, and looked up
-    # here on first use, so either module may be imported first.
-    if name == "VirtualServo":
-        from snakebot.sim.servo.fast import VirtualServo
-
-        return VirtualServo
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,0 +1,325 @@
+"""Register values as people write and read them: a register found by name or address, a
+value parsed from text in the register's units and checked against its range, a raw value
+decoded into units and words, servo IDs and baud rates parsed from text, and the baud
+register's formula. Everything comes from the device descriptions
+(:mod:`snakebot.facts.devices`, through :class:`~snakebot.formats.protocol.ControlTable`):
+no address or unit factor is written here. No I/O."""
+
+from __future__ import annotations
+
+import math
+import re
+
+from snakebot.errors import SnakebotError
+from snakebot.facts import devices
+from snakebot.facts.devices import Baud, DeviceError
+from snakebot.formats.protocol import (
+    BROADCAST_ID,
+    MAX_ID,
+    ControlTable,
+    ControlTableError,
+    Entry,
+    ErrorFlags,
+)
+
+BASE_MODEL = "AX-12A"
+
+
+"""The table used to check names and ranges before a servo has been asked its model
+(the AX-12 family shares addresses and ranges; only some defaults differ)."""
+
+
+COMMON_REGISTERS = (1, 3, 4, 7, 9, 16, 34, 207)
+
+
+"""The Baud Rate values the AX-12 e-Manual tabulates."""
+
+
+STANDARD_REGISTERS = (0, *COMMON_REGISTERS, 103)
+
+
+"""The Baud Rate values the AX and MX e-Manuals tabulate between them (each model's
+fixed-rate values come from its description)."""
+
+
+class BusCommandError(SnakebotError):
+    """A servo chore that cannot be done as asked; the message says why and what to do."""
+
+
+def base_table() -> ControlTable:
+    return ControlTable.for_model(BASE_MODEL)
+
+
+def model_name(number: int) -> str | None:
+    """The servo model whose model number is ``number`` (12: "AX-12A"), or None."""
+    try:
+        return ControlTable.for_model_number(number).model
+    except ControlTableError:
+        return None
+
+
+def _squash(text: str) -> str:
+    return re.sub(r"[\s_\-]+", "", text).lower()
+
+
+def resolve_register(name_or_address: str, table: ControlTable | None = None) -> Entry:
+    """The register called ``name_or_address``: a register name in any case, with
+    spaces, '-' or '_' ("goal-position"), or the decimal or 0x address where it starts."""
+    table = table or base_table()
+    text = name_or_address.strip()
+    if re.fullmatch(r"\d+|0[xX][0-9a-fA-F]+", text):
+        address = int(text, 0)
+        entry = table.by_address(address)
+        if entry is None:
+            starts = ", ".join(f"{e.address} {e.name}" for e in table)
+            raise BusCommandError(
+                f"no {table.model} register starts at address {address}: registers start at "
+                f"{starts}"
+            )
+        return entry
+    wanted = _squash(text)
+    for entry in table:
+        if _squash(entry.name) == wanted:
+            return entry
+    names = ", ".join(e.name.lower().replace(" ", "-") for e in table)
+    raise BusCommandError(
+        f"{table.model} has no register {name_or_address!r}: use a name ({names}) or an address"
+    )
+
+
+def write_range(entry: Entry) -> tuple[int, int]:
+    """The values ``entry`` accepts: its documented range, else the whole field."""
+    low = 0 if entry.min is None else entry.min
+    high = (1 << (8 * entry.size)) - 1 if entry.max is None else entry.max
+    return low, high
+
+
+def parse_value(entry: Entry, text: str) -> int:
+    """The raw value ``text`` asks ``entry`` for: a whole number (decimal or 0x hex), or an
+    amount with a unit ("30deg", "50 rpm", "0.5rad"), converted through the register's
+    scale in its device description."""
+    text = text.strip()
+    try:
+        return int(text, 0)
+    except ValueError:
+        pass
+    m = re.fullmatch(r"([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*([A-Za-z%/]+)", text)
+    if m is None:
+        raise BusCommandError(
+            f"cannot read the value {text!r}: give a whole number (512, 0x200) or an amount "
+            "with a unit (30deg, 50rpm)"
+        )
+    amount, unit = float(m.group(1)), m.group(2)
+    if entry.scale is None:
+        raise BusCommandError(f"{entry.name} has no unit: give its raw value, not {text!r}")
+    try:
+        raw = entry.from_units(amount, unit)
+    except DeviceError:
+        raise BusCommandError(
+            f"{entry.name} is in {entry.scale.unit}: cannot convert {unit!r} "
+            f"(give e.g. {amount:g}{entry.scale.unit})"
+        ) from None
+    if raw == 0 and entry.name in ZERO_MEANS and amount != 0:
+        raise BusCommandError(
+            f"{text} is below one step of {entry.name} ({entry.scale}), and 0 would mean "
+            f"{ZERO_MEANS[entry.name]}: give a larger amount"
+        )
+    if raw == 0 and entry.name in ZERO_MEANS:
+        raise BusCommandError(
+            f"{entry.name} 0 means {ZERO_MEANS[entry.name]}, not {text}: write the raw 0 if "
+            "that is what you want"
+        )
+    return raw
+
+
+def check_write(entry: Entry, value: int) -> None:
+    """Refuse a write the servo would reject, before it is sent."""
+    if not entry.writable:
+        raise BusCommandError(
+            f"{entry.name} (address {entry.address}) is read-only: the servo only reports it"
+        )
+    low, high = write_range(entry)
+    if not low <= value <= high:
+        extra = f" ({entry.note})" if entry.note else ""
+        raise BusCommandError(f"{entry.name} takes {low}-{high}, not {value}{extra}")
+
+
+ERROR_BIT_REGISTERS = ("Alarm LED", "Shutdown")
+
+
+"""Registers holding a mask of the status packet's error bits."""
+
+
+ZERO_MEANS = {"Moving Speed": "maximum speed: no speed control"}
+
+
+"""Registers where 0 is not the scale's zero (the e-Manual's note, in the descriptions)."""
+
+
+def meaning(entry: Entry, value: int, table: ControlTable | None = None) -> str | None:
+    """What a special value of ``entry`` stands for: the Baud Rate register's bit rate,
+    the error bits of an alarm mask, 0 for Moving Speed; None for plain values."""
+    table = table or base_table()
+    if entry.name == "Baud Rate" and table.device.baud is not None:
+        return f"{table.device.baud.rate(value):.0f} bit/s"
+    if entry.name in ERROR_BIT_REGISTERS:
+        return ErrorFlags(value).describe()
+    if value == 0 and entry.name in ZERO_MEANS:
+        return ZERO_MEANS[entry.name]
+    return None
+
+
+def decode(entry: Entry, value: int, table: ControlTable | None = None) -> dict[str, object]:
+    """``value`` of ``entry`` in words: its unit and, where the register has a scale, the
+    physical value; direction-bit registers split into magnitude and direction; special
+    values (:func:`meaning`) in words."""
+    out: dict[str, object] = {
+        "name": entry.name,
+        "address": entry.address,
+        "size": entry.size,
+        "value": value,
+        "access": entry.access,
+        "area": entry.area,
+    }
+    magnitude = value
+    mask = entry.encoding.magnitude_mask
+    # a writable direction-bit register (Moving Speed) has the bit only in wheel mode
+    if mask is not None and (not entry.writable or value > mask):
+        magnitude = value & mask
+        out["direction"] = "CW" if entry.value(value) < 0 else "CCW"
+        out["magnitude"] = magnitude
+    scale = entry.scale
+    if scale is not None:
+        # as many decimals as one step needs
+        digits = max(0, -math.floor(math.log10(float(scale.factor))))
+        out["physical"] = round(magnitude * float(scale.factor), digits)
+        out["unit"] = scale.unit
+    said = meaning(entry, value, table)
+    if said is not None:
+        out["meaning"] = said
+    return out
+
+
+def describe_value(decoded: dict[str, object]) -> str:
+    """A decoded value as text: "512 (150.016 deg)", "1124 (100 CW, 9.8 % of ...)"."""
+    parts = []
+    if "meaning" in decoded:
+        return f"{decoded['value']} ({decoded['meaning']})"
+    if decoded.get("magnitude"):
+        parts.append(f"{decoded['magnitude']} {decoded['direction']}")
+    if "physical" in decoded:
+        parts.append(f"{decoded['physical']:g} {decoded['unit']}")
+    elif "unit" in decoded:
+        parts.append(str(decoded["unit"]))
+    return f"{decoded['value']}" + (f" ({', '.join(parts)})" if parts else "")
+
+
+def parse_ids(text: str) -> list[int]:
+    """ "0-253", "1,2,5-7" -> the IDs, in order, each once; refuses IDs outside 0-253."""
+    ids: list[int] = []
+    for part in text.split(","):
+        part = part.strip()
+        if not part:
+            continue
+        m = re.fullmatch(r"(\d+)(?:\s*-\s*(\d+))?", part)
+        if m is None:
+            raise BusCommandError(f"cannot read the ID range {text!r}: write e.g. 0-253 or 1,2,5-7")
+        low = int(m.group(1))
+        high = int(m.group(2)) if m.group(2) else low
+        if low > high or high > MAX_ID:
+            raise BusCommandError(
+                f"ID range {part!r} is not within 0-{MAX_ID} (low to high); "
+                f"{BROADCAST_ID} is the broadcast ID, never a servo's"
+            )
+        ids += [i for i in range(low, high + 1) if i not in ids]
+    if not ids:
+        raise BusCommandError(f"no IDs in {text!r}: write e.g. 0-253 or 1,2,5-7")
+    return ids
+
+
+def parse_bauds(text: str) -> list[int]:
+    """ "1000000,57600" -> rates; "common" -> :data:`COMMON_BAUDS`; "all" ->
+    :func:`all_bauds`."""
+    word = text.strip().lower()
+    if word == "common":
+        return list(COMMON_BAUDS)
+    if word == "all":
+        return all_bauds()
+    try:
+        bauds = [int(float(b)) for b in text.split(",") if b.strip()]
+    except (ValueError, OverflowError):
+        bauds = []
+    if not bauds or any(b <= 0 for b in bauds):
+        raise BusCommandError(
+            f"cannot read the baud rates {text!r}: write e.g. 1000000,57600, common or all"
+        )
+    for bps in bauds:  # a rate no servo runs at would wait seconds per ID for nothing
+        check_bus_baud(bps)
+    return bauds
+
+
+def _baud() -> Baud:
+    return base_table().device.require_baud()
+
+
+COMMON_BAUDS = tuple(int(_baud().rate(n)) for n in COMMON_REGISTERS)
+
+
+"""The rates of :data:`COMMON_REGISTERS`."""
+
+
+def baud_register(bps: float) -> int:
+    """The Baud Rate register value whose rate (the device's baud formula) is within
+    the servo's UART tolerance of ``bps``."""
+    value = _baud().value_for(bps)
+    if value is not None:
+        return value
+    examples = ", ".join(
+        f"{rate} (n={n})" for n, rate in zip(COMMON_REGISTERS, COMMON_BAUDS, strict=True)
+    )
+    raise BusCommandError(
+        f"an AX-12 cannot run at {bps:g} bit/s: its rate is {_baud().describe()}, e.g. {examples}"
+    )
+
+
+def check_bus_baud(bps: int) -> None:
+    """BusCommandError unless some servo described runs at ``bps`` (within its UART's
+    tolerance): a rate none does finds nothing, and at a few bits a second every
+    unanswered packet would wait for seconds."""
+    for name in devices.names("servo"):
+        baud = devices.load(name).baud
+        if baud is not None and baud.value_for(bps) is not None:  # fixed rates included
+            return
+    examples = ", ".join(str(rate) for rate in COMMON_BAUDS)
+    raise BusCommandError(
+        f"no Dynamixel servo described runs at {bps} bit/s (an AX-12's rate is "
+        f"{_baud().describe()}): give one of the servos' rates, e.g. {examples}"
+    )
+
+
+def baud_from_register(value: int) -> float:
+    """The AX-12's bit rate for Baud Rate register ``value``."""
+    return _baud().rate(value)
+
+
+def all_bauds() -> list[int]:
+    """Every rate the AX and MX servos described are tabulated at (:data:`STANDARD_REGISTERS`
+    through each model's baud formula, and its fixed rates), each once, the factory
+    rate first and the rest fastest first."""
+    rates: set[int] = set()
+    for name in devices.names("servo"):
+        baud = devices.load(name).baud
+        if baud is None:
+            continue
+        values = [v for v in STANDARD_REGISTERS if v in baud.values()] + list(baud.fixed)
+        rates.update(int(baud.rate(v)) for v in values)
+    factory = base_table().by_name("Baud Rate").default
+    assert factory is not None  # the AX-12A's description gives it
+    first = int(baud_from_register(factory))
+    return [first, *sorted(rates - {first}, reverse=True)]
+
+
+def slowest_bps() -> int:
+    """The slowest bit rate a described device answers at: its slowest tabulated rate,
+    less the clock error the device tolerates (so a nominal 9600 passes for 9615)."""
+    return int(min(all_bauds()) * (1.0 - _baud().tolerance))

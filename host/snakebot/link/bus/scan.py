@@ -1,0 +1,349 @@
+"""Finding servos on a bus: identify one (PING, then its model and firmware), or sweep IDs
+over one or more baud rates with PINGs sent back to back and the replies parsed as one
+stream; the line's echo detected, the quiet pauses timed from the wire."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
+
+import serial
+
+from snakebot.facts import devices
+from snakebot.formats import protocol
+from snakebot.formats.protocol import (
+    BROADCAST_ID,
+    FRAME_RESET_S,
+    CorruptPacket,
+    DxlTimeout,
+    ErrorFlags,
+    Packet,
+    PacketParser,
+    Rejected,
+)
+from snakebot.formats.register_values import base_table, model_name
+from snakebot.link.transport import BusTiming, DxlClient, settings, timing
+from snakebot.link.transport.portio import PortIO
+
+SCAN_RETRIES = 3
+
+
+"""Further PINGs a scan gives an ID whose reply came back damaged."""
+
+
+QUIET_READ_SIZE = 4096
+
+
+"""Bytes one read of a quiet pause may drop (more than the line brings in the pause)."""
+
+
+@dataclass(frozen=True)
+class ServoInfo:
+    """One servo found on the bus."""
+
+    id: int
+    baud: int
+    model_number: int | None  # None when it answers PING but not READ
+    model: str | None  # None when no device description has the model number
+    firmware: int | None
+    error: ErrorFlags  # the error bits of its PING reply
+
+    @property
+    def label(self) -> str:
+        """The model in words: "AX-12A", "model 29", or "a device that answers PING only"."""
+        if self.model_number is None:
+            return "a device that answers PING only (Status Return Level 0?)"
+        return self.model or f"model {self.model_number}"
+
+    def as_dict(self) -> dict[str, object]:
+        return {
+            "id": self.id,
+            "baud": self.baud,
+            "model_number": self.model_number,
+            "model": self.model,
+            "firmware": self.firmware,
+            "error": int(self.error),
+            "error_text": self.error.describe(),
+        }
+
+
+def identify(client: DxlClient, servo_id: int, *, retries: int | None = None) -> ServoInfo | None:
+    """PING ``servo_id`` and read its model and firmware; None if it does not answer.
+
+    A servo reporting error bits (overheated, overloaded) is still identified: its
+    flags are in :attr:`ServoInfo.error`. Damaged replies raise :class:`CorruptPacket`
+    after the client's retries."""
+    try:
+        reply = client.ping(servo_id, check=False, retries=retries)
+    except DxlTimeout:
+        return None
+    return _identified(client, servo_id, reply)
+
+
+def _identified(client: DxlClient, servo_id: int, reply: Packet) -> ServoInfo:
+    """The servo that answered PING with ``reply``: its model and firmware, read."""
+    base = base_table()
+    start = base.by_name("Model Number").address
+    fw = base.by_name("Firmware Version")
+    length = fw.address + fw.size - start
+    try:
+        data = client.transact(
+            protocol.read(servo_id, start, length), servo_id, length, check=False
+        ).params
+    except DxlTimeout:  # answers PING only: Status Return Level 0
+        return ServoInfo(servo_id, client.baudrate, None, None, None, reply.error)
+    number = int.from_bytes(data[:2], "little")
+    return ServoInfo(
+        id=servo_id,
+        baud=client.baudrate,
+        model_number=number,
+        model=model_name(number),
+        firmware=data[fw.address - start],
+        error=reply.error,
+    )
+
+
+@dataclass(frozen=True)
+class Probe:
+    """What one ID at one baud rate gave in a scan."""
+
+    id: int
+    baud: int
+    info: ServoInfo | None  # None: nothing identified
+    garbled: bool = False  # every try heard only damaged replies: something is there
+
+    def as_dict(self) -> dict[str, object]:
+        return {"id": self.id, "baud": self.baud}
+
+
+def longest_return_delay_us() -> float:
+    """The longest Return Delay Time any servo described can be set to (an AX-12's
+    254 x 2 us), or the one snakebot is told to assume if that is longer: a scan knows
+    nothing of the servos' settings, so it waits this long for each reply to begin."""
+    longest = settings.resolve_return_delay_us()
+    for name in devices.names("servo"):
+        delay = devices.load(name).register("Return Delay Time")
+        if delay.scale is not None and delay.max is not None:
+            longest = max(longest, delay.max * float(delay.scale.factor))
+    return longest
+
+
+def silence_s(client: DxlClient) -> float:
+    """How long after a PING leaves the host a scan takes a silent line for a missing
+    servo: the PING on the wire, :func:`longest_return_delay_us`, the first byte of a
+    status packet, and the adapter's latency and the host's margin (the client's). It
+    scales with the baud rate, so slow rates cost what their wire needs."""
+    return timing.reply_timeout_s(
+        len(protocol.ping(0)),
+        1,
+        client.baudrate,
+        return_delay_us=longest_return_delay_us(),
+        latency_s=client.timing.latency_s,
+        margin_s=client.timing.margin_s,
+    )
+
+
+def quiet_s(bus: BusTiming) -> float:
+    """How long a quiet pause lasts: the servos' frame reset and the host's margin (the
+    host may be late to send, never early, so the servos' pause is at least this)."""
+    return FRAME_RESET_S + bus.margin_s
+
+
+def _quiet(port: serial.SerialBase, seconds: float) -> None:
+    """Send nothing for ``seconds`` (reading and dropping whatever arrives), so every
+    servo abandons a packet it was still waiting for. Waiting in a read, not a sleep,
+    lets an emulated bus's clock run too."""
+    deadline = time.monotonic() + seconds
+    while (remaining := deadline - time.monotonic()) > 0:
+        port.timeout = remaining
+        port.read(QUIET_READ_SIZE)
+    port.reset_input_buffer()
+
+
+def detect_echo(port: serial.SerialBase, baud: int) -> bool:
+    """Whether the line echoes the host's own bytes (a one-wire adapter), unless
+    ``SNAKEBOT_ECHO`` says: a broadcast PING, which no servo answers, comes back only
+    as its echo. Asked again (after a quiet pause) while what comes back is damaged.
+
+    A scan settles this first because the client's own "auto" mode decides from the
+    first answer, and on a noisy line a damaged echo can mislead it for the whole scan.
+    """
+    setting = settings.resolve_echo()
+    if setting != "auto":
+        return bool(setting)
+    packet = protocol.ping(BROADCAST_ID)
+    # an echo comes back before any reply would: the reply timeout covers it
+    bus = DxlClient(port, baud, echo=False).timing
+    wait = bus.reply_timeout_s(len(packet), 0)
+    for _ in range(1 + SCAN_RETRIES):
+        port.reset_input_buffer()
+        port.write(packet)
+        heard = b""
+        deadline = time.monotonic() + wait
+        while (remaining := deadline - time.monotonic()) > 0 and len(heard) < len(packet):
+            port.timeout = remaining
+            heard += port.read(len(packet) - len(heard))
+        if not heard:
+            return False
+        if heard == packet:
+            return True
+        _quiet(port, quiet_s(bus))
+    return True  # something came back every time, damaged: an echo on a noisy line
+
+
+@dataclass
+class _Heard:
+    """What one PING's window brought: the PINGed servo's reply, a late reply from the
+    ID PINGed before it, and whether anything came back damaged or incomplete."""
+
+    reply: Packet | None = None
+    late: Packet | None = None
+    trouble: bool = False
+
+
+class _Sweep:
+    """The PINGs of a scan at one rate, back to back, for :func:`scan_probes`.
+
+    A silent ID (the rule) costs one write and a wait that ends when :func:`silence_s`
+    says: no flush, no exception, no message. The line is parsed as one
+    stream rather than flushed between IDs, so a reply that turns up after its ID's
+    window (an adapter or a loaded host later than the margin allowed) still counts
+    for the ID it names: an ID's result is given once the next ID's window is over.
+
+    An ID whose PING brings something damaged (a corrupted echo on a one-wire adapter,
+    noise, a reply begun and never finished, two servos on one ID) gets up to
+    :data:`SCAN_RETRIES` more, each after a quiet pause (:func:`quiet_s`): a damaged
+    length byte leaves the servos waiting for the rest of a packet that never comes,
+    and they give up on it only after a pause. If every try is damaged, the result is
+    marked garbled: something is there."""
+
+    def __init__(self, client: DxlClient, silence: float, pings: Mapping[int, bytes]) -> None:
+        self.client = client
+        self.silence = silence
+        self.pings = pings
+        self.io = PortIO(client.port)
+        self.parser = PacketParser()
+        self.reply_timeout = client.timing.reply_timeout_s(len(protocol.ping(0)), 0)
+
+    def run(self, ids: Sequence[int]) -> Iterator[Probe]:
+        """Each of ``ids``' results, once."""
+        baud = self.client.baudrate
+        pending: int | None = None  # silent so far; its reply may still come
+        self.io.flush_input()
+        for servo_id in ids:
+            heard = self._listen(servo_id, pending)
+            if heard.late is not None and pending is not None:
+                yield self._found(pending, heard.late)
+                pending = None
+            if heard.trouble:
+                yield self._retry(servo_id)
+                if pending is not None:  # the damage may have been its reply
+                    yield self._retry(pending)
+                    pending = None
+            elif heard.reply is not None:
+                yield self._found(servo_id, heard.reply)
+            else:
+                if pending is not None:
+                    yield Probe(pending, baud, None)
+                pending = servo_id
+                continue
+            # The result above came first, so a caller that counts the bytes heard and
+            # sent between results charges the silent one below with none.
+            if pending is not None:
+                yield Probe(pending, baud, None)
+                pending = None
+        if pending is not None:
+            yield Probe(pending, baud, None)
+
+    def _listen(self, servo_id: int, pending: int | None) -> _Heard:
+        """PING ``servo_id`` and listen until the silence window ends or, once a reply
+        has begun, its whole reply timeout."""
+        packet = self.pings[servo_id]
+        self.io.write(packet)  # first: what follows is done while it is on the wire
+        start = time.monotonic()
+        io, parser, heard = self.io, self.parser, _Heard()
+        echo_due = self.client.echo is True
+        deadline = start + self.silence
+        unheard = len(packet) if echo_due else 0  # bytes that may come back without a reply
+        while (remaining := deadline - time.monotonic()) > 0:
+            # exactly what completes a reply (and the echo): one read when all goes well
+            want = timing.STATUS_OVERHEAD - parser.pending + (len(packet) if echo_due else 0)
+            data = io.read(want if want > 1 else 1, remaining)
+            if not data:
+                continue
+            unheard -= len(data)
+            if unheard < 0:  # a reply has begun: it gets its whole time
+                deadline = start + self.reply_timeout
+            for event in parser.feed(data):
+                if isinstance(event, Rejected):
+                    heard.trouble = True
+                elif echo_due and event.encode() == packet:
+                    echo_due = False  # our own PING: the first packet equal to it
+                elif event.id == servo_id:
+                    if event.params:  # no PING reply has parameters: not what it seems
+                        heard.trouble = True
+                    else:
+                        heard.reply = event
+                elif event.id == pending and not event.params:
+                    heard.late = event
+            if heard.reply is not None:
+                break
+        # A missing echo means the PING itself may have been damaged; bytes beyond the
+        # echo that made no reply are one damaged past recognition (a collision, noise).
+        heard.trouble |= echo_due or (unheard < 0 and heard.reply is None and heard.late is None)
+        return heard
+
+    def _identify(self, servo_id: int, reply: Packet) -> ServoInfo | None:
+        """The servo that answered with ``reply``, its model read through the client
+        (which flushes the line, so the parser starts afresh); None if that read kept
+        coming back damaged."""
+        try:
+            return _identified(self.client, servo_id, reply)
+        except CorruptPacket:
+            return None
+        finally:
+            self.parser.reset()
+
+    def _found(self, servo_id: int, reply: Packet) -> Probe:
+        info = self._identify(servo_id, reply)
+        if info is None:
+            return self._retry(servo_id)
+        return Probe(servo_id, self.client.baudrate, info)
+
+    def _retry(self, servo_id: int) -> Probe:
+        """The further tries of an ID whose PING (or identifying READ) came back damaged."""
+        client = self.client
+        for _ in range(SCAN_RETRIES):
+            _quiet(client.port, quiet_s(client.timing))  # ends with a flush
+            self.parser.reset()
+            heard = self._listen(servo_id, None)
+            if heard.trouble:
+                continue
+            if heard.reply is None:
+                return Probe(servo_id, client.baudrate, None)
+            info = self._identify(servo_id, heard.reply)
+            if info is not None:
+                return Probe(servo_id, client.baudrate, info)
+        return Probe(servo_id, client.baudrate, None, garbled=True)
+
+
+def scan_probes(
+    port: serial.SerialBase, ids: Iterable[int], bauds: Sequence[int]
+) -> Iterator[Probe]:
+    """PING every ID in ``ids`` at each rate in ``bauds`` and identify the servos that
+    answer (:class:`_Sweep` says how), yielding each result as it comes, so a caller
+    can show progress and keep what was found if stopped."""
+    ids = list(ids)
+    pings = {servo_id: protocol.ping(servo_id) for servo_id in ids}
+    echo = detect_echo(port, bauds[0]) if bauds else False
+    for n, baud in enumerate(bauds):
+        client = DxlClient(port, baud, echo=echo)
+        if n:  # servos at this rate heard the last one's PINGs as garbage: let them reset
+            _quiet(port, quiet_s(client.timing))
+        yield from _Sweep(client, silence_s(client), pings).run(ids)
+
+
+def scan(port: serial.SerialBase, ids: Iterable[int], bauds: Sequence[int]) -> list[ServoInfo]:
+    """The servos :func:`scan_probes` identifies."""
+    return [p.info for p in scan_probes(port, ids, bauds) if p.info is not None]

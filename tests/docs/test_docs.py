@@ -66,14 +66,14 @@ def test_make_docs_builds_the_api_reference(tmp_path: Path):
     assert result.returncode == 0, result.stderr
     # page -> a name it must document (pdoc gives each an anchor)
     expected = {
-        "snakebot.html": 'href="snakebot/kinematics.html"',
-        "snakebot/transport.html": 'id="DxlClient"',
-        "snakebot/controller.html": 'id="Controller"',
-        "snakebot/kinematics.html": 'id="body_velocity"',
-        "snakebot/robots.html": 'id="Robot"',
-        "snakebot/symbolic.html": 'id="lie_bracket"',
-        "snakebot/gait.html": 'id="Gait"',
-        "snakebot/flash.html": 'id="BoardLayout"',
+        "snakebot.html": 'href="snakebot/model.html"',
+        "snakebot/link/transport.html": 'id="DxlClient"',
+        "snakebot/facts/controller.html": 'id="Controller"',
+        "snakebot/model/kinematics.html": 'id="body_velocity"',
+        "snakebot/model/robots.html": 'id="Robot"',
+        "snakebot/model/symbolic.html": 'id="lie_bracket"',
+        "snakebot/model/gait.html": 'id="Gait"',
+        "snakebot/link/flash.html": 'id="BoardLayout"',
         "snakebot/sim/world.html": "snakebot.sim.world",
         "snakebot/cli.html": "snakebot.cli",
     }

@@ -4,11 +4,10 @@ flash operation, and no slot ever found corrupted after a fresh start."""
 
 from __future__ import annotations
 
-import os
-
+from snakebot.settings import resolve_int
 from tools.campaigns import LIBRARY_CUT, main, run
 
-SEED = int(os.environ.get("SNAKEBOT_CAMPAIGN_SEED", "1"))
+SEED = resolve_int("SNAKEBOT_CAMPAIGN_SEED")
 
 
 def test_no_power_cut_corrupts_a_slot():

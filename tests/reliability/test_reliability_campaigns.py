@@ -11,16 +11,15 @@ and the numbers; rerun it alone with the command in the message.
 
 from __future__ import annotations
 
-import os
-
 import pytest
 from firmware_support import build_firmware
 
+from snakebot.settings import resolve_int
 from tools.campaigns import CAMPAIGNS, run
 
 pytestmark = [pytest.mark.qemu, pytest.mark.slow, pytest.mark.serial]
 
-SEED = int(os.environ.get("SNAKEBOT_CAMPAIGN_SEED", "1"))
+SEED = resolve_int("SNAKEBOT_CAMPAIGN_SEED")
 
 
 @pytest.fixture(scope="module", autouse=True)

@@ -29,6 +29,7 @@ from snakebot.errors import SnakebotError
 from snakebot.formats.protocol.errors import CorruptPacket, DxlTimeout, ServoError
 from snakebot.link.controller.errors import ControllerLinkError, UploadError
 from snakebot.link.flash.errors import FlashError, FlashSettingError, ImageError
+from snakebot.settings import check_environment, is_set
 from snakebot.sim.errors import SimOptionError
 
 EXIT_RUNTIME = 1
@@ -111,6 +112,8 @@ class SnakebotGroup(click.Group):
 
     def invoke(self, ctx: click.Context) -> Any:
         try:
+            if ctx.parent is None:
+                check_environment()  # a bad SNAKEBOT_* value: one line, exit 2, no work done
             return super().invoke(ctx)
         except (click.exceptions.Exit, click.ClickException, click.Abort):
             raise  # click's own: usage errors (2) and explicit exits
@@ -124,7 +127,7 @@ class SnakebotGroup(click.Group):
             click.echo(f"error: {_one_line(str(exc) or type(exc).__name__)}", err=True)
             ctx.exit(exit_status(exc))
         except Exception as exc:  # a bug: say so in one line, never a traceback
-            if os.environ.get(DEBUG_ENV):
+            if is_set(DEBUG_ENV):
                 raise
             click.echo(
                 f"error: {INTERNAL_ERROR} ({type(exc).__name__}: {_one_line(str(exc))[:200]}); "

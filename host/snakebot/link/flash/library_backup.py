@@ -23,6 +23,7 @@ from snakebot.errors import SnakebotError
 from snakebot.formats.protocol.errors import ProtocolError
 from snakebot.link.controller.client import ControllerClient
 from snakebot.link.controller.library import backup, restore
+from snakebot.settings import lookup_path
 
 BACKUP_DIR_ENV = "SNAKEBOT_LIBRARY_BACKUP_DIR"
 """Overrides where backups go (default: ``library-backups`` in click's application
@@ -35,8 +36,8 @@ Say = Callable[[str], None]
 
 
 def backup_dir() -> Path:
-    override = os.environ.get(BACKUP_DIR_ENV)
-    return Path(override) if override else Path(click.get_app_dir("snakebot")) / "library-backups"
+    override = lookup_path(BACKUP_DIR_ENV)
+    return override or Path(click.get_app_dir("snakebot")) / "library-backups"
 
 
 def _answers(ctl: ControllerClient) -> bool:

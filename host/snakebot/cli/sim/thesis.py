@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from snakebot.cli.output import dumps
-from snakebot.cli.params import OUTPUT_PATH
+from snakebot.cli.params import OUTPUT_PATH, LazyChoice
 from snakebot.errors import SnakebotError
 from snakebot.plots.video import check_video_path, write_video
 
@@ -37,9 +37,9 @@ def _floats(text: str) -> tuple[float, ...]:
 )
 @click.option(
     "--only",
-    type=click.Choice(["g1", "g2", "g3", "h1", "h2", "h3", "serpenoid"]),
+    type=LazyChoice("snakebot.workflows.thesis", "RUN_NAMES"),
     multiple=True,
-    help="Run only this one (repeatable); default: all seven.",
+    help="Run only this one (repeatable); default: every run.",
 )
 @click.option(
     "--mu",

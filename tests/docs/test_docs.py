@@ -126,7 +126,7 @@ def variables_read_by_the_code() -> set[str]:
     """SNAKEBOT_* names in the Python sources (C header guards are not variables)."""
     names = set()
     for name, text in tracked_text_files().items():
-        if name.endswith(".py") and name.startswith(("host/", "tests/", "tools/", "bench/")):
+        if name.endswith(".py") and name.startswith(("host/", "tests/", "bench/")):
             names |= set(ENV_NAME.findall(text))
     # A docstring's "SNAKEBOT_FLASH_*_S" wildcard is a family, not a variable.
     return {n for n in names if not n.endswith("_H") and not n.endswith("_")}

@@ -16,7 +16,7 @@ import os
 import pytest
 from firmware_support import build_firmware
 
-from tools.campaigns import CAMPAIGNS, run
+from tests.reliability.rig.campaigns import CAMPAIGNS, run
 
 pytestmark = [pytest.mark.qemu, pytest.mark.slow, pytest.mark.serial]
 

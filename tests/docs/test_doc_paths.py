@@ -6,8 +6,8 @@ included), plus the other Markdown pages a reader is sent to (``protocol/``,
 folders (``tests/``, ``host/``, ``bench/``, ``tools/``, ``firmware/``, ``docs/``,
 ``protocol/``, ``fuzz/``); one with a ``*`` or ``[ch]`` in it must match at least one
 file. A module is what
-follows ``python -m``; it must be found by ``importlib.util.find_spec`` from the
-repository root, as the command would run there.
+follows ``python -m``; ``importlib.util.find_spec`` must find it from the repository
+root, as the command would run there (a package must have a ``__main__``).
 """
 
 from __future__ import annotations
@@ -63,6 +63,19 @@ def test_every_repository_path_in_the_documents_exists():
     assert not stale, "paths that do not exist:\n" + "\n".join(stale)
 
 
+def runnable(module: str) -> bool:
+    """``python -m module`` finds something to run: a module, or a package with a
+    ``__main__`` (a folder without one, such as an output folder that shadows a package,
+    is not)."""
+    try:
+        spec = importlib.util.find_spec(module)
+        if spec is not None and spec.submodule_search_locations is not None:
+            spec = importlib.util.find_spec(f"{module}.__main__")
+    except ModuleNotFoundError:  # a parent package is missing
+        return False
+    return spec is not None
+
+
 @pytest.fixture
 def from_the_repository_root(monkeypatch: pytest.MonkeyPatch) -> None:
     """``python -m`` run in the repository root has it first on ``sys.path``; so does
@@ -75,10 +88,6 @@ def test_every_python_m_module_in_the_documents_is_found(from_the_repository_roo
     missing = []
     for doc, line, module in mentions(MODULE):
         module = module.rstrip(".")
-        try:
-            spec = importlib.util.find_spec(module)
-        except ModuleNotFoundError:  # a parent package is missing
-            spec = None
-        if spec is None:
+        if not runnable(module):
             missing.append(f"{doc}:{line}: python -m {module}")
     assert not missing, "modules that cannot be found:\n" + "\n".join(missing)

@@ -1,6 +1,6 @@
-"""The documents: the API reference builds (`make docs`, pdoc), nothing in the repository
-points outside it, and docs/settings.md lists exactly the environment variables the
-code reads, with the code's defaults."""
+"""The documents: the API reference builds (`make docs`, pdoc) and its landing page's
+example runs, nothing in the repository points outside it, and docs/settings.md lists
+exactly the environment variables the code reads, with the code's defaults."""
 
 from __future__ import annotations
 
@@ -66,22 +66,39 @@ def test_make_docs_builds_the_api_reference(tmp_path: Path):
     assert result.returncode == 0, result.stderr
     # page -> a name it must document (pdoc gives each an anchor)
     expected = {
-        "snakebot.html": 'href="snakebot/kinematics.html"',
-        "snakebot/transport.html": 'id="DxlClient"',
-        "snakebot/controller.html": 'id="Controller"',
-        "snakebot/kinematics.html": 'id="body_velocity"',
-        "snakebot/robots.html": 'id="Robot"',
-        "snakebot/symbolic.html": 'id="lie_bracket"',
-        "snakebot/gait.html": 'id="Gait"',
-        "snakebot/flash.html": 'id="BoardLayout"',
+        "snakebot.html": 'href="snakebot/model.html"',
+        "snakebot/link/transport.html": 'id="DxlClient"',
+        "snakebot/link/controller.html": 'id="Controller"',
+        "snakebot/model/kinematics.html": 'id="body_velocity"',
+        "snakebot/model/robots.html": 'id="Robot"',
+        "snakebot/model/symbolic.html": 'id="lie_bracket"',
+        "snakebot/model/gait.html": 'id="Gait"',
+        "snakebot/link/flash.html": 'id="BoardLayout"',
         "snakebot/sim/world.html": "snakebot.sim.world",
         "snakebot/cli.html": "snakebot.cli",
     }
+    landing = (out / "snakebot.html").read_text(encoding="utf-8")
+    for layer in ("facts", "formats", "model", "link", "sim", "workflows", "plots", "cli"):
+        assert f"snakebot.{layer}" in landing, f"the landing page does not name {layer}"
     for page, word in expected.items():
         path = out / page
         assert path.is_file(), f"{page} missing from the API reference"
         assert word in path.read_text(encoding="utf-8"), f"{page} does not document {word}"
     assert not list(out.rglob("_core*.html")), "private modules leaked into the reference"
+
+
+def test_the_landing_pages_example_runs():
+    """The package docstring is the API reference's landing page; its example runs."""
+    import doctest
+
+    import snakebot
+
+    parser = doctest.DocTestParser()
+    test = parser.get_doctest(snakebot.__doc__, {}, "snakebot", "snakebot/__init__.py", 0)
+    assert len(test.examples) >= 5, "the landing page has lost its example"
+    runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS)
+    runner.run(test)
+    assert runner.summarize(verbose=False).failed == 0
 
 
 def test_nothing_points_outside_the_repository():

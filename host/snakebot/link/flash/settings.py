@@ -30,7 +30,7 @@ from dataclasses import dataclass, fields
 from snakebot.link.flash.errors import FlashSettingError
 
 RESET_TIMEOUT_S = 20.0
-"""How long to keep sending '#' while the user presses RESET."""
+"""How long to keep sending '#' while the user presses MODE or power-cycles the CM-530."""
 
 HASH_INTERVAL_S = 0.001
 """Pause between two '#' characters (the bootloader only looks for one shortly after reset)."""

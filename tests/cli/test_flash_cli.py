@@ -36,7 +36,7 @@ def sum8(data: bytes) -> int:
 def test_flash_stores_the_image_byte_for_byte_and_starts_it(tmp_path):
     image = make_image(tmp_path / "fw.bin", 2000)
     boot = Bootloader(silence_s=0.3)
-    # The board "runs its application" for 0.3 s, then the user presses RESET; the line
+    # The board "runs its application" for 0.3 s, then the user presses MODE; the line
     # is paced at 57600 baud, as on the real link.
     with serve(boot, reset_after_s=0.3, pace=True) as server:
         result = run(str(tmp_path / "fw.bin"), "--port", server.device)

@@ -1,6 +1,6 @@
-"""The documents: the API reference builds (`make docs`, pdoc), nothing in the repository
-points outside it, and docs/settings.md lists exactly the environment variables the
-code reads, with the code's defaults."""
+"""The documents: the API reference builds (`make docs`, pdoc) and its landing page's
+example runs, nothing in the repository points outside it, and docs/settings.md lists
+exactly the environment variables the code reads, with the code's defaults."""
 
 from __future__ import annotations
 
@@ -78,11 +78,28 @@ def test_make_docs_builds_the_api_reference(tmp_path: Path):
         "snakebot/sim/world.html": "snakebot.sim.world",
         "snakebot/cli.html": "snakebot.cli",
     }
+    landing = (out / "snakebot.html").read_text(encoding="utf-8")
+    for layer in ("facts", "formats", "model", "link", "sim", "workflows", "plots", "cli"):
+        assert f"snakebot.{layer}" in landing, f"the landing page does not name {layer}"
     for page, word in expected.items():
         path = out / page
         assert path.is_file(), f"{page} missing from the API reference"
         assert word in path.read_text(encoding="utf-8"), f"{page} does not document {word}"
     assert not list(out.rglob("_core*.html")), "private modules leaked into the reference"
+
+
+def test_the_landing_pages_example_runs():
+    """The package docstring is the API reference's landing page; its example runs."""
+    import doctest
+
+    import snakebot
+
+    parser = doctest.DocTestParser()
+    test = parser.get_doctest(snakebot.__doc__, {}, "snakebot", "snakebot/__init__.py", 0)
+    assert len(test.examples) >= 5, "the landing page has lost its example"
+    runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS)
+    runner.run(test)
+    assert runner.summarize(verbose=False).failed == 0
 
 
 def test_nothing_points_outside_the_repository():
@@ -127,7 +144,7 @@ def variables_read_by_the_code() -> set[str]:
     """SNAKEBOT_* names in the Python sources (C header guards are not variables)."""
     names = set()
     for name, text in tracked_text_files().items():
-        if name.endswith(".py") and name.startswith(("host/", "tests/", "tools/", "bench/")):
+        if name.endswith(".py") and name.startswith(("host/", "tests/", "bench/")):
             names |= set(ENV_NAME.findall(text))
     # A docstring's "SNAKEBOT_FLASH_*_S" wildcard is a family, not a variable.
     return {n for n in names if not n.endswith("_H") and not n.endswith("_")}

@@ -362,7 +362,7 @@ def emulate(
     """Put the emulated robot at the table's first frame, play it (``writes``: the blocks
     to send instead of the table player's, see ``play``) and compare with the table's
     prediction. ``table`` is a GaitTable or anything with its frames, frame_period_ms,
-    frame_count, loop and metadata (a program's steps, ``program.motion``). ``ideal``:
+    frame_count, loop and metadata (a program's steps, ``model.motion``). ``ideal``:
     ideal servos; ``batch``: samples the world integrates per C call (results do not
     depend on it); ``world``: "kinematic" or "mujoco" (``mu``: its wheel-floor
     friction)."""

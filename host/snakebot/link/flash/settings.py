@@ -33,7 +33,7 @@ from snakebot.link.flash.errors import FlashSettingError
 from snakebot.settings import default_float, lookup
 
 RESET_TIMEOUT_S = default_float("SNAKEBOT_FLASH_RESET_TIMEOUT_S")
-"""How long to keep sending '#' while the user presses RESET."""
+"""How long to keep sending '#' while the user presses MODE or power-cycles the CM-530."""
 
 HASH_INTERVAL_S = default_float("SNAKEBOT_FLASH_HASH_INTERVAL_S")
 """Pause between two '#' characters (the bootloader only looks for one shortly after reset)."""

@@ -1,6 +1,9 @@
 """Gait generators: serpenoid (joint-space sines) and field-following (vector fields and
 Lie brackets through periodic inputs). Each returns a ``Gait`` that becomes a gait table
-(``Gait.gait_table()``) after passing the robot's joint-limit and speed checks."""
+(``Gait.gait_table()``) after passing the robot's joint-limit and speed checks.
+
+May import: as the ``model`` layer (the other ``model`` packages, ``formats``, ``facts``,
+the package root)."""
 
 from __future__ import annotations
 

@@ -21,7 +21,7 @@ from snakebot.sim.bus.listeners import Group
 from snakebot.sim.bus.state import BusState
 from snakebot.sim.bus.wire import MASTER, SYNC_WRITE_CODE, Heard, Transmission
 from snakebot.sim.servo.fast import VirtualServo
-from snakebot.sim.servo.reference import sync_write_shape
+from snakebot.sim.servo.packets import sync_write_shape
 
 INTER_BYTE_GAP_S = FRAME_RESET_S
 """A pause longer than this inside a packet makes a servo drop the partial packet."""

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 from snakebot.formats.gaittable import GaitTable
 from snakebot.model.robots.model import Robot
 from snakebot.userfiles import FileTooLarge, read_bounded
@@ -30,7 +30,7 @@ RUN_MAX = 256 * 1024 * 1024
 POSE_COLUMNS = ("pose_x", "pose_y", "pose_theta")
 
 
-class CompareError(SnakebotError):
+class CompareError(InputError):
     """A run or gait that cannot be compared (exit 2)."""
 
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import os
 
-from snakebot.link.controller.errors import ControllerError
+from snakebot.link.controller.errors import ControllerInputError
 
 DEFAULT_UPLOAD_RETRIES = 3
 """How often a table whose WRITEs were not all acknowledged (or whose commit found the
@@ -38,7 +38,9 @@ ENV_UPLOAD_WINDOW = "SNAKEBOT_UPLOAD_WINDOW"
 def _resolve(value: int | None, env: str, default: int, low: int, high: int, what: str) -> int:
     if value is not None:
         if not isinstance(value, int) or not low <= value <= high:
-            raise ControllerError(f"{what} must be a whole number {low}..{high}, got {value!r}")
+            raise ControllerInputError(
+                f"{what} must be a whole number {low}..{high}, got {value!r}"
+            )
         return value
     text = os.environ.get(env, "").strip()
     if not text:
@@ -48,7 +50,7 @@ def _resolve(value: int | None, env: str, default: int, low: int, high: int, wha
     except ValueError:
         number = low - 1
     if not low <= number <= high:
-        raise ControllerError(
+        raise ControllerInputError(
             f"{env}={text!r} is not a whole number {low}..{high}; set it to e.g. {default} "
             "or unset it"
         )

@@ -47,6 +47,7 @@ from snakebot.formats.protocol import (
     ErrorFlags,
     Instruction,
     Packet,
+    PacketArgumentError,
     PacketParser,
     ProtocolError,
     Rejected,
@@ -317,7 +318,7 @@ class DxlClient:
         """
         packet = bytes(packet)
         if len(packet) < 6 or packet[:2] != b"\xff\xff":
-            raise ProtocolError(f"not an instruction packet: {packet.hex(' ')}")
+            raise PacketArgumentError(f"not an instruction packet: {packet.hex(' ')}")
         tries = self._tries(retries)
         return self._transact(packet, expect_id, expect_params_len, check, tries, silence_s)
 
@@ -566,7 +567,7 @@ class DxlClient:
         if plan is None:
             plan = self._read_plan(servo_id, address, length)
         if self._levels.get(servo_id, self._default_level) < 1:  # status_return_level
-            raise ProtocolError(
+            raise PacketArgumentError(
                 f"servo {servo_id} is set to Status Return Level 0, so it never answers "
                 "READ: write 1 or 2 to its Status Return Level, then call "
                 "set_status_return_level"
@@ -785,7 +786,7 @@ def _exact_reply(data: bytes, expect_id: int, expect_len: int) -> Packet | None:
 
 def _require_device(servo_id: int, what: str) -> None:
     if servo_id == BROADCAST_ID:
-        raise ProtocolError(
+        raise PacketArgumentError(
             f"{what} cannot go to the broadcast ID {BROADCAST_ID}: no servo answers a "
             "broadcast; address one servo ID (0-253)"
         )

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 
 Kind = Literal["int", "float", "choice", "flag", "text", "dir", "out_dir", "program"]
 """How a value is parsed and checked:
@@ -51,7 +51,7 @@ Kind = Literal["int", "float", "choice", "flag", "text", "dir", "out_dir", "prog
 Value = int | float | bool | str | Path
 
 
-class SettingError(SnakebotError, ValueError):
+class SettingError(InputError, ValueError):
     """An environment variable has a value snakebot cannot use (bad input, exit 2)."""
 
 

@@ -258,7 +258,7 @@ def test_limits_set_from_the_robot_file_then_a_wider_table_is_refused(tmp_path):
         frames[0], frames[1] = 896, 198
         wide = GaitTable(wave.joint_ids, 20, True, ((24, 1000),) * len(wanted), frames, {})
         result = cli("upload", save(wide, tmp_path, "wide.gait"), "--port", port)
-        assert result.exit_code == 1, result.output  # refused by the controller: UploadError
+        assert result.exit_code == 2, result.output  # refused: the table is bad input
         assert "OUTSIDE_ROBOT_LIMITS" in result.stderr and "limits set" in result.stderr
         own = GaitTable(wave.joint_ids, 20, True, tuple(wanted), wave.frames, {})
         assert cli_json("upload", save(own, tmp_path), "--port", port)["bytes"] > 0

@@ -13,7 +13,7 @@ from typing import Any, TypeVar
 
 import click
 
-from snakebot.model.gait.values import InputError, parse_angle, parse_angles
+from snakebot.model.gait.values import ExpressionError, parse_angle, parse_angles
 
 
 def _parsed(
@@ -32,7 +32,7 @@ def _parsed(
         )
     try:
         return parse(text)
-    except InputError as exc:
+    except ExpressionError as exc:
         kind.fail(str(exc), param, ctx)
     except (OverflowError, RecursionError, MemoryError, ValueError):
         kind.fail(f"{_shown(text)} is not a finite number", param, ctx)

@@ -61,7 +61,7 @@ from typing import Any
 
 from snakebot.firmware import image as firmware_image
 from snakebot.settings import lookup_text
-from snakebot.sim.errors import SimError
+from snakebot.sim.errors import SimFailure
 from snakebot.sim.transports.relay import PtyRelay
 from snakebot.sim.workdirs import make_workdir
 
@@ -85,7 +85,7 @@ PC_LINK_SERIAL_INDEX = 2  # USART3
 SERIAL_COUNT = 3  # USART1..3 on the stm32f100 SoC
 
 
-class QemuError(SimError):
+class QemuError(SimFailure):
     """QEMU could not be started, or stopped, as asked."""
 
 

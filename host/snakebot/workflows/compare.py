@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 from snakebot.formats.gaittable import GaitTable
 from snakebot.model.compare import JointTrack, best_lag, joint_names, table_angles
 from snakebot.model.robots.model import Robot
@@ -30,7 +30,7 @@ RUN_MAX = 256 * 1024 * 1024
 POSE_COLUMNS = ("pose_x", "pose_y", "pose_theta")
 
 
-class CompareError(SnakebotError):
+class CompareError(InputError):
     """A run or gait that cannot be compared (exit 2)."""
 
 

@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import RuntimeFailure
 from snakebot.extras import install_hint
 from snakebot.formats.gaittable import GaitTable, write_gait
 from snakebot.link.controller import load as load_controller
@@ -85,7 +85,7 @@ RESIDUAL_SAFETY = 2.0
 Say = Callable[[str], None]
 
 
-class DemoError(SnakebotError):
+class DemoError(RuntimeFailure):
     """The demo could not run to the end (the message says what went wrong and what to do)."""
 
 

@@ -97,7 +97,7 @@ from snakebot.link.controller.monitor import Sample, sample
 from snakebot.paths import REPO_ROOT
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.bus.faults import FaultConfig
-from snakebot.sim.errors import SimError
+from snakebot.sim.errors import SimError, SimFailure
 from snakebot.sim.qemu import Endpoint, QemuFirmware
 from snakebot.sim.servo.fast import VirtualServo
 from snakebot.sim.transports.unixsock import UnixSocketServer
@@ -397,7 +397,7 @@ def _ctl_layout() -> tuple[int, int, int]:
                 text=True,
             )
         except (OSError, subprocess.CalledProcessError) as exc:
-            raise SimError(
+            raise SimFailure(
                 f"cannot compile the layout probe with arm-none-eabi-gcc ({exc}): run `make setup`"
             ) from exc
         words = np.frombuffer(b.read_bytes()[:12], "<u4")
@@ -422,7 +422,7 @@ def read_ram(fw: QemuFirmware, address: int, length: int) -> bytes:
 # -- one campaign's rig -----------------------------------------------------------------------
 
 
-class CampaignFailed(SimError):
+class CampaignFailed(SimFailure):
     """A campaign could not run (not: an invariant failed; that is a result)."""
 
 

@@ -9,7 +9,7 @@ import time
 from dataclasses import dataclass
 
 from snakebot.formats import protocol
-from snakebot.formats.protocol import CorruptPacket, ProtocolError
+from snakebot.formats.protocol import CorruptPacket, PacketArgumentError
 from snakebot.formats.protocol.instructions import HEADER
 from snakebot.link.transport.client_state import ClientState
 from snakebot.link.transport.transaction import require_device
@@ -59,7 +59,7 @@ class Reads(ClientState):
         if plan is None:
             plan = self._read_plan(servo_id, address, length)
         if self._levels.get(servo_id, self._default_level) < 1:  # status_return_level
-            raise ProtocolError(
+            raise PacketArgumentError(
                 f"servo {servo_id} is set to Status Return Level 0, so it never answers "
                 "READ: write 1 or 2 to its Status Return Level, then call "
                 "set_status_return_level"

@@ -15,6 +15,7 @@ from snakebot.formats.protocol import (
     ErrorFlags,
     Instruction,
     Packet,
+    PacketArgumentError,
     ProtocolError,
     ServoError,
 )
@@ -45,7 +46,7 @@ def ping_packet(servo_id: int) -> bytes:
 
 def require_device(servo_id: int, what: str) -> None:
     if servo_id == BROADCAST_ID:
-        raise ProtocolError(
+        raise PacketArgumentError(
             f"{what} cannot go to the broadcast ID {BROADCAST_ID}: no servo answers a "
             "broadcast; address one servo ID (0-253)"
         )
@@ -88,7 +89,7 @@ class Transactions(ClientState):
         """
         packet = bytes(packet)
         if len(packet) < 6 or packet[:2] != b"\xff\xff":
-            raise ProtocolError(f"not an instruction packet: {packet.hex(' ')}")
+            raise PacketArgumentError(f"not an instruction packet: {packet.hex(' ')}")
         tries = self._tries(retries)
         return self._transact(packet, expect_id, expect_params_len, check, tries, silence_s)
 

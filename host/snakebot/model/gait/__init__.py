@@ -11,13 +11,18 @@ from snakebot.model.gait.common import Gait, GaitError
 from snakebot.model.gait.field import field_gait
 from snakebot.model.gait.limits import GaitLimitError, check_motion, check_ticks
 from snakebot.model.gait.serpenoid import serpenoid
-from snakebot.model.gait.values import InputError, parse_angle, parse_angles, parse_field_expression
+from snakebot.model.gait.values import (
+    ExpressionError,
+    parse_angle,
+    parse_angles,
+    parse_field_expression,
+)
 
 __all__ = [
     "Gait",
     "GaitError",
     "GaitLimitError",
-    "InputError",
+    "ExpressionError",
     "check_motion",
     "check_ticks",
     "field_gait",

@@ -7,7 +7,7 @@ from typing import Literal
 
 import numpy as np
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 from snakebot.facts import devices
 
 _POSITION = devices.ax12().require_position()
@@ -27,7 +27,7 @@ SERVO_MAX_RPM = {
 }
 
 
-class RobotError(SnakebotError):
+class RobotError(InputError):
     """A robot description that cannot be used (file missing, malformed, inconsistent)."""
 
 

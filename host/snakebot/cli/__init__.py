@@ -1,7 +1,8 @@
 """The ``snakebot`` command line: one small module per command group.
 
-Each module defines a click command or group and is registered below. Commands parse
-their options, open what they need, call an operation from the library and print;
+Each module defines a click command or group and is registered below. Options that more
+than one command takes are declared once, in ``options``. Commands parse their options,
+open what they need, call an operation from the library and print;
 errors become one line on stderr and an exit status: 1 runtime failure, 2 bad input,
 130 Ctrl-C (see ``errors``).
 """

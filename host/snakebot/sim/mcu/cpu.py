@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import ctypes
 import struct
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 
 from snakebot.extras import require
 
@@ -45,7 +45,11 @@ from unicorn import (  # noqa: E402
     UcError,
 )
 from unicorn import arm_const as arm  # noqa: E402
-from unicorn.unicorn_py3.unicorn import uclib  # noqa: E402
+from unicorn.unicorn_py3.unicorn import (  # noqa: E402
+    MMIO_READ_CFUNC,
+    MMIO_WRITE_CFUNC,
+    uclib,
+)
 
 from snakebot.core import ffi, lib  # noqa: E402
 from snakebot.sim.mcu.errors import McuFault  # noqa: E402
@@ -109,7 +113,12 @@ class _Batch:
 
     def read(self) -> list[int]:
         uclib.uc_reg_read_batch(self._uch, self._ids, self._ptrs, self.n)
-        return list(self.values)
+        return self.values[:]
+
+    def read_one(self) -> int:
+        """The first register alone (one call, no list)."""
+        uclib.uc_reg_read(self._uch, self._ids[0], self._ptrs[0])
+        return self.values[0]
 
     def write(self, values: list[int]) -> None:
         for i, value in enumerate(values):
@@ -140,6 +149,7 @@ class Cpu:
         self._pc = _Batch(uch, (arm.UC_ARM_REG_PC,))
         self._primask = _Batch(uch, (arm.UC_ARM_REG_PRIMASK,))
         self._word = ctypes.create_string_buffer(32)
+        self._io_callbacks: list[tuple[object, object]] = []
         self.running = False
         self.sleeping = False
         self.sleeps = 0
@@ -150,8 +160,13 @@ class Cpu:
         self.lowest_sp = 0xFFFF_FFFF
 
     def _hook_counter(self) -> None:
+        self._native_hook(lib.mcu_count_instruction, 1, 0)
+
+    def _native_hook(self, function: object, begin: int, end: int) -> None:
+        """Hook the C ``function`` (from ``snakebot._core``) on the instructions at
+        ``begin``..``end``, with the counter as its data."""
         handle = ctypes.c_size_t()
-        callback = ctypes.c_void_p(int(ffi.cast("uintptr_t", lib.mcu_count_instruction)))
+        callback = ctypes.c_void_p(int(ffi.cast("uintptr_t", function)))
         user = ctypes.c_void_p(int(ffi.cast("uintptr_t", self.counter)))
         status = uclib.uc_hook_add(
             self.uc._uch,
@@ -159,11 +174,11 @@ class Cpu:
             UC_HOOK_CODE,
             callback,
             user,
-            ctypes.c_uint64(1),
-            ctypes.c_uint64(0),
+            ctypes.c_uint64(begin),
+            ctypes.c_uint64(end),
         )
         if status != 0:
-            raise McuFault(f"unicorn refused the instruction counter hook (error {status})")
+            raise McuFault(f"unicorn refused a native hook (error {status})")
 
     def watch(self, wfi: Iterable[int], after_unmask: Iterable[int]) -> None:
         """Hook the image's ``wfi`` instructions and the instructions after each unmask."""
@@ -171,7 +186,42 @@ class Cpu:
             self._wfi_sites.add(address)
             self.uc.hook_add(UC_HOOK_CODE, self._on_wfi, begin=address, end=address)
         for address in after_unmask:
-            self.uc.hook_add(UC_HOOK_CODE, self._after_unmask, begin=address, end=address)
+            self._native_hook(lib.mcu_after_unmask, address, address)
+
+    def map_io(
+        self,
+        base: int,
+        size: int,
+        read: Callable[[int, int, int, int], int],
+        write: Callable[[int, int, int, int, int], None],
+        fast: object = None,
+    ) -> None:
+        """Send the CPU's accesses to ``base``..``base + size`` to ``read`` and ``write``
+        (offset, size[, value]); they call :meth:`fail` with what they raise. ``fast``: an
+        ``mcu_fast_io`` whose one register C serves first (``mcu_io_read/write``)."""
+        callbacks = (MMIO_READ_CFUNC(read), MMIO_WRITE_CFUNC(write))
+        self._io_callbacks.append(callbacks)  # kept alive as long as the CPU
+        if fast is None:
+            read_fn, write_fn, data = callbacks[0], callbacks[1], None
+        else:
+            fast.read_fallback = ffi.cast(
+                "void *", ctypes.cast(callbacks[0], ctypes.c_void_p).value
+            )
+            fast.write_fallback = ffi.cast(
+                "void *", ctypes.cast(callbacks[1], ctypes.c_void_p).value
+            )
+            read_fn = ctypes.c_void_p(int(ffi.cast("uintptr_t", lib.mcu_io_read)))
+            write_fn = ctypes.c_void_p(int(ffi.cast("uintptr_t", lib.mcu_io_write)))
+            data = ctypes.c_void_p(int(ffi.cast("uintptr_t", fast)))
+        status = uclib.uc_mmio_map(self._uch, base, size, read_fn, data, write_fn, data)
+        if status != 0:
+            raise McuFault(f"cannot map I/O at 0x{base:08X} (unicorn error {status})")
+
+    def fail(self, exc: BaseException) -> None:
+        """A callback raised ``exc``: stop the CPU; :meth:`run` raises it."""
+        if self.uc._hook_exception is None:
+            self.uc._hook_exception = exc
+        uclib.uc_emu_stop(self._uch)
 
     # -- time -----------------------------------------------------------------------------
 
@@ -196,11 +246,11 @@ class Cpu:
 
     @property
     def pc(self) -> int:
-        return self._pc.read()[0]
+        return self._pc.read_one()
 
     @property
     def primask(self) -> bool:
-        return bool(self._primask.read()[0] & 1)
+        return bool(self._primask.read_one() & 1)
 
     def set_primask(self, masked: bool) -> None:
         self._primask.write([1 if masked else 0])
@@ -247,7 +297,7 @@ class Cpu:
         uc = self.uc
         uc._hook_exception = None
         try:
-            status = uclib.uc_emu_start(self._uch, self._pc.read()[0] | 1, 0, 0, 0)
+            status = uclib.uc_emu_start(self._uch, self._pc.read_one() | 1, 0, 0, 0)
         finally:
             self.running = False
         if uc._hook_exception is not None:
@@ -258,7 +308,7 @@ class Cpu:
                 f"the CPU faulted at 0x{self.pc:08X}: {UcError(status)} "
                 f"(after {self.counter.count} instructions)"
             )
-        sp = self._sp.read()[0]
+        sp = self._sp.read_one()
         if sp < self.lowest_sp:
             self.lowest_sp = sp
         self._stopped_by = None
@@ -268,15 +318,19 @@ class Cpu:
                 f"the CPU raised exception {intno} at 0x{self.pc:08X} (an undefined "
                 "instruction, SVC or breakpoint: none is used by the firmware)"
             )
-        if self._exit_request:
-            self._exception_return()
 
     def _on_interrupt(self, uc: Uc, intno: int, _data: object) -> None:
-        if intno == EXCP_EXCEPTION_EXIT:
-            self._exit_request = True
-        else:
+        if intno != EXCP_EXCEPTION_EXIT:
             self._fault = intno
-        uc.emu_stop()
+            uc.emu_stop()
+            return
+        # the return (and a tail-chained entry) done here: writing PC from a hook makes
+        # unicorn go on from there without leaving emu_start, which costs far more
+        self._exception_return()
+        exception = self.nvic.takeable(self.primask)
+        if exception is not None:
+            self._enter(exception)
+        self.note_pending()
 
     def _on_wfi(self, uc: Uc, address: int, size: int, _data: object) -> None:
         # the hook runs before the instruction: unicorn then halts after it (its WFI ends
@@ -286,9 +340,10 @@ class Cpu:
             self.sleeps += 1
         self._stopped_by = "wfi"
 
-    def _after_unmask(self, uc: Uc, address: int, size: int, _data: object) -> None:
-        if self.nvic.pending and self.nvic.takeable(self.primask) is not None:
-            self.stop_soon()
+    def note_pending(self) -> None:
+        """Tell the native hooks whether an exception is pending (a stale yes only costs a
+        stop)."""
+        self.counter.pending = 1 if self.nvic.pending else 0
 
     def wake_if_due(self) -> bool:
         """WFI ends when an exception that could preempt (PRIMASK aside) is pending."""
@@ -305,6 +360,7 @@ class Cpu:
         while True:
             exception = self.nvic.takeable(self.primask)
             if exception is None:
+                self.note_pending()
                 return taken
             self._enter(exception)
             self.sleeping = False
@@ -315,7 +371,7 @@ class Cpu:
         xpsr = values[-1] & ~XPSR_IPSR
         if self.nvic.active:
             xpsr |= self.nvic.active[-1] & XPSR_IPSR
-        sp = self._sp.read()[0]
+        sp = self._sp.read_one()
         if sp & 4:
             sp -= 4
             xpsr |= XPSR_ALIGNED
@@ -334,7 +390,7 @@ class Cpu:
         nested = bool(self.nvic.active)
         self.nvic.activate(exception)
         lr = EXC_RETURN_HANDLER if nested else EXC_RETURN_THREAD_MSP
-        self._entry.write([sp, lr, 1 << 24, handler & ~1])
+        self._entry.write([sp, lr, 1 << 24, handler | 1])  # bit 0: stay in Thumb state
         if sp < self.lowest_sp:
             self.lowest_sp = sp
 
@@ -346,12 +402,12 @@ class Cpu:
                 f"{len(self.nvic.active)} exception(s) active: only returns on the main "
                 "stack are modelled"
             )
-        sp = self._sp.read()[0]
+        sp = self._sp.read_one()
         values = list(struct.unpack("<8I", self.read_memory(sp, 32)))
         xpsr = values[-1]
         sp += 32 + (4 if xpsr & XPSR_ALIGNED else 0)
         values[-1] = (xpsr & ~(XPSR_IPSR | XPSR_ALIGNED)) | 1 << 24
-        values[6] &= ~1
+        values[6] |= 1  # Thumb: unicorn takes bit 0 of a written PC as the state
         self._frame.write(values)
         self._sp.write([sp])
         self.nvic.deactivate()

@@ -91,7 +91,17 @@ class GpioPort(Peripheral):
         return False
 
     def idr(self) -> int:
-        return sum(1 << pin for pin in range(16) if self.level(pin))
+        outputs, levels = self._outputs()
+        value = levels
+        for pin in range(16):
+            bit = 1 << pin
+            if outputs & bit:
+                continue
+            if pin in self.external:
+                value |= bit if self.external[pin] else 0
+            elif self.mode(pin) == INPUT_PULL:
+                value |= self.odr & bit
+        return value
 
     def _gate(self, offset: int, value: int | None) -> bool:
         if self.clock_on():

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from snakebot.core import ffi, lib
 from snakebot.sim.mcu.regs import Clock, Peripheral
 from snakebot.sim.mcu.schedule import Event, Scheduler
 
@@ -44,6 +45,8 @@ class Iwdg(Peripheral):
         self.on_timeout = on_timeout
         self.lsi_hz = lsi_hz
         self._timeout: Event | None = None
+        self.fast = ffi.new("mcu_fast_io *")  # reloads noted in C (see mcu_count.h)
+        self.fast.kind = lib.MCU_IO_IWDG_KR
         self.reset()
 
     def reset(self) -> None:
@@ -53,28 +56,53 @@ class Iwdg(Peripheral):
         self.pr = 0
         self.rlr = 0xFFF
         self.sr = 0
-        self.running = False
         self._access = False
-        self.last_feed: float | None = None
-        self.largest_gap = 0.0
-        self.feeds = 0
+        fast = self.fast
+        fast.running = 0
+        fast.feeds = 0
+        fast.last_feed = 0.0
+        fast.largest_gap = 0.0
+
+    @property
+    def running(self) -> bool:
+        return bool(self.fast.running)
+
+    @property
+    def feeds(self) -> int:
+        return int(self.fast.feeds)
+
+    @property
+    def last_feed(self) -> float | None:
+        return float(self.fast.last_feed) if self.fast.feeds else None
+
+    @property
+    def largest_gap(self) -> float:
+        """The longest time between two reloads so far (seconds)."""
+        return float(self.fast.largest_gap)
 
     def timeout_s(self) -> float:
         """How long from a reload to a reset, at :attr:`lsi_hz`."""
         return (self.rlr + 1) * (4 << min(self.pr, 6)) / self.lsi_hz
 
     def _reload(self) -> None:
+        # A reload only notes the time (the firmware feeds on every pass of its loop): the
+        # one timeout event, when it comes due, looks whether a feed has moved it on.
         now = self.now()
-        if self.last_feed is not None:
-            self.largest_gap = max(self.largest_gap, now - self.last_feed)
-        self.last_feed = now
-        self.feeds += 1
-        if self._timeout is not None:
-            self._timeout.cancel()
-        self._timeout = self.scheduler.at(now + self.timeout_s(), self._expired)
+        fast = self.fast
+        if fast.feeds and now - fast.last_feed > fast.largest_gap:
+            fast.largest_gap = now - fast.last_feed
+        fast.last_feed = now
+        fast.feeds += 1
+        if self._timeout is None:
+            self._timeout = self.scheduler.at(now + self.timeout_s(), self._expired)
 
-    def _expired(self, _t: float) -> None:
+    def _expired(self, t: float) -> None:
         self._timeout = None
+        assert self.last_feed is not None
+        deadline = self.last_feed + self.timeout_s()
+        if deadline > t + 1e-12:
+            self._timeout = self.scheduler.at(deadline, self._expired)
+            return
         self.on_timeout()
 
     def _updating(self, flag: int) -> None:
@@ -105,7 +133,7 @@ class Iwdg(Peripheral):
             key = value & 0xFFFF
             self._access = key == KEY_ACCESS
             if key == KEY_START:
-                self.running = True
+                self.fast.running = 1
                 self._reload()
             elif key == KEY_RELOAD and self.running:
                 self._reload()

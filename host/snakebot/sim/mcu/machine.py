@@ -70,15 +70,16 @@ class Stm32f103:
         self.on_reset = on_reset
         self.scheduler = Scheduler()
         self.scheduler.on_earlier = self._event_scheduled
-        self._t0 = 0.0  # time at counter value _c0
-        self._c0 = 0
-        self.hz = rcc_mod.HSI_HZ
         self.resets: list[tuple[float, str]] = []
         self._reset_request: str | None = None
         self.stalled_s = 0.0
 
         self.nvic = Nvic(on_change=self._exception_may_be_due, on_reset=self._software_reset)
         self.cpu = Cpu(self.nvic)
+        self._clock = self.cpu.counter  # the time base lives beside the count (mcu_count.h)
+        self._clock.t0 = 0.0
+        self._clock.c0 = 0
+        self._clock.hz = rcc_mod.HSI_HZ
         uc = self.cpu.uc
         uc.mem_map(FLASH_BASE, FLASH_SIZE, UC_PROT_READ | UC_PROT_EXEC)
         uc.mem_map(RAM_BASE, RAM_SIZE, UC_PROT_ALL)
@@ -130,16 +131,20 @@ class Stm32f103:
     # -- wiring helpers ------------------------------------------------------------------------
 
     def _apb2(self, name: str) -> Callable[[], bool]:
-        bit = RCC_APB2_BITS[name]
-        return lambda: self.rcc.enabled("apb2", bit)
+        bit = 1 << RCC_APB2_BITS[name]
+        rcc = self.rcc
+        return lambda: bool(rcc.apb2enr & bit)
 
     def _usart(self, name: str, base: int, irq: int, bus: str) -> Usart:
-        bit = (RCC_APB2_BITS if bus == "apb2" else RCC_APB1_BITS)[name]
-        clocks = self.rcc.clocks
+        bit = 1 << (RCC_APB2_BITS if bus == "apb2" else RCC_APB1_BITS)[name]
+        rcc = self.rcc
 
         def pclk() -> int:
-            c = clocks()
+            c = rcc.clocks()
             return c.pclk2 if bus == "apb2" else c.pclk1
+
+        def clock_on() -> bool:
+            return bool((rcc.apb2enr if bus == "apb2" else rcc.apb1enr) & bit)
 
         return Usart(
             name,
@@ -148,32 +153,57 @@ class Stm32f103:
             now=self.now,
             pclk=pclk,
             irq=lambda level: self.nvic.set_line(irq, level),
-            clock_on=lambda: self.rcc.enabled(bus, bit),
+            clock_on=clock_on,
             strict=self.strict,
         )
 
     def _map(self, p: Peripheral) -> None:
-        def read(uc: Uc, offset: int, size: int, _data: object) -> int:
-            return p.read(offset, size)
+        # ctypes callbacks of our own rather than Uc.mmio_map's: two Python calls fewer on
+        # every register access, which the firmware's polling loops make by the thousand
+        fail = self.cpu.fail
+        peripheral_read, peripheral_write = p.read, p.write
 
-        def write(uc: Uc, offset: int, size: int, value: int, _data: object) -> None:
-            p.write(offset, size, value)
+        def read(_uc: int, offset: int, size: int, _data: int) -> int:
+            try:
+                return peripheral_read(offset, size)
+            except BaseException as exc:  # stops the CPU; cpu.run raises it
+                fail(exc)
+                return 0
 
-        self.cpu.uc.mmio_map(p.base, p.size, read, None, write, None)
+        def write(_uc: int, offset: int, size: int, value: int, _data: int) -> None:
+            try:
+                peripheral_write(offset, size, value)
+            except BaseException as exc:
+                fail(exc)
+
+        fast = getattr(p, "fast", None)
+        if fast is not None:
+            fast.counter = self._clock
+        self.cpu.map_io(p.base, p.size, read, write, fast)
 
     # -- time --------------------------------------------------------------------------------
 
+    @property
+    def hz(self) -> float:
+        """Instructions per second: the processor clock (HCLK)."""
+        return self._clock.hz
+
     def now(self) -> float:
         """The chip's time (seconds since it was powered)."""
-        return self._t0 + (self.cpu.counter.count - self._c0) / self.hz
+        c = self._clock
+        return c.t0 + (c.count - c.c0) / c.hz
 
     def _rebase(self) -> None:
-        self._t0 = self.now()
-        self._c0 = self.cpu.counter.count
+        c = self._clock
+        c.t0 = self.now()
+        c.c0 = c.count
+
+    def _skip(self, seconds: float) -> None:
+        self._clock.t0 += seconds
 
     def stall(self, seconds: float) -> None:
         """The CPU stops for ``seconds`` (the flash is busy) while time goes on."""
-        self._t0 += seconds
+        self._skip(seconds)
         self.stalled_s += seconds
         self.cpu.stop_soon()
 
@@ -183,13 +213,14 @@ class Stm32f103:
             self.cpu.stop_soon(max(cycles, 0))
 
     def _exception_may_be_due(self) -> None:
+        self.cpu.counter.pending = 1
         if self.cpu.running and self.nvic.takeable(self.cpu.primask) is not None:
             self.cpu.stop_soon()
 
     def _clocks_changed(self, clocks: Clocks) -> None:
         self._rebase()
         self.flash.check_clock(clocks.sysclk)
-        self.hz = clocks.hclk
+        self._clock.hz = clocks.hclk
         self.systick.set_hclk(clocks.hclk)
 
     # -- memory --------------------------------------------------------------------------------
@@ -268,11 +299,12 @@ class Stm32f103:
                 continue
             if now >= t_end:
                 return
-            cpu.take_exceptions()
+            if self.nvic.pending:
+                cpu.take_exceptions()
             next_event = scheduler.next_time()
             stop = t_end if next_event is None or next_event > t_end else next_event
             if cpu.sleeping and not cpu.wake_if_due():
-                self._t0 += max(stop - now, 0.0)  # asleep: time jumps to the next event
+                self._skip(max(stop - now, 0.0))  # asleep: time jumps to the next event
                 continue
             cycles = math.ceil((stop - now) * self.hz - 1e-6)
             cpu.run(max(cycles, 1))

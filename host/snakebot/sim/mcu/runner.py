@@ -36,6 +36,12 @@ from snakebot.sim.transports.pty import tty_baudrate
 STEP_S = 0.001
 """The most emulated time the thread runs before it looks at the PC link again."""
 
+MAX_LAG_S = 0.05
+"""The most the emulated board falls behind the wall clock. A host too busy to run it in
+real time slows its time down instead (counted in :attr:`McuFirmware.slowed_s`): the
+firmware sees a consistent clock, and the PC sees a controller that answers late by at
+most this much plus the time it needs, never a backlog of seconds."""
+
 BAUD_TOLERANCE = 0.03
 """How far (relative) the client's rate may be from USART3's and still be understood."""
 
@@ -71,6 +77,7 @@ class McuFirmware:
         self._thread: threading.Thread | None = None
         self._stop = False
         self.cpu_s = 0.0  # processor time the thread used
+        self.slowed_s = 0.0  # wall time the board's clock was held back (host too busy)
 
     @property
     def running(self) -> bool:
@@ -107,6 +114,12 @@ class McuFirmware:
         emu0 = board.now()
         while not self._stop:
             target = emu0 + (time.monotonic() - wall0) * self.speed
+            behind = target - board.now()
+            if behind > MAX_LAG_S * self.speed:
+                slip = (behind / self.speed) - MAX_LAG_S
+                wall0 += slip
+                self.slowed_s += slip
+                target = emu0 + (time.monotonic() - wall0) * self.speed
             with self.lock:
                 now = board.now()
                 if target > now:

@@ -6,7 +6,9 @@ clear) until the shift register has sent the one before. A byte takes 10 bit tim
 programmed rate (``pclk / BRR``); TC is set when the shift register has sent its byte and
 TDR is empty. Enabling the transmitter (TE) first sends an idle frame, as the chip does.
 TC is cleared by reading SR then writing DR, or by writing 0 to it; RXNE by reading DR or
-writing 0; reading SR then DR clears ORE, NE, FE and PE. A byte that arrives while RXNE
+writing 0; reading SR then DR clears ORE, NE, FE and PE. Each sequence is tracked on its
+own (a receive handler's DR read between the SR read and the DR write does not keep TC
+set), which is how the firmware's interrupt handler uses them. A byte that arrives while RXNE
 is still set is lost and sets ORE. The interrupt line is the OR of TXEIE&TXE, TCIE&TC and
 RXNEIE&(RXNE|ORE). Other modes (9 bits, parity, 2 stop bits, DMA, hardware flow control,
 half-duplex by HDSEL, LIN, smartcard, IrDA) are unmodelled, so an error in strict mode.
@@ -21,6 +23,7 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable
 
+from snakebot.core import ffi, lib
 from snakebot.sim.mcu.regs import Clock, Peripheral
 from snakebot.sim.mcu.schedule import Event, Scheduler
 
@@ -66,6 +69,8 @@ class Usart(Peripheral):
         self.sent = 0
         self.received = 0
         self.overruns = 0
+        self.fast = ffi.new("mcu_fast_io *")  # SR as the CPU reads it (in C, see mcu_count.h)
+        self.fast.kind = lib.MCU_IO_USART_SR
         self._inbox: deque[int] = deque()
         self._feeding: Event | None = None
         self._shift_end: Event | None = None
@@ -82,7 +87,8 @@ class Usart(Peripheral):
         self.tdr: int | None = None
         self.brr = 0
         self.cr1 = self.cr2 = self.cr3 = 0
-        self._sr_read = False
+        self.fast.armed = 0  # bit 0: a DR read clears the error flags; bit 1: a DR write TC
+        self.fast.value = self.sr
         self._line = False
         self.irq(False)
 
@@ -168,12 +174,12 @@ class Usart(Peripheral):
         if not self.word_only(offset, size, None) or not self._gate():
             return 0
         if offset == SR:
-            self._sr_read = True
+            self.fast.armed = 3
             return self.sr
-        was_sr_read, self._sr_read = self._sr_read, False
         if offset == DR:
             self.sr &= ~RXNE
-            if was_sr_read:
+            if self.fast.armed & 1:
+                self.fast.armed &= ~1
                 self.sr &= ~(ORE | NE | FE | PE | IDLE)
             self._update_irq()
             return self.rdr
@@ -190,11 +196,12 @@ class Usart(Peripheral):
     def write(self, offset: int, size: int, value: int) -> None:
         if not self.word_only(offset, size, value) or not self._gate():
             return
-        was_sr_read, self._sr_read = self._sr_read, False
         if offset == SR:
             self.sr &= value | ~SR_CLEAR_BY_ZERO
         elif offset == DR:
-            self._write_dr(value & 0x1FF, was_sr_read)
+            after_sr_read = bool(self.fast.armed & 2)
+            self.fast.armed &= ~2
+            self._write_dr(value & 0x1FF, after_sr_read)
         elif offset == BRR:
             self.brr = value & 0xFFFF
         elif offset == CR1:
@@ -235,6 +242,7 @@ class Usart(Peripheral):
 
     def _update_irq(self) -> None:
         cr1, sr = self.cr1, self.sr
+        self.fast.value = sr
         level = bool(
             (cr1 & CR1_TXEIE and sr & TXE)
             or (cr1 & CR1_TCIE and sr & TC)

@@ -36,7 +36,12 @@ BUS_TX_PIN, BUS_RX_PIN, BUS_TX_ENABLE, BUS_RX_ENABLE = 6, 7, 4, 5  # all on GPIO
 
 @dataclass(frozen=True)
 class Leftovers:
-    """What a bootloader may leave running when it jumps to the application."""
+    """What a bootloader may leave running when it jumps to the application. A bootloader
+    that leaves an interrupt armed jumps with interrupts masked (PRIMASK): unmasked, the
+    interrupt would be taken at the application's first instruction, through the vector
+    table VTOR still names (the bootloader's own), before the application can silence it;
+    so ``usart3_pending`` and ``systick`` mask them too, as the firmware's start-up assumes
+    (tests/firmware/test_firmware_startup.py)."""
 
     pll: bool = False  # SYSCLK from the PLL, HSE x6 (48 MHz), 2 wait states
     usart3_pending: bool = False  # USART3 on, RXNE interrupt enabled, a byte received
@@ -100,7 +105,8 @@ class Cm530:
 
     def _start_application(self, kind: str) -> None:
         self.mcu.boot(APP_BASE)
-        if kind == "power" and self.leftovers.primask:
+        left = self.leftovers
+        if kind == "power" and (left.primask or left.usart3_pending or left.systick):
             self.mcu.cpu.set_primask(True)  # the bootloader jumped with interrupts masked
 
     def _apply_leftovers(self) -> None:
@@ -118,7 +124,7 @@ class Cm530:
             m.nvic.enabled |= 1 << USART3_IRQ
             u.receive(ord("#"))
         if left.systick:
-            m.systick.write(systick.RVR, size=4, value=m.hz // 1000 - 1)
+            m.systick.write(systick.RVR, size=4, value=int(m.hz) // 1000 - 1)
             m.systick.write(systick.CSR, size=4, value=ENABLE | TICKINT | CLKSOURCE)
 
     # -- PC link -------------------------------------------------------------------------------

@@ -157,7 +157,7 @@ class Cpu:
         self._wfi_sites: set[int] = set()
         self._stopped_by: str | None = None
         self._fault: int | None = None
-        self.lowest_sp = 0xFFFF_FFFF
+        self.lowest_sp = 0xFFFF_FFFF  # the lowest main stack pointer an exception entry saw
 
     def _hook_counter(self) -> None:
         self._native_hook(lib.mcu_count_instruction, 1, 0)
@@ -308,9 +308,6 @@ class Cpu:
                 f"the CPU faulted at 0x{self.pc:08X}: {UcError(status)} "
                 f"(after {self.counter.count} instructions)"
             )
-        sp = self._sp.read_one()
-        if sp < self.lowest_sp:
-            self.lowest_sp = sp
         self._stopped_by = None
         if self._fault is not None:
             intno, self._fault = self._fault, None
@@ -358,6 +355,9 @@ class Cpu:
         returns how many."""
         taken = 0
         while True:
+            if self.nvic.best_pending() is None:  # no register read for nothing to take
+                self.note_pending()
+                return taken
             exception = self.nvic.takeable(self.primask)
             if exception is None:
                 self.note_pending()

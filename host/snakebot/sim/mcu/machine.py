@@ -213,8 +213,9 @@ class Stm32f103:
             self.cpu.stop_soon(max(cycles, 0))
 
     def _exception_may_be_due(self) -> None:
+        # stop and let run_until look (a stop costs less than reading PRIMASK here)
         self.cpu.counter.pending = 1
-        if self.cpu.running and self.nvic.takeable(self.cpu.primask) is not None:
+        if self.cpu.running and self.nvic.best_pending() is not None:
             self.cpu.stop_soon()
 
     def _clocks_changed(self, clocks: Clocks) -> None:

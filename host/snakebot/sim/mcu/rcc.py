@@ -122,6 +122,11 @@ class Rcc(Peripheral):
         return src * mul
 
     def clocks(self) -> Clocks:
+        """The frequencies in effect now."""
+        last = getattr(self, "_last", None)
+        return last if last is not None else self._compute()
+
+    def _compute(self) -> Clocks:
         source = self.sysclk_source
         sysclk = {SW_HSI: HSI_HZ, SW_HSE: self.hse_hz, SW_PLL: self.pll_hz()}[source]
         hclk = sysclk // AHB_DIVIDERS.get((self.cfgr >> 4) & 0xF, 1)
@@ -247,7 +252,7 @@ class Rcc(Peripheral):
         self._notify()
 
     def _notify(self) -> None:
-        clocks = self.clocks()
+        clocks = self._compute()
         if clocks != getattr(self, "_last", None):
             self._last = clocks
             if self.on_change is not None:

@@ -15,10 +15,12 @@ doing the same beside it.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import sys
 import time
+from collections.abc import Iterator
 
 from snakebot.link.controller.client import ControllerClient
 from snakebot.link.controller.playback import play, stop
@@ -38,14 +40,23 @@ def _cpu_of(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def cm530(table, seconds: float) -> tuple[float, float, int]:  # noqa: ANN001
-    """(emulated s per CPU s, per wall s, bus bytes) of the cm530 board playing ``table``."""
-    robot = EmulatedRobot("snake5", board="cm530")
+@contextlib.contextmanager
+def playing(board: str, table) -> Iterator[tuple[EmulatedRobot, ControllerClient]]:  # noqa: ANN001
+    """The snake5 on ``board`` with ``table`` uploaded and looping, and a client to it."""
+    robot = EmulatedRobot("snake5", board=board)
     try:
         info = robot.start()
         with ControllerClient.open(info.pc_link) as ctl:
             upload_gait(ctl, table, allow_new_servos=True)
             play(ctl, loop=True)
+            yield robot, ctl
+    finally:
+        robot.stop()
+
+
+def cm530(table, seconds: float) -> tuple[float, float, int]:  # noqa: ANN001
+    """(emulated s per CPU s, per wall s, bus bytes) of the cm530 board playing ``table``."""
+    with playing("cm530", table) as (robot, _ctl):
         fw = robot._mcu  # noqa: SLF001 - the benchmark drives the board itself
         assert fw is not None
         fw.stop()  # the thread stops; the board stays, playing, in this thread's hands
@@ -55,27 +66,18 @@ def cm530(table, seconds: float) -> tuple[float, float, int]:  # noqa: ANN001
         board.run_until(t0 + seconds)
         cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0
         return seconds / cpu, seconds / wall, board.bus_stats.sent - sent0
-    finally:
-        robot.stop()
 
 
 def qemu(table, seconds: float) -> float:  # noqa: ANN001
     """Wall seconds per CPU second (QEMU's and this process's) while QEMU plays ``table``."""
-    robot = EmulatedRobot("snake5", board="qemu")
-    try:
-        info = robot.start()
-        with ControllerClient.open(info.pc_link) as ctl:
-            upload_gait(ctl, table, allow_new_servos=True)
-            play(ctl, loop=True)
-            pid = info.qemu_pid
-            cpu0, own0, wall0 = _cpu_of(pid), time.process_time(), time.perf_counter()
-            time.sleep(seconds)
-            cpu = _cpu_of(pid) - cpu0 + time.process_time() - own0
-            wall = time.perf_counter() - wall0
-            stop(ctl)
-        return wall / cpu
-    finally:
-        robot.stop()
+    with playing("qemu", table) as (robot, ctl):
+        pid = robot.info.qemu_pid
+        cpu0, own0, wall0 = _cpu_of(pid), time.process_time(), time.perf_counter()
+        time.sleep(seconds)
+        cpu = _cpu_of(pid) - cpu0 + time.process_time() - own0
+        wall = time.perf_counter() - wall0
+        stop(ctl)
+    return wall / cpu
 
 
 def main() -> int:

@@ -25,6 +25,12 @@ def image() -> bytes:
 
 
 def test_cold_boot_sets_up_the_chip_as_the_cm530_needs(image: bytes) -> None:
+    assert_boots_as_the_cm530_needs(image)
+
+
+def assert_boots_as_the_cm530_needs(image: bytes) -> None:
+    """Boot ``image`` from a cold reset; the chip is set up as the board needs (also run
+    on deliberately broken builds by test_cm530_mutants.py, where it must fail)."""
     board = Cm530(image)
     board.run_for(0.02)
     m = board.mcu

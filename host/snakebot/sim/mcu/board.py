@@ -31,6 +31,12 @@ from snakebot.sim.mcu.schedule import Event
 from snakebot.sim.mcu.systick import CLKSOURCE, ENABLE, TICKINT
 
 BOARD = "cm530"
+
+REPLY_HORIZON_S = 0.003
+"""How long after the master's last byte the board follows the bus event by event (a
+servo's reply starts within its return delay, at most 0.5 ms, and the firmware waits 1.5
+ms for it). Later bus events (the world's samples, servos moving) run in order when the
+master next writes or when a run of the board ends, without stopping the CPU for each."""
 BUS_TX_PIN, BUS_RX_PIN, BUS_TX_ENABLE, BUS_RX_ENABLE = 6, 7, 4, 5  # all on GPIOB
 
 
@@ -177,6 +183,8 @@ class Cm530:
         assert bus is not None
         scheduler = self.mcu.scheduler
         t = bus.next_event_time()
+        if t is not None and t > bus.master_tx_done + REPLY_HORIZON_S:
+            t = None  # nothing the firmware can hear: it runs later, in order
         if self._bus_step is not None and (t is None or self._bus_step.time != t):
             self._bus_step.cancel()
             self._bus_step = None

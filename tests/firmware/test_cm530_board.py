@@ -98,6 +98,7 @@ def test_stack_high_water_mark_stays_in_the_reserved_stack(image):
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # the store runs in real time on a pty
 @pytest.mark.timeout(240)
 def test_the_watchdog_is_never_starved_by_a_32k_library_store(image, tmp_path):
     frames = 32 * 1024 // (2 * len(SNAKE5_IDS)) - 16  # a table of just under 32 KB

@@ -18,7 +18,7 @@ from snakebot.cli import main
 from snakebot.firmware import image as firmware_image
 
 pytest.importorskip("unicorn")
-pytestmark = [pytest.mark.slow, pytest.mark.timeout(120)]
+pytestmark = [pytest.mark.slow, pytest.mark.serial, pytest.mark.timeout(120)]  # real time
 
 
 def _bootloader(link: Path) -> subprocess.Popen[str]:

@@ -21,7 +21,7 @@ from snakebot.firmware import image as firmware_image
 from snakebot.sim.serve import EmulatedRobot
 
 pytest.importorskip("unicorn")
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.serial]  # real time on a pty
 
 # The emulated chip runs in this process, in Python where it touches a peripheral: on a
 # loaded machine it may fall below real time while the bus is busy (it then slows its

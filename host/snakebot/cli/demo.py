@@ -9,7 +9,8 @@ from types import FrameType
 import click
 
 from snakebot.cli.output import dumps
-from snakebot.cli.params import OUTPUT_PATH, wave_options
+from snakebot.cli.params import wave_options
+from snakebot.cli.video import video_options
 from snakebot.plots.demo import draw_demo
 from snakebot.plots.video import check_video_path
 from snakebot.sim.physics.select import WORLDS
@@ -61,11 +62,7 @@ def _sigterm(signum: int, frame: FrameType | None) -> None:
     help="mujoco: the body has mass and its wheels can slip, so the prediction is checked "
     "against physics; kinematic: the body follows the prediction's own model.",
 )
-@click.option(
-    "--video",
-    type=OUTPUT_PATH,
-    help="Write a GIF (or MP4, with ffmpeg) of the emulated robot seen from above.",
-)
+@video_options("the emulated robot")
 @click.option(
     "--json",
     "as_json",
@@ -82,6 +79,7 @@ def demo(
     firmware: Path | None,
     world: str,
     video: Path | None,
+    video_size: tuple[int, int],
     as_json: bool,
 ) -> None:
     """Run the whole chain on the emulated 5-link robot and report what it did.
@@ -103,6 +101,7 @@ def demo(
         firmware=firmware,
         world=world,
         video=video,
+        video_size=video_size,
     )
     if video is not None:
         check_video_path(video)

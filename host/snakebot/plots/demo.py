@@ -24,7 +24,13 @@ def draw_demo(result: DemoResult, say: Say = print) -> DemoResult:
         png = plot_demo(robot, result.comparison, Path(settings.out_dir) / "demo.png")
     if settings.video is not None:
         say(f"   writing the video {settings.video} ...")
-        write_video(settings.video, robot, {f"emulated ({settings.world})": result.record})
+        write_video(
+            settings.video,
+            robot,
+            {f"emulated ({settings.world})": result.record},
+            size=settings.video_size,
+            say=say,
+        )
     return replace(result, png=png)
 
 

@@ -13,7 +13,9 @@ import click
 import snakebot.link.transport.ports  # noqa: F401  (registers sim://)
 from snakebot.cli.output import dumps
 from snakebot.cli.plan import FROM_OPTION, TO_OPTION, tolerance_options, unreachable
+from snakebot.cli.video import video_options
 from snakebot.model.plan import Unreachable
+from snakebot.plots.video import StateMotion, check_video_path, write_video
 from snakebot.workflows.goto import MAX_SLOWDOWN, WORLDS
 from snakebot.workflows.goto import goto as run_goto
 
@@ -47,6 +49,7 @@ from snakebot.workflows.goto import goto as run_goto
     type=click.Path(dir_okay=False, path_type=Path),
     help="write a PNG of the body's path, the poses read after each segment and the target",
 )
+@video_options("the robot's way to the target")
 @click.option("--json", "as_json", is_flag=True, help="print the report as JSON")
 def goto(
     robot: str,
@@ -58,6 +61,8 @@ def goto(
     slowdown: int | None,
     ideal: bool,
     plot: Path | None,
+    video: Path | None,
+    video_size: tuple[int, int],
     as_json: bool,
 ) -> None:
     """Take the emulated ROBOT to a target pose in closed loop.
@@ -81,10 +86,13 @@ def goto(
     \b
     Example:
       snakebot sim goto trident --to 2,1,30deg --plot goto.png
+      snakebot sim goto trident --to 2,1,30deg --video goto.mp4 --size 640x360
     """
     from snakebot.model.robots import load_robot
 
     chosen = load_robot(robot)
+    if video is not None:
+        check_video_path(video)
     bar = click.progressbar(length=1, label="segments", file=sys.stderr)
 
     def progress(done: int, total: int) -> None:
@@ -112,6 +120,19 @@ def goto(
         from snakebot.plots.goto import plot_goto
 
         summary["plot"] = str(plot_goto(result, plot))
+    if video is not None:
+        click.echo("writing the video ...", err=True)
+        run = StateMotion.of_states(result.path.t, result.path.q)
+        summary["video"] = str(
+            write_video(
+                video,
+                chosen,
+                {f"{result.world} world": run},
+                f"{chosen.name} to the target",
+                size=video_size,
+                say=lambda line: click.echo(line, err=True),
+            )
+        )
     if as_json:
         click.echo(dumps(summary, indent=2))
     else:
@@ -140,3 +161,5 @@ def _print(s: dict[str, Any]) -> None:
     )
     if "plot" in s:
         click.echo(f"plot written to {s['plot']}")
+    if "video" in s:
+        click.echo(f"video written to {s['video']}")

@@ -11,7 +11,8 @@ import click
 
 import snakebot.link.transport.ports  # noqa: F401  (registers sim://)
 from snakebot.cli.output import dumps
-from snakebot.cli.params import NUMBER, OUTPUT_PATH, PLOT_PATH, NumberType
+from snakebot.cli.params import NUMBER, PLOT_PATH, NumberType
+from snakebot.cli.video import video_options
 from snakebot.extras import require
 from snakebot.formats.program.files import is_program_file
 from snakebot.plots.video import StateMotion, check_video_path, write_video
@@ -66,12 +67,7 @@ def _motion(label: str, m: dict[str, Any]) -> str:
     type=PLOT_PATH,
     help="write a PNG of the emulated and predicted body paths and the joints' tracking",
 )
-@click.option(
-    "--video",
-    type=OUTPUT_PATH,
-    help="write a GIF (or an MP4, with ffmpeg) of the emulated robot seen from above, "
-    "the predicted one beside it",
-)
+@video_options("the emulated robot, the predicted one beside it")
 @click.option("--json", "as_json", is_flag=True, help="print the report as JSON")
 def predict(
     gait_file: Path,
@@ -82,6 +78,7 @@ def predict(
     mu: float | None,
     plot: Path | None,
     video: Path | None,
+    video_size: tuple[int, int],
     as_json: bool,
 ) -> None:
     """Play the gait table or controller program FILE (.gait, or .prog from `snakebot
@@ -115,7 +112,7 @@ def predict(
     \b
     Example:
       snakebot gait serpenoid snake5 -A 30deg -w 180deg -d 90deg --cycles 1 -o s.gait
-      snakebot sim predict s.gait --plot s.png
+      snakebot sim predict s.gait --plot s.png --video s.mp4
       snakebot plan trident --to 0.3,0.1,20deg -o go.prog
       snakebot sim predict go.prog --ideal
     """
@@ -143,6 +140,8 @@ def predict(
                     "predicted": StateMotion.of_states(result.predicted.t, result.predicted.q),
                 },
                 f"{gait_file.name} on {result.robot.name}",
+                size=video_size,
+                say=lambda line: click.echo(line, err=True),
             )
         )
     if plot is not None:

@@ -8,7 +8,8 @@ from pathlib import Path
 import click
 
 from snakebot.cli.output import dumps
-from snakebot.cli.params import OUTPUT_PATH, LazyChoice
+from snakebot.cli.params import LazyChoice
+from snakebot.cli.video import video_options
 from snakebot.errors import InputError
 from snakebot.plots.video import check_video_path, write_video
 
@@ -44,15 +45,18 @@ def _floats(text: str) -> tuple[float, ...]:
     type=click.FloatRange(min=0, min_open=True),
     help="Wheel-floor friction coefficient in the physics world (default: the robot's).",
 )
-@click.option(
-    "--video",
-    type=OUTPUT_PATH,
-    help="Write a GIF (or MP4, with ffmpeg) per run, seen from above, both worlds "
-    "overlaid: FILE for one run, FILE's name with -NAME added for several.",
+@video_options(
+    "each run, both worlds side by side (FILE for one run; for several, FILE's name with "
+    "-NAME added)"
 )
 @click.option("--json", "as_json", is_flag=True, help='Print {"runs": [...]} as JSON.')
 def thesis(
-    out_dir: Path, only: tuple[str, ...], mu: float | None, video: Path | None, as_json: bool
+    out_dir: Path,
+    only: tuple[str, ...],
+    mu: float | None,
+    video: Path | None,
+    video_size: tuple[int, int],
+    as_json: bool,
 ) -> None:
     """Rerun the thesis's chapter 4 simulations in the kinematic and the MuJoCo world.
 
@@ -87,7 +91,14 @@ def thesis(
             name = video if len(runs) == 1 else video.with_stem(f"{video.stem}-{run.name}")
             motions = {world: p.emulated for world, p in result.worlds.items()}
             summary["video"] = str(
-                write_video(name, result.robot, motions, f"thesis run {run.name}")
+                write_video(
+                    name,
+                    result.robot,
+                    motions,
+                    f"thesis run {run.name}",
+                    size=video_size,
+                    say=lambda line: click.echo(line, err=True),
+                )
             )
         summaries.append(summary)
         click.echo(" done", err=as_json)

@@ -5,11 +5,13 @@ from __future__ import annotations
 import math
 import signal
 import threading
+import time
 from pathlib import Path
 from types import FrameType
 
 import click
 
+from snakebot.cli.live import RATE_HZ, foxglove_option
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType
 from snakebot.cli.signals import STOP_SIGNALS
@@ -62,6 +64,7 @@ long it serves (the pose reports need only the latest)."""
     show_default=True,
     help="Seconds between lines giving the body's pose in the world (0: never).",
 )
+@foxglove_option
 @click.option(
     "--json",
     "as_json",
@@ -75,6 +78,7 @@ def serve(
     sim_options: str,
     world: str,
     report: float,
+    foxglove: tuple[str, int] | None,
     as_json: bool,
 ) -> None:
     """Run the controller firmware in QEMU on the emulated robot until Ctrl-C.
@@ -88,6 +92,7 @@ def serve(
         snakebot upload walk.gait --port /dev/pts/N      # in another shell
         snakebot play --port /dev/pts/N --loop
         snakebot monitor --port /dev/pts/N
+        snakebot sim serve --foxglove 8765                # then ws://127.0.0.1:8765
 
     The world moves the robot's body from the servos' positions while it serves; its pose
     is printed every --report seconds (x forward along the head link's first heading).
@@ -103,10 +108,16 @@ def serve(
     emulated = EmulatedRobot(
         robot, firmware, sim_query=sim_options, world=world, history_s=HISTORY_S
     )
+    live = None
     try:
         info = emulated.start()
+        if foxglove is not None:
+            from snakebot.workflows.foxglove import FoxgloveLive
+
+            live = FoxgloveLive(emulated.robot, *foxglove)
+        extra = {} if live is None else {"foxglove": f"ws://{foxglove[0]}:{live.port}"}
         if as_json:
-            click.echo(dumps({"event": "serving", **info.as_dict()}))
+            click.echo(dumps({"event": "serving", **info.as_dict(), **extra}))
         else:
             click.echo(
                 f"emulated {info.robot}: firmware {info.firmware} in QEMU (pid {info.qemu_pid})"
@@ -119,18 +130,32 @@ def serve(
                 f"bus (USART1): emulated servos {', '.join(map(str, info.servo_ids))} "
                 f"on {info.bus_socket}"
             )
+            if live is not None:
+                click.echo(
+                    f"Foxglove: open {extra['foxglove']} (Open connection, Foxglove WebSocket)"
+                )
             click.echo("Ctrl-C stops.")
         wait = report if report > 0 else 0.5
-        while not stop.wait(wait):
+        tick = 1.0 / RATE_HZ if live is not None else wait
+        next_report = time.monotonic() + wait
+        while not stop.wait(tick):
             if not emulated.running:
                 raise SimFailure(
                     "QEMU or the emulated bus stopped unexpectedly: "
                     f"{emulated.qemu.log().strip() or 'no message'}"
                 )
-            if report > 0:
-                _pose(emulated, as_json)
+            if live is not None:
+                from snakebot.workflows.foxglove import publish_emulated
+
+                publish_emulated(live, emulated)
+            if time.monotonic() >= next_report:
+                next_report += wait
+                if report > 0:
+                    _pose(emulated, as_json)
         _pose(emulated, as_json, final=True)
     finally:
+        if live is not None:
+            live.close()
         emulated.stop()
         for s, handler in previous.items():
             signal.signal(s, handler)

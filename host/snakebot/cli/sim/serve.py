@@ -5,11 +5,13 @@ from __future__ import annotations
 import math
 import signal
 import threading
+import time
 from pathlib import Path
 from types import FrameType
 
 import click
 
+from snakebot.cli.live import RATE_HZ, foxglove_option
 from snakebot.cli.options import json_option, robot_option, world_option
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType
@@ -59,6 +61,7 @@ long it serves (the pose reports need only the latest)."""
     show_default=True,
     help="Seconds between lines giving the body's pose in the world (0: never).",
 )
+@foxglove_option
 @json_option("first where everything is (pc_link, bus_socket, qemu_pid, ...), then the body's pose")
 def serve(
     robot: str,
@@ -67,6 +70,7 @@ def serve(
     sim_options: str,
     world: str,
     report: float,
+    foxglove: tuple[str, int] | None,
     as_json: bool,
 ) -> None:
     """Run the controller firmware on the emulated robot until Ctrl-C.
@@ -80,6 +84,7 @@ def serve(
         snakebot upload walk.gait --port /dev/pts/N      # in another shell
         snakebot play --port /dev/pts/N --loop
         snakebot monitor --port /dev/pts/N
+        snakebot sim serve --foxglove 8765                # then ws://127.0.0.1:8765
 
     The world moves the robot's body from the servos' positions while it serves; its pose
     is printed every --report seconds (x forward along the head link's first heading).
@@ -95,10 +100,16 @@ def serve(
     emulated = EmulatedRobot(
         robot, firmware, sim_query=sim_options, world=world, history_s=HISTORY_S, board=board
     )
+    live = None
     try:
         info = emulated.start()
+        if foxglove is not None:
+            from snakebot.workflows.foxglove import FoxgloveLive
+
+            live = FoxgloveLive(emulated.robot, *foxglove)
+        extra = {} if live is None else {"foxglove": f"ws://{foxglove[0]}:{live.port}"}
         if as_json:
-            click.echo(dumps({"event": "serving", **info.as_dict()}))
+            click.echo(dumps({"event": "serving", **info.as_dict(), **extra}))
         else:
             where = (
                 "on the emulated STM32F103RE"
@@ -114,18 +125,32 @@ def serve(
                 f"bus (USART1): emulated servos {', '.join(map(str, info.servo_ids))} "
                 f"on {info.bus_socket or 'the chip clock'}"
             )
+            if live is not None:
+                click.echo(
+                    f"Foxglove: open {extra['foxglove']} (Open connection, Foxglove WebSocket)"
+                )
             click.echo("Ctrl-C stops.")
         wait = report if report > 0 else 0.5
-        while not stop.wait(wait):
+        tick = 1.0 / RATE_HZ if live is not None else wait
+        next_report = time.monotonic() + wait
+        while not stop.wait(tick):
             if not emulated.running:
                 raise SimFailure(
                     "the emulator or the emulated bus stopped unexpectedly: "
                     f"{emulated.log().strip() or 'no message'}"
                 )
-            if report > 0:
-                _pose(emulated, as_json)
+            if live is not None:
+                from snakebot.workflows.foxglove import publish_emulated
+
+                publish_emulated(live, emulated)
+            if time.monotonic() >= next_report:
+                next_report += wait
+                if report > 0:
+                    _pose(emulated, as_json)
         _pose(emulated, as_json, final=True)
     finally:
+        if live is not None:
+            live.close()
         emulated.stop()
         for s, handler in previous.items():
             signal.signal(s, handler)

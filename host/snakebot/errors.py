@@ -22,7 +22,9 @@ parameter has too: ``rate``, ``robot``): the CLI then names the option it came f
 
 from __future__ import annotations
 
-from typing import Self
+from typing import TypeVar
+
+E = TypeVar("E", bound="SnakebotError")
 
 
 class SnakebotError(Exception):
@@ -31,7 +33,7 @@ class SnakebotError(Exception):
     params: tuple[str, ...] = ()
     """The parameters whose values are at fault or are the fix (``rate``), if any."""
 
-    def about(self, *params: str) -> Self:
+    def about(self: E, *params: str) -> E:
         """This error, noting that the values of parameters ``params`` are at fault or
         are the fix; the CLI names its options for them."""
         self.params = params

@@ -5,7 +5,7 @@ each other, directly or round a loop.
 Layers, top to bottom (README, "Layout"): ``cli``, ``workflows``, ``plots``... no: ``cli``
 and ``plots`` draw what ``workflows`` return; ``sim`` and ``link`` sit side by side on
 ``model``; then ``formats``, ``facts`` and the package root (``errors``, ``core``,
-``paths``, ``settings``, ``extras``, ``userfiles``, ``firmware``), which every layer
+``paths``, ``settings``, ``extras``, ``userfiles``, ``rundir``, ``firmware``), which every layer
 may use.
 The imports are read from the source with ``ast``: nothing is imported to check them.
 """
@@ -158,6 +158,7 @@ def test_every_module_is_in_a_layer_folder_or_the_root() -> None:
         "snakebot.extras",
         "snakebot.firmware",
         "snakebot.paths",
+        "snakebot.rundir",
         "snakebot.settings",
         "snakebot.userfiles",
     }

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from snakebot.cli.output import dumps
-from snakebot.cli.params import PLOT_PATH
+from snakebot.cli.params import INPUT_PATH, PLOT_PATH
 from snakebot.extras import require
 from snakebot.formats.gaittable import read_gait
 from snakebot.workflows.compare import compare, load_run
@@ -15,8 +15,8 @@ from snakebot.workflows.predict import resolve_robot
 
 
 @click.command("compare")
-@click.argument("run", type=click.Path(dir_okay=False, path_type=Path))
-@click.argument("gait", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("run", type=INPUT_PATH)
+@click.argument("gait", type=INPUT_PATH)
 @click.option(
     "--robot",
     help="The robot (built-in name or TOML) whose calibration turns ticks into angles; "

@@ -2,24 +2,17 @@
 
 from __future__ import annotations
 
-import signal
 from pathlib import Path
-from types import FrameType
 
 import click
 
 from snakebot.cli.output import dumps
-from snakebot.cli.params import OUTPUT_PATH, wave_options
+from snakebot.cli.params import INPUT_PATH, OUTPUT_PATH, wave_options
+from snakebot.cli.signals import interrupted_status
 from snakebot.plots.demo import draw_demo
 from snakebot.plots.video import check_video_path
 from snakebot.sim.physics.select import WORLDS
 from snakebot.workflows.demo import DemoSettings, run_demo, summary_lines
-
-EXIT_INTERRUPTED = 130  # as a shell reports a program stopped by Ctrl-C
-
-
-def _sigterm(signum: int, frame: FrameType | None) -> None:
-    raise KeyboardInterrupt  # unwinds through run_demo's clean-up, like Ctrl-C
 
 
 @click.command()
@@ -48,7 +41,7 @@ def _sigterm(signum: int, frame: FrameType | None) -> None:
 )
 @click.option(
     "--firmware",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=INPUT_PATH,
     default=None,
     help="Firmware image for QEMU (default: the qemu board's firmware.elf that `make "
     "firmware` built in this checkout, else the one shipped with snakebot).",
@@ -107,17 +100,14 @@ def demo(
     if video is not None:
         check_video_path(video)
     say = (lambda _line: None) if as_json else click.echo
-    previous = signal.signal(signal.SIGTERM, _sigterm)
-    try:
+    try:  # SIGTERM too (snakebot.cli.signals): it unwinds through run_demo's clean-up
         result = draw_demo(run_demo(settings, say=say), say=say)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         click.echo(
             "interrupted: the emulated robot (QEMU, the bus) was stopped; nothing is left running",
             err=True,
         )
-        raise SystemExit(EXIT_INTERRUPTED) from None
-    finally:
-        signal.signal(signal.SIGTERM, previous)
+        raise SystemExit(interrupted_status(exc)) from None
     if as_json:
         click.echo(dumps(result.as_dict()))
         return

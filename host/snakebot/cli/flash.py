@@ -9,7 +9,7 @@ from typing import Any, TextIO
 import click
 
 from snakebot.cli.output import dumps
-from snakebot.cli.params import NumberType, controller_port
+from snakebot.cli.params import INPUT_TEXT_PATH, NumberType, controller_port
 from snakebot.facts.boards import PC_LINK_BAUD
 from snakebot.firmware import image as firmware_image
 from snakebot.link.flash import FlashTimeouts, board_layout, flash, load_image
@@ -63,7 +63,7 @@ def _confirm_unverified(warning: str, yes: bool, out: TextIO) -> bool:
 
 
 @click.command("flash")
-@click.argument("firmware", required=False, type=click.Path(dir_okay=False, path_type=str))
+@click.argument("firmware", required=False, type=INPUT_TEXT_PATH)
 @click.option(
     "--port",
     "-p",

@@ -11,7 +11,7 @@ import click
 
 from snakebot.cli.controller.link import controller_id_option
 from snakebot.cli.output import dumps
-from snakebot.cli.params import ANGLE, ANGLES, NUMBER, OUTPUT_PATH, controller_port
+from snakebot.cli.params import ANGLE, ANGLES, NUMBER, OUTPUT_PATH, PLOT_PATH, controller_port
 from snakebot.facts.boards import TABLE_CAPACITY
 from snakebot.model.gait.values import InputError, parse_angle, parse_number
 from snakebot.model.plan import Unreachable
@@ -140,7 +140,7 @@ def unreachable(exc: Unreachable) -> None:
 )
 @click.option(
     "--plot",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PLOT_PATH,
     help="also write a PNG of the joints and the body's path (needs -o)",
 )
 @click.option(

@@ -10,7 +10,7 @@ from typing import Any
 import click
 
 from snakebot.cli.output import dumps
-from snakebot.cli.params import OUTPUT_PATH
+from snakebot.cli.params import INPUT_PATH, OUTPUT_PATH
 from snakebot.formats.program import PeriodicSegment, Program, SerpenoidSegment, TableSegment
 from snakebot.formats.program.files import read_program, write_program
 from snakebot.model.program_spec import build_program, load_spec
@@ -33,7 +33,7 @@ def program() -> None:
 
 
 @program.command("build")
-@click.argument("spec", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("spec", type=INPUT_PATH)
 @click.option(
     "-o",
     "--output",
@@ -86,7 +86,7 @@ def build(spec: Path, output: Path, robot: str | None, as_json: bool) -> None:
 
 
 @program.command("show")
-@click.argument("file", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("file", type=INPUT_PATH)
 @click.option("--json", "as_json", is_flag=True, help="Print the program as JSON.")
 def show(file: Path, as_json: bool) -> None:
     """Show the program in FILE (from `snakebot program build`): its joints and segments,

@@ -8,10 +8,13 @@ import click
 
 from snakebot.cli.bus import bus_options
 from snakebot.cli.output import dumps
+from snakebot.cli.params import INPUT_PATH
 from snakebot.link.bus.calibrate import JOG_DEG, calibrate, updated_text, write_atomically
 from snakebot.link.transport import DxlClient
 from snakebot.model.robots import load_robot
+from snakebot.model.robots.loader import MAX_FILE_BYTES
 from snakebot.model.robots.model import Joint
+from snakebot.userfiles import check_output, read_bounded
 
 
 @click.group("robot")
@@ -20,7 +23,7 @@ def robot() -> None:
 
 
 @robot.command("calibrate")
-@click.argument("toml", metavar="ROBOT.toml", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("toml", metavar="ROBOT.toml", type=INPUT_PATH)
 @bus_options
 @click.option(
     "--yes",
@@ -44,7 +47,8 @@ def calibrate_command(toml: Path, port: str, baud: int, as_json: bool, yes: bool
         snakebot robot calibrate my_snake.toml --port /dev/ttyUSB0
     """
     described = load_robot(toml)
-    text = toml.read_text()
+    check_output(toml)  # written back at the end: refused now, not after the calibration
+    text = read_bounded(toml, MAX_FILE_BYTES, "robot description").decode("utf-8")
     if not yes:
         click.echo(
             f"{described.name}: turning the torque off. Lay the snake straight (every link "

@@ -18,6 +18,7 @@ import numpy as np
 from snakebot.errors import SnakebotError
 from snakebot.extras import require
 from snakebot.model.robots import Robot
+from snakebot.userfiles import staged_output
 
 if TYPE_CHECKING:  # matplotlib is the `plot` extra: imported when a video is written
     from matplotlib.animation import AbstractMovieWriter
@@ -150,7 +151,7 @@ def write_video(
     clock = ax.text(0.02, 0.97, "", transform=ax.transAxes, va="top")
     ax.legend(loc="upper right", fontsize="small")
 
-    with writer.saving(fig, str(path), dpi=72):
+    with staged_output(path) as temp, writer.saving(fig, str(temp), dpi=72):
         for now in times:
             for (_, rec), (trail, body, wheel) in zip(items, artists, strict=True):
                 k = min(int(np.searchsorted(rec.t, now, side="right")) - 1, len(rec.t) - 1)

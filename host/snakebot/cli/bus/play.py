@@ -8,8 +8,10 @@ import time
 
 import click
 
-from snakebot.cli.bus import EXIT_INTERRUPTED, bus_options
+from snakebot.cli.bus import bus_options
 from snakebot.cli.output import dumps
+from snakebot.cli.params import INPUT_TEXT_PATH
+from snakebot.cli.signals import interrupted_status
 from snakebot.facts import devices
 from snakebot.formats.gaittable import GaitTable, read_gait
 from snakebot.formats.register_values import BusCommandError
@@ -63,7 +65,7 @@ def _move_to_start(client: DxlClient, table: GaitTable) -> None:
 
 
 @click.command("play")
-@click.argument("gait", type=click.Path(dir_okay=False))
+@click.argument("gait", type=INPUT_TEXT_PATH)
 @bus_options
 @click.option("--loop", is_flag=True, help="Play the gait over and over until Ctrl-C.")
 def bus_play(port: str, baud: int, as_json: bool, gait: str, loop: bool) -> None:
@@ -112,7 +114,7 @@ def bus_play(port: str, baud: int, as_json: bool, gait: str, loop: bool) -> None
             + ", ".join(f"{sid}: {pos}" for sid, pos in held.items())
         )
     if stopped_at is not None:
-        sys.exit(EXIT_INTERRUPTED)
+        sys.exit(interrupted_status())
 
 
 def _play(

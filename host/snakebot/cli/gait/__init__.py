@@ -8,7 +8,15 @@ from typing import Any
 import click
 
 from snakebot.cli.output import dumps
-from snakebot.cli.params import ANGLE, ANGLES, NUMBER, OUTPUT_PATH, PLOT_PATH, NumberType
+from snakebot.cli.params import (
+    ANGLE,
+    ANGLES,
+    EXISTING_INPUT,
+    NUMBER,
+    OUTPUT_PATH,
+    PLOT_PATH,
+    NumberType,
+)
 from snakebot.extras import require
 from snakebot.formats.gaittable import read_gait, sidecar_path, write_gait
 from snakebot.model.gait import Gait, field_gait, serpenoid
@@ -17,6 +25,11 @@ from snakebot.model.robots import load_robot
 RATE = NumberType(0, low_open=True)
 RATE_HELP = "frame rate of the table in Hz (the frame period is rounded to whole ms)"
 OUT_HELP = "the gait table file to write (FILE.json gets the metadata)"
+
+
+MIN_FIELD_TOLERANCE = 1e-3
+"""The smallest --tolerance of `gait field`: it already asks for a 100-second table that
+moves the robot a ten-thousandth of its length; 1e-300 divided by zero."""
 
 
 @click.group("gait")
@@ -205,9 +218,10 @@ def serpenoid_command(
 )
 @click.option(
     "--tolerance",
-    type=NumberType(0, low_open=True),
-    help="largest relative error per loop against the "
-    "bracket prediction; picks A (default 0.05 unless --amplitude is given)",
+    type=NumberType(MIN_FIELD_TOLERANCE, 1),
+    help="largest relative error per loop against the bracket prediction; picks A "
+    f"(default 0.05 unless --amplitude is given; {MIN_FIELD_TOLERANCE:g} to 1: a smaller "
+    "one makes loops too small to move the robot)",
 )
 @click.option(
     "--start",
@@ -271,7 +285,7 @@ def field_command(
 
 
 @gait.command("show")
-@click.argument("file", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.argument("file", type=EXISTING_INPUT)
 @click.option(
     "--plot",
     type=PLOT_PATH,

@@ -11,11 +11,12 @@ from typing import Any
 import click
 
 from snakebot.cli.output import dumps
-from snakebot.cli.params import NumberType
+from snakebot.cli.params import OUTPUT_PATH, PNG_PATH, NumberType
 from snakebot.formats.gaittable import write_gait
 from snakebot.model.gait import serpenoid
 from snakebot.model.robots import load_robot
 from snakebot.sim.physics.select import WORLDS
+from snakebot.userfiles import OutputRefused, check_output, same_file
 from snakebot.workflows.search import (
     METHODS,
     OBJECTIVES,
@@ -27,12 +28,14 @@ from snakebot.workflows.search import (
     make_runner,
 )
 from snakebot.workflows.search.results import check_path
+from snakebot.workflows.search.runner import MAX_WORKERS
 from snakebot.workflows.search.search import Outcome
+from snakebot.workflows.search.space import MAX_RUNS
 
-PATH = click.Path(dir_okay=False, path_type=Path)
-
-
-POSITIVE = NumberType(0, low_open=True)
+CYCLES = NumberType(0, 1000, low_open=True)
+"""Cycles per run: at most 1000, so one run stays bounded (a grid multiplies it)."""
+SEARCH_RATE = NumberType(0, 1000, low_open=True)
+"""Table frame rate: the period is whole milliseconds, so 1000 Hz is the most."""
 
 
 @click.command("search")
@@ -66,7 +69,7 @@ POSITIVE = NumberType(0, low_open=True)
 @click.option("--method", type=click.Choice(METHODS), default="grid", show_default=True)
 @click.option(
     "--samples",
-    type=click.IntRange(min=1),
+    type=click.IntRange(1, MAX_RUNS),
     default=100,
     show_default=True,
     help="random: how many candidates; cma: the budget of candidates",
@@ -74,14 +77,15 @@ POSITIVE = NumberType(0, low_open=True)
 @click.option(
     "--seed", type=click.IntRange(min=1), default=1, show_default=True, help="random/cma seed"
 )
-@click.option("--cycles", type=POSITIVE, default=3.0, show_default=True, help="gait cycles per run")
+@click.option("--cycles", type=CYCLES, default=3.0, show_default=True, help="gait cycles per run")
 @click.option(
-    "--rate", type=POSITIVE, default=50.0, show_default=True, help="table frame rate (Hz)"
+    "--rate", type=SEARCH_RATE, default=50.0, show_default=True, help="table frame rate (Hz)"
 )
 @click.option(
     "--workers",
-    type=click.IntRange(min=1),
-    help="processes on this machine (default: one per core; 1 runs in this process)",
+    type=click.IntRange(1, MAX_WORKERS),
+    help="processes on this machine (default: one per core; 1 runs in this process; "
+    f"at most {MAX_WORKERS}, each holds its own world)",
 )
 @click.option(
     "--cluster",
@@ -91,17 +95,17 @@ POSITIVE = NumberType(0, low_open=True)
 @click.option(
     "--output",
     "-o",
-    type=PATH,
+    type=OUTPUT_PATH,
     help="results table, .parquet or .csv (one row per run); an existing one is resumed: "
     "finished runs are skipped",
 )
 @click.option(
     "--best",
     "best_path",
-    type=PATH,
+    type=OUTPUT_PATH,
     help="write the best gait here (default with -o: RESULTS.best.gait)",
 )
-@click.option("--plot", type=PATH, help="write a heat map (grid) or Pareto plot (PNG)")
+@click.option("--plot", type=PNG_PATH, help="write a heat map (grid) or Pareto plot (PNG)")
 @click.option("--json", "as_json", is_flag=True, help="print the summary as JSON")
 def search_command(
     robot: str,
@@ -134,7 +138,10 @@ def search_command(
     if output is not None:
         check_path(output)
     if best_path is None and output is not None:
-        best_path = output.with_name(output.stem + ".best.gait")
+        best_path = check_output(output.with_name(output.stem + ".best.gait"))
+    for path in (best_path, plot):
+        if path is not None and output is not None and path != output and same_file(path, output):
+            raise OutputRefused(f"{path} is also the results table -o: give each its own file")
     robot_obj = load_robot(robot)
     if robot_obj.kind != "snake":
         raise SearchError(

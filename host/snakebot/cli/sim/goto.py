@@ -12,6 +12,7 @@ import click
 
 import snakebot.link.transport.ports  # noqa: F401  (registers sim://)
 from snakebot.cli.output import dumps
+from snakebot.cli.params import PLOT_PATH
 from snakebot.cli.plan import FROM_OPTION, TO_OPTION, tolerance_options, unreachable
 from snakebot.model.plan import Unreachable
 from snakebot.workflows.goto import MAX_SLOWDOWN, WORLDS
@@ -44,7 +45,7 @@ from snakebot.workflows.goto import goto as run_goto
 )
 @click.option(
     "--plot",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PLOT_PATH,
     help="write a PNG of the body's path, the poses read after each segment and the target",
 )
 @click.option("--json", "as_json", is_flag=True, help="print the report as JSON")

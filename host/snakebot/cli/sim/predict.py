@@ -11,12 +11,12 @@ import click
 
 import snakebot.link.transport.ports  # noqa: F401  (registers sim://)
 from snakebot.cli.output import dumps
-from snakebot.cli.params import NUMBER, OUTPUT_PATH, PLOT_PATH, NumberType
+from snakebot.cli.params import EXISTING_INPUT, OUTPUT_PATH, PLOT_PATH, NumberType
 from snakebot.extras import require
 from snakebot.formats.program.files import is_program_file
 from snakebot.plots.video import StateMotion, check_video_path, write_video
 from snakebot.sim.physics.select import DEFAULT_WORLD, WORLDS
-from snakebot.workflows.predict import DEFAULT_WORLD_HZ, predict_gait, predict_program
+from snakebot.workflows.predict import DEFAULT_WORLD_HZ, MAX_WORLD_HZ, predict_gait, predict_program
 
 
 def _motion(label: str, m: dict[str, Any]) -> str:
@@ -24,9 +24,7 @@ def _motion(label: str, m: dict[str, Any]) -> str:
 
 
 @click.command("predict")
-@click.argument(
-    "gait_file", metavar="FILE", type=click.Path(exists=True, dir_okay=False, path_type=Path)
-)
+@click.argument("gait_file", metavar="FILE", type=EXISTING_INPUT)
 @click.option(
     "--robot",
     "-r",
@@ -42,7 +40,7 @@ def _motion(label: str, m: dict[str, Any]) -> str:
 )
 @click.option(
     "--world-rate",
-    type=NUMBER,
+    type=NumberType(0, MAX_WORLD_HZ, low_open=True),
     default=DEFAULT_WORLD_HZ,
     show_default=True,
     help="how often (Hz, bus time) the world samples modelled servos; at least once per frame",

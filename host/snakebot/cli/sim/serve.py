@@ -11,7 +11,7 @@ from types import FrameType
 import click
 
 from snakebot.cli.output import dumps
-from snakebot.cli.params import NumberType
+from snakebot.cli.params import INPUT_PATH, NumberType
 from snakebot.cli.signals import STOP_SIGNALS
 from snakebot.sim.errors import SimError
 from snakebot.sim.physics.select import DEFAULT_WORLD, WORLDS
@@ -33,7 +33,7 @@ long it serves (the pose reports need only the latest)."""
 )
 @click.option(
     "--firmware",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=INPUT_PATH,
     default=None,
     help="Firmware for QEMU: the qemu board's application ELF (the boot stub beside it "
     "goes in front) or a whole-flash .bin image. Default: build/qemu/firmware.elf from "

@@ -8,9 +8,14 @@ from pathlib import Path
 import click
 
 from snakebot.cli.output import dumps
-from snakebot.cli.params import OUTPUT_PATH
+from snakebot.cli.params import EXISTING_INPUT, OUTPUT_PATH, PLOT_PATH
 from snakebot.errors import SnakebotError
 from snakebot.plots.video import check_video_path, write_video
+
+MAX_MU = 1000.0
+"""The largest friction coefficient tried: rubber on concrete is about 1."""
+MAX_MU_VALUES = 50
+"""The most friction values one study runs (each is a MuJoCo run of the whole gait)."""
 
 
 def _floats(text: str) -> tuple[float, ...]:
@@ -18,9 +23,14 @@ def _floats(text: str) -> tuple[float, ...]:
         values = tuple(float(v) for v in text.split(",") if v.strip())
     except ValueError:
         values = ()
-    if not values or not all(math.isfinite(v) and v > 0 for v in values):
+    if not values or not all(math.isfinite(v) and 0 < v <= MAX_MU for v in values):
         raise SnakebotError(
-            f"--mu {text!r}: give positive numbers separated by commas, e.g. 0.1,1,10"
+            f"--mu {text!r}: give numbers more than 0 and at most {MAX_MU:g} separated by "
+            "commas, e.g. 0.1,1,10"
+        )
+    if len(values) > MAX_MU_VALUES:
+        raise SnakebotError(
+            f"--mu {text!r}: at most {MAX_MU_VALUES} values (each is a physics run of its own)"
         )
     return values
 
@@ -118,9 +128,7 @@ def _run_lines(s: dict) -> list[str]:
 
 
 @click.command("friction")
-@click.argument(
-    "gait_file", metavar="GAIT", type=click.Path(exists=True, dir_okay=False, path_type=Path)
-)
+@click.argument("gait_file", metavar="GAIT", type=EXISTING_INPUT)
 @click.option("--robot", "-r", help="Robot (default: the one named in GAIT.json).")
 @click.option(
     "--mu",
@@ -131,7 +139,7 @@ def _run_lines(s: dict) -> list[str]:
 )
 @click.option(
     "--plot",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=PLOT_PATH,
     help="Write a PNG: distance per cycle against mu, and the wheels' sideways slide.",
 )
 @click.option("--json", "as_json", is_flag=True, help="Print the study as JSON.")

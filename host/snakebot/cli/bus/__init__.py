@@ -180,7 +180,7 @@ def scan_command(
                     "bauds": rates,
                     "found": [s.as_dict() for s in found],
                     "garbled": [g.as_dict() for g in garbled],
-                    "interrupted": interrupted,
+                    "interrupted": bool(interrupted),
                 }
             )
         )

@@ -12,4 +12,7 @@ settings.load_profile("snakebot")
 # without a table already uploaded (defined in support/controller_cli_support.py).
 from controller_cli_support import controller, controller_with_table, old_table  # noqa: E402
 
-__all__ = ["controller", "controller_with_table", "old_table"]
+# A directory like /tmp for the tests that play a second local user (support/other_user.py).
+from other_user import shared_tmp  # noqa: E402
+
+__all__ = ["controller", "controller_with_table", "old_table", "shared_tmp"]

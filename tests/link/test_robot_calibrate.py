@@ -87,3 +87,15 @@ def test_a_zero_that_makes_the_limits_impossible_is_not_written(tmp_path):
     assert "min_deg" in result.stderr and "could not open" not in result.stderr
     assert mine.read_text() == ORIGINAL
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".mine")]  # no temp left
+
+
+def test_writing_the_calibration_keeps_the_files_mode(tmp_path):
+    # It was made 0600 by the temporary file (issue #28).
+    from snakebot.link.bus.calibrate import write_atomically
+
+    path = tmp_path / "robot.toml"
+    path.write_text("old\n")
+    path.chmod(0o644)
+    write_atomically(path, "new\n")
+    assert path.read_text() == "new\n" and path.stat().st_mode & 0o777 == 0o644
+    assert [p.name for p in tmp_path.iterdir()] == ["robot.toml"]

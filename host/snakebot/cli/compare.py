@@ -8,6 +8,7 @@ import click
 
 from snakebot.cli.options import json_option, plot_option, robot_option
 from snakebot.cli.output import echo_json
+from snakebot.cli.params import INPUT_PATH
 from snakebot.extras import require
 from snakebot.formats.gaittable import read_gait
 from snakebot.workflows.compare import compare, load_run
@@ -15,8 +16,8 @@ from snakebot.workflows.predict import resolve_robot
 
 
 @click.command("compare")
-@click.argument("run", type=click.Path(dir_okay=False, path_type=Path))
-@click.argument("gait", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("run", type=INPUT_PATH)
+@click.argument("gait", type=INPUT_PATH)
 @robot_option(
     "The robot whose calibration turns ticks into angles",
     otherwise="the one the gait's metadata names",

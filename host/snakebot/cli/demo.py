@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import signal
 from pathlib import Path
-from types import FrameType
 from typing import Any
 
 import click
@@ -19,15 +17,10 @@ from snakebot.cli.options import (
     world_option,
 )
 from snakebot.cli.output import echo_json
+from snakebot.cli.signals import interrupted_status
 from snakebot.plots.demo import draw_demo
 from snakebot.plots.video import check_video_path
 from snakebot.workflows.demo import DemoSettings, run_demo, summary_lines
-
-EXIT_INTERRUPTED = 130  # as a shell reports a program stopped by Ctrl-C
-
-
-def _sigterm(signum: int, frame: FrameType | None) -> None:
-    raise KeyboardInterrupt  # unwinds through run_demo's clean-up, like Ctrl-C
 
 
 @click.command()
@@ -59,17 +52,14 @@ def demo(as_json: bool, **options: Any) -> None:
     if settings.video is not None:
         check_video_path(settings.video)
     say = (lambda _line: None) if as_json else click.echo
-    previous = signal.signal(signal.SIGTERM, _sigterm)
-    try:
+    try:  # SIGTERM too (snakebot.cli.signals): it unwinds through run_demo's clean-up
         result = draw_demo(run_demo(settings, say=say), say=say)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         click.echo(
             "interrupted: the emulated robot (QEMU, the bus) was stopped; nothing is left running",
             err=True,
         )
-        raise SystemExit(EXIT_INTERRUPTED) from None
-    finally:
-        signal.signal(signal.SIGTERM, previous)
+        raise SystemExit(interrupted_status(exc)) from None
     if echo_json(as_json, result.as_dict()):
         return
     for line in summary_lines(result):

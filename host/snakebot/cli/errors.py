@@ -8,7 +8,8 @@ Exit statuses (the same for every command):
   written (OSError);
 * 2: bad input: a usage error (click's), a value out of range, a malformed file, a table
   outside the robot's limits, a port that does not exist;
-* 130: interrupted with Ctrl-C (SIGINT);
+* 130: interrupted with Ctrl-C (SIGINT); 143 with SIGTERM, 129 with SIGHUP (see
+  ``snakebot.cli.signals``: the same clean stop for all three);
 * 141: stdout was closed early (``snakebot ... | head``): nothing more is printed.
 
 The status follows the class, never a list: every library error is an
@@ -32,6 +33,8 @@ from typing import Any
 
 import click
 
+from snakebot.cli.signals import install as install_signal_handlers
+from snakebot.cli.signals import interrupted_status
 from snakebot.errors import InputError, RuntimeFailure
 from snakebot.settings import check_environment, is_set
 
@@ -123,6 +126,7 @@ class SnakebotGroup(click.Group):
         ``error: Invalid value for '--rate': ... (see `snakebot gait serpenoid --help`)``."""
         if not standalone_mode:
             return super().main(args, prog_name, complete_var, False, **extra)
+        install_signal_handlers()
         try:
             status = super().main(args, prog_name, complete_var, False, **extra)
         except click.exceptions.NoArgsIsHelpError as exc:
@@ -135,9 +139,12 @@ class SnakebotGroup(click.Group):
                 hint = f" (see `{ctx.command_path} --help`)"
             click.echo(f"error: {_one_line(exc.format_message())}{hint}", err=True)
             sys.exit(exc.exit_code)
-        except click.Abort:
+        except click.Abort as exc:
             click.echo("interrupted", err=True)
-            sys.exit(EXIT_INTERRUPTED)
+            sys.exit(interrupted_status(exc))
+        except KeyboardInterrupt as exc:  # while click parsed, before a command ran
+            click.echo("interrupted", err=True)
+            sys.exit(interrupted_status(exc))
         sys.exit(status if isinstance(status, int) else 0)
 
     def invoke(self, ctx: click.Context) -> Any:
@@ -147,9 +154,9 @@ class SnakebotGroup(click.Group):
             return super().invoke(ctx)
         except (click.exceptions.Exit, click.ClickException, click.Abort):
             raise  # click's own: usage errors (2) and explicit exits
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM, SIGHUP: the same clean stop
             click.echo("interrupted", err=True)
-            ctx.exit(EXIT_INTERRUPTED)
+            ctx.exit(interrupted_status(exc))
         except BrokenPipeError:
             _quiet_broken_pipe()
             ctx.exit(EXIT_BROKEN_PIPE)

@@ -10,7 +10,7 @@ import click
 
 from snakebot.cli.options import BOOTLOADER_PORT, json_option, port_option
 from snakebot.cli.output import dumps
-from snakebot.cli.params import NumberType
+from snakebot.cli.params import INPUT_TEXT_PATH, NumberType
 from snakebot.facts.boards import PC_LINK_BAUD
 from snakebot.firmware import image as firmware_image
 from snakebot.link.flash import FlashTimeouts, board_layout, flash, load_image
@@ -64,7 +64,7 @@ def _confirm_unverified(warning: str, yes: bool, out: TextIO) -> bool:
 
 
 @click.command("flash")
-@click.argument("firmware", required=False, type=click.Path(dir_okay=False, path_type=str))
+@click.argument("firmware", required=False, type=INPUT_TEXT_PATH)
 @port_option(BOOTLOADER_PORT)
 @click.option(
     "--no-go",

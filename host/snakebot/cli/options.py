@@ -32,6 +32,7 @@ import click
 from snakebot.cli.params import (
     ANGLE,
     ANGLES,
+    INPUT_PATH,
     NUMBER,
     OUTPUT_PATH,
     PLOT_PATH,
@@ -322,7 +323,7 @@ mu_option: Decorator = click.option(
 
 firmware_option: Decorator = click.option(
     "--firmware",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=INPUT_PATH,
     default=None,
     help="Firmware for QEMU: the qemu board's application ELF (the boot stub beside it "
     "goes in front) or a whole-flash .bin image. Default: build/qemu/firmware.elf from "

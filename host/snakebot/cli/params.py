@@ -17,6 +17,7 @@ import click
 
 from snakebot.facts.boards import TABLE_CAPACITY
 from snakebot.model.gait.values import ExpressionError, parse_angle, parse_angles, parse_number
+from snakebot.userfiles import output_problem, same_file
 
 
 def _parsed(
@@ -141,29 +142,26 @@ NUMBER = NumberType()
 
 
 class OutputPathType(click.Path):
-    """A file to write: not empty, not a directory; with ``suffixes``, one of those
-    extensions (case-insensitive), so a format nobody can write is refused before any
-    work is done."""
+    """A file to write, checked while parsing (``snakebot.userfiles.output_problem``): not
+    empty, not a directory, device, FIFO or socket, not a symbolic link, in a directory
+    that exists; not a file another output option of the same command names; with
+    ``suffixes``, one of those extensions (case-insensitive). So a refusal comes before
+    any work is done, never after a long search."""
 
     def __init__(self, suffixes: Callable[[], Collection[str]] | None = None) -> None:
         super().__init__(dir_okay=False, path_type=Path)
         self.suffixes = suffixes
 
     def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
-        if not str(value).strip():
-            self.fail("an empty path: name the file to write", param, ctx)
-        path = super().convert(value, param, ctx)
-        if os.path.exists(path) and not stat.S_ISREG(os.stat(path).st_mode):
-            # Files are written beside the target and moved over it: that would put a
-            # regular file in place of a device or a pipe.
-            self.fail(
-                f"{str(path)!r} is a device or a pipe, not a file: name a file to write",
-                param,
-                ctx,
-            )
+        if isinstance(value, Path) and ctx is not None and value in _outputs(ctx).values():
+            return value  # converted already (click converts a default twice)
+        problem = output_problem(str(value))
+        if problem is not None:
+            self.fail(f"{str(value)!r} {problem}", param, ctx)
+        path = Path(value)
         if self.suffixes is not None:
             known = self.suffixes()
-            suffix = Path(path).suffix.lower().lstrip(".")
+            suffix = path.suffix.lower().lstrip(".")
             if suffix not in known:
                 self.fail(
                     f"{str(path)!r} has the extension {suffix or '(none)'!r}: use one of "
@@ -171,7 +169,57 @@ class OutputPathType(click.Path):
                     param,
                     ctx,
                 )
+        if ctx is not None:
+            name = param.get_error_hint(ctx) if param is not None else "an output"
+            outputs = _outputs(ctx)
+            for other_name, other in outputs.items():
+                if other_name != name and same_file(other, path):
+                    self.fail(
+                        f"{str(path)!r} is also given to {other_name}: two outputs would "
+                        "overwrite each other; give each its own file",
+                        param,
+                        ctx,
+                    )
+            outputs[name] = path
         return path
+
+
+class InputPathType(click.Path):
+    """A file to read, checked while parsing: if it is there it must be a regular file
+    (or a link to one), never a FIFO, device, socket or directory, which could block the
+    read or never end. A missing file is left to the reader, whose message says how to
+    make one (``exists`` makes click refuse it here)."""
+
+    def __init__(self, exists: bool = False, path_type: type[Any] = Path) -> None:
+        super().__init__(exists=exists, dir_okay=False, path_type=path_type)
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if not str(value).strip():
+            self.fail("an empty path: name the file to read", param, ctx)
+        path = super().convert(value, param, ctx)
+        try:
+            mode = os.stat(path).st_mode
+        except OSError:
+            return path  # missing or unreadable: the reader says what to do
+        if not stat.S_ISREG(mode):
+            self.fail(
+                f"{str(path)!r} is a FIFO, a device or a socket, not a file: give a regular file",
+                param,
+                ctx,
+            )
+        return path
+
+
+INPUT_PATH = InputPathType()
+EXISTING_INPUT = InputPathType(exists=True)
+INPUT_TEXT_PATH = InputPathType(path_type=str)
+"""An input whose path the command keeps as text (to print it back)."""
+
+
+def _outputs(ctx: click.Context) -> dict[str, Path]:
+    """The outputs of this command line so far (option hint -> path), shared by its
+    contexts."""
+    return ctx.find_root().meta.setdefault("snakebot.outputs", {})
 
 
 def _plot_formats() -> Collection[str]:
@@ -182,6 +230,8 @@ def _plot_formats() -> Collection[str]:
 
 OUTPUT_PATH = OutputPathType()
 PLOT_PATH = OutputPathType(_plot_formats)
+PNG_PATH = OutputPathType(lambda: ("png",))
+"""A picture that is always a PNG (the search's plot)."""
 
 
 class PoseType(click.ParamType):

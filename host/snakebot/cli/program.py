@@ -9,6 +9,7 @@ import click
 
 from snakebot.cli.options import json_option, output_option, robot_option
 from snakebot.cli.output import echo_json
+from snakebot.cli.params import INPUT_PATH
 from snakebot.formats.program.describe import describe_program
 from snakebot.formats.program.files import read_program, write_program
 from snakebot.model.program_spec import build_program, load_spec
@@ -29,7 +30,7 @@ def program() -> None:
 
 
 @program.command("build")
-@click.argument("spec", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("spec", type=INPUT_PATH)
 @output_option("The program file to write (.prog)")
 @robot_option("The robot whose joints it drives", otherwise="the spec's `robot`")
 @json_option()
@@ -71,7 +72,7 @@ def build(spec: Path, output: Path, robot: str | None, as_json: bool) -> None:
 
 
 @program.command("show")
-@click.argument("file", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("file", type=INPUT_PATH)
 @json_option()
 def show(file: Path, as_json: bool) -> None:
     """Show the program in FILE (from `snakebot program build`): its joints and segments,

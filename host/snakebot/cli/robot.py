@@ -8,11 +8,12 @@ import click
 
 from snakebot.cli.options import BusLink, bus_options
 from snakebot.cli.output import dumps
-from snakebot.cli.params import OutputPathType
+from snakebot.cli.params import INPUT_PATH, OutputPathType
 from snakebot.link.bus.calibrate import JOG_DEG, calibrate, updated_text, write_atomically
 from snakebot.model.robots import load_robot
+from snakebot.model.robots.loader import MAX_FILE_BYTES
 from snakebot.model.robots.model import Joint
-from snakebot.userfiles import write_file_atomically
+from snakebot.userfiles import check_output, read_bounded, write_atomic
 
 
 @click.group("robot")
@@ -22,7 +23,7 @@ def robot() -> None:
 
 
 @robot.command("calibrate")
-@click.argument("toml", metavar="ROBOT.toml", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("toml", metavar="ROBOT.toml", type=INPUT_PATH)
 @bus_options
 @click.option(
     "--yes",
@@ -46,7 +47,8 @@ def calibrate_command(toml: Path, bus: BusLink, as_json: bool, yes: bool) -> Non
         snakebot robot calibrate my_snake.toml --port /dev/ttyUSB0
     """
     described = load_robot(toml)
-    text = toml.read_text()
+    check_output(toml)  # written back at the end: refused now, not after the calibration
+    text = read_bounded(toml, MAX_FILE_BYTES, "robot description").decode("utf-8")
     if not yes:
         click.echo(
             f"{described.name}: turning the torque off. Lay the snake straight (every link "
@@ -109,9 +111,9 @@ def export_command(robot_name: str, urdf: Path | None, mjcf: Path | None, as_jso
     described = load_robot(robot_name)
     written = {}
     if urdf is not None:
-        written["urdf"] = str(write_file_atomically(urdf, export_urdf(described)))
+        written["urdf"] = str(write_atomic(urdf, export_urdf(described)))
     if mjcf is not None:
-        written["mjcf"] = str(write_file_atomically(mjcf, export_mjcf(described)))
+        written["mjcf"] = str(write_atomic(mjcf, export_mjcf(described)))
     if as_json:
         click.echo(dumps({"robot": described.name, **written}))
         return

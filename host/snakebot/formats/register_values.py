@@ -94,6 +94,11 @@ def write_range(entry: Entry) -> tuple[int, int]:
     return low, high
 
 
+MAX_AMOUNT = 1e9
+"""No register holds more than 16 bits: an amount beyond this (1e400s, an infinity) is
+refused before it is converted."""
+
+
 def parse_value(entry: Entry, text: str) -> int:
     """The raw value ``text`` asks ``entry`` for: a whole number (decimal or 0x hex), or an
     amount with a unit ("30deg", "50 rpm", "0.5rad"), converted through the register's
@@ -110,6 +115,11 @@ def parse_value(entry: Entry, text: str) -> int:
             "with a unit (30deg, 50rpm)"
         )
     amount, unit = float(m.group(1)), m.group(2)
+    if not math.isfinite(amount) or abs(amount) > MAX_AMOUNT:
+        raise BusCommandError(
+            f"{text!r} is out of range for {entry.name}: give an amount within "
+            f"+-{MAX_AMOUNT:g} (the register's range is far smaller)"
+        )
     if entry.scale is None:
         raise BusCommandError(f"{entry.name} has no unit: give its raw value, not {text!r}")
     try:

@@ -38,6 +38,7 @@ else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
 from snakebot.formats.gaittable import GaitTableError, read_gait
+from snakebot.formats.nesting import too_deep
 from snakebot.formats.program.errors import ProgramError
 from snakebot.formats.program.layout import (
     Block,
@@ -51,7 +52,7 @@ from snakebot.formats.program.layout import (
 )
 from snakebot.model.robots import Robot, load_robot
 from snakebot.model.robots.model import RobotError
-from snakebot.userfiles import FileTooLarge, read_bounded
+from snakebot.userfiles import UnreadableInput, read_bounded
 
 MRAD = 1000.0
 MAX_SPEC_BYTES = 1 << 20
@@ -68,12 +69,15 @@ def load_spec(path: str | Path) -> dict[str, Any]:
     path = Path(path)
     try:
         text = read_bounded(path, MAX_SPEC_BYTES, "program spec").decode("utf-8")
-    except (FileTooLarge, UnicodeDecodeError) as exc:
+    except (UnreadableInput, UnicodeDecodeError) as exc:
         raise ProgramError(f"{path}: {exc}") from exc
     except OSError as exc:
         raise ProgramError(
             f"cannot read program spec {path}: {exc.strerror or exc}; check the path"
         ) from exc
+    deep = too_deep(text, comments=path.suffix != ".json")
+    if deep is not None:
+        raise ProgramError(f"{path} {deep}")
     try:
         data = json.loads(text) if path.suffix == ".json" else tomllib.loads(text)
     except (json.JSONDecodeError, tomllib.TOMLDecodeError) as exc:

@@ -8,6 +8,7 @@ from pathlib import Path
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from snakebot.plots.files import save_figure
 from snakebot.plots.joints import draw_joints
 from snakebot.workflows.compare import Comparison
 
@@ -19,6 +20,5 @@ def plot_comparison(c: Comparison, out: str | Path) -> Path:
     ax_joints, ax_err = fig.subplots(1, 2)
     draw_joints(ax_joints, ax_err, c.joints, "recorded", f"predicted from {c.lag_s:.2f} s")
     ax_joints.set_xlabel("time since the run's first sample (s)")
-    out = Path(out)
-    fig.savefig(out, dpi=100)
+    out = save_figure(fig, out, 100)
     return out

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from snakebot.extras import available
 from snakebot.model.robots import Robot, load_robot
+from snakebot.plots.files import save_figure
 from snakebot.plots.joints import draw_joints
 from snakebot.plots.video import DEFAULT_SIZE, write_video
 from snakebot.workflows.demo import Comparison, DemoResult, Say, _why
@@ -57,5 +58,5 @@ def plot_demo(robot: Robot, comparison: Comparison, out: Path) -> Path:
     ax_path.grid(alpha=0.3)
     draw_joints(ax_joints, None, comparison.joints, "measured", "commanded", comparison.window_s[0])
     ax_joints.set_xlabel("time since the measured cycles began (s)")
-    fig.savefig(out, dpi=100)
+    save_figure(fig, out, 100)
     return out

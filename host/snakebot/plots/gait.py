@@ -12,6 +12,7 @@ from matplotlib.figure import Figure
 
 from snakebot.formats.gaittable import GaitTable
 from snakebot.model.robots import TICKS_PER_RAD
+from snakebot.plots.files import save_figure
 
 
 def joint_angles(table: GaitTable) -> tuple[np.ndarray, np.ndarray, str]:
@@ -101,6 +102,5 @@ def plot_gait(table: GaitTable, out: str | Path) -> Path:
         ax.set_title("predicted body path (reference point)")
         ax.legend(fontsize="small")
         ax.grid(alpha=0.3)
-    out = Path(out)
-    fig.savefig(out, dpi=100)
+    out = save_figure(fig, out, 100)
     return out

@@ -10,6 +10,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from snakebot.model.plan.planner import body_length
+from snakebot.plots.files import save_figure
 from snakebot.workflows.goto import GotoResult
 
 ARROW_BODIES = 0.1
@@ -45,6 +46,5 @@ def plot_goto(result: GotoResult, out: str | Path) -> Path:
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(alpha=0.3)
     ax.legend(fontsize="small")
-    path = Path(out)
-    fig.savefig(path, dpi=110)
+    path = save_figure(fig, out, 110)
     return path

@@ -11,6 +11,7 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from snakebot.plots.files import save_figure
 from snakebot.plots.joints import draw_joints
 from snakebot.workflows.predict import Prediction
 
@@ -57,6 +58,5 @@ def plot_prediction(result: Prediction, out: str | Path) -> Path:
     ax_path.grid(alpha=0.3)
 
     draw_joints(ax_joints, ax_err, result.joints, "servo", "table")
-    out = Path(out)
-    fig.savefig(out, dpi=100)
+    out = save_figure(fig, out, 100)
     return out

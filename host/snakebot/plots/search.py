@@ -13,6 +13,7 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from snakebot.plots.files import save_figure
 from snakebot.workflows.search.search import OBJECTIVES, Outcome, Request
 
 ANGLE_UNITS = {"amplitude": "deg", "omega": "deg/s", "delta": "deg", "offset": "deg"}
@@ -36,8 +37,8 @@ def plot_search(outcome: Outcome, request: Request, out: Path) -> Path:
         f" ({request.method}, {len(outcome.candidates)} candidates)"
     )
     fig.tight_layout()
-    FigureCanvasAgg(fig).print_figure(str(out))  # the format by the file's extension
-    return out
+    FigureCanvasAgg(fig)
+    return save_figure(fig, out, 100)
 
 
 def _heat_map(

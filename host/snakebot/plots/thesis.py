@@ -10,6 +10,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from snakebot.plots.files import save_figure
 from snakebot.workflows.thesis import ThesisResult
 
 WORLD_STYLE = {"kinematic": ("tab:blue", "-"), "mujoco": ("tab:orange", "-")}
@@ -40,8 +41,7 @@ def plot_thesis_run(result: ThesisResult, out: str | Path) -> Path:
     fig.suptitle(
         f"thesis run {result.run.name} on {result.robot.name}: kinematic and MuJoCo worlds"
     )
-    out = Path(out)
-    fig.savefig(out, dpi=90)
+    out = save_figure(fig, out, 90)
     return out
 
 
@@ -68,6 +68,5 @@ def plot_friction(study: dict[str, Any], out: str | Path) -> Path:
     ax_s.set_ylabel(f"sideways slide per cycle, all wheels ({study['units']})")
     ax_s.set_title("how far the wheels slid sideways")
     ax_s.grid(alpha=0.3, which="both")
-    out = Path(out)
-    fig.savefig(out, dpi=90)
+    out = save_figure(fig, out, 90)
     return out

@@ -20,7 +20,7 @@ from snakebot.errors import InputError
 from snakebot.extras import require
 from snakebot.model.robots import Robot
 from snakebot.plots.motion import Motion, StateMotion
-from snakebot.userfiles import staged_path
+from snakebot.userfiles import staged_output
 
 __all__ = ["StateMotion", "check_video_path", "parse_size", "write_video"]
 
@@ -139,7 +139,7 @@ def write_video(
     times = frame_times(records)
     draw, close, _ = open_view(robot, records, title, size, say)
     try:
-        with staged_path(path) as temp:
+        with staged_output(path) as temp:
             writer = _encoder(temp, size)
             try:
                 for t in times:

@@ -289,6 +289,8 @@ class QemuFirmware:
         self.extra_args = list(extra_args)
         self.die_with_parent = die_with_parent and sys.platform.startswith("linux")
         self._proc: subprocess.Popen[bytes] | None = None
+        self._started_as: list[str] = []
+        """The command QEMU was started with (its pipes' descriptors are gone after)."""
         self._qmp_box: list[_Qmp] = []
         self._workdir: str | None = None
         self._finalizer: weakref.finalize | None = None
@@ -395,7 +397,7 @@ class QemuFirmware:
                 _libc = ctypes.CDLL(None, use_errno=True)  # loaded here, never in the child
         try:
             self._open_ptys()
-            cmd = self.command()
+            cmd = self._started_as = self.command()
             with open(self._workdir + "/qemu.log", "wb") as log:
                 self._proc = subprocess.Popen(
                     cmd,
@@ -432,7 +434,7 @@ class QemuFirmware:
             if self._proc.poll() is not None:
                 raise QemuError(
                     f"QEMU exited at start-up (status {self._proc.returncode}): "
-                    f"{self.log().strip() or 'no output'}; command: {' '.join(self.command())}"
+                    f"{self.log().strip() or 'no output'}; command: {' '.join(self._started_as)}"
                 )
             if os.path.exists(self._qmp_path):
                 try:

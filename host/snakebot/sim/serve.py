@@ -66,6 +66,7 @@ from snakebot.sim.servo.fast import VirtualServo
 from snakebot.sim.transports.unixsock import UnixSocketServer
 from snakebot.sim.workdirs import make_workdir
 from snakebot.sim.world import World, WorldRecord
+from snakebot.userfiles import UnreadableInput, read_bounded
 
 if TYPE_CHECKING:
     from snakebot.sim.mcu.runner import McuFirmware
@@ -88,6 +89,8 @@ def default_firmware(board: str) -> Path:
 
 FLASH_BASE = 0x08000000
 FLASH_SIZE = 128 * 1024  # stm32vldiscovery (STM32F100RB)
+RAM_BASE = 0x20000000
+RAM_SIZE = 8 * 1024  # STM32F100RB
 CONTROLLER_ID = load_controller().default_id
 """The firmware's Protocol 1.0 ID on the PC link (factory default)."""
 
@@ -126,10 +129,44 @@ class ServeInfo:
 # -- the flash image ----------------------------------------------------------------------
 
 
-def _elf_segments(path: Path) -> list[tuple[int, bytes]]:
+MAX_ELF_BYTES = 16 << 20
+"""The largest firmware ELF read: the 128 KB of code with its debug sections stays well
+under a few megabytes."""
+
+
+def _read_firmware(path: Path) -> bytes:
+    try:
+        return read_bounded(path, MAX_ELF_BYTES, "firmware image")
+    except UnreadableInput as exc:
+        raise SimInputError(str(exc)) from None
+    except OSError as exc:
+        raise ServeError(f"cannot read firmware image {path}: {exc.strerror or exc}") from None
+
+
+def _check_raw_image(path: Path, data: bytes) -> None:
+    """A raw flash image must fit the flash and start with a vector table whose stack
+    pointer is in RAM and whose reset handler is in flash: else QEMU boots nothing."""
+    if len(data) > FLASH_SIZE:
+        raise SimInputError(
+            f"{path} is {len(data)} bytes, more than the emulated board's {FLASH_SIZE} bytes "
+            "of flash: give build/qemu/firmware.elf or flash.bin"
+        )
+    sp, reset = struct.unpack_from("<II", data) if len(data) >= 8 else (0, 0)
+    in_ram = RAM_BASE < sp <= RAM_BASE + RAM_SIZE
+    in_flash = FLASH_BASE <= reset < FLASH_BASE + len(data) and reset & 1
+    if not (in_ram and in_flash):
+        raise SimInputError(
+            f"{path} is neither an ELF file nor a flash image that starts with a vector "
+            "table (it is empty, or holds something else): give build/qemu/firmware.elf "
+            "or the flash.bin `make firmware` writes"
+        )
+
+
+def _elf_segments(path: Path, data: bytes | None = None) -> list[tuple[int, bytes]]:
     """(load address, bytes) of each loadable segment with file contents of a 32-bit
     little-endian ARM ELF, or ServeError naming what is wrong with the file."""
-    data = path.read_bytes()
+    if data is None:
+        data = _read_firmware(path)
     if data[:4] != b"\x7fELF" or len(data) < 52:
         raise SimInputError(
             f"{path} is not an ELF file: give build/qemu/firmware.elf or a raw flash image (.bin)"
@@ -156,14 +193,11 @@ def _elf_segments(path: Path) -> list[tuple[int, bytes]]:
     return segments
 
 
-def flash_image(firmware: str | os.PathLike[str], out: str | os.PathLike[str]) -> Path:
-    """The whole-flash raw image QEMU boots, written to ``out``.
-
-    ``firmware`` is a raw image (``.bin``: copied as it is, loaded at 0x08000000) or an
-    ELF. An ELF whose code starts at the application base (0x08003000) gets the boot stub
-    (``stub.elf`` beside it, else the default build's) put in front, as ``make firmware``
-    lays out ``flash.bin``; the gap is erased flash (0xFF)."""
-    src = Path(firmware)
+def check_firmware(firmware: str | os.PathLike[str] | None) -> Path:
+    """The firmware image ``firmware`` names (None: the default), if it is a file;
+    ServeError with the fix otherwise. For callers that write something first (the demo's
+    gait table), so that a missing image leaves nothing behind."""
+    src = Path(firmware) if firmware is not None else DEFAULT_FIRMWARE
     if not src.is_file():
         hint = (
             "run `make firmware` to build it"
@@ -172,11 +206,24 @@ def flash_image(firmware: str | os.PathLike[str], out: str | os.PathLike[str]) -
             f"checkout (the default without --firmware: {DEFAULT_FIRMWARE})"
         )
         raise SimInputError(f"firmware image {src} not found: {hint}")
+    return src
+
+
+def flash_image(firmware: str | os.PathLike[str], out: str | os.PathLike[str]) -> Path:
+    """The whole-flash raw image QEMU boots, written to ``out``.
+
+    ``firmware`` is a raw image (``.bin``: copied as it is, loaded at 0x08000000) or an
+    ELF. An ELF whose code starts at the application base (0x08003000) gets the boot stub
+    (``stub.elf`` beside it, else the default build's) put in front, as ``make firmware``
+    lays out ``flash.bin``; the gap is erased flash (0xFF)."""
+    src = check_firmware(firmware)
     dest = Path(out)
-    if src.read_bytes()[:4] != b"\x7fELF":
-        shutil.copyfile(src, dest)
+    data = _read_firmware(src)
+    if data[:4] != b"\x7fELF":
+        _check_raw_image(src, data)
+        dest.write_bytes(data)
         return dest
-    segments = _elf_segments(src)
+    segments = _elf_segments(src, data)
     if min(addr for addr, _ in segments) >= APP_BASE:
         stub = next(
             (

@@ -10,15 +10,18 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
 from snakebot.sim.errors import SimInputError
 from snakebot.sim.servo.fast import VirtualServo
-from snakebot.userfiles import new_file_mode
+from snakebot.userfiles import OutputRefused, UnreadableInput, read_text_bounded, write_atomic
 
 FORMAT = "snakebot.sim-eeprom/1"
+
+MAX_STATE_BYTES = 1 << 20
+"""The largest servo state file read: 253 servos (every ID on a bus) with their EEPROM in
+hex take under 40 KB."""
 
 
 class EepromStore:
@@ -44,12 +47,12 @@ class EepromStore:
 
     def _restore(self, servos: Sequence[VirtualServo]) -> None:
         try:
-            doc = json.loads(self.path.read_text())
+            doc = json.loads(read_text_bounded(self.path, MAX_STATE_BYTES, "servo state file"))
             if not isinstance(doc, dict) or doc.get("format") != FORMAT:
                 raise ValueError(f"not a {FORMAT} file")
             saved = doc["servos"]
             images = [(entry["model"], bytes.fromhex(entry["eeprom"])) for entry in saved]
-        except (OSError, ValueError, KeyError, TypeError) as exc:
+        except (OSError, ValueError, KeyError, TypeError, RecursionError, UnreadableInput) as exc:
             raise SimInputError(
                 f"cannot use the servo state file {self.path}: {exc}; delete it to start "
                 "from factory settings"
@@ -77,13 +80,7 @@ class EepromStore:
             "servos": [{"model": s.model, "eeprom": s.regs.eeprom().hex()} for s in self._servos],
         }
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=self.path.parent, prefix=self.path.name, suffix=".tmp")
         try:
-            os.fchmod(fd, new_file_mode())  # as any file the user makes, not mkstemp's 0600
-            with os.fdopen(fd, "w") as f:
-                json.dump(doc, f, indent=1)
-                f.write("\n")
-            os.replace(tmp, self.path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+            write_atomic(self.path, json.dumps(doc, indent=1) + "\n")
+        except OutputRefused as exc:
+            raise SimInputError(f"servo state file: {exc}") from None

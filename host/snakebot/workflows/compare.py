@@ -21,7 +21,7 @@ from snakebot.errors import InputError
 from snakebot.formats.gaittable import GaitTable
 from snakebot.model.compare import JointTrack, best_lag, joint_names, table_angles
 from snakebot.model.robots.model import Robot
-from snakebot.userfiles import FileTooLarge, read_bounded
+from snakebot.userfiles import UnreadableInput, read_bounded
 from snakebot.workflows.predict import predict_table
 
 RUN_MAX = 256 * 1024 * 1024
@@ -48,7 +48,7 @@ class Run:
 def _read(path: Path) -> bytes:
     try:
         return read_bounded(path, RUN_MAX, "recorded run")
-    except FileTooLarge as exc:
+    except UnreadableInput as exc:
         raise CompareError(str(exc)) from None
     except OSError as exc:
         raise CompareError(f"cannot read the run {path}: {exc.strerror or exc}") from None
@@ -69,7 +69,9 @@ def _rows_from_csv(path: Path, data: bytes) -> list[dict[str, Any]]:
 
 def _rows_from_mcap(path: Path, data: bytes) -> list[dict[str, Any]]:
     try:
-        from mcap.reader import make_reader
+        from mcap.exceptions import EndOfFile
+        from mcap.records import Message
+        from mcap.stream_reader import StreamReader
     except ImportError:
         raise CompareError(
             "reading --mcap runs needs the mcap package: pip install 'snakebot[record]'"
@@ -78,7 +80,19 @@ def _rows_from_mcap(path: Path, data: bytes) -> list[dict[str, Any]]:
 
     rows: list[dict[str, Any]] = []
     try:
-        for _schema, _channel, message in make_reader(io.BytesIO(data)).iter_messages():
+        # Read as a stream, record by record: a recording cut by a kill (no index, no
+        # footer) gives every message of its finished chunks.
+        messages = []
+        try:
+            for item in StreamReader(io.BytesIO(data)).records:
+                if isinstance(item, Message):
+                    messages.append(item)
+        except EndOfFile:
+            pass
+        except Exception:  # cut inside a record: keep the messages before it, if any
+            if not messages:
+                raise
+        for message in messages:
             record = json.loads(message.data)
             extra = {k: record[k] for k in POSE_COLUMNS if k in record}
             for servo in record["servos"]:

@@ -54,7 +54,7 @@ from snakebot.model.gait import serpenoid
 from snakebot.model.gait.common import motion_frame, table_motion
 from snakebot.model.robots import Robot, load_robot
 from snakebot.sim.physics.select import record_extras, world_of
-from snakebot.sim.serve import EmulatedRobot, ServeInfo
+from snakebot.sim.serve import EmulatedRobot, ServeInfo, check_firmware
 from snakebot.sim.world import WorldRecord
 
 FRAME_POLL_S = 0.1
@@ -423,6 +423,7 @@ def run_demo(settings: DemoSettings | None = None, say: Say = print) -> DemoResu
     settings = settings or DemoSettings()
     began = time.monotonic()
     robot = load_robot(settings.robot)
+    check_firmware(settings.firmware)  # a missing image leaves no gait table behind
     out_dir = Path(settings.out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
 

@@ -72,6 +72,9 @@ _GOAL = _AX12.register("Goal Position")
 _SPEED = _AX12.register("Moving Speed")
 _PRESENT = _AX12.register("Present Position")
 DEFAULT_WORLD_HZ = 100.0
+MAX_WORLD_HZ = 10_000.0
+"""The highest world sampling rate: 100 times the default, ten times the servos' own
+control loop; beyond it a prediction's time and memory grow with no gain."""
 
 
 class PredictError(PlayerError):
@@ -274,8 +277,11 @@ def play(
     servos, so the world samples at the frame instants); returns the world's record,
     its sampling period and the wall time the play took. ``writes``: the tick period
     and blocks to send instead of the table player's (a program's, say)."""
-    if not world_hz > 0:
-        raise PredictError(f"the world's sampling rate must be positive, not {world_hz} Hz")
+    if not 0 < world_hz <= MAX_WORLD_HZ:
+        raise PredictError(
+            f"the world's sampling rate must be more than 0 and at most {MAX_WORLD_HZ:g} Hz, "
+            f"not {world_hz} Hz"
+        )
     period = table.frame_period_ms / 1000.0
     per_frame = 1 if ideal else max(1, math.ceil(period * world_hz - 1e-9))
     world_period = period / per_frame

@@ -17,6 +17,7 @@ from snakebot.cli.errors import EXIT_RUNTIME
 from snakebot.cli.options import BusLink, bauds_option, bus_options, ids_option
 from snakebot.cli.output import dumps, echo_json
 from snakebot.cli.params import NumberType
+from snakebot.cli.signals import interrupted_status
 from snakebot.formats import register_values
 from snakebot.formats.register_values import BusCommandError
 from snakebot.link.bus import ids as bus_ids
@@ -25,7 +26,6 @@ from snakebot.link.bus import scan as bus_scan
 from snakebot.link.bus.scan import Probe, ServoInfo
 from snakebot.link.transport import DxlClient, open_port
 
-EXIT_INTERRUPTED = 130
 """What a shell reports for a command stopped by Ctrl-C (128 + SIGINT)."""
 
 
@@ -109,7 +109,7 @@ def scan_command(
     rates = register_values.parse_bauds(bauds) if bauds else [bus.baud]
     found: list[ServoInfo] = []
     garbled: list[Probe] = []
-    interrupted = False
+    interrupted = 0  # the exit status of the signal that stopped the scan
     if not as_json:
         span = f"IDs {ids}" if len(id_list) > 1 else f"ID {id_list[0]}"
         at = f"{rates[0]} baud" if len(rates) == 1 else f"{len(rates)} baud rates"
@@ -129,8 +129,8 @@ def scan_command(
                         click.echo(_servo_line(result.info))
                 elif result.garbled:
                     garbled.append(result)
-        except KeyboardInterrupt:
-            interrupted = True
+        except KeyboardInterrupt as exc:
+            interrupted = interrupted_status(exc)
     if as_json:
         click.echo(
             dumps(
@@ -140,7 +140,7 @@ def scan_command(
                     "bauds": rates,
                     "found": [s.as_dict() for s in found],
                     "garbled": [g.as_dict() for g in garbled],
-                    "interrupted": interrupted,
+                    "interrupted": bool(interrupted),
                 }
             )
         )
@@ -155,7 +155,7 @@ def scan_command(
             click.echo(f"Found {len(found)} servo{'s' if len(found) != 1 else ''}.")
     if interrupted:
         click.echo("Scan stopped by Ctrl-C: the list above is what was found so far.", err=True)
-        ctx.exit(EXIT_INTERRUPTED)
+        ctx.exit(interrupted)
     if not found:
         click.echo(
             "error: no servo answered. Check that the servos are powered (USB does not "

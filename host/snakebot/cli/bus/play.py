@@ -7,15 +7,16 @@ import sys
 
 import click
 
-from snakebot.cli.bus import EXIT_INTERRUPTED
 from snakebot.cli.options import BusLink, bus_options
 from snakebot.cli.output import dumps
+from snakebot.cli.params import INPUT_TEXT_PATH
+from snakebot.cli.signals import interrupted_status
 from snakebot.formats.gaittable import read_gait
 from snakebot.link.bus.play import play_table, player_for, tick_count
 
 
 @click.command("play")
-@click.argument("gait", type=click.Path(dir_okay=False))
+@click.argument("gait", type=INPUT_TEXT_PATH)
 @bus_options
 @click.option("--loop", is_flag=True, help="Play the gait over and over until Ctrl-C.")
 def bus_play(bus: BusLink, as_json: bool, gait: str, loop: bool) -> None:
@@ -56,4 +57,4 @@ def bus_play(bus: BusLink, as_json: bool, gait: str, loop: bool) -> None:
             + ", ".join(f"{sid}: {pos}" for sid, pos in played.held.items())
         )
     if played.stopped_at is not None:
-        sys.exit(EXIT_INTERRUPTED)
+        sys.exit(interrupted_status())

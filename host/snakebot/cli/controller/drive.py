@@ -17,9 +17,11 @@ import click
 
 from snakebot.cli.options import ControllerLink, controller_options, roster_option, wave_options
 from snakebot.cli.output import dumps
+from snakebot.cli.params import EXISTING_INPUT
 from snakebot.link.controller import playback
 from snakebot.link.controller.drive import SPEED_STEP, STEER_STEP, Driver, Wait, parse_keys
 from snakebot.model.robots import load_robot
+from snakebot.userfiles import read_text_bounded
 
 REFRESH_S = 0.25
 """Seconds between two looks at the controller on the terminal."""
@@ -50,6 +52,10 @@ does, stopping the robot. Example:
 """
 
 
+MAX_SCRIPT_BYTES = 1 << 20
+"""The largest key script read (a script of a megabyte drives for hours)."""
+
+
 @click.command("drive", help=HELP)
 @controller_options
 @roster_option
@@ -60,7 +66,7 @@ does, stopping the robot. Example:
 )
 @click.option(
     "--script",
-    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    type=EXISTING_INPUT,
     help="Drive without a terminal: the keys in this file, as --keys takes them (# starts "
     "a comment).",
 )
@@ -77,7 +83,7 @@ def drive(
 ) -> None:
     if keys is not None and script is not None:
         raise click.UsageError("give --keys or --script, not both")
-    text = script.read_text(errors="replace") if script is not None else keys
+    text = read_text_bounded(script, MAX_SCRIPT_BYTES, "key script") if script is not None else keys
     try:
         scripted = parse_keys(text) if text is not None else None
     except ValueError as exc:

@@ -11,6 +11,7 @@ import click
 
 from snakebot.cli.options import ControllerLink, controller_options
 from snakebot.cli.output import dumps
+from snakebot.cli.params import INPUT_PATH
 from snakebot.formats.gaittable import read_gait
 from snakebot.link.controller.library import (
     IN_RAM,
@@ -113,7 +114,7 @@ def list_command(link: ControllerLink, as_json: bool) -> None:
 
 @library.command("store")
 @SLOT
-@click.argument("gait", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("gait", type=INPUT_PATH)
 @click.option(
     "--name",
     "-n",
@@ -173,7 +174,7 @@ def delete_command(slot: int, link: ControllerLink, as_json: bool) -> None:
 
 
 @library.command("restore")
-@click.argument("backup_file", metavar="FILE", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("backup_file", metavar="FILE", type=INPUT_PATH)
 @controller_options
 def restore_command(backup_file: Path, link: ControllerLink, as_json: bool) -> None:
     """Write the slots saved in FILE (a backup `snakebot flash` made) back to the

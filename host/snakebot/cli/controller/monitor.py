@@ -15,9 +15,11 @@ import click
 
 from snakebot.cli.options import ControllerLink, controller_options, stack
 from snakebot.cli.output import dumps
-from snakebot.cli.params import NumberType
+from snakebot.cli.params import OUTPUT_PATH, NumberType
+from snakebot.cli.signals import held
 from snakebot.link.controller.mcap_log import McapLog
 from snakebot.link.controller.monitor import CSV_COLUMNS, csv_rows, render, sample
+from snakebot.userfiles import OutputRefused, open_recording
 
 MIN_INTERVAL_S = 0.02
 CLEAR_BELOW = "\x1b[J"
@@ -26,7 +28,7 @@ GRID_SLACK = 1e-9
 2.9999999999999996 in floating point)."""
 
 
-RECORD_PATH = click.Path(dir_okay=False, writable=True, path_type=Path)
+RECORD_PATH = OUTPUT_PATH
 RECORDS = {
     "csv": "every sample to this CSV file, one row per servo (t, state, joint name, ticks "
     "and degrees, speed, load, voltage, temperature, errors)",
@@ -75,7 +77,8 @@ def monitor(
     On a terminal the table refreshes in place; otherwise (or with --json, one JSON
     record per line: JSON Lines) every sample is printed after the last. With --csv
     each sample is also written to a file as it is taken, so a run stopped with Ctrl-C
-    keeps everything up to then; --mcap does the same in MCAP.
+    or SIGTERM (exit 130, 143) keeps everything up to then; --mcap does the same in
+    MCAP, in chunks written every second, so even a SIGKILL loses at most the last one.
     """
     live = sys.stdout.isatty() and not as_json
     shown = 0
@@ -85,12 +88,12 @@ def monitor(
     with contextlib.ExitStack() as stack:
         recorder = None
         if csv_path is not None:  # opened first: a path that cannot be written fails at once
-            out = stack.enter_context(_open_record(csv_path, "--csv", "w", newline=""))
+            out = stack.enter_context(_open_record(csv_path, "--csv", text=True))
             recorder = csv.DictWriter(out, fieldnames=CSV_COLUMNS)
         mcap_log = None
         try:
             if mcap_path is not None:
-                mcap_log = McapLog(stack.enter_context(_open_record(mcap_path, "--mcap", "wb")))
+                mcap_log = McapLog(stack.enter_context(_open_record(mcap_path, "--mcap")))
                 stack.enter_context(mcap_log)
             ctl = stack.enter_context(link.open())
             ctl.identify()
@@ -103,41 +106,42 @@ def monitor(
             recorder.writeheader()
         t0 = time.monotonic()
         taken = 0
-        try:
-            while True:
-                s = sample(ctl, t0)
+        while True:
+            s = sample(ctl, t0)
+            with held():  # a stop signal waits until the sample is written whole
                 if recorder is not None:
                     recorder.writerows(csv_rows(s))
                     out.flush()
                 if mcap_log is not None:
                     mcap_log.write(s.as_record())
-                if as_json:
-                    click.echo(dumps(s.as_record()))
+            if as_json:
+                click.echo(dumps(s.as_record()))
+            else:
+                lines = render(s)
+                if live:  # lines cut to the width, so none wraps and the count holds
+                    width = max(20, shutil.get_terminal_size().columns - 1)
+                    lines = [line[:width] for line in lines]
+                    click.echo(_cursor_up(shown) + CLEAR_BELOW + "\n".join(lines))
+                    shown = len(lines)
                 else:
-                    lines = render(s)
-                    if live:  # lines cut to the width, so none wraps and the count holds
-                        width = max(20, shutil.get_terminal_size().columns - 1)
-                        lines = [line[:width] for line in lines]
-                        click.echo(_cursor_up(shown) + CLEAR_BELOW + "\n".join(lines))
-                        shown = len(lines)
-                    else:
-                        click.echo("\n".join(lines) + "\n")
-                taken += 1
-                # Sample k is due at t0 + k * interval, counted on an integer grid: comparing
-                # accumulated float times would drop the last sample at random.
-                if duration is not None and taken > duration / interval + GRID_SLACK:
-                    break
-                wait = t0 + taken * interval - time.monotonic()
-                if wait > 0:
-                    time.sleep(wait)  # a link slower than the interval samples back to back
-        except KeyboardInterrupt:
-            pass
+                    click.echo("\n".join(lines) + "\n")
+            taken += 1
+            # Sample k is due at t0 + k * interval, counted on an integer grid: comparing
+            # accumulated float times would drop the last sample at random.
+            if duration is not None and taken > duration / interval + GRID_SLACK:
+                break
+            wait = t0 + taken * interval - time.monotonic()
+            if wait > 0:
+                time.sleep(wait)  # a link slower than the interval samples back to back
 
 
-def _open_record(path: Path, option: str, mode: str, **kwargs: Any) -> IO[Any]:
-    """Open a recording file; a path that cannot be written is bad input (exit 2)."""
+def _open_record(path: Path, option: str, text: bool = False) -> IO[Any]:
+    """Open a recording file (``userfiles.open_recording``: the final file, never through
+    a link nor onto a device); a path that cannot be written is bad input (exit 2)."""
     try:
-        return path.open(mode, **kwargs)
+        return open_recording(path, text=text)
+    except OutputRefused as exc:
+        raise click.BadParameter(str(exc), param_hint=option) from None
     except OSError as exc:
         raise click.BadParameter(
             f"cannot write {path}: {exc.strerror or exc}; choose a file in an existing, "

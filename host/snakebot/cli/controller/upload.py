@@ -11,6 +11,7 @@ import click
 
 from snakebot.cli.options import ControllerLink, controller_options
 from snakebot.cli.output import dumps
+from snakebot.cli.params import INPUT_PATH
 from snakebot.formats.gaittable import GaitTable, read_gait
 from snakebot.formats.program import Program
 from snakebot.formats.program.files import is_program_file, read_program
@@ -18,7 +19,7 @@ from snakebot.link.controller.upload import UploadReport, upload_gait
 
 
 @click.command("upload")
-@click.argument("gait", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("gait", type=INPUT_PATH)
 @controller_options
 @click.option(
     "--new-servos",

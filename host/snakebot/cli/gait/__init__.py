@@ -22,12 +22,16 @@ from snakebot.cli.options import (
     wave_options,
 )
 from snakebot.cli.output import echo_json
-from snakebot.cli.params import ANGLE, ANGLES, NUMBER, NumberType
+from snakebot.cli.params import ANGLE, ANGLES, EXISTING_INPUT, NUMBER, NumberType
 from snakebot.extras import require
 from snakebot.formats.gaittable import GaitTable, describe_table, read_gait, sidecar_path
 from snakebot.model.gait import Gait, field_gait, serpenoid
 from snakebot.model.gait.files import save_gait
 from snakebot.model.robots import load_robot
+
+MIN_FIELD_TOLERANCE = 1e-3
+"""The smallest --tolerance of `gait field`: it already asks for a 100-second table that
+moves the robot a ten-thousandth of its length; 1e-300 divided by zero."""
 
 
 @click.group("gait")
@@ -198,9 +202,10 @@ def serpenoid_command(
 )
 @click.option(
     "--tolerance",
-    type=NumberType(0, low_open=True),
-    help="largest relative error per loop against the "
-    "bracket prediction; picks A (default 0.05 unless --amplitude is given)",
+    type=NumberType(MIN_FIELD_TOLERANCE, 1),
+    help="largest relative error per loop against the bracket prediction; picks A "
+    f"(default 0.05 unless --amplitude is given; {MIN_FIELD_TOLERANCE:g} to 1: a smaller "
+    "one makes loops too small to move the robot)",
 )
 @click.option(
     "--start",
@@ -257,7 +262,7 @@ def field_command(
 
 
 @gait.command("show")
-@click.argument("file", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.argument("file", type=EXISTING_INPUT)
 @plot_option("the joint angles and the predicted body path")
 @json_option()
 def show(file: Path, plot: Path | None, as_json: bool) -> None:

@@ -12,7 +12,8 @@ import click
 
 from snakebot.cli.options import json_option, plot_option, rate_option, robot_argument, world_option
 from snakebot.cli.output import echo_json
-from snakebot.cli.params import NumberType
+from snakebot.cli.params import OUTPUT_PATH, NumberType
+from snakebot.userfiles import OutputRefused, same_file
 from snakebot.workflows.search import (
     METHODS,
     OBJECTIVES,
@@ -24,8 +25,13 @@ from snakebot.workflows.search import (
 )
 from snakebot.workflows.search.report import best_gait_path, search_robot, summarise, write_best
 from snakebot.workflows.search.results import check_path
+from snakebot.workflows.search.runner import MAX_WORKERS
+from snakebot.workflows.search.space import MAX_RUNS
 
 PATH = click.Path(dir_okay=False, path_type=Path)
+
+CYCLES = NumberType(0, 1000, low_open=True)
+"""Cycles per run: at most 1000, so one run stays bounded (a grid multiplies it)."""
 
 
 @click.command("search")
@@ -59,7 +65,7 @@ PATH = click.Path(dir_okay=False, path_type=Path)
 @click.option("--method", type=click.Choice(METHODS), default="grid", show_default=True)
 @click.option(
     "--samples",
-    type=click.IntRange(min=1),
+    type=click.IntRange(1, MAX_RUNS),
     default=100,
     show_default=True,
     help="random: how many candidates; cma: the budget of candidates",
@@ -69,7 +75,7 @@ PATH = click.Path(dir_okay=False, path_type=Path)
 )
 @click.option(
     "--cycles",
-    type=NumberType(0, low_open=True),
+    type=CYCLES,
     default=3.0,
     show_default=True,
     help="gait cycles per run",
@@ -77,8 +83,9 @@ PATH = click.Path(dir_okay=False, path_type=Path)
 @rate_option
 @click.option(
     "--workers",
-    type=click.IntRange(min=1),
-    help="processes on this machine (default: one per core; 1 runs in this process)",
+    type=click.IntRange(1, MAX_WORKERS),
+    help="processes on this machine (default: one per core; 1 runs in this process; "
+    f"at most {MAX_WORKERS}, each holds its own world)",
 )
 @click.option(
     "--cluster",
@@ -88,14 +95,14 @@ PATH = click.Path(dir_okay=False, path_type=Path)
 @click.option(
     "--output",
     "-o",
-    type=PATH,
+    type=OUTPUT_PATH,
     help="results table, .parquet or .csv (one row per run); an existing one is resumed: "
     "finished runs are skipped",
 )
 @click.option(
     "--best",
     "best_path",
-    type=PATH,
+    type=OUTPUT_PATH,
     help="write the best gait here (default with -o: RESULTS.best.gait)",
 )
 @plot_option("the scores: a heat map (grid) or a Pareto plot")
@@ -131,6 +138,9 @@ def search_command(
     if output is not None:
         check_path(output)
     best_path = best_gait_path(best_path, output)
+    for path in (best_path, plot):
+        if path is not None and output is not None and path != output and same_file(path, output):
+            raise OutputRefused(f"{path} is also the results table -o: give each its own file")
     robot_obj = search_robot(robot)
     settings = Settings(robot_obj.source or robot, world, cycles, rate)
     request = Request(

@@ -20,11 +20,11 @@ from snakebot.cli.options import (
     world_option,
 )
 from snakebot.cli.output import echo_json
-from snakebot.cli.params import NUMBER
+from snakebot.cli.params import EXISTING_INPUT, NumberType
 from snakebot.extras import require
 from snakebot.formats.program.files import is_program_file
 from snakebot.plots.video import StateMotion, check_video_path, write_video
-from snakebot.workflows.predict import DEFAULT_WORLD_HZ, predict_file
+from snakebot.workflows.predict import DEFAULT_WORLD_HZ, MAX_WORLD_HZ, predict_file
 
 
 def _motion(label: str, m: dict[str, Any]) -> str:
@@ -32,9 +32,7 @@ def _motion(label: str, m: dict[str, Any]) -> str:
 
 
 @click.command("predict")
-@click.argument(
-    "gait_file", metavar="FILE", type=click.Path(exists=True, dir_okay=False, path_type=Path)
-)
+@click.argument("gait_file", metavar="FILE", type=EXISTING_INPUT)
 @robot_option(
     "Robot to emulate",
     otherwise="the one named in GAIT.json; for a program, the built-in robot whose joints "
@@ -43,7 +41,7 @@ def _motion(label: str, m: dict[str, Any]) -> str:
 @ideal_option
 @click.option(
     "--world-rate",
-    type=NUMBER,
+    type=NumberType(0, MAX_WORLD_HZ, low_open=True),
     default=DEFAULT_WORLD_HZ,
     show_default=True,
     help="how often (Hz, bus time) the world samples modelled servos; at least once per frame",

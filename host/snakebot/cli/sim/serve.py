@@ -14,7 +14,7 @@ import click
 from snakebot.cli.live import RATE_HZ, foxglove_option
 from snakebot.cli.options import json_option, robot_option, world_option
 from snakebot.cli.output import dumps
-from snakebot.cli.params import NumberType
+from snakebot.cli.params import INPUT_PATH, NumberType
 from snakebot.cli.signals import STOP_SIGNALS
 from snakebot.sim.errors import SimFailure
 from snakebot.sim.serve import BOARDS, DEFAULT_BOARD, EmulatedRobot
@@ -36,7 +36,7 @@ long it serves (the pose reports need only the latest)."""
 )
 @click.option(
     "--firmware",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=INPUT_PATH,
     default=None,
     help="Firmware to run. cm530: the CM-530 image (.elf, .bin or .hex). qemu: the qemu "
     "board's application ELF (the boot stub beside it goes in front) or a whole-flash .bin. "

@@ -16,9 +16,14 @@ from snakebot.cli.options import (
     video_option,
 )
 from snakebot.cli.output import dumps, echo_json
-from snakebot.cli.params import LazyChoice
+from snakebot.cli.params import EXISTING_INPUT, LazyChoice
 from snakebot.errors import InputError
 from snakebot.plots.video import check_video_path, write_video
+
+MAX_MU = 1000.0
+"""The largest friction coefficient tried: rubber on concrete is about 1."""
+MAX_MU_VALUES = 50
+"""The most friction values one study runs (each is a MuJoCo run of the whole gait)."""
 
 
 def _floats(text: str) -> tuple[float, ...]:
@@ -26,8 +31,15 @@ def _floats(text: str) -> tuple[float, ...]:
         values = tuple(float(v) for v in text.split(",") if v.strip())
     except ValueError:
         values = ()
-    if not values or not all(math.isfinite(v) and v > 0 for v in values):
-        raise InputError(f"--mu {text!r}: give positive numbers separated by commas, e.g. 0.1,1,10")
+    if not values or not all(math.isfinite(v) and 0 < v <= MAX_MU for v in values):
+        raise InputError(
+            f"--mu {text!r}: give numbers more than 0 and at most {MAX_MU:g} separated by "
+            "commas, e.g. 0.1,1,10"
+        )
+    if len(values) > MAX_MU_VALUES:
+        raise InputError(
+            f"--mu {text!r}: at most {MAX_MU_VALUES} values (each is a physics run of its own)"
+        )
     return values
 
 
@@ -121,9 +133,7 @@ def _run_lines(s: dict) -> list[str]:
 
 
 @click.command("friction")
-@click.argument(
-    "gait_file", metavar="GAIT", type=click.Path(exists=True, dir_okay=False, path_type=Path)
-)
+@click.argument("gait_file", metavar="GAIT", type=EXISTING_INPUT)
 @robot_option("Robot to emulate", otherwise="the one named in GAIT.json")
 @click.option(
     "--mu",

@@ -1,7 +1,8 @@
 """``.gait`` files: the table's bytes in FILE, its metadata in FILE.json beside it.
 
-Both are written to temporary files in the same directory first and moved into place
-with ``os.replace`` only when complete, so an error never leaves a half-written file. The
+Both are written the one way outputs are (``snakebot.userfiles``): to temporary files in
+the same directory, moved into place only when complete, so an error never leaves a
+half-written file, and never through a symbolic link. The
 sidecar records the table's CRC, so a sidecar that belongs to another table is noticed.
 """
 
@@ -9,14 +10,19 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
 from snakebot.formats.gaittable.errors import GaitTableError
 from snakebot.formats.gaittable.layout import MAX_TABLE_BYTES
 from snakebot.formats.gaittable.table import GaitTable
-from snakebot.userfiles import FileTooLarge, new_file_mode, read_bounded
+from snakebot.userfiles import (
+    FileTooLarge,
+    OutputRefused,
+    UnreadableInput,
+    read_bounded,
+    staged_output,
+)
 
 SIDECAR_FORMAT = "snakebot-gait-metadata"
 
@@ -56,39 +62,21 @@ def write_gait(path: str | os.PathLike[str], table: GaitTable) -> None:
             "finite numbers and booleans (convert numpy values with float()/int()/.tolist())",
             "not_json",
         ) from exc
-    staged: list[tuple[Path, Path]] = []
     try:
-        for target, data in ((sidecar_path(path), text.encode()), (path, table.encode())):
-            staged.append((_stage(target, data), target))
-        # The sidecar goes first: if we die between the two moves, the old binary and the
-        # new sidecar disagree on the CRC and read_gait says so.
-        for temp, target in staged:
-            os.replace(temp, target)
+        # The sidecar is moved into place first (the inner block ends first): if we die
+        # between the two moves, the old binary and the new sidecar disagree on the CRC
+        # and read_gait says so.
+        with staged_output(path) as table_temp, staged_output(sidecar_path(path)) as side_temp:
+            side_temp.write_bytes(text.encode())
+            table_temp.write_bytes(table.encode())
     except OSError as exc:
         raise GaitTableError(
             f"cannot write gait table {path}: {exc.strerror or exc}; check the directory "
             "exists and is writable",
             "no_file",
         ) from exc
-    finally:
-        for temp, _ in staged:
-            if temp.exists():
-                temp.unlink()
-
-
-def _stage(target: Path, data: bytes) -> Path:
-    fd, name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
-    try:
-        # mkstemp makes the file 0600; the finished file gets what open() would give it.
-        os.fchmod(fd, new_file_mode())
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-    except BaseException:
-        Path(name).unlink(missing_ok=True)
-        raise
-    return Path(name)
+    except OutputRefused as exc:
+        raise GaitTableError(f"cannot write gait table {path}: {exc}", "no_file") from None
 
 
 def read_gait(path: str | os.PathLike[str]) -> GaitTable:
@@ -97,8 +85,9 @@ def read_gait(path: str | os.PathLike[str]) -> GaitTable:
     path = Path(path)
     try:
         data = read_bounded(path, MAX_TABLE_BYTES, "gait table")
-    except FileTooLarge as exc:
-        raise GaitTableError(str(exc), "too_big") from exc
+    except UnreadableInput as exc:
+        code = "too_big" if isinstance(exc, FileTooLarge) else "no_file"
+        raise GaitTableError(str(exc), code) from exc
     except OSError as exc:
         raise GaitTableError(
             f"cannot read gait table {path}: {exc.strerror or exc}; check the path "
@@ -120,7 +109,7 @@ def _read_metadata(sidecar: Path, table: GaitTable) -> dict[str, Any]:
         )
         crc = raw["table"]["crc32"]
         metadata = raw["metadata"]
-    except (OSError, ValueError, KeyError, TypeError, RecursionError, FileTooLarge) as exc:
+    except (OSError, ValueError, KeyError, TypeError, RecursionError, UnreadableInput) as exc:
         why = "nested too deeply" if isinstance(exc, RecursionError) else str(exc)
         raise GaitTableError(
             f"gait metadata {sidecar} is unreadable ({why}): delete it or write the gait again",

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from snakebot.formats.program.errors import ProgramError
 from snakebot.formats.program.layout import CAPACITY, MAGIC, Program
-from snakebot.userfiles import FileTooLarge, read_bounded
+from snakebot.userfiles import UnreadableInput, read_bounded, write_atomic
 
 
 def read_program(path: str | os.PathLike[str]) -> Program:
@@ -16,7 +16,7 @@ def read_program(path: str | os.PathLike[str]) -> Program:
     or what the controller would refuse it for)."""
     try:
         data = read_bounded(path, CAPACITY, "program")
-    except FileTooLarge as exc:
+    except UnreadableInput as exc:
         raise ProgramError(str(exc)) from exc
     except OSError as exc:
         raise ProgramError(
@@ -34,12 +34,9 @@ def write_program(path: str | os.PathLike[str], program: Program) -> None:
     leaves no half-written program)."""
     target = Path(path)
     data = program.encode()
-    temp = target.with_name(f".{target.name}.tmp")
     try:
-        temp.write_bytes(data)
-        os.replace(temp, target)
+        write_atomic(target, data)
     except OSError as exc:
-        temp.unlink(missing_ok=True)
         raise ProgramError(
             f"cannot write {target}: {exc.strerror or exc}; choose a writable path"
         ) from exc

@@ -8,8 +8,6 @@ adapter (or the emulator); registers and units come from the AX-12 description.
 
 from __future__ import annotations
 
-import os
-import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,6 +21,7 @@ from snakebot.link.bus.scan import identify
 from snakebot.link.transport import DxlClient
 from snakebot.model.robots.loader import parse_robot
 from snakebot.model.robots.model import Joint, Robot
+from snakebot.userfiles import write_atomic
 
 JOG_DEG = 10.0
 """How far each joint is turned to show its direction."""
@@ -166,11 +165,4 @@ def updated_text(text: str, found: list[JointCalibration]) -> str:
 
 def write_atomically(path: Path, text: str) -> None:
     """Replace ``path`` by ``text`` in one step: a reader sees the old file or the new."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_atomic(path, text)  # keeps the file's mode: a 0644 robot file stays 0644

@@ -25,13 +25,18 @@ SCHEMA = {
 """What each message holds: :meth:`snakebot.link.controller.monitor.Sample.as_record`."""
 
 
+FLUSH_S = 1.0
+"""How often the chunk in progress is written to the file: what a SIGKILL can lose."""
+
+
 class McapUnavailable(InputError):
     """The mcap package is not installed."""
 
 
 class McapLog:
-    """Writes telemetry records to an open binary stream; :meth:`close` writes the index
-    (a file cut short without it still holds every finished chunk)."""
+    """Writes telemetry records to an open binary stream, one chunk a second;
+    :meth:`close` writes the index (a file cut short without it still holds every
+    finished chunk, and ``snakebot compare`` reads it)."""
 
     def __init__(self, stream: IO[bytes]) -> None:
         try:
@@ -49,9 +54,13 @@ class McapLog:
         self._channel = self._writer.register_channel(
             topic=TOPIC, message_encoding="json", schema_id=schema
         )
+        self._writer.flush()  # the header, schema and channel: a cut file still reads
+        self._flushed = time.monotonic()
 
     def write(self, record: dict[str, Any], stamp_ns: int | None = None) -> None:
-        """One sample's record, at ``stamp_ns`` (default: now)."""
+        """One sample's record, at ``stamp_ns`` (default: now). The chunk in progress is
+        written out once it is :data:`FLUSH_S` old, so a file cut by a kill holds every
+        sample but those of the last second."""
         stamp = time.time_ns() if stamp_ns is None else stamp_ns
         self._writer.add_message(
             channel_id=self._channel,
@@ -59,6 +68,10 @@ class McapLog:
             publish_time=stamp,
             data=json.dumps(record).encode(),
         )
+        now = time.monotonic()
+        if now - self._flushed >= FLUSH_S:
+            self._writer.flush()
+            self._flushed = now
 
     def close(self) -> None:
         self._writer.finish()

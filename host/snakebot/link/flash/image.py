@@ -28,7 +28,7 @@ from snakebot.facts.boards import APP_BASE
 from snakebot.link.flash.errors import ImageError
 from snakebot.link.flash.formats import elf_chunks, flat_image, hex_chunks, kind_of
 from snakebot.paths import REPO_ROOT
-from snakebot.userfiles import FileTooLarge, read_bounded
+from snakebot.userfiles import FileTooLarge, UnreadableInput, read_bounded
 
 BOARD = "cm530"
 """The board `snakebot flash` programs: the firmware's board directory and the name its
@@ -182,6 +182,8 @@ def load_image(
         data = read_bounded(path, FILE_MAX, "firmware file")
     except FileTooLarge as exc:
         raise ImageError(_too_big(path, exc.size, layout)) from None
+    except UnreadableInput as exc:
+        raise ImageError(str(exc)) from None
     except FileNotFoundError:
         raise ImageError(
             f"firmware image {path} not found: build it with make firmware (it writes "

@@ -25,6 +25,7 @@ from snakebot.link.controller.client import ControllerClient
 from snakebot.link.controller.errors import LibraryRefused
 from snakebot.link.controller.library import backup, restore
 from snakebot.settings import lookup_path
+from snakebot.userfiles import UnreadableInput, read_text_bounded, write_atomic
 
 BACKUP_DIR_ENV = "SNAKEBOT_LIBRARY_BACKUP_DIR"
 """Overrides where backups go (default: ``library-backups`` in click's application
@@ -75,16 +76,21 @@ def backup_library(port: str, say: Say, warn: Say) -> Path | None:
     folder = backup_dir()
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"library-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}.json"
-    path.write_text(json.dumps(saved, indent=1) + "\n")
+    write_atomic(path, json.dumps(saved, indent=1) + "\n")
     say(f"Backed up {len(stored)} gait-library slot(s) to {path}")
     return path
+
+
+MAX_BACKUP_BYTES = 1 << 20
+"""The largest library backup read: the board's whole 512 KB flash in base64 (683 KB) and
+its JSON fit."""
 
 
 def read_backup(path: Path) -> dict[str, Any]:
     """A backup file's contents; LibraryRefused naming the problem if it is not one."""
     try:
-        saved = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
+        saved = json.loads(read_text_bounded(path, MAX_BACKUP_BYTES, "library backup"))
+    except (OSError, ValueError, RecursionError, UnreadableInput) as exc:
         raise LibraryRefused(f"cannot read the library backup {path}: {exc}") from exc
     if not isinstance(saved, dict):
         raise LibraryRefused(f"{path} is not a snakebot library backup: pass a file flash wrote")

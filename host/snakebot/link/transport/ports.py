@@ -14,12 +14,12 @@ import os
 import re
 import stat
 import sys
-import tempfile
-from pathlib import Path
+from urllib.parse import urlsplit
 
 import serial
 
 from snakebot.link.transport.errors import PortError
+from snakebot.link.transport.portlock import PortLock
 from snakebot.link.transport.timing import DEFAULT_BAUDRATE
 
 if sys.platform.startswith("linux"):
@@ -64,51 +64,25 @@ def _explain(url: str, exc: BaseException) -> str:
     return f"could not open serial port {url}: {text}"
 
 
-LOCK_DIR_NAME = "snakebot-ports"
-"""Directory (in the temporary directory, one per user) of the lock files that name each
-port's holder; the device's own ``flock`` keeps other users' programs out."""
-
-
-def _lock_path(device: str) -> Path:
-    # The real path, so a symlink (sim bus --link /tmp/ttyDXL) and its target share a lock.
-    name = os.path.realpath(device).strip("/").replace("/", "_") or "root"
-    return Path(tempfile.gettempdir()) / f"{LOCK_DIR_NAME}-{os.getuid()}" / f"{name}.lock"
-
-
-class PortLock:
-    """An advisory lock on a device, held for as long as the port is open: a lock file
-    locked with ``flock`` (released by the kernel when the process ends, however it ends)
-    that names the holder, so a second opener can say who has the port."""
-
-    def __init__(self, device: str) -> None:
-        import fcntl  # POSIX only; Windows opens a COM port exclusively by itself
-
-        self.path = _lock_path(device)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o666)
-        try:
-            fcntl.flock(self._fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            holder = os.pread(self._fd, 512, 0).decode(errors="replace").strip()
-            os.close(self._fd)
-            raise PortError(
-                device,
-                f"serial port {device} is in use by {holder or 'another snakebot'}: stop "
-                "that program first (two programs on one port read each other's replies)",
-            ) from None
-        holder = f"pid {os.getpid()} ({' '.join(Path(a).name for a in sys.argv[:3])})"
-        os.ftruncate(self._fd, 0)
-        os.pwrite(self._fd, holder.encode(), 0)
-
-    def release(self) -> None:
-        if self._fd >= 0:
-            os.ftruncate(self._fd, 0)
-            os.close(self._fd)  # closing the descriptor releases the flock
-            self._fd = -1
-
-
 def _is_device(url: str) -> bool:
     return "://" not in url
+
+
+DEVICE_SCHEMES = ("spy", "alt")
+"""pyserial URL schemes whose path is a local device (``spy:///dev/ttyUSB0``, a logging
+wrapper; ``alt:///dev/ttyUSB0?class=...``, another implementation): they lock it as a
+device path does, so a wrapper cannot get round the one-program-per-port lock."""
+
+
+def device_of(url: str) -> str | None:
+    """The local device ``url`` opens (itself for a path, the path inside a ``spy://``
+    or ``alt://`` URL), or None (a network or emulated port)."""
+    if _is_device(url):
+        return url
+    parts = urlsplit(url)
+    if parts.scheme.lower() in DEVICE_SCHEMES:
+        return (parts.netloc + parts.path) or None
+    return None
 
 
 LINUX_PTY_SLAVE_MAJORS = range(136, 144)
@@ -140,13 +114,15 @@ def open_port(
     """Open ``url`` (device path or pyserial URL) at ``baudrate``, 8N1, with read ``timeout``
     in seconds (None blocks). Raises :class:`PortError` naming the port and the fix.
 
-    A device (a path, not a URL) is opened exclusively: a second opener, in this process
+    A device (a path, or a URL of :data:`DEVICE_SCHEMES` that wraps one) is opened
+    exclusively: a second opener, in this process
     or another, gets a PortError naming the first (snakebot's) or saying the port is busy
     (another program's ``flock``, as pyserial's ``exclusive`` takes it)."""
     if not url:
         raise PortError(url, "no serial port given: pass a device (/dev/ttyUSB0) or a URL")
     posix = os.name == "posix"
-    lock = PortLock(url) if posix and _is_device(url) and os.path.exists(url) else None
+    device = device_of(url) if posix else None
+    lock = PortLock(device) if device is not None and os.path.exists(device) else None
     try:
         port = _open(url, baudrate, timeout, exclusive=lock is not None)
     except BaseException:

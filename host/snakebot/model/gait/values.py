@@ -46,9 +46,14 @@ def _number(node: ast.AST, text: str) -> float:
                 return a * b
             if isinstance(node.op, ast.Div):
                 return a / b
-            return a**b
+            power = a**b
         except (ZeroDivisionError, OverflowError) as exc:
             raise ExpressionError(f"cannot compute {text!r} ({exc})") from None
+        if isinstance(power, complex):  # a negative number to a fractional power
+            raise ExpressionError(
+                f"{text!r} is not a real number (a negative base to a fractional power)"
+            )
+        return power
     raise ExpressionError(
         f"cannot read {text!r}: use a number, pi, + - * / and an optional "
         "'deg' suffix (e.g. 0.5, pi/3, -60deg)"

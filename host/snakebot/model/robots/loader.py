@@ -34,6 +34,7 @@ if sys.version_info >= (3, 11):
 else:  # the same parser as a package (a dependency on Python 3.10 only)
     import tomli as tomllib
 
+from snakebot.formats.nesting import too_deep
 from snakebot.model.robots.model import (
     SERVO_MAX_RPM,
     TICK_MAX,
@@ -45,7 +46,7 @@ from snakebot.model.robots.model import (
     RobotError,
     joint_name,
 )
-from snakebot.userfiles import FileTooLarge, read_bounded
+from snakebot.userfiles import UnreadableInput, read_bounded
 
 BUILTIN_ROBOTS = ("snake3", "trident", "snake5", "car")
 MAX_LINKS = 16  # the C core's fixed buffers (KIN_MAX_LINKS)
@@ -257,6 +258,9 @@ def _physics(reader: _Reader) -> Physics | None:
 
 def parse_robot(text: str, source: str = "<robot>") -> Robot:
     """Build a ``Robot`` from TOML text; ``source`` names it in error messages."""
+    deep = too_deep(text)
+    if deep is not None:
+        raise RobotError(f"{source} {deep}")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -350,7 +354,7 @@ def load_robot(name_or_path: str | Path) -> Robot:
         )
     try:
         raw = read_bounded(path, MAX_FILE_BYTES, "robot description")
-    except FileTooLarge as exc:
+    except UnreadableInput as exc:
         raise RobotError(str(exc)) from None
     except OSError as exc:
         raise RobotError(f"cannot read robot file {path}: {exc.strerror or exc}") from None

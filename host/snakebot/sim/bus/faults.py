@@ -28,6 +28,9 @@ from dataclasses import dataclass, field
 
 from snakebot.sim.errors import SimOptionError
 
+MAX_BROWNOUT_S = 1e6
+"""The latest start and the longest duration of a brownout (11 days of bus time)."""
+
 
 @dataclass(frozen=True)
 class Brownout:
@@ -49,10 +52,14 @@ class Brownout:
                 f"brownout {text!r} is not ID@START+DURATION: write e.g. 3@0.5+0.2 for "
                 "servo 3 losing power at 0.5 s for 0.2 s"
             ) from None
-        if result.start_s < 0 or not result.duration_s > 0:
+        start_ok = 0 <= result.start_s <= MAX_BROWNOUT_S  # NaN fails both
+        if not (start_ok and 0 < result.duration_s <= MAX_BROWNOUT_S):
             raise SimOptionError(
-                f"brownout {text!r}: the start must be >= 0 s and the duration > 0 s"
+                f"brownout {text!r}: the start must be 0 to {MAX_BROWNOUT_S:g} s and the "
+                f"duration more than 0 and at most {MAX_BROWNOUT_S:g} s"
             )
+        if not 0 <= result.servo_id <= 253:
+            raise SimOptionError(f"brownout {text!r}: the servo ID must be 0..253")
         return result
 
 

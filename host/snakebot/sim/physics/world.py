@@ -53,7 +53,23 @@ def _mujoco() -> Any:
             "the physics world needs MuJoCo: pip install 'snakebot[physics]' (make setup "
             "installs it)"
         ) from None
+    global _warnings_kept
+    if not _warnings_kept:
+        # MuJoCo's own handler appends every warning (a blow-up's "Nan, Inf or huge
+        # value") to MUJOCO_LOG.TXT in the working directory; the worlds read the warning
+        # counters instead, so the text is kept here, the last few, and no file is made.
+        mujoco.set_mju_user_warning(_keep_warning)
+        _warnings_kept = True
     return mujoco
+
+
+_warnings_kept = False
+MUJOCO_WARNINGS: deque[str] = deque(maxlen=16)
+"""MuJoCo's last warnings, newest last."""
+
+
+def _keep_warning(message: str) -> None:
+    MUJOCO_WARNINGS.append(message)
 
 
 @dataclass(frozen=True)

@@ -10,13 +10,14 @@ previous or the new table, never half of one.
 from __future__ import annotations
 
 import csv
+import io
 import math
-import os
 from collections.abc import Iterable
 from dataclasses import asdict, fields
 from pathlib import Path
 from typing import Any
 
+from snakebot.userfiles import UnreadableInput, read_bounded, staged_output
 from snakebot.workflows.search.evaluate import METRICS, Settings
 from snakebot.workflows.search.space import GAIT_PARAMETERS, ROBUST_PARAMETERS, SearchError
 
@@ -73,8 +74,7 @@ def _complete(row: dict[str, Any]) -> dict[str, Any]:
 def write_results(path: Path, rows: Iterable[dict[str, Any]]) -> None:
     """Write every row (all COLUMNS; a missing value is NaN) atomically."""
     table = [_complete(r) for r in rows]
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
+    with staged_output(path) as tmp:
         if path.suffix.lower() == ".parquet":
             import pyarrow as pa
             import pyarrow.parquet as pq
@@ -89,13 +89,15 @@ def write_results(path: Path, rows: Iterable[dict[str, Any]]) -> None:
                 writer = csv.DictWriter(fh, fieldnames=COLUMNS)
                 writer.writeheader()
                 writer.writerows({c: _csv(r[c]) for c in COLUMNS} for r in table)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 def _csv(value: Any) -> Any:
     return repr(value) if isinstance(value, float) else value
+
+
+MAX_RESULTS_BYTES = 256 << 20
+"""The largest results table resumed from: the most runs a search may have
+(``space.MAX_RUNS``) at a few hundred bytes a row."""
 
 
 def read_results(path: Path) -> list[dict[str, Any]]:
@@ -103,18 +105,19 @@ def read_results(path: Path) -> list[dict[str, Any]]:
     if not path.exists():
         return []
     try:
+        data = read_bounded(path, MAX_RESULTS_BYTES, "search results table")
         if path.suffix.lower() == ".parquet":
+            import pyarrow as pa
             import pyarrow.parquet as pq
 
-            rows = pq.read_table(path).to_pylist()
+            rows = pq.read_table(pa.BufferReader(data)).to_pylist()
         else:
-            with open(path, newline="") as fh:
-                rows = list(csv.DictReader(fh))
+            rows = list(csv.DictReader(io.StringIO(data.decode("utf-8"), newline="")))
         missing = [c for c in COLUMNS if rows and c not in rows[0]]
         if missing:
             raise ValueError(f"no column {missing[0]!r}")
         return [_complete(r) for r in rows]
-    except (ValueError, OSError, KeyError) as exc:
+    except (ValueError, OSError, KeyError, UnreadableInput) as exc:
         raise SearchError(
             f"cannot resume from {path}: it is not a search results table ({exc}); "
             "choose another -o or remove it"

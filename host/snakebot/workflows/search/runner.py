@@ -93,6 +93,11 @@ class DaskRunner:
         self._client.close()
 
 
+MAX_WORKERS = 64
+"""The most worker processes on this machine: each holds a Python with its world (about
+100 MB with MuJoCo), so 100,000 of them would take the machine."""
+
+
 def make_runner(workers: int | None, cluster: str | None) -> Runner:
     """The runner asked for: a Dask client, this process (``workers == 1``) or a pool."""
     if cluster:

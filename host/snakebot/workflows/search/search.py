@@ -28,7 +28,7 @@ from snakebot.workflows.search.results import (
     write_results,
 )
 from snakebot.workflows.search.runner import Runner, batches_of
-from snakebot.workflows.search.space import SearchError, Space
+from snakebot.workflows.search.space import MAX_RUNS, SearchError, Space
 
 OBJECTIVES = {
     "distance": ("distance_per_cycle", 1.0),
@@ -85,6 +85,13 @@ class Request:
                 axis.values()  # a grid needs every count
         for axis in self.space.robust:
             axis.values()
+        runs = self.space.run_count(self.method, self.samples)
+        if runs > MAX_RUNS:
+            raise SearchError(
+                f"this search would make {runs:,} runs, more than the {MAX_RUNS:,} one search "
+                "may (its time and memory grow with them): use fewer values per parameter, "
+                "fewer --samples or --robust values, or search in stages"
+            )
 
 
 @dataclass

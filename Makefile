@@ -25,7 +25,7 @@ TEST_JOBS   ?= $(shell echo $$(( $$(nproc) * 2 )))
 QEMU_JOBS   ?= $(shell nproc)
 SERIAL_JOBS ?= 3
 
-.PHONY: help setup system-packages demo-packages python-env runtime-env core firmware \
+.PHONY: dist help setup system-packages demo-packages python-env runtime-env core firmware \
         test test-suite test-parallel test-qemu test-serial test-fuzz-wheel test-fuzz test-wheel lint fuzz-targets bench demo flash flash-image clean fuzz docs
 
 help:
@@ -36,6 +36,7 @@ help:
 	@echo "make bench     run the benchmarks"
 	@echo "make fuzz FUZZ_SECONDS=60   fuzz the parser and the PC link (libFuzzer, clang)"
 	@echo "make lint      ruff check, ruff format --check, and the Python 3.10 check (vermin)"
+	@echo "make dist      the sdist and the wheel into dist/ (python -m build)"
 	@echo "make docs      API reference from the docstrings (pdoc) into build/docs/"
 	@echo "make flash PORT=/dev/ttyUSB0   flash the CM-530 through the ROBOTIS bootloader"
 	@echo "V=1 shows the commands (compiler lines included)"
@@ -179,6 +180,12 @@ flash:
 
 flash-image: demo-packages runtime-env firmware
 	$(Q)$(PY) -m snakebot flash build/cm530/firmware.bin --port $(PORT)
+
+# The sdist and the wheel. PyPA's build comes with the dev extras; it must be installed:
+# without it `python -m build` finds this checkout's build/ folder (the firmware images)
+# and stops with "'build' is a package".
+dist: python-env
+	$(Q)$(PY) -m build --outdir dist .
 
 # API reference from the docstrings; the prose documents are docs/*.md.
 DOCS_DIR ?= build/docs

@@ -12,7 +12,7 @@ from snakebot.cli.output import dumps
 from snakebot.cli.params import OUTPUT_PATH, wave_options
 from snakebot.plots.demo import draw_demo
 from snakebot.plots.video import check_video_path
-from snakebot.sim.physics.select import WORLDS
+from snakebot.sim.physics.select import WORLDS, require_world
 from snakebot.workflows.demo import DemoSettings, run_demo, summary_lines
 
 EXIT_INTERRUPTED = 130  # as a shell reports a program stopped by Ctrl-C
@@ -104,6 +104,7 @@ def demo(
         world=world,
         video=video,
     )
+    require_world(world)
     if video is not None:
         check_video_path(video)
     say = (lambda _line: None) if as_json else click.echo

@@ -12,6 +12,7 @@ import click
 from snakebot.cli.controller.link import controller_id_option
 from snakebot.cli.output import dumps
 from snakebot.cli.params import ANGLE, ANGLES, NUMBER, OUTPUT_PATH, controller_port
+from snakebot.extras import require
 from snakebot.facts.boards import TABLE_CAPACITY
 from snakebot.model.gait.values import InputError, parse_angle, parse_number
 from snakebot.model.plan import Unreachable
@@ -216,6 +217,9 @@ def plan_command(
       snakebot plan trident --to 1,0.5,30deg -o go.prog
       snakebot upload go.prog --port /dev/ttyUSB0 && snakebot play --port /dev/ttyUSB0
     """
+    require("scipy", "planning", extra="plan")
+    if plot is not None:
+        require("matplotlib", "--plot")
     from snakebot.model.plan import make_plan
     from snakebot.model.plan.program import plan_program
     from snakebot.model.robots import load_robot
@@ -252,6 +256,7 @@ def plan_command(
         _write_program(plan, output, as_json)
         return
     summary = plan.summary()
+    summary.update(length_unit=chosen.length_unit, length_legend=chosen.length_legend)
     if output is not None:
         from snakebot.formats.gaittable import sidecar_path, write_gait
 
@@ -287,6 +292,7 @@ def _write_program(plan: Any, output: Path, as_json: bool) -> None:
 
     write_program(output, plan.program)
     s = plan.summary()
+    s.update(length_unit=plan.robot.length_unit, length_legend=plan.robot.length_legend)
     s["file"] = str(output)
     if as_json:
         click.echo(dumps(s, indent=2))
@@ -305,19 +311,22 @@ def _write_program(plan: Any, output: Path, as_json: bool) -> None:
 
 def _print_pose(s: dict[str, Any], how: str) -> None:
     t, f, e = s["target"], s["predicted_final"], s["error"]
+    u = s["length_unit"]
     click.echo(
-        f"  target     x = {t['x']: .4f}  y = {t['y']: .4f}  theta = "
+        f"  target     x = {t['x']: .4f} {u}  y = {t['y']: .4f} {u}  theta = "
         f"{math.degrees(t['theta']): .2f} deg"
     )
     click.echo(
-        f"  predicted  x = {f['x']: .4f}  y = {f['y']: .4f}  theta = "
+        f"  predicted  x = {f['x']: .4f} {u}  y = {f['y']: .4f} {u}  theta = "
         f"{math.degrees(f['theta']): .2f} deg ({how})"
     )
     click.echo(
-        f"  error {e['position']:.4g} (tolerance {e['position_tolerance']:.4g}), heading "
+        f"  error {e['position']:.4g} {u} (tolerance {e['position_tolerance']:.4g} {u}), heading "
         f"{math.degrees(e['heading_rad']):.3f} deg (tolerance "
         f"{math.degrees(e['heading_tolerance_rad']):.2f} deg)"
     )
+    if s["length_legend"]:
+        click.echo(f"  ({s['length_legend']})")
 
 
 def _print(s: dict[str, Any]) -> None:

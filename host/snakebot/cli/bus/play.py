@@ -36,6 +36,17 @@ _PRESENT = _AX12.register("Present Position")
 _SPEED = _AX12.register("Moving Speed")
 
 
+def _paced(port: str) -> str:
+    """``port``, with the emulated bus of a ``sim://`` URL tied to the wall clock: the
+    player ticks on the wall clock, so the servos must move in its time too (otherwise
+    the emulated bus runs only while the host waits for a reply, and the servos would
+    hardly move during the gait). A URL that names its own ``realtime`` is left alone,
+    as is ``sim://NAME`` with no options (a bus opened earlier keeps its own)."""
+    if not port.startswith("sim://") or "realtime=" in port or "?" not in port:
+        return port
+    return port + ("" if port.endswith(("?", "&")) else "&") + "realtime=1"
+
+
 def _check_servos(client: DxlClient, table: GaitTable) -> None:
     missing = [sid for sid in table.joint_ids if identify(client, sid) is None]
     if missing:
@@ -90,7 +101,7 @@ def bus_play(port: str, baud: int, as_json: bool, gait: str, loop: bool) -> None
     except PlayerError as exc:
         raise BusCommandError(f"{gait}: {exc}") from None
     pass_ms = table.frame_period_ms * (table.frame_count if table.loop else table.frame_count - 1)
-    with DxlClient(port, baud) as client:
+    with DxlClient(_paced(port), baud) as client:
         _check_servos(client, table)
         _move_to_start(client, table)
         ticks, stopped_at = _play(client, player, pass_ms, loop, as_json)

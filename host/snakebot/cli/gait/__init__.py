@@ -8,7 +8,15 @@ from typing import Any
 import click
 
 from snakebot.cli.output import dumps
-from snakebot.cli.params import ANGLE, ANGLES, NUMBER, OUTPUT_PATH, PLOT_PATH, NumberType
+from snakebot.cli.params import (
+    ANGLE,
+    ANGLES,
+    NUMBER,
+    OUTPUT_PATH,
+    PLOT_PATH,
+    NumberType,
+    bare_angle_hint,
+)
 from snakebot.extras import require
 from snakebot.formats.gaittable import read_gait, sidecar_path, write_gait
 from snakebot.model.gait import Gait, field_gait, serpenoid
@@ -49,6 +57,7 @@ def _write(g: Gait, out: Path, as_json: bool, plot: Path | None = None) -> None:
         "metadata_file": str(sidecar_path(out)),
         "bytes": table.size,
         **g.summary(),
+        "length_unit": g.robot.length_unit,
     }
     if plot is not None:
         from snakebot.plots.gait import plot_gait
@@ -63,14 +72,18 @@ def _write(g: Gait, out: Path, as_json: bool, plot: Path | None = None) -> None:
         f"{table.size} bytes) and {sidecar_path(out)}"
     )
     _print_motion(summary)
+    if g.robot.length_legend:
+        click.echo(f"  ({g.robot.length_legend})")
     if plot is not None:
         click.echo(f"plot written to {summary['plot']}")
 
 
 def _print_motion(meta: dict[str, Any]) -> None:
+    unit = meta.get("length_unit", "u")
+
     def line(label: str, m: dict[str, Any]) -> None:
         click.echo(
-            f"  {label:34} dx = {m['dx']: .6f}  dy = {m['dy']: .6f}  "
+            f"  {label:34} dx = {m['dx']: .6f} {unit}  dy = {m['dy']: .6f} {unit}  "
             f"dtheta = {m['dtheta']: .6f} rad"
         )
 
@@ -131,6 +144,7 @@ def _print_motion(meta: dict[str, Any]) -> None:
 @click.option("--output", "-o", type=OUTPUT_PATH, required=True, help=OUT_HELP)
 @PLOT_OPTION
 @click.option("--json", "as_json", is_flag=True, help="print the summary as JSON")
+@bare_angle_hint
 def serpenoid_command(
     robot: str,
     amplitude: float,
@@ -225,6 +239,7 @@ def serpenoid_command(
 @click.option("--output", "-o", type=OUTPUT_PATH, required=True, help=OUT_HELP)
 @PLOT_OPTION
 @click.option("--json", "as_json", is_flag=True, help="print the summary as JSON")
+@bare_angle_hint
 def field_command(
     robot: str,
     expression: str,

@@ -12,10 +12,11 @@ import click
 
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType
+from snakebot.extras import require
 from snakebot.formats.gaittable import write_gait
 from snakebot.model.gait import serpenoid
 from snakebot.model.robots import load_robot
-from snakebot.sim.physics.select import WORLDS
+from snakebot.sim.physics.select import WORLDS, require_world
 from snakebot.workflows.search import (
     METHODS,
     OBJECTIVES,
@@ -33,6 +34,22 @@ PATH = click.Path(dir_okay=False, path_type=Path)
 
 
 POSITIVE = NumberType(0, low_open=True)
+
+
+def _require_extras(
+    world: str, method: str, cluster: str | None, output: Path | None, plot: Path | None
+) -> None:
+    """Every optional package the search will need, checked before it starts (a search
+    that ends in a missing package loses its results)."""
+    require_world(world)
+    if method == "cma":
+        require("cma", "--method cma")
+    if cluster is not None:
+        require("distributed", "--cluster")
+    if output is not None and output.suffix.lower() == ".parquet":
+        require("pyarrow", "a .parquet results table (or write .csv)")
+    if plot is not None:
+        require("matplotlib", "--plot")
 
 
 @click.command("search")
@@ -131,6 +148,7 @@ def search_command(
     Example: snakebot gait search snake5 --param A=10deg:50deg:5
     --param delta=30deg:150deg:7 --param omega=360deg -o runs.parquet --plot runs.png
     """
+    _require_extras(world, method, cluster, output, plot)
     if output is not None:
         check_path(output)
     if best_path is None and output is not None:

@@ -13,7 +13,9 @@ import click
 import snakebot.link.transport.ports  # noqa: F401  (registers sim://)
 from snakebot.cli.output import dumps
 from snakebot.cli.plan import FROM_OPTION, TO_OPTION, tolerance_options, unreachable
+from snakebot.extras import require
 from snakebot.model.plan import Unreachable
+from snakebot.sim.physics.select import require_world
 from snakebot.workflows.goto import MAX_SLOWDOWN, WORLDS
 from snakebot.workflows.goto import goto as run_goto
 
@@ -82,6 +84,10 @@ def goto(
     Example:
       snakebot sim goto trident --to 2,1,30deg --plot goto.png
     """
+    require("scipy", "planning (`sim goto`)", extra="plan")
+    require_world(world)
+    if plot is not None:
+        require("matplotlib", "--plot")
     from snakebot.model.robots import load_robot
 
     chosen = load_robot(robot)
@@ -108,6 +114,7 @@ def goto(
         unreachable(exc)
         return
     summary = result.summary()
+    summary.update(length_unit=chosen.length_unit, length_legend=chosen.length_legend)
     if plot is not None:
         from snakebot.plots.goto import plot_goto
 
@@ -127,16 +134,19 @@ def _print(s: dict[str, Any]) -> None:
         f"({s['iterations']} loops, each re-planned from the pose read) in "
         f"{s['duration_s']:.2f} s of bus time ({s['wall_s']:.2f} s wall)"
     )
+    u = s["length_unit"]
     for label, p in (("target", t), ("reached", f)):
         click.echo(
-            f"  {label:8} x = {p['x']: .4f}  y = {p['y']: .4f}  theta = "
+            f"  {label:8} x = {p['x']: .4f} {u}  y = {p['y']: .4f} {u}  theta = "
             f"{math.degrees(p['theta']): .2f} deg"
         )
     verdict = "within" if e["within"] else "OUTSIDE"
     click.echo(
-        f"  error {e['position']:.4g} (tolerance {e['position_tolerance']:.4g}), heading "
+        f"  error {e['position']:.4g} {u} (tolerance {e['position_tolerance']:.4g} {u}), heading "
         f"{math.degrees(e['heading_rad']):.3f} deg (tolerance "
         f"{math.degrees(e['heading_tolerance_rad']):.2f} deg): {verdict} the tolerance"
     )
+    if s["length_legend"]:
+        click.echo(f"  ({s['length_legend']})")
     if "plot" in s:
         click.echo(f"plot written to {s['plot']}")

@@ -19,8 +19,11 @@ from snakebot.sim.physics.select import DEFAULT_WORLD, WORLDS
 from snakebot.workflows.predict import DEFAULT_WORLD_HZ, predict_gait, predict_program
 
 
-def _motion(label: str, m: dict[str, Any]) -> str:
-    return f"  {label:12} dx = {m['dx']: .6f}  dy = {m['dy']: .6f}  dtheta = {m['dtheta']: .6f} rad"
+def _motion(label: str, m: dict[str, Any], unit: str) -> str:
+    return (
+        f"  {label:12} dx = {m['dx']: .6f} {unit}  dy = {m['dy']: .6f} {unit}  "
+        f"dtheta = {m['dtheta']: .6f} rad"
+    )
 
 
 @click.command("predict")
@@ -127,6 +130,7 @@ def predict(
     else:
         result = predict_gait(gait_file, robot, **options)
     summary = result.summary()
+    summary["length_unit"] = length = result.robot.length_unit
     if is_program_file(gait_file):
         summary["predicted"]["source"] = (
             "integrated from the program's goals at every step (the host's reference of "
@@ -163,19 +167,21 @@ def predict(
         f"{'one loop' if summary['loop'] else 'once'}, {summary['duration_s']:.3f} s"
     )
     click.echo(f"body motion ({summary['frame']}):")
-    click.echo(_motion("emulated:", em))
-    click.echo(_motion("predicted:", summary["predicted"]))
-    click.echo(_motion("difference:", diff))
+    click.echo(_motion("emulated:", em, length))
+    click.echo(_motion("predicted:", summary["predicted"], length))
+    click.echo(_motion("difference:", diff, length))
     click.echo(
-        f"  paths differ by at most {diff['path_max']:.3g} in position and "
+        f"  paths differ by at most {diff['path_max']:.3g} {length} in position and "
         f"{diff['heading_max']:.3g} rad in heading"
     )
+    if result.robot.length_legend:
+        click.echo(f"  ({result.robot.length_legend})")
     click.echo(
         f"joint tracking error: max {math.degrees(diff['joint_max_rad']):.3f} deg, "
         f"rms {math.degrees(diff['joint_rms_rad']):.3f} deg"
     )
     friction = f"c_t = {em['c_t']:g}" if em["c_t"] is not None else f"mu = {em['mu']:g}"
-    click.echo(f"wheel slip: at most {em['slip_max']:.3g} per second sideways ({friction})")
+    click.echo(f"wheel slip: at most {em['slip_max']:.3g} {length}/s sideways ({friction})")
     if "energy_j" in em:
         click.echo(
             "physics: net work per joint "

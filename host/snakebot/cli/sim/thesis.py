@@ -10,7 +10,9 @@ import click
 from snakebot.cli.output import dumps
 from snakebot.cli.params import OUTPUT_PATH
 from snakebot.errors import SnakebotError
+from snakebot.extras import require
 from snakebot.plots.video import check_video_path, write_video
+from snakebot.sim.physics.select import require_world
 
 
 def _floats(text: str) -> tuple[float, ...]:
@@ -72,6 +74,8 @@ def thesis(
     joints against t, both worlds overlaid, the model's ideal path dashed.
     docs/thesis.md compares the results with what the thesis saw.
     """
+    require_world("mujoco")
+    require("matplotlib", "`sim thesis` (its pictures)")
     from snakebot.plots.thesis import plot_thesis_run
     from snakebot.workflows.thesis import RUNS, run_thesis
 
@@ -151,6 +155,9 @@ def friction(
       snakebot gait serpenoid snake5 -A 30deg -w 180deg -d 90deg --cycles 1 -o s.gait
       snakebot sim friction s.gait --plot friction.png
     """
+    require_world("mujoco")
+    if plot is not None:
+        require("matplotlib", "--plot")
     from snakebot.formats.gaittable import read_gait
     from snakebot.plots.thesis import plot_friction
     from snakebot.workflows.friction import friction_study

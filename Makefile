@@ -29,8 +29,8 @@ TEST_JOBS   ?= $(shell echo $$(( $$(nproc) * 2 )))
 QEMU_JOBS   ?= $(shell nproc)
 SERIAL_JOBS ?= 3
 
-.PHONY: help setup system-packages demo-packages python-env runtime-env core firmware \
-        test test-suite test-parallel test-qemu test-serial test-fuzz-wheel test-fuzz test-wheel lint fuzz-targets bench demo flash flash-image clean fuzz docs
+.PHONY: dist help setup system-packages demo-packages python-env runtime-env core firmware \
+        test test-summary test-suite test-parallel test-qemu test-serial test-fuzz-wheel test-fuzz test-wheel lint fuzz-targets bench demo flash flash-image clean fuzz docs
 
 help:
 	@echo "make demo      run the main job on the emulated robot (does its own set-up)"
@@ -40,6 +40,7 @@ help:
 	@echo "make bench     run the benchmarks"
 	@echo "make fuzz FUZZ_SECONDS=60   fuzz the parser and the PC link (libFuzzer, clang)"
 	@echo "make lint      ruff check, ruff format --check, and the Python 3.10 check (vermin)"
+	@echo "make dist      the sdist and the wheel into dist/ (python -m build)"
 	@echo "make docs      API reference from the docstrings (pdoc) into build/docs/"
 	@echo "make flash PORT=/dev/ttyUSB0   flash the CM-530 through the ROBOTIS bootloader"
 	@echo "V=1 shows the commands (compiler lines included)"
@@ -109,28 +110,43 @@ firmware: demo-packages
 #   then the tests are in their serial stage, for which it is the one busy process.
 # Every lane but the first stage writes a log, shown whole if it fails and as one line if
 # not, so that outputs do not mix; the first stage prints its progress.
+# A stage that fails does not stop the others: each records its result in TEST_STATUS,
+# every stage runs, and `make test` ends with the table of results, failing if any did.
 FUZZ_TESTS  := tests/reliability/test_fuzz_targets.py
 WHEEL_TESTS := tests/packaging/test_wheel.py
 IDLE        := $(shell command -v chrt >/dev/null 2>&1 && echo "chrt --idle 0" || echo "nice -n 19")
+TEST_STATUS := build/test-status
+TEST_STAGES := checks parallel qemu serial fuzz wheel
+# $(call record,STAGE,STATUS): note STAGE's exit status and pass it on.
+record = s=$(2); mkdir -p $(TEST_STATUS); echo $$s > $(TEST_STATUS)/$(1); exit $$s
 test: system-packages python-env
-	$(Q)$(MAKE) --no-print-directory -j$(TEST_JOBS) lint firmware fuzz-targets
-	$(Q)$(MAKE) --no-print-directory -j2 test-suite test-fuzz-wheel
+	@rm -rf $(TEST_STATUS)
+	-$(Q)$(MAKE) --no-print-directory -k -j$(TEST_JOBS) lint firmware fuzz-targets; \
+	    $(call record,checks,$$?)
+	-$(Q)$(MAKE) --no-print-directory -k -j2 test-suite test-fuzz-wheel
+	$(Q)$(MAKE) --no-print-directory test-summary
+
+test-summary:
+	@echo "make test:"; failed=0; for s in $(TEST_STAGES); do \
+	  r=$$(cat $(TEST_STATUS)/$$s 2>/dev/null || echo "not run"); \
+	  case $$r in 0) w=passed;; "not run") w="NOT RUN"; failed=1;; *) w="FAILED (exit $$r)"; failed=1;; esac; \
+	  printf "  %-9s %s\n" $$s "$$w"; done; exit $$failed
 
 test-suite:
-	$(Q)$(MAKE) --no-print-directory test-parallel
-	$(Q)$(MAKE) --no-print-directory test-qemu
-	$(Q)$(MAKE) --no-print-directory test-serial
+	-$(Q)$(MAKE) --no-print-directory test-parallel
+	-$(Q)$(MAKE) --no-print-directory test-qemu
+	-$(Q)$(MAKE) --no-print-directory test-serial
 
 test-parallel:
 	$(Q)$(PY) -m pytest -n $(TEST_JOBS) --dist worksteal -m "not serial and not qemu" \
-	    --ignore=$(FUZZ_TESTS)
+	    --ignore=$(FUZZ_TESTS); $(call record,parallel,$$?)
 
 test-qemu test-serial: test-%:
 	@mkdir -p build
 	$(Q)$(PY) -m pytest -q -p no:cacheprovider -n $(STAGE_JOBS_$*) --dist $(STAGE_DIST_$*) \
-	    -m "$(STAGE_MARK_$*)" --ignore=$(WHEEL_TESTS) > build/test-$*.log 2>&1 \
-	    && echo "$* tests: $$(tail -n1 build/test-$*.log)" \
-	    || { cat build/test-$*.log; exit 1; }
+	    -m "$(STAGE_MARK_$*)" --ignore=$(WHEEL_TESTS) > build/test-$*.log 2>&1; s=$$?; \
+	    if [ $$s = 0 ]; then echo "$* tests: $$(tail -n1 build/test-$*.log)"; \
+	    else cat build/test-$*.log; fi; $(call record,$*,$$s)
 STAGE_JOBS_qemu    = $(QEMU_JOBS)
 STAGE_MARK_qemu   := qemu and not serial
 STAGE_DIST_qemu   := loadfile
@@ -139,21 +155,21 @@ STAGE_MARK_serial := serial
 STAGE_DIST_serial := load
 
 test-fuzz-wheel:
-	$(Q)$(MAKE) --no-print-directory test-fuzz
-	$(Q)$(MAKE) --no-print-directory test-wheel
+	-$(Q)$(MAKE) --no-print-directory test-fuzz
+	-$(Q)$(MAKE) --no-print-directory test-wheel
 
 test-fuzz:
 	@mkdir -p build
 	$(Q)FUZZ_LAUNCH="$(IDLE)" $(IDLE) $(PY) -m pytest -q -p no:cacheprovider $(FUZZ_TESTS) \
-	    > build/test-fuzz.log 2>&1 \
-	    && echo "fuzz tests: $$(tail -n1 build/test-fuzz.log)" \
-	    || { cat build/test-fuzz.log; exit 1; }
+	    > build/test-fuzz.log 2>&1; s=$$?; \
+	    if [ $$s = 0 ]; then echo "fuzz tests: $$(tail -n1 build/test-fuzz.log)"; \
+	    else cat build/test-fuzz.log; fi; $(call record,fuzz,$$s)
 
 test-wheel:
 	@mkdir -p build
-	$(Q)$(PY) -m pytest -q -p no:cacheprovider $(WHEEL_TESTS) > build/test-wheel.log 2>&1 \
-	    && echo "package check: $$(tail -n1 build/test-wheel.log)" \
-	    || { cat build/test-wheel.log; exit 1; }
+	$(Q)$(PY) -m pytest -q -p no:cacheprovider $(WHEEL_TESTS) > build/test-wheel.log 2>&1; \
+	    s=$$?; if [ $$s = 0 ]; then echo "package check: $$(tail -n1 build/test-wheel.log)"; \
+	    else cat build/test-wheel.log; fi; $(call record,wheel,$$s)
 
 fuzz-targets:
 	$(Q)$(MAKE) --no-print-directory -C fuzz all
@@ -183,6 +199,12 @@ flash:
 
 flash-image: demo-packages runtime-env firmware
 	$(Q)$(PY) -m snakebot flash build/cm530/firmware.bin --port $(PORT)
+
+# The sdist and the wheel. PyPA's build comes with the dev extras; it must be installed:
+# without it `python -m build` finds this checkout's build/ folder (the firmware images)
+# and stops with "'build' is a package".
+dist: python-env
+	$(Q)$(PY) -m build --outdir dist .
 
 # API reference from the docstrings; the prose documents are docs/*.md.
 DOCS_DIR ?= build/docs

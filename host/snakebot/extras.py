@@ -41,15 +41,17 @@ def extra_for(package: str) -> str | None:
     return None
 
 
-def install_hint(package: str) -> str:
-    """What to run to get ``package`` the way snakebot declares it."""
-    extra = extra_for(package)
+def install_hint(package: str, extra: str | None = None) -> str:
+    """What to run to get ``package`` the way snakebot declares it (``extra`` names the
+    extra when more than one brings the package)."""
+    extra = extra or extra_for(package)
     return f"pip install 'snakebot[{extra}]'" if extra else f"pip install {package}"
 
 
-def require(package: str, feature: str) -> None:
-    """Raise :class:`MissingExtraError` if ``package`` (also its module name) is missing."""
+def require(package: str, feature: str, extra: str | None = None) -> None:
+    """Raise :class:`MissingExtraError` if ``package`` (also its module name) is missing;
+    commands call it before they start work, so no result is lost to a missing package."""
     if not available(package):
         raise MissingExtraError(
-            f"{feature} needs {package}, which is not installed: {install_hint(package)}"
+            f"{feature} needs {package}, which is not installed: {install_hint(package, extra)}"
         )

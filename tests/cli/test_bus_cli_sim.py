@@ -111,7 +111,10 @@ def test_read_all_lists_every_register_of_the_table():
     assert result.exit_code == 0, result.output
     for entry in AX12A:
         assert entry.name in result.stdout
-    assert "Present Position       512 (150" in result.stdout
+    assert (
+        "Present Position       512 (+0 deg from the centre, 150.1 deg on the 0-300 dial)"
+        in result.stdout
+    )
 
 
 def test_write_moves_the_servo_and_reads_back():

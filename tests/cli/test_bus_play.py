@@ -16,7 +16,7 @@ from click.testing import CliRunner
 
 import snakebot.link.transport.ports  # noqa: F401  (registers sim://)
 from snakebot.cli import main
-from snakebot.formats.gaittable import GaitTable, write_gait
+from snakebot.formats.gaittable import GaitTable, read_gait, write_gait
 from snakebot.model.player import TICK_MS
 from snakebot.sim.options import SimOptions
 from snakebot.sim.transports import PtyServer
@@ -74,9 +74,17 @@ def test_ctrl_c_on_a_pty_stops_smoothly_and_the_servos_hold(tmp_path):
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
-            env={**os.environ, "SNAKEBOT_LATENCY_MS": "50"},
+            # the servos answer (no silent ID costs this wait), so a wide allowance is free
+            # and keeps a pty server starved by a busy machine from looking like no servo
+            env={**os.environ, "SNAKEBOT_LATENCY_MS": "500"},
         )
-        time.sleep(3.0)  # the move to the first frame, then more than one pass
+        # Ctrl-C once the player has sent more than two passes' worth of ticks (counted
+        # on the bus, so a slow start on a busy machine does not matter)
+        pass_ticks = (len(FRAMES) * PERIOD_MS) // TICK_MS
+        deadline = time.monotonic() + 60
+        while server.bus.stats.instructions < 2 * pass_ticks and time.monotonic() < deadline:
+            assert play.poll() is None, play.communicate()[1]
+            time.sleep(0.05)
         assert play.poll() is None  # --loop plays until stopped
         play.send_signal(signal.SIGINT)
         out, err = play.communicate(timeout=30)
@@ -91,3 +99,26 @@ def test_ctrl_c_on_a_pty_stops_smoothly_and_the_servos_hold(tmp_path):
     for sid, (low, high) in zip(("1", "2"), ((500, 620), (600, 700)), strict=True):
         assert low - 2 <= held[sid] <= high + 2
     assert np.allclose(after, [held["1"], held["2"]], atol=2)
+
+
+def test_a_generated_gait_plays_on_the_emulated_robot(tmp_path):
+    """The README's path: a serpenoid gait for snake5 played on sim://?robot=snake5 (servos
+    that move at their own speed, no ideal jumps). The player only writes while it plays;
+    the emulated bus must not let those writes pile up ahead of the READ that follows."""
+    runner = CliRunner()
+    gait = str(tmp_path / "s.gait")
+    made = runner.invoke(
+        main,
+        ["gait", "serpenoid", "snake5", "-A", "30deg", "-w", "360deg", "-d", "60deg"]
+        + ["--cycles", "1", "-o", gait],
+    )
+    assert made.exit_code == 0, made.output
+    result = runner.invoke(main, ["bus", "play", gait, "--port", "sim://?robot=snake5", "--json"])
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.stdout)
+    assert report["stopped_by_user"] is False
+    last = read_gait(gait).frames[-1]
+    held = [report["present_position"][str(sid)] for sid in (10, 11, 15, 16)]
+    # the servos followed the gait in real time: each ends near the last frame's goal
+    # (an AX-12 lags its goal by a few ticks at the gait's speed)
+    assert all(abs(h - int(g)) <= 25 for h, g in zip(held, last, strict=True)), (held, last)

@@ -163,3 +163,66 @@ def test_bad_runs_are_refused_in_one_line(recorded, tmp_path, content, message):
     result = cli("compare", tmp_path / "bad.csv", gait)
     assert result.exit_code == 2, result.output
     assert message in result.stderr and result.stderr.count("\n") == 1
+
+
+def write_framed_run(path: Path, t, frames, ids, ticks, pose=None) -> Path:
+    with open(path, "w", newline="") as f:
+        out = csv.writer(f)
+        out.writerow(["t", "frame", "id", "position"] + (list(POSE) if pose is not None else []))
+        for n, tn in enumerate(t):
+            for k, servo in enumerate(ids):
+                extra = list(pose[n]) if pose is not None else []
+                out.writerow([f"{tn:.3f}", int(frames[n]), servo, int(round(ticks[n, k])), *extra])
+    return path
+
+
+POSE = ("pose_x", "pose_y", "pose_theta")
+
+
+def test_a_stalled_emulator_is_reported_and_does_not_shift_the_comparison(recorded, tmp_path):
+    """The controller stood still for 0.6 s (its frame did not advance) while the host went
+    on sampling: the run is lined up by the controller's frame, the stall is reported, and
+    the joints still agree; lined up by the host's clock they would be off after it."""
+    _, gait = recorded
+    table = read_gait(gait)
+    robot = load_robot("snake5")
+    period = table.frame_period_ms / 1000
+    host = np.arange(0, 3.0, 0.02)
+    stall_at, stall = 1.0, 0.6
+    gait_t = np.where(host < stall_at, host, np.maximum(stall_at, host - stall))
+    frames = np.floor(gait_t / period).astype(int) % table.frame_count
+    phi = table_angles(robot, table, np.floor(gait_t / period) * period)
+    ticks = np.array([robot.angles_to_ticks(row) for row in phi])
+    run = write_framed_run(tmp_path / "stalled.csv", host, frames, table.joint_ids, ticks)
+    report = compare_json(run, gait)
+    assert report["aligned_by"] == "controller frame"
+    (found,) = report["stalls"]
+    assert found["at_s"] == pytest.approx(stall_at, abs=0.05)
+    assert found["length_s"] == pytest.approx(stall, abs=0.05)
+    assert all(j["rms_deg"] < 3 for j in report["joints"]), report["joints"]
+    text = cli("compare", run, gait).stdout
+    assert "stall: 0.6" in text and "controller frame" in text
+
+
+def test_a_gap_in_the_samples_is_reported(recorded, tmp_path):
+    _, gait = recorded
+    table = read_gait(gait)
+    robot = load_robot("snake5")
+    t = np.concatenate([np.arange(0, 1.0, 0.02), np.arange(1.5, 3.0, 0.02)])
+    ticks = np.array([robot.angles_to_ticks(row) for row in table_angles(robot, table, t)])
+    report = compare_json(write_run(tmp_path / "gap.csv", t, table.joint_ids, ticks), gait)
+    (gap,) = report["gaps"]
+    assert gap["length_s"] == pytest.approx(0.52, abs=0.01)
+
+
+def test_a_pose_that_is_not_a_number_is_refused(recorded, tmp_path):
+    _, gait = recorded
+    table = read_gait(gait)
+    t = np.arange(0, 1.0, 0.02)
+    ticks = np.full((len(t), table.joint_count), 512.0)
+    pose = np.zeros((len(t), 3))
+    pose[7] = [np.nan, 0.0, 0.0]
+    run = write_run(tmp_path / "nan.csv", t, table.joint_ids, ticks, pose)
+    result = cli("compare", run, gait)
+    assert result.exit_code == 2
+    assert "the pose at t = 0.14 s is not a number" in result.stderr

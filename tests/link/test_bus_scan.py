@@ -74,7 +74,11 @@ def test_scan_with_bauds_all_finds_a_servo_common_misses():
 
 
 def test_ctrl_c_prints_what_was_found_and_exits_130():
-    env = {**os.environ, "SNAKEBOT_LATENCY_MS": "20"}
+    # Every silent ID costs the scan its reply window in wall time (the latency allowance
+    # and more), so after servo 2 the 252 silent IDs left keep it running for at least
+    # 252 x 100 ms = 25 s: Ctrl-C lands mid-scan however late a busy machine delivers it,
+    # and the test does not wait for any of that time.
+    env = {**os.environ, "SNAKEBOT_LATENCY_MS": "100"}
     scan = subprocess.Popen(
         [sys.executable, "-m", "snakebot", "bus", "scan", "--port", "sim://?ids=1,2"],
         stdout=subprocess.PIPE,

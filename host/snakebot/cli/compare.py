@@ -54,8 +54,19 @@ def compare_command(
         return
     click.echo(
         f"{summary['samples']} samples over {summary['duration_s']} s; the run starts "
-        f"{summary['start_in_gait_s']} s into the gait"
+        f"{summary['start_in_gait_s']} s into the gait (lined up by the "
+        f"{summary['aligned_by']})"
     )
+    for kind, what in (
+        ("stalls", "the controller's frame stood still while the host's clock ran"),
+        ("gaps", "no samples"),
+    ):
+        for e in summary[kind]:
+            click.echo(f"  {kind[:-1]}: {e['length_s']} s at {e['at_s']} s ({what})")
+    if summary["stalls"] and summary["aligned_by"] == "controller frame":
+        click.echo(
+            "  (the comparison follows the controller's frames, so a stall does not shift it)"
+        )
     for j in summary["joints"]:
         click.echo(f"  {j['joint']:>10}  RMS {j['rms_deg']:7.2f} deg   max {j['max_deg']:7.2f} deg")
     if "pose" in summary:

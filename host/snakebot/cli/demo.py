@@ -20,6 +20,7 @@ from snakebot.cli.output import echo_json
 from snakebot.cli.signals import interrupted_status
 from snakebot.plots.demo import draw_demo
 from snakebot.plots.video import check_video_path
+from snakebot.sim.physics.select import require_world
 from snakebot.workflows.demo import DemoSettings, run_demo, summary_lines
 
 
@@ -51,6 +52,7 @@ def demo(as_json: bool, **options: Any) -> None:
     settings = DemoSettings(**options)
     if settings.video is not None:
         check_video_path(settings.video)
+    require_world(settings.world)
     say = (lambda _line: None) if as_json else click.echo
     try:  # SIGTERM too (snakebot.cli.signals): it unwinds through run_demo's clean-up
         result = draw_demo(run_demo(settings, say=say), say=say)

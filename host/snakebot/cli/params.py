@@ -6,8 +6,10 @@ declared once, are in ``options``."""
 
 from __future__ import annotations
 
+import functools
 import math
 import os
+import re
 import stat
 from collections.abc import Callable, Collection
 from pathlib import Path
@@ -15,7 +17,9 @@ from typing import Any, TypeVar
 
 import click
 
+from snakebot.extras import require
 from snakebot.facts.boards import TABLE_CAPACITY
+from snakebot.model.gait.limits import GaitLimitError
 from snakebot.model.gait.values import ExpressionError, parse_angle, parse_angles, parse_number
 from snakebot.userfiles import output_problem, same_file
 
@@ -49,10 +53,18 @@ MAX_LIST_CHARS = 1024
 """The longest comma-separated list of values taken."""
 
 T = TypeVar("T")
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+BARE_ANGLES = "snakebot.bare_angles"
+"""Where :class:`AngleType` notes the options given as a bare number (``ctx.meta``)."""
+
+_BARE_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)")
 
 
 class AngleType(click.ParamType):
-    """Radians (or rad/s), accepting ``pi`` expressions and a ``deg`` suffix."""
+    """Radians (or rad/s), accepting ``pi`` expressions and a ``deg`` suffix. A bare
+    number is radians; it is noted so a limit error can say so (:func:`bare_angle_hint`)."""
 
     name = "angle"
 
@@ -61,7 +73,34 @@ class AngleType(click.ParamType):
     ) -> float:
         if isinstance(value, float):
             return value
-        return _parsed(parse_angle, str(value), MAX_NUMBER_CHARS, self, param, ctx)
+        text = str(value).strip()
+        angle = _parsed(parse_angle, text, MAX_NUMBER_CHARS, self, param, ctx)
+        if ctx is not None and param is not None and angle and _BARE_NUMBER.fullmatch(text):
+            name = param.opts[-1] if len(param.opts[-1]) == 2 else param.opts[0]
+            ctx.meta.setdefault(BARE_ANGLES, []).append(f"{name} {text}")
+        return angle
+
+
+def bare_angle_hint(func: F) -> F:
+    """A command whose limit check fails while some angle was given without a unit: the
+    error also says that a bare number is radians, and how to write degrees."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return func(*args, **kwargs)
+        except GaitLimitError as exc:
+            bare = click.get_current_context().meta.get(BARE_ANGLES)
+            if bare:
+                first = bare[0]
+                exc.args = (
+                    f"{exc}. Note: {', '.join(bare)} {'is' if len(bare) == 1 else 'are'} in "
+                    f"radians (rad/s for a speed): a number without a unit is radians; for "
+                    f"degrees write {first}deg",
+                )
+            raise
+
+    return wrapper  # type: ignore[return-value]
 
 
 class AngleListType(click.ParamType):
@@ -223,6 +262,7 @@ def _outputs(ctx: click.Context) -> dict[str, Path]:
 
 
 def _plot_formats() -> Collection[str]:
+    require("matplotlib", "a picture (--plot)")  # before any work, with the install to run
     from matplotlib.backends.backend_agg import FigureCanvasAgg  # only when a plot is asked
 
     return FigureCanvasAgg.get_supported_filetypes().keys()

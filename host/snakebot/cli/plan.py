@@ -23,6 +23,7 @@ from snakebot.cli.options import (
 )
 from snakebot.cli.output import dumps
 from snakebot.cli.params import CAPACITY
+from snakebot.extras import require
 from snakebot.facts.boards import TABLE_CAPACITY
 from snakebot.model.plan import Unreachable
 from snakebot.model.plan.planner import DEFAULT_BOARD, DEFAULT_CAPACITY
@@ -115,6 +116,9 @@ def plan_command(
       snakebot plan trident --to 1,0.5,30deg -o go.prog
       snakebot upload go.prog --port /dev/ttyUSB0 && snakebot play --port /dev/ttyUSB0
     """
+    require("scipy", "planning", extra="plan")
+    if plot is not None:
+        require("matplotlib", "--plot")
     from snakebot.model.plan.files import plan_for, save_plan, wants_program
     from snakebot.model.robots import load_robot
 
@@ -149,6 +153,7 @@ def plan_command(
         return
     if output is None:
         summary, table = plan.summary(), None
+        summary.update(length_unit=chosen.length_unit, length_legend=chosen.length_legend)
     else:
         summary, table = save_plan(plan, output)
     if table is not None and plot is not None:
@@ -180,19 +185,22 @@ def _print_program(s: dict[str, Any]) -> None:
 
 def _print_pose(s: dict[str, Any], how: str) -> None:
     t, f, e = s["target"], s["predicted_final"], s["error"]
+    u = s["length_unit"]
     click.echo(
-        f"  target     x = {t['x']: .4f}  y = {t['y']: .4f}  theta = "
+        f"  target     x = {t['x']: .4f} {u}  y = {t['y']: .4f} {u}  theta = "
         f"{math.degrees(t['theta']): .2f} deg"
     )
     click.echo(
-        f"  predicted  x = {f['x']: .4f}  y = {f['y']: .4f}  theta = "
+        f"  predicted  x = {f['x']: .4f} {u}  y = {f['y']: .4f} {u}  theta = "
         f"{math.degrees(f['theta']): .2f} deg ({how})"
     )
     click.echo(
-        f"  error {e['position']:.4g} (tolerance {e['position_tolerance']:.4g}), heading "
+        f"  error {e['position']:.4g} {u} (tolerance {e['position_tolerance']:.4g} {u}), heading "
         f"{math.degrees(e['heading_rad']):.3f} deg (tolerance "
         f"{math.degrees(e['heading_tolerance_rad']):.2f} deg)"
     )
+    if s["length_legend"]:
+        click.echo(f"  ({s['length_legend']})")
 
 
 def _print(s: dict[str, Any]) -> None:

@@ -50,7 +50,7 @@ def build(spec: Path, output: Path, robot: str | None, as_json: bool) -> None:
         [[segment]]
         kind = "periodic"               # per joint: rate (rad/s), sin, cos (rad)
         omega = 3.14
-        sin = [0.3, 0.3, 0.3, 0.3, 0.3]
+        sin = [0.3, 0.3, 0.3, 0.3]
         duration = 2.0
         [[segment]]
         kind = "table"                  # first, count, repetitions

@@ -97,17 +97,53 @@ def write_range(entry: Entry) -> tuple[int, int]:
 MAX_AMOUNT = 1e9
 """No register holds more than 16 bits: an amount beyond this (1e400s, an infinity) is
 refused before it is converted."""
+DIAL_UNITS = {"absdeg": "deg", "absrad": "rad"}
+"""Units of a position on the servo's own dial, 0 at one end of its travel: an AX-12's
+0-300 degrees, as ROBOTIS's Dynamixel Wizard shows them (tick = degrees / 0.293)."""
+
+ANGLE_UNITS = ("deg", "rad")
+"""Units of a position as an angle from the servo's centre (an AX-12's tick 512)."""
+
+
+def is_position(entry: Entry, table: ControlTable | None = None) -> bool:
+    """Whether ``entry`` holds a servo position (Goal Position, Present Position, the
+    angle limits): a register on the position's scale."""
+    position = (table or base_table()).device.position
+    return position is not None and entry.scale is not None and entry.scale == position.scale
+
+
+def position_centre(table: ControlTable | None = None) -> int:
+    """The servo's centre tick (512 on an AX-12): where an angle of 0 points."""
+    return (table or base_table()).device.require_position().centre
+
+
+def split_amount(text: str) -> tuple[float, str] | None:
+    """``"30deg"`` as (30.0, "deg"), ``"-0.5 rad"`` as (-0.5, "rad"); None if ``text`` is
+    not a number followed by a unit."""
+    m = re.fullmatch(r"([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*([A-Za-z%/°]+)", text.strip())
+    if m is None:
+        return None
+    return float(m.group(1)), {"°": "deg"}.get(m.group(2), m.group(2))
 
 
 def parse_value(entry: Entry, text: str) -> int:
     """The raw value ``text`` asks ``entry`` for: a whole number (decimal or 0x hex), or an
     amount with a unit ("30deg", "50 rpm", "0.5rad"), converted through the register's
-    scale in its device description."""
+    scale in its device description.
+
+    A position (:func:`is_position`) in ``deg`` or ``rad`` is an angle from the servo's
+    centre, as joints are described: ``30deg`` is 30 degrees to the counter-clockwise
+    side of tick 512 (tick 614), ``-30deg`` as far to the other side. The servo's own
+    0-300 degree dial (Dynamixel Wizard's numbers) is ``absdeg``: ``150absdeg`` is tick
+    512. Raw ticks are whole numbers."""
     text = text.strip()
     try:
         return int(text, 0)
     except ValueError:
         pass
+    amount_unit = split_amount(text)
+    if amount_unit is not None and is_position(entry):
+        return _position_value(entry, text, *amount_unit)
     m = re.fullmatch(r"([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*([A-Za-z%/]+)", text)
     if m is None:
         raise BusCommandError(
@@ -142,6 +178,33 @@ def parse_value(entry: Entry, text: str) -> int:
     return raw
 
 
+def _position_value(entry: Entry, text: str, amount: float, unit: str) -> int:
+    """A position written as an angle from the centre (deg, rad) or on the dial (absdeg,
+    absrad), in ticks; refused outside the register's range with the nearest angle."""
+    if unit in DIAL_UNITS:
+        raw = entry.from_units(amount, DIAL_UNITS[unit])
+    elif unit in ANGLE_UNITS:
+        raw = position_centre() + entry.from_units(amount, unit) - entry.from_units(0.0, unit)
+    else:
+        raise BusCommandError(
+            f"{entry.name} is a position: give an angle from the centre (30deg, -0.5rad), "
+            f"a position on the servo's 0-300 dial (150absdeg) or raw ticks (512), not {text!r}"
+        )
+    low, high = write_range(entry)
+    if not low <= raw <= high:
+        centre = position_centre()
+        span = (
+            f"{entry.to_units(low, 'deg'):g}-{entry.to_units(high, 'deg'):g}absdeg"
+            if unit in DIAL_UNITS
+            else f"{entry.to_units(low - centre, 'deg'):+.1f}deg to "
+            f"{entry.to_units(high - centre, 'deg'):+.1f}deg from the centre"
+        )
+        raise BusCommandError(
+            f"{text} is outside {entry.name}'s travel ({span}, ticks {low}-{high})"
+        )
+    return raw
+
+
 def check_write(entry: Entry, value: int) -> None:
     """Refuse a write the servo would reject, before it is sent."""
     if not entry.writable:
@@ -170,12 +233,14 @@ WRITTEN_ELSEWHERE = {"ID": "set-id", "Baud Rate": "set-baud"}
 """Registers a plain write must not change: the command that changes each and checks it."""
 
 
-def parse_write(register: str, value: str) -> tuple[Entry, int]:
+def parse_write(register: str, value: str, number: int | None = None) -> tuple[Entry, int]:
     """The register named ``register`` and the raw ``value`` for it (a number, or an
-    amount in a unit its scale converts), refused if a plain write may not set it: read
-    only, out of its range, or an ID or baud rate (which have their own commands)."""
+    amount in a unit its scale converts; ``number`` when the caller converted it already,
+    e.g. a joint's angle), refused if a plain write may not set it: read only, out of its
+    range, or an ID or baud rate (which have their own commands)."""
     entry = resolve_register(register)
-    number = parse_value(entry, value)
+    if number is None:
+        number = parse_value(entry, value)
     redirect = WRITTEN_ELSEWHERE.get(entry.name)
     if redirect:
         raise BusCommandError(
@@ -224,6 +289,10 @@ def decode(entry: Entry, value: int, table: ControlTable | None = None) -> dict[
         digits = max(0, -math.floor(math.log10(float(scale.factor))))
         out["physical"] = round(magnitude * float(scale.factor), digits)
         out["unit"] = scale.unit
+        if is_position(entry, table):
+            # the angle from the centre, as `bus write` takes it (physical: the 0-300 dial)
+            centre = position_centre(table)
+            out["from_centre_deg"] = round((magnitude - centre) * scale.factor_in("deg"), digits)
     said = meaning(entry, value, table)
     if said is not None:
         out["meaning"] = said
@@ -237,7 +306,12 @@ def describe_value(decoded: dict[str, object]) -> str:
         return f"{decoded['value']} ({decoded['meaning']})"
     if decoded.get("magnitude"):
         parts.append(f"{decoded['magnitude']} {decoded['direction']}")
-    if "physical" in decoded:
+    if "from_centre_deg" in decoded:
+        parts.append(
+            f"{decoded['from_centre_deg']:+g} deg from the centre, "
+            f"{decoded['physical']:g} deg on the 0-300 dial"
+        )
+    elif "physical" in decoded:
         parts.append(f"{decoded['physical']:g} {decoded['unit']}")
     elif "unit" in decoded:
         parts.append(str(decoded["unit"]))

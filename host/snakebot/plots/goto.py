@@ -39,10 +39,15 @@ def plot_goto(result: GotoResult, out: str | Path) -> Path:
             scale=1.0 / (ARROW_BODIES * body_length(result.robot)),
         )
     d, h = result.error
+    unit = result.robot.length_unit
     ax.set_title(
-        f"{result.robot.name} to the target in closed loop ({result.world}): error {d:.3g}, "
-        f"{math.degrees(h):.2f} deg"
+        f"{result.robot.name} to the target in closed loop ({result.world}): error {d:.3g} "
+        f"{unit}, {math.degrees(h):.2f} deg"
     )
+    ax.set_xlabel(f"x ({unit})")
+    ax.set_ylabel(f"y ({unit})")
+    if result.robot.length_legend:
+        fig.text(0.01, 0.005, result.robot.length_legend, fontsize="x-small")
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(alpha=0.3)
     ax.legend(fontsize="small")

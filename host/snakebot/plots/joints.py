@@ -3,10 +3,14 @@ difference on another, for the demo, ``snakebot compare`` and ``sim predict``.""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-from matplotlib.axes import Axes
 
 from snakebot.model.compare import JointTrack
+
+if TYPE_CHECKING:  # matplotlib is the `plot` extra: the CLI imports this module without it
+    from matplotlib.axes import Axes
 
 COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
 

@@ -3,8 +3,16 @@ prediction: the joint angles the table asks for at each moment (ticks to angles 
 the robot's calibration, linear between frames, as the controller plays them) and, when
 the run carries an external pose (columns ``pose_x``, ``pose_y`` in metres and
 ``pose_theta`` in radians, e.g. from motion capture), the body pose the table's motion
-integrates to. The run's start is found by cross-correlating its first joint with the
-prediction; errors are reported per joint in degrees."""
+integrates to. Errors are reported per joint in degrees.
+
+A run that records the controller's frame (``monitor --csv`` column ``frame``, the MCAP
+records' ``controller.play_frame``) is lined up by it: each sample's moment in the gait is
+its frame's start, plus the host time since that frame was first seen (at most one frame
+period), so a host that stalled cannot shift the rest of the run. Without it the run's
+start is found by cross-correlating its first joint with the prediction and the host's
+clock is trusted. Gaps between samples (several intervals long) and stalls (the frame not
+advancing while the host's clock runs) are reported; a pose that is not a number is
+refused."""
 
 from __future__ import annotations
 
@@ -43,6 +51,7 @@ class Run:
     ids: tuple[int, ...]
     ticks: np.ndarray  # (samples, servos)
     pose: np.ndarray | None  # (samples, 3): x, y (m), theta (rad)
+    frames: np.ndarray | None = None  # the controller's Play Frame per sample, if recorded
 
 
 def _read(path: Path) -> bytes:
@@ -95,6 +104,9 @@ def _rows_from_mcap(path: Path, data: bytes) -> list[dict[str, Any]]:
         for message in messages:
             record = json.loads(message.data)
             extra = {k: record[k] for k in POSE_COLUMNS if k in record}
+            frame = (record.get("controller") or {}).get("play_frame")
+            if frame is not None:
+                extra["frame"] = frame
             for servo in record["servos"]:
                 rows.append({"t": record["t"], **servo, **extra})
     except (KeyError, ValueError, TypeError) as exc:
@@ -117,17 +129,83 @@ def load_run(path: str | Path) -> Run:
         col = {i: k for k, i in enumerate(ids)}
         has_pose = all(r.get(c) not in (None, "") for r in rows for c in POSE_COLUMNS)
         pose = np.full((len(times), 3), np.nan) if has_pose and rows else None
+        has_frame = bool(rows) and all(r.get("frame") not in (None, "") for r in rows)
+        frames = np.zeros(len(times)) if has_frame else None
         for r in rows:
             n = index[float(r["t"])]
             ticks[n, col[int(r["id"])]] = float(r["position"])
             if pose is not None:
                 pose[n] = [float(r[c]) for c in POSE_COLUMNS]
+            if frames is not None:
+                frames[n] = int(r["frame"])
     except (ValueError, KeyError, TypeError) as exc:
         raise CompareError(f"{path}: a row has a value that is not a number ({exc})") from None
+    if pose is not None and not np.isfinite(pose).all():
+        n = int(np.flatnonzero(~np.isfinite(pose).all(axis=1))[0])
+        raise CompareError(
+            f"{path}: the pose at t = {times[n]:g} s is not a number ({pose[n].tolist()}): "
+            "drop the samples the tracker lost, or the pose columns"
+        )
     if len(times) < 3:
         raise CompareError(f"{path} holds {len(times)} samples: record a longer run")
     keep = ~np.isnan(ticks).any(axis=1)  # samples where a servo was missing are dropped
-    return Run(np.array(times)[keep], ids, ticks[keep], None if pose is None else pose[keep])
+    return Run(
+        np.array(times)[keep],
+        ids,
+        ticks[keep],
+        None if pose is None else pose[keep],
+        None if frames is None else frames[keep],
+    )
+
+
+GAP_INTERVALS = 4.0
+"""A pause between samples this many times the run's median interval is a gap."""
+
+
+def find_gaps(t: np.ndarray) -> list[tuple[float, float]]:
+    """(time from the run's start, length) of each gap between samples (GAP_INTERVALS)."""
+    steps = np.diff(t)
+    if len(steps) == 0:
+        return []
+    limit = GAP_INTERVALS * float(np.median(steps))
+    return [(float(t[k] - t[0]), float(steps[k])) for k in np.flatnonzero(steps > limit)]
+
+
+def controller_clock(t: np.ndarray, frames: np.ndarray, table: GaitTable) -> np.ndarray:
+    """Each sample's moment in the gait by the controller's frame (see the module note):
+    frames unwrapped over a loop's passes, each sample at its frame's start plus the host
+    time since the frame was first seen, capped at one frame period."""
+    period = table.frame_period_ms / 1000.0
+    unwrapped = _unwrap(frames, table)
+    clock = np.empty(len(t))
+    seen = t[0]
+    for k in range(len(t)):
+        if k == 0 or unwrapped[k] != unwrapped[k - 1]:
+            seen = t[k]
+        clock[k] = unwrapped[k] * period + min(t[k] - seen, period)
+    return clock
+
+
+def _unwrap(frames: np.ndarray, table: GaitTable) -> np.ndarray:
+    """Frame numbers counted on over a loop's passes (a frame lower than the one before
+    starts a new pass)."""
+    passes = np.concatenate([[0], np.cumsum(np.diff(frames) < 0)])
+    return frames + passes * table.frame_count
+
+
+def find_stalls(t: np.ndarray, frames: np.ndarray, table: GaitTable) -> list[tuple[float, float]]:
+    """(time from the run's start, length) of each stall: the host's clock ran on more
+    than two frame periods beyond the frames the controller played meanwhile (the
+    controller, or the emulator under it, stood still)."""
+    period = table.frame_period_ms / 1000.0
+    unwrapped = _unwrap(frames, table)
+    changes = np.concatenate([[0], np.flatnonzero(np.diff(unwrapped) != 0) + 1])
+    out: list[tuple[float, float]] = []
+    for a, b in zip(changes[:-1], changes[1:], strict=True):
+        excess = float(t[b] - t[a]) - float(unwrapped[b] - unwrapped[a]) * period
+        if excess > 2 * period:
+            out.append((float(t[a] - t[0]), excess))
+    return out
 
 
 def _pose_at(robot: Robot, table: GaitTable, t: np.ndarray) -> np.ndarray:
@@ -160,6 +238,9 @@ class Comparison:
     lag_s: float
     joints: JointTrack  # times from the run's first sample
     pose_error: np.ndarray | None  # distance (m) per sample, when the run has a pose
+    aligned_by: str = "host clock"  # or "controller frame"
+    gaps: tuple[tuple[float, float], ...] = ()  # (at s, length s) between samples
+    stalls: tuple[tuple[float, float], ...] = ()  # (at s, length s) the frame stood still
 
     def summary(self) -> dict[str, Any]:
         t = self.joints.t
@@ -167,6 +248,9 @@ class Comparison:
             "samples": len(t),
             "duration_s": round(float(t[-1] - t[0]), 3),
             "start_in_gait_s": round(self.lag_s, 4),
+            "aligned_by": self.aligned_by,
+            "gaps": [{"at_s": round(a, 3), "length_s": round(n, 3)} for a, n in self.gaps],
+            "stalls": [{"at_s": round(a, 3), "length_s": round(n, 3)} for a, n in self.stalls],
             "joints": self.joints.per_joint(),
         }
         if self.pose_error is not None:
@@ -194,11 +278,22 @@ def compare(run: Run, table: GaitTable, robot: Robot) -> Comparison:
         / 1000.0
         * (table.frame_count if table.loop else table.frame_count - 1)
     )
-    lag = best_lag(t, measured[:, 0], lambda tt: table_angles(robot, table, tt)[:, 0], span)
-    predicted = table_angles(robot, table, t + lag)
+    gaps = tuple(find_gaps(run.t))
+    stalls: tuple[tuple[float, float], ...] = ()
+    if run.frames is not None and np.ptp(run.frames) > 0:
+        clock = controller_clock(run.t, run.frames, table)
+        stalls = tuple(find_stalls(run.t, run.frames, table))
+        lag = float(clock[0])
+        gait_t = clock  # the moment in the gait of each sample, by the controller
+        aligned_by = "controller frame"
+    else:
+        lag = best_lag(t, measured[:, 0], lambda tt: table_angles(robot, table, tt)[:, 0], span)
+        gait_t = t + lag
+        aligned_by = "host clock"
+    predicted = table_angles(robot, table, gait_t)
     pose_error = None
     if run.pose is not None:
-        pred = _pose_at(robot, table, t + lag)
+        pred = _pose_at(robot, table, gait_t)
         ref = _pose_at(robot, table, np.array([lag]))[0]
         # the run's pose is where the robot was; the prediction's is relative to its start
         c, s = math.cos(run.pose[0, 2] - ref[2]), math.sin(run.pose[0, 2] - ref[2])
@@ -206,4 +301,11 @@ def compare(run: Run, table: GaitTable, robot: Robot) -> Comparison:
         px = run.pose[0, 0] + c * dx - s * dy
         py = run.pose[0, 1] + s * dx + c * dy
         pose_error = np.hypot(run.pose[:, 0] - px, run.pose[:, 1] - py)
-    return Comparison(lag, JointTrack(t, joint_names(robot), measured, predicted), pose_error)
+    return Comparison(
+        lag,
+        JointTrack(t, joint_names(robot), measured, predicted),
+        pose_error,
+        aligned_by,
+        gaps,
+        stalls,
+    )

@@ -7,9 +7,10 @@ May import: as the ``cli`` layer (every layer below it)."""
 from __future__ import annotations
 
 import contextlib
+import math
 import sys
 from collections.abc import Iterator
-from typing import NoReturn
+from typing import Any, NoReturn
 
 import click
 
@@ -202,36 +203,108 @@ def ping_command(bus: BusLink, as_json: bool, ids: tuple[int, ...]) -> None:
         )
 
 
+ROBOT_HELP = (
+    "A robot file (or snake5, ...): positions of the servo's joint are joint angles (its zero "
+    "tick, sign and limits applied; a goal outside the limits is refused)."
+)
+
+
+def _joint_of(robot: str | None, servo_id: int) -> Any:
+    """The joint that servo ``servo_id`` drives in ``robot`` (None without --robot)."""
+    if robot is None:
+        return None
+    from snakebot.model.robots import load_robot
+
+    loaded = load_robot(robot)
+    for joint in loaded.joints:
+        if joint.servo_id == servo_id:
+            return joint
+    raise BusCommandError(
+        f"servo {servo_id} drives no joint of {loaded.name} (its servos: "
+        f"{', '.join(map(str, loaded.servo_ids))}): give one of those IDs, or drop --robot"
+    )
+
+
+def _joint_goal(joint: Any, text: str) -> int | None:
+    """The tick for the joint angle ``text`` (30deg, -0.2rad); None if ``text`` is not an
+    angle (raw ticks, absdeg: those stay as written)."""
+    amount = register_values.split_amount(text)
+    if amount is None or amount[1] not in register_values.ANGLE_UNITS:
+        return None
+    value, unit = amount
+    phi = math.radians(value) if unit == "deg" else value
+    if not joint.min_rad - 1e-9 <= phi <= joint.max_rad + 1e-9:
+        raise BusCommandError(
+            f"{text} is outside joint {joint.name}'s limits ({math.degrees(joint.min_rad):g} "
+            f"to {math.degrees(joint.max_rad):g} deg): give an angle inside them"
+        )
+    return int(joint.angle_to_tick(phi))
+
+
 @bus.command("read")
 @bus_options
 @click.argument("servo_id", metavar="ID", type=click.IntRange(0, register_values.MAX_ID))
 @click.argument("registers", nargs=-1)
-def read_command(bus: BusLink, as_json: bool, servo_id: int, registers: tuple[str, ...]) -> None:
+@click.option("--robot", metavar="FILE", help=ROBOT_HELP)
+def read_command(
+    bus: BusLink, as_json: bool, servo_id: int, registers: tuple[str, ...], robot: str | None
+) -> None:
     """Read REGISTERS of servo ID (all of them if none are named) and decode them.
 
     \b
         snakebot bus read 1 present-position present-voltage --port /dev/ttyUSB0
         snakebot bus read 1 36 --port /dev/ttyUSB0        # the same register by address
+        snakebot bus read 10 present-position --robot snake5 --port /dev/ttyUSB0
+
+    A position reads as its angle from the centre and on the 0-300 dial; with --robot,
+    also as the joint's angle.
     """
     entries = [register_values.resolve_register(r) for r in registers]
+    joint = _joint_of(robot, servo_id)
     with _on_the_bus(bus) as client:
         table, values = bus_registers.read_registers(client, servo_id, entries)
+    if joint is not None:
+        for v in values:
+            if "from_centre_deg" in v:
+                v["joint"] = joint.name
+                v["joint_deg"] = round(math.degrees(joint.tick_to_angle(int(v["value"]))), 1)
     if echo_json(as_json, {"id": servo_id, "model": table.model, "registers": values}):
         return
     click.echo(f"servo {servo_id} ({table.model}):")
     for v in values:
         rw = "" if v["access"] == "RW" else "  (read-only)"
-        click.echo(f"  {v['address']:>3}  {v['name']:<22} {register_values.describe_value(v)}{rw}")
+        joint_text = f"; joint {v['joint']} {v['joint_deg']:+g} deg" if "joint" in v else ""
+        click.echo(
+            f"  {v['address']:>3}  {v['name']:<22} {register_values.describe_value(v)}"
+            f"{joint_text}{rw}"
+        )
 
 
-@bus.command("write")
+@bus.command("write", context_settings={"ignore_unknown_options": True})  # -30deg
 @bus_options
 @click.argument("servo_id", metavar="ID", type=click.IntRange(0, register_values.MAX_ID))
 @click.argument("register")
 @click.argument("value")
-def write_command(bus: BusLink, as_json: bool, servo_id: int, register: str, value: str) -> None:
+@click.option("--robot", metavar="FILE", help=ROBOT_HELP)
+def write_command(
+    bus: BusLink,
+    as_json: bool,
+    servo_id: int,
+    register: str,
+    value: str,
+    robot: str | None,
+) -> None:
     """Write VALUE to REGISTER of servo ID: a raw value (decimal or 0x hex) or an
     amount with a unit the register's scale converts (30deg, 0.5rad, 50rpm, 11.5V).
+
+    \b
+    Positions (goal-position, present-position, the angle limits) as angles:
+    30deg is 30 degrees from the servo's centre (tick 512), counter-clockwise
+    seen from the horn; -30deg as far the other way; 0.5rad the same in radians.
+    The servo's own 0-300 degree dial, as ROBOTIS's Dynamixel Wizard shows it
+    (150 is the centre), is written 150absdeg; a whole number is raw ticks
+    (0-1023). With --robot FILE an angle is the joint's angle: from the joint's
+    zero tick, in its sign, and refused outside its limits.
 
     Read-only registers and values outside the register's range are refused before
     anything is sent. Change an ID with `snakebot bus set-id` and a baud rate with
@@ -239,11 +312,16 @@ def write_command(bus: BusLink, as_json: bool, servo_id: int, register: str, val
 
     \b
         snakebot bus write 1 goal-position 512 --port /dev/ttyUSB0
-        snakebot bus write 1 goal-position 150deg --port /dev/ttyUSB0
+        snakebot bus write 1 goal-position 30deg --port /dev/ttyUSB0      # tick 614
+        snakebot bus write 1 goal-position 180absdeg --port /dev/ttyUSB0  # the same
+        snakebot bus write 10 goal-position 30deg --robot snake5 --port /dev/ttyUSB0
         snakebot bus write 1 moving-speed 50rpm --port /dev/ttyUSB0
         snakebot bus write 1 led 1 --port /dev/ttyUSB0
     """
-    entry, number = register_values.parse_write(register, value)
+    entry = register_values.resolve_register(register)
+    joint = _joint_of(robot, servo_id) if register_values.is_position(entry) else None
+    given = _joint_goal(joint, value) if joint is not None else None
+    entry, number = register_values.parse_write(register, value, given)
     with _on_the_bus(bus) as client:
         back = bus_registers.write_register(client, servo_id, entry, number)
     decoded = register_values.decode(entry, number)

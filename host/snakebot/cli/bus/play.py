@@ -15,6 +15,17 @@ from snakebot.formats.gaittable import read_gait
 from snakebot.link.bus.play import play_table, player_for, tick_count
 
 
+def _paced(port: str) -> str:
+    """``port``, with the emulated bus of a ``sim://`` URL tied to the wall clock: the
+    player ticks on the wall clock, so the servos must move in its time too (otherwise
+    the emulated bus runs only while the host waits for a reply, and the servos would
+    hardly move during the gait). A URL that names its own ``realtime`` is left alone,
+    as is ``sim://NAME`` with no options (a bus opened earlier keeps its own)."""
+    if not port.startswith("sim://") or "realtime=" in port or "?" not in port:
+        return port
+    return port + ("" if port.endswith(("?", "&")) else "&") + "realtime=1"
+
+
 @click.command("play")
 @click.argument("gait", type=INPUT_TEXT_PATH)
 @bus_options
@@ -38,7 +49,7 @@ def bus_play(bus: BusLink, as_json: bool, gait: str, loop: bool) -> None:
     bar = click.progressbar(
         length=total or 0, label="Playing", file=sys.stderr, hidden=as_json or total is None
     )
-    with bus.open() as client, bar:
+    with BusLink(_paced(bus.port), bus.baud).open() as client, bar:
         played = play_table(client, table, player, loop, on_tick=lambda: bar.update(1))
     report = {
         "gait": gait,

@@ -22,7 +22,7 @@ from snakebot.cli.options import (
     wave_options,
 )
 from snakebot.cli.output import echo_json
-from snakebot.cli.params import ANGLE, ANGLES, EXISTING_INPUT, NUMBER, NumberType
+from snakebot.cli.params import ANGLE, ANGLES, EXISTING_INPUT, NUMBER, NumberType, bare_angle_hint
 from snakebot.extras import require
 from snakebot.formats.gaittable import GaitTable, describe_table, read_gait, sidecar_path
 from snakebot.model.gait import Gait, field_gait, serpenoid
@@ -73,6 +73,8 @@ def _write(g: Gait, out: Path, as_json: bool, plot: Path | None = None) -> None:
         f"{table.size} bytes) and {sidecar_path(out)}"
     )
     _print_motion(summary)
+    if g.robot.length_legend:
+        click.echo(f"  ({g.robot.length_legend})")
     if plot is not None:
         click.echo(f"plot written to {summary['plot']}")
 
@@ -87,9 +89,11 @@ def _plot(table: GaitTable, plot: Path | None, summary: dict[str, Any]) -> None:
 
 
 def _print_motion(meta: dict[str, Any]) -> None:
+    unit = meta.get("length_unit", "u")
+
     def line(label: str, m: dict[str, Any]) -> None:
         click.echo(
-            f"  {label:34} dx = {m['dx']: .6f}  dy = {m['dy']: .6f}  "
+            f"  {label:34} dx = {m['dx']: .6f} {unit}  dy = {m['dy']: .6f} {unit}  "
             f"dtheta = {m['dtheta']: .6f} rad"
         )
 
@@ -127,6 +131,7 @@ def _print_motion(meta: dict[str, Any]) -> None:
     help="C: number of cycles; a whole number makes a looping table",
 )
 @table_output_options
+@bare_angle_hint
 def serpenoid_command(
     robot: str,
     amplitude: float,
@@ -216,6 +221,7 @@ def serpenoid_command(
 )
 @form_option
 @table_output_options
+@bare_angle_hint
 def field_command(
     robot: str,
     expression: str,

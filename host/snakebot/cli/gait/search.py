@@ -13,6 +13,8 @@ import click
 from snakebot.cli.options import json_option, plot_option, rate_option, robot_argument, world_option
 from snakebot.cli.output import echo_json
 from snakebot.cli.params import OUTPUT_PATH, NumberType
+from snakebot.extras import require
+from snakebot.sim.physics.select import require_world
 from snakebot.userfiles import OutputRefused, same_file
 from snakebot.workflows.search import (
     METHODS,
@@ -32,6 +34,22 @@ PATH = click.Path(dir_okay=False, path_type=Path)
 
 CYCLES = NumberType(0, 1000, low_open=True)
 """Cycles per run: at most 1000, so one run stays bounded (a grid multiplies it)."""
+
+
+def _require_extras(
+    world: str, method: str, cluster: str | None, output: Path | None, plot: Path | None
+) -> None:
+    """Every optional package the search will need, checked before it starts (a search
+    that ends in a missing package loses its results)."""
+    require_world(world)
+    if method == "cma":
+        require("cma", "--method cma")
+    if cluster is not None:
+        require("distributed", "--cluster")
+    if output is not None and output.suffix.lower() == ".parquet":
+        require("pyarrow", "a .parquet results table (or write .csv)")
+    if plot is not None:
+        require("matplotlib", "--plot")
 
 
 @click.command("search")
@@ -135,6 +153,7 @@ def search_command(
     Example: snakebot gait search snake5 --param A=10deg:50deg:5
     --param delta=30deg:150deg:7 --param omega=360deg -o runs.parquet --plot runs.png
     """
+    _require_extras(world, method, cluster, output, plot)
     if output is not None:
         check_path(output)
     best_path = best_gait_path(best_path, output)

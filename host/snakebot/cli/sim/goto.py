@@ -23,8 +23,10 @@ from snakebot.cli.options import (
 )
 from snakebot.cli.output import dumps
 from snakebot.cli.plan import unreachable
+from snakebot.extras import require
 from snakebot.model.plan import Unreachable
 from snakebot.plots.video import StateMotion, check_video_path, write_video
+from snakebot.sim.physics.select import require_world
 from snakebot.workflows.goto import MAX_SLOWDOWN
 from snakebot.workflows.goto import goto as run_goto
 
@@ -77,6 +79,10 @@ def goto(
       snakebot sim goto trident --to 2,1,30deg --plot goto.png
       snakebot sim goto trident --to 2,1,30deg --video goto.mp4 --size 640x360
     """
+    require("scipy", "planning (`sim goto`)", extra="plan")
+    require_world(world)
+    if plot is not None:
+        require("matplotlib", "--plot")
     from snakebot.model.robots import load_robot
 
     chosen = load_robot(robot)
@@ -103,6 +109,7 @@ def goto(
         unreachable(exc)
         return
     summary = result.summary()
+    summary.update(length_unit=chosen.length_unit, length_legend=chosen.length_legend)
     if plot is not None:
         from snakebot.plots.goto import plot_goto
 
@@ -135,17 +142,20 @@ def _print(s: dict[str, Any]) -> None:
         f"({s['iterations']} loops, each re-planned from the pose read) in "
         f"{s['duration_s']:.2f} s of bus time ({s['wall_s']:.2f} s wall)"
     )
+    u = s["length_unit"]
     for label, p in (("target", t), ("reached", f)):
         click.echo(
-            f"  {label:8} x = {p['x']: .4f}  y = {p['y']: .4f}  theta = "
+            f"  {label:8} x = {p['x']: .4f} {u}  y = {p['y']: .4f} {u}  theta = "
             f"{math.degrees(p['theta']): .2f} deg"
         )
     verdict = "within" if e["within"] else "OUTSIDE"
     click.echo(
-        f"  error {e['position']:.4g} (tolerance {e['position_tolerance']:.4g}), heading "
+        f"  error {e['position']:.4g} {u} (tolerance {e['position_tolerance']:.4g} {u}), heading "
         f"{math.degrees(e['heading_rad']):.3f} deg (tolerance "
         f"{math.degrees(e['heading_tolerance_rad']):.2f} deg): {verdict} the tolerance"
     )
+    if s["length_legend"]:
+        click.echo(f"  ({s['length_legend']})")
     if "plot" in s:
         click.echo(f"plot written to {s['plot']}")
     if "video" in s:

@@ -27,8 +27,11 @@ from snakebot.plots.video import StateMotion, check_video_path, write_video
 from snakebot.workflows.predict import DEFAULT_WORLD_HZ, MAX_WORLD_HZ, predict_file
 
 
-def _motion(label: str, m: dict[str, Any]) -> str:
-    return f"  {label:12} dx = {m['dx']: .6f}  dy = {m['dy']: .6f}  dtheta = {m['dtheta']: .6f} rad"
+def _motion(label: str, m: dict[str, Any], unit: str) -> str:
+    return (
+        f"  {label:12} dx = {m['dx']: .6f} {unit}  dy = {m['dy']: .6f} {unit}  "
+        f"dtheta = {m['dtheta']: .6f} rad"
+    )
 
 
 @click.command("predict")
@@ -103,6 +106,7 @@ def predict(
     result, summary = predict_file(
         gait_file, robot, ideal=ideal, world_hz=world_rate, world=world, mu=mu
     )
+    summary["length_unit"] = length = result.robot.length_unit
     if video is not None:
         click.echo("writing the video ...", err=True)
         summary["video"] = str(
@@ -135,19 +139,21 @@ def predict(
         f"{'one loop' if summary['loop'] else 'once'}, {summary['duration_s']:.3f} s"
     )
     click.echo(f"body motion ({summary['frame']}):")
-    click.echo(_motion("emulated:", em))
-    click.echo(_motion("predicted:", summary["predicted"]))
-    click.echo(_motion("difference:", diff))
+    click.echo(_motion("emulated:", em, length))
+    click.echo(_motion("predicted:", summary["predicted"], length))
+    click.echo(_motion("difference:", diff, length))
     click.echo(
-        f"  paths differ by at most {diff['path_max']:.3g} in position and "
+        f"  paths differ by at most {diff['path_max']:.3g} {length} in position and "
         f"{diff['heading_max']:.3g} rad in heading"
     )
+    if result.robot.length_legend:
+        click.echo(f"  ({result.robot.length_legend})")
     click.echo(
         f"joint tracking error: max {math.degrees(diff['joint_max_rad']):.3f} deg, "
         f"rms {math.degrees(diff['joint_rms_rad']):.3f} deg"
     )
     friction = f"c_t = {em['c_t']:g}" if em["c_t"] is not None else f"mu = {em['mu']:g}"
-    click.echo(f"wheel slip: at most {em['slip_max']:.3g} per second sideways ({friction})")
+    click.echo(f"wheel slip: at most {em['slip_max']:.3g} {length}/s sideways ({friction})")
     if "energy_j" in em:
         click.echo(
             "physics: net work per joint "

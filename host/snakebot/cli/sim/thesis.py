@@ -18,7 +18,9 @@ from snakebot.cli.options import (
 from snakebot.cli.output import dumps, echo_json
 from snakebot.cli.params import EXISTING_INPUT, LazyChoice
 from snakebot.errors import InputError
+from snakebot.extras import require
 from snakebot.plots.video import check_video_path, write_video
+from snakebot.sim.physics.select import require_world
 
 MAX_MU = 1000.0
 """The largest friction coefficient tried: rubber on concrete is about 1."""
@@ -80,6 +82,8 @@ def thesis(
     joints against t, both worlds overlaid, the model's ideal path dashed.
     docs/thesis.md compares the results with what the thesis saw.
     """
+    require_world("mujoco")
+    require("matplotlib", "`sim thesis` (its pictures)")
     from snakebot.plots.thesis import plot_thesis_run
     from snakebot.workflows.thesis import RUNS, run_thesis
 
@@ -160,6 +164,9 @@ def friction(
       snakebot gait serpenoid snake5 -A 30deg -w 180deg -d 90deg --cycles 1 -o s.gait
       snakebot sim friction s.gait --plot friction.png
     """
+    require_world("mujoco")
+    if plot is not None:
+        require("matplotlib", "--plot")
     from snakebot.formats.gaittable import read_gait
     from snakebot.plots.thesis import plot_friction
     from snakebot.workflows.friction import friction_study

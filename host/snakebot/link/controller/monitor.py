@@ -104,6 +104,7 @@ def sample(ctl: ControllerClient, t0: float | None = None) -> Sample:
 
 CSV_COLUMNS = (
     "t",
+    "frame",
     "state",
     "name",
     "id",
@@ -122,7 +123,9 @@ CSV_COLUMNS = (
 
 def csv_rows(s: Sample) -> list[dict[str, Any]]:
     """The sample as CSV rows (:data:`CSV_COLUMNS`), one per roster servo."""
-    base = {"t": round(s.t, 3), "state": s.controller_record()["state"]}
+    c = s.controller_record()
+    # frame: the controller's own clock, the table frame it was playing (Play Frame)
+    base = {"t": round(s.t, 3), "frame": c["play_frame"], "state": c["state"]}
     rows = []
     for j in s.servos:
         record = servo_record(j)

@@ -13,4 +13,5 @@ def save_gait(gait: Gait, path: Path) -> tuple[GaitTable, dict[str, Any]]:
     """Write ``gait``'s table to ``path``: the table, and the gait's summary with where
     it was written (``file``, ``metadata_file``) and its size (``bytes``)."""
     table = gait.gait_table()
-    return table, {**save_table(path, table), "bytes": table.size, **gait.summary()}
+    summary = {**save_table(path, table), "bytes": table.size, **gait.summary()}
+    return table, {**summary, "length_unit": gait.robot.length_unit}

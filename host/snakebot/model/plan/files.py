@@ -24,6 +24,7 @@ def save_plan(plan: Plan | ProgramPlan, output: Path) -> tuple[dict[str, Any], G
     """Write ``plan`` to ``output``: its summary with ``file`` (and a table's
     ``metadata_file``), and the table written (None for a program)."""
     summary = plan.summary()
+    summary.update(length_unit=plan.robot.length_unit, length_legend=plan.robot.length_legend)
     if isinstance(plan, ProgramPlan):
         write_program(output, plan.program)
         summary["file"] = str(output)

@@ -128,6 +128,21 @@ class Robot:
         return tuple(j.tick_range for j in self.joints)
 
     @property
+    def length_unit(self) -> str:
+        """The unit of the robot's lengths (its ``[geometry]``, and every distance and pose
+        computed from it) as printed: ``m`` for a robot measured in metres, else ``u``,
+        the robot's own unit (the thesis robots are dimensionless)."""
+        return "m" if self.physics is not None and self.physics.unit_m == 1.0 else "u"
+
+    @property
+    def length_legend(self) -> str:
+        """What ``u`` is, for a report to print once (empty for a robot in metres)."""
+        if self.length_unit == "m":
+            return ""
+        twin = f"; 1 u = {self.physics.unit_m:g} m on its physical twin" if self.physics else ""
+        return f"lengths in u, {self.name}'s own unit (its [geometry]{twin})"
+
+    @property
     def torque_limit_percent(self) -> float | None:
         """The robot-wide torque limit in the servo's unit (% of stall torque), if set."""
         if self.torque_limit is None:

@@ -22,6 +22,14 @@ def check_world(name: str) -> str:
     return name
 
 
+def require_world(name: str) -> str:
+    """``name`` if it is a world this installation can run (MuJoCo's needs the ``physics``
+    extra), else an error saying what to install: for a command to check before it works."""
+    if check_world(name) == "mujoco":
+        require("mujoco", "the mujoco world")
+    return name
+
+
 def make_world(
     name: str,
     bus: Bus,

@@ -222,9 +222,17 @@ class Serial(SerialBase):
         if type(data) is not bytes:
             data = to_bytes(data)
         with self._lock:
+            bus = self.bus
             if self._pacer is not None:  # (a call saved on the closed loop's path)
                 self._sync()
-            self.bus.master_write(data)
+            elif bus.master_tx_done > bus.now:
+                # The bus clock moves only when the master waits for something; a master
+                # that only writes (a gait played with no reads) would otherwise queue
+                # its packets one behind the other in bus time, and the reply to its
+                # next READ would come after all of them. A write comes no sooner than
+                # the one before it has left the UART, as on a host pacing its writes.
+                bus.run_until(bus.master_tx_done)
+            bus.master_write(data)
         return len(data)
 
     def reset_input_buffer(self) -> None:

@@ -233,6 +233,8 @@ _TABLE = (
         unit="ms",
         low=0,
         high=10_000,
+        default_note="the adapter's latency timer where it shows one (FTDI on Linux); 0 for "
+        "a pseudo-terminal or sim://",
         group="transport",
     ),
     Setting(

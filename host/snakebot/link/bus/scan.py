@@ -31,6 +31,15 @@ SCAN_RETRIES = 3
 
 """Further PINGs a scan gives an ID whose reply came back damaged."""
 
+SCAN_MARGIN_S = 0.1e-3
+"""The host margin of a silent ID's wait when ``SNAKEBOT_MARGIN_MS`` does not say. A host
+that wakes late loses nothing (the reply waits in the port's buffer); the margin is for
+a reply the transport delivers late (a program answering on a pseudo-terminal, an
+adapter slower than its latency timer), and a scan needs little: a reply later than its
+window still counts in the next ID's, and every ID still silent is PINGed once more at
+the end. A transaction keeps the larger ``HOST_MARGIN_S``: a missed reply there is an
+error."""
+
 
 QUIET_READ_SIZE = 4096
 
@@ -129,18 +138,25 @@ def longest_return_delay_us() -> float:
     return longest
 
 
+def scan_margin_s() -> float:
+    """The host margin of a silent ID's wait: ``SNAKEBOT_MARGIN_MS``, else
+    :data:`SCAN_MARGIN_S`."""
+    return settings.resolve_margin_s(default=SCAN_MARGIN_S)
+
+
 def silence_s(client: DxlClient) -> float:
     """How long after a PING leaves the host a scan takes a silent line for a missing
     servo: the PING on the wire, :func:`longest_return_delay_us`, the first byte of a
-    status packet, and the adapter's latency and the host's margin (the client's). It
-    scales with the baud rate, so slow rates cost what their wire needs."""
+    status packet, the adapter's latency (the client's: what the adapter reports) and
+    :func:`scan_margin_s`. It scales with the baud rate, so slow rates cost what their
+    wire needs."""
     return timing.reply_timeout_s(
         len(protocol.ping(0)),
         1,
         client.baudrate,
         return_delay_us=longest_return_delay_us(),
         latency_s=client.timing.latency_s,
-        margin_s=client.timing.margin_s,
+        margin_s=scan_margin_s(),
     )
 
 
@@ -216,7 +232,11 @@ class _Sweep:
     :data:`SCAN_RETRIES` more, each after a quiet pause (:func:`quiet_s`): a damaged
     length byte leaves the servos waiting for the rest of a packet that never comes,
     and they give up on it only after a pause. If every try is damaged, the result is
-    marked garbled: something is there."""
+    marked garbled: something is there.
+
+    Every ID still silent at the end of the sweep is PINGed once more (and its result
+    given then), so a servo whose PING or reply was lost to noise, or whose reply came
+    later than the next ID's window, is not missed."""
 
     def __init__(self, client: DxlClient, silence: float, pings: Mapping[int, bytes]) -> None:
         self.client = client
@@ -227,7 +247,17 @@ class _Sweep:
         self.reply_timeout = client.timing.reply_timeout_s(len(protocol.ping(0)), 0)
 
     def run(self, ids: Sequence[int]) -> Iterator[Probe]:
-        """Each of ``ids``' results, once."""
+        """Each of ``ids``' results, once: the silent ones after their second PING."""
+        silent: list[int] = []
+        for probe in self._pass(ids):
+            if probe.info is None and not probe.garbled:
+                silent.append(probe.id)
+            else:
+                yield probe
+        yield from self._pass(silent)
+
+    def _pass(self, ids: Sequence[int]) -> Iterator[Probe]:
+        """One PING for each of ``ids`` (more where replies come back damaged)."""
         baud = self.client.baudrate
         pending: int | None = None  # silent so far; its reply may still come
         self.io.flush_input()

@@ -43,7 +43,7 @@ import serial
 from snakebot.facts import devices
 from snakebot.facts.devices import Device
 from snakebot.formats.protocol import PacketParser
-from snakebot.link.transport import settings
+from snakebot.link.transport import adapter, settings
 from snakebot.link.transport.levels import DEFAULT_STATUS_RETURN_LEVEL, StatusLevels, check_level
 from snakebot.link.transport.portio import PortIO
 from snakebot.link.transport.ports import open_port
@@ -70,7 +70,9 @@ class DxlClient(Reads, Writes, Transactions, ReplyReader, StatusLevels):
     open ``serial.Serial`` (used as is and left open). Keywords not given fall back to the
     environment (``SNAKEBOT_RETRIES``, ``SNAKEBOT_LATENCY_MS``, ``SNAKEBOT_MARGIN_MS``,
     ``SNAKEBOT_RETURN_DELAY_US``, ``SNAKEBOT_ECHO``) and then to the named defaults in
-    :mod:`snakebot.link.transport.settings` and :mod:`snakebot.link.transport.timing`.
+    :mod:`snakebot.link.transport.settings` and :mod:`snakebot.link.transport.timing`;
+    the latency, to what the adapter reports first (:mod:`snakebot.link.transport.adapter`:
+    an FTDI adapter's latency timer, zero for a pseudo-terminal or the emulator).
 
     ``echo``: True for a bus that echoes every instruction, False for one that never
     does, "auto" to find out from the first answered transaction. If that first exchange
@@ -111,7 +113,6 @@ class DxlClient(Reads, Writes, Transactions, ReplyReader, StatusLevels):
         self.echo_probe_s = settings.resolve_echo_probe_s(echo_probe_s)
         timing_kwargs = {
             "return_delay_us": settings.resolve_return_delay_us(return_delay_us),
-            "latency_s": settings.resolve_latency_s(latency_s),
             "margin_s": settings.resolve_margin_s(margin_s),
         }
         self._default_level = check_level(status_return_level)
@@ -129,7 +130,10 @@ class DxlClient(Reads, Writes, Transactions, ReplyReader, StatusLevels):
             if baudrate is not None and port.baudrate != baudrate:
                 port.baudrate = baudrate
         self._io = PortIO(self._port)
-        self.timing = BusTiming(baudrate=int(self._port.baudrate), **timing_kwargs)
+        latency = settings.resolve_latency_s(latency_s, adapter.latency_s(self._port))
+        self.timing = BusTiming(
+            baudrate=int(self._port.baudrate), latency_s=latency, **timing_kwargs
+        )
         self._echo = None if echo_setting == "auto" else bool(echo_setting)
         self._parser = PacketParser()
         self._recent = deque(maxlen=RECENT_SENDS)

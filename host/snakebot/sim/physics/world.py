@@ -24,7 +24,6 @@ backwards).
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
@@ -32,6 +31,7 @@ import numpy as np
 
 from snakebot.model.robots import TICKS_PER_RAD, Robot
 from snakebot.sim.bus.bus import Bus
+from snakebot.sim.history import History
 from snakebot.sim.physics.actuator import OVERLOAD_HOLD_S, STALLED_FRACTION, Actuator
 from snakebot.sim.physics.mjcf import CONTROL_PERIOD_S, TIMESTEP_S, build_mjcf, physics_of
 from snakebot.sim.world import DEFAULT_PERIOD_S, WorldError, WorldRecord, require_servos
@@ -158,8 +158,6 @@ class PhysicsWorld:
         self._stalled = [0.0] * n
         self._moving = [False] * n
         self._on = [False] * n
-        self._t: deque[float] = deque(maxlen=keep)
-        self._rows: deque[np.ndarray] = deque(maxlen=keep)
         self._ticks = 0
         self._running = True
         self._joints = list(zip(self._servos, self._signs, self._zeros, strict=True))
@@ -171,6 +169,12 @@ class PhysicsWorld:
         self._cvel_idx = (6 * w[:, None] + [2, 3, 4]).ravel()
         self._xpos_idx = (3 * w[:, None] + [0, 1]).ravel()
         self._axle_idx = (9 * w[:, None] + [1, 4]).ravel()  # row-major 3x3: column 1
+        # a sample's row: its time, then the pieces above and each joint's torque
+        widths = [1, len(self._qsel), len(self._cvel_idx), len(self._xpos_idx), 2]
+        widths += [len(self._axle_idx), n]
+        ends = np.cumsum(widths).tolist()
+        self._cols = [slice(end - width, end) for width, end in zip(widths, ends, strict=True)]
+        self._history = History(sum(widths), keep)
         self._schedule = bus.every(self.control_period, self._tick, start=self.start_time)
 
     # -- stepping -------------------------------------------------------------------------
@@ -259,19 +263,15 @@ class PhysicsWorld:
             self._fail(t, "the simulation blew up (a position or speed is not finite)")
         if z < self._min_z:
             self._fail(t, "the wheels sank deep into the floor")
-        self._t.append(t - self.start_time)
-        self._rows.append(
-            np.concatenate(
-                (
-                    q[self._qsel],
-                    d.cvel.ravel()[self._cvel_idx],
-                    d.xpos.ravel()[self._xpos_idx],
-                    d.subtree_com[self._root, :2],
-                    d.xmat.ravel()[self._axle_idx],
-                    torque,
-                )
-            )
-        )
+        row = self._history.slot()
+        c = self._cols
+        row[0] = t - self.start_time
+        np.take(q, self._qsel, out=row[c[1]])
+        np.take(d.cvel, self._cvel_idx, out=row[c[2]])
+        np.take(d.xpos, self._xpos_idx, out=row[c[3]])
+        row[c[4]] = d.subtree_com[self._root, :2]
+        np.take(d.xmat, self._axle_idx, out=row[c[5]])
+        row[c[6]] = torque
 
     def _fail(self, t: float, what: str) -> None:
         self.stop()
@@ -304,14 +304,13 @@ class PhysicsWorld:
 
     @property
     def samples(self) -> int:
-        return len(self._t)
+        return len(self._history)
 
     def record(self) -> PhysicsRecord:
         """Everything sampled so far."""
-        n, w = self.robot.n_joints, self.robot.n_wheels
-        rows = np.array(list(self._rows), dtype=float).reshape(-1, 3 + n + 7 * w + 2 + n)
-        cols = np.cumsum([3 + n, 3 * w, 2 * w, 2, 2 * w])
-        state, cvel, centre, com, axle, torque = np.split(rows, cols, axis=1)
+        w = self.robot.n_wheels
+        rows = self._history.array()
+        times, state, cvel, centre, com, axle, torque = (rows[:, c] for c in self._cols)
         # each wheel centre's velocity along its axle, from the com-based velocities (the
         # robot is one tree rooted at the base): v + w x r. The robot stays level, so of
         # w only the turn about z moves a centre sideways (the spin is along the axle).
@@ -324,7 +323,7 @@ class PhysicsWorld:
         slip = (vx * axle[:, :, 0] + vy * axle[:, :, 1]) / self.unit
         pose = state[:, :3] / [self.unit, self.unit, 1.0]
         return PhysicsRecord(
-            np.array(self._t),
+            times[:, 0],
             pose,
             state[:, 3:],
             slip,

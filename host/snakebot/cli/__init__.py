@@ -4,7 +4,8 @@ One subpackage per command group with several commands (``bus``, ``controller``,
 ``gait``, ``sim``) and one module per stand-alone command (``compare``, ``demo``,
 ``doctor``, ``flash``, ``model``, ``plan``, ``program``, ``robot``); every command is
 registered below. A command parses its options, calls one operation from the library
-and prints; ``params`` holds the option types, ``output`` the JSON and text writers,
+and prints; ``options`` declares the options that more than one command takes (once),
+``params`` holds the option types, ``output`` the JSON and text writers,
 ``signals`` the Ctrl-C and hang-up handling. Errors become one line on stderr and an
 exit status: 1 runtime failure, 2 bad input, 130 Ctrl-C (see ``errors``).
 

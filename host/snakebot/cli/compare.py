@@ -6,8 +6,8 @@ from pathlib import Path
 
 import click
 
-from snakebot.cli.output import dumps
-from snakebot.cli.params import PLOT_PATH
+from snakebot.cli.options import json_option, plot_option, robot_option
+from snakebot.cli.output import echo_json
 from snakebot.extras import require
 from snakebot.formats.gaittable import read_gait
 from snakebot.workflows.compare import compare, load_run
@@ -17,13 +17,12 @@ from snakebot.workflows.predict import resolve_robot
 @click.command("compare")
 @click.argument("run", type=click.Path(dir_okay=False, path_type=Path))
 @click.argument("gait", type=click.Path(dir_okay=False, path_type=Path))
-@click.option(
-    "--robot",
-    help="The robot (built-in name or TOML) whose calibration turns ticks into angles; "
-    "default: the one the gait's metadata names.",
+@robot_option(
+    "The robot whose calibration turns ticks into angles",
+    otherwise="the one the gait's metadata names",
 )
-@click.option("--plot", type=PLOT_PATH, help="Write a picture of the joints and their error.")
-@click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
+@plot_option("the joints and their error")
+@json_option()
 def compare_command(
     run: Path, gait: Path, robot: str | None, plot: Path | None, as_json: bool
 ) -> None:
@@ -50,8 +49,7 @@ def compare_command(
         from snakebot.plots.compare import plot_comparison
 
         summary["plot"] = str(plot_comparison(result, plot))
-    if as_json:
-        click.echo(dumps(summary))
+    if echo_json(as_json, summary):
         return
     click.echo(
         f"{summary['samples']} samples over {summary['duration_s']} s; the run starts "

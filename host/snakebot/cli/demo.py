@@ -5,14 +5,22 @@ from __future__ import annotations
 import signal
 from pathlib import Path
 from types import FrameType
+from typing import Any
 
 import click
 
-from snakebot.cli.output import dumps
-from snakebot.cli.params import OUTPUT_PATH, wave_options
+from snakebot.cli.options import (
+    directory_option,
+    firmware_option,
+    json_option,
+    robot_option,
+    video_option,
+    wave_options,
+    world_option,
+)
+from snakebot.cli.output import echo_json
 from snakebot.plots.demo import draw_demo
 from snakebot.plots.video import check_video_path
-from snakebot.sim.physics.select import WORLDS
 from snakebot.workflows.demo import DemoSettings, run_demo, summary_lines
 
 EXIT_INTERRUPTED = 130  # as a shell reports a program stopped by Ctrl-C
@@ -23,14 +31,8 @@ def _sigterm(signum: int, frame: FrameType | None) -> None:
 
 
 @click.command()
-@click.option(
-    "--robot",
-    "-r",
-    default="snake5",
-    show_default=True,
-    help="The snake to emulate: snake5, snake3 or a robot TOML file.",
-)
-@wave_options
+@robot_option("The snake to emulate", default="snake5")
+@wave_options()
 @click.option(
     "--cycles",
     type=click.IntRange(1, 20),
@@ -38,52 +40,12 @@ def _sigterm(signum: int, frame: FrameType | None) -> None:
     show_default=True,
     help="Gait cycles measured (after one cycle to settle).",
 )
-@click.option(
-    "--out",
-    "out_dir",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=Path("out"),
-    show_default=True,
-    help="Directory for the gait table and the PNG.",
-)
-@click.option(
-    "--firmware",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="Firmware image for QEMU (default: the qemu board's firmware.elf that `make "
-    "firmware` built in this checkout, else the one shipped with snakebot).",
-)
-@click.option(
-    "--world",
-    type=click.Choice(WORLDS),
-    default=DemoSettings.world,
-    show_default=True,
-    help="mujoco: the body has mass and its wheels can slip, so the prediction is checked "
-    "against physics; kinematic: the body follows the prediction's own model.",
-)
-@click.option(
-    "--video",
-    type=OUTPUT_PATH,
-    help="Write a GIF (or MP4, with ffmpeg) of the emulated robot seen from above.",
-)
-@click.option(
-    "--json",
-    "as_json",
-    is_flag=True,
-    help="Print the results as one JSON object instead of the report.",
-)
-def demo(
-    robot: str,
-    amplitude: float,
-    omega: float,
-    delta: float,
-    cycles: int,
-    out_dir: Path,
-    firmware: Path | None,
-    world: str,
-    video: Path | None,
-    as_json: bool,
-) -> None:
+@directory_option("--out", default=Path("out"), what="the gait table and the PNG")
+@firmware_option
+@world_option(DemoSettings.world)
+@video_option("the emulated robot")
+@json_option()
+def demo(as_json: bool, **options: Any) -> None:
     """Run the whole chain on the emulated 5-link robot and report what it did.
 
     It generates a serpenoid gait table, starts the emulated robot (the real controller
@@ -93,19 +55,9 @@ def demo(
     It writes OUT/demo.gait and OUT/demo.png (paths and joint angles) and leaves nothing
     running, also when interrupted. `make demo` builds everything first and runs this.
     """
-    settings = DemoSettings(
-        robot=robot,
-        amplitude=amplitude,
-        omega=omega,
-        delta=delta,
-        cycles=cycles,
-        out_dir=out_dir,
-        firmware=firmware,
-        world=world,
-        video=video,
-    )
-    if video is not None:
-        check_video_path(video)
+    settings = DemoSettings(**options)
+    if settings.video is not None:
+        check_video_path(settings.video)
     say = (lambda _line: None) if as_json else click.echo
     previous = signal.signal(signal.SIGTERM, _sigterm)
     try:
@@ -118,8 +70,7 @@ def demo(
         raise SystemExit(EXIT_INTERRUPTED) from None
     finally:
         signal.signal(signal.SIGTERM, previous)
-    if as_json:
-        click.echo(dumps(result.as_dict()))
+    if echo_json(as_json, result.as_dict()):
         return
     for line in summary_lines(result):
         click.echo(line)

@@ -6,7 +6,14 @@ import sys
 
 import click
 
-from snakebot.cli.controller.link import controller_id_option
+from snakebot.cli.options import (
+    ANY_PORT,
+    bauds_option,
+    controller_id_option,
+    ids_option,
+    json_option,
+    port_option,
+)
 from snakebot.cli.output import dumps
 from snakebot.formats import register_values
 from snakebot.link.bus import doctor as checks
@@ -16,24 +23,10 @@ MARKS = {"ok": "ok  ", "warn": "WARN", "fail": "FAIL", "skip": "skip"}
 
 
 @click.command("doctor")
-@click.option(
-    "--port",
-    "-p",
-    required=True,
-    help="The port to examine: the CM-530's PC link, a USB2Dynamixel's servo bus, a "
-    "pyserial URL (sim://...) or an emulator's pseudo-terminal.",
-)
+@port_option(ANY_PORT)
 @controller_id_option
-@click.option(
-    "--ids", default="0-253", show_default=True, help="Servo IDs to look for on a servo bus."
-)
-@click.option(
-    "--bauds",
-    default="1000000",
-    show_default=True,
-    help="Rates to scan a servo bus at, comma-separated, or 'common' / 'all' (the AX-12 "
-    "leaves the factory at 1000000).",
-)
+@ids_option
+@bauds_option("1000000")
 @click.option(
     "--bootloader",
     "check_bootloader",
@@ -51,7 +44,7 @@ MARKS = {"ok": "ok  ", "warn": "WARN", "fail": "FAIL", "skip": "skip"}
     help="The board the controller should name: cm530 for the robot, qemu for `snakebot "
     "sim serve`; any accepts either (and says which answered).",
 )
-@click.option("--json", "as_json", is_flag=True, help="Print the checks as JSON.")
+@json_option()
 def doctor(
     port: str,
     controller_id: int,

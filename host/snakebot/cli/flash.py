@@ -8,8 +8,9 @@ from typing import Any, TextIO
 
 import click
 
+from snakebot.cli.options import BOOTLOADER_PORT, json_option, port_option
 from snakebot.cli.output import dumps
-from snakebot.cli.params import NumberType, controller_port
+from snakebot.cli.params import NumberType
 from snakebot.facts.boards import PC_LINK_BAUD
 from snakebot.firmware import image as firmware_image
 from snakebot.link.flash import FlashTimeouts, board_layout, flash, load_image
@@ -64,16 +65,7 @@ def _confirm_unverified(warning: str, yes: bool, out: TextIO) -> bool:
 
 @click.command("flash")
 @click.argument("firmware", required=False, type=click.Path(dir_okay=False, path_type=str))
-@click.option(
-    "--port",
-    "-p",
-    required=True,
-    envvar="SNAKEBOT_PORT",
-    show_envvar=True,
-    callback=controller_port("snakebot sim bootloader"),
-    help="The CM-530's PC link: its USB-serial device (/dev/ttyUSB0, COM3), a pyserial URL, "
-    "or the pseudo-terminal of `snakebot sim bootloader`.",
-)
+@port_option(BOOTLOADER_PORT)
 @click.option(
     "--no-go",
     is_flag=True,
@@ -119,12 +111,7 @@ def _confirm_unverified(warning: str, yes: bool, out: TextIO) -> bool:
     "after): by default every stored slot is saved to a file first, in case the "
     "bootloader erases it.",
 )
-@click.option(
-    "--json",
-    "as_json",
-    is_flag=True,
-    help="Print the result as one JSON object on stdout (messages go to stderr).",
-)
+@json_option()
 def flash_command(
     firmware: str | None,
     port: str,

@@ -2,19 +2,18 @@
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import click
 import numpy as np
 
-from snakebot.cli.output import dumps
+from snakebot.cli.options import form_option, json_option, robot_argument
+from snakebot.cli.output import dumps, echo_json
 from snakebot.cli.params import ANGLES
 from snakebot.extras import require
-from snakebot.model.gait.common import NEAR_SINGULAR_RCOND
-from snakebot.model.kinematics import body_velocity, default_form, field_model, fields
-from snakebot.model.kinematics.lie import LieFields, lie_fields, lie_model
+from snakebot.model.kinematics import default_form
 from snakebot.model.kinematics.model import singular_reason
+from snakebot.model.reports import describe_robot, field_report, lie_report, uses_lie_jets
 from snakebot.model.robots import load_robot
 
 
@@ -25,46 +24,19 @@ def model() -> None:
 
 
 @model.command("info")
-@click.argument("robot", metavar="ROBOT")
-@click.option("--json", "as_json", is_flag=True, help="print JSON instead of text")
+@robot_argument
+@json_option()
 def info(robot: str, as_json: bool) -> None:
     """Show a robot description: geometry, friction, and each joint's servo.
 
     ROBOT is a built-in robot (snake3, trident, snake5, car) or the path of a robot .toml
     file.
+
+    Example: snakebot model info snake5
     """
     rb = load_robot(robot)
-    data: dict[str, Any] = {
-        "robot": rb.name,
-        "kind": rb.kind,
-        "description": rb.description,
-        "source": rb.source,
-        "geometry": {
-            "snake": lambda: {"links": rb.links, "half_link": rb.l},
-            "car": lambda: {"wheelbase": rb.l},
-            "trident": lambda: {
-                "base_radius": rb.r,
-                "arm_length": rb.l,
-                "alphas_deg": [math.degrees(a) for a in rb.alphas],
-            },
-        }[rb.kind](),
-        "friction": {"c_n": rb.c_n, "c_t": rb.c_t},
-        "servo": {"model": rb.servo_model, "max_speed_rad_s": rb.max_speed_rad_s},
-        "joints": [
-            {
-                "name": j.name,
-                "servo_id": j.servo_id,
-                "zero_tick": j.zero_tick,
-                "sign": j.sign,
-                "min_deg": math.degrees(j.min_rad),
-                "max_deg": math.degrees(j.max_rad),
-                "ticks": list(j.tick_range),
-            }
-            for j in rb.joints
-        ],
-    }
-    if as_json:
-        click.echo(dumps(data, indent=2))
+    data = describe_robot(rb)
+    if echo_json(as_json, data, indent=2):
         return
     click.echo(f"{rb.name}: {rb.description or rb.kind} ({rb.source})")
     geometry = ", ".join(
@@ -85,12 +57,12 @@ def info(robot: str, as_json: bool) -> None:
         )
 
 
-def _fmt(values: np.ndarray) -> str:
+def _fmt(values: Any) -> str:
     return "(" + ", ".join(f"{v + 0.0: .9g}" for v in values) + ")"
 
 
 @model.command("fields")
-@click.argument("robot", metavar="ROBOT")
+@robot_argument
 @click.option(
     "--at",
     "at",
@@ -99,12 +71,7 @@ def _fmt(values: np.ndarray) -> str:
     help="the configuration q = x,y,theta,phi1,...; each a number, a pi expression "
     "or a 'deg' value, e.g. 0,0,0,pi/3,-pi/3 or 0,0,0,60deg,-60deg",
 )
-@click.option(
-    "--form",
-    type=click.Choice(["body", "world"]),
-    help="trident only: body-velocity inputs (default, the thesis's system (18)) "
-    "or world-velocity inputs (system (11)); they differ in the brackets",
-)
+@form_option
 @click.option(
     "--depth",
     type=int,
@@ -113,7 +80,7 @@ def _fmt(values: np.ndarray) -> str:
     "takes about 3 s at depth 5): a Lyndon basis of brackets up to D and the growth "
     "vector to D",
 )
-@click.option("--json", "as_json", is_flag=True, help="print JSON instead of text")
+@json_option()
 @click.option(
     "--symbolic",
     is_flag=True,
@@ -158,7 +125,7 @@ def fields_command(
     Example: snakebot model fields snake3 --at 0,0,0,pi/3,-pi/3
     """
     rb = load_robot(robot)
-    jets = rb.kind == "car" or (rb.kind == "snake" and (rb.links != 3 or depth is not None))
+    jets = uses_lie_jets(rb, depth)
     if symbolic and (depth is not None or rb.kind == "snake" and rb.links != 3):
         raise click.UsageError(
             "--symbolic is available for snake3, the trident and the car (no --depth)"
@@ -174,66 +141,42 @@ def fields_command(
     n = len(rb.state_names)
     if at is None:
         raise click.UsageError("give the configuration with --at (or ask for --symbolic)")
-    if at is not None and len(at) != n:
+    if len(at) != n:
         raise click.BadParameter(
             f"{rb.name} has {n} coordinates ({', '.join(rb.state_names)}): give {n} values, "
             f"got {len(at)}",
             param_hint="--at",
         )
-    if jets:
-        if form is not None:
-            raise click.UsageError("--form applies to the trident only")
-        assert at is not None
-        _print_lie(rb, lie_fields(lie_model(rb), np.array(at), depth or 3), as_json)
-        return
-    kind = field_model(rb)
-    used_form = form or default_form(rb)
-    fs = fields(rb, np.array(at), form)
-    data = {
-        "robot": rb.name,
-        "form": used_form,
-        "q": [float(v) for v in at],
-        "fields": None
-        if fs.values is None
-        else {name: (fs[name] + 0.0).tolist() for name in fs.names},
-        "growth": None if fs.growth is None else list(fs.growth),
-        "det": fs.det,
-        "condition": fs.condition,
-        "singular": fs.singular,
-        "joint_driven": _joint_driven(rb, np.array(at)),
-    }
-    if kind == "snake3":
-        data["det_b"] = fs.det_b
-        if fs.singular:
-            data["singular_where"] = singular_reason(rb, np.array(at))
+    if jets and form is not None:
+        raise click.UsageError("--form applies to the trident only")
+    data = lie_report(rb, at, depth or 3) if jets else field_report(rb, at, form)
     if as_json:
         click.echo(dumps(data, indent=2))
-        return
+    elif jets:
+        _print_lie(rb, data)
+    else:
+        _print_fields(rb, data)
+
+
+def _print_fields(rb: Any, data: dict[str, Any]) -> None:
+    used_form = data["form"]
     inputs = "joint-velocity" if used_form == "joint" else f"{used_form}-velocity"
-    click.echo(f"{rb.name} ({inputs} inputs) at q = {_fmt(np.array(at))}")
+    click.echo(f"{rb.name} ({inputs} inputs) at q = {_fmt(data['q'])}")
     click.echo(f"  coordinates: ({', '.join(rb.state_names)})")
-    if fs.values is None:
+    if data["fields"] is None:
         click.echo(
-            f"  singular: yes (det B = {fs.det_b:.3g}): the 3-link snake's fields are "
+            f"  singular: yes (det B = {data['det_b']:.3g}): the 3-link snake's fields are "
             f"undefined where det B = 0; here {data['singular_where']}"
         )
         return
-    for name in fs.names:
-        click.echo(f"  {name:3} = {_fmt(fs[name])}")
+    for name, values in data["fields"].items():
+        click.echo(f"  {name:3} = {_fmt(values)}")
+    growth = tuple(data["growth"]) if data["growth"] is not None else None
     click.echo(
-        f"  growth vector: {fs.growth}   det G* = {fs.det:.9g}   condition number "
-        f"{fs.condition:.3g}   singular: {'yes' if fs.singular else 'no'}"
+        f"  growth vector: {growth}   det G* = {data['det']:.9g}   condition number "
+        f"{data['condition']:.3g}   singular: {'yes' if data['singular'] else 'no'}"
     )
     _echo_joint_driven(data["joint_driven"])
-
-
-def _joint_driven(rb: Any, q: np.ndarray) -> dict[str, Any] | None:
-    """How well the joints, driven as the servos drive them, determine the body at q:
-    the minimum-slip wheel model's reciprocal condition number (None for the car)."""
-    if rb.kind not in ("snake", "trident"):
-        return None
-    rcond = body_velocity(rb, q, np.zeros(rb.n_joints)).rcond
-    return {"rcond": rcond, "near_singular": rcond < NEAR_SINGULAR_RCOND}
 
 
 def _echo_joint_driven(data: dict[str, Any] | None) -> None:
@@ -247,54 +190,30 @@ def _echo_joint_driven(data: dict[str, Any] | None) -> None:
     click.echo(f"  warning: driven by its joints, as the servos drive it, q is {where}")
 
 
-def _print_lie(rb: Any, lf: LieFields, as_json: bool) -> None:
-    inputs = "steering S, drive D" if rb.kind == "car" else "joint rates dphi1 (g1), dphi2 (g2)"
-    data = {
-        "robot": rb.name,
-        "form": "car" if rb.kind == "car" else "joint",
-        "q": [float(v) for v in lf.q],
-        "coordinates": list(rb.state_names),
-        "inputs": inputs,
-        "depth": max(lf.depths),
-        "fields": None
-        if lf.values is None
-        else {name: (lf[name] + 0.0).tolist() for name in lf.names},
-        "depths": dict(zip(lf.names, lf.depths, strict=True)),
-        "aliases": {v: k for k, v in lf.aliases.items()},
-        "growth": None if lf.growth is None else list(lf.growth),
-        "growth_exact_to_depth": len(lf.exact),
-        "growth_reliable": lf.ranks_reliable,
-        "condition": lf.condition,
-        "singular": lf.singular,
-        "joint_driven": _joint_driven(rb, lf.q),
-    }
-    if lf.singular and rb.kind == "snake":
-        data["singular_where"] = singular_reason(rb, lf.q)
-    if as_json:
-        click.echo(dumps(data, indent=2))
-        return
-    click.echo(f"{rb.name} (inputs: {inputs}) at q = {_fmt(lf.q)}")
+def _print_lie(rb: Any, data: dict[str, Any]) -> None:
+    click.echo(f"{rb.name} (inputs: {data['inputs']}) at q = {_fmt(data['q'])}")
     click.echo(f"  coordinates: ({', '.join(rb.state_names)})")
-    if lf.values is None:
+    if data["fields"] is None:
         where = (
             "the steering is at +-90 degrees (tan Phi has a pole)"
             if rb.kind == "car"
             else f"the first three links' constraints do not determine the body: "
-            f"{singular_reason(rb, lf.q)}"
+            f"{singular_reason(rb, np.array(data['q']))}"
         )
         click.echo(f"  singular: yes: {where}")
         return
-    expressions = {v: k for k, v in lf.aliases.items()}
-    labels = [f"{n} = {expressions[n]}" if n in expressions else n for n in lf.names]
+    expressions = data["aliases"]
+    names = list(data["fields"])
+    labels = [f"{n} = {expressions[n]}" if n in expressions else n for n in names]
     width = max(len(label) for label in labels)
-    for name, label in zip(lf.names, labels, strict=True):
-        click.echo(f"  {label:{width}} = {_fmt(lf[name])}")
-    exact = len(lf.exact)
+    for name, label in zip(names, labels, strict=True):
+        click.echo(f"  {label:{width}} = {_fmt(data['fields'][name])}")
+    exact = data["growth_exact_to_depth"]
     click.echo(
-        f"  growth vector: {lf.growth} (exact to depth {exact})   condition number "
-        f"{lf.condition:.3g}   singular: no"
+        f"  growth vector: {tuple(data['growth'])} (exact to depth {exact})   condition number "
+        f"{data['condition']:.3g}   singular: no"
     )
-    if not lf.ranks_reliable:
+    if not data["growth_reliable"]:
         click.echo(
             f"  warning: past depth {exact} the ranks are numeric, and at this condition "
             "number double precision cannot decide them (q is too near the singular set)"

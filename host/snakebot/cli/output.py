@@ -12,6 +12,7 @@ import json
 import math
 from typing import Any
 
+import click
 import numpy as np
 
 
@@ -33,3 +34,11 @@ def jsonable(value: Any) -> Any:
 def dumps(value: Any, **kwargs: Any) -> str:
     """JSON text for ``value``; never ``NaN`` or ``Infinity`` (see :func:`jsonable`)."""
     return json.dumps(jsonable(value), allow_nan=False, **kwargs)
+
+
+def echo_json(as_json: bool, value: Any, **kwargs: Any) -> bool:
+    """With --json, print ``value`` as JSON (:func:`dumps`, ``kwargs`` as its) and say so;
+    without, print nothing: the command prints its text instead."""
+    if as_json:
+        click.echo(dumps(value, **kwargs))
+    return as_json

@@ -1,6 +1,8 @@
-"""Click parameter types shared by the commands: angles, lists of angles, and finite
-numbers in a range. Every number on the command line goes through one of them, so NaN,
-infinities and absurd magnitudes are refused while parsing, before anything is opened."""
+"""Click parameter types shared by the commands: angles, lists of angles, finite numbers
+in a range, files to write, poses (X,Y,THETA) and table capacities. Every number on the
+command line goes through one of them, so NaN, infinities and absurd magnitudes are
+refused while parsing, before anything is opened. The options built on them, each
+declared once, are in ``options``."""
 
 from __future__ import annotations
 
@@ -13,7 +15,8 @@ from typing import Any, TypeVar
 
 import click
 
-from snakebot.model.gait.values import ExpressionError, parse_angle, parse_angles
+from snakebot.facts.boards import TABLE_CAPACITY
+from snakebot.model.gait.values import ExpressionError, parse_angle, parse_angles, parse_number
 
 
 def _parsed(
@@ -75,43 +78,6 @@ class AngleListType(click.ParamType):
 
 ANGLE = AngleType()
 ANGLES = AngleListType()
-
-F = TypeVar("F", bound=Callable[..., Any])
-
-
-def wave_options(func: F) -> F:
-    """--amplitude, --omega and --delta of a serpenoid with the demo's wave as defaults,
-    for the commands that run one without a gait file (`demo`, `drive`)."""
-    for option in reversed(
-        (
-            click.option(
-                "--amplitude",
-                "-A",
-                type=ANGLE,
-                default="30deg",
-                show_default=True,
-                help="Serpenoid amplitude A (rad, or deg with 'deg').",
-            ),
-            click.option(
-                "--omega",
-                "-w",
-                type=ANGLE,
-                default="180deg",
-                show_default=True,
-                help="Serpenoid temporal frequency omega (rad/s, or deg/s with 'deg').",
-            ),
-            click.option(
-                "--delta",
-                "-d",
-                type=ANGLE,
-                default="90deg",
-                show_default=True,
-                help="Serpenoid phase step from one joint to the next (rad or deg).",
-            ),
-        )
-    ):
-        func = option(func)
-    return func
 
 
 class NumberType(click.ParamType):
@@ -216,6 +182,57 @@ def _plot_formats() -> Collection[str]:
 
 OUTPUT_PATH = OutputPathType()
 PLOT_PATH = OutputPathType(_plot_formats)
+
+
+class PoseType(click.ParamType):
+    """X,Y,THETA: two numbers in the robot's length units, and an angle (rad or deg)."""
+
+    name = "x,y,theta"
+
+    def convert(
+        self, value: Any, param: click.Parameter | None, ctx: click.Context | None
+    ) -> tuple[float, float, float]:
+        if isinstance(value, tuple):
+            return value
+        parts = str(value).split(",")
+        if len(parts) != 3 or not all(p.strip() for p in parts):
+            self.fail(f"{value!r} is not X,Y,THETA: give three comma-separated values", param, ctx)
+        try:
+            return (parse_number(parts[0]), parse_number(parts[1]), parse_angle(parts[2]))
+        except ExpressionError as exc:
+            self.fail(str(exc), param, ctx)
+
+
+POSE = PoseType()
+
+#: The longest --capacity worth reading (a number of bytes or a board's name).
+MAX_CAPACITY_CHARS = 32
+
+
+class CapacityType(click.ParamType):
+    """BYTES or a board's name: the table capacity a plan is made for, in bytes."""
+
+    name = "capacity"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> int:
+        if isinstance(value, int):
+            return value
+        text = str(value).strip().lower()
+        if text in TABLE_CAPACITY:
+            return TABLE_CAPACITY[text]
+        if len(text) > MAX_CAPACITY_CHARS or not (text.isascii() and text.isdigit()):
+            boards = ", ".join(sorted(TABLE_CAPACITY))
+            shown = text if len(text) <= MAX_CAPACITY_CHARS else text[:MAX_CAPACITY_CHARS] + "..."
+            self.fail(
+                f"{shown!r} is neither a whole number of bytes nor a board ({boards})", param, ctx
+            )
+        return int(text)
+
+    def get_metavar(self, param: click.Parameter, ctx: click.Context | None = None) -> str:
+        return "BYTES|" + "|".join(sorted(TABLE_CAPACITY))
+
+
+CAPACITY = CapacityType()
 
 
 SERVO_BUS_SCHEME = "sim://"

@@ -9,114 +9,26 @@ from typing import Any
 
 import click
 
-from snakebot.cli.controller.link import controller_id_option
-from snakebot.cli.output import dumps
-from snakebot.cli.params import ANGLE, ANGLES, NUMBER, OUTPUT_PATH, controller_port
-from snakebot.facts.boards import TABLE_CAPACITY
-from snakebot.model.gait.values import ExpressionError, parse_angle, parse_number
-from snakebot.model.plan import Unreachable
-from snakebot.model.plan.planner import (
-    DEFAULT_BOARD,
-    DEFAULT_CAPACITY,
-    DEFAULT_HEADING_TOLERANCE,
-    DEFAULT_TOLERANCE,
+from snakebot.cli.options import (
+    CONTROLLER_PORT,
+    ControllerLink,
+    Goal,
+    controller_id_option,
+    json_option,
+    output_option,
+    plot_option,
+    port_option,
+    robot_argument,
+    target_options,
 )
+from snakebot.cli.output import dumps
+from snakebot.cli.params import CAPACITY
+from snakebot.facts.boards import TABLE_CAPACITY
+from snakebot.model.plan import Unreachable
+from snakebot.model.plan.planner import DEFAULT_BOARD, DEFAULT_CAPACITY
 
 #: Exit status when no plan reaches the target: a runtime failure, not bad input.
 EXIT_UNREACHABLE = 1
-
-
-class PoseType(click.ParamType):
-    """X,Y,THETA: two numbers in the robot's length units, and an angle (rad or deg)."""
-
-    name = "x,y,theta"
-
-    def convert(
-        self, value: Any, param: click.Parameter | None, ctx: click.Context | None
-    ) -> tuple[float, float, float]:
-        if isinstance(value, tuple):
-            return value
-        parts = str(value).split(",")
-        if len(parts) != 3 or not all(p.strip() for p in parts):
-            self.fail(f"{value!r} is not X,Y,THETA: give three comma-separated values", param, ctx)
-        try:
-            return (parse_number(parts[0]), parse_number(parts[1]), parse_angle(parts[2]))
-        except ExpressionError as exc:
-            self.fail(str(exc), param, ctx)
-
-
-POSE = PoseType()
-
-#: The longest --capacity worth reading (a number of bytes or a board's name).
-MAX_CAPACITY_CHARS = 32
-
-
-class CapacityType(click.ParamType):
-    """BYTES or a board's name: the table capacity a plan is made for, in bytes."""
-
-    name = "capacity"
-
-    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> int:
-        if isinstance(value, int):
-            return value
-        text = str(value).strip().lower()
-        if text in TABLE_CAPACITY:
-            return TABLE_CAPACITY[text]
-        if len(text) > MAX_CAPACITY_CHARS or not (text.isascii() and text.isdigit()):
-            boards = ", ".join(sorted(TABLE_CAPACITY))
-            shown = text if len(text) <= MAX_CAPACITY_CHARS else text[:MAX_CAPACITY_CHARS] + "..."
-            self.fail(
-                f"{shown!r} is neither a whole number of bytes nor a board ({boards})", param, ctx
-            )
-        return int(text)
-
-    def get_metavar(self, param: click.Parameter, ctx: click.Context | None = None) -> str:
-        return "BYTES|" + "|".join(sorted(TABLE_CAPACITY))
-
-
-CAPACITY = CapacityType()
-
-TO_OPTION = click.option(
-    "--to",
-    "target",
-    type=POSE,
-    required=True,
-    metavar="X,Y,THETA",
-    help="target body pose relative to the start pose: X along the start heading, Y to "
-    "its left (the robot's length units), THETA counter-clockwise (rad, or deg with "
-    "'deg'), e.g. 3,1,45deg",
-)
-FROM_OPTION = click.option(
-    "--from",
-    "start",
-    type=ANGLES,
-    metavar="PHI1,...",
-    help="joint angles at the start, where the plan also ends (default: pi/3,-pi/3 for "
-    "the 3-link snake, 0 for the others)",
-)
-TOLERANCE_OPTIONS = (
-    click.option(
-        "--tolerance",
-        type=NUMBER,
-        default=DEFAULT_TOLERANCE,
-        show_default=True,
-        help="how near the end must be, as a fraction of the distance to the target "
-        "(at least that fraction of a tenth of a body length)",
-    ),
-    click.option(
-        "--heading-tolerance",
-        type=ANGLE,
-        default=DEFAULT_HEADING_TOLERANCE,
-        show_default="2deg",
-        help="how near the end heading must be (rad, or deg with 'deg')",
-    ),
-)
-
-
-def tolerance_options(f: Any) -> Any:
-    for option in reversed(TOLERANCE_OPTIONS):
-        f = option(f)
-    return f
 
 
 def unreachable(exc: Unreachable) -> None:
@@ -126,47 +38,34 @@ def unreachable(exc: Unreachable) -> None:
 
 
 @click.command("plan")
-@click.argument("robot", metavar="ROBOT")
-@TO_OPTION
-@FROM_OPTION
-@tolerance_options
-@click.option(
-    "--output",
-    "-o",
-    type=OUTPUT_PATH,
-    help="the gait table to write (FILE.json gets the metadata), or with a .prog suffix "
-    "the controller program (on-board generators: a few hundred bytes); without it the "
-    "plan is only reported",
+@robot_argument
+@target_options
+@output_option(
+    "The gait table to write (FILE.json gets the metadata), or with a .prog suffix the "
+    "controller program (on-board generators: a few hundred bytes); without it the plan "
+    "is only reported",
+    required=False,
 )
-@click.option(
-    "--plot",
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="also write a PNG of the joints and the body's path (needs -o)",
-)
+@plot_option("the joints and the body's path (needs -o)")
 @click.option(
     "--capacity",
     type=CAPACITY,
-    help="the largest table (or program) the plan may take, in bytes or as a board's "
+    help="The largest table (or program) the plan may take, in bytes or as a board's "
     f"({', '.join(f'{b}: {n}' for b, n in sorted(TABLE_CAPACITY.items()))} bytes) "
     f"[default: {DEFAULT_BOARD}'s {DEFAULT_CAPACITY}, the smallest board's, so that a "
-    "plan made without asking the controller plays on every board]",
+    "plan made without asking the controller plays on every board].",
 )
-@click.option(
-    "--port",
-    "-p",
-    callback=controller_port("snakebot sim serve"),
-    help="ask the controller on this port (its PC link, e.g. /dev/ttyUSB0, or the "
-    "pseudo-terminal of `snakebot sim serve`) for its Table Capacity and plan for that; "
-    "instead of --capacity",
+@port_option(
+    CONTROLLER_PORT,
+    purpose="Ask the controller on this port for its Table Capacity and plan for that "
+    "(instead of --capacity)",
+    required=False,
 )
 @controller_id_option
-@click.option("--json", "as_json", is_flag=True, help="print the report as JSON")
+@json_option()
 def plan_command(
     robot: str,
-    target: tuple[float, float, float],
-    start: list[float] | None,
-    tolerance: float,
-    heading_tolerance: float,
+    goal: Goal,
     output: Path | None,
     plot: Path | None,
     capacity: int | None,
@@ -216,13 +115,12 @@ def plan_command(
       snakebot plan trident --to 1,0.5,30deg -o go.prog
       snakebot upload go.prog --port /dev/ttyUSB0 && snakebot play --port /dev/ttyUSB0
     """
-    from snakebot.model.plan import make_plan
-    from snakebot.model.plan.program import plan_program
+    from snakebot.model.plan.files import plan_for, save_plan, wants_program
     from snakebot.model.robots import load_robot
 
     if plot is not None and output is None:
         raise click.UsageError("--plot needs -o FILE: the plot is drawn from the written table")
-    as_program = output is not None and output.suffix == ".prog"
+    as_program = wants_program(output)
     if as_program and plot is not None:
         raise click.UsageError(
             "--plot draws a gait table: for a program, use "
@@ -234,63 +132,40 @@ def plan_command(
         )
     chosen = load_robot(robot)
     if port is not None:
-        capacity = controller_capacity(port, controller_id)
+        from snakebot.link.controller.upload import table_capacity
+
+        with ControllerLink(port, controller_id=controller_id).open() as ctl:
+            capacity = table_capacity(ctl)
     try:
-        plan = (plan_program if as_program else make_plan)(
+        plan = plan_for(
+            output,
             chosen,
-            target,
-            start=tuple(start) if start else None,
-            tolerance=tolerance,
-            heading_tolerance=heading_tolerance,
+            goal.target,
             capacity=DEFAULT_CAPACITY if capacity is None else capacity,
+            **goal.settings(),
         )
     except Unreachable as exc:
         unreachable(exc)
         return
-    if as_program:
-        assert output is not None
-        _write_program(plan, output, as_json)
-        return
-    summary = plan.summary()
-    if output is not None:
-        from snakebot.formats.gaittable import sidecar_path, write_gait
+    if output is None:
+        summary, table = plan.summary(), None
+    else:
+        summary, table = save_plan(plan, output)
+    if table is not None and plot is not None:
+        from snakebot.plots.gait import plot_gait
 
-        table = plan.gait.gait_table()
-        write_gait(output, table)
-        summary.update(file=str(output), metadata_file=str(sidecar_path(output)))
-        if plot is not None:
-            from snakebot.plots.gait import plot_gait
-
-            summary["plot"] = str(plot_gait(table, plot))
+        summary["plot"] = str(plot_gait(table, plot))
     for warning in summary["warnings"]:
         click.echo(f"warning: {warning['message']}", err=True)
     if as_json:
         click.echo(dumps(summary, indent=2))
-        return
-    _print(summary)
+    elif as_program:
+        _print_program(summary)
+    else:
+        _print(summary)
 
 
-def controller_capacity(port: str, controller_id: int) -> int:
-    """The Table Capacity of the controller on ``port`` (its PC link at the firmware's
-    rate): the largest table or program it takes."""
-    from snakebot.facts.boards import PC_LINK_BAUD
-    from snakebot.link.controller.client import ControllerClient
-    from snakebot.link.controller.upload import CAPACITY as CAPACITY_REGISTER
-
-    with ControllerClient.open(port, PC_LINK_BAUD, controller_id) as ctl:
-        return ctl.read(CAPACITY_REGISTER)[CAPACITY_REGISTER]
-
-
-def _write_program(plan: Any, output: Path, as_json: bool) -> None:
-    """Write the plan's program (its goals end within the tolerance) and report it."""
-    from snakebot.formats.program.files import write_program
-
-    write_program(output, plan.program)
-    s = plan.summary()
-    s["file"] = str(output)
-    if as_json:
-        click.echo(dumps(s, indent=2))
-        return
+def _print_program(s: dict[str, Any]) -> None:
     kinds = ", ".join(f"{seg['kind']} ({seg['steps']} steps)" for seg in s["segments"])
     hubs = "; ".join(", ".join(f"{math.degrees(v):.1f}" for v in h) for h in s["hubs_rad"])
     click.echo(

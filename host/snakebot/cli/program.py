@@ -3,19 +3,15 @@ table, serpenoid and periodic-input segments the controller runs on its own."""
 
 from __future__ import annotations
 
-import zlib
 from pathlib import Path
-from typing import Any
 
 import click
 
-from snakebot.cli.output import dumps
-from snakebot.cli.params import OUTPUT_PATH
-from snakebot.formats.program import PeriodicSegment, Program, SerpenoidSegment, TableSegment
+from snakebot.cli.options import json_option, output_option, robot_option
+from snakebot.cli.output import echo_json
+from snakebot.formats.program.describe import describe_program
 from snakebot.formats.program.files import read_program, write_program
 from snakebot.model.program_spec import build_program, load_spec
-
-MRAD = 1000.0
 
 
 @click.group("program")
@@ -34,19 +30,9 @@ def program() -> None:
 
 @program.command("build")
 @click.argument("spec", type=click.Path(dir_okay=False, path_type=Path))
-@click.option(
-    "-o",
-    "--output",
-    type=OUTPUT_PATH,
-    required=True,
-    help="The program file to write (.prog).",
-)
-@click.option(
-    "--robot",
-    help="The robot whose joints it drives (snake5, ... or a .toml file); "
-    "overrides the spec's `robot`.",
-)
-@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
+@output_option("The program file to write (.prog)")
+@robot_option("The robot whose joints it drives", otherwise="the spec's `robot`")
+@json_option()
 def build(spec: Path, output: Path, robot: str | None, as_json: bool) -> None:
     """Build a program from SPEC, a TOML (or .json) file listing segments in SI units:
 
@@ -74,9 +60,8 @@ def build(spec: Path, output: Path, robot: str | None, as_json: bool) -> None:
     """
     built = build_program(load_spec(spec), robot, base=spec.parent)
     write_program(output, built)
-    summary = _summary(built, output)
-    if as_json:
-        click.echo(dumps(summary))
+    summary = describe_program(built, output)
+    if echo_json(as_json, summary):
         return
     click.echo(
         f"wrote {output}: {summary['bytes']} bytes, {len(built.segments)} segments for "
@@ -87,14 +72,13 @@ def build(spec: Path, output: Path, robot: str | None, as_json: bool) -> None:
 
 @program.command("show")
 @click.argument("file", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--json", "as_json", is_flag=True, help="Print the program as JSON.")
+@json_option()
 def show(file: Path, as_json: bool) -> None:
     """Show the program in FILE (from `snakebot program build`): its joints and segments,
     in SI units."""
     prog = read_program(file)
-    summary = _summary(prog, file)
-    if as_json:
-        click.echo(dumps(summary))
+    summary = describe_program(prog, file)
+    if echo_json(as_json, summary):
         return
     click.echo(
         f"{file}: {summary['bytes']} bytes, CRC-32 {summary['crc']}, a step every "
@@ -105,52 +89,3 @@ def show(file: Path, as_json: bool) -> None:
     for k, seg in enumerate(summary["segments"]):
         fields = ", ".join(f"{key} {value}" for key, value in seg.items() if key != "kind")
         click.echo(f"  {k + 1:2d}. {seg['kind']}: {fields}")
-
-
-def _summary(prog: Program, path: Path) -> dict[str, Any]:
-    data = prog.encode()
-    return {
-        "file": str(path),
-        "bytes": len(data),
-        "crc": f"0x{zlib.crc32(data):08x}",
-        "period_ms": prog.period_ms,
-        "steps": prog.total_steps,
-        "duration_s": prog.duration_s,
-        "joints": [
-            {"id": j.servo_id, "zero": j.zero, "min": j.low, "max": j.high, "reverse": j.reverse}
-            for j in prog.joints
-        ],
-        "frames": len(prog.frames),
-        "segments": [_segment(prog, s) for s in prog.segments],
-    }
-
-
-def _segment(prog: Program, seg: object) -> dict[str, Any]:
-    seconds = getattr(seg, "steps", 0) * prog.period_ms / 1000.0
-    if isinstance(seg, TableSegment):
-        return {
-            "kind": "table",
-            "first": seg.first,
-            "count": seg.count,
-            "repetitions": seg.repetitions,
-            "duration_s": seconds,
-        }
-    if isinstance(seg, SerpenoidSegment):
-        return {
-            "kind": "serpenoid",
-            "amplitude": seg.amp_mrad / MRAD,
-            "omega": seg.omega_mrad_s / MRAD,
-            "delta": seg.delta_mrad / MRAD,
-            "offset": seg.phi0_mrad / MRAD,
-            "duration_s": seconds,
-        }
-    assert isinstance(seg, PeriodicSegment)
-    rows = prog.blocks[seg.block]
-    return {
-        "kind": "periodic",
-        "omega": seg.omega_mrad_s / MRAD,
-        "rate": [r[0] / MRAD for r in rows],
-        "sin": [r[1] / MRAD for r in rows],
-        "cos": [r[2] / MRAD for r in rows],
-        "duration_s": seconds,
-    }

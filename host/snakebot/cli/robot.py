@@ -6,10 +6,9 @@ from pathlib import Path
 
 import click
 
-from snakebot.cli.bus import bus_options
+from snakebot.cli.options import BusLink, bus_options
 from snakebot.cli.output import dumps
 from snakebot.link.bus.calibrate import JOG_DEG, calibrate, updated_text, write_atomically
-from snakebot.link.transport import DxlClient
 from snakebot.model.robots import load_robot
 from snakebot.model.robots.model import Joint
 
@@ -29,7 +28,7 @@ def robot() -> None:
     help="Ask nothing: the snake already lies straight, and each joint keeps the sign in "
     "the file (its jog then only checks that the servo follows).",
 )
-def calibrate_command(toml: Path, port: str, baud: int, as_json: bool, yes: bool) -> None:
+def calibrate_command(toml: Path, bus: BusLink, as_json: bool, yes: bool) -> None:
     """Measure each joint's zero tick and sign on the real robot and write them into
     ROBOT.toml (its comments and layout are kept; the file is replaced in one step,
     and only if the result is a valid robot).
@@ -60,7 +59,7 @@ def calibrate_command(toml: Path, port: str, baud: int, as_json: bool, yes: bool
             err=as_json,
         )
 
-    with DxlClient(port, baud) as client:
+    with bus.open() as client:
         found = calibrate(client, described, None if yes else ask)
     write_atomically(toml, updated_text(text, found))
     if as_json:

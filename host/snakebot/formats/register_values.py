@@ -156,6 +156,26 @@ ZERO_MEANS = {"Moving Speed": "maximum speed: no speed control"}
 """Registers where 0 is not the scale's zero (the e-Manual's note, in the descriptions)."""
 
 
+WRITTEN_ELSEWHERE = {"ID": "set-id", "Baud Rate": "set-baud"}
+"""Registers a plain write must not change: the command that changes each and checks it."""
+
+
+def parse_write(register: str, value: str) -> tuple[Entry, int]:
+    """The register named ``register`` and the raw ``value`` for it (a number, or an
+    amount in a unit its scale converts), refused if a plain write may not set it: read
+    only, out of its range, or an ID or baud rate (which have their own commands)."""
+    entry = resolve_register(register)
+    number = parse_value(entry, value)
+    redirect = WRITTEN_ELSEWHERE.get(entry.name)
+    if redirect:
+        raise BusCommandError(
+            f"change {entry.name} with `snakebot bus {redirect}`, which checks the result "
+            "(and, for an ID, that no other servo has it)"
+        )
+    check_write(entry, number)
+    return entry, number
+
+
 def meaning(entry: Entry, value: int, table: ControlTable | None = None) -> str | None:
     """What a special value of ``entry`` stands for: the Baud Rate register's bit rate,
     the error bits of an alarm mask, 0 for Moving Speed; None for plain values."""
@@ -280,6 +300,17 @@ def baud_register(bps: float) -> int:
     raise BusCommandError(
         f"an AX-12 cannot run at {bps:g} bit/s: its rate is {_baud().describe()}, e.g. {examples}"
     )
+
+
+def baud_setting(rate: float | None, register: int | None) -> tuple[int, int]:
+    """The Baud Rate register value and the host's rate for a servo's new baud rate,
+    given as a rate in bit/s or as the register value (exactly one of them)."""
+    if (rate is None) == (register is None):
+        raise BusCommandError("give either RATE (bit/s) or --value N, e.g. set-baud 1 500000")
+    if register is None:
+        assert rate is not None
+        return baud_register(rate), round(rate)
+    return register, round(baud_from_register(register))
 
 
 def check_bus_baud(bps: int) -> None:

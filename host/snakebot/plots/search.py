@@ -36,7 +36,7 @@ def plot_search(outcome: Outcome, request: Request, out: Path) -> Path:
         f" ({request.method}, {len(outcome.candidates)} candidates)"
     )
     fig.tight_layout()
-    FigureCanvasAgg(fig).print_png(str(out))
+    FigureCanvasAgg(fig).print_figure(str(out))  # the format by the file's extension
     return out
 
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from urllib.parse import parse_qsl
+from urllib.parse import parse_qsl, urlencode
 
 from snakebot.facts import devices
 from snakebot.sim.bus.bus import Bus
@@ -222,3 +222,20 @@ class SimOptions:
         from snakebot.sim.physics.select import make_world
 
         make_world(self.world, bus, load_robot(self.robot), period=WORLD_PERIOD_S, keep=1)
+
+
+def sim_query(**options: object) -> str:
+    """The query of a sim:// URL for ``options`` (the names :meth:`SimOptions.from_query`
+    takes): unset ones (None, False, ()) left out, flags as 1, each brownout its own
+    pair. ``sim://?`` followed by it is the same emulation in process."""
+    pairs: list[tuple[str, str]] = []
+    for key, value in options.items():
+        if value is None or value is False or value == ():
+            continue
+        if key == "brownout":
+            pairs += [("brownout", v) for v in value]  # type: ignore[union-attr]
+        elif value is True:
+            pairs.append((key, "1"))
+        else:
+            pairs.append((key, str(value)))
+    return urlencode(pairs, safe=",@+;/")

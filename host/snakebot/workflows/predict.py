@@ -36,7 +36,7 @@ import numpy as np
 from snakebot.facts import devices
 from snakebot.formats.gaittable import GaitTable, read_gait
 from snakebot.formats.program.errors import ProgramError
-from snakebot.formats.program.files import read_program
+from snakebot.formats.program.files import is_program_file, read_program
 from snakebot.formats.protocol import sync_write
 from snakebot.link.transport import DxlClient
 from snakebot.model.compare import JointTrack, joint_names
@@ -405,3 +405,24 @@ def predict_program(
     return emulate(
         str(path), chosen, ProgramFrames.of(program), program_player_writes(program), **options
     )
+
+
+PROGRAM_SOURCE = (
+    "integrated from the program's goals at every step (the host's reference of the "
+    "controller's generators), linear from step to step"
+)
+"""How a program's prediction is made, for its summary."""
+
+
+def predict_file(
+    path: str | Path, robot: str | Robot | None = None, **options: Any
+) -> tuple[Prediction, dict[str, Any]]:
+    """:func:`predict_program` or :func:`predict_gait`, by what ``path`` holds (``options``
+    as theirs): the prediction and its summary, which says how the path was predicted."""
+    if not is_program_file(path):
+        result = predict_gait(path, robot, **options)
+        return result, result.summary()
+    result = predict_program(path, robot, **options)
+    summary = result.summary()
+    summary["predicted"]["source"] = PROGRAM_SOURCE
+    return result, summary

@@ -7,15 +7,15 @@ May import: as the ``cli`` layer (every layer below it)."""
 from __future__ import annotations
 
 import contextlib
-import functools
 import sys
-from collections.abc import Callable, Iterator
-from typing import Any, NoReturn
+from collections.abc import Iterator
+from typing import NoReturn
 
 import click
 
 from snakebot.cli.errors import EXIT_RUNTIME
-from snakebot.cli.output import dumps
+from snakebot.cli.options import BusLink, bauds_option, bus_options, ids_option
+from snakebot.cli.output import dumps, echo_json
 from snakebot.cli.params import NumberType
 from snakebot.formats import register_values
 from snakebot.formats.register_values import BusCommandError
@@ -23,55 +23,18 @@ from snakebot.link.bus import ids as bus_ids
 from snakebot.link.bus import registers as bus_registers
 from snakebot.link.bus import scan as bus_scan
 from snakebot.link.bus.scan import Probe, ServoInfo
-from snakebot.link.transport import DEFAULT_BAUDRATE, DxlClient, adapter, open_port
+from snakebot.link.transport import DxlClient, adapter, open_port
 
 EXIT_INTERRUPTED = 130
 """What a shell reports for a command stopped by Ctrl-C (128 + SIGINT)."""
 
-PORT_HELP = (
-    "The bus adapter: a device (/dev/ttyUSB0, COM3), a pyserial URL, or sim://?ids=1,2 for "
-    "the emulator."
-)
-
-
-def _servo_baud(ctx: click.Context, param: click.Parameter, value: int) -> int:
-    """--baud: a rate some described servo runs at."""
-    try:
-        register_values.check_bus_baud(value)
-    except BusCommandError as exc:
-        raise click.BadParameter(str(exc), ctx, param) from None
-    return value
-
-
-def bus_options(func: Callable[..., Any]) -> Callable[..., Any]:
-    """--port, --baud and --json, shared by every bus command."""
-
-    @click.option(
-        "--port", "-p", required=True, envvar="SNAKEBOT_BUS_PORT", show_envvar=True, help=PORT_HELP
-    )
-    @click.option(
-        "--baud",
-        "-b",
-        type=click.IntRange(min=1),
-        default=DEFAULT_BAUDRATE,
-        show_default=True,
-        callback=_servo_baud,
-        help="Bit rate of the bus (AX-12 factory setting: 1000000).",
-    )
-    @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
-    @functools.wraps(func)
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        return func(*args, **kwargs)
-
-    return wrapper
-
 
 @contextlib.contextmanager
-def _on_the_bus(port: str, baud: int) -> Iterator[DxlClient]:
-    """The bus at ``port``. A :class:`BusCommandError` raised while it is open is the
+def _on_the_bus(bus: BusLink) -> Iterator[DxlClient]:
+    """The bus on the command line. A :class:`BusCommandError` raised while it is open is the
     servos' failure (no reply, a write not taken), not bad input: ``error: ...`` and exit
     status 1. Checks of the command line itself come before this, so they keep status 2."""
-    with DxlClient(port, baud) as client:
+    with bus.open() as client:
         try:
             yield client
         except BusCommandError as exc:
@@ -118,15 +81,8 @@ def bus() -> None:
 
 @bus.command("scan")
 @bus_options
-@click.option(
-    "--ids", default="0-253", show_default=True, help="IDs to try, e.g. 0-253 or 1,2,5-7."
-)
-@click.option(
-    "--bauds",
-    help="Rates to try instead of --baud, comma-separated; 'common' for the AX-12's "
-    "usual ones (1000000 ... 9615), 'all' for every rate an AX or MX servo is "
-    "tabulated at (up to 3000000).",
-)
+@ids_option
+@bauds_option(instead=" instead of --baud")
 @click.option(
     "--latency-timer",
     type=click.IntRange(1, 255),
@@ -136,8 +92,7 @@ def bus() -> None:
 @click.pass_context
 def scan_command(
     ctx: click.Context,
-    port: str,
-    baud: int,
+    bus: BusLink,
     as_json: bool,
     ids: str,
     bauds: str | None,
@@ -164,7 +119,8 @@ def scan_command(
     by the last rate's bytes).
     """
     id_list = register_values.parse_ids(ids)
-    rates = register_values.parse_bauds(bauds) if bauds else [baud]
+    port = bus.port
+    rates = register_values.parse_bauds(bauds) if bauds else [bus.baud]
     found: list[ServoInfo] = []
     garbled: list[Probe] = []
     interrupted = False
@@ -241,12 +197,12 @@ def _adapter_latency(port: str, latency_timer: int | None, *, quiet: bool) -> No
 @bus.command("ping")
 @bus_options
 @click.argument("ids", nargs=-1, required=True, type=click.IntRange(0, register_values.MAX_ID))
-def ping_command(port: str, baud: int, as_json: bool, ids: tuple[int, ...]) -> None:
+def ping_command(bus: BusLink, as_json: bool, ids: tuple[int, ...]) -> None:
     """PING servo IDS (one or more) and report model, firmware and error bits.
 
     Fails (exit status 1) if any of them does not answer.
     """
-    with _on_the_bus(port, baud) as client:
+    with _on_the_bus(bus) as client:
         results = {servo_id: bus_scan.identify(client, servo_id) for servo_id in ids}
     found = [info for info in results.values() if info is not None]
     missing = [servo_id for servo_id, info in results.items() if info is None]
@@ -254,8 +210,8 @@ def ping_command(port: str, baud: int, as_json: bool, ids: tuple[int, ...]) -> N
         click.echo(
             dumps(
                 {
-                    "port": port,
-                    "baud": baud,
+                    "port": bus.port,
+                    "baud": bus.baud,
                     "found": [s.as_dict() for s in found],
                     "missing": missing,
                 }
@@ -268,7 +224,7 @@ def ping_command(port: str, baud: int, as_json: bool, ids: tuple[int, ...]) -> N
     if missing:
         who = ", ".join(map(str, missing))
         _device_failure(
-            f"no reply from servo{'s' if len(missing) > 1 else ''} {who} at {baud} baud: "
+            f"no reply from servo{'s' if len(missing) > 1 else ''} {who} at {bus.baud} baud: "
             "check that the servos are powered (USB does not power them) and cabled, the "
             "baud rate (snakebot bus scan --bauds common finds it) and the ID (snakebot bus "
             "scan lists them)"
@@ -279,9 +235,7 @@ def ping_command(port: str, baud: int, as_json: bool, ids: tuple[int, ...]) -> N
 @bus_options
 @click.argument("servo_id", metavar="ID", type=click.IntRange(0, register_values.MAX_ID))
 @click.argument("registers", nargs=-1)
-def read_command(
-    port: str, baud: int, as_json: bool, servo_id: int, registers: tuple[str, ...]
-) -> None:
+def read_command(bus: BusLink, as_json: bool, servo_id: int, registers: tuple[str, ...]) -> None:
     """Read REGISTERS of servo ID (all of them if none are named) and decode them.
 
     \b
@@ -289,10 +243,9 @@ def read_command(
         snakebot bus read 1 36 --port /dev/ttyUSB0        # the same register by address
     """
     entries = [register_values.resolve_register(r) for r in registers]
-    with _on_the_bus(port, baud) as client:
+    with _on_the_bus(bus) as client:
         table, values = bus_registers.read_registers(client, servo_id, entries)
-    if as_json:
-        click.echo(dumps({"id": servo_id, "model": table.model, "registers": values}))
+    if echo_json(as_json, {"id": servo_id, "model": table.model, "registers": values}):
         return
     click.echo(f"servo {servo_id} ({table.model}):")
     for v in values:
@@ -305,9 +258,7 @@ def read_command(
 @click.argument("servo_id", metavar="ID", type=click.IntRange(0, register_values.MAX_ID))
 @click.argument("register")
 @click.argument("value")
-def write_command(
-    port: str, baud: int, as_json: bool, servo_id: int, register: str, value: str
-) -> None:
+def write_command(bus: BusLink, as_json: bool, servo_id: int, register: str, value: str) -> None:
     """Write VALUE to REGISTER of servo ID: a raw value (decimal or 0x hex) or an
     amount with a unit the register's scale converts (30deg, 0.5rad, 50rpm, 11.5V).
 
@@ -321,16 +272,8 @@ def write_command(
         snakebot bus write 1 moving-speed 50rpm --port /dev/ttyUSB0
         snakebot bus write 1 led 1 --port /dev/ttyUSB0
     """
-    entry = register_values.resolve_register(register)
-    number = register_values.parse_value(entry, value)
-    redirect = {"ID": "set-id", "Baud Rate": "set-baud"}.get(entry.name)
-    if redirect:
-        raise BusCommandError(
-            f"change {entry.name} with `snakebot bus {redirect}`, which checks the result "
-            "(and, for an ID, that no other servo has it)"
-        )
-    register_values.check_write(entry, number)
-    with _on_the_bus(port, baud) as client:
+    entry, number = register_values.parse_write(register, value)
+    with _on_the_bus(bus) as client:
         back = bus_registers.write_register(client, servo_id, entry, number)
     decoded = register_values.decode(entry, number)
     if as_json:
@@ -359,7 +302,7 @@ def write_command(
 @bus_options
 @click.argument("old_id", metavar="ID", type=click.IntRange(0, register_values.MAX_ID))
 @click.argument("new_id", metavar="NEW_ID", type=click.IntRange(0, register_values.MAX_ID))
-def set_id_command(port: str, baud: int, as_json: bool, old_id: int, new_id: int) -> None:
+def set_id_command(bus: BusLink, as_json: bool, old_id: int, new_id: int) -> None:
     """Give servo ID the ID NEW_ID (stored in its EEPROM).
 
     Refuses if another device already answers to NEW_ID. Servos leave the factory as
@@ -372,7 +315,7 @@ def set_id_command(port: str, baud: int, as_json: bool, old_id: int, new_id: int
         raise BusCommandError(
             f"ID and NEW_ID are both {old_id}: give NEW_ID the ID the servo should take"
         )
-    with _on_the_bus(port, baud) as client:
+    with _on_the_bus(bus) as client:
         info = bus_ids.set_id(client, old_id, new_id)
     _emit(
         as_json,
@@ -392,7 +335,7 @@ def set_id_command(port: str, baud: int, as_json: bool, old_id: int, new_id: int
     help="Give the Baud Rate register value n instead of RATE.",
 )
 def set_baud_command(
-    port: str, baud: int, as_json: bool, servo_id: int, rate: float | None, register: int | None
+    bus: BusLink, as_json: bool, servo_id: int, rate: float | None, register: int | None
 ) -> None:
     """Set the baud rate of servo ID to RATE bit/s (stored in its EEPROM).
 
@@ -406,15 +349,8 @@ def set_baud_command(
         snakebot bus set-baud 1 500000 --port /dev/ttyUSB0
         snakebot bus ping 1 --baud 500000 --port /dev/ttyUSB0
     """
-    if (rate is None) == (register is None):
-        raise BusCommandError("give either RATE (bit/s) or --value N, e.g. set-baud 1 500000")
-    if register is None:
-        assert rate is not None
-        register = register_values.baud_register(rate)
-        host_baud = round(rate)
-    else:
-        host_baud = round(register_values.baud_from_register(register))
-    with _on_the_bus(port, baud) as client:
+    register, host_baud = register_values.baud_setting(rate, register)
+    with _on_the_bus(bus) as client:
         change = bus_ids.set_baud(client, servo_id, register, host_baud)
     _emit(
         as_json,

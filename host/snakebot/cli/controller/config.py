@@ -7,9 +7,9 @@ from typing import Any
 
 import click
 
-from snakebot.cli.controller.link import controller_options, open_controller
+from snakebot.cli.options import ControllerLink, controller_options
 from snakebot.cli.output import dumps
-from snakebot.link.controller.config import find_setting, parse_setting, settings, shown
+from snakebot.link.controller.config import configure
 
 
 def _print(rows: list[dict[str, Any]]) -> None:
@@ -27,9 +27,7 @@ def config(
     action: str | None,
     name: str | None,
     value: str | None,
-    port: str,
-    baud: int,
-    controller_id: int,
+    link: ControllerLink,
     as_json: bool,
 ) -> None:
     """Show or change the controller's settings.
@@ -52,20 +50,8 @@ def config(
         raise click.UsageError("get takes one NAME: snakebot config get NAME")
     if action == "set" and (name is None or value is None):
         raise click.UsageError("set takes NAME and VALUE: snakebot config set NAME VALUE")
-    with open_controller(port, baud, controller_id) as ctl:
-        table = ctl.table
-        regs = settings(table) if name is None else [find_setting(table, name)]
-        if action == "set":
-            assert value is not None
-            raw = parse_setting(table, regs[0], value)
-            ctl.identify()
-            with ctl.link_errors(f"the write of {regs[0].name}"):
-                ctl.write({regs[0].name: raw})
-            if regs[0].name == "ID":
-                ctl.id = raw  # the controller answers at its new ID from now on
-        with ctl.link_errors("the read of its settings"):
-            values = ctl.read(*(r.name for r in regs))
-    rows = [shown(table, r, values[r.name]) for r in regs]
+    with link.open() as ctl:
+        rows = configure(ctl, name, value if action == "set" else None)
     if as_json:
         click.echo(dumps(rows[0] if name is not None else rows))
     else:

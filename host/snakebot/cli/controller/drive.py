@@ -15,9 +15,8 @@ from typing import Any
 
 import click
 
-from snakebot.cli.controller.link import controller_options, open_controller
+from snakebot.cli.options import ControllerLink, controller_options, roster_option, wave_options
 from snakebot.cli.output import dumps
-from snakebot.cli.params import wave_options
 from snakebot.link.controller import playback
 from snakebot.link.controller.drive import SPEED_STEP, STEER_STEP, Driver, Wait, parse_keys
 from snakebot.model.robots import load_robot
@@ -53,12 +52,7 @@ does, stopping the robot. Example:
 
 @click.command("drive", help=HELP)
 @controller_options
-@click.option(
-    "--robot",
-    help="Set the controller's roster (servo IDs, directions, zero ticks, limits) from "
-    "this robot first: snake3, snake5, trident or a .toml file.",
-)
-@wave_options
+@roster_option
 @click.option(
     "--keys",
     help='Drive without a terminal: these keys, e.g. "LLRR U 2s space q" (left, right, up, '
@@ -70,10 +64,9 @@ does, stopping the robot. Example:
     help="Drive without a terminal: the keys in this file, as --keys takes them (# starts "
     "a comment).",
 )
+@wave_options()
 def drive(
-    port: str,
-    baud: int,
-    controller_id: int,
+    link: ControllerLink,
     as_json: bool,
     robot: str | None,
     amplitude: float,
@@ -96,7 +89,7 @@ def drive(
         )
     settings = playback.SerpenoidSettings(amplitude, omega, delta)
     roster = playback.roster_from_robot(load_robot(robot)) if robot else None
-    with open_controller(port, baud, controller_id) as ctl:
+    with link.open() as ctl:
         driver = Driver(ctl, settings, roster=roster)
         driver.start()
         try:

@@ -9,7 +9,7 @@ from typing import Any
 
 import click
 
-from snakebot.cli.controller.link import controller_options, open_controller
+from snakebot.cli.options import ControllerLink, controller_options
 from snakebot.cli.output import dumps
 from snakebot.formats.gaittable import read_gait
 from snakebot.link.controller.library import (
@@ -86,13 +86,13 @@ def library() -> None:
 
 @library.command("list")
 @controller_options
-def list_command(port: str, baud: int, controller_id: int, as_json: bool) -> None:
+def list_command(link: ControllerLink, as_json: bool) -> None:
     """Every slot: its name, kind, length, CRC-32, and whether its bytes are whole
     (DAMAGED: the flash no longer matches the CRC; store the table again), and where
     the library is kept (--json: memory FLASH, or RAM on the QEMU board). While the
     controller writes its flash (a store under way), says so: the slot being stored
     shows its previous content until the write ends."""
-    with open_controller(port, baud, controller_id) as ctl:
+    with link.open() as ctl:
         ctl.identify()
         slots = list_slots(ctl)
         writing = store_state(ctl)
@@ -121,7 +121,7 @@ def list_command(port: str, baud: int, controller_id: int, as_json: bool) -> Non
 )
 @controller_options
 def store_command(
-    slot: int, gait: Path, name: str | None, port: str, baud: int, controller_id: int, as_json: bool
+    slot: int, gait: Path, name: str | None, link: ControllerLink, as_json: bool
 ) -> None:
     """Keep the gait table GAIT (a .gait file from `snakebot gait`) in slot SLOT,
     replacing what it held. The table is checked as `snakebot upload` checks it; the
@@ -130,7 +130,7 @@ def store_command(
     blob = read_gait(gait).encode()  # a bad file fails here, before the port is opened
     wait = FlashWait(as_json)
     try:
-        with open_controller(port, baud, controller_id) as ctl:
+        with link.open() as ctl:
             ctl.identify()
             name = name if name is not None else gait.stem
             stored = store_slot(ctl, slot, name, blob, on_progress=wait)
@@ -142,14 +142,14 @@ def store_command(
 @library.command("play")
 @SLOT
 @controller_options
-def play_command(slot: int, port: str, baud: int, controller_id: int, as_json: bool) -> None:
+def play_command(slot: int, link: ControllerLink, as_json: bool) -> None:
     """Make slot SLOT's table the active one and play it (stop with `snakebot stop`).
     The table played is not written over the controller's saved active table; while the
     controller is still saving a table just uploaded, this waits for the save to finish
     (playing would replace the table being saved)."""
     wait = FlashWait(as_json)
     try:
-        with open_controller(port, baud, controller_id) as ctl:
+        with link.open() as ctl:
             ctl.identify()
             state = play_slot(ctl, slot, on_progress=wait)
     finally:
@@ -160,11 +160,11 @@ def play_command(slot: int, port: str, baud: int, controller_id: int, as_json: b
 @library.command("delete")
 @SLOT
 @controller_options
-def delete_command(slot: int, port: str, baud: int, controller_id: int, as_json: bool) -> None:
+def delete_command(slot: int, link: ControllerLink, as_json: bool) -> None:
     """Empty slot SLOT (waiting, as store does, for a flash write under way)."""
     wait = FlashWait(as_json)
     try:
-        with open_controller(port, baud, controller_id) as ctl:
+        with link.open() as ctl:
             ctl.identify()
             delete_slot(ctl, slot, on_progress=wait)
     finally:
@@ -175,13 +175,11 @@ def delete_command(slot: int, port: str, baud: int, controller_id: int, as_json:
 @library.command("restore")
 @click.argument("backup_file", metavar="FILE", type=click.Path(dir_okay=False, path_type=Path))
 @controller_options
-def restore_command(
-    backup_file: Path, port: str, baud: int, controller_id: int, as_json: bool
-) -> None:
+def restore_command(backup_file: Path, link: ControllerLink, as_json: bool) -> None:
     """Write the slots saved in FILE (a backup `snakebot flash` made) back to the
     controller, each where it is not already in place."""
     saved = read_backup(backup_file)  # a bad file fails here, before the port is opened
-    with open_controller(port, baud, controller_id) as ctl:
+    with link.open() as ctl:
         ctl.identify()
         written = restore(ctl, saved)
     if as_json:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import click
 
-from snakebot.cli.controller.link import controller_options, open_controller
+from snakebot.cli.options import ControllerLink, controller_options
 from snakebot.cli.output import dumps
 from snakebot.link.controller.limits import (
     limits_state,
@@ -39,7 +39,7 @@ def limits() -> None:
 @limits.command("set")
 @click.argument("robot", metavar="ROBOT")
 @controller_options
-def set_command(robot: str, port: str, baud: int, controller_id: int, as_json: bool) -> None:
+def set_command(robot: str, link: ControllerLink, as_json: bool) -> None:
     """Set the limits of ROBOT (snake3, snake5, trident or a .toml file) on the
     controller, and wait until its servos hold them.
 
@@ -47,7 +47,7 @@ def set_command(robot: str, port: str, baud: int, controller_id: int, as_json: b
     servo IDs) are refused afterwards: regenerate them with `snakebot gait` from ROBOT.
     """
     model = load_robot(robot)  # a bad robot file fails before the port opens
-    with open_controller(port, baud, controller_id) as ctl:
+    with link.open() as ctl:
         ctl.identify()
         report = set_limits(ctl, robot_limits(model), torque=model.torque_limit)
     click.echo(dumps(report.as_dict()) if as_json else report.summary())
@@ -55,12 +55,12 @@ def set_command(robot: str, port: str, baud: int, controller_id: int, as_json: b
 
 @limits.command("show")
 @controller_options
-def show_command(port: str, baud: int, controller_id: int, as_json: bool) -> None:
+def show_command(link: ControllerLink, as_json: bool) -> None:
     """Whether the controller has robot limits, the torque limit they hold the servos to
     (in % of stall torque), and whether its servos hold them (NONE: no limits set;
     APPLYING: being checked; VERIFIED; FAILED: a servo did not take them or did not
     answer)."""
-    with open_controller(port, baud, controller_id) as ctl:
+    with link.open() as ctl:
         ctl.identify()
         state, count = limits_state(ctl)
         torque = robot_torque_limit(ctl)

@@ -13,7 +13,7 @@ from typing import IO, Any
 
 import click
 
-from snakebot.cli.controller.link import controller_options, open_controller
+from snakebot.cli.options import ControllerLink, controller_options, stack
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType
 from snakebot.link.controller.mcap_log import McapLog
@@ -24,6 +24,16 @@ CLEAR_BELOW = "\x1b[J"
 GRID_SLACK = 1e-9
 """Lets a --duration that is a whole number of intervals count as one (0.3 / 0.1 is
 2.9999999999999996 in floating point)."""
+
+
+RECORD_PATH = click.Path(dir_okay=False, writable=True, path_type=Path)
+RECORDS = {
+    "csv": "every sample to this CSV file, one row per servo (t, state, joint name, ticks "
+    "and degrees, speed, load, voltage, temperature, errors)",
+    "mcap": "every sample to this MCAP file (Foxglove Studio, PlotJuggler): one JSON "
+    "message per sample, as --json prints it. Needs the mcap package",
+}
+"""--csv and --mcap: the recordings a run can keep, and what each holds."""
 
 
 def _cursor_up(lines: int) -> str:
@@ -45,24 +55,14 @@ def _cursor_up(lines: int) -> str:
     show_default=True,
     help="Seconds between samples.",
 )
-@click.option(
-    "--csv",
-    "csv_path",
-    type=click.Path(dir_okay=False, writable=True, path_type=Path),
-    help="Also record every sample to this CSV file, one row per servo (t, state, joint "
-    "name, ticks and degrees, speed, load, voltage, temperature, errors).",
-)
-@click.option(
-    "--mcap",
-    "mcap_path",
-    type=click.Path(dir_okay=False, writable=True, path_type=Path),
-    help="Also record every sample to this MCAP file (Foxglove Studio, PlotJuggler): one "
-    "JSON message per sample, as --json prints it. Needs the mcap package.",
+@stack(
+    *(
+        click.option(f"--{fmt}", f"{fmt}_path", type=RECORD_PATH, help=f"Also record {what}.")
+        for fmt, what in RECORDS.items()
+    )
 )
 def monitor(
-    port: str,
-    baud: int,
-    controller_id: int,
+    link: ControllerLink,
     as_json: bool,
     duration: float | None,
     interval: float,
@@ -92,7 +92,7 @@ def monitor(
             if mcap_path is not None:
                 mcap_log = McapLog(stack.enter_context(_open_record(mcap_path, "--mcap", "wb")))
                 stack.enter_context(mcap_log)
-            ctl = stack.enter_context(open_controller(port, baud, controller_id))
+            ctl = stack.enter_context(link.open())
             ctl.identify()
         except BaseException:
             stack.close()  # no controller, no recording: leave no empty file of ours

@@ -8,20 +8,20 @@ from typing import Any
 
 import click
 
-from snakebot.cli.controller.link import controller_options, open_controller
+from snakebot.cli.options import (
+    ControllerLink,
+    controller_options,
+    offset_option,
+    roster_option,
+    speed_option,
+    steer_option,
+    wave_options,
+)
 from snakebot.cli.output import dumps
-from snakebot.cli.params import ANGLE, NUMBER
 from snakebot.link.controller import playback
 from snakebot.model.robots import load_robot
 
-SPEED_HELP = (
-    "Playback speed factor: 1 as generated, 2 twice as fast (0.004..4; the "
-    "controller's Speed Scale)."
-)
-STEER_HELP = (
-    "Angle added to every joint, e.g. 10deg or 0.17 (radians unless suffixed with "
-    "deg; up to about 150deg). Steers a snake by bending it."
-)
+CLEAR_HELP = "Also clear the error flags and leave the safe state (after fixing its cause)."
 
 
 def _emit(status: dict[str, Any], as_json: bool, text: str) -> None:
@@ -39,12 +39,10 @@ def _steer_words(status: dict[str, Any]) -> str:
     default=None,
     help="Loop the table, or play it once and stop (default: as the table says).",
 )
-@click.option("--speed", type=NUMBER, default=1.0, show_default=True, help=SPEED_HELP)
-@click.option("--steer", type=ANGLE, default=0.0, help=STEER_HELP)
+@speed_option
+@steer_option
 def play(
-    port: str,
-    baud: int,
-    controller_id: int,
+    link: ControllerLink,
     as_json: bool,
     loop: bool | None,
     speed: float,
@@ -57,7 +55,7 @@ def play(
     (all its segments) and with the steering (its serpenoid segments only; `snakebot
     drive` changes both while it runs). `snakebot stop` stops.
     """
-    with open_controller(port, baud, controller_id) as ctl:
+    with link.open() as ctl:
         status = playback.play(ctl, loop=loop, speed=speed, steer=steer)
     t = status["table"]
     if status.get("program"):
@@ -65,7 +63,7 @@ def play(
             status,
             as_json,
             f"{status['state']}: the program ({t['joints']} joints, a step every "
-            f"{t['period_ms']} ms). Stop it with `snakebot stop --port {port}`.",
+            f"{t['period_ms']} ms). Stop it with `snakebot stop --port {link.port}`.",
         )
         return
     how = "looping" if status["loop"] else "once"
@@ -74,20 +72,16 @@ def play(
         as_json,
         f"{status['state']}: the table ({t['frames']} frames x {t['joints']} joints every "
         f"{t['period_ms']} ms, {how}) at {status['speed']:.2f}x speed, "
-        f"{_steer_words(status)}. Stop it with `snakebot stop --port {port}`.",
+        f"{_steer_words(status)}. Stop it with `snakebot stop --port {link.port}`.",
     )
 
 
 @click.command("stop")
 @controller_options
-@click.option(
-    "--clear",
-    is_flag=True,
-    help="Also clear the error flags and leave the safe state (after fixing what caused it).",
-)
-def stop(port: str, baud: int, controller_id: int, as_json: bool, clear: bool) -> None:
+@click.option("--clear", is_flag=True, help=CLEAR_HELP)
+def stop(link: ControllerLink, as_json: bool, clear: bool) -> None:
     """Stop the controller's gait; the servos hold their last position."""
-    with open_controller(port, baud, controller_id) as ctl:
+    with link.open() as ctl:
         status = playback.stop(ctl, clear=clear)
     flags = ", ".join(status["error_flags"]) or "none"
     _emit(status, as_json, f"{status['state']} (error flags: {flags})")
@@ -95,42 +89,13 @@ def stop(port: str, baud: int, controller_id: int, as_json: bool, clear: bool) -
 
 @click.command("serpenoid")
 @controller_options
-@click.option(
-    "--amplitude",
-    "-A",
-    type=ANGLE,
-    required=True,
-    help="Wave amplitude A, e.g. 30deg or 0.5 (radians unless suffixed with deg).",
-)
-@click.option(
-    "--omega",
-    "-w",
-    type=ANGLE,
-    required=True,
-    help="Angular frequency omega in rad/s, or deg/s with a deg suffix "
-    "(e.g. pi or 180deg); negative runs the wave backwards.",
-)
-@click.option(
-    "--delta",
-    "-d",
-    type=ANGLE,
-    required=True,
-    help="Phase step from one joint to the next, e.g. 2*pi/3 or 120deg.",
-)
-@click.option(
-    "--offset", type=ANGLE, default=0.0, help="Offset phi0 added to the wave (steers), e.g. 5deg."
-)
-@click.option("--steer", type=ANGLE, default=0.0, help=STEER_HELP)
-@click.option("--speed", type=NUMBER, default=1.0, show_default=True, help=SPEED_HELP)
-@click.option(
-    "--robot",
-    help="Set the controller's roster (servo IDs, directions, zero "
-    "ticks, limits) from this robot first: snake3, snake5, trident or a .toml file.",
-)
+@wave_options(required=True)
+@offset_option
+@steer_option
+@speed_option
+@roster_option
 def serpenoid(
-    port: str,
-    baud: int,
-    controller_id: int,
+    link: ControllerLink,
     as_json: bool,
     amplitude: float,
     omega: float,
@@ -159,7 +124,7 @@ def serpenoid(
     roster = playback.roster_from_robot(model) if model else None
     if model is not None:  # before the port is opened: a refusal sends nothing
         playback.check_serpenoid(model, settings, speed=speed, steer=steer)
-    with open_controller(port, baud, controller_id) as ctl:
+    with link.open() as ctl:
         status = playback.serpenoid(ctl, settings, speed=speed, steer=steer, roster=roster)
     s = status["serpenoid"]
     _emit(
@@ -170,5 +135,5 @@ def serpenoid(
         f"{math.degrees(s['omega_rad_s']):.1f} deg/s, delta = "
         f"{math.degrees(s['delta_rad']):.1f} deg, phi0 = {math.degrees(s['offset_rad']):.1f} "
         f"deg, {status['speed']:.2f}x speed, {_steer_words(status)}. "
-        f"Stop it with `snakebot stop --port {port}`.",
+        f"Stop it with `snakebot stop --port {link.port}`.",
     )

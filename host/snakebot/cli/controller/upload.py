@@ -9,7 +9,7 @@ from typing import Any
 
 import click
 
-from snakebot.cli.controller.link import controller_options, open_controller
+from snakebot.cli.options import ControllerLink, controller_options
 from snakebot.cli.output import dumps
 from snakebot.formats.gaittable import GaitTable, read_gait
 from snakebot.formats.program import Program
@@ -26,9 +26,7 @@ from snakebot.link.controller.upload import UploadReport, upload_gait
     help="Accept servos the controller's roster does not list (the table's servos "
     "become the roster).",
 )
-def upload(
-    gait: Path, port: str, baud: int, controller_id: int, as_json: bool, new_servos: bool
-) -> None:
+def upload(gait: Path, link: ControllerLink, as_json: bool, new_servos: bool) -> None:
     """Upload the gait table GAIT (a .gait file from `snakebot gait`) to the controller,
     or a program (a .prog file from `snakebot program build`), which takes the table's
     place; `snakebot play` then runs whichever is active.
@@ -77,14 +75,14 @@ def upload(
         click.echo(f"{why}: sending the table again (attempt {attempt} of {attempts})", err=True)
 
     try:
-        with open_controller(port, baud, controller_id) as ctl:
+        with link.open() as ctl:
             report = upload_gait(
                 ctl, table, allow_new_servos=new_servos, on_progress=on_progress, on_retry=on_retry
             )
     finally:
         if bar is not None:
             bar.__exit__(None, None, None)
-    _print(report, gait, port, as_json, table)
+    _print(report, gait, link.port, as_json, table)
 
 
 def _print(

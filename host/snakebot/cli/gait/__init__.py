@@ -10,16 +10,24 @@ from typing import Any
 
 import click
 
-from snakebot.cli.output import dumps
-from snakebot.cli.params import ANGLE, ANGLES, NUMBER, OUTPUT_PATH, PLOT_PATH, NumberType
+from snakebot.cli.options import (
+    form_option,
+    json_option,
+    offset_option,
+    output_option,
+    plot_option,
+    rate_option,
+    robot_argument,
+    stack,
+    wave_options,
+)
+from snakebot.cli.output import echo_json
+from snakebot.cli.params import ANGLE, ANGLES, NUMBER, NumberType
 from snakebot.extras import require
-from snakebot.formats.gaittable import read_gait, sidecar_path, write_gait
+from snakebot.formats.gaittable import GaitTable, describe_table, read_gait, sidecar_path
 from snakebot.model.gait import Gait, field_gait, serpenoid
+from snakebot.model.gait.files import save_gait
 from snakebot.model.robots import load_robot
-
-RATE = NumberType(0, low_open=True)
-RATE_HELP = "frame rate of the table in Hz (the frame period is rounded to whole ms)"
-OUT_HELP = "the gait table file to write (FILE.json gets the metadata)"
 
 
 @click.group("gait")
@@ -36,29 +44,24 @@ def gait() -> None:
     its predicted body motion there is hypersensitive to rounding and friction."""
 
 
-PLOT_OPTION = click.option(
-    "--plot",
-    type=PLOT_PATH,
-    help="also write a PNG: each joint, and x, y, theta of the predicted body, against "
-    "time (as the thesis's figures), beside the body's path",
+PLOT_WHAT = (
+    "each joint, and x, y, theta of the predicted body, against time (as the thesis's "
+    "figures), beside the body's path"
 )
+
+table_output_options = stack(
+    rate_option,
+    output_option("The gait table file to write (FILE.json gets the metadata)"),
+    plot_option(PLOT_WHAT),
+    json_option(),
+)
+"""--rate, --output, --plot and --json of the commands that make a gait table."""
 
 
 def _write(g: Gait, out: Path, as_json: bool, plot: Path | None = None) -> None:
-    table = g.gait_table()
-    write_gait(out, table)
-    summary = {
-        "file": str(out),
-        "metadata_file": str(sidecar_path(out)),
-        "bytes": table.size,
-        **g.summary(),
-    }
-    if plot is not None:
-        from snakebot.plots.gait import plot_gait
-
-        summary["plot"] = str(plot_gait(table, plot))
-    if as_json:
-        click.echo(dumps(summary, indent=2))
+    table, summary = save_gait(g, out)
+    _plot(table, plot, summary)
+    if echo_json(as_json, summary, indent=2):
         return
     click.echo(
         f"wrote {out} ({table.frame_count} frames x {table.joint_count} joints every "
@@ -68,6 +71,15 @@ def _write(g: Gait, out: Path, as_json: bool, plot: Path | None = None) -> None:
     _print_motion(summary)
     if plot is not None:
         click.echo(f"plot written to {summary['plot']}")
+
+
+def _plot(table: GaitTable, plot: Path | None, summary: dict[str, Any]) -> None:
+    """With --plot, draw ``table`` there and name the file in ``summary``."""
+    if plot is not None:
+        require("matplotlib", "--plot")
+        from snakebot.plots.gait import plot_gait
+
+        summary["plot"] = str(plot_gait(table, plot))
 
 
 def _print_motion(meta: dict[str, Any]) -> None:
@@ -94,29 +106,9 @@ def _print_motion(meta: dict[str, Any]) -> None:
 
 
 @gait.command("serpenoid")
-@click.argument("robot", metavar="ROBOT")
-@click.option("--amplitude", "-A", type=ANGLE, required=True, help="A (rad or deg)")
-@click.option(
-    "--omega",
-    "-w",
-    type=ANGLE,
-    required=True,
-    help="W: temporal frequency (rad/s, or deg/s with 'deg')",
-)
-@click.option(
-    "--delta",
-    "-d",
-    type=ANGLE,
-    required=True,
-    help="D: phase shift between consecutive joints (rad or deg)",
-)
-@click.option(
-    "--offset",
-    type=ANGLE,
-    default=0.0,
-    show_default=True,
-    help="P0: offset added to every joint (turns the snake)",
-)
+@robot_argument
+@wave_options(required=True)
+@offset_option
 @click.option(
     "--phase",
     type=ANGLE,
@@ -130,10 +122,7 @@ def _print_motion(meta: dict[str, Any]) -> None:
     required=True,
     help="C: number of cycles; a whole number makes a looping table",
 )
-@click.option("--rate", type=RATE, default=50.0, show_default=True, help=RATE_HELP)
-@click.option("--output", "-o", type=OUTPUT_PATH, required=True, help=OUT_HELP)
-@PLOT_OPTION
-@click.option("--json", "as_json", is_flag=True, help="print the summary as JSON")
+@table_output_options
 def serpenoid_command(
     robot: str,
     amplitude: float,
@@ -147,9 +136,10 @@ def serpenoid_command(
     plot: Path | None,
     as_json: bool,
 ) -> None:
-    """A serpenoid gait: phi_k(t) = A sin(W t + (k-1) D + S) + P0 on every joint k.
+    """A serpenoid gait: phi_k(t) = A sin(omega t + (k-1) delta + S) + phi0 on every
+    joint k.
 
-    ROBOT is a snake (snake3, snake5, or a .toml file). W is adjusted slightly so the
+    ROBOT is a snake (snake3, snake5, or a .toml file). omega is adjusted slightly so the
     gait spans a whole number of frames (the summary shows the value used). The summary
     gives the body motion predicted from the continuous gait and from the table as
     written (rounded to ticks, interpolated linearly as the controller plays it).
@@ -174,7 +164,7 @@ def serpenoid_command(
 
 
 @gait.command("field")
-@click.argument("robot", metavar="ROBOT")
+@robot_argument
 @click.option(
     "--field",
     "expression",
@@ -219,15 +209,8 @@ def serpenoid_command(
     help="joint angles at the start "
     "(default: the thesis's pi/3,-pi/3 for the 3-link snake, 0 for the trident)",
 )
-@click.option(
-    "--form",
-    type=click.Choice(["body", "world"]),
-    help="trident: body- (default) or world-velocity inputs",
-)
-@click.option("--rate", type=RATE, default=50.0, show_default=True, help=RATE_HELP)
-@click.option("--output", "-o", type=OUTPUT_PATH, required=True, help=OUT_HELP)
-@PLOT_OPTION
-@click.option("--json", "as_json", is_flag=True, help="print the summary as JSON")
+@form_option
+@table_output_options
 def field_command(
     robot: str,
     expression: str,
@@ -275,13 +258,8 @@ def field_command(
 
 @gait.command("show")
 @click.argument("file", type=click.Path(exists=True, dir_okay=False, path_type=Path))
-@click.option(
-    "--plot",
-    type=PLOT_PATH,
-    help="also write a plot of the joint angles and the predicted body path "
-    "(PNG, or another format by the file's extension: .svg, .pdf, ...)",
-)
-@click.option("--json", "as_json", is_flag=True, help="print the summary as JSON")
+@plot_option("the joint angles and the predicted body path")
+@json_option()
 def show(file: Path, plot: Path | None, as_json: bool) -> None:
     """Summarise a gait table file (and its FILE.json metadata), optionally as a plot.
 
@@ -291,29 +269,9 @@ def show(file: Path, plot: Path | None, as_json: bool) -> None:
     """
     table = read_gait(file)
     meta = table.metadata
-    computed = {
-        "file": str(file),
-        "bytes": table.size,
-        "header_crc": f"0x{table.crc:08X}",
-        "file_crc32": f"0x{table.image_crc:08X}",
-        "joint_ids": list(table.joint_ids),
-        "limits": [list(x) for x in table.limits],
-        "frames": table.frame_count,
-        "frame_period_ms": table.frame_period_ms,
-        "loop": table.loop,
-        "duration_s": table.duration_ms / 1000.0,
-    }
-    # The metadata adds what the table cannot say (the gait, its predictions); what the
-    # table's bytes say wins over anything the metadata file claims.
-    hidden = ("path", "table_path", "joints")
-    summary = {**{k: v for k, v in meta.items() if k not in hidden}, **computed}
-    if plot is not None:
-        require("matplotlib", "--plot")
-        from snakebot.plots.gait import plot_gait
-
-        summary["plot"] = str(plot_gait(table, plot))
-    if as_json:
-        click.echo(dumps(summary, indent=2))
+    summary = describe_table(file, table)
+    _plot(table, plot, summary)
+    if echo_json(as_json, summary, indent=2):
         return
     click.echo(
         f"{file}: {table.size} bytes, header CRC {summary['header_crc']}, "

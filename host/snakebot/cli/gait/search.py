@@ -10,33 +10,26 @@ from typing import Any
 
 import click
 
-from snakebot.cli.output import dumps
+from snakebot.cli.options import json_option, plot_option, rate_option, robot_argument, world_option
+from snakebot.cli.output import echo_json
 from snakebot.cli.params import NumberType
-from snakebot.formats.gaittable import write_gait
-from snakebot.model.gait import serpenoid
-from snakebot.model.robots import load_robot
-from snakebot.sim.physics.select import WORLDS
 from snakebot.workflows.search import (
     METHODS,
     OBJECTIVES,
     Request,
     Search,
-    SearchError,
     Settings,
     Space,
     make_runner,
 )
+from snakebot.workflows.search.report import best_gait_path, search_robot, summarise, write_best
 from snakebot.workflows.search.results import check_path
-from snakebot.workflows.search.search import Outcome
 
 PATH = click.Path(dir_okay=False, path_type=Path)
 
 
-POSITIVE = NumberType(0, low_open=True)
-
-
 @click.command("search")
-@click.argument("robot", metavar="ROBOT")
+@robot_argument
 @click.option(
     "--param",
     "params",
@@ -62,7 +55,7 @@ POSITIVE = NumberType(0, low_open=True)
     help="distance per cycle, speed, distance per joule (mujoco), or slip (least sideways "
     "slide per distance)",
 )
-@click.option("--world", type=click.Choice(WORLDS), default="kinematic", show_default=True)
+@world_option()
 @click.option("--method", type=click.Choice(METHODS), default="grid", show_default=True)
 @click.option(
     "--samples",
@@ -74,10 +67,14 @@ POSITIVE = NumberType(0, low_open=True)
 @click.option(
     "--seed", type=click.IntRange(min=1), default=1, show_default=True, help="random/cma seed"
 )
-@click.option("--cycles", type=POSITIVE, default=3.0, show_default=True, help="gait cycles per run")
 @click.option(
-    "--rate", type=POSITIVE, default=50.0, show_default=True, help="table frame rate (Hz)"
+    "--cycles",
+    type=NumberType(0, low_open=True),
+    default=3.0,
+    show_default=True,
+    help="gait cycles per run",
 )
+@rate_option
 @click.option(
     "--workers",
     type=click.IntRange(min=1),
@@ -101,8 +98,8 @@ POSITIVE = NumberType(0, low_open=True)
     type=PATH,
     help="write the best gait here (default with -o: RESULTS.best.gait)",
 )
-@click.option("--plot", type=PATH, help="write a heat map (grid) or Pareto plot (PNG)")
-@click.option("--json", "as_json", is_flag=True, help="print the summary as JSON")
+@plot_option("the scores: a heat map (grid) or a Pareto plot")
+@json_option()
 def search_command(
     robot: str,
     params: tuple[str, ...],
@@ -133,14 +130,8 @@ def search_command(
     """
     if output is not None:
         check_path(output)
-    if best_path is None and output is not None:
-        best_path = output.with_name(output.stem + ".best.gait")
-    robot_obj = load_robot(robot)
-    if robot_obj.kind != "snake":
-        raise SearchError(
-            f"{robot_obj.name} is a {robot_obj.kind}: the search tries serpenoid gaits, which "
-            "drive a chain of links; give a snake (snake3, snake5 or a .toml)"
-        )
+    best_path = best_gait_path(best_path, output)
+    robot_obj = search_robot(robot)
     settings = Settings(robot_obj.source or robot, world, cycles, rate)
     request = Request(
         settings, Space.parse(params, robust), objective, method, samples, seed, output
@@ -159,52 +150,16 @@ def search_command(
             outcome = Search(request, runner, progress).run()
     finally:
         runner.close()
-    summary = _summary(outcome, request, runner.workers)
-    best = outcome.best
-    if best is not None and best_path is not None:
-        p = best.point
-        g = serpenoid(
-            robot_obj,
-            p["amplitude"],
-            p["omega"],
-            p["delta"],
-            offset=p["offset"],
-            cycles=cycles,
-            rate_hz=rate,
-        )
-        write_gait(best_path, g.gait_table())
+    summary = summarise(outcome, request, runner.workers)
+    if best_path is not None and write_best(outcome, robot_obj, request, best_path):
         summary["best_gait"] = str(best_path)
     if plot is not None:
         from snakebot.plots.search import plot_search
 
         summary["plot"] = str(plot_search(outcome, request, plot))
-    if as_json:
-        click.echo(dumps(summary, indent=2))
+    if echo_json(as_json, summary, indent=2):
         return
     _print(summary)
-
-
-def _summary(outcome: Outcome, request: Request, workers: int) -> dict[str, Any]:
-    best = outcome.best
-    failed = sum(1 for c in outcome.candidates if c.score is None)
-    metric, sense = OBJECTIVES[request.objective]
-    return {
-        "robot": request.settings.robot,
-        "world": request.settings.world,
-        "method": request.method,
-        "objective": request.objective,
-        "metric": metric,
-        "candidates": len(outcome.candidates),
-        "failed": failed,
-        "runs_evaluated": outcome.evaluated,
-        "runs_reused": outcome.reused,
-        "workers": workers,
-        "wall_s": round(outcome.wall_s, 3),
-        "results": str(request.output) if request.output else None,
-        "best": None
-        if best is None
-        else {"parameters": best.point, metric: sense * (best.score or 0.0)},
-    }
 
 
 def _print(s: dict[str, Any]) -> None:

@@ -15,17 +15,23 @@ from __future__ import annotations
 import signal
 import threading
 from types import FrameType
-from urllib.parse import urlencode
 
 import click
 
 import snakebot.link.transport.ports  # noqa: F401  (registers sim://)
+from snakebot.cli.options import (
+    ideal_option,
+    json_option,
+    link_option,
+    robot_option,
+    world_option,
+)
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NUMBER
 from snakebot.cli.signals import STOP_SIGNALS
 from snakebot.sim.errors import SimOptionError
-from snakebot.sim.options import SimOptions
-from snakebot.sim.physics.select import DEFAULT_WORLD, WORLDS
+from snakebot.sim.options import SimOptions, sim_query
+from snakebot.sim.physics.select import DEFAULT_WORLD
 from snakebot.sim.transports import PtyServer, UnixSocketServer
 
 
@@ -41,27 +47,8 @@ def sim() -> None:
     """
 
 
-def _query(**flags: object) -> str:
-    pairs: list[tuple[str, str]] = []
-    for key, value in flags.items():
-        if value is None or value is False or value == ():
-            continue
-        if key == "brownout":
-            pairs += [("brownout", v) for v in value]  # type: ignore[union-attr]
-        elif value is True:
-            pairs.append((key, "1"))
-        else:
-            pairs.append((key, str(value)))
-    return urlencode(pairs, safe=",@+;/")
-
-
 @sim.command("bus")
-@click.option(
-    "--robot",
-    "-r",
-    help="Robot whose servos to emulate: snake3, trident, snake5 or "
-    "a robot TOML file (servo IDs and zero ticks come from it).",
-)
+@robot_option("Robot whose servos to emulate, with their IDs and zero ticks")
 @click.option("--ids", help="Servo IDs instead of a robot, e.g. 1,2,3 (default: one servo, ID 1).")
 @click.option("--model", help="Servo model: AX-12A or AX-12W (default: the robot's).")
 @click.option(
@@ -82,11 +69,7 @@ def _query(**flags: object) -> str:
     is_flag=True,
     help="With --unix: connect to a socket QEMU listens on instead of listening.",
 )
-@click.option(
-    "--link",
-    metavar="PATH",
-    help="With --pty: also create a symlink PATH to the device, e.g. /tmp/ttyDXL.",
-)
+@link_option
 @click.option("--servo-baud", type=NUMBER, help="The servos' baud rate, bit/s (default 1000000).")
 @click.option(
     "--return-delay",
@@ -94,18 +77,10 @@ def _query(**flags: object) -> str:
     help="The servos' Return Delay Time in microseconds (factory: 500).",
 )
 @click.option("--echo", is_flag=True, help="Echo every instruction back (one-wire adapter).")
-@click.option("--ideal", is_flag=True, help="Servos reach their goal instantly.")
+@ideal_option
 @click.option("--voltage", type=NUMBER, help="Supply voltage in volts (default 12).")
 @click.option("--state", metavar="FILE", help="Keep the servos' EEPROM in FILE between runs.")
-@click.option(
-    "--world",
-    type=click.Choice(WORLDS),
-    default=DEFAULT_WORLD,
-    show_default=True,
-    help="kinematic: each servo moves by its own model; mujoco: the robot's body in "
-    "MuJoCo moves the servos (their position, speed and load come from the physics; "
-    "needs --robot).",
-)
+@world_option(note="On mujoco the body moves the servos (needs --robot).")
 @click.option("--seed", type=int, help="Seed for the injected faults (default 0).")
 @click.option("--corrupt", type=NUMBER, help="Probability of a flipped bit per byte on the wire.")
 @click.option("--drop", type=NUMBER, help="Probability that a status packet is lost.")
@@ -119,12 +94,7 @@ def _query(**flags: object) -> str:
     metavar="ID@START+DUR",
     help="Servo ID loses power at START s for DUR s (repeatable).",
 )
-@click.option(
-    "--json",
-    "as_json",
-    is_flag=True,
-    help="Print one JSON line (device, servo IDs, model, equivalent URL).",
-)
+@json_option("one line: the device, the servo IDs, their model and the equivalent URL")
 def bus(
     robot: str | None,
     ids: str | None,
@@ -164,7 +134,7 @@ def bus(
         raise SimOptionError("--connect needs --unix PATH (it says how to reach QEMU's socket)")
     if link and unix_path:
         raise SimOptionError("--link is for --pty; with --unix the socket path is the link")
-    query = _query(
+    query = sim_query(
         robot=robot,
         ids=ids,
         model=model,

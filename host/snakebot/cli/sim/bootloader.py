@@ -9,6 +9,7 @@ from types import FrameType
 
 import click
 
+from snakebot.cli.options import json_option, link_option
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType
 from snakebot.cli.signals import STOP_SIGNALS
@@ -32,9 +33,7 @@ from snakebot.sim.bootloader import (
     help="Serve on a new pseudo-terminal and print its device path (the default "
     "and only transport).",
 )
-@click.option(
-    "--link", metavar="PATH", help="Also create a symlink PATH to the device, e.g. /tmp/ttyCM530."
-)
+@link_option
 @click.option(
     "--reset-after",
     type=NumberType(0),
@@ -92,12 +91,7 @@ from snakebot.sim.bootloader import (
     help="After GO, run the stored image in QEMU (the qemu board: build it with make "
     "firmware, flash build/qemu/firmware.bin --force) and pass the line to it.",
 )
-@click.option(
-    "--json",
-    "as_json",
-    is_flag=True,
-    help="Print one JSON line with the device, then one per image on exit.",
-)
+@json_option("one with the device, then one per image received, on exit")
 def bootloader(
     use_pty: bool,
     link: str | None,

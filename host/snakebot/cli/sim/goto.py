@@ -11,49 +11,38 @@ from typing import Any
 import click
 
 import snakebot.link.transport.ports  # noqa: F401  (registers sim://)
+from snakebot.cli.options import (
+    Goal,
+    ideal_option,
+    json_option,
+    plot_option,
+    robot_argument,
+    target_options,
+    world_option,
+)
 from snakebot.cli.output import dumps
-from snakebot.cli.plan import FROM_OPTION, TO_OPTION, tolerance_options, unreachable
+from snakebot.cli.plan import unreachable
 from snakebot.model.plan import Unreachable
-from snakebot.workflows.goto import MAX_SLOWDOWN, WORLDS
+from snakebot.workflows.goto import MAX_SLOWDOWN
 from snakebot.workflows.goto import goto as run_goto
 
 
 @click.command("goto")
-@click.argument("robot", metavar="ROBOT")
-@TO_OPTION
-@FROM_OPTION
-@tolerance_options
-@click.option(
-    "--world",
-    type=click.Choice(WORLDS),
-    default="kinematic",
-    show_default=True,
-    help="what moves the body: the minimum-slip model, or MuJoCo's physics (wheels that "
-    "slip) where this build has it",
-)
+@robot_argument
+@target_options
+@world_option()
 @click.option(
     "--slowdown",
     type=click.IntRange(1, MAX_SLOWDOWN),
     help="play the frames this many times slower than the servos allow (default: 1 on the "
     "kinematic world, 3 on mujoco, where slower loops slip less)",
 )
-@click.option(
-    "--ideal",
-    is_flag=True,
-    help="ideal servos that reach every goal at once (default: modelled AX-12s that lag)",
-)
-@click.option(
-    "--plot",
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="write a PNG of the body's path, the poses read after each segment and the target",
-)
-@click.option("--json", "as_json", is_flag=True, help="print the report as JSON")
+@ideal_option
+@plot_option("the body's path, the poses read after each segment and the target")
+@json_option()
 def goto(
     robot: str,
-    target: tuple[float, float, float],
-    start: list[float] | None,
-    tolerance: float,
-    heading_tolerance: float,
+    goal: Goal,
     world: str,
     slowdown: int | None,
     ideal: bool,
@@ -95,13 +84,11 @@ def goto(
         with bar if not as_json else contextlib.nullcontext():
             result = run_goto(
                 chosen,
-                target,
-                start=tuple(start) if start else None,
+                goal.target,
                 world=world,
                 ideal=ideal,
                 slowdown=slowdown,
-                tolerance=tolerance,
-                heading_tolerance=heading_tolerance,
+                **goal.settings(),
                 progress=None if as_json else progress,
             )
     except Unreachable as exc:

@@ -10,13 +10,21 @@ from typing import Any
 import click
 
 import snakebot.link.transport.ports  # noqa: F401  (registers sim://)
-from snakebot.cli.output import dumps
-from snakebot.cli.params import NUMBER, OUTPUT_PATH, PLOT_PATH, NumberType
+from snakebot.cli.options import (
+    ideal_option,
+    json_option,
+    mu_option,
+    plot_option,
+    robot_option,
+    video_option,
+    world_option,
+)
+from snakebot.cli.output import echo_json
+from snakebot.cli.params import NUMBER
 from snakebot.extras import require
 from snakebot.formats.program.files import is_program_file
 from snakebot.plots.video import StateMotion, check_video_path, write_video
-from snakebot.sim.physics.select import DEFAULT_WORLD, WORLDS
-from snakebot.workflows.predict import DEFAULT_WORLD_HZ, predict_gait, predict_program
+from snakebot.workflows.predict import DEFAULT_WORLD_HZ, predict_file
 
 
 def _motion(label: str, m: dict[str, Any]) -> str:
@@ -27,19 +35,12 @@ def _motion(label: str, m: dict[str, Any]) -> str:
 @click.argument(
     "gait_file", metavar="FILE", type=click.Path(exists=True, dir_okay=False, path_type=Path)
 )
-@click.option(
-    "--robot",
-    "-r",
-    help="robot to emulate: snake3, trident, snake5 or a robot "
-    "TOML file (default: the one named in GAIT.json; for a program, the built-in robot "
-    "whose joints it carries)",
+@robot_option(
+    "Robot to emulate",
+    otherwise="the one named in GAIT.json; for a program, the built-in robot whose joints "
+    "it carries",
 )
-@click.option(
-    "--ideal",
-    is_flag=True,
-    help="ideal servos that reach every goal at once: the "
-    "emulated path then equals the table's prediction",
-)
+@ideal_option
 @click.option(
     "--world-rate",
     type=NUMBER,
@@ -47,32 +48,11 @@ def _motion(label: str, m: dict[str, Any]) -> str:
     show_default=True,
     help="how often (Hz, bus time) the world samples modelled servos; at least once per frame",
 )
-@click.option(
-    "--world",
-    type=click.Choice(WORLDS),
-    default=DEFAULT_WORLD,
-    show_default=True,
-    help="kinematic: the minimum-slip wheel model moves the body from the servos' "
-    "positions; mujoco: the body has mass, its wheels can slip and the servos run out of "
-    "torque (the robot TOML's [physics] table).",
-)
-@click.option(
-    "--mu",
-    type=NumberType(0, low_open=True),
-    help="With --world mujoco: the wheel-floor friction coefficient (default: the robot's).",
-)
-@click.option(
-    "--plot",
-    type=PLOT_PATH,
-    help="write a PNG of the emulated and predicted body paths and the joints' tracking",
-)
-@click.option(
-    "--video",
-    type=OUTPUT_PATH,
-    help="write a GIF (or an MP4, with ffmpeg) of the emulated robot seen from above, "
-    "the predicted one beside it",
-)
-@click.option("--json", "as_json", is_flag=True, help="print the report as JSON")
+@world_option()
+@mu_option
+@plot_option("the emulated and predicted body paths and the joints' tracking")
+@video_option("the emulated robot, the predicted one beside it")
+@json_option()
 def predict(
     gait_file: Path,
     robot: str | None,
@@ -121,17 +101,9 @@ def predict(
     """
     if video is not None:
         check_video_path(video)
-    options: dict[str, Any] = {"ideal": ideal, "world_hz": world_rate, "world": world, "mu": mu}
-    if is_program_file(gait_file):
-        result = predict_program(gait_file, robot, **options)
-    else:
-        result = predict_gait(gait_file, robot, **options)
-    summary = result.summary()
-    if is_program_file(gait_file):
-        summary["predicted"]["source"] = (
-            "integrated from the program's goals at every step (the host's reference of "
-            "the controller's generators), linear from step to step"
-        )
+    result, summary = predict_file(
+        gait_file, robot, ideal=ideal, world_hz=world_rate, world=world, mu=mu
+    )
     if video is not None:
         click.echo("writing the video ...", err=True)
         summary["video"] = str(
@@ -150,8 +122,7 @@ def predict(
         from snakebot.plots.predict import plot_prediction
 
         summary["plot"] = str(plot_prediction(result, plot))
-    if as_json:
-        click.echo(dumps(summary, indent=2))
+    if echo_json(as_json, summary, indent=2):
         return
     diff = summary["difference"]
     em = summary["emulated"]

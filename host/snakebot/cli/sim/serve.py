@@ -10,11 +10,11 @@ from types import FrameType
 
 import click
 
+from snakebot.cli.options import firmware_option, json_option, robot_option, world_option
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType
 from snakebot.cli.signals import STOP_SIGNALS
 from snakebot.sim.errors import SimFailure
-from snakebot.sim.physics.select import DEFAULT_WORLD, WORLDS
 from snakebot.sim.serve import EmulatedRobot
 
 HISTORY_S = 600.0
@@ -23,22 +23,8 @@ long it serves (the pose reports need only the latest)."""
 
 
 @click.command("serve")
-@click.option(
-    "--robot",
-    "-r",
-    default="snake5",
-    show_default=True,
-    help="Robot to emulate: snake3, trident, snake5 or a robot TOML file (its "
-    "servo IDs, zero ticks and body).",
-)
-@click.option(
-    "--firmware",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="Firmware for QEMU: the qemu board's application ELF (the boot stub beside it "
-    "goes in front) or a whole-flash .bin image. Default: build/qemu/firmware.elf from "
-    "`make firmware` in a checkout, else the image shipped with snakebot.",
-)
+@robot_option("Robot to emulate, with its servo IDs, zero ticks and body", default="snake5")
+@firmware_option
 @click.option(
     "--sim-options",
     metavar="QUERY",
@@ -46,14 +32,9 @@ long it serves (the pose reports need only the latest)."""
     help="Emulator options as in a sim:// URL, e.g. 'corrupt=0.001&seed=3' or "
     "'brownout=10@5+1' (see `snakebot sim bus --help`).",
 )
-@click.option(
-    "--world",
-    type=click.Choice(WORLDS),
-    default=DEFAULT_WORLD,
-    show_default=True,
-    help="kinematic: the minimum-slip model moves the body from the servos' positions; "
-    "mujoco: the body in MuJoCo (mass, slipping wheels) moves the servos, whose "
-    "position, speed and load the firmware reads come from the physics.",
+@world_option(
+    note="On mujoco the body moves the servos: the position, speed and load the firmware "
+    "reads come from the physics."
 )
 @click.option(
     "--report",
@@ -62,13 +43,7 @@ long it serves (the pose reports need only the latest)."""
     show_default=True,
     help="Seconds between lines giving the body's pose in the world (0: never).",
 )
-@click.option(
-    "--json",
-    "as_json",
-    is_flag=True,
-    help="Print JSON lines: first where everything is (pc_link, bus_socket, "
-    "qemu_pid, ...), then the body's pose.",
-)
+@json_option("first where everything is (pc_link, bus_socket, qemu_pid, ...), then the body's pose")
 def serve(
     robot: str,
     firmware: Path | None,

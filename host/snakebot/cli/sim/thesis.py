@@ -7,8 +7,16 @@ from pathlib import Path
 
 import click
 
-from snakebot.cli.output import dumps
-from snakebot.cli.params import OUTPUT_PATH, LazyChoice
+from snakebot.cli.options import (
+    directory_option,
+    json_option,
+    mu_option,
+    plot_option,
+    robot_option,
+    video_option,
+)
+from snakebot.cli.output import dumps, echo_json
+from snakebot.cli.params import LazyChoice
 from snakebot.errors import InputError
 from snakebot.plots.video import check_video_path, write_video
 
@@ -24,33 +32,18 @@ def _floats(text: str) -> tuple[float, ...]:
 
 
 @click.command("thesis")
-@click.option(
-    "--output",
-    "-o",
-    "out_dir",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=Path("out/thesis"),
-    show_default=True,
-    help="Directory for one PNG per run (NAME.png).",
-)
+@directory_option("--output", "-o", default=Path("out/thesis"), what="one PNG per run (NAME.png)")
 @click.option(
     "--only",
     type=LazyChoice("snakebot.workflows.thesis", "RUN_NAMES"),
     multiple=True,
     help="Run only this one (repeatable); default: every run.",
 )
-@click.option(
-    "--mu",
-    type=click.FloatRange(min=0, min_open=True),
-    help="Wheel-floor friction coefficient in the physics world (default: the robot's).",
+@mu_option
+@video_option(
+    "each run, both worlds overlaid (FILE for one run; for several, FILE's name with -NAME added)"
 )
-@click.option(
-    "--video",
-    type=OUTPUT_PATH,
-    help="Write a GIF (or MP4, with ffmpeg) per run, seen from above, both worlds "
-    "overlaid: FILE for one run, FILE's name with -NAME added for several.",
-)
-@click.option("--json", "as_json", is_flag=True, help='Print {"runs": [...]} as JSON.')
+@json_option()
 def thesis(
     out_dir: Path, only: tuple[str, ...], mu: float | None, video: Path | None, as_json: bool
 ) -> None:
@@ -119,7 +112,7 @@ def _run_lines(s: dict) -> list[str]:
 @click.argument(
     "gait_file", metavar="GAIT", type=click.Path(exists=True, dir_okay=False, path_type=Path)
 )
-@click.option("--robot", "-r", help="Robot (default: the one named in GAIT.json).")
+@robot_option("Robot to emulate", otherwise="the one named in GAIT.json")
 @click.option(
     "--mu",
     "mu_text",
@@ -127,12 +120,8 @@ def _run_lines(s: dict) -> list[str]:
     show_default=True,
     help="Friction coefficients to try, comma-separated.",
 )
-@click.option(
-    "--plot",
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="Write a PNG: distance per cycle against mu, and the wheels' sideways slide.",
-)
-@click.option("--json", "as_json", is_flag=True, help="Print the study as JSON.")
+@plot_option("the distance per cycle against mu, and the wheels' sideways slide")
+@json_option()
 def friction(
     gait_file: Path, robot: str | None, mu_text: str, plot: Path | None, as_json: bool
 ) -> None:
@@ -162,8 +151,7 @@ def friction(
     study = friction_study(table, robot, values, str(gait_file), progress)
     if plot is not None:
         study["plot"] = str(plot_friction(study, plot))
-    if as_json:
-        click.echo(dumps(study, indent=2))
+    if echo_json(as_json, study, indent=2):
         return
     u = study["units"]
     kin, free = study["kinematic"], study["kinematic_free_wheels"]

@@ -11,7 +11,13 @@ May import: as the ``formats`` layer (``facts`` and the package root).
 from __future__ import annotations
 
 from snakebot.formats.gaittable.errors import CODES, GaitTableError
-from snakebot.formats.gaittable.files import read_gait, sidecar_path, write_gait
+from snakebot.formats.gaittable.files import (
+    describe_table,
+    read_gait,
+    save_table,
+    sidecar_path,
+    write_gait,
+)
 from snakebot.formats.gaittable.layout import (
     HEADER_SIZE,
     JOINT_SIZE,
@@ -33,10 +39,12 @@ __all__ = [
     "MAX_JOINTS",
     "MAX_TABLE_BYTES",
     "VERSION",
+    "describe_table",
     "GaitTable",
     "GaitTableError",
     "max_frames",
     "read_gait",
+    "save_table",
     "sidecar_path",
     "table_crc",
     "table_size",

@@ -255,3 +255,34 @@ METADATA_SCHEMA: dict[str, Any] = {
 }
 """What the metadata keys that snakebot reads must hold (each check's docstring says it in
 words, for the error message). Other keys are kept as they are, for the user."""
+
+
+def save_table(path: str | os.PathLike[str], table: GaitTable) -> dict[str, Any]:
+    """Write ``table`` (and its metadata file) and say where: ``file`` and ``metadata_file``."""
+    write_gait(path, table)
+    return {"file": str(path), "metadata_file": str(sidecar_path(path))}
+
+
+HIDDEN_METADATA = ("path", "table_path", "joints")
+"""Metadata a table's summary leaves out: where it was written, and what the bytes say."""
+
+
+def describe_table(path: str | os.PathLike[str], table: GaitTable) -> dict[str, Any]:
+    """A table file's summary: its metadata (the gait, its predictions), and over it what
+    the table's bytes say (which wins over anything the metadata file claims). The header
+    CRC is stored in the table over the rest of it; the file CRC-32, of all its bytes, is
+    what the controller calls its Table CRC."""
+    computed = {
+        "file": str(path),
+        "bytes": table.size,
+        "header_crc": f"0x{table.crc:08X}",
+        "file_crc32": f"0x{table.image_crc:08X}",
+        "joint_ids": list(table.joint_ids),
+        "limits": [list(x) for x in table.limits],
+        "frames": table.frame_count,
+        "frame_period_ms": table.frame_period_ms,
+        "loop": table.loop,
+        "duration_s": table.duration_ms / 1000.0,
+    }
+    shown = {k: v for k, v in table.metadata.items() if k not in HIDDEN_METADATA}
+    return {**shown, **computed}

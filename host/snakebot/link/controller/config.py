@@ -13,6 +13,7 @@ from snakebot.facts.controller import Controller
 from snakebot.facts.devices import Register
 from snakebot.formats.protocol import ErrorFlags
 from snakebot.formats.register_values import check_write, decode, describe_value, parse_value
+from snakebot.link.controller.client import ControllerClient
 
 
 class ConfigError(InputError):
@@ -83,3 +84,24 @@ def shown(table: Controller, reg: Register, raw: int) -> dict[str, Any]:
     out["text"] = describe_value(out)
     out["description"] = reg.description
     return out
+
+
+def configure(
+    ctl: ControllerClient, name: str | None = None, value: str | None = None
+) -> list[dict[str, Any]]:
+    """Every setting of the controller (``name`` None), or the setting ``name``, after
+    writing ``value`` to it when one is given (parsed in the setting's units and checked
+    against its range before anything is sent), as read back: one :func:`shown` row each.
+    An ID written becomes the client's, since the controller answers at it from then on."""
+    table = ctl.table
+    regs = settings(table) if name is None else [find_setting(table, name)]
+    if value is not None:
+        raw = parse_setting(table, regs[0], value)
+        ctl.identify()
+        with ctl.link_errors(f"the write of {regs[0].name}"):
+            ctl.write({regs[0].name: raw})
+        if regs[0].name == "ID":
+            ctl.id = raw
+    with ctl.link_errors("the read of its settings"):
+        values = ctl.read(*(r.name for r in regs))
+    return [shown(table, r, values[r.name]) for r in regs]

@@ -74,6 +74,12 @@ VERIFY_REGISTERS = (
 CAPACITY = "Table Capacity"
 """The register (Program page) with the largest table this controller's board takes."""
 
+
+def table_capacity(ctl: ControllerClient) -> int:
+    """The controller's Table Capacity: the largest table (or program) its board takes."""
+    return ctl.read(CAPACITY)[CAPACITY]
+
+
 NOT_COMMITTED = "nothing was committed, so the controller keeps its table"
 
 ProgressCallback = Callable[[int, int], None]  # (table bytes acknowledged, table bytes)

@@ -1,0 +1,136 @@
+"""Playing a gait table through a bus adapter with no controller: this computer is the
+bus master and runs the controller's own gait player, sending one SYNC_WRITE of goal
+positions and speeds every control tick (``snakebot bus play``)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from snakebot.facts import devices
+from snakebot.formats.gaittable import GaitTable
+from snakebot.formats.register_values import BusCommandError
+from snakebot.link.bus.scan import identify
+from snakebot.link.transport import DxlClient
+from snakebot.model.player import (
+    FULL_SPEED,
+    GOAL_BLOCK,
+    GOAL_POSITION_ADDR,
+    START_SETTLE_S,
+    START_SPEED,
+    TICK_MS,
+    PlayerError,
+    TablePlayer,
+    goal_block,
+    goal_blocks,
+)
+
+STOP_S = 0.5
+"""How long a Ctrl-C stop takes: the gait slows to a halt over this time."""
+
+_AX12 = devices.ax12()
+_PRESENT = _AX12.register("Present Position")
+_SPEED = _AX12.register("Moving Speed")
+
+
+@dataclass(frozen=True)
+class Played:
+    """What :func:`play_table` did: the ticks sent, the tick Ctrl-C came at (None if it
+    did not) and where each servo holds afterwards."""
+
+    ticks: int
+    stopped_at: int | None
+    held: dict[int, int]
+
+    @property
+    def seconds(self) -> float:
+        return self.ticks * TICK_MS / 1000
+
+
+def player_for(table: GaitTable, loop: bool, name: str) -> TablePlayer:
+    """The controller's player for ``table`` (``name`` says which file in messages)."""
+    if loop and not table.loop:
+        raise BusCommandError(
+            f"{name} is a gait played once (its last frame does not lead back to the first): "
+            "drop --loop, or make a looping gait"
+        )
+    try:
+        return TablePlayer(table, loop=loop)
+    except PlayerError as exc:
+        raise BusCommandError(f"{name}: {exc}") from None
+
+
+def tick_count(table: GaitTable, loop: bool) -> int | None:
+    """The ticks one pass of ``table`` takes (None when it loops until stopped)."""
+    pass_ms = table.frame_period_ms * (table.frame_count if table.loop else table.frame_count - 1)
+    return None if loop else pass_ms // TICK_MS + 1
+
+
+def check_servos(client: DxlClient, table: GaitTable) -> None:
+    """Every servo of the table answers, else a :class:`BusCommandError` naming them."""
+    missing = [sid for sid in table.joint_ids if identify(client, sid) is None]
+    if missing:
+        raise BusCommandError(
+            f"servo{'s' if len(missing) > 1 else ''} {', '.join(map(str, missing))} of the "
+            f"gait do{'' if len(missing) > 1 else 'es'} not answer at {client.baudrate} baud: "
+            "check power and cabling, and find the servos with snakebot bus scan"
+        )
+
+
+def move_to_start(client: DxlClient, table: GaitTable) -> None:
+    """Send every joint to the first frame at a gentle speed and wait until it is there."""
+    first = [int(g) for g in table.frames[0]]
+    here = [client.read_u16(sid, _PRESENT.address) for sid in table.joint_ids]
+    client.sync_write(
+        GOAL_POSITION_ADDR,
+        GOAL_BLOCK,
+        {sid: goal_block(g, START_SPEED) for sid, g in zip(table.joint_ids, first, strict=True)},
+    )
+    distance = max(abs(h - g) for h, g in zip(here, first, strict=True))
+    ticks_per_s = _SPEED.to_units(START_SPEED, "deg/s") * _AX12.require_position().scale.per_unit(
+        "deg"
+    )
+    time.sleep(distance / ticks_per_s + START_SETTLE_S)
+
+
+def play_table(
+    client: DxlClient,
+    table: GaitTable,
+    player: TablePlayer,
+    loop: bool,
+    on_tick: Callable[[], None] = lambda: None,
+) -> Played:
+    """Check the servos, move them to the first frame, then tick the player on the wall
+    clock and send each tick's SYNC_WRITE; Ctrl-C slows it to a halt over
+    :data:`STOP_S` (a second Ctrl-C stops at once). The servos hold where they end."""
+    check_servos(client, table)
+    move_to_start(client, table)
+    total = tick_count(table, loop)
+    stop_ticks = round(STOP_S * 1000 / TICK_MS)
+    stopped_at: int | None = None
+    n = 0
+    start = time.monotonic()
+    while total is None or n < total or stopped_at is not None:
+        try:
+            if stopped_at is not None:
+                k = n - stopped_at
+                if k > stop_ticks:
+                    break
+                player.speed_scale = max(1, round(FULL_SPEED * (1 - k / stop_ticks)))
+            delay = start + n * TICK_MS / 1000 - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+            outputs = player.tick(n * TICK_MS)
+            if outputs:
+                client.sync_write(GOAL_POSITION_ADDR, GOAL_BLOCK, goal_blocks(outputs))
+            n += 1
+            on_tick()
+            if stopped_at is None and not loop and player.finished:
+                break
+        except KeyboardInterrupt:
+            if stopped_at is not None:
+                break  # a second Ctrl-C: stop at once
+            stopped_at = n
+    held = {sid: client.read_u16(sid, _PRESENT.address) for sid in table.joint_ids}
+    return Played(n, stopped_at, held)

@@ -10,6 +10,7 @@ from typing import Any
 
 import click
 
+from snakebot.cli.lazy import LazyCommand, LazyGroup
 from snakebot.cli.options import (
     form_option,
     json_option,
@@ -29,8 +30,16 @@ from snakebot.model.gait import Gait, field_gait, serpenoid
 from snakebot.model.gait.files import save_gait
 from snakebot.model.robots import load_robot
 
+SUBCOMMANDS = {
+    "search": LazyCommand(
+        "snakebot.cli.gait.search:search_command",
+        "Search serpenoid gaits phi_k(t) = A sin(omega t + (k-1) delta) + offset for ROBOT.",
+    )
+}
+"""The sub-commands in modules of their own, imported when run (``cli.lazy``)."""
 
-@click.group("gait")
+
+@click.group("gait", cls=LazyGroup, lazy=SUBCOMMANDS)
 def gait() -> None:
     """Generate gait tables for the controller, and inspect them.
 
@@ -305,8 +314,3 @@ def _short(value: Any) -> str:
     if isinstance(value, dict):
         return "{" + ", ".join(f"{k}: {_short(v)}" for k, v in value.items()) + "}"
     return str(value)
-
-
-from snakebot.cli.gait.search import search_command  # noqa: E402 - after the group exists
-
-gait.add_command(search_command)

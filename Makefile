@@ -15,9 +15,13 @@ export V
 # The demo needs the C compiler and headers for snakebot._core, the ARM cross-compiler
 # and QEMU; the tests and the fuzzer add clang (libFuzzer and the sanitizers), zlib (the
 # PC-link fuzz target's CRC-32) and tmux (the `snakebot drive` terminal test).
+# MuJoCo's offscreen renderer (--video) draws through EGL, or OSMesa where EGL is missing,
+# both on Mesa's software rasteriser: no display and no GPU needed. The tests add Xvfb
+# (`sim view`, MuJoCo's viewer on a virtual display).
 DEMO_APT    := gcc python3-dev python3-venv gcc-arm-none-eabi libnewlib-arm-none-eabi \
-               qemu-system-arm
-TEST_APT    := $(DEMO_APT) clang libclang-rt-14-dev zlib1g-dev tmux
+               qemu-system-arm libegl1 libegl-mesa0 libgl1-mesa-dri libosmesa6
+TEST_APT    := $(DEMO_APT) clang libclang-rt-14-dev zlib1g-dev tmux xvfb
+export MUJOCO_GL ?= egl
 
 # pytest workers for the stages of `make test` (see there): twice the cores for most of
 # the suite, one per core for the tests that run QEMU, three for the serial tests.

@@ -20,7 +20,15 @@ FENCE = re.compile(r"/\* cffi:begin \*/(.*?)/\* cffi:end \*/", re.S)
 BOARDS_DIR = CORE_DIR.parent / "boards"
 """One directory per board (``board.h``): the facts the host needs of each are published
 as ``BOARD_<NAME>_<FACT>`` (``board_facts``)."""
-BOARD_FACTS = ("TABLE_CAPACITY", "CONTROL_TICK_MS", "PC_BAUD", "APP_BASE")
+BOARD_FACTS = (
+    "TABLE_CAPACITY",
+    "CONTROL_TICK_MS",
+    "PC_BAUD",
+    "APP_BASE",
+    "HSE_HZ",
+    "WATCHDOG_MS",
+    "FLASH_PAGE_SIZE",
+)
 """The ``BOARD_*`` numbers of each board published to Python, each a plain literal (decimal
 or hexadecimal) in its board.h or a header of the board that board.h includes."""
 

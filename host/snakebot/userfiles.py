@@ -12,6 +12,10 @@ from __future__ import annotations
 
 import os
 import stat
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
 
 from snakebot.errors import InputError
 
@@ -23,6 +27,10 @@ class FileTooLarge(InputError):
     def __init__(self, message: str, size: int | None) -> None:
         super().__init__(message)
         self.size = size
+
+
+class NoSuchDirectory(InputError):
+    """A file to write in a directory that is not there."""
 
 
 def read_bounded(path: str | os.PathLike[str], limit: int, what: str) -> bytes:
@@ -49,3 +57,35 @@ def new_file_mode() -> int:
     mask = os.umask(0o022)  # the only way to read it is to set it; put it back at once
     os.umask(mask)
     return 0o666 & ~mask
+
+
+@contextmanager
+def staged_path(target: str | os.PathLike[str]) -> Iterator[Path]:
+    """A temporary path beside ``target`` for a writer that wants a file name (a video
+    encoder, an MCAP writer); moved over ``target`` when the block ends without an
+    exception, removed otherwise. It keeps ``target``'s suffix, which encoders read."""
+    target = Path(target)
+    if not target.parent.is_dir():
+        raise NoSuchDirectory(
+            f"{target}: the directory {target.parent} does not exist: create it, or name a "
+            "file in a directory that does"
+        )
+    fd, name = tempfile.mkstemp(
+        dir=target.parent, prefix=f".{target.stem}.", suffix=f".tmp{target.suffix}"
+    )
+    os.close(fd)
+    temp = Path(name)
+    try:
+        yield temp
+        os.chmod(temp, new_file_mode())
+        os.replace(temp, target)
+    finally:
+        temp.unlink(missing_ok=True)
+
+
+def write_file_atomically(target: str | os.PathLike[str], data: str | bytes) -> Path:
+    """Replace ``target`` by ``data`` (text is UTF-8) in one step: a reader sees the old
+    file or the whole new one."""
+    with staged_path(target) as temp:
+        temp.write_bytes(data.encode() if isinstance(data, str) else data)
+    return Path(target)

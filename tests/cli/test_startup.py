@@ -31,7 +31,7 @@ BARE_CLICK = COUNT.format(
     run='app(["--help"])',
 )
 
-SNAKEBOT_MODULES_AT_HELP = 16
+EXTRA_MODULES_AT_HELP = 16
 """Modules that `snakebot --help` may load beyond a bare click application's: snakebot's
 own six (the package, ``cli``, ``cli.errors``, ``cli.lazy``, ``errors``, ``settings``)
 and the standard ones they need (``dataclasses``, ``pathlib``, ...); with every command
@@ -52,7 +52,7 @@ def snakebot_modules(*args: str) -> list[str]:
 
 def test_help_loads_about_what_a_bare_click_app_does():
     bare, ours = modules(BARE_CLICK), snakebot_modules("--help")
-    assert len(ours) <= len(bare) + SNAKEBOT_MODULES_AT_HELP, sorted(set(ours) - set(bare))
+    assert len(ours) <= len(bare) + EXTRA_MODULES_AT_HELP, sorted(set(ours) - set(bare))
     assert not [m for m in ours if m.split(".")[0] in (*HEAVY, "numpy")]
 
 

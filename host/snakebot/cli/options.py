@@ -37,6 +37,7 @@ from snakebot.cli.params import (
     PLOT_PATH,
     POSE,
     NumberType,
+    OutputPathType,
     controller_port,
 )
 from snakebot.facts.boards import PC_LINK_BAUD
@@ -44,6 +45,7 @@ from snakebot.facts.controller import load as load_controller_table
 from snakebot.formats import register_values
 from snakebot.formats.register_values import BusCommandError
 from snakebot.model.robots import BUILTIN_ROBOTS
+from snakebot.plots.video import DEFAULT_SIZE, SUFFIXES, VideoError, parse_size
 
 if TYPE_CHECKING:
     from snakebot.link.controller.client import ControllerClient
@@ -51,6 +53,24 @@ if TYPE_CHECKING:
 
 F = TypeVar("F", bound=Callable[..., Any])
 Decorator = Callable[[F], F]
+
+VIDEO_WORDS = (
+    "in 3-D from MuJoCo's renderer (offscreen; the top view in 2-D where it cannot start), "
+    "the camera following the body, its path on a 1 m grid, the time and the joint angles "
+    "overlaid: .mp4 or .gif"
+)
+
+
+class SizeType(click.ParamType):
+    name = "WxH"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if isinstance(value, tuple):
+            return value
+        try:
+            return parse_size(str(value))
+        except VideoError as exc:
+            self.fail(str(exc), param, ctx)
 
 
 def stack(*decorators: Callable[[Any], Any]) -> Callable[[F], F]:
@@ -534,9 +554,22 @@ def plot_option(what: str) -> Decorator:
 
 
 def video_option(what: str) -> Decorator:
-    """--video: a GIF (or MP4) of ``what``."""
-    return click.option(
-        "--video",
-        type=OUTPUT_PATH,
-        help=f"Write a GIF (or an MP4, with ffmpeg) of {what}, seen from above.",
-    )
+    """``--video FILE`` (a video of ``what``) and ``--size WxH``, as the parameters
+    ``video`` and ``video_size``."""
+
+    def decorate(func: F) -> F:
+        func = click.option(
+            "--size",
+            "video_size",
+            type=SizeType(),
+            default=f"{DEFAULT_SIZE[0]}x{DEFAULT_SIZE[1]}",
+            show_default=True,
+            help="The video's width x height in pixels (even numbers).",
+        )(func)
+        return click.option(
+            "--video",
+            type=OutputPathType(lambda: tuple(s.lstrip(".") for s in SUFFIXES)),
+            help=f"Write a video of {what}: {VIDEO_WORDS}.",
+        )(func)
+
+    return decorate

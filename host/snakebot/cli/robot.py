@@ -8,14 +8,17 @@ import click
 
 from snakebot.cli.options import BusLink, bus_options
 from snakebot.cli.output import dumps
+from snakebot.cli.params import OutputPathType
 from snakebot.link.bus.calibrate import JOG_DEG, calibrate, updated_text, write_atomically
 from snakebot.model.robots import load_robot
 from snakebot.model.robots.model import Joint
+from snakebot.userfiles import write_file_atomically
 
 
 @click.group("robot")
 def robot() -> None:
-    """Work on a robot description (a robot .toml) against the real robot."""
+    """Work on a robot description (a robot .toml): calibrate it against the real robot,
+    or export it for other tools."""
 
 
 @robot.command("calibrate")
@@ -72,3 +75,45 @@ def calibrate_command(toml: Path, bus: BusLink, as_json: bool, yes: bool) -> Non
             f"({origin}; the jog turned it {c.moved_ticks:+d} ticks)"
         )
     click.echo(f"Wrote {toml}.")
+
+
+@robot.command("export")
+@click.argument("robot_name", metavar="ROBOT")
+@click.option(
+    "--urdf",
+    type=OutputPathType(lambda: ("urdf",)),
+    help="Write the robot as URDF here (ROS tools, RViz, Foxglove's 3-D panel, MuJoCo).",
+)
+@click.option(
+    "--mjcf",
+    type=OutputPathType(lambda: ("xml",)),
+    help="Write the physics world's MuJoCo model here (.xml).",
+)
+@click.option("--json", "as_json", is_flag=True, help="print JSON instead of text")
+def export_command(robot_name: str, urdf: Path | None, mjcf: Path | None, as_json: bool) -> None:
+    """Export ROBOT for other tools: the links with their masses and inertias, the servo
+    joints with their limits, and the wheels, as the physics world builds them (from the
+    robot's [physics] table).
+
+    ROBOT is a built-in robot (snake3, snake5, trident) or a robot .toml file. The URDF's
+    root link is `base` (the body's pose is the odometry); the MJCF has the floor, the
+    wheel-floor friction and position servos on the joints.
+
+    \b
+        snakebot robot export snake5 --urdf snake5.urdf --mjcf snake5.xml
+    """
+    if urdf is None and mjcf is None:
+        raise click.UsageError("name a file to write: --urdf FILE, --mjcf FILE or both")
+    from snakebot.sim.physics.export import export_mjcf, export_urdf
+
+    described = load_robot(robot_name)
+    written = {}
+    if urdf is not None:
+        written["urdf"] = str(write_file_atomically(urdf, export_urdf(described)))
+    if mjcf is not None:
+        written["mjcf"] = str(write_file_atomically(mjcf, export_mjcf(described)))
+    if as_json:
+        click.echo(dumps({"robot": described.name, **written}))
+        return
+    for kind, path in written.items():
+        click.echo(f"wrote {path} ({kind.upper()} of {described.name})")

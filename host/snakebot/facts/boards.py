@@ -1,6 +1,7 @@
 """The boards the firmware is built for, and what the host needs to know of each: the
 largest gait table (or program) it takes (its Table Capacity), the control tick, the PC
-link's baud rate and where the application starts in flash.
+link's baud rate, where the application starts in flash, the crystal, the watchdog's
+timeout and the flash page size.
 
 Each board's ``firmware/boards/<name>/board.h`` (or a header of the board it includes)
 sets ``BOARD_TABLE_CAPACITY``, ``BOARD_CONTROL_TICK_MS``, ``BOARD_PC_BAUD`` and
@@ -45,6 +46,15 @@ PC_LINK_BAUD: int = _common("PC_BAUD")
 
 APP_BASE: int = _common("APP_BASE")
 """Where the application starts in flash, behind the ROBOTIS bootloader."""
+
+HSE_HZ: dict[str, int] = _by_board("HSE_HZ")
+"""The crystal on each board (Hz), which the PLL multiplies up to the system clock."""
+
+WATCHDOG_MS: int = _common("WATCHDOG_MS")
+"""The independent watchdog's timeout the firmware programs (ms, at the nominal LSI)."""
+
+FLASH_PAGE_SIZE: dict[str, int] = _by_board("FLASH_PAGE_SIZE")
+"""Bytes in one erasable flash page, by board (2 KB on the STM32F103RE)."""
 
 
 def smallest_board() -> str:

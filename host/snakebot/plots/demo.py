@@ -9,7 +9,7 @@ from pathlib import Path
 from snakebot.extras import available
 from snakebot.model.robots import Robot, load_robot
 from snakebot.plots.joints import draw_joints
-from snakebot.plots.video import write_video
+from snakebot.plots.video import DEFAULT_SIZE, write_video
 from snakebot.workflows.demo import Comparison, DemoResult, Say, _why
 
 
@@ -24,7 +24,13 @@ def draw_demo(result: DemoResult, say: Say = print) -> DemoResult:
         png = plot_demo(robot, result.comparison, Path(settings.out_dir) / "demo.png")
     if settings.video is not None:
         say(f"   writing the video {settings.video} ...")
-        write_video(settings.video, robot, {f"emulated ({settings.world})": result.record})
+        write_video(
+            settings.video,
+            robot,
+            {f"emulated ({settings.world})": result.record},
+            size=settings.video_size or DEFAULT_SIZE,
+            say=say,
+        )
     return replace(result, png=png)
 
 

@@ -1,164 +1,151 @@
-"""Videos of a run seen from above (matplotlib animation: no display, no GPU): the
-robot's links and wheels moving over the floor, one or more worlds overlaid, each
-leaving its path behind. GIF through Pillow (a matplotlib dependency); MP4 when ffmpeg is
-on PATH.
+"""Videos of runs: the robot in 3-D from MuJoCo's offscreen renderer
+(:mod:`snakebot.plots.render3d`), or, where that cannot start (no EGL or OSMesa, no
+MuJoCo, a robot without a ``[physics]`` table), the matplotlib view from above
+(:mod:`snakebot.plots.topview`), said on stderr. Both are encoded by the ffmpeg that the
+``imageio-ffmpeg`` package ships (no ffmpeg on PATH needed): MP4 (H.264) or GIF.
 
-    write_video("run.gif", robot, {"kinematic": rec_a, "mujoco": rec_b})
+    write_video("run.mp4", robot, {"kinematic": rec_a, "mujoco": rec_b}, size=(1280, 720))
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Mapping
+from collections.abc import Callable, Generator, Mapping
+from functools import partial
 from pathlib import Path
-from typing import TYPE_CHECKING, NamedTuple, Protocol
+from typing import Any
 
 import numpy as np
 
 from snakebot.errors import InputError
 from snakebot.extras import require
 from snakebot.model.robots import Robot
+from snakebot.plots.motion import Motion, StateMotion
+from snakebot.userfiles import staged_path
 
-if TYPE_CHECKING:  # matplotlib is the `plot` extra: imported when a video is written
-    from matplotlib.animation import AbstractMovieWriter
+__all__ = ["StateMotion", "check_video_path", "parse_size", "write_video"]
 
 FPS = 20
 MAX_FRAMES = 300
-"""Longer runs are shown faster (the video's clock says how much)."""
+"""Longer runs are shown faster (the overlay's clock is the run's time)."""
 
-COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red")
+DEFAULT_SIZE = (1280, 720)
+MIN_SIDE, MAX_SIDE = 64, 3840
+SUFFIXES = (".mp4", ".gif")
 
 
 class VideoError(InputError):
     """A video that cannot be written as asked."""
 
 
-class Motion(Protocol):
-    """What a video shows of a run (a world's record has it): sample times, body poses
-    (x, y, theta) and joint angles."""
-
-    t: np.ndarray
-    pose: np.ndarray
-    phi: np.ndarray
-
-
-class StateMotion(NamedTuple):
-    """A motion given as arrays, e.g. a prediction's states ``q`` split up."""
-
-    t: np.ndarray
-    pose: np.ndarray
-    phi: np.ndarray
-
-    @classmethod
-    def of_states(cls, t: np.ndarray, q: np.ndarray) -> StateMotion:
-        return cls(t, q[:, :3], q[:, 3:])
-
-
-def body_points(robot: Robot, pose: np.ndarray, phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The robot drawn from above at one state: a polyline through its links (snake: the
-    chain from the free end of link 1; trident: each arm from the base's centre through
-    its corner, NaN-separated) and its wheels' centres (link middles, arm ends)."""
-    x, y, theta = (float(v) for v in pose)
-    if robot.kind == "snake":
-        headings = theta + np.concatenate([[0.0], np.cumsum(phi)])
-        steps = 2 * robot.l * np.column_stack([np.cos(headings), np.sin(headings)])
-        joints = np.vstack([[x, y], [x, y] + np.cumsum(steps, axis=0)])
-        return joints, 0.5 * (joints[:-1] + joints[1:])
-    lines, wheels = [], []
-    for alpha, p in zip(robot.alphas, phi, strict=True):
-        corner = np.array([x, y]) + robot.r * np.array(
-            [math.cos(theta + alpha), math.sin(theta + alpha)]
-        )
-        end = corner + robot.l * np.array(
-            [math.cos(theta + alpha + p), math.sin(theta + alpha + p)]
-        )
-        lines += [[x, y], corner, end, [np.nan, np.nan]]
-        wheels.append(end)
-    return np.array(lines), np.array(wheels)
-
-
-def _writer(path: Path) -> AbstractMovieWriter:
-    require("matplotlib", "--video")
-    from matplotlib import animation
-
-    suffix = path.suffix.lower()
-    if suffix == ".gif":
-        return animation.PillowWriter(fps=FPS)
-    if suffix == ".mp4":
-        if not animation.FFMpegWriter.isAvailable():
+def parse_size(text: str) -> tuple[int, int]:
+    """``WIDTHxHEIGHT`` in pixels, each even (H.264 needs it) and within the limits."""
+    parts = text.lower().split("x")
+    try:
+        width, height = (int(p) for p in parts)
+    except ValueError:
+        raise VideoError(f"{text!r} is not a size: give WIDTHxHEIGHT, e.g. 1280x720") from None
+    for side in (width, height):
+        if not MIN_SIDE <= side <= MAX_SIDE or side % 2:
             raise VideoError(
-                f"{path}: MP4 needs ffmpeg on PATH (apt install ffmpeg); or give a .gif name"
+                f"{text!r}: each side must be an even number of pixels from {MIN_SIDE} to "
+                f"{MAX_SIDE}, e.g. 1280x720"
             )
-        return animation.FFMpegWriter(fps=FPS)
-    raise VideoError(f"{path}: the video must be a .gif or an .mp4 file")
+    return width, height
 
 
 def check_video_path(path: Path) -> Path:
     """``path`` if a video can be written there (raises VideoError otherwise), before any
     long run starts."""
-    _writer(path)
+    if path.suffix.lower() not in SUFFIXES:
+        raise VideoError(f"{path}: the video must be a .gif or an .mp4 file")
     if not path.parent.is_dir():
         raise VideoError(f"{path}: the directory {path.parent} does not exist")
+    require("imageio_ffmpeg", "--video")
     return path
 
 
-def write_video(
-    path: str | Path, robot: Robot, records: Mapping[str, Motion], title: str = ""
-) -> Path:
-    """Write the runs in ``records`` (label -> record, sharing one time axis) overlaid,
-    seen from above, to ``path`` (.gif or .mp4)."""
-    path = Path(path)
-    writer = _writer(path)
-    items = list(records.items())
-    if not items or not len(items[0][1].t):
+def frame_times(runs: Mapping[str, Motion]) -> np.ndarray:
+    """The times the frames show: FPS a second of the first run, MAX_FRAMES at most."""
+    items = list(runs.values())
+    if not items or not len(items[0].t):
         raise VideoError("nothing to show: the run recorded no samples")
-    t = items[0][1].t
-    duration = float(t[-1])
+    duration = float(items[0].t[-1])
     frames = max(2, min(MAX_FRAMES, int(duration * FPS) + 1))
-    times = np.linspace(0.0, duration, frames)
-    speedup = duration / (frames / FPS) if frames > 1 else 1.0
+    return np.linspace(0.0, duration, frames)
 
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(5, 5), layout="constrained")
-    FigureCanvasAgg(fig)
-    ax = fig.subplots()
-    everything = []
-    for _, rec in items:
-        for k in (0, len(rec.t) - 1):
-            chain, wheels = body_points(robot, rec.pose[k], rec.phi[k])
-            everything.append(chain[np.isfinite(chain[:, 0])])
-        everything.append(rec.pose[:, :2])
-    pts = np.vstack(everything)
-    span = max(float(np.ptp(pts[:, 0])), float(np.ptp(pts[:, 1])), 1e-9) * 0.55 + robot.l
-    centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
-    ax.set_xlim(centre[0] - span, centre[0] + span)
-    ax.set_ylim(centre[1] - span, centre[1] + span)
-    ax.set_aspect("equal")
-    ax.grid(alpha=0.3)
-    ax.set_xlabel("x (robot units)")
-    ax.set_ylabel("y (robot units)")
-    ax.set_title(title or f"{robot.name} seen from above")
-    artists = []
-    for i, (label, _) in enumerate(items):
-        color = COLORS[i % len(COLORS)]
-        (trail,) = ax.plot([], [], "-", color=color, alpha=0.5, lw=1)
-        (body,) = ax.plot([], [], "-", color=color, lw=3, label=label)
-        (wheel,) = ax.plot([], [], "o", color="black", ms=5)
-        artists.append((trail, body, wheel))
-    clock = ax.text(0.02, 0.97, "", transform=ax.transAxes, va="top")
-    ax.legend(loc="upper right", fontsize="small")
+def _encoder(path: Path, size: tuple[int, int]) -> Generator[None, np.ndarray, None]:
+    """imageio-ffmpeg's frame writer for ``path`` (primed): send it (h, w, 3) uint8."""
+    import imageio_ffmpeg
 
-    with writer.saving(fig, str(path), dpi=72):
-        for now in times:
-            for (_, rec), (trail, body, wheel) in zip(items, artists, strict=True):
-                k = min(int(np.searchsorted(rec.t, now, side="right")) - 1, len(rec.t) - 1)
-                k = max(k, 0)
-                chain, wheels = body_points(robot, rec.pose[k], rec.phi[k])
-                trail.set_data(rec.pose[: k + 1, 0], rec.pose[: k + 1, 1])
-                body.set_data(chain[:, 0], chain[:, 1])
-                wheel.set_data(wheels[:, 0], wheels[:, 1])
-            clock.set_text(f"t = {now:5.2f} s" + (f"  ({speedup:.1f}x)" if speedup > 1.05 else ""))
-            writer.grab_frame()
+    if path.suffix.lower() == ".gif":
+        # a palette per frame from that frame's colours, kept as the frames stream by
+        options: dict[str, Any] = {
+            "codec": "gif",
+            "pix_fmt_out": "pal8",
+            "output_params": [
+                "-filter_complex",
+                "split[a][b];[a]palettegen=stats_mode=single[p];[b][p]paletteuse=new=1",
+                "-loop",
+                "0",
+            ],
+        }
+    else:
+        options = {"codec": "libx264", "quality": 7, "pix_fmt_out": "yuv420p"}
+    writer = imageio_ffmpeg.write_frames(
+        str(path), size, fps=FPS, macro_block_size=1, ffmpeg_log_level="error", **options
+    )
+    writer.send(None)
+    return writer
+
+
+Draw = Callable[[float], np.ndarray]
+
+
+def open_view(
+    robot: Robot,
+    runs: Mapping[str, Motion],
+    title: str,
+    size: tuple[int, int],
+    say: Callable[[str], Any],
+) -> tuple[Draw, Callable[[], None], str]:
+    """The frame function of the 3-D renderer, or of the top view where that cannot
+    start; the function that frees it; and which it is (``3d`` or ``2d``)."""
+    from snakebot.plots.render3d import Renderer3D, RendererUnavailable
+
+    try:
+        renderer = Renderer3D(robot, size)
+    except RendererUnavailable as exc:
+        say(f"note: drawing the video from above in 2-D instead of in 3-D: {exc}")
+        from snakebot.plots.topview import TopView
+
+        view = TopView(robot, runs, title, size)
+        return view.frame, view.close, "2d"
+    return partial(renderer.frame, runs), renderer.close, "3d"
+
+
+def write_video(
+    path: str | Path,
+    robot: Robot,
+    records: Mapping[str, Motion],
+    title: str = "",
+    *,
+    size: tuple[int, int] = DEFAULT_SIZE,
+    say: Callable[[str], Any] = print,
+) -> Path:
+    """Write the runs in ``records`` (label -> run, sharing one time axis; the camera
+    follows the first) to ``path`` (.mp4 or .gif), ``size`` = (width, height) pixels."""
+    path = check_video_path(Path(path))
+    times = frame_times(records)
+    draw, close, _ = open_view(robot, records, title, size, say)
+    try:
+        with staged_path(path) as temp:
+            writer = _encoder(temp, size)
+            try:
+                for t in times:
+                    writer.send(np.ascontiguousarray(draw(float(t))))
+            finally:
+                writer.close()
+    finally:
+        close()
     return path

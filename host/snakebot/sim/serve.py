@@ -1,5 +1,9 @@
-"""The emulated robot with its real firmware: QEMU, the emulated servo bus and the world.
+"""The emulated robot with its real firmware: the emulated CM-530 or QEMU, the emulated
+servo bus and the world.
 
+With ``board="cm530"`` the exact CM-530 image runs on the emulated STM32F103RE
+(:mod:`snakebot.sim.mcu`) in this process, its USART1 driving the emulated bus directly on
+the chip's clock and its USART3 on a pseudo-terminal. With ``board="qemu"``
 :class:`EmulatedRobot` starts, in this order,
 
 1. the robot's virtual AX-12s on an emulated bus (:mod:`snakebot.sim.bus.bus`), served on a Unix
@@ -40,7 +44,7 @@ import time
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from types import TracebackType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -53,6 +57,7 @@ from snakebot.model.robots import Robot, load_robot
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.errors import SimFailure, SimInputError, SimOptionError
 from snakebot.sim.history import History
+from snakebot.sim.mcu.errors import McuError
 from snakebot.sim.options import SimOptions
 from snakebot.sim.physics import PhysicsWorld
 from snakebot.sim.physics.select import DEFAULT_WORLD, check_world, make_world
@@ -62,9 +67,24 @@ from snakebot.sim.transports.unixsock import UnixSocketServer
 from snakebot.sim.workdirs import make_workdir
 from snakebot.sim.world import World, WorldRecord
 
+if TYPE_CHECKING:
+    from snakebot.sim.mcu.runner import McuFirmware
+
 DEFAULT_FIRMWARE = firmware_image("qemu", "firmware.elf")
 """The qemu board's application image: ``make firmware``'s in a checkout, else the one
 shipped in the package (:mod:`snakebot.firmware`)."""
+
+BOARDS = ("cm530", "qemu")
+"""Where the firmware runs: the emulated STM32F103RE (the CM-530's own image) or QEMU's
+stm32vldiscovery (the qemu board's build of the same firmware)."""
+
+DEFAULT_BOARD = "qemu"
+
+
+def default_firmware(board: str) -> Path:
+    """The image a board runs unless told otherwise (``make firmware`` builds both)."""
+    return firmware_image(board, "firmware.elf")
+
 
 FLASH_BASE = 0x08000000
 FLASH_SIZE = 128 * 1024  # stm32vldiscovery (STM32F100RB)
@@ -230,6 +250,7 @@ class EmulatedRobot:
     ``world``: "kinematic" or "mujoco" (the physics moves the servos).
     ``history_s``: how many seconds of the latest world samples and goals :meth:`record`
     and :meth:`goals` keep (None: all), so a robot served for hours needs bounded memory.
+    ``board``: "cm530" (the emulated STM32F103RE) or "qemu".
     """
 
     def __init__(
@@ -241,16 +262,21 @@ class EmulatedRobot:
         world_period: float = 0.01,
         world: str = DEFAULT_WORLD,
         history_s: float | None = None,
+        board: str = DEFAULT_BOARD,
     ) -> None:
+        if board not in BOARDS:
+            raise ServeError(f"unknown board {board!r}: choose one of {', '.join(BOARDS)}")
+        self.board = board
         self.world_kind = check_world(world)
         self.robot = robot if isinstance(robot, Robot) else load_robot(robot)
         self.history = None if history_s is None else max(1, round(history_s / world_period))
-        self.firmware = Path(firmware) if firmware is not None else DEFAULT_FIRMWARE
+        self.firmware = Path(firmware) if firmware is not None else default_firmware(board)
         self.sim_query = sim_query
         self.world_period = world_period
         self._workdir: str | None = None
         self._server: UnixSocketServer | None = None
         self._qemu: QemuFirmware | None = None
+        self._mcu: McuFirmware | None = None
         self._world: World | PhysicsWorld | None = None
         self._bus: Bus | None = None
         self._goals: GoalLog | None = None
@@ -264,6 +290,8 @@ class EmulatedRobot:
             return self._info
         self._workdir = make_workdir("serve")
         try:
+            if self.board == "cm530":
+                return self._start_cm530(boot_timeout)
             image = flash_image(self.firmware, Path(self._workdir) / "flash.bin")
             options = SimOptions.from_query(self.sim_query)
             if options.robot or options.ids:
@@ -307,8 +335,59 @@ class EmulatedRobot:
             raise
         return self._info
 
+    def _build_bus(self) -> Bus:
+        options = SimOptions.from_query(self.sim_query)
+        if options.robot or options.ids:
+            raise ServeError(
+                "the robot's servos come from --robot: leave robot= and ids= "
+                "out of the emulator options"
+            )
+        return replace(options, robot=self.robot.source or self.robot.name).build_bus()
+
+    def _attach_world(self, bus: Bus) -> None:
+        self._world = make_world(
+            self.world_kind, bus, self.robot, period=self.world_period, keep=self.history
+        )
+        self._goals = GoalLog(
+            bus, self.robot.servo_ids, self.world_period, self._world.start_time, keep=self.history
+        )
+
+    def _start_cm530(self, boot_timeout: float) -> ServeInfo:
+        from snakebot.sim.mcu.image import read_image  # needs unicorn: the mcu extra
+        from snakebot.sim.mcu.runner import McuFirmware
+
+        try:
+            image = read_image(self.firmware)
+        except McuError as exc:
+            raise ServeError(str(exc)) from None
+        self._bus = self._build_bus()
+        self._mcu = McuFirmware(image, bus=self._bus)
+        with self._mcu.lock:
+            self._attach_world(self._bus)
+        self._mcu.start()
+        self._wait_for_boot(self._mcu.pc_link, boot_timeout)
+        self._info = ServeInfo(
+            pc_link=self._mcu.pc_link,
+            bus_socket="",
+            qemu_pid=os.getpid(),
+            robot=self.robot.name,
+            servo_ids=tuple(self.robot.servo_ids),
+            firmware=str(self.firmware),
+        )
+        return self._info
+
+    def log(self) -> str:
+        """What the emulator reported (QEMU's output, or the emulated chip's error)."""
+        if self._mcu is not None:
+            return "" if self._mcu.error is None else str(self._mcu.error)
+        return self._qemu.log() if self._qemu is not None else ""
+
+    def _emulator_running(self) -> bool:
+        if self._mcu is not None:
+            return self._mcu.running
+        return self._qemu is not None and self._qemu.running
+
     def _wait_for_boot(self, pc_link: str, timeout: float) -> None:
-        assert self._qemu is not None
         deadline = time.monotonic() + timeout
         with DxlClient(pc_link, PC_LINK_BAUD, margin_s=BOOT_PING_MARGIN_S, echo=False) as c:
             while True:
@@ -317,17 +396,17 @@ class EmulatedRobot:
                     return
                 except (DxlTimeout, ProtocolError):
                     pass
-                if not self._qemu.running:
+                if not self._emulator_running():
                     raise ServeError(
-                        f"QEMU exited while the firmware booted: "
-                        f"{self._qemu.log().strip() or 'no output'}"
+                        f"the emulator stopped while the firmware booted: "
+                        f"{self.log().strip() or 'no output'}"
                     )
                 if time.monotonic() > deadline:
                     raise ServeError(
                         f"the firmware did not answer PING (ID {CONTROLLER_ID}) on its PC link "
-                        f"within {timeout:.0f} s: is {self.firmware} the qemu board's image "
-                        "(`make firmware`)? QEMU said: "
-                        f"{self._qemu.log().strip() or 'nothing'}"
+                        f"within {timeout:.0f} s: is {self.firmware} the {self.board} board's "
+                        f"image (`make firmware`)? The emulator said: "
+                        f"{self.log().strip() or 'nothing'}"
                     )
 
     def stop(self) -> None:
@@ -335,6 +414,9 @@ class EmulatedRobot:
         Idempotent; also runs when ``start`` fails half-way."""
         if self._qemu is not None:
             self._qemu.stop()
+        if self._mcu is not None:
+            self._mcu.stop()
+            self._mcu = None
         if self._server is not None:
             self._server.close()
         if self._world is not None and self._world.running:
@@ -367,7 +449,9 @@ class EmulatedRobot:
 
     @property
     def running(self) -> bool:
-        """QEMU and the bus server are both alive."""
+        """The emulator (and, with QEMU, the bus server) is alive."""
+        if self._mcu is not None:
+            return self._mcu.running
         return bool(self._qemu and self._qemu.running and self._server and self._server.running)
 
     @property
@@ -379,6 +463,8 @@ class EmulatedRobot:
     @property
     def lock(self) -> Any:
         """Hold this while touching the bus, its servos or the world from another thread."""
+        if self._mcu is not None:
+            return self._mcu.lock
         if self._server is None:
             raise ServeError("the emulated robot is not running: call start() first")
         return self._server.lock

@@ -106,7 +106,9 @@ class DemoSettings:
     """The emulated world: "mujoco" (the physics, so the prediction is checked against
     something other than itself) or "kinematic" (the model the prediction uses)."""
     video: Path | None = None
-    """Where to write a GIF/MP4 of the emulated robot seen from above (None: none)."""
+    """Where to write a GIF/MP4 of the emulated robot (None: none)."""
+    video_size: tuple[int, int] | None = None  # None: the video writer's default
+    """The video's width and height in pixels."""
 
 
 # -- the firmware's timeline --------------------------------------------------------------
@@ -590,4 +592,4 @@ def summary_lines(result: DemoResult) -> list[str]:
 
 def _video_words(result: DemoResult) -> str:
     video = result.settings.video
-    return f", {video} (the robot seen from above)" if video is not None else ""
+    return f", {video} (the robot's video)" if video is not None else ""

@@ -6,6 +6,7 @@ from __future__ import annotations
 import signal
 import threading
 from types import FrameType
+from typing import TYPE_CHECKING
 
 import click
 
@@ -13,6 +14,7 @@ from snakebot.cli.options import json_option, link_option
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType
 from snakebot.cli.signals import STOP_SIGNALS
+from snakebot.errors import SnakebotError
 from snakebot.sim.bootloader import (
     CHECKSUM_FORMATS,
     DEFAULT_SILENCE_S,
@@ -22,6 +24,9 @@ from snakebot.sim.bootloader import (
     BootloaderPty,
     QemuHandover,
 )
+
+if TYPE_CHECKING:
+    from snakebot.sim.mcu.handover import McuHandover
 
 
 @click.command("bootloader")
@@ -89,7 +94,8 @@ from snakebot.sim.bootloader import (
     "--qemu",
     is_flag=True,
     help="After GO, run the stored image in QEMU (the qemu board: build it with make "
-    "firmware, flash build/qemu/firmware.bin --force) and pass the line to it.",
+    "firmware, flash build/qemu/firmware.bin --force) and pass the line to it, instead of "
+    "on the emulated CM-530.",
 )
 @json_option("one with the device, then one per image received, on exit")
 def bootloader(
@@ -117,7 +123,11 @@ def bootloader(
         snakebot sim bootloader --link /tmp/ttyCM530
         snakebot flash build/cm530/firmware.bin --port /tmp/ttyCM530   # another shell
 
-    On exit it lists the images it received, with their sizes and checksums.
+    After GO the image it received starts on the emulated CM-530 (the STM32F103RE of
+    `snakebot sim serve --board cm530`) and the line is passed to it, so the flasher's
+    check of the new firmware runs against the image it sent. An image the board could not
+    start (another board's, empty, cut short, a reset vector outside it) ends the server
+    with an error. On exit it lists the images it received, with their sizes and checksums.
     """
     boot = Bootloader(
         faults=BootloaderFaults(
@@ -131,7 +141,12 @@ def bootloader(
         sum_excludes_last=sum_excludes_last,
         checksum_format=checksum_format,
     )
-    handover = QemuHandover() if qemu else None
+    if qemu:
+        handover: QemuHandover | McuHandover = QemuHandover()
+    else:
+        from snakebot.sim.mcu.handover import McuHandover  # needs unicorn (the mcu extra)
+
+        handover = McuHandover()
     server = BootloaderPty(
         boot, reset_after_s=reset_after, pace=not no_pace, link=link, on_go=handover
     ).start()
@@ -153,11 +168,12 @@ def bootloader(
             click.echo("Ctrl-C stops.")
         while not stop.wait(0.2):
             if not server.running:
+                if isinstance(server.error, SnakebotError):
+                    raise server.error  # an image the board cannot start: bad input
                 raise click.ClickException(f"the bootloader server stopped: {server.error}")
     finally:
         server.close()
-        if handover is not None:
-            handover.close()
+        handover.close()
         for s, handler in previous.items():
             signal.signal(s, handler)
     with server.lock:

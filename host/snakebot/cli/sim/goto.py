@@ -18,11 +18,13 @@ from snakebot.cli.options import (
     plot_option,
     robot_argument,
     target_options,
+    video_option,
     world_option,
 )
 from snakebot.cli.output import dumps
 from snakebot.cli.plan import unreachable
 from snakebot.model.plan import Unreachable
+from snakebot.plots.video import StateMotion, check_video_path, write_video
 from snakebot.workflows.goto import MAX_SLOWDOWN
 from snakebot.workflows.goto import goto as run_goto
 
@@ -39,6 +41,7 @@ from snakebot.workflows.goto import goto as run_goto
 )
 @ideal_option
 @plot_option("the body's path, the poses read after each segment and the target")
+@video_option("the robot's way to the target")
 @json_option()
 def goto(
     robot: str,
@@ -47,6 +50,8 @@ def goto(
     slowdown: int | None,
     ideal: bool,
     plot: Path | None,
+    video: Path | None,
+    video_size: tuple[int, int],
     as_json: bool,
 ) -> None:
     """Take the emulated ROBOT to a target pose in closed loop.
@@ -70,10 +75,13 @@ def goto(
     \b
     Example:
       snakebot sim goto trident --to 2,1,30deg --plot goto.png
+      snakebot sim goto trident --to 2,1,30deg --video goto.mp4 --size 640x360
     """
     from snakebot.model.robots import load_robot
 
     chosen = load_robot(robot)
+    if video is not None:
+        check_video_path(video)
     bar = click.progressbar(length=1, label="segments", file=sys.stderr)
 
     def progress(done: int, total: int) -> None:
@@ -99,6 +107,19 @@ def goto(
         from snakebot.plots.goto import plot_goto
 
         summary["plot"] = str(plot_goto(result, plot))
+    if video is not None:
+        click.echo("writing the video ...", err=True)
+        run = StateMotion.of_states(result.path.t, result.path.q)
+        summary["video"] = str(
+            write_video(
+                video,
+                chosen,
+                {f"{result.world} world": run},
+                f"{chosen.name} to the target",
+                size=video_size,
+                say=lambda line: click.echo(line, err=True),
+            )
+        )
     if as_json:
         click.echo(dumps(summary, indent=2))
     else:
@@ -127,3 +148,5 @@ def _print(s: dict[str, Any]) -> None:
     )
     if "plot" in s:
         click.echo(f"plot written to {s['plot']}")
+    if "video" in s:
+        click.echo(f"video written to {s['video']}")

@@ -62,6 +62,7 @@ def predict(
     mu: float | None,
     plot: Path | None,
     video: Path | None,
+    video_size: tuple[int, int],
     as_json: bool,
 ) -> None:
     """Play the gait table or controller program FILE (.gait, or .prog from `snakebot
@@ -95,7 +96,7 @@ def predict(
     \b
     Example:
       snakebot gait serpenoid snake5 -A 30deg -w 180deg -d 90deg --cycles 1 -o s.gait
-      snakebot sim predict s.gait --plot s.png
+      snakebot sim predict s.gait --plot s.png --video s.mp4
       snakebot plan trident --to 0.3,0.1,20deg -o go.prog
       snakebot sim predict go.prog --ideal
     """
@@ -115,6 +116,8 @@ def predict(
                     "predicted": StateMotion.of_states(result.predicted.t, result.predicted.q),
                 },
                 f"{gait_file.name} on {result.robot.name}",
+                size=video_size,
+                say=lambda line: click.echo(line, err=True),
             )
         )
     if plot is not None:

@@ -5,17 +5,19 @@ from __future__ import annotations
 import math
 import signal
 import threading
+import time
 from pathlib import Path
 from types import FrameType
 
 import click
 
-from snakebot.cli.options import firmware_option, json_option, robot_option, world_option
+from snakebot.cli.live import RATE_HZ, foxglove_option
+from snakebot.cli.options import json_option, robot_option, world_option
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType
 from snakebot.cli.signals import STOP_SIGNALS
 from snakebot.sim.errors import SimFailure
-from snakebot.sim.serve import EmulatedRobot
+from snakebot.sim.serve import BOARDS, DEFAULT_BOARD, EmulatedRobot
 
 HISTORY_S = 600.0
 """Seconds of the world's latest samples kept while serving: memory stays flat however
@@ -24,7 +26,23 @@ long it serves (the pose reports need only the latest)."""
 
 @click.command("serve")
 @robot_option("Robot to emulate, with its servo IDs, zero ticks and body", default="snake5")
-@firmware_option
+@click.option(
+    "--board",
+    type=click.Choice(BOARDS),
+    default=DEFAULT_BOARD,
+    show_default=True,
+    help="cm530: the CM-530's own image on the emulated STM32F103RE (in this process); "
+    "qemu: the qemu board's build under qemu-system-arm.",
+)
+@click.option(
+    "--firmware",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="Firmware to run. cm530: the CM-530 image (.elf, .bin or .hex). qemu: the qemu "
+    "board's application ELF (the boot stub beside it goes in front) or a whole-flash .bin. "
+    "Default: build/<board>/firmware.elf from `make firmware` in a checkout, else the image "
+    "shipped with snakebot.",
+)
 @click.option(
     "--sim-options",
     metavar="QUERY",
@@ -43,31 +61,35 @@ long it serves (the pose reports need only the latest)."""
     show_default=True,
     help="Seconds between lines giving the body's pose in the world (0: never).",
 )
+@foxglove_option
 @json_option("first where everything is (pc_link, bus_socket, qemu_pid, ...), then the body's pose")
 def serve(
     robot: str,
+    board: str,
     firmware: Path | None,
     sim_options: str,
     world: str,
     report: float,
+    foxglove: tuple[str, int] | None,
     as_json: bool,
 ) -> None:
-    """Run the controller firmware in QEMU on the emulated robot until Ctrl-C.
+    """Run the controller firmware on the emulated robot until Ctrl-C.
 
     The firmware's Dynamixel bus (USART1) drives the robot's emulated AX-12s over a Unix
     socket, and its PC link (USART3) is a pseudo-terminal, printed at the start: give it
     as --port to any snakebot command, exactly as the CM-530's USB-serial port, e.g.
 
     \b
-        snakebot sim serve --robot snake5
+        snakebot sim serve --robot snake5 --board cm530
         snakebot upload walk.gait --port /dev/pts/N      # in another shell
         snakebot play --port /dev/pts/N --loop
         snakebot monitor --port /dev/pts/N
+        snakebot sim serve --foxglove 8765                # then ws://127.0.0.1:8765
 
     The world moves the robot's body from the servos' positions while it serves; its pose
     is printed every --report seconds (x forward along the head link's first heading).
-    Ctrl-C or SIGTERM stops QEMU and the emulated bus; nothing is left running. Build the
-    firmware first with `make firmware`.
+    Ctrl-C or SIGTERM stops the emulator and the emulated bus; nothing is left running.
+    Build the firmware first with `make firmware`.
     """
     stop = threading.Event()
 
@@ -76,36 +98,59 @@ def serve(
 
     previous = {s: signal.signal(s, on_signal) for s in STOP_SIGNALS}
     emulated = EmulatedRobot(
-        robot, firmware, sim_query=sim_options, world=world, history_s=HISTORY_S
+        robot, firmware, sim_query=sim_options, world=world, history_s=HISTORY_S, board=board
     )
+    live = None
     try:
         info = emulated.start()
+        if foxglove is not None:
+            from snakebot.workflows.foxglove import FoxgloveLive
+
+            live = FoxgloveLive(emulated.robot, *foxglove)
+        extra = {} if live is None else {"foxglove": f"ws://{foxglove[0]}:{live.port}"}
         if as_json:
-            click.echo(dumps({"event": "serving", **info.as_dict()}))
+            click.echo(dumps({"event": "serving", **info.as_dict(), **extra}))
         else:
-            click.echo(
-                f"emulated {info.robot}: firmware {info.firmware} in QEMU (pid {info.qemu_pid})"
+            where = (
+                "on the emulated STM32F103RE"
+                if board == "cm530"
+                else f"in QEMU (pid {info.qemu_pid})"
             )
+            click.echo(f"emulated {info.robot}: firmware {info.firmware} {where}")
             click.echo(
                 f"PC link (USART3): {info.pc_link}  ({info.baudrate} baud, controller "
                 f"ID {info.controller_id}): snakebot monitor --port {info.pc_link}"
             )
             click.echo(
                 f"bus (USART1): emulated servos {', '.join(map(str, info.servo_ids))} "
-                f"on {info.bus_socket}"
+                f"on {info.bus_socket or 'the chip clock'}"
             )
+            if live is not None:
+                click.echo(
+                    f"Foxglove: open {extra['foxglove']} (Open connection, Foxglove WebSocket)"
+                )
             click.echo("Ctrl-C stops.")
         wait = report if report > 0 else 0.5
-        while not stop.wait(wait):
+        tick = 1.0 / RATE_HZ if live is not None else wait
+        next_report = time.monotonic() + wait
+        while not stop.wait(tick):
             if not emulated.running:
                 raise SimFailure(
-                    "QEMU or the emulated bus stopped unexpectedly: "
-                    f"{emulated.qemu.log().strip() or 'no message'}"
+                    "the emulator or the emulated bus stopped unexpectedly: "
+                    f"{emulated.log().strip() or 'no message'}"
                 )
-            if report > 0:
-                _pose(emulated, as_json)
+            if live is not None:
+                from snakebot.workflows.foxglove import publish_emulated
+
+                publish_emulated(live, emulated)
+            if time.monotonic() >= next_report:
+                next_report += wait
+                if report > 0:
+                    _pose(emulated, as_json)
         _pose(emulated, as_json, final=True)
     finally:
+        if live is not None:
+            live.close()
         emulated.stop()
         for s, handler in previous.items():
             signal.signal(s, handler)

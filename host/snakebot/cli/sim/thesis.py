@@ -45,7 +45,12 @@ def _floats(text: str) -> tuple[float, ...]:
 )
 @json_option()
 def thesis(
-    out_dir: Path, only: tuple[str, ...], mu: float | None, video: Path | None, as_json: bool
+    out_dir: Path,
+    only: tuple[str, ...],
+    mu: float | None,
+    video: Path | None,
+    video_size: tuple[int, int],
+    as_json: bool,
 ) -> None:
     """Rerun the thesis's chapter 4 simulations in the kinematic and the MuJoCo world.
 
@@ -80,7 +85,14 @@ def thesis(
             name = video if len(runs) == 1 else video.with_stem(f"{video.stem}-{run.name}")
             motions = {world: p.emulated for world, p in result.worlds.items()}
             summary["video"] = str(
-                write_video(name, result.robot, motions, f"thesis run {run.name}")
+                write_video(
+                    name,
+                    result.robot,
+                    motions,
+                    f"thesis run {run.name}",
+                    size=video_size,
+                    say=lambda line: click.echo(line, err=True),
+                )
             )
         summaries.append(summary)
         click.echo(" done", err=as_json)

@@ -1,0 +1,290 @@
+"""The robot in 3-D, drawn by MuJoCo's own renderer offscreen (EGL, or OSMesa where EGL is
+missing: no display, no GPU needed).
+
+The model is the physics world's (:func:`snakebot.sim.physics.mjcf.build_mjcf`): its
+links, wheels and floor, here with a grid of 1 m squares (0.5 m checks) on the floor.
+A run is shown by putting the model in each recorded state (the body's pose and the
+joint angles; the wheels turn by the distance they rolled), so a kinematic prediction is
+drawn as well as a physics run. The first run is drawn in the robot's colours; each
+other run beside it is a translucent copy in its own colour. Each run's path is drawn on
+the floor as it goes; the camera follows the first run's body from behind and above,
+its heading fixed (the floor does not spin); the overlay gives the time and the first
+run's joint angles.
+
+    with Renderer3D(robot, (1280, 720)) as r:
+        frame = r.frame({"emulated": record}, t=1.0)   # (720, 1280, 3) uint8
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import os
+from collections.abc import Mapping, Sequence
+from types import TracebackType
+from typing import Any
+from xml.etree import ElementTree as ET
+
+import numpy as np
+
+from snakebot.errors import RuntimeFailure
+from snakebot.extras import available
+from snakebot.model.robots import Robot
+from snakebot.plots.motion import Motion, sample_index
+from snakebot.sim.physics.mjcf import build_mjcf, physics_of
+
+BACKENDS = ("egl", "osmesa")
+"""MuJoCo's offscreen GL backends, in the order tried; MUJOCO_GL names one to use alone."""
+
+TINTS = ((0.2, 0.4, 0.9, 0.45), (0.2, 0.7, 0.3, 0.45))
+"""Colours of the second, third, ... run's robot (RGBA)."""
+
+PATH_COLOURS = ((0.85, 0.1, 0.1, 1.0), (0.2, 0.4, 0.9, 1.0), (0.2, 0.7, 0.3, 1.0))
+LEGEND = ("its own colours, red path", "blue, blue path", "green, green path")
+"""How the overlay names each run's colours (in the order of TINTS and PATH_COLOURS)."""
+TINY_HEIGHT, SMALL_HEIGHT = 200, 300
+"""Below these heights the overlay gives nothing, or only the time."""
+PATH_SEGMENTS = 200
+"""At most this many segments draw a path (longer paths are thinned)."""
+PATH_WIDTH_M = 0.004
+
+GRID_XML = """<asset>
+  <texture name="grid" type="2d" builtin="checker" width="512" height="512"
+           rgb1="0.93 0.93 0.93" rgb2="0.86 0.86 0.86" mark="edge" markrgb="0.35 0.35 0.35"/>
+  <material name="grid" texture="grid" texrepeat="1 1" texuniform="true" reflectance="0"/>
+</asset>"""
+"""One texture per metre (texuniform): its edges are the metre grid, its checks 0.5 m."""
+
+
+class RendererUnavailable(RuntimeFailure):
+    """MuJoCo's offscreen renderer cannot start here (no EGL or OSMesa, or no MuJoCo)."""
+
+
+def can_render(robot: Robot) -> bool:
+    """Whether ``robot`` can be drawn in 3-D: MuJoCo is installed and the robot has a
+    ``[physics]`` table (the GL backend is only known once a context is made)."""
+    return available("mujoco") and robot.physics is not None
+
+
+def font_scale(height: int) -> Any:
+    """The overlay's font for a picture ``height`` pixels high (readable, not crowding)."""
+    import mujoco
+
+    scales = mujoco.mjtFontScale
+    if height <= 240:
+        return scales.mjFONTSCALE_50
+    return scales.mjFONTSCALE_100 if height <= 600 else scales.mjFONTSCALE_150
+
+
+def _context(width: int, height: int) -> tuple[str, Any]:
+    """An offscreen GL context made current, and its backend's name."""
+    wanted = os.environ.get("MUJOCO_GL", "").lower()
+    failures = []
+    for name in (wanted,) if wanted in BACKENDS else BACKENDS:
+        try:
+            context = importlib.import_module(f"mujoco.{name}").GLContext(width, height)
+            context.make_current()
+            return name, context
+        except Exception as exc:  # each backend fails in its own way (ImportError, GL errors)
+            failures.append(f"{name}: {exc}".strip())
+    raise RendererUnavailable(
+        "MuJoCo's offscreen renderer could not start (" + "; ".join(failures) + "): install "
+        "EGL or OSMesa (apt-get install libegl1 libgl1-mesa-dri libosmesa6; `make setup` "
+        "does), or set MUJOCO_GL=egl or osmesa"
+    )
+
+
+def render_model_xml(robot: Robot) -> str:
+    """The physics world's MJCF of ``robot`` with the metre grid on its floor."""
+    root = ET.fromstring(build_mjcf(robot)[0])
+    root.insert(0, ET.fromstring(GRID_XML))
+    for geom in root.iter("geom"):
+        if geom.get("name") == "floor":
+            geom.set("material", "grid")
+            geom.attrib.pop("rgba", None)
+    for quality in root.iter("visual"):
+        ET.SubElement(quality, "quality", shadowsize="0", offsamples="0")
+        ET.SubElement(quality, "headlight", ambient="0.45 0.45 0.45", diffuse="0.5 0.5 0.5")
+    return ET.tostring(root, encoding="unicode")
+
+
+class _Posed:
+    """One run put into a MuJoCo state at any time: root pose, joints and wheel spin."""
+
+    def __init__(self, mujoco: Any, model: Any, robot: Robot, motion: Motion) -> None:
+        self.mj, self.model, self.motion = mujoco, model, motion
+        self.data = mujoco.MjData(model)
+        self.unit = physics_of(robot).unit_m
+        self.radius = physics_of(robot).wheel_radius_m
+        joints = [model.joint(j.name) for j in robot.joints]
+        self.qadr = np.array([int(j.qposadr[0]) for j in joints])
+        wheels = [model.joint(f"wheel{k + 1}") for k in range(robot.n_wheels)]
+        self.wheel_qadr = np.array([int(w.qposadr[0]) for w in wheels])
+        self.wheel_body = np.array([int(w.bodyid[0]) for w in wheels])
+        self.spin, self.centre = self._rolled()
+
+    def _place(self, k: int) -> None:
+        q = self.data.qpos
+        x, y, theta = (float(v) for v in self.motion.pose[k])
+        q[0], q[1], q[2], q[3] = x * self.unit, y * self.unit, 0.0, theta
+        q[self.qadr] = self.motion.phi[k]
+
+    def _rolled(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each wheel's turn at every sample (the distance its centre rolled along its
+        heading, over its radius), and the body's centre (the wheels' mean, metres)."""
+        n = len(self.motion.t)
+        spin = np.zeros((n, len(self.wheel_qadr)))
+        middle = np.zeros((n, 2))
+        last = None
+        for k in range(n):
+            self._place(k)
+            self.mj.mj_kinematics(self.model, self.data)
+            centre = self.data.xpos[self.wheel_body, :2].copy()
+            ahead = self.data.xmat[self.wheel_body].reshape(-1, 3, 3)[:, :2, 0]
+            if last is not None:
+                spin[k] = spin[k - 1] + np.sum((centre - last) * ahead, axis=1) / self.radius
+            last = centre
+            middle[k] = centre.mean(axis=0)
+        return spin, middle
+
+    def at(self, t: float) -> int:
+        """Put the run in its state at time ``t`` (the sample at or before it); its index."""
+        k = sample_index(self.motion.t, t)
+        self._place(k)
+        self.data.qpos[self.wheel_qadr] = self.spin[k]
+        self.mj.mj_kinematics(self.model, self.data)
+        return k
+
+    def path(self, k: int) -> np.ndarray:
+        """The body centre's path up to sample ``k`` (metres), thinned to PATH_SEGMENTS."""
+        xy = self.centre[: k + 1]
+        if len(xy) > PATH_SEGMENTS + 1:
+            xy = xy[np.linspace(0, len(xy) - 1, PATH_SEGMENTS + 1).round().astype(int)]
+        return xy
+
+
+class Renderer3D:
+    """Frames of runs of ``robot``, ``size`` = (width, height) pixels."""
+
+    def __init__(self, robot: Robot, size: tuple[int, int]) -> None:
+        if not can_render(robot):
+            raise RendererUnavailable(
+                f"{robot.name} cannot be drawn in 3-D: it needs MuJoCo and a [physics] table"
+            )
+        import mujoco
+
+        self.mj, self.robot = mujoco, robot
+        self.width, self.height = size
+        self.backend, self._gl = _context(self.width, self.height)
+        model = mujoco.MjModel.from_xml_string(render_model_xml(robot))
+        model.vis.global_.offwidth, model.vis.global_.offheight = self.width, self.height
+        self.model = model
+        self.scene = mujoco.MjvScene(model, maxgeom=2000 + 4 * PATH_SEGMENTS)
+        self.option = mujoco.MjvOption()
+        for flag in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION):
+            self.scene.flags[flag] = False  # software GL: each would double a frame's cost
+        self.camera = mujoco.MjvCamera()
+        self.camera.type = mujoco.mjtCamera.mjCAMERA_FREE
+        self.camera.azimuth, self.camera.elevation = -140.0, -30.0
+        phys = physics_of(robot)
+        snake = robot.kind == "snake"
+        size_m = 2 * robot.l * robot.links if snake else 2 * (robot.r + robot.l)
+        self.camera.distance = max(0.5, 1.6 * size_m * phys.unit_m)
+        self.context = mujoco.MjrContext(model, font_scale(self.height))
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self.context)
+        self.viewport = mujoco.MjrRect(0, 0, self.width, self.height)
+        self._runs: dict[int, _Posed] = {}
+        self._pixels = np.empty((self.height, self.width, 3), dtype=np.uint8)
+
+    def _posed(self, motion: Motion) -> _Posed:
+        posed = self._runs.get(id(motion))
+        if posed is None or posed.motion is not motion:
+            posed = self._runs[id(motion)] = _Posed(self.mj, self.model, self.robot, motion)
+        return posed
+
+    def frame(self, runs: Mapping[str, Motion], t: float) -> np.ndarray:
+        """The picture of ``runs`` (label -> run, the first followed by the camera) at time
+        ``t``: (height, width, 3) uint8, top row first."""
+        mj, scene = self.mj, self.scene
+        posed = [self._posed(m) for m in runs.values()]
+        ks = [p.at(t) for p in posed]
+        first = posed[0]
+        self.camera.lookat[:] = [*first.centre[ks[0]], 0.0]
+        mj.mjv_updateScene(
+            self.model, first.data, self.option, None, self.camera, mj.mjtCatBit.mjCAT_ALL, scene
+        )
+        for i, p in enumerate(posed[1:]):
+            before = scene.ngeom
+            mj.mjv_addGeoms(
+                self.model, p.data, self.option, mj.MjvPerturb(), mj.mjtCatBit.mjCAT_DYNAMIC, scene
+            )
+            for g in range(before, scene.ngeom):
+                scene.geoms[g].rgba[:] = TINTS[i % len(TINTS)]
+        for i, (p, k) in enumerate(zip(posed, ks, strict=True)):
+            self._draw_path(p.path(k), PATH_COLOURS[i % len(PATH_COLOURS)])
+        mj.mjr_render(self.viewport, scene, self.context)
+        self._overlay(list(runs), t, first, ks[0])
+        mj.mjr_readPixels(self._pixels, None, self.viewport, self.context)
+        return np.flipud(self._pixels).copy()
+
+    def _draw_path(self, xy: np.ndarray, rgba: Sequence[float]) -> None:
+        mj, scene = self.mj, self.scene
+        z = 0.5 * PATH_WIDTH_M
+        moved = np.any(xy[1:] != xy[:-1], axis=1)
+        colour = np.asarray(rgba, dtype=np.float32)
+        zeros, eye = np.zeros(3), np.eye(3).ravel()
+        for a, b in zip(xy[:-1][moved].tolist(), xy[1:][moved].tolist(), strict=True):
+            if scene.ngeom >= scene.maxgeom:
+                return
+            geom = scene.geoms[scene.ngeom]
+            mj.mjv_initGeom(geom, mj.mjtGeom.mjGEOM_CAPSULE, zeros, zeros, eye, colour)
+            mj.mjv_connector(
+                geom, mj.mjtGeom.mjGEOM_CAPSULE, PATH_WIDTH_M, [a[0], a[1], z], [b[0], b[1], z]
+            )
+            scene.ngeom += 1
+
+    def _overlay(self, labels: list[str], t: float, first: _Posed, k: int) -> None:
+        mj = self.mj
+        angles = "\n".join(
+            f"{j.name} {math.degrees(a):+6.1f} deg"
+            for j, a in zip(self.robot.joints, first.motion.phi[k], strict=True)
+        )
+        font = mj.mjtFont.mjFONT_NORMAL
+        if self.height < TINY_HEIGHT:
+            return  # a thumbnail: any text would cover the robot
+        mj.mjr_overlay(
+            font,
+            mj.mjtGridPos.mjGRID_TOPLEFT,
+            self.viewport,
+            "time\nfloor",
+            f"{t:.2f} s\n1 m grid",
+            self.context,
+        )
+        if self.height < SMALL_HEIGHT:
+            return  # small: the angles and the legend would cover the robot
+        mj.mjr_overlay(
+            font, mj.mjtGridPos.mjGRID_BOTTOMLEFT, self.viewport, angles, "", self.context
+        )
+        legend = "\n".join(
+            f"{label}: {colour}" for label, colour in zip(labels, LEGEND, strict=False)
+        )
+        mj.mjr_overlay(
+            font, mj.mjtGridPos.mjGRID_BOTTOMRIGHT, self.viewport, legend, "", self.context
+        )
+
+    def close(self) -> None:
+        if self._gl is not None:
+            self.context.free()
+            self._gl.free()
+            self._gl = None
+
+    def __enter__(self) -> Renderer3D:
+        return self
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()

@@ -1,0 +1,53 @@
+/* The emulated STM32F103's instruction counter (snakebot.sim.mcu.cpu): a unicorn code hook
+ * that counts every executed instruction and stops the CPU when the count reaches a limit,
+ * so the emulator knows the exact time of every register access and can run the CPU up to
+ * the next peripheral event and no further. Called by unicorn for each instruction, it has
+ * to be native code: a Python callback there would run a hundred times slower.
+ * Host-side only: never compiled into the firmware. */
+#ifndef SNAKEBOT_MCU_COUNT_H
+#define SNAKEBOT_MCU_COUNT_H
+
+#include <stdint.h>
+
+/* cffi:begin */
+typedef struct {
+    uint64_t count;    /* instructions executed since the machine was made */
+    uint64_t limit;    /* stop before the instruction that would make count exceed this */
+    void *stop;        /* unicorn's uc_emu_stop, as a plain function address */
+    uint32_t stops;    /* times the limit stopped the CPU */
+    uint32_t pending;  /* an exception is pending: stop after an instruction that unmasks */
+    double t0;         /* the machine's time (s) when count was c0 */
+    uint64_t c0;
+    double hz;         /* instructions per second (HCLK) */
+} mcu_counter;
+
+/* A peripheral's registers as the CPU reaches them: one register served here, in C, and
+ * everything else by the Python model (read_fallback / write_fallback, ctypes callbacks of
+ * unicorn's MMIO signatures). A USART's SR is read (value; a read arms the SR-then-DR
+ * sequences in `armed`), the IWDG's KR written (a reload key while `running` notes the
+ * time of the feed), on every pass of the firmware's main loop: in Python those accesses
+ * would cost more than the rest of the emulation. */
+typedef struct {
+    uint32_t kind;           /* MCU_IO_USART_SR or MCU_IO_IWDG_KR */
+    uint32_t value;          /* USART: SR, kept current by the model */
+    uint32_t armed;          /* USART: bit 0 = error flags, bit 1 = TC (set by an SR read) */
+    uint32_t running;        /* IWDG: started */
+    uint64_t feeds;          /* IWDG: reloads */
+    double last_feed;        /* IWDG: time of the last reload (s), valid once feeds > 0 */
+    double largest_gap;      /* IWDG: longest time between two reloads (s) */
+    mcu_counter *counter;
+    void *read_fallback;
+    void *write_fallback;
+} mcu_fast_io;
+
+#define MCU_IO_USART_SR 1
+#define MCU_IO_IWDG_KR 2
+
+uint64_t mcu_io_read(void *uc, uint64_t offset, unsigned size, void *io);
+void mcu_io_write(void *uc, uint64_t offset, unsigned size, uint64_t value, void *io);
+
+void mcu_count_instruction(void *uc, uint64_t address, uint32_t size, void *counter);
+void mcu_after_unmask(void *uc, uint64_t address, uint32_t size, void *counter);
+/* cffi:end */
+
+#endif

@@ -1,0 +1,413 @@
+"""The Cortex-M3 core: unicorn's ARMv7-M CPU, with the exception model done here.
+
+Unicorn (the QEMU CPU core as a library) executes the instructions; it has no NVIC, so
+exception entry and return are done by this module as the ARMv7-M architecture manual
+describes (B1.5.6 and B1.5.8): on entry the eight-word frame (r0-r3, r12, lr, the return
+address, xPSR) is pushed on the main stack, 8-byte aligned (bit 9 of the stacked xPSR
+records the padding), LR gets EXC_RETURN and PC the handler from the vector table at
+VTOR; a branch to EXC_RETURN (unicorn reports it as its exception-exit interrupt) pops the
+frame. Only the main stack is modelled (the firmware never uses the process stack: an
+EXC_RETURN asking for it is a fault).
+
+Time: a native instruction counter (``snakebot._core``'s ``mcu_count_instruction``, a
+unicorn code hook) counts every executed instruction and stops the CPU at a limit, so
+the machine knows the exact instruction count at every register access and runs the CPU
+exactly up to the next peripheral event. One instruction counts one cycle.
+
+Interrupts are looked at whenever the CPU stops: at an event, after a register write that
+pended or enabled one (the write lowers the limit so the CPU stops after it), and after
+every instruction that may unmask them (``cpsie i``, ``msr primask``), which are found in
+the image when it is loaded. ``wfi`` stops the CPU until an exception that could preempt
+is pending.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import struct
+from collections.abc import Callable, Iterable
+
+from snakebot.extras import require
+
+require("unicorn", "the emulated CM-530 (snakebot.sim.mcu)")
+
+from unicorn import (  # noqa: E402
+    UC_ARCH_ARM,
+    UC_HOOK_CODE,
+    UC_HOOK_INTR,
+    UC_HOOK_MEM_WRITE_PROT,
+    UC_MODE_MCLASS,
+    UC_MODE_THUMB,
+    UC_PROT_ALL,
+    UC_PROT_EXEC,
+    UC_PROT_READ,
+    Uc,
+    UcError,
+)
+from unicorn import arm_const as arm  # noqa: E402
+from unicorn.unicorn_py3.unicorn import (  # noqa: E402
+    MMIO_READ_CFUNC,
+    MMIO_WRITE_CFUNC,
+    uclib,
+)
+
+from snakebot.core import ffi, lib  # noqa: E402
+from snakebot.sim.mcu.errors import McuFault  # noqa: E402
+from snakebot.sim.mcu.nvic import Nvic  # noqa: E402
+
+__all__ = ["Cpu", "Uc", "unmasking_sites", "UC_HOOK_MEM_WRITE_PROT", "UC_PROT_ALL"]
+__all__ += ["UC_PROT_EXEC", "UC_PROT_READ"]
+
+EXCP_EXCEPTION_EXIT = 8  # unicorn's (QEMU's) interrupt number for a branch to EXC_RETURN
+EXC_RETURN_HANDLER = 0xFFFF_FFF1
+EXC_RETURN_THREAD_MSP = 0xFFFF_FFF9
+FRAME_REGS = (
+    arm.UC_ARM_REG_R0,
+    arm.UC_ARM_REG_R1,
+    arm.UC_ARM_REG_R2,
+    arm.UC_ARM_REG_R3,
+    arm.UC_ARM_REG_R12,
+    arm.UC_ARM_REG_LR,
+    arm.UC_ARM_REG_PC,
+    arm.UC_ARM_REG_XPSR,
+)
+XPSR_ALIGNED = 1 << 9
+XPSR_IPSR = 0x1FF
+WFI = b"\x30\xbf"
+CPSIE_I = b"\x62\xb6"
+
+
+def unmasking_sites(code: bytes, base: int) -> tuple[list[int], list[int]]:
+    """(addresses of ``wfi``, addresses right after ``cpsie i`` or ``msr primask, rN``)
+    in Thumb code ``code`` loaded at ``base``. A match inside data only adds a hook at an
+    address no instruction starts at, which never fires, or a harmless extra look."""
+    wfi, after = [], []
+    for offset in range(0, len(code) - 1, 2):
+        half = code[offset : offset + 2]
+        if half == WFI:
+            wfi.append(base + offset)
+        elif half == CPSIE_I:
+            after.append(base + offset + 2)
+        elif (
+            offset + 4 <= len(code)
+            and half[1] == 0xF3
+            and half[0] & 0xF0 == 0x80
+            and code[offset + 2] == 0x10  # SYSm 16: PRIMASK
+            and code[offset + 3] == 0x88
+        ):
+            after.append(base + offset + 4)
+    return wfi, after
+
+
+class _Batch:
+    """Reads or writes a fixed list of registers in one call to unicorn (its Python
+    wrappers cost more than the emulation they wrap, at every exception)."""
+
+    def __init__(self, uch: object, regs: tuple[int, ...]) -> None:
+        self._uch = uch
+        self.n = len(regs)
+        self._ids = (ctypes.c_int * self.n)(*regs)
+        self.values = (ctypes.c_uint32 * self.n)()
+        base = ctypes.addressof(self.values)
+        self._ptrs = (ctypes.c_void_p * self.n)(*(base + 4 * i for i in range(self.n)))
+
+    def read(self) -> list[int]:
+        uclib.uc_reg_read_batch(self._uch, self._ids, self._ptrs, self.n)
+        return self.values[:]
+
+    def read_one(self) -> int:
+        """The first register alone (one call, no list)."""
+        uclib.uc_reg_read(self._uch, self._ids[0], self._ptrs[0])
+        return self.values[0]
+
+    def write(self, values: list[int]) -> None:
+        for i, value in enumerate(values):
+            self.values[i] = value & 0xFFFF_FFFF
+        uclib.uc_reg_write_batch(self._uch, self._ids, self._ptrs, self.n)
+
+
+class Cpu:
+    """The core. ``nvic`` holds the exception state; ``read32(address)`` reads memory
+    (for the vector table)."""
+
+    def __init__(self, nvic: Nvic) -> None:
+        self.uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
+        self.nvic = nvic
+        self.counter = ffi.new("mcu_counter *")
+        stop = ctypes.cast(uclib.uc_emu_stop, ctypes.c_void_p).value
+        self.counter.stop = ffi.cast("void *", stop)
+        self.counter.limit = 0
+        self._hook_counter()
+        self.uc.hook_add(UC_HOOK_INTR, self._on_interrupt)
+        uch = self.uc._uch
+        self._uch = uch
+        self._frame = _Batch(uch, FRAME_REGS)
+        self._entry = _Batch(
+            uch, (arm.UC_ARM_REG_SP, arm.UC_ARM_REG_LR, arm.UC_ARM_REG_XPSR, arm.UC_ARM_REG_PC)
+        )
+        self._sp = _Batch(uch, (arm.UC_ARM_REG_SP,))
+        self._pc = _Batch(uch, (arm.UC_ARM_REG_PC,))
+        self._primask = _Batch(uch, (arm.UC_ARM_REG_PRIMASK,))
+        self._word = ctypes.create_string_buffer(32)
+        self._io_callbacks: list[tuple[object, object]] = []
+        self.running = False
+        self.sleeping = False
+        self.sleeps = 0
+        self._exit_request = False
+        self._wfi_sites: set[int] = set()
+        self._stopped_by: str | None = None
+        self._fault: int | None = None
+        self.lowest_sp = 0xFFFF_FFFF  # the lowest main stack pointer an exception entry saw
+
+    def _hook_counter(self) -> None:
+        self._native_hook(lib.mcu_count_instruction, 1, 0)
+
+    def _native_hook(self, function: object, begin: int, end: int) -> None:
+        """Hook the C ``function`` (from ``snakebot._core``) on the instructions at
+        ``begin``..``end``, with the counter as its data."""
+        handle = ctypes.c_size_t()
+        callback = ctypes.c_void_p(int(ffi.cast("uintptr_t", function)))
+        user = ctypes.c_void_p(int(ffi.cast("uintptr_t", self.counter)))
+        status = uclib.uc_hook_add(
+            self.uc._uch,
+            ctypes.byref(handle),
+            UC_HOOK_CODE,
+            callback,
+            user,
+            ctypes.c_uint64(begin),
+            ctypes.c_uint64(end),
+        )
+        if status != 0:
+            raise McuFault(f"unicorn refused a native hook (error {status})")
+
+    def watch(self, wfi: Iterable[int], after_unmask: Iterable[int]) -> None:
+        """Hook the image's ``wfi`` instructions and the instructions after each unmask."""
+        for address in wfi:
+            self._wfi_sites.add(address)
+            self.uc.hook_add(UC_HOOK_CODE, self._on_wfi, begin=address, end=address)
+        for address in after_unmask:
+            self._native_hook(lib.mcu_after_unmask, address, address)
+
+    def map_io(
+        self,
+        base: int,
+        size: int,
+        read: Callable[[int, int, int, int], int],
+        write: Callable[[int, int, int, int, int], None],
+        fast: object = None,
+    ) -> None:
+        """Send the CPU's accesses to ``base``..``base + size`` to ``read`` and ``write``
+        (offset, size[, value]); they call :meth:`fail` with what they raise. ``fast``: an
+        ``mcu_fast_io`` whose one register C serves first (``mcu_io_read/write``)."""
+        callbacks = (MMIO_READ_CFUNC(read), MMIO_WRITE_CFUNC(write))
+        self._io_callbacks.append(callbacks)  # kept alive as long as the CPU
+        if fast is None:
+            read_fn, write_fn, data = callbacks[0], callbacks[1], None
+        else:
+            fast.read_fallback = ffi.cast(
+                "void *", ctypes.cast(callbacks[0], ctypes.c_void_p).value
+            )
+            fast.write_fallback = ffi.cast(
+                "void *", ctypes.cast(callbacks[1], ctypes.c_void_p).value
+            )
+            read_fn = ctypes.c_void_p(int(ffi.cast("uintptr_t", lib.mcu_io_read)))
+            write_fn = ctypes.c_void_p(int(ffi.cast("uintptr_t", lib.mcu_io_write)))
+            data = ctypes.c_void_p(int(ffi.cast("uintptr_t", fast)))
+        status = uclib.uc_mmio_map(self._uch, base, size, read_fn, data, write_fn, data)
+        if status != 0:
+            raise McuFault(f"cannot map I/O at 0x{base:08X} (unicorn error {status})")
+
+    def fail(self, exc: BaseException) -> None:
+        """A callback raised ``exc``: stop the CPU; :meth:`run` raises it."""
+        if self.uc._hook_exception is None:
+            self.uc._hook_exception = exc
+        uclib.uc_emu_stop(self._uch)
+
+    # -- time -----------------------------------------------------------------------------
+
+    @property
+    def count(self) -> int:
+        return int(self.counter.count)
+
+    def stop_soon(self, after: int = 0) -> None:
+        """Stop the running CPU within ``after`` more instructions (0: before the next)."""
+        if self.running:
+            limit = self.counter.count + after
+            if limit < self.counter.limit:
+                self.counter.limit = limit
+
+    # -- registers --------------------------------------------------------------------------
+
+    def reg(self, reg: int) -> int:
+        return self.uc.reg_read(reg)
+
+    def set_reg(self, reg: int, value: int) -> None:
+        self.uc.reg_write(reg, value)
+
+    @property
+    def pc(self) -> int:
+        return self._pc.read_one()
+
+    @property
+    def primask(self) -> bool:
+        return bool(self._primask.read_one() & 1)
+
+    def set_primask(self, masked: bool) -> None:
+        self._primask.write([1 if masked else 0])
+
+    def read_memory(self, address: int, size: int) -> bytes:
+        buf = self._word if size <= len(self._word) else ctypes.create_string_buffer(size)
+        status = uclib.uc_mem_read(self._uch, address, buf, size)
+        if status != 0:
+            raise McuFault(f"cannot read {size} bytes at 0x{address:08X} (unicorn error {status})")
+        return buf.raw[:size]
+
+    def write_memory(self, address: int, data: bytes) -> None:
+        status = uclib.uc_mem_write(self._uch, address, data, len(data))
+        if status != 0:
+            raise McuFault(f"cannot write {len(data)} bytes at 0x{address:08X} (error {status})")
+
+    def read32(self, address: int) -> int:
+        return int.from_bytes(self.read_memory(address, 4), "little")
+
+    def boot(self, sp: int, pc: int) -> None:
+        """Start at ``pc`` with main stack ``sp``, as from reset: thread mode, privileged,
+        interrupts unmasked."""
+        uc = self.uc
+        for n in range(13):
+            uc.reg_write(arm.UC_ARM_REG_R0 + n, 0)
+        uc.reg_write(arm.UC_ARM_REG_PRIMASK, 0)
+        uc.reg_write(arm.UC_ARM_REG_CONTROL, 0)
+        uc.reg_write(arm.UC_ARM_REG_XPSR, 1 << 24)
+        uc.reg_write(arm.UC_ARM_REG_SP, sp)
+        uc.reg_write(arm.UC_ARM_REG_LR, 0xFFFF_FFFF)
+        uc.reg_write(arm.UC_ARM_REG_PC, pc & ~1)
+        self.sleeping = False
+        self.lowest_sp = sp
+
+    # -- running ----------------------------------------------------------------------------
+
+    def run(self, instructions: int) -> None:
+        """Run at most ``instructions`` instructions (fewer if something stops the CPU)."""
+        if self.sleeping:
+            return
+        self.counter.limit = self.counter.count + instructions
+        self._exit_request = False
+        self.running = True
+        uc = self.uc
+        uc._hook_exception = None
+        try:
+            status = uclib.uc_emu_start(self._uch, self._pc.read_one() | 1, 0, 0, 0)
+        finally:
+            self.running = False
+        if uc._hook_exception is not None:
+            exc, uc._hook_exception = uc._hook_exception, None
+            raise exc
+        if status != 0:
+            raise McuFault(
+                f"the CPU faulted at 0x{self.pc:08X}: {UcError(status)} "
+                f"(after {self.counter.count} instructions)"
+            )
+        self._stopped_by = None
+        if self._fault is not None:
+            intno, self._fault = self._fault, None
+            raise McuFault(
+                f"the CPU raised exception {intno} at 0x{self.pc:08X} (an undefined "
+                "instruction, SVC or breakpoint: none is used by the firmware)"
+            )
+
+    def _on_interrupt(self, uc: Uc, intno: int, _data: object) -> None:
+        if intno != EXCP_EXCEPTION_EXIT:
+            self._fault = intno
+            uc.emu_stop()
+            return
+        # the return (and a tail-chained entry) done here: writing PC from a hook makes
+        # unicorn go on from there without leaving emu_start, which costs far more
+        self._exception_return()
+        exception = self.nvic.takeable(self.primask)
+        if exception is not None:
+            self._enter(exception)
+        self.note_pending()
+
+    def _on_wfi(self, uc: Uc, address: int, size: int, _data: object) -> None:
+        # the hook runs before the instruction: unicorn then halts after it (its WFI ends
+        # the run); the CPU sleeps unless an exception is already waiting
+        if self.nvic.takeable(primask=False) is None:
+            self.sleeping = True
+            self.sleeps += 1
+        self._stopped_by = "wfi"
+
+    def note_pending(self) -> None:
+        """Tell the native hooks whether an exception is pending (a stale yes only costs a
+        stop)."""
+        self.counter.pending = 1 if self.nvic.pending else 0
+
+    def wake_if_due(self) -> bool:
+        """WFI ends when an exception that could preempt (PRIMASK aside) is pending."""
+        if self.sleeping and self.nvic.takeable(primask=False) is not None:
+            self.sleeping = False
+        return not self.sleeping
+
+    # -- exceptions ---------------------------------------------------------------------------
+
+    def take_exceptions(self) -> int:
+        """Enter every exception that may preempt now (the last one entered runs first);
+        returns how many."""
+        taken = 0
+        while True:
+            if self.nvic.best_pending() is None:  # no register read for nothing to take
+                self.note_pending()
+                return taken
+            exception = self.nvic.takeable(self.primask)
+            if exception is None:
+                self.note_pending()
+                return taken
+            self._enter(exception)
+            self.sleeping = False
+            taken += 1
+
+    def _enter(self, exception: int) -> None:
+        values = self._frame.read()
+        xpsr = values[-1] & ~XPSR_IPSR
+        if self.nvic.active:
+            xpsr |= self.nvic.active[-1] & XPSR_IPSR
+        sp = self._sp.read_one()
+        if sp & 4:
+            sp -= 4
+            xpsr |= XPSR_ALIGNED
+        else:
+            xpsr &= ~XPSR_ALIGNED
+        values[-1] = xpsr
+        sp -= 32
+        self.write_memory(sp, struct.pack("<8I", *values))
+        handler = self.read32(self.nvic.vtor + 4 * exception)
+        if not handler & 1:
+            raise McuFault(
+                f"vector {exception} at 0x{self.nvic.vtor + 4 * exception:08X} holds "
+                f"0x{handler:08X}, not a Thumb address: is VTOR (0x{self.nvic.vtor:08X}) "
+                "pointing at the image's vector table?"
+            )
+        nested = bool(self.nvic.active)
+        self.nvic.activate(exception)
+        lr = EXC_RETURN_HANDLER if nested else EXC_RETURN_THREAD_MSP
+        self._entry.write([sp, lr, 1 << 24, handler | 1])  # bit 0: stay in Thumb state
+        if sp < self.lowest_sp:
+            self.lowest_sp = sp
+
+    def _exception_return(self) -> None:
+        exc_return = self.pc | 1
+        if exc_return not in (EXC_RETURN_HANDLER, EXC_RETURN_THREAD_MSP) or not self.nvic.active:
+            raise McuFault(
+                f"exception return with EXC_RETURN 0x{exc_return:08X} and "
+                f"{len(self.nvic.active)} exception(s) active: only returns on the main "
+                "stack are modelled"
+            )
+        sp = self._sp.read_one()
+        values = list(struct.unpack("<8I", self.read_memory(sp, 32)))
+        xpsr = values[-1]
+        sp += 32 + (4 if xpsr & XPSR_ALIGNED else 0)
+        values[-1] = (xpsr & ~(XPSR_IPSR | XPSR_ALIGNED)) | 1 << 24
+        values[6] |= 1  # Thumb: unicorn takes bit 0 of a written PC as the state
+        self._frame.write(values)
+        self._sp.write([sp])
+        self.nvic.deactivate()

@@ -1,0 +1,314 @@
+"""The STM32F103RE: a Cortex-M3 (:mod:`snakebot.sim.mcu.cpu`) with 512 KB of flash at
+0x08000000, 64 KB of RAM at 0x20000000 and the peripherals the firmware uses, each a
+register model in its own module, on one clock (:mod:`snakebot.sim.mcu.schedule`).
+
+The memory map holds only what is modelled: flash, RAM, RCC, the flash interface,
+GPIOA-D, AFIO, USART1, USART3, IWDG and the system control space. Any other address
+faults (:class:`~snakebot.sim.mcu.errors.McuFault`), and a modelled peripheral's
+unmodelled register is :class:`~snakebot.sim.mcu.errors.UnmodelledAccess` in strict mode.
+Flash reads at 0x00000000 (the boot alias) are not mapped: the machine starts the CPU
+from a vector table it is given (:meth:`Stm32f103.boot`), as the ROBOTIS bootloader
+starts the application.
+
+A reset (SYSRESETREQ, the watchdog) resets every peripheral and the core and calls
+``on_reset(kind)``, which decides where the CPU starts again (the board runs its
+bootloader's hand-over).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+from snakebot.sim.mcu import rcc as rcc_mod
+from snakebot.sim.mcu.cpu import (
+    UC_HOOK_MEM_WRITE_PROT,
+    UC_PROT_ALL,
+    UC_PROT_EXEC,
+    UC_PROT_READ,
+    Cpu,
+    Uc,
+    unmasking_sites,
+)
+from snakebot.sim.mcu.errors import McuFault
+from snakebot.sim.mcu.flash import FLASH_BASE, FlashInterface
+from snakebot.sim.mcu.gpio import Afio, GpioPort
+from snakebot.sim.mcu.iwdg import Iwdg
+from snakebot.sim.mcu.nvic import SYSTEM_EXCEPTIONS, SYSTICK, Nvic
+from snakebot.sim.mcu.rcc import Clocks, Rcc
+from snakebot.sim.mcu.regs import Peripheral
+from snakebot.sim.mcu.schedule import Scheduler
+from snakebot.sim.mcu.systick import SysTick
+from snakebot.sim.mcu.usart import Usart
+
+FLASH_SIZE = 512 * 1024
+RAM_BASE = 0x2000_0000
+RAM_SIZE = 64 * 1024
+USART1_BASE, USART3_BASE = 0x40013800, 0x40004800
+USART1_IRQ, USART3_IRQ = 37, 39
+RCC_APB2_BITS = {"AFIO": 0, "A": 2, "B": 3, "C": 4, "D": 5, "USART1": 14}
+RCC_APB1_BITS = {"USART3": 18}
+RESET_SOFTWARE, RESET_WATCHDOG, RESET_PIN, RESET_POWER = "software", "watchdog", "pin", "power"
+
+
+class Stm32f103:
+    """One chip. ``hse_hz``: the board's crystal. ``protected_below``: flash below this
+    address is write-protected (the bootloader's pages). ``strict``: unmodelled accesses
+    are errors (tests) or read as zero and are counted (a long-running server)."""
+
+    def __init__(
+        self,
+        *,
+        hse_hz: int,
+        protected_below: int = FLASH_BASE,
+        page_size: int = 2048,
+        strict: bool = True,
+        lsi_hz: float | None = None,
+        on_reset: Callable[[str], None] | None = None,
+    ) -> None:
+        self.strict = strict
+        self.on_reset = on_reset
+        self.scheduler = Scheduler()
+        self.scheduler.on_earlier = self._event_scheduled
+        self.resets: list[tuple[float, str]] = []
+        self._reset_request: str | None = None
+        self.stalled_s = 0.0
+
+        self.nvic = Nvic(on_change=self._exception_may_be_due, on_reset=self._software_reset)
+        self.cpu = Cpu(self.nvic)
+        self._clock = self.cpu.counter  # the time base lives beside the count (mcu_count.h)
+        self._clock.t0 = 0.0
+        self._clock.c0 = 0
+        self._clock.hz = rcc_mod.HSI_HZ
+        uc = self.cpu.uc
+        uc.mem_map(FLASH_BASE, FLASH_SIZE, UC_PROT_READ | UC_PROT_EXEC)
+        uc.mem_map(RAM_BASE, RAM_SIZE, UC_PROT_ALL)
+        uc.mem_write(FLASH_BASE, b"\xff" * FLASH_SIZE)
+
+        self.systick = SysTick(
+            self.scheduler, self.now, pend=lambda: self.nvic.pend(SYSTICK), strict=strict
+        )
+        self.nvic.systick = self.systick
+        self.nvic.strict = strict
+        self.rcc = Rcc(self.scheduler, self.now, hse_hz=hse_hz, strict=strict)
+        self.flash = FlashInterface(
+            size=FLASH_SIZE,
+            page=page_size,
+            protected_below=protected_below,
+            read=lambda a, n: bytes(uc.mem_read(a, n)),
+            write=uc.mem_write,
+            stall=self.stall,
+            strict=strict,
+        )
+        self.rcc.on_change = self._clocks_changed
+        self.gpio = {
+            letter: GpioPort(letter, self._apb2(letter), strict=strict) for letter in "ABCD"
+        }
+        self.afio = Afio(self._apb2("AFIO"), strict=strict)
+        self.usart1 = self._usart("USART1", USART1_BASE, USART1_IRQ, "apb2")
+        self.usart3 = self._usart("USART3", USART3_BASE, USART3_IRQ, "apb1")
+        self.iwdg = Iwdg(
+            self.scheduler,
+            self.now,
+            on_timeout=self._watchdog_reset,
+            strict=strict,
+            **({} if lsi_hz is None else {"lsi_hz": lsi_hz}),
+        )
+        self.peripherals: list[Peripheral] = [
+            self.rcc,
+            self.flash,
+            *self.gpio.values(),
+            self.afio,
+            self.usart1,
+            self.usart3,
+            self.iwdg,
+            self.nvic,
+        ]
+        for p in self.peripherals:
+            self._map(p)
+        uc.hook_add(UC_HOOK_MEM_WRITE_PROT, self._flash_write)
+
+    # -- wiring helpers ------------------------------------------------------------------------
+
+    def _apb2(self, name: str) -> Callable[[], bool]:
+        bit = 1 << RCC_APB2_BITS[name]
+        rcc = self.rcc
+        return lambda: bool(rcc.apb2enr & bit)
+
+    def _usart(self, name: str, base: int, irq: int, bus: str) -> Usart:
+        bit = 1 << (RCC_APB2_BITS if bus == "apb2" else RCC_APB1_BITS)[name]
+        rcc = self.rcc
+
+        def pclk() -> int:
+            c = rcc.clocks()
+            return c.pclk2 if bus == "apb2" else c.pclk1
+
+        def clock_on() -> bool:
+            return bool((rcc.apb2enr if bus == "apb2" else rcc.apb1enr) & bit)
+
+        return Usart(
+            name,
+            base,
+            scheduler=self.scheduler,
+            now=self.now,
+            pclk=pclk,
+            irq=lambda level: self.nvic.set_line(irq, level),
+            clock_on=clock_on,
+            strict=self.strict,
+        )
+
+    def _map(self, p: Peripheral) -> None:
+        # ctypes callbacks of our own rather than Uc.mmio_map's: two Python calls fewer on
+        # every register access, which the firmware's polling loops make by the thousand
+        fail = self.cpu.fail
+        peripheral_read, peripheral_write = p.read, p.write
+
+        def read(_uc: int, offset: int, size: int, _data: int) -> int:
+            try:
+                return peripheral_read(offset, size)
+            except BaseException as exc:  # stops the CPU; cpu.run raises it
+                fail(exc)
+                return 0
+
+        def write(_uc: int, offset: int, size: int, value: int, _data: int) -> None:
+            try:
+                peripheral_write(offset, size, value)
+            except BaseException as exc:
+                fail(exc)
+
+        fast = getattr(p, "fast", None)
+        if fast is not None:
+            fast.counter = self._clock
+        self.cpu.map_io(p.base, p.size, read, write, fast)
+
+    # -- time --------------------------------------------------------------------------------
+
+    @property
+    def hz(self) -> float:
+        """Instructions per second: the processor clock (HCLK)."""
+        return self._clock.hz
+
+    def now(self) -> float:
+        """The chip's time (seconds since it was powered)."""
+        c = self._clock
+        return c.t0 + (c.count - c.c0) / c.hz
+
+    def _rebase(self) -> None:
+        c = self._clock
+        c.t0 = self.now()
+        c.c0 = c.count
+
+    def _skip(self, seconds: float) -> None:
+        self._clock.t0 += seconds
+
+    def stall(self, seconds: float) -> None:
+        """The CPU stops for ``seconds`` (the flash is busy) while time goes on."""
+        self._skip(seconds)
+        self.stalled_s += seconds
+        self.cpu.stop_soon()
+
+    def _event_scheduled(self, t: float) -> None:
+        if self.cpu.running:
+            cycles = math.ceil((t - self.now()) * self.hz - 1e-6)
+            self.cpu.stop_soon(max(cycles, 0))
+
+    def _exception_may_be_due(self) -> None:
+        # stop and let run_until look (a stop costs less than reading PRIMASK here)
+        self.cpu.counter.pending = 1
+        if self.cpu.running and self.nvic.best_pending() is not None:
+            self.cpu.stop_soon()
+
+    def _clocks_changed(self, clocks: Clocks) -> None:
+        self._rebase()
+        self.flash.check_clock(clocks.sysclk)
+        self._clock.hz = clocks.hclk
+        self.systick.set_hclk(clocks.hclk)
+
+    # -- memory --------------------------------------------------------------------------------
+
+    def load(self, address: int, data: bytes) -> None:
+        """Put ``data`` in flash (or RAM) at ``address``, as a programmer would."""
+        end = address + len(data)
+        in_flash = FLASH_BASE <= address and end <= FLASH_BASE + FLASH_SIZE
+        in_ram = RAM_BASE <= address and end <= RAM_BASE + RAM_SIZE
+        if not (in_flash or in_ram):
+            raise McuFault(f"{len(data)} bytes at 0x{address:08X} do not fit the flash or RAM")
+        self.cpu.uc.mem_write(address, data)
+        if in_flash:
+            wfi, after = unmasking_sites(data, address)
+            self.cpu.watch(wfi, after)
+
+    def read(self, address: int, size: int) -> bytes:
+        return bytes(self.cpu.uc.mem_read(address, size))
+
+    def _flash_write(
+        self, uc: Uc, access: int, address: int, size: int, value: int, _data: object
+    ) -> bool:
+        if FLASH_BASE <= address < FLASH_BASE + FLASH_SIZE:
+            self.flash.program(address, size, value)
+            return True
+        return False
+
+    # -- resets ----------------------------------------------------------------------------------
+
+    def _software_reset(self) -> None:
+        self._reset_request = RESET_SOFTWARE
+        self.cpu.stop_soon()
+
+    def _watchdog_reset(self) -> None:
+        self._reset_request = RESET_WATCHDOG
+        self.cpu.stop_soon()
+
+    def reset(self, kind: str = RESET_PIN) -> None:
+        """Reset the chip: every peripheral to its reset values, the clock back to the HSI,
+        RAM kept (as on the chip), then ``on_reset(kind)`` places the CPU."""
+        self._rebase()
+        self.resets.append((self.now(), kind))
+        for p in self.peripherals:
+            p.reset()
+        self.rcc.note_reset(
+            {
+                RESET_SOFTWARE: rcc_mod.CSR_SFT,
+                RESET_WATCHDOG: rcc_mod.CSR_IWDG,
+                RESET_PIN: rcc_mod.CSR_PIN,
+                RESET_POWER: rcc_mod.CSR_POR,
+            }[kind]
+        )
+        self.cpu.sleeping = False
+        if self.on_reset is not None:
+            self.on_reset(kind)
+
+    def boot(self, vector_table: int) -> None:
+        """Start the CPU from the vector table at ``vector_table`` (its stack pointer and
+        reset handler), VTOR left at its reset value 0, as a jump from a bootloader does."""
+        sp = self.cpu.read32(vector_table)
+        pc = self.cpu.read32(vector_table + 4)
+        self.cpu.boot(sp, pc)
+
+    # -- running ---------------------------------------------------------------------------------
+
+    def run_until(self, t_end: float) -> None:
+        """Run the chip until its time reaches ``t_end`` (seconds)."""
+        cpu = self.cpu
+        scheduler = self.scheduler
+        while True:
+            now = self.now()
+            scheduler.run_due(now)
+            if self._reset_request is not None:
+                kind, self._reset_request = self._reset_request, None
+                self.reset(kind)
+                continue
+            if now >= t_end:
+                return
+            if self.nvic.pending:
+                cpu.take_exceptions()
+            next_event = scheduler.next_time()
+            stop = t_end if next_event is None or next_event > t_end else next_event
+            if cpu.sleeping and not cpu.wake_if_due():
+                self._skip(max(stop - now, 0.0))  # asleep: time jumps to the next event
+                continue
+            cycles = math.ceil((stop - now) * self.hz - 1e-6)
+            cpu.run(max(cycles, 1))
+
+    def irq_pending(self, irq: int) -> bool:
+        return bool(self.nvic.pending >> (SYSTEM_EXCEPTIONS + irq) & 1)

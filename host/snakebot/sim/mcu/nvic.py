@@ -1,0 +1,289 @@
+"""The Cortex-M3's system control space (ARMv7-M architecture manual, B3.2 and B3.4): the
+NVIC (enables, pending and active bits, priorities) and the SCB registers the firmware
+uses (CPUID, ICSR, VTOR, AIRCR with PRIGROUP and SYSRESETREQ, SCR, CCR, SHPR1-3).
+
+Exception state lives here; :mod:`snakebot.sim.mcu.cpu` does the entry and return. The
+STM32F103 implements 4 priority bits (the upper nibble of each priority byte; the lower
+nibble reads as zero) and 60 interrupt lines. Device interrupts are level-sensitive: a
+peripheral sets its line (:meth:`Nvic.set_line`), a line that is high pends its interrupt,
+and a line still high when its handler returns pends it again. Preemption compares group
+priorities (the bits above PRIGROUP); among pending exceptions the lowest priority number
+wins, then the lowest exception number. PRIMASK raises the execution priority to 0.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from snakebot.sim.mcu.regs import Peripheral
+from snakebot.sim.mcu.systick import SysTick
+
+BASE = 0xE000E000
+IRQ_COUNT = 60
+SYSTEM_EXCEPTIONS = 16
+NMI, HARDFAULT, SVCALL, PENDSV, SYSTICK = 2, 3, 11, 14, 15
+PRIO_BITS = 4
+PRIO_MASK = (0xFF << (8 - PRIO_BITS)) & 0xFF
+NO_PRIORITY = 256  # thread mode with nothing active
+
+CPUID_VALUE = 0x411FC231  # Cortex-M3 r1p1, as in the STM32F103
+ICTR, SYST_FIRST, SYST_LAST = 0x004, 0x010, 0x01F
+ISER, ICER, ISPR, ICPR, IABR = 0x100, 0x180, 0x200, 0x280, 0x300
+IPR = IABR + 0x100  # the priority bytes
+CPUID, ICSR, VTOR, AIRCR, SCR, CCR, SHPR1, SHCSR = (
+    0xD00,
+    0xD04,
+    0xD08,
+    0xD0C,
+    0xD10,
+    0xD14,
+    0xD18,
+    0xD24,
+)
+VECTKEY = 0x05FA
+AIRCR_VECTRESET, AIRCR_VECTCLRACTIVE, AIRCR_SYSRESETREQ = 1 << 0, 1 << 1, 1 << 2
+ICSR_PENDSTCLR, ICSR_PENDSTSET, ICSR_PENDSVCLR, ICSR_PENDSVSET = 1 << 25, 1 << 26, 1 << 27, 1 << 28
+ICSR_NMIPENDSET = 1 << 31
+VTOR_MASK = 0x3FFF_FF80
+CCR_RESET = 0x0000_0200  # STKALIGN: 8-byte aligned exception frames
+WORDS = (IRQ_COUNT + 31) // 32
+
+
+class Nvic(Peripheral):
+    """The system control space, SysTick included (``systick``, at 0xE000E010).
+
+    ``on_change()`` is called whenever an exception may have become takeable (pended,
+    enabled, its priority raised): the CPU then stops to look. ``on_reset()`` is called
+    for SYSRESETREQ."""
+
+    name = "SCS"
+    size = 0x1000
+
+    def __init__(
+        self,
+        systick: SysTick | None = None,
+        *,
+        on_change: Callable[[], None] | None = None,
+        on_reset: Callable[[], None] | None = None,
+        strict: bool = True,
+    ) -> None:
+        super().__init__(BASE, strict=strict)
+        self.systick = systick
+        self.on_change = on_change or (lambda: None)
+        self.on_reset = on_reset or (lambda: None)
+        self.reset()
+
+    def reset(self) -> None:
+        self.enabled = 0  # bit per device interrupt
+        self.pending = 0  # bit per exception number
+        self.active: list[int] = []  # exception numbers, outermost first
+        self.lines = 0  # bit per device interrupt: its peripheral's line is high
+        self.ipr = bytearray(IRQ_COUNT)
+        self.shpr = bytearray(12)  # exceptions 4..15
+        self.prigroup = 0
+        self.vtor = 0
+        self.ccr = CCR_RESET
+        self.entries = 0  # exceptions taken
+
+    # -- exception state --------------------------------------------------------------------
+
+    def priority(self, exception: int) -> int:
+        if exception == 1:
+            return -3
+        if exception == NMI:
+            return -2
+        if exception == HARDFAULT:
+            return -1
+        if exception < SYSTEM_EXCEPTIONS:
+            return self.shpr[exception - 4]
+        return self.ipr[exception - SYSTEM_EXCEPTIONS]
+
+    def group(self, priority: int) -> int:
+        """The group (preemption) part of a priority under PRIGROUP."""
+        if priority < 0:
+            return priority
+        return priority & ~((2 << self.prigroup) - 1) & 0xFF
+
+    def execution_priority(self, primask: bool) -> int:
+        running = min((self.group(self.priority(e)) for e in self.active), default=NO_PRIORITY)
+        return min(running, 0) if primask else running
+
+    def _enabled(self, exception: int) -> bool:
+        if exception >= SYSTEM_EXCEPTIONS:
+            return bool(self.enabled >> (exception - SYSTEM_EXCEPTIONS) & 1)
+        return exception in (NMI, HARDFAULT, SVCALL, PENDSV, SYSTICK)
+
+    def best_pending(self) -> int | None:
+        """The pending, enabled exception that would be taken first, if any."""
+        best = None
+        best_key = None
+        bits = self.pending
+        while bits:
+            low = bits & -bits
+            exception = low.bit_length() - 1
+            bits ^= low
+            if self._enabled(exception):
+                key = (self.priority(exception), exception)
+                if best_key is None or key < best_key:
+                    best, best_key = exception, key
+        return best
+
+    def takeable(self, primask: bool) -> int | None:
+        """The exception to take now, if one may preempt what runs."""
+        exception = self.best_pending()
+        if exception is None:
+            return None
+        if self.group(self.priority(exception)) < self.execution_priority(primask):
+            return exception
+        return None
+
+    def pend(self, exception: int) -> None:
+        self.pending |= 1 << exception
+        self.on_change()
+
+    def set_line(self, irq: int, level: bool) -> None:
+        """A peripheral's interrupt line: high pends the interrupt (unless it is active)."""
+        bit = 1 << irq
+        if level:
+            self.lines |= bit
+            exception = SYSTEM_EXCEPTIONS + irq
+            if exception not in self.active and not self.pending >> exception & 1:
+                self.pend(exception)
+        else:
+            self.lines &= ~bit
+
+    def activate(self, exception: int) -> None:
+        """The CPU enters ``exception``'s handler."""
+        self.pending &= ~(1 << exception)
+        self.active.append(exception)
+        self.entries += 1
+
+    def deactivate(self) -> int:
+        """The CPU returns from the innermost handler; returns its exception number."""
+        exception = self.active.pop()
+        irq = exception - SYSTEM_EXCEPTIONS
+        if irq >= 0 and self.lines >> irq & 1:
+            self.pend(exception)  # level-sensitive: still asserted
+        return exception
+
+    # -- registers ----------------------------------------------------------------------------
+
+    def read(self, offset: int, size: int) -> int:
+        if SYST_FIRST <= offset <= SYST_LAST and self.systick is not None:
+            return self.systick.read(offset - SYST_FIRST, size)
+        if IPR <= offset < IPR + IRQ_COUNT:
+            return int.from_bytes(self.ipr[offset - IPR : offset - IPR + size], "little")
+        if SHPR1 <= offset < SHPR1 + 12:
+            start = offset - SHPR1
+            return int.from_bytes(self.shpr[start : start + size], "little")
+        if not self.word_only(offset, size, None):
+            return 0
+        for base, bits in ((ISER, self.enabled), (ICER, self.enabled)):
+            if base <= offset < base + 32:
+                return self._word(bits, offset - base)
+        if ISPR <= offset < ISPR + 32 or ICPR <= offset < ICPR + 32:
+            return self._word(self.pending >> SYSTEM_EXCEPTIONS, offset & 0x1F)
+        if IABR <= offset < IABR + 32:
+            active = sum(1 << (e - SYSTEM_EXCEPTIONS) for e in self.active if e >= 16)
+            return self._word(active, offset - IABR)
+        if offset == ICTR:
+            return (IRQ_COUNT - 1) // 32
+        if offset == CPUID:
+            return CPUID_VALUE
+        if offset == ICSR:
+            return self._icsr()
+        if offset == VTOR:
+            return self.vtor
+        if offset == AIRCR:
+            return 0xFA05_0000 | self.prigroup << 8
+        if offset == SCR:
+            return 0
+        if offset == CCR:
+            return self.ccr
+        return self.unknown(offset, size, None)
+
+    @staticmethod
+    def _word(bits: int, byte_offset: int) -> int:
+        n = byte_offset // 4
+        return (bits >> (32 * n)) & 0xFFFF_FFFF if n < WORDS else 0
+
+    def _icsr(self) -> int:
+        value = self.active[-1] if self.active else 0
+        if len(self.active) <= 1:
+            value |= 1 << 11  # RETTOBASE
+        pending = self.best_pending()
+        if pending is not None:
+            value |= (pending & 0x1FF) << 12
+        if self.pending >> SYSTEM_EXCEPTIONS:
+            value |= 1 << 22  # ISRPENDING
+        if self.pending >> SYSTICK & 1:
+            value |= ICSR_PENDSTSET
+        if self.pending >> PENDSV & 1:
+            value |= ICSR_PENDSVSET
+        return value
+
+    def write(self, offset: int, size: int, value: int) -> None:
+        if SYST_FIRST <= offset <= SYST_LAST and self.systick is not None:
+            self.systick.write(offset - SYST_FIRST, size, value)
+            return
+        if IPR <= offset < IPR + IRQ_COUNT:
+            for i in range(size):
+                if offset - IPR + i < IRQ_COUNT:
+                    self.ipr[offset - IPR + i] = (value >> (8 * i)) & PRIO_MASK
+            self.on_change()
+            return
+        if SHPR1 <= offset < SHPR1 + 12:
+            for i in range(size):
+                self.shpr[offset - SHPR1 + i] = (value >> (8 * i)) & PRIO_MASK
+            self.on_change()
+            return
+        if not self.word_only(offset, size, value):
+            return
+        n = (offset & 0x1F) // 4
+        mask = (value & 0xFFFF_FFFF) << (32 * n) if n < WORDS else 0
+        mask &= (1 << IRQ_COUNT) - 1
+        if ISER <= offset < ISER + 32:
+            self.enabled |= mask
+            self.on_change()
+        elif ICER <= offset < ICER + 32:
+            self.enabled &= ~mask
+        elif ISPR <= offset < ISPR + 32:
+            self.pending |= mask << SYSTEM_EXCEPTIONS
+            self.on_change()
+        elif ICPR <= offset < ICPR + 32:
+            self.pending &= ~(mask << SYSTEM_EXCEPTIONS)
+        elif offset == ICSR:
+            self._write_icsr(value)
+        elif offset == VTOR:
+            self.vtor = value & VTOR_MASK
+        elif offset == AIRCR:
+            self._write_aircr(value)
+        elif offset == SCR:
+            if value:
+                self.unknown(offset, size, value)  # sleep-on-exit, deep sleep, SEVONPEND
+        elif offset == CCR:
+            if value != self.ccr:
+                self.unknown(offset, size, value)
+        else:
+            self.unknown(offset, size, value)
+
+    def _write_icsr(self, value: int) -> None:
+        if value & ICSR_PENDSTCLR:
+            self.pending &= ~(1 << SYSTICK)
+        if value & ICSR_PENDSVCLR:
+            self.pending &= ~(1 << PENDSV)
+        if value & ICSR_PENDSTSET:
+            self.pend(SYSTICK)
+        if value & ICSR_PENDSVSET:
+            self.pend(PENDSV)
+        if value & ICSR_NMIPENDSET:
+            self.unknown(ICSR, 4, value)
+
+    def _write_aircr(self, value: int) -> None:
+        if value >> 16 != VECTKEY:
+            return  # without the key the write is ignored
+        if value & (AIRCR_VECTRESET | AIRCR_VECTCLRACTIVE):
+            self.unknown(AIRCR, 4, value)  # debug-only resets
+        self.prigroup = (value >> 8) & 7
+        if value & AIRCR_SYSRESETREQ:
+            self.on_reset()

@@ -1,0 +1,204 @@
+"""The emulated CM-530 running in real time on a background thread, its PC link on a
+pseudo-terminal (or a socket) that host tools open like the board's USB-serial port.
+
+The thread runs the board in steps of at most :data:`STEP_S` of emulated time and never
+ahead of the wall clock, so the PC's bytes arrive at the emulated time they are sent and
+the firmware's replies leave when it sends them. Between steps it waits for the PC's
+bytes. Bytes to the PC that the terminal has no room for are dropped and counted, as a
+USB adapter drops what the PC does not read. On a pseudo-terminal a client that set
+another baud rate than the one USART3 is programmed for is not understood: its bytes are
+dropped (counted in :attr:`McuFirmware.wrong_baud`), as a UART at the wrong rate would
+garble them.
+
+::
+
+    with McuFirmware(image, bus=bus) as fw:
+        print(fw.pc_link)          # /dev/pts/N: snakebot ... --port /dev/pts/N
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import os
+import select
+import socket
+import threading
+import time
+from types import TracebackType
+
+from snakebot.sim.bus.bus import Bus
+from snakebot.sim.mcu.board import Cm530, Leftovers
+from snakebot.sim.mcu.errors import McuMisuse
+from snakebot.sim.transports.base import RawPty
+from snakebot.sim.transports.pty import tty_baudrate
+
+STEP_S = 0.001
+"""The most emulated time the thread runs before it looks at the PC link again."""
+
+MAX_LAG_S = 0.05
+"""The most the emulated board falls behind the wall clock. A host too busy to run it in
+real time slows its time down instead (counted in :attr:`McuFirmware.slowed_s`): the
+firmware sees a consistent clock, and the PC sees a controller that answers late by at
+most this much plus the time it needs, never a backlog of seconds."""
+
+BAUD_TOLERANCE = 0.03
+"""How far (relative) the client's rate may be from USART3's and still be understood."""
+
+
+class McuFirmware:
+    """The board on a thread. ``pc_socket``: serve the PC link on this connected socket
+    instead of a new pseudo-terminal (the bootloader hands its line over that way).
+    ``link``: a symlink to the pseudo-terminal. ``speed``: emulated seconds per wall
+    second."""
+
+    def __init__(
+        self,
+        image: bytes,
+        *,
+        bus: Bus | None = None,
+        pc_socket: socket.socket | None = None,
+        link: str | None = None,
+        strict: bool = False,
+        leftovers: Leftovers | None = None,
+        speed: float = 1.0,
+    ) -> None:
+        self.board = Cm530(image, bus=bus, strict=strict, leftovers=leftovers)
+        self._socket = pc_socket
+        self._pty = None if pc_socket is not None else RawPty(link)
+        self.speed = speed
+        self.lock = threading.RLock()
+        self.dropped = 0
+        self.wrong_baud = 0
+        self.error: BaseException | None = None
+        self.pc_link = ""
+        self._fd = -1
+        self._wake_r = self._wake_w = -1
+        self._thread: threading.Thread | None = None
+        self._stop = False
+        self.cpu_s = 0.0  # processor time the thread used
+        self.slowed_s = 0.0  # wall time the board's clock was held back (host too busy)
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def start(self) -> McuFirmware:
+        if self._thread is not None:
+            raise McuMisuse("this McuFirmware was already started: make a new one")
+        if self._pty is not None:
+            self.pc_link = self._pty.open()
+            self._fd = self._pty.master
+        else:
+            assert self._socket is not None
+            self._socket.setblocking(False)
+            self._fd = self._socket.fileno()
+            self.pc_link = "socket"
+        self._wake_r, self._wake_w = os.pipe()
+        self._thread = threading.Thread(
+            target=self._guarded, name=f"snakebot.sim-cm530 {self.pc_link}", daemon=True
+        )
+        self._thread.start()
+        return self
+
+    def _guarded(self) -> None:
+        try:
+            self._run()
+        except BaseException as exc:  # kept for stop() and the caller to report
+            self.error = exc
+
+    def _run(self) -> None:
+        board = self.board
+        wall0 = time.monotonic()
+        cpu0 = time.thread_time()
+        emu0 = board.now()
+        while not self._stop:
+            target = emu0 + (time.monotonic() - wall0) * self.speed
+            behind = target - board.now()
+            if behind > MAX_LAG_S * self.speed:
+                slip = (behind / self.speed) - MAX_LAG_S
+                wall0 += slip
+                self.slowed_s += slip
+                target = emu0 + (time.monotonic() - wall0) * self.speed
+            with self.lock:
+                now = board.now()
+                if target > now:
+                    board.run_until(min(target, now + STEP_S))
+                self._flush_out()
+                ahead = board.now() - (emu0 + (time.monotonic() - wall0) * self.speed)
+            self.cpu_s = time.thread_time() - cpu0
+            wait = max(ahead / self.speed, 0.0)
+            ready, _, _ = select.select([self._fd, self._wake_r], [], [], wait)
+            if self._wake_r in ready:
+                return
+            if self._fd in ready:
+                self._take_input()
+
+    def _take_input(self) -> None:
+        try:
+            data = os.read(self._fd, 4096)
+        except BlockingIOError:
+            return
+        except OSError as exc:
+            if exc.errno in (errno.EIO, errno.EBADF):
+                time.sleep(STEP_S)  # no client has the terminal open
+                return
+            raise
+        if not data:
+            if self._pty is None:
+                self._stop = True  # the socket's other end closed
+            return
+        with self.lock:
+            if self._pty is not None:
+                theirs = tty_baudrate(self._pty.slave)
+                ours = self.board.mcu.usart3.baud
+                if theirs and (not ours or abs(theirs - ours) > BAUD_TOLERANCE * ours):
+                    self.wrong_baud += len(data)
+                    return
+            self.board.pc_send(data)
+
+    def _flush_out(self) -> None:
+        out = self.board.pc_out
+        if not out:
+            return
+        try:
+            sent = os.write(self._fd, out)
+        except BlockingIOError:
+            sent = 0
+        except OSError as exc:
+            if exc.errno not in (errno.EIO, errno.EBADF, errno.EPIPE):
+                raise
+            sent = len(out)  # nobody listens: lost, as on the wire
+        self.dropped += len(out) - sent
+        out.clear()
+
+    def stop(self) -> None:
+        """Stop the thread and close the PC link (idempotent)."""
+        self._stop = True
+        if self._thread is not None:
+            if self._wake_w >= 0:
+                with contextlib.suppress(OSError):
+                    os.write(self._wake_w, b"x")
+            self._thread.join(5.0)
+            self._thread = None
+        for fd in (self._wake_r, self._wake_w):
+            if fd >= 0:
+                os.close(fd)
+        self._wake_r = self._wake_w = -1
+        if self._pty is not None:
+            self._pty.close()
+        if self._socket is not None:
+            self._socket.close()
+
+    def __enter__(self) -> McuFirmware:
+        if self._thread is None:
+            self.start()
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.stop()

@@ -1,0 +1,253 @@
+"""USART in asynchronous mode, 8 data bits, no parity, 1 stop bit (RM0008 section 27).
+
+The transmitter has the data register (TDR) and a shift register: a byte written to DR
+moves to the shift register at once if it is idle (TXE stays set), else waits in TDR (TXE
+clear) until the shift register has sent the one before. A byte takes 10 bit times at the
+programmed rate (``pclk / BRR``); TC is set when the shift register has sent its byte and
+TDR is empty. Enabling the transmitter (TE) first sends an idle frame, as the chip does.
+TC is cleared by reading SR then writing DR, or by writing 0 to it; RXNE by reading DR or
+writing 0; reading SR then DR clears ORE, NE, FE and PE. Each sequence is tracked on its
+own (a receive handler's DR read between the SR read and the DR write does not keep TC
+set), which is how the firmware's interrupt handler uses them. A byte that arrives while RXNE
+is still set is lost and sets ORE. The interrupt line is the OR of TXEIE&TXE, TCIE&TC and
+RXNEIE&(RXNE|ORE). Other modes (9 bits, parity, 2 stop bits, DMA, hardware flow control,
+half-duplex by HDSEL, LIN, smartcard, IrDA) are unmodelled, so an error in strict mode.
+
+Bytes leave through ``on_tx(byte, start, end, baud)`` as their start bit goes out; bytes
+arrive through :meth:`Usart.receive` (one byte whose stop bit is in now) or
+:meth:`Usart.feed` (bytes the far end sends back to back at the programmed rate).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Callable
+
+from snakebot.core import ffi, lib
+from snakebot.sim.mcu.regs import Clock, Peripheral
+from snakebot.sim.mcu.schedule import Event, Scheduler
+
+SR, DR, BRR, CR1, CR2, CR3, GTPR = range(0, 0x1C, 4)
+PE, FE, NE, ORE, IDLE, RXNE, TC, TXE = (1 << n for n in range(8))
+SR_RESET = TXE | TC
+SR_CLEAR_BY_ZERO = RXNE | TC | (1 << 8) | (1 << 9)  # RXNE, TC, LBD, CTS
+CR1_SBK, CR1_RWU, CR1_RE, CR1_TE, CR1_IDLEIE = 1 << 0, 1 << 1, 1 << 2, 1 << 3, 1 << 4
+CR1_RXNEIE, CR1_TCIE, CR1_TXEIE, CR1_PEIE = 1 << 5, 1 << 6, 1 << 7, 1 << 8
+CR1_M, CR1_UE = 1 << 12, 1 << 13
+CR1_PCE = CR1_PEIE << 2  # parity control enable, bit 10
+CR1_MODELLED = CR1_RE | CR1_TE | CR1_RXNEIE | CR1_TCIE | CR1_TXEIE | CR1_UE
+BITS_PER_FRAME = 10
+
+TxSink = Callable[[int, float, float, float], None]
+
+
+class Usart(Peripheral):
+    """One USART at ``base``. ``pclk()``: its bus clock (Hz); ``irq(level)``: its NVIC
+    line; ``clock_on()``: its RCC enable."""
+
+    def __init__(
+        self,
+        name: str,
+        base: int,
+        *,
+        scheduler: Scheduler,
+        now: Clock,
+        pclk: Callable[[], int],
+        irq: Callable[[bool], None],
+        clock_on: Callable[[], bool],
+        on_tx: TxSink | None = None,
+        strict: bool = True,
+    ) -> None:
+        super().__init__(base, strict=strict)
+        self.name = name
+        self.scheduler = scheduler
+        self.now = now
+        self.pclk = pclk
+        self.irq = irq
+        self.clock_on = clock_on
+        self.on_tx = on_tx
+        self.sent = 0
+        self.received = 0
+        self.overruns = 0
+        self.fast = ffi.new("mcu_fast_io *")  # SR as the CPU reads it (in C, see mcu_count.h)
+        self.fast.kind = lib.MCU_IO_USART_SR
+        self._inbox: deque[int] = deque()
+        self._feeding: Event | None = None
+        self._shift_end: Event | None = None
+        self.reset()
+
+    def reset(self) -> None:
+        for event in (self._shift_end, self._feeding):
+            if event is not None:
+                event.cancel()
+        self._shift_end = self._feeding = None
+        self._inbox.clear()
+        self.sr = SR_RESET
+        self.rdr = 0
+        self.tdr: int | None = None
+        self.brr = 0
+        self.cr1 = self.cr2 = self.cr3 = 0
+        self.fast.armed = 0  # bit 0: a DR read clears the error flags; bit 1: a DR write TC
+        self.fast.value = self.sr
+        self._line = False
+        self.irq(False)
+
+    # -- rates ----------------------------------------------------------------------------
+
+    @property
+    def baud(self) -> float:
+        """The programmed rate (bits per second; 0 when BRR is not set)."""
+        return self.pclk() / self.brr if self.brr >= 16 else 0.0
+
+    def frame_s(self) -> float:
+        baud = self.baud
+        return BITS_PER_FRAME / baud if baud else float("inf")
+
+    @property
+    def transmitting(self) -> bool:
+        return self._shift_end is not None
+
+    # -- the far end ------------------------------------------------------------------------
+
+    def receive(self, byte: int) -> None:
+        """A byte's stop bit has arrived now."""
+        if not (self.cr1 & CR1_UE and self.cr1 & CR1_RE):
+            return
+        self.received += 1
+        if self.sr & RXNE:
+            self.sr |= ORE
+            self.overruns += 1
+        else:
+            self.rdr = byte
+            self.sr |= RXNE
+        self._update_irq()
+
+    def feed(self, data: bytes) -> None:
+        """The far end sends ``data`` back to back at the programmed rate, after whatever
+        it is still sending."""
+        self._inbox.extend(data)
+        if self._feeding is None and self._inbox:
+            self._feeding = self.scheduler.at(self.now() + self.frame_s(), self._feed_one)
+
+    def _feed_one(self, t: float) -> None:
+        self._feeding = None
+        if self._inbox:
+            self.receive(self._inbox.popleft())
+        if self._inbox:
+            self._feeding = self.scheduler.at(t + self.frame_s(), self._feed_one)
+
+    @property
+    def inbox(self) -> int:
+        """Bytes the far end has still to send."""
+        return len(self._inbox)
+
+    # -- the transmitter --------------------------------------------------------------------
+
+    def _start_shift(self, byte: int | None, t: float) -> None:
+        """The shift register starts sending ``byte`` (None: an idle frame) at ``t``."""
+        end = t + self.frame_s()
+        if byte is not None:
+            self.sent += 1
+            if self.on_tx is not None:
+                self.on_tx(byte, t, end, self.baud)
+        self._shift_end = self.scheduler.at(end, self._shift_done)
+
+    def _shift_done(self, t: float) -> None:
+        self._shift_end = None
+        if self.tdr is not None and self.cr1 & CR1_TE:
+            byte, self.tdr = self.tdr, None
+            self.sr |= TXE
+            self._start_shift(byte, t)
+        else:
+            self.sr |= TC
+        self._update_irq()
+
+    # -- registers ----------------------------------------------------------------------------
+
+    def _gate(self) -> bool:
+        if self.clock_on():
+            return True
+        self.unknown(0, 4, None)  # with the clock off: the chip ignores it
+        return False
+
+    def read(self, offset: int, size: int) -> int:
+        if not self.word_only(offset, size, None) or not self._gate():
+            return 0
+        if offset == SR:
+            self.fast.armed = 3
+            return self.sr
+        if offset == DR:
+            self.sr &= ~RXNE
+            if self.fast.armed & 1:
+                self.fast.armed &= ~1
+                self.sr &= ~(ORE | NE | FE | PE | IDLE)
+            self._update_irq()
+            return self.rdr
+        if offset == BRR:
+            return self.brr
+        if offset == CR1:
+            return self.cr1
+        if offset == CR2:
+            return self.cr2
+        if offset == CR3:
+            return self.cr3
+        return self.unknown(offset, size, None)
+
+    def write(self, offset: int, size: int, value: int) -> None:
+        if not self.word_only(offset, size, value) or not self._gate():
+            return
+        if offset == SR:
+            self.sr &= value | ~SR_CLEAR_BY_ZERO
+        elif offset == DR:
+            after_sr_read = bool(self.fast.armed & 2)
+            self.fast.armed &= ~2
+            self._write_dr(value & 0x1FF, after_sr_read)
+        elif offset == BRR:
+            self.brr = value & 0xFFFF
+        elif offset == CR1:
+            self._write_cr1(value)
+        elif offset in (CR2, CR3):
+            if value & 0xFFFF:
+                self.unknown(offset, size, value)  # stop bits, clock, DMA, flow control
+            if offset == CR2:
+                self.cr2 = value & 0xFFFF
+            else:
+                self.cr3 = value & 0xFFFF
+        else:
+            self.unknown(offset, size, value)
+        self._update_irq()
+
+    def _write_cr1(self, value: int) -> None:
+        if value & ~CR1_MODELLED & 0xFFFF:
+            self.unknown(CR1, 4, value)
+        old = self.cr1
+        self.cr1 = value & 0x3FFF
+        if self.cr1 & CR1_UE and self.cr1 & CR1_TE and not (old & CR1_UE and old & CR1_TE):
+            if self._shift_end is None:
+                self._start_shift(None, self.now())  # TE set: an idle frame first
+
+    def _write_dr(self, value: int, after_sr_read: bool) -> None:
+        if after_sr_read:
+            self.sr &= ~TC
+        if not (self.cr1 & CR1_UE and self.cr1 & CR1_TE):
+            return  # nothing is sent; the byte is lost
+        if self._shift_end is None:
+            self._start_shift(value & 0xFF, self.now())
+        elif self.tdr is None:
+            self.tdr = value & 0xFF
+            self.sr &= ~TXE
+        # TDR full: the chip overwrites it; the byte before is lost
+        else:
+            self.tdr = value & 0xFF
+
+    def _update_irq(self) -> None:
+        cr1, sr = self.cr1, self.sr
+        self.fast.value = sr
+        level = bool(
+            (cr1 & CR1_TXEIE and sr & TXE)
+            or (cr1 & CR1_TCIE and sr & TC)
+            or (cr1 & CR1_RXNEIE and sr & (RXNE | ORE))
+        )
+        if level != self._line or level:
+            self._line = level
+            self.irq(level)

@@ -1,0 +1,122 @@
+"""Board-level checks that only running the exact CM-530 image makes possible: it boots
+from a cold reset and from every state the ROBOTIS bootloader may leave (the clock tests'
+leftovers: the PLL running from HSE x6, USART3 armed with its interrupt pending, SysTick
+running, PRIMASK set); the watchdog is never starved, a 32 KB library store included,
+even with the LSI at the fast end of its range; and the stack stays inside what the linker
+reserved for it."""
+
+from __future__ import annotations
+
+import struct
+import subprocess
+import time
+from dataclasses import replace
+
+import pytest
+from controller_cli_support import SNAKE5_IDS, cli, save, wave_table
+
+from snakebot.facts.boards import WATCHDOG_MS
+from snakebot.firmware import image as firmware_image
+from snakebot.sim.mcu.board import Cm530, Leftovers
+from snakebot.sim.mcu.runner import McuFirmware
+from snakebot.sim.options import SimOptions
+
+pytest.importorskip("unicorn")
+
+ELF = firmware_image("cm530", "firmware.elf")
+LSI_FASTEST_HZ = 60_000  # the datasheet's range is 30..60 kHz
+STACK_PAINT = 0x5AC3A55A  # hal_startup.c paints free RAM with it
+PING = bytes([0xFF, 0xFF, 200, 2, 1, (~(200 + 2 + 1)) & 0xFF])
+PONG = bytes([0xFF, 0xFF, 200, 2, 0, (~(200 + 2)) & 0xFF])
+
+
+@pytest.fixture(scope="module")
+def image() -> bytes:
+    path = firmware_image("cm530", "firmware.bin")
+    if not path.is_file():
+        pytest.skip("build/cm530/firmware.bin is not built: make firmware")
+    return path.read_bytes()
+
+
+def symbols() -> dict[str, int]:
+    out = subprocess.run(
+        ["arm-none-eabi-nm", str(ELF)], capture_output=True, text=True, check=True
+    ).stdout
+    return {p[2]: int(p[0], 16) for p in (line.split() for line in out.splitlines()) if len(p) == 3}
+
+
+@pytest.mark.parametrize(
+    "left",
+    [
+        Leftovers(),
+        Leftovers(pll=True),
+        Leftovers(usart3_pending=True),
+        Leftovers(systick=True),
+        Leftovers(primask=True),
+        Leftovers.every(),
+    ],
+    ids=["cold", "pll", "usart3-pending", "systick", "primask", "all"],
+)
+def test_boots_and_answers_from_every_bootloader_leftover(image, left):
+    board = Cm530(image, leftovers=left)
+    board.run_for(0.05)
+    board.pc_out.clear()
+    board.pc_send(PING)
+    board.run_for(0.02)
+    assert bytes(board.pc_out) == PONG
+    m = board.mcu
+    assert m.resets == []  # no fault, no watchdog: the first start was the only one
+    assert m.rcc.clocks().sysclk == 72_000_000
+    assert m.nvic.vtor == 0x0800_3000
+
+
+def test_a_software_reset_boots_again_and_says_so(image):
+    board = Cm530(image)
+    board.run_for(0.05)
+    board.mcu.reset("software")
+    board.run_for(0.05)
+    board.pc_send(PING)
+    board.run_for(0.02)
+    assert bytes(board.pc_out).endswith(PONG)
+
+
+def test_stack_high_water_mark_stays_in_the_reserved_stack(image):
+    bus = replace(SimOptions.from_query(""), robot="snake5").build_bus()
+    board = Cm530(image, bus=bus)
+    board.run_for(0.5)
+    syms = symbols()
+    ebss, estack = syms["_ebss"], syms["_estack"]
+    ram = board.mcu.read(ebss, estack - ebss)
+    words = struct.unpack(f"<{len(ram) // 4}I", ram[: len(ram) // 4 * 4])
+    untouched = next(i for i, w in enumerate(words) if w != STACK_PAINT)
+    deepest = ebss + 4 * untouched
+    used = estack - deepest
+    reserved = estack - syms.get("__stack_size", 0) if "__stack_size" in syms else None
+    assert board.mcu.cpu.lowest_sp >= deepest - 64  # the two measures agree
+    assert used < 4096, f"the stack reached {used} bytes of the 4 KB cm530.ld reserves"
+    assert reserved is None or deepest >= reserved
+
+
+@pytest.mark.slow
+@pytest.mark.serial  # the store runs in real time on a pty
+@pytest.mark.timeout(240)
+def test_the_watchdog_is_never_starved_by_a_32k_library_store(image, tmp_path):
+    frames = 32 * 1024 // (2 * len(SNAKE5_IDS)) - 16  # a table of just under 32 KB
+    path = save(wave_table(frames=frames), tmp_path)
+    bus = replace(SimOptions.from_query(""), robot="snake5").build_bus()
+    with McuFirmware(image, bus=bus) as fw:
+        fw.board.mcu.iwdg.lsi_hz = LSI_FASTEST_HZ  # the shortest timeout the chip can have
+        time.sleep(0.3)
+        env = {"SNAKEBOT_MARGIN_MS": "3000"}
+        result = cli("library", "store", "0", str(path), "--port", fw.pc_link, env=env)
+        assert result.exit_code == 0, result.output
+        with fw.lock:
+            m = fw.board.mcu
+            gap, timeout = m.iwdg.largest_gap, m.iwdg.timeout_s()
+            erases, resets = m.flash.erases, list(m.resets)
+    assert fw.error is None
+    assert resets == []
+    assert erases >= 16  # the 32 KB slot's pages really were erased and written
+    assert timeout < WATCHDOG_MS / 1000  # the fast LSI's timeout, shorter than nominal
+    print(f"largest gap between watchdog feeds: {gap * 1000:.1f} ms of {timeout * 1000:.0f} ms")
+    assert gap < 0.5 * timeout

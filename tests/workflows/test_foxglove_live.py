@@ -1,0 +1,142 @@
+"""The robot live in Foxglove (issue #33): the real foxglove-sdk server, a real WebSocket
+client speaking the Foxglove protocol (subprotocol foxglove.websocket.v1), the real MCAP
+reader for the file written beside."""
+
+from __future__ import annotations
+
+import json
+import math
+import struct
+import threading
+import time
+
+import pytest
+
+from snakebot.model.robots import load_robot
+from snakebot.workflows.foxglove import (
+    CHANNELS,
+    FoxgloveLive,
+    FoxgloveOptionError,
+    JointSample,
+    parse_endpoint,
+)
+
+pytest.importorskip("foxglove")
+websockets_sync = pytest.importorskip("websockets.sync.client")
+SUBPROTOCOLS = ["foxglove.websocket.v1", "foxglove.sdk.v1"]
+"""The Foxglove WebSocket protocol's subprotocol, by its first name and by the one the
+foxglove-sdk server speaks since it was renamed (the messages are the same)."""
+MESSAGE_DATA = 0x01
+SNAKE5 = load_robot("snake5")
+
+
+def sample(k: int) -> JointSample:
+    a = 0.1 * k
+    return JointSample(
+        goal=[a, -a, 0.2, 0.0],
+        present=[a - 0.01, -a, 0.19, 0.0],
+        velocity=[0.5, -0.5, 0.0, 0.0],
+        load=[0.25, -0.1, 0.0, 0.0],
+        errors=[0, 0, 32, 0],
+    )
+
+
+def advertised(ws) -> dict[str, dict]:
+    """The channels the server advertises, by topic (read after serverInfo)."""
+    channels: dict[str, dict] = {}
+    deadline = time.monotonic() + 10
+    while len(channels) < len(CHANNELS) and time.monotonic() < deadline:
+        message = json.loads(ws.recv(timeout=10))
+        if message["op"] == "advertise":
+            channels.update({c["topic"]: c for c in message["channels"]})
+    return channels
+
+
+@pytest.fixture()
+def live(tmp_path):
+    server = FoxgloveLive(SNAKE5, "127.0.0.1", 0, mcap=tmp_path / "live.mcap")
+    yield server
+    server.close()
+
+
+def test_a_client_sees_the_channels_and_decodes_the_joint_states(live, tmp_path):
+    stop = threading.Event()
+
+    def publish():
+        k = 0
+        while not stop.is_set():
+            live.publish(0.02 * k, sample(k % 5), (0.1, 0.2, math.pi / 2), {"state": "playing"})
+            k += 1
+            time.sleep(0.02)
+
+    with websockets_sync.connect(
+        f"ws://127.0.0.1:{live.port}", subprotocols=SUBPROTOCOLS, open_timeout=10
+    ) as ws:
+        assert ws.subprotocol in SUBPROTOCOLS
+        assert json.loads(ws.recv(timeout=10))["op"] == "serverInfo"
+        channels = advertised(ws)
+        assert set(channels) == set(CHANNELS)
+        assert channels["/joint_states"]["encoding"] == "json"
+        wanted = {1: "/joint_states", 2: "/snakebot/servos", 3: "/tf"}
+        ws.send(
+            json.dumps(
+                {
+                    "op": "subscribe",
+                    "subscriptions": [
+                        {"id": sid, "channelId": channels[topic]["id"]}
+                        for sid, topic in wanted.items()
+                    ],
+                }
+            )
+        )
+        thread = threading.Thread(target=publish, daemon=True)
+        thread.start()
+        got: dict[str, dict] = {}
+        try:
+            deadline = time.monotonic() + 10
+            while len(got) < len(wanted) and time.monotonic() < deadline:
+                data = ws.recv(timeout=10)
+                if isinstance(data, bytes) and data[0] == MESSAGE_DATA:
+                    sid, _ = struct.unpack_from("<IQ", data, 1)
+                    got[wanted[sid]] = json.loads(data[13:])
+        finally:
+            stop.set()
+            thread.join()
+    joints = got["/joint_states"]
+    assert joints["name"] == [j.name for j in SNAKE5.joints]
+    k = round(joints["position"][0] / 0.1 + 0.1)  # which sample it was
+    expected = sample(k)
+    assert joints["position"] == pytest.approx(list(expected.present))
+    assert joints["velocity"] == pytest.approx(list(expected.velocity))
+    assert joints["effort"] == pytest.approx([v * live.stall_nm for v in expected.load])
+    servos = got["/snakebot/servos"]
+    assert servos["error"] == [0, 0, 32, 0] and len(servos["goal"]) == 4
+    frames = {t["child_frame_id"]: t for t in got["/tf"]["transforms"]}
+    base = frames["base"]
+    assert base["parent_frame_id"] == "odom"
+    assert base["translation"]["x"] == pytest.approx(0.1)  # snake5 is in metres
+    assert base["rotation"]["z"] == pytest.approx(math.sin(math.pi / 4))
+    assert {"link2", "wheel1"} <= set(frames)  # the links, for the URDF in the 3-D panel
+
+    live.close()
+    from mcap.reader import make_reader
+
+    with open(tmp_path / "live.mcap", "rb") as f:
+        summary = make_reader(f).get_summary()
+    topics = {c.topic for c in summary.channels.values()}
+    assert topics == set(CHANNELS)
+    assert all(n >= 1 for n in summary.statistics.channel_message_counts.values())
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [("8765", ("127.0.0.1", 8765)), ("0.0.0.0:9000", ("0.0.0.0", 9000)), ("[::1]:0", ("::1", 0))],
+)
+def test_endpoints_are_loopback_unless_a_host_is_given(text, expected):
+    assert parse_endpoint(text) == expected
+
+
+@pytest.mark.parametrize("text", ["", "http", "70000", "host:"])
+def test_bad_endpoints_are_refused(text):
+    with pytest.raises(FoxgloveOptionError, match="HOST"):
+        parse_endpoint(text)

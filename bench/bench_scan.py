@@ -237,7 +237,7 @@ def main() -> int:
         f"   snakebot:                          {every:6.3f} s (best {fastest:.3f}; "
         f"{every / floor:.2f}x the limit; {verdict(True, found)})"
     )
-    pause = bus_scan.quiet_s(bus_scan.DxlClient(SIM_URL).timing)
+    pause = bus_scan.quiet_s()
     pauses = (len(rates) - 1) * pause
     probes = len(rates) * len(IDS)
     margins = 2 * probes * bus_scan.SCAN_MARGIN_S

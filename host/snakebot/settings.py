@@ -245,7 +245,7 @@ _TABLE = (
         unit="ms",
         low=0,
         high=10_000,
-        default_note="500 for a controller on a pseudo-terminal",
+        default_note="500 on a pseudo-terminal; 0.1 for a scan's silent IDs",
         group="transport",
     ),
     Setting(

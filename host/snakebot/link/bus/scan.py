@@ -23,7 +23,7 @@ from snakebot.formats.protocol import (
     Rejected,
 )
 from snakebot.formats.register_values import base_table, model_name
-from snakebot.link.transport import BusTiming, DxlClient, settings, timing
+from snakebot.link.transport import DxlClient, settings, timing
 from snakebot.link.transport.portio import PortIO
 
 SCAN_RETRIES = 3
@@ -160,10 +160,10 @@ def silence_s(client: DxlClient) -> float:
     )
 
 
-def quiet_s(bus: BusTiming) -> float:
-    """How long a quiet pause lasts: the servos' frame reset and the host's margin (the
+def quiet_s() -> float:
+    """How long a quiet pause lasts: the servos' frame reset and the scan's margin (the
     host may be late to send, never early, so the servos' pause is at least this)."""
-    return FRAME_RESET_S + bus.margin_s
+    return FRAME_RESET_S + scan_margin_s()
 
 
 def _quiet(port: serial.SerialBase, seconds: float) -> None:
@@ -204,7 +204,7 @@ def detect_echo(port: serial.SerialBase, baud: int) -> bool:
             return False
         if heard == packet:
             return True
-        _quiet(port, quiet_s(bus))
+        _quiet(port, quiet_s())
     return True  # something came back every time, damaged: an echo on a noisy line
 
 
@@ -345,7 +345,7 @@ class _Sweep:
         """The further tries of an ID whose PING (or identifying READ) came back damaged."""
         client = self.client
         for _ in range(SCAN_RETRIES):
-            _quiet(client.port, quiet_s(client.timing))  # ends with a flush
+            _quiet(client.port, quiet_s())  # ends with a flush
             self.parser.reset()
             heard = self._listen(servo_id, None)
             if heard.trouble:
@@ -370,7 +370,7 @@ def scan_probes(
     for n, baud in enumerate(bauds):
         client = DxlClient(port, baud, echo=echo)
         if n:  # servos at this rate heard the last one's PINGs as garbage: let them reset
-            _quiet(port, quiet_s(client.timing))
+            _quiet(port, quiet_s())
         yield from _Sweep(client, silence_s(client), pings).run(ids)
 
 

@@ -18,22 +18,18 @@ wire. How long depends on the adapter, not on snakebot:
 from __future__ import annotations
 
 import os
-import stat
-import sys
 from pathlib import Path
 
 import serial
 
 from snakebot.link.transport.errors import PortError
+from snakebot.link.transport.ports import is_pseudo_terminal
 
 SYSFS_USB_SERIAL = Path("/sys/bus/usb-serial/devices")
 """Where Linux lists USB-serial ports, each with its driver's attributes."""
 
 LOWERED_LATENCY_MS = 1
 """The latency timer the Dynamixel tools advise (the least an FTDI chip accepts)."""
-
-PTY_MAJORS = range(136, 144)
-"""Linux's device numbers for pseudo-terminal slaves (``/dev/pts/N``)."""
 
 UDEV_RULE = 'ACTION=="add", SUBSYSTEM=="usb-serial", DRIVER=="ftdi_sio", ATTR{latency_timer}="1"'
 """A udev rule (e.g. in ``/etc/udev/rules.d/99-ftdi-latency.rules``) that lowers every
@@ -64,18 +60,11 @@ def latency_timer_ms(device: str, sysfs: Path = SYSFS_USB_SERIAL) -> int | None:
         return None
 
 
-def is_pty(device: str) -> bool:
-    """Whether ``device`` is a pseudo-terminal's slave side."""
-    real = os.path.realpath(device)
-    if real.startswith("/dev/pts/"):
-        return True
-    if not sys.platform.startswith("linux"):
-        return False
-    try:
-        mode = os.stat(real)
-    except OSError:
-        return False
-    return stat.S_ISCHR(mode.st_mode) and os.major(mode.st_rdev) in PTY_MAJORS
+def on_pseudo_terminal(port: serial.SerialBase) -> bool:
+    """Whether ``port`` is a pseudo-terminal: its far end is then a program on this host,
+    which a busy host may deschedule for far longer than a UART ever stalls."""
+    device = device_of(port)
+    return device is not None and is_pseudo_terminal(device)
 
 
 def latency_s(port: serial.SerialBase) -> float | None:
@@ -87,7 +76,7 @@ def latency_s(port: serial.SerialBase) -> float | None:
     device = device_of(port)
     if device is None:
         return None
-    if is_pty(device):
+    if is_pseudo_terminal(device):  # a program's, through the kernel: nothing held
         return 0.0
     timer = latency_timer_ms(device)
     return None if timer is None else timer / 1e3

@@ -177,6 +177,14 @@ def _quiet(port: serial.SerialBase, seconds: float) -> None:
     port.reset_input_buffer()
 
 
+def _client(port: serial.SerialBase, baud: int, echo: bool) -> DxlClient:
+    """The scan's client: the host's margin even behind a pseudo-terminal (a program's
+    would make every damaged reply, and the echo probe on a line without echo, cost half
+    a second; a scan retries instead)."""
+    margin = settings.resolve_margin_s(default=timing.HOST_MARGIN_S)
+    return DxlClient(port, baud, echo=echo, margin_s=margin)
+
+
 def detect_echo(port: serial.SerialBase, baud: int) -> bool:
     """Whether the line echoes the host's own bytes (a one-wire adapter), unless
     ``SNAKEBOT_ECHO`` says: a broadcast PING, which no servo answers, comes back only
@@ -190,8 +198,7 @@ def detect_echo(port: serial.SerialBase, baud: int) -> bool:
         return bool(setting)
     packet = protocol.ping(BROADCAST_ID)
     # an echo comes back before any reply would: the reply timeout covers it
-    bus = DxlClient(port, baud, echo=False).timing
-    wait = bus.reply_timeout_s(len(packet), 0)
+    wait = _client(port, baud, False).timing.reply_timeout_s(len(packet), 0)
     for _ in range(1 + SCAN_RETRIES):
         port.reset_input_buffer()
         port.write(packet)
@@ -368,7 +375,7 @@ def scan_probes(
     pings = {servo_id: protocol.ping(servo_id) for servo_id in ids}
     echo = detect_echo(port, bauds[0]) if bauds else False
     for n, baud in enumerate(bauds):
-        client = DxlClient(port, baud, echo=echo)
+        client = _client(port, baud, echo)
         if n:  # servos at this rate heard the last one's PINGs as garbage: let them reset
             _quiet(port, quiet_s())
         yield from _Sweep(client, silence_s(client), pings).run(ids)

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import importlib.util
 import re
-from importlib import metadata
 
 from snakebot.errors import InputError
 
@@ -28,6 +27,8 @@ def available(module: str) -> bool:
 
 def extra_for(package: str) -> str | None:
     """The extra of ``snakebot`` that installs ``package`` (None if none does)."""
+    from importlib import metadata  # only to explain a missing package: not at start-up
+
     try:
         requirements = metadata.requires("snakebot") or []
     except metadata.PackageNotFoundError:

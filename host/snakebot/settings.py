@@ -233,6 +233,8 @@ _TABLE = (
         unit="ms",
         low=0,
         high=10_000,
+        default_note="the adapter's latency timer where it shows one (FTDI on Linux); 0 for "
+        "a pseudo-terminal or sim://",
         group="transport",
     ),
     Setting(
@@ -243,7 +245,7 @@ _TABLE = (
         unit="ms",
         low=0,
         high=10_000,
-        default_note="500 for a controller on a pseudo-terminal",
+        default_note="500 on a pseudo-terminal; 0.1 for a scan's silent IDs",
         group="transport",
     ),
     Setting(

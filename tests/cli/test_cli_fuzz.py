@@ -105,9 +105,12 @@ def _cwd(path: Path) -> Iterator[None]:
 def _leaves(
     command: click.Command, path: tuple[str, ...] = ()
 ) -> list[tuple[tuple[str, ...], click.Command]]:
-    if isinstance(command, click.Group):
+    if isinstance(command, click.Group):  # through get_command: the groups load lazily
+        ctx = click.Context(command)
         return [
-            leaf for name, sub in command.commands.items() for leaf in _leaves(sub, (*path, name))
+            leaf
+            for name in command.list_commands(ctx)
+            for leaf in _leaves(command.get_command(ctx, name), (*path, name))
         ]
     return [(path, command)]
 

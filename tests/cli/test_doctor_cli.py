@@ -114,4 +114,4 @@ def test_the_ftdi_latency_timer(tmp_path, timer, verdict):
     assert check.verdict == verdict
     if verdict == "warn":
         assert f"echo 1 | sudo tee {sysfs}/ttyUSB7/latency_timer" in check.fix
-        assert "SNAKEBOT_LATENCY_MS=16" in check.fix
+        assert "snakebot bus scan --latency-timer 1" in check.fix

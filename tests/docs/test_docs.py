@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from snakebot.link.bus import scan as bus_scan
 from snakebot.link.controller import load as load_controller_table
 from snakebot.link.controller import settings as upload_settings
 from snakebot.link.flash import settings as flash_settings
@@ -209,5 +210,8 @@ def test_the_readers_defaults_are_the_tables(monkeypatch):
         expected[env] = getattr(resolved, field)
     for env, value in expected.items():
         assert value == pytest.approx(SETTINGS[env].default), env
-    pty_margin = f"{timing.PROGRAM_MARGIN_S * 1e3:g} for a controller on a pseudo-terminal"
+    pty_margin = (
+        f"{timing.PROGRAM_MARGIN_S * 1e3:g} on a pseudo-terminal; "
+        f"{bus_scan.SCAN_MARGIN_S * 1e3:g} for a scan's silent IDs"
+    )
     assert SETTINGS[transport_settings.ENV_MARGIN_MS].default_note == pty_margin

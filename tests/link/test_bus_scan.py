@@ -131,8 +131,9 @@ def test_a_servo_that_heard_the_last_rate_as_garbage_answers_after_the_pause(
         found = bus_scan.scan(link, range(0, 30), [before, rate])
         took = link.bus.now - start
     assert [(s.id, s.baud) for s in found] == [(0, rate)]
-    # the 30 silent windows at each rate, the pause, the reply and the READ identifying it
-    assert took < 30 * windows + protocol.FRAME_RESET_S + 5e-3
+    # the 30 silent windows at each rate (twice: silent IDs are PINGed again at the end),
+    # the pause, the reply and the READ identifying it
+    assert took < 2 * 30 * windows + protocol.FRAME_RESET_S + 5e-3
 
 
 def test_a_reply_that_never_ends_is_garbled_not_an_error(monkeypatch):
@@ -171,3 +172,23 @@ def test_a_reply_that_never_ends_is_garbled_not_an_error(monkeypatch):
         (1, None, True),
         (2, None, False),
     ]
+
+
+def test_a_servo_whose_first_reply_is_lost_is_found_by_the_second_ping(monkeypatch):
+    # One status packet in three is never sent: with seed 0, servo 1's reply to its
+    # first PING is the one lost. Every ID silent after the sweep is PINGed once more
+    # (and only those), so the scan still finds all four.
+    monkeypatch.setenv(settings.ENV_ECHO, "off")
+    pinged: list[int] = []
+    listen = bus_scan._Sweep._listen
+
+    def counted(self, servo_id, pending):
+        pinged.append(servo_id)
+        return listen(self, servo_id, pending)
+
+    monkeypatch.setattr(bus_scan._Sweep, "_listen", counted)
+    with open_port("sim://?ids=1,2,3,4&drop=0.3&seed=0", 1_000_000, timeout=0) as link:
+        found = bus_scan.scan(link, range(0, 6), [1_000_000])
+    assert sorted(s.id for s in found) == [1, 2, 3, 4]
+    assert [pinged.count(i) for i in (0, 1, 5)] == [2, 2, 2]  # the silent ones, again
+    assert pinged.index(5) < len(pinged) - 1 - pinged[::-1].index(1)  # 1 again at the end

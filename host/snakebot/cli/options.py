@@ -45,11 +45,8 @@ from snakebot.facts.boards import PC_LINK_BAUD
 from snakebot.facts.controller import load as load_controller_table
 from snakebot.formats import register_values
 from snakebot.formats.register_values import BusCommandError
-from snakebot.link.transport import DEFAULT_BAUDRATE
-from snakebot.model.plan.planner import DEFAULT_HEADING_TOLERANCE, DEFAULT_TOLERANCE
 from snakebot.model.robots import BUILTIN_ROBOTS
 from snakebot.plots.video import DEFAULT_SIZE, SUFFIXES, VideoError, parse_size
-from snakebot.sim.physics.select import DEFAULT_WORLD, WORLDS
 
 if TYPE_CHECKING:
     from snakebot.link.controller.client import ControllerClient
@@ -235,6 +232,8 @@ def _bundled(func: Callable[..., Any], name: str, make: Callable[..., Any], *key
 def bus_options(func: F) -> F:
     """--port, --baud and --json of every command on a servo bus; the command takes
     ``bus`` (a :class:`BusLink`) and ``as_json``."""
+    from snakebot.link.transport import DEFAULT_BAUDRATE  # only where a command has it
+
     return stack(
         port_option(BUS_PORT),
         _baud_option(
@@ -297,13 +296,16 @@ WORLD_HELP = (
 )
 
 
-def world_option(default: str = DEFAULT_WORLD, *, note: str | None = None) -> Decorator:
+def world_option(default: str | None = None, *, note: str | None = None) -> Decorator:
     """--world: kinematic or mujoco (the default: the emulator's unless the command's own
     job says otherwise)."""
+    # the worlds' module loads the emulator: only where a command has the option
+    from snakebot.sim.physics.select import DEFAULT_WORLD, WORLDS
+
     return click.option(
         "--world",
         type=click.Choice(WORLDS),
-        default=default,
+        default=DEFAULT_WORLD if default is None else default,
         show_default=True,
         help=f"{WORLD_HELP} {note}" if note else WORLD_HELP,
     )
@@ -438,49 +440,53 @@ class Goal:
         }
 
 
-_goal_options: Decorator = stack(
-    click.option(
-        "--to",
-        "target",
-        type=POSE,
-        required=True,
-        metavar="X,Y,THETA",
-        help="Target body pose relative to the start pose: X along the start heading, Y to "
-        "its left (the robot's length units), THETA counter-clockwise (rad, or deg with "
-        "'deg'), e.g. 3,1,45deg.",
-    ),
-    click.option(
-        "--from",
-        "start",
-        type=ANGLES,
-        metavar="PHI1,...",
-        help="Joint angles at the start, where the plan also ends (default: pi/3,-pi/3 for "
-        "the 3-link snake, 0 for the others).",
-    ),
-    click.option(
-        "--tolerance",
-        type=NUMBER,
-        default=DEFAULT_TOLERANCE,
-        show_default=True,
-        help="How near the end must be, as a fraction of the distance to the target "
-        "(at least that fraction of a tenth of a body length).",
-    ),
-    click.option(
-        "--heading-tolerance",
-        type=ANGLE,
-        default=DEFAULT_HEADING_TOLERANCE,
-        show_default="2deg",
-        help="How near the end heading must be (rad, or deg with 'deg').",
-    ),
-)
-"""--to, --from, --tolerance and --heading-tolerance, bundled by :func:`target_options`."""
+def _goal_options() -> Decorator:
+    """The options :func:`target_options` bundles (the planner's defaults loaded only
+    where a command has them)."""
+    from snakebot.model.plan.planner import DEFAULT_HEADING_TOLERANCE, DEFAULT_TOLERANCE
+
+    return stack(
+        click.option(
+            "--to",
+            "target",
+            type=POSE,
+            required=True,
+            metavar="X,Y,THETA",
+            help="Target body pose relative to the start pose: X along the start heading, Y to "
+            "its left (the robot's length units), THETA counter-clockwise (rad, or deg with "
+            "'deg'), e.g. 3,1,45deg.",
+        ),
+        click.option(
+            "--from",
+            "start",
+            type=ANGLES,
+            metavar="PHI1,...",
+            help="Joint angles at the start, where the plan also ends (default: pi/3,-pi/3 for "
+            "the 3-link snake, 0 for the others).",
+        ),
+        click.option(
+            "--tolerance",
+            type=NUMBER,
+            default=DEFAULT_TOLERANCE,
+            show_default=True,
+            help="How near the end must be, as a fraction of the distance to the target "
+            "(at least that fraction of a tenth of a body length).",
+        ),
+        click.option(
+            "--heading-tolerance",
+            type=ANGLE,
+            default=DEFAULT_HEADING_TOLERANCE,
+            show_default="2deg",
+            help="How near the end heading must be (rad, or deg with 'deg').",
+        ),
+    )
 
 
 def target_options(func: F) -> F:
     """--to, --from, --tolerance and --heading-tolerance of a move to a pose; the command
     takes ``goal`` (a :class:`Goal`)."""
     keys = ("target", "start", "tolerance", "heading_tolerance")
-    return _goal_options(_bundled(func, "goal", Goal, *keys))
+    return _goal_options()(_bundled(func, "goal", Goal, *keys))
 
 
 # --- servo scans ---------------------------------------------------------------------------

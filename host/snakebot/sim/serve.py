@@ -41,7 +41,6 @@ import os
 import shutil
 import struct
 import time
-from collections import deque
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from types import TracebackType
@@ -57,6 +56,7 @@ from snakebot.link.transport import DxlClient
 from snakebot.model.robots import Robot, load_robot
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.errors import SimFailure, SimInputError, SimOptionError
+from snakebot.sim.history import History
 from snakebot.sim.mcu.errors import McuError
 from snakebot.sim.options import SimOptions
 from snakebot.sim.physics import PhysicsWorld
@@ -269,19 +269,19 @@ class GoalLog:
     ) -> None:
         self._servos = [bus.servo(i) for i in ids]
         self._start = start
-        self._t: deque[float] = deque(maxlen=keep)  # keep: the latest samples only
-        self._rows: deque[list[int]] = deque(maxlen=keep)
+        # keep: the latest samples only; per sample its time, then each servo's goal
+        self._history = History(1 + len(self._servos), keep)
         bus.every(period, self._sample, start=start)
 
     def _sample(self, t: float) -> None:
-        self._t.append(t - self._start)
-        self._rows.append([s.regs.get("Goal Position") for s in self._servos])
+        row = self._history.slot()
+        row[0] = t - self._start
+        row[1:] = [s.regs.get("Goal Position") for s in self._servos]
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """(times in seconds since ``start``, goals: rows x servos)."""
-        t = np.asarray(self._t, dtype=float)
-        rows = np.asarray(self._rows, dtype=float).reshape(len(self._t), len(self._servos))
-        return t, rows
+        rows = self._history.array()
+        return rows[:, 0], rows[:, 1:]
 
 
 # -- the emulated robot -------------------------------------------------------------------

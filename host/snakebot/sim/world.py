@@ -33,6 +33,7 @@ from snakebot.model.kinematics import KinematicsError, Options, Table, integrate
 from snakebot.model.kinematics.ccore import SINGULAR_CODES
 from snakebot.model.robots import Robot
 from snakebot.sim.bus.bus import Bus
+from snakebot.sim.history import History
 
 DEFAULT_PERIOD_S = 0.01
 """How often the world samples the servos: 100 Hz of bus time."""
@@ -144,8 +145,9 @@ class World:
     ``regularise=False`` turns the singular-crossing fallback off: such a crossing then
     raises :class:`WorldError` (from the bus call that ran the sample, or from
     :meth:`record`). The servos are looked up by ID once, here.
-    ``keep`` bounds the record for worlds that run for hours: at most about ``keep``
-    samples (plus one batch) are kept, the oldest dropped; None keeps everything.
+    ``keep`` bounds the record for worlds that run for hours: the latest ``keep``
+    samples are kept (in a ring allocated at the start), the oldest dropped; None keeps
+    everything.
     """
 
     def __init__(
@@ -184,12 +186,9 @@ class World:
         self._pending: list[list[float]] = []  # tick rows not integrated yet
         self._last_ticks: list[float] | None = None  # the last integrated sample
         self._pose = np.array(pose, dtype=float)
-        self._q: list[np.ndarray] = []
-        self._slip: list[np.ndarray] = []
-        self._reg: list[np.ndarray] = []
-        self._count = 0  # samples integrated so far
+        # the record: per sample the state (pose, joints), each wheel's slip, regularised
         self.keep = keep
-        self._kept = 0  # samples in _q (the record); _count - _kept were dropped
+        self._history = History(3 + robot.n_joints + robot.n_wheels + 1, keep)
         self._schedule = bus.every(self.period, self._sample, start=self.start_time)
 
     # -- sampling -------------------------------------------------------------------------
@@ -281,25 +280,14 @@ class World:
         return np.vstack(qs), np.vstack(slips), np.array(reg, dtype=bool)
 
     def _error(self, first: int, count: int, exc: KinematicsError) -> WorldError:
-        t_a = (self._count - 1 + first) * self.period
+        t_a = (self._history.total - 1 + first) * self.period
         return WorldError(
             f"the body cannot follow the servos between {t_a:.3f} s and "
             f"{t_a + count * self.period:.3f} s of world time: {exc}"
         )
 
     def _append(self, q: np.ndarray, slip: np.ndarray, reg: np.ndarray) -> None:
-        self._q.append(q)
-        self._slip.append(slip)
-        self._reg.append(reg)
-        self._count += len(q)
-        self._kept += len(q)
-        keep = self.keep
-        # Trimmed once a batch beyond the bound, so the copying costs O(1) per sample.
-        if keep is not None and self._kept > keep + self.batch:
-            self._q = [np.vstack(self._q)[-keep:]]
-            self._slip = [np.vstack(self._slip)[-keep:]]
-            self._reg = [np.concatenate(self._reg)[-keep:]]
-            self._kept = keep
+        self._history.extend(np.column_stack((q, slip, reg)))
 
     # -- results --------------------------------------------------------------------------
 
@@ -312,31 +300,22 @@ class World:
     @property
     def samples(self) -> int:
         """Samples taken so far."""
-        return self._count + len(self._pending)
+        return self._history.total + len(self._pending)
 
     def record(self) -> WorldRecord:
         """Everything sampled so far (integrating what is pending first); with ``keep``,
-        at least the latest ``keep`` samples (``t`` still counts from the world's start)."""
+        the latest ``keep`` samples (``t`` still counts from the world's start)."""
         self.flush()
         robot = self.robot
-        if not self._q:
-            return WorldRecord(
-                np.empty(0),
-                np.empty((0, 3)),
-                np.empty((0, robot.n_joints)),
-                np.empty((0, robot.n_wheels)),
-                np.empty(0, dtype=bool),
-                self.c_t,
-                self.fallback_c_t,
-            )
-        q = np.vstack(self._q)
-        t = (self._count - self._kept + np.arange(len(q))) * self.period
+        rows = self._history.array()
+        t = (self._history.dropped + np.arange(len(rows))) * self.period
+        n = robot.n_joints
         return WorldRecord(
             t,
-            q[:, :3],
-            q[:, 3:],
-            np.vstack(self._slip),
-            np.concatenate(self._reg),
+            rows[:, :3],
+            rows[:, 3 : 3 + n],
+            rows[:, 3 + n : -1],
+            rows[:, -1] != 0,
             self.c_t,
             self.fallback_c_t,
         )

@@ -25,7 +25,7 @@ from snakebot.link.bus import ids as bus_ids
 from snakebot.link.bus import registers as bus_registers
 from snakebot.link.bus import scan as bus_scan
 from snakebot.link.bus.scan import Probe, ServoInfo
-from snakebot.link.transport import DxlClient, open_port
+from snakebot.link.transport import DxlClient, adapter, open_port
 
 """What a shell reports for a command stopped by Ctrl-C (128 + SIGINT)."""
 
@@ -84,9 +84,20 @@ def bus() -> None:
 @bus_options
 @ids_option
 @bauds_option(instead=" instead of --baud")
+@click.option(
+    "--latency-timer",
+    type=click.IntRange(1, 255),
+    help="First set the USB adapter's latency timer to this many ms (FTDI on Linux; 1 is "
+    "what the Dynamixel tools advise). Writing it needs root or a udev rule.",
+)
 @click.pass_context
 def scan_command(
-    ctx: click.Context, bus: BusLink, as_json: bool, ids: str, bauds: str | None
+    ctx: click.Context,
+    bus: BusLink,
+    as_json: bool,
+    ids: str,
+    bauds: str | None,
+    latency_timer: int | None,
 ) -> None:
     """Find the servos on the bus: PING every ID, and report each one's model and
     firmware version as it is found.
@@ -97,13 +108,16 @@ def scan_command(
     Exit status 1 when no servo answers.
 
     A silent ID costs the PING, the longest Return Delay Time a servo may have and the
-    first byte of a reply on the wire, plus the USB adapter's latency and the host's
-    margin (SNAKEBOT_LATENCY_MS, SNAKEBOT_MARGIN_MS): at 1000000 baud all 254 IDs take
-    about 1 s with an adapter whose latency timer is lowered to 1 ms, about 5 s at an
-    FTDI adapter's default 16 ms. A reply that comes after its ID's wait still counts
-    for the ID it names. A servo whose baud rate you do not know turns up with --bauds
-    common, or --bauds all (each further rate begins after a pause of 100 ms, the time
-    a servo takes to drop a packet begun by the last rate's bytes).
+    first byte of a reply on the wire, plus the USB adapter's latency (its latency timer
+    as Linux shows it for an FTDI adapter, none for the emulator or a pseudo-terminal;
+    else SNAKEBOT_LATENCY_MS) and a small host margin (SNAKEBOT_MARGIN_MS). A reply that
+    comes after its ID's wait still counts for the ID it names, and every silent ID is
+    PINGed once more at the end. At 1000000 baud all 254 IDs take about 0.5 s on the
+    emulator, 1 s with an adapter whose latency timer is lowered to 1 ms
+    (--latency-timer 1), 9 s at an FTDI adapter's default 16 ms. A servo whose baud
+    rate you do not know turns up with --bauds common, or --bauds all (each further
+    rate begins after a pause of 100 ms, the time a servo takes to drop a packet begun
+    by the last rate's bytes).
     """
     id_list = register_values.parse_ids(ids)
     port = bus.port
@@ -118,6 +132,7 @@ def scan_command(
     bar = click.progressbar(
         length=len(id_list) * len(rates), label="Scanning", file=sys.stderr, show_pos=True
     )
+    _adapter_latency(port, latency_timer, quiet=as_json)
     with open_port(port, rates[0], timeout=0) as link, bar:
         try:
             for result in bus_scan.scan_probes(link, id_list, rates):
@@ -164,6 +179,20 @@ def scan_command(
             err=True,
         )
         ctx.exit(1)
+
+
+def _adapter_latency(port: str, latency_timer: int | None, *, quiet: bool) -> None:
+    """Set the adapter's latency timer when asked; else advise lowering a slow one."""
+    if latency_timer is not None:
+        adapter.set_latency_timer(port, latency_timer)
+        return
+    timer = adapter.latency_timer_ms(port)
+    if timer is not None and timer > adapter.LOWERED_LATENCY_MS and not quiet:
+        click.echo(
+            f"note: the adapter's latency timer is {timer} ms, and every silent ID waits "
+            f"that long; {adapter.lowering_fix(port)}",
+            err=True,
+        )
 
 
 @bus.command("ping")

@@ -10,6 +10,7 @@ from typing import Any
 
 import click
 
+from snakebot.cli.lazy import LazyCommand, LazyGroup
 from snakebot.cli.options import (
     form_option,
     json_option,
@@ -34,7 +35,16 @@ MIN_FIELD_TOLERANCE = 1e-3
 moves the robot a ten-thousandth of its length; 1e-300 divided by zero."""
 
 
-@click.group("gait")
+SUBCOMMANDS = {
+    "search": LazyCommand(
+        "snakebot.cli.gait.search:search_command",
+        "Search serpenoid gaits phi_k(t) = A sin(omega t + (k-1) delta) + offset for ROBOT.",
+    )
+}
+"""The sub-commands in modules of their own, imported when run (``cli.lazy``)."""
+
+
+@click.group("gait", cls=LazyGroup, lazy=SUBCOMMANDS)
 def gait() -> None:
     """Generate gait tables for the controller, and inspect them.
 
@@ -316,8 +326,3 @@ def _short(value: Any) -> str:
     if isinstance(value, dict):
         return "{" + ", ".join(f"{k}: {_short(v)}" for k, v in value.items()) + "}"
     return str(value)
-
-
-from snakebot.cli.gait.search import search_command  # noqa: E402 - after the group exists
-
-gait.add_command(search_command)

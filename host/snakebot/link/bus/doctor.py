@@ -27,9 +27,7 @@ from snakebot.link.flash.bootloader import (
 )
 from snakebot.link.flash.settings import FlashTimeouts
 from snakebot.link.transport import DxlClient, open_port, settings
-
-USB_SERIAL_SYSFS = Path("/sys/bus/usb-serial/devices")
-"""Where Linux lists USB-serial adapters; an FTDI adapter has a latency_timer file there."""
+from snakebot.link.transport import adapter as transport_adapter
 
 TTY_SYSFS = Path("/sys/class/tty")
 """Where Linux lists terminals; one backed by hardware (a USB adapter, a UART) has a
@@ -75,25 +73,23 @@ class Check:
         return asdict(self)
 
 
-def adapter(port: str, sysfs: Path = USB_SERIAL_SYSFS) -> Check:
+def adapter(port: str, sysfs: Path = transport_adapter.SYSFS_USB_SERIAL) -> Check:
     """The USB adapter's latency timer, when the port is a USB-serial device."""
     name = "adapter"
     if "://" in port:
         return Check(name, "skip", f"{port} is not a serial device")
     device = Path(os.path.realpath(port)).name
-    timer = sysfs / device / "latency_timer"
-    try:
-        ms = int(timer.read_text().strip())
-    except (OSError, ValueError):
+    ms = transport_adapter.latency_timer_ms(port, sysfs)
+    if ms is None:
         return Check(name, "skip", f"{device} has no latency timer (not an FTDI adapter)")
     if ms <= FAST_LATENCY_MS:
         return Check(name, "ok", f"{device}: latency timer {ms} ms")
     return Check(
         name,
         "warn",
-        f"{device}: latency timer {ms} ms, so every reply may wait that long in the adapter",
-        f"echo 1 | sudo tee {timer} (a udev rule makes it stick), or tell snakebot the "
-        f"latency: SNAKEBOT_LATENCY_MS={ms}",
+        f"{device}: latency timer {ms} ms, so every reply may wait that long in the adapter "
+        "(snakebot waits for it, and a scan pays it for every silent ID)",
+        transport_adapter.lowering_fix(port, sysfs),
     )
 
 

@@ -23,13 +23,22 @@ from snakebot.formats.protocol import (
     Rejected,
 )
 from snakebot.formats.register_values import base_table, model_name
-from snakebot.link.transport import BusTiming, DxlClient, settings, timing
+from snakebot.link.transport import DxlClient, settings, timing
 from snakebot.link.transport.portio import PortIO
 
 SCAN_RETRIES = 3
 
 
 """Further PINGs a scan gives an ID whose reply came back damaged."""
+
+SCAN_MARGIN_S = 0.1e-3
+"""The host margin of a silent ID's wait when ``SNAKEBOT_MARGIN_MS`` does not say. A host
+that wakes late loses nothing (the reply waits in the port's buffer); the margin is for
+a reply the transport delivers late (a program answering on a pseudo-terminal, an
+adapter slower than its latency timer), and a scan needs little: a reply later than its
+window still counts in the next ID's, and every ID still silent is PINGed once more at
+the end. A transaction keeps the larger ``HOST_MARGIN_S``: a missed reply there is an
+error."""
 
 
 QUIET_READ_SIZE = 4096
@@ -129,25 +138,32 @@ def longest_return_delay_us() -> float:
     return longest
 
 
+def scan_margin_s() -> float:
+    """The host margin of a silent ID's wait: ``SNAKEBOT_MARGIN_MS``, else
+    :data:`SCAN_MARGIN_S`."""
+    return settings.resolve_margin_s(default=SCAN_MARGIN_S)
+
+
 def silence_s(client: DxlClient) -> float:
     """How long after a PING leaves the host a scan takes a silent line for a missing
     servo: the PING on the wire, :func:`longest_return_delay_us`, the first byte of a
-    status packet, and the adapter's latency and the host's margin (the client's). It
-    scales with the baud rate, so slow rates cost what their wire needs."""
+    status packet, the adapter's latency (the client's: what the adapter reports) and
+    :func:`scan_margin_s`. It scales with the baud rate, so slow rates cost what their
+    wire needs."""
     return timing.reply_timeout_s(
         len(protocol.ping(0)),
         1,
         client.baudrate,
         return_delay_us=longest_return_delay_us(),
         latency_s=client.timing.latency_s,
-        margin_s=client.timing.margin_s,
+        margin_s=scan_margin_s(),
     )
 
 
-def quiet_s(bus: BusTiming) -> float:
-    """How long a quiet pause lasts: the servos' frame reset and the host's margin (the
+def quiet_s() -> float:
+    """How long a quiet pause lasts: the servos' frame reset and the scan's margin (the
     host may be late to send, never early, so the servos' pause is at least this)."""
-    return FRAME_RESET_S + bus.margin_s
+    return FRAME_RESET_S + scan_margin_s()
 
 
 def _quiet(port: serial.SerialBase, seconds: float) -> None:
@@ -159,6 +175,14 @@ def _quiet(port: serial.SerialBase, seconds: float) -> None:
         port.timeout = remaining
         port.read(QUIET_READ_SIZE)
     port.reset_input_buffer()
+
+
+def _client(port: serial.SerialBase, baud: int, echo: bool) -> DxlClient:
+    """The scan's client: the host's margin even behind a pseudo-terminal (a program's
+    would make every damaged reply, and the echo probe on a line without echo, cost half
+    a second; a scan retries instead)."""
+    margin = settings.resolve_margin_s(default=timing.HOST_MARGIN_S)
+    return DxlClient(port, baud, echo=echo, margin_s=margin)
 
 
 def detect_echo(port: serial.SerialBase, baud: int) -> bool:
@@ -174,8 +198,7 @@ def detect_echo(port: serial.SerialBase, baud: int) -> bool:
         return bool(setting)
     packet = protocol.ping(BROADCAST_ID)
     # an echo comes back before any reply would: the reply timeout covers it
-    bus = DxlClient(port, baud, echo=False).timing
-    wait = bus.reply_timeout_s(len(packet), 0)
+    wait = _client(port, baud, False).timing.reply_timeout_s(len(packet), 0)
     for _ in range(1 + SCAN_RETRIES):
         port.reset_input_buffer()
         port.write(packet)
@@ -188,7 +211,7 @@ def detect_echo(port: serial.SerialBase, baud: int) -> bool:
             return False
         if heard == packet:
             return True
-        _quiet(port, quiet_s(bus))
+        _quiet(port, quiet_s())
     return True  # something came back every time, damaged: an echo on a noisy line
 
 
@@ -216,7 +239,11 @@ class _Sweep:
     :data:`SCAN_RETRIES` more, each after a quiet pause (:func:`quiet_s`): a damaged
     length byte leaves the servos waiting for the rest of a packet that never comes,
     and they give up on it only after a pause. If every try is damaged, the result is
-    marked garbled: something is there."""
+    marked garbled: something is there.
+
+    Every ID still silent at the end of the sweep is PINGed once more (and its result
+    given then), so a servo whose PING or reply was lost to noise, or whose reply came
+    later than the next ID's window, is not missed."""
 
     def __init__(self, client: DxlClient, silence: float, pings: Mapping[int, bytes]) -> None:
         self.client = client
@@ -227,7 +254,17 @@ class _Sweep:
         self.reply_timeout = client.timing.reply_timeout_s(len(protocol.ping(0)), 0)
 
     def run(self, ids: Sequence[int]) -> Iterator[Probe]:
-        """Each of ``ids``' results, once."""
+        """Each of ``ids``' results, once: the silent ones after their second PING."""
+        silent: list[int] = []
+        for probe in self._pass(ids):
+            if probe.info is None and not probe.garbled:
+                silent.append(probe.id)
+            else:
+                yield probe
+        yield from self._pass(silent)
+
+    def _pass(self, ids: Sequence[int]) -> Iterator[Probe]:
+        """One PING for each of ``ids`` (more where replies come back damaged)."""
         baud = self.client.baudrate
         pending: int | None = None  # silent so far; its reply may still come
         self.io.flush_input()
@@ -315,7 +352,7 @@ class _Sweep:
         """The further tries of an ID whose PING (or identifying READ) came back damaged."""
         client = self.client
         for _ in range(SCAN_RETRIES):
-            _quiet(client.port, quiet_s(client.timing))  # ends with a flush
+            _quiet(client.port, quiet_s())  # ends with a flush
             self.parser.reset()
             heard = self._listen(servo_id, None)
             if heard.trouble:
@@ -338,9 +375,9 @@ def scan_probes(
     pings = {servo_id: protocol.ping(servo_id) for servo_id in ids}
     echo = detect_echo(port, bauds[0]) if bauds else False
     for n, baud in enumerate(bauds):
-        client = DxlClient(port, baud, echo=echo)
+        client = _client(port, baud, echo)
         if n:  # servos at this rate heard the last one's PINGs as garbage: let them reset
-            _quiet(port, quiet_s(client.timing))
+            _quiet(port, quiet_s())
         yield from _Sweep(client, silence_s(client), pings).run(ids)
 
 

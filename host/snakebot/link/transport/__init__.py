@@ -11,6 +11,7 @@ never ``sim`` (``ports`` registers the ``sim://`` handler by its package name on
 
 from __future__ import annotations
 
+from snakebot.link.transport import adapter
 from snakebot.link.transport.client import DxlClient
 from snakebot.link.transport.errors import PortError, TransportSettingError
 from snakebot.link.transport.ports import open_port, register_handler_package
@@ -35,6 +36,7 @@ __all__ = [
     "DxlClient",
     "PortError",
     "TransportSettingError",
+    "adapter",
     "open_port",
     "register_handler_package",
     "reply_timeout_s",

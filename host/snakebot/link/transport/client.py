@@ -43,7 +43,7 @@ import serial
 from snakebot.facts import devices
 from snakebot.facts.devices import Device
 from snakebot.formats.protocol import PacketParser
-from snakebot.link.transport import settings
+from snakebot.link.transport import adapter, settings, timing
 from snakebot.link.transport.levels import DEFAULT_STATUS_RETURN_LEVEL, StatusLevels, check_level
 from snakebot.link.transport.portio import PortIO
 from snakebot.link.transport.ports import open_port
@@ -70,7 +70,11 @@ class DxlClient(Reads, Writes, Transactions, ReplyReader, StatusLevels):
     open ``serial.Serial`` (used as is and left open). Keywords not given fall back to the
     environment (``SNAKEBOT_RETRIES``, ``SNAKEBOT_LATENCY_MS``, ``SNAKEBOT_MARGIN_MS``,
     ``SNAKEBOT_RETURN_DELAY_US``, ``SNAKEBOT_ECHO``) and then to the named defaults in
-    :mod:`snakebot.link.transport.settings` and :mod:`snakebot.link.transport.timing`.
+    :mod:`snakebot.link.transport.settings` and :mod:`snakebot.link.transport.timing`;
+    the latency, to what the adapter reports first (:mod:`snakebot.link.transport.adapter`:
+    an FTDI adapter's latency timer, zero for a pseudo-terminal or the emulator), and on
+    a pseudo-terminal (a program on this host at the far end) the margin to
+    ``timing.PROGRAM_MARGIN_S``, which costs time only when a reply is missing.
 
     ``echo``: True for a bus that echoes every instruction, False for one that never
     does, "auto" to find out from the first answered transaction. If that first exchange
@@ -109,11 +113,7 @@ class DxlClient(Reads, Writes, Transactions, ReplyReader, StatusLevels):
         self.retries = settings.resolve_retries(retries)
         echo_setting = settings.resolve_echo(echo)
         self.echo_probe_s = settings.resolve_echo_probe_s(echo_probe_s)
-        timing_kwargs = {
-            "return_delay_us": settings.resolve_return_delay_us(return_delay_us),
-            "latency_s": settings.resolve_latency_s(latency_s),
-            "margin_s": settings.resolve_margin_s(margin_s),
-        }
+        return_delay = settings.resolve_return_delay_us(return_delay_us)
         self._default_level = check_level(status_return_level)
         self._levels = {}
         self.device = device or devices.ax12()
@@ -129,7 +129,13 @@ class DxlClient(Reads, Writes, Transactions, ReplyReader, StatusLevels):
             if baudrate is not None and port.baudrate != baudrate:
                 port.baudrate = baudrate
         self._io = PortIO(self._port)
-        self.timing = BusTiming(baudrate=int(self._port.baudrate), **timing_kwargs)
+        latency = settings.resolve_latency_s(latency_s, adapter.latency_s(self._port))
+        # a program behind a pseudo-terminal may be descheduled: its replies get slack
+        program = adapter.on_pseudo_terminal(self._port)
+        margin = settings.resolve_margin_s(
+            margin_s, default=timing.PROGRAM_MARGIN_S if program else timing.HOST_MARGIN_S
+        )
+        self.timing = BusTiming(int(self._port.baudrate), return_delay, latency, margin)
         self._echo = None if echo_setting == "auto" else bool(echo_setting)
         self._parser = PacketParser()
         self._recent = deque(maxlen=RECENT_SENDS)

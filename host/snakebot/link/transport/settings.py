@@ -5,7 +5,8 @@ variable that overrides it; a keyword argument overrides both (as esptool does).
 setting                        environment variable   default
 =============================  =====================  ==========================
 retries after the first try    SNAKEBOT_RETRIES       ``DEFAULT_RETRIES``
-USB adapter latency            SNAKEBOT_LATENCY_MS    ``timing.USB_LATENCY_S``
+USB adapter latency            SNAKEBOT_LATENCY_MS    the adapter's own (``adapter``),
+                                                      else ``timing.USB_LATENCY_S``
 host scheduling margin         SNAKEBOT_MARGIN_MS     ``timing.HOST_MARGIN_S`` (a
                                                       controller on a pty:
                                                       ``timing.PROGRAM_MARGIN_S``)
@@ -64,9 +65,12 @@ def _resolve_seconds(
     return float(value)
 
 
-def resolve_latency_s(value: float | None = None) -> float:
-    """USB latency margin in seconds: keyword, else ``SNAKEBOT_LATENCY_MS``, else default."""
-    return _resolve_seconds(value, ENV_LATENCY_MS, 1e3, timing.USB_LATENCY_S, "latency_s")
+def resolve_latency_s(value: float | None = None, adapter: float | None = None) -> float:
+    """USB latency margin in seconds: keyword, else ``SNAKEBOT_LATENCY_MS``, else what the
+    adapter reports (``adapter``, from :func:`snakebot.link.transport.adapter.latency_s`),
+    else the default."""
+    default = timing.USB_LATENCY_S if adapter is None else adapter
+    return _resolve_seconds(value, ENV_LATENCY_MS, 1e3, default, "latency_s")
 
 
 def resolve_margin_s(value: float | None = None, default: float = timing.HOST_MARGIN_S) -> float:

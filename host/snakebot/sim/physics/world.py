@@ -24,7 +24,6 @@ backwards).
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
@@ -32,6 +31,7 @@ import numpy as np
 
 from snakebot.model.robots import TICKS_PER_RAD, Robot
 from snakebot.sim.bus.bus import Bus
+from snakebot.sim.history import History
 from snakebot.sim.physics.actuator import OVERLOAD_HOLD_S, STALLED_FRACTION, Actuator
 from snakebot.sim.physics.mjcf import CONTROL_PERIOD_S, TIMESTEP_S, build_mjcf, physics_of
 from snakebot.sim.world import DEFAULT_PERIOD_S, WorldError, WorldRecord, require_servos
@@ -174,8 +174,6 @@ class PhysicsWorld:
         self._stalled = [0.0] * n
         self._moving = [False] * n
         self._on = [False] * n
-        self._t: deque[float] = deque(maxlen=keep)
-        self._rows: deque[np.ndarray] = deque(maxlen=keep)
         self._ticks = 0
         self._running = True
         self._joints = list(zip(self._servos, self._signs, self._zeros, strict=True))
@@ -187,107 +185,120 @@ class PhysicsWorld:
         self._cvel_idx = (6 * w[:, None] + [2, 3, 4]).ravel()
         self._xpos_idx = (3 * w[:, None] + [0, 1]).ravel()
         self._axle_idx = (9 * w[:, None] + [1, 4]).ravel()  # row-major 3x3: column 1
+        # a sample's row: its time, then the pieces above and each joint's torque
+        widths = [1, len(self._qsel), len(self._cvel_idx), len(self._xpos_idx), 2]
+        widths += [len(self._axle_idx), n]
+        ends = np.cumsum(widths).tolist()
+        self._cols = [slice(end - width, end) for width, end in zip(widths, ends, strict=True)]
+        self._history = History(sum(widths), keep)
+        # the tick's working set, made once: MuJoCo's arrays (views into its buffers),
+        # each motor's speed, torque and power, and the drives it sets
+        self._qpos, self._qvel, self._force = d.qpos, d.qvel, d.actuator_force
+        self._cvel, self._xpos, self._xmat, self._com = d.cvel, d.xpos, d.xmat, d.subtree_com
+        self._bias, self._limits = m.actuator_biasprm, m.actuator_forcerange
+        self._w, self._torque, self._power = np.zeros(n), np.zeros(n), np.zeros(n)
+        self._constant, self._slope, self._high = [0.0] * n, [0.0] * n, [0.0] * n
         self._schedule = bus.every(self.control_period, self._tick, start=self.start_time)
 
     # -- stepping -------------------------------------------------------------------------
 
     def _motor_torque(self) -> np.ndarray:
         """Each motor's torque at its joint now (N m, + in the joint's direction): the
-        drive less the back-EMF braking."""
-        d = self.data
-        return d.actuator_force - self.actuator.damping * d.qvel[self._dadr_np]
+        drive less the back-EMF braking (into the tick's buffer)."""
+        torque, w = self._torque, self._w
+        self._qvel.take(self._dadr_np, out=w)
+        np.multiply(w, -self.actuator.damping, out=torque)
+        torque += self._force
+        return torque
 
     def _tick(self, t: float) -> None:
         """At bus time ``t``: bring the physics from the last tick to ``t`` under the
         drive set then, report the joints to the servos (and record, if a sample is
-        due), and set every motor's drive from its servo's registers as they are now."""
+        due), and set every motor's drive from its servo's registers as they are now.
+
+        Once per control period, so it allocates nothing it can keep: MuJoCo's arrays
+        are views taken once, the torque and power work in buffers, the drives are
+        gathered in lists made once."""
         if not self._running:
             return
-        m, d = self.model, self.data
-        qvel = d.qvel
-        period = self.control_period
         if self._ticks:
             # energy: the motors' power (the drive in force during each step, the speed
             # at its end; the implicit integrator's own reading of the step)
-            step, dadr, damping = self._mj.mj_step, self._dadr_np, self.actuator.damping
-            dt = self.timestep
+            step, m, d, power = self._mj.mj_step, self.model, self.data, self._power
             for _ in range(self.substeps):
                 step(m, d)
-                w = qvel[dadr]
-                torque = d.actuator_force - damping * w
-                self._energy += torque * w * dt
+                torque = self._motor_torque()
+                np.multiply(torque, self._w, out=power)
+                power *= self.timestep
+                self._energy += power
         else:
             torque = self._motor_torque()
         if self._ticks % self.steps_per_sample == 0:
             self._sample(t, torque)
         self._ticks += 1
         act = self.actuator
+        drive = act.drive
         stall_nm = act.stall_nm
+        stall_per_volt = stall_nm / act.nominal_v
         stalled_speed = STALLED_FRACTION * act.no_load_rad_s
+        period = self.control_period
+        on, moving, stalled = self._on, self._moving, self._stalled
+        constant, slope, high = self._constant, self._slope, self._high
         # plain floats from here on: numpy scalars are slow one at a time
-        angles = d.qpos[self._qadr_np].tolist()
-        speeds = qvel[self._dadr_np].tolist()
+        angles = self._qpos.take(self._qadr_np).tolist()
+        speeds = self._w.tolist()
         torques = torque.tolist()
-        constant, slope, low, high = [], [], [], []
         for k, (servo, sign, zero) in enumerate(self._joints):
             pos = zero + sign * angles[k] * TICKS_PER_RAD
             w = speeds[k]
             tau = torques[k]
             # a servo with its torque off drives nothing and reports no load (the gear
             # train still brakes the joint: that stays in the physics)
-            on = self._on[k]
             servo.set_motion(
                 t,
                 pos,
                 sign * w * TICKS_PER_RAD,
-                abs(tau) / stall_nm if on else 0.0,
-                on and tau * sign < 0,
-                self._moving[k],
-                self._stalled[k] >= OVERLOAD_HOLD_S,
+                abs(tau) / stall_nm if on[k] else 0.0,
+                on[k] and tau * sign < 0,
+                moving[k],
+                stalled[k] >= OVERLOAD_HOLD_S,
             )
             ctrl = servo.controller()
-            self._on[k] = ctrl[2] != 0.0
-            gain, target, offset, cap, cut = act.drive(ctrl, pos)
-            stall = act.stall_at(ctrl[9])
+            on[k] = ctrl[2] != 0.0
+            gain, target, offset, cap, cut = drive(ctrl, pos)
+            volts = ctrl[9]
+            stall = stall_per_volt * volts if volts > 0.0 else 0.0  # Actuator.stall_at
             # duty = gain * (target - ticks) + offset, ticks = zero + sign * TICKS_PER_RAD * q,
             # as a joint torque (sign * stall * duty) affine in the joint angle q
-            constant.append(sign * stall * (gain * (target - zero) + offset))
-            slope.append(-stall * gain * TICKS_PER_RAD)
-            low.append(-stall * cap)
-            high.append(stall * cap)
-            slow = abs(w) < stalled_speed
-            self._stalled[k] = self._stalled[k] + period if cut and slow else 0.0
-            self._moving[k] = gain != 0.0 or offset != 0.0
-        bias = m.actuator_biasprm
+            constant[k] = sign * stall * (gain * (target - zero) + offset)
+            slope[k] = -stall * gain * TICKS_PER_RAD
+            high[k] = stall * cap
+            stalled[k] = stalled[k] + period if cut and abs(w) < stalled_speed else 0.0
+            moving[k] = gain != 0.0 or offset != 0.0
+        bias, limits = self._bias, self._limits
         bias[:, 0] = constant
         bias[:, 1] = slope
-        limits = m.actuator_forcerange
-        limits[:, 0] = low
         limits[:, 1] = high
+        np.negative(limits[:, 1], out=limits[:, 0])
 
     def _sample(self, t: float, torque: np.ndarray) -> None:
         """Check the physics is sane and keep what the record is made of (raw: the record
         works the slip out for all samples at once)."""
-        d = self.data
-        q = d.qpos
+        q = self._qpos
         z = q[2]  # the robot stays level: every wheel centre sinks with the base
-        if not math.isfinite(q.sum() + d.qvel.sum()):
+        if not math.isfinite(q.sum() + self._qvel.sum()):
             self._fail(t, "the simulation blew up (a position or speed is not finite)")
         if z < self._min_z:
             self._fail(t, "the wheels sank deep into the floor")
-        self._t.append(t - self.start_time)
-        self._rows.append(
-            np.concatenate(
-                (
-                    q[self._qsel],
-                    d.cvel.ravel()[self._cvel_idx],
-                    d.xpos.ravel()[self._xpos_idx],
-                    d.subtree_com[self._root, :2],
-                    d.xmat.ravel()[self._axle_idx],
-                    torque,
-                )
-            )
-        )
+        row = self._history.slot()
+        c = self._cols
+        row[0] = t - self.start_time
+        q.take(self._qsel, out=row[c[1]])
+        self._cvel.take(self._cvel_idx, out=row[c[2]])
+        self._xpos.take(self._xpos_idx, out=row[c[3]])
+        row[c[4]] = self._com[self._root, :2]
+        self._xmat.take(self._axle_idx, out=row[c[5]])
+        row[c[6]] = torque
 
     def _fail(self, t: float, what: str) -> None:
         self.stop()
@@ -320,14 +331,13 @@ class PhysicsWorld:
 
     @property
     def samples(self) -> int:
-        return len(self._t)
+        return len(self._history)
 
     def record(self) -> PhysicsRecord:
         """Everything sampled so far."""
-        n, w = self.robot.n_joints, self.robot.n_wheels
-        rows = np.array(list(self._rows), dtype=float).reshape(-1, 3 + n + 7 * w + 2 + n)
-        cols = np.cumsum([3 + n, 3 * w, 2 * w, 2, 2 * w])
-        state, cvel, centre, com, axle, torque = np.split(rows, cols, axis=1)
+        w = self.robot.n_wheels
+        rows = self._history.array()
+        times, state, cvel, centre, com, axle, torque = (rows[:, c] for c in self._cols)
         # each wheel centre's velocity along its axle, from the com-based velocities (the
         # robot is one tree rooted at the base): v + w x r. The robot stays level, so of
         # w only the turn about z moves a centre sideways (the spin is along the axle).
@@ -340,7 +350,7 @@ class PhysicsWorld:
         slip = (vx * axle[:, :, 0] + vy * axle[:, :, 1]) / self.unit
         pose = state[:, :3] / [self.unit, self.unit, 1.0]
         return PhysicsRecord(
-            np.array(self._t),
+            times[:, 0],
             pose,
             state[:, 3:],
             slip,

@@ -151,6 +151,50 @@ class VirtualServo(ReferenceServo):
                 return flags
         return super()._write_at(address, data, registered)
 
+    # -- a physics world's hooks, once per servo per control tick: on the struct directly --
+
+    def controller(self) -> tuple[float, ...]:
+        c = self._c
+        on = 1.0 if c.powered and c.torque_enable == 1 and c.torque_limit > 0 else 0.0
+        return (
+            float(c.goal),
+            c.speed_setting,
+            on,
+            float(c.torque_limit),
+            float(c.cw_margin),
+            float(c.ccw_margin),
+            float(self._cw_slope),
+            float(self._ccw_slope),
+            float(self._punch),
+            c.supply_v,
+            1.0 if c.wheel_mode else 0.0,
+            float(c.moving_speed),
+        )
+
+    def set_motion(
+        self,
+        t: float,
+        pos: float,
+        vel: float,
+        load_fraction: float,
+        load_cw: bool,
+        moving: bool,
+        overload: bool,
+    ) -> None:
+        c = self._c
+        c.world_driven = True
+        lib.sim_servo_advance(c, t)
+        c.pos = pos
+        c.vel = vel
+        c.load_fraction = load_fraction if load_fraction < 1.0 else 1.0
+        c.load_cw = load_cw
+        c.moving = moving
+        c.overload = overloaded = overload and c.powered
+        if overloaded:
+            conditions = lib.sim_servo_conditions(c)
+            if conditions & c.shutdown:
+                lib.sim_servo_alarm(c, conditions)
+
     def sync_write_block(self, address: int, data: bytes, t: float) -> None:
         if lib.sim_servo_sync_block(self._c, t, address, data, len(data)) < 0:
             super().sync_write_block(address, data, t)

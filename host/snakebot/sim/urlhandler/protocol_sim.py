@@ -58,6 +58,9 @@ def forget_named_buses() -> None:
 class Serial(SerialBase):
     """A serial port onto an emulated bus; the host is the bus master."""
 
+    adapter_latency_s = 0.0
+    """No adapter holds the replies back (``snakebot.link.transport.adapter`` reads this)."""
+
     def __init__(self, *args: object, **kwargs: object) -> None:
         self.bus: Bus | None = None
         self.options: SimOptions | None = None
@@ -158,6 +161,7 @@ class Serial(SerialBase):
             return b""
         if self._pacer is not None:
             return self._read_realtime(size)
+        began = time.monotonic()
         with self._lock:
             bus = self.bus
             timeout = self._timeout
@@ -195,7 +199,8 @@ class Serial(SerialBase):
                 time.sleep(BLOCKING_SLICE_S)  # nothing on its way: wait like a real port
                 deadline = bus.now + BLOCKING_SLICE_S
         if not out and timeout:
-            time.sleep(timeout)  # a timeout costs its time, or a retrying client spins
+            # a timeout costs its time (counting the bus's own), or a retrying client spins
+            time.sleep(max(0.0, began + timeout - time.monotonic()))
         return bytes(out)
 
     def _read_realtime(self, size: int) -> bytes:

@@ -17,14 +17,14 @@ import stat
 import tempfile
 from pathlib import Path
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 
 RUNTIME_ENV = "XDG_RUNTIME_DIR"
 """The freedesktop.org base directory for a user's runtime files (not a SNAKEBOT_*
 setting: the login manager sets it)."""
 
 
-class UnsafeDirectory(SnakebotError):
+class UnsafeDirectory(InputError):
     """A directory snakebot would keep private files in is not private. ``path`` is it."""
 
     def __init__(self, path: Path, message: str) -> None:

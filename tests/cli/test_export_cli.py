@@ -31,7 +31,7 @@ def test_export_writes_both_files_that_mujoco_loads(tmp_path):
     [
         (("snake5",), "--urdf FILE"),
         (("snake5", "--urdf", "x.txt"), ".urdf"),
-        (("snake5", "--urdf", "missing/x.urdf"), "does not exist"),
+        (("snake5", "--urdf", "missing/x.urdf"), "not a directory"),
         (("car", "--urdf", "car.urdf"), "[physics]"),
     ],
 )

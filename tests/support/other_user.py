@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 import pwd
 import shutil
+import stat
 import subprocess
 import tempfile
 from collections.abc import Iterator
@@ -45,6 +46,6 @@ def as_other_user(script: str) -> None:
 def shared_tmp() -> Iterator[Path]:
     """A sticky, world-writable directory, like /tmp, that both users can reach."""
     path = Path(tempfile.mkdtemp(prefix="snakebot-shared-", dir="/tmp"))
-    path.chmod(0o1777)
+    path.chmod(stat.S_ISVTX | stat.S_IRWXU | stat.S_IRWXG | stat.S_IRWXO)
     yield path
     shutil.rmtree(path, ignore_errors=True)

@@ -107,9 +107,16 @@ ANGLE_UNITS = ("deg", "rad")
 
 def is_position(entry: Entry, table: ControlTable | None = None) -> bool:
     """Whether ``entry`` holds a servo position (Goal Position, Present Position, the
-    angle limits): a register on the position's scale."""
+    angle limits): a register on the position's scale that takes no negative value (a
+    signed register on that scale, such as the controller's Steering Offset, holds a
+    difference of positions, not a position)."""
     position = (table or base_table()).device.position
-    return position is not None and entry.scale is not None and entry.scale == position.scale
+    return (
+        position is not None
+        and entry.scale is not None
+        and entry.scale == position.scale
+        and write_range(entry)[0] >= 0
+    )
 
 
 def position_centre(table: ControlTable | None = None) -> int:

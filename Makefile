@@ -164,7 +164,7 @@ lint: python-env
 	$(Q)$(PY) -m ruff check .
 	$(Q)$(PY) -m ruff format --check .
 	$(Q)$(VENV)/bin/vermin --quiet --no-tips --violations --eval-annotations -t=3.10- \
-	    host tests bench tools fuzz protocol setup.py
+	    host tests bench fuzz protocol setup.py
 
 bench: system-packages python-env firmware
 	@for b in bench/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done

@@ -1,6 +1,8 @@
 /* libFuzzer target: the controller's PC-link device and control loop
- * (firmware/core/ctl_device.c with the parser, gait tables, player, safety and bus master
- * behind it), driven the way the firmware's main loop drives it.
+ * (firmware/core/ctl_*.c with the parser, gait tables, player, safety and bus master
+ * behind it), driven the way the firmware's main loop drives it. The gait library's store
+ * is pclink_store_model.c; the tables, programs and bus replies built from the input are
+ * pclink_builders.c.
  *
  * The input is a program: each step takes an opcode byte and its operands from the
  * input (missing bytes read as 0). Steps: raw bytes on the PC link; a well-formed packet
@@ -48,7 +50,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <zlib.h>
 
 #include "ctl_device.h"
 #include "dxl_packet.h"
@@ -58,46 +59,15 @@
 #include "prog_run.h"
 
 #include "fuzz_check.h"
+#include "pclink_builders.h"
+#include "pclink_common.h"
+#include "pclink_store_model.h"
 
 /* Steps per input: the evolved corpus's programs have a median of 20 and a 90th percentile
  * of 128; a cap keeps the long tail from dominating the run time (docs/reliability.md). */
 #define MAX_STEPS 128
 #define NO_READ 0xFFu
-/* The device's tables: the QEMU board's capacity (a CRC or a validation costs up to that
- * much after a change), in an arena of twice that, so no upload displaces the active
- * table (the checks below hold that a table is never lost). */
-#define FUZZ_CAPACITY 2048u
-#define FUZZ_ARENA (2u * FUZZ_CAPACITY)
 #define STAGING (d->active + FUZZ_ARENA - FUZZ_CAPACITY)
-
-/* ---- the input --------------------------------------------------------------------------- */
-
-typedef struct {
-    const uint8_t *p;
-    size_t n;
-} src;
-
-static uint8_t u8(src *s)
-{
-    if (s->n == 0) return 0;
-    s->n--;
-    return *s->p++;
-}
-
-static uint16_t u16(src *s)
-{
-    uint16_t lo = u8(s);
-    return (uint16_t)(lo | ((uint16_t)u8(s) << 8));
-}
-
-static void bytes(src *s, uint8_t *out, size_t n)
-{
-    size_t have = n < s->n ? n : s->n;
-    memcpy(out, s->p, have);
-    memset(out + have, 0, n - have); /* missing bytes read as 0 */
-    s->p += have;
-    s->n -= have;
-}
 
 /* ---- the world around the device ----------------------------------------------------------- */
 
@@ -156,166 +126,11 @@ static struct {
     uint8_t bytes[FUZZ_CAPACITY];
 } snapshot, flash; /* the active table as last seen; what the app would have persisted */
 
-/* CRC-32 as the host works it out, by zlib's crc32 (the same IEEE 802.3 CRC): an
- * implementation independent of the core's crc32.c, and uninstrumented, so checking the
- * registers' Table CRC against it costs a small part of the core's bytewise loop. */
-static uint32_t crc_of(const uint8_t *p, size_t n)
-{
-    return (uint32_t)crc32(0uL, p, (uInt)n);
-}
-
-/* Store the CRC a table or a program carries at its offset 12: gt_crc()'s (bytes 0..11,
- * then 16 on), worked out as crc_of() does rather than by the instrumented core. */
-#if PROG_CRC_OFFSET != GT_CRC_OFFSET
-#error "seal() puts a program's CRC where a table's goes"
-#endif
-static void seal(uint8_t *t, size_t len)
-{
-    uLong crc = crc32(0uL, t, GT_CRC_OFFSET);
-    crc = crc32(crc, t + GT_CRC_OFFSET + 4u, (uInt)(len - GT_CRC_OFFSET - 4u));
-    for (unsigned b = 0; b < 4; b++) t[GT_CRC_OFFSET + b] = (uint8_t)(crc >> (8 * b));
-}
-
-/* ---- the gait library: a store in RAM, kept across power cycles as flash would be ------------ */
-
 #define KNOWN_FLAGS                                                                           \
     (CTL_ERROR_FLAGS_UPLOAD_LENGTH | CTL_ERROR_FLAGS_UPLOAD_CRC | CTL_ERROR_FLAGS_UPLOAD_LAYOUT | \
      CTL_ERROR_FLAGS_UPLOAD_TOO_BIG | CTL_ERROR_FLAGS_SERVO_ERROR | CTL_ERROR_FLAGS_BUS_LOSS |    \
      CTL_ERROR_FLAGS_LINK_LOSS | CTL_ERROR_FLAGS_REFUSED | CTL_ERROR_FLAGS_LIMITS |               \
      CTL_ERROR_FLAGS_PROGRAM | CTL_ERROR_FLAGS_LIBRARY)
-#define LIB_SLOTS 3u
-
-static struct {
-    uint8_t kind; /* 0: empty */
-    uint8_t name[CTL_SLOT_NAME_SIZE];
-    uint16_t len;
-    uint32_t crc; /* worked out once, when stored: the core asks for it on every look */
-    uint8_t bytes[FUZZ_CAPACITY];
-} library[LIB_SLOTS];
-
-/* A store or delete that, like the CM-530's, writes in the background: put and remove
- * only begin it (LIBRARY_STORING), and it ends after `ticks` control ticks, when the slot
- * changes and ctl_library_stored() reports. The blob is read where the core left it (the
- * staging area) only at the end, so a core that let the staging area change meanwhile
- * stores other bytes than it accepted, which the CRC taken at the start catches. A power
- * cut meanwhile leaves the slot as it was. */
-static bool background; /* whether the next put or remove writes in the background */
-static struct {
-    uint8_t ticks; /* 0: nothing under way */
-    uint8_t total;
-    bool remove;
-    uint8_t slot, kind;
-    uint8_t name[CTL_SLOT_NAME_SIZE];
-    const uint8_t *data;
-    uint16_t len;
-    uint32_t crc;
-} writing;
-
-static void lib_get(uint8_t slot, lib_slot *out, const uint8_t **data)
-{
-    CHECK(slot < LIB_SLOTS); /* the core asks only for slots the store has */
-    if (library[slot].kind == 0) return;
-    out->status = CTL_SLOT_STATUS_OK;
-    out->kind = library[slot].kind;
-    out->len = library[slot].len;
-    out->crc = library[slot].crc;
-    memcpy(out->name, library[slot].name, sizeof out->name);
-    *data = library[slot].bytes;
-}
-
-/* The slot now keeps data[0..len), whose CRC-32 is crc. */
-static void lib_keep(uint8_t slot, uint8_t kind, const uint8_t *name, const uint8_t *data,
-                     uint16_t len, uint32_t crc)
-{
-    library[slot].kind = kind;
-    memcpy(library[slot].name, name, CTL_SLOT_NAME_SIZE);
-    library[slot].len = len;
-    library[slot].crc = crc;
-    memcpy(library[slot].bytes, data, len);
-}
-
-static uint8_t lib_put(uint8_t slot, uint8_t kind, const uint8_t *name, const uint8_t *data,
-                       uint16_t len)
-{
-    CHECK(slot < LIB_SLOTS && kind != 0 && kind != CTL_UPLOAD_COMMIT_LIMITS);
-    CHECK(len > 0 && len <= FUZZ_CAPACITY);
-    for (size_t i = 0; i < CTL_SLOT_NAME_SIZE; i++) {
-        CHECK(name[i] == 0 || (name[i] >= 0x20 && name[i] <= 0x7e)); /* names were checked */
-    }
-    if (kind == CTL_UPLOAD_COMMIT_TABLE) {
-        gt_info info;
-        CHECK(gt_validate(data, len, &info) == GT_OK); /* only whole tables are kept as such */
-    }
-    CHECK(writing.ticks == 0); /* one flash write at a time */
-    if (background) {
-        writing.remove = false;
-        writing.slot = slot;
-        writing.kind = kind;
-        memcpy(writing.name, name, CTL_SLOT_NAME_SIZE);
-        writing.data = data;
-        writing.len = len;
-        writing.crc = crc_of(data, len);
-        writing.ticks = writing.total;
-        return CTL_UPLOAD_RESULT_LIBRARY_STORING;
-    }
-    lib_keep(slot, kind, name, data, len, crc_of(data, len));
-    return CTL_UPLOAD_RESULT_OK;
-}
-
-static uint8_t lib_remove(uint8_t slot)
-{
-    CHECK(slot < LIB_SLOTS);
-    CHECK(writing.ticks == 0);
-    if (background) {
-        writing.remove = true;
-        writing.slot = slot;
-        writing.ticks = writing.total;
-        return CTL_UPLOAD_RESULT_LIBRARY_STORING;
-    }
-    library[slot].kind = 0;
-    return CTL_UPLOAD_RESULT_OK;
-}
-
-static uint8_t fuzz_lib_saving(uint8_t *percent)
-{
-    if (writing.ticks == 0) return CTL_STORE_STATE_IDLE;
-    if (percent != NULL) *percent = (uint8_t)(100u * (writing.total - writing.ticks) / writing.total);
-    return CTL_STORE_STATE_LIBRARY;
-}
-
-/* A control tick of the background write: at the last, the slot changes. */
-static void lib_write_tick(void)
-{
-    if (writing.ticks == 0 || --writing.ticks > 0) return;
-    if (writing.remove) {
-        library[writing.slot].kind = 0;
-    } else {
-        CHECK(crc_of(writing.data, writing.len) == writing.crc); /* staging kept as accepted */
-        lib_keep(writing.slot, writing.kind, writing.name, writing.data, writing.len,
-                 writing.crc);
-    }
-    ctl_library_stored(d, CTL_UPLOAD_RESULT_OK);
-}
-
-static const lib_store fuzz_library = {.slots = LIB_SLOTS,
-                                       .memory = CTL_LIBRARY_MEMORY_RAM,
-                                       .capacity = FUZZ_CAPACITY,
-                                       .get = lib_get,
-                                       .put = lib_put,
-                                       .remove = lib_remove,
-                                       .saving = fuzz_lib_saving};
-
-/* Whether table[0..len) is what a library slot keeps as a table. */
-static bool in_library(const uint8_t *table, uint16_t len)
-{
-    for (unsigned k = 0; k < LIB_SLOTS; k++) {
-        if (library[k].kind == CTL_UPLOAD_COMMIT_TABLE && library[k].len == len &&
-            memcmp(library[k].bytes, table, len) == 0) {
-            return true;
-        }
-    }
-    return false;
-}
 
 /* What validating the snapshot's bytes gave, so the checks after every step recompute it
  * (a CRC and a validation of up to 2 KB) only when the active table's bytes change. */
@@ -528,61 +343,7 @@ static bool write_to_me(uint8_t addr, const uint8_t *data, size_t n)
     return pc_packet(ctl_id(d), DXL_INST_WRITE, params, n + 1);
 }
 
-/* ---- gait tables ------------------------------------------------------------------------------ */
-
-static void put16(uint8_t *p, uint16_t v)
-{
-    p[0] = (uint8_t)v;
-    p[1] = (uint8_t)(v >> 8);
-}
-
-/* A valid table from the input: joints 1..18, frames within the 2 KB, unique IDs. */
-static size_t make_table(src *s, uint8_t *t)
-{
-    uint8_t joints = (uint8_t)(u8(s) % CTL_MAX_JOINTS + 1u);
-    size_t per_frame = 2u * joints;
-    size_t room = (FUZZ_CAPACITY - GT_HEADER_SIZE - (size_t)GT_JOINT_SIZE * joints) /
-                  per_frame;
-    uint16_t frames = (uint16_t)(u8(s) % (room < 40 ? room : 40) + 1u);
-    uint16_t period = (uint16_t)(u16(s) % 1000u + 1u);
-    uint8_t flags = u8(s) & GT_FLAG_LOOP;
-    memset(t, 0, GT_HEADER_SIZE);
-    t[0] = 'S';
-    t[1] = 'N';
-    t[2] = 'K';
-    t[3] = 'G';
-    t[4] = GT_VERSION;
-    t[5] = joints;
-    t[6] = flags;
-    put16(t + 8, period);
-    put16(t + 10, frames);
-    uint16_t lo[CTL_MAX_JOINTS];
-    uint16_t hi[CTL_MAX_JOINTS];
-    uint8_t first_id = u8(s);
-    for (uint8_t j = 0; j < joints; j++) {
-        uint8_t *rec = t + GT_HEADER_SIZE + GT_JOINT_SIZE * j;
-        uint16_t a = u16(s) % 1024u;
-        uint16_t b = u16(s) % 1024u;
-        lo[j] = a < b ? a : b;
-        hi[j] = a < b ? b : a;
-        rec[0] = (uint8_t)((first_id + j) % (GT_MAX_ID + 1u));
-        rec[1] = 0;
-        put16(rec + 2, lo[j]);
-        put16(rec + 4, hi[j]);
-    }
-    uint8_t *f = t + GT_HEADER_SIZE + GT_JOINT_SIZE * joints;
-    for (uint16_t k = 0; k < frames; k++) {
-        for (uint8_t j = 0; j < joints; j++) {
-            uint16_t span = (uint16_t)(hi[j] - lo[j] + 1u);
-            put16(f, (uint16_t)(lo[j] + u16(s) % span));
-            f += 2;
-        }
-    }
-    size_t len = (size_t)(f - t);
-    seal(t, len);
-    /* valid by construction: upload() checks that a sound upload of it lands */
-    return len;
-}
+/* ---- uploads ----------------------------------------------------------------------------------- */
 
 static bool commit_as(uint16_t len, uint32_t crc, uint8_t what)
 {
@@ -614,7 +375,7 @@ static void upload(src *s)
     uint8_t where = u8(s);
     uint8_t flip = (uint8_t)(u8(s) | 1u);
     int expect = GT_OK;
-    bool busy = writing.ticks > 0; /* no tick passes during the upload */
+    bool busy = store_model_busy(); /* no tick passes during the upload */
     if (fault == 5 || fault == 6) {
         t[where % len] ^= flip;
         if (fault == 6) seal(t, len); /* the table's own CRC agrees with the damage */
@@ -659,72 +420,6 @@ static void upload(src *s)
     }
 }
 
-/* A program from the input (protocol/program.md): 1..4 joints with limits around a zero
- * tick, up to 4 frames, 2 periodic blocks and 6 segments of any kind with fields from
- * the input, most of them beyond what the joints allow; its CRC made right. */
-static size_t make_program(src *s, uint8_t *t)
-{
-    uint8_t joints = (uint8_t)(u8(s) % 4u + 1u);
-    uint8_t segments = (uint8_t)(u8(s) % 6u + 1u);
-    uint8_t blocks = (uint8_t)(u8(s) % 3u);
-    uint16_t frames = (uint16_t)(u8(s) % 5u);
-    memset(t, 0, PROG_HEADER_SIZE);
-    memcpy(t, "SNKP", 4);
-    t[4] = PROG_VERSION;
-    t[5] = joints;
-    t[6] = segments;
-    t[7] = blocks;
-    put16(t + 8, (uint16_t)(u8(s) % 100u + 1u));
-    put16(t + 10, frames);
-    uint8_t *p = t + PROG_HEADER_SIZE;
-    uint16_t lo[4];
-    uint16_t hi[4];
-    uint8_t first_id = u8(s);
-    for (uint8_t j = 0; j < joints; j++, p += PROG_JOINT_SIZE) {
-        uint16_t a = u16(s) % 1024u;
-        uint16_t b = u16(s) % 1024u;
-        lo[j] = a < b ? a : b;
-        hi[j] = a < b ? b : a;
-        p[0] = (uint8_t)((first_id + j) % (GT_MAX_ID + 1u));
-        p[1] = u8(s) & PROG_JOINT_REVERSE;
-        put16(p + 2, (uint16_t)(lo[j] + u16(s) % (hi[j] - lo[j] + 1u)));
-        put16(p + 4, lo[j]);
-        put16(p + 6, hi[j]);
-    }
-    for (uint8_t k = 0; k < segments; k++, p += PROG_SEGMENT_SIZE) {
-        memset(p, 0, PROG_SEGMENT_SIZE);
-        p[0] = (uint8_t)(u8(s) % 3u + 1u);
-        if (p[0] == PROG_KIND_TABLE && frames == 0) p[0] = PROG_KIND_SERPENOID;
-        if (p[0] == PROG_KIND_PERIODIC && blocks == 0) p[0] = PROG_KIND_SERPENOID;
-        if (p[0] == PROG_KIND_TABLE) {
-            uint16_t first = (uint16_t)(u8(s) % frames);
-            put16(p + 2, first);
-            put16(p + 4, (uint16_t)(u8(s) % (frames - first) + 1u));
-            put16(p + 6, (uint16_t)(u8(s) % 4u + 1u));
-        } else if (p[0] == PROG_KIND_SERPENOID) {
-            for (unsigned f = 0; f < 4; f++) put16(p + 2 + 2 * f, u16(s));
-            put16(p + 10, (uint16_t)(u8(s) % 50u + 1u));
-        } else {
-            put16(p + 2, (uint16_t)(u8(s) % blocks));
-            put16(p + 4, u16(s));
-            put16(p + 6, (uint16_t)(u8(s) % 50u + 1u));
-        }
-    }
-    for (size_t k = 0; k < (size_t)blocks * joints * 3u; k++, p += 2) {
-        int16_t v = (int16_t)u16(s);
-        uint8_t shift = u8(s) % 16u;
-        put16(p, (uint16_t)(v / (1 << shift))); /* any size, mostly small */
-    }
-    for (uint16_t f = 0; f < frames; f++) {
-        for (uint8_t j = 0; j < joints; j++, p += 2) {
-            put16(p, (uint16_t)(lo[j] + u16(s) % (hi[j] - lo[j] + 1u)));
-        }
-    }
-    size_t len = (size_t)(p - t);
-    seal(t, len);
-    return len;
-}
-
 /* Upload a program from the input (optionally with one byte damaged, its CRC made right
  * again or not) whole, and commit it as PROGRAM: the commit must report what
  * prog_validate finds (or OUTSIDE_ROBOT_LIMITS for a sound one the robot's limits do not
@@ -739,7 +434,7 @@ static void upload_program(src *s)
     if (fault != 0) t[where % len] ^= flip;
     if (fault == 2) seal(t, len);
     uint8_t expect = prog_validate(t, len, d->capacity, NULL);
-    bool busy = writing.ticks > 0; /* no tick passes during the upload */
+    bool busy = store_model_busy(); /* no tick passes during the upload */
     bool hidden = false; /* a chunk carried what parses as a packet of its own */
     for (size_t at = 0; at < len; at += CTL_UPLOAD_WINDOW) {
         uint8_t data[2 + CTL_UPLOAD_WINDOW];
@@ -773,7 +468,7 @@ static void do_tick(uint32_t dt)
     now_ms += dt;
     uint8_t before = ctl_state(d);
     ctl_tick(d, now_ms);
-    lib_write_tick(); /* as the firmware steps its flash write after the tick's bus work */
+    lib_write_tick(d); /* as the firmware steps its flash write after the tick's bus work */
     uint8_t after = ctl_state(d);
     const play_state *p = &d->player;
     tick.valid = true;
@@ -825,59 +520,6 @@ static void check_goals(const dxl_event *ev)
         CHECK(goal >= tick.lo[j] && goal <= tick.hi[j]);
     }
     tick.valid = false; /* one goals packet per tick */
-}
-
-/* How the bus answers the awaited READ: always read whole from the input, whatever the
- * device sends (so a program's later steps do not shift with the device's behaviour). */
-typedef struct {
-    uint8_t how;      /* 0 silence, 1 reply, 2 echo + reply, 3 damaged, 4 other servo, 5 raw */
-    uint8_t data[8];  /* the telemetry block */
-    uint8_t error;
-    uint8_t flip_at;  /* damaged: which byte (from the ID on) and which bit */
-    uint8_t flip_bit;
-    uint8_t pieces;   /* how the bytes are split into UART reads */
-    uint8_t raw_len;
-    uint8_t raw[64];
-} bus_answer_t;
-
-static void read_answer(src *s, bus_answer_t *a)
-{
-    a->how = u8(s) % 6u;
-    bytes(s, a->data, sizeof a->data);
-    a->error = u8(s) & 0x7Fu;
-    a->flip_at = u8(s);
-    a->flip_bit = u8(s) % 8u;
-    a->pieces = u8(s);
-    a->raw_len = u8(s) % (uint8_t)sizeof a->raw;
-    bytes(s, a->raw, a->raw_len);
-}
-
-/* The bytes that come back for the READ `read`. */
-static size_t make_reply(const bus_answer_t *a, const dxl_event *read, uint8_t *rx, size_t cap,
-                         int *damaged_at)
-{
-    size_t n = 0;
-    *damaged_at = -1;
-    switch (a->how) {
-    case 0: return 0; /* silence: a timeout */
-    case 1:           /* the reply */
-    case 2:           /* the echo of the READ, then the reply (one-wire adapter) */
-        if (a->how == 2) {
-            memcpy(rx, read->raw, read->raw_len);
-            n = read->raw_len;
-        }
-        return n + dxl_status(rx + n, cap - n, read->id, a->error, a->data, sizeof a->data);
-    case 3: /* the reply with one bit flipped */
-        n = dxl_status(rx, cap, read->id, a->error, a->data, sizeof a->data);
-        *damaged_at = (int)(2u + a->flip_at % (n - 2));
-        rx[*damaged_at] ^= (uint8_t)(1u << a->flip_bit);
-        return n;
-    case 4: /* a reply from another servo */
-        return dxl_status(rx, cap, (uint8_t)(read->id ^ 1u), a->error, a->data, sizeof a->data);
-    default: /* whatever the input says */
-        memcpy(rx, a->raw, a->raw_len);
-        return a->raw_len;
-    }
 }
 
 /* The READ in flight, as the harness knows it. */
@@ -1035,7 +677,7 @@ static void power_cycle(uint8_t damage, uint8_t where, uint8_t flip)
 {
     bool bad = (damage & 1u) != 0 && flash.len > 0;
     if (bad) flash.bytes[where % flash.len] ^= (uint8_t)(flip | 1u);
-    writing.ticks = 0; /* a library write cut short leaves its slot as it was */
+    store_model_power_cut(); /* a library write cut short leaves its slot as it was */
     memset(d, 0, sizeof *d);
     ctl_init(d);
     ctl_set_tables(d, FUZZ_ARENA, FUZZ_CAPACITY);
@@ -1054,6 +696,189 @@ static void power_cycle(uint8_t damage, uint8_t where, uint8_t flip)
     memset(&rd, 0, sizeof rd);
 }
 
+/* ---- the steps --------------------------------------------------------------------------------- */
+
+/* 0: raw bytes on the PC link. */
+static void step_raw_bytes(src *s)
+{
+    uint8_t buf[256];
+    size_t n = u8(s);
+    bytes(s, buf, n);
+    pc_bytes(buf, n, NULL);
+}
+
+/* 1: any well-formed packet: mostly to the controller, else broadcast or any ID; mostly
+ * a common instruction, else any. */
+static void step_any_packet(src *s)
+{
+    uint8_t params[80];
+    uint8_t sel = u8(s);
+    uint8_t id = sel < 160 ? ctl_id(d) : sel < 200 ? DXL_BROADCAST_ID : u8(s);
+    if (id == 0xFF) id = DXL_BROADCAST_ID;
+    uint8_t inst = u8(s);
+    static const uint8_t common[] = {DXL_INST_PING, DXL_INST_READ, DXL_INST_WRITE,
+                                     DXL_INST_SYNC_WRITE, DXL_INST_RESET,
+                                     DXL_INST_REG_WRITE};
+    if (inst < 200) inst = common[inst % sizeof common];
+    size_t n = u8(s) % sizeof params;
+    bytes(s, params, n);
+    pc_packet(id, inst, params, n);
+}
+
+/* 2: a WRITE of 1..12 bytes of registers anywhere. */
+static void step_write_registers(src *s)
+{
+    uint8_t data[12];
+    uint8_t addr = u8(s);
+    size_t n = u8(s) % sizeof data + 1u;
+    bytes(s, data, n);
+    write_to_me(addr, data, n);
+}
+
+/* 3: a roster record in the servo window. */
+static void step_roster_record(src *s)
+{
+    uint8_t data[1 + CTL_SERVO_RECORD_SIZE];
+    uint8_t slot = u8(s) % CTL_SERVO_RECORDS;
+    /* Window Page, written in the same packet: a servo page, or now and then one of
+     * the pages from 16 on (described ones refuse writes to read-only fields, others
+     * are refused outright) */
+    uint8_t pick = u8(s);
+    data[0] = pick < 240 ? pick % CTL_SERVO_PAGES : (uint8_t)(CTL_PAGE_PROGRAM + pick - 240);
+    bytes(s, data + 1, 8);
+    put16(data + 1 + CTL_REC_ZERO_TICK, u16(s) % 1024u);
+    put16(data + 1 + CTL_REC_MIN_TICK, u16(s) % 1024u);
+    put16(data + 1 + CTL_REC_MAX_TICK, u16(s) % 1024u);
+    data[1 + CTL_REC_REVERSE] &= 1u;
+    if (slot == 0) {
+        write_to_me(CTL_WINDOW_PAGE, data, 1 + 8);
+    } else {
+        write_to_me(CTL_WINDOW_PAGE, data, 1);
+        write_to_me((uint8_t)(CTL_SERVO_WINDOW + slot * CTL_SERVO_RECORD_SIZE), data + 1, 8);
+    }
+}
+
+/* 5: commit whatever is staged, with its true CRC. */
+static void step_commit_staged(src *s)
+{
+    uint16_t len = (uint16_t)(u16(s) % (FUZZ_CAPACITY + 8u));
+    uint32_t crc = len <= FUZZ_CAPACITY ? crc_of(STAGING, len) : 0;
+    commit_with(len, crc);
+}
+
+/* 6: a command. */
+static void step_command(src *s)
+{
+    uint8_t cmd = u8(s) % 7u; /* NONE..LIBRARY_PLAY */
+    write_to_me(CTL_COMMAND, &cmd, 1);
+}
+
+/* 7: a joint count, or a small roster for the serpenoid. */
+static void step_joint_count(src *s)
+{
+    uint8_t n = u8(s) % (CTL_MAX_JOINTS + 1u);
+    write_to_me(CTL_JOINT_COUNT, &n, 1);
+}
+
+/* 9: time passes (mostly a little, now and then a lot): a control tick. */
+static void step_tick(src *s)
+{
+    uint8_t sel = u8(s);
+    uint32_t dt = sel < 200 ? sel % 40u : sel < 250 ? u16(s) : (uint32_t)u16(s) << 16;
+    do_tick(dt);
+}
+
+/* 11: the rest of this tick's bus schedule, every READ answered at once. */
+static void step_bus_schedule(src *s)
+{
+    bus_answer_t a;
+    read_answer(s, &a);
+    for (unsigned k = 0; k < 4; k++) { /* at most torque, goals, READ */
+        bus_send();
+        bus_answer(&a);
+    }
+    CHECK(d->bus.step == 3); /* the schedule always ends */
+}
+
+/* 12: a playback register, with a value in or near its range. */
+static void step_playback_register(src *s)
+{
+    static const uint8_t knobs[] = {CTL_SPEED_SCALE, CTL_STEERING_OFFSET, CTL_LOOP,
+                                    CTL_SERP_AMPLITUDE, CTL_SERP_OMEGA, CTL_SERP_DELTA,
+                                    CTL_SERP_PHI0, CTL_SAFE_ACTION, CTL_BUS_LOSS_LIMIT,
+                                    CTL_SERVO_ERROR_MASK, CTL_LINK_TIMEOUT};
+    uint8_t addr = knobs[u8(s) % sizeof knobs];
+    uint8_t v[2];
+    put16(v, u16(s));
+    bool one_byte = addr == CTL_LOOP || (addr >= CTL_SAFE_ACTION && addr <= CTL_LINK_TIMEOUT);
+    write_to_me(addr, v, one_byte ? 1 : 2);
+}
+
+/* 13: the reply (or silence) for the READ in flight. */
+static void step_bus_reply(src *s)
+{
+    bus_answer_t a;
+    read_answer(s, &a);
+    bus_answer(&a);
+}
+
+/* 14: a power cycle, maybe with the stored table damaged. */
+static void step_power_cycle(src *s)
+{
+    /* operands read in order (argument evaluation order is unspecified) */
+    uint8_t damage = u8(s);
+    uint8_t where = u8(s);
+    power_cycle(damage, where, u8(s));
+}
+
+/* Step 15's play of the library slot the page shows: refused, with nothing changed, while
+ * a background write runs. */
+static void library_play(void)
+{
+    uint8_t cmd = CTL_COMMAND_LIBRARY_PLAY;
+    bool busy = store_model_busy();
+    uint8_t state = ctl_state(d);
+    uint16_t len = d->active_len;
+    if (!write_to_me(CTL_COMMAND, &cmd, 1) && busy) {
+        CHECK(ctl_state(d) == state && d->active_len == len); /* refused: STORE_BUSY */
+    }
+}
+
+/* 15: a library operation on a slot (maybe one the library lacks): the Library page
+ * filled in, then a play, or a store or delete of what is staged (with its true CRC). */
+static void step_library(src *s)
+{
+    uint8_t sel = u8(s);
+    /* a store or delete that takes 1..8 ticks */
+    store_model_plan((sel & 4u) != 0, (uint8_t)(1u + (sel >> 3) % 8u));
+    uint8_t page[CTL_STORE_KIND + 1 - CTL_WINDOW_PAGE];
+    memset(page, 0, sizeof page);
+    page[0] = CTL_PAGE_LIBRARY;
+    page[CTL_LIBRARY_SLOT - CTL_WINDOW_PAGE] = u8(s) % (LIB_SLOTS + 1u);
+    bytes(s, page + (CTL_STORE_NAME - CTL_WINDOW_PAGE), CTL_STORE_NAME_SIZE);
+    page[CTL_STORE_KIND - CTL_WINDOW_PAGE] = (uint8_t)(1u + u8(s) % 3u);
+    /* Window Page, then every field up to Store Kind, in one packet */
+    write_to_me(CTL_WINDOW_PAGE, page, CTL_STORE_KIND + 1u - CTL_WINDOW_PAGE);
+    if (sel % 3u == 0u) {
+        library_play();
+    } else {
+        uint16_t len = (uint16_t)(u16(s) % (FUZZ_CAPACITY + 8u));
+        uint32_t crc = len <= FUZZ_CAPACITY ? crc_of(STAGING, len) : 0;
+        commit_as(len, crc,
+                  sel % 3u == 1u ? CTL_UPLOAD_COMMIT_LIBRARY_STORE
+                                 : CTL_UPLOAD_COMMIT_LIBRARY_DELETE);
+    }
+}
+
+/* 16: the robot's buttons, held for a control tick. */
+static void step_buttons(src *s)
+{
+    now_ms += u8(s) % 20u;
+    uint8_t leds = ctl_buttons(d, u8(s), now_ms);
+    CHECK((leds & ~(CTL_LEDS_SLOT_1 | CTL_LEDS_SLOT_2 | CTL_LEDS_SLOT_4 | CTL_LEDS_PLAY)) == 0);
+    CHECK(d->lib.panel.slot < LIB_SLOTS);
+}
+
 /* ---- the program ------------------------------------------------------------------------------- */
 
 /* The steps that reach the device only through pc_bytes(), which checks everything after
@@ -1064,154 +889,28 @@ static void power_cycle(uint8_t damage, uint8_t where, uint8_t flip)
     ((1u << 0) | (1u << 1) | (1u << 2) | (1u << 3) | (1u << 4) | (1u << 5) | (1u << 6) |      \
      (1u << 7) | (1u << 8) | (1u << 12) | (1u << 15) | (1u << 17))
 
+/* One step: an opcode, then its operands (fuzz/seeds.py writes them in this order). */
 static void step(src *s)
 {
     uint8_t op = u8(s) % 18u;
-    uint8_t buf[256];
     switch (op) {
-    case 0: { /* raw bytes */
-        size_t n = u8(s);
-        bytes(s, buf, n);
-        pc_bytes(buf, n, NULL);
-        break;
-    }
-    case 1: { /* any well-formed packet */
-        uint8_t sel = u8(s);
-        uint8_t id = sel < 160 ? ctl_id(d) : sel < 200 ? DXL_BROADCAST_ID : u8(s);
-        if (id == 0xFF) id = DXL_BROADCAST_ID;
-        uint8_t inst = u8(s);
-        static const uint8_t common[] = {DXL_INST_PING, DXL_INST_READ, DXL_INST_WRITE,
-                                         DXL_INST_SYNC_WRITE, DXL_INST_RESET,
-                                         DXL_INST_REG_WRITE};
-        if (inst < 200) inst = common[inst % sizeof common];
-        size_t n = u8(s) % 80u;
-        bytes(s, buf, n);
-        pc_packet(id, inst, buf, n);
-        break;
-    }
-    case 2: { /* a WRITE of registers */
-        uint8_t addr = u8(s);
-        size_t n = u8(s) % 12u + 1u;
-        bytes(s, buf, n);
-        write_to_me(addr, buf, n);
-        break;
-    }
-    case 3: { /* a roster record in the servo window */
-        uint8_t data[1 + CTL_SERVO_RECORD_SIZE];
-        uint8_t slot = u8(s) % CTL_SERVO_RECORDS;
-        /* Window Page, written in the same packet: a servo page, or now and then one of
-         * the pages from 16 on (described ones refuse writes to read-only fields, others
-         * are refused outright) */
-        uint8_t pick = u8(s);
-        data[0] = pick < 240 ? pick % CTL_SERVO_PAGES : (uint8_t)(CTL_PAGE_PROGRAM + pick - 240);
-        bytes(s, data + 1, 8);
-        put16(data + 1 + CTL_REC_ZERO_TICK, u16(s) % 1024u);
-        put16(data + 1 + CTL_REC_MIN_TICK, u16(s) % 1024u);
-        put16(data + 1 + CTL_REC_MAX_TICK, u16(s) % 1024u);
-        data[1 + CTL_REC_REVERSE] &= 1u;
-        if (slot == 0) {
-            write_to_me(CTL_WINDOW_PAGE, data, 1 + 8);
-        } else {
-            write_to_me(CTL_WINDOW_PAGE, data, 1);
-            write_to_me((uint8_t)(CTL_SERVO_WINDOW + slot * CTL_SERVO_RECORD_SIZE), data + 1, 8);
-        }
-        break;
-    }
+    case 0: step_raw_bytes(s); break;
+    case 1: step_any_packet(s); break;
+    case 2: step_write_registers(s); break;
+    case 3: step_roster_record(s); break;
     case 4: upload(s); break;
-    case 5: { /* commit whatever is staged, with its true CRC */
-        uint16_t len = (uint16_t)(u16(s) % (FUZZ_CAPACITY + 8u));
-        uint32_t crc = len <= FUZZ_CAPACITY ? crc_of(STAGING, len) : 0;
-        commit_with(len, crc);
-        break;
-    }
-    case 6: { /* a command */
-        uint8_t cmd = u8(s) % 7u; /* NONE..LIBRARY_PLAY */
-        write_to_me(CTL_COMMAND, &cmd, 1);
-        break;
-    }
-    case 7: { /* a joint count, or a small roster for the serpenoid */
-        uint8_t n = u8(s) % (CTL_MAX_JOINTS + 1u);
-        write_to_me(CTL_JOINT_COUNT, &n, 1);
-        break;
-    }
+    case 5: step_commit_staged(s); break;
+    case 6: step_command(s); break;
+    case 7: step_joint_count(s); break;
     case 8: pc_packet(ctl_id(d), DXL_INST_RESET, NULL, 0); break;
-    case 9: { /* time passes: a control tick */
-        uint8_t sel = u8(s);
-        uint32_t dt = sel < 200 ? sel % 40u : sel < 250 ? u16(s) : (uint32_t)u16(s) << 16;
-        do_tick(dt);
-        break;
-    }
+    case 9: step_tick(s); break;
     case 10: bus_send(); break;
-    case 11: { /* the rest of this tick's bus schedule, every READ answered at once */
-        bus_answer_t a;
-        read_answer(s, &a);
-        for (unsigned k = 0; k < 4; k++) { /* at most torque, goals, READ */
-            bus_send();
-            bus_answer(&a);
-        }
-        CHECK(d->bus.step == 3); /* the schedule always ends */
-        break;
-    }
-    case 13: { /* the reply (or silence) for the READ in flight */
-        bus_answer_t a;
-        read_answer(s, &a);
-        bus_answer(&a);
-        break;
-    }
-    case 12: { /* a playback register, with a value in or near its range */
-        static const uint8_t knobs[] = {CTL_SPEED_SCALE, CTL_STEERING_OFFSET, CTL_LOOP,
-                                        CTL_SERP_AMPLITUDE, CTL_SERP_OMEGA, CTL_SERP_DELTA,
-                                        CTL_SERP_PHI0, CTL_SAFE_ACTION, CTL_BUS_LOSS_LIMIT,
-                                        CTL_SERVO_ERROR_MASK, CTL_LINK_TIMEOUT};
-        uint8_t addr = knobs[u8(s) % sizeof knobs];
-        uint8_t v[2];
-        put16(v, u16(s));
-        bool one_byte = addr == CTL_LOOP || (addr >= CTL_SAFE_ACTION && addr <= CTL_LINK_TIMEOUT);
-        write_to_me(addr, v, one_byte ? 1 : 2);
-        break;
-    }
-    case 14: { /* operands read in order (argument evaluation order is unspecified) */
-        uint8_t damage = u8(s);
-        uint8_t where = u8(s);
-        power_cycle(damage, where, u8(s));
-        break;
-    }
-    case 15: { /* a library operation on a slot (maybe one the library lacks) */
-        uint8_t sel = u8(s);
-        background = (sel & 4u) != 0; /* a store or delete that takes 1..8 ticks */
-        if (writing.ticks == 0) writing.total = (uint8_t)(1u + (sel >> 3) % 8u);
-        uint8_t page[CTL_STORE_KIND + 1 - CTL_WINDOW_PAGE];
-        memset(page, 0, sizeof page);
-        page[0] = CTL_PAGE_LIBRARY;
-        page[CTL_LIBRARY_SLOT - CTL_WINDOW_PAGE] = u8(s) % (LIB_SLOTS + 1u);
-        bytes(s, page + (CTL_STORE_NAME - CTL_WINDOW_PAGE), CTL_STORE_NAME_SIZE);
-        page[CTL_STORE_KIND - CTL_WINDOW_PAGE] = (uint8_t)(1u + u8(s) % 3u);
-        /* Window Page, then every field up to Store Kind, in one packet */
-        write_to_me(CTL_WINDOW_PAGE, page, CTL_STORE_KIND + 1u - CTL_WINDOW_PAGE);
-        if (sel % 3u == 0u) {
-            uint8_t cmd = CTL_COMMAND_LIBRARY_PLAY;
-            bool busy = writing.ticks > 0;
-            uint8_t state = ctl_state(d);
-            uint16_t len = d->active_len;
-            if (!write_to_me(CTL_COMMAND, &cmd, 1) && busy) {
-                CHECK(ctl_state(d) == state && d->active_len == len); /* refused: STORE_BUSY */
-            }
-        } else {
-            uint16_t len = (uint16_t)(u16(s) % (FUZZ_CAPACITY + 8u));
-            uint32_t crc = len <= FUZZ_CAPACITY ? crc_of(STAGING, len) : 0;
-            commit_as(len, crc,
-                      sel % 3u == 1u ? CTL_UPLOAD_COMMIT_LIBRARY_STORE
-                                     : CTL_UPLOAD_COMMIT_LIBRARY_DELETE);
-        }
-        break;
-    }
-    case 16: { /* the robot's buttons, held for a control tick */
-        now_ms += u8(s) % 20u;
-        uint8_t leds = ctl_buttons(d, u8(s), now_ms);
-        CHECK((leds & ~(CTL_LEDS_SLOT_1 | CTL_LEDS_SLOT_2 | CTL_LEDS_SLOT_4 | CTL_LEDS_PLAY)) == 0);
-        CHECK(d->lib.panel.slot < LIB_SLOTS);
-        break;
-    }
+    case 11: step_bus_schedule(s); break;
+    case 12: step_playback_register(s); break;
+    case 13: step_bus_reply(s); break;
+    case 14: step_power_cycle(s); break;
+    case 15: step_library(s); break;
+    case 16: step_buttons(s); break;
     case 17: upload_program(s); break;
     default: CHECK(0);
     }
@@ -1235,9 +934,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
      * ctl_init() again, which rebuilt every register's default (power_cycle() still runs
      * ctl_init() itself, so its coverage stays in the runs) */
     memcpy(d, fresh, sizeof *d);
-    for (unsigned k = 0; k < LIB_SLOTS; k++) library[k].kind = 0; /* the rest is read only when set */
-    writing.ticks = 0;
-    background = false;
+    store_model_reset();
     ctl_set_library(d, &fuzz_library);
     now_ms = (uint32_t)u16(&s) << 16; /* any starting time, including near the wrap */
     memset(&tick, 0, sizeof tick);

@@ -10,7 +10,8 @@
 #include "ax12_table.h"
 #include "ctl_table.h"
 
-/* The controller's limits, from protocol/controller.json (published as CTL_MAX_*). */
+/* The controller's limits, from host/snakebot/facts/devices/data/controller.json
+ * (published as CTL_MAX_*). */
 #define GT_MAX_JOINTS CTL_MAX_JOINTS
 #define GT_MAX_TABLE_BYTES CTL_MAX_TABLE_BYTES
 

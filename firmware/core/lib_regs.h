@@ -53,7 +53,7 @@ typedef struct {
     uint8_t name[16];   /* Store Name */
 } lib_device;
 
-/* The controller's side (ctl_device.c), declared here where lib_store is (the cffi
+/* The controller's side (ctl_state.c), declared here where lib_store is (the cffi
  * declarations are read header by header, in name order: lib_regs.h after lib_panel.h,
  * ctl_device.h before both). */
 /* The gait library's store, kept by the app; NULL: none. */

@@ -6,7 +6,7 @@
  * registers). Error: before its final rounding play_serp_ticks() is within 0.03 tick of
  * the exact ticks-per-radian * (A sin(theta) + phi0) (the sine is good to 1.5 / 32767), so
  * its result is within 0.53 tick of the exact value: the exact value rounded, except
- * where that lies within 0.03 of a half (tests/test_player_serpenoid.py). */
+ * where that lies within 0.03 of a half (tests/model/test_player_serpenoid.py). */
 #ifndef SNAKEBOT_PLAY_FIXED_H
 #define SNAKEBOT_PLAY_FIXED_H
 

@@ -11,13 +11,13 @@ import importlib.util
 import re
 from importlib import metadata
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 
 _EXTRA = re.compile(r"""extra\s*==\s*['"]([^'"]+)['"]""")
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
 
 
-class MissingExtraError(SnakebotError):
+class MissingExtraError(InputError):
     """A feature needs a package that is not installed."""
 
 

@@ -6,13 +6,15 @@ what the package needs at run time ships inside it (package data: the control ta
 :mod:`snakebot.facts.devices`, the firmware images through :mod:`snakebot.firmware`). These
 helpers serve code that runs from a checkout (an editable install): the tests, the code
 generators, the development harnesses. ``SNAKEBOT_PROTOCOL_DIR`` overrides the protocol
-directory.
+directory (read through :mod:`snakebot.settings`: a path that is not a directory is
+refused there, with the variable's name).
 """
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
+
+from snakebot.settings import lookup_path
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 """The checkout's root when snakebot is installed editable; meaningless otherwise (an
@@ -28,8 +30,10 @@ def in_checkout() -> bool:
 
 def protocol_dir() -> Path:
     """The repository's ``protocol/`` directory (``vectors/``, the layout documents)."""
-    override = os.environ.get("SNAKEBOT_PROTOCOL_DIR")
-    path = Path(override) if override else REPO_ROOT / "protocol"
+    override = lookup_path("SNAKEBOT_PROTOCOL_DIR")
+    if override is not None:
+        return override
+    path = REPO_ROOT / "protocol"
     if not path.is_dir():
         raise FileNotFoundError(
             f"protocol data not found at {path}: it is part of the snakebot repository; "

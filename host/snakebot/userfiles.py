@@ -13,10 +13,10 @@ from __future__ import annotations
 import os
 import stat
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 
 
-class FileTooLarge(SnakebotError):
+class FileTooLarge(InputError):
     """The file is larger than any valid file of its kind. ``size`` is its size in bytes
     when it has one (a regular file), else None (a device or pipe that goes on)."""
 

@@ -32,8 +32,9 @@ from hypothesis import strategies as st
 from snakebot.cli import main
 from snakebot.cli.errors import INTERNAL_ERROR
 from snakebot.cli.params import AngleListType, AngleType, NumberType, OutputPathType
+from snakebot.settings import resolve_int
 
-EXAMPLES = int(os.environ.get("SNAKEBOT_CLI_FUZZ_EXAMPLES", "40"))
+EXAMPLES = resolve_int("SNAKEBOT_CLI_FUZZ_EXAMPLES")
 FUZZ = settings(
     max_examples=EXAMPLES,
     deadline=None,

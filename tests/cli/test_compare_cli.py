@@ -16,9 +16,9 @@ import pytest
 from controller_cli_support import cli
 
 from snakebot.formats.gaittable import GaitTable, read_gait
+from snakebot.model.compare import table_angles
 from snakebot.model.robots import load_robot
 from snakebot.sim.controller_pty import ControllerPty
-from snakebot.workflows.compare import table_angles
 from snakebot.workflows.predict import predict_table
 
 pytestmark = pytest.mark.timeout(120)

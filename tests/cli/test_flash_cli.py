@@ -3,30 +3,18 @@
 from __future__ import annotations
 
 import json
-import random
 from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
+from flash_support import make_image, serve
 
 from snakebot.cli import main
-from snakebot.link.flash.image import identity_block
-from snakebot.sim.bootloader import APP_BASE, Bootloader, BootloaderFaults, BootloaderPty
+from snakebot.sim.bootloader import APP_BASE, Bootloader, BootloaderFaults
 
 pytestmark = pytest.mark.timeout(60)  # every wait has a bound: nothing may hang
 
 REPO = Path(__file__).resolve().parents[2]
-
-
-def make_image(path: Path, size: int, seed: int = 1) -> bytes:
-    """A plausible CM-530 application: stack at the top of RAM, reset handler inside, the
-    identity block after the eight vectors."""
-    rng = random.Random(seed)
-    vectors = [0x20010000, APP_BASE + 0x101, 0, 0, 0, 0, 0, APP_BASE + 32]
-    head = b"".join(v.to_bytes(4, "little") for v in vectors) + identity_block("cm530", 1, size)
-    data = head + bytes(rng.randrange(256) for _ in range(size - len(head)))
-    path.write_bytes(data)
-    return data
 
 
 @pytest.fixture(autouse=True)
@@ -34,11 +22,6 @@ def quick_waits(monkeypatch):
     # The bootloader's waits stay generous; only the host's idle listening is shortened.
     monkeypatch.setenv("SNAKEBOT_FLASH_QUIET_S", "0.05")
     monkeypatch.setenv("SNAKEBOT_FLASH_GO_TIMEOUT_S", "0.2")
-
-
-def serve(boot: Bootloader, **kwargs) -> BootloaderPty:
-    kwargs.setdefault("pace", False)
-    return BootloaderPty(boot, **kwargs)
 
 
 def run(*args: str):
@@ -53,7 +36,7 @@ def sum8(data: bytes) -> int:
 def test_flash_stores_the_image_byte_for_byte_and_starts_it(tmp_path):
     image = make_image(tmp_path / "fw.bin", 2000)
     boot = Bootloader(silence_s=0.3)
-    # The board "runs its application" for 0.3 s, then the user presses RESET; the line
+    # The board "runs its application" for 0.3 s, then the user presses MODE; the line
     # is paced at 57600 baud, as on the real link.
     with serve(boot, reset_after_s=0.3, pace=True) as server:
         result = run(str(tmp_path / "fw.bin"), "--port", server.device)

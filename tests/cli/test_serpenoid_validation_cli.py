@@ -47,4 +47,5 @@ def test_without_robot_the_controller_refusal_is_explained(controller):  # noqa:
     result = cli("serpenoid", "--port", controller.device, *ISSUE)
     assert result.exit_code == 2
     assert "refused SERPENOID (Refusal Reason AMPLITUDE)" in result.output
-    assert "lower --amplitude or --offset" in result.output
+    assert "lower the amplitude or the offset" in result.output
+    assert result.output.startswith("error: --amplitude, --offset, --steer: ")

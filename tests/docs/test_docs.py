@@ -1,6 +1,6 @@
-"""The documents: the API reference builds (`make docs`, pdoc), nothing in the repository
-points outside it, and docs/settings.md lists exactly the environment variables the
-code reads, with the code's defaults."""
+"""The documents: the API reference builds (`make docs`, pdoc) and its landing page's
+example runs, nothing in the repository points outside it, and docs/settings.md lists
+exactly the environment variables the code reads, with the code's defaults."""
 
 from __future__ import annotations
 
@@ -18,6 +18,7 @@ from snakebot.link.flash import settings as flash_settings
 from snakebot.link.transport import settings as transport_settings
 from snakebot.link.transport import timing
 from snakebot.paths import REPO_ROOT
+from snakebot.settings import SETTINGS
 
 SETTINGS_MD = REPO_ROOT / "docs" / "settings.md"
 
@@ -66,22 +67,39 @@ def test_make_docs_builds_the_api_reference(tmp_path: Path):
     assert result.returncode == 0, result.stderr
     # page -> a name it must document (pdoc gives each an anchor)
     expected = {
-        "snakebot.html": 'href="snakebot/kinematics.html"',
-        "snakebot/transport.html": 'id="DxlClient"',
-        "snakebot/controller.html": 'id="Controller"',
-        "snakebot/kinematics.html": 'id="body_velocity"',
-        "snakebot/robots.html": 'id="Robot"',
-        "snakebot/symbolic.html": 'id="lie_bracket"',
-        "snakebot/gait.html": 'id="Gait"',
-        "snakebot/flash.html": 'id="BoardLayout"',
+        "snakebot.html": 'href="snakebot/model.html"',
+        "snakebot/link/transport.html": 'id="DxlClient"',
+        "snakebot/facts/controller.html": 'id="Controller"',
+        "snakebot/model/kinematics.html": 'id="body_velocity"',
+        "snakebot/model/robots.html": 'id="Robot"',
+        "snakebot/model/symbolic.html": 'id="lie_bracket"',
+        "snakebot/model/gait.html": 'id="Gait"',
+        "snakebot/link/flash.html": 'id="BoardLayout"',
         "snakebot/sim/world.html": "snakebot.sim.world",
         "snakebot/cli.html": "snakebot.cli",
     }
+    landing = (out / "snakebot.html").read_text(encoding="utf-8")
+    for layer in ("facts", "formats", "model", "link", "sim", "workflows", "plots", "cli"):
+        assert f"snakebot.{layer}" in landing, f"the landing page does not name {layer}"
     for page, word in expected.items():
         path = out / page
         assert path.is_file(), f"{page} missing from the API reference"
         assert word in path.read_text(encoding="utf-8"), f"{page} does not document {word}"
     assert not list(out.rglob("_core*.html")), "private modules leaked into the reference"
+
+
+def test_the_landing_pages_example_runs():
+    """The package docstring is the API reference's landing page; its example runs."""
+    import doctest
+
+    import snakebot
+
+    parser = doctest.DocTestParser()
+    test = parser.get_doctest(snakebot.__doc__, {}, "snakebot", "snakebot/__init__.py", 0)
+    assert len(test.examples) >= 5, "the landing page has lost its example"
+    runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS)
+    runner.run(test)
+    assert runner.summarize(verbose=False).failed == 0
 
 
 def test_nothing_points_outside_the_repository():
@@ -126,53 +144,70 @@ def variables_read_by_the_code() -> set[str]:
     """SNAKEBOT_* names in the Python sources (C header guards are not variables)."""
     names = set()
     for name, text in tracked_text_files().items():
-        if name.endswith(".py") and name.startswith(("host/", "tests/", "tools/", "bench/")):
+        if name.endswith(".py") and name.startswith(("host/", "tests/", "bench/")):
             names |= set(ENV_NAME.findall(text))
     # A docstring's "SNAKEBOT_FLASH_*_S" wildcard is a family, not a variable.
     return {n for n in names if not n.endswith("_H") and not n.endswith("_")}
 
 
-def documented_defaults() -> dict[str, str]:
-    """Variable -> the default column of its row in docs/settings.md."""
-    rows = {}
+def documented_rows() -> dict[str, dict[str, str]]:
+    """Variable -> its row in docs/settings.md (column name -> cell)."""
+    rows: dict[str, dict[str, str]] = {}
+    header: list[str] = []
     for line in SETTINGS_MD.read_text(encoding="utf-8").splitlines():
-        m = re.match(r"\|\s*`(SNAKEBOT_[A-Z0-9_]+)`\s*\|([^|]*)\|", line)
+        if not line.startswith("|"):
+            header = []
+            continue
+        cells = [cell.strip() for cell in line.strip().strip("|").split("|")]
+        if cells[0] == "variable":
+            header = cells
+        m = re.fullmatch(r"`(SNAKEBOT_[A-Z0-9_]+)`", cells[0])
         if m:
+            assert header, f"{m.group(1)}: a row outside a table with a header"
             assert m.group(1) not in rows, f"{m.group(1)} has two rows in docs/settings.md"
-            rows[m.group(1)] = m.group(2).strip()
+            rows[m.group(1)] = dict(zip(header, cells, strict=True))
     return rows
 
 
-def test_settings_page_lists_exactly_the_variables_the_code_reads():
+def test_settings_page_lists_exactly_the_variables_of_the_one_table():
     code = variables_read_by_the_code()
-    documented = set(documented_defaults())
+    documented = set(documented_rows())
+    table = set(SETTINGS)
     assert len(code) >= 20  # the search works
-    assert code - documented == set(), "read by the code but not in docs/settings.md"
-    assert documented - code == set(), "in docs/settings.md but read nowhere"
+    assert code - table == set(), "named in the code but not in snakebot.settings.SETTINGS"
+    assert table - code == set(), "in the table but read nowhere"
+    assert table - documented == set(), "in the table but not in docs/settings.md"
+    assert documented - table == set(), "in docs/settings.md but not in the table"
 
 
-def _number(text: str) -> float:
-    return float(text.split()[0])
+def test_settings_page_rows_are_the_tables():
+    for name, row in documented_rows().items():
+        setting = SETTINGS[name]
+        default = setting.default_text()
+        if name == "SNAKEBOT_CONTROLLER_ID":  # a fact of the control table, above the root
+            default = f"{load_controller_table().default_id} ({setting.default_note})"
+        assert row["default"] == default, name
+        assert row["unit"] == setting.unit, name
+        assert row["range"] == setting.range_text(), name
 
 
-def test_settings_page_defaults_are_the_codes(monkeypatch):
-    monkeypatch.delenv(transport_settings.ENV_ECHO, raising=False)
-    rows = documented_defaults()
-    expected = {
-        transport_settings.ENV_RETRIES: transport_settings.DEFAULT_RETRIES,
-        transport_settings.ENV_LATENCY_MS: timing.USB_LATENCY_S * 1e3,
-        transport_settings.ENV_MARGIN_MS: timing.HOST_MARGIN_S * 1e3,
-        transport_settings.ENV_RETURN_DELAY_US: timing.DEFAULT_RETURN_DELAY_US,
-        transport_settings.ENV_ECHO_PROBE_MS: timing.ECHO_PROBE_MIN_S * 1e3,
-        upload_settings.ENV_UPLOAD_RETRIES: upload_settings.DEFAULT_UPLOAD_RETRIES,
-        upload_settings.ENV_UPLOAD_WINDOW: upload_settings.DEFAULT_UPLOAD_WINDOW,
-        "SNAKEBOT_CONTROLLER_ID": load_controller_table().default_id,
+def test_the_readers_defaults_are_the_tables(monkeypatch):
+    for name in SETTINGS:
+        monkeypatch.delenv(name, raising=False)
+    expected: dict[str, object] = {
+        transport_settings.ENV_RETRIES: transport_settings.resolve_retries(),
+        transport_settings.ENV_LATENCY_MS: transport_settings.resolve_latency_s() * 1e3,
+        transport_settings.ENV_MARGIN_MS: transport_settings.resolve_margin_s() * 1e3,
+        transport_settings.ENV_RETURN_DELAY_US: transport_settings.resolve_return_delay_us(),
+        transport_settings.ENV_ECHO_PROBE_MS: transport_settings.resolve_echo_probe_s() * 1e3,
+        transport_settings.ENV_ECHO: transport_settings.resolve_echo(),
+        upload_settings.ENV_UPLOAD_RETRIES: upload_settings.resolve_upload_retries(),
+        upload_settings.ENV_UPLOAD_WINDOW: upload_settings.resolve_upload_window(),
     }
-    defaults = flash_settings.FlashTimeouts()
+    resolved = flash_settings.FlashTimeouts.resolve()
     for field, env in flash_settings.ENV_NAMES.items():
-        expected[env] = getattr(defaults, field)
+        expected[env] = getattr(resolved, field)
     for env, value in expected.items():
-        assert _number(rows[env]) == pytest.approx(value), f"{env}: doc {rows[env]!r}"
-    pty_margin = f"({timing.PROGRAM_MARGIN_S * 1e3:g} for a controller on a pseudo-terminal)"
-    assert pty_margin in rows[transport_settings.ENV_MARGIN_MS]
-    assert rows[transport_settings.ENV_ECHO] == "`auto`" == f"`{transport_settings.resolve_echo()}`"
+        assert value == pytest.approx(SETTINGS[env].default), env
+    pty_margin = f"{timing.PROGRAM_MARGIN_S * 1e3:g} for a controller on a pseudo-terminal"
+    assert SETTINGS[transport_settings.ENV_MARGIN_MS].default_note == pty_margin

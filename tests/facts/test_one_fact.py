@@ -26,7 +26,7 @@ from protocol_support import gen_headers
 from snakebot.facts import devices
 from snakebot.paths import REPO_ROOT
 
-PYTHON_ROOTS = ("host", "tools", "bench", "tests/support")
+PYTHON_ROOTS = ("host", "bench", "tests/support", "tests/reliability/rig")
 C_ROOTS = ("firmware", "fuzz")
 EXCLUDED = (
     "host/snakebot/facts/devices/",

@@ -3,8 +3,8 @@ bus of three AX-12s, makes each servo's CW/CCW Angle Limit equal to the robot's 
 set from the host, writing the servo's EEPROM only where it differs and reading it back;
 refuses tables that reach beyond those limits; and will not move while a servo has not
 taken them. Under bus corruption no servo accepts a goal outside them (the campaigns
-``servo-limits-*``, run here for a few seconds; ``python -m tools.campaigns --only
-servo-limits-5pct --seconds 120`` for the long run)."""
+``servo-limits-*``, run here for a few seconds; ``python -m tests.reliability.rig.campaigns
+--only servo-limits-5pct --seconds 120`` for the long run)."""
 
 from __future__ import annotations
 
@@ -36,7 +36,7 @@ from snakebot.sim.bus.faults import FaultConfig
 from snakebot.sim.options import SimOptions
 from snakebot.sim.qemu import Endpoint, QemuFirmware
 from snakebot.sim.transports.unixsock import UnixSocketServer
-from tools.campaigns import FRAMES, IDS, LIMITS, PERIOD_MS, Rig, gait_table, run
+from tests.reliability.rig.campaigns import FRAMES, IDS, LIMITS, PERIOD_MS, Rig, gait_table, run
 
 # QEMU paces the PC link at 57600 baud in software: beside a CPU-bound suite on a 2-core
 # machine its replies can miss the client's deadline, so these are `serial` (run apart
@@ -258,7 +258,7 @@ def test_limits_set_from_the_robot_file_then_a_wider_table_is_refused(tmp_path):
         frames[0], frames[1] = 896, 198
         wide = GaitTable(wave.joint_ids, 20, True, ((24, 1000),) * len(wanted), frames, {})
         result = cli("upload", save(wide, tmp_path, "wide.gait"), "--port", port)
-        assert result.exit_code == 1, result.output  # refused by the controller: UploadError
+        assert result.exit_code == 2, result.output  # refused: the table is bad input
         assert "OUTSIDE_ROBOT_LIMITS" in result.stderr and "limits set" in result.stderr
         own = GaitTable(wave.joint_ids, 20, True, tuple(wanted), wave.frames, {})
         assert cli_json("upload", save(own, tmp_path), "--port", port)["bytes"] > 0

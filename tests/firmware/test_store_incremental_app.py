@@ -72,7 +72,7 @@ def app(tmp_path_factory):
         tmp_path_factory.mktemp("store_app"),
         MODELS,
         defines=[("HAL_FLASH_BUSY_POLLS", "500")],
-        include_dirs=["app", "core", "boards/cm530"],
+        include_dirs=["app", "core", "boards/cm530", "boards"],
         io16=True,
     )
     # the robot's panel, which these tests do not press (store_play_tick is not run)

@@ -2,10 +2,10 @@
 or the layers below it, ``link`` never reaches the emulator, and no two packages import
 each other, directly or round a loop.
 
-Layers, top to bottom (README, "Layout"): ``cli``, ``workflows``, ``plots``... no: ``cli``
-and ``plots`` draw what ``workflows`` return; ``sim`` and ``link`` sit side by side on
-``model``; then ``formats``, ``facts`` and the package root (``errors``, ``core``,
-``paths``, ``extras``, ``userfiles``, ``firmware``), which every layer may use.
+Layers, top to bottom (README, "Layout"): ``cli``; ``plots``, which draws what
+``workflows`` return; ``workflows``; ``sim`` and ``link`` side by side on ``model``; then
+``formats``, ``facts`` and the package root (``errors``, ``core``, ``paths``,
+``settings``, ``extras``, ``userfiles``, ``firmware``), which every layer may use.
 The imports are read from the source with ``ast``: nothing is imported to check them.
 """
 
@@ -157,6 +157,7 @@ def test_every_module_is_in_a_layer_folder_or_the_root() -> None:
         "snakebot.extras",
         "snakebot.firmware",
         "snakebot.paths",
+        "snakebot.settings",
         "snakebot.userfiles",
     }
 

@@ -9,7 +9,7 @@ import threading
 
 import pytest
 from click.testing import CliRunner
-from test_flash_cli import make_image, serve
+from flash_support import make_image, serve
 
 from snakebot.cli import main
 from snakebot.sim.bootloader import APP_BASE, Bootloader, BootloaderFaults

@@ -11,8 +11,8 @@ import shutil
 import pytest
 from click.testing import CliRunner
 from firmware_support import CM530_DIR, QEMU_DIR, build_firmware
+from flash_support import make_image, serve
 from intelhex import IntelHex
-from test_flash_cli import make_image, serve
 
 from snakebot.cli import main
 from snakebot.link.flash import load_image

@@ -6,8 +6,9 @@ import pytest
 
 from snakebot.link.flash import FlashTimeouts, ImageError, board_layout, checksum, load_image
 from snakebot.link.flash.bootloader import ChecksumReport, verify_checksum
-from snakebot.link.flash.errors import FlashError, FlashSettingError
+from snakebot.link.flash.errors import FlashError
 from snakebot.link.flash.image import FALLBACK_LAYOUT, identity_block
+from snakebot.settings import SettingError
 
 
 def vectors(sp: int, reset: int, base: int, size: int, board: str = "cm530") -> bytes:
@@ -87,7 +88,7 @@ def test_timeouts_from_environment_and_keywords(monkeypatch):
     assert timeouts.ready == 7.5 and timeouts.reset == 2.0
     assert timeouts.checksum_wait(4097) == pytest.approx(timeouts.checksum + 3 * timeouts.page_time)
     monkeypatch.setenv("SNAKEBOT_FLASH_READY_TIMEOUT_S", "-1")
-    with pytest.raises(FlashSettingError, match="SNAKEBOT_FLASH_READY_TIMEOUT_S='-1'"):
+    with pytest.raises(SettingError, match="SNAKEBOT_FLASH_READY_TIMEOUT_S='-1'"):
         FlashTimeouts.resolve()
 
 

@@ -14,6 +14,7 @@ from snakebot.link.transport import (
     reply_timeout_s,
     wire_time_s,
 )
+from snakebot.settings import SettingError
 
 
 def test_wire_time_is_ten_bits_per_byte():
@@ -121,7 +122,7 @@ def test_keywords_override_environment(clean_env):
 )
 def test_bad_environment_values_name_the_variable(clean_env, name, value):
     clean_env.setenv(name, value)
-    with pytest.raises(TransportSettingError, match=name):
+    with pytest.raises(SettingError, match=name):
         DxlClient("loop://")
 
 

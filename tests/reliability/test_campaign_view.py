@@ -1,9 +1,9 @@
-"""The fault campaigns' own view of the machine (tools/campaigns.py, ``Rig.check_view``):
-what the rig reads from the firmware's RAM through QEMU's monitor counts only once it is
-shown to be the running firmware's, so a wrong RAM map, an ELF from another build, or
-another QEMU's monitor is reported as the rig failing (``CampaignFailed``, exit 2), never
-as the firmware breaking a promise; and a real reboot is reported with the CPU's PC and
-SP and QEMU's log."""
+"""The fault campaigns' own view of the machine (``Rig.check_view`` in
+tests/reliability/rig/campaigns.py): what the rig reads from the firmware's RAM through
+QEMU's monitor counts only once it is shown to be the running firmware's, so a wrong RAM
+map, an ELF from another build, or another QEMU's monitor is reported as the rig failing
+(``CampaignFailed``, exit 2), never as the firmware breaking a promise; and a real
+reboot is reported with the CPU's PC and SP and QEMU's log."""
 
 from __future__ import annotations
 
@@ -17,8 +17,8 @@ import pytest
 from firmware_support import build_firmware
 
 from snakebot.sim.bus.faults import FaultConfig
-from tools import campaigns
-from tools.campaigns import CampaignFailed, RamMap, Rig, gait_table
+from tests.reliability.rig import campaigns
+from tests.reliability.rig.campaigns import CampaignFailed, RamMap, Rig, gait_table
 
 pytestmark = [pytest.mark.qemu, pytest.mark.slow, pytest.mark.serial]
 

@@ -1,14 +1,14 @@
-"""The gait library's power-cut campaign (tools/campaigns.py, `--only library-power-cut`):
-seeded stores and deletes on the flash store, most cut by a power failure at a random
-flash operation, and no slot ever found corrupted after a fresh start."""
+"""The gait library's power-cut campaign (`--only library-power-cut` of
+tests/reliability/rig/campaigns.py): seeded stores and deletes on the flash store, most
+cut by a power failure at a random flash operation, and no slot ever found corrupted
+after a fresh start."""
 
 from __future__ import annotations
 
-import os
+from snakebot.settings import resolve_int
+from tests.reliability.rig.campaigns import LIBRARY_CUT, main, run
 
-from tools.campaigns import LIBRARY_CUT, main, run
-
-SEED = int(os.environ.get("SNAKEBOT_CAMPAIGN_SEED", "1"))
+SEED = resolve_int("SNAKEBOT_CAMPAIGN_SEED")
 
 
 def test_no_power_cut_corrupts_a_slot():

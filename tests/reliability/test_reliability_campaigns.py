@@ -1,5 +1,5 @@
 """Fault campaigns on the emulated robot with the real firmware in QEMU
-(host/snakebot/sim/campaigns.py; docs/reliability.md has the table of results).
+(tests/reliability/rig/campaigns.py; docs/reliability.md has the table of results).
 
 Each campaign boots the qemu image on an emulated bus of three AX-12s, plays a table that
 is steered against its joint limits, injects its fault from a seed and checks, throughout:
@@ -11,16 +11,15 @@ and the numbers; rerun it alone with the command in the message.
 
 from __future__ import annotations
 
-import os
-
 import pytest
 from firmware_support import build_firmware
 
-from tools.campaigns import CAMPAIGNS, run
+from snakebot.settings import resolve_int
+from tests.reliability.rig.campaigns import CAMPAIGNS, run
 
 pytestmark = [pytest.mark.qemu, pytest.mark.slow, pytest.mark.serial]
 
-SEED = int(os.environ.get("SNAKEBOT_CAMPAIGN_SEED", "1"))
+SEED = resolve_int("SNAKEBOT_CAMPAIGN_SEED")
 
 
 @pytest.fixture(scope="module", autouse=True)

@@ -52,6 +52,7 @@ from snakebot.formats.protocol import (
     ServoError,
 )
 from snakebot.link.transport import DxlClient
+from snakebot.settings import resolve_int
 
 IDS = (1, 2)
 TABLE_BYTES = 64
@@ -492,7 +493,7 @@ def _flipped(reply: bytes, fault: Fault) -> bytes:
 
 
 TransportUnderFaults.TestCase.settings = settings(
-    max_examples=int(os.environ.get("SNAKEBOT_RELIABILITY_EXAMPLES", "25")),
+    max_examples=resolve_int("SNAKEBOT_RELIABILITY_EXAMPLES"),
     stateful_step_count=12,
     deadline=None,
 )

@@ -17,6 +17,7 @@ from typing import Any, TypeVar
 import pytest
 
 from snakebot.facts import devices
+from snakebot.facts.boards import APP_BASE as APP_BASE  # re-exported for the firmware tests
 from snakebot.facts.boards import PC_LINK_BAUD
 from snakebot.facts.controller import load as load_controller
 from snakebot.formats.protocol import DxlTimeout

@@ -9,7 +9,7 @@ import json
 
 import pytest
 from click.testing import CliRunner
-from test_plan import targets, within
+from plan_support import targets, within
 
 from snakebot.cli import main
 

@@ -1,9 +1,16 @@
-"""The ``snakebot`` command line: one small module per command group.
+"""The ``snakebot`` command line: the top layer, and nothing but a front.
 
-Each module defines a click command or group and is registered below. Commands parse
-their options, open what they need, call an operation from the library and print;
-errors become one line on stderr and an exit status: 1 runtime failure, 2 bad input,
-130 Ctrl-C (see ``errors``).
+One subpackage per command group with several commands (``bus``, ``controller``,
+``gait``, ``sim``) and one module per stand-alone command (``compare``, ``demo``,
+``doctor``, ``flash``, ``model``, ``plan``, ``program``, ``robot``); every command is
+registered below. A command parses its options, calls one operation from the library
+and prints; ``params`` holds the option types, ``output`` the JSON and text writers,
+``signals`` the Ctrl-C and hang-up handling. Errors become one line on stderr and an
+exit status: 1 runtime failure, 2 bad input, 130 Ctrl-C (see ``errors``).
+
+May import: every layer of the package (``plots``, ``workflows``, ``sim``, ``link``,
+``model``, ``formats``, ``facts``, the package root). Nothing in the package imports
+it but ``python -m snakebot``.
 """
 
 from __future__ import annotations

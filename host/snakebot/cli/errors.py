@@ -4,16 +4,22 @@ Exit statuses (the same for every command):
 
 * 0: done;
 * 1: a runtime failure, the input was fine: a controller or servo that does not answer,
-  an upload that did not land, a file that cannot be written (OSError);
-* 2: bad input: a usage error (click's), a value out of range, a malformed file, a port
-  that does not exist;
+  an upload that did not land, a controller in the safe state, a file that cannot be
+  written (OSError);
+* 2: bad input: a usage error (click's), a value out of range, a malformed file, a table
+  outside the robot's limits, a port that does not exist;
 * 130: interrupted with Ctrl-C (SIGINT);
 * 141: stdout was closed early (``snakebot ... | head``): nothing more is printed.
 
-Library errors (``SnakebotError``) carry a message that names the problem and the fix;
-operating-system errors (pyserial's ``SerialException`` is an ``OSError``) get their
-sentence too. Anything else is a bug in snakebot: it is reported as one line that says
-so (the traceback is shown with ``SNAKEBOT_DEBUG=1``), never as a traceback.
+The status follows the class, never a list: every library error is an
+``snakebot.errors.InputError`` (2) or an ``snakebot.errors.RuntimeFailure`` (1); an
+``OSError`` (pyserial's ``SerialException`` is one) is a runtime failure (1). Library
+errors carry a message that names the problem and the fix; when one says which parameter
+was at fault (``SnakebotError.about``), the message is prefixed with the running
+command's option for it (``error: --rate: the frame rate must be ...``). Anything else,
+a ``SnakebotError`` under neither base included, is a bug in snakebot: it is reported
+as one line that says so, status 1 (the traceback is shown with ``SNAKEBOT_DEBUG=1``),
+never as a traceback.
 """
 
 from __future__ import annotations
@@ -21,50 +27,75 @@ from __future__ import annotations
 import os
 import sys
 from collections.abc import Sequence
+from types import TracebackType
 from typing import Any
 
 import click
 
-from snakebot.errors import SnakebotError
-from snakebot.formats.protocol.errors import CorruptPacket, DxlTimeout, ServoError
-from snakebot.link.controller.errors import ControllerLinkError, UploadError
-from snakebot.link.flash.errors import FlashError, FlashSettingError, ImageError
-from snakebot.sim.errors import SimOptionError
+from snakebot.errors import InputError, RuntimeFailure
+from snakebot.settings import check_environment, is_set
 
 EXIT_RUNTIME = 1
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
 EXIT_BROKEN_PIPE = 141
-EXIT_FAILURE = EXIT_BAD_INPUT  # the status of a SnakebotError that is not a runtime failure
 
 INTERNAL_ERROR = "internal error"
 """Starts the message of an exception that is a bug; tests look for it."""
 
 DEBUG_ENV = "SNAKEBOT_DEBUG"
 
-RUNTIME_ERRORS: tuple[type[BaseException], ...] = (
-    DxlTimeout,
-    CorruptPacket,
-    ServoError,
-    ControllerLinkError,
-    UploadError,
-    FlashError,
-)
-"""Library errors that mean "the input was fine, the world did not cooperate"."""
-
-INPUT_ERRORS: tuple[type[BaseException], ...] = (ImageError, FlashSettingError, SimOptionError)
-"""Subclasses of runtime errors that are about the input after all."""
-
 
 def exit_status(exc: BaseException) -> int:
-    """The exit status for ``exc`` (see the module docstring)."""
-    if isinstance(exc, INPUT_ERRORS):
+    """The exit status for ``exc``, by its class (see the module docstring)."""
+    if isinstance(exc, KeyboardInterrupt):
+        return EXIT_INTERRUPTED
+    if isinstance(exc, InputError):
         return EXIT_BAD_INPUT
-    if isinstance(exc, RUNTIME_ERRORS):
-        return EXIT_RUNTIME
-    if isinstance(exc, SnakebotError):
-        return EXIT_BAD_INPUT
-    return EXIT_RUNTIME
+    return EXIT_RUNTIME  # RuntimeFailure, OSError, and bugs
+
+
+def is_reported(exc: BaseException) -> bool:
+    """Whether ``exc`` is printed as its own message (a classified library error or an
+    OSError), not as an internal error."""
+    return isinstance(exc, InputError | RuntimeFailure | OSError)
+
+
+def _command_context(tb: TracebackType | None) -> click.Context | None:
+    """The context of the innermost command the traceback ``tb`` ran through: the last
+    ``click.Context.invoke`` frame's (the one that called the command's callback)."""
+    found: click.Context | None = None
+    code = click.Context.invoke.__code__
+    while tb is not None:
+        if tb.tb_frame.f_code is code:
+            ctx = tb.tb_frame.f_locals.get("self")
+            if isinstance(ctx, click.Context):
+                found = ctx
+        tb = tb.tb_next
+    return found
+
+
+def option_names(exc: BaseException, ctx: click.Context | None) -> list[str]:
+    """The options of the command ``ctx`` that the parameters ``exc`` is about
+    (``SnakebotError.about``) came through, e.g. ``["--rate"]``; none it does not have."""
+    params = getattr(exc, "params", ())
+    if not params or ctx is None:
+        return []
+    by_name = {p.name: p for p in ctx.command.params if isinstance(p, click.Option)}
+    names = []
+    for name in params:
+        option = by_name.get(name)
+        if option is not None and option.opts:
+            names.append(max(option.opts, key=len))
+    return names
+
+
+def message(exc: BaseException, ctx: click.Context | None = None) -> str:
+    """``exc``'s one-line message, led by the options it is about, if ``ctx``'s
+    command has them."""
+    text = _one_line(str(exc) or type(exc).__name__)
+    options = option_names(exc, ctx)
+    return f"{', '.join(options)}: {text}" if options else text
 
 
 def _quiet_broken_pipe() -> None:
@@ -111,6 +142,8 @@ class SnakebotGroup(click.Group):
 
     def invoke(self, ctx: click.Context) -> Any:
         try:
+            if ctx.parent is None:
+                check_environment()  # a bad SNAKEBOT_* value: one line, exit 2, no work done
             return super().invoke(ctx)
         except (click.exceptions.Exit, click.ClickException, click.Abort):
             raise  # click's own: usage errors (2) and explicit exits
@@ -120,11 +153,13 @@ class SnakebotGroup(click.Group):
         except BrokenPipeError:
             _quiet_broken_pipe()
             ctx.exit(EXIT_BROKEN_PIPE)
-        except (SnakebotError, OSError) as exc:
-            click.echo(f"error: {_one_line(str(exc) or type(exc).__name__)}", err=True)
-            ctx.exit(exit_status(exc))
-        except Exception as exc:  # a bug: say so in one line, never a traceback
-            if os.environ.get(DEBUG_ENV):
+        except Exception as exc:
+            if is_reported(exc):
+                inner = _command_context(exc.__traceback__)
+                click.echo(f"error: {message(exc, inner)}", err=True)
+                ctx.exit(exit_status(exc))
+            # a bug: say so in one line, never a traceback
+            if is_set(DEBUG_ENV):
                 raise
             click.echo(
                 f"error: {INTERNAL_ERROR} ({type(exc).__name__}: {_one_line(str(exc))[:200]}); "

@@ -14,7 +14,7 @@ from snakebot.facts.boards import PC_LINK_BAUD
 from snakebot.firmware import image as firmware_image
 from snakebot.link.flash import FlashTimeouts, board_layout, flash, load_image
 from snakebot.link.flash.bootloader import RESET_HINT, last_line
-from snakebot.link.flash.errors import FlashError
+from snakebot.link.flash.errors import FlashFailed
 from snakebot.link.flash.image import image_info
 from snakebot.link.flash.library_backup import backup_library, restore_library
 from snakebot.link.flash.verify import Verified, verify_firmware
@@ -55,7 +55,7 @@ def _confirm_unverified(warning: str, yes: bool, out: TextIO) -> bool:
     if yes:
         return True
     if not _interactive():
-        raise FlashError(
+        raise FlashFailed(
             f"{warning}; the application was NOT started and nobody is at the terminal to "
             f"confirm: run again with --yes to start it anyway, or {RESET_HINT} and flash again"
         )

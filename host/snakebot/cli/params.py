@@ -13,7 +13,7 @@ from typing import Any, TypeVar
 
 import click
 
-from snakebot.model.gait.values import InputError, parse_angle, parse_angles
+from snakebot.model.gait.values import ExpressionError, parse_angle, parse_angles
 
 
 def _parsed(
@@ -32,7 +32,7 @@ def _parsed(
         )
     try:
         return parse(text)
-    except InputError as exc:
+    except ExpressionError as exc:
         kind.fail(str(exc), param, ctx)
     except (OverflowError, RecursionError, MemoryError, ValueError):
         kind.fail(f"{_shown(text)} is not a finite number", param, ctx)
@@ -237,3 +237,27 @@ def controller_port(server: str) -> Callable[[click.Context, click.Parameter, An
         return value
 
     return check
+
+
+class LazyChoice(click.Choice):
+    """A choice whose list lives in a module the CLI should not import at start-up: it is
+    read from ``module.attribute`` the first time the choices are needed (parsing the
+    option, or its help)."""
+
+    def __init__(self, module: str, attribute: str) -> None:
+        self._source = (module, attribute)
+        self._choices: tuple[str, ...] | None = None
+        self.case_sensitive = True
+
+    @property
+    def choices(self) -> tuple[str, ...]:  # type: ignore[override]
+        if self._choices is None:
+            import importlib
+
+            module, attribute = self._source
+            self._choices = tuple(getattr(importlib.import_module(module), attribute))
+        return self._choices
+
+    @choices.setter
+    def choices(self, value: Any) -> None:
+        self._choices = tuple(value)

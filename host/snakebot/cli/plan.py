@@ -13,7 +13,7 @@ from snakebot.cli.controller.link import controller_id_option
 from snakebot.cli.output import dumps
 from snakebot.cli.params import ANGLE, ANGLES, NUMBER, OUTPUT_PATH, controller_port
 from snakebot.facts.boards import TABLE_CAPACITY
-from snakebot.model.gait.values import InputError, parse_angle, parse_number
+from snakebot.model.gait.values import ExpressionError, parse_angle, parse_number
 from snakebot.model.plan import Unreachable
 from snakebot.model.plan.planner import (
     DEFAULT_BOARD,
@@ -41,7 +41,7 @@ class PoseType(click.ParamType):
             self.fail(f"{value!r} is not X,Y,THETA: give three comma-separated values", param, ctx)
         try:
             return (parse_number(parts[0]), parse_number(parts[1]), parse_angle(parts[2]))
-        except InputError as exc:
+        except ExpressionError as exc:
             self.fail(str(exc), param, ctx)
 
 

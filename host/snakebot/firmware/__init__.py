@@ -5,6 +5,8 @@ files as package data under ``snakebot/firmware/images/<board>/<file>`` (``setup
 copies them in), so ``snakebot demo``, ``sim serve`` and ``flash`` work from a plain
 ``pip install`` with neither a checkout nor a cross-compiler. An image built in the
 checkout wins, so a developer always runs what they just compiled.
+
+Part of the package root: every layer may import it; it imports only ``paths``.
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 import re
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 from snakebot.facts import devices
 from snakebot.facts.devices import Baud, DeviceError
 from snakebot.formats.protocol import (
@@ -42,7 +42,7 @@ STANDARD_REGISTERS = (0, *COMMON_REGISTERS, 103)
 fixed-rate values come from its description)."""
 
 
-class BusCommandError(SnakebotError):
+class BusCommandError(InputError):
     """A servo chore that cannot be done as asked; the message says why and what to do."""
 
 

@@ -1,12 +1,14 @@
 """Where a program takes the robot: its goals step by step from the host's reference of the
-fixed-point generators (``predict``), integrated by the kinematic model as a gait table's
-frames are; and, for ``snakebot sim predict``, the same program played by the
-controller's own player (the C core, program mode) on the emulated robot.
+fixed-point generators (:func:`snakebot.model.program_goals.predict`), integrated by the
+kinematic model as a gait table's frames are; and, for ``snakebot sim predict``, the same
+program played by the controller's own player (the C core, program mode) on the emulated
+robot.
 
 A program's goals hold between steps on the controller and the servos move to each at
 the speed that covers the change within one step, so the joints move linearly from step
 to step: the steps are the frames of a table played once, and everything the gait
-tables' prediction does (``gait.common.table_motion``, ``sim.predict``) applies as is.
+tables' prediction does (``model.gait.common.table_motion``, ``workflows.predict``)
+applies as is.
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ for the emulator's prediction (:mod:`snakebot.workflows.predict`)."""
 from __future__ import annotations
 
 from snakebot.core import ffi, lib
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 from snakebot.facts import devices
 from snakebot.facts.boards import CONTROL_TICK_MS
 from snakebot.formats.gaittable import GaitTable
@@ -31,7 +31,7 @@ FULL_SPEED = 256
 """The player's speed scale for the gait as written (its unit is 1/256)."""
 
 
-class PlayerError(SnakebotError):
+class PlayerError(InputError):
     """A table the controller's player refuses."""
 
 

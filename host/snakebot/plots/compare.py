@@ -8,6 +8,7 @@ from pathlib import Path
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from snakebot.plots.joints import draw_joints
 from snakebot.workflows.compare import Comparison
 
 
@@ -16,20 +17,8 @@ def plot_comparison(c: Comparison, out: str | Path) -> Path:
     fig = Figure(figsize=(12, 4.8), layout="constrained")
     FigureCanvasAgg(fig)
     ax_joints, ax_err = fig.subplots(1, 2)
-    for j, name in enumerate(c.names):
-        (line,) = ax_joints.plot(c.t, c.measured_deg[:, j], "-", label=name)
-        ax_joints.plot(c.t, c.predicted_deg[:, j], "--", color=line.get_color())
-        ax_err.plot(c.t, c.measured_deg[:, j] - c.predicted_deg[:, j], label=name)
-    ax_joints.set_title(f"joints: recorded (solid), predicted (dashed, from {c.lag_s:.2f} s)")
-    ax_joints.set_xlabel("time (s)")
-    ax_joints.set_ylabel("angle (deg)")
-    ax_joints.legend(fontsize="x-small", ncol=2)
-    ax_joints.grid(alpha=0.3)
-    ax_err.set_title("recorded minus predicted")
-    ax_err.set_xlabel("time (s)")
-    ax_err.set_ylabel("error (deg)")
-    ax_err.legend(fontsize="x-small", ncol=2)
-    ax_err.grid(alpha=0.3)
+    draw_joints(ax_joints, ax_err, c.joints, "recorded", f"predicted from {c.lag_s:.2f} s")
+    ax_joints.set_xlabel("time since the run's first sample (s)")
     out = Path(out)
     fig.savefig(out, dpi=100)
     return out

@@ -6,10 +6,9 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
-
 from snakebot.extras import available
 from snakebot.model.robots import Robot, load_robot
+from snakebot.plots.joints import draw_joints
 from snakebot.plots.video import write_video
 from snakebot.workflows.demo import Comparison, DemoResult, Say, _why
 
@@ -50,31 +49,7 @@ def plot_demo(robot: Robot, comparison: Comparison, out: Path) -> Path:
     )
     ax_path.legend(fontsize="small")
     ax_path.grid(alpha=0.3)
-    t = comparison.joint_t - comparison.window_s[0]
-    colours = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown"]
-    for j, joint in enumerate(robot.joints):
-        c = colours[j % len(colours)]
-        ax_joints.plot(
-            t,
-            np.degrees(comparison.joint_commanded[:, j]),
-            "--",
-            color=c,
-            linewidth=1,
-            label=f"{joint.name} commanded",
-        )
-        ax_joints.plot(
-            t,
-            np.degrees(comparison.joint_measured[:, j]),
-            "-",
-            color=c,
-            linewidth=1.5,
-            alpha=0.7,
-            label=f"{joint.name} measured",
-        )
+    draw_joints(ax_joints, None, comparison.joints, "measured", "commanded", comparison.window_s[0])
     ax_joints.set_xlabel("time since the measured cycles began (s)")
-    ax_joints.set_ylabel("joint angle (deg)")
-    ax_joints.set_title("joint angles: commanded by the firmware vs the servos' positions")
-    ax_joints.legend(fontsize="x-small", ncol=2)
-    ax_joints.grid(alpha=0.3)
     fig.savefig(out, dpi=100)
     return out

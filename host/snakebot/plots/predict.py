@@ -11,6 +11,7 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from snakebot.plots.joints import draw_joints
 from snakebot.workflows.predict import Prediction
 
 
@@ -50,26 +51,7 @@ def plot_prediction(result: Prediction, out: str | Path) -> Path:
     ax_path.legend(fontsize="small")
     ax_path.grid(alpha=0.3)
 
-    names = [j.name for j in result.robot.joints]
-    for j, name in enumerate(names):
-        line = ax_joints.plot(em.t, np.degrees(em.phi[:, j]), "-", label=f"{name} servo")[0]
-        ax_joints.plot(
-            pr.t, np.degrees(pr.q[:, 3 + j]), ":", color=line.get_color(), label=f"{name} table"
-        )
-        ax_err.plot(
-            em.t, np.degrees(result.joint_error[:, j]), "-", color=line.get_color(), label=name
-        )
-    ax_joints.set_xlabel("time (s)")
-    ax_joints.set_ylabel("joint angle (deg)")
-    ax_joints.set_title("joint angles: servos (solid) and table (dotted)")
-    ax_joints.legend(fontsize="x-small", ncol=2)
-    ax_joints.grid(alpha=0.3)
-    ax_err.set_xlabel("time (s)")
-    ax_err.set_ylabel("servo minus table (deg)")
-    ax_err.set_title("joint tracking error")
-    ax_err.legend(fontsize="small")
-    ax_err.grid(alpha=0.3)
-
+    draw_joints(ax_joints, ax_err, result.joints, "servo", "table")
     out = Path(out)
     fig.savefig(out, dpi=100)
     return out

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, NamedTuple, Protocol
 
 import numpy as np
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 from snakebot.extras import require
 from snakebot.model.robots import Robot
 
@@ -29,7 +29,7 @@ MAX_FRAMES = 300
 COLORS = ("tab:blue", "tab:orange", "tab:green", "tab:red")
 
 
-class VideoError(SnakebotError):
+class VideoError(InputError):
     """A video that cannot be written as asked."""
 
 

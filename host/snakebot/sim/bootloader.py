@@ -351,7 +351,7 @@ class BootloaderPty(Server):
             print(server.device)   # give this to `snakebot flash --port`
 
     ``reset_after_s``: the board is "running its application" (silent) until this many
-    seconds after :meth:`start`, then resets, as when a user presses RESET; None resets at
+    seconds after :meth:`start`, then resets, as when a user presses MODE; None resets at
     once. ``pace``: take the client's bytes at the line's speed (False: as fast as they
     come, for quick tests). ``link``: also make a symlink at this path to the device.
     ``on_go``: after GO, start the stored image with this :data:`Handover` and relay the
@@ -408,7 +408,7 @@ class BootloaderPty(Server):
         return self
 
     def press_reset(self) -> None:
-        """Reset the emulated board now (from any thread)."""
+        """Reset the emulated board now, as pressing MODE does (from any thread)."""
         with self._lock:
             self._pending_reset = True
         self._wake()

@@ -36,7 +36,7 @@ from snakebot.core import ffi, lib
 from snakebot.model.player import TICK_MS
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.bus.clock import byte_time
-from snakebot.sim.errors import SimError
+from snakebot.sim.errors import SimInputError
 from snakebot.sim.options import SimOptions
 from snakebot.sim.transports.base import RawPty, ThreadedServer
 from snakebot.sim.transports.pump import ServerThread
@@ -220,7 +220,7 @@ class ControllerDevice:
         self._bus_out = ffi.new("uint8_t[]", lib.CTL_BUS_TX_MAX)
         self._reply_len = ffi.new("uint8_t *")
         if table is not None and not lib.ctl_load_table(self.d, table, len(table)):
-            raise SimError("the initial table does not validate: write it with write_gait")
+            raise SimInputError("the initial table does not validate: write it with write_gait")
         lib.ctl_table_changed(self.d)
 
     def feed(self, data: bytes, now_ms: int) -> bytes:

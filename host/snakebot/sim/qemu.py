@@ -60,7 +60,8 @@ from types import TracebackType
 from typing import Any
 
 from snakebot.firmware import image as firmware_image
-from snakebot.sim.errors import SimError
+from snakebot.settings import lookup_text
+from snakebot.sim.errors import SimFailure
 from snakebot.sim.transports.relay import PtyRelay
 from snakebot.sim.workdirs import make_workdir
 
@@ -84,7 +85,7 @@ PC_LINK_SERIAL_INDEX = 2  # USART3
 SERIAL_COUNT = 3  # USART1..3 on the stm32f100 SoC
 
 
-class QemuError(SimError):
+class QemuError(SimFailure):
     """QEMU could not be started, or stopped, as asked."""
 
 
@@ -139,11 +140,13 @@ class QemuPorts:
 
 def find_qemu() -> str:
     """The qemu-system-arm executable, or :class:`QemuError` saying how to install it."""
-    name = os.environ.get("SNAKEBOT_QEMU", QEMU_BINARY)
-    found = shutil.which(name)
+    chosen = lookup_text("SNAKEBOT_QEMU")  # checked there: found, or SettingError
+    if chosen is not None:
+        return chosen
+    found = shutil.which(QEMU_BINARY)
     if found is None:
         raise QemuError(
-            f"{name} not found: install QEMU's ARM system emulator (make setup, or "
+            f"{QEMU_BINARY} not found: install QEMU's ARM system emulator (make setup, or "
             "apt-get install qemu-system-arm), or set SNAKEBOT_QEMU to its path"
         )
     return found

@@ -52,7 +52,7 @@ from snakebot.formats.protocol import DxlTimeout, ProtocolError
 from snakebot.link.transport import DxlClient
 from snakebot.model.robots import Robot, load_robot
 from snakebot.sim.bus.bus import Bus
-from snakebot.sim.errors import SimError
+from snakebot.sim.errors import SimFailure, SimInputError, SimOptionError
 from snakebot.sim.options import SimOptions
 from snakebot.sim.physics import PhysicsWorld
 from snakebot.sim.physics.select import DEFAULT_WORLD, check_world, make_world
@@ -78,7 +78,7 @@ BOOT_PING_MARGIN_S = 0.2
 """Reply margin of the boot-time PINGs (QEMU may be descheduled on a busy machine)."""
 
 
-class ServeError(SimError):
+class ServeError(SimFailure):
     """The emulated robot could not be started as asked (the message says how to fix it)."""
 
 
@@ -111,14 +111,14 @@ def _elf_segments(path: Path) -> list[tuple[int, bytes]]:
     little-endian ARM ELF, or ServeError naming what is wrong with the file."""
     data = path.read_bytes()
     if data[:4] != b"\x7fELF" or len(data) < 52:
-        raise ServeError(
+        raise SimInputError(
             f"{path} is not an ELF file: give build/qemu/firmware.elf or a raw flash image (.bin)"
         )
     if data[4] != 1 or data[5] != 1:
-        raise ServeError(f"{path} is not a 32-bit little-endian ELF: is it an ARM firmware?")
+        raise SimInputError(f"{path} is not a 32-bit little-endian ELF: is it an ARM firmware?")
     machine = struct.unpack_from("<H", data, 18)[0]
     if machine != 40:  # EM_ARM
-        raise ServeError(
+        raise SimInputError(
             f"{path} is an ELF for machine {machine}, not ARM: build the "
             "firmware with `make firmware`"
         )
@@ -132,7 +132,7 @@ def _elf_segments(path: Path) -> list[tuple[int, bytes]]:
         if p_type == 1 and p_filesz:  # PT_LOAD with contents (its load address: p_paddr)
             segments.append((p_paddr, data[p_offset : p_offset + p_filesz]))
     if not segments:
-        raise ServeError(f"{path} has nothing to load: rebuild it with `make firmware`")
+        raise SimInputError(f"{path} has nothing to load: rebuild it with `make firmware`")
     return segments
 
 
@@ -151,7 +151,7 @@ def flash_image(firmware: str | os.PathLike[str], out: str | os.PathLike[str]) -
             else "check the path; `make firmware` builds build/qemu/firmware.elf in a "
             f"checkout (the default without --firmware: {DEFAULT_FIRMWARE})"
         )
-        raise ServeError(f"firmware image {src} not found: {hint}")
+        raise SimInputError(f"firmware image {src} not found: {hint}")
     dest = Path(out)
     if src.read_bytes()[:4] != b"\x7fELF":
         shutil.copyfile(src, dest)
@@ -167,7 +167,7 @@ def flash_image(firmware: str | os.PathLike[str], out: str | os.PathLike[str]) -
             None,
         )
         if stub is None:
-            raise ServeError(
+            raise SimInputError(
                 f"{src} is an application image but no boot stub (stub.elf) was "
                 "found beside it: run `make firmware`"
             )
@@ -177,7 +177,7 @@ def flash_image(firmware: str | os.PathLike[str], out: str | os.PathLike[str]) -
     for addr, blob in segments:
         start = addr - FLASH_BASE
         if start < 0 or start + len(blob) > FLASH_SIZE:
-            raise ServeError(
+            raise SimInputError(
                 f"{src}: a segment at 0x{addr:08x} ({len(blob)} bytes) is outside "
                 "the emulated board's 128 KB flash: build it for the qemu board "
                 "(`make firmware` builds build/qemu/firmware.elf)"
@@ -267,10 +267,10 @@ class EmulatedRobot:
             image = flash_image(self.firmware, Path(self._workdir) / "flash.bin")
             options = SimOptions.from_query(self.sim_query)
             if options.robot or options.ids:
-                raise ServeError(
-                    "the robot's servos come from --robot: leave robot= and ids= "
+                raise SimOptionError(
+                    "the robot's servos come from the robot given: leave robot= and ids= "
                     "out of the emulator options"
-                )
+                ).about("robot")
             source = self.robot.source or self.robot.name
             self._bus = replace(options, robot=source).build_bus()
             sock = Path(self._workdir) / "bus.sock"

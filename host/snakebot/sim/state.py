@@ -14,7 +14,7 @@ import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
-from snakebot.sim.errors import SimError
+from snakebot.sim.errors import SimInputError
 from snakebot.sim.servo.fast import VirtualServo
 from snakebot.userfiles import new_file_mode
 
@@ -50,13 +50,13 @@ class EepromStore:
             saved = doc["servos"]
             images = [(entry["model"], bytes.fromhex(entry["eeprom"])) for entry in saved]
         except (OSError, ValueError, KeyError, TypeError) as exc:
-            raise SimError(
+            raise SimInputError(
                 f"cannot use the servo state file {self.path}: {exc}; delete it to start "
                 "from factory settings"
             ) from exc
         models = [s.model for s in servos]
         if [m for m, _ in images] != models:
-            raise SimError(
+            raise SimInputError(
                 f"the servo state file {self.path} describes servos "
                 f"{[m for m, _ in images]}, but this bus has {models}: use the same robot "
                 "or servo list as when the file was made, or delete the file"
@@ -65,7 +65,7 @@ class EepromStore:
             try:
                 servo.load_eeprom(image)
             except ValueError as exc:
-                raise SimError(f"servo state file {self.path}: {exc}; delete it") from exc
+                raise SimInputError(f"servo state file {self.path}: {exc}; delete it") from exc
 
     def _changed(self, _servo: VirtualServo) -> None:
         self.save()

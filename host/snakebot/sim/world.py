@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 from snakebot.model.gait.common import PREDICT_OPTIONS
 from snakebot.model.kinematics import KinematicsError, Options, Table, integrate_joints
 from snakebot.model.robots import Friction, Robot
@@ -39,7 +39,7 @@ DEFAULT_BATCH = 256
 """Samples integrated per C call (fewer when the pose is asked for sooner)."""
 
 
-class WorldError(SnakebotError):
+class WorldError(InputError):
     """The world cannot move the body as the servos ask (see the message for the fix)."""
 
 

@@ -11,15 +11,15 @@ from __future__ import annotations
 import csv
 import json
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 from snakebot.formats.gaittable import GaitTable
+from snakebot.model.compare import JointTrack, best_lag, joint_names, table_angles
 from snakebot.model.robots.model import Robot
 from snakebot.userfiles import FileTooLarge, read_bounded
 from snakebot.workflows.predict import predict_table
@@ -30,7 +30,7 @@ RUN_MAX = 256 * 1024 * 1024
 POSE_COLUMNS = ("pose_x", "pose_y", "pose_theta")
 
 
-class CompareError(SnakebotError):
+class CompareError(InputError):
     """A run or gait that cannot be compared (exit 2)."""
 
 
@@ -116,36 +116,6 @@ def load_run(path: str | Path) -> Run:
     return Run(np.array(times)[keep], ids, ticks[keep], None if pose is None else pose[keep])
 
 
-def table_angles(robot: Robot, table: GaitTable, t: np.ndarray) -> np.ndarray:
-    """The joint angles (rad) the table asks for at times ``t`` (s) from its start: linear
-    between frames; a loop wraps, a single pass holds its last frame."""
-    frames = robot.ticks_to_angles(table.frames)
-    period = table.frame_period_ms / 1000.0
-    if table.loop:
-        frames = np.vstack([frames, frames[:1]])
-        span = period * table.frame_count
-        t = np.mod(t, span)
-    grid = np.arange(len(frames)) * period
-    return np.column_stack([np.interp(t, grid, frames[:, j]) for j in range(frames.shape[1])])
-
-
-def best_lag(
-    t: np.ndarray, measured: np.ndarray, predicted: Callable[[np.ndarray], np.ndarray], span: float
-) -> float:
-    """The start time in the prediction (0..span s) that makes ``predicted(t + lag)`` best
-    match ``measured`` (normalised cross-correlation of the zero-mean signals)."""
-    dt = float(np.median(np.diff(t)))
-    lags = np.arange(0.0, max(span, dt), dt / 2)
-    m = measured - measured.mean()
-    scores = []
-    for lag in lags:
-        p = predicted(t + lag)
-        p = p - p.mean()
-        denom = math.sqrt(float(m @ m) * float(p @ p)) or 1.0
-        scores.append(float(m @ p) / denom)
-    return float(lags[int(np.argmax(scores))])
-
-
 def _pose_at(robot: Robot, table: GaitTable, t: np.ndarray) -> np.ndarray:
     """The body pose the table's motion integrates to at times ``t`` (from its start),
     passes composed for a looping table."""
@@ -174,27 +144,16 @@ class Comparison:
     """The run against the prediction, after alignment."""
 
     lag_s: float
-    t: np.ndarray  # run times from its first sample
-    measured_deg: np.ndarray
-    predicted_deg: np.ndarray
-    names: tuple[str, ...]
+    joints: JointTrack  # times from the run's first sample
     pose_error: np.ndarray | None  # distance (m) per sample, when the run has a pose
 
     def summary(self) -> dict[str, Any]:
-        err = self.measured_deg - self.predicted_deg
-        joints = [
-            {
-                "joint": name,
-                "rms_deg": round(float(np.sqrt(np.mean(err[:, j] ** 2))), 3),
-                "max_deg": round(float(np.abs(err[:, j]).max()), 3),
-            }
-            for j, name in enumerate(self.names)
-        ]
+        t = self.joints.t
         out: dict[str, Any] = {
-            "samples": len(self.t),
-            "duration_s": round(float(self.t[-1] - self.t[0]), 3),
+            "samples": len(t),
+            "duration_s": round(float(t[-1] - t[0]), 3),
             "start_in_gait_s": round(self.lag_s, 4),
-            "joints": joints,
+            "joints": self.joints.per_joint(),
         }
         if self.pose_error is not None:
             out["pose"] = {
@@ -233,5 +192,4 @@ def compare(run: Run, table: GaitTable, robot: Robot) -> Comparison:
         px = run.pose[0, 0] + c * dx - s * dy
         py = run.pose[0, 1] + s * dx + c * dy
         pose_error = np.hypot(run.pose[:, 0] - px, run.pose[:, 1] - py)
-    names = tuple(j.name for j in robot.joints)
-    return Comparison(lag, t, np.degrees(measured), np.degrees(predicted), names, pose_error)
+    return Comparison(lag, JointTrack(t, joint_names(robot), measured, predicted), pose_error)

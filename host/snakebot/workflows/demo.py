@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import RuntimeFailure
 from snakebot.extras import install_hint
 from snakebot.formats.gaittable import GaitTable, write_gait
 from snakebot.link.controller import load as load_controller
@@ -49,6 +49,7 @@ from snakebot.link.controller.client import ControllerClient
 from snakebot.link.controller.monitor import Sample, render, sample
 from snakebot.link.controller.playback import play, stop
 from snakebot.link.controller.upload import UploadReport, upload_gait
+from snakebot.model.compare import JointTrack, interp_rows, joint_names, motion, relative
 from snakebot.model.gait import serpenoid
 from snakebot.model.gait.common import motion_frame, table_motion
 from snakebot.model.robots import Robot, load_robot
@@ -84,7 +85,7 @@ RESIDUAL_SAFETY = 2.0
 Say = Callable[[str], None]
 
 
-class DemoError(SnakebotError):
+class DemoError(RuntimeFailure):
     """The demo could not run to the end (the message says what went wrong and what to do)."""
 
 
@@ -151,27 +152,6 @@ def commanded(angles: np.ndarray, phase: np.ndarray) -> np.ndarray:
 # -- the comparison -----------------------------------------------------------------------
 
 
-def _motion(q_end: np.ndarray) -> dict[str, float]:
-    dx, dy, dth = (float(v) for v in q_end[:3])
-    return {
-        "dx": dx,
-        "dy": dy,
-        "dtheta": dth,
-        "distance": math.hypot(dx, dy),
-        "direction_deg": math.degrees(math.atan2(dy, dx)),
-        "turn_deg": math.degrees(dth),
-    }
-
-
-def _relative(pose0: np.ndarray, poses: np.ndarray) -> np.ndarray:
-    """Poses in the frame of ``pose0`` (+x along its heading: gait.common.motion_frame)."""
-    c, s = math.cos(pose0[2]), math.sin(pose0[2])
-    d = poses[:, :2] - pose0[:2]
-    return np.column_stack(
-        [c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], poses[:, 2] - pose0[2]]
-    )
-
-
 def predicted_motion(
     robot: Robot,
     angles: np.ndarray,
@@ -205,8 +185,6 @@ class Comparison:
     predicted: dict[str, float]
     difference_m: float
     lag_s: float
-    tracking_max_rad: float
-    tracking_rms_rad: float
     residual_max_rad: float
     lag_effect_m: float
     sensitivity_m_per_rad: float
@@ -215,9 +193,7 @@ class Comparison:
     window_s: tuple[float, float]
     emulated_path: np.ndarray = field(repr=False)
     predicted_path: np.ndarray = field(repr=False)
-    joint_t: np.ndarray = field(repr=False)
-    joint_commanded: np.ndarray = field(repr=False)
-    joint_measured: np.ndarray = field(repr=False)
+    joints: JointTrack = field(repr=False)  # measured by the servos, commanded by the firmware
     physics: dict[str, Any] | None = None
     """With the physics world: what it adds (see :func:`physics_effects`)."""
 
@@ -235,8 +211,8 @@ class Comparison:
             "reason": "servo lag" if self.physics is None else "servo lag and physics",
             "servo_lag_ms": round(1000 * self.lag_s, 1),
             "tracking_error_deg": {
-                "max": round(math.degrees(self.tracking_max_rad), 3),
-                "rms": round(math.degrees(self.tracking_rms_rad), 3),
+                "max": round(math.degrees(self.joints.max_rad), 3),
+                "rms": round(math.degrees(self.joints.rms_rad), 3),
                 "max_after_lag": round(math.degrees(self.residual_max_rad), 3),
             },
             "lag_effect_m": round(self.lag_effect_m, 6),
@@ -249,10 +225,6 @@ class Comparison:
 
 def _rounded(d: dict[str, float]) -> dict[str, float]:
     return {k: round(v, 6) for k, v in d.items()}
-
-
-def _interp_rows(t: np.ndarray, ts: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    return np.column_stack([np.interp(t, ts, rows[:, j]) for j in range(rows.shape[1])])
 
 
 def compare(
@@ -297,18 +269,18 @@ def compare(
     lag = float(lags[int(np.argmin(errors))])
     residual_max = float(np.abs(measured - cmd(lag)).max())
 
-    pose_a = _interp_rows(np.array([t_a]), record.t, record.pose)[0]
+    pose_a = interp_rows(np.array([t_a]), record.t, record.pose)[0]
     em_t = np.concatenate([[t_a], t, [t_b]])
-    em_pose = _relative(pose_a, _interp_rows(em_t, record.t, record.pose))
-    emulated = _motion(em_pose[-1])
+    em_pose = relative(pose_a, interp_rows(em_t, record.t, record.pose))
+    emulated = motion(em_pose[-1])
 
     # The table's own time runs at ``rate`` x world time (QEMU's clock may lag the wall).
     rate = (target_b - target_a) * period_s / (t_b - t_a)
     path = predicted_motion(robot, angles, period_s, cycles, samples=200 * cycles + 1)
-    predicted = _motion(path[-1])
+    predicted = motion(path[-1])
 
     def shift(delay_s: float) -> float:
-        moved = _motion(predicted_motion(robot, angles, period_s, cycles, delay_s * rate)[-1])
+        moved = motion(predicted_motion(robot, angles, period_s, cycles, delay_s * rate)[-1])
         return math.hypot(moved["dx"] - predicted["dx"], moved["dy"] - predicted["dy"])
 
     lag_effect = shift(lag)
@@ -327,8 +299,6 @@ def compare(
         predicted=predicted,
         difference_m=math.hypot(emulated["dx"] - predicted["dx"], emulated["dy"] - predicted["dy"]),
         lag_s=lag,
-        tracking_max_rad=float(np.abs(measured - plain).max()),
-        tracking_rms_rad=float(np.sqrt(np.mean((measured - plain) ** 2))),
         residual_max_rad=residual_max,
         lag_effect_m=lag_effect,
         sensitivity_m_per_rad=sensitivity,
@@ -337,9 +307,7 @@ def compare(
         window_s=(t_a, t_b),
         emulated_path=em_pose,
         predicted_path=path,
-        joint_t=t,
-        joint_commanded=plain,
-        joint_measured=measured,
+        joints=JointTrack(t, joint_names(robot), measured, plain),
     )
 
 
@@ -352,9 +320,7 @@ def physics_effects(
     electrical energy (J) and peak load over the whole run."""
     angles = robot.ticks_to_angles(table.frames.astype(float))
     free_wheels = replace(robot, friction=replace(robot.friction, rolling=0.0, axle_nm=0.0))
-    free = _motion(
-        predicted_motion(free_wheels, angles, table.frame_period_ms / 1000.0, cycles)[-1]
-    )
+    free = motion(predicted_motion(free_wheels, angles, table.frame_period_ms / 1000.0, cycles)[-1])
     e = comparison.emulated
     t_a, t_b = comparison.window_s
     inside = (record.t >= t_a) & (record.t <= t_b)
@@ -600,8 +566,8 @@ def summary_lines(result: DemoResult) -> list[str]:
             else f"MORE than the {100 * c.tolerance_m:.1f} cm the servo lag explains"
         ),
         f"   reason: servo lag. The servos trail the commanded joints by "
-        f"{1000 * c.lag_s:.0f} ms (largest joint error {math.degrees(c.tracking_max_rad):.1f}"
-        f" deg, rms {math.degrees(c.tracking_rms_rad):.1f} deg); a delay that long moves the "
+        f"{1000 * c.lag_s:.0f} ms (largest joint error {math.degrees(c.joints.max_rad):.1f}"
+        f" deg, rms {math.degrees(c.joints.rms_rad):.1f} deg); a delay that long moves the "
         f"prediction by {100 * c.lag_effect_m:.1f} cm, and the rest of the tracking error "
         f"(at most {math.degrees(c.residual_max_rad):.2f} deg) can add "
         f"{100 * RESIDUAL_SAFETY * c.sensitivity_m_per_rad * c.residual_max_rad:.1f} cm.",

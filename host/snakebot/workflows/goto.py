@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 from snakebot.formats.gaittable import GaitTable
 from snakebot.formats.protocol import sync_write
 from snakebot.link.transport import DxlClient
@@ -91,7 +91,7 @@ WAYPOINT_SHARE = 0.5
 SHRINK_MIN, SHRINK_MAX = 0.2, 1.5
 
 
-class GotoError(SnakebotError):
+class GotoError(InputError):
     """The closed loop cannot run as asked."""
 
 

@@ -39,6 +39,7 @@ from snakebot.formats.program.errors import ProgramError
 from snakebot.formats.program.files import read_program
 from snakebot.formats.protocol import sync_write
 from snakebot.link.transport import DxlClient
+from snakebot.model.compare import JointTrack, joint_names
 from snakebot.model.gait.common import (
     TableMotion,
     motion,
@@ -101,9 +102,16 @@ class Prediction:
         return self.duration_s / self.wall_s if self.wall_s > 0 else math.inf
 
     @property
+    def joints(self) -> JointTrack:
+        """The servos' angles beside the table's, per sample and joint."""
+        return JointTrack(
+            self.emulated.t, joint_names(self.robot), self.emulated.phi, self.predicted.q[:, 3:]
+        )
+
+    @property
     def joint_error(self) -> np.ndarray:
         """Servo angle minus table angle (radians), per sample and joint."""
-        return self.emulated.phi - self.predicted.q[:, 3:]
+        return self.joints.error
 
     @property
     def path_error(self) -> np.ndarray:
@@ -115,7 +123,7 @@ class Prediction:
         """JSON-able report: emulated and predicted motion, their difference, speed."""
         em = self.emulated.displacement()
         pr = motion(self.predicted)
-        err = self.joint_error
+        joints = self.joints
         pred_slip = self.predicted.slip
         out: dict[str, Any] = {
             "world": world_of(self.emulated),
@@ -151,8 +159,8 @@ class Prediction:
                 "heading_max": float(
                     np.abs(self.emulated.pose[:, 2] - self.predicted.q[:, 2]).max()
                 ),
-                "joint_max_rad": float(np.abs(err).max()),
-                "joint_rms_rad": float(np.sqrt(np.mean(err * err))),
+                "joint_max_rad": joints.max_rad,
+                "joint_rms_rad": joints.rms_rad,
             },
             "realtime_factor": self.realtime_factor,
             "wall_s": self.wall_s,
@@ -342,7 +350,7 @@ def emulate(
     """Put the emulated robot at the table's first frame, play it (``writes``: the blocks
     to send instead of the table player's, see ``play``) and compare with the table's
     prediction. ``table`` is a GaitTable or anything with its frames, frame_period_ms,
-    frame_count, loop and metadata (a program's steps, ``program.motion``). ``ideal``:
+    frame_count, loop and metadata (a program's steps, ``model.motion``). ``ideal``:
     ideal servos; ``batch``: samples the world integrates per C call (results do not
     depend on it); ``world``: "kinematic" or "mujoco" (``mu``: its wheel-floor
     friction)."""

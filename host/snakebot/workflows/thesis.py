@@ -145,13 +145,6 @@ RUNS: tuple[ThesisRun, ...] = (
 RUN_NAMES = tuple(r.name for r in RUNS)
 
 
-def run_named(name: str) -> ThesisRun:
-    for run in RUNS:
-        if run.name == name:
-            return run
-    raise KeyError(name)
-
-
 @dataclass(frozen=True)
 class ThesisResult:
     """One run in both worlds: the commanded table, the model's ideal states (field

@@ -1,7 +1,8 @@
 """The gait library as the controller core shows it (firmware/core/lib_regs.c with its
-hooks in ctl_device.c): the Library window page, Upload Commit LIBRARY_STORE and
-LIBRARY_DELETE, Command LIBRARY_PLAY and the button panel, on a store kept here in Python
-(the firmware's flash store has its own tests, tests/firmware/test_library_store.py)."""
+hooks in ctl_state.c and ctl_pages.c): the Library window page, Upload Commit
+LIBRARY_STORE and LIBRARY_DELETE, Command LIBRARY_PLAY and the button panel, on a store
+kept here in Python (the firmware's flash store has its own tests,
+tests/firmware/test_library_store.py)."""
 
 from __future__ import annotations
 

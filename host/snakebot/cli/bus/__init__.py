@@ -1,5 +1,8 @@
 """`snakebot bus`: servo chores on a Dynamixel bus through a direct adapter (USB2Dynamixel,
-U2D2 in Protocol 1.0, or the emulator): scan, ping, read, write, set-id, set-baud."""
+U2D2 in Protocol 1.0, or the emulator): scan, ping, read, write, set-id, set-baud
+(here), and ``bus play`` (``play``). The work itself is in :mod:`snakebot.link.bus`.
+
+May import: as the ``cli`` layer (every layer below it)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,7 @@
-"""``snakebot gait``: generate gait tables (serpenoid, field-following) and inspect them."""
+"""``snakebot gait``: generate gait tables (serpenoid, field-following) and inspect them;
+``gait search`` is in ``search``.
+
+May import: as the ``cli`` layer (every layer below it)."""
 
 from __future__ import annotations
 

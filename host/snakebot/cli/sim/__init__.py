@@ -1,9 +1,13 @@
 """`snakebot sim`: the emulated robot.
 
-`sim bus` serves an emulated Dynamixel bus of virtual AX-12 servos to other programs, on
-a pseudo-terminal (any serial client: snakebot, ROBOTIS's dynamixel-sdk, a terminal) or
-on a Unix socket (QEMU's USART). In-process clients need no server: give them the port
-`sim://?robot=snake5` (options as in the URL this command prints).
+`sim bus` (here) serves an emulated Dynamixel bus of virtual AX-12 servos to other
+programs, on a pseudo-terminal (any serial client: snakebot, ROBOTIS's dynamixel-sdk, a
+terminal) or on a Unix socket (QEMU's USART). In-process clients need no server: give
+them the port `sim://?robot=snake5` (options as in the URL this command prints). The
+other subcommands each have a module: ``serve`` (the firmware in QEMU behind a
+pseudo-terminal), ``bootloader``, ``predict``, ``goto``, ``thesis`` (with ``friction``).
+
+May import: as the ``cli`` layer (every layer below it).
 """
 
 from __future__ import annotations

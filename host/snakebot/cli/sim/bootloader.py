@@ -40,7 +40,7 @@ from snakebot.sim.bootloader import (
     type=NumberType(0),
     metavar="SECONDS",
     help="Stay silent (running the application) for SECONDS, then reset, as when "
-    "you press RESET; default: reset at once.",
+    "you press MODE on the CM-530 or power-cycle it; default: reset at once.",
 )
 @click.option(
     "--silence",

@@ -13,7 +13,7 @@ import click
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType
 from snakebot.cli.signals import STOP_SIGNALS
-from snakebot.sim.errors import SimError
+from snakebot.sim.errors import SimFailure
 from snakebot.sim.physics.select import DEFAULT_WORLD, WORLDS
 from snakebot.sim.serve import EmulatedRobot
 
@@ -123,7 +123,7 @@ def serve(
         wait = report if report > 0 else 0.5
         while not stop.wait(wait):
             if not emulated.running:
-                raise SimError(
+                raise SimFailure(
                     "QEMU or the emulated bus stopped unexpectedly: "
                     f"{emulated.qemu.log().strip() or 'no message'}"
                 )

@@ -8,8 +8,8 @@ from pathlib import Path
 import click
 
 from snakebot.cli.output import dumps
-from snakebot.cli.params import OUTPUT_PATH
-from snakebot.errors import SnakebotError
+from snakebot.cli.params import OUTPUT_PATH, LazyChoice
+from snakebot.errors import InputError
 from snakebot.plots.video import check_video_path, write_video
 
 
@@ -19,9 +19,7 @@ def _floats(text: str) -> tuple[float, ...]:
     except ValueError:
         values = ()
     if not values or not all(math.isfinite(v) and v > 0 for v in values):
-        raise SnakebotError(
-            f"--mu {text!r}: give positive numbers separated by commas, e.g. 0.1,1,10"
-        )
+        raise InputError(f"--mu {text!r}: give positive numbers separated by commas, e.g. 0.1,1,10")
     return values
 
 
@@ -37,9 +35,9 @@ def _floats(text: str) -> tuple[float, ...]:
 )
 @click.option(
     "--only",
-    type=click.Choice(["g1", "g2", "g3", "h1", "h2", "h3", "serpenoid"]),
+    type=LazyChoice("snakebot.workflows.thesis", "RUN_NAMES"),
     multiple=True,
-    help="Run only this one (repeatable); default: all seven.",
+    help="Run only this one (repeatable); default: every run.",
 )
 @click.option(
     "--mu",

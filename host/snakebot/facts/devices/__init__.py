@@ -7,12 +7,14 @@ number, where Status Return Level lives, the baud formula, the position range). 
 reads them here; ``protocol/gen_headers.py`` writes the firmware's C headers from the
 same files. Nothing else types a register address or a unit factor.
 
-    >>> from snakebot import devices
+    >>> from snakebot.facts import devices
     >>> ax = devices.load("AX-12A")
     >>> ax.register("Goal Position").address
     30
     >>> round(ax.register("Present Speed").to_units(1024 + 100, "rpm"), 1)
     -11.1
+
+May import: the package root only (as ``facts``).
 """
 
 from __future__ import annotations

@@ -4,6 +4,8 @@ from snakebot.formats.gaittable import GaitTable, write_gait, read_gait, GaitTab
 table = GaitTable(joint_ids=(1, 2), frame_period_ms=20, loop=True,
                   limits=((200, 824), (200, 824)), frames=ticks, metadata={...})
 write_gait("walk.gait", table)      # walk.gait + walk.gait.json
+
+May import: as the ``formats`` layer (``facts`` and the package root).
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 
 # Validation codes shared with gt_validate() in firmware/core/gt_table.h, in check order
 # (protocol/gait_table.md, "Validation order").
@@ -24,7 +24,7 @@ CODES: dict[str, int] = {
 }
 
 
-class GaitTableError(SnakebotError):
+class GaitTableError(InputError):
     """A gait table that cannot be built, stored, read or played.
 
     ``reason`` names the problem ("crc_mismatch", "too_big", ... or, for problems only the

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from snakebot.core import lib
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 
 # prog_validate()'s refusals (Upload Result PROGRAM_*, controller.json): what went wrong,
 # and what to do (snakebot.link.controller.messages shows them for an upload too).
@@ -75,7 +75,7 @@ MESSAGES: dict[int, str] = {
 }
 
 
-class ProgramError(SnakebotError):
+class ProgramError(InputError):
     """A program that cannot be built, read or accepted; ``code`` is the controller's
     refusal code (40..59) when the controller would refuse it for the same reason."""
 

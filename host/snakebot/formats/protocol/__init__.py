@@ -2,6 +2,9 @@
 
 Build packets with the instruction builders, find them in a byte stream with
 ``PacketParser``, and look registers up in ``ControlTable``. See protocol/README.md.
+Sending them over a port is :mod:`snakebot.link.transport`.
+
+May import: as the ``formats`` layer (``facts`` and the package root).
 """
 
 from snakebot.formats.protocol.control_table import ControlTable, ControlTableError, Entry

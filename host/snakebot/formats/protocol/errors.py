@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from enum import IntFlag
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError, RuntimeFailure, SnakebotError
 
 
 class ErrorFlags(IntFlag):
@@ -66,14 +66,17 @@ _HINTS = {
 
 
 class ProtocolError(SnakebotError):
-    """Something went wrong speaking Protocol 1.0."""
+    """Something went wrong speaking Protocol 1.0 (the area's base: what is raised is
+    one of the classes below, bad input or a runtime failure)."""
 
 
-class PacketArgumentError(ProtocolError, ValueError):
-    """A packet cannot be built from the arguments given (bad ID, byte out of range, too long)."""
+class PacketArgumentError(ProtocolError, InputError, ValueError):
+    """A request that cannot be made as given: a packet that cannot be built from its
+    arguments (bad ID, byte out of range, too long), a READ of a servo that never
+    answers one, an instruction no servo answers."""
 
 
-class DxlTimeout(ProtocolError):
+class DxlTimeout(ProtocolError, RuntimeFailure):
     """No (complete) reply arrived in time."""
 
     echo_missing: bool = False
@@ -81,11 +84,11 @@ class DxlTimeout(ProtocolError):
     the instruction itself may have been damaged on the wire."""
 
 
-class CorruptPacket(ProtocolError):
+class CorruptPacket(ProtocolError, RuntimeFailure):
     """A reply had a bad checksum, an impossible length, or the wrong shape."""
 
 
-class ServoError(ProtocolError):
+class ServoError(ProtocolError, RuntimeFailure):
     """A servo answered with error bits set in its status packet."""
 
     def __init__(self, servo_id: int, flags: int) -> None:

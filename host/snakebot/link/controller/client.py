@@ -27,9 +27,10 @@ from snakebot.facts.controller import Controller, Register, load
 from snakebot.formats import protocol
 from snakebot.formats.protocol import CorruptPacket, DxlTimeout, ErrorFlags, ServoError
 from snakebot.link.controller.errors import (
-    ControllerError,
+    ControllerInputError,
     ControllerLinkError,
     ControllerRefused,
+    ControllerStateError,
     NotAController,
 )
 from snakebot.link.transport import DxlClient, settings, timing
@@ -115,7 +116,10 @@ class ControllerClient:
         self.link = link
         self.id = self.table.default_id if controller_id is None else controller_id
         if not 0 <= self.id <= 253:
-            raise ControllerError(f"controller ID {self.id} is outside 0..253: pass --id 200")
+            raise ControllerInputError(
+                f"controller ID {self.id} is outside 0..253: use {self.table.default_id}, the "
+                "controller's own"
+            ).about("controller_id")
         self.port_name = port_name or str(getattr(link.port, "port", "") or "")
 
     @classmethod
@@ -279,7 +283,7 @@ class ControllerClient:
         """Write ``Command`` = ``name`` (PLAY, SERPENOID, STOP, CLEAR)."""
         code = self.table.enums["Command"].get(name.upper())
         if code is None:
-            raise ControllerError(
+            raise ControllerInputError(
                 f"no controller command {name!r}: use one of "
                 + ", ".join(self.table.enums["Command"])
             )
@@ -313,7 +317,7 @@ class ControllerClient:
                 "the snakebot that matches the controller"
             )
         if info["Status Return Level"] < 2:
-            raise ControllerError(
+            raise ControllerStateError(
                 f"the controller's Status Return Level is {info['Status Return Level']}, so it "
                 "does not acknowledge WRITEs and nothing can be checked: power-cycle it (the "
                 "level returns to 2) or write 2 to its register 4"
@@ -343,7 +347,7 @@ class ControllerClient:
         entries = list(joints)
         limit = self.table.register("Joint Count").max or 0
         if not 1 <= len(entries) <= limit:
-            raise ControllerError(
+            raise ControllerInputError(
                 f"a roster needs 1..{limit} joints, got {len(entries)}: check the robot file"
             )
         page_reg = self.table.register("Window Page")

@@ -8,14 +8,14 @@ import difflib
 import re
 from typing import Any
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError, SnakebotError
 from snakebot.facts.controller import Controller
 from snakebot.facts.devices import Register
 from snakebot.formats.protocol import ErrorFlags
 from snakebot.formats.register_values import check_write, decode, describe_value, parse_value
 
 
-class ConfigError(SnakebotError):
+class ConfigError(InputError):
     """A setting name or value the controller's description does not allow (exit 2)."""
 
 

@@ -26,7 +26,7 @@ from typing import Any
 from snakebot.formats.upload_writes import chunk_writes, commit_write
 from snakebot.link.controller import messages as words
 from snakebot.link.controller.client import ControllerClient
-from snakebot.link.controller.errors import ControllerError
+from snakebot.link.controller.errors import LibraryFailed, LibraryRefused
 
 PAGE = "Library"
 
@@ -68,10 +68,6 @@ ticks on the CM-530; far longer means the controller is not stepping it."""
 Progress = Callable[[str, int], None]
 """``on_progress(state, percent)``: the flash write under way (Store State's name, TABLE
 or LIBRARY) and how far it is, each time it is polled."""
-
-
-class LibraryError(ControllerError):
-    """The controller refused a library operation."""
 
 
 @dataclass(frozen=True)
@@ -183,7 +179,7 @@ def wait_for_store(
         if now.state == "IDLE":
             return
         if time.monotonic() > deadline:
-            raise LibraryError(
+            raise LibraryFailed(
                 f"{now.line()} after {timeout:.0f} s: power-cycle the controller if this "
                 "persists (a power cut keeps the previous content)"
             )
@@ -195,11 +191,13 @@ def wait_for_store(
 def _check_slot(ctl: ControllerClient, slot: int) -> None:
     count, _ = library_size(ctl)
     if count == 0:
-        raise LibraryError(f"the controller refused ({_reason(ctl, 'LIBRARY_NONE')})")
+        raise LibraryRefused(f"the controller refused ({_reason(ctl, 'LIBRARY_NONE')})")
     if not 0 <= slot < count:
         if library_memory(ctl) == "RAM":
-            raise LibraryError(f"slot {slot} does not exist: {IN_RAM}; use slot 0")
-        raise LibraryError(f"slot {slot} does not exist: this controller has slots 0..{count - 1}")
+            raise LibraryRefused(f"slot {slot} does not exist: {IN_RAM}; use slot 0")
+        raise LibraryRefused(
+            f"slot {slot} does not exist: this controller has slots 0..{count - 1}"
+        )
 
 
 def _reason(ctl: ControllerClient, name: str) -> str:
@@ -216,7 +214,8 @@ def _result(ctl: ControllerClient, register: str, what: str) -> None:
     value = ctl.read(register)[register]
     name = _enum_name(ctl, "Upload Result", value)
     if name != "OK":
-        raise LibraryError(f"{what} ({_reason(ctl, name)})")
+        refused = LibraryFailed if words.is_runtime_result(name) else LibraryRefused
+        raise refused(f"{what} ({_reason(ctl, name)})")
 
 
 def encode_name(ctl: ControllerClient, name: str) -> bytes:
@@ -224,7 +223,7 @@ def encode_name(ctl: ControllerClient, name: str) -> bytes:
     size = ctl.table.register("Store Name").size
     raw = name.encode("ascii", "replace")
     if len(raw) > size or not name.isascii() or not all(0x20 <= b <= 0x7E for b in raw):
-        raise LibraryError(
+        raise LibraryRefused(
             f"slot name {name!r} must be at most {size} printable ASCII characters: shorten it"
         )
     return raw.ljust(size, b"\0")
@@ -261,7 +260,7 @@ def store_slot(
     _check_slot(ctl, slot)
     kinds = ctl.table.enums["Upload Commit"]
     if kind not in kinds:
-        raise LibraryError(f"no blob kind {kind!r}: use TABLE")
+        raise LibraryRefused(f"no blob kind {kind!r}: use TABLE")
     wait_for_store(ctl, on_progress)
     ctl.write({"Library Slot": slot, "Store Kind": kinds[kind]})
     store_name = ctl.table.register("Store Name")
@@ -292,7 +291,7 @@ def play_slot(ctl: ControllerClient, slot: int, on_progress: Progress | None = N
     r = ctl.read("State", "Error Flags")
     state = words.state_name(r["State"], ctl.table)
     if state != "PLAYING":
-        raise LibraryError(
+        raise LibraryFailed(
             f"slot {slot} was loaded but did not play (State {state}; Error Flags: "
             f"{words.describe_flags(r['Error Flags'], ctl.table)}): `snakebot stop --clear`, "
             "then try again"
@@ -310,7 +309,7 @@ def read_blob(ctl: ControllerClient, slot: Slot) -> bytes:
         out += _text(ctl, "Slot Data")
     out = out[: slot.length]
     if zlib.crc32(out) != slot.crc:
-        raise LibraryError(
+        raise LibraryFailed(
             f"slot {slot.slot} read back with a wrong CRC-32: the PC link damaged it; try again"
         )
     return out
@@ -332,7 +331,7 @@ def restore(ctl: ControllerClient, saved: dict[str, Any]) -> list[Slot]:
     """Store every slot of a :func:`backup` that has bytes and is not already in place
     (same name, kind, length and CRC); returns the slots written."""
     if saved.get("format") != "snakebot-library-backup":
-        raise LibraryError("not a snakebot library backup: pass the file `snakebot flash` wrote")
+        raise LibraryRefused("not a snakebot library backup: pass the file `snakebot flash` wrote")
     written = []
     for entry in saved.get("slots", []):
         if "data" not in entry:

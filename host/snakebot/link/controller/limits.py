@@ -25,6 +25,7 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from snakebot.errors import InputError, RuntimeFailure
 from snakebot.formats.upload_writes import chunk_writes, commit_write
 from snakebot.link.controller import messages as words
 from snakebot.link.controller.client import ControllerClient
@@ -43,7 +44,17 @@ Limits = Mapping[int, tuple[int, int]]
 
 
 class LimitsError(ControllerError):
-    """The controller refused the robot's limits, or its servos did not take them."""
+    """The controller refused the robot's limits, or its servos did not take them (the
+    base of the two below)."""
+
+
+class LimitsRefused(LimitsError, InputError):
+    """The controller refused the robot's limits as malformed."""
+
+
+class LimitsFailed(LimitsError, RuntimeFailure):
+    """The servos did not take the robot's limits (one did not answer, or keeps Lock set),
+    or the controller was busy."""
 
 
 def robot_limits(robot: Robot) -> dict[int, tuple[int, int]]:
@@ -162,11 +173,12 @@ def set_limits(
     result = ctl.read("Upload Result")["Upload Result"]
     if result != ctl.table.enums["Upload Result"]["OK"]:
         name, what, fix = words.upload_result_reason(result, ctl.table)
-        raise LimitsError(f"the controller refused the robot's limits ({name}: {what}): {fix}")
+        refused = LimitsFailed if words.is_runtime_result(name) else LimitsRefused
+        raise refused(f"the controller refused the robot's limits ({name}: {what}): {fix}")
     state, count = wait_settled(ctl, timeout_s)
     flags = ctl.read("Error Flags")["Error Flags"]
     if state != "VERIFIED":
-        raise LimitsError(not_held(ctl, state, timeout_s))
+        raise LimitsFailed(not_held(ctl, state, timeout_s))
     return LimitsReport(
         dict(limits),
         state,

@@ -9,7 +9,7 @@ import time
 from types import TracebackType
 from typing import IO, Any
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 
 TOPIC = "/snakebot/telemetry"
 SCHEMA_NAME = "snakebot.Telemetry"
@@ -25,7 +25,7 @@ SCHEMA = {
 """What each message holds: :meth:`snakebot.link.controller.monitor.Sample.as_record`."""
 
 
-class McapUnavailable(SnakebotError):
+class McapUnavailable(InputError):
     """The mcap package is not installed."""
 
 

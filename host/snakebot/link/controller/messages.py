@@ -94,6 +94,24 @@ LAYOUT_FIX = (
 RETRYABLE_RESULTS = frozenset({"INCOMPLETE", "TRANSFER_CRC"})
 """Commit failures that a clean resend can cure (the wire, not the table, was at fault)."""
 
+RUNTIME_RESULTS = RETRYABLE_RESULTS | {
+    "NO_ROOM_WHILE_PLAYING",
+    "STORE_BUSY",
+    "LIBRARY_STORING",
+    "LIBRARY_FLASH",
+    "LIBRARY_DAMAGED",
+    "FIRMWARE_UNAVAILABLE",
+}
+"""The Upload Results (and library results) that are runtime failures: what was sent was
+fine, the wire, the flash or the controller's state got in the way (exit 1). Every other
+refusal is about what was sent or asked (a table outside the robot's limits, a malformed
+table or program, no such slot): bad input (exit 2), whichever command met it."""
+
+
+def is_runtime_result(name: str) -> bool:
+    """Whether the refusal ``name`` (an Upload Result) is a runtime failure, not bad input."""
+    return name in RUNTIME_RESULTS
+
 
 def _name(enum: str, value: int, ctl: Controller | None = None) -> str:
     for name, code in (ctl or load()).enums[enum].items():

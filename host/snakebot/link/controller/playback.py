@@ -21,8 +21,8 @@ from typing import Any
 
 from snakebot.link.controller import messages as words
 from snakebot.link.controller.client import ControllerClient, RosterEntry
-from snakebot.link.controller.errors import ControllerError
-from snakebot.link.controller.limits import VERIFY_TIMEOUT_S, not_held, wait_settled
+from snakebot.link.controller.errors import ControllerInputError, ControllerStateError
+from snakebot.link.controller.limits import VERIFY_TIMEOUT_S, LimitsFailed, not_held, wait_settled
 from snakebot.model.gait.limits import check_serpenoid as check_serpenoid_motion
 from snakebot.model.robots import Robot
 
@@ -36,19 +36,31 @@ from one, so it is missed by under 2e-7 of the amplitude, far below a position t
 REFUSALS = {
     "SAFE_STATE": "the controller is in the safe state: `snakebot stop --clear` leaves it",
     "NO_TABLE": "it has no gait table: upload one with `snakebot upload`",
-    "EMPTY_ROSTER": "its roster is empty: pass --robot NAME",
+    "EMPTY_ROSTER": "its roster is empty: set it from the robot's description",
     "BAD_JOINT_LIMITS": "a roster joint's Min Tick is above its Max Tick or outside the "
-    "robot's limits: pass --robot NAME to set the roster again",
+    "robot's limits: set the roster again from the robot's description",
     "LIMITS_NOT_VERIFIED": "the servos do not hold the robot's limits yet: see "
     "`snakebot limits show`",
     "TABLE_OUTSIDE_LIMITS": "the active table leaves the robot's limits: upload a table "
     "made for them",
-    "AMPLITUDE": "A + |offset| (with --steer) takes a joint outside its roster limits "
-    "(Min Tick..Max Tick): lower --amplitude or --offset",
-    "SPEED": "A * |omega| * --speed is above the servo's no-load speed: lower --omega, "
-    "--amplitude or --speed",
+    "AMPLITUDE": "A + |offset| (with the steering) takes a joint outside its roster limits "
+    "(Min Tick..Max Tick): lower the amplitude or the offset",
+    "SPEED": "A * |omega| * speed is above the servo's no-load speed: lower omega, the "
+    "amplitude or the speed",
 }
 """What each Refusal Reason (Program page) means, and the fix."""
+
+REFUSAL_PARAMS: dict[str, tuple[str, ...]] = {
+    "EMPTY_ROSTER": ("robot",),
+    "BAD_JOINT_LIMITS": ("robot",),
+    "AMPLITUDE": ("amplitude", "offset", "steer"),
+    "SPEED": ("omega", "amplitude", "speed"),
+}
+"""The parameters (the CLI's options) each refusal's fix is about."""
+
+RUNTIME_REFUSALS = frozenset({"SAFE_STATE", "LIMITS_NOT_VERIFIED"})
+"""Refusal Reasons that are the controller's state, not the request (exit 1): the same
+reasons that ``play`` and ``serpenoid`` check for first."""
 
 FINISH_GRACE_S = 0.05
 """A table played once may already be over when the State is read back: it counts as
@@ -85,12 +97,12 @@ def _raw(
     ctl: ControllerClient,
     register: str,
     value: float,
-    what: str,
+    param: str,
     rate: bool = False,
     angle: bool = True,
 ) -> int:
-    """``value`` (radians, rad/s, or a speed factor) as the register's integer, or
-    ControllerError with the range in those units."""
+    """``value`` (radians, rad/s, or a speed factor) of parameter ``param`` as the
+    register's integer, or ControllerInputError with the range in those units."""
     reg = ctl.table.register(register)
     assert reg.scale is not None, register  # every register set here has a unit
     scale = reg.scale.per_unit(("rad/s" if rate else "rad") if angle else SPEED)
@@ -99,29 +111,25 @@ def _raw(
         return raw
     low, high = reg.value_range()
     if angle:
-        shown = f"{what} {_fmt_angle(value, rate)}"
+        shown = f"{param} {_fmt_angle(value, rate)}"
         span = f"{_fmt_angle(low / scale, rate)} .. {_fmt_angle(high / scale, rate)}"
     else:
-        shown, span = f"{what} {value:g}", f"{low / scale:.4g} .. {high / scale:.4g}"
+        shown, span = f"{param} {value:g}", f"{low / scale:.4g} .. {high / scale:.4g}"
     unit = f", in {reg.unit}" if reg.unit else ""
-    return _refuse(
+    raise ControllerInputError(
         f"{shown} is outside what the controller takes: {span} "
-        f"(its {reg.name} register takes {low}..{high}{unit})"
-    )
-
-
-def _refuse(message: str) -> int:
-    raise ControllerError(message + "; nothing was changed")
+        f"(its {reg.name} register takes {low}..{high}{unit}); nothing was changed"
+    ).about(param)
 
 
 def speed_scale(ctl: ControllerClient, speed: float) -> int:
     """Speed Scale for a speed factor (1 = as generated)."""
-    return _raw(ctl, "Speed Scale", speed, "--speed", angle=False)
+    return _raw(ctl, "Speed Scale", speed, "speed", angle=False)
 
 
 def steering_offset(ctl: ControllerClient, steer: float) -> int:
     """Steering Offset in ticks for an angle in radians added to every joint."""
-    return _raw(ctl, "Steering Offset", steer, "--steer")
+    return _raw(ctl, "Steering Offset", steer, "steer")
 
 
 def _status(ctl: ControllerClient, regs: dict[str, int]) -> dict[str, Any]:
@@ -155,10 +163,10 @@ def _status(ctl: ControllerClient, regs: dict[str, int]) -> dict[str, Any]:
 
 
 def _ready(ctl: ControllerClient, regs: dict[str, int]) -> None:
-    """ControllerError if the controller is in the safe state."""
+    """ControllerStateError if the controller is in the safe state."""
     if words.state_name(regs["State"], ctl.table) == "SAFE":
         flags = regs["Error Flags"]
-        raise ControllerError(
+        raise ControllerStateError(
             "the controller is in the safe state and starts nothing: "
             f"{words.describe_flags(flags, ctl.table)}. {words.safe_fix(flags, ctl.table)}"
             "; then leave the safe state with `snakebot stop --clear`"
@@ -175,7 +183,7 @@ def _start(
     # after a roster change the controller checks the servos' angle limits first
     state, _ = wait_settled(ctl)
     if state not in ("NONE", "VERIFIED"):
-        raise ControllerError(not_held(ctl, state, VERIFY_TIMEOUT_S))
+        raise LimitsFailed(not_held(ctl, state, VERIFY_TIMEOUT_S))
     sent = time.monotonic()
     ctl.command(command)
     after = ctl.read_all()
@@ -193,10 +201,11 @@ def _start(
         return _status(ctl, after)  # a short table played once is already over
     if newly_refused:
         name, why = refusal_reason(ctl)
-        raise ControllerError(
+        refused = ControllerStateError if name in RUNTIME_REFUSALS else ControllerInputError
+        raise refused(
             f"the controller refused {command} (Refusal Reason {name}): {why}; nothing was started"
-        )
-    raise ControllerError(
+        ).about(*REFUSAL_PARAMS.get(name, ()))
+    raise ControllerStateError(
         f"the controller did not start ({command} left it {state}; error flags: "
         f"{words.describe_flags(after['Error Flags'], ctl.table)}): check its state with "
         "`snakebot monitor`"
@@ -219,9 +228,9 @@ def play(
     before = ctl.read_all()
     _ready(ctl, before)
     if before["Table Size"] == 0:
-        raise ControllerError(
+        raise ControllerInputError(
             "the controller has no gait table to play: generate one with `snakebot gait ...` "
-            "and upload it with `snakebot upload GAIT --port ...`"
+            "and upload it with `snakebot upload GAIT`"
         )
     if is_program(before):
         ctl.write(values)
@@ -295,10 +304,10 @@ def serpenoid(
     if robot is not None:
         check_serpenoid(robot, settings, speed=speed, steer=steer)
     values = {
-        "Serp Amplitude": _raw(ctl, "Serp Amplitude", settings.amplitude, "--amplitude"),
-        "Serp Omega": _raw(ctl, "Serp Omega", settings.omega, "--omega", rate=True),
-        "Serp Delta": _raw(ctl, "Serp Delta", settings.delta, "--delta"),
-        "Serp Phi0": _raw(ctl, "Serp Phi0", settings.offset, "--offset"),
+        "Serp Amplitude": _raw(ctl, "Serp Amplitude", settings.amplitude, "amplitude"),
+        "Serp Omega": _raw(ctl, "Serp Omega", settings.omega, "omega", rate=True),
+        "Serp Delta": _raw(ctl, "Serp Delta", settings.delta, "delta"),
+        "Serp Phi0": _raw(ctl, "Serp Phi0", settings.offset, "offset"),
         "Speed Scale": speed_scale(ctl, speed),
         "Steering Offset": steering_offset(ctl, steer),
     }
@@ -309,17 +318,17 @@ def serpenoid(
         ctl.set_roster(roster)
         before = ctl.read_all()
     if before["Joint Count"] == 0:
-        raise ControllerError(
+        raise ControllerInputError(
             "the controller's roster is empty, so the serpenoid has no joints to drive: "
-            "pass --robot NAME (snake3, snake5, trident or a robot file), or upload a gait "
-            "table for the robot first"
-        )
+            "name the robot (snake3, snake5, trident or a robot file) to set it, or upload "
+            "a gait table for the robot first"
+        ).about("robot")
     bad = [j for j in ctl.roster(before["Joint Count"]) if j.min_tick > j.max_tick]
     if bad:
-        raise ControllerError(
+        raise ControllerInputError(
             f"roster joint {bad[0].joint} (servo {bad[0].id}) has Min Tick {bad[0].min_tick} "
-            f"above Max Tick {bad[0].max_tick}: pass --robot NAME to set the roster again"
-        )
+            f"above Max Tick {bad[0].max_tick}: name the robot to set the roster again"
+        ).about("robot")
     ctl.write(values)
     return _start(ctl, before, "SERPENOID", "SERPENOID")
 

@@ -46,7 +46,12 @@ from snakebot.formats.protocol import ErrorFlags, Packet
 from snakebot.formats.upload_writes import chunk_limit, chunk_writes, commit_write
 from snakebot.link.controller import messages as words
 from snakebot.link.controller.client import IDENTITY_REGISTERS, ControllerClient, JointRecord
-from snakebot.link.controller.errors import ControllerError, ControllerLinkError, UploadError
+from snakebot.link.controller.errors import (
+    ControllerLinkError,
+    UploadError,
+    UploadFailed,
+    UploadRefused,
+)
 from snakebot.link.controller.settings import resolve_upload_retries, resolve_upload_window
 from snakebot.link.controller.upload_stream import Ask, StreamResult, stream
 from snakebot.link.transport.timing import BITS_PER_BYTE
@@ -143,7 +148,7 @@ class UploadReport:
 def check_fits(
     ctl: ControllerClient, table: GaitTable | Program, size: int, capacity: int | None = None
 ) -> None:
-    """ControllerError unless the controller can take ``table``: its control table (Upload
+    """UploadRefused unless the controller can take ``table``: its control table (Upload
     Length's range, the largest board's) and, when given, the ``capacity`` it reports
     (Table Capacity on the Program page: this board's)."""
     largest = ctl.table.register("Upload Length").max or 0
@@ -151,14 +156,14 @@ def check_fits(
     if capacity is None or capacity > largest:
         capacity = largest
     if size > capacity:
-        raise ControllerError(
+        raise UploadRefused(
             f"the table is {size} bytes but the controller holds at most {capacity} "
             "(its Table Capacity): generate it with fewer frames (a lower rate or a "
             f"shorter duration); {outcome}"
         )
     max_joints = ctl.table.register("Joint Count").max or 0
     if table.joint_count > max_joints:
-        raise UploadError(
+        raise UploadRefused(
             f"the table drives {table.joint_count} joints but the controller's roster "
             f"holds at most {max_joints}; {outcome}"
         )
@@ -167,19 +172,19 @@ def check_fits(
 def check_servos(
     table: GaitTable | Program, roster: list[JointRecord], allow_new: bool
 ) -> list[int]:
-    """The table's servo IDs that the controller's roster does not list; UploadError if
+    """The table's servo IDs that the controller's roster does not list; UploadRefused if
     there are any and ``allow_new`` is False. An empty roster knows no servos: anything
     goes (the commit makes the table's servos the roster)."""
     known = [j.id for j in roster]
     unknown = [i for i in table.joint_ids if i not in known] if known else []
     if unknown and not allow_new:
-        raise UploadError(
+        raise UploadRefused(
             f"the table drives servo {_ids(unknown)}, which the controller does not have: "
             f"its roster (from its active table, or set by hand) is servo {_ids(known)}. "
             "Generate the gait for this robot's description, or, if the servos really are "
-            "on this robot now, pass --new-servos to let the table replace the roster; "
+            "on this robot now, let the table replace the roster (new servos allowed); "
             f"{NOT_COMMITTED}"
-        )
+        ).about("new_servos")
     return unknown
 
 
@@ -443,7 +448,7 @@ def upload_gait(
             except ControllerLinkError as exc:
                 if checks.before is None:
                     raise  # it never answered: the link's own words say what to check
-                raise UploadError(f"{exc}. {_old_table_words(None, checks.before)}") from None
+                raise UploadFailed(f"{exc}. {_old_table_words(None, checks.before)}") from None
         if result.error_ask in asked:
             continue  # a check answered with error bits, asked again above: not an attempt
         if plan.long and result.error_ask is plan.chunks[0] and result.error & ErrorFlags.RANGE:
@@ -495,7 +500,7 @@ def upload_gait(
         why = _shortfall(ctl, result, after["Upload Result"])
         attempt += 1
     before = checks.before or {"Table Size": 0, "Table CRC": 0}
-    raise UploadError(
+    raise UploadFailed(
         f"upload failed after {attempts} attempt{'s' if attempts != 1 else ''}: {why}. "
         + (_flags_words(ctl, after) if after else "")
         + "Check the USB cable and that nothing else uses the port, then upload again "
@@ -526,7 +531,8 @@ def _commit_failed(
     ctl: ControllerClient, after: dict[str, int], before: dict[str, int]
 ) -> UploadError:
     name, what, fix = words.upload_result_reason(after["Upload Result"], ctl.table)
-    return UploadError(
+    refused = UploadFailed if words.is_runtime_result(name) else UploadRefused
+    return refused(
         f"the controller refused the table at commit ({name}: {what}); "
         + _flags_words(ctl, after)
         + f"{fix}. "
@@ -549,8 +555,8 @@ def _refused(
     )
     if words.upload_result_name(after["Upload Result"], ctl.table) == "NO_ROOM_WHILE_PLAYING":
         what, fix = words.UPLOAD_RESULTS["NO_ROOM_WHILE_PLAYING"]
-        return UploadError(f"the controller refused {which}: {what}: {fix}")
-    return UploadError(
+        return UploadFailed(f"the controller refused {which}: {what}: {fix}")
+    return UploadFailed(
         f"the controller refused {which} "
         f"({protocol.ErrorFlags(result.error).describe()}); "
         + _flags_words(ctl, after)

@@ -5,8 +5,14 @@
     with open_port("/dev/ttyUSB0", PC_LINK_BAUD, timeout=0) as port:
         result = flash(port, image, say=print)
 
-``image`` reads and checks the .bin, ``loader`` holds the wire sequence as operations on
-an open port, ``settings`` the named, environment-overridable timeouts.
+``bootloader`` holds the bootloader's wire sequence as operations on an open port;
+``image`` reads and checks the image (``formats``: .bin, .hex or .elf); ``report`` reads
+the bootloader's ``Checksum:`` report; ``verify`` checks, after GO, that the new
+firmware answers and holds what was sent; ``library_backup`` keeps the controller's gait
+library across a flash; ``settings`` the named, environment-overridable timeouts.
+
+May import: as the ``link`` layer (``link.transport``, ``link.controller``, ``model``,
+``formats``, ``facts``, the package root); never ``sim``.
 """
 
 from __future__ import annotations

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import serial
 
 from snakebot.facts.boards import PC_LINK_BAUD
-from snakebot.link.flash.errors import FlashError
+from snakebot.link.flash.errors import FlashFailed, ImageError
 from snakebot.link.flash.image import checksum
 from snakebot.link.flash.report import (
     ChecksumMatch,
@@ -142,7 +142,7 @@ def enter_bootloader(
     sent = 0
     while not listener.heard:
         if time.monotonic() >= deadline:
-            raise FlashError(
+            raise FlashFailed(
                 f"no answer from the CM-530 bootloader on {port.name} after {sent} '#' in "
                 f"{timeouts.reset:g} s: check the cable and the port, that the board is "
                 f"powered, and {RESET_HINT} while this command waits; "
@@ -155,7 +155,7 @@ def enter_bootloader(
     answered = time.monotonic()
     while time.monotonic() - listener.last_heard < timeouts.quiet:
         if time.monotonic() - answered > timeouts.quiet_timeout:
-            raise FlashError(
+            raise FlashFailed(
                 f"the board answered '#' but kept sending for more than "
                 f"{timeouts.quiet_timeout:g} s ({shown(bytes(listener.heard))}): that is not "
                 f"the bootloader's prompt (an application that prints?); {RESET_HINT} "
@@ -171,7 +171,7 @@ def start_load(port: serial.SerialBase, timeouts: FlashTimeouts) -> bytes:
     listener = _Listener(port)
     _write(port, LOAD_COMMAND)
     if listener.until(READY, timeouts.ready) is None:
-        raise FlashError(
+        raise FlashFailed(
             f"the bootloader did not answer the load command (\\nL\\n) with 'Ready..' "
             f"within {timeouts.ready:g} s; it said: {shown(bytes(listener.heard))}. Run "
             f"snakebot flash again and {RESET_HINT} when asked; if it keeps failing, open the "
@@ -188,7 +188,7 @@ def _write(port: serial.SerialBase, data: bytes) -> None:
     try:
         port.write(data)
     except serial.SerialTimeoutException:
-        raise FlashError(
+        raise FlashFailed(
             f"the port {port.name} does not take data (a {len(data)} byte write did not "
             f"finish in {port.write_timeout:.1f} s): check that the adapter is working and "
             "that no flow control is holding it"
@@ -249,7 +249,7 @@ def send_image(
             time.sleep(min(0.01, _wire_s(written - reported, baud)))
         port.flush()  # and wait for the driver to put it on the wire (tcdrain)
     except serial.SerialTimeoutException:
-        raise FlashError(
+        raise FlashFailed(
             f"the link stopped taking data after {reported} of {len(payload)} bytes: check "
             f"the cable, and that nothing else holds the port; then {RESET_HINT} and flash "
             "again"
@@ -265,7 +265,7 @@ def read_checksum(port: serial.SerialBase, nbytes: int, timeouts: FlashTimeouts)
     wait = timeouts.checksum_wait(nbytes)
     found = listener.until(CHECKSUM_REPORT, wait) or CHECKSUM_AT_END.search(listener.heard)
     if found is None:
-        raise FlashError(
+        raise FlashFailed(
             f"the bootloader sent no 'Checksum:' report within {wait:.1f} s after the "
             f"{nbytes} byte image; it said: {shown(bytes(listener.heard))}. The upload did "
             f"not complete: {RESET_HINT} and flash again (a slow adapter may need a longer "
@@ -326,7 +326,7 @@ def flash(
     with :class:`FlashError`, the board left in its bootloader."""
     timeouts = timeouts or FlashTimeouts.resolve()
     if not image:
-        raise FlashError("the firmware image is empty: nothing to flash")
+        raise ImageError("the firmware image is empty: nothing to flash")
     banner = enter_bootloader(port, timeouts, say)
     say(f"Bootloader answered: {first_line(banner)}")
     start_load(port, timeouts)
@@ -362,7 +362,7 @@ def _check_report(
     warning = unrecognised_message(image, sent, report)
     if confirm(warning):
         return None
-    raise FlashError(
+    raise FlashFailed(
         f"{warning}: the application was NOT started. If the bootloader printed a sum that "
         f"matches ours, run again with --yes to start it anyway; otherwise {RESET_HINT} and "
         "flash again"

@@ -22,7 +22,9 @@ import click
 from snakebot.errors import SnakebotError
 from snakebot.formats.protocol.errors import ProtocolError
 from snakebot.link.controller.client import ControllerClient
+from snakebot.link.controller.errors import LibraryRefused
 from snakebot.link.controller.library import backup, restore
+from snakebot.settings import lookup_path
 
 BACKUP_DIR_ENV = "SNAKEBOT_LIBRARY_BACKUP_DIR"
 """Overrides where backups go (default: ``library-backups`` in click's application
@@ -35,8 +37,8 @@ Say = Callable[[str], None]
 
 
 def backup_dir() -> Path:
-    override = os.environ.get(BACKUP_DIR_ENV)
-    return Path(override) if override else Path(click.get_app_dir("snakebot")) / "library-backups"
+    override = lookup_path(BACKUP_DIR_ENV)
+    return override or Path(click.get_app_dir("snakebot")) / "library-backups"
 
 
 def _answers(ctl: ControllerClient) -> bool:
@@ -79,13 +81,13 @@ def backup_library(port: str, say: Say, warn: Say) -> Path | None:
 
 
 def read_backup(path: Path) -> dict[str, Any]:
-    """A backup file's contents; SnakebotError naming the problem if it is not one."""
+    """A backup file's contents; LibraryRefused naming the problem if it is not one."""
     try:
         saved = json.loads(path.read_text())
     except (OSError, ValueError) as exc:
-        raise SnakebotError(f"cannot read the library backup {path}: {exc}") from exc
+        raise LibraryRefused(f"cannot read the library backup {path}: {exc}") from exc
     if not isinstance(saved, dict):
-        raise SnakebotError(f"{path} is not a snakebot library backup: pass a file flash wrote")
+        raise LibraryRefused(f"{path} is not a snakebot library backup: pass a file flash wrote")
     return saved
 
 

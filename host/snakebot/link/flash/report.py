@@ -12,7 +12,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-from snakebot.link.flash.errors import FlashError
+from snakebot.link.flash.errors import FlashFailed
 
 WIDTHS = (8, 16, 32)
 """The sum widths a bootloader plausibly reports, in bits."""
@@ -113,7 +113,7 @@ def verify_checksum(image: bytes, sent: bytes, report: ChecksumReport) -> Checks
     ours = " or ".join(
         f"{first.shown(t % (1 << first.bits))} ({m})" for t, m in our_sums(image, sent)
     )
-    raise FlashError(
+    raise FlashFailed(
         f"checksum mismatch: the bootloader reports 'Checksum{report.text.rstrip()}', we "
         f"expected {ours}. Bytes were lost or changed on the way: the application was NOT "
         "started. Check the cable, press MODE or power-cycle the CM-530 and flash again"

@@ -1,63 +1,66 @@
 """Every wait of the flasher has a name, a default, and an environment variable that
 overrides it (a keyword argument overrides both), as esptool does.
 
-===================================  ==================================  =======
+===================================  ==================================  ======================
 what                                 environment variable                default
-===================================  ==================================  =======
-wait for the bootloader after '#'    SNAKEBOT_FLASH_RESET_TIMEOUT_S      20 s
-pause between two '#'                SNAKEBOT_FLASH_HASH_INTERVAL_S      1 ms
-silence that ends its banner         SNAKEBOT_FLASH_QUIET_S              0.2 s
-longest it may talk after '#'        SNAKEBOT_FLASH_QUIET_TIMEOUT_S      3 s
-wait for "Ready.." after L           SNAKEBOT_FLASH_READY_TIMEOUT_S      3 s
-pause after "Ready.."                SNAKEBOT_FLASH_READY_SETTLE_S       0.05 s
-wait for "Checksum:" (base)          SNAKEBOT_FLASH_CHECKSUM_TIMEOUT_S   3 s
-  ... plus, per 2 KB flash page      SNAKEBOT_FLASH_PAGE_TIME_S          0.05 s
-wait for an answer to GO             SNAKEBOT_FLASH_GO_TIMEOUT_S         0.5 s
-wait for the new firmware's PING     SNAKEBOT_FLASH_BOOT_TIMEOUT_S       10 s
-===================================  ==================================  =======
+===================================  ==================================  ======================
+wait for the bootloader after '#'    SNAKEBOT_FLASH_RESET_TIMEOUT_S      ``RESET_TIMEOUT_S``
+pause between two '#'                SNAKEBOT_FLASH_HASH_INTERVAL_S      ``HASH_INTERVAL_S``
+silence that ends its banner         SNAKEBOT_FLASH_QUIET_S              ``QUIET_S``
+longest it may talk after '#'        SNAKEBOT_FLASH_QUIET_TIMEOUT_S      ``QUIET_TIMEOUT_S``
+wait for "Ready.." after L           SNAKEBOT_FLASH_READY_TIMEOUT_S      ``READY_TIMEOUT_S``
+pause after "Ready.."                SNAKEBOT_FLASH_READY_SETTLE_S       ``READY_SETTLE_S``
+wait for "Checksum:" (base)          SNAKEBOT_FLASH_CHECKSUM_TIMEOUT_S   ``CHECKSUM_TIMEOUT_S``
+  ... plus, per 2 KB flash page      SNAKEBOT_FLASH_PAGE_TIME_S          ``PAGE_TIME_S``
+wait for an answer to GO             SNAKEBOT_FLASH_GO_TIMEOUT_S         ``GO_TIMEOUT_S``
+wait for the new firmware's PING     SNAKEBOT_FLASH_BOOT_TIMEOUT_S       ``BOOT_TIMEOUT_S``
+===================================  ==================================  ======================
 
 The checksum wait grows with the image, because the bootloader may still be erasing and
 programming flash pages when the last byte has arrived (an STM32F103 page erase takes
 up to 40 ms).
+
+The variables, their range and defaults are rows of the one table in
+:mod:`snakebot.settings`, which reads and checks them.
 """
 
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass, fields
 
 from snakebot.link.flash.errors import FlashSettingError
+from snakebot.settings import default_float, lookup
 
-RESET_TIMEOUT_S = 20.0
-"""How long to keep sending '#' while the user presses RESET."""
+RESET_TIMEOUT_S = default_float("SNAKEBOT_FLASH_RESET_TIMEOUT_S")
+"""How long to keep sending '#' while the user presses MODE or power-cycles the CM-530."""
 
-HASH_INTERVAL_S = 0.001
+HASH_INTERVAL_S = default_float("SNAKEBOT_FLASH_HASH_INTERVAL_S")
 """Pause between two '#' characters (the bootloader only looks for one shortly after reset)."""
 
-QUIET_S = 0.2
+QUIET_S = default_float("SNAKEBOT_FLASH_QUIET_S")
 """Silence on the line that means the bootloader has finished its banner and prompt."""
 
-QUIET_TIMEOUT_S = 3.0
+QUIET_TIMEOUT_S = default_float("SNAKEBOT_FLASH_QUIET_TIMEOUT_S")
 """Longest the board may keep talking after it has answered '#'."""
 
-READY_TIMEOUT_S = 3.0
+READY_TIMEOUT_S = default_float("SNAKEBOT_FLASH_READY_TIMEOUT_S")
 """How long the bootloader may take to answer the load command with "Ready.."."""
 
-READY_SETTLE_S = 0.05
+READY_SETTLE_S = default_float("SNAKEBOT_FLASH_READY_SETTLE_S")
 """Pause after "Ready.." before the first image byte (users report the loader needs a moment)."""
 
-CHECKSUM_TIMEOUT_S = 3.0
+CHECKSUM_TIMEOUT_S = default_float("SNAKEBOT_FLASH_CHECKSUM_TIMEOUT_S")
 """Base wait for the "Checksum:" report after the last byte (it reports after a silence)."""
 
-PAGE_TIME_S = 0.05
+PAGE_TIME_S = default_float("SNAKEBOT_FLASH_PAGE_TIME_S")
 """Added to the checksum wait per 2 KB flash page of the image (erase plus programming)."""
 
-GO_TIMEOUT_S = 0.5
+GO_TIMEOUT_S = default_float("SNAKEBOT_FLASH_GO_TIMEOUT_S")
 """How long to listen for the bootloader's answer to GO (not required: the application
 may start at once and say nothing)."""
 
-BOOT_TIMEOUT_S = 10.0
+BOOT_TIMEOUT_S = default_float("SNAKEBOT_FLASH_BOOT_TIMEOUT_S")
 """How long the new firmware may take to answer PING after GO (it starts in well under a
 second; the rest is for a loaded machine or a slow adapter)."""
 
@@ -88,9 +91,9 @@ class FlashTimeouts:
         """Defaults, then the environment, then the keywords that are not None."""
         values: dict[str, float] = {}
         for f in fields(cls):
-            value = overrides.pop(f.name, None)
+            value: object = overrides.pop(f.name, None)
             if value is None:
-                value = _env_seconds(ENV_NAMES[f.name])
+                value = lookup(ENV_NAMES[f.name])
             if value is not None:
                 if not (isinstance(value, (int, float)) and 0 <= value < math.inf):
                     raise FlashSettingError(
@@ -119,19 +122,3 @@ ENV_NAMES = {
     "go": "SNAKEBOT_FLASH_GO_TIMEOUT_S",
     "boot": "SNAKEBOT_FLASH_BOOT_TIMEOUT_S",
 }
-
-
-def _env_seconds(name: str) -> float | None:
-    text = os.environ.get(name, "").strip()
-    if not text:
-        return None
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not 0 <= value < 3600:  # also rejects nan
-        raise FlashSettingError(
-            f"{name}={text!r} is not a number of seconds from 0 to 3600; "
-            "set it to e.g. 5 or unset it"
-        )
-    return value

@@ -19,7 +19,7 @@ from snakebot.formats.upload_writes import commit_write
 from snakebot.link.controller import UploadResult
 from snakebot.link.controller.client import ControllerClient
 from snakebot.link.flash.bootloader import RESET_HINT
-from snakebot.link.flash.errors import FlashError
+from snakebot.link.flash.errors import FlashError, FlashFailed
 from snakebot.link.flash.image import ImageInfo
 from snakebot.link.flash.settings import FlashTimeouts
 
@@ -51,7 +51,7 @@ def _wait_for_ping(ctl: ControllerClient, timeouts: FlashTimeouts, waited: Waite
         except (DxlTimeout, SnakebotError):
             elapsed = time.monotonic() - start
             if elapsed >= timeouts.boot:
-                raise FlashError(
+                raise FlashFailed(
                     f"the new firmware did not answer PING at ID {ctl.id} within "
                     f"{timeouts.boot:g} s of GO: it may not have started (the bootloader did "
                     f"not jump, or the image faults at start-up); {REFLASH}, or raise "
@@ -76,7 +76,7 @@ def verify_firmware(
         table = ctl.table
         length = table.register("Upload Length")
         if len(image) > length.max:
-            raise FlashError(
+            raise FlashFailed(
                 f"the image is {len(image)} bytes, more than the {length.max} the controller "
                 "can be asked to check (Upload Length): it started but is not verified"
             )
@@ -84,13 +84,13 @@ def verify_firmware(
             with ctl.link_errors("the firmware check"):
                 found = ctl.read("Model Number", "Firmware Version")
                 if found["Model Number"] != table.model_number:
-                    raise FlashError(
+                    raise FlashFailed(
                         f"the device answering at ID {ctl.id} after GO reports model number "
                         f"{found['Model Number']}, not a snakebot controller "
                         f"({table.model_number}): the new firmware did not start; {REFLASH}"
                     )
                 if found["Firmware Version"] != info.firmware_version:
-                    raise FlashError(
+                    raise FlashFailed(
                         f"the controller runs firmware version {found['Firmware Version']}, "
                         f"the image sent is version {info.firmware_version}: the old firmware "
                         f"is still running (the bootloader kept it); {REFLASH}"
@@ -100,10 +100,10 @@ def verify_firmware(
         except FlashError:
             raise
         except SnakebotError as exc:
-            raise FlashError(f"checking the new firmware failed: {exc}") from None
+            raise FlashFailed(f"checking the new firmware failed: {exc}") from None
     if result != UploadResult.OK:
         name = UploadResult(result).name if result in UploadResult._value2member_map_ else result
-        raise FlashError(
+        raise FlashFailed(
             f"the controller finds its firmware in flash differs from the image sent "
             f"(Upload Result {name}): flash was written wrongly or another image runs; "
             f"{REFLASH}"

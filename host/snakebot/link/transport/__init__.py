@@ -4,6 +4,9 @@ on it with timeouts computed from the wire, echo and stale-reply handling, and r
     from snakebot.link.transport import DxlClient
     with DxlClient("/dev/ttyUSB0") as bus:        # or "sim://...", "socket://host:port"
         position = bus.read_u16(1, 36)
+
+May import: ``formats``, ``facts`` and the package root; no other ``link`` package, and
+never ``sim`` (``ports`` registers the ``sim://`` handler by its package name only).
 """
 
 from __future__ import annotations

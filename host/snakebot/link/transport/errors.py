@@ -4,10 +4,10 @@ no sense."""
 
 from __future__ import annotations
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 
 
-class PortError(SnakebotError):
+class PortError(InputError):
     """The serial port could not be opened; the message names the port and the fix."""
 
     def __init__(self, port: str, message: str) -> None:
@@ -15,5 +15,5 @@ class PortError(SnakebotError):
         self.port = port
 
 
-class TransportSettingError(SnakebotError, ValueError):
+class TransportSettingError(InputError, ValueError):
     """A transport setting (keyword or environment variable) has an unusable value."""

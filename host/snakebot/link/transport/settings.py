@@ -13,20 +13,19 @@ servo Return Delay Time        SNAKEBOT_RETURN_DELAY_US ``timing.DEFAULT_RETURN_
 instruction echo on the bus    SNAKEBOT_ECHO          ``auto`` (also on / off)
 shortest echo-probe wait       SNAKEBOT_ECHO_PROBE_MS ``timing.ECHO_PROBE_MIN_S``
 =============================  =====================  ==========================
+
+The variables, their ranges and defaults are rows of the one table in
+:mod:`snakebot.settings`, which reads and checks them; this module adds the keyword
+arguments and the transport's unit of time, the second.
 """
 
 from __future__ import annotations
 
-import os
 from typing import Literal
 
+from snakebot import settings as table
 from snakebot.link.transport import timing
 from snakebot.link.transport.errors import TransportSettingError
-
-DEFAULT_RETRIES = 2
-"""Extra attempts after a timed-out or corrupt reply (so three tries in all)."""
-
-MAX_RETRIES = 100
 
 ENV_RETRIES = "SNAKEBOT_RETRIES"
 ENV_LATENCY_MS = "SNAKEBOT_LATENCY_MS"
@@ -35,49 +34,18 @@ ENV_RETURN_DELAY_US = "SNAKEBOT_RETURN_DELAY_US"
 ENV_ECHO = "SNAKEBOT_ECHO"
 ENV_ECHO_PROBE_MS = "SNAKEBOT_ECHO_PROBE_MS"
 
+DEFAULT_RETRIES = table.default_int(ENV_RETRIES)
+"""Extra attempts after a timed-out or corrupt reply (so three tries in all)."""
+
+MAX_RETRIES = int(table.setting(ENV_RETRIES).high or 0)
+
 EchoSetting = bool | Literal["auto"]
-
-_ECHO_WORDS: dict[str, EchoSetting] = {
-    "auto": "auto",
-    "on": True,
-    "1": True,
-    "true": True,
-    "yes": True,
-    "off": False,
-    "0": False,
-    "false": False,
-    "no": False,
-}
-
-
-def _env_float(name: str, low: float, high: float) -> float | None:
-    text = os.environ.get(name, "").strip()
-    if not text:
-        return None
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not low <= value <= high:  # also rejects nan
-        raise TransportSettingError(
-            f"{name}={text!r} is not a number from {low:g} to {high:g}; "
-            f"set it to e.g. {low + 1:g} or unset it"
-        )
-    return value
 
 
 def resolve_retries(value: int | None = None) -> int:
     """Retries: the keyword if given, else ``SNAKEBOT_RETRIES``, else ``DEFAULT_RETRIES``."""
     if value is None:
-        env = _env_float(ENV_RETRIES, 0, MAX_RETRIES)
-        if env is None:
-            return DEFAULT_RETRIES
-        if env != int(env):
-            raise TransportSettingError(
-                f"{ENV_RETRIES}={os.environ[ENV_RETRIES]!r} is not a whole number; "
-                "set it to e.g. 2 or unset it"
-            )
-        return int(env)
+        return table.resolve_int(ENV_RETRIES)
     if not isinstance(value, int) or not 0 <= value <= MAX_RETRIES:
         raise TransportSettingError(
             f"retries must be a whole number from 0 to {MAX_RETRIES}, got {value!r}"
@@ -86,11 +54,11 @@ def resolve_retries(value: int | None = None) -> int:
 
 
 def _resolve_seconds(
-    value: float | None, env_name: str, scale: float, default: float, what: str
+    value: float | None, env_name: str, per_unit: float, default: float, what: str
 ) -> float:
     if value is None:
-        env = _env_float(env_name, 0, 10_000)
-        return default if env is None else env * scale
+        env = table.lookup(env_name)
+        return default if env is None else float(env) / per_unit
     if not value >= 0:
         raise TransportSettingError(f"{what} must not be negative, got {value!r}")
     return float(value)
@@ -98,13 +66,13 @@ def _resolve_seconds(
 
 def resolve_latency_s(value: float | None = None) -> float:
     """USB latency margin in seconds: keyword, else ``SNAKEBOT_LATENCY_MS``, else default."""
-    return _resolve_seconds(value, ENV_LATENCY_MS, 1e-3, timing.USB_LATENCY_S, "latency_s")
+    return _resolve_seconds(value, ENV_LATENCY_MS, 1e3, timing.USB_LATENCY_S, "latency_s")
 
 
 def resolve_margin_s(value: float | None = None, default: float = timing.HOST_MARGIN_S) -> float:
     """Host scheduling margin in seconds: keyword, else ``SNAKEBOT_MARGIN_MS``, else
     ``default``."""
-    return _resolve_seconds(value, ENV_MARGIN_MS, 1e-3, default, "margin_s")
+    return _resolve_seconds(value, ENV_MARGIN_MS, 1e3, default, "margin_s")
 
 
 def resolve_return_delay_us(value: float | None = None) -> float:
@@ -118,21 +86,14 @@ def resolve_return_delay_us(value: float | None = None) -> float:
 def resolve_echo_probe_s(value: float | None = None) -> float:
     """Shortest wait for the echo of the "auto" mode's probe, in seconds: keyword, else
     ``SNAKEBOT_ECHO_PROBE_MS``, else default."""
-    return _resolve_seconds(value, ENV_ECHO_PROBE_MS, 1e-3, timing.ECHO_PROBE_MIN_S, "echo_probe_s")
+    return _resolve_seconds(value, ENV_ECHO_PROBE_MS, 1e3, timing.ECHO_PROBE_MIN_S, "echo_probe_s")
 
 
 def resolve_echo(value: EchoSetting | None = None) -> EchoSetting:
     """Echo handling: True, False or "auto"; keyword, else ``SNAKEBOT_ECHO``, else "auto"."""
     if value is None:
-        text = os.environ.get(ENV_ECHO, "").strip().lower()
-        if not text:
-            return "auto"
-        if text not in _ECHO_WORDS:
-            raise TransportSettingError(
-                f"{ENV_ECHO}={os.environ[ENV_ECHO]!r} is not understood; "
-                "set it to auto, on or off, or unset it"
-            )
-        return _ECHO_WORDS[text]
+        env = table.resolve(ENV_ECHO)
+        return "auto" if env == "auto" else bool(env)
     if value is True or value is False or value == "auto":
         return value
     raise TransportSettingError(f"echo must be True, False or 'auto', got {value!r}")

@@ -6,6 +6,10 @@ then holds received bytes for up to its latency timer before the host sees them,
 the host itself may be scheduled late. Each of those terms is named here, so a timeout
 grows with the baud rate and the packet lengths instead of being one magic number.
 
+The defaults a user may override (latency, margin, return delay, echo probe) are rows of
+the one table of environment variables, :mod:`snakebot.settings`, in the variables'
+units; they are named here in seconds.
+
 8N1 framing puts 10 bits on the wire per byte (start, 8 data, stop). On a half-duplex
 bus the echo of the instruction is heard while it is being sent, so it adds no time.
 """
@@ -14,21 +18,23 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from snakebot.settings import default_float
+
 BITS_PER_BYTE = 10
 """8N1: one start bit, eight data bits, one stop bit."""
 
 DEFAULT_BAUDRATE = 1_000_000
 """AX-12 factory setting (Baud Rate register = 1)."""
 
-DEFAULT_RETURN_DELAY_US = 500.0
+DEFAULT_RETURN_DELAY_US = default_float("SNAKEBOT_RETURN_DELAY_US")
 """AX-12 factory Return Delay Time: register value 250 x 2 us."""
 
-USB_LATENCY_S = 0.016
+USB_LATENCY_S = default_float("SNAKEBOT_LATENCY_MS") / 1e3
 """An FTDI adapter's default latency timer: received bytes may wait this long in the
 adapter before they are sent to the host. Override with ``SNAKEBOT_LATENCY_MS``
 (1 ms suits an adapter whose latency timer was lowered, 0 a native UART)."""
 
-HOST_MARGIN_S = 0.004
+HOST_MARGIN_S = default_float("SNAKEBOT_MARGIN_MS") / 1e3
 """Allowance for the host operating system scheduling us late. Override with
 ``SNAKEBOT_MARGIN_MS``."""
 
@@ -38,7 +44,7 @@ controller under QEMU behind a pseudo-terminal): it answers within a millisecond
 unless the host deschedules it for a while on a busy machine, for far longer than a UART
 ever stalls. ``SNAKEBOT_MARGIN_MS`` overrides it too."""
 
-ECHO_PROBE_MIN_S = 0.25
+ECHO_PROBE_MIN_S = default_float("SNAKEBOT_ECHO_PROBE_MS") / 1e3
 """The shortest wait for the echo of the broadcast PING that "auto" echo detection sends
 once, when its first exchange is ambiguous. Missing that echo would make the client
 believe the bus does not echo, so this wait is generous; it is paid at most once per

@@ -1,6 +1,9 @@
 """Gait generators: serpenoid (joint-space sines) and field-following (vector fields and
 Lie brackets through periodic inputs). Each returns a ``Gait`` that becomes a gait table
-(``Gait.gait_table()``) after passing the robot's joint-limit and speed checks."""
+(``Gait.gait_table()``) after passing the robot's joint-limit and speed checks.
+
+May import: as the ``model`` layer (the other ``model`` packages, ``formats``, ``facts``,
+the package root)."""
 
 from __future__ import annotations
 
@@ -8,13 +11,18 @@ from snakebot.model.gait.common import Gait, GaitError
 from snakebot.model.gait.field import field_gait
 from snakebot.model.gait.limits import GaitLimitError, check_motion, check_ticks
 from snakebot.model.gait.serpenoid import serpenoid
-from snakebot.model.gait.values import InputError, parse_angle, parse_angles, parse_field_expression
+from snakebot.model.gait.values import (
+    ExpressionError,
+    parse_angle,
+    parse_angles,
+    parse_field_expression,
+)
 
 __all__ = [
     "Gait",
     "GaitError",
     "GaitLimitError",
-    "InputError",
+    "ExpressionError",
     "check_motion",
     "check_ticks",
     "field_gait",

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 from snakebot.formats.gaittable import GaitTable, max_frames
 from snakebot.model.kinematics import Options, Table, Trajectory, integrate_joints
 from snakebot.model.robots import Friction, Robot
@@ -25,7 +25,7 @@ PATH_POINTS = 300
 NEAR_SINGULAR_RCOND = 1e-2
 
 
-class GaitError(SnakebotError):
+class GaitError(InputError):
     """A gait that cannot be generated as asked; the message says what to change."""
 
 

@@ -7,11 +7,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 from snakebot.model.robots import Robot
 
 
-class GaitLimitError(SnakebotError):
+class GaitLimitError(InputError):
     """A gait leaves a joint's range or exceeds the servo's speed; nothing was written."""
 
 

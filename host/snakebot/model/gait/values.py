@@ -10,15 +10,15 @@ import ast
 import math
 import re
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 
 _SUFFIX = re.compile(r"^(?P<body>.*?)\s*(?P<unit>deg|°|rad)?$", re.S)
 _CONSTANTS = {"pi": math.pi, "tau": math.tau}
 _FIELD = re.compile(r"^[gh][1-9]$")
 
 
-class InputError(SnakebotError):
-    """A value on the command line that cannot be understood."""
+class ExpressionError(InputError):
+    """A value (an angle, a rate, a field expression) that cannot be understood."""
 
 
 def _number(node: ast.AST, text: str) -> float:
@@ -48,8 +48,8 @@ def _number(node: ast.AST, text: str) -> float:
                 return a / b
             return a**b
         except (ZeroDivisionError, OverflowError) as exc:
-            raise InputError(f"cannot compute {text!r} ({exc})") from None
-    raise InputError(
+            raise ExpressionError(f"cannot compute {text!r} ({exc})") from None
+    raise ExpressionError(
         f"cannot read {text!r}: use a number, pi, + - * / and an optional "
         "'deg' suffix (e.g. 0.5, pi/3, -60deg)"
     )
@@ -60,10 +60,12 @@ def parse_number(text: str) -> float:
     try:
         tree = ast.parse(text.strip(), mode="eval")
     except SyntaxError:
-        raise InputError(f"cannot read {text!r}: use a number or an expression like pi/3") from None
+        raise ExpressionError(
+            f"cannot read {text!r}: use a number or an expression like pi/3"
+        ) from None
     value = _number(tree.body, text)
     if not math.isfinite(value):
-        raise InputError(f"{text!r} is not a finite number")
+        raise ExpressionError(f"{text!r} is not a finite number")
     return value
 
 
@@ -80,10 +82,10 @@ def parse_angles(text: str, count: int | None = None, what: str = "values") -> l
     """A comma-separated list of angles (each as parse_angle), optionally of fixed length."""
     parts = [p for p in text.split(",")]
     if any(not p.strip() for p in parts):
-        raise InputError(f"{what} {text!r} has an empty entry: separate values with commas")
+        raise ExpressionError(f"{what} {text!r} has an empty entry: separate values with commas")
     values = [parse_angle(p) for p in parts]
     if count is not None and len(values) != count:
-        raise InputError(
+        raise ExpressionError(
             f"{what} needs {count} comma-separated values, got {len(values)} in {text!r}"
         )
     return values
@@ -109,18 +111,18 @@ def _combination(node: ast.AST, text: str) -> dict[str, float]:
         a_const, b_const = set(a) <= {""}, set(b) <= {""}
         if isinstance(node.op, ast.Div):
             if not b_const or b.get("", 0.0) == 0.0:
-                raise InputError(f"in {text!r}: divide only by a non-zero number")
+                raise ExpressionError(f"in {text!r}: divide only by a non-zero number")
             return {k: v / b[""] for k, v in a.items()}
         if not (a_const or b_const):
-            raise InputError(
+            raise ExpressionError(
                 f"in {text!r}: fields can only be scaled by numbers, not multiplied together"
             )
         scale, combo = (a.get("", 0.0), b) if a_const else (b.get("", 0.0), a)
         return {k: scale * v for k, v in combo.items()}
     try:
         return {"": _number(node, text)}
-    except InputError:
-        raise InputError(
+    except ExpressionError:
+        raise ExpressionError(
             f"cannot read field expression {text!r}: write a combination of "
             "fields like g1, 2*g1-h3 or (2*g1-h3)/2"
         ) from None
@@ -131,20 +133,22 @@ def parse_field_expression(text: str, names: tuple[str, ...]) -> dict[str, float
     try:
         tree = ast.parse(text.strip(), mode="eval")
     except SyntaxError:
-        raise InputError(f"cannot read field expression {text!r}: write e.g. 2*g1-h3") from None
+        raise ExpressionError(
+            f"cannot read field expression {text!r}: write e.g. 2*g1-h3"
+        ) from None
     combo = _combination(tree.body, text)
     if combo.get("", 0.0) != 0.0:
-        raise InputError(
+        raise ExpressionError(
             f"{text!r} adds a plain number to fields: write only fields and their multiples"
         )
     combo.pop("", None)
     unknown = sorted(set(combo) - set(names))
     if unknown:
-        raise InputError(
+        raise ExpressionError(
             f"{text!r} uses {', '.join(unknown)}, which this robot does not have: "
             f"use {', '.join(names)}"
         )
     combo = {k: v for k, v in combo.items() if v != 0.0}
     if not combo:
-        raise InputError(f"{text!r} is the zero field: nothing to follow")
+        raise ExpressionError(f"{text!r} is the zero field: nothing to follow")
     return {n: combo[n] for n in names if n in combo}

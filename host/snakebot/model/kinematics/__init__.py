@@ -1,7 +1,10 @@
 """Numeric kinematics through the C core (``snakebot._core``): wheel geometry, the
 quasi-static body velocity (Coulomb friction), the control vector fields and their Lie brackets, and
 whole-trajectory integrators (RK4, Dormand-Prince 5(4) and 8(5,3)), one trajectory or
-a grid of schedules per call."""
+a grid of schedules per call.
+
+May import: as the ``model`` layer (``model.robots``, ``formats``, ``facts``, the
+package root)."""
 
 from __future__ import annotations
 

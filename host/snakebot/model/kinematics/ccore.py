@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from snakebot.core import ffi, lib
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError, SnakebotError
 from snakebot.model.robots import Friction, Robot
 
 FORMS = {"body": lib.KIN_FORM_BODY, "world": lib.KIN_FORM_WORLD}
@@ -38,7 +38,7 @@ _HINTS = {
 SINGULAR_CODES = (lib.KIN_ESINGULAR, lib.KIN_EINADMISSIBLE, lib.KIN_ESTEPSIZE)
 
 
-class KinematicsError(SnakebotError):
+class KinematicsError(InputError):
     """A status from the C kinematic core; ``code`` is the KIN_* value."""
 
     def __init__(self, code: int, context: str = "") -> None:

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 from snakebot.model.kinematics.jets import Jet, JetSpace, solve
 from snakebot.model.robots import Robot
 
@@ -52,7 +52,7 @@ MAX_DEPTH = 8
 MAX_PRODUCTS = 100_000
 
 
-class LieError(SnakebotError):
+class LieError(InputError):
     """Fields asked of a robot or at a depth this module does not provide."""
 
 

@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 from snakebot.model.gait.common import NEAR_SINGULAR_RCOND
 from snakebot.model.kinematics import KinematicsError, Options, Table, integrate_joints
 from snakebot.model.robots import Robot
@@ -52,7 +52,7 @@ REFINE_PASSES = 6
 MAX_EVALS = 40
 
 
-class PlanError(SnakebotError):
+class PlanError(InputError):
     """A plan that cannot be made as asked (bad input or a solver failure)."""
 
 

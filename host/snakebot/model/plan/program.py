@@ -18,7 +18,7 @@ generator, so a plan costs a couple of hundred bytes instead of a table's kiloby
 The loops are fitted on their frames, as the table planner's (``loops``), with the exact
 motion; the program differs by its rounding (mrad, mrad/s, a whole number of steps per
 loop, goals to ticks at every step), so its end pose is integrated from the goals the
-controller sends (``program.motion.end_pose``) and the route fitted again to a target
+controller sends (``model.motion.end_pose``) and the route fitted again to a target
 moved by the error a few times; a program still outside the tolerance is refused
 (``Unreachable``), never written.
 """

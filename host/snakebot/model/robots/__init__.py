@@ -3,6 +3,10 @@
 robot = load_robot("snake5")         # a built-in, by name
 robot = load_robot("my_robot.toml")  # or a file (see the built-ins for the schema)
 robot.angles_to_ticks(phi)           # joint angles (rad) -> AX-12 ticks
+
+Calibrating a real robot's joints over a bus is :mod:`snakebot.link.bus.calibrate`.
+
+May import: as the ``model`` layer (``formats``, ``facts``, the package root).
 """
 
 from __future__ import annotations

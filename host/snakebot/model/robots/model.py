@@ -7,7 +7,7 @@ from typing import Literal
 
 import numpy as np
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import InputError
 from snakebot.facts import devices
 
 _POSITION = devices.ax12().require_position()
@@ -39,7 +39,7 @@ PHYSICS_DEFAULTS: dict[str, float] = {
 also give a robot without a ``[physics]`` table its wheels' loads."""
 
 
-class RobotError(SnakebotError):
+class RobotError(InputError):
     """A robot description that cannot be used (file missing, malformed, inconsistent)."""
 
 

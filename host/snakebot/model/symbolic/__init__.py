@@ -1,5 +1,8 @@
 """Symbolic models (sympy): the control vector fields, their Lie brackets, and the C
-generated from them for the kinematic core."""
+generated from them for the kinematic core.
+
+May import: as the ``model`` layer (``model.robots``, ``formats``, ``facts``, the
+package root)."""
 
 from __future__ import annotations
 

@@ -2,8 +2,8 @@
 
 The C core evaluates the Lie brackets from these exact expressions (sympy
 differentiates; common subexpressions are shared), never by finite differences.
-The generated files are committed; ``tests/test_kin_codegen.py`` checks that running
-this again reproduces them. Regenerate after changing ``symbolic/models.py``::
+The generated files are committed; ``tests/model/test_kin_codegen.py`` checks that running
+this again reproduces them. Regenerate after changing ``model/symbolic/models.py``::
 
     python -m snakebot.model.symbolic.codegen          # rewrite the files
     python -m snakebot.model.symbolic.codegen --check  # exit 1 if they are out of date

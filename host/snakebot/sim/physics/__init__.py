@@ -3,6 +3,9 @@ actuators that run out of torque), beside the kinematic world of ``snakebot.sim.
 
     world = PhysicsWorld(bus, robot)   # the same interface as World
     make_world("mujoco", bus, robot)   # either world by name
+
+May import: as the ``sim`` layer (``sim.bus``, ``sim.servo``, ``sim.world``, the layers
+below).
 """
 
 from __future__ import annotations

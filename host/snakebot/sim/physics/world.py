@@ -7,7 +7,7 @@ servos do not move themselves: every control period (``control_period`` of bus t
 world reads each servo's controller registers, works out its motor's drive
 (:mod:`snakebot.sim.physics.actuator`), steps MuJoCo over the period, and reports the
 joint's position, speed and load back to the servo
-(:meth:`snakebot.sim.servo.reference.VirtualServo.set_motion`), so a master reading Present
+(:meth:`snakebot.sim.servo.fast.VirtualServo.set_motion`), so a master reading Present
 Position, Present Speed or Present Load over the bus sees the physics, and a joint that
 cannot deliver the torque asked of it reports overload.
 

@@ -10,7 +10,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import TYPE_CHECKING
 
-from snakebot.sim.errors import SimError
+from snakebot.sim.errors import SimFailure, SimInputError
 from snakebot.sim.transports.pump import ServerThread
 
 if TYPE_CHECKING:  # typing.Self is 3.11+; annotations are never evaluated at run time
@@ -76,10 +76,10 @@ class RawPty:
                 if old is not None
                 else "exists and is not a symlink"
             )
-            raise SimError(f"{link} {what}: {self.link_advice}") from None
+            raise SimInputError(f"{link} {what}: {self.link_advice}") from None
         except OSError as exc:
             self.close()
-            raise SimError(f"cannot make the link {link}: {exc.strerror or exc}") from None
+            raise SimFailure(f"cannot make the link {link}: {exc.strerror or exc}") from None
         self._linked = True
 
 

@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 from snakebot.sim.bus.bus import Bus
-from snakebot.sim.errors import SimError
+from snakebot.sim.errors import SimFailure, SimInputError
 from snakebot.sim.transports.base import ThreadedServer
 from snakebot.sim.transports.pump import Pump, ServerThread
 
@@ -47,14 +47,16 @@ class UnixSocketServer(ThreadedServer):
         if not self.connect:
             if self.path.exists() or self.path.is_symlink():
                 if not self.path.is_socket():
-                    raise SimError(f"{self.path} exists and is not a socket: choose another path")
+                    raise SimInputError(
+                        f"{self.path} exists and is not a socket: choose another path"
+                    )
                 self.path.unlink()
             listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
             try:
                 listener.bind(str(self.path))
             except OSError as exc:
                 listener.close()
-                raise SimError(f"cannot listen on {self.path}: {exc}") from exc
+                raise SimFailure(f"cannot listen on {self.path}: {exc}") from exc
             listener.listen(1)
             self._listener = listener
         self._thread = ServerThread(f"snakebot.sim-unix {self.path}")
@@ -73,7 +75,7 @@ class UnixSocketServer(ThreadedServer):
             ready, _, _ = select.select([self._thread.wake_fd], [], [], 0.05)
             if ready:
                 return None
-        raise SimError(f"nothing listens on {self.path}: start QEMU first, or listen instead")
+        raise SimFailure(f"nothing listens on {self.path}: start QEMU first, or listen instead")
 
     def _serve(self) -> None:
         assert self._thread is not None

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from snakebot.errors import SnakebotError
-from snakebot.model.gait.values import InputError, parse_angle, parse_number
+from snakebot.errors import InputError
+from snakebot.model.gait.values import ExpressionError, parse_angle, parse_number
 
 GAIT_PARAMETERS = {
     "amplitude": ("amplitude", "A"),
@@ -43,7 +43,7 @@ REQUIRED = ("amplitude", "omega", "delta")
 DEFAULTS = {"offset": 0.0}
 
 
-class SearchError(SnakebotError):
+class SearchError(InputError):
     """A search that cannot run as asked; the message says what to change."""
 
 
@@ -99,7 +99,7 @@ def parse_axis(text: str, robust: bool = False) -> Axis:
     try:
         numbers = [parse(p.strip()) for p in parts[:2]]
         count = None if len(parts) < 3 else int(parts[2].strip())
-    except InputError as exc:
+    except ExpressionError as exc:
         raise SearchError(f"{option} {text!r}: {exc}") from None
     except ValueError:
         raise SearchError(f"{option} {text!r}: COUNT must be a whole number") from None

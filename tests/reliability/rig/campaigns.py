@@ -1,8 +1,8 @@
 """Fault campaigns: the real controller firmware (QEMU) driving the emulated robot while
 faults are injected from a seed, and what the controller promises checked throughout.
 
-    python -m tools.campaigns                        # every campaign, a table of results
-    python -m tools.campaigns --only corrupt-1pct --seed 7 --json
+    python -m tests.reliability.rig.campaigns      # every campaign, a table of results
+    python -m tests.reliability.rig.campaigns --only corrupt-1pct --seed 7 --json
 
 Each campaign boots ``build/qemu/flash.bin`` (``make firmware``) with USART1 on an
 emulated bus of three AX-12s and USART3 on a pseudo-terminal, uploads a gait table whose
@@ -97,7 +97,7 @@ from snakebot.link.controller.monitor import Sample, sample
 from snakebot.paths import REPO_ROOT
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.bus.faults import FaultConfig
-from snakebot.sim.errors import SimError
+from snakebot.sim.errors import SimError, SimFailure
 from snakebot.sim.qemu import Endpoint, QemuFirmware
 from snakebot.sim.servo.fast import VirtualServo
 from snakebot.sim.transports.unixsock import UnixSocketServer
@@ -397,7 +397,7 @@ def _ctl_layout() -> tuple[int, int, int]:
                 text=True,
             )
         except (OSError, subprocess.CalledProcessError) as exc:
-            raise SimError(
+            raise SimFailure(
                 f"cannot compile the layout probe with arm-none-eabi-gcc ({exc}): run `make setup`"
             ) from exc
         words = np.frombuffer(b.read_bytes()[:12], "<u4")
@@ -422,7 +422,7 @@ def read_ram(fw: QemuFirmware, address: int, length: int) -> bytes:
 # -- one campaign's rig -----------------------------------------------------------------------
 
 
-class CampaignFailed(SimError):
+class CampaignFailed(SimFailure):
     """A campaign could not run (not: an invariant failed; that is a result)."""
 
 
@@ -776,7 +776,7 @@ class Outcome:
 
     @property
     def command(self) -> str:
-        return f"python -m tools.campaigns --only {self.name} --seed {self.seed}"
+        return f"python -m tests.reliability.rig.campaigns --only {self.name} --seed {self.seed}"
 
     def check(self, name: str, held: bool, why: str = "") -> None:
         self.checks[name] = self.checks.get(name, True) and bool(held)
@@ -1434,7 +1434,7 @@ def render(outcomes: list[Outcome]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
-        prog="python -m tools.campaigns",
+        prog="python -m tests.reliability.rig.campaigns",
         description="Fault campaigns: the controller firmware under QEMU drives three "
         "emulated AX-12s while faults are injected from a seed; checks that goals stay "
         "within the joint limits, the controller keeps answering, the committed table "

@@ -1,4 +1,5 @@
-/* What every board provides (firmware/boards/<board>/board.c). Board facts that are plain
+/* What every board provides (firmware/boards/<board>/board.c), and all the application
+ * (firmware/app) may ask of one: the contract between the two. Board facts that are plain
  * numbers (pins, memory, baud rates) live as macros in that board's board.h. */
 #ifndef SNAKEBOT_BOARD_API_H
 #define SNAKEBOT_BOARD_API_H

@@ -1,9 +1,9 @@
 """How often does the client return a wrong value as right, with bytes damaged on the wire?
 
-    python -m tools.wrong_values                          # 1 % corruption, seeds 1-3, 10^4 each
-    python -m tools.wrong_values --seeds 7 --transactions 40000 --corrupt 0.005 --json
-    python -m tools.wrong_values --baseline               # without the client's defences
-    python -m tools.wrong_values --confirmed              # every READ as read_confirmed
+    python -m tests.reliability.rig.wrong_values    # 1 % corruption, seeds 1-3, 10^4 each
+    python -m tests.reliability.rig.wrong_values --seeds 7 --transactions 40000 --json
+    python -m tests.reliability.rig.wrong_values --baseline    # without the client's defences
+    python -m tests.reliability.rig.wrong_values --confirmed   # every READ as read_confirmed
 
 A ``DxlClient`` talks to one emulated AX-12A through ``sim://`` (the bus runs as fast as
 the host allows, so a seed fixes every damaged byte). Each transaction is a READ of a
@@ -102,7 +102,9 @@ def run(
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m tests.reliability.rig.wrong_values", description=__doc__.split("\n\n")[0]
+    )
     parser.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     parser.add_argument("--transactions", type=int, default=10_000)
     parser.add_argument("--corrupt", type=float, default=0.01)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any
 
 import click
@@ -234,11 +235,14 @@ def fields_command(
 
 
 def _joint_driven(rb: Any, q: np.ndarray) -> dict[str, Any] | None:
-    """How well the joints, driven as the servos drive them, determine the body at q:
-    the minimum-slip wheel model's reciprocal condition number (None for the car)."""
+    """How well the joints, driven as the servos drive them, determine the body at q
+    by geometry alone: the reciprocal condition number of the wheels' no-slip rows, as
+    the quasi-static model sees them with free rolling (None for the car). With rolling
+    resistance the model is defined there too, but the motion then depends on friction."""
     if rb.kind not in ("snake", "trident"):
         return None
-    rcond = body_velocity(rb, q, np.zeros(rb.n_joints)).rcond
+    free = replace(rb.friction, rolling=0.0, axle_nm=0.0)
+    rcond = body_velocity(rb, q, np.zeros(rb.n_joints), free).rcond
     return {"rcond": rcond, "near_singular": rcond < NEAR_SINGULAR_RCOND}
 
 

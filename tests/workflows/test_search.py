@@ -102,12 +102,14 @@ def test_a_kinematic_run_moves_as_gait_serpenoid_predicts_its_table():
     row = evaluate(Settings("snake5", "kinematic", 3, 50), p)
     gait = serpenoid(robot, p["amplitude"], p["omega"], p["delta"], cycles=3, rate_hz=50)
     assert row["status"] == "ok"
-    # the search's one-step-per-frame RK4 against the table prediction's Dormand-Prince
-    assert row["dx"] == pytest.approx(gait.table["dx"], rel=1e-4)
-    assert row["dy"] == pytest.approx(gait.table["dy"], rel=1e-4, abs=1e-6)
+    # the search's one-step-per-frame RK4 against the table prediction's Dormand-Prince:
+    # fourth order only between the quasi-static model's kinks (where a wheel starts or
+    # stops sliding), so they agree to 2.1e-4 here, not to RK4's 1e-5 on a smooth field
+    assert row["dx"] == pytest.approx(gait.table["dx"], rel=1e-3)
+    assert row["dy"] == pytest.approx(gait.table["dy"], rel=1e-3, abs=1e-6)
     distance = math.hypot(gait.table["dx"], gait.table["dy"])
-    assert row["distance_per_cycle"] == pytest.approx(distance / 3, rel=1e-4)
-    assert row["speed"] == pytest.approx(distance / gait.duration_s, rel=1e-4)
+    assert row["distance_per_cycle"] == pytest.approx(distance / 3, rel=1e-3)
+    assert row["speed"] == pytest.approx(distance / gait.duration_s, rel=1e-3)
     # five wheels for three body freedoms: some must slide
     assert row["slip_per_cycle"] > 0
     # the quasi-static joint torques do work against friction; the motors draw that
@@ -135,6 +137,23 @@ def test_rolling_resistance_changes_the_kinematic_run():
     assert slippery["distance_per_cycle"] < 0.1 * grippy["distance_per_cycle"]
 
 
+def test_inertia_the_floor_cannot_give_flags_a_gait_infeasible():
+    # The quasi-static forces are within friction by construction; what the floor may
+    # not manage is the links' inertia across their wheels, which grows with the square
+    # of the speed. The demo's gait (30 deg, delta 60 deg, 1 Hz) asks about half of
+    # mu N; delta 30 deg (the grid's edge, near the straight singular pose) asks more
+    # than mu N: flagged, and left out of the ranking by default.
+    settings = Settings("snake5", "kinematic", 3, 50)
+    fast = evaluate(settings, point())
+    slow = evaluate(settings, point(omega_deg=180))
+    tight = evaluate(settings, point(delta_deg=30))
+    assert fast["status"] == "ok" and 0.3 < fast["lateral_ratio"] < 1
+    assert slow["lateral_ratio"] < 0.5 * fast["lateral_ratio"]
+    assert tight["status"] == "infeasible" and tight["lateral_ratio"] > 1
+    assert "lateral_ratio" in tight["reason"]
+    assert tight["torque_ratio"] < 1  # the servos could: the floor is the limit
+
+
 # -- a search from the command line --------------------------------------------------------
 
 
@@ -155,7 +174,12 @@ def test_grid_search_writes_every_run_the_best_gait_and_resumes(tmp_path):
     assert len(rows) == 12 == summary["candidates"] == summary["runs_evaluated"]
     # 70 deg at 1 Hz is faster than the AX-12 turns: failed, kept, with the reason
     failed = [r for r in rows if r["status"] == "failed"]
-    assert len(failed) == 3 == summary["failed"]
+    assert len(failed) == 3
+    # delta 30 deg at 30 and 50 deg: more inertia than the floor gives (lateral_ratio
+    # 1.38, 2.19); the summary counts every candidate left without a score
+    infeasible = [r for r in rows if r["status"] == "infeasible"]
+    assert {round(math.degrees(r["delta"])) for r in infeasible} == {30}
+    assert len(infeasible) == 2 and summary["failed"] == 5
     assert all(r["amplitude"] == pytest.approx(math.radians(70)) for r in failed)
     assert all("maximum" in r["reason"] for r in failed)
     ok = [r for r in rows if r["status"] == "ok"]
@@ -261,8 +285,7 @@ def test_plots_are_written(tmp_path):
     [
         (("--param", "speed=1:2:3", *GRID), "unknown parameter 'speed'"),
         (("--param", "A=50deg:10deg:5", "--param", "delta=1", "--param", "omega=6"), "empty range"),
-        ((*GRID, "--objective", "efficiency"), "--objective efficiency needs"),
-        ((*GRID, "--robust", "mu=0.3:1:3"), "applies to the mujoco world"),
+        ((*GRID, "--robust", "mass=0.5:2:3"), "applies to the mujoco world"),
         ((*GRID, "-o", "runs.txt"), "must end in .parquet or .csv"),
         ((*GRID, "--cluster", "tcp://127.0.0.1:9"), "cannot reach the Dask scheduler"),
     ],

@@ -72,7 +72,11 @@ def test_closed_loop_runs_on_the_physics_world():
 #: Seeded targets on the physics world, per robot family; each run takes seconds.
 PHYSICS_SEEDS = (31, 32, 33, 34, 35, 36)
 #: Where the closed loop is known not to get there (docs/goto.md has the figures).
-PHYSICS_MISSES: dict[tuple[str, int], str] = {}
+PHYSICS_MISSES: dict[tuple[str, int], str] = {
+    ("snake5", 31): "issue 31, open: since the kinematic world became quasi-static Coulomb "
+    "the serpenoid steering's cycle model misses on MuJoCo (measured: 21x the position "
+    "tolerance, 7x the heading's); docs/goto.md",
+}
 
 
 def physics_cases():

@@ -114,75 +114,6 @@ SNAKE5 = load_robot("snake5")
 GAIT = Sines.serpenoid(4, 0.5, 2 * math.pi * 0.5, math.pi / 2)
 
 
-def snake5_numpy(t, pose, robot=SNAKE5, gait=GAIT):
-    phase = gait.omega * t + np.array(gait.phase)
-    phi = np.array(gait.amp) * np.sin(phase)
-    dphi = np.array(gait.amp) * gait.omega * np.cos(phase)
-    half = robot.l
-    psi = pose[2] + np.concatenate(([0.0], np.cumsum(phi)))  # link headings
-    tx, ty = np.cos(psi), np.sin(psi)
-    # joint k sits at the far end of link k; wheel k at the middle of link k
-    starts = pose[:2] + 2 * half * np.vstack(([0.0, 0.0], np.cumsum(np.c_[tx, ty], axis=0)[:-1]))
-    wheels = starts + half * np.c_[tx, ty]
-    rel = wheels - pose[:2]
-    n_theta = tx * rel[:, 0] + ty * rel[:, 1]
-    t_theta = -(-ty * rel[:, 0] + tx * rel[:, 1])
-    n_joint, t_joint = np.zeros(len(psi)), np.zeros(len(psi))
-    for k in range(1, len(psi)):
-        d = wheels[k] - starts[1 : k + 1]  # offsets from the joints before link k
-        n_joint[k] = dphi[:k] @ (tx[k] * d[:, 0] + ty[k] * d[:, 1])
-        t_joint[k] = -dphi[:k] @ (-ty[k] * d[:, 0] + tx[k] * d[:, 1])
-    wn, wt = math.sqrt(robot.c_n), math.sqrt(robot.c_t)
-    m = np.vstack((np.c_[-ty, tx, n_theta] * wn, np.c_[tx, ty, t_theta] * wt))
-    b = -np.concatenate((n_joint * wn, t_joint * wt))
-    return np.linalg.lstsq(m, b, rcond=None)[0]
-
-
-def snake5_math(t, pose, robot=SNAKE5, gait=GAIT):
-    """The same least-squares body velocity with floats: the 3x3 normal equations of
-    the weighted wheel constraints, solved by Cramer's rule."""
-    x, y, theta = pose.tolist()
-    omega, half = gait.omega, robot.l
-    phi = [a * math.sin(omega * t + p) for a, p in zip(gait.amp, gait.phase, strict=True)]
-    dphi = [a * omega * math.cos(omega * t + p) for a, p in zip(gait.amp, gait.phase, strict=True)]
-    psi = [theta]
-    for p in phi:
-        psi.append(psi[-1] + p)
-    tx = [math.cos(v) for v in psi]
-    ty = [math.sin(v) for v in psi]
-    sx, sy = [x], [y]  # link starts; joint k is the start of link k + 1
-    for k in range(len(psi) - 1):
-        sx.append(sx[-1] + 2 * half * tx[k])
-        sy.append(sy[-1] + 2 * half * ty[k])
-    rows = []  # (weight, a, b, c, rhs): weight * (a vx + b vy + c w + rhs) = 0
-    for k in range(len(psi)):
-        wx, wy = sx[k] + half * tx[k], sy[k] + half * ty[k]
-        n_joint = t_joint = 0.0
-        for j in range(1, k + 1):
-            dx, dy = wx - sx[j], wy - sy[j]
-            n_joint += dphi[j - 1] * (tx[k] * dx + ty[k] * dy)
-            t_joint -= dphi[j - 1] * (-ty[k] * dx + tx[k] * dy)
-        rx, ry = wx - x, wy - y
-        rows.append((robot.c_n, -ty[k], tx[k], tx[k] * rx + ty[k] * ry, n_joint))
-        rows.append((robot.c_t, tx[k], ty[k], ty[k] * rx - tx[k] * ry, t_joint))
-    aa = ab = ac = bb = bc = cc = ra = rb = rc = 0.0
-    for w, a, b, c, r in rows:
-        aa += w * a * a
-        ab += w * a * b
-        ac += w * a * c
-        bb += w * b * b
-        bc += w * b * c
-        cc += w * c * c
-        ra -= w * a * r
-        rb -= w * b * r
-        rc -= w * c * r
-    det = aa * (bb * cc - bc * bc) - ab * (ab * cc - bc * ac) + ac * (ab * bc - bb * ac)
-    vx = (ra * (bb * cc - bc * bc) - ab * (rb * cc - bc * rc) + ac * (rb * bc - bb * rc)) / det
-    vy = (aa * (rb * cc - bc * rc) - ra * (ab * cc - bc * ac) + ac * (ab * rc - rb * ac)) / det
-    w = (aa * (bb * rc - rb * bc) - ab * (ab * rc - rb * ac) + ra * (ab * bc - bb * ac)) / det
-    return [vx, vy, w]
-
-
 def snake5_run(rtol=RTOL, atol=ATOL, gait=GAIT):
     return integrate_joints(SNAKE5, gait, SPAN, options=Options(METHOD, rtol, atol))
 
@@ -343,15 +274,9 @@ def main() -> int:
             np.zeros(6),
             6,
         ),
-        (
-            "5-link serpenoid (minimum slip)",
-            snake5_c,
-            snake5_run,
-            {"numpy": snake5_numpy, "math": snake5_math},
-            np.zeros(3),
-            3,
-        ),
     ):
+        # No 5-link comparison: the core solves the quasi-static L1 problem (issue 31)
+        # and no Python counterpart of it is written yet.
         check_same_model(rhss, y0)
         reference = c_func(1e-13, 1e-14)
         rtols = (RTOL,) if quick else tuple(sorted({RTOL, *CURVE_RTOLS}, reverse=True))

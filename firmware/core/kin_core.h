@@ -50,15 +50,17 @@
 /* Geometry. Snake: `links` links of length 2l, wheels at the middles; reference point
  * (x, y) = free end of link 1, theta = heading of link 1. Trident: base centre (x, y),
  * heading theta, arm i (length l) jointed at radius r, angle alpha[i]; wheel at the arm's
- * end. Friction: viscous, c_n across the wheel, c_t along it (c_t = 0: ideal wheels). */
+ * end. Friction, per wheel i, in newtons: lateral[i] = mu N_i, the Coulomb force across the
+ * wheel when it slides (> 0); rolling[i] = C_rr N_i + axle torque / wheel radius, the
+ * force resisting its rolling (>= 0; 0: free rolling, singular where the axles meet). */
 typedef struct {
     int32_t kind;
     int32_t links;
     double l;
     double r;
     double alpha[3];
-    double c_n;
-    double c_t;
+    double lateral[KIN_MAX_WHEELS];
+    double rolling[KIN_MAX_WHEELS];
 } kin_robot;
 
 typedef struct {
@@ -103,7 +105,7 @@ typedef struct {
     int32_t rejected;  /* rejected steps (adaptive methods) */
     int32_t evals;     /* right-hand-side evaluations */
     int32_t fallbacks; /* evaluations near a singular configuration done by extrapolation in time */
-    double min_rcond;  /* smallest conditioning of the minimum-slip problem seen */
+    double min_rcond;  /* smallest conditioning of the friction problem seen */
     double t_fail;     /* time reached when an error stopped the integration */
 } kin_stats;
 
@@ -117,14 +119,23 @@ int kin_wheels(const kin_robot *rb, const double *q, double *pos, double *dir);
  * wheel) and tangential (rolling) components; either output may be NULL. */
 int kin_wheel_speeds(const kin_robot *rb, const double *q, const double *qdot,
                      double *normal, double *tangent);
-/* Minimum-slip body velocity xi = (dx, dy, dtheta) (world frame) for joint velocities
- * dphi at q: minimises sum c_n (n.v)^2 + c_t (t.v)^2. slip (may be NULL): each wheel's
- * normal speed n.v. rcond (may be NULL): reciprocal 1-norm condition number of the
- * least-squares matrix (rotation column scaled by the body length). KIN_ESINGULAR (and
- * xi = 0) when rcond < 1e-10 with the joints moving: axles concurrent or all parallel
- * (c_t = 0), e.g. the 3-link snake with phi1 = phi2. Joints at rest give xi = 0. */
+/* Quasi-static body velocity xi = (dx, dy, dtheta) (world frame) for joint velocities
+ * dphi at q: the one minimising the wheels' frictional power
+ * sum_i lateral_i |n_i.v_i| + rolling_i |t_i.v_i| (exactly, at a vertex of that L1 fit).
+ * slip (may be NULL): each wheel's normal speed n.v. rcond (may be NULL): reciprocal
+ * 1-norm condition number of the three sticking rows' system (rotation column scaled by
+ * the body length). KIN_ESINGULAR (xi = 0) when the rows do not determine the motion
+ * (only with rolling = 0: axles concurrent or all parallel, e.g. the 3-link snake with
+ * phi1 = phi2) and the joints move. Joints at rest give xi = 0. */
 int kin_body_velocity(const kin_robot *rb, const double *q, const double *dphi,
                       double *xi, double *slip, double *rcond);
+/* The same body velocity with the forces behind it: force (2 x wheels, may be NULL) the
+ * friction force on wheel i across (force[2i], along n_i) and along (force[2i+1], along
+ * t_i) it, in newtons; torque (joints, may be NULL) each joint's torque that drives the
+ * motion against that friction (newtons times the robot's length unit). The power the
+ * joints put in, sum torque_j dphi_j, is the power the wheels dissipate. */
+int kin_quasi_static(const kin_robot *rb, const double *q, const double *dphi, double *xi,
+                     double *force, double *torque);
 
 /* Number of fields (inputs g... then brackets h...) and of inputs; KIN_EUNSUPPORTED
  * for robots without a field model (snakes other than 3 links). */
@@ -140,7 +151,7 @@ int kin_field_velocity(const kin_robot *rb, int32_t form, const double *q, const
 /* Joint angles and velocities of a schedule at time t (phi, dphi: `joints` entries). */
 int kin_schedule_eval(const kin_schedule *s, double t, double *phi, double *dphi);
 
-/* Body pose driven by a joint schedule through the minimum-slip model, from pose0 =
+/* Body pose driven by a joint schedule through the quasi-static friction model, from pose0 =
  * (x, y, theta) at t0 to t1. Writes n_out >= 2 rows of q = (x, y, theta, phi..) at
  * t0 + k (t1 - t0) / (n_out - 1) to out, and each wheel's normal slip speed at those
  * times to slip (n_out x wheels; may be NULL). stats may be NULL. */

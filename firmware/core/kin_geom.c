@@ -1,4 +1,5 @@
-/* Geometry of the wheeled chains and the minimum-slip body velocity (docs/models.md).
+/* Geometry of the wheeled chains (docs/models.md); the body velocity they allow is in
+ * kin_qs.c.
  *
  * Every wheel i has a position W_i, a rolling direction t_i and a normal n_i = J t_i
  * (J: rotation by +90 degrees). Its velocity is linear in the body velocity
@@ -13,17 +14,12 @@
 
 #include <math.h>
 
-#define RCOND_SINGULAR 1e-10
-/* At or above this conditioning the normal equations are accurate enough (lsq3_normal). */
-#define NORMAL_RCOND 1e-2
-
 int kin_check_robot(const kin_robot *rb, int32_t *joints)
 {
     if (rb == NULL) {
         return KIN_EINVAL;
     }
-    if (!isfinite(rb->l) || !(rb->l > 0.0) || !isfinite(rb->c_n) || !(rb->c_n > 0.0)
-        || !isfinite(rb->c_t) || !(rb->c_t >= 0.0)) {
+    if (!isfinite(rb->l) || !(rb->l > 0.0)) {
         return KIN_EGEOMETRY;
     }
     int32_t count;
@@ -40,6 +36,14 @@ int kin_check_robot(const kin_robot *rb, int32_t *joints)
         count = 3;
     } else {
         return KIN_EGEOMETRY;
+    }
+    /* Friction: every wheel resists sliding across it (lateral > 0); rolling >= 0. */
+    const int32_t wheels = rb->kind == KIN_SNAKE ? rb->links : 3;
+    for (int32_t i = 0; i < wheels; i++) {
+        if (!isfinite(rb->lateral[i]) || !(rb->lateral[i] > 0.0) || !isfinite(rb->rolling[i])
+            || !(rb->rolling[i] >= 0.0)) {
+            return KIN_EGEOMETRY;
+        }
     }
     if (joints != NULL) {
         *joints = count;
@@ -207,221 +211,6 @@ int kin_wheel_speeds(const kin_robot *rb, const double *q, const double *qdot, d
     return KIN_OK;
 }
 
-/* fmax() as the hot paths need it, without a libm call: the larger, or the one that is
- * not NaN. */
-static double max2(double a, double b)
-{
-    return (b > a || isnan(a)) ? b : a;
-}
-
-/* Reciprocal 1-norm condition number of the upper triangular R = (r00 r01 r02; r11 r12;
- * r22), given as r[] = {r00, r01, r02, r11, r12, r22}, and its inverse, in the same
- * order, in inv[]: the caller has put the diagonal's reciprocals in inv[0], inv[3] and
- * inv[5]. Not finite when R is singular. */
-static double r_rcond(const double r[6], double inv[6])
-{
-    inv[1] = -r[1] * inv[0] * inv[3];
-    inv[4] = -r[4] * inv[3] * inv[5];
-    inv[2] = -(r[1] * inv[4] + r[2] * inv[5]) * inv[0];
-    const double n_r = max2(fabs(r[0]), max2(fabs(r[1]) + fabs(r[3]),
-                                             fabs(r[2]) + fabs(r[4]) + fabs(r[5])));
-    const double n_i = max2(fabs(inv[0]), max2(fabs(inv[1]) + fabs(inv[3]),
-                                               fabs(inv[2]) + fabs(inv[4]) + fabs(inv[5])));
-    return 1.0 / (n_r * n_i);
-}
-
-/* min ||M x - b|| for an m x 3 matrix (m <= 2 KIN_MAX_WHEELS) by Householder QR.
- * Writes x and the reciprocal 1-norm condition number of R. The columns must already
- * be in comparable units (the caller scales the rotation column by a body length):
- * they are deliberately NOT equilibrated by their own norms, since that would hide a
- * column that is small only through cancellation (a straight snake's longitudinal
- * direction), where the solution has lost its accuracy. */
-static void lsq3(double m[][3], double *b, int32_t rows, double x[3], double *rcond)
-{
-    x[0] = x[1] = x[2] = 0.0;
-    *rcond = 0.0;
-    for (int32_t k = 0; k < 3; k++) {
-        double norm = 0.0;
-        for (int32_t i = k; i < rows; i++) {
-            norm += m[i][k] * m[i][k];
-        }
-        norm = sqrt(norm);
-        if (!(norm > 0.0)) {
-            return;
-        }
-        const double alpha = m[k][k] > 0.0 ? -norm : norm;
-        /* v = column k below the diagonal, minus alpha e_k; |v|^2 = 2 norm (norm + |m_kk|) */
-        m[k][k] -= alpha;
-        /* 2 / |v|^2, once: a multiplication per column instead of a division */
-        const double two_over = 1.0 / (norm * (norm + fabs(m[k][k] + alpha)));
-        for (int32_t j = k + 1; j < 3; j++) {
-            double dot = 0.0;
-            for (int32_t i = k; i < rows; i++) {
-                dot += m[i][k] * m[i][j];
-            }
-            const double f = dot * two_over;
-            for (int32_t i = k; i < rows; i++) {
-                m[i][j] -= f * m[i][k];
-            }
-        }
-        double dot = 0.0;
-        for (int32_t i = k; i < rows; i++) {
-            dot += m[i][k] * b[i];
-        }
-        const double f = dot * two_over;
-        for (int32_t i = k; i < rows; i++) {
-            b[i] -= f * m[i][k];
-        }
-        m[k][k] = alpha;
-    }
-    /* R = upper triangle of m[0..2] */
-    const double r[6] = {m[0][0], m[0][1], m[0][2], m[1][1], m[1][2], m[2][2]};
-    double inv[6] = {1.0 / r[0], 0.0, 0.0, 1.0 / r[3], 0.0, 1.0 / r[5]};
-    const double rc = r_rcond(r, inv);
-    if (!isfinite(rc)) {
-        return;
-    }
-    *rcond = rc;
-    const double z2 = b[2] * inv[5];
-    const double z1 = (b[1] - r[4] * z2) * inv[3];
-    const double z0 = (b[0] - r[1] * z1 - r[2] * z2) * inv[0];
-    x[0] = z0;
-    x[1] = z1;
-    x[2] = z2;
-}
-
-/* The same problem through the normal equations M^T M x = M^T b, when that is as
- * accurate: their Cholesky factor is QR's R up to the signs of its rows (so the same
- * rcond), and they lose accuracy only as rcond^-2, at most NORMAL_RCOND^-2 = 1e4 ulps
- * here. a = M^T M as {a00, a01, a02, a11, a12, a22}, c = M^T b: sums the caller forms
- * straight from the wheel rows, about a third of Householder's time. Returns 0 (x
- * untouched) when rcond is below NORMAL_RCOND or the factorisation breaks down: then
- * QR decides. */
-static int normal_solve(const double a[6], const double c[3], double x[3], double *rcond)
-{
-    if (!(a[0] > 0.0)) {
-        return 0;
-    }
-    double r[6], inv[6];
-    r[0] = sqrt(a[0]);
-    inv[0] = 1.0 / r[0];
-    r[1] = a[1] * inv[0];
-    r[2] = a[2] * inv[0];
-    const double d11 = a[3] - r[1] * r[1];
-    if (!(d11 > 0.0)) {
-        return 0;
-    }
-    r[3] = sqrt(d11);
-    inv[3] = 1.0 / r[3];
-    r[4] = (a[4] - r[1] * r[2]) * inv[3];
-    const double d22 = a[5] - r[2] * r[2] - r[4] * r[4];
-    if (!(d22 > 0.0)) {
-        return 0;
-    }
-    r[5] = sqrt(d22);
-    inv[5] = 1.0 / r[5];
-    const double rc = r_rcond(r, inv);
-    if (!(rc >= NORMAL_RCOND)) {
-        return 0;
-    }
-    /* R^T z = M^T b, then R x = z */
-    const double z0 = c[0] * inv[0];
-    const double z1 = (c[1] - r[1] * z0) * inv[3];
-    const double z2 = (c[2] - r[2] * z0 - r[4] * z1) * inv[5];
-    x[2] = z2 * inv[5];
-    x[1] = (z1 - r[4] * x[2]) * inv[3];
-    x[0] = (z0 - r[1] * x[1] - r[2] * x[2]) * inv[0];
-    *rcond = rc;
-    return 1;
-}
-
-/* The weighted rows of the least-squares problem in the unknowns (dx, dy, len dtheta):
- * M (rows x 3) and b, for Householder QR. */
-static int32_t weighted_rows(const kin_robot *rb, const kin_wheel_rows *w, double len,
-                             double m[][3], double *b)
-{
-    const double wn = sqrt(rb->c_n), wt = sqrt(rb->c_t);
-    const double wn_len = wn / len, wt_len = wt / len;
-    int32_t rows = 0;
-    for (int32_t i = 0; i < w->count; i++) {
-        m[rows][0] = -w->ty[i] * wn;
-        m[rows][1] = w->tx[i] * wn;
-        m[rows][2] = w->n_theta[i] * wn_len;
-        b[rows++] = -w->n_joint[i] * wn;
-        if (wt > 0.0) {
-            m[rows][0] = w->tx[i] * wt;
-            m[rows][1] = w->ty[i] * wt;
-            m[rows][2] = w->t_theta[i] * wt_len;
-            b[rows++] = -w->t_joint[i] * wt;
-        }
-    }
-    return rows;
-}
-
-int kin_geom_solve(const kin_robot *rb, const kin_wheel_rows *w, double *xi, double *slip,
-                   double *rcond)
-{
-    /* Unknowns (dx, dy, L dtheta): L, the farthest wheel's distance from the reference
-     * point, makes the rotation column a speed like the others. The normal equations'
-     * sums are formed in (dx, dy, dtheta) and scaled after: each wheel's normal row is
-     * sqrt(c_n) (-ty, tx, n_theta | -n_joint), its tangential row sqrt(c_t) (tx, ty,
-     * t_theta | -t_joint). */
-    const double cn = rb->c_n, ct = rb->c_t;
-    double len2 = rb->l * rb->l; /* squared: one square root, not one per wheel */
-    double a[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0}, c[3] = {0.0, 0.0, 0.0};
-    int at_rest = 1;
-    for (int32_t i = 0; i < w->count; i++) {
-        const double tx = w->tx[i], ty = w->ty[i], nth = w->n_theta[i], tth = w->t_theta[i];
-        const double nj = w->n_joint[i], tj = ct > 0.0 ? w->t_joint[i] : 0.0;
-        len2 = max2(len2, nth * nth + tth * tth);
-        a[0] += cn * ty * ty + ct * tx * tx;
-        a[1] += (ct - cn) * tx * ty;
-        a[2] += ct * tx * tth - cn * ty * nth;
-        a[3] += cn * tx * tx + ct * ty * ty;
-        a[4] += cn * tx * nth + ct * ty * tth;
-        a[5] += cn * nth * nth + ct * tth * tth;
-        c[0] += cn * ty * nj - ct * tx * tj;
-        c[1] -= cn * tx * nj + ct * ty * tj;
-        c[2] -= cn * nth * nj + ct * tth * tj;
-        at_rest = at_rest && nj == 0.0 && tj == 0.0;
-    }
-    const double len = sqrt(len2), inv_len = 1.0 / len;
-    a[2] *= inv_len;
-    a[4] *= inv_len;
-    a[5] *= inv_len * inv_len;
-    c[2] *= inv_len;
-    double x[3], rc;
-    if (!normal_solve(a, c, x, &rc)) {
-        double m[2 * KIN_MAX_WHEELS][3];
-        double b[2 * KIN_MAX_WHEELS];
-        lsq3(m, b, weighted_rows(rb, w, len, m, b), x, &rc);
-    }
-    if (rcond != NULL) {
-        *rcond = rc;
-    }
-    if (rc < RCOND_SINGULAR) {
-        /* Joints at rest: nothing pushes the body, which stays still even where the
-         * axles leave it free (a straight snake). Otherwise the motion is undetermined. */
-        xi[0] = xi[1] = xi[2] = 0.0;
-        if (slip != NULL) {
-            for (int32_t i = 0; i < w->count; i++) {
-                slip[i] = 0.0;
-            }
-        }
-        return at_rest ? KIN_OK : KIN_ESINGULAR;
-    }
-    xi[0] = x[0];
-    xi[1] = x[1];
-    xi[2] = x[2] / len;
-    if (slip != NULL) {
-        for (int32_t i = 0; i < w->count; i++) {
-            slip[i] = -w->ty[i] * xi[0] + w->tx[i] * xi[1] + w->n_theta[i] * xi[2]
-                      + w->n_joint[i];
-        }
-    }
-    return KIN_OK;
-}
-
 int kin_body_velocity(const kin_robot *rb, const double *q, const double *dphi, double *xi,
                       double *slip, double *rcond)
 {
@@ -433,7 +222,46 @@ int kin_body_velocity(const kin_robot *rb, const double *q, const double *dphi, 
     if (rc != KIN_OK) {
         return rc;
     }
-    return kin_geom_solve(rb, &w, xi, slip, rcond);
+    return kin_geom_solve(rb, &w, NULL, xi, slip, NULL, rcond);
+}
+
+int kin_quasi_static(const kin_robot *rb, const double *q, const double *dphi, double *xi,
+                     double *force, double *torque)
+{
+    kin_wheel_rows w;
+    int32_t joints;
+    if (dphi == NULL || xi == NULL) {
+        return KIN_EINVAL;
+    }
+    int rc = kin_geom_rows(rb, q, dphi, &w);
+    if (rc != KIN_OK) {
+        return rc;
+    }
+    (void)kin_check_robot(rb, &joints);
+    double f[2 * KIN_MAX_WHEELS];
+    rc = kin_geom_solve(rb, &w, NULL, xi, NULL, f, NULL);
+    if (rc != KIN_OK) {
+        return rc;
+    }
+    if (force != NULL) {
+        for (int32_t i = 0; i < 2 * w.count; i++) {
+            force[i] = f[i];
+        }
+    }
+    /* Joint j's torque balances the friction forces' generalised force on phi_j: the
+     * rows again with dphi = e_j give each wheel speed's coefficient of dphi_j. */
+    for (int32_t j = 0; torque != NULL && j < joints; j++) {
+        double unit[KIN_MAX_JOINTS] = {0.0};
+        unit[j] = 1.0;
+        kin_wheel_rows e;
+        kin_geom_rows_unchecked(rb, q, unit, &e);
+        double tq = 0.0;
+        for (int32_t i = 0; i < e.count; i++) {
+            tq -= f[2 * i] * e.n_joint[i] + f[2 * i + 1] * e.t_joint[i];
+        }
+        torque[j] = tq;
+    }
+    return KIN_OK;
 }
 
 const char *kin_strerror(int code)

@@ -21,8 +21,11 @@ int kin_geom_rows(const kin_robot *rb, const double *q, const double *dphi, kin_
  * path: a non-finite value comes out in the rows, and the integrator reports it). */
 void kin_geom_rows_unchecked(const kin_robot *rb, const double *q, const double *dphi,
                              kin_wheel_rows *w);
-/* Solve the minimum-slip problem for those rows (see kin_body_velocity). */
-int kin_geom_solve(const kin_robot *rb, const kin_wheel_rows *w, double *xi, double *slip,
-                   double *rcond);
+/* The quasi-static body velocity for those rows (kin_qs.c; see kin_body_velocity).
+ * active (may be NULL): three row indices, the previous answer's active set, used as a
+ * warm start and updated; {-1, -1, -1} for none. force (may be NULL): each wheel's
+ * friction force across (force[2i], along n_i) and along (force[2i+1], along t_i) it. */
+int kin_geom_solve(const kin_robot *rb, const kin_wheel_rows *w, int32_t *active, double *xi,
+                   double *slip, double *force, double *rcond);
 
 #endif

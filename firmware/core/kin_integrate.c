@@ -1,8 +1,9 @@
 /* Whole trajectories in one call: joint schedules (the body follows through the
- * minimum-slip model) and field-driven systems (qdot = sum_i u_i(t) g_i(q)).
+ * quasi-static friction model) and field-driven systems (qdot = sum_i u_i(t) g_i(q)).
  *
- * Singular configurations under a joint schedule. Where the wheel axles are concurrent
- * (the 3-link snake's line phi1 = phi2, c_t = 0) the body velocity is 0/0: a serpenoid
+ * Singular configurations under a joint schedule. With wheels that roll freely
+ * (rolling = 0), where the wheel axles are concurrent (the 3-link snake's line
+ * phi1 = phi2) the body velocity is 0/0: a serpenoid
  * crosses that line with the one admissible joint velocity, so along the trajectory the
  * body velocity is a smooth function of time with a removable singularity, but
  * evaluating it within ~1e-8 of the crossing loses all accuracy. There, and only there,
@@ -174,6 +175,7 @@ typedef struct {
     double seg;
     double tscale;
     kin_stats *stats;
+    int32_t active[3]; /* the last vertex of the friction problem: the next one's start */
     /* Sines: cos and sin of each joint's phase, so that one sin and cos of omega t serve
      * every joint (the addition theorem) instead of a pair per joint and evaluation. */
     double cos_phase[KIN_MAX_JOINTS], sin_phase[KIN_MAX_JOINTS];
@@ -215,7 +217,7 @@ static int joint_rates(joint_ctx *c, double t, const double *pose, double *xi, d
     q[2] = pose[2];
     joint_schedule(c, t, q + 3, dphi);
     kin_geom_rows_unchecked(c->rb, q, dphi, &w);
-    const int rc = kin_geom_solve(c->rb, &w, xi, slip, rcond);
+    const int rc = kin_geom_solve(c->rb, &w, c->active, xi, slip, NULL, rcond);
     if (*rcond < c->stats->min_rcond) {
         c->stats->min_rcond = *rcond;
     }
@@ -322,7 +324,8 @@ int kin_integrate_joints(const kin_robot *rb, const kin_schedule *s, const doubl
         return KIN_ENONFINITE;
     }
     stats_start(st, t0);
-    joint_ctx c = {rb, s, joints, segment_of(s, t0), 1.0, st, {0.0}, {0.0}, PHASE_ZERO};
+    joint_ctx c = {rb, s, joints, segment_of(s, t0), 1.0, st, {-1, -1, -1},
+                   {0.0}, {0.0}, PHASE_ZERO};
     joint_ctx_phases(&c);
     c.phase.omega = s->omega;
     if (s->type == KIN_SCHED_TABLE) {

@@ -41,7 +41,7 @@ bus (this runs as it is, with no hardware):
 >>> robot = load_robot("snake5")              # model: a built-in robot
 >>> gait = serpenoid(robot, radians(30), 2 * pi, radians(60), cycles=1)
 >>> round(gait.predicted["dx"], 2)            # metres forward in one cycle, predicted
-0.51
+0.63
 >>> blob = gait.gait_table().encode()         # formats: what the controller stores
 >>> GaitTable.decode(blob).joint_ids          # its servo IDs
 (10, 11, 15, 16)

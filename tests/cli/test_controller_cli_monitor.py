@@ -168,7 +168,7 @@ def _long_snake(path, joints: int) -> None:
     """A robot file with ``joints`` joints, alternate ones mounted the other way round."""
     text = (
         f'name = "long"\nkind = "snake"\n[geometry]\nlinks = {joints + 1}\n'
-        'half_link = 0.07\n[friction]\nc_n = 1.0\nc_t = 0.01\n[servo]\nmodel = "AX-12A"\n'
+        'half_link = 0.07\n[friction]\nlateral = 0.8\nrolling = 0.01\n[servo]\nmodel = "AX-12A"\n'
     )
     for k in range(joints):
         text += (

@@ -163,7 +163,10 @@ def test_sim_predict_warns_on_the_singular_crossing(tmp_path):
         *("--cycles", "1", "-o", out))  # fmt: skip
     data = json.loads(run("sim", "predict", out, "--ideal", "--json").output)
     (warning,) = data["warnings"]
-    assert warning["condition"] > 1000
+    # The quasi-static solve slides the middle wheel near phi1 = phi2, so the rows it
+    # solves with are conditioned better than the no-slip rows (203 against over 1000),
+    # still above the threshold's 100: the motion there hangs on friction and rounding.
+    assert warning["condition"] > 1 / warning["threshold_rcond"]
     text = CliRunner().invoke(main, ["sim", "predict", str(out), "--ideal"])
     assert "warning: the prediction from the table passes near a singular" in text.stderr
 

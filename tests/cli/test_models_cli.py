@@ -4,6 +4,7 @@ import json
 import math
 
 import numpy as np
+import pytest
 import sympy as sp
 from click.testing import CliRunner
 
@@ -76,7 +77,10 @@ def test_malformed_robot_file_names_key_and_line(tmp_path):
 def test_info_json():
     data = json.loads(run("model", "info", "snake5", "--json").output)
     assert [j["servo_id"] for j in data["joints"]] == [10, 11, 15, 16]
-    assert data["friction"]["c_t"] > 0
+    friction = data["friction"]
+    assert (friction["lateral"], friction["rolling"], friction["axle_nm"]) == (0.8, 0.01, 3e-4)
+    # each wheel carries a link and its wheel: (0.08 + 0.01) kg under standard gravity
+    assert friction["wheel_loads_n"] == pytest.approx([0.09 * 9.80665] * 5)
 
 
 def test_growth_near_the_singular_line_and_the_folded_singularity():

@@ -3,6 +3,7 @@ and the errors for robots and options it cannot use."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import pytest
@@ -37,8 +38,11 @@ def test_predict_json_keeps_its_keys_and_adds_the_world_and_the_physics(gait_fil
     assert set(kinematic["emulated"]) <= set(physics["emulated"])
     em = physics["emulated"]
     assert len(em["wheel_slip_speed_max"]) == len(em["slip_distance"]) == SNAKE5.n_wheels
-    assert len(em["energy_j"]) == len(em["peak_load"]) == SNAKE5.n_joints
-    assert em["mu"] == SNAKE5.physics.mu
+    assert len(em["work_j"]) == len(em["electrical_j"]) == len(em["peak_load"]) == SNAKE5.n_joints
+    # both worlds take the robot file's one friction description
+    assert em["mu"] == SNAKE5.friction.lateral
+    same = dataclasses.asdict(SNAKE5.friction)
+    assert em["friction"] == kinematic["predicted"]["friction"] == same
     # a different world, a different body path: the physics is not the model again
     assert physics["emulated"]["dx"] != pytest.approx(kinematic["emulated"]["dx"], rel=1e-3)
 

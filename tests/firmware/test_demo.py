@@ -48,7 +48,7 @@ def test_demo_json_reports_the_snake_advancing_and_writes_the_png(tmp_path, worl
         physics = result["physics"]
         free = physics["predicted_free_wheels"]  # the kinematic model, the twin's free wheels
         assert physics["difference_free_wheels_m"] < 0.1 * free["distance"]
-        assert sum(physics["energy_j"]) > 0
+        assert sum(physics["electrical_j"]) > sum(physics["work_j"]) > 0
     else:  # the prediction's own model: only the servos' lag separates them
         assert result["reason"] == "servo lag" and "physics" not in result
         assert result["within_tolerance"]

@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pytest
 
+from snakebot.errors import SnakebotError
 from snakebot.formats.gaittable import max_frames, read_gait, write_gait
 from snakebot.model.gait import GaitError, GaitLimitError, serpenoid
 from snakebot.model.robots import load_robot
@@ -97,17 +98,24 @@ def test_positive_delta_and_omega_move_the_snake_head_first(robot):
     assert backwards.predicted["dx"] < 0
 
 
-def test_a_near_circular_four_link_gait_on_ideal_wheels_warns():
-    # delta = -0.006: the joints almost equal, the axles almost concurrent; ideal wheels
-    # make the predicted motion absurd there (metres from a 30-degree wiggle)
+@pytest.mark.xfail(
+    reason="issue 31, open: near concurrent axles the sticking wheels switch so often that "
+    "the prediction's dopri5 at rtol 1e-10 runs out of steps",
+    strict=True,
+)
+def test_a_near_circular_four_link_gait_is_defined_with_rolling_resistance():
+    # delta = -0.006: the joints almost equal, the axles almost concurrent; free-rolling
+    # wheels cannot follow (the body velocity has a pole), wheels with rolling resistance
+    # slip instead and the prediction is steady
     from dataclasses import replace
 
-    four = replace(SNAKE5, name="snake4", links=4, joints=SNAKE5.joints[:3], c_t=0.0)
-    gait = serpenoid(four, math.radians(30), math.pi, -0.006, cycles=1)
-    kinds = {w["trajectory"]: w for w in gait.warnings}
-    assert set(kinds) == {"continuous gait", "table as written"}
-    assert kinds["continuous gait"]["condition"] > 1e5
-    steady = serpenoid(replace(four, c_t=0.01), math.radians(30), math.pi, -0.006, cycles=1)
+    free = replace(SNAKE5.friction, rolling=0.0, axle_nm=0.0)
+    four = replace(SNAKE5, name="snake4", links=4, joints=SNAKE5.joints[:3], friction=free)
+    with pytest.raises(SnakebotError, match="singular"):
+        serpenoid(four, math.radians(30), math.pi, -0.006, cycles=1)
+    steady = serpenoid(
+        replace(four, friction=SNAKE5.friction), math.radians(30), math.pi, -0.006, cycles=1
+    )
     assert steady.warnings == []
 
 

@@ -3,6 +3,7 @@
 inputs against the bracket prediction, and the serpenoid with delta = pi."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -25,6 +26,10 @@ from snakebot.model.kinematics import (
 from snakebot.model.robots import load_robot
 
 SNAKE3, SNAKE5, TRIDENT = load_robot("snake3"), load_robot("snake5"), load_robot("trident")
+#: Free-rolling wheels (no rolling resistance): the pure non-slip model, singular where
+#: the axles meet (the 3-link snake's phi1 = phi2).
+FREE = replace(SNAKE3.friction, rolling=0.0, axle_nm=0.0)
+SNAKE3_FREE = replace(SNAKE3, friction=FREE)
 FINE = Options("dopri5", rtol=1e-11, atol=1e-13)
 Q0_SNAKE3 = np.array([0, 0, 0, math.pi / 3, -math.pi / 3])
 
@@ -48,7 +53,11 @@ def test_adaptive_agrees_with_fine_rk4_five_link_serpenoid():
     gait = Sines.serpenoid(4, 0.5, 2 * math.pi, math.pi / 2)
     adaptive = integrate_joints(SNAKE5, gait, 3.0, samples=7, options=FINE)
     rk4 = integrate_joints(SNAKE5, gait, 3.0, samples=7, options=Options("rk4", h=5e-4))
-    np.testing.assert_allclose(adaptive.q, rk4.q, atol=1e-10)
+    # Five wheels: the body velocity switches which wheels stick (a kink in the right-hand
+    # side), so a fixed step is first order there; the adaptive method steps onto kinks.
+    np.testing.assert_allclose(adaptive.q, rk4.q, atol=1e-5)
+    finer = integrate_joints(SNAKE5, gait, 3.0, samples=7, options=Options("rk4", h=2.5e-4))
+    assert np.abs(finer.q - adaptive.q).max() < np.abs(rk4.q - adaptive.q).max()
 
 
 def test_rk4_converges_at_fourth_order():
@@ -93,22 +102,24 @@ def test_snake3_serpenoid_crosses_the_singular_line_accurately():
     t_end = 2 * (2 * math.pi / omega)
     reference = _reference_snake3_serpenoid(amplitude, omega, delta, t_end)
     gait = Sines.serpenoid(2, amplitude, omega, delta)
-    adaptive = integrate_joints(SNAKE3, gait, t_end, options=Options("dopri5", 1e-12, 1e-13))
+    adaptive = integrate_joints(SNAKE3_FREE, gait, t_end, options=Options("dopri5", 1e-12, 1e-13))
     np.testing.assert_allclose(adaptive.q[-1, :3], reference, atol=1e-8)
     # RK4 whose grid lands exactly on every crossing (t = T/8 + k T/2): det B = 0 there.
-    rk4 = integrate_joints(SNAKE3, gait, t_end, options=Options("rk4", h=t_end / 1600))
+    rk4 = integrate_joints(SNAKE3_FREE, gait, t_end, options=Options("rk4", h=t_end / 1600))
     assert rk4.stats["fallbacks"] >= 4
     assert rk4.stats["min_rcond"] < 1e-12
     np.testing.assert_allclose(rk4.q[-1, :3], reference, atol=1e-8)
     assert abs(reference[0]) > 1  # it does move
 
 
-@pytest.mark.parametrize("robot,c_t", [(SNAKE3, None), (SNAKE5, None), (SNAKE5, 0.0)])
-def test_serpenoid_with_delta_pi_goes_nowhere(robot, c_t):
+@pytest.mark.parametrize(
+    "robot,friction", [(SNAKE3, None), (SNAKE5, None), (SNAKE5, replace(FREE, lateral=0.5))]
+)
+def test_serpenoid_with_delta_pi_goes_nowhere(robot, friction):
     omega = 3.0
     gait = Sines.serpenoid(robot.n_joints, 0.6, omega, math.pi)
     traj = integrate_joints(
-        robot, gait, 2 * (2 * math.pi / omega), samples=3, options=FINE, c_t=c_t
+        robot, gait, 2 * (2 * math.pi / omega), samples=3, options=FINE, friction=friction
     )
     assert np.abs(traj.q[-1, :3]).max() < 1e-9
     moving = integrate_joints(
@@ -116,7 +127,7 @@ def test_serpenoid_with_delta_pi_goes_nowhere(robot, c_t):
         Sines.serpenoid(robot.n_joints, 0.6, omega, 2.0),
         2 * (2 * math.pi / omega),
         options=FINE,
-        c_t=c_t,
+        friction=friction,
     )
     assert np.abs(moving.q[-1, :2]).max() > 1e-3 * robot.l
 
@@ -197,7 +208,7 @@ def test_fields_satisfy_the_constraints_along_random_trajectories(robot, form):
 
 def test_field_and_joint_integrators_agree_for_snake3():
     # For the 3-link snake the inputs are the joint velocities, so the same motion can be
-    # integrated as a joint schedule through the minimum-slip model.
+    # integrated as a joint schedule through the quasi-static model (no wheel slides there).
     c, a, b, omega = (0.05, -0.02), (0.3, -0.1), (0.2, 0.25), 1.7
     inputs = Inputs(c, a, b, omega)
     by_fields = integrate_fields(SNAKE3, inputs, 2.0, q0=Q0_SNAKE3, samples=5, options=FINE)
@@ -241,7 +252,8 @@ def test_finely_sampled_table_approaches_the_continuous_gait():
                 - exact
             ).max()
         )
-    assert errors[1] < errors[0] / 3
+    # first order: where the sticking wheels change, the table's kinks shift the switch
+    assert errors[1] < errors[0] / 1.8
 
 
 def test_inadmissible_crossing_is_reported():
@@ -249,12 +261,12 @@ def test_inadmissible_crossing_is_reported():
     # snake's body velocity has a pole there.
     schedule = Sines(0.0, (0.0, 0.0), (0.0, 0.0), (-0.2, 0.3), (1.0, 0.0))
     with pytest.raises(KinematicsError) as err:
-        integrate_joints(SNAKE3, schedule, 1.0, options=Options("rk4", h=0.01))
+        integrate_joints(SNAKE3_FREE, schedule, 1.0, options=Options("rk4", h=0.01))
     assert err.value.code == lib.KIN_EINADMISSIBLE and "t = 0.5" in str(err.value)
     with pytest.raises(KinematicsError):
-        integrate_joints(SNAKE3, schedule, 1.0, options=FINE)
-    # with rolling friction the wheels slip instead
-    traj = integrate_joints(SNAKE3, schedule, 1.0, options=FINE, c_t=0.01, with_slip=True)
+        integrate_joints(SNAKE3_FREE, schedule, 1.0, options=FINE)
+    # with rolling resistance the wheels slip instead
+    traj = integrate_joints(SNAKE3, schedule, 1.0, samples=101, options=FINE, with_slip=True)
     assert np.isfinite(traj.q).all() and np.abs(traj.slip).max() > 1e-3
 
 
@@ -273,7 +285,7 @@ def test_bad_options_are_refused():
 
 
 def test_structs_reused_across_calls_follow_the_values_they_were_built_from():
-    # The robot and input structs are cached by value: an equal robot with another c_t,
+    # The robot and input structs are cached by value: an equal robot with other friction,
     # or other inputs, must get its own; inputs in lists (unhashable) still work.
     inputs = loop_inputs(0, 1, 0.3, 2.0)
     first = integrate_fields(TRIDENT, inputs, 1.0).q[-1]
@@ -282,6 +294,7 @@ def test_structs_reused_across_calls_follow_the_values_they_were_built_from():
     other = integrate_fields(TRIDENT, loop_inputs(0, 1, 0.2, 2.0), 1.0).q[-1]
     assert np.abs(other - first).max() > 1e-3
     gait = Sines.serpenoid(4, 0.5, math.pi, math.pi / 2)
-    slips = [integrate_joints(SNAKE5, gait, 2.0, c_t=c_t).q[-1] for c_t in (0.01, 0.5, 0.01)]
+    frictions = [replace(SNAKE5.friction, rolling=r) for r in (0.01, 0.5, 0.01)]
+    slips = [integrate_joints(SNAKE5, gait, 2.0, friction=f).q[-1] for f in frictions]
     assert np.abs(slips[0] - slips[1]).max() > 1e-3
     np.testing.assert_array_equal(slips[0], slips[2])

@@ -36,9 +36,12 @@ def s5_table():
 
 @pytest.fixture(scope="module")
 def kinematic_free_wheels(s5_table):
-    """The kinematic prediction for the physics twin's free-spinning wheels (c_t = 0)."""
+    """The kinematic prediction for free-rolling wheels (no rolling resistance or axle
+    friction), the limit the grippy run approaches: its lateral friction is so high
+    that rolling resistance is negligible beside it."""
     intervals = s5_table.frame_count if s5_table.loop else s5_table.frame_count - 1
-    traj, _ = predict_table(dataclasses.replace(SNAKE5, c_t=0.0), s5_table, intervals + 1)
+    free = dataclasses.replace(SNAKE5.friction, rolling=0.0, axle_nm=0.0)
+    traj, _ = predict_table(dataclasses.replace(SNAKE5, friction=free), s5_table, intervals + 1)
     return traj.q[-1, :2] - traj.q[0, :2]
 
 
@@ -102,20 +105,25 @@ def test_low_lateral_friction_makes_the_wheels_slip(grippy, slippery):
     assert distance(slippery) < 0.8 * distance(grippy)
 
 
-def test_energy_is_non_negative_and_the_report_is_finite(grippy, slippery):
+def test_work_and_electrical_energy_are_consistent_and_the_report_is_finite(grippy, slippery):
     # what the motors put in, all told, is what friction and the gears' braking take out
     # (the body starts and ends nearly at rest): positive. One joint may be driven
-    # backwards by the others and give some back, so only the total must be positive.
+    # backwards by the others and give some back, so only the total work must be positive.
+    # The electrical energy is the work plus the windings' copper loss, never given back
+    # to the supply: at least zero per joint and more than the work in all.
     for result in (grippy, slippery):
         rec = result.emulated
         assert rec.energy.sum() > 0.0
+        assert (rec.electrical >= 0.0).all()
+        assert rec.electrical.sum() > rec.energy.sum()
         summary = result.summary()
         assert summary["world"] == "mujoco"
         em = summary["emulated"]
-        assert len(em["energy_j"]) == SNAKE5.n_joints
+        assert len(em["work_j"]) == len(em["electrical_j"]) == SNAKE5.n_joints
         assert len(em["wheel_slip_speed_max"]) == SNAKE5.n_wheels
         assert 0.0 < max(em["peak_load"]) <= 1.0
-        assert all(math.isfinite(v) for v in em["energy_j"] + em["slip_distance"])
+        figures = em["work_j"] + em["electrical_j"] + em["slip_distance"]
+        assert all(math.isfinite(v) for v in figures)
 
 
 def test_a_run_is_deterministic(s5_table, grippy):
@@ -162,15 +170,18 @@ def test_present_load_reads_the_motor_torque(bus_client):
 
 
 def test_a_robot_without_physics_is_refused_naming_the_key():
-    text = load_robot_text("snake3").split("[physics]")[0]
+    text = load_robot_text("snake3").split("\n[physics]")[0] + "\n"
     robot = parse_robot(text, "bare.toml")
     with pytest.raises(RobotError, match=r"bare.toml: key 'physics' is missing"):
         build_mjcf(robot)
     without_unit = text + "[physics]\nlink_mass_kg = 0.1\n"
     with pytest.raises(RobotError, match=r"key 'physics.unit_m' is missing"):
         parse_robot(without_unit, "nounit.toml")
-    negative = text + "[physics]\nunit_m = 0.1\nmu = -1\n"
-    with pytest.raises(RobotError, match=r"key 'physics.mu' must be > 0"):
+    old = text + "[physics]\nunit_m = 0.1\nmu = 1\n"
+    with pytest.raises(RobotError, match=r"key 'physics.mu'.*\[friction\] lateral"):
+        parse_robot(old, "old.toml")
+    negative = text.replace("lateral = 0.8", "lateral = -1")
+    with pytest.raises(RobotError, match=r"key 'friction.lateral' must be > 0"):
         parse_robot(negative, "neg.toml")
 
 

@@ -40,8 +40,8 @@ kind = "snake"
 links = 3
 half_link = 0.1
 [friction]
-c_n = 1.0
-c_t = 0.02
+lateral = 0.8
+rolling = 0.02
 [servo]
 model = "AX-12A"
 [[joints]]
@@ -92,7 +92,6 @@ def test_body_rests_while_the_servos_rest():
     assert len(rec.t) == 51
     assert np.all(rec.pose == np.array([1.0, -2.0, 0.5]))
     assert rec.slip_max() == 0.0
-    assert not rec.regularised.any()
 
 
 def test_servo_motion_moves_the_body_and_slips_a_five_link_snake():
@@ -131,12 +130,18 @@ def test_batch_size_does_not_change_the_result(ideal):
     seven, mid7 = run_serpenoid(7, ideal)
     whole, mid_whole = run_serpenoid(10_000, ideal)
     assert len(one.t) == len(seven.t) == len(whole.t) == 151
+    # A batch only restarts the integrator's step-size control. The quasi-static body
+    # velocity jumps where a wheel switches between rolling and sliding, and an adaptive
+    # step's error estimate does not hold across a jump, so the batches agree to what
+    # the jumps allow, not to the 1e-10 tolerance: measured 1.5e-7 with modelled servos
+    # and 1.2e-6 with ideal ones (whose steps make more switches). The table moves the
+    # body about 0.33: 5e-6 is 15 ppm of that.
     for rec in (one, seven):
-        assert np.abs(rec.pose - whole.pose).max() < 1e-9
+        assert np.abs(rec.pose - whole.pose).max() < 5e-6
         assert np.abs(rec.phi - whole.phi).max() == 0.0
-        assert np.abs(rec.slip - whole.slip).max() < 1e-9
-    assert mid1 == pytest.approx(mid_whole, abs=1e-9)
-    assert mid7 == pytest.approx(mid_whole, abs=1e-9)
+        assert np.abs(rec.slip - whole.slip).max() < 5e-5
+    assert mid1 == pytest.approx(mid_whole, abs=5e-6)
+    assert mid7 == pytest.approx(mid_whole, abs=5e-6)
     assert np.abs(whole.pose[-1, :2]).max() > 0.01
 
 
@@ -153,44 +158,28 @@ def test_stop_ends_sampling_and_keeps_the_record():
 
 def test_inadmissible_crossing_of_the_three_link_singular_line_stays_finite():
     """phi1 sweeps through phi2 with phi2 held: a crossing of phi1 = phi2 in a direction
-    ideal wheels cannot follow. The world regularises those intervals only, stays
-    finite, and reports the slip the wheels took there."""
+    no-slip wheels cannot follow. The quasi-static world needs no special case. Three
+    wheels for three body freedoms roll without sliding sideways while the lateral
+    forces that rolling them needs stay within Coulomb friction; near the line those
+    forces grow as 1 / (phi1 - phi2) and the wheels slide instead. With rolling
+    resistance about 1/30 of the lateral friction (snake3's defaults) that band is
+    |phi1 - phi2| < 0.2 or so; outside 0.3 nothing slides."""
     robot = load_robot("snake3")
-    assert robot.c_t == 0.0
     bus = SimOptions(robot="snake3", ideal=True).build_bus()
     ids = robot.servo_ids
-    drive(bus, dict(zip(ids, robot.angles_to_ticks(np.array([0.3, 0.1])).tolist(), strict=True)))
+    drive(bus, dict(zip(ids, robot.angles_to_ticks(np.array([1.1, 0.1])).tolist(), strict=True)))
     bus.run_until(0.005)
     world = World(bus, robot, period=0.01)
-    p1 = np.linspace(0.3, -0.1, 41)
+    p1 = np.linspace(1.1, -0.9, 101)
     rows = robot.angles_to_ticks(np.column_stack([p1, np.full_like(p1, 0.1)]))
     play_ticks(bus, ids, rows, 0.01)
     rec = world.record()
     assert np.isfinite(rec.pose).all() and np.isfinite(rec.slip).all()
-    crossing = np.flatnonzero(rec.regularised)
-    assert 1 <= len(crossing) <= 4
-    # the regularised intervals are the ones that touch phi1 = phi2
     gap = rec.phi[:, 0] - rec.phi[:, 1]
-    for k in crossing:
-        assert min(abs(gap[k - 1]), abs(gap[k])) < 0.02
-    # ideal wheels do not slip elsewhere; at the crossing they must
-    calm = np.ones(len(rec.t), dtype=bool)
-    calm[crossing] = False
-    assert np.abs(rec.slip[calm]).max() < 1e-9
-    assert np.abs(rec.slip[crossing]).max() > 1e-3
-    assert rec.fallback_c_t == pytest.approx(1e-3)
-
-
-def test_ideal_wheels_without_a_fallback_report_the_singular_crossing():
-    robot = load_robot("snake3")
-    bus = SimOptions(robot="snake3", ideal=True).build_bus()
-    ids = robot.servo_ids
-    # from the straight (singular) pose, start off along (1, 1): not admissible
-    world = World(bus, robot, period=0.01, regularise=False)
-    assert world.fallback_c_t is None
-    play_ticks(bus, ids, np.array([[560, 560], [600, 600]]), 0.01)
-    with pytest.raises(WorldError, match="cannot follow the servos"):
-        world.record()
+    closest = np.full(len(rec.t), np.inf)  # nearest approach to the line per interval
+    closest[1:] = np.minimum(np.abs(gap[1:]), np.abs(gap[:-1]))
+    assert np.abs(rec.slip[closest > 0.3]).max() < 1e-9
+    assert np.abs(rec.slip[closest < 0.05]).max() > 0.1
 
 
 def test_a_robot_whose_servos_are_not_on_the_bus_is_refused():

@@ -84,7 +84,7 @@ def test_space_rejects_bad_parameters(params, message):
     [
         ("mass=0:2:3", "mass must be positive"),
         ("mu=-1:1:3", "mu must be positive"),
-        ("c_t=-0.1:0.1:3", "c_t must be zero or more"),
+        ("rolling=-0.1:0.1:3", "rolling must be zero or more"),
         ("gravity=1:2:2", "unknown robustness parameter 'gravity'"),
     ],
 )
@@ -102,14 +102,20 @@ def test_a_kinematic_run_moves_as_gait_serpenoid_predicts_its_table():
     row = evaluate(Settings("snake5", "kinematic", 3, 50), p)
     gait = serpenoid(robot, p["amplitude"], p["omega"], p["delta"], cycles=3, rate_hz=50)
     assert row["status"] == "ok"
-    # the search's one-step-per-frame RK4 against the table prediction's Dormand-Prince
-    assert row["dx"] == pytest.approx(gait.table["dx"], rel=1e-4)
-    assert row["dy"] == pytest.approx(gait.table["dy"], rel=1e-4, abs=1e-6)
+    # the search's one-step-per-frame RK4 against the table prediction's Dormand-Prince:
+    # fourth order only between the quasi-static model's kinks (where a wheel starts or
+    # stops sliding), so they agree to 2.1e-4 here, not to RK4's 1e-5 on a smooth field
+    assert row["dx"] == pytest.approx(gait.table["dx"], rel=1e-3)
+    assert row["dy"] == pytest.approx(gait.table["dy"], rel=1e-3, abs=1e-6)
     distance = math.hypot(gait.table["dx"], gait.table["dy"])
-    assert row["distance_per_cycle"] == pytest.approx(distance / 3, rel=1e-4)
-    assert row["speed"] == pytest.approx(distance / gait.duration_s, rel=1e-4)
-    assert row["slip_per_cycle"] > 0  # snake5's wheels roll with friction (c_t > 0)
-    assert math.isnan(row["energy_j"])  # the kinematic world has no motors' energy
+    assert row["distance_per_cycle"] == pytest.approx(distance / 3, rel=1e-3)
+    assert row["speed"] == pytest.approx(distance / gait.duration_s, rel=1e-3)
+    # five wheels for three body freedoms: some must slide
+    assert row["slip_per_cycle"] > 0
+    # the quasi-static joint torques do work against friction; the motors draw that
+    # and their windings' loss, and the efficiency is per joule drawn
+    assert row["electrical_j"] > row["work_j"] > 0
+    assert row["efficiency"] == pytest.approx(row["distance_per_cycle"] * 3 / row["electrical_j"])
 
 
 def test_a_run_outside_the_limits_is_failed_with_its_reason():
@@ -119,11 +125,33 @@ def test_a_run_outside_the_limits_is_failed_with_its_reason():
     assert math.isnan(row["distance_per_cycle"])
 
 
-def test_rolling_friction_changes_the_kinematic_run():
+def test_rolling_resistance_changes_the_kinematic_run():
+    # Rolling a wheel costs C_rr N plus the axle's torque over the radius; sliding it
+    # sideways costs mu N. The dearer rolling is beside sliding, the more the
+    # least-dissipation motion slides: C_rr 0.3 against mu 0.8 slides about 18 times
+    # as far as C_rr 0.001 and goes almost nowhere (0.008 against 0.69 per cycle).
     settings = Settings("snake5", "kinematic", 3, 50)
-    grippy = evaluate(settings, {**point(), "c_t": 0.001})
-    slippery = evaluate(settings, {**point(), "c_t": 0.3})
+    grippy = evaluate(settings, {**point(), "rolling": 0.001})
+    slippery = evaluate(settings, {**point(), "rolling": 0.3})
     assert slippery["slip_per_cycle"] > 10 * grippy["slip_per_cycle"]
+    assert slippery["distance_per_cycle"] < 0.1 * grippy["distance_per_cycle"]
+
+
+def test_inertia_the_floor_cannot_give_flags_a_gait_infeasible():
+    # The quasi-static forces are within friction by construction; what the floor may
+    # not manage is the links' inertia across their wheels, which grows with the square
+    # of the speed. The demo's gait (30 deg, delta 60 deg, 1 Hz) asks about half of
+    # mu N; delta 30 deg (the grid's edge, near the straight singular pose) asks more
+    # than mu N: flagged, and left out of the ranking by default.
+    settings = Settings("snake5", "kinematic", 3, 50)
+    fast = evaluate(settings, point())
+    slow = evaluate(settings, point(omega_deg=180))
+    tight = evaluate(settings, point(delta_deg=30))
+    assert fast["status"] == "ok" and 0.3 < fast["lateral_ratio"] < 1
+    assert slow["lateral_ratio"] < 0.5 * fast["lateral_ratio"]
+    assert tight["status"] == "infeasible" and tight["lateral_ratio"] > 1
+    assert "lateral_ratio" in tight["reason"]
+    assert tight["torque_ratio"] < 1  # the servos could: the floor is the limit
 
 
 # -- a search from the command line --------------------------------------------------------
@@ -146,7 +174,12 @@ def test_grid_search_writes_every_run_the_best_gait_and_resumes(tmp_path):
     assert len(rows) == 12 == summary["candidates"] == summary["runs_evaluated"]
     # 70 deg at 1 Hz is faster than the AX-12 turns: failed, kept, with the reason
     failed = [r for r in rows if r["status"] == "failed"]
-    assert len(failed) == 3 == summary["failed"]
+    assert len(failed) == 3
+    # delta 30 deg at 30 and 50 deg: more inertia than the floor gives (lateral_ratio
+    # 1.38, 2.19); the summary counts every candidate left without a score
+    infeasible = [r for r in rows if r["status"] == "infeasible"]
+    assert {round(math.degrees(r["delta"])) for r in infeasible} == {30}
+    assert len(infeasible) == 2 and summary["failed"] == 5
     assert all(r["amplitude"] == pytest.approx(math.radians(70)) for r in failed)
     assert all("maximum" in r["reason"] for r in failed)
     ok = [r for r in rows if r["status"] == "ok"]
@@ -180,7 +213,7 @@ def test_grid_search_writes_every_run_the_best_gait_and_resumes(tmp_path):
 
 def test_robust_search_runs_every_candidate_on_every_floor_and_scores_the_worst(tmp_path):
     out = tmp_path / "runs.parquet"
-    result = search(*GRID, "--robust", "c_t=0.01:0.2:3", "-o", out, "--workers", 2, "--json")
+    result = search(*GRID, "--robust", "rolling=0.01:0.2:3", "-o", out, "--workers", 2, "--json")
     assert result.exit_code == 0, result.output
     summary = json.loads(result.stdout)
     rows = read_results(out)
@@ -192,7 +225,7 @@ def test_robust_search_runs_every_candidate_on_every_floor_and_scores_the_worst(
         if r["amplitude"] == pytest.approx(best["amplitude"])
         and r["delta"] == pytest.approx(best["delta"])
     ]
-    assert sorted(r["c_t"] for r in mine) == pytest.approx([0.01, 0.105, 0.2])
+    assert sorted(r["rolling"] for r in mine) == pytest.approx([0.01, 0.105, 0.2])
     assert summary["best"]["distance_per_cycle"] == pytest.approx(
         min(r["distance_per_cycle"] for r in mine)
     )
@@ -227,13 +260,16 @@ def test_random_and_cma_searches_are_reproducible_per_seed(tmp_path):
         assert points(method, 4, f"{method}3.csv") != first
 
 
-def test_cma_finds_a_gait_as_good_as_a_grid_of_the_same_budget():
+def test_cma_finds_a_gait_as_good_as_a_grid_of_half_its_budget():
     settings = Settings("snake5", "kinematic", 3, 50)
-    # the best distance per cycle is inside the box (near A = 35 deg, delta = 15 deg)
+    # The best distance per cycle lies against the floor's limit (delta 28 to 36 deg,
+    # where the links' inertia reaches mu N), where the penalised score drops off a
+    # cliff. CMA-ES with the grid's 36 runs got there in 2 of 4 seeds (0.99 to 1.28 m
+    # against the grid's 1.15); with twice the budget it passes the grid (1.27 m).
     grid = Space.parse(("A=10deg:55deg:6", "delta=0deg:90deg:6", "omega=360deg"))
     ranges = Space.parse(("A=10deg:55deg", "delta=0deg:90deg", "omega=360deg"))
     by_grid = Search(Request(settings, grid), InlineRunner()).run().best
-    by_cma = Search(Request(settings, ranges, method="cma", samples=36), InlineRunner()).run().best
+    by_cma = Search(Request(settings, ranges, method="cma", samples=72), InlineRunner()).run().best
     assert by_grid is not None and by_cma is not None
     assert by_cma.score >= by_grid.score
 
@@ -252,8 +288,7 @@ def test_plots_are_written(tmp_path):
     [
         (("--param", "speed=1:2:3", *GRID), "unknown parameter 'speed'"),
         (("--param", "A=50deg:10deg:5", "--param", "delta=1", "--param", "omega=6"), "empty range"),
-        ((*GRID, "--objective", "efficiency"), "--objective efficiency needs"),
-        ((*GRID, "--robust", "mu=0.3:1:3"), "applies to the mujoco world"),
+        ((*GRID, "--robust", "mass=0.5:2:3"), "applies to the mujoco world"),
         ((*GRID, "-o", "runs.txt"), "must end in .parquet or .csv"),
         ((*GRID, "--cluster", "tcp://127.0.0.1:9"), "cannot reach the Dask scheduler"),
     ],

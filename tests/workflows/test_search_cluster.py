@@ -19,7 +19,7 @@ GRID = (
     "--param",
     "omega=360deg",
     "--robust",
-    "c_t=0.01:0.1:2",
+    "rolling=0.01:0.1:2",
 )
 
 
@@ -42,7 +42,7 @@ def search(*args):
 
 
 def _by_key(rows):
-    return {(r["amplitude"], r["delta"], r["c_t"]): r for r in rows}
+    return {(r["amplitude"], r["delta"], r["rolling"]): r for r in rows}
 
 
 def test_a_cluster_search_matches_the_local_pool_and_resumes(tmp_path, cluster):

@@ -44,9 +44,10 @@ def info(robot: str, as_json: bool) -> None:
         for k, v in data["geometry"].items()
     )
     click.echo(f"  geometry: {geometry}")
+    f = rb.friction
     click.echo(
-        f"  friction: c_n = {rb.c_n:g}, c_t = {rb.c_t:g}"
-        + ("  (ideal wheels)" if rb.c_t == 0 else "")
+        f"  friction: lateral mu = {f.lateral:g}, rolling C_rr = {f.rolling:g}, axle "
+        f"{f.axle_nm:g} N m; wheel loads {', '.join(f'{v:.3g}' for v in rb.wheel_loads_n())} N"
     )
     click.echo(f"  servo: {rb.servo_model}, max {rb.max_speed_rad_s:.2f} rad/s")
     for j in data["joints"]:

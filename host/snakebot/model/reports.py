@@ -5,6 +5,7 @@ the condition numbers that say how near the singular set it is."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -33,7 +34,12 @@ def describe_robot(rb: Robot) -> dict[str, Any]:
         "description": rb.description,
         "source": rb.source,
         "geometry": geometry,
-        "friction": {"c_n": rb.c_n, "c_t": rb.c_t},
+        "friction": {
+            "lateral": rb.friction.lateral,
+            "rolling": rb.friction.rolling,
+            "axle_nm": rb.friction.axle_nm,
+            "wheel_loads_n": [float(v) for v in rb.wheel_loads_n()],
+        },
         "servo": {"model": rb.servo_model, "max_speed_rad_s": rb.max_speed_rad_s},
         "joints": [
             {
@@ -57,11 +63,14 @@ def uses_lie_jets(rb: Robot, depth: int | None) -> bool:
 
 
 def joint_driven(rb: Robot, q: np.ndarray) -> dict[str, Any] | None:
-    """How well the joints, driven as the servos drive them, determine the body at q:
-    the minimum-slip wheel model's reciprocal condition number (None for the car)."""
+    """How well the joints, driven as the servos drive them, determine the body at q
+    by geometry alone: the reciprocal condition number of the wheels' no-slip rows, as
+    the quasi-static model sees them with free rolling (None for the car). With rolling
+    resistance the model is defined there too, but the motion then depends on friction."""
     if rb.kind not in ("snake", "trident"):
         return None
-    rcond = body_velocity(rb, q, np.zeros(rb.n_joints)).rcond
+    free = replace(rb.friction, rolling=0.0, axle_nm=0.0)
+    rcond = body_velocity(rb, q, np.zeros(rb.n_joints), free).rcond
     return {"rcond": rcond, "near_singular": rcond < NEAR_SINGULAR_RCOND}
 
 

@@ -45,11 +45,6 @@ def plot_prediction(result: Prediction, out: str | Path) -> Path:
     _heading_arrow(
         ax_path, em.pose[-1, 0], em.pose[-1, 1], em.pose[-1, 2], 0.1 * extent, "tab:orange"
     )
-    if em.regularised.any():
-        k = np.flatnonzero(em.regularised)
-        ax_path.plot(
-            em.pose[k, 0], em.pose[k, 1], "x", color="red", label="singular crossing (wheels slip)"
-        )
     ax_path.set_aspect("equal", adjustable="datalim")
     ax_path.set_xlabel("x")
     ax_path.set_ylabel("y")

@@ -66,7 +66,7 @@ def _heat_map(
 def _pareto(ax: Axes, outcome: Outcome, request: Request) -> None:
     # the trade-off behind every objective: how far (or how fast) against what it costs
     metric = "speed" if request.objective == "speed" else "distance_per_cycle"
-    other = "energy_j" if request.settings.world == "mujoco" else "slip_per_cycle"
+    other = "electrical_j" if request.settings.world == "mujoco" else "slip_per_cycle"
     ok = [r for r in outcome.rows if r["status"] == "ok"]
     x = np.array([float(r[other]) for r in ok])
     y = np.array([float(r[metric]) for r in ok])

@@ -53,9 +53,16 @@ def plot_friction(study: dict[str, Any], out: str | Path) -> Path:
     ax_d, ax_s = fig.subplots(1, 2)
     mu = [p["mu"] for p in study["points"]]
     ax_d.semilogx(mu, [p["distance_per_cycle"] for p in study["points"]], "o-", label="MuJoCo")
+    ax_d.semilogx(
+        mu,
+        [p["kinematic_distance_per_cycle"] for p in study["points"]],
+        "s--",
+        label="kinematic (quasi-static), same mu",
+    )
+    f = study["friction"]
     for key, label, style in (
-        ("kinematic", f"kinematic (c_t = {study['c_t']:g})", "--"),
-        ("kinematic_free_wheels", "kinematic, free wheels (c_t = 0)", ":"),
+        ("kinematic", f"kinematic, robot's mu = {f['lateral']:g}", "--"),
+        ("kinematic_free_wheels", "kinematic, free-rolling wheels", ":"),
     ):
         ax_d.axhline(study[key]["distance_per_cycle"], linestyle=style, color="gray", label=label)
     ax_d.set_xlabel("wheel-floor friction coefficient mu")

@@ -1,20 +1,19 @@
 """The world: the robot's body on the floor, moved by its virtual servos.
 
 The servos' present positions (ticks, through each joint's zero tick and sign) are the
-joint angles; the kinematic core's minimum-slip model (``snakebot.model.kinematics``, in C)
+joint angles; the kinematic core's quasi-static friction model (``snakebot.model.kinematics``,
+in C)
 turns the joint motion into body motion. The world samples the positions every
 ``period`` seconds of bus time (:meth:`snakebot.sim.bus.bus.Bus.every`), takes the joints as
 moving linearly between samples, and integrates the body over the samples in batches:
 one C call per batch of intervals (the core steps each interval separately, so the
 kinks between intervals cost no accuracy), never a Python loop per step.
 
-Wheels: the robot's own rolling friction ``c_t`` (0 for ideal wheels). Ideal wheels make
-the 3-link snake's body velocity infinite where a gait played from rounded ticks crosses
-the singular line phi1 = phi2 off its admissible direction. There the world integrates
-that one interval again with a little rolling friction (``REGULARISING_CT * c_n``, as
-real wheels have and as the gait's table prediction falls back to), so the body stays
-finite and the wheels slip instead; the record marks the intervals that needed it, and
-the slip is recorded for every sample: each wheel's sideways (normal) speed.
+Wheels: the robot's friction (``[friction]``: Coulomb across the wheels, rolling resistance
+along them), the same as the physics world's. The body moves as the friction forces
+balance (no inertia), so where the joints ask for a motion the wheels cannot follow
+without slipping (a singular configuration, or more than three wheels) they slip; the
+record holds each wheel's sideways (normal) speed at every sample.
 
     world = World(bus, robot)          # samples from now, every 10 ms of bus time
     bus.run_until(bus.now + 2.0)       # ... while a master drives the servos
@@ -28,10 +27,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from snakebot.errors import InputError
-from snakebot.model.gait.common import PREDICT_OPTIONS, REGULARISING_CT
+from snakebot.model.gait.common import PREDICT_OPTIONS
 from snakebot.model.kinematics import KinematicsError, Options, Table, integrate_joints
-from snakebot.model.kinematics.ccore import SINGULAR_CODES
-from snakebot.model.robots import Robot
+from snakebot.model.robots import Friction, Robot
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.history import History
 
@@ -46,27 +44,19 @@ class WorldError(InputError):
     """The world cannot move the body as the servos ask (see the message for the fix)."""
 
 
-def fallback_c_t(robot: Robot, c_t: float) -> float | None:
-    """The rolling friction for intervals where ``c_t`` makes the motion singular:
-    a small one if the wheels are ideal, none (the error stands) otherwise."""
-    return REGULARISING_CT * robot.c_n if c_t == 0 else None
-
-
 @dataclass(frozen=True)
 class WorldRecord:
     """What the world saw: ``t[k]`` (seconds since the world started), the body pose
     ``pose[k] = (x, y, theta)`` (reference point and heading of link 1 / the base),
     the joint angles ``phi[k]`` (radians), each wheel's normal slip speed ``slip[k]``
     (length units per second, in the middle of the interval ending at ``t[k]``), and
-    ``regularised[k]``: that interval needed the fallback rolling friction."""
+    the ``friction`` the world had."""
 
     t: np.ndarray
     pose: np.ndarray
     phi: np.ndarray
     slip: np.ndarray
-    regularised: np.ndarray
-    c_t: float
-    fallback_c_t: float | None
+    friction: Friction
 
     @property
     def q(self) -> np.ndarray:
@@ -98,7 +88,12 @@ class WorldRecord:
 
 
 def integrate_samples(
-    robot: Robot, angles: np.ndarray, period: float, pose0: np.ndarray, c_t: float, options: Options
+    robot: Robot,
+    angles: np.ndarray,
+    period: float,
+    pose0: np.ndarray,
+    friction: Friction,
+    options: Options,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Body states at joint samples ``angles`` (rows every ``period``, linear in between)
     from ``pose0``, in one C call: q (rows x (3 + joints); the angles are the samples
@@ -112,7 +107,7 @@ def integrate_samples(
         pose0=tuple(pose0),
         samples=2 * n - 1,
         options=options,
-        c_t=c_t,
+        friction=friction,
         with_slip=True,
     )
     assert traj.slip is not None
@@ -139,12 +134,11 @@ class World:
     """The body of ``robot`` driven by the servos on ``bus``.
 
     Sampling starts at bus time ``start`` (default: now) and repeats every ``period``
-    seconds until :meth:`stop`. ``pose`` is the body pose at the first sample. ``c_t``
-    overrides the wheels' rolling friction (default: the robot's); ``options`` the
-    integrator (default: the gait predictions' Dormand-Prince settings).
-    ``regularise=False`` turns the singular-crossing fallback off: such a crossing then
-    raises :class:`WorldError` (from the bus call that ran the sample, or from
-    :meth:`record`). The servos are looked up by ID once, here.
+    seconds until :meth:`stop`. ``pose`` is the body pose at the first sample.
+    ``friction`` overrides the robot's; ``options`` the integrator (default: the gait
+    predictions' Dormand-Prince settings). A motion the model cannot integrate raises
+    :class:`WorldError` (from the bus call that ran the sample, or from :meth:`record`).
+    The servos are looked up by ID once, here.
     ``keep`` bounds the record for worlds that run for hours: the latest ``keep``
     samples are kept (in a ring allocated at the start), the oldest dropped; None keeps
     everything.
@@ -158,10 +152,9 @@ class World:
         period: float = DEFAULT_PERIOD_S,
         start: float | None = None,
         pose: tuple[float, float, float] = (0.0, 0.0, 0.0),
-        c_t: float | None = None,
+        friction: Friction | None = None,
         options: Options | None = None,
         batch: int = DEFAULT_BATCH,
-        regularise: bool = True,
         keep: int | None = None,
     ) -> None:
         if not period > 0:
@@ -174,10 +167,7 @@ class World:
         self.bus = bus
         self.robot = robot
         self.period = float(period)
-        self.c_t = robot.c_t if c_t is None else float(c_t)
-        if self.c_t < 0:
-            raise WorldError(f"rolling friction c_t must be >= 0, not {self.c_t}")
-        self.fallback_c_t = fallback_c_t(robot, self.c_t) if regularise else None
+        self.friction = robot.friction if friction is None else friction
         self.options = options or PREDICT_OPTIONS
         self.batch = batch
         self.start_time = bus.now if start is None else float(start)
@@ -186,9 +176,9 @@ class World:
         self._pending: list[list[float]] = []  # tick rows not integrated yet
         self._last_ticks: list[float] | None = None  # the last integrated sample
         self._pose = np.array(pose, dtype=float)
-        # the record: per sample the state (pose, joints), each wheel's slip, regularised
+        # the record: per sample the state (pose, joints) and each wheel's slip
         self.keep = keep
-        self._history = History(3 + robot.n_joints + robot.n_wheels + 1, keep)
+        self._history = History(3 + robot.n_joints + robot.n_wheels, keep)
         self._schedule = bus.every(self.period, self._sample, start=self.start_time)
 
     # -- sampling -------------------------------------------------------------------------
@@ -224,9 +214,7 @@ class World:
         if self._last_ticks is None:  # the very first sample: the body is where it starts
             angles = robot.ticks_to_angles(np.asarray(pending[0], dtype=float))
             self._append(
-                np.concatenate([self._pose, angles])[None, :],
-                np.zeros((1, robot.n_wheels)),
-                np.zeros(1, dtype=bool),
+                np.concatenate([self._pose, angles])[None, :], np.zeros((1, robot.n_wheels))
             )
             self._last_ticks = pending[0]
             pending = pending[1:]
@@ -234,50 +222,14 @@ class World:
                 return
         angles = robot.ticks_to_angles(np.asarray([self._last_ticks, *pending], dtype=float))
         try:
-            q, slip = self._integrate(angles, self.c_t)
-            reg = np.zeros(len(pending), dtype=bool)
+            q, slip = integrate_samples(
+                robot, angles, self.period, self._pose, self.friction, self.options
+            )
         except KinematicsError as exc:
-            if self.fallback_c_t is None or exc.code not in SINGULAR_CODES:
-                raise self._error(0, len(pending), exc) from exc
-            q, slip, reg = self._interval_by_interval(angles)
-        self._append(q, slip, reg)
+            raise self._error(0, len(pending), exc) from exc
+        self._append(q[1:], slip[1:])
         self._pose = q[-1, :3].copy()
         self._last_ticks = pending[-1]
-
-    def _integrate(
-        self, angles: np.ndarray, c_t: float, pose: np.ndarray | None = None
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """States and slips at rows 1.. of ``angles`` (rows every period, linear in
-        between), starting from the current pose; one C call."""
-        q, slip = integrate_samples(
-            self.robot, angles, self.period, self._pose if pose is None else pose, c_t, self.options
-        )
-        return q[1:], slip[1:]
-
-    def _interval_by_interval(
-        self, angles: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The batch again one interval at a time, with the fallback friction on the
-        intervals where the ideal wheels are singular."""
-        qs, slips, reg = [], [], []
-        pose = self._pose
-        for i in range(len(angles) - 1):
-            pair = angles[i : i + 2]
-            try:
-                q, slip = self._integrate(pair, self.c_t, pose)
-                reg.append(False)
-            except KinematicsError as exc:
-                if exc.code not in SINGULAR_CODES:
-                    raise self._error(i, 1, exc) from exc
-                try:
-                    q, slip = self._integrate(pair, self.fallback_c_t or 0.0, pose)
-                except KinematicsError as exc2:
-                    raise self._error(i, 1, exc2) from exc2
-                reg.append(True)
-            qs.append(q)
-            slips.append(slip)
-            pose = q[-1, :3]
-        return np.vstack(qs), np.vstack(slips), np.array(reg, dtype=bool)
 
     def _error(self, first: int, count: int, exc: KinematicsError) -> WorldError:
         t_a = (self._history.total - 1 + first) * self.period
@@ -286,8 +238,8 @@ class World:
             f"{t_a + count * self.period:.3f} s of world time: {exc}"
         )
 
-    def _append(self, q: np.ndarray, slip: np.ndarray, reg: np.ndarray) -> None:
-        self._history.extend(np.column_stack((q, slip, reg)))
+    def _append(self, q: np.ndarray, slip: np.ndarray) -> None:
+        self._history.extend(np.column_stack((q, slip)))
 
     # -- results --------------------------------------------------------------------------
 
@@ -314,8 +266,6 @@ class World:
             t,
             rows[:, :3],
             rows[:, 3 : 3 + n],
-            rows[:, 3 + n : -1],
-            rows[:, -1] != 0,
-            self.c_t,
-            self.fallback_c_t,
+            rows[:, 3 + n :],
+            self.friction,
         )

@@ -35,7 +35,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -316,16 +316,13 @@ def compare(
 def physics_effects(
     robot: Robot, table: GaitTable, record: WorldRecord, comparison: Comparison, cycles: int
 ) -> dict[str, Any]:
-    """What the physics world adds to the comparison: the prediction for the physical
-    twin's free-rolling wheels (c_t = 0, where the prediction takes the robot's c_t), the
-    wheels' sideways slide over the measured cycles (m), and each joint's energy (J)
-    and peak load over the whole run."""
+    """What the physics world adds to the comparison: the prediction for free-rolling
+    wheels (no rolling resistance or axle friction, where both worlds take the robot's),
+    the wheels' sideways slide over the measured cycles (m), and each joint's work and
+    electrical energy (J) and peak load over the whole run."""
     angles = robot.ticks_to_angles(table.frames.astype(float))
-    free = motion(
-        predicted_motion(replace(robot, c_t=0.0), angles, table.frame_period_ms / 1000.0, cycles)[
-            -1
-        ]
-    )
+    free_wheels = replace(robot, friction=replace(robot.friction, rolling=0.0, axle_nm=0.0))
+    free = motion(predicted_motion(free_wheels, angles, table.frame_period_ms / 1000.0, cycles)[-1])
     e = comparison.emulated
     t_a, t_b = comparison.window_s
     inside = (record.t >= t_a) & (record.t <= t_b)
@@ -334,19 +331,18 @@ def physics_effects(
         record.pose[inside],
         record.phi[inside],
         record.slip[inside],
-        record.regularised[inside],
-        record.c_t,
-        record.fallback_c_t,
+        record.friction,
     ).slip_distance()
     extras = record_extras(record)
     return {
-        "c_t": robot.c_t,
+        "friction": asdict(robot.friction),
         "predicted_free_wheels": _rounded(free),
         "difference_free_wheels_m": round(
             math.hypot(e["dx"] - free["dx"], e["dy"] - free["dy"]), 6
         ),
         "wheel_slide_m": [round(float(v) * _unit(robot), 6) for v in slid],
-        "energy_j": [round(v, 6) for v in extras["energy_j"]],
+        "work_j": [round(v, 6) for v in extras["work_j"]],
+        "electrical_j": [round(v, 6) for v in extras["electrical_j"]],
         "peak_load": [round(v, 4) for v in extras["peak_load"]],
         "mu": extras["mu"],
     }
@@ -534,13 +530,14 @@ def _physics_lines(c: Comparison) -> list[str]:
     free = ph["predicted_free_wheels"]
     return [
         f"   physics (MuJoCo, wheel-floor mu = {ph['mu']:g}): the body has mass and its "
-        f"wheels slid sideways {100 * sum(ph['wheel_slide_m']):.1f} cm in all; its wheels "
-        f"roll freely where the prediction takes rolling friction c_t = {ph['c_t']:g}. "
-        f"Predicted with free wheels (c_t = 0): {100 * free['distance']:.1f} cm, "
+        f"wheels slid sideways {100 * sum(ph['wheel_slide_m']):.1f} cm in all. "
+        f"Predicted with free-rolling wheels: {100 * free['distance']:.1f} cm, "
         f"{100 * ph['difference_free_wheels_m']:.1f} cm from the physics.",
         "   net work per joint "
-        + ", ".join(f"{e:.3f}" for e in ph["energy_j"])
-        + " J (below 0: the others drove it backwards); peak load "
+        + ", ".join(f"{e:.3f}" for e in ph["work_j"])
+        + " J (below 0: the others drove it backwards), electrical "
+        + ", ".join(f"{e:.3f}" for e in ph["electrical_j"])
+        + " J; peak load "
         + ", ".join(f"{100 * v:.0f}" for v in ph["peak_load"])
         + " % of stall torque.",
     ]

@@ -1,17 +1,18 @@
 """The friction study: one gait in the physics world over a range of wheel-floor friction
 coefficients, its distance per cycle beside the kinematic world's.
 
-The kinematic prediction hinges on the wheels' rolling friction ``c_t`` (a guess); the
-physics twin's wheels spin freely and hold sideways by Coulomb friction ``mu``. The study
-shows where the physics meets the kinematic model (grippy floors: the free-wheel
-prediction) and how fast it falls away as the wheels start to slide.
+Both worlds take the same friction (the robot's ``[friction]``, its lateral coefficient
+``mu`` varied here): the kinematic world without inertia (quasi-static Coulomb), the
+physics world with it. The study shows how far apart they are at each ``mu``, how fast
+the distance falls as the wheels start to slide, and (free wheels: no rolling resistance
+or axle friction) what the rolling resistance costs.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import replace
+from dataclasses import asdict, replace
 from typing import Any
 
 import numpy as np
@@ -47,15 +48,21 @@ def friction_study(
     cycles = gait_cycles(table)
     kinematic = predict_gait(table, chosen)
     samples = len(kinematic.emulated.t)
-    free, _ = predict_table(replace(chosen, c_t=0.0), table, samples)
+    free_wheels = replace(chosen.friction, rolling=0.0, axle_nm=0.0)
+    free, _ = predict_table(replace(chosen, friction=free_wheels), table, samples)
     em = kinematic.emulated.displacement()
     points = []
     for mu in mu_values:
         result = predict_gait(table, chosen, world="mujoco", mu=mu)
         d = result.emulated.displacement()
+        at_mu = replace(chosen, friction=replace(chosen.friction, lateral=mu))
+        k = predict_table(at_mu, table, samples)[0].q
         points.append(
             {
                 "mu": mu,
+                "kinematic_distance_per_cycle": _per_cycle(
+                    float(k[-1, 0] - k[0, 0]), float(k[-1, 1] - k[0, 1]), cycles
+                ),
                 "dx": d["dx"],
                 "dy": d["dy"],
                 "dtheta": d["dtheta"],
@@ -71,7 +78,7 @@ def friction_study(
         "robot": chosen.name,
         "cycles": cycles,
         "units": "m" if chosen.physics and chosen.physics.unit_m == 1.0 else "robot units",
-        "c_t": chosen.c_t,
+        "friction": asdict(chosen.friction),
         "kinematic": {**em, "distance_per_cycle": _per_cycle(em["dx"], em["dy"], cycles)},
         "kinematic_free_wheels": {
             "dx": float(free_d[0]),

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlencode
@@ -96,13 +96,6 @@ class Prediction:
     wall_s: float
 
     @property
-    def predicted_c_t(self) -> float:
-        """The rolling friction of the prediction: the robot's, or the fallback where
-        ideal wheels were singular on some frame interval."""
-        p = self.played
-        return p.fallback_c_t if p.regularised.any() and p.fallback_c_t else p.c_t
-
-    @property
     def duration_s(self) -> float:
         return float(self.emulated.t[-1])
 
@@ -148,9 +141,7 @@ class Prediction:
             "world_period_s": self.world_period_s,
             "emulated": {
                 **em,
-                "c_t": self.emulated.c_t,
-                "regularised_intervals": int(self.emulated.regularised.sum()),
-                "fallback_c_t": self.emulated.fallback_c_t,
+                "friction": asdict(self.emulated.friction),
                 "slip_max": self.emulated.slip_max(),
                 "slip_distance": [float(v) for v in self.emulated.slip_distance()],
                 "samples": len(self.emulated.t),
@@ -159,9 +150,7 @@ class Prediction:
             "predicted": {
                 **pr,
                 "slip_max": float(np.abs(pred_slip).max()) if pred_slip is not None else 0.0,
-                "c_t": self.predicted_c_t,
-                "regularised_intervals": int(self.played.regularised.sum()),
-                "fallback_spread": self.played.fallback_spread,
+                **self.played.note(),
                 "source": "integrated from the table's frames (ticks to angles, linear in "
                 "between, as the controller plays them)",
             },
@@ -316,9 +305,8 @@ def play(
 
 def predict_table(robot: Robot, table: GaitTable, samples: int) -> tuple[Trajectory, TableMotion]:
     """The body path integrated straight from the table, as the gait's ``table`` figure
-    is (``table_motion``: ticks to angles, linear in between, the robot's c_t, and a small
-    one on just the frame intervals where ideal wheels are singular, as the world does),
-    at ``samples`` evenly spaced times over one pass (slip: mid-interval, as the world
+    is (``table_motion``: ticks to angles, linear in between, the robot's friction, as the
+    world does), at ``samples`` evenly spaced times over one pass (slip: mid-interval, as the world
     records it); returns the trajectory and the table motion it came from."""
     intervals = table.frame_count if table.loop else table.frame_count - 1
     per_sample, rest = divmod(samples - 1, intervals)

@@ -181,7 +181,8 @@ class ThesisResult:
             if world == "mujoco":
                 extras = result.summary()["emulated"]
                 out[world]["slip_distance"] = extras["slip_distance"]
-                out[world]["energy_j"] = extras["energy_j"]
+                out[world]["work_j"] = extras["work_j"]
+                out[world]["electrical_j"] = extras["electrical_j"]
                 out[world]["peak_load"] = extras["peak_load"]
         return out
 

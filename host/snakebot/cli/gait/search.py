@@ -68,8 +68,8 @@ def _require_extras(
     multiple=True,
     metavar="NAME=LOW:HIGH:COUNT",
     help="run every candidate over these values and score its worst: mu (alias "
-    "friction.lateral) or mass (a factor on every link's and wheel's mass) in the mujoco "
-    "world, c_t (alias friction.rolling) in the kinematic world. Repeat for several",
+    "friction.lateral) or rolling (alias friction.rolling) in either world, mass (a factor "
+    "on every link's and wheel's mass) in the mujoco world. Repeat for several",
 )
 @click.option(
     "--objective",
@@ -206,6 +206,18 @@ def _print(s: dict[str, Any]) -> None:
             f"best {s['metric']} = {best[s['metric']]:.6g}: A = {math.degrees(p['amplitude']):.2f} "
             f"deg, omega = {math.degrees(p['omega']):.2f} deg/s, delta = "
             f"{math.degrees(p['delta']):.2f} deg, offset = {math.degrees(p['offset']):.2f} deg"
+        )
+        figures = [
+            f"{k} {best[k]:.3g}"
+            for k in ("slip_ratio", "torque_nm", "torque_ratio", "lateral_ratio")
+            if best.get(k) is not None
+        ]
+        if figures:
+            click.echo("  " + ", ".join(figures))
+    if s.get("on_edge"):
+        click.echo(
+            f"warning: the best candidate sits on the edge of the searched range of "
+            f"{', '.join(s['on_edge'])}: the optimum may lie beyond it; widen the range"
         )
     for key, label in (("results", "results"), ("best_gait", "best gait"), ("plot", "plot")):
         if s.get(key):

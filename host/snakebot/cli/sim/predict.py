@@ -152,22 +152,22 @@ def predict(
         f"joint tracking error: max {math.degrees(diff['joint_max_rad']):.3f} deg, "
         f"rms {math.degrees(diff['joint_rms_rad']):.3f} deg"
     )
-    friction = f"c_t = {em['c_t']:g}" if em["c_t"] is not None else f"mu = {em['mu']:g}"
-    click.echo(f"wheel slip: at most {em['slip_max']:.3g} {length}/s sideways ({friction})")
-    if "energy_j" in em:
+    f = em["friction"]
+    click.echo(
+        f"wheel slip: at most {em['slip_max']:.3g} {length}/s sideways (mu = {f['lateral']:g}, "
+        f"C_rr = {f['rolling']:g}, axle {f['axle_nm']:g} N m)"
+    )
+    if "work_j" in em:
         click.echo(
             "physics: net work per joint "
-            + ", ".join(f"{e:.3g}" for e in em["energy_j"])
-            + " J (below 0: driven backwards); peak load "
+            + ", ".join(f"{e:.3g}" for e in em["work_j"])
+            + " J (below 0: driven backwards), electrical "
+            + ", ".join(f"{e:.3g}" for e in em["electrical_j"])
+            + " J; peak load "
             + ", ".join(f"{100 * v:.0f}" for v in em["peak_load"])
             + " % of stall; slid sideways "
             + ", ".join(f"{v:.3g}" for v in em["slip_distance"])
             + " per wheel"
-        )
-    if em["regularised_intervals"]:
-        click.echo(
-            f"  {em['regularised_intervals']} interval(s) crossed a singular "
-            f"configuration and were integrated with c_t = {em['fallback_c_t']:g}"
         )
     click.echo(
         f"ran {summary['realtime_factor']:.0f}x faster than real time "

@@ -154,9 +154,8 @@ def friction(
     """Play GAIT in the MuJoCo world over a range of wheel-floor friction coefficients
     and compare its distance per cycle with the kinematic world's.
 
-    The kinematic prediction depends on a guessed rolling friction (the robot's c_t);
-    the physics twin's wheels spin freely and hold sideways by Coulomb friction mu. On
-    a grippy floor the physics meets the free-wheel kinematic prediction; as mu falls
+    Both worlds take the robot's [friction] with its lateral coefficient mu varied: the
+    kinematic world without inertia (quasi-static Coulomb), MuJoCo with it. As mu falls
     the wheels slide and the snake goes less far.
 
     \b
@@ -185,7 +184,9 @@ def friction(
     u = study["units"]
     kin, free = study["kinematic"], study["kinematic_free_wheels"]
     click.echo(f"{gait_file} on {study['robot']}: distance per cycle ({u})")
-    click.echo(f"  kinematic, c_t = {study['c_t']:g}: {kin['distance_per_cycle']:.4f}")
+    click.echo(
+        f"  kinematic, mu = {study['friction']['lateral']:g}: {kin['distance_per_cycle']:.4f}"
+    )
     click.echo(f"  kinematic, free wheels:  {free['distance_per_cycle']:.4f}")
     for p in study["points"]:
         ratio = (

@@ -4,30 +4,24 @@ the body motion predicted from the continuous gait and from the table as written
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
 
 from snakebot.errors import InputError
 from snakebot.formats.gaittable import GaitTable, max_frames
-from snakebot.model.kinematics import KinematicsError, Options, Table, Trajectory, integrate_joints
-from snakebot.model.kinematics.ccore import SINGULAR_CODES
-from snakebot.model.robots import Robot
+from snakebot.model.kinematics import Options, Table, Trajectory, integrate_joints
+from snakebot.model.robots import Friction, Robot
 
 #: Accuracy of every prediction (Dormand-Prince 5(4)).
 PREDICT_OPTIONS = Options("dopri5", rtol=1e-10, atol=1e-12)
-#: Rolling friction (times c_n) for the frame intervals where the ideal model (c_t = 0)
-#: is singular on the rounded table (a crossing of the 3-link snake's singular line that
-#: rounding to ticks has made slightly inadmissible); only those intervals get it, as in
-#: the emulator's world.
-REGULARISING_CT = 1e-3
 PATH_POINTS = 300
 #: How near a joint-driven trajectory may come to a singular configuration before the
-#: tools warn: the minimum-slip problem's reciprocal condition number (the core's rcond:
-#: 1 well posed, 0 singular; axles concurrent or all parallel) dropping below this, i.e.
-#: a condition number above 100. There the predicted body motion is hypersensitive to
-#: rounding, timing and wheel friction. Ordinary snake5 serpenoids stay above 0.03.
+#: tools warn: the reciprocal condition number of the friction problem's sticking rows
+#: (the core's rcond: 1 well posed, 0 singular) dropping below this, i.e. a condition
+#: number above 100. There the predicted body motion is hypersensitive to rounding,
+#: timing and wheel friction.
 NEAR_SINGULAR_RCOND = 1e-2
 
 
@@ -117,32 +111,14 @@ def frame_budget(robot: Robot, frames: int, hint: str) -> None:
 @dataclass(frozen=True)
 class TableMotion:
     """One pass of a table's joint motion and the body's: ``trajectory`` samples every
-    ``period / per_interval`` (slip with it); ``regularised[i]``: frame interval i needed
-    the rolling friction ``fallback_c_t`` (ideal wheels singular there)."""
+    ``period / per_interval`` (slip with it), under the robot's ``friction``."""
 
     trajectory: Trajectory
-    regularised: np.ndarray
-    c_t: float
-    fallback_c_t: float | None
-    #: Where some interval was regularised: how far the end position and heading move
-    #: with a tenth of the fallback friction (0 otherwise).
-    fallback_spread: float = 0.0
-    fallback_spread_theta: float = 0.0
+    friction: Friction
 
     def note(self) -> dict[str, Any]:
-        """The JSON note of the table prediction: c_t and where it was regularised."""
-        count = int(self.regularised.sum())
-        out: dict[str, Any] = {"c_t": self.c_t, "regularised_intervals": count}
-        if count:
-            out["fallback_spread"] = self.fallback_spread
-            out["note"] = (
-                f"the ideal model (c_t = 0) is singular on {count} of the rounded table's "
-                f"{len(self.regularised)} frame intervals; they were predicted with rolling "
-                f"friction c_t = {self.fallback_c_t:g}, as the emulator does (a tenth of "
-                f"it moves the end by {self.fallback_spread:.3g} and the heading by "
-                f"{self.fallback_spread_theta:.3g} rad)"
-            )
-        return out
+        """The JSON note of the table prediction: the friction it was predicted with."""
+        return {"model": "quasi-static Coulomb", "friction": asdict(self.friction)}
 
 
 def table_motion(
@@ -155,71 +131,32 @@ def table_motion(
     pose0: tuple[float, float, float] = (0.0, 0.0, 0.0),
     start_s: float = 0.0,
     passes: int = 1,
+    friction: Friction | None = None,
 ) -> TableMotion:
     """The body's motion over a table as the controller plays it (angles linear between
     frames, a loop wrapping to frame 0): the one place a table becomes a prediction
     (``gait``, ``sim predict``, the demo). One pass from its first frame, or for a loop
-    ``passes`` passes from table time ``start_s``. Where ideal wheels are singular on a
-    frame period of it, that period alone gets the rolling friction
-    ``REGULARISING_CT * c_n``. Times in the trajectory count from ``start_s``."""
+    ``passes`` passes from table time ``start_s``, through the quasi-static friction
+    model (the robot's friction unless ``friction`` is given). Times in the trajectory
+    count from ``start_s``."""
     angles = np.asarray(angles, dtype=float)
     if not loop and (passes != 1 or start_s != 0.0):
         raise ValueError("a table played once has one pass, from its first frame")
     schedule = Table(angles, period_s, loop)
     intervals = (len(angles) if loop else len(angles) - 1) * passes
-    fallback = REGULARISING_CT * robot.c_n if robot.c_t == 0 else None
-
-    def run(a: int, b: int, c_t: float, pose: tuple[float, float, float]) -> Trajectory:
-        """Frame periods a .. b (counted from start_s)."""
-        return integrate_joints(
-            robot,
-            schedule,
-            start_s + b * period_s,
-            t0=start_s + a * period_s,
-            pose0=pose,
-            samples=(b - a) * per_interval + 1,
-            options=PREDICT_OPTIONS,
-            c_t=c_t,
-            with_slip=True,
-        )
-
-    try:
-        traj = run(0, intervals, robot.c_t, pose0)
-        relative = Trajectory(traj.t - start_s, traj.q, traj.slip, traj.stats)
-        return TableMotion(relative, np.zeros(intervals, dtype=bool), robot.c_t, fallback)
-    except KinematicsError as exc:
-        if fallback is None or exc.code not in SINGULAR_CODES:
-            raise
-    # Near an inadmissible crossing the ideal body velocity has a pole: the step size
-    # collapses or the crossing is reported. Real wheels slip a little there.
-
-    def piecewise(friction: float) -> tuple[Trajectory, np.ndarray]:
-        qs, slips, reg, rconds = [], [], [], []
-        pose = pose0
-        for i in range(intervals):
-            try:
-                part = run(i, i + 1, robot.c_t, pose)
-                reg.append(False)
-            except KinematicsError as exc:
-                if exc.code not in SINGULAR_CODES:
-                    raise
-                part = run(i, i + 1, friction, pose)
-                reg.append(True)
-            assert part.slip is not None
-            qs.append(part.q if i == 0 else part.q[1:])
-            slips.append(part.slip if i == 0 else part.slip[1:])
-            rconds.append(part.stats["min_rcond"])
-            pose = tuple(float(v) for v in part.q[-1, :3])  # type: ignore[assignment]
-        q = np.vstack(qs)
-        t = np.arange(len(q)) * (period_s / per_interval)
-        traj = Trajectory(t, q, np.vstack(slips), {"min_rcond": float(min(rconds))})
-        return traj, np.array(reg, dtype=bool)
-
-    traj, reg = piecewise(fallback)
-    # How much the arbitrary friction decides: the end pose again with a tenth of it.
-    tenth = piecewise(fallback / 10)[0].q[-1, :3] - traj.q[-1, :3]
-    spread = float(np.hypot(tenth[0], tenth[1]))
-    return TableMotion(traj, reg, robot.c_t, fallback, spread, float(abs(tenth[2])))
+    traj = integrate_joints(
+        robot,
+        schedule,
+        start_s + intervals * period_s,
+        t0=start_s,
+        pose0=pose0,
+        samples=intervals * per_interval + 1,
+        options=PREDICT_OPTIONS,
+        friction=friction,
+        with_slip=True,
+    )
+    relative = Trajectory(traj.t - start_s, traj.q, traj.slip, traj.stats)
+    return TableMotion(relative, robot.friction if friction is None else friction)
 
 
 def predict_table(

@@ -1,5 +1,5 @@
 """Numeric kinematics through the C core (``snakebot._core``): wheel geometry, the
-minimum-slip body velocity, the control vector fields and their Lie brackets, and
+quasi-static body velocity (Coulomb friction), the control vector fields and their Lie brackets, and
 whole-trajectory integrators (RK4, Dormand-Prince 5(4) and 8(5,3)), one trajectory or
 a grid of schedules per call.
 
@@ -25,11 +25,13 @@ from snakebot.model.kinematics.model import (
     FIELD_NAMES,
     BodyVelocity,
     FieldSet,
+    QuasiStatic,
     body_velocity,
     default_form,
     field_model,
     field_velocity,
     fields,
+    quasi_static,
     wheel_speeds,
     wheels,
 )
@@ -43,6 +45,7 @@ __all__ = [
     "Inputs",
     "KinematicsError",
     "Options",
+    "QuasiStatic",
     "SingularConfiguration",
     "Sines",
     "Table",
@@ -55,6 +58,7 @@ __all__ = [
     "integrate_fields",
     "integrate_joints",
     "integrate_joints_batch",
+    "quasi_static",
     "schedule_eval",
     "wheel_speeds",
     "wheels",

@@ -11,16 +11,18 @@ import numpy as np
 
 from snakebot.core import ffi, lib
 from snakebot.errors import InputError, SnakebotError
-from snakebot.model.robots import Robot
+from snakebot.model.robots import Friction, Robot
 
 FORMS = {"body": lib.KIN_FORM_BODY, "world": lib.KIN_FORM_WORLD}
 METHODS = {"rk4": lib.KIN_RK4, "dopri5": lib.KIN_DOPRI5, "dop853": lib.KIN_DOP853}
 
 _HINTS = {
     lib.KIN_ESINGULAR: "move the joints away from that configuration, or give the wheels "
-    "some rolling friction (friction.c_t > 0 in the robot file) so the motion is defined",
+    "some rolling resistance (friction.rolling or axle_nm > 0 in the robot file) so the "
+    "motion is defined",
     lib.KIN_EINADMISSIBLE: "change the joint motion so it crosses the singular configuration "
-    "with the admissible joint velocity, or give the wheels rolling friction (c_t > 0)",
+    "with the admissible joint velocity, or give the wheels rolling resistance "
+    "(friction.rolling > 0)",
     lib.KIN_ESTEPSIZE: "loosen the tolerance, or check the motion for a singular configuration",
     lib.KIN_EMAXSTEPS: "shorten the time span or loosen the tolerance",
     lib.KIN_ENONFINITE: "check the inputs for NaN or infinity",
@@ -69,15 +71,16 @@ def check(code: int, context: str = "") -> None:
     raise KinematicsError(code, context)
 
 
-def c_robot(robot: Robot, c_t: float | None = None) -> Any:
-    """A ``kin_robot`` struct for the robot (optionally overriding its c_t); the core only
-    reads it, so one struct serves every call with the same values."""
+def c_robot(robot: Robot, friction: Friction | None = None) -> Any:
+    """A ``kin_robot`` struct for the robot (optionally with other friction coefficients);
+    the core only reads it, so one struct serves every call with the same values."""
     if robot.kind not in ("snake", "trident"):
         raise UnsupportedModel(
             f"{robot.name} is a {robot.kind}: only its control fields are modelled "
             f"(snakebot model fields {robot.name}); gaits and the emulator drive snakes "
             "and tridents"
         )
+    lateral, rolling = robot.wheel_friction_n(friction)
     # keyed by the values the struct holds, not by the robot (whose hash walks all of
     # it, as long as building the struct): a whole trajectory can take 80 us
     return _c_robot(
@@ -87,8 +90,8 @@ def c_robot(robot: Robot, c_t: float | None = None) -> Any:
         robot.l,
         robot.r,
         tuple(robot.alphas[:3]),
-        robot.c_n,
-        robot.c_t if c_t is None else c_t,
+        tuple(float(v) for v in lateral),
+        tuple(float(v) for v in rolling),
     )
 
 
@@ -100,8 +103,8 @@ def _c_robot(
     l: float,  # noqa: E741 (the model's name for the length)
     r: float,
     alpha: tuple[float, ...],
-    c_n: float,
-    c_t: float,
+    lateral: tuple[float, ...],
+    rolling: tuple[float, ...],
 ) -> Any:
     rb = ffi.new(
         "kin_robot *",
@@ -111,8 +114,8 @@ def _c_robot(
             "l": l,
             "r": r,
             "alpha": list(alpha),
-            "c_n": c_n,
-            "c_t": c_t,
+            "lateral": list(lateral),
+            "rolling": list(rolling),
         },
     )
     code = lib.kin_check_robot(rb, ffi.NULL)

@@ -26,7 +26,7 @@ from snakebot.model.kinematics.ccore import (
     dptr,
 )
 from snakebot.model.kinematics.model import _c_form, field_model
-from snakebot.model.robots import Robot
+from snakebot.model.robots import Friction, Robot
 
 
 @dataclass(frozen=True)
@@ -183,14 +183,14 @@ def integrate_joints(
     pose0: tuple[float, float, float] = (0.0, 0.0, 0.0),
     samples: int = 2,
     options: Options | None = None,
-    c_t: float | None = None,
+    friction: Friction | None = None,
     with_slip: bool = False,
 ) -> Trajectory:
     """Body pose from t0 to t1 with the joints following ``schedule``; ``samples`` evenly
     spaced output rows (t0 and t1 included)."""
     if samples < 2:
         raise ValueError("samples must be at least 2 (the start and the end)")
-    rb = c_robot(robot, c_t)
+    rb = c_robot(robot, friction)
     s, _keep = _c_schedule(robot, schedule)
     opt = (options or Options()).to_c()
     out = np.empty((samples, 3 + robot.n_joints))
@@ -240,7 +240,7 @@ def integrate_joints_batch(
     pose0: tuple[float, float, float] = (0.0, 0.0, 0.0),
     samples: int = 2,
     options: Options | None = None,
-    c_t: float | None = None,
+    friction: Friction | None = None,
 ) -> Batch:
     """``integrate_joints`` for every schedule in one call into the core, no Python between
     trajectories (a parameter grid, a gait search's batch); a failed trajectory does not
@@ -259,7 +259,7 @@ def integrate_joints_batch(
     stats = ffi.new("kin_stats[]", max(count, 1))
     p0 = as_doubles(pose0, 3, "pose0")
     code = lib.kin_integrate_joints_batch(
-        c_robot(robot, c_t),
+        c_robot(robot, friction),
         s,
         count,
         dptr(p0),

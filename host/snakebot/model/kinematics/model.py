@@ -18,7 +18,7 @@ from snakebot.model.kinematics.ccore import (
     check,
     dptr,
 )
-from snakebot.model.robots import Robot
+from snakebot.model.robots import Friction, Robot
 
 #: Names of the fields in the thesis's order, and their brackets.
 FIELD_NAMES = {
@@ -97,8 +97,8 @@ def wheel_speeds(robot: Robot, q: np.ndarray, qdot: np.ndarray) -> tuple[np.ndar
 
 @dataclass(frozen=True)
 class BodyVelocity:
-    """Minimum-slip result: ``xi`` = (dx, dy, dtheta) in the world frame, each wheel's
-    normal ``slip`` speed, and the problem's reciprocal condition number ``rcond``."""
+    """Quasi-static result: ``xi`` = (dx, dy, dtheta) in the world frame, each wheel's
+    normal ``slip`` speed, and the sticking rows' reciprocal condition number ``rcond``."""
 
     xi: np.ndarray
     slip: np.ndarray
@@ -106,19 +106,48 @@ class BodyVelocity:
 
 
 def body_velocity(
-    robot: Robot, q: np.ndarray, dphi: np.ndarray, c_t: float | None = None
+    robot: Robot, q: np.ndarray, dphi: np.ndarray, friction: Friction | None = None
 ) -> BodyVelocity:
-    """The minimum-slip body velocity for joint velocities dphi at q."""
+    """The quasi-static body velocity for joint velocities dphi at q: the one minimising
+    the wheels' frictional power (docs/models.md)."""
     qa = as_doubles(q, 3 + robot.n_joints, "q")
     da = as_doubles(dphi, robot.n_joints, "dphi")
     xi = np.empty(3)
     slip = np.empty(robot.n_wheels)
     rcond = ffi.new("double *")
     code = lib.kin_body_velocity(
-        c_robot(robot, c_t), dptr(qa), dptr(da), dptr(xi), dptr(slip), rcond
+        c_robot(robot, friction), dptr(qa), dptr(da), dptr(xi), dptr(slip), rcond
     )
     check(code, f"{robot.name} at q = {np.array2string(qa, precision=4)}")
     return BodyVelocity(xi, slip, float(rcond[0]))
+
+
+@dataclass(frozen=True)
+class QuasiStatic:
+    """The body velocity ``xi`` with the forces behind it: ``lateral`` and ``rolling``
+    (N, per wheel) the friction forces across (along n) and along (along t) each wheel,
+    ``torque`` each joint's torque driving the motion (N times the robot's length unit)."""
+
+    xi: np.ndarray
+    lateral: np.ndarray
+    rolling: np.ndarray
+    torque: np.ndarray
+
+
+def quasi_static(
+    robot: Robot, q: np.ndarray, dphi: np.ndarray, friction: Friction | None = None
+) -> QuasiStatic:
+    """``body_velocity`` with each wheel's friction forces and the joints' torques."""
+    qa = as_doubles(q, 3 + robot.n_joints, "q")
+    da = as_doubles(dphi, robot.n_joints, "dphi")
+    xi = np.empty(3)
+    force = np.empty(2 * robot.n_wheels)
+    torque = np.empty(robot.n_joints)
+    code = lib.kin_quasi_static(
+        c_robot(robot, friction), dptr(qa), dptr(da), dptr(xi), dptr(force), dptr(torque)
+    )
+    check(code, f"{robot.name} at q = {np.array2string(qa, precision=4)}")
+    return QuasiStatic(xi, force[0::2].copy(), force[1::2].copy(), torque)
 
 
 def det_g_star(robot: Robot, det_b: float) -> float:

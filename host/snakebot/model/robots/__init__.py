@@ -15,6 +15,7 @@ from snakebot.model.robots.loader import BUILTIN_ROBOTS, load_robot, parse_robot
 from snakebot.model.robots.model import (
     SERVO_MAX_RPM,
     TICKS_PER_RAD,
+    Friction,
     Joint,
     Physics,
     Robot,
@@ -25,6 +26,7 @@ __all__ = [
     "BUILTIN_ROBOTS",
     "SERVO_MAX_RPM",
     "TICKS_PER_RAD",
+    "Friction",
     "Joint",
     "Physics",
     "Robot",

@@ -8,11 +8,13 @@ Schema (see the built-in files beside this module for complete examples)::
     [geometry]                    # snake: links (>= 2), half_link (l > 0)
                                   # trident: base_radius, arm_length, alphas_deg (3 angles)
                                   # car: wheelbase (L > 0); one joint, the steering angle
-    [friction]                    # c_n > 0, c_t >= 0 (optional; defaults 1 and 0)
+    [friction]                    # optional, physical units (DEFAULT_FRICTION when left
+                                  # out): lateral (> 0, Coulomb, wheel-floor across the
+                                  # wheel), rolling (>= 0, C_rr), axle_nm (>= 0, N m)
     [servo]                       # model ("AX-12A" or "AX-12W"), max_speed_rpm (optional)
     [physics]                     # optional; the physics world needs it: unit_m (> 0), and
-                                  # link_mass_kg, wheel_radius_m, wheel_mass_kg, mu,
-                                  # rolling_damping (PHYSICS_DEFAULTS when left out)
+                                  # link_mass_kg, wheel_radius_m, wheel_mass_kg
+                                  # (PHYSICS_DEFAULTS when left out; the wheels' loads)
     [limits]                      # optional: torque, the Torque Limit every servo is
                                   # held to, in % of stall torque ("60%" or 60; above 0)
     [[joints]]                    # one per actuated joint, in order phi_1, phi_2, ...
@@ -36,10 +38,13 @@ else:  # the same parser as a package (a dependency on Python 3.10 only)
 
 from snakebot.formats.nesting import too_deep
 from snakebot.model.robots.model import (
+    DEFAULT_FRICTION,
+    PHYSICS_DEFAULTS,
     SERVO_MAX_RPM,
     TICK_MAX,
     TICK_MIN,
     TORQUE_LIMIT,
+    Friction,
     Joint,
     Physics,
     Robot,
@@ -53,21 +58,26 @@ MAX_LINKS = 16  # the C core's fixed buffers (KIN_MAX_LINKS)
 MAX_FILE_BYTES = 1 << 20  # a robot description is a few hundred bytes; this is no robot
 MAX_LIMIT_DEG = 360.0  # joint limits beyond a full turn are typing errors, whatever the servo
 
-PHYSICS_DEFAULTS: dict[str, float] = {
-    "link_mass_kg": 0.08,  # an AX-12A (55 g) with its brackets and wheel axle
-    "wheel_radius_m": 0.02,
-    "wheel_mass_kg": 0.01,
-    "mu": 0.8,  # rubber on a hard floor
-    "rolling_damping": 1e-5,
+_NEW_FRICTION = (
+    "friction is now given in physical units, the same for both worlds: [friction] "
+    "lateral (wheel-floor Coulomb coefficient), rolling (rolling resistance coefficient) "
+    "and axle_nm (axle friction torque); see docs/models.md"
+)
+REMOVED_KEYS: dict[tuple[str, ...], str] = {
+    ("friction", "c_n"): _NEW_FRICTION,
+    ("friction", "c_t"): _NEW_FRICTION,
+    ("physics", "mu"): "moved: the wheel-floor coefficient is [friction] lateral",
+    ("physics", "rolling_damping"): "moved: the wheels' axle friction is [friction] axle_nm "
+    "(a torque in N m) and their rolling resistance [friction] rolling",
 }
-"""``[physics]`` values a robot may leave out; ``unit_m`` has no default."""
+"""Keys of earlier robot files, refused with what replaces them."""
 
 SCHEMA: dict[str, Any] = {
     "name": None,
     "kind": None,
     "description": None,
     "geometry": {"links", "half_link", "base_radius", "arm_length", "alphas_deg", "wheelbase"},
-    "friction": {"c_n", "c_t"},
+    "friction": {"lateral", "rolling", "axle_nm"},
     "servo": {"model", "max_speed_rpm"},
     "physics": {"unit_m", *PHYSICS_DEFAULTS},
     "limits": {"torque"},
@@ -250,10 +260,26 @@ def _physics(reader: _Reader) -> Physics | None:
     if "physics" not in reader.data:
         return None
     values = {
-        key: reader.number(("physics", key), 0.0, default, strictly=key != "rolling_damping")
+        key: reader.number(("physics", key), 0.0, default, strictly=True)
         for key, default in PHYSICS_DEFAULTS.items()
     }
     return Physics(unit_m=reader.number(("physics", "unit_m"), 0.0, strictly=True), **values)
+
+
+def _friction(reader: _Reader) -> Friction:
+    d = DEFAULT_FRICTION
+    return Friction(
+        lateral=reader.number(("friction", "lateral"), 0.0, d.lateral, strictly=True),
+        rolling=reader.number(("friction", "rolling"), 0.0, d.rolling),
+        axle_nm=reader.number(("friction", "axle_nm"), 0.0, d.axle_nm),
+    )
+
+
+def _refuse_removed(reader: _Reader) -> None:
+    for path, why in REMOVED_KEYS.items():
+        table = reader.data.get(path[0])
+        if isinstance(table, dict) and path[1] in table:
+            raise reader.fail(path, f"is no longer a robot description key: {why}")
 
 
 def parse_robot(text: str, source: str = "<robot>") -> Robot:
@@ -266,6 +292,7 @@ def parse_robot(text: str, source: str = "<robot>") -> Robot:
     except tomllib.TOMLDecodeError as exc:
         raise RobotError(f"{source}: not valid TOML ({exc}): fix the syntax there") from None
     reader = _Reader(data, text, source)
+    _refuse_removed(reader)
     reader.check_keys(SCHEMA, data)
     kind = reader.get(("kind",), str)
     if kind not in ("snake", "trident", "car"):
@@ -302,8 +329,7 @@ def parse_robot(text: str, source: str = "<robot>") -> Robot:
         joints=joints,
         servo_model=model,
         max_speed_rad_s=rpm * 2.0 * math.pi / 60.0,
-        c_n=reader.number(("friction", "c_n"), 0.0, 1.0, strictly=True),
-        c_t=reader.number(("friction", "c_t"), 0.0, 0.0),
+        friction=_friction(reader),
         description=reader.get(("description",), str, ""),
         physics=_physics(reader),
         torque_limit=_torque_limit(reader),

@@ -27,6 +27,18 @@ SERVO_MAX_RPM = {
 }
 
 
+#: Standard gravity (m/s^2): the wheels' loads are the masses' weights.
+GRAVITY_M_S2 = 9.80665
+
+PHYSICS_DEFAULTS: dict[str, float] = {
+    "link_mass_kg": 0.08,  # an AX-12A (55 g) with its brackets and wheel axle
+    "wheel_radius_m": 0.02,
+    "wheel_mass_kg": 0.01,
+}
+"""``[physics]`` values a robot may leave out (``unit_m`` has no default); the masses
+also give a robot without a ``[physics]`` table its wheels' loads."""
+
+
 class RobotError(InputError):
     """A robot description that cannot be used (file missing, malformed, inconsistent)."""
 
@@ -62,19 +74,35 @@ class Joint:
 
 @dataclass(frozen=True)
 class Physics:
-    """What the physics world needs beyond the geometry (the robot TOML's ``[physics]``
-    table). ``unit_m``: metres per length unit of ``[geometry]`` (1 for a robot measured
-    in metres; a dimensionless thesis robot gets the size a lab would build). Masses in
-    kg, the wheel radius in metres; ``mu`` is the wheel-floor friction coefficient (it
-    holds the wheels sideways); ``rolling_damping`` (N m s/rad) resists each wheel's spin.
-    """
+    """The robot's size and masses (the robot TOML's ``[physics]`` table): both worlds
+    take the wheels' loads from them, the physics world its bodies. ``unit_m``: metres
+    per length unit of ``[geometry]`` (1 for a robot measured in metres; a dimensionless
+    thesis robot gets the size a lab would build). Masses in kg, the wheel radius in
+    metres."""
 
     unit_m: float
     link_mass_kg: float
     wheel_radius_m: float
     wheel_mass_kg: float
-    mu: float
-    rolling_damping: float
+
+
+@dataclass(frozen=True)
+class Friction:
+    """The wheels on the floor, in physical units (the robot TOML's ``[friction]``),
+    the same for both worlds (docs/models.md says where the defaults come from).
+    ``lateral``: the wheel-floor Coulomb coefficient across a wheel (sideways sliding);
+    ``rolling``: the rolling resistance coefficient C_rr (force along the wheel per
+    newton of load); ``axle_nm``: each wheel's Coulomb friction torque on its axle."""
+
+    lateral: float
+    rolling: float
+    axle_nm: float
+
+
+#: The defaults of ``[friction]``; docs/models.md ("Friction in physical units") gives
+#: their sources: rubber on a hard lab floor (0.8), a small solid rubber wheel's rolling
+#: resistance (0.01), a plastic hub turning on a 3 mm shaft under 0.9 N (3e-4 N m).
+DEFAULT_FRICTION = Friction(lateral=0.8, rolling=0.01, axle_nm=3e-4)
 
 
 @dataclass(frozen=True)
@@ -99,8 +127,7 @@ class Robot:
     r: float = 0.0
     alphas: tuple[float, ...] = ()
     links: int = 0
-    c_n: float = 1.0
-    c_t: float = 0.0
+    friction: Friction = DEFAULT_FRICTION
     description: str = ""
     physics: Physics | None = None  # None: the TOML has no [physics] table
     torque_limit: int | None = None  # raw Torque Limit for every servo; None: leave theirs
@@ -113,6 +140,34 @@ class Robot:
     @property
     def n_wheels(self) -> int:
         return {"snake": self.links, "trident": 3, "car": 4}[self.kind]
+
+    def wheel_masses_kg(self) -> np.ndarray:
+        """The mass each wheel carries (kg), from ``[physics]`` (or the defaults). A
+        snake's link and wheel rest on the link's wheel (the link's middle); a trident's
+        base and arms share its three wheels equally (exact at its symmetric home pose,
+        and how the loads are taken everywhere)."""
+        phys = self.physics
+        link = PHYSICS_DEFAULTS["link_mass_kg"] if phys is None else phys.link_mass_kg
+        wheel = PHYSICS_DEFAULTS["wheel_mass_kg"] if phys is None else phys.wheel_mass_kg
+        each = (link + 3 * (link + wheel)) / 3 if self.kind == "trident" else link + wheel
+        return np.full(self.n_wheels, each)
+
+    def wheel_loads_n(self) -> np.ndarray:
+        """Each wheel's normal load (N): the weight of ``wheel_masses_kg``."""
+        return self.wheel_masses_kg() * GRAVITY_M_S2
+
+    def wheel_friction_n(self, friction: Friction | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Per wheel, in newtons: the Coulomb force across it when it slides (mu N) and
+        the force resisting its rolling (C_rr N plus the axle's torque over the wheel's
+        radius): the weights of the quasi-static friction model (docs/models.md)."""
+        f = self.friction if friction is None else friction
+        radius = (
+            PHYSICS_DEFAULTS["wheel_radius_m"]
+            if self.physics is None
+            else self.physics.wheel_radius_m
+        )
+        loads = self.wheel_loads_n()
+        return f.lateral * loads, f.rolling * loads + f.axle_nm / radius
 
     @property
     def state_names(self) -> tuple[str, ...]:

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -34,7 +34,14 @@ from snakebot.model.robots import TICKS_PER_RAD, Robot
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.history import History
 from snakebot.sim.physics.actuator import OVERLOAD_HOLD_S, STALLED_FRACTION, Actuator
-from snakebot.sim.physics.mjcf import CONTROL_PERIOD_S, TIMESTEP_S, build_mjcf, physics_of
+from snakebot.sim.physics.mjcf import (
+    CONTROL_PERIOD_S,
+    ROLLING_MODEL,
+    TIMESTEP_S,
+    build_mjcf,
+    physics_of,
+)
+from snakebot.sim.servo import motor
 from snakebot.sim.world import DEFAULT_PERIOD_S, WorldError, WorldRecord, require_servos
 
 PENETRATION_LIMIT = 0.5
@@ -77,11 +84,15 @@ def _keep_warning(message: str) -> None:
 class PhysicsRecord(WorldRecord):
     """:class:`WorldRecord` plus, per sample and joint, the motor ``torque`` (N m at the
     joint, + in the joint's positive direction) and ``load`` (fraction of the stall
-    torque); per joint the ``energy`` put in (J); and the wheel-floor ``mu``."""
+    torque); per joint the mechanical work ``energy`` put in (J, signed: negative while
+    the joint is driven backwards) and the ``electrical`` energy its motor drew (J, the DC
+    motor model of :meth:`snakebot.sim.servo.motor.MotorSpec.electrical_power_w`); and the
+    wheel-floor ``mu``."""
 
     torque: np.ndarray
     load: np.ndarray
     energy: np.ndarray
+    electrical: np.ndarray
     mu: float
     timestep: float
 
@@ -91,13 +102,14 @@ class PhysicsRecord(WorldRecord):
         joint the energy (J) and the peak load (fraction of stall torque)."""
         slip = np.abs(self.slip)
         return {
-            "c_t": None,  # the physics has Coulomb friction and free wheels instead
+            "friction": asdict(self.friction),
             "mu": self.mu,
             "timestep_s": self.timestep,
             "wheel_slip_speed_max": [float(v) for v in slip.max(axis=0)]
             if len(slip)
             else [0.0] * self.slip.shape[1],
-            "energy_j": [float(v) for v in self.energy],
+            "work_j": [float(v) for v in self.energy],
+            "electrical_j": [float(v) for v in self.electrical],
             "peak_load": [float(v) for v in self.load.max(axis=0)]
             if len(self.load)
             else [0.0] * self.load.shape[1],
@@ -112,8 +124,9 @@ class PhysicsWorld:
     and ``timestep``, shortened to divide the sampling period. ``keep``: how many of the
     latest samples the record keeps (default all; a server that runs for days keeps
     few). ``pose`` is the body pose at the start (robot units, radians); the joints
-    start where the servos are. ``mu`` overrides the wheel-floor friction coefficient of
-    the robot's ``[physics]`` table.
+    start where the servos are. ``mu`` overrides the wheel-floor Coulomb coefficient
+    (``[friction] lateral``); ``rolling_model`` how rolling resistance enters MuJoCo
+    (:data:`snakebot.sim.physics.mjcf.ROLLING_MODELS`).
     """
 
     def __init__(
@@ -128,6 +141,7 @@ class PhysicsWorld:
         timestep: float = TIMESTEP_S,
         control_period: float = CONTROL_PERIOD_S,
         keep: int | None = None,
+        rolling_model: str = ROLLING_MODEL,
     ) -> None:
         mujoco = _mujoco()
         if not min(period, timestep, control_period) > 0:
@@ -143,14 +157,17 @@ class PhysicsWorld:
         self.control_period = self.period / self.steps_per_sample
         self.substeps = max(1, math.ceil(self.control_period / timestep - 1e-9))
         self.timestep = self.control_period / self.substeps
-        xml, names = build_mjcf(robot, timestep=self.timestep, mu=mu)
+        self.friction = robot.friction if mu is None else replace(robot.friction, lateral=mu)
+        xml, names = build_mjcf(
+            robot, timestep=self.timestep, friction=self.friction, rolling_model=rolling_model
+        )
         self._mj = mujoco
         self.model = mujoco.MjModel.from_xml_string(xml)
         self.data = mujoco.MjData(self.model)
         self.bus = bus
         self.robot = robot
         self.unit = phys.unit_m
-        self.mu = phys.mu if mu is None else float(mu)
+        self.mu = self.friction.lateral
         self.start_time = bus.now if start is None else float(start)
         self.actuator = Actuator.for_model(robot.servo_model)
         self._servos = [bus.servo(i) for i in ids]
@@ -172,6 +189,8 @@ class PhysicsWorld:
         mujoco.mj_forward(m, d)
         n = robot.n_joints
         self._energy = np.zeros(n)
+        self._electrical = np.zeros(n)
+        self._motor = motor.spec_for(robot.servo_model)
         self._stalled = [0.0] * n
         self._moving = [False] * n
         self._on = [False] * n
@@ -232,6 +251,7 @@ class PhysicsWorld:
                 np.multiply(torque, self._w, out=power)
                 power *= self.timestep
                 self._energy += power
+                self._electrical += self._motor.electrical_power_w(torque, self._w) * self.timestep
         else:
             torque = self._motor_torque()
         if self._ticks % self.steps_per_sample == 0:
@@ -305,8 +325,8 @@ class PhysicsWorld:
         self.stop()
         raise PhysicsError(
             f"{what} at {t - self.start_time:.3f} s of world time: the run is stopped; "
-            "check the robot's [physics] table (masses, wheel radius, mu) for values far "
-            "from a real robot's, or play a gentler gait"
+            "check the robot's [physics] table (masses, wheel radius) and [friction] for "
+            "values far from a real robot's, or play a gentler gait"
         )
 
     def stop(self) -> None:
@@ -355,12 +375,11 @@ class PhysicsWorld:
             pose,
             state[:, 3:],
             slip,
-            np.zeros(len(rows), dtype=bool),
-            self.robot.c_t,
-            None,
+            self.friction,
             torque,
             np.abs(torque) / self.actuator.stall_nm,
             np.array(self._energy),
+            np.array(self._electrical),
             self.mu,
             self.timestep,
         )

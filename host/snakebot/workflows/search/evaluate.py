@@ -23,9 +23,10 @@ from snakebot.errors import SnakebotError
 from snakebot.formats.gaittable import GaitTable
 from snakebot.model.gait.common import motion
 from snakebot.model.gait.serpenoid import SerpenoidFrames, serpenoid_frames
-from snakebot.model.kinematics import KinematicsError, Options, Table, integrate_joints
+from snakebot.model.kinematics import Options, Table, integrate_joints
+from snakebot.model.kinematics.effort import effort
 from snakebot.model.robots import Robot, load_robot
-from snakebot.sim.world import SINGULAR_CODES, fallback_c_t
+from snakebot.sim.servo.motor import spec_for
 from snakebot.workflows.search.space import SearchError
 
 METRICS = (
@@ -34,15 +35,26 @@ METRICS = (
     "dtheta",
     "distance_per_cycle",
     "speed",
-    "energy_j",
+    "work_j",
+    "electrical_j",
     "efficiency",
     "slip_per_cycle",
     "slip_ratio",
+    "torque_nm",
+    "torque_ratio",
+    "lateral_ratio",
 )
 """What a run reports: body motion over the run (robot length units, rad, in the start
-pose's frame), distance per cycle, mean speed (units/s), the energy the motors put in
-(J, physics only), distance per joule, the wheels' sideways slide per cycle (units) and
-slide per distance travelled."""
+pose's frame), distance per cycle, mean speed (units/s), the joints' signed mechanical
+work and the electrical energy the motors draw (J; DC motor model), distance per
+electrical joule, the wheels' sideways slide per cycle (units) and slide per distance
+travelled; in the kinematic world also the largest joint torque the motion needs
+(N m), that over the torque the servos have, and the largest lateral force a sticking
+wheel needs over what friction gives (model.kinematics.effort; above 1: the floor
+cannot hold it)."""
+
+FEASIBLE_LIMIT = 1.0
+"""A candidate whose torque_ratio or lateral_ratio exceeds this is flagged infeasible."""
 
 
 @dataclass(frozen=True)
@@ -72,33 +84,32 @@ def _frames(robot: Robot, settings: Settings, point: dict[str, float]) -> Serpen
     )
 
 
-def _kinematic(robot: Robot, f: SerpenoidFrames, c_t: float) -> dict[str, float]:
+def _kinematic(robot: Robot, f: SerpenoidFrames) -> dict[str, float]:
     angles = robot.ticks_to_angles(f.ticks)
     period = f.period_ms / 1000.0
-    schedule = Table(angles, period, f.loop)
-    samples = f.steps + 1
-
-    def run(c: float) -> Any:
-        return integrate_joints(
-            robot,
-            schedule,
-            f.duration_s,
-            samples=samples,
-            options=Options("rk4", h=period),
-            c_t=c,
-            with_slip=True,
-        )
-
-    try:
-        traj = run(c_t)
-    except KinematicsError as exc:
-        fallback = fallback_c_t(robot, c_t)
-        if fallback is None or exc.code not in SINGULAR_CODES:
-            raise
-        traj = run(fallback)
+    traj = integrate_joints(
+        robot,
+        Table(angles, period, f.loop),
+        f.duration_s,
+        samples=f.steps + 1,
+        options=Options("rk4", h=period),
+        with_slip=True,
+    )
     speed = np.abs(traj.slip)
     slid = float(((speed[1:] + speed[:-1]) * 0.5 * period).sum())
-    return motion(traj) | {"slip": slid, "energy_j": math.nan}
+    cost = effort(robot, traj.q, period)
+    spec = spec_for(robot.servo_model)
+    electrical = float(np.sum(spec.electrical_power_w(cost.torque, cost.speed)) * period)
+    limit = (robot.torque_limit_percent or 100.0) / 100.0
+    peak = float(np.abs(cost.torque).max()) if cost.torque.size else 0.0
+    return motion(traj) | {
+        "slip": slid,
+        "work_j": cost.work_j,
+        "electrical_j": electrical,
+        "torque_nm": peak,
+        "torque_ratio": peak / (spec.stall_torque_nm * limit),
+        "lateral_ratio": cost.lateral_ratio,
+    }
 
 
 def _heavier(robot: Robot, factor: float) -> Robot:
@@ -134,43 +145,57 @@ def _physics(robot: Robot, f: SerpenoidFrames, mu: float | None) -> dict[str, fl
         record, _, _ = play(client, bus, robot, table, ideal=False, world="mujoco", mu=mu)
     finally:
         client.close()
-    energy = getattr(record, "energy", None)
+    summary = record.physics_summary() if hasattr(record, "physics_summary") else {}
     return record.displacement() | {
         "slip": float(np.sum(record.slip_distance())),
-        "energy_j": float(np.sum(energy)) if energy is not None else math.nan,
+        "work_j": float(np.sum(summary.get("work_j", [math.nan]))),
+        "electrical_j": float(np.sum(summary.get("electrical_j", [math.nan]))),
     }
 
 
 def evaluate(settings: Settings, point: dict[str, float]) -> dict[str, Any]:
     """One run: ``point`` holds the serpenoid parameters and the robustness values (mu,
-    mass, c_t); the row adds the status, the reason of a failure and METRICS (NaN if failed)."""
+    mass, rolling); the row adds the status (``infeasible`` where a torque or lateral
+    ratio exceeds FEASIBLE_LIMIT), the reason and METRICS (NaN if failed)."""
     row: dict[str, Any] = dict(point)
     row.update({m: math.nan for m in METRICS})
     try:
         robot = _robot(settings.robot)
-        if "c_t" in point:
-            robot = replace(robot, c_t=point["c_t"])
+        if "mu" in point or "rolling" in point:
+            friction = replace(
+                robot.friction,
+                lateral=point.get("mu", robot.friction.lateral),
+                rolling=point.get("rolling", robot.friction.rolling),
+            )
+            robot = replace(robot, friction=friction)
         if "mass" in point:
             robot = _heavier(robot, point["mass"])
         f = _frames(robot, settings, point)
         if settings.world == "kinematic":
-            raw = _kinematic(robot, f, robot.c_t)
+            raw = _kinematic(robot, f)
         else:
-            raw = _physics(robot, f, point.get("mu"))
+            raw = _physics(robot, f, None)
     except SnakebotError as exc:
         row.update(status="failed", reason=str(exc))
         return row
     distance = math.hypot(raw["dx"], raw["dy"])
-    energy = raw["energy_j"]
+    energy = raw["electrical_j"]
+    over = [
+        f"{name} {raw[name]:.2f}"
+        for name in ("torque_ratio", "lateral_ratio")
+        if raw.get(name, 0.0) > FEASIBLE_LIMIT
+    ]
+    row.update({m: raw[m] for m in ("torque_nm", "torque_ratio", "lateral_ratio") if m in raw})
     row.update(
-        status="ok",
-        reason="",
+        status="infeasible" if over else "ok",
+        reason=("needs more than the servos or the floor give: " + ", ".join(over) if over else ""),
         dx=raw["dx"],
         dy=raw["dy"],
         dtheta=raw["dtheta"],
         distance_per_cycle=distance / settings.cycles,
         speed=distance / f.duration_s,
-        energy_j=energy,
+        work_j=raw["work_j"],
+        electrical_j=energy,
         efficiency=distance / energy if energy > 0 else math.nan,
         slip_per_cycle=raw["slip"] / settings.cycles,
         slip_ratio=raw["slip"] / distance if distance > 0 else math.inf,

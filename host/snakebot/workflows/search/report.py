@@ -54,7 +54,13 @@ def summarise(outcome: Outcome, request: Request, workers: int) -> dict[str, Any
         "results": str(request.output) if request.output else None,
         "best": None
         if best is None
-        else {"parameters": best.point, metric: sense * (best.score or 0.0)},
+        else {"parameters": best.point, metric: sense * (best.score or 0.0)}
+        | {
+            m: best.runs[0].get(m)
+            for m in ("slip_ratio", "torque_nm", "torque_ratio", "lateral_ratio")
+            if best.runs and m in best.runs[0]
+        },
+        "on_edge": outcome.edges(request.space),
     }
 
 

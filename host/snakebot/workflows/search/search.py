@@ -61,6 +61,9 @@ class Request:
     samples: int = 100
     seed: int = 1
     output: Path | None = None
+    #: Leave out candidates that need more torque than the servos have or more lateral
+    #: force than the floor gives (status "infeasible"); False ranks them like the rest.
+    penalise: bool = True
 
     def check(self) -> None:
         if self.objective not in OBJECTIVES:
@@ -70,11 +73,6 @@ class Request:
         check_world(self.settings.world)
         if self.method not in METHODS:
             raise SearchError(f"unknown method {self.method!r}: use one of {', '.join(METHODS)}")
-        if self.objective == "efficiency" and self.settings.world != "mujoco":
-            raise SearchError(
-                "--objective efficiency needs the energy the motors use: only the physics "
-                "world has it (use --world mujoco)"
-            )
         self.space.check_world(self.settings.world)
         if not self.space.varied:
             raise SearchError("nothing to search: give at least one --param a range LOW:HIGH:COUNT")
@@ -116,6 +114,19 @@ class Outcome:
     def best(self) -> Candidate | None:
         scored = [c for c in self.candidates if c.score is not None]
         return max(scored, key=lambda c: c.score) if scored else None  # type: ignore[arg-type, return-value]
+
+    def edges(self, space: Space) -> list[str]:
+        """The varied parameters at which the best candidate sits on the searched
+        range's edge (its optimum may lie beyond: widen the range)."""
+        best = self.best
+        if best is None:
+            return []
+        out = []
+        for axis in space.varied:
+            value, span = best.point[axis.name], axis.high - axis.low
+            if min(abs(value - axis.low), abs(value - axis.high)) <= 1e-9 * max(1.0, abs(span)):
+                out.append(axis.name)
+        return out
 
 
 class Search:
@@ -172,7 +183,8 @@ class Search:
         ]
 
     def _score(self, point: dict[str, float], rows: list[dict[str, Any]]) -> Candidate:
-        failed = [r for r in rows if r["status"] != "ok"]
+        passing = ("ok",) if self.request.penalise else ("ok", "infeasible")
+        failed = [r for r in rows if r["status"] not in passing]
         if failed:
             return Candidate(point, None, str(failed[0]["reason"]), rows)
         values = [self.sense * float(r[self.metric]) for r in rows]

@@ -27,13 +27,17 @@ GAIT_PARAMETERS = {
 ROBUST_PARAMETERS = {
     "mu": ("mu", "friction.lateral"),
     "mass": ("mass",),
-    "c_t": ("c_t", "friction.rolling"),
+    "rolling": ("rolling", "friction.rolling"),
 }
-"""What a candidate's robustness is tried over: the wheel-floor friction coefficient
-(``mu``) and a factor on every link's and wheel's mass (``mass``) in the physics world,
-the rolling friction ratio of the kinematic world (``c_t``)."""
+"""What a candidate's robustness is tried over: the wheel-floor Coulomb coefficient
+(``mu``) and the rolling resistance coefficient (``rolling``), in either world, and a
+factor on every link's and wheel's mass (``mass``) in the physics world."""
 
-ROBUST_WORLD = {"mu": "mujoco", "mass": "mujoco", "c_t": "kinematic"}
+ROBUST_WORLD = {
+    "mu": ("kinematic", "mujoco"),
+    "mass": ("mujoco",),
+    "rolling": ("kinematic", "mujoco"),
+}
 
 REQUIRED = ("amplitude", "omega", "delta")
 DEFAULTS = {"offset": 0.0}
@@ -152,10 +156,10 @@ class Space:
             axis = parse_axis(text, robust=True)
             if axis.name in rob:
                 raise SearchError(f"--robust {axis.name} is given twice: give it once")
-            if axis.low < 0 or (axis.low == 0 and axis.name != "c_t"):
+            if axis.low < 0 or (axis.low == 0 and axis.name != "rolling"):
                 raise SearchError(
                     f"--robust {text!r}: {axis.name} must be "
-                    + ("zero or more" if axis.name == "c_t" else "positive")
+                    + ("zero or more" if axis.name == "rolling" else "positive")
                 )
             rob[axis.name] = axis
         return cls(tuple(axes[n] for n in GAIT_PARAMETERS), tuple(rob.values()))
@@ -166,10 +170,11 @@ class Space:
 
     def check_world(self, world: str) -> None:
         for axis in self.robust:
-            if ROBUST_WORLD[axis.name] != world:
+            worlds = ROBUST_WORLD[axis.name]
+            if world not in worlds:
                 raise SearchError(
-                    f"--robust {axis.name} applies to the {ROBUST_WORLD[axis.name]} world, "
-                    f"not the {world} world: use --world {ROBUST_WORLD[axis.name]} or drop it"
+                    f"--robust {axis.name} applies to the {' and '.join(worlds)} world, "
+                    f"not the {world} world: use --world {worlds[0]} or drop it"
                 )
 
     def run_count(self, method: str, samples: int) -> int:

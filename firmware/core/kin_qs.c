@@ -1,0 +1,378 @@
+/* Quasi-static Coulomb friction of the wheels: the body velocity the wheels allow
+ * (docs/models.md, "The general model").
+ *
+ * Given the joint velocities, every wheel's speed across (n.v) and along (t.v) its
+ * rolling direction is affine in the body velocity. Friction across a wheel is Coulomb,
+ * lateral_i = mu N_i at full slip; along it the wheel resists rolling with
+ * rolling_i = C_rr N_i (+ the axle's friction referred to the rim). Without inertia the
+ * body moves so that the friction forces balance, which for Coulomb friction is the
+ * body velocity minimising the dissipated power (the maximum-dissipation principle):
+ *
+ *     minimise  f(x) = sum_k w_k |a_k . x - b_k|     over x = (dx, dy, L dtheta),
+ *
+ * two rows per wheel (normal: weight lateral_i; tangential: weight rolling_i). This is a
+ * weighted L1 fit in three unknowns. Its minimum is at a vertex, where three rows
+ * (the active set S) vanish: those are the wheels' directions that stick. The solver
+ * is the simplex method for L1 fits (Barrodale and Roberts' idea, in three unknowns):
+ * at a vertex it computes the friction multipliers of the active rows, which certify
+ * optimality when they lie in [-1, 1] (the sticking directions need no more force than
+ * friction gives); otherwise it releases the row whose multiplier is out of range and
+ * moves along the edge that opens to the minimum of the convex, piecewise linear
+ * objective on it, where another row enters. Each pivot lowers f, so it ends exactly,
+ * at a vertex; a warm start from the previous call's active set (the integrator's) makes
+ * most calls a single certificate. Degenerate vertices, which could cycle, are bounded
+ * by a pivot budget, after which every vertex is checked (exact, slower). */
+#include "kin_core.h"
+#include "kin_geom.h"
+
+#include <math.h>
+
+#define QS_MAX_ROWS (2 * KIN_MAX_WHEELS)
+#define QS_MAX_PIVOTS 48
+/* A vertex whose 3x3 system is conditioned worse than this is not used. */
+#define QS_RCOND_MIN 1e-12
+/* Multipliers this far past 1 still certify (rounding). */
+#define QS_CERT_TOL 1e-9
+/* Relative size below which a residual counts as zero (the row passes through x). */
+#define QS_ZERO_TOL 1e-12
+
+typedef struct {
+    int32_t rows;
+    int32_t id[QS_MAX_ROWS]; /* 2 wheel (normal) or 2 wheel + 1 (tangential) */
+    double a[QS_MAX_ROWS][3];
+    double b[QS_MAX_ROWS];
+    double w[QS_MAX_ROWS];
+} qs_problem;
+
+static double absmax3(const double *v)
+{
+    return fmax(fabs(v[0]), fmax(fabs(v[1]), fabs(v[2])));
+}
+
+/* The rows, the rotation column scaled by len (so all three unknowns are speeds). */
+static void qs_rows(const kin_robot *rb, const kin_wheel_rows *w, double len, qs_problem *p)
+{
+    const double inv_len = 1.0 / len;
+    p->rows = 0;
+    for (int32_t i = 0; i < w->count; i++) {
+        if (rb->lateral[i] > 0.0) {
+            const int32_t k = p->rows++;
+            p->id[k] = 2 * i;
+            p->a[k][0] = -w->ty[i];
+            p->a[k][1] = w->tx[i];
+            p->a[k][2] = w->n_theta[i] * inv_len;
+            p->b[k] = -w->n_joint[i];
+            p->w[k] = rb->lateral[i];
+        }
+        if (rb->rolling[i] > 0.0) {
+            const int32_t k = p->rows++;
+            p->id[k] = 2 * i + 1;
+            p->a[k][0] = w->tx[i];
+            p->a[k][1] = w->ty[i];
+            p->a[k][2] = w->t_theta[i] * inv_len;
+            p->b[k] = -w->t_joint[i];
+            p->w[k] = rb->rolling[i];
+        }
+    }
+}
+
+/* Inverse of the 3x3 matrix whose rows are a[s[0]], a[s[1]], a[s[2]], into m (column j
+ * of m is the direction moving row s[j]'s residual by 1 and the others' not at all);
+ * returns its reciprocal 1-norm condition number (0 when singular). */
+static double inverse3(const qs_problem *p, const int32_t s[3], double m[3][3])
+{
+    const double *r0 = p->a[s[0]], *r1 = p->a[s[1]], *r2 = p->a[s[2]];
+    const double c00 = r1[1] * r2[2] - r1[2] * r2[1];
+    const double c01 = r1[2] * r2[0] - r1[0] * r2[2];
+    const double c02 = r1[0] * r2[1] - r1[1] * r2[0];
+    const double det = r0[0] * c00 + r0[1] * c01 + r0[2] * c02;
+    if (!(fabs(det) > 0.0) || !isfinite(det)) {
+        return 0.0;
+    }
+    const double id = 1.0 / det;
+    m[0][0] = c00 * id;
+    m[1][0] = c01 * id;
+    m[2][0] = c02 * id;
+    m[0][1] = (r0[2] * r2[1] - r0[1] * r2[2]) * id;
+    m[1][1] = (r0[0] * r2[2] - r0[2] * r2[0]) * id;
+    m[2][1] = (r0[1] * r2[0] - r0[0] * r2[1]) * id;
+    m[0][2] = (r0[1] * r1[2] - r0[2] * r1[1]) * id;
+    m[1][2] = (r0[2] * r1[0] - r0[0] * r1[2]) * id;
+    m[2][2] = (r0[0] * r1[1] - r0[1] * r1[0]) * id;
+    double norm_a = 0.0, norm_m = 0.0;
+    for (int32_t j = 0; j < 3; j++) {
+        norm_a = fmax(norm_a, fabs(r0[j]) + fabs(r1[j]) + fabs(r2[j]));
+        norm_m = fmax(norm_m, fabs(m[0][j]) + fabs(m[1][j]) + fabs(m[2][j]));
+    }
+    return 1.0 / (norm_a * norm_m);
+}
+
+static double objective(const qs_problem *p, const double x[3])
+{
+    double f = 0.0;
+    for (int32_t k = 0; k < p->rows; k++) {
+        f += p->w[k] * fabs(p->a[k][0] * x[0] + p->a[k][1] * x[1] + p->a[k][2] * x[2] - p->b[k]);
+    }
+    return f;
+}
+
+/* The vertex of active set s: x, every row's residual r (exactly 0 on s), the zero
+ * tolerance, and each row's friction multiplier y in w y (sign of the residual off s;
+ * from the balance of forces on s). Returns the largest |y| on s, and its position in
+ * *worst. */
+static double vertex(const qs_problem *p, const int32_t s[3], double m[3][3], double x[3],
+                     double *r, double *y, double *tol, int32_t *worst)
+{
+    for (int32_t i = 0; i < 3; i++) {
+        x[i] = m[i][0] * p->b[s[0]] + m[i][1] * p->b[s[1]] + m[i][2] * p->b[s[2]];
+    }
+    double scale = 0.0;
+    for (int32_t k = 0; k < p->rows; k++) {
+        scale = fmax(scale, fabs(p->b[k]) + absmax3(p->a[k]) * absmax3(x));
+    }
+    *tol = QS_ZERO_TOL * scale;
+    double g[3] = {0.0, 0.0, 0.0};
+    for (int32_t k = 0; k < p->rows; k++) {
+        r[k] = p->a[k][0] * x[0] + p->a[k][1] * x[1] + p->a[k][2] * x[2] - p->b[k];
+        y[k] = r[k] > *tol ? 1.0 : (r[k] < -*tol ? -1.0 : 0.0);
+    }
+    for (int32_t j = 0; j < 3; j++) {
+        r[s[j]] = 0.0;
+        y[s[j]] = 0.0;
+    }
+    for (int32_t k = 0; k < p->rows; k++) {
+        const double f = p->w[k] * y[k];
+        g[0] += f * p->a[k][0];
+        g[1] += f * p->a[k][1];
+        g[2] += f * p->a[k][2];
+    }
+    /* sum_{j in s} w_j y_j a_j = -g: (w y)_s = -M^T g */
+    double most = -1.0;
+    for (int32_t j = 0; j < 3; j++) {
+        const double z = -(m[0][j] * g[0] + m[1][j] * g[1] + m[2][j] * g[2]);
+        y[s[j]] = z / p->w[s[j]];
+        if (fabs(y[s[j]]) > most) {
+            most = fabs(y[s[j]]);
+            *worst = j;
+        }
+    }
+    return most;
+}
+
+/* A first active set: rows in order of falling weight, each taken when independent of
+ * those taken (its part orthogonal to them is not small). Returns 0 if the rows span
+ * fewer than three dimensions. */
+static int first_set(const qs_problem *p, int32_t s[3])
+{
+    double basis[3][3];
+    int32_t taken = 0;
+    uint32_t used = 0;
+    while (taken < 3) {
+        int32_t best = -1;
+        for (int32_t k = 0; k < p->rows; k++) {
+            if (!(used & (1u << k)) && (best < 0 || p->w[k] > p->w[best])) {
+                best = k;
+            }
+        }
+        if (best < 0) {
+            return 0;
+        }
+        used |= 1u << best;
+        double v[3] = {p->a[best][0], p->a[best][1], p->a[best][2]};
+        const double n0 = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+        for (int32_t i = 0; i < taken; i++) {
+            const double d = v[0] * basis[i][0] + v[1] * basis[i][1] + v[2] * basis[i][2];
+            v[0] -= d * basis[i][0];
+            v[1] -= d * basis[i][1];
+            v[2] -= d * basis[i][2];
+        }
+        const double n1 = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+        if (n1 > 1e-6 * n0) {
+            basis[taken][0] = v[0] / n1;
+            basis[taken][1] = v[1] / n1;
+            basis[taken][2] = v[2] / n1;
+            s[taken++] = best;
+        }
+    }
+    return 1;
+}
+
+/* Every vertex, the best kept: the exact answer when pivoting could cycle. */
+static int enumerate(const qs_problem *p, int32_t s[3])
+{
+    double best = INFINITY, m[3][3], x[3];
+    int found = 0;
+    for (int32_t i = 0; i < p->rows; i++) {
+        for (int32_t j = i + 1; j < p->rows; j++) {
+            for (int32_t k = j + 1; k < p->rows; k++) {
+                const int32_t t[3] = {i, j, k};
+                if (inverse3(p, t, m) < QS_RCOND_MIN) {
+                    continue;
+                }
+                for (int32_t c = 0; c < 3; c++) {
+                    x[c] = m[c][0] * p->b[i] + m[c][1] * p->b[j] + m[c][2] * p->b[k];
+                }
+                const double f = objective(p, x);
+                if (f < best) {
+                    best = f;
+                    s[0] = i;
+                    s[1] = j;
+                    s[2] = k;
+                    found = 1;
+                }
+            }
+        }
+    }
+    return found;
+}
+
+/* Minimise; s holds the active set (a warm start if valid), x the answer, y each row's
+ * multiplier, *rcond the vertex's conditioning. Returns 0 when the rows do not span
+ * three dimensions (the motion is not determined). */
+static int qs_minimise(const qs_problem *p, int32_t s[3], double x[3], double *y, double *rcond)
+{
+    double m[3][3], r[QS_MAX_ROWS], tol;
+    int valid = s[0] >= 0 && s[1] >= 0 && s[2] >= 0 && s[0] < p->rows && s[1] < p->rows
+                && s[2] < p->rows && s[0] != s[1] && s[1] != s[2] && s[0] != s[2];
+    if (!valid || inverse3(p, s, m) < QS_RCOND_MIN) {
+        if (!first_set(p, s)) {
+            return 0;
+        }
+    }
+    for (int32_t pivot = 0; pivot <= QS_MAX_PIVOTS; pivot++) {
+        *rcond = inverse3(p, s, m);
+        if (*rcond < QS_RCOND_MIN) {
+            break;
+        }
+        int32_t j = 0;
+        const double most = vertex(p, s, m, x, r, y, &tol, &j);
+        if (most <= 1.0 + QS_CERT_TOL) {
+            return 1;
+        }
+        if (pivot == QS_MAX_PIVOTS) {
+            break;
+        }
+        /* Release row s[j] along D (moving its residual by sign(y)), where f falls at
+         * the rate w (|y| - 1); find where the slope turns: that row enters. */
+        const double sign = y[s[j]] > 0.0 ? 1.0 : -1.0;
+        const double dir[3] = {sign * m[0][j], sign * m[1][j], sign * m[2][j]};
+        const double dn = absmax3(dir);
+        double slope = p->w[s[j]] * (1.0 - fabs(y[s[j]]));
+        double bt[QS_MAX_ROWS], binc[QS_MAX_ROWS];
+        int32_t brow[QS_MAX_ROWS], nb = 0;
+        for (int32_t k = 0; k < p->rows; k++) {
+            if (k == s[0] || k == s[1] || k == s[2]) {
+                continue;
+            }
+            const double ad = p->a[k][0] * dir[0] + p->a[k][1] * dir[1] + p->a[k][2] * dir[2];
+            if (!(fabs(ad) > 1e-12 * absmax3(p->a[k]) * dn)) {
+                continue;
+            }
+            if (fabs(r[k]) <= tol) {
+                bt[nb] = 0.0;
+                binc[nb] = p->w[k] * fabs(ad);
+            } else {
+                const double t = -r[k] / ad;
+                if (!(t > 0.0)) {
+                    continue;
+                }
+                bt[nb] = t;
+                binc[nb] = 2.0 * p->w[k] * fabs(ad);
+            }
+            brow[nb++] = k;
+        }
+        int32_t enter = -1;
+        while (nb > 0) {
+            int32_t first = 0;
+            for (int32_t i = 1; i < nb; i++) {
+                if (bt[i] < bt[first]) {
+                    first = i;
+                }
+            }
+            slope += binc[first];
+            if (slope >= 0.0) {
+                enter = brow[first];
+                break;
+            }
+            nb--;
+            bt[first] = bt[nb];
+            binc[first] = binc[nb];
+            brow[first] = brow[nb];
+        }
+        if (enter < 0) {
+            break; /* unbounded along the edge: cannot happen when the rows span R^3 */
+        }
+        s[j] = enter;
+    }
+    if (!enumerate(p, s)) {
+        return 0;
+    }
+    *rcond = inverse3(p, s, m);
+    int32_t j = 0;
+    (void)vertex(p, s, m, x, r, y, &tol, &j);
+    return 1;
+}
+
+int kin_geom_solve(const kin_robot *rb, const kin_wheel_rows *w, int32_t *active, double *xi,
+                   double *slip, double *force, double *rcond)
+{
+    /* L, the farthest wheel's distance from the reference point, makes the rotation
+     * column a speed like the others. */
+    double len2 = rb->l * rb->l;
+    int at_rest = 1;
+    for (int32_t i = 0; i < w->count; i++) {
+        len2 = fmax(len2, w->n_theta[i] * w->n_theta[i] + w->t_theta[i] * w->t_theta[i]);
+        at_rest = at_rest && w->n_joint[i] == 0.0 && w->t_joint[i] == 0.0;
+    }
+    const double len = sqrt(len2);
+    qs_problem p;
+    qs_rows(rb, w, len, &p);
+    int32_t s[3] = {-1, -1, -1};
+    if (active != NULL) {
+        s[0] = active[0];
+        s[1] = active[1];
+        s[2] = active[2];
+    }
+    double x[3], y[QS_MAX_ROWS], rc = 0.0;
+    const int ok = qs_minimise(&p, s, x, y, &rc);
+    if (rcond != NULL) {
+        *rcond = ok ? rc : 0.0;
+    }
+    if (!ok || !isfinite(x[0] + x[1] + x[2])) {
+        xi[0] = xi[1] = xi[2] = 0.0;
+        for (int32_t i = 0; i < w->count; i++) {
+            if (slip != NULL) {
+                slip[i] = 0.0;
+            }
+            if (force != NULL) {
+                force[2 * i] = force[2 * i + 1] = 0.0;
+            }
+        }
+        /* Joints at rest: nothing pushes the body, which stays still even where the
+         * wheels leave it free. Otherwise the motion is undetermined. */
+        return at_rest ? KIN_OK : KIN_ESINGULAR;
+    }
+    if (active != NULL) {
+        active[0] = s[0];
+        active[1] = s[1];
+        active[2] = s[2];
+    }
+    xi[0] = x[0];
+    xi[1] = x[1];
+    xi[2] = x[2] / len;
+    if (slip != NULL) {
+        for (int32_t i = 0; i < w->count; i++) {
+            slip[i] = -w->ty[i] * xi[0] + w->tx[i] * xi[1] + w->n_theta[i] * xi[2]
+                      + w->n_joint[i];
+        }
+    }
+    if (force != NULL) {
+        for (int32_t i = 0; i < 2 * w->count; i++) {
+            force[i] = 0.0;
+        }
+        for (int32_t k = 0; k < p.rows; k++) {
+            force[p.id[k]] = -p.w[k] * y[k];
+        }
+    }
+    return KIN_OK;
+}

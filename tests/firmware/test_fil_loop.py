@@ -108,7 +108,7 @@ def test_upload_play_and_the_snake_advances_as_predicted(robot, gait, tmp_path):
     c = compare(robot.robot, table, record, goal_t, goal_ticks, WARMUP_CYCLES, CYCLES)
 
     # The servos moved through the table's whole range, each joint.
-    lo, hi = np.degrees(c.joint_measured.min(0)), np.degrees(c.joint_measured.max(0))
+    lo, hi = np.degrees(c.joints.measured.min(0)), np.degrees(c.joints.measured.max(0))
     want_lo, want_hi = np.degrees(angles.min(0)), np.degrees(angles.max(0))
     assert (np.abs(lo - want_lo) < 3).all() and (np.abs(hi - want_hi) < 3).all(), (lo, hi)
     assert before != robot.positions()
@@ -163,6 +163,7 @@ def test_an_overload_puts_the_player_in_its_safe_state_and_monitor_shows_it(robo
 
     # PLAY is refused while the fault stands; the text monitor says why.
     refused = CliRunner().invoke(main, ["play", "--port", port])
-    assert refused.exit_code == 2 and "safe state" in refused.output
+    # the safe state is a runtime state, not bad input: exit 1 (as from every command)
+    assert refused.exit_code == 1 and "safe state" in refused.output
     text = cli("monitor", "--port", port, "--duration", "0")
     assert "SAFE" in text and "overload" in text.lower()

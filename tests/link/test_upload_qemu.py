@@ -37,8 +37,12 @@ def test_the_largest_table_in_one_stream_says_the_link_is_not_paced(firmware, tm
     report = cli_json("upload", path, "--port", firmware)
     assert report["crc"] == f"0x{zlib.crc32(path.read_bytes()):08x}"
     assert report["attempts"] == 1
-    # QEMU moves the bytes faster than 57600 baud would: no percentage, and it says so
-    assert report["paced"] is False and "wire_percent" not in report
+    # QEMU moves the bytes faster than 57600 baud would: no percentage, and it says so.
+    # On a machine too busy to keep QEMU that fast the link is slower than the wire,
+    # and the report must then say it was paced and give the share.
+    wire_s = report["sent_bytes"] * 10 / report["baudrate"]
+    assert report["paced"] is (report["seconds"] >= wire_s)
+    assert ("wire_percent" in report) is report["paced"]
     assert active_crc(firmware) == zlib.crc32(path.read_bytes())
 
 

@@ -53,7 +53,7 @@ def _outputs(tmp_path: Path, name: str) -> list[list[str]]:
         [*BIG_SEARCH, "--best", out],
         [*BIG_SEARCH, "-o", out],
         [*BIG_SEARCH, "--plot", out],
-        ["plan", "snake5", "--to", "1,0,0", "-o", str(tmp_path / "p.gait"), "--plot", out],
+        ["plan", "snake3", "--to", "1,0,0", "-o", str(tmp_path / "p.gait"), "--plot", out],
         ["monitor", "--port", "loop://", "--csv", out],
         ["monitor", "--port", "loop://", "--mcap", out],
         ["program", "build", "spec.toml", "-o", out],
@@ -113,7 +113,7 @@ def test_two_outputs_naming_one_file_are_refused(tmp_path):
 
 def test_a_plot_name_without_its_format_is_refused_not_renamed(tmp_path):
     result, _ = _run(
-        ["plan", "snake5", "--to", "1,0,0", "-o", str(tmp_path / "p.gait"), "--plot", "noext"]
+        ["plan", "snake3", "--to", "1,0,0", "-o", str(tmp_path / "p.gait"), "--plot", "noext"]
     )
     _refused(result, "'noext' has the extension '(none)'", ".png")
     result, _ = _run([*BIG_SEARCH, "--plot", str(tmp_path / "heat.xyz")])
@@ -124,7 +124,7 @@ def test_a_plot_name_without_its_format_is_refused_not_renamed(tmp_path):
 def test_a_plot_is_written_under_the_name_given(tmp_path):
     gait, plot = tmp_path / "p.gait", tmp_path / "p.svg"
     result, _ = _run(
-        ["plan", "snake5", "--to", "1,0,0", "-o", str(gait), "--plot", str(plot), "--json"]
+        ["plan", "snake3", "--to", "1,0,0", "-o", str(gait), "--plot", str(plot), "--json"]
     )
     assert result.exit_code == 0, result.output
     assert plot.read_bytes().lstrip().startswith(b"<?xml")

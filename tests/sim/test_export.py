@@ -13,7 +13,7 @@ from physics_support import snake5_serpenoid
 
 from snakebot.model.robots import load_robot
 from snakebot.sim.physics.export import export_mjcf, export_urdf
-from snakebot.sim.physics.mjcf import build_mjcf
+from snakebot.sim.physics.mjcf import ROLLING_MODEL, build_mjcf, wheel_friction
 from snakebot.workflows.predict import predict_gait
 
 mujoco = pytest.importorskip("mujoco")
@@ -99,13 +99,20 @@ def urdf_world(robot, timestep: float, kp: float):
         ("theta", hinge, [0, 0, 1]),
     ):
         base.add_joint(name=name, type=kind, axis=axis)
-    friction = [robot.physics.mu, 0.005, 0.0001]
+    # the physics world's own wheel friction (its default rolling model), which URDF
+    # cannot carry: the contact's triple and condim, the axle's friction on the hinge
+    wheel = wheel_friction(robot, robot.friction, float(robot.wheel_loads_n()[0]), ROLLING_MODEL)
+    friction = list(wheel.contact)
     spec.worldbody.add_geom(
         type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], friction=friction, conaffinity=1
     )
     for geom in spec.geoms:
         if geom.type == mujoco.mjtGeom.mjGEOM_SPHERE:  # the wheels' one collision shape
-            geom.friction, geom.condim, geom.contype, geom.conaffinity = friction, 3, 1, 0
+            geom.friction, geom.condim = friction, wheel.condim
+            geom.contype, geom.conaffinity = 1, 0
+    for joint in spec.joints:
+        if "wheel" in joint.name:
+            joint.frictionloss = wheel.axle_nm
     for j in robot.joints:
         spec.add_actuator(name=j.name, target=j.name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
         spec.actuator(j.name).set_to_position(kp=kp)

@@ -87,14 +87,15 @@ def export_urdf(robot: Robot) -> str:
     require("mujoco", "the URDF export")
     import mujoco
 
-    phys = physics_of(robot)
+    physics_of(robot)  # a robot without a body is refused here, with the fix
     act = Actuator.for_model(robot.servo_model)
     xml, names = build_mjcf(robot)
     m = mujoco.MjModel.from_xml_string(xml)
     root = ET.Element("robot", name=robot.name)
     root.append(
         ET.Comment(
-            f" snakebot robot export of {robot.name}: wheel-floor friction mu = {phys.mu:g}; "
+            f" snakebot robot export of {robot.name}: wheel-floor friction mu = "
+            f"{robot.friction.lateral:g}; "
             f"each servo joint's armature {ARMATURE_KG_M2:g} kg m^2 (not in URDF) "
         )
     )

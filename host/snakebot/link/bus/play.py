@@ -5,7 +5,7 @@ positions and speeds every control tick (``snakebot bus play``)."""
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from snakebot.facts import devices
@@ -132,5 +132,24 @@ def play_table(
             if stopped_at is not None:
                 break  # a second Ctrl-C: stop at once
             stopped_at = n
-    held = {sid: client.read_u16(sid, _PRESENT.address) for sid in table.joint_ids}
-    return Played(n, stopped_at, held)
+    return Played(n, stopped_at, _settled(client, table.joint_ids))
+
+
+HOLD_SETTLE_S = 1.0
+"""The longest wait, after the last goal, for the servos to come to rest before their
+held positions are read (an AX-12 lags its goal by tens of milliseconds)."""
+HOLD_POLL_S = 0.02
+
+
+def _settled(client: DxlClient, ids: Sequence[int]) -> dict[int, int]:
+    """The servos' present positions once two reads a poll apart agree to a tick (or
+    after ``HOLD_SETTLE_S``): where they hold, not where they were still moving."""
+    deadline = time.monotonic() + HOLD_SETTLE_S
+    last = {sid: client.read_u16(sid, _PRESENT.address) for sid in ids}
+    while time.monotonic() < deadline:
+        time.sleep(HOLD_POLL_S)
+        now = {sid: client.read_u16(sid, _PRESENT.address) for sid in ids}
+        if all(abs(now[sid] - last[sid]) <= 1 for sid in ids):
+            return now
+        last = now
+    return last

@@ -46,7 +46,6 @@ from snakebot.facts.controller import load as load_controller_table
 from snakebot.formats import register_values
 from snakebot.formats.register_values import BusCommandError
 from snakebot.model.robots import BUILTIN_ROBOTS
-from snakebot.plots.video import DEFAULT_SIZE, SUFFIXES, VideoError, parse_size
 
 if TYPE_CHECKING:
     from snakebot.link.controller.client import ControllerClient
@@ -68,6 +67,8 @@ class SizeType(click.ParamType):
     def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
         if isinstance(value, tuple):
             return value
+        from snakebot.plots.video import VideoError, parse_size
+
         try:
             return parse_size(str(value))
         except VideoError as exc:
@@ -557,6 +558,9 @@ def plot_option(what: str) -> Decorator:
 def video_option(what: str) -> Decorator:
     """``--video FILE`` (a video of ``what``) and ``--size WxH``, as the parameters
     ``video`` and ``video_size``."""
+
+    # imported here: only the commands that film load the video module
+    from snakebot.plots.video import DEFAULT_SIZE, SUFFIXES
 
     def decorate(func: F) -> F:
         func = click.option(

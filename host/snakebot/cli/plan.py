@@ -119,7 +119,7 @@ def plan_command(
     require("scipy", "planning", extra="plan")
     if plot is not None:
         require("matplotlib", "--plot")
-    from snakebot.model.plan.files import plan_for, save_plan, wants_program
+    from snakebot.model.plan.files import plan_for, plan_summary, save_plan, wants_program
     from snakebot.model.robots import load_robot
 
     if plot is not None and output is None:
@@ -152,8 +152,7 @@ def plan_command(
         unreachable(exc)
         return
     if output is None:
-        summary, table = plan.summary(), None
-        summary.update(length_unit=chosen.length_unit, length_legend=chosen.length_legend)
+        summary, table = plan_summary(plan), None
     else:
         summary, table = save_plan(plan, output)
     if table is not None and plot is not None:

@@ -20,11 +20,20 @@ def wants_program(output: Path | None) -> bool:
     return output is not None and output.suffix == PROGRAM_SUFFIX
 
 
+def plan_summary(plan: Plan | ProgramPlan) -> dict[str, Any]:
+    """``plan``'s summary with the robot's length unit and what it means in metres."""
+    robot = plan.robot
+    return {
+        **plan.summary(),
+        "length_unit": robot.length_unit,
+        "length_legend": robot.length_legend,
+    }
+
+
 def save_plan(plan: Plan | ProgramPlan, output: Path) -> tuple[dict[str, Any], GaitTable | None]:
-    """Write ``plan`` to ``output``: its summary with ``file`` (and a table's
-    ``metadata_file``), and the table written (None for a program)."""
-    summary = plan.summary()
-    summary.update(length_unit=plan.robot.length_unit, length_legend=plan.robot.length_legend)
+    """Write ``plan`` to ``output``: its summary (:func:`plan_summary`) with ``file`` (and
+    a table's ``metadata_file``), and the table written (None for a program)."""
+    summary = plan_summary(plan)
     if isinstance(plan, ProgramPlan):
         write_program(output, plan.program)
         summary["file"] = str(output)

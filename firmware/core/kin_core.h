@@ -97,7 +97,7 @@ typedef struct {
     double rtol;       /* adaptive: relative tolerance */
     double atol;       /* adaptive: absolute tolerance */
     double h_min;      /* adaptive: smallest step before KIN_ESTEPSIZE (0 = automatic) */
-    int32_t max_steps; /* step budget for the whole call (0 = 1000000) */
+    int32_t max_steps; /* step budget for the whole call (0 = by the span, kin_ode.c) */
 } kin_options;
 
 typedef struct {

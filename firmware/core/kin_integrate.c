@@ -334,7 +334,7 @@ int kin_integrate_joints(const kin_robot *rb, const kin_schedule *s, const doubl
         c.tscale = TWO_PI / fabs(s->omega);
     }
     kin_ode ode;
-    if ((rc = kin_ode_init(&ode, 3, joint_rhs, &c, opt, st)) != KIN_OK) {
+    if ((rc = kin_ode_init(&ode, 3, joint_rhs, &c, opt, st, t1 - t0)) != KIN_OK) {
         return rc;
     }
     if (s->type == KIN_SCHED_SINES) {
@@ -477,7 +477,7 @@ int kin_integrate_fields(const kin_robot *rb, const kin_inputs *u, const double 
     c.phase.omega = u->omega;
     kin_fields_corners(rb, c.corners);
     kin_ode ode;
-    if ((rc = kin_ode_init(&ode, n, field_rhs, &c, opt, st)) != KIN_OK) {
+    if ((rc = kin_ode_init(&ode, n, field_rhs, &c, opt, st, t1 - t0)) != KIN_OK) {
         return rc;
     }
     ode.times = field_times;

@@ -5,7 +5,14 @@
 
 #include <math.h>
 
+/* The default step budget of a call: a base plus a number per second of its span, so
+ * that a call that cannot finish (a right-hand side that switches faster than the
+ * tolerance can follow, as wheels that stick and slip in turn near concurrent axles)
+ * fails in bounded time, a few seconds, instead of after a million steps. Adaptive calls
+ * of smooth gaits attempt some 600 steps per second at the predictions' rtol 1e-10. */
 #define DEFAULT_MAX_STEPS 1000000
+#define DEFAULT_STEPS_BASE 10000.0
+#define DEFAULT_STEPS_PER_S 20000.0
 #define SAFETY 0.9
 #define FAC_MIN 0.2
 #define FAC_MAX 5.0
@@ -38,9 +45,10 @@ static int eval(kin_ode *ode, double t, const double *y, double *dy)
 }
 
 int kin_ode_init(kin_ode *ode, int32_t n, kin_rhs_fn f, void *ctx, const kin_options *opt,
-                 kin_stats *stats)
+                 kin_stats *stats, double span)
 {
-    if (ode == NULL || f == NULL || opt == NULL || stats == NULL || n < 1 || n > KIN_MAX_STATE) {
+    if (ode == NULL || f == NULL || opt == NULL || stats == NULL || n < 1 || n > KIN_MAX_STATE
+        || !(span >= 0.0) || !isfinite(span)) {
         return KIN_EINVAL;
     }
     ode->n = n;
@@ -64,7 +72,14 @@ int kin_ode_init(kin_ode *ode, int32_t n, kin_rhs_fn f, void *ctx, const kin_opt
         return KIN_EINVAL;
     }
     ode->h = opt->method != KIN_RK4 ? opt->h : 0.0;
-    ode->budget = opt->max_steps > 0 ? opt->max_steps : DEFAULT_MAX_STEPS;
+    if (opt->max_steps > 0) {
+        ode->budget = opt->max_steps;
+    } else if (opt->method == KIN_RK4) {
+        ode->budget = DEFAULT_MAX_STEPS; /* its step count is known before it starts */
+    } else {
+        const double steps = DEFAULT_STEPS_BASE + DEFAULT_STEPS_PER_S * span;
+        ode->budget = steps < (double)DEFAULT_MAX_STEPS ? (int32_t)steps : DEFAULT_MAX_STEPS;
+    }
     return KIN_OK;
 }
 

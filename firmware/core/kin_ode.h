@@ -30,9 +30,10 @@ typedef struct {
     double k1[KIN_MAX_STATE];
 } kin_ode;
 
-/* Validate options and prepare; stats must not be NULL. */
+/* Validate options and prepare; stats must not be NULL. span (t_end - t0 of the whole
+ * call) sizes the default step budget of the adaptive methods. */
 int kin_ode_init(kin_ode *ode, int32_t n, kin_rhs_fn f, void *ctx, const kin_options *opt,
-                 kin_stats *stats);
+                 kin_stats *stats, double span);
 /* Forget the cached derivative (call when the right-hand side changes discontinuously). */
 void kin_ode_reset(kin_ode *ode);
 /* Advance y in place from t to t_end (t_end > t). */

@@ -1,8 +1,9 @@
 """The libFuzzer targets (fuzz/): every saved regression input and every corpus input
 replays cleanly, and a short fuzzing pass of each target finds nothing.
 
-The pass lasts FUZZ_SECONDS per target (60 unless the environment says otherwise; CI
-keeps the default). It builds with clang's -fsanitize=fuzzer,address,undefined, which
+The pass lasts FUZZ_SECONDS per target (60 unless the environment says otherwise;
+`make test` sets TEST_FUZZ_SECONDS, 20, a smoke pass within its time budget, and
+`make fuzz` is the longer pass). It builds with clang's -fsanitize=fuzzer,address,undefined, which
 `make setup` installs (clang and libclang-rt-14-dev; zlib1g-dev for the PC-link target's
 CRC-32); without clang these tests are skipped, saying so. A failure prints the fuzzer's
 log and where the failing input is.

@@ -69,22 +69,16 @@ def test_closed_loop_runs_on_the_physics_world():
     assert e["position"] <= 2 * e["position_tolerance"]
 
 
-#: Seeded targets on the physics world, per robot family; each run takes seconds.
-PHYSICS_SEEDS = (31, 32, 33, 34, 35, 36)
-#: Where the closed loop is known not to get there (docs/goto.md has the figures).
-PHYSICS_MISSES: dict[tuple[str, int], str] = {
-    ("snake5", 31): "issue 31, open: since the kinematic world became quasi-static Coulomb "
-    "the serpenoid steering's cycle model misses on MuJoCo (measured: 21x the position "
-    "tolerance, 7x the heading's); docs/goto.md",
-}
+#: The seeded target per robot family that `make test` plays on the physics world. The
+#: six-seed campaign (31..36, with its misses and its cost) is `bench/bench_goto.py`
+#: (`make bench`): since the quasi-static wheel model (issue 31) some seeds play hundreds
+#: of loops, minutes of CPU each, which is a measurement, not a unit test.
+PHYSICS_SEED = 34
 
 
 def physics_cases():
     for name in ("trident", "snake3", "snake5"):
-        for seed in PHYSICS_SEEDS:
-            miss = PHYSICS_MISSES.get((name, seed))
-            marks = [pytest.mark.xfail(reason=miss, strict=True)] if miss else []
-            yield pytest.param(name, seed, marks=marks, id=f"{name}-{seed}")
+        yield pytest.param(name, PHYSICS_SEED, id=f"{name}-{PHYSICS_SEED}")
 
 
 @PHYSICS

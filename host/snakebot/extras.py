@@ -49,10 +49,13 @@ def install_hint(package: str, extra: str | None = None) -> str:
     return f"pip install 'snakebot[{extra}]'" if extra else f"pip install {package}"
 
 
-def require(package: str, feature: str, extra: str | None = None) -> None:
+def require(
+    package: str, feature: str, extra: str | None = None, *, params: tuple[str, ...] = ()
+) -> None:
     """Raise :class:`MissingExtraError` if ``package`` (also its module name) is missing;
-    commands call it before they start work, so no result is lost to a missing package."""
+    commands call it before they start work, so no result is lost to a missing package.
+    ``params``: the parameters that ask for ``feature`` (the error is about them)."""
     if not available(package):
         raise MissingExtraError(
             f"{feature} needs {package}, which is not installed: {install_hint(package, extra)}"
-        )
+        ).about(*params)

@@ -193,14 +193,14 @@ _TABLE = (
         "SNAKEBOT_BUS_PORT",
         "text",
         "the Dynamixel bus adapter for `snakebot bus ...`",
-        default_note="none (`--port` is required)",
+        default_note="none (a port must be given)",
         group="ports",
     ),
     Setting(
         "SNAKEBOT_PORT",
         "text",
         "the CM-530's PC link for the controller commands and `snakebot flash`",
-        default_note="none (`--port` is required)",
+        default_note="none (a port must be given)",
         group="ports",
     ),
     Setting(

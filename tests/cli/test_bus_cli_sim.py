@@ -191,8 +191,8 @@ def test_set_baud_changes_the_rate_and_the_servo_answers_only_there():
     ("args", "message"),
     [
         (["300000"], "an AX-12 cannot run at 300000 bit/s"),
-        ([], "give either RATE (bit/s) or --value N"),
-        (["500000", "--value", "3"], "give either RATE (bit/s) or --value N"),
+        ([], "error: --value: give either the rate (bit/s) or the Baud Rate register value"),
+        (["500000", "--value", "3"], "error: --value: give either the rate"),
     ],
 )
 def test_set_baud_refuses_impossible_requests(args, message):

@@ -86,7 +86,7 @@ def test_sim_bus_link_refuses_a_symlink_it_did_not_make(tmp_path):
     link.symlink_to(target)
     result = CliRunner().invoke(main, ["sim", "bus", "--ids", "1", "--link", str(link)])
     assert result.exit_code == 2
-    assert result.stderr.startswith(f"error: {link} is a symlink to {target}")
+    assert result.stderr.startswith(f"error: --link: {link} is a symlink to {target}")
     assert os.readlink(link) == str(target) and target.read_text() == "keep me"
 
 

@@ -61,8 +61,8 @@ def test_nothing_answering_names_the_controller_and_the_checks(command, tmp_path
         os.close(slave)
     assert result.exit_code == 1  # a runtime failure: the input was fine
     err = result.stderr
-    assert err.startswith("error: the controller (ID 200) on ")
-    assert "did not answer" in err and "snakebot firmware" in err and "--baud" in err
+    assert err.startswith("error: --baud, --id: the controller (ID 200) on ")
+    assert "did not answer" in err and "snakebot firmware" in err and "the baud rate" in err
 
 
 def test_a_port_is_required():

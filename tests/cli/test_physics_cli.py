@@ -58,7 +58,7 @@ def test_ideal_servos_are_refused_in_the_physics_world(gait_file):
         main, ["sim", "predict", str(gait_file), "--world", "mujoco", "--ideal"]
     )
     assert result.exit_code == 2
-    assert result.output.startswith("error: ideal servos have no torque")
+    assert result.output.startswith("error: --ideal, --world: ideal servos have no torque")
 
 
 def test_a_robot_file_without_physics_is_refused_naming_the_key(gait_file, tmp_path):

@@ -43,7 +43,7 @@ line, nothing written); a planner that reaches them fails this, as it should."""
 
 def assert_says_unreachable(result, out):
     assert result.exit_code == 1, result.output
-    assert result.output.startswith("error: no plan for snake5 reaches")
+    assert result.output.startswith("error: --to, --capacity: no plan for snake5 reaches")
     assert result.output.count("\n") == 1 and "no file was written" in result.output
     assert not out.exists()
 
@@ -170,8 +170,9 @@ def test_a_target_beyond_the_small_board_exits_1_naming_capacity(tmp_path):
     out = tmp_path / "far.gait"
     small = run("plan", "snake3", "--to", to, "-o", out)
     assert small.exit_code == 1, small.output
-    assert small.output.startswith("error: ") and small.output.count("\n") == 1
-    assert "--capacity cm530" in small.output and "no file was written" in small.output
+    assert small.output.count("\n") == 1
+    assert small.output.startswith("error: --to, --capacity: ")
+    assert "a larger table (the cm530's" in small.output and "no file was written" in small.output
     assert not out.exists()
 
     large = run("plan", "snake3", "--to", to, "--capacity", "cm530", "-o", out, "--json")

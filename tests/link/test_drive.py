@@ -152,7 +152,7 @@ def test_a_missing_port_and_nothing_answering(tmp_path):
         os.close(master)
         os.close(slave)
     assert result.exit_code == 1
-    assert result.stderr.startswith("error: the controller (ID 200) on ")
+    assert result.stderr.startswith("error: --baud, --id: the controller (ID 200) on ")
     assert len(result.stderr.splitlines()) == 1 and "Traceback" not in result.output
 
 

@@ -69,11 +69,11 @@ def test_snake3_bracket_gait_loops_in_joint_space():
 
 
 def test_refusals():
-    with pytest.raises(GaitError, match="--periods K needs"):
+    with pytest.raises(GaitError, match="a number of periods needs 1 or more"):
         field_gait(TRIDENT, "g1", periods=3)
     with pytest.raises(GaitError, match="not both"):
         field_gait(TRIDENT, "h1", duration=0.1, periods=2)
-    with pytest.raises(GaitError, match="no bracket term: give --duration"):
+    with pytest.raises(GaitError, match="no bracket term: give the duration"):
         field_gait(TRIDENT, "g1")
     with pytest.raises(GaitError, match="singular"):
         field_gait(SNAKE3, "g1", duration=0.1, start=(0.2, 0.2))
@@ -99,7 +99,7 @@ def test_the_thesis_combinations_work_with_the_defaults(expression):
 
 
 def test_a_duration_too_long_for_the_tolerance_says_which_would_do():
-    with pytest.raises(GaitError, match="shorten --duration to about") as info:
+    with pytest.raises(GaitError, match="shorten the duration to about") as info:
         field_gait(TRIDENT, "2*g1-h3", duration=1.0)
     suggested = float(str(info.value).split("to about ")[1].split(",")[0])
     gait = field_gait(TRIDENT, "2*g1-h3", duration=suggested)

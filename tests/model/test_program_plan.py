@@ -50,7 +50,7 @@ def test_program_plan_ends_at_the_target_on_ideal_servos(tmp_path: Path, robot: 
         # closes on this target within 2 KB: the plan says so and writes nothing. Not a
         # physical limit; a planner that reaches it fails this, as it should.
         assert result.exit_code == 1, result.output
-        assert result.output.startswith("error: no program for snake5 reaches")
+        assert result.output.startswith("error: --to, --output, --capacity: no program for snake5")
         assert "no file was written" in result.output and not out.exists()
         return
     assert result.exit_code == 0, result.output

@@ -1,5 +1,5 @@
 """The fault campaigns' own view of the machine (``Rig.check_view`` in
-tests/reliability/rig/campaigns.py): what the rig reads from the firmware's RAM through
+tests/reliability/rig/campaigns/): what the rig reads from the firmware's RAM through
 QEMU's monitor counts only once it is shown to be the running firmware's, so a wrong RAM
 map, an ELF from another build, or another QEMU's monitor is reported as the rig failing
 (``CampaignFailed``, exit 2), never as the firmware breaking a promise; and a real
@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 from firmware_support import build_firmware
 
+from snakebot.link.controller import UploadResult
 from snakebot.sim.bus.faults import FaultConfig
 from tests.reliability.rig import campaigns
 from tests.reliability.rig.campaigns import CampaignFailed, RamMap, Rig, gait_table
@@ -45,7 +46,7 @@ def test_the_map_is_read_from_the_elf_that_made_the_image(ram: RamMap):
 
 def test_a_true_map_passes_and_keeps_passing(ram: RamMap, workdir: Path):
     with Rig(FaultConfig(seed=1), workdir, ram=ram) as rig:
-        assert rig.upload(gait_table()) == campaigns.UploadResult.OK  # table view checked
+        assert rig.upload(gait_table()) == UploadResult.OK  # table view checked
         rig.check_view()
         rig.check_alive()
         assert rig.health.reboots == 0

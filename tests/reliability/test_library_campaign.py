@@ -1,5 +1,5 @@
 """The gait library's power-cut campaign (`--only library-power-cut` of
-tests/reliability/rig/campaigns.py): seeded stores and deletes on the flash store, most
+tests/reliability/rig/campaigns/): seeded stores and deletes on the flash store, most
 cut by a power failure at a random flash operation, and no slot ever found corrupted
 after a fresh start."""
 

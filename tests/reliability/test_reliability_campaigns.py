@@ -1,5 +1,5 @@
 """Fault campaigns on the emulated robot with the real firmware in QEMU
-(tests/reliability/rig/campaigns.py; docs/reliability.md has the table of results).
+(tests/reliability/rig/campaigns/; docs/reliability.md has the table of results).
 
 Each campaign boots the qemu image on an emulated bus of three AX-12s, plays a table that
 is steered against its joint limits, injects its fault from a seed and checks, throughout:

@@ -1,7 +1,7 @@
 """The gait library's flash store (firmware/app/store_lib.c) built for the host on the
 flash register model, with a small library laid out in it (a directory of two pages and
 nine one-page areas), for its tests and the power-cut campaign
-(tests/reliability/rig/campaigns.py): what a fresh start finds in each slot, and running
+(tests/reliability/rig/campaigns/): what a fresh start finds in each slot, and running
 a store or delete with the power cut at a chosen flash operation."""
 
 from __future__ import annotations

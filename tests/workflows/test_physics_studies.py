@@ -86,4 +86,4 @@ def test_friction_refuses_bad_coefficients(tmp_path):
     path = snake5_serpenoid_file(tmp_path)
     result = invoke("sim", "friction", str(path), "--mu", "0.1,-2")
     assert result.exit_code == 2
-    assert result.output.startswith("error: --mu '0.1,-2': give numbers more than 0")
+    assert result.output.startswith("error: --mu: '0.1,-2': give friction coefficients more than 0")

@@ -70,7 +70,7 @@ def test_space_reads_fixed_values_ranges_aliases_and_defaults():
         (("A=50deg:10deg:5", "omega=1", "delta=1"), "empty range"),
         (("A=10deg:50deg:0", "omega=1", "delta=1"), "empty range"),
         (("A=10deg:50deg:x", "omega=1", "delta=1"), "COUNT must be a whole number"),
-        (("A=10deg:50deg:5", "delta=1"), "missing --param omega"),
+        (("A=10deg:50deg:5", "delta=1"), "missing omega=..."),
         (("A=1", "A=2", "omega=1", "delta=1"), "given twice"),
     ],
 )

@@ -111,7 +111,7 @@ def test_table_without_metadata_needs_a_robot():
     table = GaitTable(
         FIVE_LINK.servo_ids, 20, True, FIVE_LINK.tick_limits, np.full((4, 4), 512, dtype=np.uint16)
     )
-    with pytest.raises(PredictError, match="pass --robot"):
+    with pytest.raises(PredictError, match="no metadata .* naming its robot: name it"):
         predict_gait(table)
     result = predict_gait(table, "snake5")
     assert result.summary()["emulated"]["dx"] == 0.0  # a table that holds still

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable
 from typing import Any, TextIO
 
 import click
@@ -16,9 +15,8 @@ from snakebot.firmware import image as firmware_image
 from snakebot.link.flash import FlashTimeouts, board_layout, flash, load_image
 from snakebot.link.flash.bootloader import RESET_HINT, last_line
 from snakebot.link.flash.errors import FlashFailed
-from snakebot.link.flash.image import image_info
 from snakebot.link.flash.library_backup import backup_library, restore_library
-from snakebot.link.flash.verify import Verified, verify_firmware
+from snakebot.link.flash.verify import flash_summary, verify_flashed
 from snakebot.link.transport import open_port
 
 
@@ -199,58 +197,10 @@ def flash_command(
         say(f"Left the board in the bootloader (--no-go): send GO to start it, or {RESET_HINT}.")
     verified = None
     if result.started and not no_verify:
-        verified = _verify(port, image, layout.app_base, timeouts, say)
+        verified = verify_flashed(port, image, layout.app_base, timeouts, say)
     if saved is not None and result.started:
         restore_library(port, saved, say, warn)
     elif saved is not None:
         say(f"Once it runs: `snakebot library restore {saved} --port {port}`")
     if as_json:
-        click.echo(
-            dumps(
-                {
-                    "firmware": firmware,
-                    "port": port,
-                    "image_bytes": result.image_size,
-                    "bytes_sent": result.bytes_sent,
-                    "checksum_byte": result.checksum_byte,
-                    "checksum": result.reported_checksum,
-                    "checksum_meaning": result.checksum_meaning,
-                    "seconds": round(result.seconds, 4),
-                    "send_seconds": round(result.send_seconds, 4),
-                    "kbit_s": round(result.kbit_s, 2),
-                    "started": result.started,
-                    "banner": result.banner.decode("latin-1"),
-                    "go_reply": result.go_reply.decode("latin-1"),
-                    "verified": verified is not None,
-                    "firmware_crc": None if verified is None else verified.crc,
-                    "boot_seconds": None if verified is None else round(verified.boot_seconds, 3),
-                }
-            ),
-            file=sys.stdout,
-        )
-
-
-def _verify(
-    port: str, image: bytes, app_base: int, timeouts: FlashTimeouts, say: Callable[[str], None]
-) -> Verified | None:
-    """Wait for the new firmware and have it check its image; None when the image carries
-    no identity block (flashed with --force), so there is nothing to check it against."""
-    info = image_info(image, app_base)
-    if info is None:
-        say("Not verified: the image has no snakebot identity block (flashed with --force).")
-        return None
-    say(f"Waiting up to {timeouts.boot:g} s for the new firmware to answer PING...")
-    shown = [0]
-
-    def waited(seconds: float) -> None:
-        if int(seconds) > shown[0]:
-            shown[0] = int(seconds)
-            say(f"  no answer yet after {shown[0]} s")
-
-    verified = verify_firmware(port, image, info, timeouts, waited)
-    say(
-        f"Verified: controller at ID {verified.controller_id} runs firmware version "
-        f"{verified.firmware_version}, its image in flash has CRC-32 0x{verified.crc:08X} "
-        "as sent"
-    )
-    return verified
+        click.echo(dumps(flash_summary(firmware, port, result, verified)), file=sys.stdout)

@@ -366,9 +366,10 @@ def wave_options(*, required: bool = False) -> Decorator:
                 short,
                 type=ANGLE,
                 required=required,
-                default=None if required else default,
                 show_default=not required,
                 help=text,
+                # an explicit default of None counts as given: a required option has none
+                **({} if required else {"default": default}),
             )
             for name, (short, default, text) in WAVE.items()
         )

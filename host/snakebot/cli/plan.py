@@ -9,6 +9,7 @@ from typing import Any
 
 import click
 
+from snakebot.cli.errors import message
 from snakebot.cli.options import (
     CONTROLLER_PORT,
     ControllerLink,
@@ -33,8 +34,9 @@ EXIT_UNREACHABLE = 1
 
 
 def unreachable(exc: Unreachable) -> None:
-    """Report a target no plan reaches: one line, exit status 1."""
-    click.echo(f"error: {exc}", err=True)
+    """Report a target no plan reaches: one line led by the options it is about, exit
+    status 1."""
+    click.echo(f"error: {message(exc, click.get_current_context(silent=True))}", err=True)
     raise SystemExit(EXIT_UNREACHABLE)
 
 

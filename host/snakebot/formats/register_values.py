@@ -397,7 +397,9 @@ def baud_setting(rate: float | None, register: int | None) -> tuple[int, int]:
     """The Baud Rate register value and the host's rate for a servo's new baud rate,
     given as a rate in bit/s or as the register value (exactly one of them)."""
     if (rate is None) == (register is None):
-        raise BusCommandError("give either RATE (bit/s) or --value N, e.g. set-baud 1 500000")
+        raise BusCommandError(
+            "give either the rate (bit/s) or the Baud Rate register value, e.g. 500000 or 3"
+        ).about("rate", "register")
     if register is None:
         assert rate is not None
         return baud_register(rate), round(rate)

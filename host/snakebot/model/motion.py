@@ -76,14 +76,14 @@ def program_robot(program: Program, robot: str | Robot | None) -> Robot:
                 return candidate
         raise ProgramError(
             f"no built-in robot has the program's joints (servos {list(program.joint_ids)}): "
-            "pass --robot with the robot's TOML file"
-        )
+            "name the robot's TOML file"
+        ).about("robot")
     if not joints_match(program, chosen):
         raise ProgramError(
             f"the program drives servos {list(program.joint_ids)} with other zero ticks or "
-            f"directions than {chosen.name} (servos {list(chosen.servo_ids)}): pass --robot "
-            "with the robot the program was built for"
-        )
+            f"directions than {chosen.name} (servos {list(chosen.servo_ids)}): name the robot "
+            "the program was built for"
+        ).about("robot")
     return chosen
 
 

@@ -192,7 +192,9 @@ def build_program(
     controller's own code: ProgramError naming the segment and the fix otherwise."""
     name = robot or spec.get("robot")
     if not isinstance(name, str):
-        raise ProgramError('the spec names no robot: add `robot = "snake5"` or pass --robot')
+        raise ProgramError(
+            'the spec names no robot: add `robot = "snake5"` to it or name the robot'
+        ).about("robot")
     try:
         model = load_robot(name)
     except RobotError as exc:

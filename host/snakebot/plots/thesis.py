@@ -3,6 +3,7 @@ time series in both worlds, and the friction study."""
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -11,9 +12,46 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from snakebot.plots.files import save_figure
-from snakebot.workflows.thesis import ThesisResult
+from snakebot.plots.video import DEFAULT_SIZE, check_video_path, write_video
+from snakebot.workflows.thesis import ThesisResult, ThesisRun, run_thesis
 
 WORLD_STYLE = {"kinematic": ("tab:blue", "-"), "mujoco": ("tab:orange", "-")}
+
+
+def thesis_study(
+    runs: Sequence[ThesisRun],
+    out_dir: Path,
+    *,
+    mu: float | None = None,
+    video: Path | None = None,
+    video_size: tuple[int, int] = DEFAULT_SIZE,
+    say: Callable[[str], Any] = print,
+    started: Callable[[int, ThesisRun], None] = lambda i, run: None,
+    finished: Callable[[dict[str, Any]], None] = lambda summary: None,
+) -> list[dict[str, Any]]:
+    """Play each of ``runs`` in both worlds (``mu``: the physics world's wheel-floor
+    friction), draw it into ``out_dir``/NAME.png and, with ``video``, film it (FILE for
+    one run; for several, FILE's name with -NAME added); the runs' summaries, with the
+    files written. ``started(i, run)`` comes before the i-th run (from 1), ``finished``
+    with its summary."""
+    if video is not None:
+        check_video_path(video)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    summaries = []
+    for i, run in enumerate(runs, start=1):
+        started(i, run)
+        result = run_thesis(run, mu=mu)
+        summary = result.summary()
+        summary["png"] = str(plot_thesis_run(result, out_dir / f"{run.name}.png"))
+        if video is not None:
+            name = video if len(runs) == 1 else video.with_stem(f"{video.stem}-{run.name}")
+            motions = {world: p.emulated for world, p in result.worlds.items()}
+            title = f"thesis run {run.name}"
+            path = write_video(name, result.robot, motions, title, size=video_size, say=say)
+            summary["video"] = str(path)
+        summaries.append(summary)
+        finished(summary)
+    return summaries
 
 
 def plot_thesis_run(result: ThesisResult, out: str | Path) -> Path:

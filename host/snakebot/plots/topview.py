@@ -61,7 +61,7 @@ class TopView:
     def __init__(
         self, robot: Robot, runs: Mapping[str, Motion], title: str, size: tuple[int, int]
     ) -> None:
-        require("matplotlib", "--video")
+        require("matplotlib", "drawing a video", params=("video",))
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
 

@@ -60,7 +60,7 @@ def check_video_path(path: Path) -> Path:
         raise VideoError(f"{path}: the video must be a .gif or an .mp4 file")
     if not path.parent.is_dir():
         raise VideoError(f"{path}: the directory {path.parent} does not exist")
-    require("imageio_ffmpeg", "--video")
+    require("imageio_ffmpeg", "writing a video", params=("video",))
     return path
 
 

@@ -126,6 +126,25 @@ class ServeInfo:
         return out
 
 
+@dataclass(frozen=True)
+class BodyPose:
+    """The body's pose in the world at ``t`` seconds of world time: ``x`` and ``y`` (m),
+    x forward along the head link's first heading, and the heading ``theta`` (rad)."""
+
+    t: float
+    x: float
+    y: float
+    theta: float
+
+    def as_dict(self) -> dict[str, float]:
+        return {
+            "t": round(self.t, 3),
+            "x": round(self.x, 6),
+            "y": round(self.y, 6),
+            "theta": round(self.theta, 6),
+        }
+
+
 # -- the flash image ----------------------------------------------------------------------
 
 
@@ -203,9 +222,9 @@ def check_firmware(firmware: str | os.PathLike[str] | None) -> Path:
             "run `make firmware` to build it"
             if src == DEFAULT_FIRMWARE
             else "check the path; `make firmware` builds build/qemu/firmware.elf in a "
-            f"checkout (the default without --firmware: {DEFAULT_FIRMWARE})"
+            f"checkout (the default image: {DEFAULT_FIRMWARE})"
         )
-        raise SimInputError(f"firmware image {src} not found: {hint}")
+        raise SimInputError(f"firmware image {src} not found: {hint}").about("firmware")
     return src
 
 
@@ -386,9 +405,9 @@ class EmulatedRobot:
         options = SimOptions.from_query(self.sim_query)
         if options.robot or options.ids:
             raise ServeError(
-                "the robot's servos come from --robot: leave robot= and ids= "
+                "the robot's servos come from the robot named apart: leave robot= and ids= "
                 "out of the emulator options"
-            )
+            ).about("robot")
         return replace(options, robot=self.robot.source or self.robot.name).build_bus()
 
     def _attach_world(self, bus: Bus) -> None:
@@ -550,6 +569,22 @@ class EmulatedRobot:
         """What the world has seen so far (the body pose, joint angles, slip)."""
         with self.lock:
             return self.world.record()
+
+    def pose(self) -> BodyPose | None:
+        """The body's latest pose in the world; None before the world's first sample."""
+        record = self.record()
+        if not len(record.t):
+            return None
+        x, y, theta = (float(v) for v in record.pose[-1])
+        return BodyPose(float(record.t[-1]), x, y, theta)
+
+    def check_running(self) -> None:
+        """SimFailure, with the emulator's log, if the emulator or the bus stopped."""
+        if not self.running:
+            raise SimFailure(
+                "the emulator or the emulated bus stopped unexpectedly: "
+                f"{self.log().strip() or 'no message'}"
+            )
 
     def goals(self) -> tuple[np.ndarray, np.ndarray]:
         """The goal positions the firmware has sent the servos (ticks, one column per

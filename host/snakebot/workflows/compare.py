@@ -67,11 +67,14 @@ def _rows_from_csv(path: Path, data: bytes) -> list[dict[str, Any]]:
     try:
         rows = list(csv.DictReader(data.decode("utf-8").splitlines()))
     except (UnicodeDecodeError, csv.Error) as exc:
-        raise CompareError(f"{path} is not a CSV file ({exc}): give monitor --csv output") from None
+        raise CompareError(
+            f"{path} is not a CSV file ({exc}): give a run the monitor recorded as CSV"
+        ) from None
     missing = {"t", "id", "position"} - set(rows[0] if rows else {})
     if missing:
         raise CompareError(
-            f"{path} has no column {', '.join(sorted(missing))}: give snakebot monitor --csv output"
+            f"{path} has no column {', '.join(sorted(missing))}: give a run the monitor "
+            "recorded as CSV"
         )
     return rows
 
@@ -83,7 +86,7 @@ def _rows_from_mcap(path: Path, data: bytes) -> list[dict[str, Any]]:
         from mcap.stream_reader import StreamReader
     except ImportError:
         raise CompareError(
-            "reading --mcap runs needs the mcap package: pip install 'snakebot[record]'"
+            "reading MCAP runs needs the mcap package: pip install 'snakebot[record]'"
         ) from None
     import io
 

@@ -37,7 +37,7 @@ ODOM, BASE = "odom", "base"
 
 
 class FoxgloveOptionError(InputError):
-    """A --foxglove endpoint that cannot be used."""
+    """A Foxglove endpoint that cannot be used."""
 
 
 def parse_endpoint(text: str) -> tuple[str, int]:
@@ -230,7 +230,7 @@ class FoxgloveLive:
     def __init__(
         self, robot: Robot, host: str = LOOPBACK, port: int = 8765, *, mcap: Path | None = None
     ) -> None:
-        require("foxglove", "--foxglove")
+        require("foxglove", "the Foxglove bridge", params=("foxglove",))
         import foxglove
 
         self.robot = robot
@@ -242,8 +242,8 @@ class FoxgloveLive:
                 self._mcap.close()
             raise FoxgloveOptionError(
                 f"the Foxglove server cannot listen on {host}:{port} ({exc}): choose another "
-                "port (--foxglove 0 takes any free one)"
-            ) from None
+                "port (port 0 takes any free one)"
+            ).about("foxglove") from None
         self.channels = {
             topic: foxglove.Channel(
                 topic,

@@ -17,11 +17,36 @@ from typing import Any
 
 import numpy as np
 
+from snakebot.errors import InputError
 from snakebot.formats.gaittable import GaitTable
 from snakebot.model.robots import Robot
 from snakebot.workflows.predict import Prediction, predict_gait, predict_table, resolve_robot
 
 DEFAULT_MU = (0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0)
+MAX_MU = 1000.0
+"""The largest friction coefficient tried: rubber on concrete is about 1."""
+MAX_MU_VALUES = 50
+"""The most friction values one study runs (each is a MuJoCo run of the whole gait)."""
+
+
+def parse_mu_values(mu: str) -> tuple[float, ...]:
+    """The friction coefficients of the comma-separated ``mu``: each more than 0 and at
+    most MAX_MU, MAX_MU_VALUES of them at most (InputError otherwise)."""
+    try:
+        values = tuple(float(v) for v in mu.split(",") if v.strip())
+    except ValueError:
+        values = ()
+    if not values or not all(math.isfinite(v) and 0 < v <= MAX_MU for v in values):
+        raise InputError(
+            f"{mu!r}: give friction coefficients more than 0 and at most {MAX_MU:g} "
+            "separated by commas, e.g. 0.1,1,10"
+        ).about("mu")
+    if len(values) > MAX_MU_VALUES:
+        raise InputError(
+            f"{mu!r}: at most {MAX_MU_VALUES} friction coefficients (each is a physics run "
+            "of its own)"
+        ).about("mu")
+    return values
 
 
 def _per_cycle(dx: float, dy: float, cycles: float) -> float:

@@ -106,9 +106,9 @@ def make_world(name: str, bus: Bus, robot: Robot, period: float, start: float) -
         from snakebot.sim.physics.select import make_world as physics_world
     except ImportError:
         raise GotoError(
-            "--world mujoco needs the physics world (snakebot.sim.physics) and MuJoCo: "
-            "pip install 'snakebot[physics]', or use --world kinematic"
-        ) from None
+            "the mujoco world needs the physics world (snakebot.sim.physics) and MuJoCo: "
+            "pip install 'snakebot[physics]', or use the kinematic world"
+        ).about("world") from None
     return physics_world("mujoco", bus, robot, period=period, start=start)
 
 
@@ -213,8 +213,8 @@ def goto(
         slowdown = 1 if world == "kinematic" else PHYSICS_SLOWDOWN
     if not (isinstance(slowdown, int) and 1 <= slowdown <= MAX_SLOWDOWN):
         raise PlanError(
-            f"--slowdown must be a whole number from 1 to {MAX_SLOWDOWN}, not {slowdown}"
-        )
+            f"the slowdown must be a whole number from 1 to {MAX_SLOWDOWN}, not {slowdown}"
+        ).about("slowdown")
     period_ms = 0 if waves else frame_period_ms(robot, route.frames()) * slowdown
     client = DxlClient(sim_url(robot, ideal), echo=False)
     wall0 = time.perf_counter()

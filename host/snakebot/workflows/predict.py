@@ -188,20 +188,20 @@ def resolve_robot(table: GaitTable, robot: str | Robot | None) -> Robot:
             if not name:
                 raise PredictError(
                     "the gait table has no metadata (FILE.json) naming its "
-                    "robot: pass --robot snake5 (or snake3, trident, a .toml)"
-                )
+                    "robot: name it (snake5, snake3, trident or a .toml)"
+                ).about("robot")
         try:
             chosen = load_robot(name)
         except RobotError as exc:
             raise PredictError(
-                f"{exc} (the gait was made for robot {name!r}; pass --robot "
-                "to choose another description)"
-            ) from exc
+                f"{exc} (the gait was made for robot {name!r}; name another description "
+                "to use that)"
+            ).about("robot") from exc
     if tuple(table.joint_ids) != chosen.servo_ids:
         raise PredictError(
             f"the table drives servos {list(table.joint_ids)} but {chosen.name} has servos "
-            f"{list(chosen.servo_ids)}: pass --robot with the robot the gait was made for"
-        )
+            f"{list(chosen.servo_ids)}: name the robot the gait was made for"
+        ).about("robot")
     return chosen
 
 
@@ -361,7 +361,9 @@ def emulate(
     depend on it); ``world``: "kinematic" or "mujoco" (``mu``: its wheel-floor
     friction)."""
     if ideal and world != "kinematic":
-        raise PredictError(f"ideal servos have no torque: drop --ideal for the {world} world")
+        raise PredictError(
+            f"ideal servos have no torque: the {world} world needs servos that can fall short"
+        ).about("ideal", "world")
     client = DxlClient(sim_url(robot, ideal), echo=False)
     try:
         bus: Bus = client.port.bus

@@ -22,6 +22,7 @@ world, and the runs report the model's ideal end state beside both worlds'.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -143,6 +144,11 @@ RUNS: tuple[ThesisRun, ...] = (
 )
 
 RUN_NAMES = tuple(r.name for r in RUNS)
+
+
+def thesis_runs(only: Sequence[str] = ()) -> list[ThesisRun]:
+    """The runs named in ``only``, in the thesis's order; every run without names."""
+    return [r for r in RUNS if not only or r.name in only]
 
 
 @dataclass(frozen=True)

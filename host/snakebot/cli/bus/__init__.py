@@ -122,8 +122,7 @@ def scan_command(
     id_list = register_values.parse_ids(ids)
     port = bus.port
     rates = register_values.parse_bauds(bauds) if bauds else [bus.baud]
-    found: list[ServoInfo] = []
-    garbled: list[Probe] = []
+    report = bus_scan.ScanReport(port, id_list, rates)
     interrupted = 0  # the exit status of the signal that stopped the scan
     if not as_json:
         span = f"IDs {ids}" if len(id_list) > 1 else f"ID {id_list[0]}"
@@ -132,47 +131,36 @@ def scan_command(
     bar = click.progressbar(
         length=len(id_list) * len(rates), label="Scanning", file=sys.stderr, show_pos=True
     )
+
+    def seen(probe: Probe) -> None:
+        bar.update(1)
+        if probe.info is not None and not as_json:
+            if len(report.found) == 1:
+                click.echo(HEADER)
+            click.echo(_servo_line(probe.info))
+
     _adapter_latency(port, latency_timer, quiet=as_json)
     with open_port(port, rates[0], timeout=0) as link, bar:
         try:
-            for result in bus_scan.scan_probes(link, id_list, rates):
-                bar.update(1)
-                if result.info is not None:
-                    if not found and not as_json:
-                        click.echo(HEADER)
-                    found.append(result.info)
-                    if not as_json:
-                        click.echo(_servo_line(result.info))
-                elif result.garbled:
-                    garbled.append(result)
+            bus_scan.scan_into(report, link, seen)
         except KeyboardInterrupt as exc:
             interrupted = interrupted_status(exc)
     if as_json:
-        click.echo(
-            dumps(
-                {
-                    "port": port,
-                    "ids": id_list,
-                    "bauds": rates,
-                    "found": [s.as_dict() for s in found],
-                    "garbled": [g.as_dict() for g in garbled],
-                    "interrupted": bool(interrupted),
-                }
-            )
-        )
+        click.echo(dumps(report.as_dict()))
     else:
-        for g in garbled:
+        for g in report.garbled:
             click.echo(
                 f"ID {g.id} at {g.baud} baud: only damaged replies "
                 f"({1 + bus_scan.SCAN_RETRIES} tries); check the cabling, or two servos "
                 "sharing this ID"
             )
-        if found:
-            click.echo(f"Found {len(found)} servo{'s' if len(found) != 1 else ''}.")
+        if report.found:
+            n = len(report.found)
+            click.echo(f"Found {n} servo{'s' if n != 1 else ''}.")
     if interrupted:
         click.echo("Scan stopped by Ctrl-C: the list above is what was found so far.", err=True)
         ctx.exit(interrupted)
-    if not found:
+    if not report.found:
         click.echo(
             "error: no servo answered. Check that the servos are powered (USB does not "
             "power them) and cabled, and try other rates with --bauds common or --bauds all.",

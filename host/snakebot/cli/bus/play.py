@@ -16,14 +16,12 @@ from snakebot.link.bus.play import play_table, player_for, tick_count
 
 
 def _paced(port: str) -> str:
-    """``port``, with the emulated bus of a ``sim://`` URL tied to the wall clock: the
-    player ticks on the wall clock, so the servos must move in its time too (otherwise
-    the emulated bus runs only while the host waits for a reply, and the servos would
-    hardly move during the gait). A URL that names its own ``realtime`` is left alone,
-    as is ``sim://NAME`` with no options (a bus opened earlier keeps its own)."""
-    if not port.startswith("sim://") or "realtime=" in port or "?" not in port:
-        return port
-    return port + ("" if port.endswith(("?", "&")) else "&") + "realtime=1"
+    """``port``; a ``sim://`` URL with its bus on the wall clock, as the player is."""
+    if not port.startswith("sim://"):
+        return port  # a real bus keeps the wall clock's time itself
+    from snakebot.sim.urlhandler.protocol_sim import wall_clock_url
+
+    return wall_clock_url(port)
 
 
 @click.command("play")

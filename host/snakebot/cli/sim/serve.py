@@ -16,8 +16,7 @@ from snakebot.cli.options import json_option, robot_option, world_option
 from snakebot.cli.output import dumps
 from snakebot.cli.params import INPUT_PATH, NumberType
 from snakebot.cli.signals import STOP_SIGNALS
-from snakebot.sim.errors import SimFailure
-from snakebot.sim.serve import BOARDS, DEFAULT_BOARD, EmulatedRobot
+from snakebot.sim.serve import BOARDS, DEFAULT_BOARD, BodyPose, EmulatedRobot
 
 HISTORY_S = 600.0
 """Seconds of the world's latest samples kept while serving: memory stays flat however
@@ -134,11 +133,7 @@ def serve(
         tick = 1.0 / RATE_HZ if live is not None else wait
         next_report = time.monotonic() + wait
         while not stop.wait(tick):
-            if not emulated.running:
-                raise SimFailure(
-                    "the emulator or the emulated bus stopped unexpectedly: "
-                    f"{emulated.log().strip() or 'no message'}"
-                )
+            emulated.check_running()
             if live is not None:
                 from snakebot.workflows.foxglove import publish_emulated
 
@@ -146,8 +141,8 @@ def serve(
             if time.monotonic() >= next_report:
                 next_report += wait
                 if report > 0:
-                    _pose(emulated, as_json)
-        _pose(emulated, as_json, final=True)
+                    _print_pose(emulated.pose(), as_json)
+        _print_pose(emulated.pose(), as_json, final=True)
     finally:
         if live is not None:
             live.close()
@@ -156,27 +151,14 @@ def serve(
             signal.signal(s, handler)
 
 
-def _pose(emulated: EmulatedRobot, as_json: bool, final: bool = False) -> None:
-    record = emulated.record()
-    if not len(record.t):
+def _print_pose(pose: BodyPose | None, as_json: bool, final: bool = False) -> None:
+    if pose is None:
         return
-    x, y, theta = (float(v) for v in record.pose[-1])
-    t = float(record.t[-1])
     if as_json:
-        click.echo(
-            dumps(
-                {
-                    "event": "stopped" if final else "pose",
-                    "t": round(t, 3),
-                    "x": round(x, 6),
-                    "y": round(y, 6),
-                    "theta": round(theta, 6),
-                }
-            )
-        )
+        click.echo(dumps({"event": "stopped" if final else "pose", **pose.as_dict()}))
     else:
         what = "stopped; body at" if final else "world:"
         click.echo(
-            f"{what} t = {t:7.2f} s  x = {100 * x:+7.1f} cm  y = {100 * y:+7.1f} cm  "
-            f"heading {math.degrees(theta):+6.1f} deg"
+            f"{what} t = {pose.t:7.2f} s  x = {100 * pose.x:+7.1f} cm  "
+            f"y = {100 * pose.y:+7.1f} cm  heading {math.degrees(pose.theta):+6.1f} deg"
         )

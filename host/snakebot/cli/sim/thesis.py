@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
@@ -17,32 +18,11 @@ from snakebot.cli.options import (
 )
 from snakebot.cli.output import dumps, echo_json
 from snakebot.cli.params import EXISTING_INPUT, LazyChoice
-from snakebot.errors import InputError
 from snakebot.extras import require
-from snakebot.plots.video import check_video_path, write_video
 from snakebot.sim.physics.select import require_world
 
-MAX_MU = 1000.0
-"""The largest friction coefficient tried: rubber on concrete is about 1."""
-MAX_MU_VALUES = 50
-"""The most friction values one study runs (each is a MuJoCo run of the whole gait)."""
-
-
-def _floats(text: str) -> tuple[float, ...]:
-    try:
-        values = tuple(float(v) for v in text.split(",") if v.strip())
-    except ValueError:
-        values = ()
-    if not values or not all(math.isfinite(v) and 0 < v <= MAX_MU for v in values):
-        raise InputError(
-            f"--mu {text!r}: give numbers more than 0 and at most {MAX_MU:g} separated by "
-            "commas, e.g. 0.1,1,10"
-        )
-    if len(values) > MAX_MU_VALUES:
-        raise InputError(
-            f"--mu {text!r}: at most {MAX_MU_VALUES} values (each is a physics run of its own)"
-        )
-    return values
+if TYPE_CHECKING:
+    from snakebot.workflows.thesis import ThesisRun
 
 
 @click.command("thesis")
@@ -84,37 +64,30 @@ def thesis(
     """
     require_world("mujoco")
     require("matplotlib", "`sim thesis` (its pictures)")
-    from snakebot.plots.thesis import plot_thesis_run
-    from snakebot.workflows.thesis import RUNS, run_thesis
+    from snakebot.plots.thesis import thesis_study
+    from snakebot.workflows.thesis import thesis_runs
 
-    runs = [r for r in RUNS if not only or r.name in only]
-    if video is not None:
-        check_video_path(video)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    summaries = []
-    for i, run in enumerate(runs, start=1):
+    runs = thesis_runs(only)
+
+    def started(i: int, run: ThesisRun) -> None:
         click.echo(f"[{i}/{len(runs)}] {run.name} on {run.robot} ...", err=as_json, nl=False)
-        result = run_thesis(run, mu=mu)
-        summary = result.summary()
-        summary["png"] = str(plot_thesis_run(result, out_dir / f"{run.name}.png"))
-        if video is not None:
-            name = video if len(runs) == 1 else video.with_stem(f"{video.stem}-{run.name}")
-            motions = {world: p.emulated for world, p in result.worlds.items()}
-            summary["video"] = str(
-                write_video(
-                    name,
-                    result.robot,
-                    motions,
-                    f"thesis run {run.name}",
-                    size=video_size,
-                    say=lambda line: click.echo(line, err=True),
-                )
-            )
-        summaries.append(summary)
+
+    def finished(summary: dict) -> None:
         click.echo(" done", err=as_json)
         if not as_json:
             for line in _run_lines(summary):
                 click.echo(line)
+
+    summaries = thesis_study(
+        runs,
+        out_dir,
+        mu=mu,
+        video=video,
+        video_size=video_size,
+        say=lambda line: click.echo(line, err=True),
+        started=started,
+        finished=finished,
+    )
     if as_json:
         click.echo(dumps({"runs": summaries}, indent=2))
 
@@ -141,16 +114,13 @@ def _run_lines(s: dict) -> list[str]:
 @robot_option("Robot to emulate", otherwise="the one named in GAIT.json")
 @click.option(
     "--mu",
-    "mu_text",
     default="0.02,0.05,0.1,0.2,0.5,1,2,5,10",
     show_default=True,
     help="Friction coefficients to try, comma-separated.",
 )
 @plot_option("the distance per cycle against mu, and the wheels' sideways slide")
 @json_option()
-def friction(
-    gait_file: Path, robot: str | None, mu_text: str, plot: Path | None, as_json: bool
-) -> None:
+def friction(gait_file: Path, robot: str | None, mu: str, plot: Path | None, as_json: bool) -> None:
     """Play GAIT in the MuJoCo world over a range of wheel-floor friction coefficients
     and compare its distance per cycle with the kinematic world's.
 
@@ -168,9 +138,9 @@ def friction(
         require("matplotlib", "--plot")
     from snakebot.formats.gaittable import read_gait
     from snakebot.plots.thesis import plot_friction
-    from snakebot.workflows.friction import friction_study
+    from snakebot.workflows.friction import friction_study, parse_mu_values
 
-    values = _floats(mu_text)
+    values = parse_mu_values(mu)
     table = read_gait(gait_file)
 
     def progress(mu: float, _result: object) -> None:

@@ -135,7 +135,7 @@ def controller(
                 if found["Model Number"] == table.model_number:  # a page only ours has
                     found |= ctl.read("Board")
         except SnakebotError as exc:
-            fail = Check("controller", "fail", str(exc), "check the cable and --baud")
+            fail = Check("controller", "fail", str(exc), "check the cable and the baud rate")
             return ControllerFound([fail])
     checks = [Check("controller", "ok", f"answers PING at ID {controller_id}, {baud} baud")]
     if found["Model Number"] != table.model_number:
@@ -194,7 +194,7 @@ def board(port: str, named: str, expected: str = ANY_BOARD, sysfs: Path = TTY_SY
     if named == NO_BOARD:
         detail = "none named (the controller's logic run on the host, or older firmware)"
     if expected not in (ANY_BOARD, shown):
-        fix = flash if expected == hardware else f"point --port at a {expected} controller"
+        fix = flash if expected == hardware else f"use the port of a {expected} controller"
         return Check(name, "fail", f"{detail}, not the {expected} expected", fix)
     if shown != hardware and on_hardware(port, sysfs):
         device = Path(os.path.realpath(port)).name
@@ -269,7 +269,7 @@ def _bauds_found(found: list[bus_scan.ServoInfo], bauds: Sequence[int]) -> Check
             "servo bus",
             "fail",
             f"no servo answered at {', '.join(map(str, bauds))} bit/s",
-            "check the servos' power and the cable; try every rate: --bauds all",
+            "check the servos' power and the cable; try every rate (all bauds)",
         )
     rates = sorted({s.baud for s in found}, reverse=True)
     detail = f"{len(found)} servo(s) at {', '.join(map(str, rates))} bit/s"

@@ -53,8 +53,8 @@ def player_for(table: GaitTable, loop: bool, name: str) -> TablePlayer:
     if loop and not table.loop:
         raise BusCommandError(
             f"{name} is a gait played once (its last frame does not lead back to the first): "
-            "drop --loop, or make a looping gait"
-        )
+            "play it once, or make a looping gait"
+        ).about("loop")
     try:
         return TablePlayer(table, loop=loop)
     except PlayerError as exc:

@@ -5,8 +5,8 @@ stream; the line's echo detected, the quiet pauses timed from the wire."""
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable, Iterator, Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
 
 import serial
 
@@ -379,6 +379,54 @@ def scan_probes(
         if n:  # servos at this rate heard the last one's PINGs as garbage: let them reset
             _quiet(port, quiet_s())
         yield from _Sweep(client, silence_s(client), pings).run(ids)
+
+
+@dataclass
+class ScanReport:
+    """What a scan of ``ids`` at ``bauds`` on ``port`` has found so far: the servos
+    identified, the IDs that gave only damaged replies, and whether it was stopped."""
+
+    port: str
+    ids: list[int]
+    bauds: list[int]
+    found: list[ServoInfo] = field(default_factory=list)
+    garbled: list[Probe] = field(default_factory=list)
+    interrupted: bool = False
+
+    def add(self, probe: Probe) -> None:
+        if probe.info is not None:
+            self.found.append(probe.info)
+        elif probe.garbled:
+            self.garbled.append(probe)
+
+    def as_dict(self) -> dict[str, object]:
+        return {
+            "port": self.port,
+            "ids": self.ids,
+            "bauds": self.bauds,
+            "found": [s.as_dict() for s in self.found],
+            "garbled": [g.as_dict() for g in self.garbled],
+            "interrupted": self.interrupted,
+        }
+
+
+def scan_into(
+    report: ScanReport,
+    port: serial.SerialBase,
+    seen: Callable[[Probe], None] = lambda _: None,
+) -> ScanReport:
+    """Scan ``report``'s IDs and rates on the open ``port`` (:func:`scan_probes`), adding
+    each result to ``report`` as it comes and then handing it to ``seen``. Stopped by
+    Ctrl-C, ``report`` keeps what was found and says it was interrupted; the
+    KeyboardInterrupt goes on."""
+    try:
+        for probe in scan_probes(port, report.ids, report.bauds):
+            report.add(probe)
+            seen(probe)
+    except KeyboardInterrupt:
+        report.interrupted = True
+        raise
+    return report
 
 
 def scan(port: serial.SerialBase, ids: Iterable[int], bauds: Sequence[int]) -> list[ServoInfo]:

@@ -177,13 +177,13 @@ class ControllerClient:
                 f"{where} did not answer {what} at {self.baudrate} baud: check that the "
                 "CM-530 is powered and its USB cable connected, that it runs the snakebot "
                 "firmware (not the ROBOTIS bootloader; `snakebot flash` installs it), and that "
-                f"--baud ({self.baudrate}) and --id ({self.id}) match it"
-            ) from None
+                f"the baud rate ({self.baudrate}) and the controller ID ({self.id}) match it"
+            ).about("baud", "controller_id") from None
         except CorruptPacket as exc:
             raise ControllerLinkError(
                 f"{where} answered {what} with damaged packets ({exc}); check the USB cable "
-                f"and that --baud ({self.baudrate}) matches the controller"
-            ) from None
+                f"and that the baud rate ({self.baudrate}) matches the controller"
+            ).about("baud") from None
         except ServoError as exc:
             flags = ErrorFlags(exc.flags)
             hint = (
@@ -306,9 +306,9 @@ class ControllerClient:
             raise NotAController(
                 f"the device at ID {self.id} on {self.port_name} reports model number "
                 f"{info['Model Number']}, not a snakebot controller ({self.table.model_number}): "
-                "check --port and --id (a servo answers here, or another firmware runs on the "
-                "CM-530; `snakebot flash` installs the snakebot firmware)"
-            )
+                "check the port and the controller ID (a servo answers here, or another "
+                "firmware runs on the CM-530; `snakebot flash` installs the snakebot firmware)"
+            ).about("port", "controller_id")
         if info["Firmware Version"] != self.table.firmware_version:
             raise NotAController(
                 f"the controller's control table is version {info['Firmware Version']}, this "

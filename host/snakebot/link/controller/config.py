@@ -49,7 +49,7 @@ def find_setting(table: Controller, name: str) -> Register:
     hint = (
         "did you mean " + " or ".join(_cli_name(by_name[c]) for c in close) + "?"
         if close
-        else "`snakebot config --port P` lists them"
+        else "`snakebot config` lists them"
     )
     raise ConfigError(f"the controller has no setting {name!r}: {hint}")
 

@@ -43,9 +43,9 @@ class McapLog:
             from mcap.writer import Writer
         except ImportError:
             raise McapUnavailable(
-                "--mcap needs the mcap package: pip install 'snakebot[record]' (or pip "
-                "install mcap), or record with --csv"
-            ) from None
+                "recording MCAP needs the mcap package: pip install 'snakebot[record]' (or pip "
+                "install mcap), or record as CSV"
+            ).about("mcap_path", "csv_path") from None
         self._writer = Writer(stream)
         self._writer.start(profile="", library="snakebot")
         schema = self._writer.register_schema(

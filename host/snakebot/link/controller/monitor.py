@@ -154,7 +154,7 @@ def render(s: Sample) -> list[str]:
     ]
     if not s.servos:
         lines.append(
-            "no servos in the roster (upload a gait table, or start the serpenoid with --robot)"
+            "no servos in the roster (upload a gait table, or start the serpenoid for a robot)"
         )
         return lines
     lines.append(HEADER)

@@ -364,6 +364,6 @@ def _check_report(
         return None
     raise FlashFailed(
         f"{warning}: the application was NOT started. If the bootloader printed a sum that "
-        f"matches ours, run again with --yes to start it anyway; otherwise {RESET_HINT} and "
-        "flash again"
-    )
+        f"matches ours, flash again accepting an unknown report to start it anyway; "
+        f"otherwise {RESET_HINT} and flash again"
+    ).about("yes")

@@ -220,12 +220,12 @@ def _too_big(path: Path, size: int | None, layout: BoardLayout) -> str:
 
 
 def _check_vectors(path: Path, data: bytes, layout: BoardLayout) -> None:
-    force = "(pass --force to flash it anyway)"
+    force = "(skip this check to flash it anyway)"
     if len(data) < 8:
         raise ImageError(
             f"firmware image {path} is only {len(data)} bytes, too short to hold a Cortex-M "
-            "vector table: give the .bin of a real build (or pass --force for raw data)"
-        )
+            "vector table: give the .bin of a real build (or skip this check for raw data)"
+        ).about("force")
     sp = int.from_bytes(data[0:4], "little")
     reset = int.from_bytes(data[4:8], "little")
     if not layout.ram_base < sp <= layout.ram_end:
@@ -233,13 +233,13 @@ def _check_vectors(path: Path, data: bytes, layout: BoardLayout) -> None:
             f"firmware image {path} starts with stack pointer 0x{sp:08X}, outside the "
             f"CM-530's RAM 0x{layout.ram_base:08X}-0x{layout.ram_end:08X}: this is not a "
             f"Cortex-M image for this board {force}"
-        )
+        ).about("force")
     if sp % STACK_ALIGN:
         raise ImageError(
             f"firmware image {path} starts with stack pointer 0x{sp:08X}, not {STACK_ALIGN}-byte "
             f"aligned as the first call from reset needs: the image is damaged or not built "
             f"for a Cortex-M {force}"
-        )
+        ).about("force")
     entry = reset & ~1
     code_end = layout.app_base + len(data)
     if not (reset & 1 and layout.app_base <= entry < code_end):
@@ -248,28 +248,28 @@ def _check_vectors(path: Path, data: bytes, layout: BoardLayout) -> None:
             f"address inside the image at 0x{layout.app_base:08X}: it was linked for "
             "another address (the bootloader starts the application at "
             f"0x{layout.app_base:08X}; build with boards/cm530/cm530.ld) {force}"
-        )
+        ).about("force")
     info = image_info(data, layout.app_base)
     if info is None:
         raise ImageError(
             f"firmware image {path} has no snakebot identity block (vector entry "
             f"{INFO_VECTOR} pointing at {INFO_MAGIC.decode()}): build it with make firmware, "
             f"or {force[1:-1]} if it is another program for the CM-530"
-        )
+        ).about("force")
     if info.board != layout.board:
         raise ImageError(
             f"firmware image {path} was built for board {info.board!r}, not {layout.board!r}: "
             f"give build/{layout.board}/firmware.bin"
-        )
+        ).about("force")
     if info.image_bytes != len(data):
         raise ImageError(
             f"firmware image {path} is {len(data)} bytes but says it is {info.image_bytes}: "
             "it is cut short or has bytes appended; rebuild it (make firmware)"
-        )
+        ).about("force")
     code_start = info.address + _INFO.size
     if entry < code_start:
         raise ImageError(
             f"firmware image {path} has its reset handler at 0x{reset:08X}, inside its vector "
             f"table or identity block (code starts at 0x{code_start:08X}): the image is "
             f"damaged {force}"
-        )
+        ).about("force")

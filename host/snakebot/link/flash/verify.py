@@ -12,15 +12,16 @@ import time
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 from snakebot.errors import SnakebotError
 from snakebot.formats.protocol import DxlTimeout
 from snakebot.formats.upload_writes import commit_write
 from snakebot.link.controller import UploadResult
 from snakebot.link.controller.client import ControllerClient
-from snakebot.link.flash.bootloader import RESET_HINT
+from snakebot.link.flash.bootloader import RESET_HINT, FlashResult
 from snakebot.link.flash.errors import FlashError, FlashFailed
-from snakebot.link.flash.image import ImageInfo
+from snakebot.link.flash.image import ImageInfo, image_info
 from snakebot.link.flash.settings import FlashTimeouts
 
 PING_EVERY_S = 0.2
@@ -109,3 +110,64 @@ def verify_firmware(
             f"{REFLASH}"
         )
     return Verified(ctl.id, found["Model Number"], info.firmware_version, zlib.crc32(image), boot_s)
+
+
+def verify_flashed(
+    port: str,
+    image: bytes,
+    app_base: int,
+    timeouts: FlashTimeouts,
+    say: Callable[[str], None] = lambda _: None,
+) -> Verified | None:
+    """Wait for the firmware started from ``image`` (linked at ``app_base``) and have it
+    check its image (:func:`verify_firmware`), saying what happens; None when the image
+    carries no identity block (flashed without the image checks): nothing to check it
+    against."""
+    info = image_info(image, app_base)
+    if info is None:
+        say(
+            "Not verified: the image has no snakebot identity block (flashed without the "
+            "image checks)."
+        )
+        return None
+    say(f"Waiting up to {timeouts.boot:g} s for the new firmware to answer PING...")
+    shown = [0]
+
+    def waited(seconds: float) -> None:
+        if int(seconds) > shown[0]:
+            shown[0] = int(seconds)
+            say(f"  no answer yet after {shown[0]} s")
+
+    verified = verify_firmware(port, image, info, timeouts, waited)
+    say(
+        f"Verified: controller at ID {verified.controller_id} runs firmware version "
+        f"{verified.firmware_version}, its image in flash has CRC-32 0x{verified.crc:08X} "
+        "as sent"
+    )
+    return verified
+
+
+def flash_summary(
+    firmware: str, port: str, result: FlashResult, verified: Verified | None
+) -> dict[str, Any]:
+    """What one flash of ``firmware`` through ``port`` did, JSON-able: the transfer, the
+    bootloader's checksum, GO, and what the started firmware confirmed (``verified``, if
+    checked)."""
+    return {
+        "firmware": firmware,
+        "port": port,
+        "image_bytes": result.image_size,
+        "bytes_sent": result.bytes_sent,
+        "checksum_byte": result.checksum_byte,
+        "checksum": result.reported_checksum,
+        "checksum_meaning": result.checksum_meaning,
+        "seconds": round(result.seconds, 4),
+        "send_seconds": round(result.send_seconds, 4),
+        "kbit_s": round(result.kbit_s, 2),
+        "started": result.started,
+        "banner": result.banner.decode("latin-1"),
+        "go_reply": result.go_reply.decode("latin-1"),
+        "verified": verified is not None,
+        "firmware_crc": None if verified is None else verified.crc,
+        "boot_seconds": None if verified is None else round(verified.boot_seconds, 3),
+    }

@@ -96,14 +96,15 @@ def singularity_warnings(trajectories: dict[str, Trajectory]) -> list[dict[str, 
     return sorted(out, key=lambda w: w["min_rcond"])
 
 
-def frame_budget(robot: Robot, frames: int, hint: str) -> None:
-    """GaitError if ``frames`` frames do not fit the controller's table."""
+def frame_budget(robot: Robot, frames: int, hint: str, *params: str) -> None:
+    """GaitError if ``frames`` frames do not fit the controller's table; ``hint`` says
+    how to make fewer, by changing the parameters ``params``."""
     most = max_frames(robot.n_joints)
     if frames > most:
         raise GaitError(
             f"the gait needs {frames} frames but the controller holds at most "
             f"{most} for {robot.n_joints} joints: {hint}"
-        )
+        ).about(*params)
     if frames < 2:
         raise GaitError(f"the gait has only {frames} frame: raise the rate or the duration")
 
@@ -241,11 +242,11 @@ class Gait:
 def period_ms_for(rate_hz: float) -> int:
     """Frame period in whole milliseconds for a frame rate."""
     if not rate_hz > 0 or not math.isfinite(rate_hz):
-        raise GaitError(f"--rate must be a positive frame rate in Hz, not {rate_hz}")
+        raise GaitError(f"the frame rate must be positive, in Hz, not {rate_hz}").about("rate")
     period = round(1000.0 / rate_hz)
     if not 1 <= period <= 65535:
         raise GaitError(
-            f"--rate {rate_hz} Hz gives a frame period of {period} ms: use a rate "
+            f"a frame rate of {rate_hz} Hz gives a frame period of {period} ms: use a rate "
             "between 0.016 and 1000 Hz"
-        )
+        ).about("rate")
     return period

@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from functools import cached_property
+from typing import Any
 
 import numpy as np
 
@@ -57,11 +59,11 @@ from snakebot.model.robots import Robot
 SPEED_MARGIN = 0.8
 #: A loop is sampled by at least this many frames.
 MIN_FRAMES_PER_PERIOD = 16
-#: Tolerance used when neither --amplitude nor --tolerance is given.
+#: Tolerance used when neither an amplitude nor a tolerance is given.
 DEFAULT_TOLERANCE = 0.05
 DENSE = 4  # integration samples per frame for the limit checks
-#: Flow parameter a gait with brackets follows for when no --duration or --periods is
-#: given (fewer blocks if the table cannot hold them; the summary gives the value used).
+#: Flow parameter a gait with brackets follows for when neither a duration nor periods
+#: are given (fewer blocks if the table cannot hold them; the summary gives the value used).
 AUTO_FLOW = 1.0
 
 
@@ -132,27 +134,65 @@ def _run(robot: Robot, segments: list[Segment], q0: np.ndarray) -> np.ndarray:
     return q
 
 
-def block_error(
-    robot: Robot, model: str, combo: dict[str, float], eps: float, form: str | None, q0: np.ndarray
-) -> tuple[float, np.ndarray]:
-    """Relative error of one block against eps X(q0), and the block's motion."""
-    inputs = 2 if model == "snake3" else 3
-    moved = _run(robot, plan_block(model, combo, eps, form, inputs), q0) - q0
-    return _relative_error(robot, combo, eps, form, q0, moved), moved
+@dataclass(frozen=True)
+class _Target:
+    """What a field gait follows: the combination X of ``robot``'s fields (``combo``,
+    written ``text``) in the field ``model`` and ``form``, from the joint angles ``start``."""
+
+    robot: Robot
+    model: str
+    form: str
+    combo: dict[str, float]
+    text: str
+    start: tuple[float, ...]
+
+    @property
+    def field_form(self) -> str | None:
+        """The form the fields are computed in: the trident's, none for a snake."""
+        return self.form if self.robot.kind == "trident" else None
+
+    @property
+    def brackets(self) -> list[str]:
+        return [n for n in self.combo if n.startswith("h")]
+
+    @property
+    def q0(self) -> np.ndarray:
+        return np.r_[0.0, 0.0, 0.0, np.asarray(self.start, dtype=float)]
+
+    @cached_property
+    def x0(self) -> np.ndarray:
+        """X(q0), the combination's velocity at the start; GaitError if q0 is singular."""
+        at_start = fields(self.robot, self.q0, self.field_form)
+        if at_start.singular:
+            raise GaitError(
+                f"the start configuration {np.round(self.start, 4).tolist()} is singular "
+                f"for {self.robot.name}: choose another start"
+            ).about("start")
+        return sum(coef * at_start[name] for name, coef in self.combo.items())
+
+    def block(self, eps: float) -> list[Segment]:
+        """The segments of one block realising eps X (normalised time)."""
+        inputs = 2 if self.model == "snake3" else 3
+        return plan_block(self.model, self.combo, eps, self.field_form, inputs)
+
+    def block_error(self, eps: float, q0: np.ndarray) -> float:
+        """The relative error of one block of eps X from ``q0``."""
+        return self.relative_error(eps, q0, _run(self.robot, self.block(eps), q0) - q0)
+
+    def relative_error(self, eps: float, q0: np.ndarray, moved: np.ndarray) -> float:
+        """|moved - eps X(q0)| / |eps X(q0)|: how far a block from q0 missed its target."""
+        f = fields(self.robot, q0, self.field_form)
+        target = eps * sum(coef * f[name] for name, coef in self.combo.items())
+        return float(np.linalg.norm(moved - target) / np.linalg.norm(target))
 
 
-def _relative_error(
-    robot: Robot,
-    combo: dict[str, float],
-    eps: float,
-    form: str | None,
-    q0: np.ndarray,
-    moved: np.ndarray,
-) -> float:
-    """|moved - eps X(q0)| / |eps X(q0)|: how far a block from q0 missed its target."""
-    f = fields(robot, q0, form)
-    target = eps * sum(coef * f[name] for name, coef in combo.items())
-    return float(np.linalg.norm(moved - target) / np.linalg.norm(target))
+@dataclass(frozen=True)
+class _Blocks:
+    """``count`` blocks of eps X each; ``err``: the first block's relative error."""
+
+    eps: float
+    count: int
+    err: float
 
 
 def _joint_speeds(robot: Robot, traj: Trajectory, inputs: Inputs) -> np.ndarray:
@@ -207,9 +247,39 @@ def field_gait(
     rate_hz: float = 50.0,
 ) -> Gait:
     """A gait following the field combination ``expression`` (see the module doc)."""
+    target = _target(robot, expression, form or default_form(robot), start)
+    _check_request(target, duration, periods, amplitude, omega, tolerance)
+    period_ms = period_ms_for(rate_hz)
+    dt = period_ms / 1000.0
+    _check_start(target)
+    blocks = _blocks(target, duration, periods, amplitude, tolerance)
+    block = target.block(blocks.eps)
+    timed = [_timed(robot, seg, target.q0, dt, omega) for seg in block]
+    block_frames = sum(frames for _, frames in timed)
+    if duration is None and periods is None:
+        blocks = replace(blocks, count=_auto_count(robot, blocks.eps, block_frames))
+    frame_budget(
+        robot,
+        blocks.count * block_frames + 1,
+        "loosen the tolerance, raise the amplitude, or shorten the duration or the periods",
+        "tolerance",
+        "amplitude",
+        "duration",
+        "periods",
+    )
+    segments = [seg for seg, _ in timed]
+    traj, dphi, block_errors = _follow(target, segments, blocks, dt)
+    check_motion(robot, traj.t, traj.q[:, 3:], dphi)
+    parameters = _parameters(target, blocks, block_errors, period_ms, segments, block)
+    return _gait(target, blocks, period_ms, traj, parameters)
+
+
+def _target(
+    robot: Robot, expression: str | dict[str, float], form: str, start: tuple[float, ...] | None
+) -> _Target:
+    """The combination ``expression`` of ``robot``'s fields, parsed and named, from
+    ``start`` (by default the thesis's pi/3, -pi/3 for the 3-link snake, else zeros)."""
     model = field_model(robot)
-    form = form or default_form(robot)
-    c_form = None if robot.kind != "trident" else form
     combo = (
         parse_field_expression(expression, FIELD_NAMES[model])
         if isinstance(expression, str)
@@ -220,114 +290,151 @@ def field_gait(
         if isinstance(expression, str)
         else " + ".join(f"{v:g}*{k}" for k, v in combo.items())
     )
-    brackets = [n for n in combo if n.startswith("h")]
-    if duration is not None and periods is not None:
-        raise GaitError("give one of --duration T or --periods K, not both")
-    auto = duration is None and periods is None  # the longest the accuracy allows
-    if auto and not brackets:
-        raise GaitError(f"{text} has no bracket term: give --duration T to follow it for")
-    if auto and amplitude is not None:
-        raise GaitError("with --amplitude, give --duration T or --periods K too")
-    if duration is not None and not (duration > 0 and math.isfinite(duration)):
-        raise GaitError(f"--duration must be positive, not {duration}")
-    if periods is not None and (periods < 1 or not brackets):
-        raise GaitError(
-            "--periods K needs K >= 1 and a bracket term (h...) in --field: "
-            "a direct field is followed for --duration T"
-        )
-    if amplitude is not None and not amplitude > 0:
-        raise GaitError(f"--amplitude must be positive, not {amplitude}")
-    if tolerance is not None and not 0 < tolerance < 1:
-        raise GaitError(f"--tolerance is a relative error between 0 and 1, not {tolerance}")
-    if omega is not None and not omega > 0:
-        raise GaitError(f"--omega must be positive, not {omega}")
-    if amplitude is not None and tolerance is not None:
-        raise GaitError(
-            "give --amplitude or --tolerance, not both: the tolerance picks the amplitude"
-        )
-    period_ms = period_ms_for(rate_hz)
-    dt = period_ms / 1000.0
     if start is None:
         start = (math.pi / 3, -math.pi / 3) if model == "snake3" else (0.0,) * robot.n_joints
-    if len(start) != robot.n_joints:
-        raise GaitError(f"--start needs {robot.n_joints} joint angles for {robot.name}")
-    q0 = np.r_[0.0, 0.0, 0.0, np.asarray(start, dtype=float)]
-    at_start = fields(robot, q0, c_form)
-    if at_start.singular:
-        raise GaitError(
-            f"the start configuration {np.round(start, 4).tolist()} is singular "
-            f"for {robot.name}: choose another --start"
+    return _Target(robot, model, form, combo, text, start)
+
+
+def _check_request(
+    target: _Target,
+    duration: float | None,
+    periods: int | None,
+    amplitude: float | None,
+    omega: float | None,
+    tolerance: float | None,
+) -> None:
+    """GaitError for a request that does not say how far to follow ``target``, or how."""
+    brackets = target.brackets
+    if duration is not None and periods is not None:
+        raise GaitError("give a duration or a number of periods, not both").about(
+            "duration", "periods"
         )
-    x0 = sum(coef * at_start[name] for name, coef in combo.items())
+    auto = duration is None and periods is None  # the longest the accuracy allows
+    if auto and not brackets:
+        raise GaitError(
+            f"{target.text} has no bracket term: give the duration to follow it for"
+        ).about("duration")
+    if auto and amplitude is not None:
+        raise GaitError("a loop amplitude needs a duration or a number of periods too").about(
+            "amplitude", "duration", "periods"
+        )
+    if duration is not None and not (duration > 0 and math.isfinite(duration)):
+        raise GaitError(f"the duration must be positive, not {duration}").about("duration")
+    if periods is not None and (periods < 1 or not brackets):
+        raise GaitError(
+            "a number of periods needs 1 or more and a bracket term (h...) in the field: "
+            "a direct field is followed for a duration"
+        ).about("periods", "expression")
+    if amplitude is not None and not amplitude > 0:
+        raise GaitError(f"the loop amplitude must be positive, not {amplitude}").about("amplitude")
+    if tolerance is not None and not 0 < tolerance < 1:
+        raise GaitError(
+            f"the tolerance is a relative error between 0 and 1, not {tolerance}"
+        ).about("tolerance")
+    if omega is not None and not omega > 0:
+        raise GaitError(f"the loop frequency must be positive, not {omega}").about("omega")
+    if amplitude is not None and tolerance is not None:
+        raise GaitError(
+            "give a loop amplitude or a tolerance, not both: the tolerance picks the amplitude"
+        ).about("amplitude", "tolerance")
 
-    # Block size eps and count K.
-    order = max((bracket_order(model, b) for b in brackets), default=1)
-    inputs = 2 if model == "snake3" else 3
-    if not brackets:
-        eps, count, err = float(duration), 1, 0.0
-    else:
 
-        def eps_of(a: float) -> float:
-            return math.pi * a * a if order == 2 else math.pi * a**3 / 2.0
+def _check_start(target: _Target) -> None:
+    """GaitError if the start is not one angle per joint, or is singular."""
+    robot = target.robot
+    if len(target.start) != robot.n_joints:
+        raise GaitError(f"the start needs {robot.n_joints} joint angles for {robot.name}").about(
+            "start"
+        )
+    target.x0  # noqa: B018 - computed now: it refuses a singular start before any work
 
-        if amplitude is not None:
-            eps0 = eps_of(amplitude)
-            count = periods if periods is not None else max(1, round(duration / eps0))
-            eps = eps0 if periods is not None else duration / count
-            err = block_error(robot, model, combo, eps, c_form, q0)[0]
+
+def _blocks(
+    target: _Target,
+    duration: float | None,
+    periods: int | None,
+    amplitude: float | None,
+    tolerance: float | None,
+) -> _Blocks:
+    """The block size eps and count K: the direct field in one block, loops of a given
+    ``amplitude``, or loops shrunk until a block errs by at most ``tolerance``."""
+    if not target.brackets:
+        assert duration is not None  # _check_request: a direct field needs a duration
+        return _Blocks(float(duration), 1, 0.0)
+    order = max(bracket_order(target.model, b) for b in target.brackets)
+    if amplitude is not None:
+        eps = _loop_eps(order, amplitude)
+        if periods is None:
+            assert duration is not None  # _check_request: an amplitude needs one of them
+            count = max(1, round(duration / eps))
+            eps = duration / count
         else:
-            tol = tolerance or DEFAULT_TOLERANCE
-            exponent = 2.0 if order == 2 else 3.0  # relative error ~ eps^(1/exponent)
-            # Fewest frames a block can take: each loop is sampled by a minimum of frames.
-            block_frames = MIN_FRAMES_PER_PERIOD * len(brackets) + (len(combo) > len(brackets))
-            most_blocks = max(1, (max_frames(robot.n_joints) - 1) // block_frames)
-            eps = eps_of(0.3) if duration is None else duration
-            count = periods or 1
-            for _ in range(16):
-                err = block_error(robot, model, combo, eps, c_form, q0)[0]
-                if err <= tol:
-                    break
-                shrink = min(0.5, 0.8 * (tol / err) ** exponent)
-                if duration is None:
-                    eps *= shrink
-                elif count >= most_blocks:
-                    break
-                else:
-                    count = min(most_blocks, max(count + 1, math.ceil(count / shrink)))
-                    eps = duration / count
-            if err > tol:
-                # the error scales as eps^(1/exponent): the duration that would meet tol
-                fits = count * eps * 0.8 * (tol / err) ** exponent
-                raise GaitError(
-                    f"cannot follow {text} to within {tol:g} for --duration {duration:g}: "
-                    f"{count} blocks of loops (the most a gait table of {robot.n_joints} "
-                    f"joints holds) still err by {err:.3g}: shorten --duration to about "
-                    f"{fits:.3g}, loosen --tolerance to {err:.2g}, or leave --duration out "
-                    "to get the longest motion that meets the tolerance"
-                )
+            count = periods
+        return _Blocks(eps, count, target.block_error(eps, target.q0))
+    tol = tolerance or DEFAULT_TOLERANCE
+    blocks = _shrink(target, duration, periods, tol, order)
+    if blocks.err > tol:
+        # the error scales as eps^(1/exponent): the duration that would meet tol
+        exponent = 2.0 if order == 2 else 3.0
+        fits = blocks.count * blocks.eps * 0.8 * (tol / blocks.err) ** exponent
+        raise GaitError(
+            f"cannot follow {target.text} to within {tol:g} for a duration of {duration:g}: "
+            f"{blocks.count} blocks of loops (the most a gait table of "
+            f"{target.robot.n_joints} joints holds) still err by {blocks.err:.3g}: shorten "
+            f"the duration to about {fits:.3g}, loosen the tolerance to {blocks.err:.2g}, "
+            "or leave the duration out to get the longest motion that meets the tolerance"
+        ).about("duration", "tolerance")
+    return blocks
 
-    block = plan_block(model, combo, eps, c_form, inputs)
-    timed: list[Segment] = []
-    total_frames = 0
-    for seg in block:
-        s, frames = _timed(robot, seg, q0, dt, omega)
-        timed.append(s)
-        total_frames += frames
-    if auto:
-        # As many blocks as reach AUTO_FLOW, or as the table holds.
-        fit = max(1, (max_frames(robot.n_joints) - 1) // total_frames)
-        count = max(1, min(fit, math.ceil(AUTO_FLOW / eps - 1e-9)))
-    frame_budget(
-        robot,
-        count * total_frames + 1,
-        "loosen --tolerance, raise --amplitude, or shorten --duration/--periods",
-    )
 
-    # The whole gait, segment after segment, sampled DENSE times per frame.
-    t_all, q_all, dphi_all = [np.zeros(1)], [q0[None, :]], [np.zeros((1, robot.n_joints))]
-    t, q = 0.0, q0
+def _loop_eps(order: int, amplitude: float) -> float:
+    """The block size eps a loop of ``amplitude`` realises for a bracket of ``order``."""
+    return math.pi * amplitude**2 if order == 2 else math.pi * amplitude**3 / 2.0
+
+
+def _shrink(
+    target: _Target, duration: float | None, periods: int | None, tol: float, order: int
+) -> _Blocks:
+    """Smaller blocks until one errs by at most ``tol``: smaller loops without a
+    ``duration``, more of them within one (up to what the table holds)."""
+    exponent = 2.0 if order == 2 else 3.0  # relative error ~ eps^(1/exponent)
+    # Fewest frames a block can take: each loop is sampled by a minimum of frames.
+    n_brackets = len(target.brackets)
+    block_frames = MIN_FRAMES_PER_PERIOD * n_brackets + (len(target.combo) > n_brackets)
+    most_blocks = max(1, (max_frames(target.robot.n_joints) - 1) // block_frames)
+    eps = _loop_eps(order, 0.3) if duration is None else duration
+    count = periods or 1
+    for _ in range(16):
+        err = target.block_error(eps, target.q0)
+        if err <= tol:
+            break
+        shrink = min(0.5, 0.8 * (tol / err) ** exponent)
+        if duration is None:
+            eps *= shrink
+        elif count >= most_blocks:
+            break
+        else:
+            count = min(most_blocks, max(count + 1, math.ceil(count / shrink)))
+            eps = duration / count
+    return _Blocks(eps, count, err)
+
+
+def _auto_count(robot: Robot, eps: float, block_frames: int) -> int:
+    """As many blocks as reach AUTO_FLOW, or as the table holds."""
+    fit = max(1, (max_frames(robot.n_joints) - 1) // block_frames)
+    return max(1, min(fit, math.ceil(AUTO_FLOW / eps - 1e-9)))
+
+
+def _follow(
+    target: _Target, timed: list[Segment], blocks: _Blocks, dt: float
+) -> tuple[Trajectory, np.ndarray, list[float]]:
+    """The whole gait, segment after segment, sampled DENSE times per frame: its
+    trajectory, joint velocities, and each block's relative error."""
+    robot, q = target.robot, target.q0
+    t_all, q_all, dphi_all = [np.zeros(1)], [q[None, :]], [np.zeros((1, robot.n_joints))]
+    t = 0.0
     block_errors = []
-    for _ in range(count):
+    for _ in range(blocks.count):
         q_block = q
         for seg in timed:
             steps = round(seg.length / dt)
@@ -347,31 +454,29 @@ def field_gait(
             dphi_all.append(speeds[1:])
             dphi_all[0] = speeds[:1] if len(t_all) == 2 else dphi_all[0]
             t, q = t + seg.length, traj.q[-1]
-        block_errors.append(_relative_error(robot, combo, eps, c_form, q_block, q - q_block))
-    times, states, dphi = np.concatenate(t_all), np.vstack(q_all), np.vstack(dphi_all)
-    check_motion(robot, times, states[:, 3:], dphi)
+        block_errors.append(target.relative_error(blocks.eps, q_block, q - q_block))
+    return Trajectory(np.concatenate(t_all), np.vstack(q_all)), np.vstack(dphi_all), block_errors
 
-    phi_frames = states[::DENSE, 3:]
-    loop = bool(np.allclose(phi_frames[-1], phi_frames[0], atol=1e-9))
-    if loop:
-        phi_frames = phi_frames[:-1]
-    ticks = robot.angles_to_ticks(phi_frames)
-    check_ticks(robot, ticks, dt, loop)
-    traj = Trajectory(times, states)
-    table_traj, note = predict_table(robot, ticks, dt, loop)
 
-    moved = states[-1] - q0
-    tau = count * eps
-    predicted_q = tau * x0
-    parameters = {
-        "field": text,
-        "coefficients": combo,
-        "form": form,
-        "start_rad": [float(v) for v in start],
-        "blocks": count,
-        "block_eps": eps,
-        "flow_parameter": tau,
-        "block_relative_error": err,
+def _parameters(
+    target: _Target,
+    blocks: _Blocks,
+    block_errors: list[float],
+    period_ms: int,
+    timed: list[Segment],
+    block: list[Segment],
+) -> dict[str, Any]:
+    """The gait's parameters as its metadata records them."""
+    dt = period_ms / 1000.0
+    return {
+        "field": target.text,
+        "coefficients": target.combo,
+        "form": target.form,
+        "start_rad": [float(v) for v in target.start],
+        "blocks": blocks.count,
+        "block_eps": blocks.eps,
+        "flow_parameter": blocks.count * blocks.eps,
+        "block_relative_error": blocks.err,
         "block_errors_max": max(block_errors),
         "rate_hz": 1000.0 / period_ms,
         "segments": [
@@ -384,26 +489,21 @@ def field_gait(
             for s, seg in zip(timed, block, strict=True)
         ],
     }
-    extra = {
-        "state_names": list(robot.state_names),
-        "final_q": states[-1].tolist(),
-        "moved_q": moved.tolist(),
-        ("second_order" if brackets else "first_order"): {
-            "dx": float(predicted_q[0]),
-            "dy": float(predicted_q[1]),
-            "dtheta": float(predicted_q[2]),
-            "q": predicted_q.tolist(),
-            "formula": (
-                f"{tau:.6g} * ({text}) at the start configuration"
-                + (
-                    "; each loop moves pi A^2 [g_i, g_j] (second order) or "
-                    "-pi A^2 B / 2 [g_i, [g_i, g_j]] (third order)"
-                    if brackets
-                    else ""
-                )
-            ),
-        },
-    }
+
+
+def _gait(
+    target: _Target, blocks: _Blocks, period_ms: int, traj: Trajectory, parameters: dict[str, Any]
+) -> Gait:
+    """The gait table of the followed motion ``traj``, checked, with its predictions."""
+    robot, dt = target.robot, period_ms / 1000.0
+    phi_frames = traj.q[::DENSE, 3:]
+    loop = bool(np.allclose(phi_frames[-1], phi_frames[0], atol=1e-9))
+    if loop:
+        phi_frames = phi_frames[:-1]
+    ticks = robot.angles_to_ticks(phi_frames)
+    check_ticks(robot, ticks, dt, loop)
+    table_traj, note = predict_table(robot, ticks, dt, loop)
+    moved = traj.q[-1] - traj.q[0]
     predicted = {"dx": float(moved[0]), "dy": float(moved[1]), "dtheta": float(moved[2])}
     return Gait(
         robot,
@@ -416,11 +516,35 @@ def field_gait(
         {**motion(table_traj), **note},
         path(traj),
         path(table_traj),
-        extra,
+        _extra(target, traj, blocks.count * blocks.eps),
         # the field-driven path has no wheel problem to condition; the table is played
         # through the joints, as the robot will
         singularity_warnings({"table as written": table_traj}),
     )
+
+
+def _extra(target: _Target, traj: Trajectory, tau: float) -> dict[str, Any]:
+    """The gait's final and moved state beside the motion tau X(q0) predicts."""
+    brackets = bool(target.brackets)
+    predicted_q = tau * target.x0
+    formula = f"{tau:.6g} * ({target.text}) at the start configuration"
+    if brackets:
+        formula += (
+            "; each loop moves pi A^2 [g_i, g_j] (second order) or "
+            "-pi A^2 B / 2 [g_i, [g_i, g_j]] (third order)"
+        )
+    return {
+        "state_names": list(target.robot.state_names),
+        "final_q": traj.q[-1].tolist(),
+        "moved_q": (traj.q[-1] - traj.q[0]).tolist(),
+        ("second_order" if brackets else "first_order"): {
+            "dx": float(predicted_q[0]),
+            "dy": float(predicted_q[1]),
+            "dtheta": float(predicted_q[2]),
+            "q": predicted_q.tolist(),
+            "formula": formula,
+        },
+    }
 
 
 def _amplitude(seg: Segment) -> float:

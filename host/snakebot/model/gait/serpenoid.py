@@ -76,9 +76,11 @@ def serpenoid_frames(
         ("cycles", cycles),
     ):
         if not math.isfinite(value):
-            raise GaitError(f"--{name} must be a finite number, not {value}")
+            raise GaitError(f"the {name} must be a finite number, not {value}").about(name)
     if amplitude <= 0 or omega == 0 or cycles <= 0:
-        raise GaitError("--amplitude, --cycles must be positive and --omega non-zero")
+        raise GaitError("the amplitude and the cycles must be positive, and omega non-zero").about(
+            "amplitude", "cycles", "omega"
+        )
     period_ms = period_ms_for(rate_hz)
     dt = period_ms / 1000.0
     whole = abs(cycles - round(cycles)) < 1e-9
@@ -90,10 +92,12 @@ def serpenoid_frames(
     steps = round(min(cycles * 2 * math.pi / abs(omega) / dt, 2.0**53))
     if steps < 2:
         raise GaitError(
-            "the gait is shorter than two frames: raise --rate or --cycles, or lower --omega"
-        )
+            "the gait is shorter than two frames: raise the rate or the cycles, or lower omega"
+        ).about("rate", "cycles", "omega")
     frames = steps if loop else steps + 1
-    frame_budget(robot, frames, "lower --rate or --cycles (or raise --omega)")
+    frame_budget(
+        robot, frames, "lower the rate or the cycles (or raise omega)", "rate", "cycles", "omega"
+    )
     omega_used = math.copysign(2 * math.pi * cycles / (steps * dt), omega)
     schedule = Sines.serpenoid(robot.n_joints, amplitude, omega_used, delta, offset, phase)
     duration = steps * dt

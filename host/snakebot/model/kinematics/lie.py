@@ -221,7 +221,9 @@ def _bracket(x: list[Jet], y: list[Jet], depends: tuple[int, ...]) -> list[Jet]:
 def lie_fields(model: LieModel, q: np.ndarray, depth: int = 3) -> LieFields:
     """The inputs and a Lyndon basis of brackets up to ``depth`` at q."""
     if not 1 <= depth <= MAX_DEPTH:
-        raise LieError(f"--depth must be between 1 and {MAX_DEPTH}, not {depth}")
+        raise LieError(f"the bracket depth must be between 1 and {MAX_DEPTH}, not {depth}").about(
+            "depth"
+        )
     m = len(model.depends)
     most = MAX_DEPTH
     while most > 1 and math.comb(2 * m + most - 1, most - 1) > MAX_PRODUCTS:

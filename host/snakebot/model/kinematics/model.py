@@ -67,8 +67,8 @@ def _c_form(robot: Robot, form: str | None) -> int:
             raise KinematicsError(
                 lib.KIN_EINVAL,
                 f"{robot.name}'s inputs are its joint "
-                "velocities: --form body|world applies to the trident only",
-            )
+                "velocities: the body and world forms apply to the trident only",
+            ).about("form")
         return lib.KIN_FORM_BODY
     form = form or "body"
     if form not in FORMS:

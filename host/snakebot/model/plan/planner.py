@@ -166,9 +166,13 @@ class Tolerance:
         cls, robot: Robot, target: np.ndarray, relative: float, heading: float
     ) -> Tolerance:
         if not 0 < relative < 1:
-            raise PlanError(f"--tolerance is a fraction of the distance (0..1), not {relative}")
+            raise PlanError(
+                f"the tolerance is a fraction of the distance (0..1), not {relative}"
+            ).about("tolerance")
         if not heading > 0:
-            raise PlanError(f"--heading-tolerance must be positive, not {heading}")
+            raise PlanError(f"the heading tolerance must be positive, not {heading}").about(
+                "heading_tolerance"
+            )
         reach = max(float(np.hypot(*target[:2])), MIN_DISTANCE_BODIES * body_length(robot))
         return cls(relative * reach, heading)
 
@@ -371,7 +375,7 @@ def plan_request(
     target is not three finite numbers or the start is not one the robot can plan from."""
     goal = np.asarray(target, dtype=float)
     if goal.shape != (3,) or not np.all(np.isfinite(goal)):
-        raise PlanError("--to needs three finite numbers X,Y,THETA")
+        raise PlanError("the target pose needs three finite numbers X,Y,THETA").about("target")
     phi0 = default_start(robot) if start is None else np.asarray(start, dtype=float)
     validate_start(robot, phi0)
     return goal, phi0, Tolerance.for_target(robot, goal, tolerance, heading_tolerance)
@@ -387,14 +391,16 @@ def validate_start(robot: Robot, start: np.ndarray) -> None:
     lo = np.array([j.min_rad for j in robot.joints])
     hi = np.array([j.max_rad for j in robot.joints])
     if len(start) != robot.n_joints:
-        raise PlanError(f"--from needs {robot.n_joints} joint angles for {robot.name}")
+        raise PlanError(f"the start needs {robot.n_joints} joint angles for {robot.name}").about(
+            "start"
+        )
     bad = np.flatnonzero((start < lo) | (start > hi))
     if bad.size:
         j = robot.joints[int(bad[0])]
         raise PlanError(
-            f"--from puts joint {j.name} at {math.degrees(start[bad[0]]):.1f} deg, outside its "
-            f"limits {math.degrees(j.min_rad):.1f}..{math.degrees(j.max_rad):.1f} deg"
-        )
+            f"the start puts joint {j.name} at {math.degrees(start[bad[0]]):.1f} deg, outside "
+            f"its limits {math.degrees(j.min_rad):.1f}..{math.degrees(j.max_rad):.1f} deg"
+        ).about("start")
 
 
 def growing_counts(robot: Robot, target: np.ndarray, most: int) -> list[int]:
@@ -507,11 +513,11 @@ def check_capacity(robot: Robot, capacity: int) -> None:
     least = table_size(robot.n_joints, FRAMES + 1)
     if not least <= capacity <= MAX_TABLE_BYTES:
         raise PlanError(
-            f"--capacity {capacity} bytes is outside what a plan for {robot.name} can use: "
+            f"a capacity of {capacity} bytes is outside what a plan for {robot.name} can use: "
             f"from {least} (one loop of {FRAMES} frames of {robot.n_joints} joints) to "
             f"{MAX_TABLE_BYTES} (the largest table a controller takes); give a number in "
             f"that range or a board ({', '.join(sorted(TABLE_CAPACITY))})"
-        )
+        ).about("capacity")
 
 
 def capacity_words(capacity: int) -> str:
@@ -520,26 +526,30 @@ def capacity_words(capacity: int) -> str:
     return f"a table of {capacity} bytes" + (f" (the {'/'.join(boards)} board's)" if boards else "")
 
 
-def remedies(capacity: int, *others: str) -> str:
-    """The ways out, ``others`` and, when a board holds more than ``capacity``, a plan
-    for a larger table: "a, b or c"."""
-    out = list(others)
+def out_of_reach(text: str, capacity: int, *ways: str, params: tuple[str, ...] = ()) -> Unreachable:
+    """Unreachable: ``text``, then the ways out: ``ways`` (which change the parameters
+    ``params``) and, when a board holds more than ``capacity``, a plan for a larger table."""
+    out = list(ways)
     largest = largest_board()
     if capacity < TABLE_CAPACITY[largest]:
         out.append(
-            f"plan for a larger table (--capacity {largest}: {TABLE_CAPACITY[largest]} "
-            "bytes; --port asks the controller for its own)"
+            f"plan for a larger table (the {largest}'s {TABLE_CAPACITY[largest]} bytes, or "
+            "the capacity the controller reports)"
         )
-    return out[0] if len(out) == 1 else ", ".join(out[:-1]) + " or " + out[-1]
+        params = (*params, "capacity")
+    said = out[0] if len(out) == 1 else ", ".join(out[:-1]) + " or " + out[-1]
+    return Unreachable(f"{text}: {said}; no file was written").about(*params)
 
 
 def unreachable(robot: Robot, target: np.ndarray, capacity: int) -> Unreachable:
-    return Unreachable(
+    return out_of_reach(
         f"no plan for {robot.name} reaches x = {target[0]:.4g}, y = {target[1]:.4g}, "
         f"theta = {math.degrees(target[2]):.1f} deg inside its joint limits and servo speed "
-        f"within {capacity_words(capacity)}: "
-        + remedies(capacity, "choose a nearer target", "go in steps with several plans")
-        + "; no file was written"
+        f"within {capacity_words(capacity)}",
+        capacity,
+        "choose a nearer target",
+        "go in steps with several plans",
+        params=("target",),
     )
 
 
@@ -570,12 +580,14 @@ def make_plan(
     gait = plan.gait
     if not plan.within:
         d, h = plan.error
-        raise Unreachable(
+        raise out_of_reach(
             f"the best plan for {robot.name} in {capacity_words(capacity)} ends {d:.3g} "
             f"from the target and {math.degrees(h):.2f} deg off its heading, outside the "
-            f"tolerance ({tol.position:.3g}, {math.degrees(tol.heading):.2f} deg): "
-            + remedies(capacity, "loosen --tolerance", "choose another target")
-            + "; no file was written"
+            f"tolerance ({tol.position:.3g}, {math.degrees(tol.heading):.2f} deg)",
+            capacity,
+            "loosen the tolerance",
+            "choose another target",
+            params=("tolerance", "target"),
         )
     gait.extra.update(plan.summary())
     return plan

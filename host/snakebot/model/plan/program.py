@@ -61,7 +61,6 @@ from snakebot.model.plan.planner import (
     DEFAULT_TOLERANCE,
     EndsNearTarget,
     Tolerance,
-    Unreachable,
     body_length,
     capacity_words,
     check_capacity,
@@ -69,10 +68,10 @@ from snakebot.model.plan.planner import (
     hubs,
     loop_counts,
     loop_target,
+    out_of_reach,
     plan_request,
     pose_dict,
     ramp,
-    remedies,
     routes,
     solve_accuracy,
 )
@@ -456,28 +455,33 @@ def plan_program(
         if plan.within:
             return plan
     if best is None and too_big:
-        raise Unreachable(
+        raise out_of_reach(
             f"every program made for {robot.name} takes {too_big} bytes or more, more than "
-            f"{capacity_words(capacity)} holds: "
-            + remedies(capacity, "choose a nearer target")
-            + "; no file was written"
+            f"{capacity_words(capacity)} holds",
+            capacity,
+            "choose a nearer target",
+            params=("target",),
         )
     if best is None:
-        raise Unreachable(
+        raise out_of_reach(
             f"no program for {robot.name} reaches x = {goal[0]:.4g}, y = {goal[1]:.4g}, "
             f"theta = {math.degrees(goal[2]):.1f} deg inside its joint limits (with "
-            f"{LIMIT_MARGIN} rad to spare) and servo speed within {capacity_words(capacity)}: "
-            + remedies(capacity, "choose a nearer target", "write a table (-o FILE.gait)")
-            + "; no file was written"
+            f"{LIMIT_MARGIN} rad to spare) and servo speed within {capacity_words(capacity)}",
+            capacity,
+            "choose a nearer target",
+            "write a gait table instead of a program",
+            params=("target", "output"),
         )
     d, h = best.error
-    raise Unreachable(
+    raise out_of_reach(
         f"the best program for {robot.name} ends {d:.3g} from the target and "
         f"{math.degrees(h):.2f} deg off its heading once its goals are rounded as the "
         f"controller rounds them, outside the tolerance ({tol.position:.3g}, "
-        f"{math.degrees(tol.heading):.2f} deg): "
-        + remedies(capacity, "loosen --tolerance", "write a table (-o FILE.gait)")
-        + "; no file was written"
+        f"{math.degrees(tol.heading):.2f} deg)",
+        capacity,
+        "loosen the tolerance",
+        "write a gait table instead of a program",
+        params=("tolerance", "output"),
     )
 
 

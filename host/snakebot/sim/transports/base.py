@@ -23,19 +23,12 @@ class RawPty:
 
     ``link``: on :meth:`open`, also make a symlink at this path to the device (replacing
     only a dangling link to a pseudo-terminal, left by a killed server; anything else
-    there is refused, ``link_advice`` ending the error); :meth:`close` removes it if it
-    is still ours. The server keeps the slave open itself, so clients may open and close the
-    device as often as they like.
+    there is refused); :meth:`close` removes it if it is still ours. The server keeps the
+    slave open itself, so clients may open and close the device as often as they like.
     """
 
-    def __init__(
-        self,
-        link: str | os.PathLike[str] | None = None,
-        *,
-        link_advice: str = "choose another path",
-    ) -> None:
+    def __init__(self, link: str | os.PathLike[str] | None = None) -> None:
         self.link = Path(link) if link else None
-        self.link_advice = link_advice
         self.master = self.slave = -1
         self.device = ""
         self._linked = False
@@ -76,7 +69,7 @@ class RawPty:
                 if old is not None
                 else "exists and is not a symlink"
             )
-            raise SimInputError(f"{link} {what}: {self.link_advice}") from None
+            raise SimInputError(f"{link} {what}: choose another path").about("link") from None
         except OSError as exc:
             self.close()
             raise SimFailure(f"cannot make the link {link}: {exc.strerror or exc}") from None

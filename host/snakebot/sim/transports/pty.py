@@ -61,7 +61,7 @@ class PtyServer(ThreadedServer):
         speed: float = 1.0,
     ) -> None:
         self.bus = bus
-        self._pty = RawPty(link, link_advice="choose another --link path")
+        self._pty = RawPty(link)
         self.link = self._pty.link
         self.follow_baud = follow_baud
         self.speed = speed

@@ -41,6 +41,17 @@ _in_use: set[str] = set()
 _registry_lock = threading.Lock()
 
 
+def wall_clock_url(url: str) -> str:
+    """The ``sim://`` ``url`` for a client that keeps the wall clock's time (a player that
+    ticks every 10 ms): its bus tied to the wall clock (``realtime=1``), or else the bus
+    runs only while the client waits for a reply and the servos hardly move. A URL that
+    names its own ``realtime`` is left alone, as is ``sim://NAME`` with no options (a bus
+    opened earlier keeps its own)."""
+    if "realtime=" in url or "?" not in url:
+        return url
+    return url + ("" if url.endswith(("?", "&")) else "&") + "realtime=1"
+
+
 def named_bus(name: str) -> Bus | None:
     """The bus opened earlier as ``sim://NAME`` (None if there is none)."""
     with _registry_lock:

@@ -67,15 +67,17 @@ class DaskRunner:
         try:
             from distributed import Client
         except ImportError:
-            raise SearchError("--cluster needs Dask: pip install 'snakebot[search]'") from None
+            raise SearchError(
+                "a search on a cluster needs Dask: pip install 'snakebot[search]'"
+            ).about("cluster") from None
         try:
             self._client = Client(address, timeout=CONNECT_TIMEOUT_S)
         except (OSError, TimeoutError, ValueError) as exc:
             raise SearchError(
                 f"cannot reach the Dask scheduler at {address} ({exc}): start one with "
-                "`dask scheduler` and workers with `dask worker ADDRESS`, or drop --cluster "
-                "to search on this machine"
-            ) from None
+                "`dask scheduler` and workers with `dask worker ADDRESS`, or search on this "
+                "machine"
+            ).about("cluster") from None
         self.workers = max(1, sum(self._client.nthreads().values()))
 
     def run(self, settings: Settings, batches: list[Batch]) -> Iterator[tuple[int, Rows]]:

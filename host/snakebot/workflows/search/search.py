@@ -75,9 +75,11 @@ class Request:
             raise SearchError(f"unknown method {self.method!r}: use one of {', '.join(METHODS)}")
         self.space.check_world(self.settings.world)
         if not self.space.varied:
-            raise SearchError("nothing to search: give at least one --param a range LOW:HIGH:COUNT")
+            raise SearchError(
+                "nothing to search: give at least one parameter a range LOW:HIGH:COUNT"
+            ).about("params")
         if self.method != "grid" and self.samples < 1:
-            raise SearchError(f"--samples must be 1 or more, not {self.samples}")
+            raise SearchError(f"the samples must be 1 or more, not {self.samples}").about("samples")
         if self.method == "grid":
             for axis in self.space.varied:
                 axis.values()  # a grid needs every count
@@ -88,8 +90,8 @@ class Request:
             raise SearchError(
                 f"this search would make {runs:,} runs, more than the {MAX_RUNS:,} one search "
                 "may (its time and memory grow with them): use fewer values per parameter, "
-                "fewer --samples or --robust values, or search in stages"
-            )
+                "fewer samples or robustness values, or search in stages"
+            ).about("params", "samples", "robust")
 
 
 @dataclass
@@ -243,8 +245,8 @@ class Search:
             import cma
         except ImportError:
             raise SearchError(
-                "--method cma needs the cma package: pip install 'snakebot[search]'"
-            ) from None
+                "the cma method needs the cma package: pip install 'snakebot[search]'"
+            ).about("method") from None
         req = self.request
         dim = len(req.space.varied)
         self._total = req.samples * n_robust

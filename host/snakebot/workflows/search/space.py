@@ -71,8 +71,8 @@ class Axis:
         if self.count is None:
             raise SearchError(
                 f"{self.name} is a range without a count: a grid needs "
-                f"{self.name}=LOW:HIGH:COUNT (or use --method random or cma)"
-            )
+                f"{self.name}=LOW:HIGH:COUNT (or search by the random or cma method)"
+            ).about("params", "method")
         return np.linspace(self.low, self.high, self.count)
 
     def scale(self, unit: np.ndarray) -> np.ndarray:
@@ -90,39 +90,39 @@ def _canonical(name: str, table: dict[str, tuple[str, ...]], what: str) -> str:
 
 def parse_axis(text: str, robust: bool = False) -> Axis:
     """``NAME=VALUE``, ``NAME=LOW:HIGH`` or ``NAME=LOW:HIGH:COUNT`` as an Axis."""
-    option = "--robust" if robust else "--param"
+    param = "robust" if robust else "params"
     name, sep, spec = text.partition("=")
     if not sep or not name.strip() or not spec.strip():
         raise SearchError(
-            f"{option} {text!r}: write NAME=VALUE, NAME=LOW:HIGH or NAME=LOW:HIGH:COUNT"
-        )
+            f"{text!r}: write NAME=VALUE, NAME=LOW:HIGH or NAME=LOW:HIGH:COUNT"
+        ).about(param)
     table = ROBUST_PARAMETERS if robust else GAIT_PARAMETERS
     canonical = _canonical(name.strip(), table, "robustness parameter" if robust else "parameter")
     parse = parse_number if robust else parse_angle
     parts = spec.split(":")
     if len(parts) > 3:
-        raise SearchError(f"{option} {text!r}: at most LOW:HIGH:COUNT")
+        raise SearchError(f"{text!r}: at most LOW:HIGH:COUNT").about(param)
     try:
         numbers = [parse(p.strip()) for p in parts[:2]]
         count = None if len(parts) < 3 else int(parts[2].strip())
     except ExpressionError as exc:
-        raise SearchError(f"{option} {text!r}: {exc}") from None
+        raise SearchError(f"{text!r}: {exc}").about(param) from None
     except ValueError:
-        raise SearchError(f"{option} {text!r}: COUNT must be a whole number") from None
+        raise SearchError(f"{text!r}: COUNT must be a whole number").about(param) from None
     if not all(math.isfinite(v) for v in numbers):
-        raise SearchError(f"{option} {text!r}: the values must be finite")
+        raise SearchError(f"{text!r}: the values must be finite").about(param)
     if len(numbers) == 1:
         return Axis(canonical, numbers[0], numbers[0], 1)
     low, high = numbers
     if count is not None and count < 1 or high < low or (high == low and count != 1):
         raise SearchError(
-            f"{option} {text!r} is an empty range: give LOW < HIGH and a COUNT of 1 or more"
-        )
+            f"{text!r} is an empty range: give LOW < HIGH and a COUNT of 1 or more"
+        ).about(param)
     if count is not None and count > MAX_RUNS:
-        raise SearchError(f"{option} {text!r}: COUNT must be at most {MAX_RUNS:,}")
+        raise SearchError(f"{text!r}: COUNT must be at most {MAX_RUNS:,}").about(param)
     if count == 1 and high != low:
-        raise SearchError(
-            f"{option} {text!r}: one value of a range is ambiguous; write {name}=VALUE"
+        raise SearchError(f"{text!r}: one value of a range is ambiguous; write {name}=VALUE").about(
+            param
         )
     return Axis(canonical, low, high, count)
 
@@ -141,7 +141,7 @@ class Space:
         for text in params:
             axis = parse_axis(text)
             if axis.name in axes:
-                raise SearchError(f"--param {axis.name} is given twice: give it once")
+                raise SearchError(f"{axis.name} is given twice: give it once").about("params")
             axes[axis.name] = axis
         for name, value in DEFAULTS.items():
             axes.setdefault(name, Axis(name, value, value, 1))
@@ -149,18 +149,18 @@ class Space:
         if missing:
             raise SearchError(
                 "give every serpenoid parameter a value or range: missing "
-                + ", ".join(f"--param {n}=..." for n in missing)
-            )
+                + ", ".join(f"{n}=..." for n in missing)
+            ).about("params")
         rob = {}
         for text in robust:
             axis = parse_axis(text, robust=True)
             if axis.name in rob:
-                raise SearchError(f"--robust {axis.name} is given twice: give it once")
+                raise SearchError(f"{axis.name} is given twice: give it once").about("robust")
             if axis.low < 0 or (axis.low == 0 and axis.name != "rolling"):
                 raise SearchError(
-                    f"--robust {text!r}: {axis.name} must be "
+                    f"{text!r}: {axis.name} must be "
                     + ("zero or more" if axis.name == "rolling" else "positive")
-                )
+                ).about("robust")
             rob[axis.name] = axis
         return cls(tuple(axes[n] for n in GAIT_PARAMETERS), tuple(rob.values()))
 
@@ -173,9 +173,9 @@ class Space:
             worlds = ROBUST_WORLD[axis.name]
             if world not in worlds:
                 raise SearchError(
-                    f"--robust {axis.name} applies to the {' and '.join(worlds)} world, "
-                    f"not the {world} world: use --world {worlds[0]} or drop it"
-                )
+                    f"{axis.name} applies to the {' and '.join(worlds)} world, "
+                    f"not the {world} world: use the {worlds[0]} world or drop it"
+                ).about("robust", "world")
 
     def run_count(self, method: str, samples: int) -> int:
         """How many runs a search of this space makes: its candidates (a grid's points,

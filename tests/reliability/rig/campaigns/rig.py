@@ -1,0 +1,371 @@
+"""One campaign's rig: QEMU running the firmware, the emulated bus with its taps, the PC-
+link client, and the watch over the controller's promises."""
+
+from __future__ import annotations
+
+import os
+import re
+import time
+import zlib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from snakebot.facts.boards import PC_LINK_BAUD as PC_BAUD
+from snakebot.formats.protocol import (
+    ProtocolError,
+)
+from snakebot.formats.upload_writes import chunk_writes, commit_write
+from snakebot.link.controller import Command, State, UploadResult
+from snakebot.link.controller.client import ControllerClient
+from snakebot.link.controller.limits import LimitsError, limits_state, set_limits
+from snakebot.link.controller.monitor import Sample, sample
+from snakebot.sim.bus.faults import FaultConfig
+from snakebot.sim.qemu import Endpoint, QemuFirmware
+from snakebot.sim.transports.unixsock import UnixSocketServer
+from tests.reliability.rig.campaigns.ram import RamMap, read_ram
+from tests.reliability.rig.campaigns.taps import AuditedServo, Tap, TappedBus
+from tests.reliability.rig.campaigns.testbed import (
+    CONTROLLER_ID,
+    CTL,
+    IDS,
+    IMAGE,
+    LIMITS,
+    LOG_TAIL,
+    MARGIN_S,
+    REBUILD,
+    SAMPLE_S,
+    STALL_MS,
+    UPTIME_SLACK_MS,
+    UPTIME_STILL_S,
+    CampaignFailed,
+)
+
+
+@dataclass
+class Health:
+    """What the watch loop saw."""
+
+    pings: int = 0
+    ping_failures: int = 0
+    reboots: int = 0
+    stalls: int = 0
+    samples: int = 0
+    safe_entries: int = 0
+    recoveries: int = 0
+    flags_seen: int = 0
+    servo_goals_outside: int = 0  # sampled servo goals outside the limits
+    table_checks: int = 0
+    table_failures: list[str] = field(default_factory=list)
+    reboot_details: list[str] = field(default_factory=list)  # registers and QEMU's log
+
+
+class Rig:
+    """QEMU running the firmware, wired to a tapped emulated bus; a controller client on
+    the PC link; the firmware's RAM within reach. Use as a context manager."""
+
+    def __init__(
+        self,
+        faults: FaultConfig,
+        workdir: Path,
+        play_s: float | None = None,
+        ram: RamMap | None = None,
+    ) -> None:
+        self.tap = Tap(dict(zip(IDS, LIMITS, strict=True)))
+        self.servos = [AuditedServo(i, lim) for i, lim in zip(IDS, LIMITS, strict=True)]
+        self.bus = TappedBus(self.tap, self.servos, faults=faults)
+        self.play_s = play_s  # overrides how long the campaigns that play, play
+        self.server = UnixSocketServer(self.bus, workdir / "bus.sock")
+        # A name only this QEMU has: the monitor must be this machine's (check_view).
+        self.name = f"snakebot-campaign-{os.getpid()}-{workdir.name}"
+        self.fw = QemuFirmware(
+            IMAGE, bus=Endpoint.unix_client(workdir / "bus.sock"), extra_args=["-name", self.name]
+        )
+        self.ram = ram if ram is not None else RamMap.from_build()
+        self.health = Health()
+        self._started = 0.0  # time.monotonic() when QEMU started
+        self._table_view_checked = False
+        self.ctl: ControllerClient | None = None
+        self.committed: tuple[int, int] | None = None  # (size, CRC) of the table on board
+        self._uptime = -1
+        self._progress: tuple[int, int] | None = None  # (bus packets, uptime) at last change
+        self.polling = False  # the roster is polled: the bus must keep moving
+        self.last_polled: Sample | None = None  # the last look with the roster in place
+        self._last_state = State.IDLE
+
+    def __enter__(self) -> Rig:
+        self.server.start()
+        try:
+            self._started = time.monotonic()
+            self.fw.start()
+            self.ctl = ControllerClient.open(
+                self.fw.ports.pc_link, PC_BAUD, CONTROLLER_ID, margin_s=MARGIN_S, retries=2
+            )
+            deadline = time.monotonic() + 10
+            while not self._answers():
+                if time.monotonic() > deadline:
+                    raise CampaignFailed(f"the firmware never answered PING: {self.fw.log()}")
+                time.sleep(0.05)
+            self.check_view()
+        except BaseException:
+            self.__exit__(None, None, None)
+            raise
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.ctl is not None:
+            self.ctl.close()
+        self.fw.stop()
+        self.server.close()
+
+    def _answers(self) -> bool:
+        try:
+            self.ctl.link.ping(CONTROLLER_ID, retries=0)
+            return True
+        except ProtocolError:
+            return False
+
+    # -- the rig's own view of the machine ----------------------------------------------------
+
+    def check_view(self) -> None:
+        """Make sure that what this rig reads through QEMU's monitor is the running
+        firmware's RAM where the RAM map says, before any of it counts as a result: the
+        monitor answers for this rig's QEMU (its name), the flash holds what the ELF the
+        map comes from loads there (QEMU booted that very build), and the uptime counter
+        advances, never faster than the wall clock since QEMU started. A mismatch is
+        :class:`CampaignFailed` naming it, not a broken promise of the firmware."""
+        named = self.fw.monitor("info name").strip()
+        if named != self.name:
+            raise CampaignFailed(
+                f"asked for its name, QEMU's monitor answered {named!r}, not this rig's "
+                f"{self.name!r}: another QEMU's monitor, or answers out of step with the "
+                "questions; stop stray qemu-system-arm processes and run again"
+            )
+        for address, data in self.ram.flash:
+            held = read_ram(self.fw, address, len(data))
+            if held != data:
+                at = next(i for i in range(len(data)) if i >= len(held) or held[i] != data[i])
+                raise CampaignFailed(
+                    f"QEMU booted {IMAGE}, but its flash at {address + at:#x} differs from "
+                    f"{self.ram.source}, where the RAM map comes from: two different builds "
+                    f"(was the firmware rebuilt after the image was made?); {REBUILD}"
+                )
+        t0 = time.monotonic()
+        first = self._ticks()
+        while (now := self._ticks()) == first:
+            if time.monotonic() - t0 > UPTIME_STILL_S:
+                raise CampaignFailed(
+                    f"ticks_ms at {self.ram.ticks_ms:#x} stayed at {first} for "
+                    f"{UPTIME_STILL_S:.0f} s: not the firmware's uptime counter; {REBUILD}"
+                )
+            time.sleep(0.01)
+        if now < first:
+            raise CampaignFailed(
+                f"ticks_ms at {self.ram.ticks_ms:#x} went back from {first} to {now} "
+                f"between two reads: not the firmware's uptime counter; {REBUILD}"
+            )
+
+    def _ticks(self) -> int:
+        return self._plausible_uptime(
+            int.from_bytes(read_ram(self.fw, self.ram.ticks_ms, 4), "little")
+        )
+
+    def _plausible_uptime(self, ticks: int) -> int:
+        """``ticks``, if the firmware can have counted that far since QEMU started."""
+        ran_ms = (time.monotonic() - self._started) * 1000
+        if ticks > ran_ms + UPTIME_SLACK_MS:
+            raise CampaignFailed(
+                f"ticks_ms at {self.ram.ticks_ms:#x} reads {ticks} ms, but QEMU started "
+                f"{ran_ms:.0f} ms ago: the RAM map ({self.ram.source}) does not describe the "
+                f"running firmware; {REBUILD}"
+            )
+        return ticks
+
+    def _check_table_view(self) -> None:
+        """Right after a commit, the firmware's Table Size and Table CRC (set from the
+        active table in the same step) and the active table as the RAM map finds it
+        must agree; if the registers are right and RAM is not, the map is wrong."""
+        self._table_view_checked = True
+        assert self.committed is not None
+        regs = self.ctl.read("Table Size", "Table CRC")
+        if (regs["Table Size"], regs["Table CRC"]) != self.committed:
+            return  # the firmware's own fault: check_table reports it
+        ram = self.active_table()
+        if (len(ram), zlib.crc32(ram)) != self.committed:
+            raise CampaignFailed(
+                f"right after the commit the firmware reports a {self.committed[0]}-byte "
+                f"table CRC {self.committed[1]:#x}, but the RAM map (ctl at "
+                f"{self.ram.ctl:#x}, active +{self.ram.active_offset}, length "
+                f"+{self.ram.active_len_offset}) finds {len(ram)} bytes CRC "
+                f"{zlib.crc32(ram):#x}: the map or the ctl_device layout probe is not the "
+                f"running firmware's; {REBUILD}"
+            )
+
+    def machine_state(self) -> str:
+        """The CPU's PC and SP, and what QEMU logged, for a problem report."""
+        regs = dict(re.findall(r"(R1[35]|XPSR)=([0-9a-f]+)", self.fw.monitor("info registers")))
+        cpu = ", ".join(
+            f"{name} {regs[key]}"
+            for name, key in (("PC", "R15"), ("SP", "R13"), ("xPSR", "XPSR"))
+            if key in regs
+        )
+        log = self.fw.log().strip()[-LOG_TAIL:] or "nothing"
+        return f"CPU: {cpu or 'no registers'}; QEMU log: {log}"
+
+    # -- the PC link ------------------------------------------------------------------------
+
+    def write(self, values: dict[str, int]) -> None:
+        self.ctl.write(values)
+
+    def command(self, cmd: Command) -> None:
+        self.ctl.write({"Command": int(cmd)})
+
+    def set_robot_limits(self, limits: dict[int, tuple[int, int]]) -> str:
+        """The robot's limits onto the controller; returns Limits State once settled."""
+        try:
+            return set_limits(self.ctl, limits, timeout_s=20.0).state
+        except LimitsError:
+            return limits_state(self.ctl)[0]
+
+    def upload(self, blob: bytes, *, commit: bool = True) -> int:
+        """The upload sequence; returns Upload Result (after the commit) or -1."""
+        for address, data in chunk_writes(blob, controller=CTL):
+            self.ctl.write_block(address, data)
+        if not commit:
+            return -1
+        self.ctl.write_block(*commit_write(blob, CTL))
+        result = self.ctl.read("Upload Result")["Upload Result"]
+        if result == UploadResult.OK:
+            self.committed = (len(blob), zlib.crc32(blob))
+            if not self._table_view_checked:
+                self._check_table_view()
+        return result
+
+    # -- looking ----------------------------------------------------------------------------
+
+    def ram_probe(self) -> dict[str, int]:
+        ticks = self._ticks()
+        bp = read_ram(self.fw, self.ram.busport_stats, 6)
+        pc = read_ram(self.fw, self.ram.pclink_stats, 4)
+        return {
+            "uptime_ms": ticks,
+            "bus_packets": int.from_bytes(bp[0:2], "little"),
+            "bus_reply_timeouts": int.from_bytes(bp[2:4], "little"),
+            "bus_refused": int.from_bytes(bp[4:6], "little"),
+            "pc_gap_resets": int.from_bytes(pc[0:2], "little"),
+            "pc_tx_dropped": int.from_bytes(pc[2:4], "little"),
+        }
+
+    def active_table(self) -> bytes:
+        base = self.ram.ctl
+        n = int.from_bytes(read_ram(self.fw, base + self.ram.active_len_offset, 2), "little")
+        n = min(n, self.ram.ctl_size - self.ram.active_offset)  # no further than the arena
+        return read_ram(self.fw, base + self.ram.active_offset, n) if n else b""
+
+    def check_table(self, where: str) -> None:
+        """The committed table, as the registers describe it and as RAM holds it."""
+        if self.committed is None:
+            return
+        self.health.table_checks += 1
+        size, crc = self.committed
+        regs = self.ctl.read("Table Size", "Table CRC")
+        ram = self.active_table()
+        if (regs["Table Size"], regs["Table CRC"]) != (size, crc):
+            self.health.table_failures.append(
+                f"{where}: registers say {regs['Table Size']} bytes CRC {regs['Table CRC']:#x}, "
+                f"committed {size} bytes CRC {crc:#x}"
+            )
+        if (len(ram), zlib.crc32(ram)) != (size, crc):
+            self.health.table_failures.append(
+                f"{where}: RAM holds {len(ram)} bytes CRC {zlib.crc32(ram):#x}, "
+                f"committed {size} bytes CRC {crc:#x}"
+            )
+
+    def check_alive(self) -> None:
+        h = self.health
+        h.pings += 1
+        try:
+            self.ctl.link.ping(CONTROLLER_ID)
+        except ProtocolError:
+            h.ping_failures += 1
+        probe = self.ram_probe()
+        packets, uptime = probe["bus_packets"], probe["uptime_ms"]
+        if uptime < self._uptime:
+            h.reboots += 1
+            h.reboot_details.append(
+                f"uptime went from {self._uptime} to {uptime} ms; {self.machine_state()}"
+            )
+            self.check_view()  # a real reboot, not the rig's view of the machine failing
+        self._uptime = uptime
+        if not self.polling or self._progress is None or packets != self._progress[0]:
+            self._progress = (packets, uptime)
+        elif uptime - self._progress[1] >= STALL_MS:
+            h.stalls += 1  # ticks due, and not one bus packet
+            self._progress = (packets, uptime)
+
+    def look(self) -> Sample:
+        """One look as ``snakebot monitor`` takes it, plus the servos' own goals."""
+        s = sample(self.ctl)
+        h = self.health
+        h.samples += 1
+        h.flags_seen |= s.registers["Error Flags"]
+        if s.servos:
+            self.last_polled = s
+        state = s.registers["State"]
+        if state == State.SAFE and self._last_state != State.SAFE:
+            h.safe_entries += 1
+        self._last_state = state
+        with self.server.lock:
+            goals = [self.bus.servo(i).regs.get("Goal Position") for i in IDS]
+        for goal, (lo, hi) in zip(goals, LIMITS, strict=True):
+            h.servo_goals_outside += not lo <= goal <= hi
+        return s
+
+    def watch(self, seconds: float, on_look: Callable[[Sample], None] | None = None) -> None:
+        """Look, check life and the table, and let ``on_look`` act, for ``seconds``."""
+        end = time.monotonic() + seconds
+        while True:
+            self.check_alive()
+            s = self.look()
+            if on_look is not None:
+                on_look(s)
+            if time.monotonic() >= end:
+                break
+            time.sleep(SAMPLE_S)
+        self.check_table("while playing")
+
+    def operator(self, recover_after_s: float = 0.3) -> Callable[[Sample], None]:
+        """What a person at ``snakebot monitor`` would do: when the controller has gone
+        SAFE, wait a little, CLEAR and PLAY again."""
+        since: list[float] = []
+
+        def act(s: Sample) -> None:
+            if s.registers["State"] != State.SAFE:
+                since.clear()
+                return
+            if not since:
+                since.append(time.monotonic())
+            elif time.monotonic() - since[0] >= recover_after_s:
+                self.command(Command.CLEAR)
+                self.command(Command.PLAY)
+                self.health.recoveries += 1
+                since.clear()
+
+        return act
+
+    def freeze(self) -> Sample:
+        """Stop and empty the roster so the bus goes quiet; the last look."""
+        self.command(Command.STOP)
+        self.polling = False
+        self.write({"Joint Count": 0})
+        time.sleep(0.15)  # past the last reply window (30 ms) and a few ticks
+        with self.server.lock:
+            self.tap.quiet()
+        self.check_alive()
+        return self.look()
+
+    def started_polling(self) -> None:
+        """The roster is set: from now on the bus must carry a READ every tick."""
+        with self.server.lock:
+            self.tap.restart_gaps()
+        self.polling = True

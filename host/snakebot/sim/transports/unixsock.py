@@ -19,8 +19,9 @@ import time
 from pathlib import Path
 
 from snakebot.sim.bus.bus import Bus
-from snakebot.sim.errors import SimFailure, SimInputError
+from snakebot.sim.errors import SimFailure
 from snakebot.sim.transports.base import ThreadedServer
+from snakebot.sim.transports.claim import PathClaim
 from snakebot.sim.transports.pump import Pump, ServerThread
 
 CONNECT_TIMEOUT_S = 10.0
@@ -40,25 +41,27 @@ class UnixSocketServer(ThreadedServer):
         self._listener: socket.socket | None = None
         self._thread: ServerThread | None = None
         self._pump: Pump | None = None
+        self._claim: PathClaim | None = None
         self.connections = 0
 
     def start(self) -> UnixSocketServer:
         """Listen (or connect) and start serving; returns self."""
         if not self.connect:
-            if self.path.exists() or self.path.is_symlink():
-                if not self.path.is_socket():
-                    raise SimInputError(
-                        f"{self.path} exists and is not a socket: choose another path"
-                    )
-                self.path.unlink()
+            claim = PathClaim(self.path, advice="choose another path")
+            claim.acquire()  # a dead server's socket goes; a live one's or another's stays
             listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
             try:
                 listener.bind(str(self.path))
+                claim.made()
             except OSError as exc:
                 listener.close()
-                raise SimFailure(f"cannot listen on {self.path}: {exc}") from exc
+                claim.release()
+                raise SimFailure(
+                    f"cannot listen on {self.path}: {exc.strerror or exc}: check the directory"
+                ) from exc
             listener.listen(1)
             self._listener = listener
+            self._claim = claim
         self._thread = ServerThread(f"snakebot.sim-unix {self.path}")
         self._thread.start(self._serve)
         return self
@@ -118,5 +121,6 @@ class UnixSocketServer(ThreadedServer):
         if self._listener is not None:
             self._listener.close()
             self._listener = None
-            if self.path.is_socket():
-                self.path.unlink()
+        if self._claim is not None:
+            self._claim.release()  # removes the socket if it is still the one made
+            self._claim = None

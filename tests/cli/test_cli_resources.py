@@ -117,6 +117,7 @@ def _made(path: Path) -> tuple[str, int]:
 
 @pytest.mark.parametrize("server", SERVERS)
 def test_a_path_left_by_a_killed_server_is_replaced_and_a_live_ones_is_refused(tmp_path, server):
+    # ...and SIGTERM stops the server cleanly: exit 143, its path removed.
     path = tmp_path / "ttyDXL"
     args = [*SERVERS[server], str(path)]
     first = _start(args)
@@ -133,9 +134,11 @@ def test_a_path_left_by_a_killed_server_is_replaced_and_a_live_ones_is_refused(t
             assert f"{path} is in use by a running snakebot server (pid {second.pid}" in live.stderr
             assert _made(path) == made  # the live server's path is untouched
         finally:
-            second.send_signal(signal.SIGINT)
-            second.wait(timeout=30)
-        assert not os.path.lexists(path)  # a clean stop removes it
+            second.send_signal(signal.SIGTERM)
+            _, err = second.communicate(timeout=30)
+        assert second.returncode == 143, err  # stopped cleanly, as SIGTERM says
+        assert err.strip() == "interrupted", err
+        assert not os.path.lexists(path)  # the clean stop removed it
     finally:
         _stop(first)
 

@@ -557,3 +557,16 @@ def test_a_qemu_setting_that_is_no_program_is_bad_input(tmp_path, command, qemu)
         "set it to the path of qemu-system-arm or unset it\n"
     )
     assert not (tmp_path / "out").exists()  # refused before any work
+
+
+@pytest.mark.parametrize("planted", ["fifo", "/dev/zero"])
+def test_bus_write_reads_its_robot_file_even_for_a_register_that_is_no_position(tmp_path, planted):
+    # Found by the hostile-file fuzz case: `bus write 1 LED 1 --robot FIFO` wrote and
+    # exited 0, the robot file never looked at.
+    robot = tmp_path / "robot.toml" if planted == "fifo" else Path(planted)
+    if planted == "fifo":
+        os.mkfifo(robot)
+    args = ["bus", "write", "1", "LED", "1", "--robot", str(robot), "--port", "sim://?ids=1"]
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 2, result.output
+    assert result.stderr.startswith("error: ") and result.stderr.count("\n") == 1

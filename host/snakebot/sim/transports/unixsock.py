@@ -29,14 +29,26 @@ CONNECT_TIMEOUT_S = 10.0
 
 
 class UnixSocketServer(ThreadedServer):
-    """Serves ``bus`` on the Unix socket ``path`` from a background thread."""
+    """Serves ``bus`` on the Unix socket ``path`` from a background thread.
+
+    A listening server claims its path (:class:`~snakebot.sim.transports.claim.PathClaim`:
+    a socket a killed server of ours left is replaced, anything else refused), unless
+    ``private``: the path is in a fresh directory of this process's own, where nothing
+    can be left and nobody else can write."""
 
     def __init__(
-        self, bus: Bus, path: str | os.PathLike[str], *, connect: bool = False, speed: float = 1.0
+        self,
+        bus: Bus,
+        path: str | os.PathLike[str],
+        *,
+        connect: bool = False,
+        speed: float = 1.0,
+        private: bool = False,
     ) -> None:
         self.bus = bus
         self.path = Path(path)
         self.connect = connect
+        self.private = private
         self.speed = speed
         self._listener: socket.socket | None = None
         self._thread: ServerThread | None = None
@@ -47,15 +59,18 @@ class UnixSocketServer(ThreadedServer):
     def start(self) -> UnixSocketServer:
         """Listen (or connect) and start serving; returns self."""
         if not self.connect:
-            claim = PathClaim(self.path, advice="choose another path")
-            claim.acquire()  # a dead server's socket goes; a live one's or another's stays
+            claim = None if self.private else PathClaim(self.path, advice="choose another path")
+            if claim is not None:
+                claim.acquire()  # a dead server's socket goes; a live one's or another's stays
             listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
             try:
                 listener.bind(str(self.path))
-                claim.made()
+                if claim is not None:
+                    claim.made()
             except OSError as exc:
                 listener.close()
-                claim.release()
+                if claim is not None:
+                    claim.release()
                 raise SimFailure(
                     f"cannot listen on {self.path}: {exc.strerror or exc}: check the directory"
                 ) from exc
@@ -121,6 +136,8 @@ class UnixSocketServer(ThreadedServer):
         if self._listener is not None:
             self._listener.close()
             self._listener = None
+            if self.private:
+                self.path.unlink(missing_ok=True)  # in our own directory: surely ours
         if self._claim is not None:
             self._claim.release()  # removes the socket if it is still the one made
             self._claim = None

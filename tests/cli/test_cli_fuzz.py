@@ -13,8 +13,8 @@ Hostile files and numbers (issue #28) go to every file and number parameter in a
 of their own, under RLIMIT_AS 2 GB and a 10 s limit: a FIFO, /dev/zero, a directory, a
 symbolic link to a file outside, a 5 GB file, TOML nested 5000 deep; NaN, infinities,
 1e400, a complex number, negative counts. Each must be refused with exit 2 (a negative
-number may be fine), write nothing, and never write through the link; half as many
-cases as argument lists (20 by default, about 20 s).
+number may be fine), write nothing, and never write through the link; a third as many
+cases as argument lists (13 by default, about 15 s).
 """
 
 from __future__ import annotations
@@ -375,7 +375,7 @@ def test_any_gait_metadata(gait_dir: Path, data: st.DataObject) -> None:
 
 # -- hostile files and numbers, each case in its own process under limits ----------------
 
-HOSTILE_EXAMPLES = max(10, EXAMPLES // 2)
+HOSTILE_EXAMPLES = max(10, EXAMPLES // 3)
 CASE_TIMEOUT_S = 10.0
 CASE_MEMORY = 2 << 30  # RLIMIT_AS: 2 GB of address space
 PRECIOUS = b"precious: not to be written\n"
@@ -429,6 +429,28 @@ def _limits() -> None:
     resource.setrlimit(resource.RLIMIT_AS, (CASE_MEMORY, CASE_MEMORY))
 
 
+def _run_limited(args: list[str], where: Path, env: dict[str, str]) -> subprocess.CompletedProcess:
+    """``snakebot ARGS`` in ``where`` under the case's limits. One that has not ended in
+    CASE_TIMEOUT_S is run again with three times as long before it counts as a hang: a
+    machine loaded by other tests can stretch a second into ten, never a hang into an end.
+    """
+    for timeout in (CASE_TIMEOUT_S, 3 * CASE_TIMEOUT_S):
+        try:
+            return subprocess.run(
+                [sys.executable, "-m", "snakebot", *args],
+                cwd=where,
+                env=env,
+                stdin=subprocess.DEVNULL,
+                capture_output=True,
+                text=True,
+                timeout=timeout,
+                preexec_fn=_limits,
+            )
+        except subprocess.TimeoutExpired:
+            pass
+    pytest.fail(f"snakebot {' '.join(args)}: no end within {CASE_TIMEOUT_S:g} s, twice")
+
+
 @st.composite
 def hostile_cases(draw: st.DrawFn) -> tuple[list[str], str, str]:
     """(arguments, the hostile value, the kind of parameter it went to): the command's
@@ -459,19 +481,7 @@ def test_hostile_files_and_numbers_are_refused_in_bounded_time_and_memory(case) 
         planted = sorted(p.name for p in where.iterdir())
         env = {k: v for k, v in os.environ.items() if k != "SNAKEBOT_PORT"}
         env.update({k: v for k, v in ENV.items() if v is not None}, OPENBLAS_NUM_THREADS="1")
-        try:
-            run = subprocess.run(
-                [sys.executable, "-m", "snakebot", *args],
-                cwd=where,
-                env=env,
-                stdin=subprocess.DEVNULL,
-                capture_output=True,
-                text=True,
-                timeout=CASE_TIMEOUT_S,
-                preexec_fn=_limits,
-            )
-        except subprocess.TimeoutExpired:
-            pytest.fail(f"snakebot {' '.join(args)}: no end within {CASE_TIMEOUT_S:g} s")
+        run = _run_limited(args, where, env)
         err = run.stderr
         assert "Traceback" not in err and INTERNAL_ERROR not in err, (args, err)
         assert "MemoryError" not in err, (args, err)

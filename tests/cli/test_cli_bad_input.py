@@ -514,3 +514,59 @@ def test_demo_with_a_missing_firmware_leaves_no_gait(tmp_path: Path, monkeypatch
     monkeypatch.chdir(tmp_path)
     assert_one_line_error(run("demo", "--firmware", "/nonexistent"), mentions="not found")
     assert not (tmp_path / "out").exists()
+
+
+# -- a QEMU that does not run (issue #28) --------------------------------------------------
+
+QEMU_COMMANDS = {
+    "sim serve": ["sim", "serve", "--board", "qemu", "--robot", "snake3", "--report", "0"],
+    "demo": ["demo", "--world", "kinematic", "--cycles", "1"],
+}
+
+
+def _with_qemu(qemu: str, command: str, out: Path) -> tuple[int, str]:
+    args = QEMU_COMMANDS[command] + (["--out", str(out)] if command == "demo" else [])
+    result = CliRunner().invoke(main, args, env={"SNAKEBOT_QEMU": qemu})
+    return result.exit_code, result.stderr
+
+
+@pytest.mark.skipif(not Path("/bin/false").exists(), reason="needs /bin/false")
+@pytest.mark.parametrize("command", QEMU_COMMANDS)
+def test_a_qemu_that_starts_and_dies_is_a_runtime_failure_in_one_line(tmp_path, command):
+    from snakebot.sim.qemu import DEFAULT_IMAGE
+
+    if not DEFAULT_IMAGE.is_file():
+        pytest.skip("needs `make firmware`")
+    status, err = _with_qemu("/bin/false", command, tmp_path / "out")
+    assert status == 1, err
+    assert err.count("\n") == 1 and err.startswith("error: QEMU (/bin/false) exited at start-up")
+    assert "point SNAKEBOT_QEMU at one that does" in err and "internal error" not in err
+
+
+@pytest.mark.parametrize("command", QEMU_COMMANDS)
+@pytest.mark.parametrize("qemu", ["missing", "not executable"])
+def test_a_qemu_setting_that_is_no_program_is_bad_input(tmp_path, command, qemu):
+    path = tmp_path / "qemu-system-arm"
+    if qemu == "not executable":
+        path.write_text("#!/bin/sh\n")
+        path.chmod(0o644)
+    status, err = _with_qemu(str(path), command, tmp_path / "out")
+    assert status == 2, err
+    assert err == (
+        f"error: SNAKEBOT_QEMU={str(path)!r} is not an executable file, or a name on PATH; "
+        "set it to the path of qemu-system-arm or unset it\n"
+    )
+    assert not (tmp_path / "out").exists()  # refused before any work
+
+
+@pytest.mark.parametrize("planted", ["fifo", "/dev/zero"])
+def test_bus_write_reads_its_robot_file_even_for_a_register_that_is_no_position(tmp_path, planted):
+    # Found by the hostile-file fuzz case: `bus write 1 LED 1 --robot FIFO` wrote and
+    # exited 0, the robot file never looked at.
+    robot = tmp_path / "robot.toml" if planted == "fifo" else Path(planted)
+    if planted == "fifo":
+        os.mkfifo(robot)
+    args = ["bus", "write", "1", "LED", "1", "--robot", str(robot), "--port", "sim://?ids=1"]
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 2, result.output
+    assert result.stderr.startswith("error: ") and result.stderr.count("\n") == 1

@@ -8,6 +8,13 @@ option and argument, values from a pool of hostile ones), so a new command or op
 fuzzed without touching this file. Budget: SNAKEBOT_CLI_FUZZ_EXAMPLES argument lists
 (default 40), four times as many robot files and metadata files; about a minute in all
 on a loaded machine.
+
+Hostile files and numbers (issue #28) go to every file and number parameter in a process
+of their own, under RLIMIT_AS 2 GB and a 10 s limit: a FIFO, /dev/zero, a directory, a
+symbolic link to a file outside, a 5 GB file, TOML nested 5000 deep; NaN, infinities,
+1e400, a complex number, negative counts. Each must be refused with exit 2 (a negative
+number may be fine), write nothing, and never write through the link; a third as many
+cases as argument lists (13 by default, about 15 s).
 """
 
 from __future__ import annotations
@@ -17,6 +24,8 @@ import json
 import os
 import re
 import shutil
+import subprocess
+import sys
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -362,3 +371,128 @@ def test_any_gait_metadata(gait_dir: Path, data: st.DataObject) -> None:
         (Path(tmp) / "walk.gait.json").write_text(text)
         result = invoke(["gait", "show", str(copy), *data.draw(st.sampled_from([[], ["--json"]]))])
     check(result)
+
+
+# -- hostile files and numbers, each case in its own process under limits ----------------
+
+HOSTILE_EXAMPLES = max(10, EXAMPLES // 3)
+CASE_TIMEOUT_S = 10.0
+CASE_MEMORY = 2 << 30  # RLIMIT_AS: 2 GB of address space
+PRECIOUS = b"precious: not to be written\n"
+
+HOSTILE_FILES = ["fifo", "/dev/zero", "dir", "outside-link", "huge.gait", "deep.toml"]
+"""A FIFO (an open that blocks for ever), an endless device, a directory, a symlink to a
+file outside the working directory, a 5 GB (sparse) file and a TOML nested 5000 deep."""
+HOSTILE_OUTPUTS = ["fifo", "/dev/zero", "dir", "outside-link"]
+HOSTILE_NUMBERS = ["nan", "inf", "-inf", "1e400", "(-8)**0.5", "-1", "-100000"]
+NEVER_NUMBERS = {"nan", "inf", "-inf", "1e400", "(-8)**0.5"}
+"""Refused (exit 2) by every number option; the negative ones may be fine for some."""
+
+NUMBER_TYPES = (click.IntRange, NumberType, AngleType, AngleListType, type(click.INT))
+
+
+def _kind(param: click.Parameter) -> str | None:
+    """Which hostile values ``param`` takes: an input file, an output, a number."""
+    name = param.opts[0] if isinstance(param, click.Option) else param.name or ""
+    if "port" in name:
+        return None
+    if isinstance(param.type, OutputPathType):
+        return "output"
+    if isinstance(param.type, click.Path) or name in ("robot", "--robot", "toml"):
+        return "input"
+    if isinstance(param.type, NUMBER_TYPES):
+        return "number"
+    return None
+
+
+TARGETS = [
+    (path, command, param, kind)
+    for path, command in COMMANDS
+    for param in command.params
+    if (kind := _kind(param))
+]
+
+
+def _plant(where: Path, outside: Path) -> None:
+    """The hostile files, in the case's working directory ``where``."""
+    os.mkfifo(where / "fifo")
+    (where / "dir").mkdir()
+    (where / "outside-link").symlink_to(outside)
+    with (where / "huge.gait").open("wb") as f:
+        f.truncate(5 << 30)  # sparse: no disk used
+    (where / "deep.toml").write_text("a = " + "[" * 5000 + "]" * 5000 + "\n")
+
+
+def _limits() -> None:
+    import resource
+
+    resource.setrlimit(resource.RLIMIT_AS, (CASE_MEMORY, CASE_MEMORY))
+
+
+def _run_limited(args: list[str], where: Path, env: dict[str, str]) -> subprocess.CompletedProcess:
+    """``snakebot ARGS`` in ``where`` under the case's limits. One that has not ended in
+    CASE_TIMEOUT_S is run again with three times as long before it counts as a hang: a
+    machine loaded by other tests can stretch a second into ten, never a hang into an end.
+    """
+    for timeout in (CASE_TIMEOUT_S, 3 * CASE_TIMEOUT_S):
+        try:
+            return subprocess.run(
+                [sys.executable, "-m", "snakebot", *args],
+                cwd=where,
+                env=env,
+                stdin=subprocess.DEVNULL,
+                capture_output=True,
+                text=True,
+                timeout=timeout,
+                preexec_fn=_limits,
+            )
+        except subprocess.TimeoutExpired:
+            pass
+    pytest.fail(f"snakebot {' '.join(args)}: no end within {CASE_TIMEOUT_S:g} s, twice")
+
+
+@st.composite
+def hostile_cases(draw: st.DrawFn) -> tuple[list[str], str, str]:
+    """(arguments, the hostile value, the kind of parameter it went to): the command's
+    required parameters with usual values, one file or number parameter a hostile one."""
+    path, command, target, kind = draw(st.sampled_from(TARGETS))
+    pool = {"input": HOSTILE_FILES, "output": HOSTILE_OUTPUTS, "number": HOSTILE_NUMBERS}
+    bad = draw(st.sampled_from(pool[kind]))
+    args = list(path)
+    for param in command.params:
+        if param is not target and not param.required:
+            continue
+        if isinstance(param, click.Option):
+            name = param.opts[0]
+            args += [name, bad if param is target else draw(_usual(param, name))]
+        else:
+            args.append(bad if param is target else draw(_usual(param, param.name or "")))
+    return args, bad, kind
+
+
+@settings(FUZZ, max_examples=HOSTILE_EXAMPLES)
+@given(case=hostile_cases())
+def test_hostile_files_and_numbers_are_refused_in_bounded_time_and_memory(case) -> None:
+    args, bad, kind = case
+    with tempfile.TemporaryDirectory() as tmp, tempfile.TemporaryDirectory() as far:
+        where, outside = Path(tmp), Path(far) / "target"
+        outside.write_bytes(PRECIOUS)
+        _plant(where, outside)
+        planted = sorted(p.name for p in where.iterdir())
+        env = {k: v for k, v in os.environ.items() if k != "SNAKEBOT_PORT"}
+        env.update({k: v for k, v in ENV.items() if v is not None}, OPENBLAS_NUM_THREADS="1")
+        run = _run_limited(args, where, env)
+        err = run.stderr
+        assert "Traceback" not in err and INTERNAL_ERROR not in err, (args, err)
+        assert "MemoryError" not in err, (args, err)
+        assert outside.read_bytes() == PRECIOUS, args  # never written through the link
+        always_bad = kind != "number" or bad in NEVER_NUMBERS
+        if kind == "input" and bad == "outside-link":
+            always_bad = False  # reading through a link is allowed; it is not a valid file
+        if always_bad:
+            assert run.returncode == 2, (args, run.returncode, err)
+        assert run.returncode in (0, 1, 2), (args, run.returncode, err)
+        if run.returncode:
+            assert err.strip().splitlines()[-1].startswith("error: "), (args, err)
+            left = sorted(p.name for p in where.iterdir())
+            assert left == planted, (args, left)  # a refusal writes nothing

@@ -1,6 +1,7 @@
 """What the long-running commands leave behind (issue #17, resources): the world's record
-is bounded, work directories go on SIGHUP and after a SIGKILL, and `sim bus --link` never
-replaces a path it did not make."""
+is bounded, work directories go on SIGHUP and after a SIGKILL, and a server's `--link` or
+`--unix` path left by a SIGKILL is replaced on the next start, never one someone else made
+or a live server's."""
 
 from __future__ import annotations
 
@@ -79,38 +80,93 @@ def test_stale_work_directories_are_removed_on_the_next_start():
         live.rmdir()
 
 
-def test_sim_bus_link_refuses_a_symlink_it_did_not_make(tmp_path):
-    target = tmp_path / "precious"
-    target.write_text("keep me")
-    link = tmp_path / "ttyDXL"
-    link.symlink_to(target)
-    result = CliRunner().invoke(main, ["sim", "bus", "--ids", "1", "--link", str(link)])
-    assert result.exit_code == 2
-    assert result.stderr.startswith(f"error: --link: {link} is a symlink to {target}")
-    assert os.readlink(link) == str(target) and target.read_text() == "keep me"
+SERVERS = {
+    "sim bus --link": ["sim", "bus", "--ids", "1", "--link"],
+    "sim bus --unix": ["sim", "bus", "--ids", "1", "--unix"],
+    "sim bootloader --link": ["sim", "bootloader", "--link"],
+}
 
 
-def test_sim_bus_link_replaces_a_dangling_link_left_by_a_killed_server(tmp_path):
-    link = tmp_path / "ttyDXL"
-    link.symlink_to("/dev/pts/999999")  # a pseudo-terminal that is gone
+def _start(args: list[str]) -> subprocess.Popen[str]:
+    """``snakebot ARGS`` in a subprocess, once it says it serves."""
     proc = subprocess.Popen(
-        [sys.executable, "-m", "snakebot", "sim", "bus", "--ids", "1", "--link", str(link)],
+        [sys.executable, "-m", "snakebot", *args],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
     )
-    try:
-        assert proc.stdout is not None
-        while "serving on" not in (line := proc.stdout.readline()):
-            assert line, proc.stderr.read() if proc.stderr else ""
-        assert os.readlink(link).startswith("/dev/pts/") and os.path.exists(link)
-        proc.send_signal(signal.SIGHUP)
-        assert proc.wait(timeout=30) == 0
-        assert not os.path.lexists(link)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
+    assert proc.stdout is not None
+    while "stops." not in (line := proc.stdout.readline()):
+        if not line:
             proc.wait()
+            raise AssertionError(proc.stderr.read() if proc.stderr else "")
+    return proc
+
+
+def _stop(proc: subprocess.Popen[str]) -> None:
+    if proc.poll() is None:
+        proc.kill()
+        proc.wait()
+
+
+def _made(path: Path) -> tuple[str, int]:
+    """What is at ``path`` (the link's target, or "socket") and its inode."""
+    info = os.lstat(path)
+    return (os.readlink(path) if path.is_symlink() else "socket", info.st_ino)
+
+
+@pytest.mark.parametrize("server", SERVERS)
+def test_a_path_left_by_a_killed_server_is_replaced_and_a_live_ones_is_refused(tmp_path, server):
+    # ...and SIGTERM stops the server cleanly: exit 143, its path removed.
+    path = tmp_path / "ttyDXL"
+    args = [*SERVERS[server], str(path)]
+    first = _start(args)
+    try:
+        first.kill()  # no chance to clean up: the path stays
+        first.wait()
+        assert os.path.lexists(path)
+        second = _start(args)  # the leftover of our dead server is recognised and replaced
+        try:
+            made = _made(path)
+            live = CliRunner().invoke(main, args)
+            assert live.exit_code == 2, live.output
+            assert live.stderr.count("\n") == 1
+            assert f"{path} is in use by a running snakebot server (pid {second.pid}" in live.stderr
+            assert _made(path) == made  # the live server's path is untouched
+        finally:
+            second.send_signal(signal.SIGTERM)
+            _, err = second.communicate(timeout=30)
+        assert second.returncode == 143, err  # stopped cleanly, as SIGTERM says
+        assert err.strip() == "interrupted", err
+        assert not os.path.lexists(path)  # the clean stop removed it
+    finally:
+        _stop(first)
+
+
+@pytest.mark.parametrize("server", SERVERS)
+@pytest.mark.parametrize("planted", ["file", "foreign link", "dead pty link", "socket"])
+def test_a_path_someone_else_made_is_refused_and_left_alone(tmp_path, server, planted):
+    import socket
+
+    path = tmp_path / "ttyDXL"
+    outside = tmp_path / "precious"
+    outside.write_text("keep me")
+    if planted == "file":
+        path.write_text("mine")
+    elif planted == "foreign link":
+        path.symlink_to(outside)
+    elif planted == "dead pty link":  # as an older snakebot, killed, left it: no record
+        path.symlink_to("/dev/pts/999999")
+    else:
+        socket.socket(socket.AF_UNIX).bind(str(path))
+    before = os.lstat(path)
+    result = CliRunner().invoke(main, [*SERVERS[server], str(path)])
+    assert result.exit_code == 2, result.output
+    assert result.stderr.startswith(f"error: {path} ")
+    assert f"rm {path}" in result.stderr and result.stderr.count("\n") == 1
+    after = os.lstat(path)
+    assert (after.st_ino, after.st_mtime_ns) == (before.st_ino, before.st_mtime_ns)
+    assert outside.read_text() == "keep me"
 
 
 def _workdirs(pid: int) -> list[Path]:

@@ -137,7 +137,7 @@ def test_dynamixel_sdk_over_a_pty_reads_the_physics(tmp_path):
         finally:
             port.closePort()
         proc.send_signal(signal.SIGINT)
-        assert proc.wait(timeout=10) == 0
+        assert proc.wait(timeout=10) == 130
     finally:
         if proc.poll() is None:
             proc.kill()

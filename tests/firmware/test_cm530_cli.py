@@ -97,7 +97,7 @@ def test_sim_serve_board_cm530_answers_and_stops_on_sigterm():
         assert json.loads(result.stdout)["board"] == "cm530", result.output
         proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=20)
-        assert proc.returncode == 0, err
+        assert proc.returncode == 143, err
         assert "Traceback" not in err
     finally:
         if proc.poll() is None:

@@ -78,7 +78,7 @@ def test_serve_answers_on_its_pty_and_sigterm_leaves_no_qemu():
             assert c.ping(CONTROLLER_ID) == Packet(CONTROLLER_ID, 0, b"")
         proc.send_signal(signal.SIGTERM)
         out, err = proc.communicate(timeout=STOP_TIMEOUT_S)
-        assert proc.returncode == 0, err
+        assert proc.returncode == 143, err
         last = json.loads(out.strip().splitlines()[-1])
         assert last["event"] == "stopped"
         assert _gone(qemu_pid, 5.0), f"QEMU (pid {qemu_pid}) is still running"

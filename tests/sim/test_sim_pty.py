@@ -169,7 +169,7 @@ def test_snakebot_sim_bus_serves_a_pty_until_interrupted(tmp_path):
             assert c.model_number(10) == 12
             assert c.read_u8(10, 5) == 0  # Return Delay Time as asked
         proc.send_signal(signal.SIGINT)
-        assert proc.wait(timeout=10) == 0
+        assert proc.wait(timeout=10) == 130
         assert not link.exists()
     finally:
         if proc.poll() is None:

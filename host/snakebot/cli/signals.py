@@ -6,9 +6,10 @@
   others), so every ``finally`` and ``with`` block runs: recordings are closed
   readable, temporary files removed, ports released, QEMU stopped. The command then
   exits with 128 + the signal's number: 130, 143, 129 (:func:`interrupted_status`).
-* The serving commands (``sim serve``, ``sim bus``, ``sim bootloader``) catch the same
-  three signals with their own handlers (:data:`STOP_SIGNALS`), since stopping is how a
-  server ends its work: they stop cleanly and exit 0.
+* The serving commands (``sim serve``, ``sim bus``, ``sim bootloader``) wait for the
+  same three signals (:func:`serving`): the one that comes ends the wait, the server
+  stops cleanly (its links and sockets removed, QEMU stopped, its last report printed)
+  and then exits the same way as any other command, with 130, 143 or 129.
 * Ctrl-C while Python is still importing snakebot prints one line, no traceback
   (``snakebot.__main__``).
 """
@@ -16,6 +17,7 @@
 from __future__ import annotations
 
 import signal
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from types import FrameType
@@ -85,3 +87,47 @@ def interrupted_status(exc: BaseException | None = None) -> int:
         exc = exc.__cause__ or exc.__context__
         seen += 1
     return 128 + signal.SIGINT
+
+
+class StopRequest:
+    """What a server waits on: set by the first stop signal, which it remembers."""
+
+    def __init__(self) -> None:
+        self._event = threading.Event()
+        self.signum: int | None = None
+
+    def wait(self, timeout: float) -> bool:
+        """Whether a stop signal came, waiting up to ``timeout`` seconds for one."""
+        return self._event.wait(timeout)
+
+    def set(self, signum: int) -> None:
+        if self.signum is None:
+            self.signum = signum
+        self._event.set()
+
+    def exit_by_signal(self) -> None:
+        """Once the server has stopped cleanly: leave as the signal says (the exception
+        the CLI turns into 130, 143 or 129); nothing if none came."""
+        if self.signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        if self.signum is not None:
+            _received.append(self.signum)
+            raise Terminated(self.signum)
+
+
+@contextmanager
+def serving() -> Iterator[StopRequest]:
+    """For the length of the block, the stop signals set the :class:`StopRequest` it
+    yields instead of raising where the program is (a server stops between two of its
+    steps); the previous handlers come back at its end."""
+    stop = StopRequest()
+
+    def on_signal(signum: int, frame: FrameType | None) -> None:
+        stop.set(signum)
+
+    previous = {s: signal.signal(s, on_signal) for s in STOP_SIGNALS}
+    try:
+        yield stop
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)

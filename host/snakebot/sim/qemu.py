@@ -433,8 +433,11 @@ class QemuFirmware:
         while True:
             if self._proc.poll() is not None:
                 raise QemuError(
-                    f"QEMU exited at start-up (status {self._proc.returncode}): "
-                    f"{self.log().strip() or 'no output'}; command: {' '.join(self._started_as)}"
+                    f"QEMU ({self._started_as[0]}) exited at start-up (status "
+                    f"{self._proc.returncode}): {self.log().strip() or 'no output'}; check "
+                    f"that it is qemu-system-arm and runs on its own (ask it for its version), "
+                    "or point SNAKEBOT_QEMU at one that does; command: "
+                    f"{' '.join(self._started_as)}"
                 )
             if os.path.exists(self._qmp_path):
                 try:

@@ -368,7 +368,7 @@ class EmulatedRobot:
             source = self.robot.source or self.robot.name
             self._bus = replace(options, robot=source).build_bus()
             sock = Path(self._workdir) / "bus.sock"
-            self._server = UnixSocketServer(self._bus, sock).start()
+            self._server = UnixSocketServer(self._bus, sock, private=True).start()
             with self._server.lock:  # type: ignore[attr-defined]
                 self._world = make_world(
                     self.world_kind,

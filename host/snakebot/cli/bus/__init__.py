@@ -336,7 +336,9 @@ def write_command(
         snakebot bus write 1 led 1 --port /dev/ttyUSB0
     """
     entry = register_values.resolve_register(register)
-    joint = _joint_of(robot, servo_id) if register_values.is_position(entry) else None
+    joint = _joint_of(robot, servo_id)  # read and checked even where no position needs it
+    if not register_values.is_position(entry):
+        joint = None
     given = _joint_goal(joint, value) if joint is not None else None
     entry, number = register_values.parse_write(register, value, given)
     with _on_the_bus(bus) as client:

@@ -12,10 +12,6 @@ May import: as the ``cli`` layer (every layer below it).
 
 from __future__ import annotations
 
-import signal
-import threading
-from types import FrameType
-
 import click
 
 import snakebot.link.transport.ports  # noqa: F401  (registers sim://)
@@ -28,7 +24,8 @@ from snakebot.cli.options import (
 )
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NUMBER
-from snakebot.cli.signals import STOP_SIGNALS
+from snakebot.cli.signals import StopRequest, serving
+from snakebot.sim.bus.bus import Bus
 from snakebot.sim.errors import SimOptionError
 from snakebot.sim.options import SimOptions, sim_query
 from snakebot.sim.physics.select import DEFAULT_WORLD
@@ -157,48 +154,54 @@ def bus(
     options = SimOptions.from_query(query)
     the_bus = options.build_bus()
     if unix_path:
-        server: PtyServer | UnixSocketServer = UnixSocketServer(
-            the_bus, unix_path, connect=connect
-        ).start()
-        where = str(server.path)
+        server: PtyServer | UnixSocketServer = UnixSocketServer(the_bus, unix_path, connect=connect)
     else:
-        server = PtyServer(the_bus, link=link).start()
-        where = server.device
-    stop = threading.Event()
+        server = PtyServer(the_bus, link=link)
+    with serving() as stop:
+        try:
+            _serve_bus(server, the_bus, query, robot, link, as_json, stop)
+        finally:
+            server.close()
+    stop.exit_by_signal()
 
-    def on_signal(signum: int, frame: FrameType | None) -> None:
-        stop.set()
 
-    previous = {s: signal.signal(s, on_signal) for s in STOP_SIGNALS}
-    try:
-        servos = [s.id for s in the_bus.servos]
-        url = "sim://" + (f"?{query}" if query else "")
-        if as_json:
-            click.echo(
-                dumps(
-                    {
-                        "transport": "unix" if unix_path else "pty",
-                        "device": where,
-                        "link": link,
-                        "ids": servos,
-                        "model": the_bus.servos[0].model,
-                        "url": url,
-                    }
-                )
+def _serve_bus(
+    server: PtyServer | UnixSocketServer,
+    the_bus: Bus,
+    query: str,
+    robot: str | None,
+    link: str | None,
+    as_json: bool,
+    stop: StopRequest,
+) -> None:
+    """Start ``server``, say where it serves, and serve until ``stop``."""
+    server.start()
+    unix = isinstance(server, UnixSocketServer)
+    where = str(server.path) if unix else server.device
+    servos = [s.id for s in the_bus.servos]
+    url = "sim://" + (f"?{query}" if query else "")
+    if as_json:
+        click.echo(
+            dumps(
+                {
+                    "transport": "unix" if unix else "pty",
+                    "device": where,
+                    "link": link,
+                    "ids": servos,
+                    "model": the_bus.servos[0].model,
+                    "url": url,
+                }
             )
-        else:
-            what = f"{robot} " if robot else ""
-            click.echo(
-                f"emulated {what}bus: {len(servos)} {the_bus.servos[0].model} servo(s), "
-                f"IDs {', '.join(map(str, servos))}"
-            )
-            click.echo(f"serving on {where}" + (f" (link {link})" if link else ""))
-            click.echo(f"in process, the same emulation is {url}")
-            click.echo("Ctrl-C stops.")
-        while not stop.wait(0.2):
-            if not server.running:
-                raise click.ClickException("the bus server stopped unexpectedly")
-    finally:
-        server.close()
-        for s, handler in previous.items():
-            signal.signal(s, handler)
+        )
+    else:
+        what = f"{robot} " if robot else ""
+        click.echo(
+            f"emulated {what}bus: {len(servos)} {the_bus.servos[0].model} servo(s), "
+            f"IDs {', '.join(map(str, servos))}"
+        )
+        click.echo(f"serving on {where}" + (f" (link {link})" if link else ""))
+        click.echo(f"in process, the same emulation is {url}")
+        click.echo("Ctrl-C stops.")
+    while not stop.wait(0.2):
+        if not server.running:
+            raise click.ClickException("the bus server stopped unexpectedly")

@@ -3,9 +3,6 @@ to try `snakebot flash` (or RoboPlus-style terminal sessions) without a board.""
 
 from __future__ import annotations
 
-import signal
-import threading
-from types import FrameType
 from typing import TYPE_CHECKING
 
 import click
@@ -13,7 +10,7 @@ import click
 from snakebot.cli.options import json_option, link_option
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType
-from snakebot.cli.signals import STOP_SIGNALS
+from snakebot.cli.signals import StopRequest, serving
 from snakebot.errors import SnakebotError
 from snakebot.sim.bootloader import (
     CHECKSUM_FORMATS,
@@ -149,38 +146,46 @@ def bootloader(
         handover = McuHandover()
     server = BootloaderPty(
         boot, reset_after_s=reset_after, pace=not no_pace, link=link, on_go=handover
-    ).start()
-    stop = threading.Event()
+    )
+    with serving() as stop:
+        try:
+            _serve(server, link, as_json, stop)
+        finally:
+            server.close()
+            handover.close()
+    _list_images(server, checksum_format, sum_excludes_last, as_json)
+    stop.exit_by_signal()
 
-    def on_signal(signum: int, frame: FrameType | None) -> None:
-        stop.set()
 
-    previous = {s: signal.signal(s, on_signal) for s in STOP_SIGNALS}
-    try:
-        if as_json:
-            click.echo(dumps({"device": server.device, "link": link, "baud": PC_LINK_BAUD}))
-        else:
-            click.echo(
-                f"emulated CM-530 bootloader on {server.device}"
-                + (f" (link {link})" if link else "")
-                + f", {PC_LINK_BAUD} baud"
-            )
-            click.echo("Ctrl-C stops.")
-        while not stop.wait(0.2):
-            if not server.running:
-                if isinstance(server.error, SnakebotError):
-                    raise server.error  # an image the board cannot start: bad input
-                raise click.ClickException(f"the bootloader server stopped: {server.error}")
-    finally:
-        server.close()
-        handover.close()
-        for s, handler in previous.items():
-            signal.signal(s, handler)
+def _serve(server: BootloaderPty, link: str | None, as_json: bool, stop: StopRequest) -> None:
+    """Start ``server``, say where it serves, and serve until ``stop``."""
+    server.start()
+    if as_json:
+        click.echo(dumps({"device": server.device, "link": link, "baud": PC_LINK_BAUD}))
+    else:
+        click.echo(
+            f"emulated CM-530 bootloader on {server.device}"
+            + (f" (link {link})" if link else "")
+            + f", {PC_LINK_BAUD} baud"
+        )
+        click.echo("Ctrl-C stops.")
+    while not stop.wait(0.2):
+        if not server.running:
+            if isinstance(server.error, SnakebotError):
+                raise server.error  # an image the board cannot start: bad input
+            raise click.ClickException(f"the bootloader server stopped: {server.error}")
+
+
+def _list_images(
+    server: BootloaderPty, checksum_format: str, excludes_last: bool, as_json: bool
+) -> None:
+    """One line per image received, with its size and the checksum it was reported as."""
+    boot = server.bootloader
     with server.lock:
         images = list(boot.images)
+    bits = CHECKSUM_FORMATS[checksum_format][1]
     for n, image in enumerate(images, 1):
-        bits = CHECKSUM_FORMATS[checksum_format][1]
-        total = boot.reported_sum(image, sum_excludes_last, bits)
+        total = boot.reported_sum(image, excludes_last, bits)
         if as_json:
             click.echo(dumps({"image": n, "bytes": len(image), "checksum": total}))
         else:

@@ -3,11 +3,8 @@
 from __future__ import annotations
 
 import math
-import signal
-import threading
 import time
 from pathlib import Path
-from types import FrameType
 
 import click
 
@@ -15,7 +12,7 @@ from snakebot.cli.live import RATE_HZ, foxglove_option
 from snakebot.cli.options import json_option, robot_option, world_option
 from snakebot.cli.output import dumps
 from snakebot.cli.params import INPUT_PATH, NumberType
-from snakebot.cli.signals import STOP_SIGNALS
+from snakebot.cli.signals import StopRequest, serving
 from snakebot.sim.serve import BOARDS, DEFAULT_BOARD, BodyPose, EmulatedRobot
 
 HISTORY_S = 600.0
@@ -87,18 +84,30 @@ def serve(
 
     The world moves the robot's body from the servos' positions while it serves; its pose
     is printed every --report seconds (x forward along the head link's first heading).
-    Ctrl-C or SIGTERM stops the emulator and the emulated bus; nothing is left running.
+    Ctrl-C or SIGTERM stops the emulator and the emulated bus, nothing left running, and
+    exits 130 or 143.
     Build the firmware first with `make firmware`.
     """
-    stop = threading.Event()
-
-    def on_signal(signum: int, frame: FrameType | None) -> None:
-        stop.set()
-
-    previous = {s: signal.signal(s, on_signal) for s in STOP_SIGNALS}
     emulated = EmulatedRobot(
         robot, firmware, sim_query=sim_options, world=world, history_s=HISTORY_S, board=board
     )
+    with serving() as stop:
+        try:
+            _serve(emulated, board, report, foxglove, as_json, stop)
+        finally:
+            emulated.stop()
+    stop.exit_by_signal()
+
+
+def _serve(
+    emulated: EmulatedRobot,
+    board: str,
+    report: float,
+    foxglove: tuple[str, int] | None,
+    as_json: bool,
+    stop: StopRequest,
+) -> None:
+    """Start ``emulated``, say where it serves, and report its pose until ``stop``."""
     live = None
     try:
         info = emulated.start()
@@ -146,9 +155,6 @@ def serve(
     finally:
         if live is not None:
             live.close()
-        emulated.stop()
-        for s, handler in previous.items():
-            signal.signal(s, handler)
 
 
 def _print_pose(pose: BodyPose | None, as_json: bool, final: bool = False) -> None:

@@ -10,7 +10,8 @@ from pathlib import Path
 from types import TracebackType
 from typing import TYPE_CHECKING
 
-from snakebot.sim.errors import SimFailure, SimInputError
+from snakebot.sim.errors import SimFailure
+from snakebot.sim.transports.claim import PathClaim
 from snakebot.sim.transports.pump import ServerThread
 
 if TYPE_CHECKING:  # typing.Self is 3.11+; annotations are never evaluated at run time
@@ -21,59 +22,58 @@ class RawPty:
     """A pseudo-terminal pair for a server: the slave in raw mode (no echo, no line
     editing: bytes pass untouched), the master non-blocking.
 
-    ``link``: on :meth:`open`, also make a symlink at this path to the device (replacing
-    only a dangling link to a pseudo-terminal, left by a killed server; anything else
-    there is refused); :meth:`close` removes it if it is still ours. The server keeps the
-    slave open itself, so clients may open and close the device as often as they like.
+    ``link``: on :meth:`open`, also make a symlink at this path to the device, claimed
+    (:class:`~snakebot.sim.transports.claim.PathClaim`): the link a killed server of
+    ours left there is replaced; a live server's, or anything someone else made, is
+    refused (``link_advice`` ending the error). :meth:`close` removes it if it is still
+    ours. The server keeps the slave open itself, so clients may open and close the
+    device as often as they like.
     """
 
-    def __init__(self, link: str | os.PathLike[str] | None = None) -> None:
+    def __init__(
+        self,
+        link: str | os.PathLike[str] | None = None,
+        *,
+        link_advice: str = "choose another path",
+    ) -> None:
         self.link = Path(link) if link else None
+        self.link_advice = link_advice
         self.master = self.slave = -1
         self.device = ""
-        self._linked = False
+        self._claim: PathClaim | None = None
 
     def open(self) -> str:
         """Create the pseudo-terminal (and the link); returns the device path."""
+        claim = None
+        if self.link is not None:
+            claim = PathClaim(self.link, advice=self.link_advice)
+            claim.acquire()  # before the pty: a refusal leaves nothing to undo
         self.master, self.slave = os.openpty()
         tty.setraw(self.slave)
         os.set_blocking(self.master, False)
         self.device = os.ttyname(self.slave)
-        if self.link is not None:
-            self._make_link(self.link)
+        if claim is not None:
+            self._claim = claim
+            self._make_link(claim)
         return self.device
 
     def close(self) -> None:
-        """Close both ends and remove the link (if it is still a symlink)."""
+        """Close both ends and remove the link (if it is still the one made)."""
         for fd in (self.master, self.slave):
             if fd >= 0:
                 os.close(fd)
         self.master = self.slave = -1
-        link = self.link
-        if link is not None and self._linked and _target(link) == self.device:
-            link.unlink()  # ours, still: a link someone has since replaced is left alone
-        self._linked = False
+        if self._claim is not None:
+            self._claim.release()
+            self._claim = None
 
-    def _make_link(self, link: Path) -> None:
-        # Only a dangling link to a pseudo-terminal (left by a server that was killed) is
-        # replaced; anything else at the path was not made by us and stays.
-        old = _target(link)
-        if old is not None and old.startswith("/dev/pts/") and not os.path.exists(old):
-            link.unlink(missing_ok=True)
+    def _make_link(self, claim: PathClaim) -> None:
         try:
-            link.symlink_to(self.device)
-        except FileExistsError:
-            self.close()
-            what = (
-                f"is a symlink to {old}, which this server did not make"
-                if old is not None
-                else "exists and is not a symlink"
-            )
-            raise SimInputError(f"{link} {what}: choose another path").about("link") from None
+            claim.path.symlink_to(self.device)
+            claim.made()
         except OSError as exc:
             self.close()
-            raise SimFailure(f"cannot make the link {link}: {exc.strerror or exc}") from None
-        self._linked = True
+            raise SimFailure(f"cannot make the link {claim.path}: {exc.strerror or exc}") from None
 
 
 class Server:
@@ -120,11 +120,3 @@ class ThreadedServer(Server):
         if self._thread is not None:
             self._thread.stop()
             self._thread = None
-
-
-def _target(link: Path) -> str | None:
-    """Where the symlink ``link`` points, or None if it is not a symlink."""
-    try:
-        return os.readlink(link)
-    except OSError:
-        return None

@@ -19,8 +19,9 @@ import time
 from pathlib import Path
 
 from snakebot.sim.bus.bus import Bus
-from snakebot.sim.errors import SimFailure, SimInputError
+from snakebot.sim.errors import SimFailure
 from snakebot.sim.transports.base import ThreadedServer
+from snakebot.sim.transports.claim import PathClaim
 from snakebot.sim.transports.pump import Pump, ServerThread
 
 CONNECT_TIMEOUT_S = 10.0
@@ -28,37 +29,54 @@ CONNECT_TIMEOUT_S = 10.0
 
 
 class UnixSocketServer(ThreadedServer):
-    """Serves ``bus`` on the Unix socket ``path`` from a background thread."""
+    """Serves ``bus`` on the Unix socket ``path`` from a background thread.
+
+    A listening server claims its path (:class:`~snakebot.sim.transports.claim.PathClaim`:
+    a socket a killed server of ours left is replaced, anything else refused), unless
+    ``private``: the path is in a fresh directory of this process's own, where nothing
+    can be left and nobody else can write."""
 
     def __init__(
-        self, bus: Bus, path: str | os.PathLike[str], *, connect: bool = False, speed: float = 1.0
+        self,
+        bus: Bus,
+        path: str | os.PathLike[str],
+        *,
+        connect: bool = False,
+        speed: float = 1.0,
+        private: bool = False,
     ) -> None:
         self.bus = bus
         self.path = Path(path)
         self.connect = connect
+        self.private = private
         self.speed = speed
         self._listener: socket.socket | None = None
         self._thread: ServerThread | None = None
         self._pump: Pump | None = None
+        self._claim: PathClaim | None = None
         self.connections = 0
 
     def start(self) -> UnixSocketServer:
         """Listen (or connect) and start serving; returns self."""
         if not self.connect:
-            if self.path.exists() or self.path.is_symlink():
-                if not self.path.is_socket():
-                    raise SimInputError(
-                        f"{self.path} exists and is not a socket: choose another path"
-                    )
-                self.path.unlink()
+            claim = None if self.private else PathClaim(self.path, advice="choose another path")
+            if claim is not None:
+                claim.acquire()  # a dead server's socket goes; a live one's or another's stays
             listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
             try:
                 listener.bind(str(self.path))
+                if claim is not None:
+                    claim.made()
             except OSError as exc:
                 listener.close()
-                raise SimFailure(f"cannot listen on {self.path}: {exc}") from exc
+                if claim is not None:
+                    claim.release()
+                raise SimFailure(
+                    f"cannot listen on {self.path}: {exc.strerror or exc}: check the directory"
+                ) from exc
             listener.listen(1)
             self._listener = listener
+            self._claim = claim
         self._thread = ServerThread(f"snakebot.sim-unix {self.path}")
         self._thread.start(self._serve)
         return self
@@ -118,5 +136,8 @@ class UnixSocketServer(ThreadedServer):
         if self._listener is not None:
             self._listener.close()
             self._listener = None
-            if self.path.is_socket():
-                self.path.unlink()
+            if self.private:
+                self.path.unlink(missing_ok=True)  # in our own directory: surely ours
+        if self._claim is not None:
+            self._claim.release()  # removes the socket if it is still the one made
+            self._claim = None

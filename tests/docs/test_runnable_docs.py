@@ -54,6 +54,21 @@ def help_groups() -> dict[str, list[Line]]:
 
 HELP = help_groups()
 
+REAL_TIME = {
+    "snakebot bus play --help",  # plays at the table's pace
+    "snakebot compare --help",  # records a run for seconds while the controller plays
+    "snakebot drive --help",  # keys timed in seconds
+    "snakebot flash --help",  # the bootloader's silences, the new firmware's boot
+    "snakebot sim bootloader --help",
+    "first-flash.md",
+}
+"""Groups whose commands wait on the wall clock: `make test` runs them with the tests
+marked serial, after the CPU-bound ones."""
+
+
+def params(names: list[str]) -> list[object]:
+    return [pytest.param(n, marks=pytest.mark.serial) if n in REAL_TIME else n for n in names]
+
 
 def program_spec() -> str:
     """The program spec `snakebot program build --help` shows, as a file would hold it."""
@@ -100,15 +115,16 @@ def check(lines: list[Line], workdir: Path) -> list[str]:
     return problems
 
 
-@pytest.mark.parametrize("command", sorted(HELP))
+@pytest.mark.parametrize("command", params(sorted(HELP)))
 def test_the_examples_in_a_help_text_run(command, workdir, monkeypatch):
     monkeypatch.chdir(workdir)
     problems = check(HELP[command], workdir)
     assert not problems, "\n".join(problems)
 
 
-@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
-def test_the_commands_in_a_page_run(page, workdir, monkeypatch):
+@pytest.mark.parametrize("name", params([p.name for p in PAGES]))
+def test_the_commands_in_a_page_run(name, workdir, monkeypatch):
+    page = next(p for p in PAGES if p.name == name)
     monkeypatch.chdir(workdir)
     problems: list[str] = []
     for language, source, where in blocks(page):

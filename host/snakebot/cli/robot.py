@@ -61,8 +61,9 @@ def new_command(file: Path, like: str, links: int | None, force: bool, as_json: 
     if as_json:
         click.echo(dumps({"robot": str(file), "like": like, "joints": described.n_joints}))
         return
+    joints = f"{described.n_joints} joint{'s' if described.n_joints != 1 else ''}"
     click.echo(
-        f"wrote {file}: {described.kind} {described.name} with {described.n_joints} joints "
+        f"wrote {file}: {described.kind} {described.name} with {joints} "
         f"(servo IDs {', '.join(str(i) for i in described.servo_ids)}), from {like}; edit it "
         f"for your robot, then check it with `snakebot model info {file}`"
     )

@@ -56,7 +56,8 @@ def _values(like: str, links: int | None) -> dict[str, Any]:
             new_id = min(set(range(MAX_SERVO_ID + 1)) - used)
         joints.append({**joints[-1], "name": joint_name(len(joints)), "servo_id": new_id})
     if links != data["geometry"]["links"]:
-        data["description"] = f"{links}-link snake on {links - 1} servos, after {like}"
+        servos = f"{links - 1} servo{'s' if links > 2 else ''}"
+        data["description"] = f"{links}-link snake on {servos}, after {like}"
     data["joints"] = joints
     data["geometry"]["links"] = links
     return data

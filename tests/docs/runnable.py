@@ -25,13 +25,11 @@ from __future__ import annotations
 import itertools
 import re
 import shlex
-from collections import Counter
 from collections.abc import Iterator
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass
 
 import click
-from click.testing import CliRunner
+from click.testing import CliRunner, Result
 from py_library import FlashController, PyStore
 
 from snakebot.cli import main
@@ -137,7 +135,6 @@ class Emulators:
     bootloader: BootloaderPty | None = None
     handover: object | None = None
     buses: int = 0
-    ran: Counter[str] = field(default_factory=Counter)
 
     def controller_port(self) -> str:
         """The controller's C logic with a gait library (a Python store that writes a
@@ -187,28 +184,32 @@ class Emulators:
         self.controller = self.bootloader = self.handover = None
 
 
-def run_line(line: Line, emulators: Emulators, workdir: Path) -> list[str]:
-    """Run a ``run`` line in ``workdir``; the problems found (empty when it worked)."""
-    problems = []
+def invoke(words: list[str], emulators: Emulators) -> Result:
+    """Run ``snakebot WORDS`` in process: leading ``NAME=value`` words set the
+    environment, a real-hardware port is replaced by the emulator's."""
+    words = list(words)
+    env = {}
+    while words and ENV.match(words[0]):
+        name, _, value = words.pop(0).partition("=")
+        env[name] = value
+    args = words[1:]
+    args = [emulators.port_for(args) if PORT.match(a) else a for a in args]
+    return CliRunner().invoke(main, args, env=env, input=ANSWERS)
+
+
+def run_line(line: Line, emulators: Emulators) -> list[str]:
+    """Run a ``run`` line (in the current folder); the problems found (none: it worked)."""
     for words in line.commands:
-        env = {}
-        while words and ENV.match(words[0]):
-            name, _, value = words.pop(0).partition("=")
-            env[name] = value
-        args = words[1:]
-        args = [emulators.port_for(args) if PORT.match(a) else a for a in args]
-        result = CliRunner().invoke(main, args, env=env, input=ANSWERS)
-        emulators.ran[line.where.split(",")[0]] += 1
+        result = invoke(words, emulators)
         if result.exit_code != 0:
-            problems.append(
+            return [
                 f"{line.where}: `{line.text}` exited {result.exit_code}: "
                 f"{(result.stderr or result.stdout).strip()[-600:]}"
-            )
-            break
-    return problems
+            ]
+    return []
 
 
-def run_console(source: str, where: str, emulators: Emulators, workdir: Path) -> list[str]:
+def run_console(source: str, where: str, emulators: Emulators) -> list[str]:
     """A ``console`` block: each ``$ `` command runs, and the lines under it must be in
     what it printed (its exit status is then whatever the text shows it to be)."""
     problems: list[str] = []
@@ -218,14 +219,7 @@ def run_console(source: str, where: str, emulators: Emulators, workdir: Path) ->
         line = Line(f"$ {command.strip()}", f"{where}+{number}")
         if line.kind != "run":
             continue
-        words = line.commands[0]
-        env = {}
-        while words and ENV.match(words[0]):
-            name, _, value = words.pop(0).partition("=")
-            env[name] = value
-        args = [emulators.port_for(words[1:]) if PORT.match(a) else a for a in words[1:]]
-        result = CliRunner().invoke(main, args, env=env, input=ANSWERS)
-        emulators.ran[where] += 1
+        result = invoke(line.commands[0], emulators)
         printed = result.stdout + result.stderr
         for want in filter(None, (w.strip() for w in expected.splitlines())):
             if want not in printed:

@@ -98,7 +98,7 @@ def workdir(tmp_path_factory) -> Path:
     return folder
 
 
-def check(lines: list[Line], workdir: Path) -> list[str]:
+def check(lines: list[Line]) -> list[str]:
     emulators = Emulators()
     problems = []
     try:
@@ -109,7 +109,7 @@ def check(lines: list[Line], workdir: Path) -> list[str]:
                     "`# real hardware only`"
                 )
             elif line.kind == "run":
-                problems += run_line(line, emulators, workdir)
+                problems += run_line(line, emulators)
     finally:
         emulators.close()
     return problems
@@ -118,7 +118,7 @@ def check(lines: list[Line], workdir: Path) -> list[str]:
 @pytest.mark.parametrize("command", params(sorted(HELP)))
 def test_the_examples_in_a_help_text_run(command, workdir, monkeypatch):
     monkeypatch.chdir(workdir)
-    problems = check(HELP[command], workdir)
+    problems = check(HELP[command])
     assert not problems, "\n".join(problems)
 
 
@@ -131,11 +131,11 @@ def test_the_commands_in_a_page_run(name, workdir, monkeypatch):
         if language == "console":
             emulators = Emulators()
             try:
-                problems += run_console(source, where, emulators, workdir)
+                problems += run_console(source, where, emulators)
             finally:
                 emulators.close()
         else:
-            problems += check(list(block_lines(source, where)), workdir)
+            problems += check(list(block_lines(source, where)))
     assert not problems, "\n".join(problems)
 
 

@@ -18,8 +18,9 @@ import pytest
 from click.testing import CliRunner
 from firmware_support import build_firmware
 from runnable import Emulators, Line, block_lines, help_examples, run_console, run_line
-from sybil import Sybil
+from sybil import Document, Sybil
 from sybil.parsers.markdown import CodeBlockParser
+from sybil.parsers.markdown.lexers import FencedCodeBlockLexer
 
 from snakebot.cli import main
 from snakebot.paths import REPO_ROOT
@@ -150,6 +151,21 @@ def inventory() -> Counter[str]:
                 if language == "sh" or line.text.startswith("$ "):
                     kinds[f"docs: {line.kind}"] += 1
     return kinds
+
+
+def test_a_block_of_snakebot_commands_is_marked_as_shell():
+    """A fenced block whose lines are snakebot commands says it is shell (``sh`` or
+    ``console``), so that the test above runs it."""
+    untagged = []
+    for page in PAGES:
+        for region in FencedCodeBlockLexer(language=r".*")(Document.parse(str(page))):
+            language = region.lexemes.get("language", "").strip()
+            lines = str(region.lexemes["source"]).splitlines()
+            if language not in ("sh", "console") and any(
+                line.lstrip("$ ").startswith("snakebot ") for line in lines
+            ):
+                untagged.append(f"{page.name}:{region.start}")
+    assert not untagged, f"fenced blocks of commands without ```sh: {untagged}"
 
 
 def test_every_line_is_run_or_marked():

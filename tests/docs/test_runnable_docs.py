@@ -9,6 +9,7 @@ that cannot run here fails the test, so a change that breaks an example is caugh
 
 from __future__ import annotations
 
+import re
 import textwrap
 from collections import Counter
 from pathlib import Path
@@ -27,6 +28,7 @@ from snakebot.paths import REPO_ROOT
 
 pytestmark = pytest.mark.timeout(180)
 
+COMMAND = re.compile(r"^(?:\$ )?(?:[A-Z][A-Z0-9_]*=\S* )*snakebot ")  # env words first
 PAGES = [REPO_ROOT / "README.md", *sorted((REPO_ROOT / "docs").glob("*.md"))]
 SYBIL = Sybil(
     parsers=[CodeBlockParser(language="sh"), CodeBlockParser(language="console")],
@@ -161,9 +163,7 @@ def test_a_block_of_snakebot_commands_is_marked_as_shell():
         for region in FencedCodeBlockLexer(language=r".*")(Document.parse(str(page))):
             language = region.lexemes.get("language", "").strip()
             lines = str(region.lexemes["source"]).splitlines()
-            if language not in ("sh", "console") and any(
-                line.lstrip("$ ").startswith("snakebot ") for line in lines
-            ):
+            if language not in ("sh", "console") and any(map(COMMAND.match, lines)):
                 untagged.append(f"{page.name}:{region.start}")
     assert not untagged, f"fenced blocks of commands without ```sh: {untagged}"
 

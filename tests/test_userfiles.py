@@ -10,6 +10,7 @@ import threading
 import pytest
 
 from snakebot.userfiles import (
+    OutputExists,
     OutputRefused,
     atomic_output,
     check_output,
@@ -132,3 +133,19 @@ def test_two_names_of_one_file_are_the_same_output(tmp_path):
     assert same_file(tmp_path / "a", tmp_path / "sub" / ".." / "a")
     assert same_file(tmp_path / "a", tmp_path / "b")
     assert not same_file(tmp_path / "a", tmp_path / "c")
+
+
+def test_a_new_file_only_output_keeps_an_existing_file(tmp_path):
+    path = tmp_path / "robot.toml"
+    path.write_bytes(OLD)
+    with pytest.raises(OutputExists, match="exists already"):
+        write_atomic(path, "new", replace=False)
+    assert path.read_bytes() == OLD
+    # the file appears between the first check and the end: still kept, in one step
+    late = tmp_path / "late.toml"
+    with pytest.raises(OutputExists), atomic_output(late, replace=False) as f:
+        late.write_bytes(OLD)
+        f.write(b"new")
+    assert late.read_bytes() == OLD
+    assert write_atomic(tmp_path / "fresh.toml", "new", replace=False).read_text() == "new"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fresh.toml", "late.toml", "robot.toml"]

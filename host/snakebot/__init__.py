@@ -6,8 +6,8 @@ The command line (``snakebot --help``) is a thin layer over this library. The li
 laid out in layers; each imports only from the layers below it, so the folder a name
 lives in says what it may depend on:
 
-- ``snakebot.cli``: the ``snakebot`` command: one subpackage or module per command
-  group; a command parses, calls one library function and prints.
+- ``snakebot.cli``: the command line: one subpackage or module per command group; a
+  command parses, calls one library function and prints.
 - ``snakebot.plots``: every figure and video (matplotlib, the ``plot`` extra).
 - ``snakebot.workflows``: what combines the model, the emulator and the link: the demo,
   closed-loop goto, predictions on the emulated robot, the comparison of a recorded run
@@ -29,6 +29,23 @@ lives in says what it may depend on:
 - the package root: ``errors`` (``SnakebotError``, the root of every error the CLI
   reports in one line), ``core`` (the C core through cffi), ``paths``, ``extras``,
   ``userfiles``, ``firmware`` (the images).
+
+Where to start:
+
+- ``snakebot.model.robots.load_robot``: a built-in robot (``snake5``, ``snake3``,
+  ``trident``, ``car``) or your robot's .toml; ``snakebot.model.robots.schema`` says
+  what each key of the file means (``snakebot robot new`` writes one to edit).
+- ``snakebot.model.gait.serpenoid``: a serpenoid gait for a robot, with its predicted
+  motion and the gait table the controller plays.
+- ``snakebot.link.transport.DxlClient``: Protocol 1.0 to the servos on a bus adapter,
+  or to emulated servos on ``sim://``.
+- ``snakebot.link.controller.client.ControllerClient`` and
+  ``snakebot.link.controller.upload.upload_gait``: the CM-530 running snakebot's
+  firmware, over its PC link.
+- ``snakebot.sim.serve.EmulatedRobot``: the firmware in QEMU with emulated servos and a
+  world that moves the body; ``snakebot.workflows.demo.run_demo`` is ``snakebot demo``.
+- ``snakebot.errors``: every error is an ``InputError`` (bad input) or a
+  ``RuntimeFailure`` (the world did not cooperate), with a message that names the fix.
 
 From a robot to the bytes the controller plays, and a servo read over the emulated
 bus (this runs as it is, with no hardware):

@@ -195,23 +195,41 @@ def _final_mode(path: Path) -> int:
     return stat.S_IMODE(info.st_mode) if stat.S_ISREG(info.st_mode) else new_file_mode()
 
 
-def _finish(temp: Path, target: Path, mode: int) -> None:
+class OutputExists(OutputRefused):
+    """An output that must be new names a file that exists (bad input, exit 2)."""
+
+    def __init__(self, target: PathLike) -> None:
+        super().__init__(
+            f"{os.fspath(target)!r} exists already: name a new file, or allow replacing it"
+        )
+
+
+def _finish(temp: Path, target: Path, mode: int, replace: bool = True) -> None:
     fd = os.open(temp, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
     try:
         os.fchmod(fd, mode)
         os.fsync(fd)
     finally:
         os.close(fd)
-    os.replace(temp, target)  # replaces the name: never writes through what is there
+    if replace:
+        os.replace(temp, target)  # replaces the name: never writes through what is there
+        return
+    try:
+        os.link(temp, target)  # a new name only: fails, in one step, if there is one
+    except FileExistsError:
+        raise OutputExists(target) from None
 
 
 @contextmanager
-def staged_output(path: PathLike) -> Iterator[Path]:
+def staged_output(path: PathLike, *, replace: bool = True) -> Iterator[Path]:
     """A temporary path beside ``path``, with the same suffix (for writers that pick the
     format by name: matplotlib, Pillow, ffmpeg, pyarrow), moved over ``path`` when the
     block ends without an exception and removed when it raises. ``path`` is checked
-    first (:func:`check_output`)."""
+    first (:func:`check_output`). With ``replace`` false a file already at ``path`` is
+    kept and :class:`OutputExists` raised (checked before and, atomically, at the end)."""
     target = check_output(path)
+    if not replace and os.path.lexists(target):
+        raise OutputExists(target)
     mode = _final_mode(target)
     fd, name = tempfile.mkstemp(
         dir=target.parent, prefix=f".{target.stem}.", suffix=f".tmp{target.suffix}"
@@ -220,17 +238,17 @@ def staged_output(path: PathLike) -> Iterator[Path]:
     temp = Path(name)
     try:
         yield temp
-        _finish(temp, target, mode)
+        _finish(temp, target, mode, replace)
     finally:
         temp.unlink(missing_ok=True)
 
 
 @contextmanager
-def atomic_output(path: PathLike, *, text: bool = False) -> Iterator[IO[Any]]:
+def atomic_output(path: PathLike, *, text: bool = False, replace: bool = True) -> Iterator[IO[Any]]:
     """A file object whose content replaces ``path`` in one step when the block ends
     without an exception (:func:`staged_output`); ``text`` opens it for ``str`` with
-    ``newline=""`` (as ``csv`` wants)."""
-    with staged_output(path) as temp:
+    ``newline=""`` (as ``csv`` wants); ``replace`` as for :func:`staged_output`."""
+    with staged_output(path, replace=replace) as temp:
         if text:
             with open(temp, "w", newline="", encoding="utf-8") as f:
                 yield f
@@ -239,9 +257,10 @@ def atomic_output(path: PathLike, *, text: bool = False) -> Iterator[IO[Any]]:
                 yield f
 
 
-def write_atomic(path: PathLike, data: bytes | str) -> Path:
-    """Replace ``path`` by ``data`` in one step (:func:`atomic_output`)."""
-    with atomic_output(path, text=isinstance(data, str)) as f:
+def write_atomic(path: PathLike, data: bytes | str, *, replace: bool = True) -> Path:
+    """Replace ``path`` by ``data`` in one step (:func:`atomic_output`); with ``replace``
+    false, write a new file and refuse an existing one (:class:`OutputExists`)."""
+    with atomic_output(path, text=isinstance(data, str), replace=replace) as f:
         f.write(data)
     return Path(path)
 

@@ -8,29 +8,12 @@ from __future__ import annotations
 
 import pytest
 from controller_cli_support import cli, cli_json, save, wave_table
-from py_library import PyStore
+from py_library import FlashController, PyStore
 
 from snakebot.core import lib
-from snakebot.sim.controller_pty import ControllerDevice, ControllerPty
+from snakebot.sim.controller_pty import ControllerPty
 
 pytestmark = pytest.mark.timeout(120)
-
-
-class FlashController(ControllerDevice):
-    """The controller's logic with ``store`` as its library; after each control tick,
-    as the firmware's main loop: a newly committed table starts a save, and the write
-    under way takes its step."""
-
-    def __init__(self, bus, store: PyStore) -> None:
-        super().__init__(bus)
-        self.store = store
-        lib.ctl_set_library(self.d, store.c)
-
-    def tick(self, now_ms: int) -> None:
-        super().tick(now_ms)
-        if lib.ctl_table_changed(self.d):
-            self.store.begin(lib.CTL_STORE_STATE_TABLE)
-        self.store.tick(self.d)
 
 
 @pytest.fixture

@@ -82,6 +82,8 @@ def test_make_docs_builds_the_api_reference(tmp_path: Path):
     landing = (out / "snakebot.html").read_text(encoding="utf-8")
     for layer in ("facts", "formats", "model", "link", "sim", "workflows", "plots", "cli"):
         assert f"snakebot.{layer}" in landing, f"the landing page does not name {layer}"
+    for start in ("model/robots.html#load_robot", "link/transport.html#DxlClient"):
+        assert f'href="snakebot/{start}"' in landing, f"the landing page does not link {start}"
     for page, word in expected.items():
         path = out / page
         assert path.is_file(), f"{page} missing from the API reference"

@@ -43,14 +43,18 @@ def test_demo_json_reports_the_snake_advancing_and_writes_the_png(tmp_path, worl
         abs=1e-5,
     )
     assert result["world"] == world
+    # the difference's measured parts: what the servos' lag accounts for, and the rest
+    assert result["lag_part_m"] + result["after_lag_m"] >= result["difference_m"] - 1e-5
+    larger = "servo lag" if result["lag_part_m"] >= result["after_lag_m"] else "the rest"
     if world == "mujoco":  # the default: the prediction's own model is not the judge
-        assert result["reason"] == "servo lag and physics"
+        assert result["reason"] == {"servo lag": "servo lag", "the rest": "physics"}[larger]
         physics = result["physics"]
         free = physics["predicted_free_wheels"]  # the kinematic model, the twin's free wheels
         assert physics["difference_free_wheels_m"] < 0.1 * free["distance"]
         assert sum(physics["electrical_j"]) > sum(physics["work_j"]) > 0
     else:  # the prediction's own model: only the servos' lag separates them
-        assert result["reason"] == "servo lag" and "physics" not in result
+        assert result["reason"] == {"servo lag": "servo lag", "the rest": "tracking error"}[larger]
+        assert "physics" not in result
         assert result["within_tolerance"]
     assert result["upload"]["crc"] == f"0x{zlib.crc32((out / 'demo.gait').read_bytes()):08x}"
     assert result["monitor"]

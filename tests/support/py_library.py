@@ -10,6 +10,7 @@ import zlib
 from ctl_support import CTL, lib_value
 
 from snakebot.core import ffi, lib
+from snakebot.sim.controller_pty import ControllerDevice
 
 NAME_BYTES = CTL.register("Slot Name").size
 OK = lib_value("Upload Result", "OK")
@@ -97,3 +98,20 @@ class PyStore:
         self.calls.append(("remove", slot))
         self.slots.pop(slot, None)
         return self._begun()
+
+
+class FlashController(ControllerDevice):
+    """The controller's logic with ``store`` as its library; after each control tick,
+    as the firmware's main loop: a newly committed table starts a save, and the write
+    under way takes its step."""
+
+    def __init__(self, bus, store: PyStore) -> None:
+        super().__init__(bus)
+        self.store = store
+        lib.ctl_set_library(self.d, store.c)
+
+    def tick(self, now_ms: int) -> None:
+        super().tick(now_ms)
+        if lib.ctl_table_changed(self.d):
+            self.store.begin(lib.CTL_STORE_STATE_TABLE)
+        self.store.tick(self.d)

@@ -91,8 +91,8 @@ COMMANDS: dict[str, LazyCommand] = {
     ),
     "robot": LazyCommand(
         "snakebot.cli.robot:robot",
-        "Work on a robot description (a robot .toml): calibrate it against the real robot, "
-        "or export it for other tools.",
+        "Work on a robot description (a robot .toml): start one, calibrate it against the "
+        "real robot, or export it for other tools.",
     ),
     "drive": LazyCommand(
         "snakebot.cli.controller.drive:drive",

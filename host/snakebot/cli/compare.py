@@ -31,7 +31,8 @@ def compare_command(
     was played) and report how far each joint was from the prediction.
 
     \b
-        snakebot monitor --port /dev/ttyUSB0 --csv run.csv      # while the gait plays
+        snakebot upload walk.gait --port /dev/ttyUSB0 && snakebot play --port /dev/ttyUSB0 --loop
+        snakebot monitor --port /dev/ttyUSB0 --csv run.csv --duration 6   # while it plays
         snakebot compare run.csv walk.gait --plot compare.png
 
     The prediction is the joint angles the table asks for (linear between frames, as the

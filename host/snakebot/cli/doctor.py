@@ -58,7 +58,7 @@ def doctor(
 
     \b
         snakebot doctor --port /dev/ttyUSB0             # the CM-530, or a servo bus
-        snakebot doctor --port /dev/ttyUSB0 --bootloader
+        snakebot doctor --port /dev/ttyUSB0 --bootloader  # real hardware only: press MODE
 
     Checks, each ok / WARN / FAIL with what to do: the USB adapter's latency timer (an
     FTDI adapter's, through /sys); then, if a snakebot controller answers PING at --id

@@ -10,16 +10,63 @@ from snakebot.cli.options import BusLink, bus_options
 from snakebot.cli.output import dumps
 from snakebot.cli.params import INPUT_PATH, OutputPathType
 from snakebot.link.bus.calibrate import JOG_DEG, calibrate, updated_text, write_atomically
-from snakebot.model.robots import load_robot
+from snakebot.model.robots import BUILTIN_ROBOTS, load_robot, parse_robot
 from snakebot.model.robots.loader import MAX_FILE_BYTES
 from snakebot.model.robots.model import Joint
-from snakebot.userfiles import check_output, read_bounded, write_atomic
+from snakebot.model.robots.template import robot_file_text
+from snakebot.userfiles import OutputExists, check_output, read_bounded, write_atomic
 
 
 @click.group("robot")
 def robot() -> None:
-    """Work on a robot description (a robot .toml): calibrate it against the real robot,
-    or export it for other tools."""
+    """Work on a robot description (a robot .toml): start one, calibrate it against the
+    real robot, or export it for other tools."""
+
+
+@robot.command("new")
+@click.argument("file", metavar="FILE.toml", type=OutputPathType(lambda: ("toml",)))
+@click.option(
+    "--like",
+    type=click.Choice(BUILTIN_ROBOTS),
+    default="snake5",
+    show_default=True,
+    help="The built-in robot whose kind and values the file starts from.",
+)
+@click.option(
+    "--links",
+    type=int,
+    metavar="N",
+    help="For a snake: N links (N - 1 joints; each added joint as the last, its own servo ID).",
+)
+@click.option("--force", is_flag=True, help="Replace FILE if it exists.")
+@click.option("--json", "as_json", is_flag=True, help="print JSON instead of text")
+def new_command(file: Path, like: str, links: int | None, force: bool, as_json: bool) -> None:
+    """Write a new robot description to FILE.toml, to edit for your robot: the values of a
+    built-in robot, each key under a comment saying what it is and in what unit. An
+    existing FILE is kept unless --force.
+
+    Then measure your robot and change the geometry, set each joint's servo ID and
+    limits (`snakebot robot calibrate` measures the zero ticks and signs), and check it
+    with `snakebot model info FILE.toml`.
+
+    \b
+    Example: snakebot robot new my.toml --like snake5
+    """
+    text = robot_file_text(file.stem, like, links)
+    try:
+        write_atomic(file, text, replace=force)
+    except OutputExists as exc:
+        raise exc.about("force") from None
+    described = parse_robot(text, source=str(file))
+    if as_json:
+        click.echo(dumps({"robot": str(file), "like": like, "joints": described.n_joints}))
+        return
+    joints = f"{described.n_joints} joint{'s' if described.n_joints != 1 else ''}"
+    click.echo(
+        f"wrote {file}: {described.kind} {described.name} with {joints} "
+        f"(servo IDs {', '.join(str(i) for i in described.servo_ids)}), from {like}; edit it "
+        f"for your robot, then check it with `snakebot model info {file}`"
+    )
 
 
 @robot.command("calibrate")

@@ -196,12 +196,37 @@ class Comparison:
     emulated_path: np.ndarray = field(repr=False)
     predicted_path: np.ndarray = field(repr=False)
     joints: JointTrack = field(repr=False)  # measured by the servos, commanded by the firmware
+    predicted_lagged: dict[str, float] = field(default_factory=dict)
+    """The prediction for joints that trail the table by the measured ``lag_s``."""
     physics: dict[str, Any] | None = None
     """With the physics world: what it adds (see :func:`physics_effects`)."""
 
     @property
     def within_tolerance(self) -> bool:
         return self.difference_m <= self.tolerance_m
+
+    @property
+    def after_lag_m(self) -> float:
+        """How far the emulated motion is from the prediction with the servos' lag in it:
+        what the lag does not account for."""
+        e, p = self.emulated, self.predicted_lagged
+        return math.hypot(e["dx"] - p["dx"], e["dy"] - p["dy"])
+
+    @property
+    def lag_part_m(self) -> float:
+        """How much of the difference the servos' measured lag accounts for: how much
+        closer the prediction comes with the lag in it (0 if it comes no closer)."""
+        return max(0.0, self.difference_m - self.after_lag_m)
+
+    @property
+    def cause(self) -> str:
+        """The larger of the two measured parts of the difference: "servo lag" (the lag's
+        part) or what is left after it: "physics" (the body's mass, the wheels' slide) in
+        the physics world, "tracking error" (the servos' error beyond a plain delay) in
+        the kinematic one."""
+        if self.lag_part_m >= self.after_lag_m:
+            return "servo lag"
+        return "tracking error" if self.physics is None else "physics"
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -210,7 +235,10 @@ class Comparison:
             "difference_m": round(self.difference_m, 6),
             "tolerance_m": round(self.tolerance_m, 6),
             "within_tolerance": self.within_tolerance,
-            "reason": "servo lag" if self.physics is None else "servo lag and physics",
+            "reason": self.cause,
+            "lag_part_m": round(self.lag_part_m, 6),
+            "after_lag_m": round(self.after_lag_m, 6),
+            "predicted_with_lag": _rounded(self.predicted_lagged),
             "servo_lag_ms": round(1000 * self.lag_s, 1),
             "tracking_error_deg": {
                 "max": round(math.degrees(self.joints.max_rad), 3),
@@ -281,11 +309,15 @@ def compare(
     path = predicted_motion(robot, angles, period_s, cycles, samples=200 * cycles + 1)
     predicted = motion(path[-1])
 
+    def delayed(delay_s: float) -> dict[str, float]:
+        return motion(predicted_motion(robot, angles, period_s, cycles, delay_s * rate)[-1])
+
     def shift(delay_s: float) -> float:
-        moved = motion(predicted_motion(robot, angles, period_s, cycles, delay_s * rate)[-1])
+        moved = delayed(delay_s)
         return math.hypot(moved["dx"] - predicted["dx"], moved["dy"] - predicted["dy"])
 
-    lag_effect = shift(lag)
+    lagged = delayed(lag)
+    lag_effect = math.hypot(lagged["dx"] - predicted["dx"], lagged["dy"] - predicted["dy"])
     sensitivity = 0.0
     one_cycle = np.linspace(0.0, frames, 20 * frames, endpoint=False)
     for d in SENSITIVITY_DELAYS_S:
@@ -299,6 +331,7 @@ def compare(
     return Comparison(
         emulated=emulated,
         predicted=predicted,
+        predicted_lagged=lagged,
         difference_m=math.hypot(emulated["dx"] - predicted["dx"], emulated["dy"] - predicted["dy"]),
         lag_s=lag,
         residual_max_rad=residual_max,
@@ -543,6 +576,42 @@ def _physics_lines(c: Comparison) -> list[str]:
     ]
 
 
+_REST = {
+    "physics": "the physics (the body's mass, its wheels' slide)",
+    "tracking error": "the servos' tracking error beyond a plain delay",
+}
+
+
+def verdict_line(c: Comparison) -> str:
+    """The report's first line: whether the emulated robot went where the prediction
+    says (within what the servos' measured lag allows), by how much, and which measured
+    part of the difference is the larger."""
+    p = c.predicted
+    apart = (
+        f"{100 * c.emulated['distance']:.1f} cm against {100 * p['distance']:.1f} cm "
+        f"predicted, {100 * c.difference_m:.1f} cm apart "
+        f"({100 * c.difference_m / max(p['distance'], 1e-12):.0f} %)"
+    )
+    allowed = f"the {100 * c.tolerance_m:.1f} cm the servos' measured lag allows"
+    head = (
+        f"5. verdict: AGREE, {apart}, within {allowed}"
+        if c.within_tolerance
+        else f"5. verdict: DISAGREE, {apart}, more than {allowed}"
+    )
+    lag = f"the servo lag ({1000 * c.lag_s:.0f} ms)"
+    if c.cause == "servo lag":
+        why = (
+            f"mostly {lag}: the prediction with that lag is {100 * c.after_lag_m:.1f} cm "
+            "from the emulated robot"
+        )
+    else:
+        why = (
+            f"mostly {_REST[c.cause]}: {lag} accounts for {100 * c.lag_part_m:.1f} cm, "
+            f"{100 * c.after_lag_m:.1f} cm remain"
+        )
+    return f"{head}; {why}."
+
+
 def summary_lines(result: DemoResult) -> list[str]:
     """What the demo found, in words."""
     c = result.comparison
@@ -557,23 +626,19 @@ def summary_lines(result: DemoResult) -> list[str]:
         )
 
     return [
-        f"5. over the {n} measured cycles "
+        verdict_line(c),
+        f"   over the {n} measured cycles "
         f"({motion_frame(load_robot(result.settings.robot))}; angles counter-clockwise):",
         f"   emulated : {where(e)}",
         f"   predicted: {where(p)}",
-        f"   difference {100 * c.difference_m:.1f} cm "
-        f"({100 * c.difference_m / max(p['distance'], 1e-12):.0f} % of the predicted distance), "
-        + (
-            f"within the {100 * c.tolerance_m:.1f} cm the servo lag explains"
-            if c.within_tolerance
-            else f"MORE than the {100 * c.tolerance_m:.1f} cm the servo lag explains"
-        ),
-        f"   reason: servo lag. The servos trail the commanded joints by "
+        f"   with lag : {where(c.predicted_lagged)}",
+        f"   servo lag: the servos trail the commanded joints by "
         f"{1000 * c.lag_s:.0f} ms (largest joint error {math.degrees(c.joints.max_rad):.1f}"
         f" deg, rms {math.degrees(c.joints.rms_rad):.1f} deg); a delay that long moves the "
         f"prediction by {100 * c.lag_effect_m:.1f} cm, and the rest of the tracking error "
         f"(at most {math.degrees(c.residual_max_rad):.2f} deg) can add "
-        f"{100 * RESIDUAL_SAFETY * c.sensitivity_m_per_rad * c.residual_max_rad:.1f} cm.",
+        f"{100 * RESIDUAL_SAFETY * c.sensitivity_m_per_rad * c.residual_max_rad:.1f} cm: "
+        f"{100 * c.tolerance_m:.1f} cm in all.",
         *_physics_lines(c),
         f"   the firmware played at {c.playback_rate:.2f}x wall-clock speed (its clock in QEMU);"
         " the motion per cycle does not depend on it.",

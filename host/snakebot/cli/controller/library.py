@@ -72,7 +72,7 @@ def library() -> None:
     plays it or stops.
 
     \b
-        snakebot gait serpenoid snake5 -A 30deg -w 180deg -d 90deg -o walk.gait
+        snakebot gait serpenoid snake5 -A 30deg -w 180deg -d 90deg --cycles 2 -o walk.gait
         snakebot library store 0 walk.gait --name "walk" --port /dev/ttyUSB0
         snakebot library list --port /dev/ttyUSB0
         snakebot library play 0 --port /dev/ttyUSB0

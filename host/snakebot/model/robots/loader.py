@@ -1,24 +1,10 @@
 """Reading robot descriptions from TOML, with errors that name the key and its line.
 
-Schema (see the built-in files beside this module for complete examples)::
-
-    name = "snake5"
-    kind = "snake"                # or "trident", or "car"
-    description = "..."           # optional
-    [geometry]                    # snake: links (>= 2), half_link (l > 0)
-                                  # trident: base_radius, arm_length, alphas_deg (3 angles)
-                                  # car: wheelbase (L > 0); one joint, the steering angle
-    [friction]                    # optional, physical units (DEFAULT_FRICTION when left
-                                  # out): lateral (> 0, Coulomb, wheel-floor across the
-                                  # wheel), rolling (>= 0, C_rr), axle_nm (>= 0, N m)
-    [servo]                       # model ("AX-12A" or "AX-12W"), max_speed_rpm (optional)
-    [physics]                     # optional; the physics world needs it: unit_m (> 0), and
-                                  # link_mass_kg, wheel_radius_m, wheel_mass_kg
-                                  # (PHYSICS_DEFAULTS when left out; the wheels' loads)
-    [limits]                      # optional: torque, the Torque Limit every servo is
-                                  # held to, in % of stall torque ("60%" or 60; above 0)
-    [[joints]]                    # one per actuated joint, in order phi_1, phi_2, ...
-    name, servo_id (0-253), zero_tick (0-1023), sign (1 or -1), min_deg, max_deg
+A robot file has the top-level keys ``name``, ``kind`` ("snake", "trident" or "car") and
+``description``, and the tables ``[geometry]``, ``[friction]``, ``[servo]``,
+``[limits]``, ``[[joints]]`` and ``[physics]``. What each key means, its unit and its
+range are in :mod:`snakebot.model.robots.schema` (``snakebot robot new`` writes them as
+comments); the built-in files beside this module are complete examples.
 """
 
 from __future__ import annotations
@@ -51,10 +37,10 @@ from snakebot.model.robots.model import (
     RobotError,
     joint_name,
 )
+from snakebot.model.robots.schema import MAX_LINKS, MAX_SERVO_ID, schema
 from snakebot.userfiles import UnreadableInput, read_bounded
 
 BUILTIN_ROBOTS = ("snake3", "trident", "snake5", "car")
-MAX_LINKS = 16  # the C core's fixed buffers (KIN_MAX_LINKS)
 MAX_FILE_BYTES = 1 << 20  # a robot description is a few hundred bytes; this is no robot
 MAX_LIMIT_DEG = 360.0  # joint limits beyond a full turn are typing errors, whatever the servo
 
@@ -72,17 +58,7 @@ REMOVED_KEYS: dict[tuple[str, ...], str] = {
 }
 """Keys of earlier robot files, refused with what replaces them."""
 
-SCHEMA: dict[str, Any] = {
-    "name": None,
-    "kind": None,
-    "description": None,
-    "geometry": {"links", "half_link", "base_radius", "arm_length", "alphas_deg", "wheelbase"},
-    "friction": {"lateral", "rolling", "axle_nm"},
-    "servo": {"model", "max_speed_rpm"},
-    "physics": {"unit_m", *PHYSICS_DEFAULTS},
-    "limits": {"torque"},
-    "joints": [{"name", "servo_id", "zero_tick", "sign", "min_deg", "max_deg"}],
-}
+SCHEMA: dict[str, Any] = schema()
 """The keys a robot file may have: None for a value, a set for a table's keys, a list
 holding that set for an array of tables. A key not here is refused with a "did you mean"
 (a misspelt optional key would otherwise be silently ignored)."""
@@ -214,7 +190,7 @@ def _joint(reader: _Reader, index: int) -> Joint:
         raise reader.fail((*base, "max_deg"), f"must be greater than min_deg ({low}), not {high}")
     joint = Joint(
         name=reader.get((*base, "name"), str, joint_name(index)),
-        servo_id=reader.integer((*base, "servo_id"), 0, 253),
+        servo_id=reader.integer((*base, "servo_id"), 0, MAX_SERVO_ID),
         zero_tick=reader.integer((*base, "zero_tick"), TICK_MIN, TICK_MAX),
         sign=sign,
         min_rad=math.radians(low),
@@ -366,12 +342,16 @@ def parse_robot(text: str, source: str = "<robot>") -> Robot:
     )
 
 
+def builtin_text(name: str) -> str:
+    """The TOML text of the built-in robot ``name`` (one of ``BUILTIN_ROBOTS``)."""
+    return resources.files("snakebot.model.robots").joinpath(f"{name}.toml").read_text()
+
+
 def load_robot(name_or_path: str | Path) -> Robot:
     """A built-in robot by name (``snake3``, ``trident``, ``snake5``) or a TOML file path."""
     text_name = str(name_or_path)
     if text_name in BUILTIN_ROBOTS:
-        text = resources.files("snakebot.model.robots").joinpath(f"{text_name}.toml").read_text()
-        return parse_robot(text, source=text_name)
+        return parse_robot(builtin_text(text_name), source=text_name)
     path = Path(name_or_path)
     if not path.is_file():
         raise RobotError(

@@ -1,0 +1,227 @@
+"""Running the commands the documents and the help texts show, against the emulators.
+
+A command line is one of:
+
+* **run**: a ``snakebot`` command, run in process (click's CliRunner) in a shared work
+  folder, its real-hardware port (``/dev/ttyUSB0``, ``/dev/pts/N``, ``/tmp/ttyCM530``)
+  replaced by an emulator's: ``sim://`` servos for the servo-bus commands, the
+  controller's C device on a pseudo-terminal (:class:`ControllerPty`, what the firmware
+  runs on its PC link) for the controller commands, the emulated ROBOTIS bootloader for
+  ``flash``;
+* **hardware**: marked ``# real hardware only`` in the text, not run;
+* **until Ctrl-C**: a command that runs until interrupted, as its help says (a looping
+  ``bus play``, ``monitor`` without a duration, ``drive`` reading the keyboard);
+* **video**: a line that renders a video (tens of CPU seconds; the videos have their own
+  tests in tests/plots);
+* **emulator**: a line that starts an emulator (``snakebot sim serve``, ``sim
+  bootloader``, ``sim bus --pty``), which serves until Ctrl-C: the test starts the same
+  emulator itself and gives its port to the lines that follow.
+
+Anything else (a ``make`` or ``pip`` line not marked) is an error: mark it or make it run.
+"""
+
+from __future__ import annotations
+
+import itertools
+import re
+import shlex
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import click
+from click.testing import CliRunner, Result
+from py_library import FlashController, PyStore
+
+from snakebot.cli import main
+from snakebot.sim.bootloader import Bootloader, BootloaderPty
+from snakebot.sim.controller_pty import ControllerPty
+
+HARDWARE = "real hardware only"
+PORT = re.compile(r"^(?:/dev/tty\w+|/dev/pts/\w+|/tmp/ttyCM530|COM\d+)$")
+ENV = re.compile(r"^[A-Z][A-Z0-9_]*=")
+EMULATORS = (("sim", "serve"), ("sim", "bootloader"), ("sim", "bus"))
+BUS_COMMANDS = (("bus",), ("robot", "calibrate"))
+SNAKE5_IDS = "10,11,15,16"
+ANSWERS = "\n" + "y\n" * 20  # Enter, then yes to every question (robot calibrate)
+EXAMPLE = re.compile(r"^\s*(?:Example:\s*)?(snakebot\s.+)$")
+BUS_NAMES = itertools.count(1)  # a named sim:// bus lives as long as the process
+
+
+@dataclass
+class Line:
+    """One command line as the text shows it, and where."""
+
+    text: str
+    where: str
+
+    @property
+    def comment(self) -> str:
+        head, _, tail = self.text.partition(" #")
+        return tail.strip() if head else ""
+
+    @property
+    def commands(self) -> list[list[str]]:
+        """The words of each command (``a && b`` is two), comments and ``$ `` left out."""
+        text = self.text.removeprefix("$ ")
+        return [shlex.split(part, comments=True) for part in text.split("&&")]
+
+    @property
+    def kind(self) -> str:
+        if HARDWARE in self.comment:
+            return "hardware"
+        words = [w for w in self.commands[0] if not ENV.match(w)]
+        if words[:1] != ["snakebot"]:
+            return "unmarked"
+        if tuple(words[1:3]) in EMULATORS:
+            return "emulator"
+        if any(until(c[1:]) for c in self.commands):
+            return "until Ctrl-C"
+        if "--video" in words:
+            return "video"
+        return "run"
+
+
+def until(words: list[str]) -> bool:
+    """Whether a command runs until Ctrl-C, as its help says: a looping `bus play`, a
+    `monitor` with no duration, a `drive` that reads the keyboard."""
+    if words[:2] == ["bus", "play"]:
+        return "--loop" in words
+    if words[:1] == ["monitor"]:
+        return "--duration" not in words
+    if words[:1] == ["drive"]:
+        return "--keys" not in words and "--script" not in words
+    return False
+
+
+def help_examples() -> Iterator[Line]:
+    """Every example line of every command's --help."""
+
+    def walk(cmd: click.Command, path: list[str]) -> Iterator[tuple[list[str], click.Command]]:
+        yield path, cmd
+        if isinstance(cmd, click.Group):
+            ctx = click.Context(cmd)
+            for name in cmd.list_commands(ctx):
+                sub = cmd.get_command(ctx, name)
+                if sub is not None:
+                    yield from walk(sub, [*path, name])
+
+    for path, cmd in walk(main, []):
+        lines = (cmd.help or "").splitlines()
+        for number, text in enumerate(lines):
+            if m := EXAMPLE.match(text):
+                command = m.group(1).strip()
+                for more in lines[number + 1 :]:  # an example wrapped onto option lines
+                    if not more.strip().startswith("-"):
+                        break
+                    command += " " + more.strip()
+                yield Line(command, f"snakebot {' '.join(path)} --help, line {number}")
+
+
+def block_lines(source: str, where: str) -> Iterator[Line]:
+    """The command lines of a fenced block: every line in a ``sh`` block; in a
+    ``console`` block the lines that start with ``$ `` (the rest is expected output)."""
+    console = any(line.startswith("$ ") for line in source.splitlines())
+    for number, text in enumerate(source.splitlines()):
+        if text.strip() and not text.lstrip().startswith("#"):
+            if not console or text.startswith("$ "):
+                yield Line(text.strip(), f"{where}+{number}")
+
+
+@dataclass
+class Emulators:
+    """The emulators the commands reach, started when first needed, one of each."""
+
+    controller: ControllerPty | None = None
+    bootloader: BootloaderPty | None = None
+    handover: object | None = None
+    buses: int = 0
+
+    def controller_port(self) -> str:
+        """The controller's C logic with a gait library (a Python store that writes a
+        step per tick, as the CM-530's flash does) and snake5's servos."""
+        if self.controller is None:
+            self.controller = ControllerPty(robot="snake5")
+            store = PyStore()
+            store.write_in_background()
+            self.controller.device_logic = FlashController(self.controller.bus, store)
+            self.controller.start()
+        return self.controller.device
+
+    def bootloader_port(self) -> str:
+        """A board in its bootloader, anew for each flash (as if MODE had been pressed),
+        which starts the image it receives on the emulated CM-530 after GO, as `snakebot
+        sim bootloader` does."""
+        from snakebot.sim.mcu.handover import McuHandover  # the mcu extra, as the CLI
+
+        self.close()
+        self.handover = McuHandover()
+        self.bootloader = BootloaderPty(Bootloader(), pace=False, on_go=self.handover).start()
+        return self.bootloader.device
+
+    def bus_port(self, words: list[str]) -> str:
+        """The emulated bus these lines share (it keeps its servos' settings from one
+        line to the next): servo 1, the factory ID, and snake5's servos, unless a line
+        renumbers servo 1 (then servo 1 alone)."""
+        if not self.buses:
+            self.buses = next(BUS_NAMES)
+        ids = "1" if words[:2] == ["bus", "set-id"] else f"1,{SNAKE5_IDS}"
+        return f"sim://docs{self.buses}?ids={ids}"
+
+    def port_for(self, words: list[str]) -> str:
+        if words[:1] == ["flash"]:
+            return self.bootloader_port()
+        if any(tuple(words[: len(c)]) == c for c in BUS_COMMANDS):
+            return self.bus_port(words)
+        return self.controller_port()
+
+    def close(self) -> None:
+        for server in (self.controller, self.bootloader):
+            if server is not None:
+                server.close()
+        close = getattr(self.handover, "close", None)
+        if close is not None:
+            close()
+        self.controller = self.bootloader = self.handover = None
+
+
+def invoke(words: list[str], emulators: Emulators) -> Result:
+    """Run ``snakebot WORDS`` in process: leading ``NAME=value`` words set the
+    environment, a real-hardware port is replaced by the emulator's."""
+    words = list(words)
+    env = {}
+    while words and ENV.match(words[0]):
+        name, _, value = words.pop(0).partition("=")
+        env[name] = value
+    args = words[1:]
+    args = [emulators.port_for(args) if PORT.match(a) else a for a in args]
+    return CliRunner().invoke(main, args, env=env, input=ANSWERS)
+
+
+def run_line(line: Line, emulators: Emulators) -> list[str]:
+    """Run a ``run`` line (in the current folder); the problems found (none: it worked)."""
+    for words in line.commands:
+        result = invoke(words, emulators)
+        if result.exit_code != 0:
+            return [
+                f"{line.where}: `{line.text}` exited {result.exit_code}: "
+                f"{(result.stderr or result.stdout).strip()[-600:]}"
+            ]
+    return []
+
+
+def run_console(source: str, where: str, emulators: Emulators) -> list[str]:
+    """A ``console`` block: each ``$ `` command runs, and the lines under it must be in
+    what it printed (its exit status is then whatever the text shows it to be)."""
+    problems: list[str] = []
+    blocks = re.split(r"^\$ ", source, flags=re.M)[1:]
+    for number, block in enumerate(blocks):
+        command, _, expected = block.partition("\n")
+        line = Line(f"$ {command.strip()}", f"{where}+{number}")
+        if line.kind != "run":
+            continue
+        result = invoke(line.commands[0], emulators)
+        printed = result.stdout + result.stderr
+        for want in filter(None, (w.strip() for w in expected.splitlines())):
+            if want not in printed:
+                problems.append(f"{line.where}: `{command}` did not print {want!r}: {printed!r}")
+    return problems

@@ -1,0 +1,174 @@
+"""Every command the documents and the help texts show runs (issue #29), in process,
+against the emulators (tests/docs/runnable.py says how each kind of line is treated):
+
+* the fenced ``sh`` and ``console`` blocks of README.md and docs/*.md, read with Sybil;
+* every example line (``snakebot ...``) of every command's --help.
+
+A line for real hardware says so in the text (``# real hardware only``); any other line
+that cannot run here fails the test, so a change that breaks an example is caught."""
+
+from __future__ import annotations
+
+import re
+import textwrap
+from collections import Counter
+from pathlib import Path
+
+import click
+import pytest
+from click.testing import CliRunner
+from firmware_support import build_firmware
+from runnable import Emulators, Line, block_lines, help_examples, run_console, run_line
+from sybil import Document, Sybil
+from sybil.parsers.markdown import CodeBlockParser
+from sybil.parsers.markdown.lexers import FencedCodeBlockLexer
+
+from snakebot.cli import main
+from snakebot.paths import REPO_ROOT
+
+pytestmark = pytest.mark.timeout(180)
+
+COMMAND = re.compile(r"^(?:\$ )?(?:[A-Z][A-Z0-9_]*=\S* )*snakebot ")  # env words first
+PAGES = [REPO_ROOT / "README.md", *sorted((REPO_ROOT / "docs").glob("*.md"))]
+SYBIL = Sybil(
+    parsers=[CodeBlockParser(language="sh"), CodeBlockParser(language="console")],
+    path=str(REPO_ROOT),
+    patterns=["README.md", "docs/*.md"],
+)
+
+
+def blocks(page: Path) -> list[tuple[str, str, str]]:
+    """(language, source, where) of each ``sh`` or ``console`` block of ``page``."""
+    found = []
+    for example in SYBIL.parse(page):
+        language = example.region.lexemes.get("arguments", "").strip()
+        where = f"{page.relative_to(REPO_ROOT)}:{example.line}"
+        found.append((language, example.parsed, where))
+    return found
+
+
+def help_groups() -> dict[str, list[Line]]:
+    """The example lines of each command's --help, in order."""
+    groups: dict[str, list[Line]] = {}
+    for line in help_examples():
+        groups.setdefault(line.where.split(",")[0], []).append(line)
+    return groups
+
+
+HELP = help_groups()
+
+REAL_TIME = {
+    "snakebot bus play --help",  # plays at the table's pace
+    "snakebot compare --help",  # records a run for seconds while the controller plays
+    "snakebot drive --help",  # keys timed in seconds
+    "snakebot flash --help",  # the bootloader's silences, the new firmware's boot
+    "snakebot sim bootloader --help",
+    "first-flash.md",
+}
+"""Groups whose commands wait on the wall clock: `make test` runs them with the tests
+marked serial, after the CPU-bound ones."""
+
+
+def params(names: list[str]) -> list[object]:
+    return [pytest.param(n, marks=pytest.mark.serial) if n in REAL_TIME else n for n in names]
+
+
+def program_spec() -> str:
+    """The program spec `snakebot program build --help` shows, as a file would hold it."""
+    ctx = click.Context(main)
+    build = main.get_command(ctx, "program").get_command(ctx, "build")  # type: ignore[union-attr]
+    lines = (build.help or "").splitlines()
+    start = next(n for n, text in enumerate(lines) if text.strip() == "\b") + 1
+    end = next(n for n in range(start, len(lines)) if not lines[n].strip())
+    return textwrap.dedent("\n".join(lines[start:end])) + "\n"
+
+
+@pytest.fixture(scope="module")
+def workdir(tmp_path_factory) -> Path:
+    """The files the examples name, made as the documents make them."""
+    build_firmware()
+    folder = tmp_path_factory.mktemp("docs")
+    (folder / "build").symlink_to(REPO_ROOT / "build")  # `make firmware`'s images
+    for args in (
+        ["gait", "serpenoid", "snake5", "-A", "30deg", "-w", "180deg", "-d", "90deg"]
+        + ["--cycles", "2", "-o", str(folder / "walk.gait")],
+        ["robot", "new", str(folder / "my_snake.toml")],
+    ):
+        assert CliRunner().invoke(main, args).exit_code == 0
+    for name in ("s.gait", "crawl.gait"):
+        (folder / name).write_bytes((folder / "walk.gait").read_bytes())
+    (folder / "plan.toml").write_text(program_spec())
+    return folder
+
+
+def check(lines: list[Line]) -> list[str]:
+    emulators = Emulators()
+    problems = []
+    try:
+        for line in lines:
+            if line.kind == "unmarked":
+                problems.append(
+                    f"{line.where}: `{line.text}` cannot run here: make it run, or mark it "
+                    "`# real hardware only`"
+                )
+            elif line.kind == "run":
+                problems += run_line(line, emulators)
+    finally:
+        emulators.close()
+    return problems
+
+
+@pytest.mark.parametrize("command", params(sorted(HELP)))
+def test_the_examples_in_a_help_text_run(command, workdir, monkeypatch):
+    monkeypatch.chdir(workdir)
+    problems = check(HELP[command])
+    assert not problems, "\n".join(problems)
+
+
+@pytest.mark.parametrize("name", params([p.name for p in PAGES]))
+def test_the_commands_in_a_page_run(name, workdir, monkeypatch):
+    page = next(p for p in PAGES if p.name == name)
+    monkeypatch.chdir(workdir)
+    problems: list[str] = []
+    for language, source, where in blocks(page):
+        if language == "console":
+            emulators = Emulators()
+            try:
+                problems += run_console(source, where, emulators)
+            finally:
+                emulators.close()
+        else:
+            problems += check(list(block_lines(source, where)))
+    assert not problems, "\n".join(problems)
+
+
+def inventory() -> Counter[str]:
+    """How many lines of each kind the documents and the help texts show."""
+    kinds: Counter[str] = Counter()
+    for lines in HELP.values():
+        kinds.update(f"help: {line.kind}" for line in lines)
+    for page in PAGES:
+        for language, source, where in blocks(page):
+            for line in block_lines(source, where):
+                if language == "sh" or line.text.startswith("$ "):
+                    kinds[f"docs: {line.kind}"] += 1
+    return kinds
+
+
+def test_a_block_of_snakebot_commands_is_marked_as_shell():
+    """A fenced block whose lines are snakebot commands says it is shell (``sh`` or
+    ``console``), so that the test above runs it."""
+    untagged = []
+    for page in PAGES:
+        for region in FencedCodeBlockLexer(language=r".*")(Document.parse(str(page))):
+            language = region.lexemes.get("language", "").strip()
+            lines = str(region.lexemes["source"]).splitlines()
+            if language not in ("sh", "console") and any(map(COMMAND.match, lines)):
+                untagged.append(f"{page.name}:{region.start}")
+    assert not untagged, f"fenced blocks of commands without ```sh: {untagged}"
+
+
+def test_every_line_is_run_or_marked():
+    kinds = inventory()
+    assert kinds["help: run"] >= 50 and kinds["docs: run"] >= 2, kinds
+    assert not kinds["help: unmarked"] and not kinds["docs: unmarked"], kinds

@@ -13,12 +13,25 @@ from typing import IO, Any
 
 import click
 
-from snakebot.cli.options import ControllerLink, controller_options, stack
+from snakebot.cli.options import (
+    ControllerLink,
+    controller_options,
+    foxglove_option,
+    robot_option,
+    stack,
+)
 from snakebot.cli.output import dumps
 from snakebot.cli.params import OUTPUT_PATH, NumberType
 from snakebot.cli.signals import held
 from snakebot.link.controller.mcap_log import McapLog
-from snakebot.link.controller.monitor import CSV_COLUMNS, csv_rows, render, sample
+from snakebot.link.controller.monitor import (
+    CSV_COLUMNS,
+    Sample,
+    csv_rows,
+    joint_sample,
+    render,
+    sample,
+)
 from snakebot.userfiles import OutputRefused, open_recording
 
 MIN_INTERVAL_S = 0.02
@@ -32,8 +45,10 @@ RECORD_PATH = OUTPUT_PATH
 RECORDS = {
     "csv": "every sample to this CSV file, one row per servo (t, state, joint name, ticks "
     "and degrees, speed, load, voltage, temperature, errors)",
-    "mcap": "every sample to this MCAP file (Foxglove Studio, PlotJuggler): one JSON "
-    "message per sample, as --json prints it. Needs the mcap package",
+    "mcap": "every sample to this MCAP file (Foxglove, PlotJuggler): one JSON message per "
+    "sample on /snakebot/telemetry, as --json prints it, and the topics --foxglove "
+    "streams (/joint_states, /snakebot/servos, /snakebot/controller, /tf with --robot). "
+    "Needs the mcap package",
 }
 """--csv and --mcap: the recordings a run can keep, and what each holds."""
 
@@ -63,6 +78,12 @@ def _cursor_up(lines: int) -> str:
         for fmt, what in RECORDS.items()
     )
 )
+@robot_option(
+    "With --foxglove or --mcap: the robot on the controller, for the joints' efforts, its "
+    "links and its pose predicted from the joint angles on /tf",
+    otherwise="the joints alone",
+)
+@foxglove_option("the controller's state and its servos, each sample")
 def monitor(
     link: ControllerLink,
     as_json: bool,
@@ -70,6 +91,8 @@ def monitor(
     interval: float,
     csv_path: Path | None,
     mcap_path: Path | None,
+    robot: str | None,
+    foxglove: tuple[str, int] | None,
 ) -> None:
     """Show the controller's state and error flags, and each roster servo's position,
     load, voltage, temperature and errors, as the controller last read them.
@@ -79,9 +102,14 @@ def monitor(
     each sample is also written to a file as it is taken, so a run stopped with Ctrl-C
     or SIGTERM (exit 130, 143) keeps everything up to then; --mcap does the same in
     MCAP, in chunks written every second, so even a SIGKILL loses at most the last one.
+    With --foxglove each sample also goes to Foxglove as it is taken, e.g.
+
+    \b
+        snakebot monitor --port /dev/ttyUSB0 --interval 0.05 --robot snake5 --foxglove 8765
     """
     live = sys.stdout.isatty() and not as_json
     shown = 0
+    view = _LiveView(robot) if foxglove is not None or mcap_path is not None else None
     # Only files this run creates may be removed again: a path that was there before
     # (a file of the user's, a device such as /dev/null) is never unlinked.
     created = [p for p in (csv_path, mcap_path) if p is not None and not os.path.lexists(p)]
@@ -97,6 +125,8 @@ def monitor(
                 stack.enter_context(mcap_log)
             ctl = stack.enter_context(link.open())
             ctl.identify()
+            if foxglove is not None and view is not None:
+                view.serve(stack, *foxglove)
         except BaseException:
             stack.close()  # no controller, no recording: leave no empty file of ours
             for path in created:
@@ -114,6 +144,8 @@ def monitor(
                     out.flush()
                 if mcap_log is not None:
                     mcap_log.write(s.as_record())
+                if view is not None:
+                    view.send(s, mcap_log)
             if as_json:
                 click.echo(dumps(s.as_record()))
             else:
@@ -148,3 +180,39 @@ def _open_record(path: Path, option: str, text: bool = False) -> IO[Any]:
             "writable directory",
             param_hint=option,
         ) from exc
+
+
+class _LiveView:
+    """The live topics of each sample (``snakebot.workflows.foxglove``): to a Foxglove
+    server with --foxglove, into the MCAP file with --mcap; the pose predicted from the
+    joint angles when the robot is named."""
+
+    def __init__(self, robot: str | None) -> None:
+        from snakebot.model.robots import load_robot
+        from snakebot.workflows.foxglove import LiveMessages, PosePredictor
+
+        self.robot = load_robot(robot) if robot else None
+        self.messages = LiveMessages(self.robot)
+        self.predictor = PosePredictor(self.robot) if self.robot is not None else None
+        self.server: Any = None
+
+    def serve(self, stack: contextlib.ExitStack, host: str, port: int) -> None:
+        """Start the Foxglove server (closed with ``stack``)."""
+        from snakebot.workflows.foxglove import FoxgloveLive
+
+        self.server = stack.enter_context(
+            FoxgloveLive(self.robot, host, port, name="snakebot monitor", messages=self.messages)
+        )
+        click.echo(f"Foxglove: open ws://{host}:{self.server.port}", err=True)
+
+    def send(self, s: Sample, mcap_log: McapLog | None) -> None:
+        joints = joint_sample(s)
+        pose = None
+        if self.predictor is not None and len(joints.present) == self.predictor.robot.n_joints:
+            pose = self.predictor.update(s.t, joints.present)
+        messages = self.messages.moment(s.t, joints, pose, s.controller_record())
+        if self.server is not None:
+            self.server.send(messages)
+        if mcap_log is not None:
+            for topic, message in messages:
+                mcap_log.log(topic, message)

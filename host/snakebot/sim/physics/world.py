@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from snakebot.formats.live_topics import Shape
 from snakebot.model.robots import TICKS_PER_RAD, Robot
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.history import History
@@ -353,6 +354,39 @@ class PhysicsWorld:
     @property
     def samples(self) -> int:
         return len(self._history)
+
+    def shapes(self) -> list[Shape]:
+        """The robot's bodies now, each geom as a box, cylinder or sphere in the world
+        frame (metres; a capsule as the cylinder around it), for a 3-D scene. The floor
+        is not among them."""
+        mj, m, d = self._mj, self.model, self.data
+        kinds = {
+            int(mj.mjtGeom.mjGEOM_BOX): "cube",
+            int(mj.mjtGeom.mjGEOM_CYLINDER): "cylinder",
+            int(mj.mjtGeom.mjGEOM_CAPSULE): "cylinder",
+            int(mj.mjtGeom.mjGEOM_SPHERE): "sphere",
+            int(mj.mjtGeom.mjGEOM_ELLIPSOID): "sphere",
+        }
+        capsule = int(mj.mjtGeom.mjGEOM_CAPSULE)
+        quat = np.empty(4)
+        out = []
+        for g in range(m.ngeom):
+            kind = kinds.get(int(m.geom_type[g]))
+            if kind is None or m.geom_bodyid[g] == 0:
+                continue
+            a, b, c = (float(v) for v in m.geom_size[g])
+            if kind == "cube" or int(m.geom_type[g]) == int(mj.mjtGeom.mjGEOM_ELLIPSOID):
+                size = (2 * a, 2 * b, 2 * c)
+            elif kind == "cylinder":
+                length = 2 * b + (2 * a if int(m.geom_type[g]) == capsule else 0.0)
+                size = (2 * a, 2 * a, length)
+            else:
+                size = (2 * a, 2 * a, 2 * a)
+            mj.mju_mat2Quat(quat, d.geom_xmat[g])
+            w, x, y, z = (float(v) for v in quat)
+            position = tuple(float(v) for v in d.geom_xpos[g])
+            out.append(Shape(kind, size, position, (x, y, z, w)))  # type: ignore[arg-type]
+        return out
 
     def record(self) -> PhysicsRecord:
         """Everything sampled so far."""

@@ -81,3 +81,29 @@ def test_monitor_streams_what_it_prints_and_records_the_same_channels(
         assert json.loads(recorded[topic].data) == json.loads(channel["schema"])
     topics = {c.topic: counts.get(i, 0) for i, c in summary.channels.items()}
     assert all(topics[t] == len(printed) for t in SERVO_TOPICS)
+
+
+def test_drive_streams_each_look_at_the_controller(controller):
+    port = free_port()
+    listener = Listener(port, SERVO_TOPICS)
+    result = cli(
+        "drive", "--port", controller.device, "--robot", "snake5", "--keys", "1s LL 0.5s q",
+        "--json", "--foxglove", str(port),
+    )  # fmt: skip
+    listener.stop()
+    assert result.exit_code == 0, result.output
+    printed = [json.loads(line) for line in result.stdout.splitlines()]
+    servos = listener.messages["/snakebot/servos"]
+    assert len(servos) >= 20  # looks every 20 ms through the waits, not only at the keys
+    for record in printed:  # each printed look went out as it was
+        goal = [math.radians(j["goal_deg"]) for j in record["joints"]]
+        present = [math.radians(j["position_deg"]) for j in record["joints"]]
+        assert any(
+            m["goal"] == pytest.approx(goal, abs=1e-3)
+            and m["present"] == pytest.approx(present, abs=1e-3)
+            for m in servos
+        ), record
+    assert len({tuple(round(v, 3) for v in m["present"]) for m in servos}) > 3  # it drove
+    states = [m["state"] for m in listener.messages["/snakebot/controller"]]
+    assert states[-1] == printed[-1]["state"]
+    assert any(t["child_frame_id"] == "base" for t in listener.messages["/tf"][-1]["transforms"])

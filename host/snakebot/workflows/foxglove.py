@@ -354,3 +354,39 @@ def publish_emulated(live: FoxgloveLive, emulated: Any) -> None:
         shapes = getattr(world, "shapes", None)
         scene = shapes() if shapes is not None else None
     live.publish(stamp_s, sample, pose, scene=scene)
+
+
+class SampleStream:
+    """The live topics of the controller's telemetry, sample by sample
+    (:class:`snakebot.link.controller.monitor.Sample`): to a Foxglove server once
+    :meth:`serve` starts one, into a recording if one is given to :meth:`send`; with a
+    ``robot`` (a name or file), the pose predicted from the joint angles."""
+
+    def __init__(self, robot: str | None) -> None:
+        from snakebot.model.robots import load_robot
+
+        self.robot = load_robot(robot) if robot else None
+        self.messages = LiveMessages(self.robot)
+        self.predictor = PosePredictor(self.robot) if self.robot is not None else None
+        self.server: FoxgloveLive | None = None
+
+    def serve(self, host: str, port: int, name: str) -> FoxgloveLive:
+        """Start the Foxglove server (the caller closes it)."""
+        self.server = FoxgloveLive(self.robot, host, port, name=name, messages=self.messages)
+        return self.server
+
+    def send(self, s: Any, recording: Any = None) -> None:
+        """One sample to the server and to ``recording`` (a
+        :class:`snakebot.link.controller.mcap_log.McapLog`), if any."""
+        from snakebot.link.controller.monitor import joint_sample
+
+        joints = joint_sample(s)
+        pose = None
+        if self.predictor is not None and len(joints.present) == self.predictor.robot.n_joints:
+            pose = self.predictor.update(s.t, joints.present)
+        messages = self.messages.moment(s.t, joints, pose, s.controller_record())
+        if self.server is not None:
+            self.server.send(messages)
+        if recording is not None:
+            for topic, message in messages:
+                recording.log(topic, message)

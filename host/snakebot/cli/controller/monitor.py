@@ -24,15 +24,9 @@ from snakebot.cli.output import dumps
 from snakebot.cli.params import OUTPUT_PATH, NumberType
 from snakebot.cli.signals import held
 from snakebot.link.controller.mcap_log import McapLog
-from snakebot.link.controller.monitor import (
-    CSV_COLUMNS,
-    Sample,
-    csv_rows,
-    joint_sample,
-    render,
-    sample,
-)
+from snakebot.link.controller.monitor import CSV_COLUMNS, csv_rows, render, sample
 from snakebot.userfiles import OutputRefused, open_recording
+from snakebot.workflows.foxglove import SampleStream
 
 MIN_INTERVAL_S = 0.02
 CLEAR_BELOW = "\x1b[J"
@@ -109,7 +103,7 @@ def monitor(
     """
     live = sys.stdout.isatty() and not as_json
     shown = 0
-    view = _LiveView(robot) if foxglove is not None or mcap_path is not None else None
+    view = SampleStream(robot) if foxglove is not None or mcap_path is not None else None
     # Only files this run creates may be removed again: a path that was there before
     # (a file of the user's, a device such as /dev/null) is never unlinked.
     created = [p for p in (csv_path, mcap_path) if p is not None and not os.path.lexists(p)]
@@ -126,7 +120,8 @@ def monitor(
             ctl = stack.enter_context(link.open())
             ctl.identify()
             if foxglove is not None and view is not None:
-                view.serve(stack, *foxglove)
+                server = stack.enter_context(view.serve(*foxglove, name="snakebot monitor"))
+                click.echo(f"Foxglove: open ws://{foxglove[0]}:{server.port}", err=True)
         except BaseException:
             stack.close()  # no controller, no recording: leave no empty file of ours
             for path in created:
@@ -180,39 +175,3 @@ def _open_record(path: Path, option: str, text: bool = False) -> IO[Any]:
             "writable directory",
             param_hint=option,
         ) from exc
-
-
-class _LiveView:
-    """The live topics of each sample (``snakebot.workflows.foxglove``): to a Foxglove
-    server with --foxglove, into the MCAP file with --mcap; the pose predicted from the
-    joint angles when the robot is named."""
-
-    def __init__(self, robot: str | None) -> None:
-        from snakebot.model.robots import load_robot
-        from snakebot.workflows.foxglove import LiveMessages, PosePredictor
-
-        self.robot = load_robot(robot) if robot else None
-        self.messages = LiveMessages(self.robot)
-        self.predictor = PosePredictor(self.robot) if self.robot is not None else None
-        self.server: Any = None
-
-    def serve(self, stack: contextlib.ExitStack, host: str, port: int) -> None:
-        """Start the Foxglove server (closed with ``stack``)."""
-        from snakebot.workflows.foxglove import FoxgloveLive
-
-        self.server = stack.enter_context(
-            FoxgloveLive(self.robot, host, port, name="snakebot monitor", messages=self.messages)
-        )
-        click.echo(f"Foxglove: open ws://{host}:{self.server.port}", err=True)
-
-    def send(self, s: Sample, mcap_log: McapLog | None) -> None:
-        joints = joint_sample(s)
-        pose = None
-        if self.predictor is not None and len(joints.present) == self.predictor.robot.n_joints:
-            pose = self.predictor.update(s.t, joints.present)
-        messages = self.messages.moment(s.t, joints, pose, s.controller_record())
-        if self.server is not None:
-            self.server.send(messages)
-        if mcap_log is not None:
-            for topic, message in messages:
-                mcap_log.log(topic, message)

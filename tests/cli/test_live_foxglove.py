@@ -11,8 +11,10 @@ import math
 import pytest
 from controller_cli_support import cli, cli_json
 from foxglove_client import Listener, free_port
+from physics_support import snake5_serpenoid_file
 
 from snakebot.formats.live_topics import CHANNELS
+from snakebot.model.robots import load_robot
 
 pytest.importorskip("foxglove")
 pytest.importorskip("websockets.sync.client")
@@ -107,3 +109,33 @@ def test_drive_streams_each_look_at_the_controller(controller):
     states = [m["state"] for m in listener.messages["/snakebot/controller"]]
     assert states[-1] == printed[-1]["state"]
     assert any(t["child_frame_id"] == "base" for t in listener.messages["/tf"][-1]["transforms"])
+
+
+def test_bus_play_streams_the_servos_it_reads_back_and_the_predicted_pose(tmp_path):
+    gait = snake5_serpenoid_file(tmp_path)  # its metadata names snake5
+    port = free_port()
+    listener = Listener(port, SERVO_TOPICS)
+    # realtime=0: the bus runs in this thread, not handing each reply over from a thread
+    # of its own while the test's client thread holds the interpreter (10x slower here);
+    # ideal servos reach each goal at once, so the gait still moves them
+    result = cli(
+        "bus", "play", gait, "--port", "sim://?robot=snake5&ideal=1&realtime=0", "--json",
+        "--foxglove", str(port),
+    )  # fmt: skip
+    listener.stop()
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.stdout)
+    servos = listener.messages["/snakebot/servos"]
+    assert len(servos) >= 50  # 2 s at 50 a second, give or take the client's start
+    # ideal servos are where they were sent: present follows goal, and the goal is the table's
+    for m in servos:
+        assert m["present"] == pytest.approx(m["goal"], abs=0.02)
+    amplitude = max(abs(v) for m in servos for v in m["goal"])
+    assert amplitude == pytest.approx(math.radians(30), abs=0.02)
+    last = listener.messages["/joint_states"][-1]
+    snake5 = load_robot("snake5")
+    held = [j.tick_to_angle(report["present_position"][str(j.servo_id)]) for j in snake5.joints]
+    assert last["position"] == pytest.approx(held, abs=0.02)  # where the report says they hold
+    assert {m["state"] for m in listener.messages["/snakebot/controller"]} == {"playing"}
+    base = [t for t in listener.messages["/tf"][-1]["transforms"] if t["child_frame_id"] == "base"]
+    assert base[0]["translation"]["x"] > 0.02  # the serpenoid crawls forward (metres)

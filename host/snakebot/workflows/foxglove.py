@@ -390,3 +390,34 @@ class SampleStream:
         if recording is not None:
             for topic, message in messages:
                 recording.log(topic, message)
+
+
+class BusStream:
+    """``snakebot bus play`` live: every ``every`` control ticks, one look at each servo
+    of ``robot`` over the bus (goal, present position, speed, load, errors), the pose
+    predicted from the present angles, and the player's state, to a Foxglove server."""
+
+    def __init__(self, robot: Robot, server: FoxgloveLive, every: int) -> None:
+        self.robot = robot
+        self.server = server
+        self.every = max(1, every)
+        self.predictor = PosePredictor(robot)
+
+    def tick(self, client: Any, n: int, tick_s: float, player: Mapping[str, Any]) -> None:
+        """After control tick ``n`` (``tick_s`` seconds each); ``player``: its state."""
+        if n % self.every:
+            return
+        from snakebot.link.bus.play import look
+
+        robot, stamp_s = self.robot, n * tick_s
+        looks = look(client, robot.servo_ids)
+        joints = JointSample(
+            [j.name for j in robot.joints],
+            [j.tick_to_angle(s.goal) for j, s in zip(robot.joints, looks, strict=True)],
+            [j.tick_to_angle(s.position) for j, s in zip(robot.joints, looks, strict=True)],
+            [j.sign * s.speed_rad_s for j, s in zip(robot.joints, looks, strict=True)],
+            [j.sign * s.load for j, s in zip(robot.joints, looks, strict=True)],
+            [s.error for s in looks],
+        )
+        pose = self.predictor.update(stamp_s, joints.present)
+        self.server.publish(stamp_s, joints, pose, {"tick": n, **player})

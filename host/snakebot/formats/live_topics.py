@@ -241,3 +241,17 @@ def scene_message(seconds: float, shapes: Sequence[Shape], entity: str = "robot"
             }
         ],
     }
+
+
+LAYOUT = "foxglove_layout.json"
+"""The Foxglove layout for these topics, shipped with the package: the robot in a 3-D
+panel (its URDF from ``/robot_description`` on the grid of ``odom``, following ``base``,
+and ``/scene``), plots of the joints' present angles and goals, the controller's state
+over time and the servos' latest message."""
+
+
+def layout_text() -> str:
+    """The layout's JSON, as shipped."""
+    from importlib.resources import files
+
+    return files(__package__).joinpath(LAYOUT).read_text(encoding="utf-8")

@@ -118,3 +118,24 @@ def test_endpoints_are_loopback_unless_a_host_is_given(text, expected):
 def test_bad_endpoints_are_refused(text):
     with pytest.raises(FoxgloveOptionError, match="HOST"):
         parse_endpoint(text)
+
+
+def test_only_the_topics_a_client_takes_are_built_and_sent():
+    with FoxgloveLive(SNAKE5, "127.0.0.1", 0) as server:
+        assert server.watched() == set()  # no client, no file: nothing worth building
+        with websockets_sync.connect(
+            f"ws://127.0.0.1:{server.port}", subprotocols=SUBPROTOCOLS, open_timeout=10
+        ) as ws:
+            ws.recv(timeout=10)  # serverInfo
+            wanted = subscribe(ws, advertised(ws, {"/tf"}), ["/tf"])
+            deadline = time.monotonic() + 10
+            while server.watched() != {"/tf"} and time.monotonic() < deadline:
+                time.sleep(0.01)
+            assert server.watched() == {"/tf"}
+            server.publish(0.5, sample(1), (0.1, 0.2, 0.0))
+            got = None
+            while got is None:
+                got = decode(ws.recv(timeout=10), wanted)
+    assert got[0] == "/tf"
+    messages = server.messages.moment(0.5, sample(1), None, topics={"/joint_states"})
+    assert [topic for topic, _ in messages] == ["/joint_states"]

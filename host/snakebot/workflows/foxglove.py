@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 import math
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Container, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -155,21 +155,28 @@ class LiveMessages:
         pose: Sequence[float] | None = None,
         controller: Mapping[str, Any] | None = None,
         scene: Sequence[Shape] | None = None,
+        topics: Container[str] = CHANNELS,
     ) -> list[Message]:
-        """One moment: the joints, the body's ``pose`` (x, y in the robot's units,
-        theta) if known, the controller's state and the bodies' ``scene`` if given; the
-        robot's URDF the first time and every second after (a panel that joins later
-        still gets the robot)."""
-        out: list[Message] = list(joint_messages(stamp_s, joints, self.stall_nm).items())
-        if controller is not None:
+        """One moment on ``topics`` (default: all): the joints, the body's ``pose`` (x, y
+        in the robot's units, theta) if known, the controller's state and the bodies'
+        ``scene`` if given; the robot's URDF the first time and every second after (a
+        panel that joins later still gets the robot)."""
+        out: list[Message] = [
+            (topic, message)
+            for topic, message in joint_messages(stamp_s, joints, self.stall_nm).items()
+            if topic in topics
+        ]
+        if controller is not None and CONTROLLER in topics:
             out.append((CONTROLLER, dict(controller)))
-        transforms = self._transforms(stamp_s, joints, pose)
+        transforms = self._transforms(stamp_s, joints, pose) if TF in topics else None
         if transforms:
             out.append((TF, {"transforms": transforms}))
-        if scene:
+        if scene and SCENE in topics:
             out.append((SCENE, scene_message(stamp_s, scene)))
-        if self.urdf is not None and (
-            self._described is None or abs(stamp_s - self._described) > 1.0
+        if (
+            self.urdf is not None
+            and ROBOT_DESCRIPTION in topics
+            and (self._described is None or abs(stamp_s - self._described) > 1.0)
         ):
             out.append((ROBOT_DESCRIPTION, {"data": self.urdf}))
             self._described = stamp_s
@@ -252,15 +259,26 @@ class FoxgloveLive:
     def stall_nm(self) -> float | None:
         return self.messages.stall_nm
 
+    def watched(self) -> set[str]:
+        """The topics someone takes now (a client subscribed, the MCAP file): the only
+        ones worth building messages for."""
+        return {topic for topic, channel in self.channels.items() if channel.has_sinks()}
+
     def publish(self, *moment: Any, **parts: Any) -> None:
-        """Send one moment: the arguments of :meth:`LiveMessages.moment`."""
-        self.send(self.messages.moment(*moment, **parts))
+        """Send one moment on the topics someone takes: the arguments of
+        :meth:`LiveMessages.moment`."""
+        topics = self.watched()
+        if topics:
+            self.send(self.messages.moment(*moment, **parts, topics=topics))
 
     def send(self, messages: Sequence[Message]) -> None:
-        """Send messages built already, stamped now."""
+        """Send messages built already, stamped now (each only if someone takes its topic:
+        no encoding for no one)."""
         log_ns = time.time_ns()
         for topic, message in messages:
-            self.channels[topic].log(message, log_time=log_ns)
+            channel = self.channels[topic]
+            if channel.has_sinks():
+                channel.log(message, log_time=log_ns)
 
     def close(self) -> None:
         self.server.stop()
@@ -340,7 +358,11 @@ def servo_sample(robot: Robot, servos: Sequence[Any]) -> JointSample:
 
 def publish_emulated(live: FoxgloveLive, emulated: Any) -> None:
     """One moment of an emulated robot (:class:`snakebot.sim.serve.EmulatedRobot`): its
-    servos, its world's pose and, in a physics world, its bodies, stamped with world time."""
+    servos, its world's pose and, in a physics world, its bodies, stamped with world time;
+    nothing is read while no one watches."""
+    watched = live.watched()
+    if not watched:
+        return
     robot = emulated.robot
     with emulated.lock:
         bus = emulated.bus
@@ -352,8 +374,8 @@ def publish_emulated(live: FoxgloveLive, emulated: Any) -> None:
         pose = [float(v) for v in world.pose]
         stamp_s = bus.now - world.start_time
         shapes = getattr(world, "shapes", None)
-        scene = shapes() if shapes is not None else None
-    live.publish(stamp_s, sample, pose, scene=scene)
+        scene = shapes() if shapes is not None and SCENE in watched else None
+    live.send(live.messages.moment(stamp_s, sample, pose, scene=scene, topics=watched))
 
 
 class SampleStream:

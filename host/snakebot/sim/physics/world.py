@@ -23,6 +23,7 @@ backwards).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections import deque
 from dataclasses import asdict, dataclass, replace
@@ -359,34 +360,41 @@ class PhysicsWorld:
         """The robot's bodies now, each geom as a box, cylinder or sphere in the world
         frame (metres; a capsule as the cylinder around it), for a 3-D scene. The floor
         is not among them."""
-        mj, m, d = self._mj, self.model, self.data
-        kinds = {
-            int(mj.mjtGeom.mjGEOM_BOX): "cube",
-            int(mj.mjtGeom.mjGEOM_CYLINDER): "cylinder",
-            int(mj.mjtGeom.mjGEOM_CAPSULE): "cylinder",
-            int(mj.mjtGeom.mjGEOM_SPHERE): "sphere",
-            int(mj.mjtGeom.mjGEOM_ELLIPSOID): "sphere",
-        }
-        capsule = int(mj.mjtGeom.mjGEOM_CAPSULE)
+        mj, d = self._mj, self.data
         quat = np.empty(4)
         out = []
-        for g in range(m.ngeom):
-            kind = kinds.get(int(m.geom_type[g]))
-            if kind is None or m.geom_bodyid[g] == 0:
-                continue
-            a, b, c = (float(v) for v in m.geom_size[g])
-            if kind == "cube" or int(m.geom_type[g]) == int(mj.mjtGeom.mjGEOM_ELLIPSOID):
-                size = (2 * a, 2 * b, 2 * c)
-            elif kind == "cylinder":
-                length = 2 * b + (2 * a if int(m.geom_type[g]) == capsule else 0.0)
-                size = (2 * a, 2 * a, length)
-            else:
-                size = (2 * a, 2 * a, 2 * a)
+        for g, kind, size in self._shape_geoms:
             mj.mju_mat2Quat(quat, d.geom_xmat[g])
-            w, x, y, z = (float(v) for v in quat)
-            position = tuple(float(v) for v in d.geom_xpos[g])
+            w, x, y, z = quat.tolist()
+            position = tuple(d.geom_xpos[g].tolist())
             out.append(Shape(kind, size, position, (x, y, z, w)))  # type: ignore[arg-type]
         return out
+
+    @functools.cached_property
+    def _shape_geoms(self) -> list[tuple[int, str, tuple[float, float, float]]]:
+        """The geoms :meth:`shapes` draws, each with its kind and full size (made once)."""
+        types = self._mj.mjtGeom
+        m = self.model
+        geoms = []
+        for g in range(m.ngeom):
+            t = int(m.geom_type[g])
+            a, b, c = (float(v) for v in m.geom_size[g])
+            if m.geom_bodyid[g] == 0:
+                continue  # the floor's
+            if t in (int(types.mjGEOM_BOX), int(types.mjGEOM_ELLIPSOID)):
+                kind, size = (
+                    "cube" if t == int(types.mjGEOM_BOX) else "sphere",
+                    (2 * a, 2 * b, 2 * c),
+                )
+            elif t in (int(types.mjGEOM_CYLINDER), int(types.mjGEOM_CAPSULE)):
+                length = 2 * b + (2 * a if t == int(types.mjGEOM_CAPSULE) else 0.0)
+                kind, size = "cylinder", (2 * a, 2 * a, length)
+            elif t == int(types.mjGEOM_SPHERE):
+                kind, size = "sphere", (2 * a, 2 * a, 2 * a)
+            else:
+                continue  # a mesh or a plane: not drawn
+            geoms.append((g, kind, size))
+        return geoms
 
     def record(self) -> PhysicsRecord:
         """Everything sampled so far."""

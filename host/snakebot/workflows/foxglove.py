@@ -146,6 +146,7 @@ class LiveMessages:
         self.stall_nm = _stall_torque(robot) if robot is not None else None
         self.urdf = robot_urdf(robot) if robot is not None else None
         self._joints = _urdf_joints(self.urdf) if self.urdf else []
+        self._servo_joints = [j for j in self._joints if j.axis_z]
         self._described: float | None = None
 
     def moment(
@@ -160,7 +161,9 @@ class LiveMessages:
         """One moment on ``topics`` (default: all): the joints, the body's ``pose`` (x, y
         in the robot's units, theta) if known, the controller's state and the bodies'
         ``scene`` if given; the robot's URDF the first time and every second after (a
-        panel that joins later still gets the robot)."""
+        panel that joins later still gets the robot), and so the links' fixed frames
+        (the wheels' axles: the servo joints' frames go out every time)."""
+        due = self._described is None or abs(stamp_s - self._described) > 1.0
         out: list[Message] = [
             (topic, message)
             for topic, message in joint_messages(stamp_s, joints, self.stall_nm).items()
@@ -168,22 +171,19 @@ class LiveMessages:
         ]
         if controller is not None and CONTROLLER in topics:
             out.append((CONTROLLER, dict(controller)))
-        transforms = self._transforms(stamp_s, joints, pose) if TF in topics else None
+        transforms = self._transforms(stamp_s, joints, pose, due) if TF in topics else None
         if transforms:
             out.append((TF, {"transforms": transforms}))
         if scene and SCENE in topics:
             out.append((SCENE, scene_message(stamp_s, scene)))
-        if (
-            self.urdf is not None
-            and ROBOT_DESCRIPTION in topics
-            and (self._described is None or abs(stamp_s - self._described) > 1.0)
-        ):
+        if self.urdf is not None and ROBOT_DESCRIPTION in topics and due:
             out.append((ROBOT_DESCRIPTION, {"data": self.urdf}))
+        if due and {TF, ROBOT_DESCRIPTION} & set(topics):
             self._described = stamp_s
         return out
 
     def _transforms(
-        self, stamp_s: float, joints: JointSample, pose: Sequence[float] | None
+        self, stamp_s: float, joints: JointSample, pose: Sequence[float] | None, fixed: bool
     ) -> list[dict[str, Any]]:
         transforms = []
         physics = self.robot.physics if self.robot is not None else None
@@ -194,7 +194,7 @@ class LiveMessages:
             transforms.append(body_transform(stamp_s, x * unit, y * unit, radius, theta))
         angles = {n: float(a) for n, a in zip(joints.names, joints.present, strict=True)}
         when = stamp(stamp_s)
-        for j in self._joints:
+        for j in self._joints if fixed else self._servo_joints:
             turn = angles.get(j.name, 0.0) if j.axis_z else 0.0
             q = _times(j.rotation, (0.0, 0.0, math.sin(turn / 2), math.cos(turn / 2)))
             transforms.append(

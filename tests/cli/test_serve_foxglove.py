@@ -66,14 +66,13 @@ def test_serve_streams_the_emulated_joints_to_foxglove(world):
         assert joints["name"] == ["phi1", "phi2", "phi3", "phi4"]
         # the servos hold at their zero ticks after boot: the angles read 0
         assert joints["position"] == pytest.approx([0.0] * 4, abs=0.01)
-        if world == "mujoco":
-            (robot,) = got["/scene"]["entities"]
-            assert robot["frame_id"] == "odom"
-            assert len(robot["cubes"]) == 5 and len(robot["cylinders"]) == 5  # links, wheels
-            # straight along x from the origin, on the floor
-            xs = sorted(c["pose"]["position"]["x"] for c in robot["cubes"])
-            assert xs[0] > 0 and len({round(x, 3) for x in xs}) == 5  # one after the other
-            assert all(abs(c["pose"]["position"]["y"]) < 0.01 for c in robot["cubes"])
+        if world == "mujoco":  # the bodies, each locked to its link's frame on /tf
+            entities = {e["frame_id"]: e for e in got["/scene"]["entities"]}
+            links = {f"link{k}" for k in range(2, 6)} | {"base"}
+            assert set(entities) == links | {f"wheel{k}" for k in range(1, 6)}
+            assert all(e["frame_locked"] for e in entities.values())
+            assert sum(len(e["cubes"]) for e in entities.values()) == 5
+            assert all(len(entities[w]["cylinders"]) == 1 for w in set(entities) - links)
     finally:
         serve.send_signal(signal.SIGTERM)
         serve.communicate(timeout=30)

@@ -14,8 +14,9 @@ records them, ``snakebot foxglove-layout`` lays them out).
   each link's frame from the joint angles, so the 3-D panel draws the robot from
   ``/robot_description``;
 - ``/robot_description``: the robot's URDF (``snakebot robot export``);
-- ``/scene``: ``foxglove.SceneUpdate``: the robot's bodies as boxes, cylinders and spheres
-  in ``odom``, where a physics world knows them.
+- ``/scene``: ``foxglove.SceneUpdate``: the robot's bodies as boxes, cylinders and spheres,
+  each locked to its link's frame (so ``/tf`` moves them), where a physics world has them;
+  sent once a second, as the bodies do not change.
 
 Every message is JSON; the helpers below build them from plain numbers.
 """
@@ -201,21 +202,24 @@ def body_transform(seconds: float, x_m: float, y_m: float, z_m: float, theta: fl
 class Shape:
     """One body's shape for the 3-D scene: ``kind`` "cube", "cylinder" or "sphere", its
     full size along x, y, z (metres), its centre and orientation (quaternion x, y, z, w)
-    in ``odom``."""
+    in ``frame`` (a link's frame on ``/tf``: the shape moves with it)."""
 
     kind: str
     size: tuple[float, float, float]
     position: tuple[float, float, float]
     orientation: tuple[float, float, float, float]
+    frame: str = ODOM
 
 
 ROBOT_COLOR = {"r": 0.2, "g": 0.45, "b": 0.85, "a": 1.0}
 
 
 def scene_message(seconds: float, shapes: Sequence[Shape], entity: str = "robot") -> dict:
-    """A ``foxglove.SceneUpdate`` replacing the entity ``entity`` with ``shapes``."""
-    groups: dict[str, list[dict[str, Any]]] = {"cubes": [], "cylinders": [], "spheres": []}
+    """A ``foxglove.SceneUpdate``: one entity ``entity/FRAME`` per frame of ``shapes``,
+    locked to that frame (the transforms on ``/tf`` carry it), replacing the last."""
+    frames: dict[str, dict[str, list[dict[str, Any]]]] = {}
     for s in shapes:
+        groups = frames.setdefault(s.frame, {"cubes": [], "cylinders": [], "spheres": []})
         primitive: dict[str, Any] = {
             "pose": {
                 "position": dict(zip("xyz", s.position, strict=True)),
@@ -232,13 +236,14 @@ def scene_message(seconds: float, shapes: Sequence[Shape], entity: str = "robot"
         "entities": [
             {
                 "timestamp": stamp(seconds),
-                "frame_id": ODOM,
-                "id": entity,
+                "frame_id": frame,
+                "id": f"{entity}/{frame}",
                 "lifetime": {"sec": 0, "nanosec": 0},
-                "frame_locked": False,
+                "frame_locked": True,
                 "metadata": [],
                 **groups,
             }
+            for frame, groups in frames.items()
         ],
     }
 

@@ -159,10 +159,11 @@ class LiveMessages:
         topics: Container[str] = CHANNELS,
     ) -> list[Message]:
         """One moment on ``topics`` (default: all): the joints, the body's ``pose`` (x, y
-        in the robot's units, theta) if known, the controller's state and the bodies'
-        ``scene`` if given; the robot's URDF the first time and every second after (a
-        panel that joins later still gets the robot), and so the links' fixed frames
-        (the wheels' axles: the servo joints' frames go out every time)."""
+        in the robot's units, theta) if known, the controller's state; the first time and
+        every second after (a panel that joins later still gets them), what does not
+        change: the robot's URDF, the bodies' ``scene`` (in the links' frames) if given,
+        and the links' fixed frames (the wheels' axles; the servo joints' frames go out
+        every time)."""
         due = self._described is None or abs(stamp_s - self._described) > 1.0
         out: list[Message] = [
             (topic, message)
@@ -174,11 +175,11 @@ class LiveMessages:
         transforms = self._transforms(stamp_s, joints, pose, due) if TF in topics else None
         if transforms:
             out.append((TF, {"transforms": transforms}))
-        if scene and SCENE in topics:
+        if scene and SCENE in topics and due:
             out.append((SCENE, scene_message(stamp_s, scene)))
         if self.urdf is not None and ROBOT_DESCRIPTION in topics and due:
             out.append((ROBOT_DESCRIPTION, {"data": self.urdf}))
-        if due and {TF, ROBOT_DESCRIPTION} & set(topics):
+        if due and {TF, ROBOT_DESCRIPTION, SCENE} & set(topics):
             self._described = stamp_s
         return out
 
@@ -373,8 +374,7 @@ def publish_emulated(live: FoxgloveLive, emulated: Any) -> None:
         world = emulated.world
         pose = [float(v) for v in world.pose]
         stamp_s = bus.now - world.start_time
-        shapes = getattr(world, "shapes", None)
-        scene = shapes() if shapes is not None and SCENE in watched else None
+        scene = getattr(world, "shapes", None) if SCENE in watched else None
     live.send(live.messages.moment(stamp_s, sample, pose, scene=scene, topics=watched))
 
 

@@ -356,30 +356,20 @@ class PhysicsWorld:
     def samples(self) -> int:
         return len(self._history)
 
-    def shapes(self) -> list[Shape]:
-        """The robot's bodies now, each geom as a box, cylinder or sphere in the world
-        frame (metres; a capsule as the cylinder around it), for a 3-D scene. The floor
-        is not among them."""
-        mj, d = self._mj, self.data
-        quat = np.empty(4)
-        out = []
-        for g, kind, size in self._shape_geoms:
-            mj.mju_mat2Quat(quat, d.geom_xmat[g])
-            w, x, y, z = quat.tolist()
-            position = tuple(d.geom_xpos[g].tolist())
-            out.append(Shape(kind, size, position, (x, y, z, w)))  # type: ignore[arg-type]
-        return out
-
     @functools.cached_property
-    def _shape_geoms(self) -> list[tuple[int, str, tuple[float, float, float]]]:
-        """The geoms :meth:`shapes` draws, each with its kind and full size (made once)."""
+    def shapes(self) -> list[Shape]:
+        """The robot's bodies for a 3-D scene: each geom as a box, cylinder or sphere (a
+        capsule as the cylinder around it; metres) in the frame of its body, named as the
+        exported URDF names its link, so the links' transforms move them. The floor is not
+        among them. Made once: a body's geoms do not move within it."""
         types = self._mj.mjtGeom
         m = self.model
-        geoms = []
+        shapes = []
         for g in range(m.ngeom):
             t = int(m.geom_type[g])
             a, b, c = (float(v) for v in m.geom_size[g])
-            if m.geom_bodyid[g] == 0:
+            body = int(m.geom_bodyid[g])
+            if body == 0:
                 continue  # the floor's
             if t in (int(types.mjGEOM_BOX), int(types.mjGEOM_ELLIPSOID)):
                 kind, size = (
@@ -393,8 +383,11 @@ class PhysicsWorld:
                 kind, size = "sphere", (2 * a, 2 * a, 2 * a)
             else:
                 continue  # a mesh or a plane: not drawn
-            geoms.append((g, kind, size))
-        return geoms
+            w, x, y, z = m.geom_quat[g].tolist()
+            frame = self._mj.mj_id2name(m, self._mj.mjtObj.mjOBJ_BODY, body)
+            position = tuple(m.geom_pos[g].tolist())
+            shapes.append(Shape(kind, size, position, (x, y, z, w), frame))  # type: ignore[arg-type]
+        return shapes
 
     def record(self) -> PhysicsRecord:
         """Everything sampled so far."""

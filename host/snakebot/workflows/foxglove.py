@@ -357,25 +357,41 @@ def servo_sample(robot: Robot, servos: Sequence[Any]) -> JointSample:
     return JointSample(names, goal, present, velocity, load, errors)
 
 
-def publish_emulated(live: FoxgloveLive, emulated: Any) -> None:
-    """One moment of an emulated robot (:class:`snakebot.sim.serve.EmulatedRobot`): its
-    servos, its world's pose and, in a physics world, its bodies, stamped with world time;
+POSE_EVERY = 5
+"""An emulated body's pose goes out every this many moments (10 a second at 50): the
+kinematic world integrates its samples in batches, and asking for the pose at every
+moment would make it integrate two at a time, at several times the cost."""
+
+
+class EmulatedStream:
+    """``sim serve`` live: each moment of an emulated robot
+    (:class:`snakebot.sim.serve.EmulatedRobot`), stamped with world time: its servos, its
+    world's pose every :data:`POSE_EVERY` moments, and in a physics world its bodies;
     nothing is read while no one watches."""
-    watched = live.watched()
-    if not watched:
-        return
-    robot = emulated.robot
-    with emulated.lock:
-        bus = emulated.bus
-        servos = [bus.servo(j.servo_id) for j in robot.joints]
-        for servo in servos:
-            servo.advance(bus.now)
-        sample = servo_sample(robot, servos)
-        world = emulated.world
-        pose = [float(v) for v in world.pose]
-        stamp_s = bus.now - world.start_time
-        scene = getattr(world, "shapes", None) if SCENE in watched else None
-    live.send(live.messages.moment(stamp_s, sample, pose, scene=scene, topics=watched))
+
+    def __init__(self, live: FoxgloveLive, emulated: Any) -> None:
+        self.live, self.emulated = live, emulated
+        self._moments = 0
+
+    def tick(self) -> None:
+        live, emulated = self.live, self.emulated
+        watched = live.watched()
+        if not watched:
+            return
+        robot = emulated.robot
+        with_pose = self._moments % POSE_EVERY == 0 and TF in watched
+        self._moments += 1
+        with emulated.lock:
+            bus = emulated.bus
+            servos = [bus.servo(j.servo_id) for j in robot.joints]
+            for servo in servos:
+                servo.advance(bus.now)
+            sample = servo_sample(robot, servos)
+            world = emulated.world
+            pose = [float(v) for v in world.pose] if with_pose else None
+            stamp_s = bus.now - world.start_time
+            scene = getattr(world, "shapes", None) if SCENE in watched else None
+        live.send(live.messages.moment(stamp_s, sample, pose, scene=scene, topics=watched))
 
 
 class SampleStream:

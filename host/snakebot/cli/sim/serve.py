@@ -137,6 +137,11 @@ def serve(
             click.echo("Ctrl-C stops.")
         wait = report if report > 0 else 0.5
         tick = 1.0 / FOXGLOVE_RATE_HZ if live is not None else wait
+        stream = None
+        if live is not None:
+            from snakebot.workflows.foxglove import EmulatedStream
+
+            stream = EmulatedStream(live, emulated)
         next_report = time.monotonic() + wait
         while not stop.wait(tick):
             if not emulated.running:
@@ -144,10 +149,8 @@ def serve(
                     "the emulator or the emulated bus stopped unexpectedly: "
                     f"{emulated.log().strip() or 'no message'}"
                 )
-            if live is not None:
-                from snakebot.workflows.foxglove import publish_emulated
-
-                publish_emulated(live, emulated)
+            if stream is not None:
+                stream.tick()
             if time.monotonic() >= next_report:
                 next_report += wait
                 if report > 0:

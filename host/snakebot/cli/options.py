@@ -614,7 +614,7 @@ def foxglove_option(what: str) -> Decorator:
     return click.option(
         "--foxglove",
         type=EndpointType(),
-        help=f"Stream {what} live to Foxglove (open ws://HOST:PORT in Foxglove; "
+        help=f"Stream to Foxglove, live, {what} (open ws://HOST:PORT in Foxglove; "
         "`snakebot foxglove-layout` writes a layout for it): /joint_states, /tf, "
         "/snakebot/servos (goals, loads, errors), /snakebot/controller, up to "
         f"{FOXGLOVE_RATE_HZ:g} times a second. Listens on 127.0.0.1 unless a HOST is given "

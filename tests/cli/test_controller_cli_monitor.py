@@ -255,7 +255,7 @@ def test_mcap_holds_one_json_message_per_sample(controller_with_table, tmp_path)
     assert result.exit_code == 0, result.output
     printed = [json.loads(line) for line in result.stdout.splitlines()]
     with path.open("rb") as f:
-        messages = list(make_reader(f).iter_messages())
+        messages = list(make_reader(f).iter_messages(topics=["/snakebot/telemetry"]))
     assert len(messages) == len(printed) == 3
     for (schema, channel, message), record in zip(messages, printed, strict=True):
         assert channel.topic == "/snakebot/telemetry" and channel.message_encoding == "json"

@@ -27,6 +27,15 @@ SEARCH += ["--param", "delta=30deg:150deg:2", "--param", "omega=360deg", "--work
         ("scipy", ["sim", "goto", "trident", "--to", "2,1,30deg"], "snakebot[plan]"),
         ("mujoco", ["sim", "friction", "GAIT"], "snakebot[physics]"),
         ("mujoco", ["demo"], "snakebot[physics]"),
+        *(
+            ("foxglove", [*command, "--foxglove", "8765"], "snakebot[live]")
+            for command in (
+                ["sim", "serve"],
+                ["monitor", "--port", "/dev/ttySNAKEBOT-missing"],
+                ["drive", "--port", "/dev/ttySNAKEBOT-missing", "--keys", "q"],
+                ["bus", "play", "GAIT", "--port", "sim://?robot=snake5"],
+            )
+        ),
     ],
 )
 def test_a_missing_extra_stops_the_command_before_it_works(

@@ -82,6 +82,8 @@ def test_the_wheel_is_abi3_and_carries_the_firmware_and_the_license(installed):
         devices = REPO_ROOT / "host" / "snakebot" / "facts" / "devices" / "data"
         for path in devices.glob("*.json"):  # the control tables the commands load
             assert whl.read(f"snakebot/facts/devices/data/{path.name}") == path.read_bytes()
+        layout = REPO_ROOT / "host" / "snakebot" / "formats" / "foxglove_layout.json"
+        assert whl.read("snakebot/formats/foxglove_layout.json") == layout.read_bytes()
         metadata = next(whl.read(n).decode() for n in names if n.endswith(".dist-info/METADATA"))
     assert "snakebot/_core_build.py" not in names  # a build script, not part of the package
     assert "License-Expression: Apache-2.0" in metadata

@@ -4,35 +4,26 @@ reader for the file written beside."""
 
 from __future__ import annotations
 
-import json
 import math
-import struct
 import threading
 import time
 
 import pytest
+from foxglove_client import SUBPROTOCOLS, advertised, decode, subscribe
 
+from snakebot.formats.live_topics import CHANNELS, JointSample, Shape
 from snakebot.model.robots import load_robot
-from snakebot.workflows.foxglove import (
-    CHANNELS,
-    FoxgloveLive,
-    FoxgloveOptionError,
-    JointSample,
-    parse_endpoint,
-)
+from snakebot.workflows.foxglove import FoxgloveLive, FoxgloveOptionError, parse_endpoint
 
 pytest.importorskip("foxglove")
 websockets_sync = pytest.importorskip("websockets.sync.client")
-SUBPROTOCOLS = ["foxglove.websocket.v1", "foxglove.sdk.v1"]
-"""The Foxglove WebSocket protocol's subprotocol, by its first name and by the one the
-foxglove-sdk server speaks since it was renamed (the messages are the same)."""
-MESSAGE_DATA = 0x01
 SNAKE5 = load_robot("snake5")
 
 
 def sample(k: int) -> JointSample:
     a = 0.1 * k
     return JointSample(
+        names=[j.name for j in SNAKE5.joints],
         goal=[a, -a, 0.2, 0.0],
         present=[a - 0.01, -a, 0.19, 0.0],
         velocity=[0.5, -0.5, 0.0, 0.0],
@@ -41,15 +32,7 @@ def sample(k: int) -> JointSample:
     )
 
 
-def advertised(ws) -> dict[str, dict]:
-    """The channels the server advertises, by topic (read after serverInfo)."""
-    channels: dict[str, dict] = {}
-    deadline = time.monotonic() + 10
-    while len(channels) < len(CHANNELS) and time.monotonic() < deadline:
-        message = json.loads(ws.recv(timeout=10))
-        if message["op"] == "advertise":
-            channels.update({c["topic"]: c for c in message["channels"]})
-    return channels
+BOX = Shape("cube", (0.14, 0.035, 0.035), (0.07, 0.0, 0.04), (0.0, 0.0, 0.0, 1.0))
 
 
 @pytest.fixture()
@@ -65,7 +48,9 @@ def test_a_client_sees_the_channels_and_decodes_the_joint_states(live, tmp_path)
     def publish():
         k = 0
         while not stop.is_set():
-            live.publish(0.02 * k, sample(k % 5), (0.1, 0.2, math.pi / 2), {"state": "playing"})
+            live.publish(
+                0.02 * k, sample(k % 5), (0.1, 0.2, math.pi / 2), {"state": "playing"}, [BOX]
+            )
             k += 1
             time.sleep(0.02)
 
@@ -73,32 +58,20 @@ def test_a_client_sees_the_channels_and_decodes_the_joint_states(live, tmp_path)
         f"ws://127.0.0.1:{live.port}", subprotocols=SUBPROTOCOLS, open_timeout=10
     ) as ws:
         assert ws.subprotocol in SUBPROTOCOLS
-        assert json.loads(ws.recv(timeout=10))["op"] == "serverInfo"
-        channels = advertised(ws)
+        assert ws.recv(timeout=10)  # serverInfo
+        channels = advertised(ws, set(CHANNELS))
         assert set(channels) == set(CHANNELS)
         assert channels["/joint_states"]["encoding"] == "json"
-        wanted = {1: "/joint_states", 2: "/snakebot/servos", 3: "/tf"}
-        ws.send(
-            json.dumps(
-                {
-                    "op": "subscribe",
-                    "subscriptions": [
-                        {"id": sid, "channelId": channels[topic]["id"]}
-                        for sid, topic in wanted.items()
-                    ],
-                }
-            )
-        )
+        wanted = subscribe(ws, channels, ["/joint_states", "/snakebot/servos", "/tf", "/scene"])
         thread = threading.Thread(target=publish, daemon=True)
         thread.start()
         got: dict[str, dict] = {}
         try:
             deadline = time.monotonic() + 10
             while len(got) < len(wanted) and time.monotonic() < deadline:
-                data = ws.recv(timeout=10)
-                if isinstance(data, bytes) and data[0] == MESSAGE_DATA:
-                    sid, _ = struct.unpack_from("<IQ", data, 1)
-                    got[wanted[sid]] = json.loads(data[13:])
+                message = decode(ws.recv(timeout=10), wanted)
+                if message is not None:
+                    got[message[0]] = message[1]
         finally:
             stop.set()
             thread.join()
@@ -117,6 +90,11 @@ def test_a_client_sees_the_channels_and_decodes_the_joint_states(live, tmp_path)
     assert base["translation"]["x"] == pytest.approx(0.1)  # snake5 is in metres
     assert base["rotation"]["z"] == pytest.approx(math.sin(math.pi / 4))
     assert {"link2", "wheel1"} <= set(frames)  # the links, for the URDF in the 3-D panel
+    (entity,) = got["/scene"]["entities"]
+    assert entity["frame_id"] == "odom" and not entity["cylinders"]
+    (cube,) = entity["cubes"]
+    assert cube["size"] == {"x": 0.14, "y": 0.035, "z": 0.035}
+    assert cube["pose"]["position"]["z"] == pytest.approx(0.04)
 
     live.close()
     from mcap.reader import make_reader
@@ -140,3 +118,24 @@ def test_endpoints_are_loopback_unless_a_host_is_given(text, expected):
 def test_bad_endpoints_are_refused(text):
     with pytest.raises(FoxgloveOptionError, match="HOST"):
         parse_endpoint(text)
+
+
+def test_only_the_topics_a_client_takes_are_built_and_sent():
+    with FoxgloveLive(SNAKE5, "127.0.0.1", 0) as server:
+        assert server.watched() == set()  # no client, no file: nothing worth building
+        with websockets_sync.connect(
+            f"ws://127.0.0.1:{server.port}", subprotocols=SUBPROTOCOLS, open_timeout=10
+        ) as ws:
+            ws.recv(timeout=10)  # serverInfo
+            wanted = subscribe(ws, advertised(ws, {"/tf"}), ["/tf"])
+            deadline = time.monotonic() + 10
+            while server.watched() != {"/tf"} and time.monotonic() < deadline:
+                time.sleep(0.01)
+            assert server.watched() == {"/tf"}
+            server.publish(0.5, sample(1), (0.1, 0.2, 0.0))
+            got = None
+            while got is None:
+                got = decode(ws.recv(timeout=10), wanted)
+    assert got[0] == "/tf"
+    messages = server.messages.moment(0.5, sample(1), None, topics={"/joint_states"})
+    assert [topic for topic, _ in messages] == ["/joint_states"]

@@ -115,6 +115,10 @@ COMMANDS: dict[str, LazyCommand] = {
         "Line up RUN (snakebot monitor --csv or --mcap output) against GAIT (the table that was "
         "played) and report how far each joint was from the prediction.",
     ),
+    "foxglove-layout": LazyCommand(
+        "snakebot.cli.foxglove_layout:foxglove_layout",
+        "Write the Foxglove layout for the robot live (--foxglove) and its recordings (--mcap).",
+    ),
     "library": LazyCommand(
         "snakebot.cli.controller.library:library",
         "The gait library: named gait tables kept in the controller's flash, in slots that "

@@ -16,7 +16,7 @@ one by one, so no signature restates them.
 * Plans: :func:`target_options` (--to, --from, --tolerance, --heading-tolerance).
 * Servo scans: :func:`ids_option`, :func:`bauds_option`.
 * Output: :func:`json_option`, :func:`output_option`, :func:`plot_option`,
-  :func:`video_option`.
+  :func:`video_option`, :func:`foxglove_option` (the robot live in Foxglove).
 """
 
 from __future__ import annotations
@@ -579,3 +579,45 @@ def video_option(what: str) -> Decorator:
         )(func)
 
     return decorate
+
+
+FOXGLOVE_RATE_HZ = 50.0
+"""How often a command sends the robot's state to Foxglove (at most: a command that
+samples slower sends each sample)."""
+
+
+class EndpointType(click.ParamType):
+    """``[HOST:]PORT`` as (host, port), loopback unless a host is given; the live extra
+    is checked here, before the command starts any work."""
+
+    name = "[HOST:]PORT"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        from snakebot.extras import MissingExtraError, require
+        from snakebot.workflows.foxglove import FoxgloveOptionError, parse_endpoint
+
+        if isinstance(value, tuple):
+            return value
+        try:
+            endpoint = parse_endpoint(str(value))
+        except FoxgloveOptionError as exc:
+            self.fail(str(exc), param, ctx)
+        try:
+            require("foxglove", "--foxglove", extra="live")
+        except MissingExtraError as exc:
+            self.fail(str(exc), param, ctx)
+        return endpoint
+
+
+def foxglove_option(what: str) -> Decorator:
+    """``--foxglove [HOST:]PORT`` (the parameter ``foxglove``: (host, port) or None):
+    stream ``what`` live to Foxglove."""
+    return click.option(
+        "--foxglove",
+        type=EndpointType(),
+        help=f"Stream to Foxglove, live, {what} (open ws://HOST:PORT in Foxglove; "
+        "`snakebot foxglove-layout` writes a layout for it): /joint_states, /tf, "
+        "/snakebot/servos (goals, loads, errors), /snakebot/controller, up to "
+        f"{FOXGLOVE_RATE_HZ:g} times a second. Listens on 127.0.0.1 unless a HOST is given "
+        "(0.0.0.0: every interface); PORT 0 takes a free one.",
+    )

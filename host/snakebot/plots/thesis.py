@@ -3,6 +3,7 @@ time series in both worlds, and the friction study."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -54,13 +55,28 @@ def thesis_study(
     return summaries
 
 
+GRID_COLUMNS = 4
+"""Panels per row of a thesis run's figure: a grid a laptop screen shows whole."""
+
+
 def plot_thesis_run(result: ThesisResult, out: str | Path) -> Path:
-    """PNG: x, y, theta and each joint against t, as the thesis's figures show them, with
-    both worlds overlaid and the model's ideal path (field runs) dashed."""
-    names = ["x", "y", "theta", *(j.name for j in result.robot.joints)]
-    fig = Figure(figsize=(4 * len(names), 3.6), layout="constrained")
+    """PNG of :func:`thesis_figure`."""
+    return save_figure(thesis_figure(result), out, 90)
+
+
+def thesis_figure(result: ThesisResult) -> Figure:
+    """x, y, theta and each joint against t, as the thesis's figures show them, in a grid
+    of :data:`GRID_COLUMNS` panels a row, with both worlds overlaid and the model's ideal
+    path (field runs) dashed; one legend for all, below the panels."""
+    robot = result.robot
+    names = ["x", "y", "theta", *(j.name for j in robot.joints)]
+    rows = math.ceil(len(names) / GRID_COLUMNS)
+    fig = Figure(figsize=(3.3 * GRID_COLUMNS, 2.6 * rows + 0.9), layout="constrained")
     FigureCanvasAgg(fig)
-    axes = fig.subplots(1, len(names))
+    grid = fig.subplots(rows, GRID_COLUMNS, sharex=True, squeeze=False).ravel()
+    for ax in grid[len(names) :]:
+        ax.set_visible(False)
+    axes = grid[: len(names)]
     for world, prediction in result.worlds.items():
         rec = prediction.emulated
         color, style = WORLD_STYLE.get(world, ("tab:green", "-"))
@@ -70,17 +86,21 @@ def plot_thesis_run(result: ThesisResult, out: str | Path) -> Path:
     if result.model_q is not None:
         for k, ax in enumerate(axes):
             ax.plot(result.t, result.model_q[:, k], "--", color="gray", label="model (ideal)")
-    for ax, name in zip(axes, names, strict=True):
-        ax.set_title(name)
-        ax.set_xlabel("t (s)")
-        ax.set_ylabel("robot length units" if name in ("x", "y") else "rad")
+    for k, (ax, name) in enumerate(zip(axes, names, strict=True)):
+        ax.set_title(name, fontsize="medium")
+        if k + GRID_COLUMNS >= len(names):  # the lowest panel of its column
+            ax.set_xlabel("t (s)")
+            ax.xaxis.set_tick_params(labelbottom=True)
+        ax.set_ylabel(f"{name} ({robot.length_unit})" if name in ("x", "y") else f"{name} (rad)")
         ax.grid(alpha=0.3)
-    axes[0].legend(fontsize="small")
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize="small")
     fig.suptitle(
-        f"thesis run {result.run.name} on {result.robot.name}: kinematic and MuJoCo worlds"
+        f"thesis run {result.run.name} on {robot.name}: kinematic and MuJoCo worlds "
+        "(x, y: the body's reference point in the start frame; angles counter-clockwise)",
+        fontsize="medium",
     )
-    out = save_figure(fig, out, 90)
-    return out
+    return fig
 
 
 def plot_friction(study: dict[str, Any], out: str | Path) -> Path:

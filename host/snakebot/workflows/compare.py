@@ -27,6 +27,7 @@ import numpy as np
 
 from snakebot.errors import InputError
 from snakebot.formats.gaittable import GaitTable
+from snakebot.link.controller.mcap_log import TOPIC as TELEMETRY_TOPIC
 from snakebot.model.compare import JointTrack, best_lag, joint_names, table_angles
 from snakebot.model.robots.model import Robot
 from snakebot.userfiles import UnreadableInput, read_bounded
@@ -82,7 +83,7 @@ def _rows_from_csv(path: Path, data: bytes) -> list[dict[str, Any]]:
 def _rows_from_mcap(path: Path, data: bytes) -> list[dict[str, Any]]:
     try:
         from mcap.exceptions import EndOfFile
-        from mcap.records import Message
+        from mcap.records import Channel, Message
         from mcap.stream_reader import StreamReader
     except ImportError:
         raise CompareError(
@@ -95,9 +96,12 @@ def _rows_from_mcap(path: Path, data: bytes) -> list[dict[str, Any]]:
         # Read as a stream, record by record: a recording cut by a kill (no index, no
         # footer) gives every message of its finished chunks.
         messages = []
+        telemetry: set[int] = set()  # the telemetry's channel (the live topics beside it)
         try:
             for item in StreamReader(io.BytesIO(data)).records:
-                if isinstance(item, Message):
+                if isinstance(item, Channel) and item.topic == TELEMETRY_TOPIC:
+                    telemetry.add(item.id)
+                elif isinstance(item, Message) and item.channel_id in telemetry:
                     messages.append(item)
         except EndOfFile:
             pass

@@ -200,6 +200,8 @@ class Comparison:
     """The prediction for joints that trail the table by the measured ``lag_s``."""
     physics: dict[str, Any] | None = None
     """With the physics world: what it adds (see :func:`physics_effects`)."""
+    free_wheel_path: np.ndarray | None = field(default=None, repr=False)
+    """With the physics world: the path predicted for free-rolling wheels."""
 
     @property
     def within_tolerance(self) -> bool:
@@ -348,14 +350,19 @@ def compare(
 
 def physics_effects(
     robot: Robot, table: GaitTable, record: WorldRecord, comparison: Comparison, cycles: int
-) -> dict[str, Any]:
+) -> tuple[dict[str, Any], np.ndarray]:
     """What the physics world adds to the comparison: the prediction for free-rolling
     wheels (no rolling resistance or axle friction, where both worlds take the robot's),
     the wheels' sideways slide over the measured cycles (m), and each joint's work and
-    electrical energy (J) and peak load over the whole run."""
+    electrical energy (J) and peak load over the whole run; and the free-wheel path
+    (poses as the predicted path has them)."""
     angles = robot.ticks_to_angles(table.frames.astype(float))
     free_wheels = replace(robot, friction=replace(robot.friction, rolling=0.0, axle_nm=0.0))
-    free = motion(predicted_motion(free_wheels, angles, table.frame_period_ms / 1000.0, cycles)[-1])
+    samples = len(comparison.predicted_path)
+    free_path = predicted_motion(
+        free_wheels, angles, table.frame_period_ms / 1000.0, cycles, samples=samples
+    )
+    free = motion(free_path[-1])
     e = comparison.emulated
     t_a, t_b = comparison.window_s
     inside = (record.t >= t_a) & (record.t <= t_b)
@@ -378,7 +385,7 @@ def physics_effects(
         "electrical_j": [round(v, 6) for v in extras["electrical_j"]],
         "peak_load": [round(v, 4) for v in extras["peak_load"]],
         "mu": extras["mu"],
-    }
+    }, free_path
 
 
 def _why(c: Comparison) -> str:
@@ -505,7 +512,9 @@ def run_demo(settings: DemoSettings | None = None, say: Say = print) -> DemoResu
         robot, table, record, goal_t, goal_ticks, settings.warmup_cycles, settings.cycles
     )
     if world_of(record) != "kinematic":
-        comparison.physics = physics_effects(robot, table, record, comparison, settings.cycles)
+        comparison.physics, comparison.free_wheel_path = physics_effects(
+            robot, table, record, comparison, settings.cycles
+        )
     return DemoResult(
         settings,
         info.as_dict(),

@@ -3,16 +3,30 @@ host as bus master running the controller's own gait player."""
 
 from __future__ import annotations
 
+import contextlib
 import sys
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import click
 
-from snakebot.cli.options import BusLink, bus_options
+from snakebot.cli.options import (
+    FOXGLOVE_RATE_HZ,
+    BusLink,
+    bus_options,
+    foxglove_option,
+    robot_option,
+)
 from snakebot.cli.output import dumps
 from snakebot.cli.params import INPUT_TEXT_PATH
 from snakebot.cli.signals import interrupted_status
-from snakebot.formats.gaittable import read_gait
+from snakebot.formats.gaittable import GaitTable, read_gait
 from snakebot.link.bus.play import play_table, player_for, tick_count
+from snakebot.model.player import FULL_SPEED, TICK_MS
+
+if TYPE_CHECKING:
+    from snakebot.link.transport import DxlClient
+    from snakebot.model.player import TablePlayer
 
 
 def _paced(port: str) -> str:
@@ -28,7 +42,19 @@ def _paced(port: str) -> str:
 @click.argument("gait", type=INPUT_TEXT_PATH)
 @bus_options
 @click.option("--loop", is_flag=True, help="Play the gait over and over until Ctrl-C.")
-def bus_play(bus: BusLink, as_json: bool, gait: str, loop: bool) -> None:
+@robot_option(
+    "With --foxglove: the robot the gait drives, for its joints and its predicted pose",
+    otherwise="the one the gait's metadata names",
+)
+@foxglove_option("the servos (read back over the bus) and the predicted pose, as the gait plays")
+def bus_play(
+    bus: BusLink,
+    as_json: bool,
+    gait: str,
+    loop: bool,
+    robot: str | None,
+    foxglove: tuple[str, int] | None,
+) -> None:
     """Play the gait table GAIT on servos connected through a bus adapter (USB2Dynamixel,
     U2D2), with no controller: this computer is the bus master and runs the
     controller's own gait player, sending one SYNC_WRITE of goal positions and speeds
@@ -40,6 +66,11 @@ def bus_play(bus: BusLink, as_json: bool, gait: str, loop: bool) -> None:
     \b
         snakebot bus play crawl.gait --port /dev/ttyUSB0
         snakebot bus play crawl.gait --port /dev/ttyUSB0 --loop
+        snakebot bus play crawl.gait --port /dev/ttyUSB0 --foxglove 8765
+
+    With --foxglove each servo is also read back over the bus (one READ apiece, a few
+    times a second up to 50) and streamed to Foxglove with the pose the kinematic model
+    predicts from its angles.
     """
     table = read_gait(gait)
     player = player_for(table, loop, gait)
@@ -47,8 +78,17 @@ def bus_play(bus: BusLink, as_json: bool, gait: str, loop: bool) -> None:
     bar = click.progressbar(
         length=total or 0, label="Playing", file=sys.stderr, hidden=as_json or total is None
     )
-    with BusLink(_paced(bus.port), bus.baud).open() as client, bar:
-        played = play_table(client, table, player, loop, on_tick=lambda: bar.update(1))
+    with contextlib.ExitStack() as stack:
+        client = stack.enter_context(BusLink(_paced(bus.port), bus.baud).open())
+        on_tick = _live(stack, table, robot, foxglove, client, player) if foxglove else None
+        stack.enter_context(bar)
+
+        def tick() -> None:
+            bar.update(1)
+            if on_tick is not None:
+                on_tick()
+
+        played = play_table(client, table, player, loop, on_tick=tick)
     report = {
         "gait": gait,
         "port": bus.port,
@@ -67,3 +107,28 @@ def bus_play(bus: BusLink, as_json: bool, gait: str, loop: bool) -> None:
         )
     if played.stopped_at is not None:
         sys.exit(interrupted_status())
+
+
+def _live(
+    stack: contextlib.ExitStack,
+    table: GaitTable,
+    robot: str | None,
+    endpoint: tuple[str, int],
+    client: DxlClient,
+    player: TablePlayer,
+) -> Callable[[], None]:
+    """The Foxglove server (closed with ``stack``) and what each control tick sends it."""
+    from snakebot.workflows.foxglove import BusStream, FoxgloveLive
+    from snakebot.workflows.predict import resolve_robot
+
+    chosen = resolve_robot(table, robot)
+    server = stack.enter_context(FoxgloveLive(chosen, *endpoint))
+    click.echo(f"Foxglove: open ws://{endpoint[0]}:{server.port}", err=True)
+    stream = BusStream(chosen, server, round(1000 / (FOXGLOVE_RATE_HZ * TICK_MS)))
+    ticks = iter(range(1 << 62))
+
+    def on_tick() -> None:
+        state = "playing" if player.speed_scale >= FULL_SPEED else "stopping"
+        stream.tick(client, next(ticks), TICK_MS / 1000, {"state": state})
+
+    return on_tick

@@ -15,7 +15,14 @@ from typing import Any
 
 import click
 
-from snakebot.cli.options import ControllerLink, controller_options, roster_option, wave_options
+from snakebot.cli.options import (
+    FOXGLOVE_RATE_HZ,
+    ControllerLink,
+    controller_options,
+    foxglove_option,
+    roster_option,
+    wave_options,
+)
 from snakebot.cli.output import dumps
 from snakebot.cli.params import EXISTING_INPUT
 from snakebot.link.controller import playback
@@ -49,6 +56,11 @@ does, stopping the robot. Example:
 \b
     snakebot drive --port /dev/ttyUSB0 --robot snake5
     snakebot drive --port /dev/pts/3 --robot snake5 --keys "LL 1s RR 1s q" --json
+    snakebot drive --port /dev/ttyUSB0 --robot snake5 --foxglove 8765
+
+With --foxglove the controller is looked at {FOXGLOVE_RATE_HZ:g} times a second (as the
+link allows) and each look goes to Foxglove, with --robot the pose predicted from the
+joint angles too.
 """
 
 
@@ -71,6 +83,7 @@ MAX_SCRIPT_BYTES = 1 << 20
     "a comment).",
 )
 @wave_options()
+@foxglove_option("the controller's state and its servos, as the robot is driven")
 def drive(
     link: ControllerLink,
     as_json: bool,
@@ -80,6 +93,7 @@ def drive(
     delta: float,
     keys: str | None,
     script: Path | None,
+    foxglove: tuple[str, int] | None,
 ) -> None:
     if keys is not None and script is not None:
         raise click.UsageError("give --keys or --script, not both")
@@ -95,27 +109,42 @@ def drive(
         )
     settings = playback.SerpenoidSettings(amplitude, omega, delta)
     roster = playback.roster_from_robot(load_robot(robot)) if robot else None
-    with link.open() as ctl:
+    with contextlib.ExitStack() as stack:
+        ctl = stack.enter_context(link.open())
         driver = Driver(ctl, settings, roster=roster)
+        look_s = REFRESH_S
+        if foxglove is not None:
+            from snakebot.workflows.foxglove import SampleStream
+
+            stream = SampleStream(robot)
+            server = stack.enter_context(stream.serve(*foxglove, name="snakebot drive"))
+            click.echo(f"Foxglove: open ws://{foxglove[0]}:{server.port}", err=True)
+            driver.on_sample = stream.send
+            look_s = 1.0 / FOXGLOVE_RATE_HZ
         driver.start()
         try:
             if scripted is None:
-                _terminal(driver)
+                _terminal(driver, look_s)
             else:
-                _scripted(driver, scripted, as_json)
+                _scripted(driver, scripted, as_json, look_s if foxglove is not None else None)
         finally:
             if not driver.quit:  # Ctrl-C or a lost link: leave the robot stopped if we can
                 with contextlib.suppress(Exception):
                     driver.press("q")
 
 
-def _scripted(driver: Driver, keys: list[str | Wait], as_json: bool) -> None:
+def _scripted(driver: Driver, keys: list[str | Wait], as_json: bool, look_s: float | None) -> None:
+    """The keys one by one; during a wait, a look every ``look_s`` if given (a live view)."""
     t0 = time.monotonic()
     for key in [*keys, "q"]:
         if driver.quit:
             break
         if isinstance(key, Wait):
-            time.sleep(key.seconds)
+            end = time.monotonic() + key.seconds
+            while look_s is not None and time.monotonic() + look_s < end:
+                driver.look()
+                time.sleep(max(0.0, min(look_s, end - time.monotonic())))
+            time.sleep(max(0.0, end - time.monotonic()))
             record: dict[str, Any] = {"wait_s": key.seconds}
         else:
             record = driver.press(key)
@@ -144,7 +173,7 @@ def _cbreak(fd: int) -> Iterator[None]:
         termios.tcsetattr(fd, termios.TCSADRAIN, saved)
 
 
-def _terminal(driver: Driver) -> None:
+def _terminal(driver: Driver, look_s: float) -> None:
     try:
         from rich.console import Console
         from rich.live import Live
@@ -159,7 +188,7 @@ def _terminal(driver: Driver) -> None:
     last: dict[str, Any] | None = None
     view = driver.look()
     with _cbreak(fd), Live(_screen(view, last), console=Console(), auto_refresh=False) as live:
-        due = time.monotonic() + REFRESH_S
+        due = time.monotonic() + look_s
         while not driver.quit:
             key = read_key(fd, max(0.0, due - time.monotonic()))
             if key:
@@ -168,7 +197,7 @@ def _terminal(driver: Driver) -> None:
                 break
             if time.monotonic() >= due:
                 view = driver.look()
-                due = time.monotonic() + REFRESH_S
+                due = time.monotonic() + look_s
             live.update(_screen(view, last), refresh=True)
         live.update(_screen(driver.look(), last), refresh=True)
 

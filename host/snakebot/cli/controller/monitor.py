@@ -13,13 +13,20 @@ from typing import IO, Any
 
 import click
 
-from snakebot.cli.options import ControllerLink, controller_options, stack
+from snakebot.cli.options import (
+    ControllerLink,
+    controller_options,
+    foxglove_option,
+    robot_option,
+    stack,
+)
 from snakebot.cli.output import dumps
 from snakebot.cli.params import OUTPUT_PATH, NumberType
 from snakebot.cli.signals import held
 from snakebot.link.controller.mcap_log import McapLog
 from snakebot.link.controller.monitor import CSV_COLUMNS, csv_rows, render, sample
 from snakebot.userfiles import OutputRefused, open_recording
+from snakebot.workflows.foxglove import SampleStream
 
 MIN_INTERVAL_S = 0.02
 CLEAR_BELOW = "\x1b[J"
@@ -32,8 +39,10 @@ RECORD_PATH = OUTPUT_PATH
 RECORDS = {
     "csv": "every sample to this CSV file, one row per servo (t, state, joint name, ticks "
     "and degrees, speed, load, voltage, temperature, errors)",
-    "mcap": "every sample to this MCAP file (Foxglove Studio, PlotJuggler): one JSON "
-    "message per sample, as --json prints it. Needs the mcap package",
+    "mcap": "every sample to this MCAP file (Foxglove, PlotJuggler): one JSON message per "
+    "sample on /snakebot/telemetry, as --json prints it, and the topics --foxglove "
+    "streams (/joint_states, /snakebot/servos, /snakebot/controller, /tf with --robot). "
+    "Needs the mcap package",
 }
 """--csv and --mcap: the recordings a run can keep, and what each holds."""
 
@@ -63,6 +72,12 @@ def _cursor_up(lines: int) -> str:
         for fmt, what in RECORDS.items()
     )
 )
+@robot_option(
+    "With --foxglove or --mcap: the robot on the controller, for the joints' efforts, its "
+    "links and its pose predicted from the joint angles on /tf",
+    otherwise="the joints alone",
+)
+@foxglove_option("the controller's state and its servos, each sample")
 def monitor(
     link: ControllerLink,
     as_json: bool,
@@ -70,6 +85,8 @@ def monitor(
     interval: float,
     csv_path: Path | None,
     mcap_path: Path | None,
+    robot: str | None,
+    foxglove: tuple[str, int] | None,
 ) -> None:
     """Show the controller's state and error flags, and each roster servo's position,
     load, voltage, temperature and errors, as the controller last read them.
@@ -79,9 +96,14 @@ def monitor(
     each sample is also written to a file as it is taken, so a run stopped with Ctrl-C
     or SIGTERM (exit 130, 143) keeps everything up to then; --mcap does the same in
     MCAP, in chunks written every second, so even a SIGKILL loses at most the last one.
+    With --foxglove each sample also goes to Foxglove as it is taken, e.g.
+
+    \b
+        snakebot monitor --port /dev/ttyUSB0 --interval 0.05 --robot snake5 --foxglove 8765
     """
     live = sys.stdout.isatty() and not as_json
     shown = 0
+    view = SampleStream(robot) if foxglove is not None or mcap_path is not None else None
     # Only files this run creates may be removed again: a path that was there before
     # (a file of the user's, a device such as /dev/null) is never unlinked.
     created = [p for p in (csv_path, mcap_path) if p is not None and not os.path.lexists(p)]
@@ -97,6 +119,9 @@ def monitor(
                 stack.enter_context(mcap_log)
             ctl = stack.enter_context(link.open())
             ctl.identify()
+            if foxglove is not None and view is not None:
+                server = stack.enter_context(view.serve(*foxglove, name="snakebot monitor"))
+                click.echo(f"Foxglove: open ws://{foxglove[0]}:{server.port}", err=True)
         except BaseException:
             stack.close()  # no controller, no recording: leave no empty file of ours
             for path in created:
@@ -114,6 +139,8 @@ def monitor(
                     out.flush()
                 if mcap_log is not None:
                     mcap_log.write(s.as_record())
+                if view is not None:
+                    view.send(s, mcap_log)
             if as_json:
                 click.echo(dumps(s.as_record()))
             else:

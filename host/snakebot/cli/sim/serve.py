@@ -8,8 +8,13 @@ from pathlib import Path
 
 import click
 
-from snakebot.cli.live import RATE_HZ, foxglove_option
-from snakebot.cli.options import json_option, robot_option, world_option
+from snakebot.cli.options import (
+    FOXGLOVE_RATE_HZ,
+    foxglove_option,
+    json_option,
+    robot_option,
+    world_option,
+)
 from snakebot.cli.output import dumps
 from snakebot.cli.params import INPUT_PATH, NumberType
 from snakebot.cli.signals import StopRequest, serving
@@ -57,7 +62,7 @@ long it serves (the pose reports need only the latest)."""
     show_default=True,
     help="Seconds between lines giving the body's pose in the world (0: never).",
 )
-@foxglove_option
+@foxglove_option("the emulated robot (its pose from the world; on mujoco its bodies on /scene)")
 @json_option("first where everything is (pc_link, bus_socket, qemu_pid, ...), then the body's pose")
 def serve(
     robot: str,
@@ -139,14 +144,17 @@ def _serve(
                 )
             click.echo("Ctrl-C stops.")
         wait = report if report > 0 else 0.5
-        tick = 1.0 / RATE_HZ if live is not None else wait
+        tick = 1.0 / FOXGLOVE_RATE_HZ if live is not None else wait
+        stream = None
+        if live is not None:
+            from snakebot.workflows.foxglove import EmulatedStream
+
+            stream = EmulatedStream(live, emulated)
         next_report = time.monotonic() + wait
         while not stop.wait(tick):
             emulated.check_running()
-            if live is not None:
-                from snakebot.workflows.foxglove import publish_emulated
-
-                publish_emulated(live, emulated)
+            if stream is not None:
+                stream.tick()
             if time.monotonic() >= next_report:
                 next_report += wait
                 if report > 0:

@@ -9,6 +9,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from snakebot.facts import devices
+from snakebot.formats import protocol
 from snakebot.formats.gaittable import GaitTable
 from snakebot.formats.register_values import BusCommandError
 from snakebot.link.bus.scan import identify
@@ -32,6 +33,11 @@ STOP_S = 0.5
 _AX12 = devices.ax12()
 _PRESENT = _AX12.register("Present Position")
 _SPEED = _AX12.register("Moving Speed")
+_GOAL = _AX12.register("Goal Position")
+_PRESENT_SPEED = _AX12.register("Present Speed")
+_PRESENT_LOAD = _AX12.register("Present Load")
+_LOOK_SPAN = _PRESENT_LOAD.address + 2 - _GOAL.address
+"""One READ from Goal Position through Present Load: what a look at a servo takes."""
 
 
 @dataclass(frozen=True)
@@ -153,3 +159,41 @@ def _settled(client: DxlClient, ids: Sequence[int]) -> dict[int, int]:
             return now
         last = now
     return last
+
+
+@dataclass(frozen=True)
+class ServoLook:
+    """One servo as a READ found it: goal and present position (ticks), present speed
+    (rad/s, + counter-clockwise), load (fraction of the stall torque, + counter-clockwise)
+    and the error flags of its reply."""
+
+    goal: int
+    position: int
+    speed_rad_s: float
+    load: float
+    error: int
+
+
+def look(client: DxlClient, ids: Sequence[int]) -> list[ServoLook]:
+    """Each servo of ``ids``, one READ apiece (its error flags kept, not raised)."""
+    out = []
+    for sid in ids:
+        reply = client.transact(
+            protocol.read(sid, _GOAL.address, _LOOK_SPAN), sid, _LOOK_SPAN, check=False
+        )
+        data = bytes(reply.params)
+
+        def word(register: devices.Register, data: bytes = data) -> int:
+            at = register.address - _GOAL.address
+            return int.from_bytes(data[at : at + 2], "little")
+
+        out.append(
+            ServoLook(
+                word(_GOAL),
+                word(_PRESENT),
+                _PRESENT_SPEED.to_units(word(_PRESENT_SPEED), "rad/s"),
+                _PRESENT_LOAD.to_units(word(_PRESENT_LOAD)) / 100.0,  # percent
+                int(reply.code),
+            )
+        )
+    return out

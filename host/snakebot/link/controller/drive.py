@@ -21,6 +21,8 @@ import math
 import os
 import re
 import select
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -29,7 +31,7 @@ from snakebot.link.controller import messages as words
 from snakebot.link.controller import playback
 from snakebot.link.controller.client import ControllerClient, RosterEntry
 from snakebot.link.controller.errors import ControllerError, ControllerLinkError, ControllerRefused
-from snakebot.link.controller.monitor import sample, servo_record
+from snakebot.link.controller.monitor import Sample, sample, servo_record
 
 STEER_STEP = math.radians(5)
 """How far one left/right press turns: radians of Steering Offset."""
@@ -125,9 +127,12 @@ class Driver:
     roster: list[RosterEntry] | None = None
     speed: float = 1.0
     steer: float = 0.0
+    on_sample: Callable[[Sample], None] | None = None
+    """Called with each look's telemetry sample (a live view's feed)."""
     quit: bool = field(default=False, init=False)
 
     program: bool = field(default=False, init=False)
+    t0: float = field(default_factory=time.monotonic, init=False)
 
     def start(self) -> dict[str, Any]:
         """Start (or restart) the serpenoid with the current speed and steering; a
@@ -208,7 +213,9 @@ class Driver:
     def look(self) -> dict[str, Any]:
         """The controller's state, error flags, speed and steering, and per roster joint
         its name, goal and position in degrees, load (percent) and errors."""
-        s = sample(self.ctl)
+        s = sample(self.ctl, self.t0)
+        if self.on_sample is not None:
+            self.on_sample(s)
         c = s.controller_record()
         steering = self.ctl.table.register("Steering Offset")
         steer = steering.to_units(s.registers["Steering Offset"], "rad")

@@ -1,5 +1,8 @@
-"""Telemetry samples as an MCAP file (for Foxglove Studio and PlotJuggler): one JSON
-message per sample on one topic, described by a JSON Schema, stamped with the wall
+"""Telemetry samples as an MCAP file (for Foxglove and PlotJuggler): one JSON message per
+sample on ``/snakebot/telemetry`` (what ``--json`` prints, which ``snakebot compare``
+reads), and the live topics of :mod:`snakebot.formats.live_topics` (``/joint_states``,
+``/snakebot/servos``, ``/snakebot/controller``, ``/tf``, ...) with the schemas a live
+Foxglove server advertises, each described by its JSON Schema, stamped with the wall
 clock. Needs the optional ``mcap`` package (``pip install 'snakebot[record]'``)."""
 
 from __future__ import annotations
@@ -10,6 +13,7 @@ from types import TracebackType
 from typing import IO, Any
 
 from snakebot.errors import InputError
+from snakebot.formats.live_topics import CHANNELS
 
 TOPIC = "/snakebot/telemetry"
 SCHEMA_NAME = "snakebot.Telemetry"
@@ -48,25 +52,33 @@ class McapLog:
             ).about("mcap_path", "csv_path") from None
         self._writer = Writer(stream)
         self._writer.start(profile="", library="snakebot")
-        schema = self._writer.register_schema(
-            name=SCHEMA_NAME, encoding="jsonschema", data=json.dumps(SCHEMA).encode()
-        )
-        self._channel = self._writer.register_channel(
-            topic=TOPIC, message_encoding="json", schema_id=schema
-        )
+        self._channels = {
+            topic: self._writer.register_channel(
+                topic=topic,
+                message_encoding="json",
+                schema_id=self._writer.register_schema(
+                    name=name, encoding="jsonschema", data=json.dumps(schema).encode()
+                ),
+            )
+            for topic, (name, schema) in {TOPIC: (SCHEMA_NAME, SCHEMA), **CHANNELS}.items()
+        }
         self._writer.flush()  # the header, schema and channel: a cut file still reads
         self._flushed = time.monotonic()
 
     def write(self, record: dict[str, Any], stamp_ns: int | None = None) -> None:
-        """One sample's record, at ``stamp_ns`` (default: now). The chunk in progress is
-        written out once it is :data:`FLUSH_S` old, so a file cut by a kill holds every
-        sample but those of the last second."""
+        """One sample's telemetry record, at ``stamp_ns`` (default: now)."""
+        self.log(TOPIC, record, stamp_ns)
+
+    def log(self, topic: str, message: dict[str, Any], stamp_ns: int | None = None) -> None:
+        """One message on ``topic`` (the telemetry's or a live topic), at ``stamp_ns``
+        (default: now). The chunk in progress is written out once it is :data:`FLUSH_S`
+        old, so a file cut by a kill holds every message but those of the last second."""
         stamp = time.time_ns() if stamp_ns is None else stamp_ns
         self._writer.add_message(
-            channel_id=self._channel,
+            channel_id=self._channels[topic],
             log_time=stamp,
             publish_time=stamp,
-            data=json.dumps(record).encode(),
+            data=json.dumps(message).encode(),
         )
         now = time.monotonic()
         if now - self._flushed >= FLUSH_S:

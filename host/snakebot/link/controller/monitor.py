@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from snakebot.facts.controller import Controller, load
+from snakebot.formats.live_topics import JointSample
 from snakebot.link.controller import messages as words
 from snakebot.link.controller.client import ControllerClient, JointRecord
 from snakebot.model.robots.model import Joint, joint_name
@@ -92,6 +93,22 @@ def servo_record(j: JointRecord) -> dict[str, Any]:
         "min_tick": j.min_tick,
         "max_tick": j.max_tick,
     }
+
+
+def joint_sample(s: Sample) -> JointSample:
+    """The roster's joints in a sample as the live topics carry them: angles in radians,
+    speeds in rad/s and loads (a fraction of the stall torque) in each joint's own
+    direction, the servos' error flags."""
+    names, goal, present, velocity, load, errors = [], [], [], [], [], []
+    for j in s.servos:
+        joint = joint_of(j)
+        names.append(joint.name)
+        goal.append(joint.tick_to_angle(j.goal))
+        present.append(joint.tick_to_angle(j.position))
+        velocity.append(joint.sign * _SPEED.to_units(j.speed, "rad/s"))
+        load.append(joint.sign * _LOAD.to_units(j.load) / 100.0)  # percent: + counter-clockwise
+        errors.append(int(j.error))
+    return JointSample(names, goal, present, velocity, load, errors)
 
 
 def sample(ctl: ControllerClient, t0: float | None = None) -> Sample:

@@ -23,6 +23,7 @@ backwards).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections import deque
 from dataclasses import asdict, dataclass, replace
@@ -30,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from snakebot.formats.live_topics import Shape
 from snakebot.model.robots import TICKS_PER_RAD, Robot
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.history import History
@@ -353,6 +355,39 @@ class PhysicsWorld:
     @property
     def samples(self) -> int:
         return len(self._history)
+
+    @functools.cached_property
+    def shapes(self) -> list[Shape]:
+        """The robot's bodies for a 3-D scene: each geom as a box, cylinder or sphere (a
+        capsule as the cylinder around it; metres) in the frame of its body, named as the
+        exported URDF names its link, so the links' transforms move them. The floor is not
+        among them. Made once: a body's geoms do not move within it."""
+        types = self._mj.mjtGeom
+        m = self.model
+        shapes = []
+        for g in range(m.ngeom):
+            t = int(m.geom_type[g])
+            a, b, c = (float(v) for v in m.geom_size[g])
+            body = int(m.geom_bodyid[g])
+            if body == 0:
+                continue  # the floor's
+            if t in (int(types.mjGEOM_BOX), int(types.mjGEOM_ELLIPSOID)):
+                kind, size = (
+                    "cube" if t == int(types.mjGEOM_BOX) else "sphere",
+                    (2 * a, 2 * b, 2 * c),
+                )
+            elif t in (int(types.mjGEOM_CYLINDER), int(types.mjGEOM_CAPSULE)):
+                length = 2 * b + (2 * a if t == int(types.mjGEOM_CAPSULE) else 0.0)
+                kind, size = "cylinder", (2 * a, 2 * a, length)
+            elif t == int(types.mjGEOM_SPHERE):
+                kind, size = "sphere", (2 * a, 2 * a, 2 * a)
+            else:
+                continue  # a mesh or a plane: not drawn
+            w, x, y, z = m.geom_quat[g].tolist()
+            frame = self._mj.mj_id2name(m, self._mj.mjtObj.mjOBJ_BODY, body)
+            position = tuple(m.geom_pos[g].tolist())
+            shapes.append(Shape(kind, size, position, (x, y, z, w), frame))  # type: ignore[arg-type]
+        return shapes
 
     def record(self) -> PhysicsRecord:
         """Everything sampled so far."""

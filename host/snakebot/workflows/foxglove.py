@@ -226,7 +226,7 @@ class FoxgloveLive:
         name: str = "snakebot",
         messages: LiveMessages | None = None,
     ) -> None:
-        require("foxglove", "--foxglove", extra="live")
+        require("foxglove", "the Foxglove server", extra="live", params=("foxglove",))
         import foxglove
 
         self.messages = messages if messages is not None else LiveMessages(robot)

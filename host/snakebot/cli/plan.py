@@ -26,7 +26,7 @@ from snakebot.cli.output import dumps
 from snakebot.cli.params import CAPACITY
 from snakebot.extras import require
 from snakebot.facts.boards import TABLE_CAPACITY
-from snakebot.model.plan import Unreachable
+from snakebot.model.plan import PlanRequest, Unreachable
 from snakebot.model.plan.planner import DEFAULT_BOARD, DEFAULT_CAPACITY
 
 #: Exit status when no plan reaches the target: a runtime failure, not bad input.
@@ -143,13 +143,9 @@ def plan_command(
         with ControllerLink(port, controller_id=controller_id).open() as ctl:
             capacity = table_capacity(ctl)
     try:
-        plan = plan_for(
-            output,
-            chosen,
-            goal.target,
-            capacity=DEFAULT_CAPACITY if capacity is None else capacity,
-            **goal.settings(),
-        )
+        capacity = DEFAULT_CAPACITY if capacity is None else capacity
+        request = PlanRequest(chosen, goal.target, capacity=capacity, **goal.settings())
+        plan = plan_for(output, request)
     except Unreachable as exc:
         unreachable(exc)
         return

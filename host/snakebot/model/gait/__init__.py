@@ -10,7 +10,7 @@ from __future__ import annotations
 from snakebot.model.gait.common import Gait, GaitError
 from snakebot.model.gait.field import field_gait
 from snakebot.model.gait.limits import GaitLimitError, check_motion, check_ticks
-from snakebot.model.gait.serpenoid import serpenoid
+from snakebot.model.gait.serpenoid import SerpenoidWave, serpenoid
 from snakebot.model.gait.values import (
     ExpressionError,
     parse_angle,
@@ -23,6 +23,7 @@ __all__ = [
     "GaitError",
     "GaitLimitError",
     "ExpressionError",
+    "SerpenoidWave",
     "check_motion",
     "check_ticks",
     "field_gait",

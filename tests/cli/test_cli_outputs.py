@@ -14,6 +14,7 @@ from click.testing import CliRunner
 from other_user import as_other_user, needs_root
 
 from snakebot.cli import main
+from snakebot.cli.troubleshooting import ERROR_LINE
 
 SERPENOID = ["gait", "serpenoid", "snake3", "-A", "20deg", "-w", "90deg", "-d", "90deg"]
 SERPENOID += ["--cycles", "1"]
@@ -31,7 +32,7 @@ def _run(args: list[str]):
 def _refused(result, *words: str) -> None:
     assert result.exit_code == 2, result.output
     line = result.stderr.strip()
-    assert "\n" not in line and line.startswith("error: "), line
+    assert "\n" not in line and ERROR_LINE.match(line), line
     for word in words:
         assert word in line, line
 

@@ -71,7 +71,8 @@ def test_a_link_planted_at_the_path_to_a_file_of_ours_is_refused(shared, ours, s
     path = shared / "ttyDXL"
     as_other_user(f"ln -s {ours} {path}")
     before = _snapshot(path)
-    _refused([*SERVERS[server], str(path)], f"is a symlink to {ours}", "which no snakebot")
+    option = SERVERS[server][-1]
+    _refused([*SERVERS[server], str(path)], f"{option}: {path} is a symlink to {ours}", "which no")
     assert _snapshot(path) == before
     assert ours.read_bytes() == PRECIOUS and ours.stat().st_uid == 0
 

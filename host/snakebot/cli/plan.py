@@ -24,6 +24,7 @@ from snakebot.cli.options import (
 )
 from snakebot.cli.output import dumps
 from snakebot.cli.params import CAPACITY
+from snakebot.cli.troubleshooting import error_line
 from snakebot.extras import require
 from snakebot.facts.boards import TABLE_CAPACITY
 from snakebot.model.plan import PlanRequest, Unreachable
@@ -36,7 +37,7 @@ EXIT_UNREACHABLE = 1
 def unreachable(exc: Unreachable) -> None:
     """Report a target no plan reaches: one line led by the options it is about, exit
     status 1."""
-    click.echo(f"error: {message(exc, click.get_current_context(silent=True))}", err=True)
+    click.echo(error_line(message(exc, click.get_current_context(silent=True))), err=True)
     raise SystemExit(EXIT_UNREACHABLE)
 
 

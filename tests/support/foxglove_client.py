@@ -83,10 +83,12 @@ class Listener:
                 assert json.loads(ws.recv(timeout=10))["op"] == "serverInfo"
                 self.channels = advertised(ws, set(self.topics))
                 wanted = subscribe(ws, self.channels, self.topics)
-                while not self._stop.is_set():
+                while True:
                     try:
                         got = decode(ws.recv(timeout=0.2), wanted)
                     except TimeoutError:
+                        if self._stop.is_set():
+                            return  # asked to stop, and nothing more has come for 0.2 s
                         continue
                     except ConnectionClosed:
                         return

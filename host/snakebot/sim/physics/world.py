@@ -287,7 +287,7 @@ class PhysicsWorld:
             tau = torques[k]
             # a servo with its torque off drives nothing and reports no load (the gear
             # train still brakes the joint: that stays in the physics)
-            servo.set_motion(
+            ctrl = servo.set_motion(
                 t,
                 pos,
                 sign * w * TICKS_PER_RAD,
@@ -296,7 +296,6 @@ class PhysicsWorld:
                 moving[k],
                 stalled[k] >= OVERLOAD_HOLD_S,
             )
-            ctrl = servo.controller()
             on[k] = ctrl[2] != 0.0
             gain, target, offset, cap, cut = drive(ctrl, pos)
             volts = ctrl[9]

@@ -232,6 +232,13 @@ class PhysicsWorld:
         self._drives = (bias[:, 0], bias[:, 1], limits[:, 1], limits[:, 0])
         self._given: list[list[float]] = [[], [], []]
         self._neg_damping = -self.actuator.damping
+        act = self.actuator
+        # stall torque, stall torque per supply volt (Actuator.stall_at), stalled speed
+        self._stall_constants = (
+            act.stall_nm,
+            act.stall_nm / act.nominal_v,
+            STALLED_FRACTION * act.no_load_rad_s,
+        )
         self._schedule = bus.every(self.control_period, self._tick, start=self.start_time)
 
     # -- stepping -------------------------------------------------------------------------
@@ -272,12 +279,9 @@ class PhysicsWorld:
         if self._ticks % self.steps_per_sample == 0:
             self._sample(t, torques)
         self._ticks += 1
-        act = self.actuator
-        drive = act.drive
-        stall_nm = act.stall_nm
-        stall_per_volt = stall_nm / act.nominal_v
-        stalled_speed = STALLED_FRACTION * act.no_load_rad_s
-        period = self.control_period
+        drive = self.actuator.drive
+        stall_nm, stall_per_volt, stalled_speed = self._stall_constants
+        period, hold = self.control_period, OVERLOAD_HOLD_S
         on, moving, stalled = self._on, self._moving, self._stalled
         angles = self._qpos.take(self._qadr_np, mode="clip").tolist()
         constant, slope, high = [], [], []
@@ -294,7 +298,7 @@ class PhysicsWorld:
                 abs(tau) / stall_nm if on[k] else 0.0,
                 on[k] and tau * sign < 0,
                 moving[k],
-                stalled[k] >= OVERLOAD_HOLD_S,
+                stalled[k] >= hold,
             )
             on[k] = ctrl[2] != 0.0
             gain, target, offset, cap, cut = drive(ctrl, pos)
@@ -319,10 +323,10 @@ class PhysicsWorld:
     def _sample(self, t: float, torques: list[float]) -> None:
         """Check the physics is sane and keep what the record is made of (raw: the record
         works the slip out for all samples at once)."""
-        q = self._qpos
+        q = self._qpos.tolist()
         z = q[2]  # the robot stays level: every wheel centre sinks with the base
         # (plain sums: numpy's reductions cost more than the additions on so few numbers)
-        if not math.isfinite(sum(q.tolist()) + sum(self._qvel.tolist())):
+        if not math.isfinite(sum(q) + sum(self._qvel.tolist())):
             self._fail(t, "the simulation blew up (a position or speed is not finite)")
         if z < self._min_z:
             self._fail(t, "the wheels sank deep into the floor")

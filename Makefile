@@ -35,7 +35,7 @@ QEMU_JOBS   ?= $(shell nproc)
 SERIAL_JOBS ?= 3
 
 .PHONY: dist help setup system-packages demo-packages python-env runtime-env core firmware \
-        test test-summary test-suite test-collect test-parallel test-qemu test-serial test-fuzz-wheel test-fuzz test-wheel lint fuzz-targets bench demo flash flash-image clean fuzz docs
+        test test-summary test-suite test-collect test-parallel test-qemu test-serial test-fuzz test-wheel lint fuzz-targets bench demo flash flash-image clean fuzz docs
 
 help:
 	@echo "make demo      run the main job on the emulated robot (does its own set-up)"
@@ -109,17 +109,19 @@ firmware: demo-packages
 #   counts need QEMU to keep pace, real-time pty runs, dynamixel-sdk's fixed waits) on
 #   SERIAL_JOBS workers: they use little CPU, and keep pace beside one busy process but
 #   not beside a CPU-bound suite;
-# - the two fuzzing passes one after the other, in the idle scheduling class (SCHED_IDLE)
-#   on the cycles the tests leave (a pass lasts its fixed time whatever its priority),
-#   then the package check (it builds the wheel, then runs the demo from it in QEMU): by
-#   then the tests are in their serial stage, for which it is the one busy process.
+#   beside the serial stage, the package check (it builds the wheel, then runs the demo
+#   from it in QEMU): the one busy process beside them;
+# - the two fuzzing passes one after the other, at a low priority (nice 10) on the
+#   cycles the tests leave: a pass lasts its fixed wall time whatever its priority, and
+#   still gets a share of the CPU beside busy processes (in the idle scheduling class
+#   it got none, and timed out, while two other processes kept both cores busy).
 # Every lane but the first stage writes a log, shown whole if it fails and as one line if
 # not, so that outputs do not mix; the first stage prints its progress.
 # A stage that fails does not stop the others: each records its result in TEST_STATUS,
 # every stage runs, and `make test` ends with the table of results, failing if any did.
 FUZZ_TESTS  := tests/reliability/test_fuzz_targets.py
 WHEEL_TESTS := tests/packaging/test_wheel.py
-IDLE        := $(shell command -v chrt >/dev/null 2>&1 && echo "chrt --idle 0" || echo "nice -n 19")
+LOW         := nice -n 10
 TEST_STATUS := build/test-status
 TEST_STAGES := checks parallel qemu serial fuzz wheel
 # $(call record,STAGE,STATUS): note STAGE's exit status and pass it on.
@@ -128,7 +130,7 @@ test: system-packages python-env
 	@rm -rf $(TEST_STATUS)
 	-$(Q)$(MAKE) --no-print-directory -k -j$(TEST_JOBS) lint firmware fuzz-targets test-collect; \
 	    $(call record,checks,$$?)
-	-$(Q)$(MAKE) --no-print-directory -k -j2 test-suite test-fuzz-wheel
+	-$(Q)$(MAKE) --no-print-directory -k -j2 test-suite test-fuzz
 	$(Q)$(MAKE) --no-print-directory test-summary
 
 test-summary:
@@ -140,7 +142,7 @@ test-summary:
 test-suite:
 	-$(Q)$(MAKE) --no-print-directory test-parallel
 	-$(Q)$(MAKE) --no-print-directory test-qemu
-	-$(Q)$(MAKE) --no-print-directory test-serial
+	-$(Q)$(MAKE) --no-print-directory -k -j2 test-serial test-wheel
 
 # Collecting the suite once beside the builds fills __pycache__ with the rewritten test
 # modules, which every pytest worker of the stages after it then reads instead of
@@ -165,16 +167,12 @@ STAGE_JOBS_serial  = $(SERIAL_JOBS)
 STAGE_MARK_serial := serial
 STAGE_DIST_serial := load
 
-test-fuzz-wheel:
-	-$(Q)$(MAKE) --no-print-directory test-fuzz
-	-$(Q)$(MAKE) --no-print-directory test-wheel
-
 # `make test` fuzzes each target TEST_FUZZ_SECONDS, a smoke pass within its 5-minute
 # budget; `make fuzz` is the longer pass (FUZZ_SECONDS, below).
 TEST_FUZZ_SECONDS ?= 20
 test-fuzz:
 	@mkdir -p build
-	$(Q)FUZZ_SECONDS=$(TEST_FUZZ_SECONDS) FUZZ_LAUNCH="$(IDLE)" $(IDLE) $(PY) -m pytest -q -p no:cacheprovider $(FUZZ_TESTS) \
+	$(Q)FUZZ_SECONDS=$(TEST_FUZZ_SECONDS) FUZZ_LAUNCH="$(LOW)" $(LOW) $(PY) -m pytest -q -p no:cacheprovider $(FUZZ_TESTS) \
 	    > build/test-fuzz.log 2>&1; s=$$?; \
 	    if [ $$s = 0 ]; then echo "fuzz tests: $$(tail -n1 build/test-fuzz.log)"; \
 	    else cat build/test-fuzz.log; fi; $(call record,fuzz,$$s)

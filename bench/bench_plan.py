@@ -22,7 +22,7 @@ import numpy as np
 
 from snakebot.facts.boards import TABLE_CAPACITY
 from snakebot.model.gait.common import table_motion
-from snakebot.model.plan import Unreachable, body_length, make_plan
+from snakebot.model.plan import PlanRequest, Unreachable, body_length, make_plan
 from snakebot.model.robots import load_robot
 
 GOAL_S = 2.0
@@ -52,7 +52,7 @@ def measure(name: str, board: str) -> None:
         )
         t0, cpu0 = time.perf_counter(), time.process_time()
         try:
-            plan = make_plan(robot, target, capacity=capacity)
+            plan = make_plan(PlanRequest(robot, target, capacity=capacity))
         except Unreachable:
             refused += 1
             plan = None

@@ -11,6 +11,7 @@ from click.testing import CliRunner
 
 import snakebot.link.transport.ports  # noqa: F401  (registers sim://)
 from snakebot.cli import main
+from snakebot.cli.troubleshooting import ERROR_LINE
 from snakebot.sim.urlhandler.protocol_sim import forget_named_buses
 
 pytestmark = pytest.mark.timeout(120)
@@ -32,7 +33,7 @@ def bus(*args: str):
 
 def one_error_line(result) -> str:
     lines = result.stderr.splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
+    assert len(lines) == 1 and ERROR_LINE.match(lines[0]), result.stderr
     return lines[0]
 
 

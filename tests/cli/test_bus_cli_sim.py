@@ -87,7 +87,7 @@ def test_ping_reports_found_and_fails_for_missing():
     partly = bus("ping", "2", "3", "--port", port)
     assert partly.exit_code == 1  # no reply: the bus failed, the command line was fine
     assert "AX-12A" in partly.stdout
-    assert "error: no reply from servo 3 at 1000000 baud" in partly.stderr
+    assert "error[E203]: no reply from servo 3 at 1000000 baud" in partly.stderr
 
 
 def test_read_decodes_registers_by_name_and_address():

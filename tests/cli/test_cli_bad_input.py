@@ -18,6 +18,7 @@ import pytest
 from click.testing import CliRunner
 
 from snakebot.cli import main
+from snakebot.cli.troubleshooting import ERROR_LINE
 from snakebot.model.robots import load_robot
 
 pytestmark = pytest.mark.timeout(60)
@@ -38,7 +39,7 @@ def assert_one_line_error(result, code: int = 2, mentions: str = "") -> str:
     assert "Traceback" not in result.output
     assert result.exit_code == code, (result.exit_code, result.output)
     lines = [line for line in result.stderr.splitlines() if line.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
+    assert len(lines) == 1 and ERROR_LINE.match(lines[0]), result.stderr
     assert mentions.lower() in lines[0].lower(), lines[0]
     return lines[0]
 
@@ -362,7 +363,7 @@ def test_runtime_failure_exits_1_usage_error_exits_2() -> None:
         os.close(master)
         os.close(slave)
     assert runtime.returncode == 1, runtime.stderr
-    assert runtime.stderr.startswith("error: ") and "Traceback" not in runtime.stderr
+    assert runtime.stderr.startswith("error[E301]: ") and "Traceback" not in runtime.stderr
 
 
 @pytest.mark.parametrize(
@@ -539,7 +540,9 @@ def test_a_qemu_that_starts_and_dies_is_a_runtime_failure_in_one_line(tmp_path, 
         pytest.skip("needs `make firmware`")
     status, err = _with_qemu("/bin/false", command, tmp_path / "out")
     assert status == 1, err
-    assert err.count("\n") == 1 and err.startswith("error: QEMU (/bin/false) exited at start-up")
+    assert err.count("\n") == 1 and err.startswith(
+        "error[E502]: QEMU (/bin/false) exited at start-up"
+    )
     assert "point SNAKEBOT_QEMU at one that does" in err and "internal error" not in err
 
 

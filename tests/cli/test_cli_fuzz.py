@@ -41,6 +41,7 @@ from hypothesis import strategies as st
 from snakebot.cli import main
 from snakebot.cli.errors import INTERNAL_ERROR
 from snakebot.cli.params import AngleListType, AngleType, NumberType, OutputPathType
+from snakebot.cli.troubleshooting import ERROR_LINE
 from snakebot.settings import resolve_int
 
 EXAMPLES = resolve_int("SNAKEBOT_CLI_FUZZ_EXAMPLES")
@@ -229,7 +230,7 @@ def check(result: click.testing.Result) -> None:
     assert result.exit_code in (0, 1, 2), (result.exit_code, result.output)
     if result.exit_code:
         lines = [line for line in result.stderr.splitlines() if line.strip()]
-        assert lines and lines[-1].startswith("error: "), result.stderr
+        assert lines and ERROR_LINE.match(lines[-1]), result.stderr
     assert not re.search(r"\b(NaN|-?Infinity)\b", result.stdout), result.stdout
 
 
@@ -493,6 +494,6 @@ def test_hostile_files_and_numbers_are_refused_in_bounded_time_and_memory(case) 
             assert run.returncode == 2, (args, run.returncode, err)
         assert run.returncode in (0, 1, 2), (args, run.returncode, err)
         if run.returncode:
-            assert err.strip().splitlines()[-1].startswith("error: "), (args, err)
+            assert ERROR_LINE.match(err.strip().splitlines()[-1]), (args, err)
             left = sorted(p.name for p in where.iterdir())
             assert left == planted, (args, left)  # a refusal writes nothing

@@ -14,6 +14,7 @@ from click.testing import CliRunner
 from other_user import as_other_user, needs_root
 
 from snakebot.cli import main
+from snakebot.cli.troubleshooting import ERROR_LINE
 
 SERPENOID = ["gait", "serpenoid", "snake3", "-A", "20deg", "-w", "90deg", "-d", "90deg"]
 SERPENOID += ["--cycles", "1"]
@@ -31,7 +32,7 @@ def _run(args: list[str]):
 def _refused(result, *words: str) -> None:
     assert result.exit_code == 2, result.output
     line = result.stderr.strip()
-    assert "\n" not in line and line.startswith("error: "), line
+    assert "\n" not in line and ERROR_LINE.match(line), line
     for word in words:
         assert word in line, line
 
@@ -136,18 +137,22 @@ def test_a_symlink_planted_by_another_user_is_never_written_through(shared_tmp):
     victim = shared_tmp / "victim.txt"
     victim.write_bytes(PRECIOUS)
     victim.chmod(0o600)
-    names = ("walk.gait", "walk.gait.json", "rec.csv", "rec.mcap", "plot.png")
+    names = ("walk.gait", "walk.gait.json", "rec.csv", "rec.mcap", "plot.png", "plan.gait")
+    names += ("best.gait",)
     as_other_user("; ".join(f"ln -s {victim} {shared_tmp / n}" for n in names))
     cases = [
         [*SERPENOID, "-o", str(shared_tmp / "walk.gait")],
         [*SERPENOID, "-o", str(shared_tmp / "mine.gait"), "--plot", str(shared_tmp / "plot.png")],
         ["monitor", "--port", "loop://", "--csv", str(shared_tmp / "rec.csv")],
         ["monitor", "--port", "loop://", "--mcap", str(shared_tmp / "rec.mcap")],
+        ["plan", "snake3", "--to", "1,0,0", "-o", str(shared_tmp / "plan.gait")],
+        [*BIG_SEARCH, "--best", str(shared_tmp / "best.gait")],
     ]
     for args in cases:
         result, _ = _run(args)
         _refused(result, "symbolic link")
     assert victim.read_bytes() == PRECIOUS
+    assert all(os.readlink(shared_tmp / n) == str(victim) for n in names)  # left as planted
     # The sidecar of a gait: refused too, and neither file of the pair is written.
     (shared_tmp / "walk.gait").unlink()
     result, _ = _run([*SERPENOID, "-o", str(shared_tmp / "walk.gait")])

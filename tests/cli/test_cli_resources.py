@@ -162,7 +162,7 @@ def test_a_path_someone_else_made_is_refused_and_left_alone(tmp_path, server, pl
     before = os.lstat(path)
     result = CliRunner().invoke(main, [*SERVERS[server], str(path)])
     assert result.exit_code == 2, result.output
-    assert result.stderr.startswith(f"error: {path} ")
+    assert result.stderr.startswith(f"error: {SERVERS[server][-1]}: {path} ")  # the option
     assert f"rm {path}" in result.stderr and result.stderr.count("\n") == 1
     after = os.lstat(path)
     assert (after.st_ino, after.st_mtime_ns) == (before.st_ino, before.st_mtime_ns)

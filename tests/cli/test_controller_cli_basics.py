@@ -40,7 +40,7 @@ def test_a_missing_port_is_one_line_and_exit_2(command, tmp_path):
     port = str(tmp_path / "ttyUSB9")
     result = cli(command, *_args(command, tmp_path), "--port", port)
     assert result.exit_code == 2
-    assert result.stderr.startswith(f"error: serial port {port} does not exist")
+    assert result.stderr.startswith(f"error[E101]: serial port {port} does not exist")
     assert "Traceback" not in result.output
 
 
@@ -61,7 +61,7 @@ def test_nothing_answering_names_the_controller_and_the_checks(command, tmp_path
         os.close(slave)
     assert result.exit_code == 1  # a runtime failure: the input was fine
     err = result.stderr
-    assert err.startswith("error: --baud, --id: the controller (ID 200) on ")
+    assert err.startswith("error[E301]: --baud, --id: the controller (ID 200) on ")
     assert "did not answer" in err and "snakebot firmware" in err and "the baud rate" in err
 
 

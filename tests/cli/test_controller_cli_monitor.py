@@ -240,7 +240,7 @@ def test_csv_to_an_unwritable_place_fails_before_connecting(tmp_path):
 def test_csv_is_not_left_behind_when_the_controller_cannot_be_reached(tmp_path):
     path = tmp_path / "run.csv"
     result = cli("monitor", "--port", "/dev/ttySNAKEBOT-missing", "--csv", path)
-    assert result.exit_code == 2 and "error: " in result.stderr
+    assert result.exit_code == 2 and result.stderr.startswith("error[E101]: ")
     assert not path.exists()
 
 

@@ -98,7 +98,7 @@ def test_upload_cut_after_kth_chunk_leaves_old_table_playing(
         server.line_filter = cut
     result = cli("upload", new, "--port", server.device, env=FAST_ENV)
     assert result.exit_code == 1
-    assert result.stderr.splitlines()[-1].startswith("error: ")
+    assert result.stderr.splitlines()[-1].startswith("error[E301]: ")  # the link was cut
     assert "previous table" in result.stderr
     assert cut.cut and cut.dropped > 0
     with server.lock:

@@ -123,7 +123,7 @@ def test_corrupted_image_fails_on_the_checksum_and_is_not_started(tmp_path):
         with server.lock:
             started = list(boot.started)
     assert result.exit_code == 1
-    assert "error: checksum mismatch" in result.stderr
+    assert "error[E407]: checksum mismatch" in result.stderr
     assert "NOT started" in result.stderr
     assert started == []
 
@@ -133,7 +133,7 @@ def test_no_answer_to_hash(tmp_path, monkeypatch):
     with serve(Bootloader(faults=BootloaderFaults(mute=True))) as server:
         result = run(str(tmp_path / "fw.bin"), "--port", server.device, "--reset-timeout", "0.4")
     assert result.exit_code == 1
-    assert "error: no answer from the CM-530 bootloader" in result.stderr
+    assert "error[E401]: no answer from the CM-530 bootloader" in result.stderr
     assert "press MODE or power-cycle the CM-530" in result.stderr
 
 

@@ -1,7 +1,11 @@
 """The error messages the documents quote are the ones the code prints: every heading of
 docs/troubleshooting.md and every message in the failure table of docs/first-flash.md
 is found among the messages in host/snakebot (``...`` standing for what the code fills
-in), so a reworded message cannot leave its entry behind."""
+in), so a reworded message cannot leave its entry behind.
+
+The troubleshooting page's headings are the CLI's table of error codes
+(``snakebot.cli.troubleshooting.ENTRIES``), checked both ways: the page has a heading
+for every code and no other, and every message an entry quotes prints its code."""
 
 from __future__ import annotations
 
@@ -11,7 +15,10 @@ from functools import cache
 from pathlib import Path
 
 import pytest
+from click.testing import CliRunner
 
+from snakebot.cli import main
+from snakebot.cli.troubleshooting import ENTRIES, PAGE, code_of, error_line, quotes
 from snakebot.paths import REPO_ROOT
 
 PACKAGE = REPO_ROOT / "host" / "snakebot"
@@ -62,8 +69,7 @@ def messages() -> tuple[str, ...]:
 
 def printed(quoted: str) -> bool:
     """Whether a message quoted with ``...`` for its variable parts is one the code has."""
-    pattern = re.compile(".*?".join(re.escape(f) for f in quoted.split("...")))
-    return any(pattern.search(text.replace(HOLE, "...")) for text in messages())
+    return any(quotes(quoted, text.replace(HOLE, "...")) for text in messages())
 
 
 def quoted_in(page: Path, pattern: re.Pattern[str]) -> list[str]:
@@ -71,7 +77,9 @@ def quoted_in(page: Path, pattern: re.Pattern[str]) -> list[str]:
 
 
 DOCS = REPO_ROOT / "docs"
-HEADINGS = quoted_in(DOCS / "troubleshooting.md", re.compile(r"^### `(.+)`$", re.M))
+ENTRY_HEADING = re.compile(r"^### (E\d{3}) `(.+)`$")
+HEADING_LINES = re.findall(r"^### .*$", (REPO_ROOT / PAGE).read_text(encoding="utf-8"), re.M)
+HEADINGS = [m.group(2) for line in HEADING_LINES if (m := ENTRY_HEADING.match(line))]
 TABLE_ROW = re.compile(r"^\| `([^`]+)` \| [^|]+ \| [^|]+ \|$", re.M)  # message, cause, fix
 FAILURES = quoted_in(DOCS / "first-flash.md", TABLE_ROW)
 
@@ -87,3 +95,54 @@ def test_a_quoted_message_is_one_the_code_prints(message):
 
 def test_a_reworded_message_is_caught():
     assert not printed("the bootloader sent no 'Checksum:' report after lunch")
+
+
+def test_the_pages_headings_are_the_table_of_codes():
+    expected = [f"### {code} `{quoted}`" for code, quoted in ENTRIES.items()]
+    assert HEADING_LINES == expected, (
+        "the headings of " + PAGE + " should read:\n" + "\n".join(expected)
+    )
+
+
+def _instances(quoted: str) -> list[str]:
+    """The messages in the code that ``quoted`` quotes, their holes filled with a word."""
+    found = [t for t in messages() if quotes(quoted, t.replace(HOLE, "..."))]
+    return [t.replace(HOLE, "x1") for t in found]
+
+
+@pytest.mark.parametrize("code", ENTRIES)
+def test_every_message_an_entry_quotes_prints_its_code(code):
+    instances = _instances(ENTRIES[code])
+    assert instances, f"no message in host/snakebot reads {ENTRIES[code]!r}"
+    for text in instances:
+        assert error_line(text) == f"error[{code}]: {text}", text
+
+
+def test_a_message_without_an_entry_prints_no_code():
+    assert code_of("the frame rate must be positive") is None
+    assert error_line("the frame rate must be positive") == "error: the frame rate must be positive"
+
+
+@pytest.mark.parametrize(
+    "args, status, code",
+    [
+        (["stop", "--port", "/dev/snakebot-no-such-port"], 2, "E101"),
+        (["bus", "ping", "7", "--port", "sim://?ids=1"], 1, "E203"),
+        (["bus", "scan", "--ids", "5", "--port", "sim://?ids=1"], 1, "E202"),
+    ],
+)
+def test_the_cli_prints_the_code_of_a_real_error(args, status, code):
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == status, result.output
+    line = result.stderr.strip().splitlines()[-1]  # after any progress (bus scan's)
+    assert line.startswith(f"error[{code}]: "), result.stderr
+    assert (REPO_ROOT / PAGE).read_text(encoding="utf-8").count(f"### {code} ") == 1
+
+
+def test_the_cli_prints_the_code_of_a_refused_option(tmp_path):
+    link = tmp_path / "walk.gait"
+    link.symlink_to(tmp_path / "elsewhere")
+    args = ["gait", "serpenoid", "snake3", "-A", "20deg", "-w", "90deg", "-d", "90deg"]
+    result = CliRunner().invoke(main, [*args, "--cycles", "1", "-o", str(link)])
+    assert result.exit_code == 2, result.output
+    assert result.stderr.startswith("error[E702]: Invalid value for '--output'"), result.stderr

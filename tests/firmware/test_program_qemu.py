@@ -19,6 +19,7 @@ from snakebot.formats.program.files import write_program
 from snakebot.link.controller import playback
 from snakebot.link.controller.client import ControllerClient
 from snakebot.link.controller.upload import upload_gait
+from snakebot.model.plan import PlanRequest
 from snakebot.model.plan.program import plan_program
 from snakebot.model.program_goals import predict
 from snakebot.model.program_spec import joints_of
@@ -119,7 +120,7 @@ def test_a_planned_program_takes_the_robot_where_predicted(tmp_path):
     modelled servos (the controller's player in process), and near the plan's target."""
     build_firmware()
     target = (0.4, 0.15, 0.25)
-    plan = plan_program(load_robot("trident"), target)
+    plan = plan_program(PlanRequest(load_robot("trident"), target))
     path = tmp_path / "go.prog"
     write_program(path, plan.program)
     predicted = predict_program(path).summary()

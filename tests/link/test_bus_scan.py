@@ -50,7 +50,7 @@ def test_scan_cli_keeps_going_past_damaged_replies():
 def test_scan_that_finds_nothing_fails_with_advice():
     result = CliRunner().invoke(main, ["bus", "scan", "--port", "sim://?ids=40", "--ids", "1-3"])
     assert result.exit_code == 1
-    assert "error: no servo answered" in result.stderr and "--bauds all" in result.stderr
+    assert "error[E202]: no servo answered" in result.stderr and "--bauds all" in result.stderr
 
 
 def test_bauds_all_covers_every_tabulated_ax_and_mx_rate():

@@ -141,7 +141,7 @@ def test_a_missing_port_and_nothing_answering(tmp_path):
     port = str(tmp_path / "ttyUSB9")
     result = cli("drive", "--port", port, "--keys", "q")
     assert result.exit_code == 2
-    assert result.stderr.startswith(f"error: serial port {port} does not exist")
+    assert result.stderr.startswith(f"error[E101]: serial port {port} does not exist")
     master, slave = pty.openpty()  # a port with nobody behind it
     tty.setraw(slave)
     try:
@@ -152,7 +152,7 @@ def test_a_missing_port_and_nothing_answering(tmp_path):
         os.close(master)
         os.close(slave)
     assert result.exit_code == 1
-    assert result.stderr.startswith("error: --baud, --id: the controller (ID 200) on ")
+    assert result.stderr.startswith("error[E301]: --baud, --id: the controller (ID 200) on ")
     assert len(result.stderr.splitlines()) == 1 and "Traceback" not in result.output
 
 

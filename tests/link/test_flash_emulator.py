@@ -133,6 +133,6 @@ def test_link_over_a_regular_file_is_refused(tmp_path):
 
     path = tmp_path / "file"
     path.write_text("keep me")
-    with pytest.raises(SimError, match="not a symlink"):
+    with pytest.raises(SimError, match="exists and is not a link"):
         BootloaderPty(Bootloader(), link=path).start()
     assert path.read_text() == "keep me"

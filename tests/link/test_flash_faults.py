@@ -12,6 +12,7 @@ from click.testing import CliRunner
 from flash_support import make_image, serve
 
 from snakebot.cli import main
+from snakebot.cli.troubleshooting import ERROR_LINE
 from snakebot.sim.bootloader import APP_BASE, Bootloader, BootloaderFaults
 
 pytestmark = pytest.mark.timeout(90)
@@ -52,7 +53,7 @@ def test_a_fault_fails_clearly_and_the_board_recovers(tmp_path, faults, message)
             boot.faults = BootloaderFaults()  # the line is good again
         assert failed.exit_code == 1, failed.output
         [line] = failed.stderr.strip().splitlines()
-        assert line.startswith("error: ") and message in line
+        assert ERROR_LINE.match(line) and message in line
         assert "press MODE or power-cycle the CM-530" in line or "NOT started" in line
         assert "Traceback" not in failed.output
         assert started == []  # nothing half-written was started

@@ -12,6 +12,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from other_user import OTHER as OTHER_USER
 from other_user import as_other_user, needs_root, other_uid
 
 from snakebot.link.transport.errors import PortError
@@ -59,6 +60,25 @@ def test_a_lock_directory_planted_by_another_user_is_refused(shared_tmp, pty_dev
     assert "\n" not in line and "Traceback" not in line
     assert f"{planted} belongs to uid {other_uid()}" in line
     assert f"rm -r {planted}" in line and "XDG_RUNTIME_DIR" in line
+
+
+@needs_root
+def test_a_lock_directory_linked_by_another_user_to_a_directory_of_ours_is_refused(
+    shared_tmp, pty_device
+):
+    # The link points at a private directory of ours holding a file named as the lock:
+    # followed, the lock would empty that file.
+    ours = shared_tmp / "ours"
+    ours.mkdir(mode=0o700)
+    victim = ours / _lock_name(pty_device)
+    victim.write_bytes(PRECIOUS)
+    planted = shared_tmp / f"{LOCK_DIR_NAME}-{os.geteuid()}"
+    as_other_user(f"ln -s {ours} {planted}")
+    result = _snakebot(["stop", "--port", pty_device], shared_tmp)
+    assert result.returncode == 2, result.stderr
+    line = result.stderr.strip()
+    assert f"{planted} is a symbolic link (owner {OTHER_USER}" in line and "\n" not in line
+    assert victim.read_bytes() == PRECIOUS and os.readlink(planted) == str(ours)
 
 
 @needs_root

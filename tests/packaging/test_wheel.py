@@ -119,7 +119,8 @@ def test_a_missing_extra_is_one_line_naming_the_install(installed):
     done = installed.run("model", "fields", "snake3", "--symbolic")
     assert done.returncode == 2
     assert done.stderr.strip() == (
-        "error: --symbolic needs sympy, which is not installed: pip install 'snakebot[symbolic]'"
+        "error[E601]: --symbolic needs sympy, which is not installed: "
+        "pip install 'snakebot[symbolic]'"
     )
 
 

@@ -12,6 +12,7 @@ from click.testing import CliRunner
 from plan_support import targets, within
 
 from snakebot.cli import main
+from snakebot.cli.troubleshooting import ERROR_LINE
 
 
 def run(*args):
@@ -100,5 +101,5 @@ def test_unknown_world_physics_missing_is_one_line(tmp_path):
         pytest.skip("the physics world is in this build")
     result = run("sim", "goto", "trident", "--to", "1,0,0", "--world", "mujoco")
     assert result.exit_code == 2
-    assert result.output.strip().splitlines()[-1].startswith("error: ")
+    assert ERROR_LINE.match(result.output.strip().splitlines()[-1]), result.output
     assert "physics" in result.output

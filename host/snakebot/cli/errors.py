@@ -17,7 +17,9 @@ The status follows the class, never a list: every library error is an
 ``OSError`` (pyserial's ``SerialException`` is one) is a runtime failure (1). Library
 errors carry a message that names the problem and the fix; when one says which parameter
 was at fault (``SnakebotError.about``), the message is prefixed with the running
-command's option for it (``error: --rate: the frame rate must be ...``). Anything else,
+command's option for it (``error: --rate: the frame rate must be ...``); an error that
+``docs/troubleshooting.md`` explains carries its code there (``error[E101]: ...``,
+``snakebot.cli.troubleshooting``). Anything else,
 a ``SnakebotError`` under neither base included, is a bug in snakebot: it is reported
 as one line that says so, status 1 (the traceback is shown with ``SNAKEBOT_DEBUG=1``),
 never as a traceback.
@@ -35,6 +37,7 @@ import click
 
 from snakebot.cli.signals import install as install_signal_handlers
 from snakebot.cli.signals import interrupted_status
+from snakebot.cli.troubleshooting import error_line
 from snakebot.errors import InputError, RuntimeFailure
 from snakebot.settings import check_environment, is_set
 
@@ -137,7 +140,7 @@ class SnakebotGroup(click.Group):
             ctx = getattr(exc, "ctx", None)
             if isinstance(exc, click.UsageError) and ctx is not None:
                 hint = f" (see `{ctx.command_path} --help`)"
-            click.echo(f"error: {_one_line(exc.format_message())}{hint}", err=True)
+            click.echo(error_line(_one_line(exc.format_message())) + hint, err=True)
             sys.exit(exc.exit_code)
         except click.Abort as exc:
             click.echo("interrupted", err=True)
@@ -163,7 +166,7 @@ class SnakebotGroup(click.Group):
         except Exception as exc:
             if is_reported(exc):
                 inner = _command_context(exc.__traceback__)
-                click.echo(f"error: {message(exc, inner)}", err=True)
+                click.echo(error_line(message(exc, inner)), err=True)
                 ctx.exit(exit_status(exc))
             # a bug: say so in one line, never a traceback
             if is_set(DEBUG_ENV):

@@ -24,9 +24,10 @@ from snakebot.cli.options import (
 )
 from snakebot.cli.output import dumps
 from snakebot.cli.params import CAPACITY
+from snakebot.cli.troubleshooting import error_line
 from snakebot.extras import require
 from snakebot.facts.boards import TABLE_CAPACITY
-from snakebot.model.plan import Unreachable
+from snakebot.model.plan import PlanRequest, Unreachable
 from snakebot.model.plan.planner import DEFAULT_BOARD, DEFAULT_CAPACITY
 
 #: Exit status when no plan reaches the target: a runtime failure, not bad input.
@@ -36,7 +37,7 @@ EXIT_UNREACHABLE = 1
 def unreachable(exc: Unreachable) -> None:
     """Report a target no plan reaches: one line led by the options it is about, exit
     status 1."""
-    click.echo(f"error: {message(exc, click.get_current_context(silent=True))}", err=True)
+    click.echo(error_line(message(exc, click.get_current_context(silent=True))), err=True)
     raise SystemExit(EXIT_UNREACHABLE)
 
 
@@ -143,13 +144,9 @@ def plan_command(
         with ControllerLink(port, controller_id=controller_id).open() as ctl:
             capacity = table_capacity(ctl)
     try:
-        plan = plan_for(
-            output,
-            chosen,
-            goal.target,
-            capacity=DEFAULT_CAPACITY if capacity is None else capacity,
-            **goal.settings(),
-        )
+        capacity = DEFAULT_CAPACITY if capacity is None else capacity
+        request = PlanRequest(chosen, goal.target, capacity=capacity, **goal.settings())
+        plan = plan_for(output, request)
     except Unreachable as exc:
         unreachable(exc)
         return

@@ -19,6 +19,7 @@ from snakebot.cli.options import BusLink, bauds_option, bus_options, ids_option
 from snakebot.cli.output import dumps, echo_json
 from snakebot.cli.params import NumberType
 from snakebot.cli.signals import interrupted_status
+from snakebot.cli.troubleshooting import error_line
 from snakebot.formats import register_values
 from snakebot.formats.register_values import BusCommandError
 from snakebot.link.bus import ids as bus_ids
@@ -44,7 +45,7 @@ def _on_the_bus(bus: BusLink) -> Iterator[DxlClient]:
 
 def _device_failure(message: str) -> NoReturn:
     """``error: message`` and exit status 1: the servos failed, the command line was fine."""
-    click.echo(f"error: {' '.join(message.split())}", err=True)
+    click.echo(error_line(" ".join(message.split())), err=True)
     raise click.exceptions.Exit(EXIT_RUNTIME)
 
 
@@ -162,8 +163,10 @@ def scan_command(
         ctx.exit(interrupted)
     if not report.found:
         click.echo(
-            "error: no servo answered. Check that the servos are powered (USB does not "
-            "power them) and cabled, and try other rates with --bauds common or --bauds all.",
+            error_line(
+                "no servo answered. Check that the servos are powered (USB does not "
+                "power them) and cabled, and try other rates with --bauds common or --bauds all."
+            ),
             err=True,
         )
         ctx.exit(1)

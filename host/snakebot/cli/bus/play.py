@@ -66,7 +66,7 @@ def bus_play(
     \b
         snakebot bus play crawl.gait --port /dev/ttyUSB0
         snakebot bus play crawl.gait --port /dev/ttyUSB0 --loop
-        snakebot bus play crawl.gait --port /dev/ttyUSB0 --foxglove 8765
+        snakebot bus play crawl.gait --port /dev/ttyUSB0 --robot snake5 --foxglove 8765
 
     With --foxglove each servo is also read back over the bus (one READ apiece, a few
     times a second up to 50) and streamed to Foxglove with the pose the kinematic model

@@ -17,7 +17,7 @@ if TYPE_CHECKING:
     from snakebot.model.gait.common import Gait, GaitError
     from snakebot.model.gait.field import field_gait
     from snakebot.model.gait.limits import GaitLimitError, check_motion, check_ticks
-    from snakebot.model.gait.serpenoid import serpenoid
+    from snakebot.model.gait.serpenoid import SerpenoidWave, serpenoid
     from snakebot.model.gait.values import (
         ExpressionError,
         parse_angle,
@@ -36,6 +36,7 @@ _HOMES = {
     "parse_angle": "values",
     "parse_angles": "values",
     "parse_field_expression": "values",
+    "SerpenoidWave": "serpenoid",
     "serpenoid": "serpenoid",
 }
 __all__ = [
@@ -43,6 +44,7 @@ __all__ = [
     "GaitError",
     "GaitLimitError",
     "ExpressionError",
+    "SerpenoidWave",
     "check_motion",
     "check_ticks",
     "field_gait",

@@ -28,6 +28,22 @@ from snakebot.model.robots import Robot
 
 
 @dataclass(frozen=True)
+class SerpenoidWave:
+    """A serpenoid gait as asked: phi_k(t) = ``amplitude`` sin(``omega`` t + (k - 1)
+    ``delta`` + ``phase``) + ``offset`` (rad, rad/s) for ``cycles`` cycles, sampled at
+    ``rate_hz``; ``loop``: whether the table repeats (default: when the cycles are whole)."""
+
+    amplitude: float
+    omega: float
+    delta: float
+    offset: float = 0.0
+    phase: float = 0.0
+    cycles: float = 1.0
+    rate_hz: float = 50.0
+    loop: bool | None = None
+
+
+@dataclass(frozen=True)
 class SerpenoidFrames:
     """A serpenoid gait's table, checked against the robot's limits, before any body
     motion is predicted (what a search needs of every candidate)."""
@@ -44,20 +60,11 @@ class SerpenoidFrames:
         return self.steps * self.period_ms / 1000.0
 
 
-def serpenoid_frames(
-    robot: Robot,
-    amplitude: float,
-    omega: float,
-    delta: float,
-    *,
-    offset: float = 0.0,
-    phase: float = 0.0,
-    cycles: float = 1.0,
-    rate_hz: float = 50.0,
-    loop: bool | None = None,
-) -> SerpenoidFrames:
-    """The frames of a serpenoid gait, checked against the robot's limits (GaitError,
+def serpenoid_frames(robot: Robot, wave: SerpenoidWave) -> SerpenoidFrames:
+    """The frames of ``wave`` for ``robot``, checked against the robot's limits (GaitError,
     GaitLimitError otherwise)."""
+    amplitude, omega, delta = wave.amplitude, wave.omega, wave.delta
+    offset, phase, cycles, loop = wave.offset, wave.phase, wave.cycles, wave.loop
     if robot.kind != "snake":
         other = (
             "use `snakebot gait field` for it"
@@ -81,7 +88,7 @@ def serpenoid_frames(
         raise GaitError("the amplitude and the cycles must be positive, and omega non-zero").about(
             "amplitude", "cycles", "omega"
         )
-    period_ms = period_ms_for(rate_hz)
+    period_ms = period_ms_for(wave.rate_hz)
     dt = period_ms / 1000.0
     whole = abs(cycles - round(cycles)) < 1e-9
     loop = whole if loop is None else loop
@@ -122,18 +129,10 @@ def serpenoid(
     rate_hz: float = 50.0,
     loop: bool | None = None,
 ) -> Gait:
-    """A serpenoid gait for a snake robot (checked against its limits)."""
-    f = serpenoid_frames(
-        robot,
-        amplitude,
-        omega,
-        delta,
-        offset=offset,
-        phase=phase,
-        cycles=cycles,
-        rate_hz=rate_hz,
-        loop=loop,
-    )
+    """A serpenoid gait for a snake robot (checked against its limits): the wave
+    :class:`SerpenoidWave` describes."""
+    wave = SerpenoidWave(amplitude, omega, delta, offset, phase, cycles, rate_hz, loop)
+    f = serpenoid_frames(robot, wave)
     dt = f.period_ms / 1000.0
     traj = integrate_joints(
         robot,

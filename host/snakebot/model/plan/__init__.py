@@ -9,6 +9,6 @@ the package root)."""
 from __future__ import annotations
 
 from snakebot.model.plan.loops import PlanError
-from snakebot.model.plan.planner import Plan, Unreachable, body_length, make_plan
+from snakebot.model.plan.planner import Plan, PlanRequest, Unreachable, body_length, make_plan
 
-__all__ = ["Plan", "PlanError", "Unreachable", "body_length", "make_plan"]
+__all__ = ["Plan", "PlanError", "PlanRequest", "Unreachable", "body_length", "make_plan"]

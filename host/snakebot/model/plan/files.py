@@ -8,7 +8,7 @@ from typing import Any
 
 from snakebot.formats.gaittable import GaitTable, save_table
 from snakebot.formats.program.files import write_program
-from snakebot.model.plan.planner import Plan
+from snakebot.model.plan.planner import Plan, PlanRequest
 from snakebot.model.plan.program import ProgramPlan
 
 PROGRAM_SUFFIX = ".prog"
@@ -43,10 +43,10 @@ def save_plan(plan: Plan | ProgramPlan, output: Path) -> tuple[dict[str, Any], G
     return summary, table
 
 
-def plan_for(output: Path | None, *args: Any, **kwargs: Any) -> Plan | ProgramPlan:
-    """The plan to write to ``output``: a program's (:func:`plan_program`) for a ``.prog``
-    path, else a table's (:func:`make_plan`); the arguments are theirs."""
+def plan_for(output: Path | None, request: PlanRequest) -> Plan | ProgramPlan:
+    """The plan of ``request`` to write to ``output``: a program's (:func:`plan_program`)
+    for a ``.prog`` path, else a table's (:func:`make_plan`)."""
     from snakebot.model.plan import make_plan
     from snakebot.model.plan.program import plan_program
 
-    return (plan_program if wants_program(output) else make_plan)(*args, **kwargs)
+    return (plan_program if wants_program(output) else make_plan)(request)

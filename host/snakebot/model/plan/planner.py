@@ -553,20 +553,37 @@ def unreachable(robot: Robot, target: np.ndarray, capacity: int) -> Unreachable:
     )
 
 
-def make_plan(
-    robot: Robot,
-    target: tuple[float, float, float],
-    *,
-    start: tuple[float, ...] | None = None,
-    tolerance: float = DEFAULT_TOLERANCE,
-    heading_tolerance: float = DEFAULT_HEADING_TOLERANCE,
-    capacity: int = DEFAULT_CAPACITY,
-) -> Plan:
-    """A plan taking ``robot`` from rest at ``start`` (joint angles) to ``target``
-    (x, y, theta relative to the start pose) in a table of at most ``capacity`` bytes;
-    raises Unreachable if none fits."""
-    goal, phi0, tol = plan_request(robot, target, start, tolerance, heading_tolerance)
-    check_capacity(robot, capacity)
+@dataclass(frozen=True)
+class PlanRequest:
+    """A plan asked for: ``robot`` from rest at ``start`` (joint angles; the robot's
+    default start if None) to ``target`` (x, y, theta relative to the start pose),
+    ending within ``tolerance`` (a fraction of the distance) and ``heading_tolerance``
+    (rad), in at most ``capacity`` bytes. The table planner and the program planner take
+    the same request."""
+
+    robot: Robot
+    target: tuple[float, float, float]
+    start: tuple[float, ...] | None = None
+    tolerance: float = DEFAULT_TOLERANCE
+    heading_tolerance: float = DEFAULT_HEADING_TOLERANCE
+    capacity: int = DEFAULT_CAPACITY
+
+    def checked(self) -> tuple[np.ndarray, np.ndarray, Tolerance]:
+        """The target pose, the start joints and the tolerance (:func:`plan_request`),
+        the capacity checked too (:func:`check_capacity`)."""
+        robot = self.robot
+        checked = plan_request(
+            robot, self.target, self.start, self.tolerance, self.heading_tolerance
+        )
+        check_capacity(robot, self.capacity)
+        return checked
+
+
+def make_plan(request: PlanRequest) -> Plan:
+    """A gait table taking the robot where ``request`` asks, in a table of at most its
+    capacity; raises Unreachable if none fits."""
+    robot, capacity = request.robot, request.capacity
+    goal, phi0, tol = request.checked()
     best: Plan | None = None
     for route in routes(robot, phi0, goal, tol, capacity=capacity, growing=True):
         plan = _table_plan(robot, goal, tol, phi0, route, capacity)

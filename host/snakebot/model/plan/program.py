@@ -56,20 +56,16 @@ from snakebot.model.plan.loops import (
     refine_ticks,
 )
 from snakebot.model.plan.planner import (
-    DEFAULT_CAPACITY,
-    DEFAULT_HEADING_TOLERANCE,
-    DEFAULT_TOLERANCE,
     EndsNearTarget,
+    PlanRequest,
     Tolerance,
     body_length,
     capacity_words,
-    check_capacity,
     frame_period_ms,
     hubs,
     loop_counts,
     loop_target,
     out_of_reach,
-    plan_request,
     pose_dict,
     ramp,
     routes,
@@ -421,20 +417,12 @@ def _parameters(route: Route) -> np.ndarray:
     return np.array([amplitude, delta, *offsets])
 
 
-def plan_program(
-    robot: Robot,
-    target: tuple[float, float, float],
-    *,
-    start: tuple[float, ...] | None = None,
-    tolerance: float = DEFAULT_TOLERANCE,
-    heading_tolerance: float = DEFAULT_HEADING_TOLERANCE,
-    capacity: int = DEFAULT_CAPACITY,
-) -> ProgramPlan:
-    """A program of at most ``capacity`` bytes taking ``robot`` from rest at ``start`` to
-    ``target`` whose goals, as the controller sends them, end within the tolerance;
-    Unreachable otherwise."""
-    goal, phi0, tol = plan_request(robot, target, start, tolerance, heading_tolerance)
-    check_capacity(robot, capacity)
+def plan_program(request: PlanRequest) -> ProgramPlan:
+    """A program of at most the request's capacity in bytes taking the robot where
+    ``request`` asks, whose goals, as the controller sends them, end within the
+    tolerance; Unreachable otherwise."""
+    robot, capacity = request.robot, request.capacity
+    goal, phi0, tol = request.checked()
     best: ProgramPlan | None = None
     too_big = 0
     accuracy = solve_accuracy(robot, tol)

@@ -25,9 +25,9 @@ class RawPty:
     ``link``: on :meth:`open`, also make a symlink at this path to the device, claimed
     (:class:`~snakebot.sim.transports.claim.PathClaim`): the link a killed server of
     ours left there is replaced; a live server's, or anything someone else made, is
-    refused (``link_advice`` ending the error). :meth:`close` removes it if it is still
-    ours. The server keeps the slave open itself, so clients may open and close the
-    device as often as they like.
+    refused (``link_advice`` ending the error, which is about the parameter
+    ``link_param``). :meth:`close` removes it if it is still ours. The server keeps the
+    slave open itself, so clients may open and close the device as often as they like.
     """
 
     def __init__(
@@ -35,9 +35,11 @@ class RawPty:
         link: str | os.PathLike[str] | None = None,
         *,
         link_advice: str = "choose another path",
+        link_param: str = "link",
     ) -> None:
         self.link = Path(link) if link else None
         self.link_advice = link_advice
+        self.link_param = link_param
         self.master = self.slave = -1
         self.device = ""
         self._claim: PathClaim | None = None
@@ -46,7 +48,7 @@ class RawPty:
         """Create the pseudo-terminal (and the link); returns the device path."""
         claim = None
         if self.link is not None:
-            claim = PathClaim(self.link, advice=self.link_advice)
+            claim = PathClaim(self.link, advice=self.link_advice, param=self.link_param)
             claim.acquire()  # before the pty: a refusal leaves nothing to undo
         self.master, self.slave = os.openpty()
         tty.setraw(self.slave)

@@ -68,11 +68,13 @@ class PathClaim:
     :meth:`acquire` before making the file (it removes a dead server's leftover, refuses
     anything else there with ``advice`` ending the error), :meth:`made` once it is made,
     :meth:`release` when the server stops (removes the file if it is still the one made).
+    ``param``: the parameter ``path`` came through, which a refusal is ``about``.
     """
 
-    def __init__(self, path: str | os.PathLike[str], *, advice: str) -> None:
+    def __init__(self, path: str | os.PathLike[str], *, advice: str, param: str) -> None:
         self.path = Path(path)
         self.advice = advice
+        self.param = param
         self._key = _absolute(self.path)
         self._fd = -1
         self._record: Path | None = None
@@ -83,7 +85,7 @@ class PathClaim:
         return private_dir(CLAIM_DIR_NAME) / f"{digest}.claim"
 
     def _refuse(self, what: str, fix: str) -> SimInputError:
-        return SimInputError(f"{self.path} {what}: {fix} {self.advice}")
+        return SimInputError(f"{self.path} {what}: {fix} {self.advice}").about(self.param)
 
     def acquire(self) -> None:
         """Hold the record of ``path`` and clear a dead server's leftover there;

@@ -34,7 +34,8 @@ class UnixSocketServer(ThreadedServer):
     A listening server claims its path (:class:`~snakebot.sim.transports.claim.PathClaim`:
     a socket a killed server of ours left is replaced, anything else refused), unless
     ``private``: the path is in a fresh directory of this process's own, where nothing
-    can be left and nobody else can write."""
+    can be left and nobody else can write. ``param``: the parameter ``path`` came through
+    (a refusal of the path is about it)."""
 
     def __init__(
         self,
@@ -44,8 +45,10 @@ class UnixSocketServer(ThreadedServer):
         connect: bool = False,
         speed: float = 1.0,
         private: bool = False,
+        param: str = "unix_path",
     ) -> None:
         self.bus = bus
+        self.param = param
         self.path = Path(path)
         self.connect = connect
         self.private = private
@@ -59,7 +62,11 @@ class UnixSocketServer(ThreadedServer):
     def start(self) -> UnixSocketServer:
         """Listen (or connect) and start serving; returns self."""
         if not self.connect:
-            claim = None if self.private else PathClaim(self.path, advice="choose another path")
+            claim = (
+                None
+                if self.private
+                else PathClaim(self.path, advice="choose another path", param=self.param)
+            )
             if claim is not None:
                 claim.acquire()  # a dead server's socket goes; a live one's or another's stays
             listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)

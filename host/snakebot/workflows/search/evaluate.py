@@ -22,7 +22,7 @@ import numpy as np
 from snakebot.errors import SnakebotError
 from snakebot.formats.gaittable import GaitTable
 from snakebot.model.gait.common import motion
-from snakebot.model.gait.serpenoid import SerpenoidFrames, serpenoid_frames
+from snakebot.model.gait.serpenoid import SerpenoidFrames, SerpenoidWave, serpenoid_frames
 from snakebot.model.kinematics import Options, Table, integrate_joints
 from snakebot.model.kinematics.effort import effort
 from snakebot.model.robots import Robot, load_robot
@@ -73,8 +73,7 @@ def _robot(spec: str) -> Robot:
 
 
 def _frames(robot: Robot, settings: Settings, point: dict[str, float]) -> SerpenoidFrames:
-    return serpenoid_frames(
-        robot,
+    wave = SerpenoidWave(
         point["amplitude"],
         point["omega"],
         point["delta"],
@@ -82,6 +81,7 @@ def _frames(robot: Robot, settings: Settings, point: dict[str, float]) -> Serpen
         cycles=settings.cycles,
         rate_hz=settings.rate_hz,
     )
+    return serpenoid_frames(robot, wave)
 
 
 def _kinematic(robot: Robot, f: SerpenoidFrames) -> dict[str, float]:

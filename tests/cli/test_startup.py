@@ -37,6 +37,12 @@ own six (the package, ``cli``, ``cli.errors``, ``cli.lazy``, ``errors``, ``setti
 and the standard ones they need (``dataclasses``, ``pathlib``, ...); with every command
 imported it was over 600."""
 
+EXTRA_MODULES_AT_NUMPY_COMMAND = 20
+"""Modules that `snakebot gait serpenoid --help` may load beyond `import numpy` and
+`snakebot --help` together: the command's own module, the option and parameter modules,
+the angle parser and the board facts (16 now); with every table, robot and kinematics
+module imported up front it was 79."""
+
 HEAVY = ("matplotlib", "mujoco", "elftools", "serial", "scipy", "sympy")
 
 
@@ -62,6 +68,13 @@ def test_a_numpy_command_loads_no_heavy_neighbour_and_no_other_command():
     assert not [m for m in loaded if m.split(".")[0] in HEAVY]
     others = ("snakebot.cli.sim", "snakebot.cli.gait.search", "snakebot.workflows", "snakebot.sim")
     assert not [m for m in loaded if m.startswith(others)]
+
+
+def test_a_numpy_command_loads_little_beyond_numpy_and_the_help():
+    numpy = modules(COUNT.format(setup="import numpy", run="pass"))
+    base = set(numpy) | set(snakebot_modules("--help"))
+    extra = sorted(set(snakebot_modules("gait", "serpenoid", "--help")) - base)
+    assert len(extra) <= EXTRA_MODULES_AT_NUMPY_COMMAND, extra
 
 
 @pytest.mark.parametrize("table", [COMMANDS, SUBCOMMANDS], ids=["snakebot", "gait"])

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -42,10 +42,6 @@ from snakebot.cli.params import (
     controller_port,
 )
 from snakebot.facts.boards import PC_LINK_BAUD
-from snakebot.facts.controller import load as load_controller_table
-from snakebot.formats import register_values
-from snakebot.formats.register_values import BusCommandError
-from snakebot.model.robots import BUILTIN_ROBOTS
 
 if TYPE_CHECKING:
     from snakebot.link.controller.client import ControllerClient
@@ -146,9 +142,11 @@ def port_option(kind: PortKind, *, purpose: str | None = None, required: bool = 
 
 def _servo_baud(ctx: click.Context, param: click.Parameter, value: int) -> int:
     """--baud on a servo bus: a rate some described servo runs at."""
+    from snakebot.formats import register_values  # the device tables: when a command runs
+
     try:
         register_values.check_bus_baud(value)
-    except BusCommandError as exc:
+    except register_values.BusCommandError as exc:
         raise click.BadParameter(str(exc), ctx, param) from None
     return value
 
@@ -156,6 +154,8 @@ def _servo_baud(ctx: click.Context, param: click.Parameter, value: int) -> int:
 def _link_baud(ctx: click.Context, param: click.Parameter, value: int) -> int:
     """--baud on the PC link: no slower than the slowest a Dynamixel device is tabulated
     at, below which a reply's timeout (it scales with the byte time) runs to minutes."""
+    from snakebot.formats import register_values
+
     slowest = register_values.slowest_bps()
     if value < slowest:
         raise click.BadParameter(
@@ -179,16 +179,24 @@ def _baud_option(default: int, check: Callable[..., int], help: str) -> Decorato
     )
 
 
-controller_id_option: Decorator = click.option(
-    "--id",
-    "controller_id",
-    type=click.IntRange(0, 253),
-    default=load_controller_table().default_id,
-    show_default=True,
-    envvar=CONTROLLER_ID_ENV,
-    help="The controller's Protocol 1.0 ID on the PC link.",
-)
-"""--id, for every command that talks to the controller."""
+def _default_controller_id() -> int:
+    from snakebot.facts.controller import load  # the controller's table: when first asked
+
+    return load().default_id
+
+
+def controller_id_option(func: F) -> F:
+    """--id, for every command that talks to the controller (its default from the
+    controller's table, read when a command that has it loads)."""
+    return click.option(
+        "--id",
+        "controller_id",
+        type=click.IntRange(0, 253),
+        default=_default_controller_id(),
+        show_default=True,
+        envvar=CONTROLLER_ID_ENV,
+        help="The controller's Protocol 1.0 ID on the PC link.",
+    )(func)
 
 
 @dataclass(frozen=True)
@@ -210,7 +218,7 @@ class ControllerLink:
 
     port: str
     baud: int = PC_LINK_BAUD
-    controller_id: int = load_controller_table().default_id
+    controller_id: int = field(default_factory=_default_controller_id)
 
     def open(self) -> ControllerClient:
         """The controller client (PortError, exit 2, if the port cannot be opened)."""
@@ -259,11 +267,16 @@ def controller_options(func: F) -> F:
 
 # --- robots --------------------------------------------------------------------------------
 
-ROBOTS = f"{', '.join(BUILTIN_ROBOTS)} or a robot .toml file"
-"""What names a robot, wherever one is asked for."""
 
 robot_argument: Decorator = click.argument("robot", metavar="ROBOT")
 """ROBOT: a built-in robot's name or a robot file (the command's help says which kinds)."""
+
+
+def robots_named() -> str:
+    """What names a robot, wherever one is asked for."""
+    from snakebot.model.robots import BUILTIN_ROBOTS  # the robot loader: when first asked
+
+    return f"{', '.join(BUILTIN_ROBOTS)} or a robot .toml file"
 
 
 def robot_option(
@@ -277,14 +290,16 @@ def robot_option(
         "-r",
         default=default,
         show_default=default is not None,
-        help=f"{purpose}: {ROBOTS}{tail}.",
+        help=f"{purpose}: {robots_named()}{tail}.",
     )
 
 
-roster_option: Decorator = robot_option(
-    "Set the controller's roster (servo IDs, directions, zero ticks, limits) from this robot first"
-)
-"""--robot of the commands that start a wave on the controller."""
+def roster_option(func: F) -> F:
+    """--robot of the commands that start a wave on the controller."""
+    return robot_option(
+        "Set the controller's roster (servo IDs, directions, zero ticks, limits) from this "
+        "robot first"
+    )(func)
 
 
 # --- worlds and the emulator ---------------------------------------------------------------

@@ -21,7 +21,6 @@ from snakebot.extras import require
 from snakebot.facts.boards import TABLE_CAPACITY
 from snakebot.model.gait.limits import GaitLimitError
 from snakebot.model.gait.values import ExpressionError, parse_angle, parse_angles, parse_number
-from snakebot.userfiles import output_problem, same_file
 
 
 def _parsed(
@@ -194,6 +193,8 @@ class OutputPathType(click.Path):
     def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
         if isinstance(value, Path) and ctx is not None and value in _outputs(ctx).values():
             return value  # converted already (click converts a default twice)
+        from snakebot.userfiles import output_problem, same_file  # when an output is given
+
         problem = output_problem(str(value))
         if problem is not None:
             self.fail(f"{str(value)!r} {problem}", param, ctx)

@@ -6,7 +6,7 @@ May import: as the ``cli`` layer (every layer below it)."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
@@ -25,10 +25,11 @@ from snakebot.cli.options import (
 from snakebot.cli.output import echo_json
 from snakebot.cli.params import ANGLE, ANGLES, EXISTING_INPUT, NUMBER, NumberType, bare_angle_hint
 from snakebot.extras import require
-from snakebot.formats.gaittable import GaitTable, describe_table, read_gait, sidecar_path
-from snakebot.model.gait import Gait, field_gait, serpenoid
-from snakebot.model.gait.files import save_gait
-from snakebot.model.robots import load_robot
+
+if TYPE_CHECKING:
+    from snakebot.formats.gaittable import GaitTable
+    from snakebot.model.gait import Gait
+# the tables, the robots and the generators load when a command runs: --help needs none
 
 MIN_FIELD_TOLERANCE = 1e-3
 """The smallest --tolerance of `gait field`: it already asks for a 100-second table that
@@ -73,6 +74,9 @@ table_output_options = stack(
 
 
 def _write(g: Gait, out: Path, as_json: bool, plot: Path | None = None) -> None:
+    from snakebot.formats.gaittable import sidecar_path
+    from snakebot.model.gait.files import save_gait
+
     table, summary = save_gait(g, out)
     _plot(table, plot, summary)
     if echo_json(as_json, summary, indent=2):
@@ -169,6 +173,9 @@ def serpenoid_command(
     (cos x = sin(x + pi/2)) is
     -A 1 -w "-2*pi**2/3" -d "-3*pi**2" --phase "pi**2+pi/2" --cycles 1.
     """
+    from snakebot.model.gait.serpenoid import serpenoid
+    from snakebot.model.robots import load_robot
+
     g = serpenoid(
         load_robot(robot),
         amplitude,
@@ -262,6 +269,9 @@ def field_command(
     as they are: without --duration the tolerance (default 0.05) sets the loop size and
     the gait follows the field for as long as the table allows, up to 1 unit.
     """
+    from snakebot.model.gait.field import field_gait
+    from snakebot.model.robots import load_robot
+
     g = field_gait(
         load_robot(robot),
         expression,
@@ -288,6 +298,8 @@ def show(file: Path, plot: Path | None, as_json: bool) -> None:
     of the table, and the file CRC-32 of all its bytes, which is what `snakebot upload`
     and `snakebot monitor` call the table's CRC-32 (the controller's Table CRC).
     """
+    from snakebot.formats.gaittable import describe_table, read_gait
+
     table = read_gait(file)
     meta = table.metadata
     summary = describe_table(file, table)

@@ -2,22 +2,43 @@
 Lie brackets through periodic inputs). Each returns a ``Gait`` that becomes a gait table
 (``Gait.gait_table()``) after passing the robot's joint-limit and speed checks.
 
+The names below load with the module that defines them, when first used: a command that
+only parses an angle (``values``) does not load the kinematics the generators need.
+
 May import: as the ``model`` layer (the other ``model`` packages, ``formats``, ``facts``,
 the package root)."""
 
 from __future__ import annotations
 
-from snakebot.model.gait.common import Gait, GaitError
-from snakebot.model.gait.field import field_gait
-from snakebot.model.gait.limits import GaitLimitError, check_motion, check_ticks
-from snakebot.model.gait.serpenoid import SerpenoidWave, serpenoid
-from snakebot.model.gait.values import (
-    ExpressionError,
-    parse_angle,
-    parse_angles,
-    parse_field_expression,
-)
+import importlib
+from typing import TYPE_CHECKING, Any
 
+if TYPE_CHECKING:
+    from snakebot.model.gait.common import Gait, GaitError
+    from snakebot.model.gait.field import field_gait
+    from snakebot.model.gait.limits import GaitLimitError, check_motion, check_ticks
+    from snakebot.model.gait.serpenoid import SerpenoidWave, serpenoid
+    from snakebot.model.gait.values import (
+        ExpressionError,
+        parse_angle,
+        parse_angles,
+        parse_field_expression,
+    )
+
+_HOMES = {
+    "Gait": "common",
+    "GaitError": "common",
+    "GaitLimitError": "limits",
+    "ExpressionError": "values",
+    "check_motion": "limits",
+    "check_ticks": "limits",
+    "field_gait": "field",
+    "parse_angle": "values",
+    "parse_angles": "values",
+    "parse_field_expression": "values",
+    "SerpenoidWave": "serpenoid",
+    "serpenoid": "serpenoid",
+}
 __all__ = [
     "Gait",
     "GaitError",
@@ -32,3 +53,12 @@ __all__ = [
     "parse_field_expression",
     "serpenoid",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    home = _HOMES.get(name)
+    if home is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{home}"), name)
+    globals()[name] = value
+    return value

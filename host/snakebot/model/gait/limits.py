@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from snakebot.errors import InputError
-from snakebot.model.robots import Robot
+
+if TYPE_CHECKING:
+    from snakebot.model.robots import Robot
 
 
 class GaitLimitError(InputError):

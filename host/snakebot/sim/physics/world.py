@@ -190,8 +190,9 @@ class PhysicsWorld:
             d.qpos[self._qadr[k]] = (servo.pos - self._zeros[k]) / (self._signs[k] * TICKS_PER_RAD)
         mujoco.mj_forward(m, d)
         n = robot.n_joints
-        self._energy = np.zeros(n)
-        self._electrical = np.zeros(n)
+        # per joint, plain floats: the tick works on a handful of joints, one at a time
+        self._energy = [0.0] * n
+        self._electrical = [0.0] * n
         self._motor = motor.spec_for(robot.servo_model)
         self._stalled = [0.0] * n
         self._moving = [False] * n
@@ -213,115 +214,129 @@ class PhysicsWorld:
         ends = np.cumsum(widths).tolist()
         self._cols = [slice(end - width, end) for width, end in zip(widths, ends, strict=True)]
         self._history = History(sum(widths), keep)
-        # the tick's working set, made once: MuJoCo's arrays (views into its buffers),
-        # each motor's speed, torque and power, and the drives it sets
+        # the tick's working set, made once: MuJoCo's arrays (views into its buffers, so
+        # they stay current), a sample's row filled in place through views of its pieces,
+        # and the drives last given to MuJoCo
         self._qpos, self._qvel, self._force = d.qpos, d.qvel, d.actuator_force
-        self._cvel, self._xpos, self._xmat, self._com = d.cvel, d.xpos, d.xmat, d.subtree_com
-        self._bias, self._limits = m.actuator_biasprm, m.actuator_forcerange
-        self._w, self._torque, self._power = np.zeros(n), np.zeros(n), np.zeros(n)
-        self._constant, self._slope, self._high = [0.0] * n, [0.0] * n, [0.0] * n
+        self._row = np.zeros(sum(widths))
+        self._parts = [self._row[c] for c in self._cols]
+        parts = self._parts
+        self._gathers = (
+            (d.qpos, self._qsel, parts[1]),
+            (d.cvel, self._cvel_idx, parts[2]),
+            (d.xpos, self._xpos_idx, parts[3]),
+            (d.xmat, self._axle_idx, parts[5]),
+        )
+        self._com_xy = d.subtree_com[self._root, :2]
+        bias, limits = m.actuator_biasprm, m.actuator_forcerange
+        self._drives = (bias[:, 0], bias[:, 1], limits[:, 1], limits[:, 0])
+        self._given: list[list[float]] = [[], [], []]
+        self._neg_damping = -self.actuator.damping
+        act = self.actuator
+        # stall torque, stall torque per supply volt (Actuator.stall_at), stalled speed
+        self._stall_constants = (
+            act.stall_nm,
+            act.stall_nm / act.nominal_v,
+            STALLED_FRACTION * act.no_load_rad_s,
+        )
         self._schedule = bus.every(self.control_period, self._tick, start=self.start_time)
 
     # -- stepping -------------------------------------------------------------------------
 
-    def _motor_torque(self) -> np.ndarray:
-        """Each motor's torque at its joint now (N m, + in the joint's direction): the
-        drive less the back-EMF braking (into the tick's buffer)."""
-        torque, w = self._torque, self._w
-        self._qvel.take(self._dadr_np, out=w)
-        np.multiply(w, -self.actuator.damping, out=torque)
-        torque += self._force
-        return torque
+    def _motor_torque(self) -> tuple[list[float], list[float]]:
+        """Each joint's speed (rad/s) and its motor's torque at the joint now (N m, + in
+        the joint's direction): the drive less the back-EMF braking."""
+        speeds = self._qvel.take(self._dadr_np, mode="clip").tolist()
+        brake = self._neg_damping
+        forces = self._force.tolist()
+        return speeds, [w * brake + f for w, f in zip(speeds, forces, strict=True)]
 
     def _tick(self, t: float) -> None:
         """At bus time ``t``: bring the physics from the last tick to ``t`` under the
         drive set then, report the joints to the servos (and record, if a sample is
         due), and set every motor's drive from its servo's registers as they are now.
 
-        Once per control period, so it allocates nothing it can keep: MuJoCo's arrays
-        are views taken once, the torque and power work in buffers, the drives are
-        gathered in lists made once."""
+        Once per control period, so it works in plain floats (numpy is slow on a few
+        numbers at a time), touches MuJoCo's arrays through views taken once, and gives
+        MuJoCo the drives only when they changed."""
         if not self._running:
             return
         if self._ticks:
             # energy: the motors' power (the drive in force during each step, the speed
             # at its end; the implicit integrator's own reading of the step)
-            step, m, d, power = self._mj.mj_step, self.model, self.data, self._power
+            step, m, d, dt = self._mj.mj_step, self.model, self.data, self.timestep
+            energy, electrical = self._energy, self._electrical
+            drawn = self._motor.electrical_power_w
             for _ in range(self.substeps):
                 step(m, d)
-                torque = self._motor_torque()
-                np.multiply(torque, self._w, out=power)
-                power *= self.timestep
-                self._energy += power
-                self._electrical += self._motor.electrical_power_w(torque, self._w) * self.timestep
+                speeds, torques = self._motor_torque()
+                for k, tau in enumerate(torques):
+                    w = speeds[k]
+                    energy[k] += tau * w * dt
+                    electrical[k] += drawn(tau, w) * dt
         else:
-            torque = self._motor_torque()
+            speeds, torques = self._motor_torque()
         if self._ticks % self.steps_per_sample == 0:
-            self._sample(t, torque)
+            self._sample(t, torques)
         self._ticks += 1
-        act = self.actuator
-        drive = act.drive
-        stall_nm = act.stall_nm
-        stall_per_volt = stall_nm / act.nominal_v
-        stalled_speed = STALLED_FRACTION * act.no_load_rad_s
-        period = self.control_period
+        drive = self.actuator.drive
+        stall_nm, stall_per_volt, stalled_speed = self._stall_constants
+        period, hold = self.control_period, OVERLOAD_HOLD_S
         on, moving, stalled = self._on, self._moving, self._stalled
-        constant, slope, high = self._constant, self._slope, self._high
-        # plain floats from here on: numpy scalars are slow one at a time
-        angles = self._qpos.take(self._qadr_np).tolist()
-        speeds = self._w.tolist()
-        torques = torque.tolist()
+        angles = self._qpos.take(self._qadr_np, mode="clip").tolist()
+        constant, slope, high = [], [], []
         for k, (servo, sign, zero) in enumerate(self._joints):
             pos = zero + sign * angles[k] * TICKS_PER_RAD
             w = speeds[k]
             tau = torques[k]
             # a servo with its torque off drives nothing and reports no load (the gear
             # train still brakes the joint: that stays in the physics)
-            servo.set_motion(
+            ctrl = servo.set_motion(
                 t,
                 pos,
                 sign * w * TICKS_PER_RAD,
                 abs(tau) / stall_nm if on[k] else 0.0,
                 on[k] and tau * sign < 0,
                 moving[k],
-                stalled[k] >= OVERLOAD_HOLD_S,
+                stalled[k] >= hold,
             )
-            ctrl = servo.controller()
             on[k] = ctrl[2] != 0.0
             gain, target, offset, cap, cut = drive(ctrl, pos)
             volts = ctrl[9]
             stall = stall_per_volt * volts if volts > 0.0 else 0.0  # Actuator.stall_at
             # duty = gain * (target - ticks) + offset, ticks = zero + sign * TICKS_PER_RAD * q,
             # as a joint torque (sign * stall * duty) affine in the joint angle q
-            constant[k] = sign * stall * (gain * (target - zero) + offset)
-            slope[k] = -stall * gain * TICKS_PER_RAD
-            high[k] = stall * cap
+            constant.append(sign * stall * (gain * (target - zero) + offset))
+            slope.append(-stall * gain * TICKS_PER_RAD)
+            high.append(stall * cap)
             stalled[k] = stalled[k] + period if cut and abs(w) < stalled_speed else 0.0
             moving[k] = gain != 0.0 or offset != 0.0
-        bias, limits = self._bias, self._limits
-        bias[:, 0] = constant
-        bias[:, 1] = slope
-        limits[:, 1] = high
-        np.negative(limits[:, 1], out=limits[:, 0])
+        given = self._given
+        if constant != given[0] or slope != given[1] or high != given[2]:
+            self._given = [constant, slope, high]
+            bias_constant, bias_slope, limit_high, limit_low = self._drives
+            bias_constant[:] = constant
+            bias_slope[:] = slope
+            limit_high[:] = high
+            np.negative(limit_high, out=limit_low)
 
-    def _sample(self, t: float, torque: np.ndarray) -> None:
+    def _sample(self, t: float, torques: list[float]) -> None:
         """Check the physics is sane and keep what the record is made of (raw: the record
         works the slip out for all samples at once)."""
-        q = self._qpos
+        q = self._qpos.tolist()
         z = q[2]  # the robot stays level: every wheel centre sinks with the base
-        if not math.isfinite(q.sum() + self._qvel.sum()):
+        # (plain sums: numpy's reductions cost more than the additions on so few numbers)
+        if not math.isfinite(sum(q) + sum(self._qvel.tolist())):
             self._fail(t, "the simulation blew up (a position or speed is not finite)")
         if z < self._min_z:
             self._fail(t, "the wheels sank deep into the floor")
-        row = self._history.slot()
-        c = self._cols
+        row, parts = self._row, self._parts
         row[0] = t - self.start_time
-        q.take(self._qsel, out=row[c[1]])
-        self._cvel.take(self._cvel_idx, out=row[c[2]])
-        self._xpos.take(self._xpos_idx, out=row[c[3]])
-        row[c[4]] = self._com[self._root, :2]
-        self._xmat.take(self._axle_idx, out=row[c[5]])
-        row[c[6]] = torque
+        for source, index, part in self._gathers:
+            source.take(index, out=part, mode="clip")  # valid indices: "clip" is unbuffered
+        parts[4][:] = self._com_xy
+        parts[6][:] = torques
+        self._history.slot()[:] = row
 
     def _fail(self, t: float, what: str) -> None:
         self.stop()

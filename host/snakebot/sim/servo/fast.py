@@ -154,7 +154,9 @@ class VirtualServo(ReferenceServo):
     # -- a physics world's hooks, once per servo per control tick: on the struct directly --
 
     def controller(self) -> tuple[float, ...]:
-        c = self._c
+        return self._controller(self._c)
+
+    def _controller(self, c: Any) -> tuple[float, ...]:
         on = 1.0 if c.powered and c.torque_enable == 1 and c.torque_limit > 0 else 0.0
         return (
             float(c.goal),
@@ -180,7 +182,7 @@ class VirtualServo(ReferenceServo):
         load_cw: bool,
         moving: bool,
         overload: bool,
-    ) -> None:
+    ) -> tuple[float, ...]:
         c = self._c
         c.world_driven = True
         lib.sim_servo_advance(c, t)
@@ -194,6 +196,7 @@ class VirtualServo(ReferenceServo):
             conditions = lib.sim_servo_conditions(c)
             if conditions & c.shutdown:
                 lib.sim_servo_alarm(c, conditions)
+        return self._controller(c)
 
     def sync_write_block(self, address: int, data: bytes, t: float) -> None:
         if lib.sim_servo_sync_block(self._c, t, address, data, len(data)) < 0:

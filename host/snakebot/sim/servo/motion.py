@@ -71,11 +71,12 @@ class ServoMotion:
         load_cw: bool,
         moving: bool,
         overload: bool,
-    ) -> None:
+    ) -> tuple[float, ...]:
         """A physics world's report at bus time ``t``: position (ticks), speed (ticks/s),
         load (fraction of stall torque, ``load_cw``: pushing toward smaller positions),
         whether it moves, whether the load exceeds what it may give. Heat and alarms
-        follow from them as for the servo's own motion."""
+        follow from them as for the servo's own motion. Returns :meth:`controller` as it
+        is then (what the world drives the joint with next: one call per servo and tick)."""
         self.world_driven = True
         self.advance(t)
         self.pos = pos
@@ -88,6 +89,7 @@ class ServoMotion:
             conditions = self._conditions()
             if conditions & self._shutdown:
                 self._alarm(conditions)
+        return self.controller()
 
     def _heat(self, fraction: float, dt: float) -> None:
         temp = self.temp

@@ -21,8 +21,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
-
 from snakebot.facts import devices
 
 # The AX-12's units, from its device description (the family shares them).
@@ -69,16 +67,17 @@ class MotorSpec:
         """Joint-mode no-load speed at the output shaft, rad/s, at the nominal voltage."""
         return self.no_load_rpm * math.pi / 30.0
 
-    def electrical_power_w(self, torque_nm: np.ndarray, speed_rad_s: np.ndarray) -> np.ndarray:
+    def electrical_power_w(self, torque_nm: float, speed_rad_s: float) -> float:
         """The power the motor draws to give ``torque_nm`` at ``speed_rad_s`` (output
         shaft), from the DC motor model that stall torque and no-load speed at the
         nominal voltage fix: the torque constant at the shaft k = V / w0, the winding
         resistance R = V^2 / (stall w0), so P = R (tau / k)^2 + tau w = tau^2 w0 / stall
         + tau w (copper loss plus mechanical power). Never negative: the servo's driver
-        does not give braking energy back to the supply."""
-        tau = np.asarray(torque_nm, dtype=float)
-        w = np.asarray(speed_rad_s, dtype=float)
-        return np.maximum(0.0, tau * tau * self.no_load_rad_s / self.stall_torque_nm + tau * w)
+        does not give braking energy back to the supply. Plain floats: the physics world
+        calls it for every joint at every step."""
+        tau = torque_nm
+        power = tau * tau * self.no_load_rad_s / self.stall_torque_nm + tau * speed_rad_s
+        return power if power > 0.0 else 0.0
 
     def max_speed(self, voltage: float, wheel: bool = False) -> float:
         """No-load speed in ticks/s at ``voltage``."""

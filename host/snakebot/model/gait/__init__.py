@@ -11,6 +11,8 @@ the package root)."""
 from __future__ import annotations
 
 import importlib
+import sys
+import types
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
@@ -53,6 +55,21 @@ __all__ = [
     "parse_field_expression",
     "serpenoid",
 ]
+
+
+class _Package(types.ModuleType):
+    """This package, keeping its names for what they name: once a submodule is loaded
+    the import system sets it as the package's attribute of the same name, which for
+    ``serpenoid`` (the module and its function) would turn the function into the module
+    for every later ``from snakebot.model.gait import serpenoid``."""
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if isinstance(value, types.ModuleType) and _HOMES.get(name) == name:
+            value = getattr(value, name)
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
 
 
 def __getattr__(name: str) -> Any:

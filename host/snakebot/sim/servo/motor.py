@@ -20,8 +20,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any, TypeVar
 
 from snakebot.facts import devices
+
+Power = TypeVar("Power", float, Any)
+"""A float, or a numpy array of them (this module does not import numpy)."""
 
 # The AX-12's units, from its device description (the family shares them).
 _AX12 = devices.ax12()
@@ -67,17 +71,20 @@ class MotorSpec:
         """Joint-mode no-load speed at the output shaft, rad/s, at the nominal voltage."""
         return self.no_load_rpm * math.pi / 30.0
 
-    def electrical_power_w(self, torque_nm: float, speed_rad_s: float) -> float:
+    def electrical_power_w(self, torque_nm: Power, speed_rad_s: Power) -> Power:
         """The power the motor draws to give ``torque_nm`` at ``speed_rad_s`` (output
         shaft), from the DC motor model that stall torque and no-load speed at the
         nominal voltage fix: the torque constant at the shaft k = V / w0, the winding
         resistance R = V^2 / (stall w0), so P = R (tau / k)^2 + tau w = tau^2 w0 / stall
         + tau w (copper loss plus mechanical power). Never negative: the servo's driver
-        does not give braking energy back to the supply. Plain floats: the physics world
-        calls it for every joint at every step."""
+        does not give braking energy back to the supply. Plain floats (the physics world
+        calls it for every joint at every step) or numpy arrays of them (a search's whole
+        run at once)."""
         tau = torque_nm
         power = tau * tau * self.no_load_rad_s / self.stall_torque_nm + tau * speed_rad_s
-        return power if power > 0.0 else 0.0
+        if type(power) is float:
+            return power if power > 0.0 else 0.0
+        return power * (power > 0.0)  # elementwise, an array's negative entries to 0
 
     def max_speed(self, voltage: float, wheel: bool = False) -> float:
         """No-load speed in ticks/s at ``voltage``."""

@@ -2,7 +2,7 @@
 missing: no display, no GPU needed).
 
 The model is the physics world's (:func:`snakebot.sim.physics.mjcf.build_mjcf`): its
-links, wheels and floor, here with a grid of 1 m squares (0.5 m checks) on the floor.
+links, wheels and floor, here with grid lines on the floor every metre (darker) and half metre.
 A run is shown by putting the model in each recorded state (the body's pose and the
 joint angles; the wheels turn by the distance they rolled), so a kinematic prediction is
 drawn as well as a physics run. The first run is drawn in the robot's colours; each
@@ -44,16 +44,19 @@ LEGEND = ("its own colours, red path", "blue, blue path", "green, green path")
 """How the overlay names each run's colours (in the order of TINTS and PATH_COLOURS)."""
 TINY_HEIGHT, SMALL_HEIGHT = 200, 300
 """Below these heights the overlay gives nothing, or only the time."""
-PATH_SEGMENTS = 200
+PATH_SEGMENTS = 100
 """At most this many segments draw a path (longer paths are thinned)."""
-PATH_WIDTH_M = 0.004
+LINE_Z = 0.001
+"""Lines on the floor are drawn this far above it (metres), so the floor does not hide them."""
+PATH_WIDTH_PX = 360
+"""A path is one pixel wide per this many pixels of the picture's height (at least one)."""
 
-GRID_XML = """<asset>
-  <texture name="grid" type="2d" builtin="checker" width="512" height="512"
-           rgb1="0.93 0.93 0.93" rgb2="0.86 0.86 0.86" mark="edge" markrgb="0.35 0.35 0.35"/>
-  <material name="grid" texture="grid" texrepeat="1 1" texuniform="true" reflectance="0"/>
-</asset>"""
-"""One texture per metre (texuniform): its edges are the metre grid, its checks 0.5 m."""
+FLOOR_RGBA = "0.9 0.9 0.9 1"
+GRID_COLOURS = ((0.35, 0.35, 0.35, 1.0), (0.7, 0.7, 0.7, 1.0))
+"""The floor's lines every metre, and between them every half metre."""
+GRID_REACH = 4.0
+"""Grid lines reach this many camera distances from the point the camera looks at (about
+as far as the floor shows; beyond, the floor is plain)."""
 
 
 class RendererUnavailable(RuntimeFailure):
@@ -95,13 +98,13 @@ def _context(width: int, height: int) -> tuple[str, Any]:
 
 
 def render_model_xml(robot: Robot) -> str:
-    """The physics world's MJCF of ``robot`` with the metre grid on its floor."""
+    """The physics world's MJCF of ``robot`` with a plain floor (the renderer draws its
+    metre grid as lines: on a software rasteriser a textured floor costs more than the
+    rest of the picture)."""
     root = ET.fromstring(build_mjcf(robot)[0])
-    root.insert(0, ET.fromstring(GRID_XML))
     for geom in root.iter("geom"):
         if geom.get("name") == "floor":
-            geom.set("material", "grid")
-            geom.attrib.pop("rgba", None)
+            geom.set("rgba", FLOOR_RGBA)
     for quality in root.iter("visual"):
         ET.SubElement(quality, "quality", shadowsize="0", offsamples="0")
         ET.SubElement(quality, "headlight", ambient="0.45 0.45 0.45", diffuse="0.5 0.5 0.5")
@@ -195,6 +198,9 @@ class Renderer3D:
         self.viewport = mujoco.MjrRect(0, 0, self.width, self.height)
         self._runs: dict[int, _Posed] = {}
         self._pixels = np.empty((self.height, self.width, 3), dtype=np.uint8)
+        self._zeros, self._eye = np.zeros(3), np.eye(3).ravel()
+        self._line_px = max(1, round(self.height / PATH_WIDTH_PX))
+        self._grid_rgba = [np.asarray(c, dtype=np.float32) for c in GRID_COLOURS]
 
     def _posed(self, motion: Motion) -> _Posed:
         posed = self._runs.get(id(motion))
@@ -220,6 +226,7 @@ class Renderer3D:
             )
             for g in range(before, scene.ngeom):
                 scene.geoms[g].rgba[:] = TINTS[i % len(TINTS)]
+        self._draw_grid()
         for i, (p, k) in enumerate(zip(posed, ks, strict=True)):
             self._draw_path(p.path(k), PATH_COLOURS[i % len(PATH_COLOURS)])
         mj.mjr_render(self.viewport, scene, self.context)
@@ -227,21 +234,39 @@ class Renderer3D:
         mj.mjr_readPixels(self._pixels, None, self.viewport, self.context)
         return np.flipud(self._pixels).copy()
 
-    def _draw_path(self, xy: np.ndarray, rgba: Sequence[float]) -> None:
+    def _line(self, a: Sequence[float], b: Sequence[float], rgba: np.ndarray) -> bool:
+        """Add a line from ``a`` to ``b`` (metres, on the floor) to the scene; False when
+        the scene is full. Lines, not capsules: a capsule is hundreds of triangles, and a
+        path of them costs a software rasteriser more than the robot and the floor."""
         mj, scene = self.mj, self.scene
-        z = 0.5 * PATH_WIDTH_M
+        if scene.ngeom >= scene.maxgeom:
+            return False
+        geom = scene.geoms[scene.ngeom]
+        mj.mjv_initGeom(geom, mj.mjtGeom.mjGEOM_LINE, self._zeros, self._zeros, self._eye, rgba)
+        mj.mjv_connector(geom, mj.mjtGeom.mjGEOM_LINE, self._line_px, [*a, LINE_Z], [*b, LINE_Z])
+        scene.ngeom += 1
+        return True
+
+    def _draw_grid(self) -> None:
+        """The floor's grid around the point the camera looks at, fixed to the floor."""
+        reach = GRID_REACH * self.camera.distance
+        x0, y0 = (float(v) for v in self.camera.lookat[:2])
+        for step, colour in zip((1.0, 0.5), self._grid_rgba, strict=True):
+            for axis, (c0, c1) in enumerate(((x0, y0), (y0, x0))):
+                for c in np.arange(math.ceil((c0 - reach) / step), (c0 + reach) / step) * step:
+                    if step < 1.0 and c % 1.0 == 0.0:
+                        continue  # a metre line is drawn already
+                    ends = ((c, c1 - reach), (c, c1 + reach))
+                    a, b = ends if axis == 0 else (e[::-1] for e in ends)
+                    if not self._line(a, b, colour):
+                        return
+
+    def _draw_path(self, xy: np.ndarray, rgba: Sequence[float]) -> None:
         moved = np.any(xy[1:] != xy[:-1], axis=1)
         colour = np.asarray(rgba, dtype=np.float32)
-        zeros, eye = np.zeros(3), np.eye(3).ravel()
         for a, b in zip(xy[:-1][moved].tolist(), xy[1:][moved].tolist(), strict=True):
-            if scene.ngeom >= scene.maxgeom:
+            if not self._line(a, b, colour):
                 return
-            geom = scene.geoms[scene.ngeom]
-            mj.mjv_initGeom(geom, mj.mjtGeom.mjGEOM_CAPSULE, zeros, zeros, eye, colour)
-            mj.mjv_connector(
-                geom, mj.mjtGeom.mjGEOM_CAPSULE, PATH_WIDTH_M, [a[0], a[1], z], [b[0], b[1], z]
-            )
-            scene.ngeom += 1
 
     def _overlay(self, labels: list[str], t: float, first: _Posed, k: int) -> None:
         mj = self.mj

@@ -111,7 +111,7 @@ def render_model_xml(robot: Robot) -> str:
     return ET.tostring(root, encoding="unicode")
 
 
-class _Posed:
+class Posed:
     """One run put into a MuJoCo state at any time: root pose, joints and wheel spin."""
 
     def __init__(self, mujoco: Any, model: Any, robot: Robot, motion: Motion) -> None:
@@ -166,6 +166,85 @@ class _Posed:
         return xy
 
 
+def aim(camera: Any, robot: Robot) -> None:
+    """Make ``camera`` (an MjvCamera) look at ``robot`` from behind and above, at a
+    distance that shows its whole body; its ``lookat`` is the caller's to move."""
+    import mujoco
+
+    camera.type = mujoco.mjtCamera.mjCAMERA_FREE
+    camera.azimuth, camera.elevation = -140.0, -30.0
+    snake = robot.kind == "snake"
+    size_m = 2 * robot.l * robot.links if snake else 2 * (robot.r + robot.l)
+    camera.distance = max(0.5, 1.6 * size_m * physics_of(robot).unit_m)
+
+
+class FloorLines:
+    """Lines on the floor added to a MuJoCo scene (an MjvScene: the renderer's, or a
+    viewer's user scene): the metre grid and the runs' paths, as wide as a picture
+    ``height`` pixels high wants. Lines, not capsules: a capsule is hundreds of
+    triangles, and a path of them costs a software rasteriser more than the robot and
+    the floor together."""
+
+    def __init__(self, mujoco: Any, scene: Any, height: int) -> None:
+        self.mj, self.scene = mujoco, scene
+        self.width_px = max(1, round(height / PATH_WIDTH_PX))
+        self._zeros, self._eye = np.zeros(3), np.eye(3).ravel()
+        self._grid_rgba = [np.asarray(c, dtype=np.float32) for c in GRID_COLOURS]
+
+    def line(self, a: Sequence[float], b: Sequence[float], rgba: np.ndarray) -> bool:
+        """Add a line from ``a`` to ``b`` (x, y in metres); False when the scene is full."""
+        mj, scene = self.mj, self.scene
+        if scene.ngeom >= scene.maxgeom:
+            return False
+        geom = scene.geoms[scene.ngeom]
+        mj.mjv_initGeom(geom, mj.mjtGeom.mjGEOM_LINE, self._zeros, self._zeros, self._eye, rgba)
+        mj.mjv_connector(geom, mj.mjtGeom.mjGEOM_LINE, self.width_px, [*a, LINE_Z], [*b, LINE_Z])
+        scene.ngeom += 1
+        return True
+
+    def grid(self, camera: Any) -> None:
+        """The floor's grid around the point ``camera`` looks at, fixed to the floor."""
+        reach = GRID_REACH * camera.distance
+        x0, y0 = (float(v) for v in camera.lookat[:2])
+        for step, colour in zip((1.0, 0.5), self._grid_rgba, strict=True):
+            for axis, (c0, c1) in enumerate(((x0, y0), (y0, x0))):
+                for c in np.arange(math.ceil((c0 - reach) / step), (c0 + reach) / step) * step:
+                    if step < 1.0 and c % 1.0 == 0.0:
+                        continue  # a metre line is drawn already
+                    ends = ((c, c1 - reach), (c, c1 + reach))
+                    a, b = ends if axis == 0 else (e[::-1] for e in ends)
+                    if not self.line(a, b, colour):
+                        return
+
+    def path(self, xy: np.ndarray, rgba: Sequence[float]) -> None:
+        """The path through the points ``xy`` (metres)."""
+        moved = np.any(xy[1:] != xy[:-1], axis=1)
+        colour = np.asarray(rgba, dtype=np.float32)
+        for a, b in zip(xy[:-1][moved].tolist(), xy[1:][moved].tolist(), strict=True):
+            if not self.line(a, b, colour):
+                return
+
+
+def overlay_texts(
+    mujoco: Any, robot: Robot, labels: Sequence[str], t: float, phi: Sequence[float], height: int
+) -> list[tuple[Any, str, str]]:
+    """The overlay of a picture ``height`` pixels high at time ``t``, the first run's
+    joints at ``phi`` (rad): (corner, left column, right column) per text box."""
+    if height < TINY_HEIGHT:
+        return []  # a thumbnail: any text would cover the robot
+    grid = mujoco.mjtGridPos
+    texts = [(grid.mjGRID_TOPLEFT, "time\nfloor", f"{t:.2f} s\n1 m grid")]
+    if height < SMALL_HEIGHT:
+        return texts  # small: the angles and the legend would cover the robot
+    angles = "\n".join(
+        f"{j.name} {math.degrees(a):+6.1f} deg" for j, a in zip(robot.joints, phi, strict=True)
+    )
+    legend = "\n".join(f"{label}: {colour}" for label, colour in zip(labels, LEGEND, strict=False))
+    texts.append((grid.mjGRID_BOTTOMLEFT, angles, ""))
+    texts.append((grid.mjGRID_BOTTOMRIGHT, legend, ""))
+    return texts
+
+
 class Renderer3D:
     """Frames of runs of ``robot``, ``size`` = (width, height) pixels."""
 
@@ -187,25 +266,18 @@ class Renderer3D:
         for flag in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION):
             self.scene.flags[flag] = False  # software GL: each would double a frame's cost
         self.camera = mujoco.MjvCamera()
-        self.camera.type = mujoco.mjtCamera.mjCAMERA_FREE
-        self.camera.azimuth, self.camera.elevation = -140.0, -30.0
-        phys = physics_of(robot)
-        snake = robot.kind == "snake"
-        size_m = 2 * robot.l * robot.links if snake else 2 * (robot.r + robot.l)
-        self.camera.distance = max(0.5, 1.6 * size_m * phys.unit_m)
+        aim(self.camera, robot)
         self.context = mujoco.MjrContext(model, font_scale(self.height))
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self.context)
         self.viewport = mujoco.MjrRect(0, 0, self.width, self.height)
-        self._runs: dict[int, _Posed] = {}
+        self._runs: dict[int, Posed] = {}
         self._pixels = np.empty((self.height, self.width, 3), dtype=np.uint8)
-        self._zeros, self._eye = np.zeros(3), np.eye(3).ravel()
-        self._line_px = max(1, round(self.height / PATH_WIDTH_PX))
-        self._grid_rgba = [np.asarray(c, dtype=np.float32) for c in GRID_COLOURS]
+        self.lines = FloorLines(mujoco, self.scene, self.height)
 
-    def _posed(self, motion: Motion) -> _Posed:
+    def _posed(self, motion: Motion) -> Posed:
         posed = self._runs.get(id(motion))
         if posed is None or posed.motion is not motion:
-            posed = self._runs[id(motion)] = _Posed(self.mj, self.model, self.robot, motion)
+            posed = self._runs[id(motion)] = Posed(self.mj, self.model, self.robot, motion)
         return posed
 
     def frame(self, runs: Mapping[str, Motion], t: float) -> np.ndarray:
@@ -226,76 +298,18 @@ class Renderer3D:
             )
             for g in range(before, scene.ngeom):
                 scene.geoms[g].rgba[:] = TINTS[i % len(TINTS)]
-        self._draw_grid()
+        self.lines.grid(self.camera)
         for i, (p, k) in enumerate(zip(posed, ks, strict=True)):
-            self._draw_path(p.path(k), PATH_COLOURS[i % len(PATH_COLOURS)])
+            self.lines.path(p.path(k), PATH_COLOURS[i % len(PATH_COLOURS)])
         mj.mjr_render(self.viewport, scene, self.context)
-        self._overlay(list(runs), t, first, ks[0])
+        for place, left, right in overlay_texts(
+            mj, self.robot, list(runs), t, first.motion.phi[ks[0]], self.height
+        ):
+            mj.mjr_overlay(
+                mj.mjtFont.mjFONT_NORMAL, place, self.viewport, left, right, self.context
+            )
         mj.mjr_readPixels(self._pixels, None, self.viewport, self.context)
         return np.flipud(self._pixels).copy()
-
-    def _line(self, a: Sequence[float], b: Sequence[float], rgba: np.ndarray) -> bool:
-        """Add a line from ``a`` to ``b`` (metres, on the floor) to the scene; False when
-        the scene is full. Lines, not capsules: a capsule is hundreds of triangles, and a
-        path of them costs a software rasteriser more than the robot and the floor."""
-        mj, scene = self.mj, self.scene
-        if scene.ngeom >= scene.maxgeom:
-            return False
-        geom = scene.geoms[scene.ngeom]
-        mj.mjv_initGeom(geom, mj.mjtGeom.mjGEOM_LINE, self._zeros, self._zeros, self._eye, rgba)
-        mj.mjv_connector(geom, mj.mjtGeom.mjGEOM_LINE, self._line_px, [*a, LINE_Z], [*b, LINE_Z])
-        scene.ngeom += 1
-        return True
-
-    def _draw_grid(self) -> None:
-        """The floor's grid around the point the camera looks at, fixed to the floor."""
-        reach = GRID_REACH * self.camera.distance
-        x0, y0 = (float(v) for v in self.camera.lookat[:2])
-        for step, colour in zip((1.0, 0.5), self._grid_rgba, strict=True):
-            for axis, (c0, c1) in enumerate(((x0, y0), (y0, x0))):
-                for c in np.arange(math.ceil((c0 - reach) / step), (c0 + reach) / step) * step:
-                    if step < 1.0 and c % 1.0 == 0.0:
-                        continue  # a metre line is drawn already
-                    ends = ((c, c1 - reach), (c, c1 + reach))
-                    a, b = ends if axis == 0 else (e[::-1] for e in ends)
-                    if not self._line(a, b, colour):
-                        return
-
-    def _draw_path(self, xy: np.ndarray, rgba: Sequence[float]) -> None:
-        moved = np.any(xy[1:] != xy[:-1], axis=1)
-        colour = np.asarray(rgba, dtype=np.float32)
-        for a, b in zip(xy[:-1][moved].tolist(), xy[1:][moved].tolist(), strict=True):
-            if not self._line(a, b, colour):
-                return
-
-    def _overlay(self, labels: list[str], t: float, first: _Posed, k: int) -> None:
-        mj = self.mj
-        angles = "\n".join(
-            f"{j.name} {math.degrees(a):+6.1f} deg"
-            for j, a in zip(self.robot.joints, first.motion.phi[k], strict=True)
-        )
-        font = mj.mjtFont.mjFONT_NORMAL
-        if self.height < TINY_HEIGHT:
-            return  # a thumbnail: any text would cover the robot
-        mj.mjr_overlay(
-            font,
-            mj.mjtGridPos.mjGRID_TOPLEFT,
-            self.viewport,
-            "time\nfloor",
-            f"{t:.2f} s\n1 m grid",
-            self.context,
-        )
-        if self.height < SMALL_HEIGHT:
-            return  # small: the angles and the legend would cover the robot
-        mj.mjr_overlay(
-            font, mj.mjtGridPos.mjGRID_BOTTOMLEFT, self.viewport, angles, "", self.context
-        )
-        legend = "\n".join(
-            f"{label}: {colour}" for label, colour in zip(labels, LEGEND, strict=False)
-        )
-        mj.mjr_overlay(
-            font, mj.mjtGridPos.mjGRID_BOTTOMRIGHT, self.viewport, legend, "", self.context
-        )
 
     def close(self) -> None:
         if self._gl is not None:

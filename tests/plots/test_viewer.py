@@ -98,10 +98,12 @@ def assert_same_picture(seen: np.ndarray, drawn: np.ndarray) -> None:
         for dx in (-1, 0, 1):
             near |= np.roll(np.roll(path_seen, dy, axis=0), dx, axis=1)
     assert (near & path_drawn).sum() >= 0.9 * path_drawn.sum()
-    # the same overlay boxes in the same corners (a flat grey behind the text). The
-    # viewer is brighter: there the model's directional light adds to the headlight,
-    # offscreen (EGL on llvmpipe) the headlight alone lights (the floor 255 vs 161)
+    # the same overlay boxes in the same corners (a flat grey behind the text)
     assert iou(box(seen), box(drawn)) > 0.7
+    # and the same light: the same colours (window and offscreen buffer differ in
+    # antialiasing and line width, at edges only)
+    diff = np.abs(seen.astype(int) - drawn.astype(int)).max(axis=2)
+    assert diff.mean() < 3 and (diff > 40).mean() < 0.03  # measured: 1.3, 0.012-0.013
 
 
 def settle(show: Callable[[], bool]) -> None:

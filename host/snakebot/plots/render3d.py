@@ -107,7 +107,9 @@ def render_model_xml(robot: Robot) -> str:
             geom.set("rgba", FLOOR_RGBA)
     for quality in root.iter("visual"):
         ET.SubElement(quality, "quality", shadowsize="0", offsamples="0")
-        ET.SubElement(quality, "headlight", ambient="0.45 0.45 0.45", diffuse="0.5 0.5 0.5")
+        ET.SubElement(quality, "headlight", ambient="0.3 0.3 0.3", diffuse="0.15 0.15 0.15")
+    for light in root.iter("light"):  # with the headlight: a floor in light grey, not white
+        light.set("diffuse", "0.5 0.5 0.5")
     return ET.tostring(root, encoding="unicode")
 
 
@@ -156,6 +158,7 @@ class Posed:
         self._place(k)
         self.data.qpos[self.wheel_qadr] = self.spin[k]
         self.mj.mj_kinematics(self.model, self.data)
+        self.mj.mj_camlight(self.model, self.data)  # the lights' places: unlit without
         return k
 
     def path(self, k: int) -> np.ndarray:

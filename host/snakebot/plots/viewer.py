@@ -106,6 +106,7 @@ class LiveView:
         with handle.lock():
             handle.d.qpos[:] = qpos
             mj.mj_kinematics(handle.m, handle.d)
+            mj.mj_camlight(handle.m, handle.d)
             handle.cam.lookat[:] = [*centre, 0.0]
             handle.user_scn.ngeom = 0
             self.lines.grid(handle.cam)

@@ -24,6 +24,7 @@ from snakebot.plots.motion import StateMotion
 from snakebot.sim.controller_pty import ControllerPty
 
 pytest.importorskip("mujoco")
+pytestmark = pytest.mark.serial  # a window drawn by its own thread, runs shown in real time
 if shutil.which("Xvfb") is None:  # pragma: no cover - the dev setup installs it
     pytest.skip("Xvfb is not installed (apt-get install xvfb)", allow_module_level=True)
 
@@ -75,10 +76,19 @@ def iou(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def screenshot(window: viewer.LiveView, display: str) -> np.ndarray:
-    """The viewer's picture (no window manager: its window is at the top left)."""
+    """The viewer's picture once it holds still (no window manager: its window is at the
+    top left). The viewer draws on its own thread: on a busy machine it may be behind."""
     port = window.handle.viewport
-    shot = np.asarray(ImageGrab.grab(xdisplay=display).convert("RGB"))
-    return shot[: port.height, : port.width]
+    before = None
+    deadline = time.monotonic() + 20
+    while True:
+        shot = np.asarray(ImageGrab.grab(xdisplay=display).convert("RGB"))
+        shot = shot[: port.height, : port.width]
+        if before is not None and np.array_equal(shot, before):
+            return shot
+        assert time.monotonic() < deadline, "the viewer's picture never held still"
+        before = shot
+        time.sleep(0.3)
 
 
 def assert_same_picture(seen: np.ndarray, drawn: np.ndarray) -> None:

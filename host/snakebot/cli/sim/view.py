@@ -10,16 +10,20 @@ from typing import TYPE_CHECKING
 
 import click
 
-from snakebot.cli.options import CONTROLLER_PORT, ControllerLink, port_option, robot_option
-from snakebot.cli.params import EXISTING_INPUT, NumberType
+from snakebot.cli.options import (
+    CONTROLLER_PORT,
+    ControllerLink,
+    look_options,
+    port_option,
+    robot_option,
+)
+from snakebot.cli.params import EXISTING_INPUT
 from snakebot.errors import InputError
 from snakebot.extras import require
 
 if TYPE_CHECKING:
     from snakebot.link.controller.client import ControllerClient
     from snakebot.model.robots.model import Joint
-
-MIN_INTERVAL_S = 0.02
 
 
 class ViewOptionError(InputError):
@@ -42,19 +46,7 @@ class ViewOptionError(InputError):
     is_flag=True,
     help="Play GAIT once and close the window (default: again and again until it is closed).",
 )
-@click.option(
-    "--interval",
-    type=NumberType(MIN_INTERVAL_S),
-    default=0.05,
-    show_default=True,
-    help="With --port: seconds between looks at the controller.",
-)
-@click.option(
-    "--duration",
-    type=NumberType(0),
-    default=None,
-    help="With --port: stop after this many seconds (default: until the window is closed).",
-)
+@look_options(0.05, mode="with --port", until="the window is closed")
 def view(
     gait_file: Path | None,
     port: str | None,

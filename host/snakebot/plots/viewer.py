@@ -13,6 +13,7 @@ and the viewer's thread draws it.
 from __future__ import annotations
 
 import os
+import threading
 import time
 from collections.abc import Callable, Iterable, Sequence
 
@@ -33,6 +34,8 @@ from snakebot.plots.render3d import (
 
 FRAME_S = 1 / 30
 """The viewer is given a new state this often (it draws at its own rate)."""
+CLOSE_S = 10.0
+"""How long closing waits for the viewer's window to go."""
 LINE_HEIGHT = 720
 """Lines on the floor are as wide as in a video this many pixels high."""
 
@@ -68,6 +71,7 @@ class LiveView:
         self.mj, self.robot = mujoco, robot
         self.model = mujoco.MjModel.from_xml_string(render_model_xml(robot))
         self.data = mujoco.MjData(self.model)
+        before = set(threading.enumerate())
         try:
             self.handle = mujoco.viewer.launch_passive(
                 self.model, self.data, show_left_ui=False, show_right_ui=False
@@ -77,6 +81,9 @@ class LiveView:
                 f"MuJoCo's viewer could not open a window on {os.environ.get('DISPLAY')}: "
                 f"{exc}; check that the display accepts OpenGL (glxinfo) or film the run"
             ) from None
+        # the viewer's thread: closing waits for it, or the process could end while it
+        # still tears its window down (a segmentation fault at exit)
+        self._threads = set(threading.enumerate()) - before
         with self.handle.lock():
             aim(self.handle.cam, robot)
             flags = self.handle.user_scn.flags  # the viewer takes its scene's flags from here
@@ -127,6 +134,8 @@ class LiveView:
 
     def close(self) -> None:
         self.handle.close()
+        for thread in self._threads:
+            thread.join(CLOSE_S)
 
     def __enter__(self) -> LiveView:
         return self

@@ -8,6 +8,7 @@ import atexit
 import os
 import shutil
 import subprocess
+import sys
 import time
 from collections.abc import Callable
 
@@ -189,3 +190,15 @@ def test_without_a_display_it_exits_2_naming_the_fix(tmp_path, monkeypatch):
 def test_what_to_show_is_checked_before_anything_opens(args, words):
     result = CliRunner().invoke(main, ["sim", "view", *args])
     assert result.exit_code == 2 and words in result.stderr
+
+
+def test_the_command_ends_cleanly_as_a_process(display, tmp_path):
+    """The process ends after the viewer's window is gone (it once ended while the
+    viewer's thread still tore the window down: a segmentation fault at exit)."""
+    gait = save(wave_table(frames=25), tmp_path)
+    command = [sys.executable, "-m", "snakebot", "sim", "view", str(gait), "--robot", "snake5"]
+    done = subprocess.run(
+        [*command, "--once"], capture_output=True, text=True, timeout=60, env=os.environ
+    )
+    assert done.returncode == 0, done.stderr
+    assert "Traceback" not in done.stderr and "Segmentation" not in done.stderr

@@ -63,11 +63,12 @@ SERVING = {
     ("sim", "goto"),
     ("sim", "thesis"),
     ("sim", "friction"),
+    ("sim", "view"),
 }
-"""Commands that serve until interrupted, play in real time (`bus play --loop` never
-ends), run the whole emulated robot or many physics runs: not fuzzed here (their options
-are parsed by the same types; the serving ones run in tests/cli/test_cli_resources.py,
-the others in their own tests)."""
+"""Commands that serve until interrupted (`sim view` until its window closes), play in
+real time (`bus play --loop` never ends), run the whole emulated robot or many physics
+runs: not fuzzed here (their options are parsed by the same types; the serving ones run
+in tests/cli/test_cli_resources.py, the others in their own tests)."""
 
 SLOW_FLAGS = {"--symbolic"}  # sympy at full size: minutes on a loaded machine
 ENV = {

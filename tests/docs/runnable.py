@@ -13,6 +13,8 @@ A command line is one of:
   ``bus play``, ``monitor`` without a duration, ``drive`` reading the keyboard);
 * **video**: a line that renders a video (tens of CPU seconds; the videos have their own
   tests in tests/plots);
+* **window**: a line that opens MuJoCo's viewer (``snakebot sim view``), which needs a
+  desktop (tests/plots/test_viewer.py runs it under Xvfb);
 * **emulator**: a line that starts an emulator (``snakebot sim serve``, ``sim
   bootloader``, ``sim bus --pty``), which serves until Ctrl-C: the test starts the same
   emulator itself and gives its port to the lines that follow.
@@ -40,6 +42,7 @@ HARDWARE = "real hardware only"
 PORT = re.compile(r"^(?:/dev/tty\w+|/dev/pts/\w+|/tmp/ttyCM530|COM\d+)$")
 ENV = re.compile(r"^[A-Z][A-Z0-9_]*=")
 EMULATORS = (("sim", "serve"), ("sim", "bootloader"), ("sim", "bus"))
+WINDOW = ("sim", "view")
 BUS_COMMANDS = (("bus",), ("robot", "calibrate"))
 SNAKE5_IDS = "10,11,15,16"
 ANSWERS = "\n" + "y\n" * 20  # Enter, then yes to every question (robot calibrate)
@@ -78,6 +81,8 @@ class Line:
             return "until Ctrl-C"
         if "--video" in words:
             return "video"
+        if tuple(words[1:3]) == WINDOW:
+            return "window"
         return "run"
 
 

@@ -16,7 +16,7 @@ from snakebot.cli import main
 from snakebot.model.robots import load_robot
 from snakebot.plots import video as videos
 from snakebot.plots.topview import body_points
-from snakebot.plots.video import FPS
+from snakebot.plots.video import GIF_FPS
 
 pytest.importorskip("mujoco")
 imageio_ffmpeg = pytest.importorskip("imageio_ffmpeg")
@@ -49,7 +49,7 @@ def test_predict_writes_a_gif_of_the_run(tmp_path):
     with Image.open(gif) as image:
         assert image.format == "GIF"
         assert image.size == (160, 96)
-        assert image.n_frames == 2 * FPS + 1  # 2 s at FPS frames a second
+        assert image.n_frames == 2 * GIF_FPS + 1  # 2 s at a GIF's frames a second
         first = np.asarray(image.convert("RGB"))
         image.seek(image.n_frames - 1)
         last = np.asarray(image.convert("RGB"))

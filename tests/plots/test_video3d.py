@@ -58,7 +58,7 @@ def test_a_video_has_its_frames_size_and_a_moving_robot(tmp_path, suffix):
     )
     assert notes == []  # drawn in 3-D, no fallback
     frames = frames_of(path)
-    assert len(frames) == int(0.5 * video.FPS) + 1
+    assert len(frames) == int(0.5 * video.frame_rate(path)) + 1
     assert all(f.shape == (SMALL[1], SMALL[0], 3) for f in frames)
     first, last = orange(frames[0]), orange(frames[-1])
     assert first.sum() > 50 and last.sum() > 50  # the robot is in the picture
@@ -90,7 +90,7 @@ def test_without_a_renderer_the_video_is_drawn_from_above(tmp_path, monkeypatch)
         tmp_path / "run.gif", SNAKE5, {"wave": wave(0.3)}, size=(320, 240), say=notes.append
     )
     assert len(notes) == 1 and "2-D" in notes[0] and "no EGL here" in notes[0]
-    assert len(frames_of(path)) == int(0.3 * video.FPS) + 1
+    assert len(frames_of(path)) == int(0.3 * video.GIF_FPS) + 1
 
 
 @pytest.mark.parametrize("text", ["1280", "1280x721", "10x10", "axb", "8000x720"])

@@ -41,6 +41,7 @@ COMMANDS: dict[str, LazyCommand] = {
             "snakebot.cli.sim.goto:goto",
             "snakebot.cli.sim.thesis:thesis",
             "snakebot.cli.sim.thesis:friction",
+            "snakebot.cli.sim.view:view",
         ),
     ),
     "upload": LazyCommand(

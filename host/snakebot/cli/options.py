@@ -636,3 +636,29 @@ def foxglove_option(what: str) -> Decorator:
         f"{FOXGLOVE_RATE_HZ:g} times a second. Listens on 127.0.0.1 unless a HOST is given "
         "(0.0.0.0: every interface); PORT 0 takes a free one.",
     )
+
+
+MIN_LOOK_INTERVAL_S = 0.02
+"""The shortest time between two looks at the controller (--interval)."""
+
+
+def look_options(default_interval: float, *, mode: str = "", until: str = "Ctrl-C") -> Decorator:
+    """--duration and --interval of a command that looks at the controller again and
+    again, as the parameters ``duration`` and ``interval``; ``mode`` says in their help
+    when they apply (e.g. ``with --port``), ``until`` what ends it without --duration."""
+    when = f", {mode}" if mode else ""
+    return stack(
+        click.option(
+            "--duration",
+            type=NumberType(0),
+            default=None,
+            help=f"Stop after this many seconds{when} (default: until {until}).",
+        ),
+        click.option(
+            "--interval",
+            type=NumberType(MIN_LOOK_INTERVAL_S),
+            default=default_interval,
+            show_default=True,
+            help=f"Seconds between looks at the controller{when}.",
+        ),
+    )

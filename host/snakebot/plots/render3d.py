@@ -2,7 +2,7 @@
 missing: no display, no GPU needed).
 
 The model is the physics world's (:func:`snakebot.sim.physics.mjcf.build_mjcf`): its
-links, wheels and floor, here with a grid of 1 m squares (0.5 m checks) on the floor.
+links, wheels and floor, here with grid lines on the floor every metre (darker) and half metre.
 A run is shown by putting the model in each recorded state (the body's pose and the
 joint angles; the wheels turn by the distance they rolled), so a kinematic prediction is
 drawn as well as a physics run. The first run is drawn in the robot's colours; each
@@ -44,16 +44,19 @@ LEGEND = ("its own colours, red path", "blue, blue path", "green, green path")
 """How the overlay names each run's colours (in the order of TINTS and PATH_COLOURS)."""
 TINY_HEIGHT, SMALL_HEIGHT = 200, 300
 """Below these heights the overlay gives nothing, or only the time."""
-PATH_SEGMENTS = 200
+PATH_SEGMENTS = 100
 """At most this many segments draw a path (longer paths are thinned)."""
-PATH_WIDTH_M = 0.004
+LINE_Z = 0.001
+"""Lines on the floor are drawn this far above it (metres), so the floor does not hide them."""
+PATH_WIDTH_PX = 360
+"""A path is one pixel wide per this many pixels of the picture's height (at least one)."""
 
-GRID_XML = """<asset>
-  <texture name="grid" type="2d" builtin="checker" width="512" height="512"
-           rgb1="0.93 0.93 0.93" rgb2="0.86 0.86 0.86" mark="edge" markrgb="0.35 0.35 0.35"/>
-  <material name="grid" texture="grid" texrepeat="1 1" texuniform="true" reflectance="0"/>
-</asset>"""
-"""One texture per metre (texuniform): its edges are the metre grid, its checks 0.5 m."""
+FLOOR_RGBA = "0.9 0.9 0.9 1"
+GRID_COLOURS = ((0.35, 0.35, 0.35, 1.0), (0.7, 0.7, 0.7, 1.0))
+"""The floor's lines every metre, and between them every half metre."""
+GRID_REACH = 4.0
+"""Grid lines reach this many camera distances from the point the camera looks at (about
+as far as the floor shows; beyond, the floor is plain)."""
 
 
 class RendererUnavailable(RuntimeFailure):
@@ -95,20 +98,22 @@ def _context(width: int, height: int) -> tuple[str, Any]:
 
 
 def render_model_xml(robot: Robot) -> str:
-    """The physics world's MJCF of ``robot`` with the metre grid on its floor."""
+    """The physics world's MJCF of ``robot`` with a plain floor (the renderer draws its
+    metre grid as lines: on a software rasteriser a textured floor costs more than the
+    rest of the picture)."""
     root = ET.fromstring(build_mjcf(robot)[0])
-    root.insert(0, ET.fromstring(GRID_XML))
     for geom in root.iter("geom"):
         if geom.get("name") == "floor":
-            geom.set("material", "grid")
-            geom.attrib.pop("rgba", None)
+            geom.set("rgba", FLOOR_RGBA)
     for quality in root.iter("visual"):
         ET.SubElement(quality, "quality", shadowsize="0", offsamples="0")
-        ET.SubElement(quality, "headlight", ambient="0.45 0.45 0.45", diffuse="0.5 0.5 0.5")
+        ET.SubElement(quality, "headlight", ambient="0.3 0.3 0.3", diffuse="0.15 0.15 0.15")
+    for light in root.iter("light"):  # with the headlight: a floor in light grey, not white
+        light.set("diffuse", "0.5 0.5 0.5")
     return ET.tostring(root, encoding="unicode")
 
 
-class _Posed:
+class Posed:
     """One run put into a MuJoCo state at any time: root pose, joints and wheel spin."""
 
     def __init__(self, mujoco: Any, model: Any, robot: Robot, motion: Motion) -> None:
@@ -153,6 +158,7 @@ class _Posed:
         self._place(k)
         self.data.qpos[self.wheel_qadr] = self.spin[k]
         self.mj.mj_kinematics(self.model, self.data)
+        self.mj.mj_camlight(self.model, self.data)  # the lights' places: unlit without
         return k
 
     def path(self, k: int) -> np.ndarray:
@@ -161,6 +167,85 @@ class _Posed:
         if len(xy) > PATH_SEGMENTS + 1:
             xy = xy[np.linspace(0, len(xy) - 1, PATH_SEGMENTS + 1).round().astype(int)]
         return xy
+
+
+def aim(camera: Any, robot: Robot) -> None:
+    """Make ``camera`` (an MjvCamera) look at ``robot`` from behind and above, at a
+    distance that shows its whole body; its ``lookat`` is the caller's to move."""
+    import mujoco
+
+    camera.type = mujoco.mjtCamera.mjCAMERA_FREE
+    camera.azimuth, camera.elevation = -140.0, -30.0
+    snake = robot.kind == "snake"
+    size_m = 2 * robot.l * robot.links if snake else 2 * (robot.r + robot.l)
+    camera.distance = max(0.5, 1.6 * size_m * physics_of(robot).unit_m)
+
+
+class FloorLines:
+    """Lines on the floor added to a MuJoCo scene (an MjvScene: the renderer's, or a
+    viewer's user scene): the metre grid and the runs' paths, as wide as a picture
+    ``height`` pixels high wants. Lines, not capsules: a capsule is hundreds of
+    triangles, and a path of them costs a software rasteriser more than the robot and
+    the floor together."""
+
+    def __init__(self, mujoco: Any, scene: Any, height: int) -> None:
+        self.mj, self.scene = mujoco, scene
+        self.width_px = max(1, round(height / PATH_WIDTH_PX))
+        self._zeros, self._eye = np.zeros(3), np.eye(3).ravel()
+        self._grid_rgba = [np.asarray(c, dtype=np.float32) for c in GRID_COLOURS]
+
+    def line(self, a: Sequence[float], b: Sequence[float], rgba: np.ndarray) -> bool:
+        """Add a line from ``a`` to ``b`` (x, y in metres); False when the scene is full."""
+        mj, scene = self.mj, self.scene
+        if scene.ngeom >= scene.maxgeom:
+            return False
+        geom = scene.geoms[scene.ngeom]
+        mj.mjv_initGeom(geom, mj.mjtGeom.mjGEOM_LINE, self._zeros, self._zeros, self._eye, rgba)
+        mj.mjv_connector(geom, mj.mjtGeom.mjGEOM_LINE, self.width_px, [*a, LINE_Z], [*b, LINE_Z])
+        scene.ngeom += 1
+        return True
+
+    def grid(self, camera: Any) -> None:
+        """The floor's grid around the point ``camera`` looks at, fixed to the floor."""
+        reach = GRID_REACH * camera.distance
+        x0, y0 = (float(v) for v in camera.lookat[:2])
+        for step, colour in zip((1.0, 0.5), self._grid_rgba, strict=True):
+            for axis, (c0, c1) in enumerate(((x0, y0), (y0, x0))):
+                for c in np.arange(math.ceil((c0 - reach) / step), (c0 + reach) / step) * step:
+                    if step < 1.0 and c % 1.0 == 0.0:
+                        continue  # a metre line is drawn already
+                    ends = ((c, c1 - reach), (c, c1 + reach))
+                    a, b = ends if axis == 0 else (e[::-1] for e in ends)
+                    if not self.line(a, b, colour):
+                        return
+
+    def path(self, xy: np.ndarray, rgba: Sequence[float]) -> None:
+        """The path through the points ``xy`` (metres)."""
+        moved = np.any(xy[1:] != xy[:-1], axis=1)
+        colour = np.asarray(rgba, dtype=np.float32)
+        for a, b in zip(xy[:-1][moved].tolist(), xy[1:][moved].tolist(), strict=True):
+            if not self.line(a, b, colour):
+                return
+
+
+def overlay_texts(
+    mujoco: Any, robot: Robot, labels: Sequence[str], t: float, phi: Sequence[float], height: int
+) -> list[tuple[Any, str, str]]:
+    """The overlay of a picture ``height`` pixels high at time ``t``, the first run's
+    joints at ``phi`` (rad): (corner, left column, right column) per text box."""
+    if height < TINY_HEIGHT:
+        return []  # a thumbnail: any text would cover the robot
+    grid = mujoco.mjtGridPos
+    texts = [(grid.mjGRID_TOPLEFT, "time\nfloor", f"{t:.2f} s\n1 m grid")]
+    if height < SMALL_HEIGHT:
+        return texts  # small: the angles and the legend would cover the robot
+    angles = "\n".join(
+        f"{j.name} {math.degrees(a):+6.1f} deg" for j, a in zip(robot.joints, phi, strict=True)
+    )
+    legend = "\n".join(f"{label}: {colour}" for label, colour in zip(labels, LEGEND, strict=False))
+    texts.append((grid.mjGRID_BOTTOMLEFT, angles, ""))
+    texts.append((grid.mjGRID_BOTTOMRIGHT, legend, ""))
+    return texts
 
 
 class Renderer3D:
@@ -184,22 +269,18 @@ class Renderer3D:
         for flag in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION):
             self.scene.flags[flag] = False  # software GL: each would double a frame's cost
         self.camera = mujoco.MjvCamera()
-        self.camera.type = mujoco.mjtCamera.mjCAMERA_FREE
-        self.camera.azimuth, self.camera.elevation = -140.0, -30.0
-        phys = physics_of(robot)
-        snake = robot.kind == "snake"
-        size_m = 2 * robot.l * robot.links if snake else 2 * (robot.r + robot.l)
-        self.camera.distance = max(0.5, 1.6 * size_m * phys.unit_m)
+        aim(self.camera, robot)
         self.context = mujoco.MjrContext(model, font_scale(self.height))
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self.context)
         self.viewport = mujoco.MjrRect(0, 0, self.width, self.height)
-        self._runs: dict[int, _Posed] = {}
+        self._runs: dict[int, Posed] = {}
         self._pixels = np.empty((self.height, self.width, 3), dtype=np.uint8)
+        self.lines = FloorLines(mujoco, self.scene, self.height)
 
-    def _posed(self, motion: Motion) -> _Posed:
+    def _posed(self, motion: Motion) -> Posed:
         posed = self._runs.get(id(motion))
         if posed is None or posed.motion is not motion:
-            posed = self._runs[id(motion)] = _Posed(self.mj, self.model, self.robot, motion)
+            posed = self._runs[id(motion)] = Posed(self.mj, self.model, self.robot, motion)
         return posed
 
     def frame(self, runs: Mapping[str, Motion], t: float) -> np.ndarray:
@@ -220,57 +301,18 @@ class Renderer3D:
             )
             for g in range(before, scene.ngeom):
                 scene.geoms[g].rgba[:] = TINTS[i % len(TINTS)]
+        self.lines.grid(self.camera)
         for i, (p, k) in enumerate(zip(posed, ks, strict=True)):
-            self._draw_path(p.path(k), PATH_COLOURS[i % len(PATH_COLOURS)])
+            self.lines.path(p.path(k), PATH_COLOURS[i % len(PATH_COLOURS)])
         mj.mjr_render(self.viewport, scene, self.context)
-        self._overlay(list(runs), t, first, ks[0])
+        for place, left, right in overlay_texts(
+            mj, self.robot, list(runs), t, first.motion.phi[ks[0]], self.height
+        ):
+            mj.mjr_overlay(
+                mj.mjtFont.mjFONT_NORMAL, place, self.viewport, left, right, self.context
+            )
         mj.mjr_readPixels(self._pixels, None, self.viewport, self.context)
         return np.flipud(self._pixels).copy()
-
-    def _draw_path(self, xy: np.ndarray, rgba: Sequence[float]) -> None:
-        mj, scene = self.mj, self.scene
-        z = 0.5 * PATH_WIDTH_M
-        moved = np.any(xy[1:] != xy[:-1], axis=1)
-        colour = np.asarray(rgba, dtype=np.float32)
-        zeros, eye = np.zeros(3), np.eye(3).ravel()
-        for a, b in zip(xy[:-1][moved].tolist(), xy[1:][moved].tolist(), strict=True):
-            if scene.ngeom >= scene.maxgeom:
-                return
-            geom = scene.geoms[scene.ngeom]
-            mj.mjv_initGeom(geom, mj.mjtGeom.mjGEOM_CAPSULE, zeros, zeros, eye, colour)
-            mj.mjv_connector(
-                geom, mj.mjtGeom.mjGEOM_CAPSULE, PATH_WIDTH_M, [a[0], a[1], z], [b[0], b[1], z]
-            )
-            scene.ngeom += 1
-
-    def _overlay(self, labels: list[str], t: float, first: _Posed, k: int) -> None:
-        mj = self.mj
-        angles = "\n".join(
-            f"{j.name} {math.degrees(a):+6.1f} deg"
-            for j, a in zip(self.robot.joints, first.motion.phi[k], strict=True)
-        )
-        font = mj.mjtFont.mjFONT_NORMAL
-        if self.height < TINY_HEIGHT:
-            return  # a thumbnail: any text would cover the robot
-        mj.mjr_overlay(
-            font,
-            mj.mjtGridPos.mjGRID_TOPLEFT,
-            self.viewport,
-            "time\nfloor",
-            f"{t:.2f} s\n1 m grid",
-            self.context,
-        )
-        if self.height < SMALL_HEIGHT:
-            return  # small: the angles and the legend would cover the robot
-        mj.mjr_overlay(
-            font, mj.mjtGridPos.mjGRID_BOTTOMLEFT, self.viewport, angles, "", self.context
-        )
-        legend = "\n".join(
-            f"{label}: {colour}" for label, colour in zip(labels, LEGEND, strict=False)
-        )
-        mj.mjr_overlay(
-            font, mj.mjtGridPos.mjGRID_BOTTOMRIGHT, self.viewport, legend, "", self.context
-        )
 
     def close(self) -> None:
         if self._gl is not None:

@@ -17,18 +17,18 @@ from snakebot.cli.options import (
     ControllerLink,
     controller_options,
     foxglove_option,
+    look_options,
     robot_option,
     stack,
 )
 from snakebot.cli.output import dumps
-from snakebot.cli.params import OUTPUT_PATH, NumberType
+from snakebot.cli.params import OUTPUT_PATH
 from snakebot.cli.signals import held
 from snakebot.link.controller.mcap_log import McapLog
 from snakebot.link.controller.monitor import CSV_COLUMNS, csv_rows, render, sample
 from snakebot.userfiles import OutputRefused, open_recording
 from snakebot.workflows.foxglove import SampleStream
 
-MIN_INTERVAL_S = 0.02
 CLEAR_BELOW = "\x1b[J"
 GRID_SLACK = 1e-9
 """Lets a --duration that is a whole number of intervals count as one (0.3 / 0.1 is
@@ -53,19 +53,7 @@ def _cursor_up(lines: int) -> str:
 
 @click.command("monitor")
 @controller_options
-@click.option(
-    "--duration",
-    type=NumberType(0),
-    default=None,
-    help="Stop after this many seconds (default: until Ctrl-C).",
-)
-@click.option(
-    "--interval",
-    type=NumberType(MIN_INTERVAL_S),
-    default=0.5,
-    show_default=True,
-    help="Seconds between samples.",
-)
+@look_options(0.5)
 @stack(
     *(
         click.option(f"--{fmt}", f"{fmt}_path", type=RECORD_PATH, help=f"Also record {what}.")

@@ -46,6 +46,35 @@ typedef struct {
 uint64_t mcu_io_read(void *uc, uint64_t offset, unsigned size, void *io);
 void mcu_io_write(void *uc, uint64_t offset, unsigned size, uint64_t value, void *io);
 
+/* Exception entry and return (ARMv7-M B1.5.6, B1.5.8) on the main stack, done here with
+ * unicorn's own functions (their addresses in `api`, register ids from unicorn's Python
+ * constants): in Python the register and memory calls of one entry cost more than the
+ * handler they start. The NVIC's decisions (which exception, priorities) stay in Python. */
+typedef struct {
+    void *reg_read_batch;   /* uc_reg_read_batch */
+    void *reg_write_batch;  /* uc_reg_write_batch */
+    void *mem_read;         /* uc_mem_read */
+    void *mem_write;        /* uc_mem_write */
+    int frame[8];           /* r0-r3, r12, lr, pc, xpsr: the stacked frame's order */
+    int sp;                 /* the main stack pointer's register id */
+    uint32_t lowest_sp;     /* the lowest stack pointer an entry saw */
+    uint32_t exc_return;    /* the EXC_RETURN value of the last failed return */
+    uint32_t handler;       /* the vector of the last entry (kept when it is not Thumb) */
+} mcu_exceptions;
+
+#define MCU_EXC_OK 0
+#define MCU_EXC_NOT_THUMB 1    /* the vector does not hold a Thumb address */
+#define MCU_EXC_BAD_RETURN 2   /* EXC_RETURN other than handler / thread on MSP */
+#define MCU_EXC_MEMORY 3       /* unicorn refused a stack or vector access */
+
+/* Push the frame, aligned to 8 bytes (bit 9 of the stacked xPSR), and enter `exception`
+ * through the vector table at `vtor`; `ipsr` is the active exception's number (0: thread
+ * mode), stacked in xPSR and choosing EXC_RETURN. */
+int mcu_exception_enter(void *uc, mcu_exceptions *x, uint32_t exception, uint32_t vtor,
+                        uint32_t ipsr);
+/* Pop the frame of the branch to EXC_RETURN the CPU just made. */
+int mcu_exception_return(void *uc, mcu_exceptions *x);
+
 void mcu_count_instruction(void *uc, uint64_t address, uint32_t size, void *counter);
 void mcu_after_unmask(void *uc, uint64_t address, uint32_t size, void *counter);
 /* cffi:end */

@@ -24,7 +24,6 @@ is pending.
 from __future__ import annotations
 
 import ctypes
-import struct
 from collections.abc import Callable, Iterable
 
 from snakebot.extras import require
@@ -46,6 +45,7 @@ from unicorn import (  # noqa: E402
 )
 from unicorn import arm_const as arm  # noqa: E402
 from unicorn.unicorn_py3.unicorn import (  # noqa: E402
+    HOOK_INTR_CFUNC,
     MMIO_READ_CFUNC,
     MMIO_WRITE_CFUNC,
     uclib,
@@ -99,6 +99,11 @@ def unmasking_sites(code: bytes, base: int) -> tuple[list[int], list[int]]:
     return wfi, after
 
 
+def _native(function: object) -> object:
+    """A ctypes function of unicorn's library as a cffi ``void *``."""
+    return ffi.cast("void *", ctypes.cast(function, ctypes.c_void_p).value)
+
+
 class _Batch:
     """Reads or writes a fixed list of registers in one call to unicorn (its Python
     wrappers cost more than the emulation they wrap, at every exception)."""
@@ -134,22 +139,28 @@ class Cpu:
         self.uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
         self.nvic = nvic
         self.counter = ffi.new("mcu_counter *")
-        stop = ctypes.cast(uclib.uc_emu_stop, ctypes.c_void_p).value
-        self.counter.stop = ffi.cast("void *", stop)
+        self.counter.stop = _native(uclib.uc_emu_stop)
         self.counter.limit = 0
+        self._io_callbacks: list[tuple[object, object]] = []
         self._hook_counter()
-        self.uc.hook_add(UC_HOOK_INTR, self._on_interrupt)
         uch = self.uc._uch
         self._uch = uch
-        self._frame = _Batch(uch, FRAME_REGS)
-        self._entry = _Batch(
-            uch, (arm.UC_ARM_REG_SP, arm.UC_ARM_REG_LR, arm.UC_ARM_REG_XPSR, arm.UC_ARM_REG_PC)
-        )
+        self._uch_c = ffi.cast("void *", uch.value)
+        self._hook_interrupts()
+        self._exc = ffi.new("mcu_exceptions *")
+        for field, function in (
+            ("reg_read_batch", uclib.uc_reg_read_batch),
+            ("reg_write_batch", uclib.uc_reg_write_batch),
+            ("mem_read", uclib.uc_mem_read),
+            ("mem_write", uclib.uc_mem_write),
+        ):
+            setattr(self._exc, field, _native(function))
+        self._exc.frame = list(FRAME_REGS)
+        self._exc.sp = arm.UC_ARM_REG_SP
         self._sp = _Batch(uch, (arm.UC_ARM_REG_SP,))
         self._pc = _Batch(uch, (arm.UC_ARM_REG_PC,))
         self._primask = _Batch(uch, (arm.UC_ARM_REG_PRIMASK,))
         self._word = ctypes.create_string_buffer(32)
-        self._io_callbacks: list[tuple[object, object]] = []
         self.running = False
         self.sleeping = False
         self.sleeps = 0
@@ -157,7 +168,34 @@ class Cpu:
         self._wfi_sites: set[int] = set()
         self._stopped_by: str | None = None
         self._fault: int | None = None
-        self.lowest_sp = 0xFFFF_FFFF  # the lowest main stack pointer an exception entry saw
+        self.lowest_sp = 0xFFFF_FFFF
+
+    @property
+    def lowest_sp(self) -> int:
+        """The lowest main stack pointer an exception entry saw."""
+        return int(self._exc.lowest_sp)
+
+    @lowest_sp.setter
+    def lowest_sp(self, value: int) -> None:
+        self._exc.lowest_sp = value
+
+    def _hook_interrupts(self) -> None:
+        # a ctypes callback of our own rather than Uc.hook_add's: three Python calls fewer
+        # on every exception return
+        callback = HOOK_INTR_CFUNC(self._on_interrupt)
+        self._io_callbacks.append((callback, None))
+        handle = ctypes.c_size_t()
+        status = uclib.uc_hook_add(
+            self._uch,
+            ctypes.byref(handle),
+            UC_HOOK_INTR,
+            callback,
+            None,
+            ctypes.c_uint64(1),
+            ctypes.c_uint64(0),
+        )
+        if status != 0:
+            raise McuFault(f"unicorn refused the interrupt hook (error {status})")
 
     def _hook_counter(self) -> None:
         self._native_hook(lib.mcu_count_instruction, 1, 0)
@@ -316,10 +354,16 @@ class Cpu:
                 "instruction, SVC or breakpoint: none is used by the firmware)"
             )
 
-    def _on_interrupt(self, uc: Uc, intno: int, _data: object) -> None:
+    def _on_interrupt(self, _uc: int, intno: int, _data: int) -> None:
+        try:
+            self._interrupt(intno)
+        except BaseException as exc:  # stops the CPU; run raises it
+            self.fail(exc)
+
+    def _interrupt(self, intno: int) -> None:
         if intno != EXCP_EXCEPTION_EXIT:
             self._fault = intno
-            uc.emu_stop()
+            uclib.uc_emu_stop(self._uch)
             return
         # the return (and a tail-chained entry) done here: writing PC from a hook makes
         # unicorn go on from there without leaving emu_start, which costs far more
@@ -367,47 +411,34 @@ class Cpu:
             taken += 1
 
     def _enter(self, exception: int) -> None:
-        values = self._frame.read()
-        xpsr = values[-1] & ~XPSR_IPSR
-        if self.nvic.active:
-            xpsr |= self.nvic.active[-1] & XPSR_IPSR
-        sp = self._sp.read_one()
-        if sp & 4:
-            sp -= 4
-            xpsr |= XPSR_ALIGNED
-        else:
-            xpsr &= ~XPSR_ALIGNED
-        values[-1] = xpsr
-        sp -= 32
-        self.write_memory(sp, struct.pack("<8I", *values))
-        handler = self.read32(self.nvic.vtor + 4 * exception)
-        if not handler & 1:
+        nvic = self.nvic
+        ipsr = nvic.active[-1] & XPSR_IPSR if nvic.active else 0
+        status = lib.mcu_exception_enter(self._uch_c, self._exc, exception, nvic.vtor, ipsr)
+        if status == lib.MCU_EXC_NOT_THUMB:
             raise McuFault(
-                f"vector {exception} at 0x{self.nvic.vtor + 4 * exception:08X} holds "
-                f"0x{handler:08X}, not a Thumb address: is VTOR (0x{self.nvic.vtor:08X}) "
-                "pointing at the image's vector table?"
+                f"vector {exception} at 0x{nvic.vtor + 4 * exception:08X} holds "
+                f"0x{self._exc.handler:08X}, not a Thumb address: is VTOR "
+                f"(0x{nvic.vtor:08X}) pointing at the image's vector table?"
             )
-        nested = bool(self.nvic.active)
-        self.nvic.activate(exception)
-        lr = EXC_RETURN_HANDLER if nested else EXC_RETURN_THREAD_MSP
-        self._entry.write([sp, lr, 1 << 24, handler | 1])  # bit 0: stay in Thumb state
-        if sp < self.lowest_sp:
-            self.lowest_sp = sp
+        if status != lib.MCU_EXC_OK:
+            raise McuFault(
+                f"exception {exception}: the stack at 0x{self._sp.read_one():08X} "
+                "or the vector table is not in memory"
+            )
+        nvic.activate(exception)
 
     def _exception_return(self) -> None:
-        exc_return = self.pc | 1
-        if exc_return not in (EXC_RETURN_HANDLER, EXC_RETURN_THREAD_MSP) or not self.nvic.active:
+        status = lib.MCU_EXC_BAD_RETURN
+        if self.nvic.active:
+            status = lib.mcu_exception_return(self._uch_c, self._exc)
+        if status == lib.MCU_EXC_BAD_RETURN:
             raise McuFault(
-                f"exception return with EXC_RETURN 0x{exc_return:08X} and "
+                f"exception return with EXC_RETURN 0x{self.pc | 1:08X} and "
                 f"{len(self.nvic.active)} exception(s) active: only returns on the main "
                 "stack are modelled"
             )
-        sp = self._sp.read_one()
-        values = list(struct.unpack("<8I", self.read_memory(sp, 32)))
-        xpsr = values[-1]
-        sp += 32 + (4 if xpsr & XPSR_ALIGNED else 0)
-        values[-1] = (xpsr & ~(XPSR_IPSR | XPSR_ALIGNED)) | 1 << 24
-        values[6] |= 1  # Thumb: unicorn takes bit 0 of a written PC as the state
-        self._frame.write(values)
-        self._sp.write([sp])
+        if status != lib.MCU_EXC_OK:
+            raise McuFault(
+                f"exception return: the stack at 0x{self._sp.read_one():08X} is not in memory"
+            )
         self.nvic.deactivate()

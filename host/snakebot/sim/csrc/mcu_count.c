@@ -17,16 +17,28 @@ void mcu_count_instruction(void *uc, uint64_t address, uint32_t size, void *coun
     c->count++;
 }
 
+typedef int (*mcu_unmask_fn)(void);
+
 /* Hooked on the instruction after each `cpsie i` / `msr primask`: with an exception
- * pending, stop before it so the machine can take the exception (Python decides). */
+ * pending, `on_unmask` (Python: the NVIC decides) takes it before this instruction, which
+ * then runs on the return (the counter's hook, called first, has counted it: uncounted
+ * here); without `on_unmask`, stop before it so the machine can take the exception. */
 void mcu_after_unmask(void *uc, uint64_t address, uint32_t size, void *counter)
 {
     (void)uc;
     (void)address;
     (void)size;
     mcu_counter *c = (mcu_counter *)counter;
-    if (c->pending && c->limit > c->count) {
+    if (!c->pending || c->limit <= c->count) {
+        return;
+    }
+    if (c->on_unmask == 0) {
         c->limit = c->count;
+        return;
+    }
+    c->count--;
+    if (((mcu_unmask_fn)c->on_unmask)() == 0) {
+        c->count++; /* nothing taken: the instruction runs now */
     }
 }
 

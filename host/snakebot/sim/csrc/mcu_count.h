@@ -19,6 +19,7 @@ typedef struct {
     double t0;         /* the machine's time (s) when count was c0 */
     uint64_t c0;
     double hz;         /* instructions per second (HCLK) */
+    void *on_unmask;   /* int (*)(void): takes what is pending after an unmask (how many) */
 } mcu_counter;
 
 /* A peripheral's registers as the CPU reaches them: one register served here, in C, and

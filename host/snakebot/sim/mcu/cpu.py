@@ -17,8 +17,9 @@ exactly up to the next peripheral event. One instruction counts one cycle.
 Interrupts are looked at whenever the CPU stops: at an event, after a register write that
 pended or enabled one (the write lowers the limit so the CPU stops after it), and after
 every instruction that may unmask them (``cpsie i``, ``msr primask``), which are found in
-the image when it is loaded. ``wfi`` stops the CPU until an exception that could preempt
-is pending.
+the image when it is loaded: there a pending exception is taken from the hook on the next
+instruction, before it runs, without stopping the CPU. ``wfi`` stops the CPU until an
+exception that could preempt is pending.
 """
 
 from __future__ import annotations
@@ -143,6 +144,9 @@ class Cpu:
         self.counter.limit = 0
         self._io_callbacks: list[tuple[object, object]] = []
         self._hook_counter()
+        unmask = ctypes.CFUNCTYPE(ctypes.c_int)(self._on_unmask)
+        self._io_callbacks.append((unmask, None))
+        self.counter.on_unmask = _native(unmask)
         uch = self.uc._uch
         self._uch = uch
         self._uch_c = ffi.cast("void *", uch.value)
@@ -160,6 +164,7 @@ class Cpu:
         self._sp = _Batch(uch, (arm.UC_ARM_REG_SP,))
         self._pc = _Batch(uch, (arm.UC_ARM_REG_PC,))
         self._primask = _Batch(uch, (arm.UC_ARM_REG_PRIMASK,))
+        self._pc_again = ctypes.c_uint32()
         self._word = ctypes.create_string_buffer(32)
         self.running = False
         self.sleeping = False
@@ -372,6 +377,22 @@ class Cpu:
         if exception is not None:
             self._enter(exception)
         self.note_pending()
+
+    def _on_unmask(self) -> int:
+        # an unmasking instruction ran with an exception pending: take it here, before the
+        # next instruction, without leaving emu_start (a stop costs a run of the machine)
+        try:
+            taken = self.take_exceptions()
+            if taken:
+                uclib.uc_reg_write(
+                    self._uch,
+                    arm.UC_ARM_REG_PC,
+                    ctypes.byref(ctypes.c_uint32(self._pc.read_one() | 1)),
+                )
+            return taken
+        except BaseException as exc:  # stops the CPU; run raises it
+            self.fail(exc)
+            return 0
 
     def _on_wfi(self, uc: Uc, address: int, size: int, _data: object) -> None:
         # the hook runs before the instruction: unicorn then halts after it (its WFI ends

@@ -180,3 +180,29 @@ int mcu_exception_return(void *uc, mcu_exceptions *x)
     v[FRAME_PC] |= 1u; /* Thumb: unicorn takes bit 0 of a written PC as the state */
     return frame_access(uc, x, v, 1) == 0 ? MCU_EXC_OK : MCU_EXC_MEMORY;
 }
+
+typedef int (*mcu_reg_fn)(void *uc, int reg, void *value);
+typedef int (*mcu_start_fn)(void *uc, uint64_t begin, uint64_t until, uint64_t timeout,
+                            uint64_t count);
+
+uint32_t mcu_reg(void *uc, mcu_exceptions *x, int reg)
+{
+    uint32_t value = 0;
+    if (((mcu_reg_fn)x->reg_read)(uc, reg, &value) != 0) {
+        return 0;
+    }
+    return value;
+}
+
+int mcu_keep_pc(void *uc, mcu_exceptions *x)
+{
+    uint32_t pc = mcu_reg(uc, x, x->frame[FRAME_PC]) | 1u;
+    return ((mcu_reg_fn)x->reg_write)(uc, x->frame[FRAME_PC], &pc);
+}
+
+int mcu_run(void *uc, mcu_exceptions *x, mcu_counter *c, uint64_t instructions)
+{
+    c->limit = c->count + instructions;
+    uint32_t pc = mcu_reg(uc, x, x->frame[FRAME_PC]) | 1u;
+    return ((mcu_start_fn)x->emu_start)(uc, pc, 0, 0, 0);
+}

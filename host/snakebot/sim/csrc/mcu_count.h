@@ -56,6 +56,9 @@ typedef struct {
     void *reg_write_batch;  /* uc_reg_write_batch */
     void *mem_read;         /* uc_mem_read */
     void *mem_write;        /* uc_mem_write */
+    void *reg_read;         /* uc_reg_read */
+    void *reg_write;        /* uc_reg_write */
+    void *emu_start;        /* uc_emu_start */
     int frame[8];           /* r0-r3, r12, lr, pc, xpsr: the stacked frame's order */
     int sp;                 /* the main stack pointer's register id */
     uint32_t lowest_sp;     /* the lowest stack pointer an entry saw */
@@ -75,6 +78,14 @@ int mcu_exception_enter(void *uc, mcu_exceptions *x, uint32_t exception, uint32_
                         uint32_t ipsr);
 /* Pop the frame of the branch to EXC_RETURN the CPU just made. */
 int mcu_exception_return(void *uc, mcu_exceptions *x);
+/* One register (0 if unicorn refuses). */
+uint32_t mcu_reg(void *uc, mcu_exceptions *x, int reg);
+/* Write PC again on its own, from a code hook that entered an exception: unicorn keeps a
+ * PC written by uc_reg_write there (a batch write leaves the hooked instruction's). */
+int mcu_keep_pc(void *uc, mcu_exceptions *x);
+/* Run the CPU from its PC for at most `instructions` (the counter's limit); unicorn's
+ * status. */
+int mcu_run(void *uc, mcu_exceptions *x, mcu_counter *c, uint64_t instructions);
 
 void mcu_count_instruction(void *uc, uint64_t address, uint32_t size, void *counter);
 void mcu_after_unmask(void *uc, uint64_t address, uint32_t size, void *counter);

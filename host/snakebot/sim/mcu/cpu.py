@@ -157,14 +157,15 @@ class Cpu:
             ("reg_write_batch", uclib.uc_reg_write_batch),
             ("mem_read", uclib.uc_mem_read),
             ("mem_write", uclib.uc_mem_write),
+            ("reg_read", uclib.uc_reg_read),
+            ("reg_write", uclib.uc_reg_write),
+            ("emu_start", uclib.uc_emu_start),
         ):
             setattr(self._exc, field, _native(function))
         self._exc.frame = list(FRAME_REGS)
         self._exc.sp = arm.UC_ARM_REG_SP
         self._sp = _Batch(uch, (arm.UC_ARM_REG_SP,))
-        self._pc = _Batch(uch, (arm.UC_ARM_REG_PC,))
         self._primask = _Batch(uch, (arm.UC_ARM_REG_PRIMASK,))
-        self._pc_again = ctypes.c_uint32()
         self._word = ctypes.create_string_buffer(32)
         self.running = False
         self.sleeping = False
@@ -289,11 +290,11 @@ class Cpu:
 
     @property
     def pc(self) -> int:
-        return self._pc.read_one()
+        return int(lib.mcu_reg(self._uch_c, self._exc, arm.UC_ARM_REG_PC))
 
     @property
     def primask(self) -> bool:
-        return bool(self._primask.read_one() & 1)
+        return bool(lib.mcu_reg(self._uch_c, self._exc, arm.UC_ARM_REG_PRIMASK) & 1)
 
     def set_primask(self, masked: bool) -> None:
         self._primask.write([1 if masked else 0])
@@ -334,13 +335,12 @@ class Cpu:
         """Run at most ``instructions`` instructions (fewer if something stops the CPU)."""
         if self.sleeping:
             return
-        self.counter.limit = self.counter.count + instructions
         self._exit_request = False
         self.running = True
         uc = self.uc
         uc._hook_exception = None
         try:
-            status = uclib.uc_emu_start(self._uch, self._pc.read_one() | 1, 0, 0, 0)
+            status = lib.mcu_run(self._uch_c, self._exc, self.counter, instructions)
         finally:
             self.running = False
         if uc._hook_exception is not None:
@@ -380,15 +380,12 @@ class Cpu:
 
     def _on_unmask(self) -> int:
         # an unmasking instruction ran with an exception pending: take it here, before the
-        # next instruction, without leaving emu_start (a stop costs a run of the machine)
+        # next instruction, without leaving emu_start (a stop costs a run of the machine);
+        # PC is written again alone, as unicorn needs it from a code hook
         try:
             taken = self.take_exceptions()
             if taken:
-                uclib.uc_reg_write(
-                    self._uch,
-                    arm.UC_ARM_REG_PC,
-                    ctypes.byref(ctypes.c_uint32(self._pc.read_one() | 1)),
-                )
+                lib.mcu_keep_pc(self._uch_c, self._exc)
             return taken
         except BaseException as exc:  # stops the CPU; run raises it
             self.fail(exc)
@@ -419,11 +416,11 @@ class Cpu:
         """Enter every exception that may preempt now (the last one entered runs first);
         returns how many."""
         taken = 0
+        nvic = self.nvic
         while True:
-            if self.nvic.best_pending() is None:  # no register read for nothing to take
-                self.note_pending()
-                return taken
-            exception = self.nvic.takeable(self.primask)
+            exception = nvic.best_pending()
+            if exception is not None:  # no register read for nothing to take
+                exception = nvic.takeable(self.primask, exception)
             if exception is None:
                 self.note_pending()
                 return taken

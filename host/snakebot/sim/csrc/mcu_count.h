@@ -22,16 +22,20 @@ typedef struct {
     void *on_unmask;   /* int (*)(void): takes what is pending after an unmask (how many) */
 } mcu_counter;
 
-/* A peripheral's registers as the CPU reaches them: one register served here, in C, and
- * everything else by the Python model (read_fallback / write_fallback, ctypes callbacks of
+/* A peripheral's registers as the CPU reaches them: one or two registers served here, in C,
+ * and everything else by the Python model (read_fallback / write_fallback, ctypes callbacks of
  * unicorn's MMIO signatures). A USART's SR is read (value; a read arms the SR-then-DR
  * sequences in `armed`), the IWDG's KR written (a reload key while `running` notes the
  * time of the feed), on every pass of the firmware's main loop: in Python those accesses
- * would cost more than the rest of the emulation. */
+ * would cost more than the rest of the emulation. A USART's CR1 is read here too (the
+ * interrupt handler reads it on every byte). */
 typedef struct {
     uint32_t kind;           /* MCU_IO_USART_SR or MCU_IO_IWDG_KR */
     uint32_t value;          /* USART: SR, kept current by the model */
     uint32_t armed;          /* USART: bit 0 = error flags, bit 1 = TC (set by an SR read) */
+    uint32_t second_offset;  /* a second register read here (a USART's CR1) ... */
+    uint32_t second;         /* ... its value, kept current by the model ... */
+    uint32_t second_on;      /* ... while this is set (the clock is on; else the model reads) */
     uint32_t running;        /* IWDG: started */
     uint64_t feeds;          /* IWDG: reloads */
     double last_feed;        /* IWDG: time of the last reload (s), valid once feeds > 0 */

@@ -107,6 +107,7 @@ class Stm32f103:
         self.afio = Afio(self._apb2("AFIO"), strict=strict)
         self.usart1 = self._usart("USART1", USART1_BASE, USART1_IRQ, "apb2")
         self.usart3 = self._usart("USART3", USART3_BASE, USART3_IRQ, "apb1")
+        self.rcc.on_gate = self._clock_gates_changed
         self.iwdg = Iwdg(
             self.scheduler,
             self.now,
@@ -217,6 +218,10 @@ class Stm32f103:
         self.cpu.counter.pending = 1
         if self.cpu.running and self.nvic.best_pending() is not None:
             self.cpu.stop_soon()
+
+    def _clock_gates_changed(self) -> None:
+        self.usart1.clock_changed()
+        self.usart3.clock_changed()
 
     def _clocks_changed(self, clocks: Clocks) -> None:
         self._rebase()

@@ -46,6 +46,7 @@ from unicorn import (  # noqa: E402
 )
 from unicorn import arm_const as arm  # noqa: E402
 from unicorn.unicorn_py3.unicorn import (  # noqa: E402
+    HOOK_CODE_CFUNC,
     HOOK_INTR_CFUNC,
     MMIO_READ_CFUNC,
     MMIO_WRITE_CFUNC,
@@ -151,6 +152,7 @@ class Cpu:
         self._uch = uch
         self._uch_c = ffi.cast("void *", uch.value)
         self._hook_interrupts()
+        self._wfi_hook = HOOK_CODE_CFUNC(self._on_wfi)
         self._exc = ffi.new("mcu_exceptions *")
         for field, function in (
             ("reg_read_batch", uclib.uc_reg_read_batch),
@@ -186,22 +188,24 @@ class Cpu:
         self._exc.lowest_sp = value
 
     def _hook_interrupts(self) -> None:
-        # a ctypes callback of our own rather than Uc.hook_add's: three Python calls fewer
-        # on every exception return
-        callback = HOOK_INTR_CFUNC(self._on_interrupt)
+        self._python_hook(UC_HOOK_INTR, HOOK_INTR_CFUNC(self._on_interrupt), 1, 0)
+
+    def _python_hook(self, kind: int, callback: object, begin: int, end: int) -> None:
+        """Hook the ctypes ``callback`` (kept alive as long as the CPU): ours rather than
+        Uc.hook_add's, three Python calls fewer on every exception return and WFI."""
         self._io_callbacks.append((callback, None))
         handle = ctypes.c_size_t()
         status = uclib.uc_hook_add(
             self._uch,
             ctypes.byref(handle),
-            UC_HOOK_INTR,
+            kind,
             callback,
             None,
-            ctypes.c_uint64(1),
-            ctypes.c_uint64(0),
+            ctypes.c_uint64(begin),
+            ctypes.c_uint64(end),
         )
         if status != 0:
-            raise McuFault(f"unicorn refused the interrupt hook (error {status})")
+            raise McuFault(f"unicorn refused a hook (error {status})")
 
     def _hook_counter(self) -> None:
         self._native_hook(lib.mcu_count_instruction, 1, 0)
@@ -228,7 +232,7 @@ class Cpu:
         """Hook the image's ``wfi`` instructions and the instructions after each unmask."""
         for address in wfi:
             self._wfi_sites.add(address)
-            self.uc.hook_add(UC_HOOK_CODE, self._on_wfi, begin=address, end=address)
+            self._python_hook(UC_HOOK_CODE, self._wfi_hook, address, address)
         for address in after_unmask:
             self._native_hook(lib.mcu_after_unmask, address, address)
 
@@ -391,13 +395,16 @@ class Cpu:
             self.fail(exc)
             return 0
 
-    def _on_wfi(self, uc: Uc, address: int, size: int, _data: object) -> None:
+    def _on_wfi(self, _uc: int, _address: int, _size: int, _data: int) -> None:
         # the hook runs before the instruction: unicorn then halts after it (its WFI ends
         # the run); the CPU sleeps unless an exception is already waiting
-        if self.nvic.takeable(primask=False) is None:
-            self.sleeping = True
-            self.sleeps += 1
-        self._stopped_by = "wfi"
+        try:
+            if self.nvic.takeable(primask=False) is None:
+                self.sleeping = True
+                self.sleeps += 1
+            self._stopped_by = "wfi"
+        except BaseException as exc:  # stops the CPU; run raises it
+            self.fail(exc)
 
     def note_pending(self) -> None:
         """Tell the native hooks whether an exception is pending (a stale yes only costs a

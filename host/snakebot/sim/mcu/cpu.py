@@ -175,6 +175,11 @@ class Cpu:
         self._exit_request = False
         self._wfi_sites: set[int] = set()
         self._stopped_by: str | None = None
+        self._pc_next = ctypes.c_uint32()
+        self.on_sleep: Callable[[], bool] | None = None
+        """Called by a ``wfi`` that sleeps, inside the run: True if it let time pass up to
+        an exception that wakes the CPU, within the run (the CPU goes on); False to stop
+        and sleep as usual."""
         self._fault: int | None = None
         self.lowest_sp = 0xFFFF_FFFF
 
@@ -395,16 +400,27 @@ class Cpu:
             self.fail(exc)
             return 0
 
-    def _on_wfi(self, _uc: int, _address: int, _size: int, _data: int) -> None:
+    def _on_wfi(self, _uc: int, address: int, _size: int, _data: int) -> None:
         # the hook runs before the instruction: unicorn then halts after it (its WFI ends
         # the run); the CPU sleeps unless an exception is already waiting
         try:
             if self.nvic.takeable(primask=False) is None:
                 self.sleeping = True
                 self.sleeps += 1
+                if self.on_sleep is not None and self.on_sleep():
+                    self._wake_in_run(address)
             self._stopped_by = "wfi"
         except BaseException as exc:  # stops the CPU; run raises it
             self.fail(exc)
+
+    def _wake_in_run(self, address: int) -> None:
+        """``on_sleep`` woke the CPU within this run: the ``wfi`` at ``address`` is done
+        (counted, not executed, so unicorn does not halt) and what may preempt is taken."""
+        self.sleeping = False
+        self._pc_next.value = (address + 2) | 1
+        uclib.uc_reg_write(self._uch, arm.UC_ARM_REG_PC, ctypes.byref(self._pc_next))
+        if self.take_exceptions():
+            lib.mcu_keep_pc(self._uch_c, self._exc)
 
     def note_pending(self) -> None:
         """Tell the native hooks whether an exception is pending (a stale yes only costs a

@@ -209,3 +209,20 @@ int mcu_run(void *uc, mcu_exceptions *x, mcu_counter *c, uint64_t instructions)
     uint32_t pc = mcu_reg(uc, x, x->frame[FRAME_PC]) | 1u;
     return ((mcu_start_fn)x->emu_start)(uc, pc, 0, 0, 0);
 }
+
+int mcu_maybe_in_it_block(void *uc, mcu_exceptions *x)
+{
+    uint32_t pc = mcu_reg(uc, x, x->frame[FRAME_PC]) & ~1u;
+    uint8_t before[16];
+    if (pc < sizeof before ||
+        ((mcu_mem_fn)x->mem_read)(uc, pc - sizeof before, before, sizeof before) != 0) {
+        return 1;
+    }
+    for (unsigned i = 0; i < sizeof before; i += 2) {
+        /* IT: 0xBF00 | firstcond << 4 | mask, mask not 0 (0xBFx0 are hints) */
+        if (before[i + 1] == 0xBFu && (before[i] & 0x0Fu) != 0u) {
+            return 1;
+        }
+    }
+    return 0;
+}

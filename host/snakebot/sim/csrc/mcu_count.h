@@ -87,6 +87,10 @@ uint32_t mcu_reg(void *uc, mcu_exceptions *x, int reg);
 /* Write PC again on its own, from a code hook that entered an exception: unicorn keeps a
  * PC written by uc_reg_write there (a batch write leaves the hooked instruction's). */
 int mcu_keep_pc(void *uc, mcu_exceptions *x);
+/* Whether the instruction at PC may sit in an IT block (an IT instruction among the 8
+ * halfwords before it; a false yes is harmless): an exception must not be entered there
+ * from a hook, where unicorn's copy of the IT state is stale. */
+int mcu_maybe_in_it_block(void *uc, mcu_exceptions *x);
 /* Run the CPU from its PC for at most `instructions` (the counter's limit); unicorn's
  * status. */
 int mcu_run(void *uc, mcu_exceptions *x, mcu_counter *c, uint64_t instructions);

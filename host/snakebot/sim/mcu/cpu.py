@@ -387,11 +387,18 @@ class Cpu:
             self._enter(exception)
         self.note_pending()
 
+    def maybe_in_it_block(self) -> bool:
+        """Whether the next instruction may sit in an IT block (see mcu_count.h)."""
+        return bool(lib.mcu_maybe_in_it_block(self._uch_c, self._exc))
+
     def _on_unmask(self) -> int:
         # an unmasking instruction ran with an exception pending: take it here, before the
         # next instruction, without leaving emu_start (a stop costs a run of the machine);
         # PC is written again alone, as unicorn needs it from a code hook
         try:
+            if self.maybe_in_it_block():
+                self.stop_soon()  # taken when the CPU stops, with the IT state exact
+                return 0
             taken = self.take_exceptions()
             if taken:
                 lib.mcu_keep_pc(self._uch_c, self._exc)
@@ -407,7 +414,7 @@ class Cpu:
             if self.nvic.takeable(primask=False) is None:
                 self.sleeping = True
                 self.sleeps += 1
-                if self.on_sleep is not None and self.on_sleep():
+                if self.on_sleep is not None and not self.maybe_in_it_block() and self.on_sleep():
                     self._wake_in_run(address)
             self._stopped_by = "wfi"
         except BaseException as exc:  # stops the CPU; run raises it

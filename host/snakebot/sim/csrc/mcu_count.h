@@ -19,18 +19,23 @@ typedef struct {
     double t0;         /* the machine's time (s) when count was c0 */
     uint64_t c0;
     double hz;         /* instructions per second (HCLK) */
+    void *on_unmask;   /* int (*)(void): takes what is pending after an unmask (how many) */
 } mcu_counter;
 
-/* A peripheral's registers as the CPU reaches them: one register served here, in C, and
- * everything else by the Python model (read_fallback / write_fallback, ctypes callbacks of
+/* A peripheral's registers as the CPU reaches them: one or two registers served here, in C,
+ * and everything else by the Python model (read_fallback / write_fallback, ctypes callbacks of
  * unicorn's MMIO signatures). A USART's SR is read (value; a read arms the SR-then-DR
  * sequences in `armed`), the IWDG's KR written (a reload key while `running` notes the
  * time of the feed), on every pass of the firmware's main loop: in Python those accesses
- * would cost more than the rest of the emulation. */
+ * would cost more than the rest of the emulation. A USART's CR1 is read here too (the
+ * interrupt handler reads it on every byte). */
 typedef struct {
     uint32_t kind;           /* MCU_IO_USART_SR or MCU_IO_IWDG_KR */
     uint32_t value;          /* USART: SR, kept current by the model */
     uint32_t armed;          /* USART: bit 0 = error flags, bit 1 = TC (set by an SR read) */
+    uint32_t second_offset;  /* a second register read here (a USART's CR1) ... */
+    uint32_t second;         /* ... its value, kept current by the model ... */
+    uint32_t second_on;      /* ... while this is set (the clock is on; else the model reads) */
     uint32_t running;        /* IWDG: started */
     uint64_t feeds;          /* IWDG: reloads */
     double last_feed;        /* IWDG: time of the last reload (s), valid once feeds > 0 */
@@ -45,6 +50,50 @@ typedef struct {
 
 uint64_t mcu_io_read(void *uc, uint64_t offset, unsigned size, void *io);
 void mcu_io_write(void *uc, uint64_t offset, unsigned size, uint64_t value, void *io);
+
+/* Exception entry and return (ARMv7-M B1.5.6, B1.5.8) on the main stack, done here with
+ * unicorn's own functions (their addresses in `api`, register ids from unicorn's Python
+ * constants): in Python the register and memory calls of one entry cost more than the
+ * handler they start. The NVIC's decisions (which exception, priorities) stay in Python. */
+typedef struct {
+    void *reg_read_batch;   /* uc_reg_read_batch */
+    void *reg_write_batch;  /* uc_reg_write_batch */
+    void *mem_read;         /* uc_mem_read */
+    void *mem_write;        /* uc_mem_write */
+    void *reg_read;         /* uc_reg_read */
+    void *reg_write;        /* uc_reg_write */
+    void *emu_start;        /* uc_emu_start */
+    int frame[8];           /* r0-r3, r12, lr, pc, xpsr: the stacked frame's order */
+    int sp;                 /* the main stack pointer's register id */
+    uint32_t lowest_sp;     /* the lowest stack pointer an entry saw */
+    uint32_t exc_return;    /* the EXC_RETURN value of the last failed return */
+    uint32_t handler;       /* the vector of the last entry (kept when it is not Thumb) */
+} mcu_exceptions;
+
+#define MCU_EXC_OK 0
+#define MCU_EXC_NOT_THUMB 1    /* the vector does not hold a Thumb address */
+#define MCU_EXC_BAD_RETURN 2   /* EXC_RETURN other than handler / thread on MSP */
+#define MCU_EXC_MEMORY 3       /* unicorn refused a stack or vector access */
+
+/* Push the frame, aligned to 8 bytes (bit 9 of the stacked xPSR), and enter `exception`
+ * through the vector table at `vtor`; `ipsr` is the active exception's number (0: thread
+ * mode), stacked in xPSR and choosing EXC_RETURN. */
+int mcu_exception_enter(void *uc, mcu_exceptions *x, uint32_t exception, uint32_t vtor,
+                        uint32_t ipsr);
+/* Pop the frame of the branch to EXC_RETURN the CPU just made. */
+int mcu_exception_return(void *uc, mcu_exceptions *x);
+/* One register (0 if unicorn refuses). */
+uint32_t mcu_reg(void *uc, mcu_exceptions *x, int reg);
+/* Write PC again on its own, from a code hook that entered an exception: unicorn keeps a
+ * PC written by uc_reg_write there (a batch write leaves the hooked instruction's). */
+int mcu_keep_pc(void *uc, mcu_exceptions *x);
+/* Whether the instruction at PC may sit in an IT block (an IT instruction among the 8
+ * halfwords before it; a false yes is harmless): an exception must not be entered there
+ * from a hook, where unicorn's copy of the IT state is stale. */
+int mcu_maybe_in_it_block(void *uc, mcu_exceptions *x);
+/* Run the CPU from its PC for at most `instructions` (the counter's limit); unicorn's
+ * status. */
+int mcu_run(void *uc, mcu_exceptions *x, mcu_counter *c, uint64_t instructions);
 
 void mcu_count_instruction(void *uc, uint64_t address, uint32_t size, void *counter);
 void mcu_after_unmask(void *uc, uint64_t address, uint32_t size, void *counter);

@@ -17,14 +17,14 @@ exactly up to the next peripheral event. One instruction counts one cycle.
 Interrupts are looked at whenever the CPU stops: at an event, after a register write that
 pended or enabled one (the write lowers the limit so the CPU stops after it), and after
 every instruction that may unmask them (``cpsie i``, ``msr primask``), which are found in
-the image when it is loaded. ``wfi`` stops the CPU until an exception that could preempt
-is pending.
+the image when it is loaded: there a pending exception is taken from the hook on the next
+instruction, before it runs, without stopping the CPU. ``wfi`` stops the CPU until an
+exception that could preempt is pending.
 """
 
 from __future__ import annotations
 
 import ctypes
-import struct
 from collections.abc import Callable, Iterable
 
 from snakebot.extras import require
@@ -46,6 +46,8 @@ from unicorn import (  # noqa: E402
 )
 from unicorn import arm_const as arm  # noqa: E402
 from unicorn.unicorn_py3.unicorn import (  # noqa: E402
+    HOOK_CODE_CFUNC,
+    HOOK_INTR_CFUNC,
     MMIO_READ_CFUNC,
     MMIO_WRITE_CFUNC,
     uclib,
@@ -99,6 +101,11 @@ def unmasking_sites(code: bytes, base: int) -> tuple[list[int], list[int]]:
     return wfi, after
 
 
+def _native(function: object) -> object:
+    """A ctypes function of unicorn's library as a cffi ``void *``."""
+    return ffi.cast("void *", ctypes.cast(function, ctypes.c_void_p).value)
+
+
 class _Batch:
     """Reads or writes a fixed list of registers in one call to unicorn (its Python
     wrappers cost more than the emulation they wrap, at every exception)."""
@@ -134,30 +141,76 @@ class Cpu:
         self.uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
         self.nvic = nvic
         self.counter = ffi.new("mcu_counter *")
-        stop = ctypes.cast(uclib.uc_emu_stop, ctypes.c_void_p).value
-        self.counter.stop = ffi.cast("void *", stop)
+        self.counter.stop = _native(uclib.uc_emu_stop)
         self.counter.limit = 0
+        self._io_callbacks: list[tuple[object, object]] = []
         self._hook_counter()
-        self.uc.hook_add(UC_HOOK_INTR, self._on_interrupt)
+        unmask = ctypes.CFUNCTYPE(ctypes.c_int)(self._on_unmask)
+        self._io_callbacks.append((unmask, None))
+        self.counter.on_unmask = _native(unmask)
         uch = self.uc._uch
         self._uch = uch
-        self._frame = _Batch(uch, FRAME_REGS)
-        self._entry = _Batch(
-            uch, (arm.UC_ARM_REG_SP, arm.UC_ARM_REG_LR, arm.UC_ARM_REG_XPSR, arm.UC_ARM_REG_PC)
-        )
+        self._uch_c = ffi.cast("void *", uch.value)
+        self._hook_interrupts()
+        self._wfi_hook = HOOK_CODE_CFUNC(self._on_wfi)
+        self._exc = ffi.new("mcu_exceptions *")
+        for field, function in (
+            ("reg_read_batch", uclib.uc_reg_read_batch),
+            ("reg_write_batch", uclib.uc_reg_write_batch),
+            ("mem_read", uclib.uc_mem_read),
+            ("mem_write", uclib.uc_mem_write),
+            ("reg_read", uclib.uc_reg_read),
+            ("reg_write", uclib.uc_reg_write),
+            ("emu_start", uclib.uc_emu_start),
+        ):
+            setattr(self._exc, field, _native(function))
+        self._exc.frame = list(FRAME_REGS)
+        self._exc.sp = arm.UC_ARM_REG_SP
         self._sp = _Batch(uch, (arm.UC_ARM_REG_SP,))
-        self._pc = _Batch(uch, (arm.UC_ARM_REG_PC,))
         self._primask = _Batch(uch, (arm.UC_ARM_REG_PRIMASK,))
         self._word = ctypes.create_string_buffer(32)
-        self._io_callbacks: list[tuple[object, object]] = []
         self.running = False
         self.sleeping = False
         self.sleeps = 0
         self._exit_request = False
         self._wfi_sites: set[int] = set()
         self._stopped_by: str | None = None
+        self._pc_next = ctypes.c_uint32()
+        self.on_sleep: Callable[[], bool] | None = None
+        """Called by a ``wfi`` that sleeps, inside the run: True if it let time pass up to
+        an exception that wakes the CPU, within the run (the CPU goes on); False to stop
+        and sleep as usual."""
         self._fault: int | None = None
-        self.lowest_sp = 0xFFFF_FFFF  # the lowest main stack pointer an exception entry saw
+        self.lowest_sp = 0xFFFF_FFFF
+
+    @property
+    def lowest_sp(self) -> int:
+        """The lowest main stack pointer an exception entry saw."""
+        return int(self._exc.lowest_sp)
+
+    @lowest_sp.setter
+    def lowest_sp(self, value: int) -> None:
+        self._exc.lowest_sp = value
+
+    def _hook_interrupts(self) -> None:
+        self._python_hook(UC_HOOK_INTR, HOOK_INTR_CFUNC(self._on_interrupt), 1, 0)
+
+    def _python_hook(self, kind: int, callback: object, begin: int, end: int) -> None:
+        """Hook the ctypes ``callback`` (kept alive as long as the CPU): ours rather than
+        Uc.hook_add's, three Python calls fewer on every exception return and WFI."""
+        self._io_callbacks.append((callback, None))
+        handle = ctypes.c_size_t()
+        status = uclib.uc_hook_add(
+            self._uch,
+            ctypes.byref(handle),
+            kind,
+            callback,
+            None,
+            ctypes.c_uint64(begin),
+            ctypes.c_uint64(end),
+        )
+        if status != 0:
+            raise McuFault(f"unicorn refused a hook (error {status})")
 
     def _hook_counter(self) -> None:
         self._native_hook(lib.mcu_count_instruction, 1, 0)
@@ -184,7 +237,7 @@ class Cpu:
         """Hook the image's ``wfi`` instructions and the instructions after each unmask."""
         for address in wfi:
             self._wfi_sites.add(address)
-            self.uc.hook_add(UC_HOOK_CODE, self._on_wfi, begin=address, end=address)
+            self._python_hook(UC_HOOK_CODE, self._wfi_hook, address, address)
         for address in after_unmask:
             self._native_hook(lib.mcu_after_unmask, address, address)
 
@@ -246,11 +299,11 @@ class Cpu:
 
     @property
     def pc(self) -> int:
-        return self._pc.read_one()
+        return int(lib.mcu_reg(self._uch_c, self._exc, arm.UC_ARM_REG_PC))
 
     @property
     def primask(self) -> bool:
-        return bool(self._primask.read_one() & 1)
+        return bool(lib.mcu_reg(self._uch_c, self._exc, arm.UC_ARM_REG_PRIMASK) & 1)
 
     def set_primask(self, masked: bool) -> None:
         self._primask.write([1 if masked else 0])
@@ -291,13 +344,12 @@ class Cpu:
         """Run at most ``instructions`` instructions (fewer if something stops the CPU)."""
         if self.sleeping:
             return
-        self.counter.limit = self.counter.count + instructions
         self._exit_request = False
         self.running = True
         uc = self.uc
         uc._hook_exception = None
         try:
-            status = uclib.uc_emu_start(self._uch, self._pc.read_one() | 1, 0, 0, 0)
+            status = lib.mcu_run(self._uch_c, self._exc, self.counter, instructions)
         finally:
             self.running = False
         if uc._hook_exception is not None:
@@ -316,10 +368,16 @@ class Cpu:
                 "instruction, SVC or breakpoint: none is used by the firmware)"
             )
 
-    def _on_interrupt(self, uc: Uc, intno: int, _data: object) -> None:
+    def _on_interrupt(self, _uc: int, intno: int, _data: int) -> None:
+        try:
+            self._interrupt(intno)
+        except BaseException as exc:  # stops the CPU; run raises it
+            self.fail(exc)
+
+    def _interrupt(self, intno: int) -> None:
         if intno != EXCP_EXCEPTION_EXIT:
             self._fault = intno
-            uc.emu_stop()
+            uclib.uc_emu_stop(self._uch)
             return
         # the return (and a tail-chained entry) done here: writing PC from a hook makes
         # unicorn go on from there without leaving emu_start, which costs far more
@@ -329,13 +387,47 @@ class Cpu:
             self._enter(exception)
         self.note_pending()
 
-    def _on_wfi(self, uc: Uc, address: int, size: int, _data: object) -> None:
+    def maybe_in_it_block(self) -> bool:
+        """Whether the next instruction may sit in an IT block (see mcu_count.h)."""
+        return bool(lib.mcu_maybe_in_it_block(self._uch_c, self._exc))
+
+    def _on_unmask(self) -> int:
+        # an unmasking instruction ran with an exception pending: take it here, before the
+        # next instruction, without leaving emu_start (a stop costs a run of the machine);
+        # PC is written again alone, as unicorn needs it from a code hook
+        try:
+            if self.maybe_in_it_block():
+                self.stop_soon()  # taken when the CPU stops, with the IT state exact
+                return 0
+            taken = self.take_exceptions()
+            if taken:
+                lib.mcu_keep_pc(self._uch_c, self._exc)
+            return taken
+        except BaseException as exc:  # stops the CPU; run raises it
+            self.fail(exc)
+            return 0
+
+    def _on_wfi(self, _uc: int, address: int, _size: int, _data: int) -> None:
         # the hook runs before the instruction: unicorn then halts after it (its WFI ends
         # the run); the CPU sleeps unless an exception is already waiting
-        if self.nvic.takeable(primask=False) is None:
-            self.sleeping = True
-            self.sleeps += 1
-        self._stopped_by = "wfi"
+        try:
+            if self.nvic.takeable(primask=False) is None:
+                self.sleeping = True
+                self.sleeps += 1
+                if self.on_sleep is not None and not self.maybe_in_it_block() and self.on_sleep():
+                    self._wake_in_run(address)
+            self._stopped_by = "wfi"
+        except BaseException as exc:  # stops the CPU; run raises it
+            self.fail(exc)
+
+    def _wake_in_run(self, address: int) -> None:
+        """``on_sleep`` woke the CPU within this run: the ``wfi`` at ``address`` is done
+        (counted, not executed, so unicorn does not halt) and what may preempt is taken."""
+        self.sleeping = False
+        self._pc_next.value = (address + 2) | 1
+        uclib.uc_reg_write(self._uch, arm.UC_ARM_REG_PC, ctypes.byref(self._pc_next))
+        if self.take_exceptions():
+            lib.mcu_keep_pc(self._uch_c, self._exc)
 
     def note_pending(self) -> None:
         """Tell the native hooks whether an exception is pending (a stale yes only costs a
@@ -354,11 +446,11 @@ class Cpu:
         """Enter every exception that may preempt now (the last one entered runs first);
         returns how many."""
         taken = 0
+        nvic = self.nvic
         while True:
-            if self.nvic.best_pending() is None:  # no register read for nothing to take
-                self.note_pending()
-                return taken
-            exception = self.nvic.takeable(self.primask)
+            exception = nvic.best_pending()
+            if exception is not None:  # no register read for nothing to take
+                exception = nvic.takeable(self.primask, exception)
             if exception is None:
                 self.note_pending()
                 return taken
@@ -367,47 +459,34 @@ class Cpu:
             taken += 1
 
     def _enter(self, exception: int) -> None:
-        values = self._frame.read()
-        xpsr = values[-1] & ~XPSR_IPSR
-        if self.nvic.active:
-            xpsr |= self.nvic.active[-1] & XPSR_IPSR
-        sp = self._sp.read_one()
-        if sp & 4:
-            sp -= 4
-            xpsr |= XPSR_ALIGNED
-        else:
-            xpsr &= ~XPSR_ALIGNED
-        values[-1] = xpsr
-        sp -= 32
-        self.write_memory(sp, struct.pack("<8I", *values))
-        handler = self.read32(self.nvic.vtor + 4 * exception)
-        if not handler & 1:
+        nvic = self.nvic
+        ipsr = nvic.active[-1] & XPSR_IPSR if nvic.active else 0
+        status = lib.mcu_exception_enter(self._uch_c, self._exc, exception, nvic.vtor, ipsr)
+        if status == lib.MCU_EXC_NOT_THUMB:
             raise McuFault(
-                f"vector {exception} at 0x{self.nvic.vtor + 4 * exception:08X} holds "
-                f"0x{handler:08X}, not a Thumb address: is VTOR (0x{self.nvic.vtor:08X}) "
-                "pointing at the image's vector table?"
+                f"vector {exception} at 0x{nvic.vtor + 4 * exception:08X} holds "
+                f"0x{self._exc.handler:08X}, not a Thumb address: is VTOR "
+                f"(0x{nvic.vtor:08X}) pointing at the image's vector table?"
             )
-        nested = bool(self.nvic.active)
-        self.nvic.activate(exception)
-        lr = EXC_RETURN_HANDLER if nested else EXC_RETURN_THREAD_MSP
-        self._entry.write([sp, lr, 1 << 24, handler | 1])  # bit 0: stay in Thumb state
-        if sp < self.lowest_sp:
-            self.lowest_sp = sp
+        if status != lib.MCU_EXC_OK:
+            raise McuFault(
+                f"exception {exception}: the stack at 0x{self._sp.read_one():08X} "
+                "or the vector table is not in memory"
+            )
+        nvic.activate(exception)
 
     def _exception_return(self) -> None:
-        exc_return = self.pc | 1
-        if exc_return not in (EXC_RETURN_HANDLER, EXC_RETURN_THREAD_MSP) or not self.nvic.active:
+        status = lib.MCU_EXC_BAD_RETURN
+        if self.nvic.active:
+            status = lib.mcu_exception_return(self._uch_c, self._exc)
+        if status == lib.MCU_EXC_BAD_RETURN:
             raise McuFault(
-                f"exception return with EXC_RETURN 0x{exc_return:08X} and "
+                f"exception return with EXC_RETURN 0x{self.pc | 1:08X} and "
                 f"{len(self.nvic.active)} exception(s) active: only returns on the main "
                 "stack are modelled"
             )
-        sp = self._sp.read_one()
-        values = list(struct.unpack("<8I", self.read_memory(sp, 32)))
-        xpsr = values[-1]
-        sp += 32 + (4 if xpsr & XPSR_ALIGNED else 0)
-        values[-1] = (xpsr & ~(XPSR_IPSR | XPSR_ALIGNED)) | 1 << 24
-        values[6] |= 1  # Thumb: unicorn takes bit 0 of a written PC as the state
-        self._frame.write(values)
-        self._sp.write([sp])
+        if status != lib.MCU_EXC_OK:
+            raise McuFault(
+                f"exception return: the stack at 0x{self._sp.read_one():08X} is not in memory"
+            )
         self.nvic.deactivate()

@@ -76,6 +76,8 @@ class Stm32f103:
 
         self.nvic = Nvic(on_change=self._exception_may_be_due, on_reset=self._software_reset)
         self.cpu = Cpu(self.nvic)
+        self._t_end = 0.0  # where the current run_until ends
+        self.cpu.on_sleep = self._sleep_in_run
         self._clock = self.cpu.counter  # the time base lives beside the count (mcu_count.h)
         self._clock.t0 = 0.0
         self._clock.c0 = 0
@@ -107,6 +109,7 @@ class Stm32f103:
         self.afio = Afio(self._apb2("AFIO"), strict=strict)
         self.usart1 = self._usart("USART1", USART1_BASE, USART1_IRQ, "apb2")
         self.usart3 = self._usart("USART3", USART3_BASE, USART3_IRQ, "apb1")
+        self.rcc.on_gate = self._clock_gates_changed
         self.iwdg = Iwdg(
             self.scheduler,
             self.now,
@@ -218,6 +221,10 @@ class Stm32f103:
         if self.cpu.running and self.nvic.best_pending() is not None:
             self.cpu.stop_soon()
 
+    def _clock_gates_changed(self) -> None:
+        self.usart1.clock_changed()
+        self.usart3.clock_changed()
+
     def _clocks_changed(self, clocks: Clocks) -> None:
         self._rebase()
         self.flash.check_clock(clocks.sysclk)
@@ -291,6 +298,7 @@ class Stm32f103:
         """Run the chip until its time reaches ``t_end`` (seconds)."""
         cpu = self.cpu
         scheduler = self.scheduler
+        self._t_end = t_end
         while True:
             now = self.now()
             scheduler.run_due(now)
@@ -309,6 +317,30 @@ class Stm32f103:
                 continue
             cycles = math.ceil((stop - now) * self.hz - 1e-6)
             cpu.run(max(cycles, 1))
+
+    def _sleep_in_run(self) -> bool:
+        """The CPU sleeps (WFI) inside a run: as :meth:`run_until` would, time jumps from
+        event to event until one wakes the CPU, without leaving the run; then the run's
+        limit is set to the next event. False (stop, and sleep in run_until) if no event
+        before the run's end wakes it, or one asks for a reset."""
+        cpu, scheduler, t_end = self.cpu, self.scheduler, self._t_end
+        while True:
+            next_event = scheduler.next_time()
+            if next_event is None or next_event > t_end:
+                return False
+            now = self.now()
+            if next_event > now:
+                self._skip(next_event - now)
+            scheduler.run_due(self.now())
+            if self._reset_request is not None:
+                return False
+            if cpu.wake_if_due():
+                break
+        now = self.now()
+        next_event = scheduler.next_time()
+        stop = t_end if next_event is None or next_event > t_end else next_event
+        cpu.counter.limit = cpu.counter.count + max(math.ceil((stop - now) * self.hz - 1e-6), 1)
+        return True
 
     def irq_pending(self, irq: int) -> bool:
         return bool(self.nvic.pending >> (SYSTEM_EXCEPTIONS + irq) & 1)

@@ -47,6 +47,8 @@ ICSR_NMIPENDSET = 1 << 31
 VTOR_MASK = 0x3FFF_FF80
 CCR_RESET = 0x0000_0200  # STKALIGN: 8-byte aligned exception frames
 WORDS = (IRQ_COUNT + 31) // 32
+ALWAYS_ENABLED = sum(1 << e for e in (NMI, HARDFAULT, SVCALL, PENDSV, SYSTICK))
+"""The system exceptions that have no enable bit here (their handlers are always on)."""
 
 
 class Nvic(Peripheral):
@@ -105,32 +107,33 @@ class Nvic(Peripheral):
         return priority & ~((2 << self.prigroup) - 1) & 0xFF
 
     def execution_priority(self, primask: bool) -> int:
-        running = min((self.group(self.priority(e)) for e in self.active), default=NO_PRIORITY)
+        running = NO_PRIORITY
+        for e in self.active:
+            running = min(running, self.group(self.priority(e)))
         return min(running, 0) if primask else running
-
-    def _enabled(self, exception: int) -> bool:
-        if exception >= SYSTEM_EXCEPTIONS:
-            return bool(self.enabled >> (exception - SYSTEM_EXCEPTIONS) & 1)
-        return exception in (NMI, HARDFAULT, SVCALL, PENDSV, SYSTICK)
 
     def best_pending(self) -> int | None:
         """The pending, enabled exception that would be taken first, if any."""
+        bits = self.pending & (self.enabled << SYSTEM_EXCEPTIONS | ALWAYS_ENABLED)
+        if not bits:
+            return None
+        if not bits & (bits - 1):  # one: the usual case, no priorities to compare
+            return bits.bit_length() - 1
         best = None
         best_key = None
-        bits = self.pending
         while bits:
             low = bits & -bits
             exception = low.bit_length() - 1
             bits ^= low
-            if self._enabled(exception):
-                key = (self.priority(exception), exception)
-                if best_key is None or key < best_key:
-                    best, best_key = exception, key
+            key = (self.priority(exception), exception)
+            if best_key is None or key < best_key:
+                best, best_key = exception, key
         return best
 
-    def takeable(self, primask: bool) -> int | None:
-        """The exception to take now, if one may preempt what runs."""
-        exception = self.best_pending()
+    def takeable(self, primask: bool, best: int | None = None) -> int | None:
+        """The exception to take now, if one may preempt what runs (``best``: the
+        :meth:`best_pending` the caller already has)."""
+        exception = self.best_pending() if best is None else best
         if exception is None:
             return None
         if self.group(self.priority(exception)) < self.execution_priority(primask):

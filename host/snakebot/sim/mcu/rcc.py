@@ -64,7 +64,7 @@ class Clocks:
 class Rcc(Peripheral):
     """The clock tree. ``hse_hz``: the board's crystal (0: none fitted, the HSE never
     becomes ready). ``on_change`` is called with the new :class:`Clocks` whenever a
-    frequency changes."""
+    frequency changes, ``on_gate()`` whenever a peripheral clock enable is written."""
 
     name = "RCC"
 
@@ -82,6 +82,7 @@ class Rcc(Peripheral):
         self.now = now
         self.hse_hz = hse_hz
         self.on_change = on_change
+        self.on_gate: Callable[[], None] | None = None
         self.csr = CSR_POR | CSR_PIN  # a power-on reset
         self._pending: dict[int, Event] = {}
         self.reset()
@@ -170,10 +171,13 @@ class Rcc(Peripheral):
         elif offset == CIR:
             if value & 0x00FF_FF00:  # interrupt enables or clears: not modelled
                 self.unknown(offset, size, value)
-        elif offset == APB2ENR:
-            self.apb2enr = value & 0x0038_FFFD
-        elif offset == APB1ENR:
-            self.apb1enr = value & 0x3AFE_C9FF
+        elif offset in (APB2ENR, APB1ENR):
+            if offset == APB2ENR:
+                self.apb2enr = value & 0x0038_FFFD
+            else:
+                self.apb1enr = value & 0x3AFE_C9FF
+            if self.on_gate is not None:
+                self.on_gate()
         elif offset == AHBENR:
             self.ahbenr = value & 0x0000_0557
         elif offset == CSR:

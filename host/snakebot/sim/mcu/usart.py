@@ -71,6 +71,7 @@ class Usart(Peripheral):
         self.overruns = 0
         self.fast = ffi.new("mcu_fast_io *")  # SR as the CPU reads it (in C, see mcu_count.h)
         self.fast.kind = lib.MCU_IO_USART_SR
+        self.fast.second_offset = CR1  # read by the interrupt handler on every byte
         self._inbox: deque[int] = deque()
         self._feeding: Event | None = None
         self._shift_end: Event | None = None
@@ -89,6 +90,8 @@ class Usart(Peripheral):
         self.cr1 = self.cr2 = self.cr3 = 0
         self.fast.armed = 0  # bit 0: a DR read clears the error flags; bit 1: a DR write TC
         self.fast.value = self.sr
+        self.fast.second = 0
+        self.fast.second_on = 0
         self._line = False
         self.irq(False)
 
@@ -240,9 +243,17 @@ class Usart(Peripheral):
         else:
             self.tdr = value & 0xFF
 
+    def clock_changed(self) -> None:
+        """The RCC's enable bits were written: CR1 is read in C only while the clock is
+        on."""
+        self.fast.second_on = self.clock_on()
+
     def _update_irq(self) -> None:
         cr1, sr = self.cr1, self.sr
-        self.fast.value = sr
+        fast = self.fast
+        fast.value = sr
+        fast.second = cr1
+        fast.second_on = self.clock_on()
         level = bool(
             (cr1 & CR1_TXEIE and sr & TXE)
             or (cr1 & CR1_TCIE and sr & TC)

@@ -1,6 +1,16 @@
 """Shared pytest set-up."""
 
+import signal
+
 from hypothesis import HealthCheck, settings
+
+# The commands the tests start get a Ctrl-C the way a terminal's would reach them. A
+# suite started in the background (`make test &`, a CI job) runs with SIGINT ignored,
+# which exec passes on to every child, and a Python started so never takes Ctrl-C: the
+# Ctrl-C tests then wait for exits that never come. A handler here is reset to the
+# default in each child instead.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 # CI machines are shared and slow: no deadlines, but a fixed, generous example budget.
 settings.register_profile(

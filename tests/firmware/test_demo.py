@@ -55,7 +55,7 @@ def test_demo_json_reports_the_snake_advancing_and_writes_the_png(tmp_path, worl
     else:  # the prediction's own model: only the servos' lag separates them
         assert result["reason"] == {"servo lag": "servo lag", "the rest": "tracking error"}[larger]
         assert "physics" not in result
-        assert result["within_tolerance"]
+        assert result["within_tolerance"], (result["difference_m"], result["tolerance_m"])
     assert result["upload"]["crc"] == f"0x{zlib.crc32((out / 'demo.gait').read_bytes()):08x}"
     assert result["monitor"]
     assert all(m["controller"]["state"] == "PLAYING" for m in result["monitor"])

@@ -199,18 +199,7 @@ class Cpu:
         """Hook the ctypes ``callback`` (kept alive as long as the CPU): ours rather than
         Uc.hook_add's, three Python calls fewer on every exception return and WFI."""
         self._io_callbacks.append((callback, None))
-        handle = ctypes.c_size_t()
-        status = uclib.uc_hook_add(
-            self._uch,
-            ctypes.byref(handle),
-            kind,
-            callback,
-            None,
-            ctypes.c_uint64(begin),
-            ctypes.c_uint64(end),
-        )
-        if status != 0:
-            raise McuFault(f"unicorn refused a hook (error {status})")
+        _add_hook(self._uch, kind, callback, None, begin, end)
 
     def _hook_counter(self) -> None:
         self._native_hook(lib.mcu_count_instruction, 1, 0)
@@ -218,20 +207,9 @@ class Cpu:
     def _native_hook(self, function: object, begin: int, end: int) -> None:
         """Hook the C ``function`` (from ``snakebot._core``) on the instructions at
         ``begin``..``end``, with the counter as its data."""
-        handle = ctypes.c_size_t()
         callback = ctypes.c_void_p(int(ffi.cast("uintptr_t", function)))
         user = ctypes.c_void_p(int(ffi.cast("uintptr_t", self.counter)))
-        status = uclib.uc_hook_add(
-            self.uc._uch,
-            ctypes.byref(handle),
-            UC_HOOK_CODE,
-            callback,
-            user,
-            ctypes.c_uint64(begin),
-            ctypes.c_uint64(end),
-        )
-        if status != 0:
-            raise McuFault(f"unicorn refused a native hook (error {status})")
+        _add_hook(self.uc._uch, UC_HOOK_CODE, callback, user, begin, end)
 
     def watch(self, wfi: Iterable[int], after_unmask: Iterable[int]) -> None:
         """Hook the image's ``wfi`` instructions and the instructions after each unmask."""
@@ -490,3 +468,20 @@ class Cpu:
                 f"exception return: the stack at 0x{self._sp.read_one():08X} is not in memory"
             )
         self.nvic.deactivate()
+
+
+def _add_hook(uch: object, kind: int, callback: object, user: object, begin: int, end: int) -> None:
+    """unicorn's uc_hook_add of ``callback`` (with ``user`` as its data) on the addresses
+    ``begin``..``end`` (1, 0: all of them)."""
+    handle = ctypes.c_size_t()
+    status = uclib.uc_hook_add(
+        uch,
+        ctypes.byref(handle),
+        kind,
+        callback,
+        user,
+        ctypes.c_uint64(begin),
+        ctypes.c_uint64(end),
+    )
+    if status != 0:
+        raise McuFault(f"unicorn refused a hook (error {status})")

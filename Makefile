@@ -35,7 +35,7 @@ QEMU_JOBS   ?= $(shell nproc)
 SERIAL_JOBS ?= 3
 
 .PHONY: dist help setup system-packages demo-packages python-env runtime-env core firmware \
-        test test-summary test-suite test-collect test-parallel test-qemu test-serial test-fuzz test-wheel lint fuzz-targets bench demo flash flash-image clean fuzz docs
+        test test-summary test-suite test-collect test-parallel test-qemu test-serial test-fuzz-wheel test-fuzz test-wheel lint fuzz-targets bench demo flash flash-image clean fuzz docs
 
 help:
 	@echo "make demo      run the main job on the emulated robot (does its own set-up)"
@@ -108,13 +108,14 @@ firmware: demo-packages
 #   pacing its links in real time; then those marked `serial` (fault campaigns whose
 #   counts need QEMU to keep pace, real-time pty runs, dynamixel-sdk's fixed waits) on
 #   SERIAL_JOBS workers: they use little CPU, and keep pace beside one busy process but
-#   not beside a CPU-bound suite;
-#   beside the serial stage, the package check (it builds the wheel, then runs the demo
-#   from it in QEMU): the one busy process beside them;
+#   not beside a CPU-bound suite (a campaign's exact counts broke beside the package
+#   check), so they run alone;
 # - the two fuzzing passes one after the other, at a low priority (nice 10) on the
 #   cycles the tests leave: a pass lasts its fixed wall time whatever its priority, and
 #   still gets a share of the CPU beside busy processes (in the idle scheduling class
-#   it got none, and timed out, while two other processes kept both cores busy).
+#   it got none, and timed out, while two other processes kept both cores busy); then
+#   the package check (it builds the wheel, then runs the demo from it in QEMU), which
+#   ends while the first stage, as CPU-bound as it is, still runs.
 # Every lane but the first stage writes a log, shown whole if it fails and as one line if
 # not, so that outputs do not mix; the first stage prints its progress.
 # A stage that fails does not stop the others: each records its result in TEST_STATUS,
@@ -130,7 +131,7 @@ test: system-packages python-env
 	@rm -rf $(TEST_STATUS)
 	-$(Q)$(MAKE) --no-print-directory -k -j$(TEST_JOBS) lint firmware fuzz-targets test-collect; \
 	    $(call record,checks,$$?)
-	-$(Q)$(MAKE) --no-print-directory -k -j2 test-suite test-fuzz
+	-$(Q)$(MAKE) --no-print-directory -k -j2 test-suite test-fuzz-wheel
 	$(Q)$(MAKE) --no-print-directory test-summary
 
 test-summary:
@@ -142,7 +143,11 @@ test-summary:
 test-suite:
 	-$(Q)$(MAKE) --no-print-directory test-parallel
 	-$(Q)$(MAKE) --no-print-directory test-qemu
-	-$(Q)$(MAKE) --no-print-directory -k -j2 test-serial test-wheel
+	-$(Q)$(MAKE) --no-print-directory test-serial
+
+test-fuzz-wheel:
+	-$(Q)$(MAKE) --no-print-directory test-fuzz
+	-$(Q)$(MAKE) --no-print-directory test-wheel
 
 # Collecting the suite once beside the builds fills __pycache__ with the rewritten test
 # modules, which every pytest worker of the stages after it then reads instead of

@@ -1,7 +1,11 @@
 """Shared pytest set-up."""
 
+import os
 import signal
+import tty
+from collections.abc import Iterator
 
+import pytest
 from hypothesis import HealthCheck, settings
 
 # The commands the tests start get a Ctrl-C the way a terminal's would reach them. A
@@ -26,3 +30,13 @@ from controller_cli_support import controller, controller_with_table, old_table 
 from other_user import shared_tmp  # noqa: E402
 
 __all__ = ["controller", "controller_with_table", "old_table", "shared_tmp"]
+
+
+@pytest.fixture
+def pty_device() -> Iterator[str]:
+    """A pseudo-terminal's device path (raw mode), a port that nothing answers on."""
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    yield os.ttyname(slave)
+    os.close(master)
+    os.close(slave)

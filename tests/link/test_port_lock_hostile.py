@@ -7,8 +7,6 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import tty
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -20,15 +18,6 @@ from snakebot.link.transport.portlock import LOCK_DIR_NAME, lock_path
 from snakebot.link.transport.ports import open_port
 
 PRECIOUS = b"the victim's data\n"
-
-
-@pytest.fixture
-def pty_device() -> Iterator[str]:
-    master, slave = os.openpty()
-    tty.setraw(slave)
-    yield os.ttyname(slave)
-    os.close(master)
-    os.close(slave)
 
 
 def _lock_name(device: str) -> str:

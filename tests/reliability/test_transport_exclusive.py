@@ -7,23 +7,12 @@ import fcntl
 import os
 import subprocess
 import sys
-import tty
-from collections.abc import Iterator
 
 import pytest
 
 from snakebot.link.transport import DxlClient
 from snakebot.link.transport.errors import PortError
 from snakebot.link.transport.ports import open_port
-
-
-@pytest.fixture
-def pty_device() -> Iterator[str]:
-    master, slave = os.openpty()
-    tty.setraw(slave)
-    yield os.ttyname(slave)
-    os.close(master)
-    os.close(slave)
 
 
 def test_a_second_opener_in_the_same_process_is_refused(pty_device):

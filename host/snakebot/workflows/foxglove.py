@@ -210,6 +210,11 @@ class LiveMessages:
         return transforms
 
 
+DRAIN_S = 0.25
+"""How long the server keeps going after the last message it was given before it stops:
+time for its send queues to reach the clients on this machine or the local network."""
+
+
 class FoxgloveLive:
     """A Foxglove WebSocket server on ``host``:``port`` (0: any free port, see
     :attr:`port`) sending :class:`LiveMessages` of ``robot``, and an MCAP file of the
@@ -230,6 +235,7 @@ class FoxgloveLive:
         import foxglove
 
         self.messages = messages if messages is not None else LiveMessages(robot)
+        self._last_sent: float | None = None
         self._mcap = foxglove.open_mcap(str(mcap), allow_overwrite=True) if mcap else None
         title = f"snakebot {robot.name}" if robot is not None else name
         try:
@@ -280,8 +286,13 @@ class FoxgloveLive:
             channel = self.channels[topic]
             if channel.has_sinks():
                 channel.log(message, log_time=log_ns)
+                self._last_sent = time.monotonic()
 
     def close(self) -> None:
+        """Stop the server once what was last sent had time to reach its clients (the
+        server drops what it has not sent yet when it stops, and has no flush)."""
+        if self._last_sent is not None:
+            time.sleep(max(0.0, self._last_sent + DRAIN_S - time.monotonic()))
         self.server.stop()
         for channel in self.channels.values():
             channel.close()

@@ -223,10 +223,12 @@ flash-image: demo-packages runtime-env firmware
 dist: python-env
 	$(Q)$(PY) -m build --outdir dist .
 
-# API reference from the docstrings; the prose documents are docs/*.md.
+# API reference from the docstrings; the prose documents are docs/*.md. Without pdoc's
+# "View Source" panes: highlighting the source of every member was half its time, and the
+# source is in the repository.
 DOCS_DIR ?= build/docs
 docs: python-env
-	$(PY) -m pdoc --docformat restructuredtext -o $(DOCS_DIR) snakebot '!snakebot\._'
+	$(PY) -m pdoc --no-show-source --docformat restructuredtext -o $(DOCS_DIR) snakebot '!snakebot\._'
 
 clean:
 	rm -rf build dist $(VENV) host/*.egg-info

@@ -7,8 +7,11 @@ import random
 import time
 from collections.abc import Callable
 
-from snakebot.link.controller import Command, ControllerErrors, UploadResult
+from snakebot.facts.boards import CONTROL_TICK_MS
+from snakebot.link.controller import Command, ControllerErrors, State, UploadResult
+from snakebot.link.controller.limits import wait_settled
 from snakebot.link.controller.monitor import Sample
+from snakebot.link.controller.playback import RUNTIME_REFUSALS, refusal_reason
 from tests.reliability.rig.campaigns.outcome import Outcome
 from tests.reliability.rig.campaigns.rig import Rig
 from tests.reliability.rig.campaigns.testbed import (
@@ -21,15 +24,30 @@ from tests.reliability.rig.campaigns.testbed import (
     gait_table,
 )
 
+PLAY_TRIES = 5
+
 
 def start_steered(rig: Rig, out: Outcome) -> None:
-    """Upload the table, steer it against the limits, play."""
+    """Upload the table, steer it against the limits, play. As `snakebot play` does, PLAY
+    waits while the controller checks the servos' limits (Limits State APPLYING: after
+    the roster is set, and whenever an audit READ finds a limit changed, as a damaged
+    packet can make it); one refused for a runtime reason (that, or the safe state a
+    fault can cause before PLAY) is sent again after a CLEAR, as an operator does."""
     result = rig.upload(gait_table())
     if result != UploadResult.OK:
         raise CampaignFailed(f"the campaign's own table was refused: Upload Result {result}")
     rig.started_polling()
     rig.write({"Steering Offset": STEERING})
-    rig.command(Command.PLAY)
+    for tries in range(1, PLAY_TRIES + 1):
+        wait_settled(rig.ctl)
+        rig.command(Command.PLAY)
+        if rig.ctl.read("State")["State"] == State.PLAYING:
+            break
+        name, _ = refusal_reason(rig.ctl)
+        if name not in RUNTIME_REFUSALS or tries == PLAY_TRIES:
+            raise CampaignFailed(f"the campaign's table did not play: Refusal Reason {name}")
+        rig.command(Command.CLEAR)  # as the operator does; the next refusal shows anew
+    out.counts["play_tries"] = tries
     rig.check_table("after commit")
 
 
@@ -107,13 +125,17 @@ def common_checks(rig: Rig, out: Outcome, last: Sample) -> None:
     )
     polled = rig.last_polled
     if polled is not None and all(j.timeout_count < 255 for j in polled.servos):
-        # the registers, then the servo window a moment later: at most a READ or two apart
+        # the registers, then the servo window a moment later: at most the READs of the
+        # ticks in between apart (one READ a tick; the firmware's clock runs no faster
+        # than the host's, however long a busy host makes that moment)
         per_servo = sum(j.timeout_count for j in polled.servos)
         then = polled.registers["Bus Timeouts"]
+        between = 2 + int(rig.last_polled_s * 1000 / CONTROL_TICK_MS)
         out.check(
             "counted",
-            then <= per_servo <= then + 2,
-            f"per-servo Timeout Counts sum to {per_servo}, Bus Timeouts was {then}",
+            then <= per_servo <= then + between,
+            f"per-servo Timeout Counts sum to {per_servo}, Bus Timeouts was {then} "
+            f"(at most {between} READs apart)",
         )
 
 
@@ -159,15 +181,28 @@ def clean(rig: Rig, out: Outcome) -> None:
     play_under(3.0)(rig, out)
 
 
+LATE_AT_MOST = 0.01
+"""The share of READs a healthy run may see unanswered: the emulated servos answer in the
+host's time, and a host that holds them up past the firmware's 30 ms reply window makes
+a reply too late to count (a Bus Timeout, rightly). A firmware that lost replies itself
+would lose far more than this."""
+
+
 def after_clean(rig: Rig, out: Outcome, last: Sample) -> None:
-    """Nothing is lost or damaged in a healthy run. A reply that reaches the firmware
-    after its 30 ms window (a busy host) is rightly a Bus Timeout: reported as late."""
+    """Nothing is damaged in a healthy run, and no reply lost beyond what a busy host can
+    make late (each one a Bus Timeout: the common checks account for every READ)."""
     r, tap = last.registers, rig.tap
+    late = tap.reads_sent - tap.reads_answered
+    out.counts["replies_late_by_the_host"] = late
     out.check(
         "counted",
-        tap.reads_answered == tap.reads_sent and r["Bus Errors"] == 0 and r["PC Errors"] == 0,
-        f"a healthy run lost {tap.reads_sent - tap.reads_answered} replies and counted "
-        f"{r['Bus Errors']} bus errors, {r['PC Errors']} PC errors",
+        r["Bus Errors"] == 0 and r["PC Errors"] == 0,
+        f"a healthy run counted {r['Bus Errors']} bus errors, {r['PC Errors']} PC errors",
+    )
+    out.check(
+        "counted",
+        late <= max(1, int(LATE_AT_MOST * tap.reads_sent)),
+        f"a healthy run lost {late} of {tap.reads_sent} replies",
     )
     out.check("alive", rig.health.safe_entries == 0, "a healthy run went SAFE")
 

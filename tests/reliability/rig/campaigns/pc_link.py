@@ -65,32 +65,69 @@ class PcLinkModel:
         return events
 
 
+BURSTS = 40
+DISTURBED_AT_MOST = BURSTS // 4
+"""Bursts the host may disturb (see :func:`pc_noise`) before the campaign gives up on
+the run as a measurement: rerun on an idle machine."""
+RESET_WAIT_S = 2.0
+"""How long a burst waits for the firmware to drop a partial packet (100 ms of the
+firmware's time, however late the host gets to run it)."""
+
+
+def _noise(rng: random.Random) -> bytes:
+    size = rng.randint(1, 24)
+    if rng.random() < 0.5:
+        return bytes(rng.getrandbits(8) for _ in range(size))
+    # FF-rich: fake headers and length bytes
+    return bytes(
+        rng.choice((0xFF, 0xFF, 0x00, CONTROLLER_ID, 0x02, 0x04, 0xF0)) for _ in range(size)
+    )
+
+
+def _gap_resets(rig: Rig) -> int:
+    return rig.ram_probe()["pc_gap_resets"]
+
+
+def _wait_gap_reset(rig: Rig, target: int) -> None:
+    """Until the firmware has dropped ``target`` partial packets since it started."""
+    end = time.monotonic() + RESET_WAIT_S
+    while _gap_resets(rig) < target and time.monotonic() < end:
+        time.sleep(0.02)
+
+
 def pc_noise(rig: Rig, out: Outcome) -> None:
     """Noise bursts on the PC link while the table plays; each is followed at once by a
-    PING, or first by a pause (the firmware drops a partial packet after 100 ms)."""
+    PING, or first by a pause (the firmware drops a partial packet after 100 ms).
+
+    Each burst is judged on its own: the counters before and after it against what the
+    parser rule predicts. The firmware counts the partial packets it drops after its
+    100 ms gap (``pc_gap_resets``, read from RAM), so a burst whose bytes the host let
+    sit for 100 ms (a busy machine stalled QEMU or the client mid-burst) shows as one
+    drop more than the burst asks for; such a burst says nothing about the parser and
+    is counted as disturbed, not judged. Where a burst asks for a drop, it waits until
+    the firmware has made it, however late."""
     start_steered(rig, out)
     rng = random.Random(f"{out.seed}/pc-noise")
     ctl = rig.ctl
     link = ctl.link
-    base = ctl.read("PC Packets", "PC Errors")
     model = PcLinkModel()
-    expected = Counter()
-    predicted_wrong = 0
-    bursts = noise_bytes = answered = 0
-    for _ in range(40):
-        size = rng.randint(1, 24)
-        if rng.random() < 0.5:
-            noise = bytes(rng.getrandbits(8) for _ in range(size))
-        else:  # FF-rich: fake headers and length bytes
-            noise = bytes(
-                rng.choice((0xFF, 0xFF, 0x00, CONTROLLER_ID, 0x02, 0x04, 0xF0)) for _ in range(size)
-            )
-        bursts += 1
+    counters = ctl.read("PC Packets", "PC Errors")
+    resets = _gap_resets(rig)
+    wrong: list[str] = []
+    predicted_wrong = disturbed = 0
+    noise_bytes = answered = errors_expected = 0
+    for burst in range(BURSTS):
+        model.reset()  # a burst starts on a clean parser: the one before ended on one
+        expected: Counter[str] = Counter()
+        drops = 0
+        noise = _noise(rng)
         noise_bytes += len(noise)
         link.port.write(noise)
         expected.update(type(e).__name__ for e in model.feed(noise))
-        if rng.random() < 0.4:
-            time.sleep(0.15)  # past PCLINK_GAP_MS: the firmware drops what it holds
+        if rng.random() < 0.4:  # a pause past the firmware's gap
+            if model.parser.pending:
+                drops += 1
+                _wait_gap_reset(rig, resets + drops)
             model.reset()
         ping = protocol.ping(CONTROLLER_ID)
         events = model.feed(ping)
@@ -101,36 +138,43 @@ def pc_noise(rig: Rig, out: Outcome) -> None:
             did_answer = True
         except ProtocolError:
             did_answer = False
-        answered += did_answer
-        predicted_wrong += did_answer != will_answer
-        if not did_answer:
-            model.reset()  # the client waited past the firmware's 100 ms gap
+        if not did_answer and model.parser.pending:
+            drops += 1  # the PING sits in a candidate the gap drops
+            _wait_gap_reset(rig, resets + drops)
         rig.check_alive()  # its PING is one more packet, parsed from a clean state
-        expected["Packet"] += 1
-    time.sleep(0.15)  # nothing left pending
-    after = ctl.read("PC Packets", "PC Errors")
-    expected["Packet"] += 1  # this READ itself
-    got_packets = (after["PC Packets"] - base["PC Packets"]) & 0xFFFF
-    got_errors = (after["PC Errors"] - base["PC Errors"]) & 0xFFFF
+        after = ctl.read("PC Packets", "PC Errors")
+        now_resets = _gap_resets(rig)
+        expected["Packet"] += 2  # check_alive's PING and this READ
+        got_errors = (after["PC Errors"] - counters["PC Errors"]) & 0xFFFF
+        got_packets = (after["PC Packets"] - counters["PC Packets"]) & 0xFFFF
+        got_drops = (now_resets - resets) & 0xFFFF
+        counters, resets = after, now_resets
+        answered += did_answer
+        if got_drops != drops or (will_answer and not did_answer):
+            disturbed += 1  # the host let bytes sit past the gap, or a reply came late
+            continue
+        errors_expected += expected["Rejected"]
+        predicted_wrong += did_answer != will_answer
+        if (got_errors, got_packets) != (expected["Rejected"], expected["Packet"]):
+            wrong.append(
+                f"burst {burst} ({noise.hex()}): PC Errors +{got_errors} for "
+                f"{expected['Rejected']}, PC Packets +{got_packets} for {expected['Packet']}"
+            )
     out.counts.update(
-        noise_bursts=bursts,
+        noise_bursts=BURSTS,
         noise_bytes=noise_bytes,
+        bursts_disturbed_by_the_host=disturbed,
         pings_through_noise=answered,
-        pc_errors_expected=expected["Rejected"],
-        pc_errors_counted=got_errors,
-        pc_packets_expected=expected["Packet"],
-        pc_packets_counted=got_packets,
+        pc_errors_expected=errors_expected,
+        bursts_counted_otherwise=len(wrong),
     )
     out.check(
         "counted",
-        got_errors == expected["Rejected"],
-        f"PC Errors grew by {got_errors}, the noise must cause {expected['Rejected']}",
+        disturbed <= DISTURBED_AT_MOST,
+        f"the host disturbed {disturbed} of {BURSTS} bursts (bytes left past the firmware's "
+        "100 ms gap, or replies late): not a measurement, rerun on an idle machine",
     )
-    out.check(
-        "counted",
-        got_packets == expected["Packet"],
-        f"PC Packets grew by {got_packets}, expected {expected['Packet']}",
-    )
+    out.check("counted", not wrong, "; ".join(wrong[:3]))
     out.check(
         "counted",
         predicted_wrong == 0,

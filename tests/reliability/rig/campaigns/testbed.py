@@ -26,7 +26,6 @@ FRAMES = np.array([[724, 320, 724], [300, 700, 300], [512, 510, 512], [700, 330,
 PERIOD_MS = 150
 STEERING = 150  # ticks added to every goal: half the goals would leave the limits unclamped
 CONTROLLER_ID = load().default_id
-MARGIN_S = 0.3  # the PC-link client's allowance beyond the wire time (QEMU may be slow)
 SAMPLE_S = 0.1  # how often the watch loop looks
 STALL_MS = 100  # ten control ticks without a bus packet while the roster is polled
 UPTIME_SLACK_MS = 500  # SysTick counts QEMU's virtual time, which never runs ahead of ours

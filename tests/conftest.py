@@ -40,3 +40,28 @@ def pty_device() -> Iterator[str]:
     yield os.ttyname(slave)
     os.close(master)
     os.close(slave)
+
+
+STAGE_FILES = "SNAKEBOT_STAGE_FILES"
+"""A directory: a collection of the whole suite then writes there the test files each stage
+of `make test` runs (``stage-parallel``, ``stage-qemu``, ``stage-serial``, one path a
+line), so that each stage's workers import only those files, not all two hundred."""
+
+
+def stage_of(item: pytest.Item) -> str:
+    marks = {m.name for m in item.iter_markers()}
+    return "serial" if "serial" in marks else "qemu" if "qemu" in marks else "parallel"
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    out = os.environ.get(STAGE_FILES)
+    if not out:
+        return
+    root = session.config.rootpath
+    stages: dict[str, set[str]] = {"parallel": set(), "qemu": set(), "serial": set()}
+    for item in session.items:
+        stages[stage_of(item)].add(str(item.path.relative_to(root)))
+    os.makedirs(out, exist_ok=True)
+    for name, files in stages.items():
+        with open(os.path.join(out, f"stage-{name}"), "w", encoding="utf-8") as f:
+            f.write("".join(f"{path}\n" for path in sorted(files)))

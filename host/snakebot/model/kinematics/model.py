@@ -118,7 +118,8 @@ def body_velocity(
     code = lib.kin_body_velocity(
         c_robot(robot, friction), dptr(qa), dptr(da), dptr(xi), dptr(slip), rcond
     )
-    check(code, f"{robot.name} at q = {np.array2string(qa, precision=4)}")
+    if code != lib.KIN_OK:  # the message formats q: only when there is one
+        check(code, f"{robot.name} at q = {np.array2string(qa, precision=4)}")
     return BodyVelocity(xi, slip, float(rcond[0]))
 
 
@@ -146,7 +147,8 @@ def quasi_static(
     code = lib.kin_quasi_static(
         c_robot(robot, friction), dptr(qa), dptr(da), dptr(xi), dptr(force), dptr(torque)
     )
-    check(code, f"{robot.name} at q = {np.array2string(qa, precision=4)}")
+    if code != lib.KIN_OK:  # the message formats q: only when there is one
+        check(code, f"{robot.name} at q = {np.array2string(qa, precision=4)}")
     return QuasiStatic(xi, force[0::2].copy(), force[1::2].copy(), torque)
 
 
@@ -247,7 +249,8 @@ def fields(robot: Robot, q: np.ndarray, form: str | None = None) -> FieldSet:
     form_name = form or default_form(robot)
     if code == lib.KIN_ESINGULAR:
         return FieldSet(robot.name, form_name, qa, names, None, float(det[0]), True)
-    check(code, f"{robot.name} at q = {qa}")
+    if code != lib.KIN_OK:  # the message formats q: only when there is one
+        check(code, f"{robot.name} at q = {qa}")
     exact = det_g_star(robot, float(det[0]))
     return FieldSet(robot.name, form_name, qa, names, out, float(det[0]), False, exact)
 
@@ -261,10 +264,9 @@ def field_velocity(
     m = 2 if robot.kind == "snake" else 3
     qa, ua = as_doubles(q, n, "q"), as_doubles(u, m, "u")
     qdot = np.empty(n)
-    check(
-        lib.kin_field_velocity(
-            c_robot(robot), _c_form(robot, form), dptr(qa), dptr(ua), dptr(qdot)
-        ),
-        f"{robot.name} at q = {qa}",
+    code = lib.kin_field_velocity(
+        c_robot(robot), _c_form(robot, form), dptr(qa), dptr(ua), dptr(qdot)
     )
+    if code != lib.KIN_OK:  # the message formats q: only when there is one
+        check(code, f"{robot.name} at q = {qa}")
     return qdot

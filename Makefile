@@ -72,8 +72,8 @@ demo-packages:
 
 # .venv in two layers: the runtime with what the demo uses (the `physics` extra for its
 # MuJoCo world, `plot` for its picture), then the dev extras (tests, lint, benchmarks).
-runtime-env: $(VENV)/.runtime $(VENV)/.core
-python-env: $(VENV)/.dev $(VENV)/.core
+runtime-env: $(VENV)/.runtime $(CORE_LIB)
+python-env: $(VENV)/.dev $(CORE_LIB)
 
 $(VENV)/.venv:
 	$(Q)test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -88,12 +88,14 @@ $(VENV)/.dev: $(VENV)/.runtime
 	$(Q)$(PIP) install $(PIP_QUIET) --no-build-isolation -e '.[dev]'
 	$(Q)touch $@
 
-# Rebuilds snakebot._core when the C core changes.
-$(VENV)/.core: $(VENV)/.runtime $(CORE_FILES) host/snakebot/_core_build.py
+# Rebuilds snakebot._core when the C core changes, or when the library itself is gone (the
+# target is the library, not a stamp beside it).
+CORE_LIB := host/snakebot/_core.abi3.so
+$(CORE_LIB): $(VENV)/.runtime $(CORE_FILES) host/snakebot/_core_build.py
 	$(Q)$(PIP) install $(PIP_QUIET) --no-build-isolation --no-deps -e .
 	$(Q)touch $@
 
-core: $(VENV)/.core
+core: $(CORE_LIB)
 
 firmware: demo-packages
 	$(Q)$(MAKE) --no-print-directory -C firmware

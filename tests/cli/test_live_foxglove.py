@@ -13,7 +13,8 @@ from controller_cli_support import cli, cli_json
 from foxglove_client import Listener, free_port
 from physics_support import snake5_serpenoid_file
 
-from snakebot.formats.live_topics import CHANNELS
+from snakebot.formats.live_topics import JSON_CHANNELS, TOPICS
+from snakebot.link.controller.mcap_log import TOPIC as TELEMETRY
 from snakebot.model.robots import load_robot
 
 pytest.importorskip("foxglove")
@@ -43,7 +44,7 @@ def test_monitor_streams_what_it_prints_and_records_the_same_channels(
     assert result.exit_code == 0, result.output
     assert f"ws://127.0.0.1:{port}" in result.stderr
     printed = {r["t"]: r for r in map(json.loads, result.stdout.splitlines())}
-    assert set(CHANNELS) <= set(listener.channels)
+    assert set(TOPICS) <= set(listener.channels)
     servos = by_stamp(listener.messages["/snakebot/servos"])
     assert len(servos) >= 10
     moving = set()
@@ -78,8 +79,15 @@ def test_monitor_streams_what_it_prints_and_records_the_same_channels(
         summary = reader.get_summary()
         recorded = {c.topic: summary.schemas[c.schema_id] for c in summary.channels.values()}
         counts = summary.statistics.channel_message_counts
-    for topic, channel in listener.channels.items():  # the live server's schemas, as served
-        assert recorded[topic].name == channel["schemaName"]
+    # the JSON topics, with the live server's schemas as served (not /scene: a controller
+    # has no bodies to draw)
+    assert set(recorded) == {TELEMETRY, *JSON_CHANNELS}
+    for topic in JSON_CHANNELS:
+        channel = listener.channels[topic]
+        assert (recorded[topic].name, recorded[topic].encoding) == (
+            channel["schemaName"],
+            channel["schemaEncoding"],
+        )
         assert json.loads(recorded[topic].data) == json.loads(channel["schema"])
     topics = {c.topic: counts.get(i, 0) for i, c in summary.channels.items()}
     assert all(topics[t] == len(printed) for t in SERVO_TOPICS)

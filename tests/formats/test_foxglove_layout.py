@@ -10,7 +10,7 @@ from click.testing import CliRunner
 
 from snakebot.cli import main
 from snakebot.formats.gaittable.layout import MAX_JOINTS
-from snakebot.formats.live_topics import CHANNELS, JOINT_STATES, ROBOT_DESCRIPTION, SCENE
+from snakebot.formats.live_topics import JOINT_STATES, ROBOT_DESCRIPTION, SCENE, TOPICS
 
 
 def test_the_written_layout_reads_only_the_served_topics(tmp_path):
@@ -26,7 +26,7 @@ def test_the_written_layout_reads_only_the_served_topics(tmp_path):
     text = json.dumps(panels)
     topics = set(re.findall(r'"(/[a-z_/]+)(?:[.\[]|")', text))
     topics -= {"/move_base_simple/goal", "/clicked_point", "/initialpose"}  # 3-D panel's own
-    assert topics and topics <= set(CHANNELS)
+    assert topics and topics <= set(TOPICS)
     three_d = next(v for k, v in panels.items() if k.startswith("3D!"))
     urdf = [layer for layer in three_d["layers"].values() if layer["layerId"] == "foxglove.Urdf"]
     assert urdf[0]["topic"] == ROBOT_DESCRIPTION and SCENE in three_d["topics"]

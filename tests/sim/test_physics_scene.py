@@ -1,13 +1,14 @@
 """The physics world's bodies as a 3-D scene (Foxglove's /scene on `sim serve --world
 mujoco`): real MuJoCo; each geom in its link's frame, which the live /tf (the world's pose
-and the joint angles through the exported URDF) carries to where MuJoCo has it."""
+and the joint angles through the exported URDF) carries to where MuJoCo has it; the scene
+is the foxglove-sdk's own SceneUpdate, read back through its protobuf schema."""
 
 from __future__ import annotations
 
 import math
 
-import numpy as np
 import pytest
+from foxglove_client import in_frame, protobuf_class
 
 from snakebot.facts import devices
 from snakebot.formats.live_topics import ODOM, JointSample, scene_message
@@ -18,27 +19,11 @@ from snakebot.workflows.foxglove import LiveMessages
 from snakebot.workflows.predict import sim_url
 
 pytest.importorskip("mujoco")
+pytest.importorskip("foxglove")
+pytest.importorskip("google.protobuf")
 SNAKE5 = load_robot("snake5")
 GOAL_POSITION = devices.ax12().register("Goal Position").address
 BENT = [0.4, -0.3, 0.2, -0.5]  # rad, joint by joint
-
-
-def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Vector ``v`` rotated by quaternion ``q`` (x, y, z, w)."""
-    u, w = q[:3], q[3]
-    return v + 2 * np.cross(u, np.cross(u, v) + w * v)
-
-
-def times(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    (ax, ay, az, aw), (bx, by, bz, bw) = a, b
-    return np.array(
-        [
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-            aw * bw - ax * bx - ay * by - az * bz,
-        ]
-    )
 
 
 def test_the_scene_rides_the_transforms_to_where_mujoco_has_the_bodies():
@@ -60,16 +45,7 @@ def test_the_scene_rides_the_transforms_to_where_mujoco_has_the_bodies():
     joints = JointSample(names, angles, angles, [0.0] * 4, [0.0] * 4, [0] * 4)
     messages = dict(LiveMessages(SNAKE5).moment(2.5, joints, pose, scene=shapes))
     frames = {t["child_frame_id"]: t for t in messages["/tf"]["transforms"]}
-
-    def in_odom(frame: str, point: np.ndarray) -> np.ndarray:
-        while frame != ODOM:
-            t = frames[frame]
-            q = np.array([t["rotation"][k] for k in "xyzw"])
-            point = rotate(q, point) + np.array([t["translation"][k] for k in "xyz"])
-            frame = t["parent_frame_id"]
-        return point
-
-    drawn = [in_odom(s.frame, np.array(s.position)) for s in shapes]
+    drawn = [in_frame(frames, s.frame, s.position, ODOM) for s in shapes]
     # every geom MuJoCo has (but the floor), once, where MuJoCo has it (to the base's
     # height, which /tf takes as the wheel radius)
     robot_geoms = [p for g, p in where.items() if world.model.geom_bodyid[g] != 0]
@@ -80,7 +56,30 @@ def test_the_scene_rides_the_transforms_to_where_mujoco_has_the_bodies():
     assert [s.frame for s in links] == ["base", "link2", "link3", "link4", "link5"]
     assert links[0].size[0] == pytest.approx(2 * SNAKE5.l * SNAKE5.physics.unit_m)
 
-    scene = messages["/scene"]
-    assert {e["frame_id"] for e in scene["entities"]} == {s.frame for s in shapes}
-    assert all(e["frame_locked"] for e in scene["entities"])
-    assert scene == scene_message(2.5, shapes)
+    sent = messages["/scene"]
+    schema = sent.get_schema()
+    assert (schema.name, schema.encoding) == ("foxglove.SceneUpdate", "protobuf")
+    scene = protobuf_class(schema.name, schema.data).FromString(sent.encode())
+    assert [e.frame_id for e in scene.entities] == list(dict.fromkeys(s.frame for s in shapes))
+    assert all(e.frame_locked and e.id == f"robot/{e.frame_id}" for e in scene.entities)
+    assert all((e.timestamp.seconds, e.timestamp.nanos) == (2, 500_000_000) for e in scene.entities)
+
+    def xyz(v):
+        return (v.x, v.y, v.z)
+
+    primitives = sorted(
+        (
+            e.frame_id,
+            kind,
+            xyz(p.size),
+            xyz(p.pose.position),
+            (*xyz(p.pose.orientation), p.pose.orientation.w),
+        )
+        for e in scene.entities
+        for kind, group in (("cube", e.cubes), ("cylinder", e.cylinders), ("sphere", e.spheres))
+        for p in group
+    )
+    assert primitives == sorted(
+        (s.frame, s.kind, s.size, s.position, s.orientation) for s in shapes
+    )
+    assert sent.encode() == scene_message(2.5, shapes).encode()  # made alike each time

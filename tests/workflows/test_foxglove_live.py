@@ -4,6 +4,7 @@ reader for the file written beside."""
 
 from __future__ import annotations
 
+import base64
 import math
 import threading
 import time
@@ -11,11 +12,12 @@ import time
 import pytest
 from foxglove_client import SUBPROTOCOLS, advertised, decode, subscribe
 
-from snakebot.formats.live_topics import CHANNELS, JointSample, Shape
+from snakebot.formats.live_topics import JSON_CHANNELS, TOPICS, JointSample, Shape
 from snakebot.model.robots import load_robot
 from snakebot.workflows.foxglove import FoxgloveLive, FoxgloveOptionError, parse_endpoint
 
 pytest.importorskip("foxglove")
+pytest.importorskip("google.protobuf")
 websockets_sync = pytest.importorskip("websockets.sync.client")
 SNAKE5 = load_robot("snake5")
 
@@ -33,6 +35,7 @@ def sample(k: int) -> JointSample:
 
 
 BOX = Shape("cube", (0.14, 0.035, 0.035), (0.07, 0.0, 0.04), (0.0, 0.0, 0.0, 1.0))
+WHEEL = Shape("cylinder", (0.04, 0.04, 0.01), (0.0, 0.0, 0.0), (-0.7071, 0.0, 0.0, 0.7071), "axle")
 
 
 @pytest.fixture()
@@ -42,14 +45,18 @@ def live(tmp_path):
     server.close()
 
 
-def test_a_client_sees_the_channels_and_decodes_the_joint_states(live, tmp_path):
+def test_a_client_sees_the_channels_and_decodes_the_joints_and_the_scene(live, tmp_path):
     stop = threading.Event()
 
     def publish():
         k = 0
         while not stop.is_set():
             live.publish(
-                0.02 * k, sample(k % 5), (0.1, 0.2, math.pi / 2), {"state": "playing"}, [BOX]
+                0.02 * k,
+                sample(k % 5),
+                (0.1, 0.2, math.pi / 2),
+                {"state": "playing"},
+                [BOX, WHEEL],
             )
             k += 1
             time.sleep(0.02)
@@ -59,13 +66,19 @@ def test_a_client_sees_the_channels_and_decodes_the_joint_states(live, tmp_path)
     ) as ws:
         assert ws.subprotocol in SUBPROTOCOLS
         assert ws.recv(timeout=10)  # serverInfo
-        channels = advertised(ws, set(CHANNELS))
-        assert set(channels) == set(CHANNELS)
-        assert channels["/joint_states"]["encoding"] == "json"
+        channels = advertised(ws, set(TOPICS))
+        assert set(channels) == set(TOPICS)
+        assert {channels[t]["encoding"] for t in JSON_CHANNELS} == {"json"}
+        # the bodies in Foxglove's own SceneUpdate: the SDK's protobuf schema
+        scene_channel = channels["/scene"]
+        assert (scene_channel["encoding"], scene_channel["schemaName"]) == (
+            "protobuf",
+            "foxglove.SceneUpdate",
+        )
         wanted = subscribe(ws, channels, ["/joint_states", "/snakebot/servos", "/tf", "/scene"])
         thread = threading.Thread(target=publish, daemon=True)
         thread.start()
-        got: dict[str, dict] = {}
+        got: dict = {}
         try:
             deadline = time.monotonic() + 10
             while len(got) < len(wanted) and time.monotonic() < deadline:
@@ -90,20 +103,35 @@ def test_a_client_sees_the_channels_and_decodes_the_joint_states(live, tmp_path)
     assert base["translation"]["x"] == pytest.approx(0.1)  # snake5 is in metres
     assert base["rotation"]["z"] == pytest.approx(math.sin(math.pi / 4))
     assert {"link2", "wheel1"} <= set(frames)  # the links, for the URDF in the 3-D panel
-    (entity,) = got["/scene"]["entities"]
-    assert entity["frame_id"] == "odom" and not entity["cylinders"]
-    (cube,) = entity["cubes"]
-    assert cube["size"] == {"x": 0.14, "y": 0.035, "z": 0.035}
-    assert cube["pose"]["position"]["z"] == pytest.approx(0.04)
+    odom, axle = got["/scene"].entities  # one entity per frame, locked to it
+    assert (odom.id, odom.frame_id, odom.frame_locked) == ("robot/odom", "odom", True)
+    assert (axle.id, axle.frame_id, axle.frame_locked) == ("robot/axle", "axle", True)
+    assert not odom.cylinders and not axle.cubes and not odom.spheres
+    (cube,) = odom.cubes
+    assert (cube.size.x, cube.size.y, cube.size.z) == pytest.approx(BOX.size)
+    assert cube.pose.position.z == pytest.approx(0.04) and cube.pose.orientation.w == 1
+    assert cube.color.a == 1  # drawn, not transparent
+    (wheel,) = axle.cylinders
+    assert (wheel.size.x, wheel.size.y, wheel.size.z) == pytest.approx(WHEEL.size)
+    assert (wheel.bottom_scale, wheel.top_scale) == (1, 1)  # a cylinder, not a cone
+    assert wheel.pose.orientation.x == pytest.approx(-0.7071)
 
     live.close()
     from mcap.reader import make_reader
 
     with open(tmp_path / "live.mcap", "rb") as f:
         summary = make_reader(f).get_summary()
-    topics = {c.topic for c in summary.channels.values()}
-    assert topics == set(CHANNELS)
+    recorded = {c.topic: (c, summary.schemas[c.schema_id]) for c in summary.channels.values()}
+    assert set(recorded) == set(TOPICS)
     assert all(n >= 1 for n in summary.statistics.channel_message_counts.values())
+    for topic, (channel, schema) in recorded.items():  # the file has what the server served
+        served = channels[topic]
+        assert (channel.message_encoding, schema.name) == (served["encoding"], served["schemaName"])
+        assert schema.encoding == served["schemaEncoding"]
+        data = served["schema"]
+        assert schema.data == (
+            base64.b64decode(data) if schema.encoding == "protobuf" else data.encode()
+        )
 
 
 @pytest.mark.parametrize(

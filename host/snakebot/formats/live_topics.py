@@ -1,7 +1,7 @@
 """The robot's live topics: what a Foxglove WebSocket server streams and what an MCAP
-recording holds, on ROS 2's topic names and message shapes, each described once by its
-JSON schema (``snakebot.workflows.foxglove`` serves them, ``snakebot monitor --mcap``
-records them, ``snakebot foxglove-layout`` lays them out).
+recording holds, on ROS 2's topic names and message shapes, each named and described once
+here (``snakebot.workflows.foxglove`` serves them, ``snakebot monitor --mcap`` records
+them, ``snakebot foxglove-layout`` lays them out).
 
 - ``/joint_states``: ``sensor_msgs/JointState``-shaped: the joints' names, present
   angles (rad), speeds (rad/s) and efforts (N m: the load times the stall torque; empty
@@ -18,7 +18,11 @@ records them, ``snakebot foxglove-layout`` lays them out).
   each locked to its link's frame (so ``/tf`` moves them), where a physics world has them;
   sent once a second, as the bodies do not change.
 
-Every message is JSON; the helpers below build them from plain numbers.
+Every topic but ``/scene`` is JSON, described by its JSON schema below
+(:data:`JSON_CHANNELS`). ``/scene`` is Foxglove's own message, the ``foxglove-sdk``'s
+typed ``SceneUpdate`` (:data:`SDK_CHANNELS`): its schema (protobuf) is the SDK's, not a
+copy of ours, so the 3-D panel gets exactly what it reads. The helpers below build the
+messages from plain numbers.
 """
 
 from __future__ import annotations
@@ -26,7 +30,11 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from functools import partial
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from foxglove.messages import SceneUpdate
 
 ODOM, BASE = "odom", "base"
 """The fixed frame and the body's frame."""
@@ -50,8 +58,6 @@ def _object(**properties: Any) -> dict[str, Any]:
 TIME = _object(sec={"type": "integer"}, nanosec={"type": "integer"})
 VECTOR = _object(**{k: {"type": "number"} for k in "xyz"})
 QUATERNION = _object(**{k: {"type": "number"} for k in "xyzw"})
-POSE = _object(position=VECTOR, orientation=QUATERNION)
-COLOR = _object(**{k: {"type": "number"} for k in "rgba"})
 
 JOINT_STATE_SCHEMA = {
     "title": "sensor_msgs/JointState",
@@ -89,46 +95,22 @@ STRING_SCHEMA = {"title": "std_msgs/String", **_object(data={"type": "string"})}
 CONTROLLER_SCHEMA = {"title": "snakebot/Controller", "type": "object"}
 
 
-def _primitives(size: dict[str, Any]) -> dict[str, Any]:
-    return {"type": "array", "items": _object(pose=POSE, **size, color=COLOR)}
-
-
-SCENE_SCHEMA = {
-    "title": "foxglove.SceneUpdate",
-    **_object(
-        deletions={"type": "array", "items": {"type": "object"}},
-        entities={
-            "type": "array",
-            "items": _object(
-                timestamp=TIME,
-                frame_id={"type": "string"},
-                id={"type": "string"},
-                lifetime=TIME,
-                frame_locked={"type": "boolean"},
-                metadata={"type": "array", "items": {"type": "object"}},
-                cubes=_primitives({"size": VECTOR}),
-                spheres=_primitives({"size": VECTOR}),
-                cylinders=_primitives(
-                    {
-                        "size": VECTOR,
-                        "bottom_scale": {"type": "number"},
-                        "top_scale": {"type": "number"},
-                    }
-                ),
-            ),
-        },
-    ),
-}
-
-CHANNELS: dict[str, tuple[str, dict[str, Any]]] = {
+JSON_CHANNELS: dict[str, tuple[str, dict[str, Any]]] = {
     JOINT_STATES: ("sensor_msgs/msg/JointState", JOINT_STATE_SCHEMA),
     SERVOS: ("snakebot/Servos", SERVOS_SCHEMA),
     CONTROLLER: ("snakebot/Controller", CONTROLLER_SCHEMA),
     TF: ("foxglove.FrameTransforms", TF_SCHEMA),
     ROBOT_DESCRIPTION: ("std_msgs/msg/String", STRING_SCHEMA),
-    SCENE: ("foxglove.SceneUpdate", SCENE_SCHEMA),
 }
-"""Topic -> (schema name, JSON schema): every topic, served and recorded alike."""
+"""The JSON topics: topic -> (schema name, JSON schema), served and recorded alike."""
+
+SDK_CHANNELS: dict[str, str] = {SCENE: "SceneUpdate"}
+"""The topics of Foxglove's own messages: topic -> the message's name in the
+``foxglove-sdk`` (``foxglove.messages.<name>``, sent on ``foxglove.channels.<name>Channel``,
+which carries the SDK's schema and encoding)."""
+
+TOPICS: tuple[str, ...] = (*JSON_CHANNELS, *SDK_CHANNELS)
+"""Every live topic."""
 
 
 @dataclass(frozen=True)
@@ -211,41 +193,57 @@ class Shape:
     frame: str = ODOM
 
 
-ROBOT_COLOR = {"r": 0.2, "g": 0.45, "b": 0.85, "a": 1.0}
+ROBOT_COLOR = (0.2, 0.45, 0.85, 1.0)
+"""The bodies' colour: red, green, blue, alpha."""
 
 
-def scene_message(seconds: float, shapes: Sequence[Shape], entity: str = "robot") -> dict:
-    """A ``foxglove.SceneUpdate``: one entity ``entity/FRAME`` per frame of ``shapes``,
-    locked to that frame (the transforms on ``/tf`` carry it), replacing the last."""
-    frames: dict[str, dict[str, list[dict[str, Any]]]] = {}
-    for s in shapes:
-        groups = frames.setdefault(s.frame, {"cubes": [], "cylinders": [], "spheres": []})
-        primitive: dict[str, Any] = {
-            "pose": {
-                "position": dict(zip("xyz", s.position, strict=True)),
-                "orientation": dict(zip("xyzw", s.orientation, strict=True)),
-            },
-            "size": dict(zip("xyz", s.size, strict=True)),
-            "color": ROBOT_COLOR,
-        }
-        if s.kind == "cylinder":
-            primitive |= {"bottom_scale": 1.0, "top_scale": 1.0}
-        groups[f"{s.kind}s"].append(primitive)
-    return {
-        "deletions": [],
-        "entities": [
-            {
-                "timestamp": stamp(seconds),
-                "frame_id": frame,
-                "id": f"{entity}/{frame}",
-                "lifetime": {"sec": 0, "nanosec": 0},
-                "frame_locked": True,
-                "metadata": [],
-                **groups,
-            }
-            for frame, groups in frames.items()
-        ],
+def scene_message(seconds: float, shapes: Sequence[Shape], entity: str = "robot") -> SceneUpdate:
+    """The ``foxglove-sdk``'s ``SceneUpdate`` of ``shapes``: one entity ``entity/FRAME``
+    per frame, locked to that frame (the transforms on ``/tf`` carry it), replacing the
+    last (it needs the ``foxglove-sdk`` package, as the server that sends it does)."""
+    from foxglove.messages import (
+        Color,
+        CubePrimitive,
+        CylinderPrimitive,
+        Pose,
+        Quaternion,
+        SceneEntity,
+        SceneUpdate,
+        SpherePrimitive,
+        Timestamp,
+        Vector3,
+    )
+
+    primitives: dict[str, tuple[str, Any]] = {
+        "cube": ("cubes", CubePrimitive),
+        "sphere": ("spheres", SpherePrimitive),
+        # a straight cylinder: the same scale at both ends
+        "cylinder": ("cylinders", partial(CylinderPrimitive, bottom_scale=1.0, top_scale=1.0)),
     }
+    color = Color(**dict(zip("rgba", ROBOT_COLOR, strict=True)))
+    frames: dict[str, dict[str, list[Any]]] = {}
+    for s in shapes:
+        group, primitive = primitives[s.kind]
+        pose = Pose(
+            position=Vector3(**dict(zip("xyz", s.position, strict=True))),
+            orientation=Quaternion(**dict(zip("xyzw", s.orientation, strict=True))),
+        )
+        size = Vector3(**dict(zip("xyz", s.size, strict=True)))
+        groups = frames.setdefault(s.frame, {g: [] for g, _ in primitives.values()})
+        groups[group].append(primitive(pose=pose, size=size, color=color))
+    when = stamp(seconds)
+    return SceneUpdate(
+        entities=[
+            SceneEntity(
+                timestamp=Timestamp(when["sec"], when["nanosec"]),
+                frame_id=frame,
+                id=f"{entity}/{frame}",
+                frame_locked=True,
+                **groups,
+            )
+            for frame, groups in frames.items()
+        ]
+    )
 
 
 LAYOUT = "foxglove_layout.json"

@@ -1,7 +1,7 @@
 """The robot live in Foxglove: a Foxglove WebSocket server (the ``foxglove-sdk`` package)
 streaming the topics of :mod:`snakebot.formats.live_topics` (ROS 2's names and message
-shapes, so a ROS 2 user's tools read them); the same channels go into an MCAP file when
-one is asked for.
+shapes, so a ROS 2 user's tools read them, and Foxglove's own typed ``SceneUpdate`` for
+the bodies); the same channels go into an MCAP file when one is asked for.
 
 The body's pose is the emulator's where there is one; on a real robot it is predicted
 from the joint angles as they come (:class:`PosePredictor`, the kinematic model).
@@ -25,11 +25,13 @@ import numpy as np
 from snakebot.errors import InputError
 from snakebot.extras import available, require
 from snakebot.formats.live_topics import (
-    CHANNELS,
     CONTROLLER,
+    JSON_CHANNELS,
     ROBOT_DESCRIPTION,
     SCENE,
+    SDK_CHANNELS,
     TF,
+    TOPICS,
     JointSample,
     Shape,
     body_transform,
@@ -132,8 +134,9 @@ def robot_urdf(robot: Robot) -> str | None:
     return export_urdf(robot)
 
 
-Message = tuple[str, dict[str, Any]]
-"""A topic and one message on it."""
+Message = tuple[str, Any]
+"""A topic and one message on it: a JSON object, or on the topics of
+:data:`~snakebot.formats.live_topics.SDK_CHANNELS` the ``foxglove-sdk``'s message."""
 
 
 class LiveMessages:
@@ -156,7 +159,7 @@ class LiveMessages:
         pose: Sequence[float] | None = None,
         controller: Mapping[str, Any] | None = None,
         scene: Sequence[Shape] | None = None,
-        topics: Container[str] = CHANNELS,
+        topics: Container[str] = TOPICS,
     ) -> list[Message]:
         """One moment on ``topics`` (default: all): the joints, the body's ``pose`` (x, y
         in the robot's units, theta) if known, the controller's state; the first time and
@@ -233,6 +236,7 @@ class FoxgloveLive:
     ) -> None:
         require("foxglove", "the Foxglove server", extra="live", params=("foxglove",))
         import foxglove
+        import foxglove.channels
 
         self.messages = messages if messages is not None else LiveMessages(robot)
         self._last_sent: float | None = None
@@ -247,7 +251,7 @@ class FoxgloveLive:
                 f"the Foxglove server cannot listen on {host}:{port} ({exc}): choose another "
                 "port (0 takes any free one)"
             ).about("foxglove") from None
-        self.channels = {
+        self.channels: dict[str, Any] = {
             topic: foxglove.Channel(
                 topic,
                 schema=foxglove.Schema(
@@ -255,8 +259,11 @@ class FoxgloveLive:
                 ),
                 message_encoding="json",
             )
-            for topic, (schema_name, schema) in CHANNELS.items()
+            for topic, (schema_name, schema) in JSON_CHANNELS.items()
         }
+        # Foxglove's own messages on the SDK's typed channels: its schema, not a copy
+        for topic, message in SDK_CHANNELS.items():
+            self.channels[topic] = getattr(foxglove.channels, f"{message}Channel")(topic)
 
     @property
     def port(self) -> int:

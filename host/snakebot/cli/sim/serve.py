@@ -62,7 +62,10 @@ long it serves (the pose reports need only the latest)."""
     show_default=True,
     help="Seconds between lines giving the body's pose in the world (0: never).",
 )
-@foxglove_option("the emulated robot (its pose from the world; on mujoco its bodies on /scene)")
+@foxglove_option(
+    "the emulated robot (its pose from the world; on mujoco its bodies on /scene, as "
+    "Foxglove's own SceneUpdate)"
+)
 @json_option("first where everything is (pc_link, bus_socket, qemu_pid, ...), then the body's pose")
 def serve(
     robot: str,

@@ -1,9 +1,11 @@
 """Telemetry samples as an MCAP file (for Foxglove and PlotJuggler): one JSON message per
 sample on ``/snakebot/telemetry`` (what ``--json`` prints, which ``snakebot compare``
-reads), and the live topics of :mod:`snakebot.formats.live_topics` (``/joint_states``,
-``/snakebot/servos``, ``/snakebot/controller``, ``/tf``, ...) with the schemas a live
-Foxglove server advertises, each described by its JSON Schema, stamped with the wall
-clock. Needs the optional ``mcap`` package (``pip install 'snakebot[record]'``)."""
+reads), and the JSON live topics of :mod:`snakebot.formats.live_topics`
+(``/joint_states``, ``/snakebot/servos``, ``/snakebot/controller``, ``/tf``, ...) with the
+schemas a live Foxglove server advertises, each described by its JSON Schema, stamped with
+the wall clock. The bodies' ``/scene`` is not among them: a controller's telemetry has no
+physics world to draw. Needs the optional ``mcap`` package
+(``pip install 'snakebot[record]'``)."""
 
 from __future__ import annotations
 
@@ -13,7 +15,7 @@ from types import TracebackType
 from typing import IO, Any
 
 from snakebot.errors import InputError
-from snakebot.formats.live_topics import CHANNELS
+from snakebot.formats.live_topics import JSON_CHANNELS
 
 TOPIC = "/snakebot/telemetry"
 SCHEMA_NAME = "snakebot.Telemetry"
@@ -60,7 +62,7 @@ class McapLog:
                     name=name, encoding="jsonschema", data=json.dumps(schema).encode()
                 ),
             )
-            for topic, (name, schema) in {TOPIC: (SCHEMA_NAME, SCHEMA), **CHANNELS}.items()
+            for topic, (name, schema) in {TOPIC: (SCHEMA_NAME, SCHEMA), **JSON_CHANNELS}.items()
         }
         self._writer.flush()  # the header, schema and channel: a cut file still reads
         self._flushed = time.monotonic()
@@ -70,7 +72,7 @@ class McapLog:
         self.log(TOPIC, record, stamp_ns)
 
     def log(self, topic: str, message: dict[str, Any], stamp_ns: int | None = None) -> None:
-        """One message on ``topic`` (the telemetry's or a live topic), at ``stamp_ns``
+        """One message on ``topic`` (the telemetry's or a JSON live topic), at ``stamp_ns``
         (default: now). The chunk in progress is written out once it is :data:`FLUSH_S`
         old, so a file cut by a kill holds every message but those of the last second."""
         stamp = time.time_ns() if stamp_ns is None else stamp_ns

@@ -9,6 +9,7 @@ import re
 import signal
 import subprocess
 import sys
+import threading
 import zlib
 
 import pytest
@@ -56,6 +57,8 @@ def test_demo_json_reports_the_snake_advancing_and_writes_the_png(tmp_path, worl
         assert result["reason"] == {"servo lag": "servo lag", "the rest": "tracking error"}[larger]
         assert "physics" not in result
         assert result["within_tolerance"], (result["difference_m"], result["tolerance_m"])
+        assert result["verdict"] == "AGREE"
+    assert result["pacing"]["steady"], result["pacing"]  # exit 0: the run was valid
     assert result["upload"]["crc"] == f"0x{zlib.crc32((out / 'demo.gait').read_bytes()):08x}"
     assert result["monitor"]
     assert all(m["controller"]["state"] == "PLAYING" for m in result["monitor"])
@@ -96,3 +99,54 @@ def test_ctrl_c_stops_the_demo_and_leaves_nothing_running(tmp_path):
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+
+
+PAUSE_S = 0.4  # longer than a steady run's goals ever stand still (STILL_LIMIT_S)
+PAUSE_EVERY_S = 1.0
+
+
+def test_a_run_the_host_disturbs_is_invalid_not_a_disagreement(tmp_path):
+    """QEMU stopped (SIGSTOP) for 0.4 s every second while the firmware plays, as a busy
+    host deschedules it: the report says the run is INVALID and why, exit 1, and gives
+    no AGREE or DISAGREE."""
+    build_firmware()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "snakebot", "demo", "--world", "kinematic", "--cycles", "1"]
+        + ["--out", str(tmp_path)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    done = threading.Event()
+
+    def disturb(pid: int) -> None:
+        while not done.wait(PAUSE_EVERY_S - PAUSE_S):
+            try:
+                os.kill(pid, signal.SIGSTOP)
+                done.wait(PAUSE_S)
+                os.kill(pid, signal.SIGCONT)
+            except ProcessLookupError:
+                return
+
+    try:
+        assert proc.stdout is not None
+        printed = []
+        for line in proc.stdout:
+            printed.append(line)
+            if found := re.search(r"QEMU \(pid (\d+)\)", line):
+                qemu_pid = int(found.group(1))
+            if "monitoring" in line:
+                threading.Thread(target=disturb, args=(qemu_pid,), daemon=True).start()
+                break
+        out, err = proc.communicate(timeout=DEMO_TIMEOUT_S)
+    finally:
+        done.set()
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    report = "".join(printed) + out
+    assert proc.returncode == 1, report + err
+    verdict = next(line for line in report.splitlines() if "verdict:" in line)
+    assert verdict.startswith("5. verdict: INVALID (the host"), verdict
+    assert "stood still" in verdict and "rerun on an idle machine" in verdict, verdict
+    assert "AGREE" not in report  # neither AGREE nor DISAGREE

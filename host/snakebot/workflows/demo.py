@@ -82,6 +82,16 @@ STALL_FACTOR = 3.0
 RESIDUAL_SAFETY = 2.0
 """Factor on the residual-error term of the tolerance (see the module docstring)."""
 
+STILL_LIMIT_S = 0.25
+"""Longest the firmware's goals may stand still in the measured cycles for a valid run.
+On an idle machine they change every 10-20 ms and stand still 60 ms at most; a host that
+deschedules QEMU stops them for hundreds of milliseconds (see :class:`Pacing`)."""
+
+LEAP_LIMIT_FRAMES = 3.0
+"""Most table frames the goals may advance between two samples (10 ms) for a valid run.
+Idle, they advance about half a frame and never more than 1.1 frames; after QEMU was
+descheduled they jump 8-9 frames at once, a chord the servos cut across the table's path."""
+
 Say = Callable[[str], None]
 
 
@@ -179,6 +189,61 @@ def predicted_motion(
     return played.trajectory.q[:, :3]
 
 
+@dataclass(frozen=True)
+class Pacing:
+    """How steadily the firmware's goals went through the table in the measured cycles,
+    on the bus clock (wall time): the longest the goals stood still (s) and the most
+    frames they advanced between two samples. The comparison assumes a steady pace: the
+    servos then follow the table's path, late by their lag. A host that deschedules QEMU
+    (or the emulator's threads) breaks that: the goals stop, the servos catch up and
+    stop, then the goals leap ahead and the servos cut across the path; neither the lag
+    nor the tolerance accounts for that, so the run says nothing about the prediction."""
+
+    still_s: float
+    leap_frames: float
+
+    @property
+    def steady(self) -> bool:
+        return self.still_s <= STILL_LIMIT_S and self.leap_frames <= LEAP_LIMIT_FRAMES
+
+    def problem(self) -> str:
+        """What went wrong with the pace, in words ("" when it was steady)."""
+        found = []
+        if self.still_s > STILL_LIMIT_S:
+            found.append(
+                f"stood still {1000 * self.still_s:.0f} ms (at most "
+                f"{1000 * STILL_LIMIT_S:.0f} ms on a steady run)"
+            )
+        if self.leap_frames > LEAP_LIMIT_FRAMES:
+            found.append(
+                f"leapt {self.leap_frames:.1f} frames at once (at most "
+                f"{LEAP_LIMIT_FRAMES:g} on a steady run)"
+            )
+        return " and ".join(found)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "steady": self.steady,
+            "still_s": round(self.still_s, 3),
+            "leap_frames": round(self.leap_frames, 2),
+            "still_limit_s": STILL_LIMIT_S,
+            "leap_limit_frames": LEAP_LIMIT_FRAMES,
+        }
+
+
+def pacing(phase_t: np.ndarray, phase: np.ndarray, t_a: float, t_b: float) -> Pacing:
+    """The pace of the firmware's goals between ``t_a`` and ``t_b`` (see :class:`Pacing`),
+    from their table positions (``table_phase``)."""
+    inside = (phase_t >= t_a) & (phase_t <= t_b)
+    t, p = phase_t[inside], phase[inside]
+    if len(t) < 2:
+        return Pacing(still_s=t_b - t_a, leap_frames=0.0)
+    step = np.diff(p)
+    moved = t[1:][step > 0]  # the sample times at which the goals had moved on
+    still = float(np.diff(np.concatenate([[t_a], moved, [t_b]])).max())
+    return Pacing(still_s=still, leap_frames=float(step.max()))
+
+
 @dataclass
 class Comparison:
     """The emulated body's motion over the measured cycles beside the prediction."""
@@ -202,10 +267,20 @@ class Comparison:
     """With the physics world: what it adds (see :func:`physics_effects`)."""
     free_wheel_path: np.ndarray | None = field(default=None, repr=False)
     """With the physics world: the path predicted for free-rolling wheels."""
+    pace: Pacing = field(default_factory=lambda: Pacing(0.0, 0.0))
+    """How steadily the firmware played the measured cycles (the run is valid if so)."""
 
     @property
     def within_tolerance(self) -> bool:
         return self.difference_m <= self.tolerance_m
+
+    @property
+    def verdict(self) -> str:
+        """INVALID when the firmware's pace was disturbed (the host's scheduling decided
+        the result), else AGREE or DISAGREE."""
+        if not self.pace.steady:
+            return "INVALID"
+        return "AGREE" if self.within_tolerance else "DISAGREE"
 
     @property
     def after_lag_m(self) -> float:
@@ -232,6 +307,8 @@ class Comparison:
 
     def as_dict(self) -> dict[str, Any]:
         return {
+            "verdict": self.verdict,
+            "pacing": self.pace.as_dict(),
             "emulated": _rounded(self.emulated),
             "predicted": _rounded(self.predicted),
             "difference_m": round(self.difference_m, 6),
@@ -345,6 +422,7 @@ def compare(
         emulated_path=em_pose,
         predicted_path=path,
         joints=JointTrack(t, joint_names(robot), measured, plain),
+        pace=pacing(phase_t, phase, t_a, t_b),
     )
 
 
@@ -602,6 +680,13 @@ def verdict_line(c: Comparison) -> str:
         f"({100 * c.difference_m / max(p['distance'], 1e-12):.0f} %)"
     )
     allowed = f"the {100 * c.tolerance_m:.1f} cm the servos' measured lag allows"
+    if c.verdict == "INVALID":
+        return (
+            "5. verdict: INVALID (the host did not give the emulator steady time: the "
+            f"firmware's goals {c.pace.problem()}, so the servos did not follow the "
+            "table's path and the result depends on the host's scheduling: rerun on an "
+            f"idle machine); for the record, {apart}."
+        )
     head = (
         f"5. verdict: AGREE, {apart}, within {allowed}"
         if c.within_tolerance

@@ -40,6 +40,7 @@ COMPARE_WHY = (
     "needs run.csv, which the monitor row records until Ctrl-C; `snakebot compare --help`'s "
     "example records a run with --duration and compares it"
 )
+VIEWER = ("window", "MuJoCo's viewer needs a desktop; tests/plots/test_viewer.py")
 SIM_BUS = "snakebot sim bus --robot snake5 --pty"
 SERVES = "serves until Ctrl-C; the fenced blocks' test starts the same emulators for their lines"
 
@@ -53,14 +54,8 @@ DECLARED: dict[str, tuple[str, str]] = {
         "video",
         "tens of CPU seconds of rendering; tests/plots/test_physics_video.py",
     ),
-    "snakebot sim view s.gait": (
-        "window",
-        "MuJoCo's viewer needs a desktop; tests/plots/test_viewer.py",
-    ),
-    "snakebot sim view --port /dev/ttyUSB0 --robot snake5": (
-        "window",
-        "MuJoCo's viewer needs a desktop; tests/plots/test_viewer.py",
-    ),
+    "snakebot sim view s.gait": VIEWER,
+    "snakebot sim view --port /dev/ttyUSB0 --robot snake5": VIEWER,
     THESIS: ("expensive", COVERED_BY_THESIS),
     f"{THESIS} --json": ("expensive", COVERED_BY_THESIS),
     SIM_BUS: ("until Ctrl-C", SERVES),

@@ -105,10 +105,12 @@ PAUSE_S = 0.4  # longer than a steady run's goals ever stand still (STILL_LIMIT_
 PAUSE_EVERY_S = 1.0
 
 
-def test_a_run_the_host_disturbs_is_invalid_not_a_disagreement(tmp_path):
+def test_a_run_the_host_disturbs_says_so_and_is_never_a_disagreement(tmp_path):
     """QEMU stopped (SIGSTOP) for 0.4 s every second while the firmware plays, as a busy
-    host deschedules it: the report says the run is INVALID and why, exit 1, and gives
-    no AGREE or DISAGREE."""
+    host deschedules it: the report's pace line says the host disturbed it, and the
+    verdict is AGREE (exit 0) if the tolerance took the disturbance in, else INVALID
+    (exit 1, why, and to rerun on an idle machine), never DISAGREE
+    (tests/workflows/test_demo_pace.py checks which one on made-up differences)."""
     build_firmware()
     proc = subprocess.Popen(
         [sys.executable, "-m", "snakebot", "demo", "--world", "kinematic", "--cycles", "1"]
@@ -145,8 +147,15 @@ def test_a_run_the_host_disturbs_is_invalid_not_a_disagreement(tmp_path):
             proc.kill()
             proc.wait()
     report = "".join(printed) + out
-    assert proc.returncode == 1, report + err
-    verdict = next(line for line in report.splitlines() if "verdict:" in line)
-    assert verdict.startswith("5. verdict: INVALID (the host"), verdict
-    assert "stood still" in verdict and "rerun on an idle machine" in verdict, verdict
-    assert "AGREE" not in report  # neither AGREE nor DISAGREE
+    lines = report.splitlines()
+    verdict = next(line for line in lines if "verdict:" in line)
+    pace = next(line for line in lines if line.startswith("   pace:"))
+    assert pace.startswith("   pace: disturbed by the host"), pace
+    assert "stood still" in pace, pace
+    assert "DISAGREE" not in report
+    if proc.returncode == 1:
+        assert verdict.startswith("5. verdict: INVALID (the host"), verdict
+        assert "stood still" in verdict and "rerun on an idle machine" in verdict, verdict
+    else:
+        assert proc.returncode == 0, report + err
+        assert verdict.startswith("5. verdict: AGREE"), verdict

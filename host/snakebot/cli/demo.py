@@ -49,10 +49,10 @@ def demo(as_json: bool, **options: Any) -> None:
     It writes OUT/demo.gait and OUT/demo.png (paths and joint angles) and leaves nothing
     running, also when interrupted. `make demo` builds everything first and runs this.
 
-    The verdict is AGREE or DISAGREE (exit 0), or INVALID (exit 1) when the host did not
-    give the emulator steady time (the firmware's goals stood still or leapt ahead in
-    the measured cycles): the result then depends on the host's scheduling, so run it
-    again on an idle machine.
+    The verdict is AGREE or DISAGREE (exit 0), or INVALID (exit 1) when the difference
+    is beyond the tolerance and the host did not give the emulator steady time (the
+    firmware's goals stood still or leapt ahead in the measured cycles): the result
+    then depends on the host's scheduling, so run it again on an idle machine.
     """
     settings = DemoSettings(**options)
     if settings.video is not None:

@@ -19,21 +19,26 @@ pytestmark = [pytest.mark.qemu, pytest.mark.slow]
 
 DEMO_TIMEOUT_S = 300.0  # the demo takes ~15 s; a loaded machine may be much slower
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+RUNS = 2  # a second run when the first was INVALID (the host disturbed it)
 
 
 @pytest.mark.parametrize("world", ["mujoco", "kinematic"])
 def test_demo_json_reports_the_snake_advancing_and_writes_the_png(tmp_path, world):
     build_firmware()
     out = tmp_path / "out"
-    done = subprocess.run(
-        [sys.executable, "-m", "snakebot", "demo", "--json", "--cycles", "2", "--out", str(out)]
-        + ([] if world == "mujoco" else ["--world", world]),
-        capture_output=True,
-        text=True,
-        timeout=DEMO_TIMEOUT_S,
-        check=False,
-    )
-    assert done.returncode == 0, done.stderr
+    for _ in range(RUNS):  # an INVALID run says: rerun on an idle machine
+        done = subprocess.run(
+            [sys.executable, "-m", "snakebot", "demo", "--json", "--cycles", "2"]
+            + ["--out", str(out)]
+            + ([] if world == "mujoco" else ["--world", world]),
+            capture_output=True,
+            text=True,
+            timeout=DEMO_TIMEOUT_S,
+            check=False,
+        )
+        if done.returncode != 1 or json.loads(done.stdout or "{}").get("verdict") != "INVALID":
+            break
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr
     result = json.loads(done.stdout)
 
     emulated, predicted = result["emulated"], result["predicted"]
@@ -58,7 +63,13 @@ def test_demo_json_reports_the_snake_advancing_and_writes_the_png(tmp_path, worl
         assert "physics" not in result
         assert result["within_tolerance"], (result["difference_m"], result["tolerance_m"])
         assert result["verdict"] == "AGREE"
-    assert result["pacing"]["steady"], result["pacing"]  # exit 0: the run was valid
+    assert result["verdict"] in ("AGREE", "DISAGREE")  # exit 0: not INVALID
+    pace = result["pacing"]  # measured: a steady pace is one within both limits
+    within = (
+        pace["still_s"] <= pace["still_limit_s"],
+        pace["leap_frames"] <= pace["leap_limit_frames"],
+    )
+    assert pace["steady"] == all(within) and 0 < pace["still_s"] < 10, pace
     assert result["upload"]["crc"] == f"0x{zlib.crc32((out / 'demo.gait').read_bytes()):08x}"
     assert result["monitor"]
     assert all(m["controller"]["state"] == "PLAYING" for m in result["monitor"])

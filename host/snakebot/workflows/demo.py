@@ -230,8 +230,8 @@ class Pacing:
             f"leapt {self.leap_frames:.1f} frames at most"
         )
         if self.steady:
-            limits = f"{1000 * STILL_LIMIT_S:.0f} ms and {LEAP_LIMIT_FRAMES:g}"
-            return f"   pace: steady ({seen}, within {limits})."
+            limits = f"{1000 * STILL_LIMIT_S:.0f} ms and {LEAP_LIMIT_FRAMES:g} frames"
+            return f"   pace: steady ({seen}; a steady run stays within {limits})."
         return (
             f"   pace: disturbed by the host (the firmware's goals {self.problem()}); "
             "the servos' lag and tracking error are measured where it was steady."

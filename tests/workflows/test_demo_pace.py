@@ -85,6 +85,10 @@ def test_beyond_the_tolerance_on_a_disturbed_pace_is_invalid_not_a_disagreement(
     assert "stood still 400 ms" in line and "leapt 9.0 frames" in line
     assert "rerun on an idle machine" in line and "AGREE" not in line
     assert comparison(0.05, STEADY).verdict == "DISAGREE"
+    starved = comparison(0.05, Pacing(still_s=0.02, leap_frames=1.0, rate=0.55))
+    assert starved.verdict == "INVALID" and "came at 0.55x wall-clock speed" in verdict_line(
+        starved
+    )
 
 
 def test_within_the_tolerance_the_verdict_stands_and_the_pace_is_reported():

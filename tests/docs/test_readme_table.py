@@ -2,7 +2,7 @@
 a reader runs them, in one folder (a row's files are there for the rows below it), in
 process against the emulators, as the fenced blocks do (tests/docs/runnable.py).
 
-Each command runs without its optional parts and with each of them (tests/docs/table.py).
+Each command runs without its optional parts and with each of them (tests/docs/readme_table.py).
 A line that cannot run here is declared below with its reason; the test fails on a line
 that neither runs nor is declared, and on a declaration that no line matches any more."""
 
@@ -16,9 +16,9 @@ from pathlib import Path
 
 import pytest
 from firmware_support import build_firmware
+from readme_table import Row, parse_rows, variants
 from runnable import Emulators, Line, program_spec, run_line
 from sybil import Sybil
-from table import Row, parse_rows, variants
 
 from snakebot.model.robots.loader import BUILTIN_ROBOTS
 from snakebot.paths import REPO_ROOT

@@ -27,6 +27,7 @@ from __future__ import annotations
 import itertools
 import re
 import shlex
+import textwrap
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -140,12 +141,17 @@ class Emulators:
     bootloader: BootloaderPty | None = None
     handover: object | None = None
     buses: int = 0
+    robot: str = "snake5"
+    """The robot whose servos the controller's bus has."""
 
     def controller_port(self) -> str:
         """The controller's C logic with a gait library (a Python store that writes a
-        step per tick, as the CM-530's flash does) and snake5's servos."""
+        step per tick, as the CM-530's flash does) and the robot's servos (after a flash,
+        in place of the board it flashed, whose chip emulation would run on meanwhile)."""
+        if self.handover is not None:
+            self.close()
         if self.controller is None:
-            self.controller = ControllerPty(robot="snake5")
+            self.controller = ControllerPty(robot=self.robot)
             store = PyStore()
             store.write_in_background()
             self.controller.device_logic = FlashController(self.controller.bus, store)
@@ -173,7 +179,7 @@ class Emulators:
         return f"sim://docs{self.buses}?ids={ids}"
 
     def port_for(self, words: list[str]) -> str:
-        if words[:1] == ["flash"]:
+        if words[:1] == ["flash"] or (words[:1] == ["doctor"] and "--bootloader" in words):
             return self.bootloader_port()
         if any(tuple(words[: len(c)]) == c for c in BUS_COMMANDS):
             return self.bus_port(words)
@@ -230,3 +236,13 @@ def run_console(source: str, where: str, emulators: Emulators) -> list[str]:
             if want not in printed:
                 problems.append(f"{line.where}: `{command}` did not print {want!r}: {printed!r}")
     return problems
+
+
+def program_spec() -> str:
+    """The program spec `snakebot program build --help` shows, as a file would hold it."""
+    ctx = click.Context(main)
+    build = main.get_command(ctx, "program").get_command(ctx, "build")  # type: ignore[union-attr]
+    lines = (build.help or "").splitlines()
+    start = next(n for n, text in enumerate(lines) if text.strip() == "\b") + 1
+    end = next(n for n in range(start, len(lines)) if not lines[n].strip())
+    return textwrap.dedent("\n".join(lines[start:end])) + "\n"

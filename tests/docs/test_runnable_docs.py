@@ -10,15 +10,21 @@ that cannot run here fails the test, so a change that breaks an example is caugh
 from __future__ import annotations
 
 import re
-import textwrap
 from collections import Counter
 from pathlib import Path
 
-import click
 import pytest
 from click.testing import CliRunner
 from firmware_support import build_firmware
-from runnable import Emulators, Line, block_lines, help_examples, run_console, run_line
+from runnable import (
+    Emulators,
+    Line,
+    block_lines,
+    help_examples,
+    program_spec,
+    run_console,
+    run_line,
+)
 from sybil import Document, Sybil
 from sybil.parsers.markdown import CodeBlockParser
 from sybil.parsers.markdown.lexers import FencedCodeBlockLexer
@@ -71,16 +77,6 @@ marked serial, after the CPU-bound ones."""
 
 def params(names: list[str]) -> list[object]:
     return [pytest.param(n, marks=pytest.mark.serial) if n in REAL_TIME else n for n in names]
-
-
-def program_spec() -> str:
-    """The program spec `snakebot program build --help` shows, as a file would hold it."""
-    ctx = click.Context(main)
-    build = main.get_command(ctx, "program").get_command(ctx, "build")  # type: ignore[union-attr]
-    lines = (build.help or "").splitlines()
-    start = next(n for n, text in enumerate(lines) if text.strip() == "\b") + 1
-    end = next(n for n in range(start, len(lines)) if not lines[n].strip())
-    return textwrap.dedent("\n".join(lines[start:end])) + "\n"
 
 
 @pytest.fixture(scope="module")

@@ -160,12 +160,12 @@ test-fuzz-wheel:
 # Collecting the suite once beside the builds fills __pycache__ with the rewritten test
 # modules, which every pytest worker of the stages after it then reads instead of
 # rewriting them itself (a collection error shows in the stage that meets it).
-# It also writes which test files each stage runs (tests/conftest.py, SNAKEBOT_STAGE_FILES),
+# It also writes which test files each stage runs (tests/conftest.py, MAKE_TEST_STAGE_FILES),
 # so that a stage's workers import only those: the QEMU and serial stages need 39 of the
 # suite's 200 files, and importing them all cost each worker 7 s of CPU.
 STAGE_FILES := build/stages
 test-collect:
-	-$(Q)rm -rf $(STAGE_FILES); SNAKEBOT_STAGE_FILES=$(STAGE_FILES) \
+	-$(Q)rm -rf $(STAGE_FILES); MAKE_TEST_STAGE_FILES=$(STAGE_FILES) \
 	    $(PY) -m pytest --collect-only -q -p no:cacheprovider > /dev/null 2>&1
 # $(call stage_files,STAGE,LEFT OUT): STAGE's test files, but LEFT OUT (run by a lane of its
 # own); all of tests/ if the collection did not write them.

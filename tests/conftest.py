@@ -42,7 +42,7 @@ def pty_device() -> Iterator[str]:
     os.close(slave)
 
 
-STAGE_FILES = "SNAKEBOT_STAGE_FILES"
+STAGE_FILES = "MAKE_TEST_STAGE_FILES"
 """A directory: a collection of the whole suite then writes there the test files each stage
 of `make test` runs (``stage-parallel``, ``stage-qemu``, ``stage-serial``, one path a
 line), so that each stage's workers import only those files, not all two hundred."""

@@ -15,6 +15,11 @@ symbolic link to a file outside, a 5 GB file, TOML nested 5000 deep; NaN, infini
 1e400, a complex number, negative counts. Each must be refused with exit 2 (a negative
 number may be fine), write nothing, and never write through the link; a third as many
 cases as argument lists (13 by default, about 15 s).
+
+Every error line any of these prints is at most LINE_LIMIT characters (400), however long
+the input it quotes back; huge values (10,000 numbers, 20,000 digits, a 20 KB path) go to
+every parameter of every command to check it (as many cases as argument lists, in
+process: a few seconds).
 """
 
 from __future__ import annotations
@@ -42,6 +47,7 @@ from snakebot.cli import main
 from snakebot.cli.errors import INTERNAL_ERROR
 from snakebot.cli.params import AngleListType, AngleType, NumberType, OutputPathType
 from snakebot.cli.troubleshooting import ERROR_LINE
+from snakebot.errors import LINE_LIMIT
 from snakebot.settings import resolve_int
 
 EXAMPLES = resolve_int("SNAKEBOT_CLI_FUZZ_EXAMPLES")
@@ -232,7 +238,14 @@ def check(result: click.testing.Result) -> None:
     if result.exit_code:
         lines = [line for line in result.stderr.splitlines() if line.strip()]
         assert lines and ERROR_LINE.match(lines[-1]), result.stderr
+        assert_bounded(lines)
     assert not re.search(r"\b(NaN|-?Infinity)\b", result.stdout), result.stdout
+
+
+def assert_bounded(lines: list[str]) -> None:
+    """No error line longer than LINE_LIMIT, whatever it quotes back."""
+    long = [line for line in lines if ERROR_LINE.match(line) and len(line) > LINE_LIMIT]
+    assert not long, f"{len(long[0])} characters: {long[0][:300]}..."
 
 
 def invoke(args: list[str]) -> click.testing.Result:
@@ -460,6 +473,17 @@ def hostile_cases(draw: st.DrawFn) -> tuple[list[str], str, str]:
     path, command, target, kind = draw(st.sampled_from(TARGETS))
     pool = {"input": HOSTILE_FILES, "output": HOSTILE_OUTPUTS, "number": HOSTILE_NUMBERS}
     bad = draw(st.sampled_from(pool[kind]))
+    return _with_one_bad(draw, path, command, target, bad), bad, kind
+
+
+def _with_one_bad(
+    draw: st.DrawFn,
+    path: tuple[str, ...],
+    command: click.Command,
+    target: click.Parameter,
+    bad: str,
+) -> list[str]:
+    """``path``'s arguments: its required parameters with usual values, ``target`` ``bad``."""
     args = list(path)
     for param in command.params:
         if param is not target and not param.required:
@@ -469,7 +493,7 @@ def hostile_cases(draw: st.DrawFn) -> tuple[list[str], str, str]:
             args += [name, bad if param is target else draw(_usual(param, name))]
         else:
             args.append(bad if param is target else draw(_usual(param, param.name or "")))
-    return args, bad, kind
+    return args
 
 
 @settings(FUZZ, max_examples=HOSTILE_EXAMPLES)
@@ -496,5 +520,39 @@ def test_hostile_files_and_numbers_are_refused_in_bounded_time_and_memory(case) 
         assert run.returncode in (0, 1, 2), (args, run.returncode, err)
         if run.returncode:
             assert ERROR_LINE.match(err.strip().splitlines()[-1]), (args, err)
+            assert_bounded(err.splitlines())
             left = sorted(p.name for p in where.iterdir())
             assert left == planted, (args, left)  # a refusal writes nothing
+
+
+# -- huge values: the error line stays short ----------------------------------------------
+
+HUGE_VALUES = [
+    ",".join(["0.5"] * 10_000),  # a list of 10,000 numbers
+    "9" * 20_000,  # one number of 20,000 digits
+    "x " * 10_000,  # words: no run to shorten, the line's middle goes
+    "/tmp/" + "d" * 20_000,  # a path far beyond PATH_MAX
+    "ab\n" * 5_000,  # many lines
+]
+VALUED = [
+    (path, command, param)
+    for path, command in COMMANDS
+    for param in command.params
+    if not (isinstance(param, click.Option) and (param.is_flag or param.opts[0] in SLOW_FLAGS))
+    and param.name != "help"
+]
+
+
+@st.composite
+def huge_cases(draw: st.DrawFn) -> list[str]:
+    """A command's required parameters with usual values, one parameter a huge value."""
+    path, command, target = draw(st.sampled_from(VALUED))
+    return _with_one_bad(draw, path, command, target, draw(st.sampled_from(HUGE_VALUES)))
+
+
+@FUZZ
+@given(args=huge_cases())
+def test_huge_values_give_one_bounded_error_line(args: list[str]) -> None:
+    with tempfile.TemporaryDirectory() as tmp, _cwd(Path(tmp)):
+        result = invoke(args)
+    check(result)  # one line `error: ...` of at most LINE_LIMIT characters

@@ -577,3 +577,13 @@ def test_bus_write_reads_its_robot_file_even_for_a_register_that_is_no_position(
     result = CliRunner().invoke(main, args)
     assert result.exit_code == 2, result.output
     assert result.stderr.startswith("error: ") and result.stderr.count("\n") == 1
+
+
+@pytest.mark.parametrize("register", ["007", "9" * 5000])
+def test_a_register_address_int_cannot_read_is_bad_input(register: str) -> None:
+    # both were "internal error": int(text, 0) refuses leading zeros and 4300 digits
+    line = assert_one_line_error(
+        run("bus", "write", "--port", "sim://?ids=1", "1", register, "1"),
+        mentions="register starts at address",
+    )
+    assert len(line) <= LINE_LIMIT

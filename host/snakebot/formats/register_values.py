@@ -68,13 +68,15 @@ def resolve_register(name_or_address: str, table: ControlTable | None = None) ->
     table = table or base_table()
     text = name_or_address.strip()
     if re.fullmatch(r"\d+|0[xX][0-9a-fA-F]+", text):
-        address = int(text, 0)
-        entry = table.by_address(address)
+        hexadecimal = text[:2].lower() == "0x"
+        # int() refuses 4300 digits and more; no address has more than a few
+        address = int(text, 16 if hexadecimal else 10) if len(text) <= 12 else None
+        entry = None if address is None else table.by_address(address)
         if entry is None:
             starts = ", ".join(f"{e.address} {e.name}" for e in table)
             raise BusCommandError(
-                f"no {table.model} register starts at address {address}: registers start at "
-                f"{starts}"
+                f"no {table.model} register starts at address "
+                f"{quoted(text) if address is None else address}: registers start at {starts}"
             )
         return entry
     wanted = _squash(text)
@@ -339,8 +341,8 @@ def parse_ids(text: str) -> list[int]:
             raise BusCommandError(
                 f"cannot read the ID range {quoted(text)}: write e.g. 0-253 or 1,2,5-7"
             )
-        low = int(m.group(1))
-        high = int(m.group(2)) if m.group(2) else low
+        # int() refuses 4300 digits and more: past 9, a number is simply out of range
+        low, high = (int(d) if len(d) <= 9 else MAX_ID + 1 for d in m.group(1, 2 if m[2] else 1))
         if low > high or high > MAX_ID:
             raise BusCommandError(
                 f"ID range {quoted(part)} is not within 0-{MAX_ID} (low to high); "

@@ -15,6 +15,11 @@ from snakebot.errors import InputError, quoted
 _SUFFIX = re.compile(r"^(?P<body>.*?)\s*(?P<unit>deg|°|rad)?$", re.S)
 _CONSTANTS = {"pi": math.pi, "tau": math.tau}
 _FIELD = re.compile(r"^[gh][1-9]$")
+MAX_EXPRESSION = 500
+"""The longest expression read, in characters: enough for any number or combination of
+fields, and short enough that parsing and evaluating it stays shallow and quick (a
+10,000-term sum would pass Python's recursion limit, a long run of names exhausts the
+parser's memory)."""
 
 
 class ExpressionError(InputError):
@@ -60,15 +65,24 @@ def _number(node: ast.AST, text: str) -> float:
     )
 
 
+def _parsed(text: str, what: str, example: str) -> ast.expr:
+    """The expression ``text`` as a tree (ExpressionError naming ``what`` and ``example``
+    if it cannot be read or is longer than MAX_EXPRESSION)."""
+    if len(text) > MAX_EXPRESSION:
+        raise ExpressionError(
+            f"{what} {quoted(text)} is longer than {MAX_EXPRESSION} characters: write e.g. "
+            f"{example}"
+        )
+    try:
+        return ast.parse(text.strip(), mode="eval").body
+    except (SyntaxError, ValueError, MemoryError, RecursionError):
+        raise ExpressionError(f"cannot read {what} {quoted(text)}: write e.g. {example}") from None
+
+
 def parse_number(text: str) -> float:
     """A plain arithmetic expression over numbers and pi."""
-    try:
-        tree = ast.parse(text.strip(), mode="eval")
-    except SyntaxError:
-        raise ExpressionError(
-            f"cannot read {quoted(text)}: use a number or an expression like pi/3"
-        ) from None
-    value = _number(tree.body, text)
+    tree = _parsed(text, "the number", "0.5 or pi/3")
+    value = _number(tree, text)
     if not math.isfinite(value):
         raise ExpressionError(f"{quoted(text)} is not a finite number")
     return value
@@ -137,13 +151,7 @@ def _combination(node: ast.AST, text: str) -> dict[str, float]:
 
 def parse_field_expression(text: str, names: tuple[str, ...]) -> dict[str, float]:
     """``{name: coefficient}`` (non-zero only) for a combination of the given field names."""
-    try:
-        tree = ast.parse(text.strip(), mode="eval")
-    except SyntaxError:
-        raise ExpressionError(
-            f"cannot read field expression {quoted(text)}: write e.g. 2*g1-h3"
-        ) from None
-    combo = _combination(tree.body, text)
+    combo = _combination(_parsed(text, "the field expression", "2*g1-h3"), text)
     if combo.get("", 0.0) != 0.0:
         raise ExpressionError(
             f"{quoted(text)} adds a plain number to fields: write only fields and their multiples"

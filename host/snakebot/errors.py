@@ -43,15 +43,18 @@ LINE_LIMIT = 400
 _LONG_WORD = re.compile(rf"\S{{{WORD_LIMIT + 1},}}")
 
 
+def _ends(text: str, limit: int) -> str:
+    """The start and end of ``text`` around ``...``, room left in ``limit`` for its length."""
+    keep = max(limit - 24, 8)
+    head = keep * 2 // 3
+    return f"{text[:head]}...{text[len(text) - (keep - head) :]}"
+
+
 def shortened(text: str, limit: int = QUOTE_LIMIT) -> str:
     """``text`` if at most ``limit`` characters, else its start and end around ``...``
     followed by its length: ``0.1,0.1,0.1,...,0.1 (60,000 characters)``, about
     ``limit`` characters in all."""
-    if len(text) <= limit:
-        return text
-    keep = max(limit - 24, 8)
-    head = keep * 2 // 3
-    return f"{text[:head]}...{text[len(text) - (keep - head) :]} ({len(text):,} characters)"
+    return text if len(text) <= limit else f"{_ends(text, limit)} ({len(text):,} characters)"
 
 
 def quoted(value: object, limit: int = QUOTE_LIMIT) -> str:
@@ -62,10 +65,7 @@ def quoted(value: object, limit: int = QUOTE_LIMIT) -> str:
         return shortened(repr(value), limit)
     if len(value) <= limit:
         return repr(value)
-    keep = max(limit - 24, 8)
-    head = keep * 2 // 3
-    inner = value[:head] + "..." + value[len(value) - (keep - head) :]
-    return f"{inner!r} ({len(value):,} characters)"
+    return f"{_ends(value, limit)!r} ({len(value):,} characters)"
 
 
 def _shortened_word(match: re.Match[str]) -> str:
@@ -80,10 +80,11 @@ def bounded_line(text: str, limit: int = LINE_LIMIT) -> str:
     still too long, its middle left out (the start says what is wrong, the end the fix)."""
     if len(text) <= limit:
         return text
+    length = len(text)
     text = _LONG_WORD.sub(_shortened_word, text)
     if len(text) <= limit:
         return text
-    gap = f" ... ({len(text):,} characters in all) ... "
+    gap = f" ... ({length:,} characters in all) ... "
     keep = max(limit - len(gap), 2)
     head = keep * 2 // 3
     return f"{text[:head].rstrip()}{gap}{text[len(text) - (keep - head) :].lstrip()}"

@@ -36,6 +36,7 @@ import atexit
 import json
 import os
 import re
+import select
 import shutil
 import signal
 import subprocess
@@ -654,8 +655,6 @@ def serving_cases(draw: st.DrawFn, servers: tuple[tuple[str, ...], ...]) -> tupl
 def _first_line(proc: subprocess.Popen[bytes], timeout: float) -> bool | None:
     """True once ``proc`` printed its first line (it serves), False if it ended first,
     None if neither within ``timeout`` s."""
-    import select
-
     assert proc.stdout is not None
     fd, seen, deadline = proc.stdout.fileno(), b"", time.monotonic() + timeout
     while b"\n" not in seen:

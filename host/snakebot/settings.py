@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
-from snakebot.errors import InputError
+from snakebot.errors import InputError, quoted
 
 Kind = Literal["int", "float", "choice", "flag", "text", "dir", "out_dir", "program"]
 """How a value is parsed and checked:
@@ -124,7 +124,9 @@ class Setting:
     def error(self, text: str, why: str = "") -> SettingError:
         """The one-line error for ``text``, a value of this variable."""
         because = f" ({why})" if why else ""
-        return SettingError(f"{self.name}={text!r} is not {self.allowed()}{because}; {self.fix()}")
+        return SettingError(
+            f"{self.name}={quoted(text)} is not {self.allowed()}{because}; {self.fix()}"
+        )
 
     def parse(self, text: str) -> Value:
         """``text`` (stripped, not empty) as a value of this kind, or :class:`SettingError`."""

@@ -37,7 +37,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
 
-from snakebot.errors import InputError
+from snakebot.errors import InputError, quoted
 
 PathLike = str | os.PathLike[str]
 
@@ -172,7 +172,7 @@ def check_output(path: PathLike) -> Path:
     the problem and the fix (see :func:`output_problem`)."""
     problem = output_problem(path)
     if problem is not None:
-        raise OutputRefused(f"{os.fspath(path)!r} {problem}")
+        raise OutputRefused(f"{quoted(os.fspath(path))} {problem}")
     return Path(path)
 
 
@@ -200,7 +200,7 @@ class OutputExists(OutputRefused):
 
     def __init__(self, target: PathLike) -> None:
         super().__init__(
-            f"{os.fspath(target)!r} exists already: name a new file, or allow replacing it"
+            f"{quoted(os.fspath(target))} exists already: name a new file, or allow replacing it"
         )
 
 
@@ -278,11 +278,13 @@ def open_recording(path: PathLike, *, text: bool = False) -> IO[Any]:
     except OSError:
         problem = output_problem(target)  # planted between the check and the open
         if problem is not None:
-            raise OutputRefused(f"{os.fspath(path)!r} {problem}") from None
+            raise OutputRefused(f"{quoted(os.fspath(path))} {problem}") from None
         raise
     if not stat.S_ISREG(os.fstat(fd).st_mode):
         os.close(fd)
-        raise OutputRefused(f"{os.fspath(path)!r} {output_problem(target) or 'is not a file'}")
+        raise OutputRefused(
+            f"{quoted(os.fspath(path))} {output_problem(target) or 'is not a file'}"
+        )
     os.set_blocking(fd, True)
     os.ftruncate(fd, 0)
     if text:

@@ -19,6 +19,7 @@ from click.testing import CliRunner
 
 from snakebot.cli import main
 from snakebot.cli.troubleshooting import ERROR_LINE
+from snakebot.errors import LINE_LIMIT
 from snakebot.model.robots import load_robot
 
 pytestmark = pytest.mark.timeout(60)
@@ -459,9 +460,12 @@ def test_hostile_numbers_are_one_line_exit_2(args, mentions, tmp_path, monkeypat
     assert_one_line_error(run(*args), mentions=mentions)
 
 
-def test_too_many_friction_values_are_refused(gait_file: Path) -> None:
-    mu = ",".join(str(0.01 * (i + 1)) for i in range(10_000))
-    assert_one_line_error(run("sim", "friction", gait_file, "--mu", mu), mentions="at most 50")
+def test_too_many_friction_values_are_refused_in_one_short_line(gait_file: Path) -> None:
+    mu = ",".join(str(0.01 * (i + 1)) for i in range(10_000))  # 68 KB of values
+    line = assert_one_line_error(run("sim", "friction", gait_file, "--mu", mu), mentions="--mu")
+    assert "10,000 friction coefficients, at most 50" in line, line
+    assert len(line) <= LINE_LIMIT, len(line)  # it quoted all 68 KB back
+    assert f"({len(mu):,} characters)" in line and line.count("0.01") == 1, line
 
 
 @pytest.mark.parametrize("nest", ["[", "{b = "])
@@ -573,3 +577,13 @@ def test_bus_write_reads_its_robot_file_even_for_a_register_that_is_no_position(
     result = CliRunner().invoke(main, args)
     assert result.exit_code == 2, result.output
     assert result.stderr.startswith("error: ") and result.stderr.count("\n") == 1
+
+
+@pytest.mark.parametrize("register", ["007", "9" * 5000])
+def test_a_register_address_int_cannot_read_is_bad_input(register: str) -> None:
+    # both were "internal error": int(text, 0) refuses leading zeros and 4300 digits
+    line = assert_one_line_error(
+        run("bus", "write", "--port", "sim://?ids=1", "1", register, "1"),
+        mentions="register starts at address",
+    )
+    assert len(line) <= LINE_LIMIT

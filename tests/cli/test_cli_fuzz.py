@@ -15,6 +15,19 @@ symbolic link to a file outside, a 5 GB file, TOML nested 5000 deep; NaN, infini
 1e400, a complex number, negative counts. Each must be refused with exit 2 (a negative
 number may be fine), write nothing, and never write through the link; a third as many
 cases as argument lists (13 by default, about 15 s).
+
+The serving commands (`sim serve`, `sim bus`, `sim bootloader`: they run until a signal)
+get the same hostile files and numbers, and hostile paths for their --link, --unix and
+--state and hostile fault specifications, each case a process under the same limits:
+it refuses its input at once (exit 2, one line, nothing left: no link, no socket, no
+claim record, no work directory) or serves and then stops on SIGTERM (exit 143, one line
+`interrupted`, the same nothing left). A few cases per server kind by default (about
+5 s), an eighth as many as argument lists in a longer run.
+
+Every error line any of these prints is at most LINE_LIMIT characters (400), however long
+the input it quotes back; huge values (10,000 numbers, 20,000 digits, a 20 KB path) go to
+every parameter of every command to check it (as many cases as argument lists, in
+process: a few seconds).
 """
 
 from __future__ import annotations
@@ -23,10 +36,13 @@ import atexit
 import json
 import os
 import re
+import select
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from importlib import resources
@@ -42,7 +58,9 @@ from snakebot.cli import main
 from snakebot.cli.errors import INTERNAL_ERROR
 from snakebot.cli.params import AngleListType, AngleType, NumberType, OutputPathType
 from snakebot.cli.troubleshooting import ERROR_LINE
+from snakebot.errors import LINE_LIMIT
 from snakebot.settings import resolve_int
+from snakebot.sim.qemu import DEFAULT_IMAGE
 
 EXAMPLES = resolve_int("SNAKEBOT_CLI_FUZZ_EXAMPLES")
 FUZZ = settings(
@@ -129,8 +147,14 @@ def _leaves(
 COMMANDS = [(path, cmd) for path, cmd in _leaves(main) if path not in SERVING]
 
 
+def _is_port(name: str) -> bool:
+    """Whether the parameter ``name`` is a port (``--port``, ``--bootloader-port``), not
+    an option that merely holds the letters (``--report``)."""
+    return name.endswith("port") and not name.endswith("report")
+
+
 def _hostile(param: click.Parameter, name: str) -> st.SearchStrategy[str]:
-    if "port" in name:
+    if _is_port(name):
         return st.sampled_from(PORTS)
     if isinstance(param.type, click.Path) or name in ("--output", "--plot", "--out", "-o"):
         return st.sampled_from(PATHS)
@@ -141,9 +165,9 @@ def _hostile(param: click.Parameter, name: str) -> st.SearchStrategy[str]:
 def _usual(param: click.Parameter, name: str) -> st.SearchStrategy[str]:
     """Values the command takes, so that most runs get past parsing into the command."""
     kind = param.type
-    if "port" in name and param.callback is None:  # a servo bus
+    if _is_port(name) and param.callback is None:  # a servo bus
         return st.sampled_from(["sim://?ids=1,2", "sim://?robot=snake3", "loop://"])
-    if "port" in name:  # a controller or its bootloader: nothing answers on these
+    if _is_port(name):  # a controller or its bootloader: nothing answers on these
         return st.sampled_from(["loop://", "/dev/nonexistent-port"])
     if isinstance(kind, click.Choice):
         return st.sampled_from([str(c) for c in kind.choices])
@@ -232,7 +256,14 @@ def check(result: click.testing.Result) -> None:
     if result.exit_code:
         lines = [line for line in result.stderr.splitlines() if line.strip()]
         assert lines and ERROR_LINE.match(lines[-1]), result.stderr
+        assert_bounded(lines)
     assert not re.search(r"\b(NaN|-?Infinity)\b", result.stdout), result.stdout
+
+
+def assert_bounded(lines: list[str]) -> None:
+    """No error line longer than LINE_LIMIT, whatever it quotes back."""
+    long = [line for line in lines if ERROR_LINE.match(line) and len(line) > LINE_LIMIT]
+    assert not long, f"{len(long[0])} characters: {long[0][:300]}..."
 
 
 def invoke(args: list[str]) -> click.testing.Result:
@@ -396,7 +427,7 @@ NUMBER_TYPES = (click.IntRange, NumberType, AngleType, AngleListType, type(click
 def _kind(param: click.Parameter) -> str | None:
     """Which hostile values ``param`` takes: an input file, an output, a number."""
     name = param.opts[0] if isinstance(param, click.Option) else param.name or ""
-    if "port" in name:
+    if _is_port(name):
         return None
     if isinstance(param.type, OutputPathType):
         return "output"
@@ -460,6 +491,17 @@ def hostile_cases(draw: st.DrawFn) -> tuple[list[str], str, str]:
     path, command, target, kind = draw(st.sampled_from(TARGETS))
     pool = {"input": HOSTILE_FILES, "output": HOSTILE_OUTPUTS, "number": HOSTILE_NUMBERS}
     bad = draw(st.sampled_from(pool[kind]))
+    return _with_one_bad(draw, path, command, target, bad), bad, kind
+
+
+def _with_one_bad(
+    draw: st.DrawFn,
+    path: tuple[str, ...],
+    command: click.Command,
+    target: click.Parameter,
+    bad: str,
+) -> list[str]:
+    """``path``'s arguments: its required parameters with usual values, ``target`` ``bad``."""
     args = list(path)
     for param in command.params:
         if param is not target and not param.required:
@@ -469,7 +511,7 @@ def hostile_cases(draw: st.DrawFn) -> tuple[list[str], str, str]:
             args += [name, bad if param is target else draw(_usual(param, name))]
         else:
             args.append(bad if param is target else draw(_usual(param, param.name or "")))
-    return args, bad, kind
+    return args
 
 
 @settings(FUZZ, max_examples=HOSTILE_EXAMPLES)
@@ -496,5 +538,214 @@ def test_hostile_files_and_numbers_are_refused_in_bounded_time_and_memory(case) 
         assert run.returncode in (0, 1, 2), (args, run.returncode, err)
         if run.returncode:
             assert ERROR_LINE.match(err.strip().splitlines()[-1]), (args, err)
+            assert_bounded(err.splitlines())
             left = sorted(p.name for p in where.iterdir())
             assert left == planted, (args, left)  # a refusal writes nothing
+
+
+# -- huge values: the error line stays short ----------------------------------------------
+
+HUGE_VALUES = [
+    ",".join(["0.5"] * 10_000),  # a list of 10,000 numbers
+    "9" * 20_000,  # one number of 20,000 digits
+    "x " * 10_000,  # words: no run to shorten, the line's middle goes
+    "/tmp/" + "d" * 20_000,  # a path far beyond PATH_MAX
+    "ab\n" * 5_000,  # many lines
+]
+VALUED = [
+    (path, command, param)
+    for path, command in COMMANDS
+    for param in command.params
+    if not (isinstance(param, click.Option) and (param.is_flag or param.opts[0] in SLOW_FLAGS))
+    and param.name != "help"
+]
+
+
+@st.composite
+def huge_cases(draw: st.DrawFn) -> list[str]:
+    """A command's required parameters with usual values, one parameter a huge value."""
+    path, command, target = draw(st.sampled_from(VALUED))
+    return _with_one_bad(draw, path, command, target, draw(st.sampled_from(HUGE_VALUES)))
+
+
+@FUZZ
+@given(args=huge_cases())
+def test_huge_values_give_one_bounded_error_line(args: list[str]) -> None:
+    with tempfile.TemporaryDirectory() as tmp, _cwd(Path(tmp)):
+        result = invoke(args)
+    check(result)  # one line `error: ...` of at most LINE_LIMIT characters
+
+
+# -- serving commands: hostile input, then SIGTERM ------------------------------------------
+
+SERVER_ARGS = {
+    ("sim", "bus"): ["--json"],
+    ("sim", "bootloader"): ["--json"],
+    ("sim", "serve"): ["--json", "--report", "0", "--robot", "snake3"],
+}
+"""The serving commands and what every case of each gives: --json, whose first line says
+it serves; a small robot (`sim bus` serves one servo by default)."""
+SERVED_LINK = "served-link"
+"""The --link a case gives when it does not fuzz the path options: made, then removed."""
+FRESH = "fresh"
+"""A path nothing is at: a --link or --unix made there is removed on SIGTERM; a --state
+file is written there."""
+PATH_OPTIONS = {"--link", "--unix", "--state"}
+HOSTILE_SPECS = {
+    "--brownout": ["1@nan+1", "1@1e400+1", "1@0+inf", "x@0+1", "1@0+1" * 4000],
+    "--sim-options": ["brownout=10@nan+1", "corrupt=nan", "seed=1e400", "ids=" + "1," * 9000],
+}
+"""Fault specifications no server takes (NaN, infinite or unreadable times, a huge list)."""
+SERVABLE = {"number": ["0", "1"], "path": [FRESH], "--brownout": ["1@0.1+0.1"]}
+SERVABLE["--sim-options"] = ["corrupt=0.01&seed=3"]
+"""Values a server may take, so that some cases serve and are stopped by SIGTERM."""
+SERVING_EXAMPLES = max(4, EXAMPLES // 8)
+
+
+def _serving_kind(param: click.Parameter) -> str | None:
+    name = param.opts[0] if isinstance(param, click.Option) else ""
+    if name in PATH_OPTIONS:
+        return "path"
+    if name in HOSTILE_SPECS:
+        return "spec"
+    return _kind(param)
+
+
+SERVING_TARGETS = {
+    path: [(command, p, kind) for p in command.params if (kind := _serving_kind(p))]
+    for path, command in _leaves(main)
+    if path in SERVER_ARGS
+}
+
+
+@st.composite
+def serving_cases(draw: st.DrawFn, servers: tuple[tuple[str, ...], ...]) -> tuple:
+    """(arguments, the hostile value, whether no server may take it): one of ``servers``
+    with one file, path, number or fault parameter given a hostile value."""
+    path = draw(st.sampled_from(servers))
+    command, target, kind = draw(st.sampled_from(SERVING_TARGETS[path]))
+    name = target.opts[0]
+    pool = {
+        "input": HOSTILE_FILES,
+        "output": HOSTILE_OUTPUTS,
+        "number": HOSTILE_NUMBERS,
+        "path": HOSTILE_FILES,
+        "spec": HOSTILE_SPECS.get(name, []),
+    }[kind]
+    servable = SERVABLE.get(name if kind == "spec" else kind, [])
+    bad = draw(st.sampled_from(pool + servable))
+    args = _with_one_bad(draw, path, command, target, bad)
+    args[len(path) : len(path)] = SERVER_ARGS[path]  # before it: the case's value wins
+    linked = any(p.opts[0] == "--link" for p in command.params if isinstance(p, click.Option))
+    if linked and name not in ("--link", "--unix"):
+        args += ["--link", SERVED_LINK]  # a path it makes, to be removed when it stops
+    always_bad = (
+        bad not in servable
+        and {
+            "number": bad in NEVER_NUMBERS,
+            "input": bad != "outside-link",  # reading through a link is allowed
+            "output": True,
+            "path": name != "--state" or bad != "outside-link",  # --link, --unix: never replaced
+            "spec": True,
+        }[kind]
+    )
+    return args, bad, always_bad
+
+
+def _first_line(proc: subprocess.Popen[bytes], timeout: float) -> bool | None:
+    """True once ``proc`` printed its first line (it serves), False if it ended first,
+    None if neither within ``timeout`` s."""
+    assert proc.stdout is not None
+    fd, seen, deadline = proc.stdout.fileno(), b"", time.monotonic() + timeout
+    while b"\n" not in seen:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            return None
+        if select.select([fd], [], [], left)[0]:
+            chunk = os.read(fd, 4096)
+            if not chunk:
+                return False
+            seen += chunk
+    return True
+
+
+def _serve_limited(args: list[str], where: Path, env: dict[str, str]) -> tuple[int, str, bool]:
+    """``snakebot ARGS`` in ``where`` under the case's limits, given SIGTERM once it serves:
+    (its exit status, its stderr, whether it served). Like :func:`_run_limited`, a case
+    that neither serves nor ends in CASE_TIMEOUT_S is tried again with three times as long
+    before it counts as a hang; so is one that does not stop on SIGTERM."""
+    for timeout in (CASE_TIMEOUT_S, 3 * CASE_TIMEOUT_S):
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "snakebot", *args],
+            cwd=where,
+            env=env,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            preexec_fn=_limits,
+            start_new_session=True,  # its QEMU too, to kill all of it if it hangs
+        )
+        try:
+            served = _first_line(proc, timeout)
+            if served is None:
+                continue
+            if served:
+                proc.send_signal(signal.SIGTERM)
+            _, err = proc.communicate(timeout=timeout)
+            return proc.returncode, err.decode(errors="replace"), served
+        except subprocess.TimeoutExpired:
+            continue
+        finally:
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.communicate()
+    pytest.fail(f"snakebot {' '.join(args)}: neither served nor ended, or did not stop, twice")
+
+
+def _check_serving_case(case: tuple) -> None:
+    args, bad, always_bad = case
+    with (
+        tempfile.TemporaryDirectory() as tmp,
+        tempfile.TemporaryDirectory() as far,
+        tempfile.TemporaryDirectory() as scratch,
+    ):
+        where, outside = Path(tmp), Path(far) / "target"
+        outside.write_bytes(PRECIOUS)
+        _plant(where, outside)
+        planted = sorted(p.name for p in where.iterdir())
+        runtime, temp = Path(scratch) / "run", Path(scratch) / "tmp"
+        runtime.mkdir(mode=0o700), temp.mkdir()
+        env = {k: v for k, v in os.environ.items() if k != "SNAKEBOT_PORT"}
+        env.update({k: v for k, v in ENV.items() if v is not None}, OPENBLAS_NUM_THREADS="1")
+        env.update(XDG_RUNTIME_DIR=str(runtime), TMPDIR=str(temp))  # to see what is left
+        status, err, served = _serve_limited(args, where, env)
+        lines = err.strip().splitlines()
+        assert "Traceback" not in err and INTERNAL_ERROR not in err, (args, err)
+        assert "MemoryError" not in err, (args, err)
+        assert outside.read_bytes() == PRECIOUS, args  # never written through the link
+        if served:  # then SIGTERM: a clean stop
+            assert not always_bad, (args, "served with a value it must refuse", err)
+            assert status == 143 and lines[-1:] == ["interrupted"], (args, status, err)
+        else:  # refused up front
+            assert status == 2 if always_bad else status in (1, 2), (args, status, err)
+            assert len(lines) == 1 and ERROR_LINE.match(lines[0]), (args, err)
+            assert_bounded(lines)
+        left = sorted(p.name for p in where.iterdir() if p.name != FRESH or "--state" not in args)
+        assert left == planted, (args, left)  # no link or socket left, no other file written
+        assert not list(temp.iterdir()), (args, list(temp.iterdir()))  # no work directory
+        records = runtime / "snakebot-links"
+        assert not records.exists() or not list(records.iterdir()), (args, "a claim is left")
+
+
+@settings(FUZZ, max_examples=SERVING_EXAMPLES)
+@given(case=serving_cases((("sim", "bus"), ("sim", "bootloader"))))
+def test_hostile_input_to_a_server_is_refused_or_served_until_sigterm(case) -> None:
+    _check_serving_case(case)
+
+
+@pytest.mark.qemu
+@pytest.mark.skipif(not DEFAULT_IMAGE.is_file(), reason="needs `make firmware`")
+@settings(FUZZ, max_examples=max(2, SERVING_EXAMPLES // 2))
+@given(case=serving_cases((("sim", "serve"),)))
+def test_hostile_input_to_sim_serve_is_refused_or_served_until_sigterm(case) -> None:
+    _check_serving_case(case)

@@ -115,7 +115,7 @@ def test_every_message_an_entry_quotes_prints_its_code(code):
     instances = _instances(ENTRIES[code])
     assert instances, f"no message in host/snakebot reads {ENTRIES[code]!r}"
     for text in instances:
-        assert error_line(text) == f"error[{code}]: {text}", text
+        assert error_line(text).startswith(f"error[{code}]: "), text  # (shortened if long)
 
 
 def test_a_message_without_an_entry_prints_no_code():

@@ -38,7 +38,7 @@ import click
 from snakebot.cli.signals import install as install_signal_handlers
 from snakebot.cli.signals import interrupted_status
 from snakebot.cli.troubleshooting import error_line
-from snakebot.errors import InputError, RuntimeFailure
+from snakebot.errors import InputError, RuntimeFailure, bounded_line
 from snakebot.settings import check_environment, is_set
 
 EXIT_RUNTIME = 1
@@ -140,7 +140,7 @@ class SnakebotGroup(click.Group):
             ctx = getattr(exc, "ctx", None)
             if isinstance(exc, click.UsageError) and ctx is not None:
                 hint = f" (see `{ctx.command_path} --help`)"
-            click.echo(error_line(_one_line(exc.format_message())) + hint, err=True)
+            click.echo(error_line(_one_line(exc.format_message()), hint), err=True)
             sys.exit(exc.exit_code)
         except click.Abort as exc:
             click.echo("interrupted", err=True)
@@ -172,7 +172,8 @@ class SnakebotGroup(click.Group):
             if is_set(DEBUG_ENV):
                 raise
             click.echo(
-                f"error: {INTERNAL_ERROR} ({type(exc).__name__}: {_one_line(str(exc))[:200]}); "
+                f"error: {INTERNAL_ERROR} ({type(exc).__name__}: "
+                f"{bounded_line(_one_line(str(exc)), 200)}); "
                 f"please report it with the command line (run with {DEBUG_ENV}=1 for the "
                 "traceback)",
                 err=True,

@@ -17,6 +17,7 @@ from typing import Any, TypeVar
 
 import click
 
+from snakebot.errors import quoted
 from snakebot.extras import require
 from snakebot.facts.boards import TABLE_CAPACITY
 from snakebot.model.gait.limits import GaitLimitError
@@ -197,14 +198,14 @@ class OutputPathType(click.Path):
 
         problem = output_problem(str(value))
         if problem is not None:
-            self.fail(f"{str(value)!r} {problem}", param, ctx)
+            self.fail(f"{quoted(str(value))} {problem}", param, ctx)
         path = Path(value)
         if self.suffixes is not None:
             known = self.suffixes()
             suffix = path.suffix.lower().lstrip(".")
             if suffix not in known:
                 self.fail(
-                    f"{str(path)!r} has the extension {suffix or '(none)'!r}: use one of "
+                    f"{quoted(str(path))} has the extension {suffix or '(none)'!r}: use one of "
                     + ", ".join(f".{s}" for s in sorted(known)),
                     param,
                     ctx,
@@ -215,7 +216,7 @@ class OutputPathType(click.Path):
             for other_name, other in outputs.items():
                 if other_name != name and same_file(other, path):
                     self.fail(
-                        f"{str(path)!r} is also given to {other_name}: two outputs would "
+                        f"{quoted(str(path))} is also given to {other_name}: two outputs would "
                         "overwrite each other; give each its own file",
                         param,
                         ctx,
@@ -243,7 +244,8 @@ class InputPathType(click.Path):
             return path  # missing or unreadable: the reader says what to do
         if not stat.S_ISREG(mode):
             self.fail(
-                f"{str(path)!r} is a FIFO, a device or a socket, not a file: give a regular file",
+                f"{quoted(str(path))} is a FIFO, a device or a socket, not a file: give a "
+                "regular file",
                 param,
                 ctx,
             )
@@ -287,7 +289,9 @@ class PoseType(click.ParamType):
             return value
         parts = str(value).split(",")
         if len(parts) != 3 or not all(p.strip() for p in parts):
-            self.fail(f"{value!r} is not X,Y,THETA: give three comma-separated values", param, ctx)
+            self.fail(
+                f"{quoted(value)} is not X,Y,THETA: give three comma-separated values", param, ctx
+            )
         try:
             return (parse_number(parts[0]), parse_number(parts[1]), parse_angle(parts[2]))
         except ExpressionError as exc:
@@ -315,7 +319,9 @@ class CapacityType(click.ParamType):
             boards = ", ".join(sorted(TABLE_CAPACITY))
             shown = text if len(text) <= MAX_CAPACITY_CHARS else text[:MAX_CAPACITY_CHARS] + "..."
             self.fail(
-                f"{shown!r} is neither a whole number of bytes nor a board ({boards})", param, ctx
+                f"{quoted(shown)} is neither a whole number of bytes nor a board ({boards})",
+                param,
+                ctx,
             )
         return int(text)
 

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import re
 
+from snakebot.errors import LINE_LIMIT, bounded_line
+
 PAGE = "docs/troubleshooting.md"
 """The page whose headings carry the codes."""
 
@@ -84,8 +86,10 @@ ERROR_LINE = re.compile(r"error(?:\[(E\d{3})\])?: ")
 """How every error line the CLI prints starts (group 1: the code, if it has one)."""
 
 
-def error_line(text: str) -> str:
+def error_line(text: str, hint: str = "") -> str:
     """The line the CLI prints for the one-line error message ``text``: ``error: text``,
-    or ``error[E101]: text`` when an entry explains it."""
+    or ``error[E101]: text`` when an entry explains it, then ``hint``; at most
+    ``LINE_LIMIT`` characters however long an input ``text`` quotes (``bounded_line``)."""
     code = code_of(text)
-    return f"error[{code}]: {text}" if code else f"error: {text}"
+    lead = f"error[{code}]: " if code else "error: "
+    return lead + bounded_line(text, LINE_LIMIT - len(lead) - len(hint)) + hint

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 import re
 
-from snakebot.errors import InputError
+from snakebot.errors import InputError, quoted
 from snakebot.facts import devices
 from snakebot.facts.devices import Baud, DeviceError
 from snakebot.formats.protocol import (
@@ -68,13 +68,15 @@ def resolve_register(name_or_address: str, table: ControlTable | None = None) ->
     table = table or base_table()
     text = name_or_address.strip()
     if re.fullmatch(r"\d+|0[xX][0-9a-fA-F]+", text):
-        address = int(text, 0)
-        entry = table.by_address(address)
+        hexadecimal = text[:2].lower() == "0x"
+        # int() refuses 4300 digits and more; no address has more than a few
+        address = int(text, 16 if hexadecimal else 10) if len(text) <= 12 else None
+        entry = None if address is None else table.by_address(address)
         if entry is None:
             starts = ", ".join(f"{e.address} {e.name}" for e in table)
             raise BusCommandError(
-                f"no {table.model} register starts at address {address}: registers start at "
-                f"{starts}"
+                f"no {table.model} register starts at address "
+                f"{quoted(text) if address is None else address}: registers start at {starts}"
             )
         return entry
     wanted = _squash(text)
@@ -83,7 +85,8 @@ def resolve_register(name_or_address: str, table: ControlTable | None = None) ->
             return entry
     names = ", ".join(e.name.lower().replace(" ", "-") for e in table)
     raise BusCommandError(
-        f"{table.model} has no register {name_or_address!r}: use a name ({names}) or an address"
+        f"{table.model} has no register {quoted(name_or_address)}: use a name ({names}) or an "
+        "address"
     )
 
 
@@ -154,22 +157,22 @@ def parse_value(entry: Entry, text: str) -> int:
     m = re.fullmatch(r"([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*([A-Za-z%/]+)", text)
     if m is None:
         raise BusCommandError(
-            f"cannot read the value {text!r}: give a whole number (512, 0x200) or an amount "
+            f"cannot read the value {quoted(text)}: give a whole number (512, 0x200) or an amount "
             "with a unit (30deg, 50rpm)"
         )
     amount, unit = float(m.group(1)), m.group(2)
     if not math.isfinite(amount) or abs(amount) > MAX_AMOUNT:
         raise BusCommandError(
-            f"{text!r} is out of range for {entry.name}: give an amount within "
+            f"{quoted(text)} is out of range for {entry.name}: give an amount within "
             f"+-{MAX_AMOUNT:g} (the register's range is far smaller)"
         )
     if entry.scale is None:
-        raise BusCommandError(f"{entry.name} has no unit: give its raw value, not {text!r}")
+        raise BusCommandError(f"{entry.name} has no unit: give its raw value, not {quoted(text)}")
     try:
         raw = entry.from_units(amount, unit)
     except DeviceError:
         raise BusCommandError(
-            f"{entry.name} is in {entry.scale.unit}: cannot convert {unit!r} "
+            f"{entry.name} is in {entry.scale.unit}: cannot convert {quoted(unit)} "
             f"(give e.g. {amount:g}{entry.scale.unit})"
         ) from None
     if raw == 0 and entry.name in ZERO_MEANS and amount != 0:
@@ -195,7 +198,8 @@ def _position_value(entry: Entry, text: str, amount: float, unit: str) -> int:
     else:
         raise BusCommandError(
             f"{entry.name} is a position: give an angle from the centre (30deg, -0.5rad), "
-            f"a position on the servo's 0-300 dial (150absdeg) or raw ticks (512), not {text!r}"
+            "a position on the servo's 0-300 dial (150absdeg) or raw ticks (512), not "
+            f"{quoted(text)}"
         )
     low, high = write_range(entry)
     if not low <= raw <= high:
@@ -334,17 +338,19 @@ def parse_ids(text: str) -> list[int]:
             continue
         m = re.fullmatch(r"(\d+)(?:\s*-\s*(\d+))?", part)
         if m is None:
-            raise BusCommandError(f"cannot read the ID range {text!r}: write e.g. 0-253 or 1,2,5-7")
-        low = int(m.group(1))
-        high = int(m.group(2)) if m.group(2) else low
+            raise BusCommandError(
+                f"cannot read the ID range {quoted(text)}: write e.g. 0-253 or 1,2,5-7"
+            )
+        # int() refuses 4300 digits and more: past 9, a number is simply out of range
+        low, high = (int(d) if len(d) <= 9 else MAX_ID + 1 for d in m.group(1, 2 if m[2] else 1))
         if low > high or high > MAX_ID:
             raise BusCommandError(
-                f"ID range {part!r} is not within 0-{MAX_ID} (low to high); "
+                f"ID range {quoted(part)} is not within 0-{MAX_ID} (low to high); "
                 f"{BROADCAST_ID} is the broadcast ID, never a servo's"
             )
         ids += [i for i in range(low, high + 1) if i not in ids]
     if not ids:
-        raise BusCommandError(f"no IDs in {text!r}: write e.g. 0-253 or 1,2,5-7")
+        raise BusCommandError(f"no IDs in {quoted(text)}: write e.g. 0-253 or 1,2,5-7")
     return ids
 
 
@@ -362,7 +368,7 @@ def parse_bauds(text: str) -> list[int]:
         bauds = []
     if not bauds or any(b <= 0 for b in bauds):
         raise BusCommandError(
-            f"cannot read the baud rates {text!r}: write e.g. 1000000,57600, common or all"
+            f"cannot read the baud rates {quoted(text)}: write e.g. 1000000,57600, common or all"
         )
     for bps in bauds:  # a rate no servo runs at would wait seconds per ID for nothing
         check_bus_baud(bps)

@@ -37,6 +37,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
+from snakebot.errors import quoted
 from snakebot.formats.gaittable import GaitTableError, read_gait
 from snakebot.formats.nesting import too_deep
 from snakebot.formats.program.errors import ProgramError
@@ -115,7 +116,7 @@ class _Reader:
             or not isinstance(value, int | float)
             or not math.isfinite(value)
         ):
-            raise self.fail(f"`{key}` must be a finite number, got {value!r}")
+            raise self.fail(f"`{key}` must be a finite number, got {quoted(value)}")
         return float(value)
 
     def integer(self, key: str, default: int | None = None) -> int:
@@ -127,10 +128,12 @@ class _Reader:
     def numbers(self, key: str, count: int) -> list[float]:
         value = self.entry.get(key, [0.0] * count)
         if not isinstance(value, list) or len(value) != count:
-            raise self.fail(f"`{key}` must list one number per joint ({count}), got {value!r}")
+            raise self.fail(
+                f"`{key}` must list one number per joint ({count}), got {quoted(value)}"
+            )
         for v in value:
             if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-                raise self.fail(f"`{key}` must list finite numbers, got {v!r}")
+                raise self.fail(f"`{key}` must list finite numbers, got {quoted(v)}")
         return [float(v) for v in value]
 
 
@@ -157,7 +160,7 @@ def _segment(
 ) -> Segment:
     kind = reader.entry.get("kind")
     if kind not in KINDS:
-        raise reader.fail(f"`kind` must be one of {', '.join(KINDS)}, got {kind!r}")
+        raise reader.fail(f"`kind` must be one of {', '.join(KINDS)}, got {quoted(kind)}")
     unknown = sorted(set(reader.entry) - FIELDS[kind])
     if unknown:
         raise reader.fail(f"unknown key(s) {', '.join(unknown)} for a {kind} segment")
@@ -202,7 +205,9 @@ def build_program(
     joints = joints_of(model)
     period = spec.get("period_ms", 20)
     if isinstance(period, bool) or not isinstance(period, int) or not 1 <= period <= 1000:
-        raise ProgramError(f"`period_ms` must be a whole number of ms in 1..1000, got {period!r}")
+        raise ProgramError(
+            f"`period_ms` must be a whole number of ms in 1..1000, got {quoted(period)}"
+        )
     frames: tuple[tuple[int, ...], ...] = ()
     if "table" in spec:
         frames = _frames(spec["table"], base, model, period)
@@ -223,7 +228,7 @@ def build_program(
 
 def _frames(value: Any, base: Path, robot: Robot, period: int) -> tuple[tuple[int, ...], ...]:
     if not isinstance(value, str):
-        raise ProgramError(f"`table` must name a .gait file, got {value!r}")
+        raise ProgramError(f"`table` must name a .gait file, got {quoted(value)}")
     path = base / value
     try:
         table = read_gait(path)

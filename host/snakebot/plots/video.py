@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from snakebot.errors import InputError
+from snakebot.errors import InputError, quoted
 from snakebot.extras import require
 from snakebot.model.robots import Robot
 from snakebot.plots.motion import Motion, StateMotion
@@ -46,11 +46,13 @@ def parse_size(text: str) -> tuple[int, int]:
     try:
         width, height = (int(p) for p in parts)
     except ValueError:
-        raise VideoError(f"{text!r} is not a size: give WIDTHxHEIGHT, e.g. 1280x720") from None
+        raise VideoError(
+            f"{quoted(text)} is not a size: give WIDTHxHEIGHT, e.g. 1280x720"
+        ) from None
     for side in (width, height):
         if not MIN_SIDE <= side <= MAX_SIDE or side % 2:
             raise VideoError(
-                f"{text!r}: each side must be an even number of pixels from {MIN_SIDE} to "
+                f"{quoted(text)}: each side must be an even number of pixels from {MIN_SIDE} to "
                 f"{MAX_SIDE}, e.g. 1280x720"
             )
     return width, height

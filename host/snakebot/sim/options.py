@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass, field, replace
 from urllib.parse import parse_qsl, urlencode
 
+from snakebot.errors import quoted
 from snakebot.facts import devices
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.bus.faults import Brownout, FaultConfig
@@ -60,7 +61,7 @@ def _bool(name: str, text: str) -> bool:
         return True
     if word in _FALSE:
         return False
-    raise SimOptionError(f"option {name}={text!r}: write {name}=1 or {name}=0")
+    raise SimOptionError(f"option {name}={quoted(text)}: write {name}=1 or {name}=0")
 
 
 def _number(name: str, text: str, low: float = 0.0, high: float = math.inf) -> float:
@@ -69,14 +70,16 @@ def _number(name: str, text: str, low: float = 0.0, high: float = math.inf) -> f
     except ValueError:
         value = math.nan
     if not low <= value <= high:
-        raise SimOptionError(f"option {name}={text!r} must be a number from {low:g} to {high:g}")
+        raise SimOptionError(
+            f"option {name}={quoted(text)} must be a number from {low:g} to {high:g}"
+        )
     return value
 
 
 def _int(name: str, text: str, low: int, high: int) -> int:
     value = _number(name, text, low, high)
     if value != int(value):
-        raise SimOptionError(f"option {name}={text!r} must be a whole number")
+        raise SimOptionError(f"option {name}={quoted(text)} must be a whole number")
     return int(value)
 
 
@@ -123,7 +126,7 @@ class SimOptions:
             )
         except ValueError:
             raise SimOptionError(
-                f"cannot read the options {query!r}: expected {URL_FORM}"
+                f"cannot read the options {quoted(query)}: expected {URL_FORM}"
             ) from None
         for key, value in pairs:
             if key == "robot":
@@ -134,7 +137,9 @@ class SimOptions:
                 except ValueError:
                     ids = ()
                 if not ids or not all(0 <= i <= 253 for i in ids):
-                    raise SimOptionError(f"option ids={value!r}: give IDs 0..253, e.g. ids=1,2,3")
+                    raise SimOptionError(
+                        f"option ids={quoted(value)}: give IDs 0..253, e.g. ids=1,2,3"
+                    )
                 opts = replace(opts, ids=ids)
             elif key == "model":
                 opts = replace(opts, model=value)
@@ -166,7 +171,7 @@ class SimOptions:
                 brownouts += [Brownout.parse(v) for v in value.split(";") if v.strip()]
             else:
                 raise SimOptionError(
-                    f"unknown sim:// option {key!r}: expected {URL_FORM} with options "
+                    f"unknown sim:// option {quoted(key)}: expected {URL_FORM} with options "
                     + ", ".join(OPTIONS)
                 )
         if brownouts:

@@ -48,6 +48,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from snakebot.errors import quoted
 from snakebot.facts.boards import APP_BASE, PC_LINK_BAUD
 from snakebot.facts.controller import load as load_controller
 from snakebot.firmware import image as firmware_image
@@ -331,7 +332,7 @@ class EmulatedRobot:
         board: str = DEFAULT_BOARD,
     ) -> None:
         if board not in BOARDS:
-            raise ServeError(f"unknown board {board!r}: choose one of {', '.join(BOARDS)}")
+            raise ServeError(f"unknown board {quoted(board)}: choose one of {', '.join(BOARDS)}")
         self.board = board
         self.world_kind = check_world(world)
         self.robot = robot if isinstance(robot, Robot) else load_robot(robot)

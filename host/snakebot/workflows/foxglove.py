@@ -22,7 +22,7 @@ from xml.etree import ElementTree as ET
 
 import numpy as np
 
-from snakebot.errors import InputError
+from snakebot.errors import InputError, quoted
 from snakebot.extras import available, require
 from snakebot.formats.live_topics import (
     CONTROLLER,
@@ -57,7 +57,7 @@ def parse_endpoint(text: str) -> tuple[str, int]:
         port = -1
     if not 0 <= port <= 65535:
         raise FoxgloveOptionError(
-            f"{text!r} is not [HOST:]PORT: give a port from 0 to 65535 (0: any free one), "
+            f"{quoted(text)} is not [HOST:]PORT: give a port from 0 to 65535 (0: any free one), "
             "e.g. 8765 or 0.0.0.0:8765 to listen beyond this machine"
         )
     return (host.strip("[]") or LOOPBACK), port

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from snakebot.errors import InputError
+from snakebot.errors import InputError, quoted
 from snakebot.formats.gaittable import GaitTable
 from snakebot.model.robots import Robot
 from snakebot.workflows.predict import Prediction, predict_gait, predict_table, resolve_robot
@@ -38,13 +38,13 @@ def parse_mu_values(mu: str) -> tuple[float, ...]:
         values = ()
     if not values or not all(math.isfinite(v) and 0 < v <= MAX_MU for v in values):
         raise InputError(
-            f"{mu!r}: give friction coefficients more than 0 and at most {MAX_MU:g} "
+            f"{quoted(mu)}: give friction coefficients more than 0 and at most {MAX_MU:g} "
             "separated by commas, e.g. 0.1,1,10"
         ).about("mu")
     if len(values) > MAX_MU_VALUES:
         raise InputError(
-            f"{mu!r}: at most {MAX_MU_VALUES} friction coefficients (each is a physics run "
-            "of its own)"
+            f"{quoted(mu)}: {len(values):,} friction coefficients, at most {MAX_MU_VALUES} "
+            "(each is a physics run of its own)"
         ).about("mu")
     return values
 

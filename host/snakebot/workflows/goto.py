@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from snakebot.errors import InputError
+from snakebot.errors import InputError, quoted
 from snakebot.formats.gaittable import GaitTable
 from snakebot.formats.protocol import sync_write
 from snakebot.link.transport import DxlClient
@@ -101,7 +101,7 @@ def make_world(name: str, bus: Bus, robot: Robot, period: float, start: float) -
     if name == "kinematic":
         return World(bus, robot, period=period, start=start)
     if name != "mujoco":
-        raise GotoError(f"unknown world {name!r}: use {' or '.join(WORLDS)}")
+        raise GotoError(f"unknown world {quoted(name)}: use {' or '.join(WORLDS)}")
     try:
         from snakebot.sim.physics.select import make_world as physics_world
     except ImportError:

@@ -7,6 +7,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 
+from snakebot.errors import quoted
 from snakebot.facts.devices.errors import DeviceError
 from snakebot.facts.devices.register import Register
 from snakebot.facts.devices.units import Scale
@@ -20,7 +21,7 @@ def find(registers: tuple[Register, ...], name: str, missing: str) -> Register:
         if reg.name.lower() == key:
             return reg
     known = ", ".join(r.name for r in registers)
-    raise DeviceError(f"{missing} {name!r}: known are {known}")
+    raise DeviceError(f"{missing} {quoted(name)}: known are {known}")
 
 
 @dataclass(frozen=True)
@@ -167,7 +168,7 @@ class Device:
             if page.number == name or (isinstance(name, str) and page.name.lower() == name.lower()):
                 return page
         known = ", ".join(f"{p.number} ({p.name})" for p in self.pages)
-        raise DeviceError(f"{self.name} has no window page {name!r}: known are {known}")
+        raise DeviceError(f"{self.name} has no window page {quoted(name)}: known are {known}")
 
     def page_of(self, name: str) -> Page | None:
         """The window page holding the field called ``name``, or None (no page has it)."""
@@ -205,7 +206,9 @@ class Device:
             return self.scales[name]
         except KeyError:
             known = ", ".join(self.scales)
-            raise DeviceError(f"{self.name} has no scale {name!r}: known are {known}") from None
+            raise DeviceError(
+                f"{self.name} has no scale {quoted(name)}: known are {known}"
+            ) from None
 
     @property
     def status_return_level_address(self) -> int | None:

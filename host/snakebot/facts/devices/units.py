@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from enum import Enum
 from fractions import Fraction
 
+from snakebot.errors import quoted
 from snakebot.facts.devices.errors import DeviceError
 
 # How many of the second unit make one of the first: definitions of the units, not device
@@ -37,7 +38,9 @@ def conversion(unit: str, to: str) -> float:
     if (to, unit) in _CONVERSIONS:
         return 1.0 / _CONVERSIONS[(to, unit)]
     known = sorted({u for pair in _CONVERSIONS for u in pair})
-    raise DeviceError(f"cannot convert {unit!r} to {to!r}: known units are {', '.join(known)}")
+    raise DeviceError(
+        f"cannot convert {quoted(unit)} to {quoted(to)}: known units are {', '.join(known)}"
+    )
 
 
 def shown(value: object) -> str:
@@ -51,7 +54,7 @@ def exact(value: object) -> Fraction:
         return Fraction(value[0], value[1])
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise DeviceError(
-            f"a scale factor must be a number or [numerator, denominator], not {value!r}"
+            f"a scale factor must be a number or [numerator, denominator], not {quoted(value)}"
         )
     return Fraction(repr(value)) if isinstance(value, float) else Fraction(value)
 

@@ -8,6 +8,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import cache
 
+from snakebot.errors import quoted
 from snakebot.facts import devices
 from snakebot.facts.devices import Device, DeviceError, Register
 from snakebot.formats.protocol.errors import ProtocolError
@@ -56,7 +57,7 @@ class ControlTable:
             if name.lower() == model.strip().lower():
                 return _table(name)
         raise ControlTableError(
-            f"unknown servo model {model!r}: known models are {', '.join(cls.models())}"
+            f"unknown servo model {quoted(model)}: known models are {', '.join(cls.models())}"
         )
 
     @classmethod

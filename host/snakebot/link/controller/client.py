@@ -21,6 +21,7 @@ from dataclasses import asdict, dataclass
 from types import TracebackType
 from typing import Any
 
+from snakebot.errors import quoted
 from snakebot.facts import devices
 from snakebot.facts.boards import PC_LINK_BAUD
 from snakebot.facts.controller import Controller, Register, load
@@ -284,7 +285,7 @@ class ControllerClient:
         code = self.table.enums["Command"].get(name.upper())
         if code is None:
             raise ControllerInputError(
-                f"no controller command {name!r}: use one of "
+                f"no controller command {quoted(name)}: use one of "
                 + ", ".join(self.table.enums["Command"])
             )
         self.write({"Command": code})

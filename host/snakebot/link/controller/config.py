@@ -8,7 +8,7 @@ import difflib
 import re
 from typing import Any
 
-from snakebot.errors import InputError, SnakebotError
+from snakebot.errors import InputError, SnakebotError, quoted
 from snakebot.facts.controller import Controller
 from snakebot.facts.devices import Register
 from snakebot.formats.protocol import ErrorFlags
@@ -51,7 +51,7 @@ def find_setting(table: Controller, name: str) -> Register:
         if close
         else "`snakebot config` lists them"
     )
-    raise ConfigError(f"the controller has no setting {name!r}: {hint}")
+    raise ConfigError(f"the controller has no setting {quoted(name)}: {hint}")
 
 
 def parse_setting(table: Controller, reg: Register, text: str) -> int:

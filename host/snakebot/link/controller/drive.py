@@ -26,6 +26,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from snakebot.errors import quoted
 from snakebot.formats.protocol import ErrorFlags
 from snakebot.link.controller import messages as words
 from snakebot.link.controller import playback
@@ -92,7 +93,7 @@ def _token(token: str) -> list[str | Wait]:
             raise ValueError(f"wait {token} is longer than {MAX_WAIT_S:g}s: split it")
         return [Wait(seconds)]
     raise ValueError(
-        f"unknown key {token!r}: use left, right, up, down (or the letters L R U D), "
+        f"unknown key {quoted(token)}: use left, right, up, down (or the letters L R U D), "
         "space, q, or a wait such as 0.5s"
     )
 

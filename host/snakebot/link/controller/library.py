@@ -23,6 +23,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any
 
+from snakebot.errors import quoted
 from snakebot.formats.upload_writes import chunk_writes, commit_write
 from snakebot.link.controller import messages as words
 from snakebot.link.controller.client import ControllerClient
@@ -224,7 +225,8 @@ def encode_name(ctl: ControllerClient, name: str) -> bytes:
     raw = name.encode("ascii", "replace")
     if len(raw) > size or not name.isascii() or not all(0x20 <= b <= 0x7E for b in raw):
         raise LibraryRefused(
-            f"slot name {name!r} must be at most {size} printable ASCII characters: shorten it"
+            f"slot name {quoted(name)} must be at most {size} printable ASCII characters: "
+            "shorten it"
         )
     return raw.ljust(size, b"\0")
 
@@ -260,7 +262,7 @@ def store_slot(
     _check_slot(ctl, slot)
     kinds = ctl.table.enums["Upload Commit"]
     if kind not in kinds:
-        raise LibraryRefused(f"no blob kind {kind!r}: use TABLE")
+        raise LibraryRefused(f"no blob kind {quoted(kind)}: use TABLE")
     wait_for_store(ctl, on_progress)
     ctl.write({"Library Slot": slot, "Store Kind": kinds[kind]})
     store_name = ctl.table.register("Store Name")

@@ -17,6 +17,7 @@ commands, the roster) retry as every transaction does (``SNAKEBOT_RETRIES``,
 from __future__ import annotations
 
 from snakebot import settings as table
+from snakebot.errors import quoted
 from snakebot.link.controller.errors import ControllerInputError
 
 ENV_UPLOAD_RETRIES = "SNAKEBOT_UPLOAD_RETRIES"
@@ -42,7 +43,9 @@ def _resolve(value: int | None, env: str, what: str) -> int:
     row = table.setting(env)
     low, high = int(row.low or 0), int(row.high or 0)
     if not isinstance(value, int) or not low <= value <= high:
-        raise ControllerInputError(f"{what} must be a whole number {low}..{high}, got {value!r}")
+        raise ControllerInputError(
+            f"{what} must be a whole number {low}..{high}, got {quoted(value)}"
+        )
     return value
 
 

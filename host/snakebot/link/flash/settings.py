@@ -29,6 +29,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+from snakebot.errors import quoted
 from snakebot.link.flash.errors import FlashSettingError
 from snakebot.settings import default_float, lookup
 
@@ -97,7 +98,8 @@ class FlashTimeouts:
             if value is not None:
                 if not (isinstance(value, (int, float)) and 0 <= value < math.inf):
                     raise FlashSettingError(
-                        f"flash timeout {f.name} must be a number of seconds >= 0, got {value!r}"
+                        f"flash timeout {f.name} must be a number of seconds >= 0, got "
+                        f"{quoted(value)}"
                     )
                 values[f.name] = float(value)
         if overrides:

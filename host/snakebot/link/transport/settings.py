@@ -25,6 +25,7 @@ from __future__ import annotations
 from typing import Literal
 
 from snakebot import settings as table
+from snakebot.errors import quoted
 from snakebot.link.transport import timing
 from snakebot.link.transport.errors import TransportSettingError
 
@@ -49,7 +50,7 @@ def resolve_retries(value: int | None = None) -> int:
         return table.resolve_int(ENV_RETRIES)
     if not isinstance(value, int) or not 0 <= value <= MAX_RETRIES:
         raise TransportSettingError(
-            f"retries must be a whole number from 0 to {MAX_RETRIES}, got {value!r}"
+            f"retries must be a whole number from 0 to {MAX_RETRIES}, got {quoted(value)}"
         )
     return value
 
@@ -61,7 +62,7 @@ def _resolve_seconds(
         env = table.lookup(env_name)
         return default if env is None else float(env) / per_unit
     if not value >= 0:
-        raise TransportSettingError(f"{what} must not be negative, got {value!r}")
+        raise TransportSettingError(f"{what} must not be negative, got {quoted(value)}")
     return float(value)
 
 
@@ -100,4 +101,4 @@ def resolve_echo(value: EchoSetting | None = None) -> EchoSetting:
         return "auto" if env == "auto" else bool(env)
     if value is True or value is False or value == "auto":
         return value
-    raise TransportSettingError(f"echo must be True, False or 'auto', got {value!r}")
+    raise TransportSettingError(f"echo must be True, False or 'auto', got {quoted(value)}")

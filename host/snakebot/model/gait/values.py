@@ -10,11 +10,16 @@ import ast
 import math
 import re
 
-from snakebot.errors import InputError
+from snakebot.errors import InputError, quoted
 
 _SUFFIX = re.compile(r"^(?P<body>.*?)\s*(?P<unit>deg|°|rad)?$", re.S)
 _CONSTANTS = {"pi": math.pi, "tau": math.tau}
 _FIELD = re.compile(r"^[gh][1-9]$")
+MAX_EXPRESSION = 500
+"""The longest expression read, in characters: enough for any number or combination of
+fields, and short enough that parsing and evaluating it stays shallow and quick (a
+10,000-term sum would pass Python's recursion limit, a long run of names exhausts the
+parser's memory)."""
 
 
 class ExpressionError(InputError):
@@ -48,29 +53,38 @@ def _number(node: ast.AST, text: str) -> float:
                 return a / b
             power = a**b
         except (ZeroDivisionError, OverflowError) as exc:
-            raise ExpressionError(f"cannot compute {text!r} ({exc})") from None
+            raise ExpressionError(f"cannot compute {quoted(text)} ({exc})") from None
         if isinstance(power, complex):  # a negative number to a fractional power
             raise ExpressionError(
-                f"{text!r} is not a real number (a negative base to a fractional power)"
+                f"{quoted(text)} is not a real number (a negative base to a fractional power)"
             )
         return power
     raise ExpressionError(
-        f"cannot read {text!r}: use a number, pi, + - * / and an optional "
+        f"cannot read {quoted(text)}: use a number, pi, + - * / and an optional "
         "'deg' suffix (e.g. 0.5, pi/3, -60deg)"
     )
 
 
+def _parsed(text: str, what: str, example: str) -> ast.expr:
+    """The expression ``text`` as a tree (ExpressionError naming ``what`` and ``example``
+    if it cannot be read or is longer than MAX_EXPRESSION)."""
+    if len(text) > MAX_EXPRESSION:
+        raise ExpressionError(
+            f"{what} {quoted(text)} is longer than {MAX_EXPRESSION} characters: write e.g. "
+            f"{example}"
+        )
+    try:
+        return ast.parse(text.strip(), mode="eval").body
+    except (SyntaxError, ValueError, MemoryError, RecursionError):
+        raise ExpressionError(f"cannot read {what} {quoted(text)}: write e.g. {example}") from None
+
+
 def parse_number(text: str) -> float:
     """A plain arithmetic expression over numbers and pi."""
-    try:
-        tree = ast.parse(text.strip(), mode="eval")
-    except SyntaxError:
-        raise ExpressionError(
-            f"cannot read {text!r}: use a number or an expression like pi/3"
-        ) from None
-    value = _number(tree.body, text)
+    tree = _parsed(text, "the number", "0.5 or pi/3")
+    value = _number(tree, text)
     if not math.isfinite(value):
-        raise ExpressionError(f"{text!r} is not a finite number")
+        raise ExpressionError(f"{quoted(text)} is not a finite number")
     return value
 
 
@@ -87,11 +101,13 @@ def parse_angles(text: str, count: int | None = None, what: str = "values") -> l
     """A comma-separated list of angles (each as parse_angle), optionally of fixed length."""
     parts = [p for p in text.split(",")]
     if any(not p.strip() for p in parts):
-        raise ExpressionError(f"{what} {text!r} has an empty entry: separate values with commas")
+        raise ExpressionError(
+            f"{what} {quoted(text)} has an empty entry: separate values with commas"
+        )
     values = [parse_angle(p) for p in parts]
     if count is not None and len(values) != count:
         raise ExpressionError(
-            f"{what} needs {count} comma-separated values, got {len(values)} in {text!r}"
+            f"{what} needs {count} comma-separated values, got {len(values)} in {quoted(text)}"
         )
     return values
 
@@ -116,11 +132,11 @@ def _combination(node: ast.AST, text: str) -> dict[str, float]:
         a_const, b_const = set(a) <= {""}, set(b) <= {""}
         if isinstance(node.op, ast.Div):
             if not b_const or b.get("", 0.0) == 0.0:
-                raise ExpressionError(f"in {text!r}: divide only by a non-zero number")
+                raise ExpressionError(f"in {quoted(text)}: divide only by a non-zero number")
             return {k: v / b[""] for k, v in a.items()}
         if not (a_const or b_const):
             raise ExpressionError(
-                f"in {text!r}: fields can only be scaled by numbers, not multiplied together"
+                f"in {quoted(text)}: fields can only be scaled by numbers, not multiplied together"
             )
         scale, combo = (a.get("", 0.0), b) if a_const else (b.get("", 0.0), a)
         return {k: scale * v for k, v in combo.items()}
@@ -128,32 +144,26 @@ def _combination(node: ast.AST, text: str) -> dict[str, float]:
         return {"": _number(node, text)}
     except ExpressionError:
         raise ExpressionError(
-            f"cannot read field expression {text!r}: write a combination of "
+            f"cannot read field expression {quoted(text)}: write a combination of "
             "fields like g1, 2*g1-h3 or (2*g1-h3)/2"
         ) from None
 
 
 def parse_field_expression(text: str, names: tuple[str, ...]) -> dict[str, float]:
     """``{name: coefficient}`` (non-zero only) for a combination of the given field names."""
-    try:
-        tree = ast.parse(text.strip(), mode="eval")
-    except SyntaxError:
-        raise ExpressionError(
-            f"cannot read field expression {text!r}: write e.g. 2*g1-h3"
-        ) from None
-    combo = _combination(tree.body, text)
+    combo = _combination(_parsed(text, "the field expression", "2*g1-h3"), text)
     if combo.get("", 0.0) != 0.0:
         raise ExpressionError(
-            f"{text!r} adds a plain number to fields: write only fields and their multiples"
+            f"{quoted(text)} adds a plain number to fields: write only fields and their multiples"
         )
     combo.pop("", None)
     unknown = sorted(set(combo) - set(names))
     if unknown:
         raise ExpressionError(
-            f"{text!r} uses {', '.join(unknown)}, which this robot does not have: "
+            f"{quoted(text)} uses {', '.join(unknown)}, which this robot does not have: "
             f"use {', '.join(names)}"
         )
     combo = {k: v for k, v in combo.items() if v != 0.0}
     if not combo:
-        raise ExpressionError(f"{text!r} is the zero field: nothing to follow")
+        raise ExpressionError(f"{quoted(text)} is the zero field: nothing to follow")
     return {n: combo[n] for n in names if n in combo}

@@ -22,6 +22,7 @@ if sys.version_info >= (3, 11):
 else:  # the same parser as a package (a dependency on Python 3.10 only)
     import tomli as tomllib
 
+from snakebot.errors import quoted
 from snakebot.formats.nesting import too_deep
 from snakebot.model.robots.model import (
     DEFAULT_FRICTION,
@@ -272,7 +273,7 @@ def parse_robot(text: str, source: str = "<robot>") -> Robot:
     reader.check_keys(SCHEMA, data)
     kind = reader.get(("kind",), str)
     if kind not in ("snake", "trident", "car"):
-        raise reader.fail(("kind",), f'must be "snake", "trident" or "car", not {kind!r}')
+        raise reader.fail(("kind",), f'must be "snake", "trident" or "car", not {quoted(kind)}')
     joints_raw = reader.get(("joints",), list)
     joints = tuple(_joint(reader, i) for i in range(len(joints_raw)))
     ids = [j.servo_id for j in joints]
@@ -287,7 +288,7 @@ def parse_robot(text: str, source: str = "<robot>") -> Robot:
     if model not in SERVO_MAX_RPM and "max_speed_rpm" not in data.get("servo", {}):
         raise reader.fail(
             ("servo", "model"),
-            f"{model!r} is unknown: use one of "
+            f"{quoted(model)} is unknown: use one of "
             f"{', '.join(SERVO_MAX_RPM)} or give servo.max_speed_rpm",
         )
     datasheet = SERVO_MAX_RPM.get(model)
@@ -355,7 +356,7 @@ def load_robot(name_or_path: str | Path) -> Robot:
     path = Path(name_or_path)
     if not path.is_file():
         raise RobotError(
-            f"no robot {text_name!r}: give a built-in name ({', '.join(BUILTIN_ROBOTS)}) "
+            f"no robot {quoted(text_name)}: give a built-in name ({', '.join(BUILTIN_ROBOTS)}) "
             "or the path of a robot .toml file"
         )
     try:

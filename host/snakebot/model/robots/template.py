@@ -18,6 +18,7 @@ if sys.version_info >= (3, 11):
 else:  # the same parser as a package (a dependency on Python 3.10 only)
     import tomli as tomllib
 
+from snakebot.errors import quoted
 from snakebot.model.robots.loader import BUILTIN_ROBOTS, builtin_text, parse_robot
 from snakebot.model.robots.model import RobotError, joint_name
 from snakebot.model.robots.schema import MAX_LINKS, MAX_SERVO_ID, TABLES, Table
@@ -34,7 +35,7 @@ def _values(like: str, links: int | None) -> dict[str, Any]:
     snake's joints are then cut or extended: each new joint as the last, its own ID)."""
     if like not in BUILTIN_ROBOTS:
         raise RobotError(
-            f"no built-in robot {like!r}: start from one of {', '.join(BUILTIN_ROBOTS)}"
+            f"no built-in robot {quoted(like)}: start from one of {', '.join(BUILTIN_ROBOTS)}"
         ).about("like")
     data = tomllib.loads(builtin_text(like))
     if links is None:

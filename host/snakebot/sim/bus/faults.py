@@ -26,6 +26,7 @@ import math
 import random
 from dataclasses import dataclass, field
 
+from snakebot.errors import quoted
 from snakebot.sim.errors import SimOptionError
 
 MAX_BROWNOUT_S = 1e6
@@ -49,17 +50,17 @@ class Brownout:
             result = cls(int(ident), float(start), float(duration))
         except ValueError:
             raise SimOptionError(
-                f"brownout {text!r} is not ID@START+DURATION: write e.g. 3@0.5+0.2 for "
+                f"brownout {quoted(text)} is not ID@START+DURATION: write e.g. 3@0.5+0.2 for "
                 "servo 3 losing power at 0.5 s for 0.2 s"
             ) from None
         start_ok = 0 <= result.start_s <= MAX_BROWNOUT_S  # NaN fails both
         if not (start_ok and 0 < result.duration_s <= MAX_BROWNOUT_S):
             raise SimOptionError(
-                f"brownout {text!r}: the start must be 0 to {MAX_BROWNOUT_S:g} s and the "
+                f"brownout {quoted(text)}: the start must be 0 to {MAX_BROWNOUT_S:g} s and the "
                 f"duration more than 0 and at most {MAX_BROWNOUT_S:g} s"
             )
         if not 0 <= result.servo_id <= 253:
-            raise SimOptionError(f"brownout {text!r}: the servo ID must be 0..253")
+            raise SimOptionError(f"brownout {quoted(text)}: the servo ID must be 0..253")
         return result
 
 
@@ -80,13 +81,13 @@ class FaultConfig:
         for name in ("corrupt", "drop"):
             value = getattr(self, name)
             if not 0.0 <= value <= 1.0:
-                raise SimOptionError(f"{name} is a probability from 0 to 1, got {value!r}")
+                raise SimOptionError(f"{name} is a probability from 0 to 1, got {quoted(value)}")
         for name in ("delay_s", "jitter_s", "noise_rate"):
             value = getattr(self, name)
             if not (value >= 0.0 and math.isfinite(value)):
-                raise SimOptionError(f"{name} must be a finite number >= 0, got {value!r}")
+                raise SimOptionError(f"{name} must be a finite number >= 0, got {quoted(value)}")
         if not 1 <= self.noise_len <= 255:
-            raise SimOptionError(f"noise_len must be 1..255 bytes, got {self.noise_len!r}")
+            raise SimOptionError(f"noise_len must be 1..255 bytes, got {quoted(self.noise_len)}")
 
     @property
     def any(self) -> bool:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from snakebot.errors import quoted
 from snakebot.extras import require
 from snakebot.model.robots import Robot
 from snakebot.sim.bus.bus import Bus
@@ -18,7 +19,7 @@ DEFAULT_WORLD = "kinematic"
 def check_world(name: str) -> str:
     """``name`` if it is a world, else an error listing the worlds."""
     if name not in WORLDS:
-        raise SimOptionError(f"unknown world {name!r}: use {' or '.join(WORLDS)}")
+        raise SimOptionError(f"unknown world {quoted(name)}: use {' or '.join(WORLDS)}")
     return name
 
 

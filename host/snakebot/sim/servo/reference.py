@@ -40,6 +40,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from snakebot.errors import quoted
 from snakebot.facts import devices
 from snakebot.formats.protocol import ControlTable, ControlTableError
 from snakebot.sim.errors import SimOptionError
@@ -100,7 +101,9 @@ class ReferenceServo(ServoPackets, ServoMotion):
             self.table = ControlTable.for_model(model)
             self.spec = motor.spec_for(model)
         except (KeyError, ControlTableError):
-            raise SimOptionError(f"unknown servo model {model!r}: use AX-12A or AX-12W") from None
+            raise SimOptionError(
+                f"unknown servo model {quoted(model)}: use AX-12A or AX-12W"
+            ) from None
         if not 0 <= servo_id <= 253:
             raise SimOptionError(f"servo ID must be 0..253, got {servo_id}")
         if not 0 <= position <= motor.MAX_POSITION:

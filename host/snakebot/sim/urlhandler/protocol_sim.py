@@ -25,7 +25,7 @@ from urllib.parse import urlsplit
 
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes
 
-from snakebot.errors import SnakebotError
+from snakebot.errors import SnakebotError, quoted
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.bus.clock import WallClockPacer
 from snakebot.sim.options import URL_FORM, SimOptions
@@ -98,7 +98,7 @@ class Serial(SerialBase):
     def _attach(self, url: str) -> tuple[Bus, SimOptions, str]:
         parts = urlsplit(url)
         if parts.scheme != "sim":
-            raise SerialException(f"expected {URL_FORM}, not {url!r}")
+            raise SerialException(f"expected {URL_FORM}, not {quoted(url)}")
         try:
             options = SimOptions.from_query(parts.query)
             name = parts.netloc + parts.path.strip("/")
@@ -134,7 +134,7 @@ class Serial(SerialBase):
         if not self.is_open or self.bus is None:
             return
         if not (isinstance(self._baudrate, (int, float)) and self._baudrate > 0):
-            raise ValueError(f"invalid baudrate: {self._baudrate!r}")
+            raise ValueError(f"invalid baudrate: {quoted(self._baudrate)}")
         with self._lock:
             self.bus.baudrate = self._baudrate
 

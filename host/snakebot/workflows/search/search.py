@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from snakebot.errors import quoted
 from snakebot.sim.physics.select import check_world
 from snakebot.workflows.search.evaluate import Settings
 from snakebot.workflows.search.results import (
@@ -68,11 +69,13 @@ class Request:
     def check(self) -> None:
         if self.objective not in OBJECTIVES:
             raise SearchError(
-                f"unknown objective {self.objective!r}: use one of {', '.join(OBJECTIVES)}"
+                f"unknown objective {quoted(self.objective)}: use one of {', '.join(OBJECTIVES)}"
             )
         check_world(self.settings.world)
         if self.method not in METHODS:
-            raise SearchError(f"unknown method {self.method!r}: use one of {', '.join(METHODS)}")
+            raise SearchError(
+                f"unknown method {quoted(self.method)}: use one of {', '.join(METHODS)}"
+            )
         self.space.check_world(self.settings.world)
         if not self.space.varied:
             raise SearchError(

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from snakebot.errors import InputError
+from snakebot.errors import InputError, quoted
 from snakebot.model.gait.values import ExpressionError, parse_angle, parse_number
 
 GAIT_PARAMETERS = {
@@ -85,7 +85,7 @@ def _canonical(name: str, table: dict[str, tuple[str, ...]], what: str) -> str:
         if name in aliases:
             return canonical
     known = ", ".join(a for aliases in table.values() for a in aliases)
-    raise SearchError(f"unknown {what} {name!r}: use one of {known}")
+    raise SearchError(f"unknown {what} {quoted(name)}: use one of {known}")
 
 
 def parse_axis(text: str, robust: bool = False) -> Axis:
@@ -94,36 +94,36 @@ def parse_axis(text: str, robust: bool = False) -> Axis:
     name, sep, spec = text.partition("=")
     if not sep or not name.strip() or not spec.strip():
         raise SearchError(
-            f"{text!r}: write NAME=VALUE, NAME=LOW:HIGH or NAME=LOW:HIGH:COUNT"
+            f"{quoted(text)}: write NAME=VALUE, NAME=LOW:HIGH or NAME=LOW:HIGH:COUNT"
         ).about(param)
     table = ROBUST_PARAMETERS if robust else GAIT_PARAMETERS
     canonical = _canonical(name.strip(), table, "robustness parameter" if robust else "parameter")
     parse = parse_number if robust else parse_angle
     parts = spec.split(":")
     if len(parts) > 3:
-        raise SearchError(f"{text!r}: at most LOW:HIGH:COUNT").about(param)
+        raise SearchError(f"{quoted(text)}: at most LOW:HIGH:COUNT").about(param)
     try:
         numbers = [parse(p.strip()) for p in parts[:2]]
         count = None if len(parts) < 3 else int(parts[2].strip())
     except ExpressionError as exc:
-        raise SearchError(f"{text!r}: {exc}").about(param) from None
+        raise SearchError(f"{quoted(text)}: {exc}").about(param) from None
     except ValueError:
-        raise SearchError(f"{text!r}: COUNT must be a whole number").about(param) from None
+        raise SearchError(f"{quoted(text)}: COUNT must be a whole number").about(param) from None
     if not all(math.isfinite(v) for v in numbers):
-        raise SearchError(f"{text!r}: the values must be finite").about(param)
+        raise SearchError(f"{quoted(text)}: the values must be finite").about(param)
     if len(numbers) == 1:
         return Axis(canonical, numbers[0], numbers[0], 1)
     low, high = numbers
     if count is not None and count < 1 or high < low or (high == low and count != 1):
         raise SearchError(
-            f"{text!r} is an empty range: give LOW < HIGH and a COUNT of 1 or more"
+            f"{quoted(text)} is an empty range: give LOW < HIGH and a COUNT of 1 or more"
         ).about(param)
     if count is not None and count > MAX_RUNS:
-        raise SearchError(f"{text!r}: COUNT must be at most {MAX_RUNS:,}").about(param)
+        raise SearchError(f"{quoted(text)}: COUNT must be at most {MAX_RUNS:,}").about(param)
     if count == 1 and high != low:
-        raise SearchError(f"{text!r}: one value of a range is ambiguous; write {name}=VALUE").about(
-            param
-        )
+        raise SearchError(
+            f"{quoted(text)}: one value of a range is ambiguous; write {name}=VALUE"
+        ).about(param)
     return Axis(canonical, low, high, count)
 
 
@@ -158,7 +158,7 @@ class Space:
                 raise SearchError(f"{axis.name} is given twice: give it once").about("robust")
             if axis.low < 0 or (axis.low == 0 and axis.name != "rolling"):
                 raise SearchError(
-                    f"{text!r}: {axis.name} must be "
+                    f"{quoted(text)}: {axis.name} must be "
                     + ("zero or more" if axis.name == "rolling" else "positive")
                 ).about("robust")
             rob[axis.name] = axis

@@ -35,7 +35,7 @@ QEMU_JOBS   ?= $(shell nproc)
 SERIAL_JOBS ?= 3
 
 .PHONY: dist help setup system-packages demo-packages python-env runtime-env core firmware \
-        test test-summary test-suite test-collect test-parallel test-qemu test-serial test-fuzz-wheel test-fuzz test-wheel lint fuzz-targets bench demo flash flash-image clean fuzz docs
+        test test-summary test-collect test-parallel test-qemu test-serial test-fuzz-wheel test-fuzz test-wheel lint fuzz-targets bench demo flash flash-image clean fuzz docs
 
 help:
 	@echo "make demo      run the main job on the emulated robot (does its own set-up)"
@@ -101,25 +101,24 @@ firmware: demo-packages
 	$(Q)$(MAKE) --no-print-directory -C firmware
 
 # The static checks, the firmware and the fuzz targets side by side (so no two processes
-# compile the same files at once); then two lanes at once, laid out by what was measured
-# on this project's 2-core virtual machine, where both busy cores lose time to the host:
-# - the tests in three stages: those that neither run QEMU nor are marked `serial`, on
+# compile the same files at once); then, laid out by what was measured on this project's
+# 2-core virtual machine, where both busy cores lose time to the host:
+# - two lanes at once: the tests that neither run QEMU nor are marked `serial`, on
 #   TEST_JOBS workers handed tests as they free up (--dist worksteal), as they wait on
-#   ptys and timeouts as much as they compute; those that run the firmware in QEMU, on
-#   QEMU_JOBS workers, a test file whole in each (--dist loadfile), which keeps each QEMU
-#   pacing its links in real time; then those marked `serial` (fault campaigns whose
-#   counts need QEMU to keep pace, real-time pty runs, dynamixel-sdk's fixed waits) on
-#   SERIAL_JOBS workers: they use little CPU, and keep pace beside one busy process but
-#   not beside a CPU-bound suite (a campaign's exact counts broke beside the package
-#   check), so they run alone;
-# - the two fuzzing passes one after the other, at a low priority (nice 10) on the
-#   cycles the tests leave: a pass lasts its fixed wall time whatever its priority, and
-#   still gets a share of the CPU beside busy processes (in the idle scheduling class
-#   it got none, and timed out, while two other processes kept both cores busy); then
-#   the package check (it builds the wheel, then runs the demo from it in QEMU), which
-#   ends while the first stage, as CPU-bound as it is, still runs.
-# Every lane but the first stage writes a log, shown whole if it fails and as one line if
-# not, so that outputs do not mix; the first stage prints its progress.
+#   ptys and timeouts as much as they compute; beside them the two fuzzing passes one
+#   after the other, at a low priority (nice 10) on the cycles the tests leave (a pass
+#   lasts its fixed wall time whatever its priority, and still gets a share of the CPU
+#   beside busy processes; in the idle scheduling class it got none and timed out), then
+#   the package check (it builds the wheel, then runs the demo from it in QEMU); on an
+#   idle machine this lane ends first;
+# - then, alone, the tests that run the firmware in QEMU, on QEMU_JOBS workers, a test
+#   file whole in each (--dist loadfile), which keeps each QEMU pacing its links in real
+#   time; then those marked `serial` (fault campaigns whose counts need QEMU to keep pace,
+#   real-time pty runs, dynamixel-sdk's fixed waits) on SERIAL_JOBS workers. Both check
+#   real-time timing, so they wait for every other stage (beside the package check on a
+#   busy machine the campaigns lost the controller) and run at a higher priority (HIGH).
+# Every stage but the first writes a log, shown whole if it fails and as one line if not,
+# so that outputs do not mix; the first stage prints its progress.
 # A stage that fails does not stop the others: each records its result in TEST_STATUS,
 # every stage runs, and `make test` ends with the table of results, failing if any did.
 FUZZ_TESTS  := tests/reliability/test_fuzz_targets.py
@@ -139,7 +138,9 @@ test: system-packages python-env
 	@rm -rf $(TEST_STATUS)
 	-$(Q)$(MAKE) --no-print-directory -k -j$(TEST_JOBS) lint firmware fuzz-targets test-collect; \
 	    $(call record,checks,$$?)
-	-$(Q)$(MAKE) --no-print-directory -k -j2 test-suite test-fuzz-wheel
+	-$(Q)$(MAKE) --no-print-directory -k -j2 test-parallel test-fuzz-wheel
+	-$(Q)$(MAKE) --no-print-directory test-qemu
+	-$(Q)$(MAKE) --no-print-directory test-serial
 	$(Q)$(MAKE) --no-print-directory test-summary
 
 test-summary:
@@ -147,11 +148,6 @@ test-summary:
 	  r=$$(cat $(TEST_STATUS)/$$s 2>/dev/null || echo "not run"); \
 	  case $$r in 0) w=passed;; "not run") w="NOT RUN"; failed=1;; *) w="FAILED (exit $$r)"; failed=1;; esac; \
 	  printf "  %-9s %s\n" $$s "$$w"; done; exit $$failed
-
-test-suite:
-	-$(Q)$(MAKE) --no-print-directory test-parallel
-	-$(Q)$(MAKE) --no-print-directory test-qemu
-	-$(Q)$(MAKE) --no-print-directory test-serial
 
 test-fuzz-wheel:
 	-$(Q)$(MAKE) --no-print-directory test-fuzz

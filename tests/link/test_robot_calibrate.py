@@ -16,7 +16,7 @@ from snakebot.facts import devices
 from snakebot.link.bus.calibrate import JOG_DEG
 from snakebot.model.robots import load_robot
 
-pytestmark = pytest.mark.timeout(120)
+pytestmark = [pytest.mark.timeout(120), pytest.mark.serial]  # real-time sim:// replies
 
 ORIGINAL = resources.files("snakebot.model.robots").joinpath("snake5.toml").read_text()
 REAL_ZEROS = [500, 521, 530, 547]  # where the emulated robot's servos really sit

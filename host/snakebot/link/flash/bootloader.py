@@ -49,8 +49,10 @@ CHECKSUM_AT_END = re.compile(rb"Checksum([^\r\n]*)$", re.IGNORECASE)
 RESET_HINT = "press MODE or power-cycle the CM-530"
 """How a user resets the board into its bootloader: it has no button labelled RESET."""
 
-SHOWN_REPLY = 200
-"""At most this many characters of a reply are quoted in a message."""
+SHOWN_REPLY = 100
+"""At most this many characters of a reply, as escaped, are quoted in a message: its end
+(what the bootloader said last), short enough that the message keeps its fix within an
+error line's bound (``errors.LINE_LIMIT``)."""
 
 WRITE_STALL_S = 2.0
 """The link counts as stalled when the writes fall this far behind the time the line
@@ -63,10 +65,18 @@ Confirm = Callable[[str], bool]
 
 def shown(data: bytes) -> str:
     """``data`` as text for a message: printable ASCII kept, the rest escaped."""
-    text = data.decode("latin-1")
-    if len(text) > SHOWN_REPLY:
-        text = "..." + text[-SHOWN_REPLY:]
-    return repr(text)[1:-1] if text else "(nothing)"
+    if not data:
+        return "(nothing)"
+    # the last characters as printed (escapes counted), whole escapes only
+    escaped = [repr(c)[1:-1] for c in data.decode("latin-1")]
+    kept, size = [], 0
+    for piece in reversed(escaped):
+        if size + len(piece) > SHOWN_REPLY:
+            kept.append("...")
+            break
+        kept.append(piece)
+        size += len(piece)
+    return "".join(reversed(kept))
 
 
 def first_line(data: bytes) -> str:

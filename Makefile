@@ -131,11 +131,21 @@ LOW         := nice -n 10
 # (root, as in CI); elsewhere they run at the default priority.
 HIGH        := $(shell nice -n -10 true 2>/dev/null && echo nice -n -10)
 TEST_STATUS := build/test-status
+# Other work using this many cores or more when `make test` starts (tests/support/
+# busy_cores.py, over one second) makes it a busy machine: there the QEMU and serial
+# stages run one test at a time (measured beside two busy processes: with two at once,
+# each emulated robot's Python side, a core's worth of work at real time, fell behind,
+# its QEMU stopped answering, and the demo lost the controller).
+BUSY        := build/test-busy
+BUSY_CORES  := 0.5
 TEST_STAGES := checks parallel qemu serial fuzz wheel
 # $(call record,STAGE,STATUS): note STAGE's exit status and pass it on.
 record = s=$(2); mkdir -p $(TEST_STATUS); echo $$s > $(TEST_STATUS)/$(1); exit $$s
 test: system-packages python-env
-	@rm -rf $(TEST_STATUS)
+	@rm -rf $(TEST_STATUS) $(BUSY); mkdir -p build
+	@busy=$$($(PY) tests/support/busy_cores.py); \
+	  if awk "BEGIN { exit !($$busy >= $(BUSY_CORES)) }"; then touch $(BUSY); \
+	  echo "make test: other work keeps $$busy cores busy: the QEMU and serial stages run one test at a time"; fi
 	-$(Q)$(MAKE) --no-print-directory -k -j$(TEST_JOBS) lint firmware fuzz-targets test-collect; \
 	    $(call record,checks,$$?)
 	-$(Q)$(MAKE) --no-print-directory -k -j2 test-parallel test-fuzz-wheel
@@ -173,7 +183,8 @@ test-parallel:
 
 test-qemu test-serial: test-%:
 	@mkdir -p build
-	$(Q)$(HIGH) $(PY) -m pytest -q -p no:cacheprovider -n $(STAGE_JOBS_$*) --dist $(STAGE_DIST_$*) \
+	$(Q)jobs=$$(test -e $(BUSY) && echo 1 || echo $(STAGE_JOBS_$*)); \
+	  $(HIGH) $(PY) -m pytest -q -p no:cacheprovider -n $$jobs --dist $(STAGE_DIST_$*) \
 	    -m "$(STAGE_MARK_$*)" --ignore=$(WHEEL_TESTS) $(call stage_files,$*,$(WHEEL_TESTS)) \
 	    > build/test-$*.log 2>&1; s=$$?; \
 	    if [ $$s = 0 ]; then echo "$* tests: $$(tail -n1 build/test-$*.log)"; \

@@ -102,21 +102,22 @@ firmware: demo-packages
 
 # The static checks, the firmware and the fuzz targets side by side (so no two processes
 # compile the same files at once); then, laid out by what was measured on this project's
-# 2-core virtual machine, where both busy cores lose time to the host:
-# - two lanes at once: the tests that neither run QEMU nor are marked `serial`, on
-#   TEST_JOBS workers handed tests as they free up (--dist worksteal), as they wait on
-#   ptys and timeouts as much as they compute; beside them the two fuzzing passes one
-#   after the other, at a low priority (nice 10) on the cycles the tests leave (a pass
-#   lasts its fixed wall time whatever its priority, and still gets a share of the CPU
-#   beside busy processes; in the idle scheduling class it got none and timed out), then
-#   the package check (it builds the wheel, then runs the demo from it in QEMU); on an
-#   idle machine this lane ends first;
-# - then, alone, the tests that run the firmware in QEMU, on QEMU_JOBS workers, a test
-#   file whole in each (--dist loadfile), which keeps each QEMU pacing its links in real
-#   time; then those marked `serial` (fault campaigns whose counts need QEMU to keep pace,
-#   real-time pty runs, dynamixel-sdk's fixed waits) on SERIAL_JOBS workers. Both check
-#   real-time timing, so they wait for every other stage (beside the package check on a
-#   busy machine the campaigns lost the controller) and run at a higher priority (HIGH).
+# 2-core virtual machine, where both busy cores lose time to the host, three lanes:
+# - the tests that neither run QEMU nor are marked `serial`, on TEST_JOBS workers handed
+#   tests as they free up (--dist worksteal), as they wait on ptys and timeouts as much
+#   as they compute;
+# - the two fuzzing passes one after the other, at a low priority (nice 10) on the cycles
+#   the tests leave (a pass lasts its fixed wall time whatever its priority, and still
+#   gets a share of the CPU beside busy processes; in the idle scheduling class it got
+#   none and timed out), then the package check (it builds the wheel, then runs the demo
+#   from it in QEMU);
+# - the tests that run the firmware in QEMU, on QEMU_JOBS workers, a test file whole in
+#   each (--dist loadfile), which keeps each QEMU pacing its links in real time; then
+#   those marked `serial` (fault campaigns whose counts need QEMU to keep pace, real-time
+#   pty runs, dynamixel-sdk's fixed waits) on SERIAL_JOBS workers. Both check real-time
+#   timing, so they run at a higher priority (HIGH, below); where that is not the
+#   real-time class, this lane waits for the other two (beside the package check on a
+#   busy machine the campaigns lost the controller).
 # Every stage but the first writes a log, shown whole if it fails and as one line if not,
 # so that outputs do not mix; the first stage prints its progress.
 # A stage that fails does not stop the others: each records its result in TEST_STATUS,
@@ -126,10 +127,16 @@ WHEEL_TESTS := tests/packaging/test_wheel.py
 LOW         := nice -n 10
 # The QEMU and serial stages emulate hardware in real time, and what they check (the
 # firmware's reply windows, its 100 ms PC-link gap, a servo's return delay) is timing:
-# beside other busy processes they ask the kernel for a larger share of the CPU than
-# those get (nice -10: about nine times a default process's), where that is allowed
-# (root, as in CI); elsewhere they run at the default priority.
-HIGH        := $(shell nice -n -10 true 2>/dev/null && echo nice -n -10)
+# they run in the kernel's round-robin real-time class (chrt --rr 1), where that is
+# allowed (root, as in CI), so that other busy processes cannot delay an emulated reply
+# (the kernel still keeps 5 % of each second for everything else); failing that at
+# nice -10 (about nine times a default process's share of the CPU, measured not enough
+# beside two busy processes: campaigns missed PINGs and the demo lost the controller);
+# elsewhere at the default priority.
+# In the real-time class they need not wait for the other stages either: they run beside
+# them (REALTIME), as beside any other busy process.
+REALTIME    := $(shell chrt --rr 1 true 2>/dev/null && echo yes)
+HIGH        := $(if $(REALTIME),chrt --rr 1,$(shell nice -n -10 true 2>/dev/null && echo nice -n -10))
 TEST_STATUS := build/test-status
 # Other work using this many cores or more when `make test` starts (tests/support/
 # busy_cores.py, over one second) makes it a busy machine: there the QEMU and serial
@@ -148,10 +155,17 @@ test: system-packages python-env
 	  echo "make test: other work keeps $$busy cores busy: the QEMU and serial stages run one test at a time"; fi
 	-$(Q)$(MAKE) --no-print-directory -k -j$(TEST_JOBS) lint firmware fuzz-targets test-collect; \
 	    $(call record,checks,$$?)
+ifdef REALTIME
+	-$(Q)$(MAKE) --no-print-directory -k -j3 test-parallel test-fuzz-wheel test-realtime
+else
 	-$(Q)$(MAKE) --no-print-directory -k -j2 test-parallel test-fuzz-wheel
+	-$(Q)$(MAKE) --no-print-directory test-realtime
+endif
+	$(Q)$(MAKE) --no-print-directory test-summary
+
+test-realtime:
 	-$(Q)$(MAKE) --no-print-directory test-qemu
 	-$(Q)$(MAKE) --no-print-directory test-serial
-	$(Q)$(MAKE) --no-print-directory test-summary
 
 test-summary:
 	@echo "make test:"; failed=0; for s in $(TEST_STAGES); do \

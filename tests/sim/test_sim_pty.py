@@ -12,6 +12,7 @@ import sys
 
 import dynamixel_sdk as sdk
 import pytest
+from realtime import ordinary_priority
 
 from snakebot.formats import protocol as P
 from snakebot.link.transport import DxlClient
@@ -36,7 +37,8 @@ def sdk_port(served):
     port = sdk.PortHandler(served.device)
     assert port.openPort()
     assert port.setBaudRate(1_000_000)
-    yield port
+    with ordinary_priority():  # the SDK polls; the server's thread keeps its class
+        yield port
     port.closePort()
 
 

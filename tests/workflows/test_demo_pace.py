@@ -96,3 +96,21 @@ def test_within_the_tolerance_the_verdict_stands_and_the_pace_is_reported():
     assert c.verdict == "AGREE"
     assert c.pace.line().startswith("   pace: disturbed by the host")
     assert comparison(0.01, STEADY).pace.line().startswith("   pace: steady")
+
+
+@pytest.mark.parametrize(
+    ("still_s", "steady"), [(STILL_LIMIT_S + 0.0004, True), (STILL_LIMIT_S + 0.0006, False)]
+)
+def test_the_pace_is_judged_on_the_figures_it_reports(still_s, steady):
+    """A stand-still that the report rounds to the limit is within it: the verdict never
+    contradicts the figures printed beside it (a busy run once reported 0.1 s still,
+    limit 0.1 s, and called itself disturbed)."""
+    pace = Pacing(still_s=still_s, leap_frames=1.004, rate=0.70004)
+    shown = pace.as_dict()
+    assert pace.steady == steady
+    assert shown["steady"] == (
+        shown["still_s"] <= shown["still_limit_s"]
+        and shown["leap_frames"] <= shown["leap_limit_frames"]
+        and shown["rate"] >= shown["rate_floor"]
+    )
+    assert (shown["leap_frames"], shown["rate"]) == (1.0, 0.7)

@@ -102,7 +102,7 @@ firmware: demo-packages
 
 # The static checks, the firmware and the fuzz targets side by side (so no two processes
 # compile the same files at once); then, laid out by what was measured on this project's
-# 2-core virtual machine, where both busy cores lose time to the host, three lanes:
+# 2-core virtual machine, where both busy cores lose time to the host, three lanes at once:
 # - the tests that neither run QEMU nor are marked `serial`, on TEST_JOBS workers handed
 #   tests as they free up (--dist worksteal), as they wait on ptys and timeouts as much
 #   as they compute;
@@ -112,12 +112,12 @@ firmware: demo-packages
 #   none and timed out), then the package check (it builds the wheel, then runs the demo
 #   from it in QEMU);
 # - the tests that run the firmware in QEMU, on QEMU_JOBS workers, a test file whole in
-#   each (--dist loadfile), which keeps each QEMU pacing its links in real time; then
-#   those marked `serial` (fault campaigns whose counts need QEMU to keep pace, real-time
-#   pty runs, dynamixel-sdk's fixed waits) on SERIAL_JOBS workers. Both check real-time
-#   timing, so they run at a higher priority (HIGH, below); where that is not the
-#   real-time class, this lane waits for the other two (beside the package check on a
-#   busy machine the campaigns lost the controller).
+#   each (--dist loadfile), which keeps each QEMU pacing its links in real time, in the
+#   real-time class (FIRST, below); where that is not allowed, after the other two lanes.
+# Then, alone, those marked `serial` (fault campaigns whose counts need QEMU to keep
+# pace, real-time pty runs, dynamixel-sdk's fixed waits) on SERIAL_JOBS workers: beside
+# the other stages, even in the real-time class, the kernel's own tty work and the
+# third-party clients came late (5 of 92 failed).
 # Every stage but the first writes a log, shown whole if it fails and as one line if not,
 # so that outputs do not mix; the first stage prints its progress.
 # A stage that fails does not stop the others: each records its result in TEST_STATUS,
@@ -127,16 +127,20 @@ WHEEL_TESTS := tests/packaging/test_wheel.py
 LOW         := nice -n 10
 # The QEMU and serial stages emulate hardware in real time, and what they check (the
 # firmware's reply windows, its 100 ms PC-link gap, a servo's return delay) is timing:
-# they run in the kernel's round-robin real-time class (chrt --rr 1), where that is
-# allowed (root, as in CI), so that other busy processes cannot delay an emulated reply
-# (the kernel still keeps 5 % of each second for everything else); failing that at
-# nice -10 (about nine times a default process's share of the CPU, measured not enough
-# beside two busy processes: campaigns missed PINGs and the demo lost the controller);
-# elsewhere at the default priority.
-# In the real-time class they need not wait for the other stages either: they run beside
-# them (REALTIME), as beside any other busy process.
+# they run at a higher priority where that is allowed (root, as in CI).
+# - HIGH, nice -10: about nine times a default process's share of the CPU. Enough on an
+#   idle machine; beside two busy processes the campaigns still missed PINGs and the
+#   demo lost the controller.
+# - FIRST, the kernel's round-robin real-time class (chrt --rr 1), where allowed, else
+#   HIGH: no process outside it delays an emulated reply (the kernel still keeps 5 % of
+#   each second for them), so the QEMU stage runs beside the other stages (REALTIME),
+#   and on a busy machine both stages run there. Within the class a process that wants
+#   the CPU waits for another's 100 ms turn to end: more busy workers than cores there
+#   broke the serial stage's timing, whose three workers stay at HIGH on an idle
+#   machine, after every other stage.
 REALTIME    := $(shell chrt --rr 1 true 2>/dev/null && echo yes)
-HIGH        := $(if $(REALTIME),chrt --rr 1,$(shell nice -n -10 true 2>/dev/null && echo nice -n -10))
+HIGH        := $(shell nice -n -10 true 2>/dev/null && echo nice -n -10)
+FIRST       := $(if $(REALTIME),chrt --rr 1,$(HIGH))
 TEST_STATUS := build/test-status
 # Other work using this many cores or more when `make test` starts (tests/support/
 # busy_cores.py, over one second) makes it a busy machine: there the QEMU and serial
@@ -156,16 +160,13 @@ test: system-packages python-env
 	-$(Q)$(MAKE) --no-print-directory -k -j$(TEST_JOBS) lint firmware fuzz-targets test-collect; \
 	    $(call record,checks,$$?)
 ifdef REALTIME
-	-$(Q)$(MAKE) --no-print-directory -k -j3 test-parallel test-fuzz-wheel test-realtime
+	-$(Q)$(MAKE) --no-print-directory -k -j3 test-parallel test-fuzz-wheel test-qemu
 else
 	-$(Q)$(MAKE) --no-print-directory -k -j2 test-parallel test-fuzz-wheel
-	-$(Q)$(MAKE) --no-print-directory test-realtime
-endif
-	$(Q)$(MAKE) --no-print-directory test-summary
-
-test-realtime:
 	-$(Q)$(MAKE) --no-print-directory test-qemu
+endif
 	-$(Q)$(MAKE) --no-print-directory test-serial
+	$(Q)$(MAKE) --no-print-directory test-summary
 
 test-summary:
 	@echo "make test:"; failed=0; for s in $(TEST_STAGES); do \
@@ -197,13 +198,16 @@ test-parallel:
 
 test-qemu test-serial: test-%:
 	@mkdir -p build
-	$(Q)jobs=$$(test -e $(BUSY) && echo 1 || echo $(STAGE_JOBS_$*)); \
-	  $(HIGH) $(PY) -m pytest -q -p no:cacheprovider -n $$jobs --dist $(STAGE_DIST_$*) \
+	$(Q)if test -e $(BUSY); then jobs=1; prio="$(FIRST)"; \
+	  else jobs=$(STAGE_JOBS_$*); prio="$(STAGE_PRIO_$*)"; fi; \
+	  $$prio $(PY) -m pytest -q -p no:cacheprovider -n $$jobs --dist $(STAGE_DIST_$*) \
 	    -m "$(STAGE_MARK_$*)" --ignore=$(WHEEL_TESTS) $(call stage_files,$*,$(WHEEL_TESTS)) \
 	    > build/test-$*.log 2>&1; s=$$?; \
 	    if [ $$s = 0 ]; then echo "$* tests: $$(tail -n1 build/test-$*.log)"; \
 	    else cat build/test-$*.log; fi; $(call record,$*,$$s)
 STAGE_JOBS_qemu    = $(QEMU_JOBS)
+STAGE_PRIO_qemu    = $(FIRST)
+STAGE_PRIO_serial  = $(HIGH)
 STAGE_MARK_qemu   := qemu and not serial
 STAGE_DIST_qemu   := loadfile
 STAGE_JOBS_serial  = $(SERIAL_JOBS)

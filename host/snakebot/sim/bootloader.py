@@ -446,11 +446,7 @@ class BootloaderPty(Server):
         while True:
             now = time.monotonic()
             with self._lock:
-                if self._pending_reset or (self._reset_at is not None and now >= self._reset_at):
-                    self._pending_reset = False
-                    self._reset_at = None
-                    self._stop_app()
-                    self._send(boot.reset(now))
+                self._reset_if_due(now)
                 self._send(boot.poll(now))
                 due = [t for t in (boot.next_deadline(), self._reset_at) if t is not None]
             wait = min([IDLE_WAKE_S] + [max(0.0, t - now) for t in due])
@@ -490,6 +486,8 @@ class BootloaderPty(Server):
                 if baud is not None and baud != PC_LINK_BAUD:
                     self.dropped += len(data)
                     continue
+                # a reset pressed before these bytes came acts before them
+                self._reset_if_due(time.monotonic())
                 if self._app is not None:
                     self._app.sendall(data)
                     continue
@@ -500,6 +498,14 @@ class BootloaderPty(Server):
             if jumped and image is not None:
                 assert self.on_go is not None
                 self._app = self.on_go(image)
+
+    def _reset_if_due(self, now: float) -> None:
+        """Apply a reset pressed (:meth:`press_reset`) or scheduled; under the lock."""
+        if self._pending_reset or (self._reset_at is not None and now >= self._reset_at):
+            self._pending_reset = False
+            self._reset_at = None
+            self._stop_app()
+            self._send(self.bootloader.reset(now))
 
     def _relay_from_app(self) -> None:
         assert self._app is not None

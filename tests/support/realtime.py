@@ -1,12 +1,13 @@
-"""The serial and QEMU stages of `make test` run in the kernel's round-robin real-time
-class where that is allowed (the Makefile's HIGH), so that busy processes beside them
-cannot delay an emulated reply. A third-party client that polls a port without sleeping
-(dynamixel-sdk reads with a zero timeout in a loop until its deadline) must not poll at
-that priority: it keeps its core from everything below it, the kernel's tty work that
-carries the bytes between the ends of a pty included, and its own replies then come
-late (measured beside two busy processes: dynamixel-sdk timed out in 3 of 9 tests at
-real-time priority, none at the default one). :func:`ordinary_priority` runs the
-calling thread, and what it starts, in the default class meanwhile."""
+"""The QEMU stage of `make test`, and on a busy machine the serial stage too, run in the
+kernel's round-robin real-time class where that is allowed (the Makefile's FIRST), so
+that busy processes beside them cannot delay an emulated reply. A third-party client
+that polls a port without sleeping (dynamixel-sdk reads with a zero timeout in a loop
+until its deadline) must not poll at that priority: it keeps its core from everything
+below it, the kernel's tty work that carries the bytes between the ends of a pty
+included, and its own replies then come late (measured beside two busy processes:
+dynamixel-sdk timed out in 3 of 9 tests at real-time priority, none at the default one).
+:func:`ordinary_priority` runs the calling thread, and what it starts, in the default
+class meanwhile."""
 
 from __future__ import annotations
 

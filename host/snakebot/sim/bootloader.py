@@ -487,11 +487,12 @@ class BootloaderPty(Server):
                     self.dropped += len(data)
                     continue
                 # a reset pressed before these bytes came acts before them
-                self._reset_if_due(time.monotonic())
+                arrived = time.monotonic()
+                self._reset_if_due(arrived)
                 if self._app is not None:
                     self._app.sendall(data)
                     continue
-                self._send(boot.feed(data, time.monotonic()))
+                self._send(boot.feed(data, arrived))
                 jumped = self.on_go is not None and len(boot.started) > self._handed
                 self._handed = len(boot.started)
                 image = boot.image

@@ -136,6 +136,14 @@ int kin_body_velocity(const kin_robot *rb, const double *q, const double *dphi,
  * joints put in, sum torque_j dphi_j, is the power the wheels dissipate. */
 int kin_quasi_static(const kin_robot *rb, const double *q, const double *dphi, double *xi,
                      double *force, double *torque);
+/* kin_quasi_static's torques and kin_wheels' positions and directions at each of count
+ * states, in one call (what a whole sampled motion's effort needs): q[k * n] (n = 3 +
+ * joints), dphi[k * joints]; torque[k * joints], pos[k * 2 * wheels], dir[k * 2 * wheels];
+ * any output may be NULL. Every state is solved as a call of its own would solve it. On
+ * an error the failing state's index is in *failed (may be NULL). */
+int kin_quasi_static_path(const kin_robot *rb, int32_t count, const double *q,
+                          const double *dphi, double *torque, double *pos, double *dir,
+                          int32_t *failed);
 
 /* Number of fields (inputs g... then brackets h...) and of inputs; KIN_EUNSUPPORTED
  * for robots without a field model (snakes other than 3 links). */

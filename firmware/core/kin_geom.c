@@ -225,6 +225,40 @@ int kin_body_velocity(const kin_robot *rb, const double *q, const double *dphi, 
     return kin_geom_solve(rb, &w, NULL, xi, slip, NULL, rcond);
 }
 
+/* Joint j's torque balances the friction forces' generalised force on phi_j: minus the
+ * sum over the wheels of each force times its speed's coefficient of dphi_j (the rows
+ * with dphi = e_j), worked out from the rows' geometry as snake_rows and trident_rows
+ * would with that dphi, term for term, without their trigonometry. */
+static void joint_torques(const kin_robot *rb, const double *q, const kin_wheel_rows *w,
+                          const double *f, int32_t joints, double *torque)
+{
+    if (rb->kind != KIN_SNAKE) {
+        for (int32_t j = 0; j < joints; j++) {
+            torque[j] = 0.0 - f[2 * j] * (rb->l * 1.0); /* n_joint = l dphi_j, t_joint = 0 */
+        }
+        return;
+    }
+    double jx[KIN_MAX_JOINTS], jy[KIN_MAX_JOINTS];
+    double ax = q[0], ay = q[1];
+    for (int32_t k = 0; k < joints; k++) {
+        ax += 2.0 * rb->l * w->tx[k];
+        ay += 2.0 * rb->l * w->ty[k];
+        jx[k] = ax;
+        jy[k] = ay;
+    }
+    for (int32_t j = 0; j < joints; j++) {
+        double tq = 0.0;
+        for (int32_t k = j + 1; k < w->count; k++) {
+            const double tx = w->tx[k], ty = w->ty[k];
+            const double dx = w->px[k] - jx[j], dy = w->py[k] - jy[j];
+            const double nd = tx * dx + ty * dy;
+            const double td = 0.0 - (-ty * dx + tx * dy);
+            tq -= f[2 * k] * nd + f[2 * k + 1] * td;
+        }
+        torque[j] = tq;
+    }
+}
+
 int kin_quasi_static(const kin_robot *rb, const double *q, const double *dphi, double *xi,
                      double *force, double *torque)
 {
@@ -248,18 +282,43 @@ int kin_quasi_static(const kin_robot *rb, const double *q, const double *dphi, d
             force[i] = f[i];
         }
     }
-    /* Joint j's torque balances the friction forces' generalised force on phi_j: the
-     * rows again with dphi = e_j give each wheel speed's coefficient of dphi_j. */
-    for (int32_t j = 0; torque != NULL && j < joints; j++) {
-        double unit[KIN_MAX_JOINTS] = {0.0};
-        unit[j] = 1.0;
-        kin_wheel_rows e;
-        kin_geom_rows_unchecked(rb, q, unit, &e);
-        double tq = 0.0;
-        for (int32_t i = 0; i < e.count; i++) {
-            tq -= f[2 * i] * e.n_joint[i] + f[2 * i + 1] * e.t_joint[i];
+    if (torque != NULL) {
+        joint_torques(rb, q, &w, f, joints, torque);
+    }
+    return KIN_OK;
+}
+
+int kin_quasi_static_path(const kin_robot *rb, int32_t count, const double *q,
+                          const double *dphi, double *torque, double *pos, double *dir,
+                          int32_t *failed)
+{
+    int32_t joints;
+    int rc = kin_check_robot(rb, &joints);
+    if (rc != KIN_OK || count < 0 || q == NULL || (torque != NULL && dphi == NULL)) {
+        return rc != KIN_OK ? rc : KIN_EINVAL;
+    }
+    const int32_t n = 3 + joints;
+    const int32_t wheels = kin_wheel_count(rb);
+    for (int32_t k = 0; k < count; k++) {
+        double xi[3];
+        rc = KIN_OK;
+        if (torque != NULL) {
+            rc = kin_quasi_static(rb, q, dphi, xi, NULL, torque);
+            dphi += joints;
+            torque += joints;
         }
-        torque[j] = tq;
+        if (rc == KIN_OK && (pos != NULL || dir != NULL)) {
+            rc = kin_wheels(rb, q, pos, dir);
+            pos = pos == NULL ? NULL : pos + 2 * wheels;
+            dir = dir == NULL ? NULL : dir + 2 * wheels;
+        }
+        if (rc != KIN_OK) {
+            if (failed != NULL) {
+                *failed = k;
+            }
+            return rc;
+        }
+        q += n;
     }
     return KIN_OK;
 }

@@ -12,10 +12,13 @@ import pytest
 from scipy.optimize import linprog
 
 from snakebot.model.kinematics import (
+    SingularConfiguration,
     body_velocity,
     fields,
     quasi_static,
+    quasi_static_path,
     wheel_speeds,
+    wheels,
 )
 from snakebot.model.robots import load_robot
 
@@ -109,6 +112,26 @@ def test_the_joints_power_is_what_the_wheels_dissipate():
         lateral, rolling = robot.wheel_friction_n()
         assert (np.abs(qs.lateral) <= lateral * (1 + 1e-9)).all()
         assert (np.abs(qs.rolling) <= rolling * (1 + 1e-9)).all()
+
+
+def test_a_whole_path_in_one_call_is_each_state_solved_on_its_own():
+    rng = np.random.default_rng(5)
+    for robot in (SNAKE3, SNAKE5, TRIDENT):
+        q = np.column_stack((rng.normal(size=(7, 3)), rng.uniform(-1, 1, (7, robot.n_joints))))
+        dphi = rng.normal(size=(7, robot.n_joints))
+        path = quasi_static_path(robot, q, dphi)
+        for k in range(7):
+            np.testing.assert_array_equal(path.torque[k], quasi_static(robot, q[k], dphi[k]).torque)
+            pos, direction = wheels(robot, q[k])
+            np.testing.assert_array_equal(path.pos[k], pos)
+            np.testing.assert_array_equal(path.dir[k], direction)
+
+
+def test_a_path_names_the_state_it_could_not_solve():
+    free = replace(SNAKE3, friction=replace(SNAKE3.friction, rolling=0.0, axle_nm=0.0))
+    q = np.array([[0, 0, 0, 0.4, -0.2], [0, 0, 0, 0.4, 0.4]])
+    with pytest.raises(SingularConfiguration, match=r"q = \[0\. +0\. +0\. +0\.4 +0\.4\]"):
+        quasi_static_path(free, q, np.array([[0.3, 0.1], [0.3, 0.1]]))
 
 
 def test_only_the_friction_ratios_matter_and_free_rolling_wheels_can_be_singular():

@@ -116,6 +116,12 @@ def check_serpenoid(
     ``duration`` seconds, checked by :func:`check_motion` (angles and speeds). Both
     `gait serpenoid` and the controller's on-line serpenoid (`snakebot serpenoid`, over
     one whole cycle) are checked here."""
+    reach = abs(amplitude)
+    if reach * abs(omega) <= robot.max_speed_rad_s and all(
+        joint.min_rad <= offset - reach and offset + reach <= joint.max_rad
+        for joint in robot.joints
+    ):
+        return  # no sample can leave a limit the whole wave stays within
     t = np.linspace(0.0, duration, samples)
     args = omega * t[:, None] + np.asarray(phases, dtype=float)
     phi = amplitude * np.sin(args) + offset

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from snakebot.model.kinematics.model import quasi_static, wheels
+from snakebot.model.kinematics.model import quasi_static_path
 from snakebot.model.robots import Robot
 
 
@@ -42,16 +42,12 @@ def effort(robot: Robot, q: np.ndarray, period_s: float) -> Effort:
     unit = 1.0 if robot.physics is None else robot.physics.unit_m
     mid = 0.5 * (q[1:] + q[:-1])
     speed = np.diff(q[:, 3:], axis=0) / period_s
+    path = quasi_static_path(robot, mid, speed)
+    torque = path.torque * unit
+    pos = path.pos * unit
+    t = path.dir
+    normal = np.stack((-t[..., 1], t[..., 0]), axis=-1)
     count = len(mid)
-    torque = np.empty((count, robot.n_joints))
-    pos = np.empty((count, robot.n_wheels, 2))
-    normal = np.empty((count, robot.n_wheels, 2))
-    for k in range(count):
-        qs = quasi_static(robot, mid[k], speed[k])
-        torque[k] = qs.torque * unit
-        p, t = wheels(robot, mid[k])
-        pos[k] = p * unit
-        normal[k] = np.stack((-t[:, 1], t[:, 0]), axis=1)
     work = float(np.sum(torque * speed) * period_s)
     lat_max, _ = robot.wheel_friction_n()
     ratio = 0.0

@@ -152,6 +152,43 @@ def quasi_static(
     return QuasiStatic(xi, force[0::2].copy(), force[1::2].copy(), torque)
 
 
+@dataclass(frozen=True)
+class Path:
+    """Per state of a sampled motion: the joints' quasi-static ``torque`` (states x
+    joints) and the wheels' positions ``pos`` and unit rolling directions ``dir``
+    (states x wheels x 2)."""
+
+    torque: np.ndarray
+    pos: np.ndarray
+    dir: np.ndarray
+
+
+def quasi_static_path(robot: Robot, q: np.ndarray, dphi: np.ndarray) -> Path:
+    """``quasi_static``'s torques and ``wheels`` at every row of ``q`` (states x (3 +
+    joints)) with the joint velocities in the rows of ``dphi``, in one call to the core."""
+    count = len(q)
+    qa = as_doubles(q, count * (3 + robot.n_joints), "q")
+    da = as_doubles(dphi, count * robot.n_joints, "dphi")
+    torque = np.empty((count, robot.n_joints))
+    pos = np.empty((count, robot.n_wheels, 2))
+    direction = np.empty((count, robot.n_wheels, 2))
+    failed = ffi.new("int32_t *")
+    code = lib.kin_quasi_static_path(
+        c_robot(robot),
+        count,
+        dptr(qa),
+        dptr(da),
+        dptr(torque),
+        dptr(pos),
+        dptr(direction),
+        failed,
+    )
+    if code != lib.KIN_OK:  # the message formats q: only when there is one
+        where = np.array2string(qa.reshape(count, -1)[failed[0]], precision=4)
+        check(code, f"{robot.name} at q = {where}")
+    return Path(torque, pos, direction)
+
+
 def det_g_star(robot: Robot, det_b: float) -> float:
     """det G* (all fields side by side, in the thesis's order) in closed form.
 

@@ -179,8 +179,35 @@ HAL_DIR = REPO_ROOT / "firmware" / "hal"
 HAL_IO_CALLBACKS = """
 extern "Python+C" uint32_t hal_io_read32(uint32_t addr);
 extern "Python+C" void hal_io_write32(uint32_t addr, uint32_t value);
-extern "Python+C" uint16_t hal_io_read16(uint32_t addr);
+extern "Python+C" uint16_t hal_py_read16(uint32_t addr);
 extern "Python+C" void hal_io_write16(uint32_t addr, uint16_t value);
+void hal_host_flash_view(const uint8_t *mem, uint32_t base, uint32_t len);
+"""
+
+HAL_IO_READ16 = """
+/* A model's flash, read in C: a read of it has no side effect in the models, and the
+ * stores read every half-word of 32 KB at each step (millions of Python calls). Any
+ * other address, or a misaligned one, goes to the model's read16. */
+uint16_t hal_py_read16(uint32_t addr); /* the model's read16, defined by cffi below */
+static const uint8_t *host_flash_mem;
+static uint32_t host_flash_base, host_flash_len;
+
+void hal_host_flash_view(const uint8_t *mem, uint32_t base, uint32_t len)
+{
+    host_flash_mem = mem;
+    host_flash_base = base;
+    host_flash_len = len;
+}
+
+uint16_t hal_io_read16(uint32_t addr)
+{
+    const uint32_t off = addr - host_flash_base;
+    if (host_flash_mem != NULL && addr >= host_flash_base && off + 1U < host_flash_len
+        && (addr & 1U) == 0U) {
+        return (uint16_t)(host_flash_mem[off] | (uint16_t)(host_flash_mem[off + 1U] << 8));
+    }
+    return hal_py_read16(addr);
+}
 """
 
 
@@ -205,7 +232,7 @@ def build_hal_host(
     ffi.cdef(cdef + HAL_IO_CALLBACKS)
     ffi.set_source(
         name,
-        "\n".join(f'#include "{h}"' for h in ("hal_io.h", *headers)),
+        "\n".join(f'#include "{h}"' for h in ("hal_io.h", *headers)) + HAL_IO_READ16,
         sources=[str(HAL_DIR / s) for s in sources],
         include_dirs=[str(HAL_DIR), *(str(HAL_DIR.parent / d) for d in include_dirs)],
         define_macros=[("HAL_HOST_TEST", None), *defines],
@@ -227,19 +254,40 @@ class RegisterModels:
 
     def __init__(self) -> None:
         self._stack: list[Any] = []
+        self._hals: list[Any] = []  # the built HALs, told which flash to read in C
 
     @property
     def current(self) -> Any:
         return self._stack[-1]
 
+    def serve(self, hal: Any) -> None:
+        """Let ``hal`` read the current model's flash (a ``mem`` bytearray at ``base``)
+        in C; other accesses still go to the model."""
+        self._hals.append(hal)
+        self._show()
+
+    def _show(self) -> None:
+        model = self._stack[-1] if self._stack else None
+        mem = getattr(model, "mem", None) if getattr(model, "plain_reads", False) else None
+        for hal in self._hals:
+            if isinstance(mem, bytearray):
+                # holding the buffer: a model that resized its flash would fail loudly
+                hal.view = hal.ffi.from_buffer("uint8_t[]", mem)
+                hal.lib.hal_host_flash_view(hal.view, model.base, len(mem))
+            else:
+                hal.view = None
+                hal.lib.hal_host_flash_view(hal.ffi.NULL, 0, 0)
+
     @contextlib.contextmanager
     def use(self, model: M) -> Iterator[M]:
         """Let ``model`` answer the driver's register accesses inside the block."""
         self._stack.append(model)
+        self._show()
         try:
             yield model
         finally:
             self._stack.remove(model)
+            self._show()
 
 
 def build_hal_on_models(
@@ -268,7 +316,7 @@ def build_hal_on_models(
         models.current.write32(addr, value)
 
     @mod.ffi.def_extern()
-    def hal_io_read16(addr):
+    def hal_py_read16(addr):
         if not io16:
             raise AssertionError("no 16-bit accesses expected")
         return models.current.read16(addr)
@@ -279,6 +327,8 @@ def build_hal_on_models(
             raise AssertionError("no 16-bit accesses expected")
         models.current.write16(addr, value)
 
+    if io16:
+        models.serve(mod)
     return mod
 
 

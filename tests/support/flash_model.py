@@ -24,6 +24,10 @@ PAGES = 4
 class FlashModel:
     """The FPEC's registers and PAGES pages of flash at ``base`` (BASE unless given)."""
 
+    plain_reads = True
+    """:meth:`read16` of flash has no side effect, so the host HAL reads ``mem`` itself
+    (firmware_support.RegisterModels.serve); a subclass whose reads do more says False."""
+
     def __init__(self, busy_reads: int = 3, base: int = BASE) -> None:
         self.base = base
         self.mem = bytearray(b"\xa5" * (PAGE * PAGES))  # old content, not erased

@@ -6,9 +6,12 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import hashlib
 import importlib.util
+import os
 import shutil
 import subprocess
+import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -211,6 +214,24 @@ uint16_t hal_io_read16(uint32_t addr)
 """
 
 
+HAL_CACHE = REPO_ROOT / "build" / "test-hal"
+"""Host builds of the drivers, by what they were built from (`make clean` removes them)."""
+
+
+def _build_key(name: str, *parts: object) -> str:
+    """A digest of everything a host build depends on: its settings, this module's C
+    around the drivers, every firmware source and header, Python's and cffi's versions."""
+    import cffi
+
+    digest = hashlib.sha256(
+        repr((name, parts, HAL_IO_CALLBACKS, HAL_IO_READ16, sys.version, cffi.__version__)).encode()
+    )
+    for path in sorted(HAL_DIR.parent.rglob("*.[ch]")):
+        digest.update(str(path.relative_to(HAL_DIR.parent)).encode() + b"\0")
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:20]
+
+
 def build_hal_host(
     name: str,
     sources: list[str],
@@ -238,7 +259,20 @@ def build_hal_host(
         define_macros=[("HAL_HOST_TEST", None), *defines],
         extra_compile_args=["-std=c99", "-Wall", "-Wextra"],
     )
-    library = ffi.compile(tmpdir=str(tmpdir))
+    key = _build_key(name, cdef, headers, sources, defines, include_dirs)
+    cached = HAL_CACHE / f"{name}-{key}.so"
+    library = Path(tmpdir) / cached.name
+    if cached.exists():
+        shutil.copyfile(cached, library)
+    else:
+        built = Path(ffi.compile(tmpdir=str(tmpdir)))
+        HAL_CACHE.mkdir(parents=True, exist_ok=True)
+        part = cached.with_name(f"{cached.name}.{os.getpid()}.part")
+        shutil.copyfile(built, part)
+        part.replace(cached)  # whole or not at all, whichever worker finishes first
+        shutil.copyfile(built, library)
+    # each build loads its own copy: a library's static state is never shared with
+    # another test module's
     spec = importlib.util.spec_from_file_location(name, library)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

@@ -140,6 +140,8 @@ def main() -> int:
     if not args.still:
         gait = Path(tempfile.mkdtemp(prefix="bench-serve-memory-")) / "walk.gait"
         snakebot(*GAIT, "--cycles", "1", "-o", str(gait))
+    # terminated (as by a `make bench` stopped with kill), stop the servers on the way out
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     servers = {world: start(world, image, gait) for world in worlds}
     began = time.monotonic()
     series: dict[str, list[tuple[float, float, float]]] = {world: [] for world in worlds}

@@ -24,9 +24,10 @@ from xml.etree import ElementTree as ET
 from snakebot.model.robots import Friction, Physics, Robot, RobotError
 from snakebot.sim.physics.actuator import ARMATURE_KG_M2, Actuator
 
-TIMESTEP_S = 0.01
-"""MuJoCo's step: fine enough that the distance a gait covers no longer depends on it
-(tests/sim/test_physics_world.py checks the convergence at this step)."""
+TIMESTEP_S = 0.0025
+"""MuJoCo's step: fine enough that halving it moves no figure a prediction reports
+(distance, slide, work, electrical energy) by 2 % (docs/models.md, "The physics world's
+time step"; tests/sim/test_physics_convergence.py)."""
 
 CONTROL_PERIOD_S = 0.01
 """How often the world sets each servo's drive from its registers and reports the joint

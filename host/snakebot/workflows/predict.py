@@ -213,9 +213,13 @@ def player_writes(table: GaitTable) -> tuple[float, list[dict[int, bytes]]]:
     pass_ms = period_ms * (table.frame_count if table.loop else table.frame_count - 1)
     player = TablePlayer(table)
     blocks = []
+    made: dict[tuple, dict[int, bytes]] = {}  # a frame held over several ticks: one dict
     for n in range(math.ceil(pass_ms / TICK_MS) + 1):
         outputs = player.tick(min(n * TICK_MS, pass_ms))
-        blocks.append(goal_blocks(outputs))
+        key = tuple(outputs.items())
+        if key not in made:
+            made[key] = goal_blocks(outputs)
+        blocks.append(made[key])
     return TICK_MS / 1000.0, blocks
 
 

@@ -34,7 +34,7 @@ import numpy as np
 
 from snakebot.core import ffi, lib
 from snakebot.formats.live_topics import Shape
-from snakebot.model.robots import TICKS_PER_RAD, Robot
+from snakebot.model.robots import TICKS_PER_RAD, Friction, Robot
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.history import History
 from snakebot.sim.physics.actuator import OVERLOAD_HOLD_S, Actuator
@@ -83,11 +83,14 @@ def _mujoco() -> Any:
 
 
 @functools.lru_cache(maxsize=8)
-def _compiled(xml: str) -> Any:
-    """The model ``xml`` compiles to, compiled once per process: a search builds a world
-    for every run, mostly from the same few models (a copy takes a quarter of the time
-    of compiling)."""
-    return _mujoco().MjModel.from_xml_string(xml)
+def _compiled(robot: Robot, timestep: float, friction: Friction, rolling_model: str) -> Any:
+    """The model of ``robot`` (:func:`build_mjcf`) compiled, and its names, made once per
+    process: a search builds a world for every run, mostly of the same few models (a
+    copy of the compiled model takes a quarter of the time of compiling)."""
+    xml, names = build_mjcf(
+        robot, timestep=timestep, friction=friction, rolling_model=rolling_model
+    )
+    return _mujoco().MjModel.from_xml_string(xml), names
 
 
 _warnings_kept = False
@@ -177,12 +180,10 @@ class PhysicsWorld:
         self.substeps = max(1, math.ceil(self.control_period / timestep - 1e-9))
         self.timestep = self.control_period / self.substeps
         self.friction = robot.friction if mu is None else replace(robot.friction, lateral=mu)
-        xml, names = build_mjcf(
-            robot, timestep=self.timestep, friction=self.friction, rolling_model=rolling_model
-        )
+        compiled, names = _compiled(robot, self.timestep, self.friction, rolling_model)
         self._mj = mujoco
         # a copy of its own: the world writes the drives into the model
-        self.model = copy.copy(_compiled(xml))
+        self.model = copy.copy(compiled)
         self.data = mujoco.MjData(self.model)
         self.bus = bus
         self.robot = robot

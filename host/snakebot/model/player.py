@@ -73,12 +73,10 @@ class TablePlayer:
 
     def tick(self, now_ms: int) -> dict[int, tuple[int, int]]:
         """The outputs after a control tick at ``now_ms``: servo ID -> (goal, speed)."""
-        count = lib.play_tick(self._state, self._params, self._roster, 0, now_ms)
         p = self._state
-        return {
-            lib.play_out_id(p, j): (lib.play_out_goal(p, j), lib.play_out_speed(p, j))
-            for j in range(count)
-        }
+        count = lib.play_tick(p, self._params, self._roster, 0, now_ms)
+        out_id, goal, speed = lib.play_out_id, lib.play_out_goal, lib.play_out_speed
+        return {out_id(p, j): (goal(p, j), speed(p, j)) for j in range(count)}
 
 
 def goal_block(goal: int, speed: int) -> bytes:

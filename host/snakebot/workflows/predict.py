@@ -213,9 +213,13 @@ def player_writes(table: GaitTable) -> tuple[float, list[dict[int, bytes]]]:
     pass_ms = period_ms * (table.frame_count if table.loop else table.frame_count - 1)
     player = TablePlayer(table)
     blocks = []
+    made: dict[tuple, dict[int, bytes]] = {}  # a frame held over several ticks: one dict
     for n in range(math.ceil(pass_ms / TICK_MS) + 1):
         outputs = player.tick(min(n * TICK_MS, pass_ms))
-        blocks.append(goal_blocks(outputs))
+        key = tuple(outputs.items())
+        if key not in made:
+            made[key] = goal_blocks(outputs)
+        blocks.append(made[key])
     return TICK_MS / 1000.0, blocks
 
 
@@ -275,10 +279,16 @@ def play(
     per_frame = 1 if ideal else max(1, math.ceil(period * world_hz - 1e-9))
     world_period = period / per_frame
     tick, blocks = player_writes(table) if writes is None else writes
-    # the packets are known before the play starts: encode them once, as a host loop should
-    packets = [
-        (n, sync_write(GOAL_POSITION_ADDR, GOAL_BLOCK, b)) for n, b in enumerate(blocks) if b
-    ]
+    # the packets are known before the play starts: encode them once, as a host loop
+    # should (and each distinct one once: a frame held over several ticks repeats its own)
+    encoded: dict[tuple[tuple[int, bytes], ...], bytes] = {}
+    packets = []
+    for n, b in enumerate(blocks):
+        if b:
+            key = tuple(b.items())
+            if key not in encoded:
+                encoded[key] = sync_write(GOAL_POSITION_ADDR, GOAL_BLOCK, b)
+            packets.append((n, encoded[key]))
     intervals = table.frame_count if table.loop else table.frame_count - 1
     duration = intervals * period
     start = bus.now

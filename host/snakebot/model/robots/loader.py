@@ -10,6 +10,7 @@ comments); the built-in files beside this module are complete examples.
 from __future__ import annotations
 
 import difflib
+import functools
 import math
 import re
 import sys
@@ -348,11 +349,18 @@ def builtin_text(name: str) -> str:
     return resources.files("snakebot.model.robots").joinpath(f"{name}.toml").read_text()
 
 
+@functools.cache
+def _builtin(name: str) -> Robot:
+    """A built-in robot, read once per process (a Robot is immutable; a search's every run
+    builds an emulated bus from one)."""
+    return parse_robot(builtin_text(name), source=name)
+
+
 def load_robot(name_or_path: str | Path) -> Robot:
     """A built-in robot by name (``snake3``, ``trident``, ``snake5``) or a TOML file path."""
     text_name = str(name_or_path)
     if text_name in BUILTIN_ROBOTS:
-        return parse_robot(builtin_text(text_name), source=text_name)
+        return _builtin(text_name)
     path = Path(name_or_path)
     if not path.is_file():
         raise RobotError(

@@ -177,6 +177,40 @@ void sim_servo_advance(sim_servo *s, double t) {
     s->t = t;
 }
 
+void sim_servo_set_motion(sim_servo *s, double t, double pos, double vel, double load_fraction,
+                          _Bool load_cw, _Bool moving, _Bool overload) {
+    s->world_driven = 1;
+    sim_servo_advance(s, t);
+    s->pos = pos;
+    s->vel = vel;
+    s->load_fraction = load_fraction < 1.0 ? load_fraction : 1.0;
+    s->load_cw = load_cw;
+    s->moving = moving;
+    s->overload = overload && s->powered;
+    if (s->overload) {
+        int conditions = sim_servo_conditions(s);
+        if (conditions & s->shutdown) {
+            sim_servo_alarm(s, conditions);
+        }
+    }
+}
+
+void sim_servo_controller(const sim_servo *s, double *out) {
+    _Bool on = s->powered && s->torque_enable == 1 && s->torque_limit > 0;
+    out[0] = s->goal;
+    out[1] = s->speed_setting;
+    out[2] = on ? 1.0 : 0.0;
+    out[3] = s->torque_limit;
+    out[4] = s->cw_margin;
+    out[5] = s->ccw_margin;
+    out[6] = s->cw_slope;
+    out[7] = s->ccw_slope;
+    out[8] = s->punch;
+    out[9] = s->supply_v;
+    out[10] = s->wheel_mode ? 1.0 : 0.0;
+    out[11] = s->moving_speed;
+}
+
 static int signed_magnitude(const sim_servo_units *u, double magnitude, _Bool negative) {
     /* min(SPEED_MAX, magnitude), the direction bit set for a negative non-zero value */
     int speed_max = u->direction_bit - 1;

@@ -1,6 +1,6 @@
 /* The hot path of an emulated AX-12 (snakebot.sim.servo.reference.VirtualServo) in C: its motion,
- * heat and alarms between packets, the telemetry READ, and the write of Goal Position
- * (+ Moving Speed) that every SYNC_WRITE carries. The Python object keeps its state in
+ * heat and alarms between packets, the telemetry READ, the write of Goal Position
+ * (+ Moving Speed) that every SYNC_WRITE carries, and a physics world's hooks. The Python object keeps its state in
  * this struct (one store), so its own methods and these functions see the same servo;
  * the pure-Python ReferenceServo is the model these follow, checked by
  * tests/sim/test_fast_servo.py. Host-side only: never compiled into the firmware.
@@ -35,6 +35,7 @@ typedef struct {
     /* registers mirrored for the physics ("shadows") and what follows from them */
     int goal, moving_speed, torque_enable, torque_limit;
     int cw_margin, ccw_margin, cw_limit, ccw_limit, temp_limit, shutdown, srl, id;
+    int cw_slope, ccw_slope, punch;
     double speed_setting, vmax, vmax_wheel;
     _Bool wheel_mode, voltage_bad, ideal, world_driven, powered;
     /* the physical state */
@@ -80,6 +81,18 @@ int sim_servo_deliver_read(sim_servo *const *by_id, const uint8_t *frame, int n,
  * frame (nothing has happened then). */
 int sim_servo_deliver_sync_write(sim_servo *const *by_id, const uint8_t *frame, int n,
                                  double t);
+/* A physics world's report at bus time t (ReferenceServo.set_motion): the joint's position
+ * (ticks), speed (ticks/s), load (fraction of the stall torque; load_cw: pushing toward
+ * smaller positions), whether it moves, whether the load exceeds what it may give. Heat
+ * and alarms follow as for the servo's own motion. */
+void sim_servo_set_motion(sim_servo *s, double t, double pos, double vel, double load_fraction,
+                          _Bool load_cw, _Bool moving, _Bool overload);
+/* What the position controller works from (ReferenceServo.controller), into
+ * out[SIM_SERVO_CONTROLLER]: goal, speed setting (ticks/s, inf: no limit), torque on (0/1),
+ * Torque Limit, CW and CCW margin, CW and CCW slope, Punch, supply volts, wheel mode (0/1),
+ * raw Moving Speed. */
+#define SIM_SERVO_CONTROLLER 12
+void sim_servo_controller(const sim_servo *s, double *out);
 /* cffi:end */
 
 #endif

@@ -39,6 +39,9 @@ stalled, before the servo reports overload."""
 STALLED_FRACTION = 0.05
 """A joint slower than this fraction of its no-load speed counts as stalled."""
 
+DUTY_FULL = float(motor.TORQUE_FULL)
+"""Torque Limit, Punch and wheel-mode Moving Speed at full duty (1023)."""
+
 _DIRECTION_BIT = motor.DIRECTION_BIT
 _LOW_BITS = _DIRECTION_BIT - 1
 
@@ -78,9 +81,9 @@ class Actuator:
         goal, speed, on, limit, cw_m, ccw_m, cw_s, ccw_s, punch, volts, wheel, raw = controller
         if not on:
             return 0.0, 0.0, 0.0, 0.0, False
-        limit_cap = limit / 1023.0
+        limit_cap = limit / DUTY_FULL
         if wheel:
-            u = (int(raw) & _LOW_BITS) / 1023.0
+            u = (int(raw) & _LOW_BITS) / DUTY_FULL
             u = -u if int(raw) & _DIRECTION_BIT else u
             return 0.0, 0.0, u, limit_cap, abs(u) > limit_cap
         error = goal - pos_ticks
@@ -90,7 +93,7 @@ class Actuator:
             side, margin, slope = -1.0, cw_m, cw_s
         else:
             return 0.0, 0.0, 0.0, 0.0, False
-        base = punch / 1023.0
+        base = punch / DUTY_FULL
         # duty = side * (base + (1 - base) * (|error| - margin) / slope), saturating at 1
         gain = (1.0 - base) / slope
         bias = side * (base - gain * margin)

@@ -23,6 +23,7 @@ backwards).
 
 from __future__ import annotations
 
+import copy
 import functools
 import math
 from collections import deque
@@ -31,11 +32,13 @@ from typing import Any
 
 import numpy as np
 
+from snakebot.core import ffi, lib
 from snakebot.formats.live_topics import Shape
-from snakebot.model.robots import TICKS_PER_RAD, Robot
+from snakebot.model.robots import TICKS_PER_RAD, Friction, Robot
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.history import History
-from snakebot.sim.physics.actuator import OVERLOAD_HOLD_S, STALLED_FRACTION, Actuator
+from snakebot.sim.physics.actuator import OVERLOAD_HOLD_S, Actuator
+from snakebot.sim.physics.coupling import Coupling
 from snakebot.sim.physics.mjcf import (
     CONTROL_PERIOD_S,
     ROLLING_MODEL,
@@ -43,12 +46,18 @@ from snakebot.sim.physics.mjcf import (
     build_mjcf,
     physics_of,
 )
-from snakebot.sim.servo import motor
 from snakebot.sim.world import DEFAULT_PERIOD_S, WorldError, WorldRecord, require_servos
 
 PENETRATION_LIMIT = 0.5
 """A wheel whose centre sinks below this fraction of its radius means the contact solver
 has failed: the run stops."""
+
+
+_FAILURES = {
+    lib.SIM_WORLD_BLEW_UP: "the simulation blew up (a position or speed is not finite)",
+    lib.SIM_WORLD_SANK: "the wheels sank deep into the floor",
+}
+"""What each failure the coupling's sample check finds is, in words."""
 
 
 class PhysicsError(WorldError):
@@ -71,6 +80,17 @@ def _mujoco() -> Any:
         mujoco.set_mju_user_warning(_keep_warning)
         _warnings_kept = True
     return mujoco
+
+
+@functools.lru_cache(maxsize=8)
+def _compiled(robot: Robot, timestep: float, friction: Friction, rolling_model: str) -> Any:
+    """The model of ``robot`` (:func:`build_mjcf`) compiled, and its names, made once per
+    process: a search builds a world for every run, mostly of the same few models (a
+    copy of the compiled model takes a quarter of the time of compiling)."""
+    xml, names = build_mjcf(
+        robot, timestep=timestep, friction=friction, rolling_model=rolling_model
+    )
+    return _mujoco().MjModel.from_xml_string(xml), names
 
 
 _warnings_kept = False
@@ -160,11 +180,10 @@ class PhysicsWorld:
         self.substeps = max(1, math.ceil(self.control_period / timestep - 1e-9))
         self.timestep = self.control_period / self.substeps
         self.friction = robot.friction if mu is None else replace(robot.friction, lateral=mu)
-        xml, names = build_mjcf(
-            robot, timestep=self.timestep, friction=self.friction, rolling_model=rolling_model
-        )
+        compiled, names = _compiled(robot, self.timestep, self.friction, rolling_model)
         self._mj = mujoco
-        self.model = mujoco.MjModel.from_xml_string(xml)
+        # a copy of its own: the world writes the drives into the model
+        self.model = copy.copy(compiled)
         self.data = mujoco.MjData(self.model)
         self.bus = bus
         self.robot = robot
@@ -173,13 +192,12 @@ class PhysicsWorld:
         self.start_time = bus.now if start is None else float(start)
         self.actuator = Actuator.for_model(robot.servo_model)
         self._servos = [bus.servo(i) for i in ids]
-        self._signs = [float(j.sign) for j in robot.joints]
-        self._zeros = [float(j.zero_tick) for j in robot.joints]
+        signs = [float(j.sign) for j in robot.joints]
+        zeros = [float(j.zero_tick) for j in robot.joints]
         m = self.model
         jid = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in names.joints]
         self._qadr = [int(m.jnt_qposadr[j]) for j in jid]
         self._dadr = [int(m.jnt_dofadr[j]) for j in jid]
-        self._qadr_np, self._dadr_np = np.array(self._qadr), np.array(self._dadr)
         self._wheels = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n) for n in names.wheels]
         # the base slides in z from the wheels' resting height (their radius)
         self._min_z = (PENETRATION_LIMIT - 1.0) * phys.wheel_radius_m
@@ -187,156 +205,78 @@ class PhysicsWorld:
         d.qpos[0], d.qpos[1], d.qpos[3] = pose[0] * self.unit, pose[1] * self.unit, pose[2]
         for k, servo in enumerate(self._servos):
             servo.advance(self.start_time)
-            d.qpos[self._qadr[k]] = (servo.pos - self._zeros[k]) / (self._signs[k] * TICKS_PER_RAD)
+            d.qpos[self._qadr[k]] = (servo.pos - zeros[k]) / (signs[k] * TICKS_PER_RAD)
         mujoco.mj_forward(m, d)
-        n = robot.n_joints
-        # per joint, plain floats: the tick works on a handful of joints, one at a time
-        self._energy = [0.0] * n
-        self._electrical = [0.0] * n
-        self._motor = motor.spec_for(robot.servo_model)
-        self._stalled = [0.0] * n
-        self._moving = [False] * n
-        self._on = [False] * n
         self._ticks = 0
         self._running = True
-        self._joints = list(zip(self._servos, self._signs, self._zeros, strict=True))
         self._root = int(m.body_rootid[self._wheels[0]])
         # what a sample keeps: x, y, theta and the joints; per wheel its turn rate and
-        # velocity (x, y) about the root's centre of mass, its centre (x, y), its axle
+        # velocity (x, y) about the root's centre of mass, its centre (x, y), the root's
+        # centre of mass (x, y), each wheel's axle; then (the coupling adds it) each
+        # joint's motor torque
         w = np.array(self._wheels)
-        self._qsel = np.array([0, 1, 3, *self._qadr])
-        self._cvel_idx = (6 * w[:, None] + [2, 3, 4]).ravel()
-        self._xpos_idx = (3 * w[:, None] + [0, 1]).ravel()
-        self._axle_idx = (9 * w[:, None] + [1, 4]).ravel()  # row-major 3x3: column 1
-        # a sample's row: its time, then the pieces above and each joint's torque
-        widths = [1, len(self._qsel), len(self._cvel_idx), len(self._xpos_idx), 2]
-        widths += [len(self._axle_idx), n]
+        pieces = [
+            (d.qpos, [0, 1, 3, *self._qadr]),
+            (d.cvel, (6 * w[:, None] + [2, 3, 4]).ravel()),
+            (d.xpos, (3 * w[:, None] + [0, 1]).ravel()),
+            (d.subtree_com, [3 * self._root, 3 * self._root + 1]),
+            (d.xmat, (9 * w[:, None] + [1, 4]).ravel()),  # row-major 3x3: column 1
+        ]
+        joints = zip(self._servos, signs, zeros, self._qadr, self._dadr, strict=True)
+        self._coupling = Coupling(
+            m,
+            d,
+            list(joints),
+            self.actuator,
+            hold=OVERLOAD_HOLD_S,
+            period=self.control_period,
+            start=self.start_time,
+            min_z=self._min_z,
+            pieces=pieces,
+        )
+        self._c = self._coupling.c
+        # a sample's row: its time, then the pieces (their widths say where each ends)
+        widths = [1, *(len(index) for _, index in pieces), robot.n_joints]
         ends = np.cumsum(widths).tolist()
         self._cols = [slice(end - width, end) for width, end in zip(widths, ends, strict=True)]
-        self._history = History(sum(widths), keep)
-        # the tick's working set, made once: MuJoCo's arrays (views into its buffers, so
-        # they stay current), a sample's row filled in place through views of its pieces,
-        # and the drives last given to MuJoCo
-        self._qpos, self._qvel, self._force = d.qpos, d.qvel, d.actuator_force
-        self._row = np.zeros(sum(widths))
-        self._parts = [self._row[c] for c in self._cols]
-        parts = self._parts
-        self._gathers = (
-            (d.qpos, self._qsel, parts[1]),
-            (d.cvel, self._cvel_idx, parts[2]),
-            (d.xpos, self._xpos_idx, parts[3]),
-            (d.xmat, self._axle_idx, parts[5]),
-        )
-        self._com_xy = d.subtree_com[self._root, :2]
-        bias, limits = m.actuator_biasprm, m.actuator_forcerange
-        self._drives = (bias[:, 0], bias[:, 1], limits[:, 1], limits[:, 0])
-        self._given: list[list[float]] = [[], [], []]
-        self._neg_damping = -self.actuator.damping
-        act = self.actuator
-        # stall torque, stall torque per supply volt (Actuator.stall_at), stalled speed
-        self._stall_constants = (
-            act.stall_nm,
-            act.stall_nm / act.nominal_v,
-            STALLED_FRACTION * act.no_load_rad_s,
-        )
+        self._history = History(self._coupling.width, keep)
+        self._row = np.zeros(self._coupling.width)
+        self._row_c = ffi.from_buffer("double[]", self._row, require_writable=True)
         self._schedule = bus.every(self.control_period, self._tick, start=self.start_time)
 
     # -- stepping -------------------------------------------------------------------------
-
-    def _motor_torque(self) -> tuple[list[float], list[float]]:
-        """Each joint's speed (rad/s) and its motor's torque at the joint now (N m, + in
-        the joint's direction): the drive less the back-EMF braking."""
-        speeds = self._qvel.take(self._dadr_np, mode="clip").tolist()
-        brake = self._neg_damping
-        forces = self._force.tolist()
-        return speeds, [w * brake + f for w, f in zip(speeds, forces, strict=True)]
 
     def _tick(self, t: float) -> None:
         """At bus time ``t``: bring the physics from the last tick to ``t`` under the
         drive set then, report the joints to the servos (and record, if a sample is
         due), and set every motor's drive from its servo's registers as they are now.
 
-        Once per control period, so it works in plain floats (numpy is slow on a few
-        numbers at a time), touches MuJoCo's arrays through views taken once, and gives
-        MuJoCo the drives only when they changed."""
+        Once per control period: MuJoCo's steps, and the per-joint work in C
+        (:mod:`snakebot.sim.physics.coupling`) on MuJoCo's arrays in place."""
         if not self._running:
             return
+        world = self._c
         if self._ticks:
             # energy: the motors' power (the drive in force during each step, the speed
             # at its end; the implicit integrator's own reading of the step)
-            step, m, d, dt = self._mj.mj_step, self.model, self.data, self.timestep
-            energy, electrical = self._energy, self._electrical
-            drawn = self._motor.electrical_power_w
+            step, m, d, account = self._mj.mj_step, self.model, self.data, lib.sim_world_account
             for _ in range(self.substeps):
                 step(m, d)
-                speeds, torques = self._motor_torque()
-                for k, tau in enumerate(torques):
-                    w = speeds[k]
-                    energy[k] += tau * w * dt
-                    electrical[k] += drawn(tau, w) * dt
+                account(world)
         else:
-            speeds, torques = self._motor_torque()
+            lib.sim_world_measure(world)
         if self._ticks % self.steps_per_sample == 0:
-            self._sample(t, torques)
+            self._sample(t)
         self._ticks += 1
-        drive = self.actuator.drive
-        stall_nm, stall_per_volt, stalled_speed = self._stall_constants
-        period, hold = self.control_period, OVERLOAD_HOLD_S
-        on, moving, stalled = self._on, self._moving, self._stalled
-        angles = self._qpos.take(self._qadr_np, mode="clip").tolist()
-        constant, slope, high = [], [], []
-        for k, (servo, sign, zero) in enumerate(self._joints):
-            pos = zero + sign * angles[k] * TICKS_PER_RAD
-            w = speeds[k]
-            tau = torques[k]
-            # a servo with its torque off drives nothing and reports no load (the gear
-            # train still brakes the joint: that stays in the physics)
-            ctrl = servo.set_motion(
-                t,
-                pos,
-                sign * w * TICKS_PER_RAD,
-                abs(tau) / stall_nm if on[k] else 0.0,
-                on[k] and tau * sign < 0,
-                moving[k],
-                stalled[k] >= hold,
-            )
-            on[k] = ctrl[2] != 0.0
-            gain, target, offset, cap, cut = drive(ctrl, pos)
-            volts = ctrl[9]
-            stall = stall_per_volt * volts if volts > 0.0 else 0.0  # Actuator.stall_at
-            # duty = gain * (target - ticks) + offset, ticks = zero + sign * TICKS_PER_RAD * q,
-            # as a joint torque (sign * stall * duty) affine in the joint angle q
-            constant.append(sign * stall * (gain * (target - zero) + offset))
-            slope.append(-stall * gain * TICKS_PER_RAD)
-            high.append(stall * cap)
-            stalled[k] = stalled[k] + period if cut and abs(w) < stalled_speed else 0.0
-            moving[k] = gain != 0.0 or offset != 0.0
-        given = self._given
-        if constant != given[0] or slope != given[1] or high != given[2]:
-            self._given = [constant, slope, high]
-            bias_constant, bias_slope, limit_high, limit_low = self._drives
-            bias_constant[:] = constant
-            bias_slope[:] = slope
-            limit_high[:] = high
-            np.negative(limit_high, out=limit_low)
+        lib.sim_world_couple(world, t)
 
-    def _sample(self, t: float, torques: list[float]) -> None:
+    def _sample(self, t: float) -> None:
         """Check the physics is sane and keep what the record is made of (raw: the record
         works the slip out for all samples at once)."""
-        q = self._qpos.tolist()
-        z = q[2]  # the robot stays level: every wheel centre sinks with the base
-        # (plain sums: numpy's reductions cost more than the additions on so few numbers)
-        if not math.isfinite(sum(q) + sum(self._qvel.tolist())):
-            self._fail(t, "the simulation blew up (a position or speed is not finite)")
-        if z < self._min_z:
-            self._fail(t, "the wheels sank deep into the floor")
-        row, parts = self._row, self._parts
-        row[0] = t - self.start_time
-        for source, index, part in self._gathers:
-            source.take(index, out=part, mode="clip")  # valid indices: "clip" is unbuffered
-        parts[4][:] = self._com_xy
-        parts[6][:] = torques
-        self._history.slot()[:] = row
+        failed = lib.sim_world_sample(self._c, t, self._row_c)
+        if failed:
+            self._fail(t, _FAILURES[failed])
+        self._history.slot()[:] = self._row
 
     def _fail(self, t: float, what: str) -> None:
         self.stop()
@@ -428,8 +368,8 @@ class PhysicsWorld:
             self.friction,
             torque,
             np.abs(torque) / self.actuator.stall_nm,
-            np.array(self._energy),
-            np.array(self._electrical),
+            self._coupling.energy.copy(),
+            self._coupling.electrical.copy(),
             self.mu,
             self.timestep,
         )

@@ -3,11 +3,12 @@ hot path in C.
 
 The reference model is Python, written to be read; a closed loop spends most of its
 time in a few of its paths: the motion, heat and alarms between packets, the telemetry
-READ and the Goal Position (+ Moving Speed) write that every SYNC_WRITE carries. Those
+READ and the Goal Position (+ Moving Speed) write that every SYNC_WRITE carries, and a
+physics world's hooks (its report of the joint, the controller it reads back). Those
 run in C here (``host/snakebot/sim/csrc/sim_servo.c``, built into ``snakebot._core``),
 on state kept in one C struct: every attribute those paths use is a property reading
 and writing the struct, so the reference model's own methods (every other instruction,
-power, the physics world's hooks) work on the same servo unchanged. The control table
+power) work on the same servo unchanged. The control table
 stays the register file's ``bytearray``; the struct points into it.
 
 ``tests/sim/test_fast_servo.py`` holds the two to the same replies, registers and
@@ -68,6 +69,9 @@ _FIELDS: dict[str, tuple[str, type]] = {
     "_torque_limit": ("torque_limit", int),
     "_cw_margin": ("cw_margin", int),
     "_ccw_margin": ("ccw_margin", int),
+    "_cw_slope": ("cw_slope", int),
+    "_ccw_slope": ("ccw_slope", int),
+    "_punch": ("punch", int),
     "_cw_limit": ("cw_limit", int),
     "_ccw_limit": ("ccw_limit", int),
     "_temp_limit": ("temp_limit", int),
@@ -104,6 +108,7 @@ class VirtualServo(ReferenceServo):
         self._c = ffi.new("sim_servo *")
         self._c.units = _UNITS
         self._out = ffi.new("uint8_t[]", 256)
+        self._controls = ffi.new("double[]", lib.SIM_SERVO_CONTROLLER)
         super().__init__(*args, **kwargs)
 
     @property
@@ -151,27 +156,11 @@ class VirtualServo(ReferenceServo):
                 return flags
         return super()._write_at(address, data, registered)
 
-    # -- a physics world's hooks, once per servo per control tick: on the struct directly --
+    # -- a physics world's hooks, once per servo per control tick: in C, on the struct --
 
     def controller(self) -> tuple[float, ...]:
-        return self._controller(self._c)
-
-    def _controller(self, c: Any) -> tuple[float, ...]:
-        on = 1.0 if c.powered and c.torque_enable == 1 and c.torque_limit > 0 else 0.0
-        return (
-            float(c.goal),
-            c.speed_setting,
-            on,
-            float(c.torque_limit),
-            float(c.cw_margin),
-            float(c.ccw_margin),
-            float(self._cw_slope),
-            float(self._ccw_slope),
-            float(self._punch),
-            c.supply_v,
-            1.0 if c.wheel_mode else 0.0,
-            float(c.moving_speed),
-        )
+        lib.sim_servo_controller(self._c, self._controls)
+        return tuple(self._controls)
 
     def set_motion(
         self,
@@ -183,20 +172,8 @@ class VirtualServo(ReferenceServo):
         moving: bool,
         overload: bool,
     ) -> tuple[float, ...]:
-        c = self._c
-        c.world_driven = True
-        lib.sim_servo_advance(c, t)
-        c.pos = pos
-        c.vel = vel
-        c.load_fraction = load_fraction if load_fraction < 1.0 else 1.0
-        c.load_cw = load_cw
-        c.moving = moving
-        c.overload = overloaded = overload and c.powered
-        if overloaded:
-            conditions = lib.sim_servo_conditions(c)
-            if conditions & c.shutdown:
-                lib.sim_servo_alarm(c, conditions)
-        return self._controller(c)
+        lib.sim_servo_set_motion(self._c, t, pos, vel, load_fraction, load_cw, moving, overload)
+        return self.controller()
 
     def sync_write_block(self, address: int, data: bytes, t: float) -> None:
         if lib.sim_servo_sync_block(self._c, t, address, data, len(data)) < 0:

@@ -1,0 +1,83 @@
+/* The physics world's coupling of MuJoCo and the emulated servos (snakebot.sim.physics.world),
+ * once per control tick for every joint at once: each servo's registers to its motor's
+ * drive (snakebot.sim.physics.actuator.Actuator.drive), the physics back to each servo,
+ * the motors' energy, a sample's row. Python steps MuJoCo between the calls; these
+ * work on MuJoCo's own arrays (pointers to its mjData and mjModel buffers, which do not
+ * move). Every step mirrors the Python it replaced, operation for operation, so the
+ * world's trajectories stay the same to the last bit; tests/sim/test_physics_coupling.py
+ * holds the drive and the power to the Python models. Host-side only. */
+#ifndef SNAKEBOT_SIM_WORLD_H
+#define SNAKEBOT_SIM_WORLD_H
+
+#include "sim_servo.h"
+
+/* cffi:begin */
+typedef struct {
+    double stall_nm;      /* stall torque at the nominal voltage, N m at the joint */
+    double nominal_v;     /* the supply voltage of the motor's figures */
+    double no_load_rad_s; /* no-load speed at the nominal voltage */
+    double ticks_per_rad; /* position ticks per radian */
+    double duty_full;     /* Torque Limit, Punch and wheel-mode Moving Speed at full duty */
+    int direction_bit;    /* wheel-mode Moving Speed's direction bit, as a value */
+} sim_actuator;
+
+/* Actuator.drive: the drive of a motor whose servo's controller (sim_servo_controller)
+ * is `controller`, at position pos_ticks, into out[4]: gain (1/tick), target (ticks),
+ * bias, cap (duty = gain (target - position) + bias, limited to +-cap); returns whether
+ * Torque Limit cuts the duty the controller asks for (1) or not (0). */
+int sim_actuator_drive(const sim_actuator *a, const double *controller, double pos_ticks,
+                       double *out);
+/* MotorSpec.electrical_power_w: the power (W) the motor draws to give torque_nm at
+ * speed_rad_s, never negative. */
+double sim_actuator_power(const sim_actuator *a, double torque_nm, double speed_rad_s);
+
+/* A sample's piece: out[i] = source[index[i]] for i < n. */
+typedef struct {
+    const double *source;
+    const int *index;
+    int n;
+} sim_gather;
+
+typedef struct {
+    int n;                              /* joints; actuator k drives joint k */
+    sim_servo **servos;                 /* joint k's servo */
+    const double *sign, *zero;          /* joint k's direction (+-1) and tick at angle 0 */
+    const int *qadr, *dadr;             /* joint k's entry in qpos, in qvel */
+    const double *qpos, *qvel, *force;  /* mjData's qpos, qvel, actuator_force */
+    int nq, nv;
+    double *biasprm, *forcerange;       /* mjModel's actuator_biasprm, actuator_forcerange */
+    int nbias;                          /* biasprm's row length */
+    const sim_actuator *actuator;
+    double brake;                       /* minus the back-EMF damping, N m s/rad */
+    double stalled_speed;               /* slower than this (rad/s), a joint is stalled */
+    double hold;                        /* stalled and cut this long (s): overload */
+    double period;                      /* the control period, s */
+    double dt;                          /* the MuJoCo step, s */
+    double start;                       /* bus time of the world's start */
+    double min_z;                       /* the base's lowest height before it counts sunk */
+    const sim_gather *gathers;          /* a sample's row after its time, piece by piece */
+    int ngathers;
+    /* per joint, carried from tick to tick */
+    double *speed, *torque;             /* rad/s and the motor's N m, as last measured */
+    double *energy, *electrical;        /* J, mechanical (signed) and drawn */
+    double *stalled;                    /* how long it has been stalled and cut, s */
+    _Bool *on, *moving;                 /* its torque on; its motor driven */
+} sim_world;
+
+/* Each joint's speed and motor torque now (the drive less the back-EMF braking). */
+void sim_world_measure(sim_world *w);
+/* After a MuJoCo step of dt: measure, and add each motor's work and electrical energy
+ * over the step (the drive in force during the step, the speed at its end). */
+void sim_world_account(sim_world *w);
+/* A sample at bus time t into row (its time since the start, then the gathers): 0, or
+ * SIM_WORLD_BLEW_UP / SIM_WORLD_SANK (nothing written) if the physics has failed. */
+#define SIM_WORLD_BLEW_UP 1
+#define SIM_WORLD_SANK 2
+int sim_world_sample(const sim_world *w, double t, double *row);
+/* At bus time t: report each joint to its servo (sim_servo_set_motion) and set its
+ * motor's drive from the servo's registers as they are then, as MuJoCo's actuator bias
+ * (affine in the joint angle) and force range. */
+void sim_world_couple(sim_world *w, double t);
+/* cffi:end */
+
+#endif

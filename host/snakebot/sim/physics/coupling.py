@@ -1,0 +1,111 @@
+"""The physics world's per-tick work in C (``host/snakebot/sim/csrc/sim_world.c``): a
+``sim_world`` struct that points at MuJoCo's arrays, the servos' structs and the joints'
+state, made once per world, so a control tick is a MuJoCo step and a few C calls with no
+Python objects made per joint.
+
+    coupling = Coupling(model, data, joints, actuator, hold=..., period=..., ...)
+    lib.sim_world_couple(coupling.c, t)     # every servo's registers to its drive
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from snakebot.core import ffi
+from snakebot.model.robots import TICKS_PER_RAD
+from snakebot.sim.physics.actuator import DUTY_FULL, STALLED_FRACTION, Actuator
+from snakebot.sim.servo import motor
+from snakebot.sim.servo.fast import VirtualServo
+
+
+def actuator_struct(actuator: Actuator) -> Any:
+    """``actuator``'s constants as the C's ``sim_actuator *``."""
+    return ffi.new(
+        "sim_actuator *",
+        {
+            "stall_nm": actuator.stall_nm,
+            "nominal_v": actuator.nominal_v,
+            "no_load_rad_s": actuator.no_load_rad_s,
+            "ticks_per_rad": TICKS_PER_RAD,
+            "duty_full": DUTY_FULL,
+            "direction_bit": motor.DIRECTION_BIT,
+        },
+    )
+
+
+class Coupling:
+    """The ``sim_world`` of one world (:attr:`c`) and everything it points to, kept alive
+    here. ``joints``: per joint its servo, sign, tick at angle 0, qpos and qvel index.
+    ``pieces``: a sample's row after its time, each a MuJoCo array (any shape, read flat)
+    and the flat indices to take from it; each joint's motor torque follows them.
+    :attr:`energy` and :attr:`electrical` are the motors' running totals (J)."""
+
+    def __init__(
+        self,
+        model: Any,
+        data: Any,
+        joints: Sequence[tuple[VirtualServo, float, float, int, int]],
+        actuator: Actuator,
+        *,
+        hold: float,
+        period: float,
+        start: float,
+        min_z: float,
+        pieces: Sequence[tuple[np.ndarray, Sequence[int]]],
+    ) -> None:
+        n = len(joints)
+        servos, sign, zero, qadr, dadr = zip(*joints, strict=True)
+        self.energy = np.zeros(n)
+        self.electrical = np.zeros(n)
+        self.torque = np.zeros(n)
+        self._keep: list[Any] = []
+        c = self.c = self._new("sim_world *")
+        c.n = n
+        c.servos = self._new("sim_servo *[]", [s.c_struct for s in servos])
+        c.sign, c.zero = self._doubles(sign), self._doubles(zero)
+        c.qadr, c.dadr = self._ints(qadr), self._ints(dadr)
+        c.qpos, c.qvel = self._doubles(data.qpos), self._doubles(data.qvel)
+        c.force = self._doubles(data.actuator_force)
+        c.nq, c.nv = len(data.qpos), len(data.qvel)
+        c.biasprm = self._doubles(model.actuator_biasprm)
+        c.forcerange = self._doubles(model.actuator_forcerange)
+        c.nbias = model.actuator_biasprm.shape[1]
+        c.actuator = self._held(actuator_struct(actuator))
+        c.brake = -actuator.damping
+        c.stalled_speed = STALLED_FRACTION * actuator.no_load_rad_s
+        c.hold, c.period, c.dt = hold, period, model.opt.timestep
+        c.start, c.min_z = start, min_z
+        pieces = [*pieces, (self.torque, range(n))]
+        gathers = c.gathers = self._new("sim_gather[]", len(pieces))
+        c.ngathers = len(pieces)
+        for gather, (source, index) in zip(gathers, pieces, strict=True):
+            gather.source, gather.index = self._doubles(source), self._ints(index)
+            gather.n = len(index)
+        c.speed, c.torque = self._doubles(np.zeros(n)), self._doubles(self.torque)
+        c.energy, c.electrical = self._doubles(self.energy), self._doubles(self.electrical)
+        c.stalled = self._doubles(np.zeros(n))
+        c.on, c.moving = (self._held(ffi.new("_Bool[]", n)) for _ in range(2))
+        self.width = 1 + sum(len(index) for _, index in pieces)
+        """A sample's row length."""
+
+    def _held(self, obj: Any) -> Any:
+        self._keep.append(obj)
+        return obj
+
+    def _new(self, ctype: str, init: Any = None) -> Any:
+        return self._held(ffi.new(ctype, init))
+
+    def _doubles(self, values: Any) -> Any:
+        """A ``double *`` to ``values`` itself if it is a C-contiguous float64 array (MuJoCo's,
+        or state the C updates), else to a copy."""
+        array = values if isinstance(values, np.ndarray) else np.array(values, dtype=np.float64)
+        if array.dtype != np.float64 or not array.flags.c_contiguous:
+            raise ValueError("the C coupling needs C-contiguous float64 arrays")
+        self._held(array)
+        return self._held(ffi.from_buffer("double[]", array, require_writable=True))
+
+    def _ints(self, values: Any) -> Any:
+        return self._new("int[]", [int(v) for v in values])

@@ -14,6 +14,7 @@ from __future__ import annotations
 from snakebot.model.robots.loader import BUILTIN_ROBOTS, load_robot, parse_robot
 from snakebot.model.robots.model import (
     SERVO_MAX_RPM,
+    SPEED_LIMITS,
     TICKS_PER_RAD,
     Friction,
     Joint,
@@ -25,6 +26,7 @@ from snakebot.model.robots.model import (
 __all__ = [
     "BUILTIN_ROBOTS",
     "SERVO_MAX_RPM",
+    "SPEED_LIMITS",
     "TICKS_PER_RAD",
     "Friction",
     "Joint",

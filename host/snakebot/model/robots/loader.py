@@ -29,6 +29,7 @@ from snakebot.model.robots.model import (
     DEFAULT_FRICTION,
     PHYSICS_DEFAULTS,
     SERVO_MAX_RPM,
+    SPEED_LIMITS,
     TICK_MAX,
     TICK_MIN,
     TORQUE_LIMIT,
@@ -301,6 +302,12 @@ def parse_robot(text: str, source: str = "<robot>") -> Robot:
         high=datasheet,
         why_high=f" rpm, the {model}'s no-load speed in its datasheet",
     )
+    speed_limit = reader.get(("servo", "speed_limit"), str, SPEED_LIMITS[0])
+    if speed_limit not in SPEED_LIMITS:
+        raise reader.fail(
+            ("servo", "speed_limit"),
+            f"must be {' or '.join(map(quoted, SPEED_LIMITS))}, not {quoted(speed_limit)}",
+        )
     common: dict[str, Any] = dict(
         name=reader.get(("name",), str),
         kind=kind,
@@ -311,6 +318,7 @@ def parse_robot(text: str, source: str = "<robot>") -> Robot:
         description=reader.get(("description",), str, ""),
         physics=_physics(reader),
         torque_limit=_torque_limit(reader),
+        speed_limit=speed_limit,
         source=source,
     )
     if kind == "snake":

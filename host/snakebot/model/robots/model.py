@@ -27,6 +27,14 @@ SERVO_MAX_RPM = {
 }
 
 
+#: How Moving Speed acts on a joint in the physics world (docs/models.md, "The servo's
+#: speed limit"): "drive", it caps the motor's drive at the duty that turns the unloaded
+#: motor at that speed, so a slow speed also caps the torque that holds the joint; or
+#: "profile", it only limits how fast the servo's target moves to the goal, and the full
+#: drive (within Torque Limit) holds the joint. The first is the default.
+SPEED_LIMITS = ("drive", "profile")
+
+
 #: Standard gravity (m/s^2): the wheels' loads are the masses' weights.
 GRAVITY_M_S2 = 9.80665
 
@@ -131,6 +139,7 @@ class Robot:
     description: str = ""
     physics: Physics | None = None  # None: the TOML has no [physics] table
     torque_limit: int | None = None  # raw Torque Limit for every servo; None: leave theirs
+    speed_limit: str = SPEED_LIMITS[0]  # how Moving Speed acts in the physics world
     source: str = field(default="", compare=False)  # file it came from
 
     @property

@@ -95,6 +95,13 @@ TABLES: dict[str, Table] = {
                 "left out: that speed)",
                 rm.SERVO_MAX_RPM.get("AX-12A"),
             ),
+            "speed_limit": Key(
+                "how Moving Speed acts on a joint in the physics world: "
+                '"drive" caps the motor\'s drive at the duty that turns the unloaded motor at '
+                "that speed (so a slow speed also caps the torque holding the joint), "
+                '"profile" only limits how fast the target moves to the goal (docs/models.md)',
+                rm.SPEED_LIMITS[0],
+            ),
         },
     ),
     "limits": Table(

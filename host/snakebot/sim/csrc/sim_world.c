@@ -121,7 +121,23 @@ void sim_world_couple(sim_world *w, double t) {
         sim_servo_set_motion(servo, t, pos, sign * speed * tpr, on ? fabs(tau) / stall_nm : 0.0,
                              on && tau * sign < 0, w->moving[k], w->stalled[k] >= w->hold);
         sim_servo_controller(servo, controls);
+        _Bool was_on = on;
         w->on[k] = controls[2] != 0.0;
+        if (w->profile) {
+            /* the speed setting moves the target (INFINITY, Moving Speed 0: at once) */
+            double goal = controls[0], step = controls[1] * w->period;
+            double ref = was_on ? w->reference[k] : pos;
+            if (goal > ref + step) {
+                ref += step;
+            } else if (goal < ref - step) {
+                ref -= step;
+            } else {
+                ref = goal;
+            }
+            w->reference[k] = ref;
+            controls[0] = ref;
+            controls[1] = INFINITY;
+        }
         int cut = sim_actuator_drive(a, controls, pos, drive);
         double gain = drive[0], target = drive[1], offset = drive[2], cap = drive[3];
         double volts = controls[9];

@@ -61,6 +61,9 @@ typedef struct {
     double *speed, *torque;             /* rad/s and the motor's N m, as last measured */
     double *energy, *electrical;        /* J, mechanical (signed) and drawn */
     double *stalled;                    /* how long it has been stalled and cut, s */
+    int profile;                        /* Moving Speed limits the target's motion, not
+                                         * the drive (the robot's speed_limit) */
+    double *reference;                  /* profile: the target it moves, ticks */
     _Bool *on, *moving;                 /* its torque on; its motor driven */
 } sim_world;
 
@@ -76,7 +79,10 @@ void sim_world_account(sim_world *w);
 int sim_world_sample(const sim_world *w, double t, double *row);
 /* At bus time t: report each joint to its servo (sim_servo_set_motion) and set its
  * motor's drive from the servo's registers as they are then, as MuJoCo's actuator bias
- * (affine in the joint angle) and force range. */
+ * (affine in the joint angle) and force range. With profile, the drive aims at the
+ * joint's reference, which moves to Goal Position by at most Moving Speed times the
+ * control period a tick (from where the joint is when its torque comes on), and Moving
+ * Speed no longer caps the drive. */
 void sim_world_couple(sim_world *w, double t);
 /* cffi:end */
 

@@ -41,7 +41,9 @@ class Coupling:
     here. ``joints``: per joint its servo, sign, tick at angle 0, qpos and qvel index.
     ``pieces``: a sample's row after its time, each a MuJoCo array (any shape, read flat)
     and the flat indices to take from it; each joint's motor torque follows them.
-    :attr:`energy` and :attr:`electrical` are the motors' running totals (J)."""
+    :attr:`energy` and :attr:`electrical` are the motors' running totals (J). ``profile``:
+    Moving Speed moves each drive's target instead of capping the drive (the robot's
+    ``speed_limit``)."""
 
     def __init__(
         self,
@@ -55,6 +57,7 @@ class Coupling:
         start: float,
         min_z: float,
         pieces: Sequence[tuple[np.ndarray, Sequence[int]]],
+        profile: bool = False,
     ) -> None:
         n = len(joints)
         servos, sign, zero, qadr, dadr = zip(*joints, strict=True)
@@ -88,6 +91,8 @@ class Coupling:
         c.energy, c.electrical = self._doubles(self.energy), self._doubles(self.electrical)
         c.stalled = self._doubles(np.zeros(n))
         c.on, c.moving = (self._held(ffi.new("_Bool[]", n)) for _ in range(2))
+        c.profile = int(profile)
+        c.reference = self._doubles(np.zeros(n))
         self.width = 1 + sum(len(index) for _, index in pieces)
         """A sample's row length."""
 

@@ -233,6 +233,7 @@ class PhysicsWorld:
             start=self.start_time,
             min_z=self._min_z,
             pieces=pieces,
+            profile=robot.speed_limit == "profile",
         )
         self._c = self._coupling.c
         # a sample's row: its time, then the pieces (their widths say where each ends)

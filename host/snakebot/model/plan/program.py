@@ -316,7 +316,7 @@ def fit_route(
         d[2] = (d[2] + math.pi) % (2 * math.pi) - math.pi
         return np.r_[d * weights, 10.0 * outside]
 
-    return best_fit(residual, guesses, accuracy, max_nfev=80, bounds=bounds)
+    return best_fit(residual, "2-point", guesses, accuracy, max_nfev=80, bounds=bounds)
 
 
 def _guesses(robot: Robot, start: np.ndarray, kind: str) -> list[np.ndarray]:

@@ -51,3 +51,9 @@ def test_the_batched_jacobian_is_scipys_forward_differences():
         np.testing.assert_array_equal(f0, residuals(x[None, :])[0])
         want = approx_derivative(residual, x, method="2-point", f0=f0)
         np.testing.assert_array_equal(jacobian(x), want)
+    # at an upper bound the differences step backwards, as SciPy's do
+    bounds = (np.array([-1.0, -5.0, 0.0]), np.array([0.2, 5.0, 1e-9]))
+    residual, jacobian = batched(residuals, bounds)
+    x = np.array([0.2, -3.0, 1e-9])
+    want = approx_derivative(residual, x, method="2-point", f0=residual(x), bounds=bounds)
+    np.testing.assert_array_equal(jacobian(x), want)

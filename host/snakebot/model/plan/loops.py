@@ -35,7 +35,6 @@ import numpy as np
 from snakebot.errors import InputError
 from snakebot.model.gait.common import NEAR_SINGULAR_RCOND
 from snakebot.model.kinematics import (
-    KinematicsError,
     Options,
     Table,
     integrate_joints,
@@ -179,13 +178,14 @@ def solve_loop(
 
 def batched(
     residuals: Callable[[np.ndarray], np.ndarray],
+    bounds: tuple[Any, Any] = (-np.inf, np.inf),
 ) -> tuple[Callable[[np.ndarray], np.ndarray], Callable[[np.ndarray], np.ndarray]]:
     """A residual function of one parameter vector and its Jacobian (forward
     differences), from ``residuals`` of a stack of them: the differences at all the
     parameters are one stack, one call into the core instead of one per parameter. The
     steps are SciPy's own for "2-point" (the square root of the float epsilon, relative
-    to the parameter where it exceeds 1), so the fit takes the steps it took when SciPy
-    made the differences."""
+    to the parameter where it exceeds 1, backwards where forwards would leave
+    ``bounds``), so the fit takes the steps it took when SciPy made the differences."""
     last: list[tuple[np.ndarray, np.ndarray]] = []
 
     def residual(x: np.ndarray) -> np.ndarray:
@@ -198,6 +198,10 @@ def batched(
         # SciPy evaluates the residual at x just before its Jacobian there
         f0 = last[0][1] if last and np.array_equal(last[0][0], x) else residual(x)
         h = DIFF_STEP * np.where(x >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(x))
+        below, above = x - bounds[0], bounds[1] - x
+        fits = np.abs(h) <= np.maximum(below, above)
+        h = np.where(fits & ((x + h < bounds[0]) | (x + h > bounds[1])), -h, h)
+        h = np.where(fits, h, np.where(above >= below, above, -below))
         points = np.repeat(x[None, :], len(x), axis=0)
         np.fill_diagonal(points, x + h)
         dx = (x + h) - x
@@ -251,31 +255,40 @@ def refine_ticks(
     limits_t = np.array(robot.tick_limits)
     t = np.array(ticks, dtype=np.int64)
 
-    def error(candidate: np.ndarray) -> float:
-        try:
-            moved = path_motion(robot, robot.ticks_to_angles(candidate))
-        except KinematicsError:
-            return math.inf
-        return float(np.linalg.norm((moved - wanted) * weights))
+    def errors(stack: np.ndarray) -> list[float]:
+        moved, _, integrated = path_motions(robot, robot.ticks_to_angles(stack))
+        return [
+            float(np.linalg.norm((m - wanted) * weights)) if ok else math.inf
+            for m, ok in zip(moved, integrated, strict=True)
+        ]
 
-    best = error(t)
+    best = errors(t[None])[0]
     steps: tuple[int, ...] = (1, -1)
     for _ in range(REFINE_PASSES):
         if best <= accuracy:
             break
         improved = False
         for i in range(1, len(t) - 1):
-            for j in range(t.shape[1]):
-                for step in steps:
-                    value = t[i, j] + step
-                    if not limits_t[j, 0] <= value <= limits_t[j, 1]:
-                        continue
-                    t[i, j] = value
-                    e = error(t)
+            # joint by joint, the first step that helps is kept; the trials of this frame
+            # from the first joint not yet done are one batch, taken again after a step
+            # is kept (the joints after it start from it)
+            first = 0
+            while first < t.shape[1]:
+                trials = [
+                    (j, step)
+                    for j in range(first, t.shape[1])
+                    for step in steps
+                    if limits_t[j, 0] <= t[i, j] + step <= limits_t[j, 1]
+                ]
+                stack = np.repeat(t[None], len(trials), axis=0)
+                for k, (j, step) in enumerate(trials):
+                    stack[k, i, j] += step
+                first = t.shape[1]
+                for (j, step), e in zip(trials, errors(stack), strict=True):
                     if e < best:
-                        best, improved = e, True
+                        t[i, j] += step
+                        best, improved, first = e, True, j + 1
                         break
-                    t[i, j] = value - step
         if not improved:
             if len(steps) > 2:
                 break

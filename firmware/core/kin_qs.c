@@ -44,9 +44,17 @@ typedef struct {
     double w[QS_MAX_ROWS];
 } qs_problem;
 
+/* fmax(a, b) (a NaN yields the other), inline: without -ffinite-math-only the compiler
+ * calls libm's fmax, and the solver's vertex test takes some 10 % of an integration's
+ * time in those calls. */
+static inline double qs_max(double a, double b)
+{
+    return (b > a || a != a) ? b : a;
+}
+
 static double absmax3(const double *v)
 {
-    return fmax(fabs(v[0]), fmax(fabs(v[1]), fabs(v[2])));
+    return qs_max(fabs(v[0]), qs_max(fabs(v[1]), fabs(v[2])));
 }
 
 /* The rows, the rotation column scaled by len (so all three unknowns are speeds). */
@@ -101,8 +109,8 @@ static double inverse3(const qs_problem *p, const int32_t s[3], double m[3][3])
     m[2][2] = (r0[0] * r1[1] - r0[1] * r1[0]) * id;
     double norm_a = 0.0, norm_m = 0.0;
     for (int32_t j = 0; j < 3; j++) {
-        norm_a = fmax(norm_a, fabs(r0[j]) + fabs(r1[j]) + fabs(r2[j]));
-        norm_m = fmax(norm_m, fabs(m[0][j]) + fabs(m[1][j]) + fabs(m[2][j]));
+        norm_a = qs_max(norm_a, fabs(r0[j]) + fabs(r1[j]) + fabs(r2[j]));
+        norm_m = qs_max(norm_m, fabs(m[0][j]) + fabs(m[1][j]) + fabs(m[2][j]));
     }
     return 1.0 / (norm_a * norm_m);
 }
@@ -128,7 +136,7 @@ static double vertex(const qs_problem *p, const int32_t s[3], double m[3][3], do
     }
     double scale = 0.0;
     for (int32_t k = 0; k < p->rows; k++) {
-        scale = fmax(scale, fabs(p->b[k]) + absmax3(p->a[k]) * absmax3(x));
+        scale = qs_max(scale, fabs(p->b[k]) + absmax3(p->a[k]) * absmax3(x));
     }
     *tol = QS_ZERO_TOL * scale;
     double g[3] = {0.0, 0.0, 0.0};
@@ -321,7 +329,7 @@ int kin_geom_solve(const kin_robot *rb, const kin_wheel_rows *w, int32_t *active
     double len2 = rb->l * rb->l;
     int at_rest = 1;
     for (int32_t i = 0; i < w->count; i++) {
-        len2 = fmax(len2, w->n_theta[i] * w->n_theta[i] + w->t_theta[i] * w->t_theta[i]);
+        len2 = qs_max(len2, w->n_theta[i] * w->n_theta[i] + w->t_theta[i] * w->t_theta[i]);
         at_rest = at_rest && w->n_joint[i] == 0.0 && w->t_joint[i] == 0.0;
     }
     const double len = sqrt(len2);

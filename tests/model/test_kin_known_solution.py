@@ -89,6 +89,7 @@ def test_batch_is_one_call_per_schedule_bit_for_bit():
         single = integrate_joints(SNAKE5, gait, 5.0, samples=6, options=options)
         np.testing.assert_array_equal(batch.q[k], single.q)
         assert batch.evals[k] == single.stats["evals"]
+        assert batch.min_rcond[k] == single.stats["min_rcond"] < 1.0
     np.testing.assert_array_equal(batch.t, single.t)
 
 

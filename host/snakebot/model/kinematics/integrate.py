@@ -218,12 +218,15 @@ def integrate_joints(
 class Batch:
     """Trajectories of one robot under many schedules: ``q[k, i]`` is the state at ``t[i]``
     under schedule k; ``status[k]`` is 0 where it ran to the end, else the core's error
-    code (``q[k]`` is then NaN); ``evals[k]`` counts its right-hand-side evaluations."""
+    code (``q[k]`` is then NaN); ``evals[k]`` counts its right-hand-side evaluations and
+    ``min_rcond[k]`` is the least reciprocal condition number of the wheel model on its way
+    (``Trajectory.stats["min_rcond"]`` of a single call)."""
 
     t: np.ndarray
     q: np.ndarray
     status: np.ndarray
     evals: np.ndarray
+    min_rcond: np.ndarray
 
     def error(self, k: int) -> str | None:
         """Why trajectory k failed, in words (None if it did not)."""
@@ -275,7 +278,8 @@ def integrate_joints_batch(
         check(code, f"{robot.name}, batch of {count} schedules")
     out[status != lib.KIN_OK] = np.nan
     evals = np.array([stats[k].evals for k in range(count)], dtype=np.int64)
-    return Batch(_times(t0, t1, samples), out, status, evals)
+    min_rcond = np.array([stats[k].min_rcond for k in range(count)], dtype=float)
+    return Batch(_times(t0, t1, samples), out, status, evals, min_rcond)
 
 
 def integrate_fields(

@@ -34,7 +34,12 @@ import numpy as np
 
 from snakebot.errors import InputError
 from snakebot.model.gait.common import NEAR_SINGULAR_RCOND
-from snakebot.model.kinematics import KinematicsError, Options, Table, integrate_joints
+from snakebot.model.kinematics import (
+    Options,
+    Table,
+    integrate_joints,
+    integrate_joints_batch,
+)
 from snakebot.model.robots import Robot
 
 FRAMES = 24
@@ -50,6 +55,8 @@ FAILED = 10.0
 REFINE_PASSES = 6
 #: Solver budget per attempt (function evaluations).
 MAX_EVALS = 40
+#: Relative step of the Jacobian's forward differences: SciPy's for "2-point".
+DIFF_STEP = float(np.finfo(float).eps) ** 0.5
 
 
 class PlanError(InputError):
@@ -71,11 +78,14 @@ class Loop:
 def loop_angles(hub: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
     """The loop's frames, first and last at the hub: (FRAMES + 1) x joints. The harmonics
     are as many as the coefficients hold (HARMONICS for a table's loops; a program's
-    periodic blocks have one)."""
-    p = coefficients.reshape(len(hub), -1)
-    out = np.repeat(np.asarray(hub, dtype=float)[None, :], FRAMES + 1, axis=0)
-    for k, (sin_ks, one_minus_cos_ks) in enumerate(_harmonics(p.shape[1] // 2), start=1):
-        out += sin_ks * p[:, 2 * k - 2] + one_minus_cos_ks * p[:, 2 * k - 1]
+    periodic blocks have one). A stack of coefficient vectors (rows) gives a stack of
+    loops, each the same numbers as alone."""
+    c = np.asarray(coefficients, dtype=float)
+    p = c.reshape(*c.shape[:-1], len(hub), -1)
+    out = np.broadcast_to(np.asarray(hub, dtype=float), (*c.shape[:-1], FRAMES + 1, len(hub)))
+    out = out.copy()
+    for k, (sin_ks, one_minus_cos_ks) in enumerate(_harmonics(p.shape[-1] // 2), start=1):
+        out += sin_ks * p[..., None, :, 2 * k - 2] + one_minus_cos_ks * p[..., None, :, 2 * k - 1]
     return out
 
 
@@ -106,6 +116,19 @@ def _integrate(
     return traj.q[-1, :3] - traj.q[0, :3], float(traj.stats.get("min_rcond", 1.0))
 
 
+def path_motions(
+    robot: Robot, paths: np.ndarray, options: Options = SOLVE_OPTIONS
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``path_motion`` of a stack of paths (paths x frames x joints) in one call into the
+    core: the displacements, each path's least reciprocal condition number, and whether
+    it could be integrated at all (where not, its displacement is NaN). Each is the same
+    number as its own ``path_motion``."""
+    rows = paths.shape[1] - 1
+    schedules = [Table(angles, 1.0) for angles in paths]
+    batch = integrate_joints_batch(robot, schedules, float(rows), samples=2, options=options)
+    return batch.q[:, -1, :3] - batch.q[:, 0, :3], batch.min_rcond, batch.status == 0
+
+
 def limits(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
     """Each joint's allowed range less the margin."""
     lo = np.array([j.min_rad for j in robot.joints]) + LIMIT_MARGIN
@@ -132,33 +155,72 @@ def solve_loop(
     lo, hi = limits(robot)
     weights = np.array([1.0 / scale, 1.0 / scale, 1.0])
 
-    def residual(p: np.ndarray) -> np.ndarray:
-        angles = loop_angles(hub, p)
-        outside = np.maximum(angles - hi, 0.0).sum() + np.maximum(lo - angles, 0.0).sum()
-        try:
-            moved, rcond = _integrate(robot, angles)
-        except KinematicsError:
-            return np.array([FAILED, FAILED, FAILED, 10.0 * outside, FAILED])
+    def residuals(stack: np.ndarray) -> np.ndarray:
+        """The residual of each row of coefficients (one batch into the core)."""
+        angles = loop_angles(hub, stack)
+        outside = (np.maximum(angles - hi, 0.0).sum(axis=(1, 2))) + (
+            np.maximum(lo - angles, 0.0).sum(axis=(1, 2))
+        )
+        moved, rcond, integrated = path_motions(robot, angles)
         # near a singular configuration the motion is hypersensitive to rounding: keep off
-        near = max(0.0, keep_off - rcond) / keep_off
-        return np.concatenate(((moved - wanted) * weights, (10.0 * outside, near)))
+        near = np.maximum(0.0, keep_off - rcond) / keep_off
+        out = np.column_stack(((moved - wanted) * weights, 10.0 * outside, near))
+        out[~integrated] = FAILED  # through a singular configuration
+        out[~integrated, 3] = 10.0 * outside[~integrated]
+        return out
 
     tight = {"max_nfev": MAX_EVALS, "xtol": 1e-12, "ftol": 1e-12, "gtol": 1e-12}
-    p = best_fit(residual, guesses, accuracy, closest=closest, **tight)
+    p = best_fit(*batched(residuals), guesses, accuracy, closest=closest, **tight)
     if p is None:
         return None
     return Loop(np.asarray(hub, dtype=float), p, path_motion(robot, loop_angles(hub, p)))
 
 
+def batched(
+    residuals: Callable[[np.ndarray], np.ndarray],
+    bounds: tuple[Any, Any] = (-np.inf, np.inf),
+) -> tuple[Callable[[np.ndarray], np.ndarray], Callable[[np.ndarray], np.ndarray]]:
+    """A residual function of one parameter vector and its Jacobian (forward
+    differences), from ``residuals`` of a stack of them: the differences at all the
+    parameters are one stack, one call into the core instead of one per parameter. The
+    steps are SciPy's own for "2-point" (the square root of the float epsilon, relative
+    to the parameter where it exceeds 1, backwards where forwards would leave
+    ``bounds``), so the fit takes the steps it took when SciPy made the differences."""
+    last: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        f = residuals(np.asarray(x, dtype=float)[None, :])[0]
+        last[:] = [(np.array(x, dtype=float), f)]
+        return f
+
+    def jacobian(x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        # SciPy evaluates the residual at x just before its Jacobian there
+        f0 = last[0][1] if last and np.array_equal(last[0][0], x) else residual(x)
+        h = DIFF_STEP * np.where(x >= 0, 1.0, -1.0) * np.maximum(1.0, np.abs(x))
+        below, above = x - bounds[0], bounds[1] - x
+        fits = np.abs(h) <= np.maximum(below, above)
+        h = np.where(fits & ((x + h < bounds[0]) | (x + h > bounds[1])), -h, h)
+        h = np.where(fits, h, np.where(above >= below, above, -below))
+        points = np.repeat(x[None, :], len(x), axis=0)
+        np.fill_diagonal(points, x + h)
+        dx = (x + h) - x
+        return ((residuals(points) - f0) / dx[:, None]).T
+
+    return residual, jacobian
+
+
 def best_fit(
     residual: Callable[[np.ndarray], np.ndarray],
+    jacobian: Callable[[np.ndarray], np.ndarray] | str,
     guesses: Iterable[np.ndarray],
     accuracy: float,
     closest: Callable[[np.ndarray], None] | None = None,
     **options: Any,
 ) -> np.ndarray | None:
-    """Least squares from each guess in turn (SciPy's trust-region method, ``options``
-    passed on): the first solution whose residuals all reach ``accuracy``, else None.
+    """Least squares from each guess in turn (SciPy's trust-region method, the Jacobian
+    ``jacobian`` or SciPy's differences by that name, ``options`` passed on): the first
+    solution whose residuals all reach ``accuracy``, else None.
     ``closest``, if given, is called with the solution of least cost found either way."""
     try:
         from scipy.optimize import least_squares  # the planner's optional dependency
@@ -166,7 +228,7 @@ def best_fit(
         raise PlanError("planning needs SciPy: pip install 'snakebot[plan]'") from None
     best = None
     for guess in guesses:
-        sol = least_squares(residual, guess, method="trf", x_scale=0.3, **options)
+        sol = least_squares(residual, guess, jac=jacobian, method="trf", x_scale=0.3, **options)
         if best is None or sol.cost < best.cost:
             best = sol
         if np.abs(sol.fun).max() <= accuracy:
@@ -193,31 +255,40 @@ def refine_ticks(
     limits_t = np.array(robot.tick_limits)
     t = np.array(ticks, dtype=np.int64)
 
-    def error(candidate: np.ndarray) -> float:
-        try:
-            moved = path_motion(robot, robot.ticks_to_angles(candidate))
-        except KinematicsError:
-            return math.inf
-        return float(np.linalg.norm((moved - wanted) * weights))
+    def errors(stack: np.ndarray) -> list[float]:
+        moved, _, integrated = path_motions(robot, robot.ticks_to_angles(stack))
+        return [
+            float(np.linalg.norm((m - wanted) * weights)) if ok else math.inf
+            for m, ok in zip(moved, integrated, strict=True)
+        ]
 
-    best = error(t)
+    best = errors(t[None])[0]
     steps: tuple[int, ...] = (1, -1)
     for _ in range(REFINE_PASSES):
         if best <= accuracy:
             break
         improved = False
         for i in range(1, len(t) - 1):
-            for j in range(t.shape[1]):
-                for step in steps:
-                    value = t[i, j] + step
-                    if not limits_t[j, 0] <= value <= limits_t[j, 1]:
-                        continue
-                    t[i, j] = value
-                    e = error(t)
+            # joint by joint, the first step that helps is kept; the trials of this frame
+            # from the first joint not yet done are one batch, taken again after a step
+            # is kept (the joints after it start from it)
+            first = 0
+            while first < t.shape[1]:
+                trials = [
+                    (j, step)
+                    for j in range(first, t.shape[1])
+                    for step in steps
+                    if limits_t[j, 0] <= t[i, j] + step <= limits_t[j, 1]
+                ]
+                stack = np.repeat(t[None], len(trials), axis=0)
+                for k, (j, step) in enumerate(trials):
+                    stack[k, i, j] += step
+                first = t.shape[1]
+                for (j, step), e in zip(trials, errors(stack), strict=True):
                     if e < best:
-                        best, improved = e, True
+                        t[i, j] += step
+                        best, improved, first = e, True, j + 1
                         break
-                    t[i, j] = value - step
         if not improved:
             if len(steps) > 2:
                 break

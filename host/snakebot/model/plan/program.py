@@ -43,16 +43,16 @@ from snakebot.formats.program import (
 )
 from snakebot.formats.program.layout import Block, Segment
 from snakebot.model.gait.field import SPEED_MARGIN
-from snakebot.model.kinematics import KinematicsError
 from snakebot.model.motion import end_pose
 from snakebot.model.plan import se2
 from snakebot.model.plan.loops import (
     LIMIT_MARGIN,
     PlanError,
+    batched,
     best_fit,
     limits,
     loop_angles,
-    path_motion,
+    path_motions,
     refine_ticks,
 )
 from snakebot.model.plan.planner import (
@@ -69,6 +69,7 @@ from snakebot.model.plan.planner import (
     pose_dict,
     ramp,
     routes,
+    same_joints,
     solve_accuracy,
 )
 from snakebot.model.player import TICK_MS
@@ -139,15 +140,45 @@ class Route:
         points = [self.start, *self.hubs, self.start]
         return list(itertools.pairwise(points))
 
-    def motion(self, robot: Robot) -> np.ndarray:
-        """Where the route, its loops as their frames, takes the body."""
-        out = np.zeros(3)
+    def paths(self) -> list[tuple[np.ndarray, int | None]]:
+        """The joint paths in order, each with its loop count (None for a straight move,
+        which a route makes once)."""
+        out: list[tuple[np.ndarray, int | None]] = []
         for (a, b), wave in itertools.zip_longest(self.moves(), self.waves):
-            if not np.allclose(a, b):
-                out = se2.compose(out, path_motion(robot, ramp(a, b)))
+            if not same_joints(a, b):
+                out.append((ramp(a, b), None))
             if wave is not None:
-                out = se2.compose(out, _power(path_motion(robot, wave.angles()), wave.count))
+                out.append((wave.angles(), wave.count))
         return out
+
+
+def route_motions(
+    robot: Robot, routes: list[Route], known: dict[bytes, tuple[np.ndarray, bool]]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each route's motion and whether it could be integrated: the paths of all the
+    routes integrated in one call into the core per path length (``path_motions``), each
+    the same number as alone, then composed route by route. ``known`` holds the motions
+    of paths integrated before (by their frames), and takes the new ones: the routes of
+    one fit's differences share most of their paths (a step in a loop's coefficients
+    leaves the moves to and from its hub as they were)."""
+    paths = [route.paths() for route in routes]
+    keys = [angles.tobytes() for route in paths for angles, _ in route]
+    flat = dict(zip(keys, (angles for route in paths for angles, _ in route), strict=True))
+    by_length: dict[int, list[bytes]] = {}
+    for key, angles in flat.items():
+        if key not in known:
+            by_length.setdefault(len(angles), []).append(key)
+    for new in by_length.values():
+        moved, _, integrated = path_motions(robot, np.stack([flat[key] for key in new]))
+        known.update(zip(new, zip(moved, integrated, strict=True), strict=True))
+    out, fine = np.zeros((len(routes), 3)), np.ones(len(routes), dtype=bool)
+    steps = iter(keys)
+    for r, route in enumerate(paths):
+        for _, count in route:
+            moved, integrated = known[next(steps)]
+            out[r] = se2.compose(out[r], moved if count is None else _power(moved, count))
+            fine[r] &= integrated
+    return out, fine
 
 
 def _power(g: np.ndarray, k: int) -> np.ndarray:
@@ -305,18 +336,24 @@ def fit_route(
             [high, math.pi, *[SERPENOID_OFFSET] * 2],
         )
 
-    def residual(x: np.ndarray) -> np.ndarray:
-        route = Route.fitted(robot, start, kind, k, x)
-        angles = np.vstack([w.angles() for w in route.waves])
-        outside = np.maximum(angles - hi, 0).sum() + np.maximum(lo - angles, 0).sum()
-        try:
-            d = route.motion(robot) - target
-        except KinematicsError:
-            return np.r_[np.full(3, 10.0), 10.0 * outside]
-        d[2] = (d[2] + math.pi) % (2 * math.pi) - math.pi
-        return np.r_[d * weights, 10.0 * outside]
+    known: dict[bytes, tuple[np.ndarray, bool]] = {}
 
-    return best_fit(residual, guesses, accuracy, max_nfev=80, bounds=bounds)
+    def residuals(stack: np.ndarray) -> np.ndarray:
+        """The residual of each row of parameters (one batch into the core)."""
+        routes = [Route.fitted(robot, start, kind, k, x) for x in stack]
+        angles = np.array([np.vstack([w.angles() for w in route.waves]) for route in routes])
+        outside = np.maximum(angles - hi, 0).sum(axis=(1, 2)) + np.maximum(lo - angles, 0).sum(
+            axis=(1, 2)
+        )
+        moved, integrated = route_motions(robot, routes, known)
+        d = moved - target
+        d[:, 2] = (d[:, 2] + math.pi) % (2 * math.pi) - math.pi
+        out = np.column_stack((d * weights, 10.0 * outside))
+        out[~integrated, :3] = 10.0
+        return out
+
+    residual, jacobian = batched(residuals, bounds)
+    return best_fit(residual, jacobian, guesses, accuracy, max_nfev=80, bounds=bounds)
 
 
 def _guesses(robot: Robot, start: np.ndarray, kind: str) -> list[np.ndarray]:

@@ -103,6 +103,11 @@ def plan_command(
     few times, and a program still outside is not written (exit 1). --json reports its
     size in bytes.
 
+    A snake of more than three links has more wheels than its body has freedoms: how
+    far it goes depends on how the wheels share the slip, so the report adds where the
+    table ends with half and twice the rolling resistance (--json:
+    friction_sensitivity).
+
     The plan fits the table capacity it is made for: the smallest board's unless
     --capacity names another (the CM-530 holds the largest tables, so a longer way goes
     in one plan there) or --port asks the controller it is for. Routes of few loops are
@@ -209,6 +214,21 @@ def _print(s: dict[str, Any]) -> None:
         f"{s['table_bytes']} bytes of the {s['capacity_bytes']} planned for"
     )
     _print_pose(s, "the table as the controller plays it")
+    rows = s.get("friction_sensitivity", ())
+    for row in rows:
+        e = row["error"]
+        verdict = "within the tolerance" if e["within"] else "OUTSIDE the tolerance"
+        click.echo(
+            f"  with {row['rolling_factor']:g}x the rolling resistance: error "
+            f"{e['position']:.4g} {s['length_unit']}, heading "
+            f"{math.degrees(e['heading_rad']):.3f} deg ({verdict})"
+        )
+    if any(not row["error"]["within"] for row in rows):
+        click.echo(
+            "  the end depends on the floor's rolling resistance more than the tolerance "
+            "allows: set the robot file's [friction] rolling and axle_nm for your floor "
+            "(docs/models.md), or steer in closed loop (`snakebot sim goto`)"
+        )
     if "file" in s:
         click.echo(f"wrote {s['file']} and {s['metadata_file']}")
     if "plot" in s:

@@ -10,6 +10,7 @@ from snakebot.formats.gaittable import GaitTable, save_table
 from snakebot.formats.program.files import write_program
 from snakebot.model.plan.planner import Plan, PlanRequest
 from snakebot.model.plan.program import ProgramPlan
+from snakebot.model.plan.sensitivity import depends_on_friction, friction_sensitivity
 
 PROGRAM_SUFFIX = ".prog"
 """An output path with this suffix asks for a controller program instead of a table."""
@@ -21,13 +22,18 @@ def wants_program(output: Path | None) -> bool:
 
 
 def plan_summary(plan: Plan | ProgramPlan) -> dict[str, Any]:
-    """``plan``'s summary with the robot's length unit and what it means in metres."""
+    """``plan``'s summary with the robot's length unit and what it means in metres, and
+    for a table on a robot whose motion depends on friction, where it ends with half and
+    twice the rolling resistance (``friction_sensitivity``)."""
     robot = plan.robot
-    return {
+    summary = {
         **plan.summary(),
         "length_unit": robot.length_unit,
         "length_legend": robot.length_legend,
     }
+    if isinstance(plan, Plan) and depends_on_friction(robot):
+        summary["friction_sensitivity"] = friction_sensitivity(plan)
+    return summary
 
 
 def save_plan(plan: Plan | ProgramPlan, output: Path) -> tuple[dict[str, Any], GaitTable | None]:

@@ -1,0 +1,53 @@
+"""How a table plan's end depends on the wheels' rolling resistance (issue #31).
+
+A snake with more than three wheels has more wheel constraints than body freedoms, so
+how far it goes depends on how its wheels share the slip, which the quasi-static model
+works out from the friction coefficients; a lab floor gives those only roughly. The plan
+is played again with the rolling resistance (the rolling coefficient and the axle's
+friction together) halved and doubled, and each end is compared with the target and the
+plan's tolerance. The trident and the 3-link snake have as many wheels as body freedoms:
+away from singular configurations their motion does not depend on friction, so they are
+not checked."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from snakebot.model.gait.common import table_motion
+from snakebot.model.plan.planner import Plan, pose_dict, pose_error
+from snakebot.model.robots import Robot
+
+ROLLING_FACTORS = (0.5, 2.0)
+"""The rolling resistance the plan is played again with, as factors of the robot's."""
+
+
+def depends_on_friction(robot: Robot) -> bool:
+    """Whether the robot's motion depends on its friction coefficients: more wheels
+    than the body's three freedoms."""
+    return robot.n_wheels > 3
+
+
+def friction_sensitivity(plan: Plan) -> list[dict[str, Any]]:
+    """For each of :data:`ROLLING_FACTORS`: the factor, where the plan's table then ends
+    (``predicted_final``) and its ``error`` beside the plan's tolerance."""
+    robot, gait = plan.robot, plan.gait
+    angles = robot.ticks_to_angles(np.asarray(gait.ticks))
+    rows = []
+    for factor in ROLLING_FACTORS:
+        f = robot.friction
+        changed = replace(f, rolling=f.rolling * factor, axle_nm=f.axle_nm * factor)
+        played = table_motion(
+            robot, angles, gait.period_ms / 1000.0, False, per_interval=2, friction=changed
+        )
+        end = played.trajectory.q[-1, :3]
+        rows.append(
+            {
+                "rolling_factor": factor,
+                "predicted_final": pose_dict(end),
+                "error": plan.tolerance.report(pose_error(end, plan.target)),
+            }
+        )
+    return rows

@@ -2,11 +2,10 @@
 #include "mcu_count.h"
 
 typedef int (*mcu_stop_fn)(void *uc);
+typedef int (*mcu_wfi_fn)(uint64_t address);
 
 void mcu_count_instruction(void *uc, uint64_t address, uint32_t size, void *counter)
 {
-    (void)address;
-    (void)size;
     mcu_counter *c = (mcu_counter *)counter;
     if (c->count >= c->limit) {
         /* the hook runs before the instruction: stopping here leaves it unexecuted */
@@ -15,6 +14,21 @@ void mcu_count_instruction(void *uc, uint64_t address, uint32_t size, void *coun
         return;
     }
     c->count++;
+    if (address < c->site_low || address > c->site_high) {
+        return;
+    }
+    for (uint32_t i = 0; i < c->sites; i++) {
+        if (c->site_address[i] != address) {
+            continue;
+        }
+        if (c->site_kind[i] == MCU_SITE_WFI) {
+            if (((mcu_wfi_fn)c->on_wfi)(address) != 0) {
+                return; /* the CPU stops: no later site's hook runs, as in unicorn */
+            }
+        } else {
+            mcu_after_unmask(uc, address, size, counter);
+        }
+    }
 }
 
 typedef int (*mcu_unmask_fn)(void);

@@ -27,7 +27,17 @@ typedef struct {
     uint32_t sites;
     uint32_t site_low, site_high;  /* the lowest and highest site address */
     void *on_wfi;      /* int (*)(uint64_t address): a wfi is next; nonzero if it stopped the CPU */
+    double stop_at;    /* the time the limit stands for (0: stop at the limit whatever the time).
+                        * A limit worked out from a time can fall one instruction short of it by
+                        * a rounding; with nothing pending, the machine would then find nothing
+                        * due, nothing to take, and run one instruction more: the hook runs it
+                        * at once instead of stopping. */
 } mcu_counter;
+
+/* The machine's time (s) when the count is `count`: t0 + (count - c0) / hz. */
+double mcu_time_at(const mcu_counter *c, uint64_t count);
+/* The machine's time now (s). */
+double mcu_now(const mcu_counter *c);
 
 #define MCU_SITE_WFI 1
 #define MCU_SITE_AFTER_UNMASK 2

@@ -270,12 +270,16 @@ class Cpu:
     def count(self) -> int:
         return int(self.counter.count)
 
-    def stop_soon(self, after: int = 0) -> None:
-        """Stop the running CPU within ``after`` more instructions (0: before the next)."""
+    def stop_soon(self, after: int = 0, until: float = 0.0) -> None:
+        """Stop the running CPU within ``after`` more instructions (0: before the next), the
+        instructions up to time ``until`` (0: wherever they end; see mcu_count.h's stop_at)."""
         if self.running:
-            limit = self.counter.count + after
-            if limit < self.counter.limit:
-                self.counter.limit = limit
+            c = self.counter
+            limit = c.count + after
+            if limit < c.limit:
+                c.limit = limit
+            if until < c.stop_at:
+                c.stop_at = until
 
     # -- registers --------------------------------------------------------------------------
 
@@ -328,10 +332,13 @@ class Cpu:
 
     # -- running ----------------------------------------------------------------------------
 
-    def run(self, instructions: int) -> None:
-        """Run at most ``instructions`` instructions (fewer if something stops the CPU)."""
+    def run(self, instructions: int, until: float = 0.0) -> None:
+        """Run at most ``instructions`` instructions (fewer if something stops the CPU), the
+        instructions up to time ``until`` (0: whatever time they end at; see mcu_count.h's
+        stop_at)."""
         if self.sleeping:
             return
+        self.counter.stop_at = until
         self._exit_request = False
         self.running = True
         uc = self.uc

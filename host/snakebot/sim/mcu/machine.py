@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+from snakebot.core import lib
 from snakebot.sim.mcu import rcc as rcc_mod
 from snakebot.sim.mcu.cpu import (
     UC_HOOK_MEM_WRITE_PROT,
@@ -193,8 +194,7 @@ class Stm32f103:
 
     def now(self) -> float:
         """The chip's time (seconds since it was powered)."""
-        c = self._clock
-        return c.t0 + (c.count - c.c0) / c.hz
+        return lib.mcu_now(self._clock)
 
     def _rebase(self) -> None:
         c = self._clock
@@ -213,7 +213,7 @@ class Stm32f103:
     def _event_scheduled(self, t: float) -> None:
         if self.cpu.running:
             cycles = math.ceil((t - self.now()) * self.hz - 1e-6)
-            self.cpu.stop_soon(max(cycles, 0))
+            self.cpu.stop_soon(max(cycles, 0), until=t)
 
     def _exception_may_be_due(self) -> None:
         # stop and let run_until look (a stop costs less than reading PRIMASK here)
@@ -316,7 +316,7 @@ class Stm32f103:
                 self._skip(max(stop - now, 0.0))  # asleep: time jumps to the next event
                 continue
             cycles = math.ceil((stop - now) * self.hz - 1e-6)
-            cpu.run(max(cycles, 1))
+            cpu.run(max(cycles, 1), until=stop)
 
     def _sleep_in_run(self) -> bool:
         """The CPU sleeps (WFI) inside a run: as :meth:`run_until` would, time jumps from
@@ -340,6 +340,7 @@ class Stm32f103:
         next_event = scheduler.next_time()
         stop = t_end if next_event is None or next_event > t_end else next_event
         cpu.counter.limit = cpu.counter.count + max(math.ceil((stop - now) * self.hz - 1e-6), 1)
+        cpu.counter.stop_at = stop
         return True
 
     def irq_pending(self, irq: int) -> bool:

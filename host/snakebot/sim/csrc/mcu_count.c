@@ -27,7 +27,7 @@ void mcu_count_instruction(void *uc, uint64_t address, uint32_t size, void *coun
         return;
     }
     c->count++;
-    if (address < c->site_low || address > c->site_high) {
+    if (!(c->site_mask >> ((address >> 1) & 63u) & 1u)) {
         return;
     }
     for (uint32_t i = 0; i < c->sites; i++) {

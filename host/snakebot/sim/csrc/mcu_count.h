@@ -25,7 +25,7 @@ typedef struct {
     const uint32_t *site_address;
     const uint8_t *site_kind;  /* MCU_SITE_WFI or MCU_SITE_AFTER_UNMASK */
     uint32_t sites;
-    uint32_t site_low, site_high;  /* the lowest and highest site address */
+    uint64_t site_mask;  /* bit (address / 2) % 64 set for each site: most addresses pass at once */
     void *on_wfi;      /* int (*)(uint64_t address): a wfi is next; nonzero if it stopped the CPU */
     double stop_at;    /* the time the limit stands for (0: stop at the limit whatever the time).
                         * A limit worked out from a time can fall one instruction short of it by

@@ -226,8 +226,7 @@ class Cpu:
         self._site_arrays = (addresses, kinds)
         c = self.counter
         c.site_address, c.site_kind, c.sites = addresses, kinds, len(self._sites)
-        c.site_low = min(address for address, _ in self._sites)
-        c.site_high = max(address for address, _ in self._sites)
+        c.site_mask = sum({1 << (address >> 1) % 64 for address, _ in self._sites})
 
     def map_io(
         self,

@@ -1,13 +1,25 @@
 /* See mcu_count.h. */
 #include "mcu_count.h"
 
+double mcu_time_at(const mcu_counter *c, uint64_t count)
+{
+    return c->t0 + (double)(count - c->c0) / c->hz;
+}
+
+double mcu_now(const mcu_counter *c)
+{
+    return mcu_time_at(c, c->count);
+}
+
 typedef int (*mcu_stop_fn)(void *uc);
+typedef int (*mcu_wfi_fn)(uint64_t address);
 
 void mcu_count_instruction(void *uc, uint64_t address, uint32_t size, void *counter)
 {
-    (void)address;
-    (void)size;
     mcu_counter *c = (mcu_counter *)counter;
+    if (c->count >= c->limit && c->pending == 0 && mcu_time_at(c, c->count) < c->stop_at) {
+        c->limit = c->count + 1; /* short of stop_at by a rounding (see mcu_count.h) */
+    }
     if (c->count >= c->limit) {
         /* the hook runs before the instruction: stopping here leaves it unexecuted */
         c->stops++;
@@ -15,6 +27,21 @@ void mcu_count_instruction(void *uc, uint64_t address, uint32_t size, void *coun
         return;
     }
     c->count++;
+    if (!(c->site_mask >> ((address >> 1) & 63u) & 1u)) {
+        return;
+    }
+    for (uint32_t i = 0; i < c->sites; i++) {
+        if (c->site_address[i] != address) {
+            continue;
+        }
+        if (c->site_kind[i] == MCU_SITE_WFI) {
+            if (((mcu_wfi_fn)c->on_wfi)(address) != 0) {
+                return; /* the CPU stops: no later site's hook runs, as in unicorn */
+            }
+        } else {
+            mcu_after_unmask(uc, address, size, counter);
+        }
+    }
 }
 
 typedef int (*mcu_unmask_fn)(void);
@@ -34,6 +61,7 @@ void mcu_after_unmask(void *uc, uint64_t address, uint32_t size, void *counter)
     }
     if (c->on_unmask == 0) {
         c->limit = c->count;
+        c->stop_at = 0.0;
         return;
     }
     c->count--;
@@ -64,8 +92,7 @@ void mcu_io_write(void *uc, uint64_t offset, unsigned size, uint64_t value, void
     mcu_fast_io *f = (mcu_fast_io *)io;
     if (f->kind == MCU_IO_IWDG_KR && offset == 0 && size == 4 && f->running &&
         (value & 0xFFFFu) == 0xAAAAu) {
-        const mcu_counter *c = f->counter;
-        double now = c->t0 + (double)(c->count - c->c0) / c->hz;
+        double now = mcu_now(f->counter);
         if (f->feeds > 0 && now - f->last_feed > f->largest_gap) {
             f->largest_gap = now - f->last_feed;
         }

@@ -20,7 +20,27 @@ typedef struct {
     uint64_t c0;
     double hz;         /* instructions per second (HCLK) */
     void *on_unmask;   /* int (*)(void): takes what is pending after an unmask (how many) */
+    /* The image's sites, in the order they were watched: this one hook looks at them (a
+     * unicorn hook per site would make unicorn walk every hook on every instruction). */
+    const uint32_t *site_address;
+    const uint8_t *site_kind;  /* MCU_SITE_WFI or MCU_SITE_AFTER_UNMASK */
+    uint32_t sites;
+    uint64_t site_mask;  /* bit (address / 2) % 64 set for each site: most addresses pass at once */
+    void *on_wfi;      /* int (*)(uint64_t address): a wfi is next; nonzero if it stopped the CPU */
+    double stop_at;    /* the time the limit stands for (0: stop at the limit whatever the time).
+                        * A limit worked out from a time can fall one instruction short of it by
+                        * a rounding; with nothing pending, the machine would then find nothing
+                        * due, nothing to take, and run one instruction more: the hook runs it
+                        * at once instead of stopping. */
 } mcu_counter;
+
+/* The machine's time (s) when the count is `count`: t0 + (count - c0) / hz. */
+double mcu_time_at(const mcu_counter *c, uint64_t count);
+/* The machine's time now (s). */
+double mcu_now(const mcu_counter *c);
+
+#define MCU_SITE_WFI 1
+#define MCU_SITE_AFTER_UNMASK 2
 
 /* A peripheral's registers as the CPU reaches them: one or two registers served here, in C,
  * and everything else by the Python model (read_fallback / write_fallback, ctypes callbacks of
@@ -95,6 +115,8 @@ int mcu_maybe_in_it_block(void *uc, mcu_exceptions *x);
  * status. */
 int mcu_run(void *uc, mcu_exceptions *x, mcu_counter *c, uint64_t instructions);
 
+/* The code hook on every instruction: counts it, stops the CPU at the limit, and at a
+ * watched site calls `on_wfi` or does what mcu_after_unmask does, in the sites' order. */
 void mcu_count_instruction(void *uc, uint64_t address, uint32_t size, void *counter);
 void mcu_after_unmask(void *uc, uint64_t address, uint32_t size, void *counter);
 /* cffi:end */

@@ -38,6 +38,7 @@ servo's reply starts within its return delay, at most 0.5 ms, and the firmware w
 ms for it). Later bus events (the world's samples, servos moving) run in order when the
 master next writes or when a run of the board ends, without stopping the CPU for each."""
 BUS_TX_PIN, BUS_RX_PIN, BUS_TX_ENABLE, BUS_RX_ENABLE = 6, 7, 4, 5  # all on GPIOB
+BUFFER_STATES_KEPT = 64  # pin states whose buffer direction is remembered (see Cm530._buffer)
 
 
 @dataclass(frozen=True)
@@ -104,6 +105,7 @@ class Cm530:
         self.bus_stats = BusStats()
         self._bus_step: Event | None = None
         self._arrival: Event | None = None
+        self._buffer_states: dict[tuple[int, int, int, int], tuple[bool, bool]] = {}
         self._apply_leftovers()
         self._start_application("power")
 
@@ -148,19 +150,31 @@ class Cm530:
     # -- the bus ---------------------------------------------------------------------------------
 
     def _buffer_drives(self) -> bool:
-        port = self.mcu.gpio["B"]
-        tx_mode = port.mode(BUS_TX_PIN)
-        return (
-            self.mcu.afio.usart1_remapped
-            and gpio.is_alternate(tx_mode)
-            and tx_mode & 0x4 == 0  # push-pull
-            and port.output(BUS_TX_ENABLE) is True
-            and port.output(BUS_RX_ENABLE) is False
-        )
+        return self._buffer()[0]
 
     def _receiver_listens(self) -> bool:
-        port = self.mcu.gpio["B"]
-        return port.output(BUS_RX_ENABLE) is True and port.output(BUS_TX_ENABLE) is False
+        return self._buffer()[1]
+
+    def _buffer(self) -> tuple[bool, bool]:
+        """(the buffer drives the bus, the receiver listens), worked out once for each state
+        of GPIOB's configuration and output latch and AFIO's remap (a few, every byte)."""
+        port, afio = self.mcu.gpio["B"], self.mcu.afio
+        key = (port.cr[0], port.cr[1], port.odr, afio.mapr)
+        known = self._buffer_states.get(key)
+        if known is None:
+            if len(self._buffer_states) >= BUFFER_STATES_KEPT:
+                self._buffer_states.clear()
+            tx_mode = port.mode(BUS_TX_PIN)
+            drives = (
+                afio.usart1_remapped
+                and gpio.is_alternate(tx_mode)
+                and tx_mode & 0x4 == 0  # push-pull
+                and port.output(BUS_TX_ENABLE) is True
+                and port.output(BUS_RX_ENABLE) is False
+            )
+            listens = port.output(BUS_RX_ENABLE) is True and port.output(BUS_TX_ENABLE) is False
+            known = self._buffer_states[key] = (drives, listens)
+        return known
 
     def _bus_tx(self, byte: int, start: float, end: float, baud: float) -> None:
         bus = self.bus

@@ -46,7 +46,6 @@ from unicorn import (  # noqa: E402
 )
 from unicorn import arm_const as arm  # noqa: E402
 from unicorn.unicorn_py3.unicorn import (  # noqa: E402
-    HOOK_CODE_CFUNC,
     HOOK_INTR_CFUNC,
     MMIO_READ_CFUNC,
     MMIO_WRITE_CFUNC,
@@ -152,7 +151,11 @@ class Cpu:
         self._uch = uch
         self._uch_c = ffi.cast("void *", uch.value)
         self._hook_interrupts()
-        self._wfi_hook = HOOK_CODE_CFUNC(self._on_wfi)
+        wfi = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_uint64)(self._on_wfi)
+        self._io_callbacks.append((wfi, None))
+        self.counter.on_wfi = _native(wfi)
+        self._sites: list[tuple[int, int]] = []  # (address, MCU_SITE_*) in watch order
+        self._site_arrays: tuple[object, object] = (None, None)  # kept alive for the hook
         self._exc = ffi.new("mcu_exceptions *")
         for field, function in (
             ("reg_read_batch", uclib.uc_reg_read_batch),
@@ -173,7 +176,6 @@ class Cpu:
         self.sleeping = False
         self.sleeps = 0
         self._exit_request = False
-        self._wfi_sites: set[int] = set()
         self._stopped_by: str | None = None
         self._pc_next = ctypes.c_uint32()
         self.on_sleep: Callable[[], bool] | None = None
@@ -212,12 +214,19 @@ class Cpu:
         _add_hook(self.uc._uch, UC_HOOK_CODE, callback, user, begin, end)
 
     def watch(self, wfi: Iterable[int], after_unmask: Iterable[int]) -> None:
-        """Hook the image's ``wfi`` instructions and the instructions after each unmask."""
-        for address in wfi:
-            self._wfi_sites.add(address)
-            self._python_hook(UC_HOOK_CODE, self._wfi_hook, address, address)
-        for address in after_unmask:
-            self._native_hook(lib.mcu_after_unmask, address, address)
+        """Watch the image's ``wfi`` instructions and the instructions after each unmask
+        (the counter's hook looks at them: one hook is far cheaper for unicorn than one per
+        site, which it would walk on every instruction)."""
+        self._sites += [(address, lib.MCU_SITE_WFI) for address in wfi]
+        self._sites += [(address, lib.MCU_SITE_AFTER_UNMASK) for address in after_unmask]
+        if not self._sites:
+            return
+        addresses = ffi.new("uint32_t[]", [address for address, _ in self._sites])
+        kinds = ffi.new("uint8_t[]", [kind for _, kind in self._sites])
+        self._site_arrays = (addresses, kinds)
+        c = self.counter
+        c.site_address, c.site_kind, c.sites = addresses, kinds, len(self._sites)
+        c.site_mask = sum({1 << (address >> 1) % 64 for address, _ in self._sites})
 
     def map_io(
         self,
@@ -260,12 +269,16 @@ class Cpu:
     def count(self) -> int:
         return int(self.counter.count)
 
-    def stop_soon(self, after: int = 0) -> None:
-        """Stop the running CPU within ``after`` more instructions (0: before the next)."""
+    def stop_soon(self, after: int = 0, until: float = 0.0) -> None:
+        """Stop the running CPU within ``after`` more instructions (0: before the next), the
+        instructions up to time ``until`` (0: wherever they end; see mcu_count.h's stop_at)."""
         if self.running:
-            limit = self.counter.count + after
-            if limit < self.counter.limit:
-                self.counter.limit = limit
+            c = self.counter
+            limit = c.count + after
+            if limit < c.limit:
+                c.limit = limit
+            if until < c.stop_at:
+                c.stop_at = until
 
     # -- registers --------------------------------------------------------------------------
 
@@ -318,10 +331,13 @@ class Cpu:
 
     # -- running ----------------------------------------------------------------------------
 
-    def run(self, instructions: int) -> None:
-        """Run at most ``instructions`` instructions (fewer if something stops the CPU)."""
+    def run(self, instructions: int, until: float = 0.0) -> None:
+        """Run at most ``instructions`` instructions (fewer if something stops the CPU), the
+        instructions up to time ``until`` (0: whatever time they end at; see mcu_count.h's
+        stop_at)."""
         if self.sleeping:
             return
+        self.counter.stop_at = until
         self._exit_request = False
         self.running = True
         uc = self.uc
@@ -385,9 +401,10 @@ class Cpu:
             self.fail(exc)
             return 0
 
-    def _on_wfi(self, _uc: int, address: int, _size: int, _data: int) -> None:
+    def _on_wfi(self, address: int) -> int:
         # the hook runs before the instruction: unicorn then halts after it (its WFI ends
-        # the run); the CPU sleeps unless an exception is already waiting
+        # the run); the CPU sleeps unless an exception is already waiting. 1: it failed
+        # (the CPU stops)
         try:
             if self.nvic.takeable(primask=False) is None:
                 self.sleeping = True
@@ -397,6 +414,8 @@ class Cpu:
             self._stopped_by = "wfi"
         except BaseException as exc:  # stops the CPU; run raises it
             self.fail(exc)
+            return 1
+        return 0
 
     def _wake_in_run(self, address: int) -> None:
         """``on_sleep`` woke the CPU within this run: the ``wfi`` at ``address`` is done

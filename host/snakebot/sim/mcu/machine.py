@@ -17,9 +17,11 @@ bootloader's hand-over).
 
 from __future__ import annotations
 
+import ctypes
 import math
 from collections.abc import Callable
 
+from snakebot.core import lib
 from snakebot.sim.mcu import rcc as rcc_mod
 from snakebot.sim.mcu.cpu import (
     UC_HOOK_MEM_WRITE_PROT,
@@ -83,9 +85,16 @@ class Stm32f103:
         self._clock.c0 = 0
         self._clock.hz = rcc_mod.HSI_HZ
         uc = self.cpu.uc
-        uc.mem_map(FLASH_BASE, FLASH_SIZE, UC_PROT_READ | UC_PROT_EXEC)
+        # the flash's bytes in memory of ours: programming writes them here, where unicorn's
+        # uc_mem_write to a read-only region would lift and restore its protection, each
+        # time rebuilding the whole address map (far more than the program step itself)
+        self._flash_bytes = (ctypes.c_ubyte * FLASH_SIZE).from_buffer(
+            bytearray(b"\xff" * FLASH_SIZE)
+        )
+        uc.mem_map_ptr(
+            FLASH_BASE, FLASH_SIZE, UC_PROT_READ | UC_PROT_EXEC, ctypes.addressof(self._flash_bytes)
+        )
         uc.mem_map(RAM_BASE, RAM_SIZE, UC_PROT_ALL)
-        uc.mem_write(FLASH_BASE, b"\xff" * FLASH_SIZE)
 
         self.systick = SysTick(
             self.scheduler, self.now, pend=lambda: self.nvic.pend(SYSTICK), strict=strict
@@ -98,7 +107,7 @@ class Stm32f103:
             page=page_size,
             protected_below=protected_below,
             read=lambda a, n: bytes(uc.mem_read(a, n)),
-            write=uc.mem_write,
+            write=self._write_flash,
             stall=self.stall,
             strict=strict,
         )
@@ -193,8 +202,7 @@ class Stm32f103:
 
     def now(self) -> float:
         """The chip's time (seconds since it was powered)."""
-        c = self._clock
-        return c.t0 + (c.count - c.c0) / c.hz
+        return lib.mcu_now(self._clock)
 
     def _rebase(self) -> None:
         c = self._clock
@@ -213,7 +221,7 @@ class Stm32f103:
     def _event_scheduled(self, t: float) -> None:
         if self.cpu.running:
             cycles = math.ceil((t - self.now()) * self.hz - 1e-6)
-            self.cpu.stop_soon(max(cycles, 0))
+            self.cpu.stop_soon(max(cycles, 0), until=t)
 
     def _exception_may_be_due(self) -> None:
         # stop and let run_until look (a stop costs less than reading PRIMASK here)
@@ -240,10 +248,17 @@ class Stm32f103:
         in_ram = RAM_BASE <= address and end <= RAM_BASE + RAM_SIZE
         if not (in_flash or in_ram):
             raise McuFault(f"{len(data)} bytes at 0x{address:08X} do not fit the flash or RAM")
-        self.cpu.uc.mem_write(address, data)
+        if in_ram:
+            self.cpu.uc.mem_write(address, data)
         if in_flash:
+            self._write_flash(address, data)
             wfi, after = unmasking_sites(data, address)
             self.cpu.watch(wfi, after)
+
+    def _write_flash(self, address: int, data: bytes) -> None:
+        """Put ``data`` in the flash at ``address`` and drop the code translated from it."""
+        ctypes.memmove(ctypes.addressof(self._flash_bytes) + address - FLASH_BASE, data, len(data))
+        self.cpu.uc.ctl_remove_cache(address, address + len(data))
 
     def read(self, address: int, size: int) -> bytes:
         return bytes(self.cpu.uc.mem_read(address, size))
@@ -316,7 +331,7 @@ class Stm32f103:
                 self._skip(max(stop - now, 0.0))  # asleep: time jumps to the next event
                 continue
             cycles = math.ceil((stop - now) * self.hz - 1e-6)
-            cpu.run(max(cycles, 1))
+            cpu.run(max(cycles, 1), until=stop)
 
     def _sleep_in_run(self) -> bool:
         """The CPU sleeps (WFI) inside a run: as :meth:`run_until` would, time jumps from
@@ -340,6 +355,7 @@ class Stm32f103:
         next_event = scheduler.next_time()
         stop = t_end if next_event is None or next_event > t_end else next_event
         cpu.counter.limit = cpu.counter.count + max(math.ceil((stop - now) * self.hz - 1e-6), 1)
+        cpu.counter.stop_at = stop
         return True
 
     def irq_pending(self, irq: int) -> bool:

@@ -86,6 +86,19 @@ class Nvic(Peripheral):
         self.vtor = 0
         self.ccr = CCR_RESET
         self.entries = 0  # exceptions taken
+        self._regroup()
+
+    def _regroup(self) -> None:
+        """Work out every exception's priority and group again (after a write to them)."""
+        exceptions = range(SYSTEM_EXCEPTIONS + IRQ_COUNT)
+        self._priorities = [self.priority(e) for e in exceptions]
+        self._groups = [self.group(p) for p in self._priorities]
+        self._rerun()
+
+    def _rerun(self) -> None:
+        """The execution priority, PRIMASK aside (after the active set or groups change)."""
+        groups = self._groups
+        self._running = min((groups[e] for e in self.active), default=NO_PRIORITY)
 
     # -- exception state --------------------------------------------------------------------
 
@@ -107,9 +120,7 @@ class Nvic(Peripheral):
         return priority & ~((2 << self.prigroup) - 1) & 0xFF
 
     def execution_priority(self, primask: bool) -> int:
-        running = NO_PRIORITY
-        for e in self.active:
-            running = min(running, self.group(self.priority(e)))
+        running = self._running
         return min(running, 0) if primask else running
 
     def best_pending(self) -> int | None:
@@ -121,11 +132,12 @@ class Nvic(Peripheral):
             return bits.bit_length() - 1
         best = None
         best_key = None
+        priorities = self._priorities
         while bits:
             low = bits & -bits
             exception = low.bit_length() - 1
             bits ^= low
-            key = (self.priority(exception), exception)
+            key = (priorities[exception], exception)
             if best_key is None or key < best_key:
                 best, best_key = exception, key
         return best
@@ -136,9 +148,10 @@ class Nvic(Peripheral):
         exception = self.best_pending() if best is None else best
         if exception is None:
             return None
-        if self.group(self.priority(exception)) < self.execution_priority(primask):
-            return exception
-        return None
+        running = self._running
+        if primask and running > 0:
+            running = 0
+        return exception if self._groups[exception] < running else None
 
     def pend(self, exception: int) -> None:
         self.pending |= 1 << exception
@@ -160,10 +173,14 @@ class Nvic(Peripheral):
         self.pending &= ~(1 << exception)
         self.active.append(exception)
         self.entries += 1
+        group = self._groups[exception]
+        if group < self._running:
+            self._running = group
 
     def deactivate(self) -> int:
         """The CPU returns from the innermost handler; returns its exception number."""
         exception = self.active.pop()
+        self._rerun()
         irq = exception - SYSTEM_EXCEPTIONS
         if irq >= 0 and self.lines >> irq & 1:
             self.pend(exception)  # level-sensitive: still asserted
@@ -233,11 +250,13 @@ class Nvic(Peripheral):
             for i in range(size):
                 if offset - IPR + i < IRQ_COUNT:
                     self.ipr[offset - IPR + i] = (value >> (8 * i)) & PRIO_MASK
+            self._regroup()
             self.on_change()
             return
         if SHPR1 <= offset < SHPR1 + 12:
             for i in range(size):
                 self.shpr[offset - SHPR1 + i] = (value >> (8 * i)) & PRIO_MASK
+            self._regroup()
             self.on_change()
             return
         if not self.word_only(offset, size, value):
@@ -288,5 +307,6 @@ class Nvic(Peripheral):
         if value & (AIRCR_VECTRESET | AIRCR_VECTCLRACTIVE):
             self.unknown(AIRCR, 4, value)  # debug-only resets
         self.prigroup = (value >> 8) & 7
+        self._regroup()
         if value & AIRCR_SYSRESETREQ:
             self.on_reset()

@@ -119,22 +119,15 @@ void kin_fields_corners(const kin_robot *rb, double corners[9])
     }
 }
 
-/* qdot = sum_i u_i g_i(q) without argument checks (callers validate once), from the
- * generated velocity functions: no field is stored only to be summed. */
-int kin_fields_velocity_unchecked(const kin_robot *rb, const double *corners, int32_t form,
-                                  const double *q, const double *u, double *qdot)
+/* From the generated velocity function: no field is stored only to be summed. */
+int kin_fields_snake3_velocity(const kin_robot *rb, const double *q, const double *u,
+                               double *qdot)
 {
-    if (rb->kind == KIN_SNAKE) {
-        int rc = snake3_det(rb, q, NULL);
-        if (rc != KIN_OK) {
-            return rc;
-        }
-        kin_gen_snake3_v(rb->l, q, u, qdot);
-    } else if (form == KIN_FORM_BODY) {
-        kin_gen_trident_body_v(rb->r, rb->l, corners, q, u, qdot);
-    } else {
-        kin_gen_trident_world_v(rb->r, rb->l, corners, q, u, qdot);
+    int rc = snake3_det(rb, q, NULL);
+    if (rc != KIN_OK) {
+        return rc;
     }
+    kin_gen_snake3_v(rb->l, q, u, qdot);
     return KIN_OK;
 }
 

@@ -350,12 +350,16 @@ static inline __attribute__((always_inline)) int dop853_step(kin_ode *ode, const
     }
     /* Stage s: y + h sum_j a_sj k_j, the stages before the last one summed first, one at a
      * time across the state, zero weights skipped; the newest stage then adds in one
-     * multiply and one add, all that waits for the right-hand side just evaluated. */
+     * multiply and one add, all that waits for the right-hand side just evaluated. The
+     * loops over stages and weights are unrolled (GCC left them loops): each weight is
+     * then a constant, and the zero ones and their tests are gone at compile time. */
+#pragma GCC unroll 12
     for (int32_t s = 1; s < DOP853_STAGES; s++) {
         double acc[KIN_MAX_STATE];
         for (int32_t i = 0; i < n; i++) {
             acc[i] = 0.0;
         }
+#pragma GCC unroll 12
         for (int32_t j = 0; j < s - 1; j++) {
             const double a = D8_A[s][j];
             for (int32_t i = 0; a != 0.0 && i < n; i++) {
@@ -375,6 +379,7 @@ static inline __attribute__((always_inline)) int dop853_step(kin_ode *ode, const
         sum[i] = D8_B[0] * k[0][i];
         err5[i] = D8_E5[0] * k[0][i];
     }
+#pragma GCC unroll 12
     for (int32_t j = 1; j < DOP853_STAGES; j++) {
         const double b = D8_B[j], e = D8_E5[j];
         for (int32_t i = 0; (b != 0.0 || e != 0.0) && i < n; i++) {

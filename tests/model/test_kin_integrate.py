@@ -23,6 +23,7 @@ from snakebot.model.kinematics import (
     schedule_eval,
     wheel_speeds,
 )
+from snakebot.model.kinematics.ccore import c_robot
 from snakebot.model.robots import load_robot
 
 SNAKE3, SNAKE5, TRIDENT = load_robot("snake3"), load_robot("snake5"), load_robot("trident")
@@ -298,3 +299,16 @@ def test_structs_reused_across_calls_follow_the_values_they_were_built_from():
     slips = [integrate_joints(SNAKE5, gait, 2.0, friction=f).q[-1] for f in frictions]
     assert np.abs(slips[0] - slips[1]).max() > 1e-3
     np.testing.assert_array_equal(slips[0], slips[2])
+
+
+def test_robot_structs_follow_each_robot_object():
+    # Structs are found by the robot and friction objects' identity: robots made and
+    # dropped one after another (more than the cache holds, so their ids come free for
+    # reuse) each get their own values, and so does each friction.
+    for k in range(100):
+        robot = replace(TRIDENT, l=1.0 + k / 64)
+        assert c_robot(robot).l == robot.l
+        friction = replace(robot.friction, lateral=0.5 + k / 64)
+        lateral, _ = robot.wheel_friction_n(friction)
+        assert list(c_robot(robot, friction).lateral[0:3]) == list(lateral)
+        assert c_robot(robot).lateral[0] == robot.wheel_friction_n()[0][0]

@@ -282,6 +282,10 @@ def integrate_joints_batch(
     return Batch(_times(t0, t1, samples), out, status, evals, min_rcond)
 
 
+#: The default start q0 = 0 (the core only reads it): no array built for each call.
+_ZERO_STATE = ffi.new("double[]", lib.KIN_MAX_STATE)
+
+
 def integrate_fields(
     robot: Robot,
     inputs: Inputs,
@@ -303,11 +307,11 @@ def integrate_fields(
         u = _c_inputs(*key)
     except TypeError:  # inputs holding lists: unhashable, built for this call only
         u = _c_inputs.__wrapped__(*key)
-    qa = as_doubles(np.zeros(n) if q0 is None else q0, n, "q0")
+    q0_c = _ZERO_STATE if q0 is None else dptr(as_doubles(q0, n, "q0"))
     out = np.empty((samples, n))
     st = ffi.new("kin_stats *")
     code = lib.kin_integrate_fields(
-        c_robot(robot), u, dptr(qa), t0, t1, samples, (options or Options()).to_c(), dptr(out), st
+        c_robot(robot), u, q0_c, t0, t1, samples, (options or Options()).to_c(), dptr(out), st
     )
     if code != lib.KIN_OK:
         check(code, f"{robot.name}, field inputs, at t = {st.t_fail:.6g} s")

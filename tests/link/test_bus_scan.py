@@ -17,6 +17,7 @@ import snakebot.link.transport.ports  # noqa: F401  (registers sim://)
 from snakebot.cli import main
 from snakebot.facts import devices
 from snakebot.formats import protocol, register_values
+from snakebot.formats.protocol import ErrorFlags
 from snakebot.link.bus import scan as bus_scan
 from snakebot.link.transport import DxlClient, open_port, settings
 from snakebot.link.transport.timing import wire_time_s
@@ -192,3 +193,17 @@ def test_a_servo_whose_first_reply_is_lost_is_found_by_the_second_ping(monkeypat
     assert sorted(s.id for s in found) == [1, 2, 3, 4]
     assert [pinged.count(i) for i in (0, 1, 5)] == [2, 2, 2]  # the silent ones, again
     assert pinged.index(5) < len(pinged) - 1 - pinged[::-1].index(1)  # 1 again at the end
+
+
+def test_a_servo_found_on_the_retry_pass_is_listed_in_its_place():
+    # the noisy-line scan found 16 before 15 once: 15's first PING lost, its retry at the end
+    def servo(sid: int, baud: int) -> bus_scan.ServoInfo:
+        return bus_scan.ServoInfo(sid, baud, 12, "AX-12A", 24, ErrorFlags(0))
+
+    late = [servo(10, 57_600), servo(16, 1_000_000), servo(15, 1_000_000), servo(11, 1_000_000)]
+    report = bus_scan.ScanReport("sim://", list(range(254)), [1_000_000, 57_600])
+    for info in late:
+        report.add(bus_scan.Probe(info.id, info.baud, info, False))
+    ordered = [(s.baud, s.id) for s in report.found]
+    assert ordered == [(1_000_000, 11), (1_000_000, 15), (1_000_000, 16), (57_600, 10)]
+    assert bus_scan.in_scan_order(late, [1_000_000, 57_600]) == report.found

@@ -395,7 +395,9 @@ class ScanReport:
 
     def add(self, probe: Probe) -> None:
         if probe.info is not None:
-            self.found.append(probe.info)
+            # by rate, then ID, whichever pass found it (a servo the retry pass finds
+            # comes back late)
+            self.found = in_scan_order([*self.found, probe.info], self.bauds)
         elif probe.garbled:
             self.garbled.append(probe)
 
@@ -429,6 +431,13 @@ def scan_into(
     return report
 
 
+def in_scan_order(servos: Iterable[ServoInfo], bauds: Sequence[int]) -> list[ServoInfo]:
+    """``servos`` by their rate's place in ``bauds``, then by ID."""
+    place = {baud: k for k, baud in enumerate(bauds)}
+    return sorted(servos, key=lambda s: (place.get(s.baud, len(place)), s.id))
+
+
 def scan(port: serial.SerialBase, ids: Iterable[int], bauds: Sequence[int]) -> list[ServoInfo]:
-    """The servos :func:`scan_probes` identifies."""
-    return [p.info for p in scan_probes(port, ids, bauds) if p.info is not None]
+    """The servos :func:`scan_probes` identifies, by rate (in ``bauds``' order), then ID."""
+    found = [p.info for p in scan_probes(port, ids, bauds) if p.info is not None]
+    return in_scan_order(found, bauds)

@@ -12,8 +12,9 @@ from importlib import resources
 
 import pytest
 
+from snakebot.facts import devices
 from snakebot.link.transport import DxlClient
-from snakebot.model.robots import RobotError, load_robot, parse_robot
+from snakebot.model.robots import TICKS_PER_RAD, RobotError, load_robot, parse_robot
 from snakebot.workflows.predict import sim_url
 
 mujoco = pytest.importorskip("mujoco")
@@ -22,8 +23,10 @@ from snakebot.sim.physics import PhysicsWorld  # noqa: E402
 from snakebot.sim.physics.mjcf import build_mjcf  # noqa: E402
 
 SNAKE5 = load_robot("snake5")
-GOAL_POSITION, MOVING_SPEED = 30, 32
-SLOW = 100  # Moving Speed units of 0.111 rpm: 11 rpm, a fifth of the no-load speed
+AX12 = devices.ax12()
+GOAL_POSITION = AX12.register("Goal Position").address
+SPEED = AX12.register("Moving Speed")
+SLOW = 100  # raw Moving Speed: 11 rpm, a fifth of the no-load speed
 PUSH_NM = 0.6  # twice what the drive capped at that speed gives, 40 % of stall
 
 
@@ -32,7 +35,7 @@ def world_with(speed_limit: str):
     client = DxlClient(sim_url(robot, False), echo=False)
     bus = client.port.bus
     sid = robot.servo_ids[1]
-    client.write_u16(sid, MOVING_SPEED, SLOW)
+    client.write_u16(sid, SPEED.address, SLOW)
     world = PhysicsWorld(bus, robot)
     name = build_mjcf(robot)[1].joints[1]
     joint = mujoco.mj_name2id(world.model, mujoco.mjtObj.mjOBJ_JOINT, name)
@@ -48,8 +51,8 @@ def moved_in_half_a_second(speed_limit: str) -> tuple[float, float]:
     moved = bus.servo(sid).pos - start
     world.stop()
     client.close()
-    rpm = SLOW * 0.111  # the AX-12's Moving Speed unit
-    return moved, rpm * 2 * math.pi / 60 * 0.5 * 1023 / math.radians(300)
+    rad_s = SPEED.to_units(SLOW) * 2 * math.pi / 60  # the register is in rpm
+    return moved, rad_s * 0.5 * TICKS_PER_RAD
 
 
 def test_with_profile_a_joint_moves_at_its_moving_speed():
@@ -73,7 +76,7 @@ def held_against_a_push(speed_limit: str) -> float:
     bus.run_until(bus.now + 0.2)
     world.data.qfrc_applied[dof] = PUSH_NM
     bus.run_until(bus.now + 1.0)
-    gave = abs(bus.servo(sid).pos - start) * 300 / 1023
+    gave = math.degrees(abs(bus.servo(sid).pos - start) / TICKS_PER_RAD)
     world.stop()
     client.close()
     return gave

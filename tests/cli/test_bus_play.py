@@ -101,18 +101,24 @@ def test_ctrl_c_on_a_pty_stops_smoothly_and_the_servos_hold(tmp_path):
     assert np.allclose(after, [held["1"], held["2"]], atol=2)
 
 
-def test_a_generated_gait_plays_on_the_emulated_robot(tmp_path):
-    """The README's path: a serpenoid gait for snake5 played on sim://?robot=snake5 (servos
-    that move at their own speed, no ideal jumps). The player only writes while it plays;
-    the emulated bus must not let those writes pile up ahead of the READ that follows."""
-    runner = CliRunner()
-    gait = str(tmp_path / "s.gait")
+def readme_gait(runner: CliRunner, folder) -> str:
+    """The README's serpenoid gait for snake5, one cycle, written in ``folder``."""
+    gait = str(folder / "s.gait")
     made = runner.invoke(
         main,
         ["gait", "serpenoid", "snake5", "-A", "30deg", "-w", "360deg", "-d", "60deg"]
         + ["--cycles", "1", "-o", gait],
     )
     assert made.exit_code == 0, made.output
+    return gait
+
+
+def test_a_generated_gait_plays_on_the_emulated_robot(tmp_path):
+    """The README's path: a serpenoid gait for snake5 played on sim://?robot=snake5 (servos
+    that move at their own speed, no ideal jumps). The player only writes while it plays;
+    the emulated bus must not let those writes pile up ahead of the READ that follows."""
+    runner = CliRunner()
+    gait = readme_gait(runner, tmp_path)
     result = runner.invoke(main, ["bus", "play", gait, "--port", "sim://?robot=snake5", "--json"])
     assert result.exit_code == 0, result.output
     report = json.loads(result.stdout)
@@ -122,3 +128,35 @@ def test_a_generated_gait_plays_on_the_emulated_robot(tmp_path):
     # the servos followed the gait in real time: each ends near the last frame's goal
     # (an AX-12 lags its goal by a few ticks at the gait's speed)
     assert all(abs(h - int(g)) <= 25 for h, g in zip(held, last, strict=True)), (held, last)
+    assert report["host_late_ms"] < 1000 * 5  # reported, in milliseconds
+
+
+def test_a_host_that_stalls_mid_gait_still_leaves_the_servos_at_the_last_goal(
+    tmp_path, monkeypatch
+):
+    """A busy host sends late ticks at once; the servos, told each frame's speed, lag the
+    gait by the time lost (without the end's catch-up they held 60-134 ticks off). The
+    player ends with them at the last goal and says how late it was."""
+    from snakebot.model.player import TablePlayer
+
+    runner = CliRunner()
+    gait = readme_gait(runner, tmp_path)
+    stall_s, stall_at_ms = 0.3, 500
+    tick = TablePlayer.tick
+
+    def stalling_tick(self, now_ms):
+        if now_ms == stall_at_ms:
+            time.sleep(stall_s)  # the host descheduled, as beside other work
+        return tick(self, now_ms)
+
+    monkeypatch.setattr(TablePlayer, "tick", stalling_tick)
+    result = runner.invoke(main, ["bus", "play", gait, "--port", "sim://?robot=snake5", "--json"])
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.stdout)
+    assert report["host_late_ms"] >= stall_s * 1000
+    assert report["moved_to_last_goal"] is True
+    last = read_gait(gait).frames[-1]
+    held = [report["present_position"][str(sid)] for sid in (10, 11, 15, 16)]
+    assert all(abs(h - int(g)) <= 3 for h, g in zip(held, last, strict=True)), (held, last)
+    text = runner.invoke(main, ["bus", "play", gait, "--port", "sim://?robot=snake5"])
+    assert "behind the gait" in text.output and "brought to its last goal" in text.output

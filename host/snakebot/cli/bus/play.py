@@ -62,6 +62,8 @@ def bus_play(
 
     The servos first move gently to the gait's first frame. Ctrl-C slows the gait to a
     halt over half a second; the servos then hold their positions (torque stays on).
+    If this computer falls behind the gait (a busy machine), the servos lag it; they are
+    then brought to its last goal gently at the end, and the output says so.
 
     \b
         snakebot bus play crawl.gait --port /dev/ttyUSB0
@@ -96,6 +98,8 @@ def bus_play(
         "stopped_by_user": played.stopped_at is not None,
         "played_s": played.seconds,
         "present_position": played.held,
+        "host_late_ms": round(played.late_s * 1000, 1),
+        "moved_to_last_goal": played.caught_up,
     }
     if as_json:
         click.echo(dumps(report))
@@ -105,6 +109,12 @@ def bus_play(
             f"Played {report['played_s']:.2f} s of {gait} ({how}); the servos hold at "
             + ", ".join(f"{sid}: {pos}" for sid, pos in played.held.items())
         )
+        if played.caught_up:
+            click.echo(
+                f"The host fell up to {played.late_s * 1000:.0f} ms behind the gait (a busy "
+                "machine): the servos lagged it and were brought to its last goal gently "
+                "at the end. Play it again with less running beside it."
+            )
     if played.stopped_at is not None:
         sys.exit(interrupted_status())
 

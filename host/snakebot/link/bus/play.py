@@ -20,6 +20,7 @@ from snakebot.model.player import (
     GOAL_POSITION_ADDR,
     START_SETTLE_S,
     START_SPEED,
+    START_TOLERANCE_TICKS,
     TICK_MS,
     PlayerError,
     TablePlayer,
@@ -48,6 +49,10 @@ class Played:
     ticks: int
     stopped_at: int | None
     held: dict[int, int]
+    late_s: float = 0.0
+    """The longest the host sent a tick after its time (a busy host falls behind)."""
+    caught_up: bool = False
+    """Whether the servos were behind the last frame at the end, and were moved to it."""
 
     @property
     def seconds(self) -> float:
@@ -86,14 +91,19 @@ def check_servos(client: DxlClient, table: GaitTable) -> None:
 
 def move_to_start(client: DxlClient, table: GaitTable) -> None:
     """Send every joint to the first frame at a gentle speed and wait until it is there."""
-    first = [int(g) for g in table.frames[0]]
-    here = [client.read_u16(sid, _PRESENT.address) for sid in table.joint_ids]
+    move_gently(client, table.joint_ids, [int(g) for g in table.frames[0]])
+
+
+def move_gently(client: DxlClient, ids: Sequence[int], goals: Sequence[int]) -> None:
+    """Send servos ``ids`` to ``goals`` at the start's gentle speed and wait until they are
+    there."""
+    here = [client.read_u16(sid, _PRESENT.address) for sid in ids]
     client.sync_write(
         GOAL_POSITION_ADDR,
         GOAL_BLOCK,
-        {sid: goal_block(g, START_SPEED) for sid, g in zip(table.joint_ids, first, strict=True)},
+        {sid: goal_block(g, START_SPEED) for sid, g in zip(ids, goals, strict=True)},
     )
-    distance = max(abs(h - g) for h, g in zip(here, first, strict=True))
+    distance = max(abs(h - g) for h, g in zip(here, goals, strict=True))
     ticks_per_s = _SPEED.to_units(START_SPEED, "deg/s") * _AX12.require_position().scale.per_unit(
         "deg"
     )
@@ -109,13 +119,21 @@ def play_table(
 ) -> Played:
     """Check the servos, move them to the first frame, then tick the player on the wall
     clock and send each tick's SYNC_WRITE; Ctrl-C slows it to a halt over
-    :data:`STOP_S` (a second Ctrl-C stops at once). The servos hold where they end."""
+    :data:`STOP_S` (a second Ctrl-C stops at once). The servos hold where they end.
+
+    A host that falls behind its ticks (a busy machine) sends the late ones at once; the
+    servos, told each frame's speed, then lag the gait by the time lost. At the end (unless
+    stopped by Ctrl-C), servos left more than the compliance margin from the last goal
+    sent are brought to it at the start's gentle speed, and :attr:`Played.late_s` says
+    how far behind the host fell."""
     check_servos(client, table)
     move_to_start(client, table)
     total = tick_count(table, loop)
     stop_ticks = round(STOP_S * 1000 / TICK_MS)
     stopped_at: int | None = None
     n = 0
+    late = 0.0
+    sent: dict[int, int] = {}
     start = time.monotonic()
     while total is None or n < total or stopped_at is not None:
         try:
@@ -124,12 +142,15 @@ def play_table(
                 if k > stop_ticks:
                     break
                 player.speed_scale = max(1, round(FULL_SPEED * (1 - k / stop_ticks)))
-            delay = start + n * TICK_MS / 1000 - time.monotonic()
+            due = start + n * TICK_MS / 1000
+            delay = due - time.monotonic()
             if delay > 0:
                 time.sleep(delay)
             outputs = player.tick(n * TICK_MS)
             if outputs:
                 client.sync_write(GOAL_POSITION_ADDR, GOAL_BLOCK, goal_blocks(outputs))
+                sent.update((sid, goal) for sid, (goal, _) in outputs.items())
+                late = max(late, time.monotonic() - due)
             n += 1
             on_tick()
             if stopped_at is None and not loop and player.finished:
@@ -138,7 +159,14 @@ def play_table(
             if stopped_at is not None:
                 break  # a second Ctrl-C: stop at once
             stopped_at = n
-    return Played(n, stopped_at, _settled(client, table.joint_ids))
+    held = _settled(client, table.joint_ids)
+    behind = stopped_at is None and any(
+        abs(held[sid] - goal) > START_TOLERANCE_TICKS for sid, goal in sent.items()
+    )
+    if behind:
+        move_gently(client, list(sent), list(sent.values()))
+        held = _settled(client, table.joint_ids)
+    return Played(n, stopped_at, held, late, behind)
 
 
 HOLD_SETTLE_S = 1.0

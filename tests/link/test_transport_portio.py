@@ -98,3 +98,43 @@ def test_flush_input_on_other_ports_goes_through_pyserial():
         assert io.read(16, 0.001) == b""
     finally:
         port.close()
+
+
+@pytest.mark.parametrize("late_s", [0.0, 0.05])
+def test_a_client_the_host_runs_late_still_gets_its_reply_from_an_emulated_bus(
+    monkeypatch, late_s
+):
+    """On ``sim://`` a reply is due in the bus's time: a client descheduled between its
+    write and its read (a busy machine: the fresh-clone flake "no reply to WRITE ... within
+    4.6 ms (3 attempts)") still gets it, on a bus whose clock is its own, and the wait a
+    silent servo costs is counted on that clock too."""
+    from snakebot.link.transport import DxlClient
+    from snakebot.formats.protocol.errors import DxlTimeout
+    from snakebot.sim.urlhandler.protocol_sim import Serial as SimSerial
+
+    write = SimSerial.write
+
+    def write_then_be_descheduled(self, data):
+        n = write(self, data)
+        time.sleep(late_s)
+        return n
+
+    monkeypatch.setattr(SimSerial, "write", write_then_be_descheduled)
+    client = DxlClient("sim://?ids=1", retries=0)
+    try:
+        assert client.timing.reply_timeout_s(8, 2) < late_s or late_s == 0
+        assert client.read_u16(1, 36) >= 0  # a READ's first round
+        client.write_u8(1, 25, 1)  # a WRITE's attempt
+        io = PortIO(client._port)
+        assert io.clock == client._port.port_clock
+        with pytest.raises(DxlTimeout):
+            client.ping(2)
+    finally:
+        client.close()
+
+
+def test_ports_without_a_clock_of_their_own_count_on_the_wall_clock(pty_port):
+    assert PortIO(pty_port[1]).clock is time.monotonic
+    with serial.serial_for_url("sim://?ids=1&realtime=1") as port:
+        before = time.monotonic()
+        assert before <= PortIO(port).clock() <= time.monotonic()

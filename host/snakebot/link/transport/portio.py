@@ -19,6 +19,7 @@ import os
 import select
 import termios
 import time
+from collections.abc import Callable
 
 import serial
 from serial import SerialException
@@ -40,12 +41,17 @@ Polling costs CPU only in this tail, and only when nothing arrives before it."""
 
 
 class PortIO:
-    """Write and timed read on ``port``, direct on a plain POSIX serial port."""
+    """Write and timed read on ``port``, direct on a plain POSIX serial port.
 
-    __slots__ = ("port", "_direct")
+    :attr:`clock` is what a reply's deadline is counted on: the wall clock, or the port's
+    own where it has one (``port_clock``: an emulated bus with a clock of its own, whose
+    replies are due in its time however late the host runs the client)."""
+
+    __slots__ = ("port", "_direct", "clock")
 
     def __init__(self, port: serial.SerialBase) -> None:
         self.port = port
+        self.clock: Callable[[], float] = getattr(port, "port_clock", time.monotonic)
         # Only pyserial's plain POSIX class: its descriptor is non-blocking and read with
         # select, exactly as done here (subclasses such as VTIMESerial read otherwise).
         self._direct = _PosixSerial is not None and type(port) is _PosixSerial

@@ -5,7 +5,6 @@ outside, and READs confirmed by two agreeing replies."""
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 
 from snakebot.formats import protocol
@@ -111,7 +110,7 @@ class Reads(ClientState):
             echo = self._echo
             if echo is not None:
                 skip = len(packet) if echo else 0  # the echo comes first, whole
-                start = time.monotonic()
+                start = self._io.clock()
                 data = self._io.exchange(packet, skip + plan.reply_len, plan.timeout)
                 if (
                     len(data) == skip + plan.reply_len

@@ -5,7 +5,6 @@ broadcast PING when the first exchange is ambiguous."""
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 
 from snakebot.formats import protocol
@@ -67,7 +66,7 @@ class ReplyReader(ClientState):
         if sent is None:
             io.flush_input()
             io.write(packet)
-            start, data = time.monotonic(), b""
+            start, data = io.clock(), b""
         else:
             start, data = sent
         deadline = start + timeout
@@ -111,7 +110,7 @@ class ReplyReader(ClientState):
                     self._echo = seen.echo_seen
                 self._recent.append(packet)
                 return event, seen
-            remaining = deadline - time.monotonic()
+            remaining = deadline - io.clock()
             if remaining <= 0:
                 self._recent.append(packet)
                 return None, Attempt() if seen is CLEAN else seen
@@ -146,10 +145,11 @@ class ReplyReader(ClientState):
         port.write(probe)
         self._recent.append(probe)
         wait = max(self.timing.reply_timeout_s(len(probe), 0), self.echo_probe_s)
-        deadline = time.monotonic() + wait
+        clock = self._io.clock
+        deadline = clock() + wait
         heard_probe = False
         while not heard_probe:
-            remaining = deadline - time.monotonic()
+            remaining = deadline - clock()
             if remaining <= 0:
                 break
             port.timeout = self._read_timeout = remaining

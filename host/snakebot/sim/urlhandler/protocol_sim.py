@@ -140,6 +140,15 @@ class Serial(SerialBase):
 
     # -- time -----------------------------------------------------------------------------
 
+    def port_clock(self) -> float:
+        """The clock a client counts this port's reply timeouts on
+        (``snakebot.link.transport.portio`` reads it): the bus's own, so that a reply due in
+        bus time is never missed because the host ran the client late; the wall clock's
+        with ``realtime=1``, where the bus follows it."""
+        if self._pacer is not None or self.bus is None:
+            return time.monotonic()
+        return self.bus.now
+
     def _sync(self) -> None:
         if self._pacer is not None:
             self.bus.run_until(self._pacer.now())

@@ -104,29 +104,27 @@ def test_flush_input_on_other_ports_goes_through_pyserial():
 def test_a_client_the_host_runs_late_still_gets_its_reply_from_an_emulated_bus(
     monkeypatch, late_s
 ):
-    """On ``sim://`` a reply is due in the bus's time: a client descheduled between its
-    write and its read (a busy machine: the fresh-clone flake "no reply to WRITE ... within
-    4.6 ms (3 attempts)") still gets it, on a bus whose clock is its own, and the wait a
-    silent servo costs is counted on that clock too."""
-    from snakebot.link.transport import DxlClient
+    """On ``sim://`` a reply is due in the bus's time: a client that the host runs late
+    between the pieces of a reply (a busy machine: the fresh-clone flake "no reply to
+    WRITE ... within 4.6 ms (3 attempts)") still gets it, on a bus whose clock is its own,
+    and the wait a silent servo costs is counted on that clock too."""
     from snakebot.formats.protocol.errors import DxlTimeout
+    from snakebot.link.transport import DxlClient
     from snakebot.sim.urlhandler.protocol_sim import Serial as SimSerial
 
-    write = SimSerial.write
+    read = SimSerial.read
 
-    def write_then_be_descheduled(self, data):
-        n = write(self, data)
+    def descheduled_then_one_byte(self, size=1):
         time.sleep(late_s)
-        return n
+        return read(self, min(size, 1))
 
-    monkeypatch.setattr(SimSerial, "write", write_then_be_descheduled)
+    monkeypatch.setattr(SimSerial, "read", descheduled_then_one_byte)
     client = DxlClient("sim://?ids=1", retries=0)
     try:
         assert client.timing.reply_timeout_s(8, 2) < late_s or late_s == 0
-        assert client.read_u16(1, 36) >= 0  # a READ's first round
+        assert client.read_u16(1, 36) >= 0  # a READ: its first round, then the attempt
         client.write_u8(1, 25, 1)  # a WRITE's attempt
-        io = PortIO(client._port)
-        assert io.clock == client._port.port_clock
+        assert PortIO(client._port).clock == client._port.port_clock
         with pytest.raises(DxlTimeout):
             client.ping(2)
     finally:

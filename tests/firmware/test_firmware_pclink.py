@@ -5,6 +5,7 @@ the replies must not stop the control loop (nor may the emulator's link to QEMU)
 from __future__ import annotations
 
 import contextlib
+import glob
 import os
 import random
 import termios
@@ -23,6 +24,7 @@ from firmware_support import (
     wait_for_boot,
 )
 
+from snakebot.facts.boards import CONTROL_TICK_MS
 from snakebot.formats.protocol import Instruction, ProtocolError, read
 from snakebot.sim.options import SimOptions
 from snakebot.sim.qemu import Endpoint, QemuFirmware
@@ -31,9 +33,14 @@ from snakebot.sim.transports.unixsock import UnixSocketServer
 pytestmark = [pytest.mark.qemu, pytest.mark.timeout(300)]
 
 SYNC_WRITE_HEAD = bytes([0xFF, 0xFF, 0xFE])
-TICK_S = 0.010  # BOARD_CONTROL_TICK_MS
+TICK_S = CONTROL_TICK_MS / 1000
 FILL_TIMEOUT_S = 30.0  # replies leave at 57600 baud: about 4 s fill the terminal
 FLOOD_S = 3.0  # how long the goals are watched with the terminal full
+FLOOD_WINDOWS = 3
+"""Windows tried: one where the host let QEMU run is measured."""
+STARVED_SHARE = 0.2
+"""A window whose goals fall short while QEMU's CPU waited for the host longer than this
+share of it is measured again (the host, not the firmware, may have cost the ticks)."""
 MAX_GAP_S = 0.25
 """The longest pause between goal writes allowed while flooded. A blocked QEMU stops the
 goals for seconds (the issue saw their age grow to 3.9 s); on the shared 2-core machine
@@ -61,6 +68,38 @@ class GoalTimes:
 
     def between(self, t0: float, t1: float) -> list[float]:
         return [t for t in self.times if t0 <= t <= t1]
+
+
+class HostQueue:
+    """How long the host's scheduler kept QEMU's busiest thread (its emulated CPU) waiting
+    to run since :meth:`mark`, from ``/proc/PID/task/*/schedstat`` (nanoseconds on the CPU,
+    then runnable but not running). A window in which it waited long may lose control
+    ticks to the host, not to the firmware."""
+
+    def __init__(self, pid: int) -> None:
+        self._pid = pid
+        self._base = self._stats()
+
+    def _stats(self) -> dict[str, tuple[int, int]]:
+        out = {}
+        for stat in glob.glob(f"/proc/{self._pid}/task/*/schedstat"):
+            with contextlib.suppress(OSError, IndexError, ValueError):
+                ran, waited = open(stat).read().split()[:2]
+                out[stat] = (int(ran), int(waited))
+        return out
+
+    def mark(self) -> None:
+        self._base = self._stats()
+
+    def waited_s(self) -> float:
+        deltas = [
+            (
+                ran - self._base.get(t, (ran, waited))[0],
+                waited - self._base.get(t, (ran, waited))[1],
+            )
+            for t, (ran, waited) in self._stats().items()
+        ]
+        return max(deltas, default=(0, 0))[1] / 1e9
 
 
 @pytest.fixture
@@ -139,8 +178,10 @@ def test_an_unread_read_flood_does_not_stop_the_control_loop(robot, tmp_path):
         with server.lock:
             return server.bus.now
 
+    queue = HostQueue(fw.pid)
     time.sleep(0.2)
     q0 = bus_now()
+    queue.mark()
     time.sleep(2.0)
     q1 = bus_now()
     quiet_rate = len(goals.between(q0, q1)) / (q1 - q0)
@@ -162,19 +203,33 @@ def test_an_unread_read_flood_does_not_stop_the_control_loop(robot, tmp_path):
         give_up = time.monotonic() + FILL_TIMEOUT_S
         flood(fd, lambda: fw.dropped("pc") > 0 or time.monotonic() > give_up)
         assert fw.dropped("pc") > 0, "the terminal never filled: the flood tested nothing"
-        t0 = bus_now()
-        end = time.monotonic() + FLOOD_S
-        flood(fd, lambda: time.monotonic() > end)
-        t1 = bus_now()
+        starved = []
+        for _ in range(FLOOD_WINDOWS):
+            t0 = bus_now()
+            queue.mark()
+            end = time.monotonic() + FLOOD_S
+            flood(fd, lambda end=end: time.monotonic() > end)
+            t1 = bus_now()
+            waited = queue.waited_s()
+            times = goals.between(t0, t1)
+            gaps = [b - a for a, b in zip(times, times[1:], strict=False)]
+            rate = len(times) / (t1 - t0)
+            kept = rate >= 0.8 * quiet_rate and max(gaps, default=t1 - t0) < MAX_GAP_S
+            if kept or waited < STARVED_SHARE * (t1 - t0):
+                break  # measured: the firmware's cadence, whichever way it went
+            starved.append(f"{rate:.0f} goal writes/s while it waited {waited:.1f} s")
         termios.tcflush(fd, termios.TCOFLUSH)  # READs still queued in the terminal
+    assert len(starved) < FLOOD_WINDOWS, (
+        "the host kept QEMU's CPU waiting to run for much of every window, so the goals' "
+        f"cadence says nothing about the firmware ({'; '.join(starved)}): run it with less "
+        "beside it"
+    )
     dropped = fw.dropped("pc")
-    times = goals.between(t0, t1)
-    gaps = [b - a for a, b in zip(times, times[1:], strict=False)]
-    rate = len(times) / (t1 - t0)
     summary = (
         f"{sent} bytes of READs sent, {dropped} reply bytes dropped at the terminal; "
         f"with it full, {rate:.0f} goal writes/s (quiet: {quiet_rate:.0f}), longest gap "
-        f"{max(gaps, default=t1 - t0) * 1000:.0f} ms"
+        f"{max(gaps, default=t1 - t0) * 1000:.0f} ms; QEMU's CPU waited {waited:.2f} s of "
+        f"{t1 - t0:.1f} s for the host; windows lost to the host before: {len(starved)}"
     )
     assert rate >= 0.8 * quiet_rate, summary
     assert max(gaps) < MAX_GAP_S, summary

@@ -109,8 +109,11 @@ def line(i: int, row: dict[str, Any], said: str) -> str:
         f"{head}: quasi-static {qp:.2f}x, {qh:.2f}x the tolerance; MuJoCo {mp:.2f}x, "
         f"{mh:.2f}x ({said})"
     )
-    for warning in row["warned"]:
-        text += f"; warned: {warning['message']}"
+    if row["warned"]:
+        text += "; warned: " + ", ".join(
+            f"{w['cause']} {w['position_ratio']:.1f}x, {w['heading_ratio']:.1f}x"
+            for w in row["warned"]
+        )
     return text
 
 

@@ -18,6 +18,7 @@ from snakebot.model.plan.sensitivity import (
     ROLLING_FACTORS,
     depends_on_friction,
     friction_sensitivity,
+    friction_warning,
 )
 from snakebot.model.robots import load_robot
 
@@ -72,6 +73,20 @@ def test_the_summary_carries_it_for_a_table_on_snake5_only():
         m.setattr("snakebot.model.plan.files.Plan", SimpleNamespace)
         five, three = plan_like(SNAKE5, 0.01), plan_like(SNAKE3, 0.01)
         for p in (five, three):
-            p.summary = lambda: {}
+            p.summary = lambda: {"warnings": []}
         assert len(plan_summary(five)["friction_sensitivity"]) == len(ROLLING_FACTORS)
         assert "friction_sensitivity" not in plan_summary(three)
+
+
+def test_an_end_outside_the_tolerance_is_an_open_loop_warning_with_its_numbers():
+    """The worst end outside the tolerance, as multiples of it; none when all are in."""
+    rows = friction_sensitivity(plan_like(SNAKE5, 5e-4))
+    warning = friction_warning(rows)
+    assert warning is not None and warning["kind"] == "open_loop"
+    worst = max(
+        max(r["error"]["position"] / 5e-4, abs(r["error"]["heading_rad"]) / math.radians(2))
+        for r in rows
+    )
+    assert max(warning["position_ratio"], warning["heading_ratio"]) == pytest.approx(worst)
+    assert f"{warning['position_ratio']:.1f}x" in warning["message"]
+    assert friction_warning(friction_sensitivity(plan_like(SNAKE5, 1.0))) is None

@@ -103,10 +103,13 @@ def plan_command(
     few times, and a program still outside is not written (exit 1). --json reports its
     size in bytes.
 
-    A snake of more than three links has more wheels than its body has freedoms: how
-    far it goes depends on how the wheels share the slip, so the report adds where the
-    table ends with half and twice the rolling resistance (--json:
-    friction_sensitivity).
+    The table is also played on the robot's modelled servos, which lag it (--json:
+    servo_check). A snake of more than three links has more wheels than its body has
+    freedoms: how far it goes depends on how the wheels share the slip, so the report
+    adds where the table ends with half and twice the rolling resistance (--json:
+    friction_sensitivity). Where either leaves the tolerance, the plan warns that its
+    end played open loop is not to be trusted (--json: a warning of kind open_loop,
+    with the numbers): steer in closed loop with `snakebot sim goto` instead.
 
     The plan fits the table capacity it is made for: the smallest board's unless
     --capacity names another (the CM-530 holds the largest tables, so a longer way goes
@@ -127,6 +130,7 @@ def plan_command(
     require("scipy", "planning", extra="plan")
     if plot is not None:
         require("matplotlib", "--plot")
+    from snakebot.model.plan import Plan
     from snakebot.model.plan.files import plan_for, plan_summary, save_plan, wants_program
     from snakebot.model.robots import load_robot
 
@@ -155,10 +159,15 @@ def plan_command(
     except Unreachable as exc:
         unreachable(exc)
         return
+    checks = None
+    if isinstance(plan, Plan):
+        from snakebot.workflows.plan_check import servo_check
+
+        checks = servo_check(plan)
     if output is None:
-        summary, table = plan_summary(plan), None
+        summary, table = plan_summary(plan, checks), None
     else:
-        summary, table = save_plan(plan, output)
+        summary, table = save_plan(plan, output, checks)
     if table is not None and plot is not None:
         from snakebot.plots.gait import plot_gait
 
@@ -223,11 +232,13 @@ def _print(s: dict[str, Any]) -> None:
             f"{e['position']:.4g} {s['length_unit']}, heading "
             f"{math.degrees(e['heading_rad']):.3f} deg ({verdict})"
         )
-    if any(not row["error"]["within"] for row in rows):
+    check = s.get("servo_check")
+    if check is not None:
+        e = check["error"]
+        verdict = "within the tolerance" if e["within"] else "OUTSIDE the tolerance"
         click.echo(
-            "  the end depends on the floor's rolling resistance more than the tolerance "
-            "allows: set the robot file's [friction] rolling and axle_nm for your floor "
-            "(docs/models.md), or steer in closed loop (`snakebot sim goto`)"
+            f"  on the modelled servos ({check['servos']}): error {e['position']:.4g} "
+            f"{s['length_unit']}, heading {math.degrees(e['heading_rad']):.3f} deg ({verdict})"
         )
     if "file" in s:
         click.echo(f"wrote {s['file']} and {s['metadata_file']}")

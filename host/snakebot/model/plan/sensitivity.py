@@ -7,7 +7,11 @@ is played again with the rolling resistance (the rolling coefficient and the axl
 friction together) halved and doubled, and each end is compared with the target and the
 plan's tolerance. The trident and the 3-link snake have as many wheels as body freedoms:
 away from singular configurations their motion does not depend on friction, so they are
-not checked."""
+not checked.
+
+Where an end leaves the tolerance the plan cannot know where its table ends on a real
+floor: :func:`friction_warning` says so, with the numbers (an ``open_loop`` warning,
+which the plan's report carries beside the others)."""
 
 from __future__ import annotations
 
@@ -19,6 +23,10 @@ import numpy as np
 from snakebot.model.gait.common import table_motion
 from snakebot.model.plan.planner import Plan, pose_dict, pose_error
 from snakebot.model.robots import Robot
+
+OPEN_LOOP = "open_loop"
+"""The kind of a plan's warning that its table, played open loop, may not end within
+the tolerance (the JSON reports' ``warnings``)."""
 
 ROLLING_FACTORS = (0.5, 2.0)
 """The rolling resistance the plan is played again with, as factors of the robot's."""
@@ -51,3 +59,37 @@ def friction_sensitivity(plan: Plan) -> list[dict[str, Any]]:
             }
         )
     return rows
+
+
+def tolerance_ratios(error: dict[str, Any]) -> tuple[float, float]:
+    """An ``error`` report's position and heading as multiples of their tolerances."""
+    return (
+        error["position"] / error["position_tolerance"],
+        abs(error["heading_rad"]) / error["heading_tolerance_rad"],
+    )
+
+
+def friction_warning(rows: list[dict[str, Any]]) -> dict[str, Any] | None:
+    """An ``open_loop`` warning when one of :func:`friction_sensitivity`'s ends is
+    outside the tolerance (the worst one, as multiples of the tolerance); None when
+    every end is within it."""
+    outside = [row for row in rows if not row["error"]["within"]]
+    if not outside:
+        return None
+    worst = max(outside, key=lambda row: max(tolerance_ratios(row["error"])))
+    position, heading = tolerance_ratios(worst["error"])
+    factor = worst["rolling_factor"]
+    return {
+        "kind": OPEN_LOOP,
+        "cause": "friction",
+        "rolling_factor": factor,
+        "position_ratio": position,
+        "heading_ratio": heading,
+        "message": (
+            f"with {factor:g}x the rolling resistance the table ends {position:.1f}x the "
+            f"position tolerance and {heading:.1f}x the heading tolerance from the target: "
+            "played open loop its end depends on the floor more than the tolerance allows, "
+            "so it is not to be trusted; steer in closed loop (goto), or set the robot "
+            "file's [friction] for the floor"
+        ),
+    }

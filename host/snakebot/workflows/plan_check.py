@@ -1,0 +1,62 @@
+"""A table plan played on the robot's modelled servos before it is handed out.
+
+The planner makes its table end at the target as the controller plays it on servos that
+are where they are told at every frame. Real AX-12s lag a table timed to their speed,
+and a plan's loops move the body by the small difference of larger motions, so a lag
+that shrinks a loop changes where the plan ends: measured, the trident's plan to
+(0.5, 0.2, 10 deg) ends 3.2 times the tolerance off, the 3-link snake's to (2, 1,
+20 deg) 9 times, snake5's 7 to 209 times (``bench/bench_plan_targets.py``). The
+plan's table is therefore also played on the robot's modelled servos in the
+quasi-static world (the emulated robot ``snakebot sim predict`` plays it on, without
+the physics); where that end leaves the tolerance the plan says its end played open
+loop is not to be trusted, with the numbers (an ``open_loop`` warning)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from snakebot.model.plan import Plan
+from snakebot.model.plan.planner import pose_dict, pose_error
+from snakebot.model.plan.sensitivity import OPEN_LOOP, tolerance_ratios
+from snakebot.workflows.predict import predict_gait
+
+
+def servo_check(plan: Plan) -> dict[str, Any]:
+    """``plan``'s table played on the robot's modelled servos in the quasi-static world:
+    ``servo_check`` (the servo model, where the table ends and its error beside the
+    plan's tolerance) and ``warnings`` (an ``open_loop`` one when the end is outside
+    the tolerance), as :func:`snakebot.model.plan.files.plan_summary` takes them."""
+    robot = plan.robot
+    played = predict_gait(plan.gait.gait_table(), robot)
+    moved = played.emulated.displacement()
+    end = np.array([moved["dx"], moved["dy"], moved["dtheta"]])
+    error = plan.tolerance.report(pose_error(end, plan.target))
+    report = {
+        "servos": robot.servo_model,
+        "world": "kinematic",
+        "predicted_final": pose_dict(end),
+        "error": error,
+    }
+    warnings = []
+    if not error["within"]:
+        position, heading = tolerance_ratios(error)
+        warnings.append(
+            {
+                "kind": OPEN_LOOP,
+                "cause": "servos",
+                "position_ratio": position,
+                "heading_ratio": heading,
+                "message": (
+                    f"played on the modelled servos ({robot.servo_model}) the table ends "
+                    f"{error['position']:.3g} {robot.length_unit} from the target "
+                    f"({position:.1f}x the position tolerance) and "
+                    f"{abs(math.degrees(error['heading_rad'])):.2f} deg off its heading "
+                    f"({heading:.1f}x): the servos lag the table, so its end played open "
+                    "loop is not to be trusted; steer in closed loop (goto)"
+                ),
+            }
+        )
+    return {"servo_check": report, "warnings": warnings}

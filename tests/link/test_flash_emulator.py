@@ -42,6 +42,47 @@ def test_load_receives_until_silence_and_reports_the_sum():
     assert boot.image == image
 
 
+def test_bytes_waiting_unread_are_not_a_silence():
+    """An emulator held up (a busy host) reads bytes that waited in the terminal after
+    more than the silence: the line carried them without a pause, so they go on with
+    the image. Only a silence it sees with nothing waiting ends the image."""
+    boot = booted(silence_s=0.5)
+    boot.feed(b"#\nL\n", 0.0)
+    image = bytes(range(256)) * 2
+    boot.feed(image[:100], 1.0)
+    assert boot.poll(1.8, line_busy=True) == b""  # bytes wait: not silent
+    boot.feed(image[100:], 1.9)  # read late, after the silence's length
+    assert boot.poll(2.3) == b""
+    assert f"Size: {len(image)}".encode() in boot.poll(2.5)
+    assert boot.image == image
+
+
+def test_an_emulator_held_up_mid_image_still_receives_all_of_it(tmp_path):
+    """The served bootloader, kept from running for longer than its silence while the
+    flasher's bytes wait in the terminal (what a busy host does to it), stores the
+    whole image (it ended it early and reported a checksum mismatch)."""
+    boot = Bootloader(silence_s=0.1)
+    server = BootloaderPty(boot, pace=False)
+    image = bytes(range(256)) * 4
+    with server, serial.Serial(server.device, 57600, timeout=0.5) as port:
+        server.press_reset()
+        heard, deadline = b"", time.monotonic() + 5
+        while b"[CM-530]> " not in heard and time.monotonic() < deadline:
+            port.write(b"#")
+            heard += port.read(200)
+        port.write(b"\nL\n")
+        assert b"Ready" in port.read_until(b"Ready", 200)
+        port.write(image[:300])
+        time.sleep(0.05)
+        with server._lock:  # the emulator's thread held up, as if descheduled
+            port.write(image[300:])
+            time.sleep(0.4)
+        deadline = time.monotonic() + 5
+        while boot.state == "receive" and time.monotonic() < deadline:
+            time.sleep(0.05)
+    assert boot.image == image
+
+
 def test_sum_excluding_the_last_byte():
     boot = booted(silence_s=0.1, sum_excludes_last=True)
     boot.feed(b"#\nL\n", 0.0)

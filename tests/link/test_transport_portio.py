@@ -101,9 +101,7 @@ def test_flush_input_on_other_ports_goes_through_pyserial():
 
 
 @pytest.mark.parametrize("late_s", [0.0, 0.05])
-def test_a_client_the_host_runs_late_still_gets_its_reply_from_an_emulated_bus(
-    monkeypatch, late_s
-):
+def test_a_client_the_host_runs_late_still_gets_its_reply_from_an_emulated_bus(monkeypatch, late_s):
     """On ``sim://`` a reply is due in the bus's time: a client that the host runs late
     between the pieces of a reply (a busy machine: the fresh-clone flake "no reply to
     WRITE ... within 4.6 ms (3 attempts)") still gets it, on a bus whose clock is its own,

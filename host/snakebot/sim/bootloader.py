@@ -45,10 +45,13 @@ and, with ``pace`` on (the default), bytes are taken from the client no faster t
 from __future__ import annotations
 
 import errno
+import fcntl
 import os
 import select
 import socket
+import struct
 import tempfile
+import termios
 import threading
 import time
 from collections.abc import Callable
@@ -180,8 +183,13 @@ class Bootloader:
         return b""
 
     def feed(self, data: bytes, now: float) -> bytes:
-        """Bytes from the host arrived at ``now``; returns what the bootloader sends back."""
-        out = bytearray(self.poll(now))
+        """Bytes from the host arrived at ``now``; returns what the bootloader sends back.
+
+        Bytes that arrive do not end an image by the silence before them: had the line
+        been silent that long, :meth:`poll` would have ended it then. Coming here late
+        means the emulator was held up while they waited in the terminal (a busy host),
+        and a real line carried them without a pause."""
+        out = bytearray(self.poll(now, line_busy=True))
         for i, byte in enumerate(data):
             if self.state == "receive":
                 out += self._receive(data[i:], now)
@@ -189,9 +197,10 @@ class Bootloader:
             out += self._byte(byte, now)
         return bytes(out)
 
-    def poll(self, now: float) -> bytes:
-        """Let time pass: ends an image after the silence, closes the '#' window."""
-        if self.state == "receive" and (self._rx or self._overflow):
+    def poll(self, now: float, line_busy: bool = False) -> bytes:
+        """Let time pass: ends an image after the silence (unless ``line_busy``: bytes are
+        waiting to be read, so the line was not silent), closes the '#' window."""
+        if self.state == "receive" and (self._rx or self._overflow) and not line_busy:
             if now - self._last_rx >= self.silence_s:
                 return self._store()
         if self.state == "wait_hash" and self._window_end is not None and now >= self._window_end:
@@ -445,9 +454,10 @@ class BootloaderPty(Server):
         credit_t = time.monotonic()
         while True:
             now = time.monotonic()
+            waiting = _bytes_waiting(self._pty.master)
             with self._lock:
                 self._reset_if_due(now)
-                self._send(boot.poll(now))
+                self._send(boot.poll(now, line_busy=waiting))
                 due = [t for t in (boot.next_deadline(), self._reset_at) if t is not None]
             wait = min([IDLE_WAKE_S] + [max(0.0, t - now) for t in due])
             watch = [self._wake_r]
@@ -539,3 +549,11 @@ class BootloaderPty(Server):
             if fd >= 0:
                 os.close(fd)
         self._wake_r = self._wake_w = -1
+
+
+def _bytes_waiting(fd: int) -> bool:
+    """Whether bytes from the client wait in the terminal, unread (FIONREAD)."""
+    try:
+        return struct.unpack("i", fcntl.ioctl(fd, termios.FIONREAD, b"\0\0\0\0"))[0] > 0
+    except OSError:
+        return False

@@ -21,7 +21,9 @@
  * objective on it, where another row enters. Each pivot lowers f, so it ends exactly,
  * at a vertex; a warm start from the previous call's active set (the integrator's) makes
  * most calls a single certificate. Degenerate vertices, which could cycle, are bounded
- * by a pivot budget, after which every vertex is checked (exact, slower). */
+ * by a pivot budget, after which every vertex is checked (exact, slower). Where the
+ * minimum is an edge rather than a point (concurrent axles whose rolling resistances
+ * balance) the answer is the centre of the minima (centre_of_minima). */
 #include "kin_core.h"
 #include "kin_geom.h"
 
@@ -33,6 +35,13 @@
 #define QS_RCOND_MIN 1e-12
 /* Multipliers this far past 1 still certify (rounding). */
 #define QS_CERT_TOL 1e-9
+/* The centre of a set of minima: vertices conditioned at least this well, whose power is
+ * within this tolerance of the least (relative to the problem's power), as far apart
+ * (relative to its speeds) to count as distinct, at most this many. */
+#define QS_CENTRE_RCOND 1e-6
+#define QS_CENTRE_TOL 1e-12
+#define QS_CENTRE_APART 1e-9
+#define QS_MAX_CENTRE 16
 /* Relative size below which a residual counts as zero (the row passes through x). */
 #define QS_ZERO_TOL 1e-12
 
@@ -205,33 +214,143 @@ static int first_set(const qs_problem *p, int32_t s[3])
     return 1;
 }
 
-/* Every vertex, the best kept: the exact answer when pivoting could cycle. */
-static int enumerate(const qs_problem *p, int32_t s[3])
+/* Every vertex whose three rows are conditioned at least rcond_min, in order, handed to
+ * visit with its rows and its point. */
+typedef void (*qs_visit)(void *ctx, const qs_problem *p, const int32_t t[3], const double x[3]);
+
+static void each_vertex(const qs_problem *p, double rcond_min, qs_visit visit, void *ctx)
 {
-    double best = INFINITY, m[3][3], x[3];
-    int found = 0;
+    double m[3][3], x[3];
     for (int32_t i = 0; i < p->rows; i++) {
         for (int32_t j = i + 1; j < p->rows; j++) {
             for (int32_t k = j + 1; k < p->rows; k++) {
                 const int32_t t[3] = {i, j, k};
-                if (inverse3(p, t, m) < QS_RCOND_MIN) {
+                if (inverse3(p, t, m) < rcond_min) {
                     continue;
                 }
                 for (int32_t c = 0; c < 3; c++) {
                     x[c] = m[c][0] * p->b[i] + m[c][1] * p->b[j] + m[c][2] * p->b[k];
                 }
-                const double f = objective(p, x);
-                if (f < best) {
-                    best = f;
-                    s[0] = i;
-                    s[1] = j;
-                    s[2] = k;
-                    found = 1;
-                }
+                visit(ctx, p, t, x);
             }
         }
     }
-    return found;
+}
+
+typedef struct {
+    double best;
+    int32_t s[3];
+    int found;
+} qs_best;
+
+static void keep_best(void *ctx, const qs_problem *p, const int32_t t[3], const double x[3])
+{
+    qs_best *b = (qs_best *)ctx;
+    const double f = objective(p, x);
+    if (f < b->best) {
+        b->best = f;
+        b->s[0] = t[0];
+        b->s[1] = t[1];
+        b->s[2] = t[2];
+        b->found = 1;
+    }
+}
+
+/* Every vertex, the best kept: the exact answer when pivoting could cycle. */
+static int enumerate(const qs_problem *p, int32_t s[3])
+{
+    qs_best b = {INFINITY, {0, 0, 0}, 0};
+    each_vertex(p, QS_RCOND_MIN, keep_best, &b);
+    if (b.found) {
+        s[0] = b.s[0];
+        s[1] = b.s[1];
+        s[2] = b.s[2];
+    }
+    return b.found;
+}
+
+/* The distinct vertices whose power is within slack of the least seen. */
+typedef struct {
+    double f_min, slack, apart;
+    int32_t count;
+    double found[QS_MAX_CENTRE][3];
+} qs_minima;
+
+static void collect_minima(void *ctx, const qs_problem *p, const int32_t t[3], const double x[3])
+{
+    qs_minima *c = (qs_minima *)ctx;
+    (void)t;
+    const double f = objective(p, x);
+    if (f < c->f_min) {
+        c->f_min = f;
+    }
+    if (f > c->f_min + c->slack || c->count == QS_MAX_CENTRE) {
+        return;
+    }
+    for (int32_t n = 0; n < c->count; n++) {
+        const double d[3] = {x[0] - c->found[n][0], x[1] - c->found[n][1],
+                             x[2] - c->found[n][2]};
+        if (absmax3(d) <= c->apart) {
+            return;
+        }
+    }
+    c->found[c->count][0] = x[0];
+    c->found[c->count][1] = x[1];
+    c->found[c->count][2] = x[2];
+    c->count++;
+}
+
+/* Where the minimum is not a point. On concurrent axles whose rolling resistances
+ * balance (four wheels of equal rolling resistance on an arc, as a gait table whose joints
+ * are equal in ticks makes them: a weighted median of an even count) every point of an
+ * edge of the polytope is a minimum, and its ends are degenerate vertices (more than three
+ * rows through them). Which end a solve reaches then depends on rounding, and an
+ * integrator cannot follow a body velocity jumping between the two. The model takes the
+ * centre of the minima: the mean of the distinct minimising vertices, as the median of an
+ * even count is the mean of the middle two. Only called at a degenerate vertex; where the
+ * minimum is one point all its vertices coincide and x is left as it is. */
+static void centre_of_minima(const qs_problem *p, double x[3])
+{
+    /* Sizes: of the speeds, and of the power (its terms' at x = 0), so that a minimum near
+     * zero power (nearly compatible wheels) is judged on the problem's scale. */
+    double scale = absmax3(x), power = 0.0;
+    for (int32_t k = 0; k < p->rows; k++) {
+        scale = qs_max(scale, fabs(p->b[k]));
+        power += p->w[k] * fabs(p->b[k]);
+    }
+    qs_minima c;
+    c.f_min = objective(p, x);
+    c.slack = QS_CENTRE_TOL * power;
+    c.apart = QS_CENTRE_APART * scale;
+    c.count = 0;
+    each_vertex(p, QS_CENTRE_RCOND, collect_minima, &c);
+    /* A vertex kept before a lower minimum turned up is not a minimum: drop it. */
+    double sum[3] = {0.0, 0.0, 0.0};
+    int32_t kept = 0;
+    for (int32_t n = 0; n < c.count; n++) {
+        if (objective(p, c.found[n]) <= c.f_min + c.slack) {
+            sum[0] += c.found[n][0];
+            sum[1] += c.found[n][1];
+            sum[2] += c.found[n][2];
+            kept++;
+        }
+    }
+    if (kept > 1) {
+        x[0] = sum[0] / kept;
+        x[1] = sum[1] / kept;
+        x[2] = sum[2] / kept;
+    }
+}
+
+/* Whether the vertex s (residuals r) is degenerate: a row off s through it. */
+static int degenerate(const qs_problem *p, const int32_t s[3], const double *r, double tol)
+{
+    for (int32_t k = 0; k < p->rows; k++) {
+        if (k != s[0] && k != s[1] && k != s[2] && fabs(r[k]) <= tol) {
+            return 1;
+        }
+    }
+    return 0;
 }
 
 /* Minimise; s holds the active set (a warm start if valid), x the answer, y each row's
@@ -255,6 +374,9 @@ static int qs_minimise(const qs_problem *p, int32_t s[3], double x[3], double *y
         int32_t j = 0;
         const double most = vertex(p, s, m, x, r, y, &tol, &j);
         if (most <= 1.0 + QS_CERT_TOL) {
+            if (degenerate(p, s, r, tol)) {
+                centre_of_minima(p, x);
+            }
             return 1;
         }
         if (pivot == QS_MAX_PIVOTS) {
@@ -318,6 +440,7 @@ static int qs_minimise(const qs_problem *p, int32_t s[3], double x[3], double *y
     *rcond = inverse3(p, s, m);
     int32_t j = 0;
     (void)vertex(p, s, m, x, r, y, &tol, &j);
+    centre_of_minima(p, x); /* pivoting cycled: the vertex is degenerate */
     return 1;
 }
 

@@ -51,6 +51,7 @@ typedef struct {
     double a[QS_MAX_ROWS][3];
     double b[QS_MAX_ROWS];
     double w[QS_MAX_ROWS];
+    double amax[QS_MAX_ROWS]; /* absmax3(a[k]), needed at every vertex */
 } qs_problem;
 
 /* fmax(a, b) (a NaN yields the other), inline: without -ffinite-math-only the compiler
@@ -80,6 +81,7 @@ static void qs_rows(const kin_robot *rb, const kin_wheel_rows *w, double len, qs
             p->a[k][2] = w->n_theta[i] * inv_len;
             p->b[k] = -w->n_joint[i];
             p->w[k] = rb->lateral[i];
+            p->amax[k] = absmax3(p->a[k]);
         }
         if (rb->rolling[i] > 0.0) {
             const int32_t k = p->rows++;
@@ -89,6 +91,7 @@ static void qs_rows(const kin_robot *rb, const kin_wheel_rows *w, double len, qs
             p->a[k][2] = w->t_theta[i] * inv_len;
             p->b[k] = -w->t_joint[i];
             p->w[k] = rb->rolling[i];
+            p->amax[k] = absmax3(p->a[k]);
         }
     }
 }
@@ -136,16 +139,17 @@ static double objective(const qs_problem *p, const double x[3])
 /* The vertex of active set s: x, every row's residual r (exactly 0 on s), the zero
  * tolerance, and each row's friction multiplier y in w y (sign of the residual off s;
  * from the balance of forces on s). Returns the largest |y| on s, and its position in
- * *worst. */
+ * *worst; *through counts the rows off s that pass through the vertex too (a degenerate
+ * vertex). */
 static double vertex(const qs_problem *p, const int32_t s[3], double m[3][3], double x[3],
-                     double *r, double *y, double *tol, int32_t *worst)
+                     double *r, double *y, double *tol, int32_t *worst, int32_t *through)
 {
     for (int32_t i = 0; i < 3; i++) {
         x[i] = m[i][0] * p->b[s[0]] + m[i][1] * p->b[s[1]] + m[i][2] * p->b[s[2]];
     }
     double scale = 0.0;
     for (int32_t k = 0; k < p->rows; k++) {
-        scale = qs_max(scale, fabs(p->b[k]) + absmax3(p->a[k]) * absmax3(x));
+        scale = qs_max(scale, fabs(p->b[k]) + p->amax[k] * absmax3(x));
     }
     *tol = QS_ZERO_TOL * scale;
     double g[3] = {0.0, 0.0, 0.0};
@@ -157,12 +161,15 @@ static double vertex(const qs_problem *p, const int32_t s[3], double m[3][3], do
         r[s[j]] = 0.0;
         y[s[j]] = 0.0;
     }
+    int32_t zero = -3; /* the rows of s */
     for (int32_t k = 0; k < p->rows; k++) {
         const double f = p->w[k] * y[k];
         g[0] += f * p->a[k][0];
         g[1] += f * p->a[k][1];
         g[2] += f * p->a[k][2];
+        zero += y[k] == 0.0;
     }
+    *through = zero;
     /* sum_{j in s} w_j y_j a_j = -g: (w y)_s = -M^T g */
     double most = -1.0;
     for (int32_t j = 0; j < 3; j++) {
@@ -342,17 +349,6 @@ static void centre_of_minima(const qs_problem *p, double x[3])
     }
 }
 
-/* Whether the vertex s (residuals r) is degenerate: a row off s through it. */
-static int degenerate(const qs_problem *p, const int32_t s[3], const double *r, double tol)
-{
-    for (int32_t k = 0; k < p->rows; k++) {
-        if (k != s[0] && k != s[1] && k != s[2] && fabs(r[k]) <= tol) {
-            return 1;
-        }
-    }
-    return 0;
-}
-
 /* Minimise; s holds the active set (a warm start if valid), x the answer, y each row's
  * multiplier, *rcond the vertex's conditioning. Returns 0 when the rows do not span
  * three dimensions (the motion is not determined). */
@@ -361,20 +357,23 @@ static int qs_minimise(const qs_problem *p, int32_t s[3], double x[3], double *y
     double m[3][3], r[QS_MAX_ROWS], tol;
     int valid = s[0] >= 0 && s[1] >= 0 && s[2] >= 0 && s[0] < p->rows && s[1] < p->rows
                 && s[2] < p->rows && s[0] != s[1] && s[1] != s[2] && s[0] != s[2];
-    if (!valid || inverse3(p, s, m) < QS_RCOND_MIN) {
+    /* The warm start's inverse serves the first vertex too. */
+    double warm = valid ? inverse3(p, s, m) : 0.0;
+    if (!valid || warm < QS_RCOND_MIN) {
         if (!first_set(p, s)) {
             return 0;
         }
+        valid = 0;
     }
     for (int32_t pivot = 0; pivot <= QS_MAX_PIVOTS; pivot++) {
-        *rcond = inverse3(p, s, m);
+        *rcond = pivot == 0 && valid ? warm : inverse3(p, s, m);
         if (*rcond < QS_RCOND_MIN) {
             break;
         }
-        int32_t j = 0;
-        const double most = vertex(p, s, m, x, r, y, &tol, &j);
+        int32_t j = 0, through = 0;
+        const double most = vertex(p, s, m, x, r, y, &tol, &j, &through);
         if (most <= 1.0 + QS_CERT_TOL) {
-            if (degenerate(p, s, r, tol)) {
+            if (through > 0) {
                 centre_of_minima(p, x);
             }
             return 1;
@@ -395,7 +394,7 @@ static int qs_minimise(const qs_problem *p, int32_t s[3], double x[3], double *y
                 continue;
             }
             const double ad = p->a[k][0] * dir[0] + p->a[k][1] * dir[1] + p->a[k][2] * dir[2];
-            if (!(fabs(ad) > 1e-12 * absmax3(p->a[k]) * dn)) {
+            if (!(fabs(ad) > 1e-12 * p->amax[k] * dn)) {
                 continue;
             }
             if (fabs(r[k]) <= tol) {
@@ -438,8 +437,8 @@ static int qs_minimise(const qs_problem *p, int32_t s[3], double x[3], double *y
         return 0;
     }
     *rcond = inverse3(p, s, m);
-    int32_t j = 0;
-    (void)vertex(p, s, m, x, r, y, &tol, &j);
+    int32_t j = 0, through = 0;
+    (void)vertex(p, s, m, x, r, y, &tol, &j, &through);
     centre_of_minima(p, x); /* pivoting cycled: the vertex is degenerate */
     return 1;
 }

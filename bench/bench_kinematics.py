@@ -284,8 +284,8 @@ def explain_ratio(t_c: float, evals_c: int, t_py: float, evals_py: int, ratio: f
             ""
             if ratio >= GOAL
             else f"; {GOAL:.0f}x needs the C core at {per_py * evals_py / GOAL / evals_c * 1e9:.0f}"
-            " ns per evaluation of the same method (its sines, cosines and the least "
-            "squares)"
+            " ns per evaluation of the same method (its sines, cosines and the "
+            "friction solve)"
         )
     )
 

@@ -357,16 +357,13 @@ static int qs_minimise(const qs_problem *p, int32_t s[3], double x[3], double *y
     double m[3][3], r[QS_MAX_ROWS], tol;
     int valid = s[0] >= 0 && s[1] >= 0 && s[2] >= 0 && s[0] < p->rows && s[1] < p->rows
                 && s[2] < p->rows && s[0] != s[1] && s[1] != s[2] && s[0] != s[2];
-    /* The warm start's inverse serves the first vertex too. */
-    double warm = valid ? inverse3(p, s, m) : 0.0;
-    if (!valid || warm < QS_RCOND_MIN) {
+    if (!valid || inverse3(p, s, m) < QS_RCOND_MIN) {
         if (!first_set(p, s)) {
             return 0;
         }
-        valid = 0;
     }
     for (int32_t pivot = 0; pivot <= QS_MAX_PIVOTS; pivot++) {
-        *rcond = pivot == 0 && valid ? warm : inverse3(p, s, m);
+        *rcond = inverse3(p, s, m);
         if (*rcond < QS_RCOND_MIN) {
             break;
         }

@@ -21,9 +21,7 @@
  * objective on it, where another row enters. Each pivot lowers f, so it ends exactly,
  * at a vertex; a warm start from the previous call's active set (the integrator's) makes
  * most calls a single certificate. Degenerate vertices, which could cycle, are bounded
- * by a pivot budget, after which every vertex is checked (exact, slower). Where the
- * minimum is an edge rather than a point (concurrent axles whose rolling resistances
- * balance) the answer is the centre of the minima (centre_of_minima). */
+ * by a pivot budget, after which every vertex is checked (exact, slower). */
 #include "kin_core.h"
 #include "kin_geom.h"
 
@@ -35,7 +33,9 @@
 #define QS_RCOND_MIN 1e-12
 /* Multipliers this far past 1 still certify (rounding). */
 #define QS_CERT_TOL 1e-9
-/* The centre of a set of minima: vertices conditioned at least this well, whose power is
+/* Where the minimum is an edge rather than a point (concurrent axles whose rolling
+ * resistances balance) the answer is the centre of the minima (centre_of_minima).
+ * The centre of a set of minima: vertices conditioned at least this well, whose power is
  * within this tolerance of the least (relative to the problem's power), as far apart
  * (relative to its speeds) to count as distinct, at most this many. */
 #define QS_CENTRE_RCOND 1e-6

@@ -1,9 +1,12 @@
 """Benchmark: whole trajectories through the C kinematic core against the best Python
 we could write with scipy.integrate.solve_ivp on the same models, at matched accuracy.
 
-The Python side gets every advantage we know of: two right-hand sides (numpy arrays,
-and plain ``math`` on Python floats, which is faster for these small systems), and
-each of scipy's explicit methods (RK45, DOP853) and LSODA. Accuracy is matched finely:
+The Python side gets every advantage we know of: two right-hand sides (numpy arrays, and
+plain ``math`` on Python floats, which is faster for these small systems), and each of
+scipy's explicit methods (RK45, DOP853) and LSODA. For snake5 the right-hand side is the
+quasi-static Coulomb model's exact L1 minimum (qs_reference.py: every vertex at once in
+numpy; in ``math`` the last vertices and their neighbours tested for optimality first),
+checked against the core's and a HiGHS linear programme's. Accuracy is matched finely:
 each Python combination's error against a tight reference (computed by the core) is
 taken over a grid of :data:`PER_DECADE` tolerances a decade, and its CPU time at exactly
 the core's error is interpolated (log-log) between the two grid points whose errors
@@ -29,12 +32,14 @@ import time
 from collections.abc import Callable
 
 import numpy as np
+from qs_reference import Snake, schedule
 from scipy.integrate import solve_ivp
 
 from snakebot.model.kinematics import (
     Inputs,
     Options,
     Sines,
+    body_velocity,
     integrate_fields,
     integrate_joints,
     integrate_joints_batch,
@@ -51,6 +56,9 @@ PER_DECADE = 8
 SCIPY_RTOLS = tuple(10.0 ** -(5 + k / PER_DECADE) for k in range(7 * PER_DECADE + 1))
 """rtol 1e-5 to 1e-12, loosest first; atol = rtol / 100."""
 CURVE_RTOLS = (1e-7, 1e-8, 1e-9)
+PRUNE = 3.0
+"""A combination whose one untimed run at the target costs this many times the cheapest's
+is not timed in rounds (it cannot be the fastest; the 5-link numpy side would take minutes)."""
 
 Rhs = Callable[[float, np.ndarray], object]
 
@@ -122,6 +130,15 @@ def snake5_c(rtol=RTOL, atol=ATOL, gait=GAIT):
     return snake5_run(rtol, atol, gait).q[-1, :3]
 
 
+SNAKE5_PY = Snake(SNAKE5, GAIT)  # the Python counterpart of the quasi-static model
+
+
+def snake5_core_rhs(t, pose):
+    """The C core's body velocity at (t, pose), one call at a time: for the model check."""
+    phi, dphi = schedule(GAIT, t)
+    return body_velocity(SNAKE5, np.concatenate((pose, phi)), np.array(dphi)).xi
+
+
 # ---- the comparison ----
 
 
@@ -141,29 +158,59 @@ def errors(
     reference: np.ndarray,
     floor: float,
     grid: tuple[float, ...] = SCIPY_RTOLS,
-) -> list[tuple[float, float, int]]:
-    """(rtol, error, evaluations) over ``grid``, loosest first, until the error is ten
-    times under ``floor`` (tighter ones cost more and bracket nothing)."""
+    budget: float = math.inf,
+) -> list[tuple[float, float, int, float]]:
+    """(rtol, error, evaluations, CPU seconds of that one run) over ``grid``, loosest
+    first, until the error is ten times under ``floor`` (tighter ones cost more and
+    bracket nothing) or a run takes more than ``budget`` seconds."""
     points = []
     for rtol in grid:
+        start = time.process_time()
         sol = scipy_solve(rhs, y0, method, rtol)
+        seconds = time.process_time() - start
         err = float(np.abs(sol.y[:width, -1] - reference).max())
-        points.append((rtol, err, sol.nfev))
+        points.append((rtol, err, sol.nfev, seconds))
+        if seconds > budget:
+            break
         if err < floor / 10:
             break
     return points
 
 
-def bracket(points, target: float) -> tuple[float, float, float, int] | None:  # noqa: ANN001
-    """(rtol_a, rtol_b, share, evaluations): ``target`` lies ``share`` of the way (in
-    log error) from the last grid point above it (a) to the first at or under it (b);
-    None if no point reaches it."""
-    for k, (rtol, err, nfev) in enumerate(points):
+def all_curves(
+    rhss: dict[str, Rhs],
+    y0: np.ndarray,
+    width: int,
+    reference: np.ndarray,
+    floor: float,
+    grid: tuple[float, ...],
+) -> dict[tuple[str, str], list[tuple[float, float, int, float]]]:
+    """Every combination's :func:`errors`; once one has gone ten times under ``floor``,
+    a later curve stops at a run costing :data:`PRUNE` times that one's last run (it
+    cannot be the fastest at any target)."""
+    curves = {}
+    budget = math.inf
+    for rhs_name, rhs in rhss.items():
+        for method in METHODS:
+            points = errors(rhs, y0, method, width, reference, floor, grid, budget)
+            curves[rhs_name, method] = points
+            if points[-1][1] < floor / 10:
+                budget = min(budget, PRUNE * points[-1][3])
+    return curves
+
+
+def bracket(points, target: float) -> tuple[float, float, float, int, float] | None:  # noqa: ANN001
+    """(rtol_a, rtol_b, share, evaluations, rough seconds): ``target`` lies ``share`` of
+    the way (in log error) from the last grid point above it (a) to the first at or
+    under it (b), and the untimed runs' seconds interpolated to it; None if no point
+    reaches it."""
+    for k, (rtol, err, nfev, seconds) in enumerate(points):
         if err <= target:
             if k == 0 or err == target:
-                return rtol, rtol, 0.0, nfev
-            rtol_a, err_a, _ = points[k - 1]
-            return rtol_a, rtol, math.log(target / err_a) / math.log(err / err_a), nfev
+                return rtol, rtol, 0.0, nfev, seconds
+            rtol_a, err_a, _, seconds_a = points[k - 1]
+            share = math.log(target / err_a) / math.log(err / err_a)
+            return rtol_a, rtol, share, nfev, seconds_a * (seconds / seconds_a) ** share
     return None
 
 
@@ -178,14 +225,15 @@ def matched(
     """(C seconds, best Python seconds, its description, its evaluations) at error
     ``target``: every Python combination's two bracketing runs and the C run timed in
     interleaved rounds (medians), each combination's time interpolated (log-log) to the
-    target, the fastest taken."""
+    target, the fastest taken (of those within :data:`PRUNE` of the fastest untimed run)."""
     runs: dict[tuple[str, str, float], Callable[[], object]] = {}
+    found_all = {key: bracket(points, target) for key, points in curves.items()}
+    rough = min((found[4] for found in found_all.values() if found), default=math.inf)
     plans = {}
-    for (rhs_name, method), points in curves.items():
-        found = bracket(points, target)
-        if found is None:
+    for (rhs_name, method), found in found_all.items():
+        if found is None or found[4] > PRUNE * rough:
             continue
-        plans[rhs_name, method] = found
+        plans[rhs_name, method] = found[:4]
         for rtol in found[:2]:
             runs[rhs_name, method, rtol] = functools.partial(
                 scipy_run, rhss[rhs_name], y0, method, rtol, width
@@ -207,13 +255,20 @@ def matched(
     return statistics.median(c_times), *best
 
 
-def check_same_model(rhss: dict[str, Rhs], y0: np.ndarray) -> None:
+def check_same_model(rhss: dict[str, Rhs], y0: np.ndarray, others: dict[str, Rhs]) -> str:
+    """The Python right-hand sides, and ``others`` (the core's, an LP's), agree at random
+    states; returns the check's description."""
     rng = np.random.default_rng(1)
+    every = {**rhss, **others}
+    worst = 0.0
     for _ in range(5):
         t, y = float(rng.uniform(0, SPAN)), y0 + rng.normal(0, 0.3, len(y0))
-        values = [np.asarray(f(t, y), dtype=float) for f in rhss.values()]
-        if not np.allclose(values[0], values[1], rtol=1e-9, atol=1e-12):
-            raise SystemExit(f"the right-hand sides disagree at t={t}: {values}")
+        values = [np.asarray(f(t, y), dtype=float) for f in every.values()]
+        for v in values[1:]:
+            if not np.allclose(values[0], v, rtol=1e-9, atol=1e-12):
+                raise SystemExit(f"the right-hand sides disagree at t={t}: {values}")
+            worst = max(worst, float(np.abs(v - values[0]).max()))
+    return f"{', '.join(every)} agree within {worst:.0e} at 5 random states"
 
 
 def explain_ratio(t_c: float, evals_c: int, t_py: float, evals_py: int, ratio: float) -> None:
@@ -229,8 +284,8 @@ def explain_ratio(t_c: float, evals_c: int, t_py: float, evals_py: int, ratio: f
             ""
             if ratio >= GOAL
             else f"; {GOAL:.0f}x needs the C core at {per_py * evals_py / GOAL / evals_c * 1e9:.0f}"
-            " ns per evaluation of the same method (its sines, cosines and the least "
-            "squares)"
+            " ns per evaluation of the same method (its sines, cosines and the "
+            "friction solve)"
         )
     )
 
@@ -263,32 +318,35 @@ def main() -> int:
         f"each timed at the core's error, interpolated on a grid of {PER_DECADE} tolerances a "
         "decade"
     )
-    ratios = {}
-    for name, c_func, c_run, rhss, y0, width in (
+    ratios, python_s = {}, {}
+    for name, c_func, c_run, rhss, others, y0, width in (
         (
             "trident periodic inputs (h1 loop)",
             trident_c,
             trident_run,
             {"numpy": trident_numpy, "math": trident_math},
+            {},
             np.zeros(6),
             6,
         ),
+        (
+            "snake5 serpenoid joints (quasi-static Coulomb wheels)",
+            snake5_c,
+            snake5_run,
+            {"math": SNAKE5_PY.rhs_math_factory(), "numpy": SNAKE5_PY.rhs_numpy},
+            {"C core": snake5_core_rhs, "HiGHS LP": SNAKE5_PY.lp_body_velocity},
+            SNAKE5_PY.y0,
+            3,
+        ),
     ):
-        # No 5-link comparison: the core solves the quasi-static L1 problem (issue 31)
-        # and no Python counterpart of it is written yet.
-        check_same_model(rhss, y0)
+        same = check_same_model(rhss, y0, others)
         reference = c_func(1e-13, 1e-14)
         rtols = (RTOL,) if quick else tuple(sorted({RTOL, *CURVE_RTOLS}, reverse=True))
         curve_c = {
             rtol: float(np.abs(c_func(rtol, rtol / 100) - reference).max()) for rtol in rtols
         }
-        curves = {
-            (rhs_name, method): errors(
-                rhs, y0, method, width, reference, min(curve_c.values()), grid
-            )
-            for rhs_name, rhs in rhss.items()
-            for method in METHODS
-        }
+        curves = all_curves(rhss, y0, width, reference, min(curve_c.values()), grid)
+        closest = min(err for points in curves.values() for _, err, _, _ in points)
         line = []
         for rtol, err_cr in curve_c.items():
             c_at = functools.partial(c_func, rtol, rtol / 100)
@@ -298,6 +356,7 @@ def main() -> int:
                 t_c, err_c, t_py, how, evals_py = t_cr, err_cr, t_pr, how_r, evals_r
         ratio = t_py / t_c
         ratios[name] = ratio
+        python_s[name] = t_py
         print(
             f"{name}:\n  C core {t_c * 1e3:8.3f} ms (error {err_c:.1e})   best Python "
             f"{t_py * 1e3:8.1f} ms ({how}, at the core's error)   speed ratio {ratio:6.0f}x "
@@ -305,14 +364,19 @@ def main() -> int:
         )
         explain_ratio(t_c, int(c_run().stats["evals"]), t_py, evals_py, ratio)
         print("  ratio curve at matched accuracy: " + "; ".join(line))
+        print(
+            f"  same model: {same}; the closest Python trajectory ends {closest:.0e} from "
+            "the core's at rtol 1e-13"
+        )
     n, cpu = batch_throughput(*((4, 4) if quick else (8, 8)))
+    snake5_py = next(seconds for name, seconds in python_s.items() if name.startswith("snake5"))
     per_core = n / cpu
     one = best_time(snake5_c, C_ROUNDS)
     print(
         f"batch: {n} snake5 serpenoid gaits (amplitude x phase lag grid), 10 s each, in one "
         f"call: {per_core:.0f} trajectories per second per core (CPU time); the core one "
-        f"trajectory a call: {1 / one:.0f} a second ({one * per_core:.2f}x). No Python side "
-        "for snake5: its quasi-static wheel model has no Python counterpart"
+        f"trajectory a call: {1 / one:.0f} a second ({one * per_core:.2f}x); the best Python "
+        f"at the core's error: {1 / snake5_py:.1f} a second ({per_core * snake5_py:.0f}x)"
     )
     worst = min(ratios.values())
     print(

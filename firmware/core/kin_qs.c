@@ -33,6 +33,15 @@
 #define QS_RCOND_MIN 1e-12
 /* Multipliers this far past 1 still certify (rounding). */
 #define QS_CERT_TOL 1e-9
+/* Where the minimum is an edge rather than a point (concurrent axles whose rolling
+ * resistances balance) the answer is the centre of the minima (centre_of_minima).
+ * The centre of a set of minima: vertices conditioned at least this well, whose power is
+ * within this tolerance of the least (relative to the problem's power), as far apart
+ * (relative to its speeds) to count as distinct, at most this many. */
+#define QS_CENTRE_RCOND 1e-6
+#define QS_CENTRE_TOL 1e-12
+#define QS_CENTRE_APART 1e-9
+#define QS_MAX_CENTRE 16
 /* Relative size below which a residual counts as zero (the row passes through x). */
 #define QS_ZERO_TOL 1e-12
 
@@ -42,6 +51,7 @@ typedef struct {
     double a[QS_MAX_ROWS][3];
     double b[QS_MAX_ROWS];
     double w[QS_MAX_ROWS];
+    double amax[QS_MAX_ROWS]; /* absmax3(a[k]), needed at every vertex */
 } qs_problem;
 
 /* fmax(a, b) (a NaN yields the other), inline: without -ffinite-math-only the compiler
@@ -71,6 +81,7 @@ static void qs_rows(const kin_robot *rb, const kin_wheel_rows *w, double len, qs
             p->a[k][2] = w->n_theta[i] * inv_len;
             p->b[k] = -w->n_joint[i];
             p->w[k] = rb->lateral[i];
+            p->amax[k] = absmax3(p->a[k]);
         }
         if (rb->rolling[i] > 0.0) {
             const int32_t k = p->rows++;
@@ -80,6 +91,7 @@ static void qs_rows(const kin_robot *rb, const kin_wheel_rows *w, double len, qs
             p->a[k][2] = w->t_theta[i] * inv_len;
             p->b[k] = -w->t_joint[i];
             p->w[k] = rb->rolling[i];
+            p->amax[k] = absmax3(p->a[k]);
         }
     }
 }
@@ -127,16 +139,17 @@ static double objective(const qs_problem *p, const double x[3])
 /* The vertex of active set s: x, every row's residual r (exactly 0 on s), the zero
  * tolerance, and each row's friction multiplier y in w y (sign of the residual off s;
  * from the balance of forces on s). Returns the largest |y| on s, and its position in
- * *worst. */
+ * *worst; *through counts the rows off s that pass through the vertex too (a degenerate
+ * vertex). */
 static double vertex(const qs_problem *p, const int32_t s[3], double m[3][3], double x[3],
-                     double *r, double *y, double *tol, int32_t *worst)
+                     double *r, double *y, double *tol, int32_t *worst, int32_t *through)
 {
     for (int32_t i = 0; i < 3; i++) {
         x[i] = m[i][0] * p->b[s[0]] + m[i][1] * p->b[s[1]] + m[i][2] * p->b[s[2]];
     }
     double scale = 0.0;
     for (int32_t k = 0; k < p->rows; k++) {
-        scale = qs_max(scale, fabs(p->b[k]) + absmax3(p->a[k]) * absmax3(x));
+        scale = qs_max(scale, fabs(p->b[k]) + p->amax[k] * absmax3(x));
     }
     *tol = QS_ZERO_TOL * scale;
     double g[3] = {0.0, 0.0, 0.0};
@@ -148,12 +161,15 @@ static double vertex(const qs_problem *p, const int32_t s[3], double m[3][3], do
         r[s[j]] = 0.0;
         y[s[j]] = 0.0;
     }
+    int32_t zero = -3; /* the rows of s */
     for (int32_t k = 0; k < p->rows; k++) {
         const double f = p->w[k] * y[k];
         g[0] += f * p->a[k][0];
         g[1] += f * p->a[k][1];
         g[2] += f * p->a[k][2];
+        zero += y[k] == 0.0;
     }
+    *through = zero;
     /* sum_{j in s} w_j y_j a_j = -g: (w y)_s = -M^T g */
     double most = -1.0;
     for (int32_t j = 0; j < 3; j++) {
@@ -205,33 +221,132 @@ static int first_set(const qs_problem *p, int32_t s[3])
     return 1;
 }
 
-/* Every vertex, the best kept: the exact answer when pivoting could cycle. */
-static int enumerate(const qs_problem *p, int32_t s[3])
+/* Every vertex whose three rows are conditioned at least rcond_min, in order, handed to
+ * visit with its rows and its point. */
+typedef void (*qs_visit)(void *ctx, const qs_problem *p, const int32_t t[3], const double x[3]);
+
+static void each_vertex(const qs_problem *p, double rcond_min, qs_visit visit, void *ctx)
 {
-    double best = INFINITY, m[3][3], x[3];
-    int found = 0;
+    double m[3][3], x[3];
     for (int32_t i = 0; i < p->rows; i++) {
         for (int32_t j = i + 1; j < p->rows; j++) {
             for (int32_t k = j + 1; k < p->rows; k++) {
                 const int32_t t[3] = {i, j, k};
-                if (inverse3(p, t, m) < QS_RCOND_MIN) {
+                if (inverse3(p, t, m) < rcond_min) {
                     continue;
                 }
                 for (int32_t c = 0; c < 3; c++) {
                     x[c] = m[c][0] * p->b[i] + m[c][1] * p->b[j] + m[c][2] * p->b[k];
                 }
-                const double f = objective(p, x);
-                if (f < best) {
-                    best = f;
-                    s[0] = i;
-                    s[1] = j;
-                    s[2] = k;
-                    found = 1;
-                }
+                visit(ctx, p, t, x);
             }
         }
     }
-    return found;
+}
+
+typedef struct {
+    double best;
+    int32_t s[3];
+    int found;
+} qs_best;
+
+static void keep_best(void *ctx, const qs_problem *p, const int32_t t[3], const double x[3])
+{
+    qs_best *b = (qs_best *)ctx;
+    const double f = objective(p, x);
+    if (f < b->best) {
+        b->best = f;
+        b->s[0] = t[0];
+        b->s[1] = t[1];
+        b->s[2] = t[2];
+        b->found = 1;
+    }
+}
+
+/* Every vertex, the best kept: the exact answer when pivoting could cycle. */
+static int enumerate(const qs_problem *p, int32_t s[3])
+{
+    qs_best b = {INFINITY, {0, 0, 0}, 0};
+    each_vertex(p, QS_RCOND_MIN, keep_best, &b);
+    if (b.found) {
+        s[0] = b.s[0];
+        s[1] = b.s[1];
+        s[2] = b.s[2];
+    }
+    return b.found;
+}
+
+/* The distinct vertices whose power is within slack of the least seen. */
+typedef struct {
+    double f_min, slack, apart;
+    int32_t count;
+    double found[QS_MAX_CENTRE][3];
+} qs_minima;
+
+static void collect_minima(void *ctx, const qs_problem *p, const int32_t t[3], const double x[3])
+{
+    qs_minima *c = (qs_minima *)ctx;
+    (void)t;
+    const double f = objective(p, x);
+    if (f < c->f_min) {
+        c->f_min = f;
+    }
+    if (f > c->f_min + c->slack || c->count == QS_MAX_CENTRE) {
+        return;
+    }
+    for (int32_t n = 0; n < c->count; n++) {
+        const double d[3] = {x[0] - c->found[n][0], x[1] - c->found[n][1],
+                             x[2] - c->found[n][2]};
+        if (absmax3(d) <= c->apart) {
+            return;
+        }
+    }
+    c->found[c->count][0] = x[0];
+    c->found[c->count][1] = x[1];
+    c->found[c->count][2] = x[2];
+    c->count++;
+}
+
+/* Where the minimum is not a point. On concurrent axles whose rolling resistances
+ * balance (four wheels of equal rolling resistance on an arc, as a gait table whose joints
+ * are equal in ticks makes them: a weighted median of an even count) every point of an
+ * edge of the polytope is a minimum, and its ends are degenerate vertices (more than three
+ * rows through them). Which end a solve reaches then depends on rounding, and an
+ * integrator cannot follow a body velocity jumping between the two. The model takes the
+ * centre of the minima: the mean of the distinct minimising vertices, as the median of an
+ * even count is the mean of the middle two. Only called at a degenerate vertex; where the
+ * minimum is one point all its vertices coincide and x is left as it is. */
+static void centre_of_minima(const qs_problem *p, double x[3])
+{
+    /* Sizes: of the speeds, and of the power (its terms' at x = 0), so that a minimum near
+     * zero power (nearly compatible wheels) is judged on the problem's scale. */
+    double scale = absmax3(x), power = 0.0;
+    for (int32_t k = 0; k < p->rows; k++) {
+        scale = qs_max(scale, fabs(p->b[k]));
+        power += p->w[k] * fabs(p->b[k]);
+    }
+    qs_minima c;
+    c.f_min = objective(p, x);
+    c.slack = QS_CENTRE_TOL * power;
+    c.apart = QS_CENTRE_APART * scale;
+    c.count = 0;
+    each_vertex(p, QS_CENTRE_RCOND, collect_minima, &c);
+    /* A vertex kept before a lower minimum turned up is not a minimum: drop it. */
+    double sum[3] = {0.0, 0.0, 0.0};
+    int32_t kept = 0;
+    for (int32_t n = 0; n < c.count; n++) {
+        if (objective(p, c.found[n]) <= c.f_min + c.slack) {
+            sum[0] += c.found[n][0];
+            sum[1] += c.found[n][1];
+            sum[2] += c.found[n][2];
+            kept++;
+        }
+    }
+    if (kept > 1) {
+        x[0] = sum[0] / kept;
+        x[1] = sum[1] / kept;
+        x[2] = sum[2] / kept;
+    }
 }
 
 /* Minimise; s holds the active set (a warm start if valid), x the answer, y each row's
@@ -252,9 +367,12 @@ static int qs_minimise(const qs_problem *p, int32_t s[3], double x[3], double *y
         if (*rcond < QS_RCOND_MIN) {
             break;
         }
-        int32_t j = 0;
-        const double most = vertex(p, s, m, x, r, y, &tol, &j);
+        int32_t j = 0, through = 0;
+        const double most = vertex(p, s, m, x, r, y, &tol, &j, &through);
         if (most <= 1.0 + QS_CERT_TOL) {
+            if (through > 0) {
+                centre_of_minima(p, x);
+            }
             return 1;
         }
         if (pivot == QS_MAX_PIVOTS) {
@@ -273,7 +391,7 @@ static int qs_minimise(const qs_problem *p, int32_t s[3], double x[3], double *y
                 continue;
             }
             const double ad = p->a[k][0] * dir[0] + p->a[k][1] * dir[1] + p->a[k][2] * dir[2];
-            if (!(fabs(ad) > 1e-12 * absmax3(p->a[k]) * dn)) {
+            if (!(fabs(ad) > 1e-12 * p->amax[k] * dn)) {
                 continue;
             }
             if (fabs(r[k]) <= tol) {
@@ -316,8 +434,9 @@ static int qs_minimise(const qs_problem *p, int32_t s[3], double x[3], double *y
         return 0;
     }
     *rcond = inverse3(p, s, m);
-    int32_t j = 0;
-    (void)vertex(p, s, m, x, r, y, &tol, &j);
+    int32_t j = 0, through = 0;
+    (void)vertex(p, s, m, x, r, y, &tol, &j, &through);
+    centre_of_minima(p, x); /* pivoting cycled: the vertex is degenerate */
     return 1;
 }
 

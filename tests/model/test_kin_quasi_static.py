@@ -102,6 +102,25 @@ def test_at_the_singular_line_the_motion_is_defined_and_some_wheel_slides():
     assert np.abs(body_velocity(SNAKE3, q, np.array([1.0, -1.0])).slip).max() < 1e-12
 
 
+def test_where_the_least_power_is_an_edge_the_motion_is_its_centre():
+    """Four links on an arc, bending evenly: the axles meet in the arc's centre and the
+    four equal rolling resistances balance, so the least power is a whole edge of body
+    velocities (two wheels rolling one way and two the other, at any split). The model
+    takes the edge's centre, where all four roll equally fast: the same answer whatever
+    the heading (a solve reaching either end by rounding made it jump)."""
+    bend, rate = 0.48685, 0.511827
+    dphi = np.full(3, rate)
+    rolled = []
+    for heading in (0.0, 1e-9, 0.3, -2.0):
+        q = np.array([0.1, -0.2, heading, bend, bend, bend])
+        xi = body_velocity(SNAKE4, q, dphi).xi
+        assert power(SNAKE4, q, dphi, xi) == pytest.approx(lp_minimum(SNAKE4, q, dphi), rel=1e-9)
+        rolled.append(wheel_speeds(SNAKE4, q, np.concatenate((xi, dphi)))[1])
+    speeds = np.abs(np.array(rolled))
+    assert speeds.min() > 1e-3  # every wheel rolls (at an end of the edge two would not)
+    np.testing.assert_allclose(speeds, speeds[0, 0], rtol=1e-9)
+
+
 def test_the_joints_power_is_what_the_wheels_dissipate():
     rng = np.random.default_rng(3)
     for robot in (SNAKE3, SNAKE5, TRIDENT):

@@ -261,6 +261,8 @@ class _Sweep:
         """The IDs PINGed at this rate, silent so far, whose result is not given yet."""
         self.late: list[Packet] = []
         """PING replies heard for IDs of :attr:`waiting`, not yet taken."""
+        self.last: int | None = None
+        """The ID PINGed last."""
 
     def run(self, ids: Sequence[int]) -> Iterator[Probe]:
         """Each of ``ids``' results, once: the silent ones after their second PING."""
@@ -279,8 +281,11 @@ class _Sweep:
             if final and servo_id not in self.waiting:
                 continue  # its reply to the first PING came late, in the meantime
             heard = self._listen(servo_id)
+            if heard.trouble or heard.reply is not None:
+                self.waiting.pop(servo_id, None)
+            else:  # silent so far: a late reply to it counts from now on
+                self.waiting[servo_id] = None
             yield from self._take_late(final)
-            self.waiting.pop(servo_id, None)
             if heard.trouble:
                 yield from self._settle(self._retry(servo_id), final)
                 if previous is not None and previous in self.waiting:
@@ -289,10 +294,9 @@ class _Sweep:
             elif heard.reply is not None:
                 yield from self._settle(self._found(servo_id, heard.reply), final)
             else:
-                self.waiting[servo_id] = None
                 if final and previous is not None and previous in self.waiting:
                     yield self._given(previous)
-                previous = servo_id
+                previous = servo_id if servo_id in self.waiting else None
                 continue
             # The result above came first, so a caller that counts the bytes heard and
             # sent between results charges the silent one below with none.
@@ -348,6 +352,7 @@ class _Sweep:
         packet = self.pings[servo_id]
         self.io.write(packet)  # first: what follows is done while it is on the wire
         start = time.monotonic()
+        self.last = servo_id
         io, parser, heard = self.io, self.parser, _Heard()
         echo_due = self.client.echo is True
         deadline = start + self.silence
@@ -387,8 +392,21 @@ class _Sweep:
             self.parser.reset()
 
     def _drain(self, servo_id: int) -> None:
-        """Hear what has arrived and not been read, without waiting."""
-        self._feed(self.io.read(QUIET_READ_SIZE, 0), servo_id)
+        """Hear what has arrived and not been read; while the ID PINGed last is still
+        silent, what comes within one more window too (a late reply to it is due then:
+        the READ after would take it for a stray packet and drop it)."""
+        wait = 0.0 if self._last_heard() else self.silence
+        deadline = time.monotonic() + wait
+        while True:
+            self._feed(self.io.read(QUIET_READ_SIZE, wait), servo_id)
+            wait = deadline - time.monotonic()
+            if wait <= 0 or self._last_heard():
+                return
+
+    def _last_heard(self) -> bool:
+        """Whether the ID PINGed last has a result or a reply waiting to be taken."""
+        last = self.last
+        return last not in self.waiting or any(p.id == last for p in self.late)
 
     def _feed(self, data: bytes, servo_id: int) -> None:
         """Hear ``data`` outside a window: only late replies count."""

@@ -21,6 +21,8 @@ from snakebot.formats.protocol import ErrorFlags
 from snakebot.link.bus import scan as bus_scan
 from snakebot.link.transport import DxlClient, open_port, settings
 from snakebot.link.transport.timing import wire_time_s
+from snakebot.sim.options import SimOptions
+from snakebot.sim.transports import PtyServer
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -117,6 +119,31 @@ def test_a_reply_later_than_its_window_is_still_attributed_to_its_id(monkeypatch
     assert [(p.id, p.info.model) for p in probes if p.info] == [(7, "AX-12A")]
 
 
+@pytest.mark.serial  # real time: the reply's lateness is counted in windows of the wall clock
+def test_a_reply_windows_late_on_a_pty_still_finds_its_servo(monkeypatch):
+    # A program answering on a pseudo-terminal delivers replies late when the machine is
+    # busy (beside other work, `sim bus --pty`'s replies came tens of milliseconds late
+    # and a --bauds all scan lost a servo in both passes). Here every reply comes 26 ms
+    # late: two and a half windows, half a window (5 ms) from the PINGs before and after
+    # it, while a later ID's PING is out. It names its ID, and no result for that ID has
+    # been given: the scan must take it, however late.
+    monkeypatch.setenv(settings.ENV_LATENCY_MS, "0")
+    monkeypatch.setenv(settings.ENV_MARGIN_MS, "10")
+    monkeypatch.setenv(settings.ENV_ECHO, "off")
+    delay_s = 26e-3
+    query = f"ids=1&return_delay={bus_scan.longest_return_delay_us():g}&delay={delay_s * 1e3:g}"
+    with (
+        PtyServer(SimOptions.from_query(query).build_bus()) as server,
+        open_port(server.device, 1_000_000, timeout=0) as link,
+    ):
+        silence = bus_scan.silence_s(DxlClient(link, 1_000_000, echo=False))
+        reply = silence - bus_scan.scan_margin_s() + delay_s  # its first byte, after the PING
+        assert 2 * silence < reply < 3 * silence  # two windows late: not the last ID's reply
+        probes = list(bus_scan.scan_probes(link, range(0, 4), [1_000_000]))
+    assert sorted(p.id for p in probes) == [0, 1, 2, 3]  # one result per ID
+    assert [p.id for p in probes if p.info] == [1]
+
+
 @pytest.mark.parametrize("before, rate", [(3_000_000, 2_000_000), (400_000, 500_000)])
 def test_a_servo_that_heard_the_last_rate_as_garbage_answers_after_the_pause(
     monkeypatch, before, rate
@@ -183,9 +210,9 @@ def test_a_servo_whose_first_reply_is_lost_is_found_by_the_second_ping(monkeypat
     pinged: list[int] = []
     listen = bus_scan._Sweep._listen
 
-    def counted(self, servo_id, pending):
+    def counted(self, servo_id):
         pinged.append(servo_id)
-        return listen(self, servo_id, pending)
+        return listen(self, servo_id)
 
     monkeypatch.setattr(bus_scan._Sweep, "_listen", counted)
     with open_port("sim://?ids=1,2,3,4&drop=0.3&seed=0", 1_000_000, timeout=0) as link:

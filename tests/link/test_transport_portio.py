@@ -134,3 +134,24 @@ def test_ports_without_a_clock_of_their_own_count_on_the_wall_clock(pty_port):
     with serial.serial_for_url("sim://?ids=1&realtime=1") as port:
         before = time.monotonic()
         assert before <= PortIO(port).clock() <= time.monotonic()
+
+
+@pytest.mark.parametrize("servo_id", [3, 9])  # one that answers, one that is not there
+def test_sim_exchange_in_one_call_is_the_three_calls(servo_id):
+    # sim:// does a transaction's first round itself (one lock, one bus call each): the
+    # same bytes back, at the same bus time, as its flush, write and timed read one by one
+    frame = protocol.read(servo_id, 36, 2)
+    results = []
+    for one_call in (True, False):
+        port = serial.serial_for_url("sim://?ids=3&return_delay=100", 1_000_000, timeout=0)
+        io = PortIO(port)
+        assert io._exchange is not None  # sim:// has its own
+        if not one_call:
+            io._exchange = None
+        port.write(protocol.ping(3))  # something left unread, for the flush to drop
+        port.bus.run_until(0.01)
+        got = io.exchange(frame, 8, 0.002)
+        results.append((got, port.bus.now, port.timeout))
+        port.close()
+    assert results[0] == results[1]
+    assert len(results[0][0]) == (8 if servo_id == 3 else 0)

@@ -166,14 +166,16 @@ def quiet_s() -> float:
     return FRAME_RESET_S + scan_margin_s()
 
 
-def _quiet(port: serial.SerialBase, seconds: float) -> None:
-    """Send nothing for ``seconds`` (reading and dropping whatever arrives), so every
-    servo abandons a packet it was still waiting for. Waiting in a read, not a sleep,
-    lets an emulated bus's clock run too."""
+def _quiet(
+    port: serial.SerialBase, seconds: float, heard: Callable[[bytes], None] = lambda _: None
+) -> None:
+    """Send nothing for ``seconds`` (reading whatever arrives, for ``heard`` to look at,
+    then dropping it), so every servo abandons a packet it was still waiting for.
+    Waiting in a read, not a sleep, lets an emulated bus's clock run too."""
     deadline = time.monotonic() + seconds
     while (remaining := deadline - time.monotonic()) > 0:
         port.timeout = remaining
-        port.read(QUIET_READ_SIZE)
+        heard(port.read(QUIET_READ_SIZE))
     port.reset_input_buffer()
 
 
@@ -217,11 +219,12 @@ def detect_echo(port: serial.SerialBase, baud: int) -> bool:
 
 @dataclass
 class _Heard:
-    """What one PING's window brought: the PINGed servo's reply, a late reply from the
-    ID PINGed before it, and whether anything came back damaged or incomplete."""
+    """What one PING's window brought: the PINGed servo's reply, whether a whole packet
+    other than the echo came (a late reply, an answer to an earlier READ), and whether
+    anything came back damaged or incomplete."""
 
     reply: Packet | None = None
-    late: Packet | None = None
+    whole: bool = False
     trouble: bool = False
 
 
@@ -229,10 +232,13 @@ class _Sweep:
     """The PINGs of a scan at one rate, back to back, for :func:`scan_probes`.
 
     A silent ID (the rule) costs one write and a wait that ends when :func:`silence_s`
-    says: no flush, no exception, no message. The line is parsed as one
-    stream rather than flushed between IDs, so a reply that turns up after its ID's
-    window (an adapter or a loaded host later than the margin allowed) still counts
-    for the ID it names: an ID's result is given once the next ID's window is over.
+    says: no flush, no exception, no message. The line is parsed as one stream rather
+    than flushed between IDs, and a PING reply counts for the ID it names as long as
+    that ID's result has not been given: a reply that turns up windows after its own
+    (an adapter later than its setting, a busy host, a program answering on a
+    pseudo-terminal that is scheduled late) still finds its servo. An ID found so is
+    given then; a silent one only once its second PING (below) has had the next ID's
+    window too.
 
     An ID whose PING brings something damaged (a corrupted echo on a one-wire adapter,
     noise, a reply begun and never finished, two servos on one ID) gets up to
@@ -242,8 +248,7 @@ class _Sweep:
     marked garbled: something is there.
 
     Every ID still silent at the end of the sweep is PINGed once more (and its result
-    given then), so a servo whose PING or reply was lost to noise, or whose reply came
-    later than the next ID's window, is not missed."""
+    given then), so a servo whose PING or reply was lost to noise is not missed."""
 
     def __init__(self, client: DxlClient, silence: float, pings: Mapping[int, bytes]) -> None:
         self.client = client
@@ -252,53 +257,102 @@ class _Sweep:
         self.io = PortIO(client.port)
         self.parser = PacketParser()
         self.reply_timeout = client.timing.reply_timeout_s(len(protocol.ping(0)), 0)
+        self.waiting: dict[int, None] = {}
+        """The IDs PINGed at this rate, silent so far, whose result is not given yet."""
+        self.late: list[Packet] = []
+        """PING replies heard for IDs of :attr:`waiting`, not yet taken."""
+        self.last: int | None = None
+        """The ID PINGed last."""
 
     def run(self, ids: Sequence[int]) -> Iterator[Probe]:
         """Each of ``ids``' results, once: the silent ones after their second PING."""
-        silent: list[int] = []
-        for probe in self._pass(ids):
-            if probe.info is None and not probe.garbled:
-                silent.append(probe.id)
-            else:
-                yield probe
-        yield from self._pass(silent)
-
-    def _pass(self, ids: Sequence[int]) -> Iterator[Probe]:
-        """One PING for each of ``ids`` (more where replies come back damaged)."""
-        baud = self.client.baudrate
-        pending: int | None = None  # silent so far; its reply may still come
         self.io.flush_input()
+        yield from self._pass(ids, final=False)
+        yield from self._pass([i for i in ids if i in self.waiting], final=True)
+        for servo_id in list(self.waiting):  # none: each was given in the final pass
+            yield self._given(servo_id)
+
+    def _pass(self, ids: Sequence[int], *, final: bool) -> Iterator[Probe]:
+        """One PING for each of ``ids`` still waiting (more where replies come back
+        damaged). A silent ID stays waiting; in the ``final`` pass its result is given
+        once the next ID's window is over."""
+        previous: int | None = None  # silent so far; its reply may still come
         for servo_id in ids:
-            heard = self._listen(servo_id, pending)
-            if heard.late is not None and pending is not None:
-                yield self._found(pending, heard.late)
-                pending = None
+            if final and servo_id not in self.waiting:
+                continue  # its reply to the first PING came late, in the meantime
+            heard = self._listen(servo_id)
+            if heard.trouble or heard.reply is not None:
+                self.waiting.pop(servo_id, None)
+            else:  # silent so far: a late reply to it counts from now on
+                self.waiting[servo_id] = None
+            yield from self._take_late(final)
             if heard.trouble:
-                yield self._retry(servo_id)
-                if pending is not None:  # the damage may have been its reply
-                    yield self._retry(pending)
-                    pending = None
+                yield from self._settle(self._retry(servo_id), final)
+                if previous is not None and previous in self.waiting:
+                    del self.waiting[previous]  # the damage may have been its reply
+                    yield from self._settle(self._retry(previous), final)
             elif heard.reply is not None:
-                yield self._found(servo_id, heard.reply)
+                yield from self._settle(self._found(servo_id, heard.reply), final)
             else:
-                if pending is not None:
-                    yield Probe(pending, baud, None)
-                pending = servo_id
+                if final and previous is not None and previous in self.waiting:
+                    yield self._given(previous)
+                previous = servo_id if servo_id in self.waiting else None
                 continue
             # The result above came first, so a caller that counts the bytes heard and
             # sent between results charges the silent one below with none.
-            if pending is not None:
-                yield Probe(pending, baud, None)
-                pending = None
-        if pending is not None:
-            yield Probe(pending, baud, None)
+            if final and previous is not None and previous in self.waiting:
+                yield self._given(previous)
+            previous = None
+        if final and previous is not None and previous in self.waiting:
+            yield self._given(previous)
 
-    def _listen(self, servo_id: int, pending: int | None) -> _Heard:
+    def _given(self, servo_id: int) -> Probe:
+        """The silent result of a waiting ID, given: no reply will count for it now."""
+        del self.waiting[servo_id]
+        return Probe(servo_id, self.client.baudrate, None)
+
+    def _settle(self, probe: Probe, final: bool) -> Iterator[Probe]:
+        """``probe``, unless it is silent and not ``final`` (the ID then waits for its
+        second PING); then the late replies heard meanwhile."""
+        if probe.info is None and not probe.garbled and not final:
+            self.waiting[probe.id] = None
+        else:
+            yield probe
+        yield from self._take_late(final)
+
+    def _take_late(self, final: bool) -> Iterator[Probe]:
+        """The servos of the late replies heard, each identified (which may hear more)."""
+        while self.late:
+            packet = self.late.pop(0)
+            if packet.id in self.waiting:
+                del self.waiting[packet.id]
+                probe = self._found(packet.id, packet)
+                if probe.info is None and not probe.garbled and not final:
+                    self.waiting[probe.id] = None
+                else:
+                    yield probe
+
+    def _hear(self, event: Packet | Rejected, servo_id: int, heard: _Heard) -> None:
+        """One event of the stream, in the window of ``servo_id``'s PING."""
+        if isinstance(event, Rejected):
+            heard.trouble = True
+            return
+        heard.whole = True
+        if event.id == servo_id:
+            if event.params:  # no PING reply has parameters: not what it seems
+                heard.trouble = True
+            else:
+                heard.reply = event
+        elif event.id in self.waiting and not event.params:
+            self.late.append(event)
+
+    def _listen(self, servo_id: int) -> _Heard:
         """PING ``servo_id`` and listen until the silence window ends or, once a reply
         has begun, its whole reply timeout."""
         packet = self.pings[servo_id]
         self.io.write(packet)  # first: what follows is done while it is on the wire
         start = time.monotonic()
+        self.last = servo_id
         io, parser, heard = self.io, self.parser, _Heard()
         echo_due = self.client.echo is True
         deadline = start + self.silence
@@ -313,34 +367,51 @@ class _Sweep:
             if unheard < 0:  # a reply has begun: it gets its whole time
                 deadline = start + self.reply_timeout
             for event in parser.feed(data):
-                if isinstance(event, Rejected):
-                    heard.trouble = True
-                elif echo_due and event.encode() == packet:
+                if echo_due and isinstance(event, Packet) and event.encode() == packet:
                     echo_due = False  # our own PING: the first packet equal to it
-                elif event.id == servo_id:
-                    if event.params:  # no PING reply has parameters: not what it seems
-                        heard.trouble = True
-                    else:
-                        heard.reply = event
-                elif event.id == pending and not event.params:
-                    heard.late = event
+                else:
+                    self._hear(event, servo_id, heard)
             if heard.reply is not None:
                 break
         # A missing echo means the PING itself may have been damaged; bytes beyond the
-        # echo that made no reply are one damaged past recognition (a collision, noise).
-        heard.trouble |= echo_due or (unheard < 0 and heard.reply is None and heard.late is None)
+        # echo that made no whole packet are one damaged past recognition (a collision,
+        # noise).
+        heard.trouble |= echo_due or (unheard < 0 and not heard.whole)
         return heard
 
     def _identify(self, servo_id: int, reply: Packet) -> ServoInfo | None:
         """The servo that answered with ``reply``, its model read through the client
-        (which flushes the line, so the parser starts afresh); None if that read kept
-        coming back damaged."""
+        (which flushes the line, so the parser starts afresh: what has come is heard
+        first, late replies among it); None if that read kept coming back damaged."""
+        self._drain(servo_id)
         try:
             return _identified(self.client, servo_id, reply)
         except CorruptPacket:
             return None
         finally:
             self.parser.reset()
+
+    def _drain(self, servo_id: int) -> None:
+        """Hear what has arrived and not been read; while the ID PINGed last is still
+        silent, what comes within one more window too (a late reply to it is due then:
+        the READ after would take it for a stray packet and drop it)."""
+        wait = 0.0 if self._last_heard() else self.silence
+        deadline = time.monotonic() + wait
+        while True:
+            self._feed(self.io.read(QUIET_READ_SIZE, wait), servo_id)
+            wait = deadline - time.monotonic()
+            if wait <= 0 or self._last_heard():
+                return
+
+    def _last_heard(self) -> bool:
+        """Whether the ID PINGed last has a result or a reply waiting to be taken."""
+        last = self.last
+        return last not in self.waiting or any(p.id == last for p in self.late)
+
+    def _feed(self, data: bytes, servo_id: int) -> None:
+        """Hear ``data`` outside a window: only late replies count."""
+        for event in self.parser.feed(data):
+            self._hear(event, servo_id, _Heard())
 
     def _found(self, servo_id: int, reply: Packet) -> Probe:
         info = self._identify(servo_id, reply)
@@ -352,9 +423,10 @@ class _Sweep:
         """The further tries of an ID whose PING (or identifying READ) came back damaged."""
         client = self.client
         for _ in range(SCAN_RETRIES):
-            _quiet(client.port, quiet_s())  # ends with a flush
+            # late replies that come in the pause still count; then a flush
+            _quiet(client.port, quiet_s(), lambda data: self._feed(data, servo_id))
             self.parser.reset()
-            heard = self._listen(servo_id, None)
+            heard = self._listen(servo_id)
             if heard.trouble:
                 continue
             if heard.reply is None:

@@ -10,7 +10,8 @@ the whole termios configuration. On such a port :class:`PortIO` writes with one
 polls its last moments, :data:`POLLED_TAIL_S`), on the file descriptor
 pyserial opened (pyserial still owns it: opening, settings, closing). Any other port
 (``sim://``, ``loop://``, sockets, a port handed in by the caller of another kind) goes
-through pyserial unchanged.
+through pyserial unchanged; a port whose class has an ``exchange`` method of its own
+(``sim://``) does a transaction's first round (flush, write, timed read) in one call.
 """
 
 from __future__ import annotations
@@ -47,7 +48,7 @@ class PortIO:
     own where it has one (``port_clock``: an emulated bus with a clock of its own, whose
     replies are due in its time however late the host runs the client)."""
 
-    __slots__ = ("port", "_direct", "clock")
+    __slots__ = ("port", "_direct", "_exchange", "clock")
 
     def __init__(self, port: serial.SerialBase) -> None:
         self.port = port
@@ -55,6 +56,12 @@ class PortIO:
         # Only pyserial's plain POSIX class: its descriptor is non-blocking and read with
         # select, exactly as done here (subclasses such as VTIMESerial read otherwise).
         self._direct = _PosixSerial is not None and type(port) is _PosixSerial
+        # A port whose class does a transaction's first round itself (the emulator's
+        # sim://; not a wrapper that forwards attributes, which would see none of it)
+        own = getattr(type(port), "exchange", None)
+        self._exchange: Callable[[serial.SerialBase, bytes, int], bytes] | None = (
+            own if callable(own) else None
+        )
 
     def write(self, data: bytes) -> None:
         """Put ``data`` on the port (the whole of it)."""
@@ -89,6 +96,9 @@ class PortIO:
         if self._direct and port.is_open:
             self.flush_input()
             self.write(packet)
+        elif self._exchange is not None:
+            _set_timeout(port, timeout)
+            return self._exchange(port, packet, size)
         else:
             port.reset_input_buffer()
             port.write(packet)
@@ -98,9 +108,7 @@ class PortIO:
         """Up to ``size`` bytes, waiting at most ``timeout`` seconds for the first."""
         port = self.port
         if not self._direct or not port.is_open:
-            current = port.timeout
-            if current is None or abs(current - timeout) > TIMEOUT_TOLERANCE_S:
-                port.timeout = timeout
+            _set_timeout(port, timeout)
             return port.read(size)
         fd = port.fd
         try:
@@ -117,6 +125,14 @@ class PortIO:
                 "another program has the port open?)"
             )
         return data
+
+
+def _set_timeout(port: serial.SerialBase, timeout: float) -> None:
+    """``port``'s read timeout ``timeout``, unless it is that already (within
+    :data:`TIMEOUT_TOLERANCE_S`)."""
+    current = port.timeout
+    if current is None or abs(current - timeout) > TIMEOUT_TOLERANCE_S:
+        port.timeout = timeout
 
 
 def _wait_readable(fd: int, timeout: float) -> bool:

@@ -185,16 +185,10 @@ class Serial(SerialBase):
         with self._lock:
             bus = self.bus
             timeout = self._timeout
-            blocking = timeout is None
             if timeout:
-                # A timed read, as a client's transaction makes: the bus runs until the
-                # whole answer is in, which is then handed over in one piece (one call
-                # each, where the loop below would take two rounds).
-                deadline = bus.now + timeout
-                got = bus.master_receive(size, deadline)
-                if len(got) >= size:
-                    return got
-                out = bytearray(got)
+                out = self._timed_read(size, timeout)
+                if len(out) >= size:
+                    return out
             else:
                 out = bytearray(bus.master_read(size))
                 if len(out) >= size:
@@ -207,19 +201,66 @@ class Serial(SerialBase):
                         if len(out) >= size or bus.now == before:
                             break
                     return bytes(out)
-                deadline = bus.now + BLOCKING_SLICE_S
-            while len(out) < size and self.is_open:
-                if bus.run_until_master_data(deadline, size - len(out)):
-                    got = bus.master_read(size - len(out))
-                    out += got
-                    if got:
-                        continue
-                if not blocking:
-                    break
-                time.sleep(BLOCKING_SLICE_S)  # nothing on its way: wait like a real port
-                deadline = bus.now + BLOCKING_SLICE_S
+                self._read_until(out, size, bus.now + BLOCKING_SLICE_S, blocking=True)
+        return self._timed_out(out, began, timeout)
+
+    def exchange(self, data: bytes, size: int) -> bytes:
+        """What :meth:`reset_input_buffer`, :meth:`write` (``data``) and :meth:`read`
+        (``size``) do one after the other (a transaction's first round), in one call and
+        under one lock where the bus runs as fast as possible and the read is timed."""
+        timeout = self._timeout
+        if self._pacer is not None or not timeout or size <= 0 or type(data) is not bytes:
+            self.reset_input_buffer()
+            self.write(data)
+            return self.read(size)
+        if not self.is_open:
+            raise PortNotOpenError()
+        with self._lock:
+            bus = self.bus
+            bus.master_flush_input()
+            if bus.master_tx_done > bus.now:  # as write
+                bus.run_until(bus.master_tx_done)
+            bus.master_write(data)
+            began = time.monotonic()
+            out = self._timed_read(size, timeout)
+            if len(out) >= size:
+                return out
+        return self._timed_out(out, began, timeout)
+
+    def _timed_read(self, size: int, timeout: float) -> bytes | bytearray:
+        """A timed read, as a client's transaction makes (the lock held): the bus runs
+        until the whole answer is in, which is then handed over in one piece (one call
+        each, where :meth:`_read_until` would take two rounds); if it is not, what came
+        by the timeout, in bus time."""
+        bus = self.bus
+        deadline = bus.now + timeout
+        got = bus.master_receive(size, deadline)
+        if len(got) >= size:
+            return got
+        out = bytearray(got)
+        self._read_until(out, size, deadline, blocking=False)
+        return out
+
+    def _read_until(self, out: bytearray, size: int, deadline: float, *, blocking: bool) -> None:
+        """Add to ``out`` what arrives until it holds ``size`` bytes or the bus reaches
+        ``deadline`` (the lock held); ``blocking``: then on, in slices, until it does."""
+        bus = self.bus
+        while len(out) < size and self.is_open:
+            if bus.run_until_master_data(deadline, size - len(out)):
+                got = bus.master_read(size - len(out))
+                out += got
+                if got:
+                    continue
+            if not blocking:
+                break
+            time.sleep(BLOCKING_SLICE_S)  # nothing on its way: wait like a real port
+            deadline = bus.now + BLOCKING_SLICE_S
+
+    @staticmethod
+    def _timed_out(out: bytes | bytearray, began: float, timeout: float | None) -> bytes:
+        """``out``, what a read begun at ``began`` got; a timed read that got nothing
+        costs its time first (counting the bus's own), or a retrying client spins."""
         if not out and timeout:
-            # a timeout costs its time (counting the bus's own), or a retrying client spins
             time.sleep(max(0.0, began + timeout - time.monotonic()))
         return bytes(out)
 

@@ -242,13 +242,17 @@ static int qs_minimise(const qs_problem *p, int32_t s[3], double x[3], double *y
     double m[3][3], r[QS_MAX_ROWS], tol;
     int valid = s[0] >= 0 && s[1] >= 0 && s[2] >= 0 && s[0] < p->rows && s[1] < p->rows
                 && s[2] < p->rows && s[0] != s[1] && s[1] != s[2] && s[0] != s[2];
-    if (!valid || inverse3(p, s, m) < QS_RCOND_MIN) {
+    *rcond = valid ? inverse3(p, s, m) : 0.0;
+    if (*rcond < QS_RCOND_MIN) {
         if (!first_set(p, s)) {
             return 0;
         }
+        *rcond = inverse3(p, s, m);
     }
     for (int32_t pivot = 0; pivot <= QS_MAX_PIVOTS; pivot++) {
-        *rcond = inverse3(p, s, m);
+        if (pivot > 0) {
+            *rcond = inverse3(p, s, m); /* the first: the warm start's, just checked */
+        }
         if (*rcond < QS_RCOND_MIN) {
             break;
         }

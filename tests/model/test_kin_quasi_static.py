@@ -140,7 +140,7 @@ def test_frames_whose_wheels_can_stick_in_several_ways_solve_to_the_least_dissip
     wave = SerpenoidWave(math.radians(24.8), 2 * math.pi, math.radians(60), cycles=3)
     frames = serpenoid_frames(SNAKE5, wave)
     dt = frames.period_ms / 1000.0
-    table = Table(SNAKE5.ticks_to_angles(frames.ticks), dt, frames.loop)
+    table = Table(frames.angles, dt, frames.loop)
     q = integrate_joints(
         SNAKE5, table, frames.duration_s, samples=frames.steps + 1, options=Options("rk4", h=dt)
     ).q

@@ -88,11 +88,18 @@ def _any_outside(robot: Robot, phi: np.ndarray, dphi: np.ndarray | None, check_r
     return dphi is not None and bool((np.abs(dphi) > robot.max_speed_rad_s * (1 + 1e-9)).any())
 
 
-def check_ticks(robot: Robot, ticks: np.ndarray, period_s: float, loop: bool) -> None:
+def check_ticks(
+    robot: Robot,
+    ticks: np.ndarray,
+    period_s: float,
+    loop: bool,
+    angles: np.ndarray | None = None,
+) -> None:
     """The table as the controller plays it: ticks within limits, and the speed of the
-    linear interpolation between frames (including the wrap of a loop) within the servo's."""
+    linear interpolation between frames (including the wrap of a loop) within the servo's.
+    ``angles``: the ticks already converted (robot.ticks_to_angles), if the caller has them."""
     t = np.arange(len(ticks)) * period_s
-    phi = robot.ticks_to_angles(ticks)
+    phi = robot.ticks_to_angles(ticks) if angles is None else angles
     limits = np.array(robot.tick_limits).T
     if ((ticks < limits[0]) | (ticks > limits[1])).any():
         for j, (lo, hi) in enumerate(robot.tick_limits):

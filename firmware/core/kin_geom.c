@@ -162,6 +162,22 @@ int kin_geom_rows(const kin_robot *rb, const double *q, const double *dphi, kin_
     return KIN_OK;
 }
 
+/* The wheels' positions and rolling directions of rows w into pos and dir (either may
+ * be NULL). */
+static void wheels_of(const kin_wheel_rows *w, double *pos, double *dir)
+{
+    for (int32_t i = 0; i < w->count; i++) {
+        if (pos != NULL) {
+            pos[2 * i] = w->px[i];
+            pos[2 * i + 1] = w->py[i];
+        }
+        if (dir != NULL) {
+            dir[2 * i] = w->tx[i];
+            dir[2 * i + 1] = w->ty[i];
+        }
+    }
+}
+
 int kin_wheels(const kin_robot *rb, const double *q, double *pos, double *dir)
 {
     kin_wheel_rows w;
@@ -169,16 +185,7 @@ int kin_wheels(const kin_robot *rb, const double *q, double *pos, double *dir)
     if (rc != KIN_OK) {
         return rc;
     }
-    for (int32_t i = 0; i < w.count; i++) {
-        if (pos != NULL) {
-            pos[2 * i] = w.px[i];
-            pos[2 * i + 1] = w.py[i];
-        }
-        if (dir != NULL) {
-            dir[2 * i] = w.tx[i];
-            dir[2 * i + 1] = w.ty[i];
-        }
-    }
+    wheels_of(&w, pos, dir);
     return KIN_OK;
 }
 
@@ -259,6 +266,26 @@ static void joint_torques(const kin_robot *rb, const double *q, const kin_wheel_
     }
 }
 
+/* kin_quasi_static on rows already made (w, with dphi): the solve and the torques. */
+static int quasi_static_rows(const kin_robot *rb, const double *q, const kin_wheel_rows *w,
+                             int32_t joints, double *xi, double *force, double *torque)
+{
+    double f[2 * KIN_MAX_WHEELS];
+    const int rc = kin_geom_solve(rb, w, NULL, xi, NULL, f, NULL);
+    if (rc != KIN_OK) {
+        return rc;
+    }
+    if (force != NULL) {
+        for (int32_t i = 0; i < 2 * w->count; i++) {
+            force[i] = f[i];
+        }
+    }
+    if (torque != NULL) {
+        joint_torques(rb, q, w, f, joints, torque);
+    }
+    return KIN_OK;
+}
+
 int kin_quasi_static(const kin_robot *rb, const double *q, const double *dphi, double *xi,
                      double *force, double *torque)
 {
@@ -272,20 +299,7 @@ int kin_quasi_static(const kin_robot *rb, const double *q, const double *dphi, d
         return rc;
     }
     (void)kin_check_robot(rb, &joints);
-    double f[2 * KIN_MAX_WHEELS];
-    rc = kin_geom_solve(rb, &w, NULL, xi, NULL, f, NULL);
-    if (rc != KIN_OK) {
-        return rc;
-    }
-    if (force != NULL) {
-        for (int32_t i = 0; i < 2 * w.count; i++) {
-            force[i] = f[i];
-        }
-    }
-    if (torque != NULL) {
-        joint_torques(rb, q, &w, f, joints, torque);
-    }
-    return KIN_OK;
+    return quasi_static_rows(rb, q, &w, joints, xi, force, torque);
 }
 
 int kin_quasi_static_path(const kin_robot *rb, int32_t count, const double *q,
@@ -300,15 +314,21 @@ int kin_quasi_static_path(const kin_robot *rb, int32_t count, const double *q,
     const int32_t n = 3 + joints;
     const int32_t wheels = kin_wheel_count(rb);
     for (int32_t k = 0; k < count; k++) {
+        /* One set of rows per state serves the solve and the wheels (their positions and
+         * directions do not depend on dphi). */
+        kin_wheel_rows w;
         double xi[3];
         rc = KIN_OK;
-        if (torque != NULL) {
-            rc = kin_quasi_static(rb, q, dphi, xi, NULL, torque);
+        if (torque != NULL || pos != NULL || dir != NULL) {
+            rc = kin_geom_rows(rb, q, torque != NULL ? dphi : NULL, &w);
+        }
+        if (rc == KIN_OK && torque != NULL) {
+            rc = quasi_static_rows(rb, q, &w, joints, xi, NULL, torque);
             dphi += joints;
             torque += joints;
         }
         if (rc == KIN_OK && (pos != NULL || dir != NULL)) {
-            rc = kin_wheels(rb, q, pos, dir);
+            wheels_of(&w, pos, dir);
             pos = pos == NULL ? NULL : pos + 2 * wheels;
             dir = dir == NULL ? NULL : dir + 2 * wheels;
         }

@@ -20,8 +20,10 @@
  * moves along the edge that opens to the minimum of the convex, piecewise linear
  * objective on it, where another row enters. Each pivot lowers f, so it ends exactly,
  * at a vertex; a warm start from the previous call's active set (the integrator's) makes
- * most calls a single certificate. Degenerate vertices, which could cycle, are bounded
- * by a pivot budget, after which every vertex is checked (exact, slower). */
+ * most calls a single certificate. Degenerate vertices, which could cycle (a joint at
+ * rest for a frame leaves the wheels behind it all sticking at xi = 0), end in a check
+ * of every vertex (exact, slower) as soon as an active set comes round again, or after
+ * a pivot budget. */
 #include "kin_core.h"
 #include "kin_geom.h"
 
@@ -349,6 +351,17 @@ static void centre_of_minima(const qs_problem *p, double x[3])
     }
 }
 
+/* Whether the active set s is one of the first count of visited. */
+static int seen(const int32_t visited[][3], int32_t count, const int32_t s[3])
+{
+    for (int32_t i = 0; i < count; i++) {
+        if (visited[i][0] == s[0] && visited[i][1] == s[1] && visited[i][2] == s[2]) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
 /* Minimise; s holds the active set (a warm start if valid), x the answer, y each row's
  * multiplier, *rcond the vertex's conditioning. Returns 0 when the rows do not span
  * three dimensions (the motion is not determined). */
@@ -357,13 +370,24 @@ static int qs_minimise(const qs_problem *p, int32_t s[3], double x[3], double *y
     double m[3][3], r[QS_MAX_ROWS], tol;
     int valid = s[0] >= 0 && s[1] >= 0 && s[2] >= 0 && s[0] < p->rows && s[1] < p->rows
                 && s[2] < p->rows && s[0] != s[1] && s[1] != s[2] && s[0] != s[2];
-    if (!valid || inverse3(p, s, m) < QS_RCOND_MIN) {
+    *rcond = valid ? inverse3(p, s, m) : 0.0;
+    if (*rcond < QS_RCOND_MIN) {
         if (!first_set(p, s)) {
             return 0;
         }
-    }
-    for (int32_t pivot = 0; pivot <= QS_MAX_PIVOTS; pivot++) {
         *rcond = inverse3(p, s, m);
+    }
+    /* The active sets visited: each pivot is a function of the (ordered) active set
+     * alone, so meeting one again means a cycle that would run out the pivot budget and
+     * end in enumerate; it goes there at once, to the same answer. */
+    int32_t visited[QS_MAX_PIVOTS + 1][3];
+    for (int32_t pivot = 0; pivot <= QS_MAX_PIVOTS; pivot++) {
+        if (pivot > 0) {
+            *rcond = inverse3(p, s, m); /* the first: the warm start's, just checked */
+        }
+        visited[pivot][0] = s[0];
+        visited[pivot][1] = s[1];
+        visited[pivot][2] = s[2];
         if (*rcond < QS_RCOND_MIN) {
             break;
         }
@@ -429,6 +453,9 @@ static int qs_minimise(const qs_problem *p, int32_t s[3], double x[3], double *y
             break; /* unbounded along the edge: cannot happen when the rows span R^3 */
         }
         s[j] = enter;
+        if (seen(visited, pivot + 1, s)) {
+            break;
+        }
     }
     if (!enumerate(p, s)) {
         return 0;

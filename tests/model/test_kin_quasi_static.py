@@ -11,10 +11,14 @@ import numpy as np
 import pytest
 from scipy.optimize import linprog
 
+from snakebot.model.gait.serpenoid import SerpenoidWave, serpenoid_frames
 from snakebot.model.kinematics import (
+    Options,
     SingularConfiguration,
+    Table,
     body_velocity,
     fields,
+    integrate_joints,
     quasi_static,
     quasi_static_path,
     wheel_speeds,
@@ -144,6 +148,32 @@ def test_a_whole_path_in_one_call_is_each_state_solved_on_its_own():
             pos, direction = wheels(robot, q[k])
             np.testing.assert_array_equal(path.pos[k], pos)
             np.testing.assert_array_equal(path.dir[k], direction)
+
+
+def test_frames_whose_wheels_can_stick_in_several_ways_solve_to_the_least_dissipation():
+    """A table of ticks holds joints still for a frame while others turn together
+    (snake5's 24.8 deg serpenoid: joints 1 and 4 at rest, 2 and 3 at about one speed):
+    several sets of sticking wheels then dissipate the same, a degenerate vertex where
+    the solver's pivots come round in a cycle. It must still end at the minimum, in a
+    path as on its own."""
+    wave = SerpenoidWave(math.radians(24.8), 2 * math.pi, math.radians(60), cycles=3)
+    frames = serpenoid_frames(SNAKE5, wave)
+    dt = frames.period_ms / 1000.0
+    table = Table(frames.angles, dt, frames.loop)
+    q = integrate_joints(
+        SNAKE5, table, frames.duration_s, samples=frames.steps + 1, options=Options("rk4", h=dt)
+    ).q
+    mid, dphi = 0.5 * (q[1:] + q[:-1]), np.diff(q[:, 3:], axis=0) / dt
+    still = (dphi[:, 0] == 0.0) & (dphi[:, 3] == 0.0)
+    assert still.sum() >= 2
+    path = quasi_static_path(SNAKE5, mid[still], dphi[still])
+    for k, (state, rates) in enumerate(zip(mid[still], dphi[still], strict=True)):
+        qs = quasi_static(SNAKE5, state, rates)
+        np.testing.assert_array_equal(path.torque[k], qs.torque)
+        assert power(SNAKE5, state, rates, qs.xi) == pytest.approx(
+            lp_minimum(SNAKE5, state, rates), rel=1e-9, abs=1e-12
+        )
+        assert float(qs.torque @ rates) == pytest.approx(power(SNAKE5, state, rates, qs.xi))
 
 
 def test_a_path_names_the_state_it_could_not_solve():

@@ -5,6 +5,7 @@ resuming from the table, seeded random and CMA-ES, the best gait, the plots, bad
 import csv
 import json
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -24,6 +25,8 @@ from snakebot.workflows.search import (
     evaluate,
 )
 from snakebot.workflows.search.results import read_results
+from snakebot.workflows.search.runner import DaskRunner, LocalRunner, batches_of
+from snakebot.workflows.search.search import PER_RUN_S
 
 GRID = ("--param", "A=10deg:50deg:5", "--param", "delta=30deg:150deg:4", "--param", "omega=360deg")
 
@@ -348,3 +351,21 @@ def test_the_pareto_front_keeps_the_points_nothing_beats_on_both():
     cost = np.array([1.0, 2.0, 2.0, 3.0, 0.5, 4.0])
     gain = np.array([1.0, 3.0, 2.0, 2.5, 0.2, 3.5])
     assert _front(cost, gain).tolist() == [4, 0, 1, 5]
+
+
+@pytest.mark.parametrize("kind", [LocalRunner, DaskRunner], ids=["local", "dask"])
+def test_batches_shrink_towards_the_end_but_not_below_a_hand_overs_worth(kind):
+    """8000 kinematic runs for two workers: few large batches first, small ones last (so
+    the workers finish together), none under the runner's least worthwhile work but the
+    remainder, none over a quarter of a worker's share."""
+    runner = SimpleNamespace(workers=2, batch_s=kind.batch_s)
+    points = [{"amplitude": float(k)} for k in range(8000)]
+    per_run = PER_RUN_S["kinematic"]
+    batches = batches_of(points, runner, per_run)
+    assert [p for b in batches for p in b] == points
+    sizes = [len(b) for b in batches]
+    assert sizes == sorted(sizes, reverse=True)
+    assert max(sizes) <= 8000 // (4 * 2)
+    assert min(sizes[:-1]) * per_run >= runner.batch_s * 0.99
+    assert sizes[-2] * per_run <= 2 * runner.batch_s  # the end is fine-grained
+    assert len(batches) <= 20  # hand-overs stay few

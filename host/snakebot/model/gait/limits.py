@@ -33,6 +33,8 @@ def check_motion(
     joint velocities (rad/s), or None to skip the speed check."""
     problems: list[tuple[float, str]] = []
     vmax = robot.max_speed_rad_s
+    if not _any_outside(robot, phi, dphi, check_range):
+        return  # the common case, in a few array operations (a search checks every run)
     for j, joint in enumerate(robot.joints):
         low = np.flatnonzero(phi[:, j] < joint.min_rad - 1e-12) if check_range else []
         high = np.flatnonzero(phi[:, j] > joint.max_rad + 1e-12) if check_range else []
@@ -75,20 +77,40 @@ def check_motion(
         )
 
 
-def check_ticks(robot: Robot, ticks: np.ndarray, period_s: float, loop: bool) -> None:
+def _any_outside(robot: Robot, phi: np.ndarray, dphi: np.ndarray | None, check_range: bool) -> bool:
+    """Whether any sample breaks a limit check_motion checks (the same comparisons, all
+    joints at once)."""
+    if check_range:
+        low = np.array([j.min_rad for j in robot.joints]) - 1e-12
+        high = np.array([j.max_rad for j in robot.joints]) + 1e-12
+        if (phi < low).any() or (phi > high).any():
+            return True
+    return dphi is not None and bool((np.abs(dphi) > robot.max_speed_rad_s * (1 + 1e-9)).any())
+
+
+def check_ticks(
+    robot: Robot,
+    ticks: np.ndarray,
+    period_s: float,
+    loop: bool,
+    angles: np.ndarray | None = None,
+) -> None:
     """The table as the controller plays it: ticks within limits, and the speed of the
-    linear interpolation between frames (including the wrap of a loop) within the servo's."""
+    linear interpolation between frames (including the wrap of a loop) within the servo's.
+    ``angles``: the ticks already converted (robot.ticks_to_angles), if the caller has them."""
     t = np.arange(len(ticks)) * period_s
-    phi = robot.ticks_to_angles(ticks)
-    for j, (lo, hi) in enumerate(robot.tick_limits):
-        bad = np.flatnonzero((ticks[:, j] < lo) | (ticks[:, j] > hi))
-        if bad.size:
-            k = int(bad[0])
-            raise GaitLimitError(
-                f"frame {k} (t = {t[k]:.3f} s) sets joint {robot.joints[j].name} to tick "
-                f"{int(ticks[k, j])}, outside its limits {lo}..{hi}; no file was written"
-            )
-    following = np.roll(phi, -1, axis=0) if loop else phi[1:]
+    phi = robot.ticks_to_angles(ticks) if angles is None else angles
+    limits = np.array(robot.tick_limits).T
+    if ((ticks < limits[0]) | (ticks > limits[1])).any():
+        for j, (lo, hi) in enumerate(robot.tick_limits):
+            bad = np.flatnonzero((ticks[:, j] < lo) | (ticks[:, j] > hi))
+            if bad.size:
+                k = int(bad[0])
+                raise GaitLimitError(
+                    f"frame {k} (t = {t[k]:.3f} s) sets joint {robot.joints[j].name} to tick "
+                    f"{int(ticks[k, j])}, outside its limits {lo}..{hi}; no file was written"
+                )
+    following = np.concatenate((phi[1:], phi[:1])) if loop else phi[1:]
     speed = (following - phi[: len(following)]) / period_s
     check_motion(
         robot,

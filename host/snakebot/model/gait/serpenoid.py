@@ -49,6 +49,7 @@ class SerpenoidFrames:
     motion is predicted (what a search needs of every candidate)."""
 
     ticks: np.ndarray  # (frames, joints)
+    angles: np.ndarray  # the ticks' joint angles (rad): the table as the controller plays it
     period_ms: int
     loop: bool
     omega_used: float
@@ -112,9 +113,10 @@ def serpenoid_frames(robot: Robot, wave: SerpenoidWave) -> SerpenoidFrames:
     t_frames = np.arange(frames) * dt
     phi = amplitude * np.sin(omega_used * t_frames[:, None] + np.array(schedule.phase)) + offset
     ticks = robot.angles_to_ticks(phi)
-    check_ticks(robot, ticks, dt, loop)
+    angles = robot.ticks_to_angles(ticks)
+    check_ticks(robot, ticks, dt, loop, angles)
 
-    return SerpenoidFrames(ticks, period_ms, loop, omega_used, schedule, steps)
+    return SerpenoidFrames(ticks, angles, period_ms, loop, omega_used, schedule, steps)
 
 
 def serpenoid(

@@ -41,18 +41,17 @@ def effort(robot: Robot, q: np.ndarray, period_s: float) -> Effort:
     q = np.asarray(q, dtype=float)
     unit = 1.0 if robot.physics is None else robot.physics.unit_m
     mid = 0.5 * (q[1:] + q[:-1])
-    speed = np.diff(q[:, 3:], axis=0) / period_s
+    speed = (q[1:, 3:] - q[:-1, 3:]) / period_s
     path = quasi_static_path(robot, mid, speed)
     torque = path.torque * unit
     pos = path.pos * unit
-    t = path.dir
-    normal = np.stack((-t[..., 1], t[..., 0]), axis=-1)
     count = len(mid)
     work = float(np.sum(torque * speed) * period_s)
-    lat_max, _ = robot.wheel_friction_n()
     ratio = 0.0
     if count >= 3:
         acc = (pos[2:] - 2 * pos[1:-1] + pos[:-2]) / period_s**2
-        a_n = np.einsum("kwi,kwi->kw", acc, normal[1:-1])
+        t = path.dir[1:-1]
+        a_n = acc[..., 1] * t[..., 0] - acc[..., 0] * t[..., 1]  # along the normal (-t_y, t_x)
+        lat_max, _ = robot.wheel_friction_n()
         ratio = float((np.abs(robot.wheel_masses_kg() * a_n) / lat_max).max())
     return Effort(speed, torque, work, ratio)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Literal
 
 import numpy as np
@@ -187,7 +188,7 @@ class Robot:
     def servo_ids(self) -> tuple[int, ...]:
         return tuple(j.servo_id for j in self.joints)
 
-    @property
+    @cached_property
     def tick_limits(self) -> tuple[tuple[int, int], ...]:
         return tuple(j.tick_range for j in self.joints)
 
@@ -213,6 +214,15 @@ class Robot:
             return None
         return TORQUE_LIMIT.to_units(self.torque_limit)
 
+    @cached_property
+    def _tick_map(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each joint's zero tick and sign (read-only arrays, built once per robot: a
+        search converts a table per run)."""
+        zero = np.array([j.zero_tick for j in self.joints], dtype=float)
+        sign = np.array([j.sign for j in self.joints], dtype=float)
+        zero.flags.writeable = sign.flags.writeable = False
+        return zero, sign
+
     def angles_to_ticks(self, phi: np.ndarray) -> np.ndarray:
         """Joint angles (radians, last axis = joints) to AX-12 goal ticks (int64, rounded)."""
         phi = np.asarray(phi, dtype=float)
@@ -221,8 +231,7 @@ class Robot:
                 f"{self.name} has {self.n_joints} joints but got angles of shape {phi.shape}: "
                 "give one angle per joint in the last axis"
             )
-        zero = np.array([j.zero_tick for j in self.joints], dtype=float)
-        sign = np.array([j.sign for j in self.joints], dtype=float)
+        zero, sign = self._tick_map
         return np.rint(zero + sign * phi * TICKS_PER_RAD).astype(np.int64)
 
     def ticks_to_angles(self, ticks: np.ndarray) -> np.ndarray:
@@ -233,6 +242,5 @@ class Robot:
                 f"{self.name} has {self.n_joints} joints but got ticks of shape {ticks.shape}: "
                 "give one tick value per joint in the last axis"
             )
-        zero = np.array([j.zero_tick for j in self.joints], dtype=float)
-        sign = np.array([j.sign for j in self.joints], dtype=float)
+        zero, sign = self._tick_map
         return (ticks - zero) / (sign * TICKS_PER_RAD)

@@ -85,11 +85,10 @@ def _frames(robot: Robot, settings: Settings, point: dict[str, float]) -> Serpen
 
 
 def _kinematic(robot: Robot, f: SerpenoidFrames) -> dict[str, float]:
-    angles = robot.ticks_to_angles(f.ticks)
     period = f.period_ms / 1000.0
     traj = integrate_joints(
         robot,
-        Table(angles, period, f.loop),
+        Table(f.angles, period, f.loop),
         f.duration_s,
         samples=f.steps + 1,
         options=Options("rk4", h=period),

@@ -39,7 +39,7 @@ OBJECTIVES = {
 }
 """Objective -> (metric, +1 to maximise or -1 to minimise)."""
 METHODS = ("grid", "random", "cma")
-PER_RUN_S = {"kinematic": 0.002, "mujoco": 0.5}
+PER_RUN_S = {"kinematic": 0.0008, "mujoco": 0.5}
 """Rough cost of one run (s), to size the batches handed to the workers."""
 CHECKPOINT_S = 2.0
 CMA_SIGMA0 = 0.3
@@ -160,31 +160,36 @@ class Search:
 
     def _evaluate(self, points: list[dict[str, float]]) -> list[Candidate]:
         runs = self._runs(points)
-        todo, seen = [], set()
-        for run in itertools.chain.from_iterable(runs):
-            key = run_key(run)
+        # each run's key made once (a run costs well under a millisecond, its key some
+        # 10 us): a row comes back with its run's parameters, so its key is its run's
+        keys = [[run_key(r) for r in rs] for rs in runs]
+        todo, todo_keys, seen = [], [], set()
+        for run, key in zip(
+            itertools.chain.from_iterable(runs), itertools.chain.from_iterable(keys), strict=True
+        ):
             if key in self.done:
                 if key not in seen:
                     self.reused += 1
                     self._tick(1)
             elif key not in seen:
                 todo.append(run)
+                todo_keys.append(key)
             seen.add(key)
         per_run = PER_RUN_S.get(self.request.settings.world, 0.5)
         batches = batches_of(todo, self.runner, per_run)
+        starts = list(itertools.accumulate((len(b) for b in batches), initial=0))
         base = settings_row(self.request.settings)
-        for _, rows in self.runner.run(self.request.settings, batches):
-            for row in rows:
+        for i, rows in self.runner.run(self.request.settings, batches):
+            for key, row in zip(todo_keys[starts[i] : starts[i + 1]], rows, strict=True):
                 full = {**base, **row}
-                self.done[run_key(row)] = full
+                self.done[key] = full
                 self.rows.append(full)
             self.evaluated += len(rows)
             self._tick(len(rows))
             if time.monotonic() - self._saved > CHECKPOINT_S:
                 self.save()
         return [
-            self._score(p, [self.done[run_key(r)] for r in rs])
-            for p, rs in zip(points, runs, strict=True)
+            self._score(p, [self.done[k] for k in ks]) for p, ks in zip(points, keys, strict=True)
         ]
 
     def _score(self, point: dict[str, float], rows: list[dict[str, Any]]) -> Candidate:

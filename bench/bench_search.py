@@ -113,8 +113,8 @@ def main() -> int:
         f"   physics world:   {phys:8.2f} runs/s/core "
         f"(goal {GOAL_PHYSICS:.0f}: {verdict(phys, GOAL_PHYSICS)})"
     )
-    # about 10 s on one worker: a kinematic run takes about 1.3 ms, so a grid of 2000
-    # (what it was when a run took 12 ms) timed the pools' dispatch more than the search
+    # about 8 s on one worker: a kinematic run takes about 1 ms, so a grid of 2000 (what
+    # it was when a run took 12 ms) timed the pools' dispatch more than the search
     count, rounds = (60, 2) if quick else (800, 2)
     print(
         f"== parallel efficiency, 1 -> 2 workers: a kinematic grid of {count * 10} runs, "

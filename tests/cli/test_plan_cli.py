@@ -36,9 +36,7 @@ seeded target that was (seed 13's second) is refused since the model takes the c
 the minima where the least power is an edge: its loops pass frames whose joints are equal,
 and the planner's outcome turns on how those are resolved (PLANNER_LIMIT)."""
 
-PLANNER_LIMIT = {tuple(t) for t in targets("snake5", 13, 3)} | {
-    tuple(targets("snake5", 41, 1)[0])
-}
+PLANNER_LIMIT = {tuple(t) for t in targets("snake5", 13, 3)} | {tuple(targets("snake5", 41, 1)[0])}
 """snake5 targets the planner finds no loops for since the kinematic world became
 quasi-static Coulomb (issue 31, open). Not a physical limit: the loop solver's least
 squares fits smooth harmonics to a motion with kinks (where a wheel switches between

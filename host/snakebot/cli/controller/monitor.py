@@ -92,6 +92,10 @@ def monitor(
     live = sys.stdout.isatty() and not as_json
     shown = 0
     view = SampleStream(robot) if foxglove is not None or mcap_path is not None else None
+    if view is None and robot is not None:  # unused here, but a bad one is bad input
+        from snakebot.model.robots import load_robot
+
+        load_robot(robot)
     # Only files this run creates may be removed again: a path that was there before
     # (a file of the user's, a device such as /dev/null) is never unlinked.
     created = [p for p in (csv_path, mcap_path) if p is not None and not os.path.lexists(p)]

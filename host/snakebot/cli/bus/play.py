@@ -76,6 +76,10 @@ def bus_play(
     """
     table = read_gait(gait)
     player = player_for(table, loop, gait)
+    if robot is not None and foxglove is None:  # unused here, but a bad one is bad input
+        from snakebot.model.robots import load_robot
+
+        load_robot(robot)
     total = tick_count(table, loop)
     bar = click.progressbar(
         length=total or 0, label="Playing", file=sys.stderr, hidden=as_json or total is None

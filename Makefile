@@ -29,10 +29,12 @@ export MUJOCO_GL ?= egl
 unexport PYTHONDONTWRITEBYTECODE
 
 # pytest workers for the stages of `make test` (see there): twice the cores for most of
-# the suite, one per core for the tests that run QEMU, three for the serial tests.
+# the suite, one per core for the tests that run QEMU, twice the cores for the serial
+# tests (they mostly wait on ptys and the wall clock: on 2 cores, 4 workers took 69-75 s
+# where 3 took 84-88 s, and all four runs were green).
 TEST_JOBS   ?= $(shell echo $$(( $$(nproc) * 2 )))
 QEMU_JOBS   ?= $(shell nproc)
-SERIAL_JOBS ?= 3
+SERIAL_JOBS ?= $(shell echo $$(( $$(nproc) * 2 )))
 
 .PHONY: dist help setup system-packages demo-packages python-env runtime-env core firmware \
         test test-summary test-collect test-parallel test-qemu test-serial test-fuzz-wheel test-fuzz test-wheel lint fuzz-targets bench demo flash flash-image clean fuzz docs
@@ -136,7 +138,7 @@ LOW         := nice -n 10
 #   each second for them), so the QEMU stage runs beside the other stages (REALTIME),
 #   and on a busy machine both stages run there. Within the class a process that wants
 #   the CPU waits for another's 100 ms turn to end: more busy workers than cores there
-#   broke the serial stage's timing, whose three workers stay at HIGH on an idle
+#   broke the serial stage's timing, whose workers stay at HIGH on an idle
 #   machine, after every other stage.
 REALTIME    := $(shell chrt --rr 1 true 2>/dev/null && echo yes)
 HIGH        := $(shell nice -n -10 true 2>/dev/null && echo nice -n -10)

@@ -369,3 +369,15 @@ def test_batches_shrink_towards_the_end_but_not_below_a_hand_overs_worth(kind):
     assert min(sizes[:-1]) * per_run >= runner.batch_s * 0.99
     assert sizes[-2] * per_run <= 2 * runner.batch_s  # the end is fine-grained
     assert len(batches) <= 20  # hand-overs stay few
+
+
+def test_no_batch_holds_more_than_a_second_of_work():
+    """A long search on one worker reports, checkpoints and stops between batches: its
+    first batch was a quarter of the grid (22 s of a 90,000-run grid), so the first
+    checkpoint, and a SIGTERM's exit, waited that long."""
+    from snakebot.workflows.search.runner import LONGEST_BATCH_S
+
+    runner = SimpleNamespace(workers=1, batch_s=LocalRunner.batch_s)
+    per_run = PER_RUN_S["kinematic"]
+    batches = batches_of([{"k": k} for k in range(90_000)], runner, per_run)
+    assert max(len(b) for b in batches) * per_run <= LONGEST_BATCH_S

@@ -122,14 +122,20 @@ def make_runner(workers: int | None, cluster: str | None) -> Runner:
     return LocalRunner(workers)
 
 
+LONGEST_BATCH_S = 1.0
+"""The most work one batch holds: progress, the checkpoint (every two seconds) and a stop
+come between batches, so a search of minutes still reports and saves every second or
+so (one worker's first batch of a 90,000-run grid was 22 s of work)."""
+
+
 def batches_of(points: Batch, runner: Runner, per_run_s: float) -> list[Batch]:
     """Split ``points`` into batches, handed out in order, each a (2 w)-th of the points
     left (w workers: guided self-scheduling), so the first are large (few hand-overs) and
     the last small (the workers finish together); none smaller than ``runner.batch_s``
     of work (a hand-over's cost) nor larger than a (4 w)-th of all (every worker gets
-    several, for balance and progress)."""
+    several, for balance and progress) or :data:`LONGEST_BATCH_S` of work."""
     least = max(1, int(runner.batch_s / per_run_s))
-    most = max(1, len(points) // (4 * runner.workers))
+    most = max(1, min(len(points) // (4 * runner.workers), int(LONGEST_BATCH_S / per_run_s)))
     out, start = [], 0
     while start < len(points):
         left = len(points) - start

@@ -294,6 +294,15 @@ def robot_option(
     )
 
 
+def check_unused_robot(robot: str | None) -> None:
+    """Load ``robot`` (a name or a file) where the command has no use for it this time
+    (--robot only serves another option): a bad one is still bad input, exit 2."""
+    if robot is not None:
+        from snakebot.model.robots import load_robot
+
+        load_robot(robot)
+
+
 def roster_option(func: F) -> F:
     """--robot of the commands that start a wave on the controller."""
     return robot_option(

@@ -14,6 +14,7 @@ from snakebot.cli.options import (
     FOXGLOVE_RATE_HZ,
     BusLink,
     bus_options,
+    check_unused_robot,
     foxglove_option,
     robot_option,
 )
@@ -76,10 +77,8 @@ def bus_play(
     """
     table = read_gait(gait)
     player = player_for(table, loop, gait)
-    if robot is not None and foxglove is None:  # unused here, but a bad one is bad input
-        from snakebot.model.robots import load_robot
-
-        load_robot(robot)
+    if foxglove is None:
+        check_unused_robot(robot)
     total = tick_count(table, loop)
     bar = click.progressbar(
         length=total or 0, label="Playing", file=sys.stderr, hidden=as_json or total is None

@@ -3,14 +3,12 @@
 The bus clock follows the wall clock (``snakebot.sim.bus.clock.WallClockPacer``): bytes read
 from the client go on the wire at the moment they arrive, and bytes for the client are
 handed over when the emulated wire has delivered them, so a client's reply timeouts
-mean what they do on real hardware. A packet from the client goes on the wire once the
-replies to those before it are in (see :meth:`Pump._feed`): as a client waits for them,
-only a pump that ran late could otherwise make them meet.
-
-Between events the thread sleeps in ``select``; as the kernel wakes sleepers late (Linux
-by its 50 us timer slack, which the thread lowers, and a virtual machine by tens of
-microseconds more), it sleeps short by the lateness it has seen and polls the last
-stretch, so bytes go out on time.
+mean what they do on real hardware. Packets that reach the pump together go out one
+after the other as the line allows: each after the replies to those before it are in
+(see :meth:`Pump._feed`). Between events the thread sleeps in ``select``;
+as the kernel wakes sleepers late (Linux by its 50 us timer slack, which the thread
+lowers, and a virtual machine by tens of microseconds more), it sleeps short by the
+lateness it has seen and polls the last stretch, so bytes go out on time.
 """
 
 from __future__ import annotations
@@ -128,42 +126,42 @@ class Pump:
             view = view[n:]
         return True
 
-    def _feed(self) -> None:
-        """Put the client's packets waiting here on the wire (the lock held), each once
-        nothing is on its way to the client.
+    def _feed(self, first: bool) -> None:
+        """Put the client's packets waiting here on the wire (the lock held): the
+        ``first`` at once, each further one once nothing is on its way to the client.
 
         A client sends an instruction and waits for its reply (or its time) before the
         next, so on a real line its packets never meet the replies they ask for. Here
-        they reach the pump late whenever this process or the kernel's tty work is
-        scheduled late (beside busy processes, by tens to hundreds of milliseconds):
-        several at once, or one put on the wire so late that the client, its window
-        over, sends the next while the reply is still to come. Put on the wire as they
-        are read, the later ones would collide with the replies to the earlier, damage
-        that no bus with that client on it would see. A servo that does not answer
-        leaves the line quiet, so packets nobody answers (a scan's silent IDs, a stream
-        of SYNC_WRITEs) still go back to back; a client that means to talk over a reply
-        cannot be emulated here."""
+        the pump may read several at once: the client's writes pile up in the terminal
+        while this process or the kernel's tty work is scheduled late (beside busy
+        processes, by tens to hundreds of milliseconds). Put on the wire back to back,
+        the later ones would collide with the replies to the earlier, damage that no
+        bus with that client on it would see. A servo that does not answer leaves the
+        line quiet, so packets nobody answers still go back to back."""
         bus = self.bus
         backlog = self._backlog
         while backlog:
-            arrival = bus.next_master_arrival(1 << 20)
-            if arrival is not None and arrival > bus.now:
-                return
+            if not first:
+                arrival = bus.next_master_arrival(1 << 20)
+                if arrival is not None and arrival > bus.now:
+                    return
             bus.master_write(backlog.popleft())
             # Nothing the client sends now can reach the wire before these bytes are
             # out, so the bus may run that far ahead of the wall clock: the servos take
             # the instruction at once and the reply is scheduled without another
             # wake-up. (A later write starts at most that late.)
             bus.run_until(bus.master_tx_done)
+            first = False
 
     def _take(self, data: bytes) -> None:
         """The client's ``data``, packet by packet, onto the bus (the lock held)."""
+        first = not self._backlog
         start = 0
         for end in frame_ends(data):
             if end > start:
                 self._backlog.append(data[start:end])
             start = end
-        self._feed()
+        self._feed(first)
 
     def run(self) -> None:
         """Serve until :attr:`stopped` is set or the client's stream ends."""
@@ -176,7 +174,7 @@ class Pump:
             with self.lock:
                 bus.run_until(pacer.now())
                 if self._backlog:
-                    self._feed()
+                    self._feed(False)
                 out = bus.master_read(1 << 20)
             if out and not self._send(out):  # first the client, then the bookkeeping
                 return

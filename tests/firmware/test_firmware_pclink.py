@@ -5,7 +5,6 @@ the replies must not stop the control loop (nor may the emulator's link to QEMU)
 from __future__ import annotations
 
 import contextlib
-import glob
 import os
 import random
 import termios
@@ -23,6 +22,7 @@ from firmware_support import (
     client,
     wait_for_boot,
 )
+from host_queue import STARVED_SHARE, HostQueue
 
 from snakebot.facts.boards import CONTROL_TICK_MS
 from snakebot.formats.protocol import Instruction, ProtocolError, read
@@ -38,9 +38,6 @@ FILL_TIMEOUT_S = 30.0  # replies leave at 57600 baud: about 4 s fill the termina
 FLOOD_S = 3.0  # how long the goals are watched with the terminal full
 FLOOD_WINDOWS = 3
 """Windows tried: one where the host let QEMU run is measured."""
-STARVED_SHARE = 0.2
-"""A window whose goals fall short while QEMU's CPU waited for the host longer than this
-share of it is measured again (the host, not the firmware, may have cost the ticks)."""
 MAX_GAP_S = 0.25
 """The longest pause between goal writes allowed while flooded. A blocked QEMU stops the
 goals for seconds (the issue saw their age grow to 3.9 s); on the shared 2-core machine
@@ -68,38 +65,6 @@ class GoalTimes:
 
     def between(self, t0: float, t1: float) -> list[float]:
         return [t for t in self.times if t0 <= t <= t1]
-
-
-class HostQueue:
-    """How long the host's scheduler kept QEMU's busiest thread (its emulated CPU) waiting
-    to run since :meth:`mark`, from ``/proc/PID/task/*/schedstat`` (nanoseconds on the CPU,
-    then runnable but not running). A window in which it waited long may lose control
-    ticks to the host, not to the firmware."""
-
-    def __init__(self, pid: int) -> None:
-        self._pid = pid
-        self._base = self._stats()
-
-    def _stats(self) -> dict[str, tuple[int, int]]:
-        out = {}
-        for stat in glob.glob(f"/proc/{self._pid}/task/*/schedstat"):
-            with contextlib.suppress(OSError, IndexError, ValueError):
-                ran, waited = open(stat).read().split()[:2]
-                out[stat] = (int(ran), int(waited))
-        return out
-
-    def mark(self) -> None:
-        self._base = self._stats()
-
-    def waited_s(self) -> float:
-        deltas = [
-            (
-                ran - self._base.get(t, (ran, waited))[0],
-                waited - self._base.get(t, (ran, waited))[1],
-            )
-            for t, (ran, waited) in self._stats().items()
-        ]
-        return max(deltas, default=(0, 0))[1] / 1e9
 
 
 @pytest.fixture

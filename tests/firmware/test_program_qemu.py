@@ -12,6 +12,7 @@ import time
 import numpy as np
 import pytest
 from firmware_support import build_firmware
+from host_queue import HostQueue
 
 from snakebot.facts.devices import ax12
 from snakebot.formats.program import PeriodicSegment, Program, SerpenoidSegment, TableSegment
@@ -130,32 +131,59 @@ def test_a_program_reaches_the_servos_as_predicted():
     assert len(set(seen)) >= 0.8 * total  # nearly every step reached the servos
 
 
+ATTEMPTS = 3
+"""Plays of the planned program tried: one in which the host let QEMU run is judged."""
+
+
+def _play_planned(program) -> tuple[np.ndarray, bool]:
+    """Where the world's body ends after the firmware in QEMU plays ``program``, and
+    whether the host kept QEMU's CPU waiting for much of the play (then the firmware's
+    ticks came late and the body's end says nothing about the firmware)."""
+    with EmulatedRobot("trident") as robot:
+        queue = HostQueue(robot.info.qemu_pid)
+        ctl = ControllerClient.open(robot.info.pc_link)
+        try:
+            upload_gait(ctl, program)
+            queue.mark()
+            began = time.monotonic()
+            assert playback.play(ctl).get("program")
+            assert program_done(ctl, program.duration_s)["Program State"] == 2  # DONE
+            starved = queue.starved(time.monotonic() - began)
+        finally:
+            ctl.close()
+        with robot.lock:
+            moved = robot.record().displacement()
+    return np.array([moved["dx"], moved["dy"], moved["dtheta"]]), starved
+
+
 def test_a_planned_program_takes_the_robot_where_predicted(tmp_path):
     """`snakebot plan trident --to ... -o go.prog`, uploaded to the firmware in QEMU and
     run there: the world's body ends where `sim predict go.prog` says, on the same
-    modelled servos (the controller's player in process), and near the plan's target."""
+    modelled servos (the controller's player in process), and near the plan's target.
+    A play in which the host kept QEMU waiting is tried again (QEMU runs in real time)."""
     build_firmware()
     target = (0.4, 0.15, 0.25)
     plan = plan_program(PlanRequest(load_robot("trident"), target))
     path = tmp_path / "go.prog"
     write_program(path, plan.program)
     predicted = predict_program(path).summary()
-    with EmulatedRobot("trident") as robot:
-        ctl = ControllerClient.open(robot.info.pc_link)
-        try:
-            upload_gait(ctl, plan.program)
-            assert playback.play(ctl).get("program")
-            assert program_done(ctl, plan.program.duration_s)["Program State"] == 2  # DONE
-        finally:
-            ctl.close()
-        with robot.lock:
-            moved = robot.record().displacement()
-
-    end = np.array([moved["dx"], moved["dy"], moved["dtheta"]])
     emulated = predicted["emulated"]  # modelled AX-12s, as in QEMU's world
     expected = np.array([emulated["dx"], emulated["dy"], emulated["dtheta"]])
     tolerance = plan.tolerance
-    assert np.hypot(*(end[:2] - expected[:2])) <= tolerance.position, (end, expected)
+
+    late = []
+    for _ in range(ATTEMPTS):
+        end, starved = _play_planned(plan.program)
+        off = np.hypot(*(end[:2] - expected[:2]))
+        within = off <= tolerance.position and abs(end[2] - expected[2]) <= tolerance.heading
+        if within or not starved:
+            break
+        late.append(f"{off * 1000:.1f} mm off")
+    assert len(late) < ATTEMPTS, (
+        "the host kept QEMU's CPU waiting through every play, so where the body ended says "
+        f"nothing about the firmware ({'; '.join(late)}): run it with less beside it"
+    )
+    assert off <= tolerance.position, (end, expected, f"plays lost to the host before: {late}")
     assert abs(end[2] - expected[2]) <= tolerance.heading, (end, expected)
     # and the prediction from the reference goals is the plan's, at the target
     reference = predicted["predicted"]

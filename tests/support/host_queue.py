@@ -1,0 +1,53 @@
+"""How long the host kept an emulator's busiest thread waiting to run.
+
+QEMU runs the firmware in real time: a stretch in which the host's scheduler kept QEMU's
+emulated CPU waiting loses control ticks to the host, not to the firmware. Tests that
+judge the firmware's timing measure that wait and try again when the host, not the
+firmware, decided the outcome."""
+
+from __future__ import annotations
+
+import contextlib
+import glob
+
+STARVED_SHARE = 0.2
+"""A stretch in which QEMU's CPU waited for the host longer than this share of it says
+nothing about the firmware's timing: it is measured again."""
+
+
+class HostQueue:
+    """How long the host's scheduler kept process ``pid``'s busiest thread (QEMU's emulated
+    CPU) waiting to run since :meth:`mark`, from ``/proc/PID/task/*/schedstat``
+    (nanoseconds on the CPU, then runnable but not running)."""
+
+    def __init__(self, pid: int) -> None:
+        self._pid = pid
+        self._base = self._stats()
+
+    def _stats(self) -> dict[str, tuple[int, int]]:
+        out = {}
+        for stat in glob.glob(f"/proc/{self._pid}/task/*/schedstat"):
+            with contextlib.suppress(OSError, IndexError, ValueError):
+                ran, waited = open(stat).read().split()[:2]
+                out[stat] = (int(ran), int(waited))
+        return out
+
+    def mark(self) -> None:
+        """Count from now."""
+        self._base = self._stats()
+
+    def waited_s(self) -> float:
+        """Seconds the busiest thread (most CPU since :meth:`mark`) waited to run."""
+        deltas = [
+            (
+                ran - self._base.get(t, (ran, waited))[0],
+                waited - self._base.get(t, (ran, waited))[1],
+            )
+            for t, (ran, waited) in self._stats().items()
+        ]
+        return max(deltas, default=(0, 0))[1] / 1e9
+
+    def starved(self, seconds: float) -> bool:
+        """Whether the busiest thread waited more than :data:`STARVED_SHARE` of the last
+        ``seconds``."""
+        return self.waited_s() > STARVED_SHARE * seconds

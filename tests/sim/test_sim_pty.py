@@ -9,13 +9,14 @@ import os
 import signal
 import subprocess
 import sys
+import time
 
 import dynamixel_sdk as sdk
 import pytest
 from realtime import ordinary_priority
 
 from snakebot.formats import protocol as P
-from snakebot.link.transport import DxlClient
+from snakebot.link.transport import DxlClient, open_port
 from snakebot.sim.options import SimOptions
 from snakebot.sim.transports import PtyServer
 
@@ -139,6 +140,28 @@ def test_snakebot_client_over_the_pty(served):
         assert c.read_u16(16, 32) == 222
         c.sync_write(25, 1, {sid: b"\x01" for sid in IDS})
         assert [c.read_u8(sid, 25) for sid in IDS] == [1, 1, 1, 1]
+
+
+def test_pings_that_reach_the_server_together_do_not_talk_over_their_replies():
+    # A client's PINGs pile up in the terminal while the server (or the kernel's tty
+    # work) is scheduled late; here twelve come in one write. Back to back on the wire,
+    # the ninth would start within servo 1's Return Delay Time and collide with its
+    # reply (a busy machine's --bauds all scan lost every servo so). Each goes once the
+    # replies to those before it are in: all three replies come back whole.
+    ids = range(1, 13)
+    delay_us = 508
+    assert len(ids) * len(P.ping(1)) * 10 > delay_us  # at 1 Mbps: 10 us a byte
+    bus = SimOptions.from_query(f"ids=1,2,3&return_delay={delay_us}").build_bus()
+    with PtyServer(bus) as server, open_port(server.device, 1_000_000, timeout=0) as port:
+        port.write(b"".join(P.ping(i) for i in ids))
+        heard = b""
+        deadline = time.monotonic() + 0.5
+        while len(heard) < 3 * 6 and time.monotonic() < deadline:
+            port.timeout = deadline - time.monotonic()
+            heard += port.read(3 * 6 - len(heard))
+        collisions = bus.stats.collisions
+    assert heard == b"".join(P.status(i, 0, b"") for i in (1, 2, 3))
+    assert collisions == 0
 
 
 def test_snakebot_sim_bus_serves_a_pty_until_interrupted(tmp_path):

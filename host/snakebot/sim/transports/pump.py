@@ -3,7 +3,9 @@
 The bus clock follows the wall clock (``snakebot.sim.bus.clock.WallClockPacer``): bytes read
 from the client go on the wire at the moment they arrive, and bytes for the client are
 handed over when the emulated wire has delivered them, so a client's reply timeouts
-mean what they do on real hardware. Between events the thread sleeps in ``select``;
+mean what they do on real hardware. Packets that reach the pump together go out one
+after the other as the line allows: each after the replies to those before it are in
+(see :meth:`Pump._feed`). Between events the thread sleeps in ``select``;
 as the kernel wakes sleepers late (Linux by its 50 us timer slack, which the thread
 lowers, and a virtual machine by tens of microseconds more), it sleeps short by the
 lateness it has seen and polls the last stretch, so bytes go out on time.
@@ -18,10 +20,12 @@ import select
 import sys
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.bus.clock import WallClockPacer
+from snakebot.sim.bus.delivery import frame_ends
 
 IDLE_WAKE_S = 0.05
 """Longest sleep when the bus has nothing scheduled (it keeps the clock moving)."""
@@ -83,6 +87,7 @@ class Pump:
         self.stopped = False
         self.overruns = 0
         self._late = 0.0  # how late the kernel wakes this thread, on average (seconds)
+        self._backlog: deque[bytes] = deque()  # the client's packets not yet on the wire
 
     def _sleep(self, fds: list[int], delay: float) -> list[int]:
         """Wait until one of ``fds`` is readable (return those) or ``delay`` seconds
@@ -121,6 +126,43 @@ class Pump:
             view = view[n:]
         return True
 
+    def _feed(self, first: bool) -> None:
+        """Put the client's packets waiting here on the wire (the lock held): the
+        ``first`` at once, each further one once nothing is on its way to the client.
+
+        A client sends an instruction and waits for its reply (or its time) before the
+        next, so on a real line its packets never meet the replies they ask for. Here
+        the pump may read several at once: the client's writes pile up in the terminal
+        while this process or the kernel's tty work is scheduled late (beside busy
+        processes, by tens to hundreds of milliseconds). Put on the wire back to back,
+        the later ones would collide with the replies to the earlier, damage that no
+        bus with that client on it would see. A servo that does not answer leaves the
+        line quiet, so packets nobody answers still go back to back."""
+        bus = self.bus
+        backlog = self._backlog
+        while backlog:
+            if not first:
+                arrival = bus.next_master_arrival(1 << 20)
+                if arrival is not None and arrival > bus.now:
+                    return
+            bus.master_write(backlog.popleft())
+            # Nothing the client sends now can reach the wire before these bytes are
+            # out, so the bus may run that far ahead of the wall clock: the servos take
+            # the instruction at once and the reply is scheduled without another
+            # wake-up. (A later write starts at most that late.)
+            bus.run_until(bus.master_tx_done)
+            first = False
+
+    def _take(self, data: bytes) -> None:
+        """The client's ``data``, packet by packet, onto the bus (the lock held)."""
+        first = not self._backlog
+        start = 0
+        for end in frame_ends(data):
+            if end > start:
+                self._backlog.append(data[start:end])
+            start = end
+        self._feed(first)
+
     def run(self) -> None:
         """Serve until :attr:`stopped` is set or the client's stream ends."""
         bus = self.bus
@@ -131,6 +173,8 @@ class Pump:
         while not self.stopped:
             with self.lock:
                 bus.run_until(pacer.now())
+                if self._backlog:
+                    self._feed(False)
                 out = bus.master_read(1 << 20)
             if out and not self._send(out):  # first the client, then the bookkeeping
                 return
@@ -170,12 +214,7 @@ class Pump:
                     if baud:
                         bus.baudrate = baud
                     bus.run_until(pacer.now())
-                    bus.master_write(data)
-                    # Nothing the client sends now can reach the wire before these bytes
-                    # are out, so the bus may run that far ahead of the wall clock: the
-                    # servos take the instruction at once and the reply is scheduled
-                    # without another wake-up. (A later write starts at most that late.)
-                    bus.run_until(bus.master_tx_done)
+                    self._take(data)
 
 
 class ServerThread:

@@ -108,7 +108,7 @@ def check(lines: list[Line]) -> list[str]:
                     "`# real hardware only`"
                 )
             elif line.kind == "run":
-                problems += run_line(line, emulators)
+                problems += run_line(line, emulators)[1]
     finally:
         emulators.close()
     return problems

@@ -347,6 +347,12 @@ def write_command(
     with _on_the_bus(bus) as client:
         back = bus_registers.write_register(client, servo_id, entry, number)
     decoded = register_values.decode(entry, number)
+    said = {}  # with --robot, the joint's angle the value stands for, as `bus read` says it
+    if joint is not None:
+        said = {
+            "joint": joint.name,
+            "joint_deg": round(math.degrees(joint.tick_to_angle(number)), 1),
+        }
     if as_json:
         click.echo(
             dumps(
@@ -355,12 +361,15 @@ def write_command(
                     "register": entry.name,
                     "address": entry.address,
                     "value": number,
+                    **said,
                     "read_back": back,
                 }
             )
         )
         return
     shown = register_values.describe_value(decoded)
+    if said:
+        shown += f"; joint {said['joint']} {said['joint_deg']:+g} deg"
     text = f"servo {servo_id}: {entry.name} ({entry.address}) = {shown}"
     if back is not None:
         text += ", reads back " + ("the same" if back == number else str(back))

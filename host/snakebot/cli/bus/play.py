@@ -107,7 +107,7 @@ def bus_play(
         how = "stopped by Ctrl-C" if played.stopped_at is not None else "finished"
         click.echo(
             f"Played {report['played_s']:.2f} s of {gait} ({how}); the servos hold at "
-            + ", ".join(f"{sid}: {pos}" for sid, pos in played.held.items())
+            + ", ".join(f"tick {pos} (servo {sid})" for sid, pos in played.held.items())
         )
         if played.caught_up:
             click.echo(

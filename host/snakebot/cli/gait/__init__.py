@@ -297,6 +297,10 @@ def show(file: Path, plot: Path | None, as_json: bool) -> None:
     Two checksums are shown: the header CRC, stored in the table's header over the rest
     of the table, and the file CRC-32 of all its bytes, which is what `snakebot upload`
     and `snakebot monitor` call the table's CRC-32 (the controller's Table CRC).
+
+    \b
+        snakebot gait show walk.gait
+        snakebot gait show walk.gait --plot walk.png --json
     """
     from snakebot.formats.gaittable import describe_table, read_gait
 

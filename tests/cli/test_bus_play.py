@@ -46,6 +46,10 @@ def test_play_once_ends_on_the_last_frame(tmp_path):
     # one tick per 10 ms over the 200 ms pass, both ends included
     assert report["ticks"] == (len(FRAMES) - 1) * PERIOD_MS // TICK_MS + 1
     assert report["stopped_by_user"] is False
+    text = CliRunner().invoke(
+        main, ["bus", "play", gait_file(tmp_path, False), "--port", "sim://?ids=1,2&ideal=1"]
+    )
+    assert "the servos hold at tick 620 (servo 1), tick 700 (servo 2)" in text.stdout, text.output
 
 
 def test_loop_needs_a_looping_gait(tmp_path):

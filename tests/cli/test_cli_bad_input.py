@@ -14,10 +14,12 @@ import tty
 import zlib
 from pathlib import Path
 
+import click
 import pytest
 from click.testing import CliRunner
 
 from snakebot.cli import main
+from snakebot.cli.params import RobotType
 from snakebot.cli.troubleshooting import ERROR_LINE
 from snakebot.errors import LINE_LIMIT
 from snakebot.model.robots import load_robot
@@ -199,6 +201,39 @@ def test_robot_toml_servo_faster_than_its_datasheet(tmp_path: Path) -> None:
         text += '[servo]\nmodel = "AX-12A"\nmax_speed_rpm = 70\n'
     line = assert_one_line_error(_show_robot(tmp_path, text.encode()), mentions="max_speed_rpm")
     assert "59" in line  # the AX-12A's datasheet figure it exceeds
+
+
+def commands_with_a_robot_option() -> list[tuple[list[str], list[str]]]:
+    """The command path of every command with --robot, -r (``robot_option``), and a
+    --port if it has one (a port that opens: the robot must be refused before it)."""
+    found = []
+
+    def walk(cmd: click.Command, path: list[str]) -> None:
+        if isinstance(cmd, click.Group):
+            ctx = click.Context(cmd)
+            for name in cmd.list_commands(ctx):
+                walk(cmd.get_command(ctx, name), [*path, name])  # type: ignore[arg-type]
+        elif any(isinstance(p.type, RobotType) for p in cmd.params):
+            port = [p for p in cmd.params if p.name == "port"]
+            found.append((path, ["--port", "loop://"] if port else []))
+
+    walk(main, [])
+    return found
+
+
+def test_every_robot_option_refuses_a_bad_robot_while_parsing(tmp_path: Path) -> None:
+    """Also `bus play` and `monitor`, which use --robot only with another option: the
+    robot is checked before the port, the files or the arguments."""
+    commands = commands_with_a_robot_option()
+    paths = [path for path, _ in commands]
+    assert ["monitor"] in paths and ["bus", "play"] in paths and len(paths) >= 8
+    fifo = tmp_path / "robot.toml"
+    os.mkfifo(fifo)  # not a file: refused without being opened (a FIFO would block)
+    for command, port in commands:
+        for robot in ("snake4", str(fifo)):
+            result = run(*command, "--robot", robot, *port)
+            line = assert_one_line_error(result, mentions=f"no robot {robot!r}")
+            assert "--robot" in line, line
 
 
 # -- numbers -------------------------------------------------------------------------------

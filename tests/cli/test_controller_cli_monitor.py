@@ -111,6 +111,8 @@ def test_plain_text_without_a_terminal(controller_with_table):
     assert "\x1b[" not in out  # no cursor movement when not on a terminal
     assert out.count("state IDLE") == 2  # two samples, one after the other
     assert "joint   ID  goal   pos" in out and "error flags: none" in out
+    # every column's unit, on the line under the names
+    assert "tick  tick       deg        rpm       %     V  degC" in out
 
 
 def test_an_empty_roster_is_explained(controller):

@@ -5,6 +5,7 @@ explained when it breaks a limit; every distance printed carries its unit."""
 from __future__ import annotations
 
 import json
+import re
 import sys
 
 import pytest
@@ -77,6 +78,8 @@ def test_distances_are_printed_with_their_unit(tmp_path):
         + ["--cycles", "1", "-o", gait],
     )
     assert "dx = " in made.stdout and " m  dy = " in made.stdout  # snake5 is in metres
+    shown = runner.invoke(main, ["gait", "show", gait])  # the same unit, read from FILE.json
+    assert " m  dy = " in shown.stdout and " u " not in shown.stdout, shown.output
     predicted = runner.invoke(main, ["sim", "predict", gait])
     assert predicted.exit_code == 0, predicted.output
     assert "m in position" in predicted.stdout and " m/s sideways" in predicted.stdout
@@ -92,3 +95,10 @@ def test_distances_are_printed_with_their_unit(tmp_path):
         main, ["plan", "trident", "--to", "2,1,30deg", "-o", str(tmp_path / "g.gait")]
     )
     assert " u  y = " in shown.stdout and "1 u = 0.1 m" in shown.stdout
+    shown = runner.invoke(main, ["gait", "show", str(tmp_path / "g.gait")])
+    assert " u  dy = " in shown.stdout and "1 u = 0.1 m" in shown.stdout, shown.output
+    program = runner.invoke(
+        main, ["plan", "trident", "--to", "0.3,0.1,20deg", "-o", str(tmp_path / "go.prog")]
+    )
+    counts = re.findall(r"\((\d+) (steps?)\)", program.stdout)
+    assert counts and all((n == "1") == (word == "step") for n, word in counts), program.output

@@ -10,7 +10,8 @@ A command line is one of:
   ``flash``;
 * **hardware**: marked ``# real hardware only`` in the text, not run;
 * **until Ctrl-C**: a command that runs until interrupted, as its help says (a looping
-  ``bus play``, ``monitor`` without a duration, ``drive`` reading the keyboard);
+  ``bus play``, ``monitor`` without a duration, ``drive`` reading the keyboard); a test
+  that runs one presses Ctrl-C itself (:func:`interrupt`);
 * **video**: a line that renders a video (tens of CPU seconds; the videos have their own
   tests in tests/plots);
 * **window**: a line that opens MuJoCo's viewer (``snakebot sim view``), which needs a
@@ -27,7 +28,9 @@ from __future__ import annotations
 import itertools
 import re
 import shlex
+import signal
 import textwrap
+import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -208,16 +211,44 @@ def invoke(words: list[str], emulators: Emulators) -> Result:
     return CliRunner().invoke(main, args, env=env, input=ANSWERS)
 
 
-def run_line(line: Line, emulators: Emulators) -> list[str]:
-    """Run a ``run`` line (in the current folder); the problems found (none: it worked)."""
+def run_line(line: Line, emulators: Emulators) -> tuple[Result, list[str]]:
+    """Run a ``run`` line (in the current folder): the last command's result, and the
+    problems found (none: it worked)."""
     for words in line.commands:
         result = invoke(words, emulators)
         if result.exit_code != 0:
-            return [
+            return result, [
                 f"{line.where}: `{line.text}` exited {result.exit_code}: "
                 f"{(result.stderr or result.stdout).strip()[-600:]}"
             ]
-    return []
+    return result, []
+
+
+def interrupt(line: Line, emulators: Emulators, after: float) -> tuple[Result | None, list[str]]:
+    """Run an ``until Ctrl-C`` line in process and press Ctrl-C after ``after`` seconds:
+    SIGINT to the main thread, where Python raises KeyboardInterrupt wherever the command
+    is, as in a terminal (the emulators' threads never see it). The result, and the
+    problems found: any exit status but 130 (the result is None if the command had
+    ended before Ctrl-C came)."""
+    timer = threading.Timer(
+        after, signal.pthread_kill, (threading.main_thread().ident, signal.SIGINT)
+    )
+    try:
+        timer.start()
+        result = invoke(line.commands[0], emulators)
+        timer.cancel()
+        timer.join()
+    except KeyboardInterrupt:  # the command had ended when Ctrl-C came
+        return None, [f"{line.where}: `{line.text}` ended before Ctrl-C, after {after} s"]
+    output = (result.stderr or result.stdout).strip()
+    if result.exit_code != 128 + signal.SIGINT or "Traceback" in result.output:
+        return result, [
+            f"{line.where}: `{line.text}` exited {result.exit_code} (Ctrl-C after {after} s, "
+            f"130 expected): {output[-600:]}"
+        ]
+    if not result.stderr.strip().endswith("interrupted"):
+        return result, [f"{line.where}: `{line.text}` did not end with `interrupted`: {output}"]
+    return result, []
 
 
 def run_console(source: str, where: str, emulators: Emulators) -> list[str]:

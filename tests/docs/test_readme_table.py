@@ -3,23 +3,31 @@ a reader runs them, in one folder (a row's files are there for the rows below it
 process against the emulators, as the fenced blocks do (tests/docs/runnable.py).
 
 Each command runs without its optional parts and with each of them (tests/docs/readme_table.py).
-A line that cannot run here is declared below with its reason; the test fails on a line
-that neither runs nor is declared, and on a declaration that no line matches any more."""
+A line that runs until Ctrl-C (`monitor`) gets one after a few seconds and must exit 130
+with what it recorded complete; some lines' output is checked too (CHECKS). A line that
+cannot run here is declared below with its reason; the test fails on a line that neither
+runs nor is declared, and on a declaration that no line matches any more."""
 
 from __future__ import annotations
 
+import csv
+import json
 import os
 import shutil
 import time
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from click.testing import Result
 from firmware_support import build_firmware
 from readme_table import Row, parse_rows, variants
-from runnable import Emulators, Line, program_spec, run_line
+from runnable import Emulators, Line, interrupt, program_spec, run_line
 from sybil import Sybil
 
+from snakebot.link.controller.monitor import CSV_COLUMNS
+from snakebot.model.robots import load_robot
 from snakebot.model.robots.loader import BUILTIN_ROBOTS
 from snakebot.paths import REPO_ROOT
 
@@ -34,12 +42,7 @@ COVERED_BY_THESIS = (
     "minutes of MuJoCo: `--only h3` runs here, tests/workflows/test_physics_studies.py runs two"
 )
 MONITOR = "snakebot monitor --port /dev/ttyUSB0"
-MONITOR_WHY = "runs until Ctrl-C (no --duration); tests/cli/test_controller_cli_monitor.py records"
 COMPARE = "snakebot compare run.csv s.gait"
-COMPARE_WHY = (
-    "needs run.csv, which the monitor row records until Ctrl-C; `snakebot compare --help`'s "
-    "example records a run with --duration and compares it"
-)
 VIEWER = ("window", "MuJoCo's viewer needs a desktop; tests/plots/test_viewer.py")
 SIM_BUS = "snakebot sim bus --robot snake5 --pty"
 SERVES = "serves until Ctrl-C; the fenced blocks' test starts the same emulators for their lines"
@@ -68,10 +71,6 @@ DECLARED: dict[str, tuple[str, str]] = {
         "until Ctrl-C",
         "loops until Ctrl-C; the line without --loop runs, tests/cli/test_bus_play.py stops a loop",
     ),
-    MONITOR: ("until Ctrl-C", MONITOR_WHY),
-    f"{MONITOR} --json": ("until Ctrl-C", MONITOR_WHY),
-    f"{MONITOR} --csv run.csv": ("until Ctrl-C", MONITOR_WHY),
-    f"{MONITOR} --mcap run.mcap": ("until Ctrl-C", MONITOR_WHY),
     "snakebot drive --port /dev/ttyUSB0 --robot snake5": (
         "until Ctrl-C",
         "reads the keyboard until q; `snakebot drive --help`'s example runs with --keys",
@@ -87,11 +86,117 @@ DECLARED: dict[str, tuple[str, str]] = {
         "logic, which names no board; tests/firmware/test_cm530_cli.py runs it on the "
         "emulated chip",
     ),
-    COMPARE: ("needs a recorded run", COMPARE_WHY),
-    f"{COMPARE} --plot compare.png": ("needs a recorded run", COMPARE_WHY),
-    f"{COMPARE} --json": ("needs a recorded run", COMPARE_WHY),
 }
 """Lines not run here: (kind, the reason), by the line as it runs."""
+
+CTRL_C_AFTER = 2.0
+"""Seconds a line that runs until Ctrl-C runs before it gets one: four samples at
+`monitor`'s default interval (0.5 s), more than the three `compare` needs."""
+
+BEFORE: dict[str, tuple[str, ...]] = {
+    # the monitor records a gait being played, as `snakebot compare --help` shows
+    MONITOR: (
+        "snakebot upload s.gait --port /dev/ttyUSB0",
+        "snakebot play --port /dev/ttyUSB0 --loop",
+    ),
+}
+"""What a reader does on the row's controller before a command, by the command's first line."""
+
+SNAKE5 = load_robot("snake5")
+JOINTS = [joint.name for joint in SNAKE5.joints]
+
+
+def samples(result: Result, here: Path) -> list[str]:
+    """The monitor printed samples of the controller playing the gait."""
+    count = result.stdout.count("state PLAYING")
+    return [] if count >= 2 else [f"{count} samples of the controller playing: {result.stdout}"]
+
+
+def json_lines(result: Result, here: Path) -> list[str]:
+    """One JSON record per sample, each with the controller playing and every servo."""
+    records = [json.loads(line) for line in result.stdout.splitlines()]
+    if len(records) < 2:
+        return [f"{len(records)} JSON records"]
+    return [
+        f"a record of {r['controller']['state']} with servos {[s['name'] for s in r['servos']]}"
+        for r in records
+        if r["controller"]["state"] != "PLAYING" or [s["name"] for s in r["servos"]] != JOINTS
+    ]
+
+
+def csv_rows(here: Path) -> list[dict[str, str]]:
+    with (here / "run.csv").open(newline="") as f:
+        reader = csv.DictReader(f)
+        rows = list(reader)
+    if tuple(reader.fieldnames or ()) != CSV_COLUMNS:
+        raise AssertionError(f"run.csv's header is {reader.fieldnames}")
+    return rows
+
+
+def csv_complete(result: Result, here: Path) -> list[str]:
+    """run.csv: its header, then every sample whole (a row per servo, every column)."""
+    rows = csv_rows(here)
+    by_time: dict[str, list[str]] = {}
+    for row in rows:
+        if None in row or None in row.values():
+            return [f"run.csv has a row cut short or too long: {row}"]
+        by_time.setdefault(row["t"], []).append(row["name"])
+    if len(by_time) < 3:
+        return [f"run.csv holds {len(by_time)} samples"]
+    return [
+        f"run.csv's sample at t = {t}: {names}" for t, names in by_time.items() if names != JOINTS
+    ]
+
+
+def mcap_complete(result: Result, here: Path) -> list[str]:
+    """run.mcap: the mcap library reads it to its end, one telemetry message a sample."""
+    from mcap.reader import make_reader
+
+    with (here / "run.mcap").open("rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        messages = list(reader.iter_messages(topics=["/snakebot/telemetry"]))
+    if summary is None or len(messages) < 3:
+        return [f"run.mcap: summary {summary is not None}, {len(messages)} telemetry messages"]
+    return []
+
+
+def compare_text(result: Result, here: Path) -> list[str]:
+    """The report lines the run up by the controller's frame and gives each joint's error."""
+    out = result.stdout
+    want = ["lined up by the controller frame", *(f"{j}  RMS" for j in JOINTS)]
+    return [f"compare did not print {w!r}: {out}" for w in want if w not in out]
+
+
+def compare_plot(result: Result, here: Path) -> list[str]:
+    picture = here / "compare.png"
+    if not picture.read_bytes().startswith(b"\x89PNG\r\n\x1a\n"):
+        return ["compare.png is not a PNG"]
+    return [] if "wrote compare.png" in result.stdout else [f"no `wrote`: {result.stdout}"]
+
+
+def compare_json(result: Result, here: Path) -> list[str]:
+    """The JSON counts the run's samples and gives each of the gait's joints an error in
+    degrees, a few (the emulated servos' lag; here 1-5), not the tens that a run lined up
+    wrong or of another gait shows (the gait swings each joint 30 degrees either way)."""
+    summary = json.loads(result.stdout)
+    recorded = len({row["t"] for row in csv_rows(here)})
+    joints = {j["joint"]: j["rms_deg"] for j in summary["joints"]}
+    if summary["samples"] != recorded or list(joints) != JOINTS:
+        return [f"compare --json: {summary['samples']} samples of {recorded}, joints {joints}"]
+    return [f"{j}: RMS {rms} deg" for j, rms in joints.items() if not 0 <= rms < 10]
+
+
+CHECKS: dict[str, Callable[[Result, Path], list[str]]] = {
+    MONITOR: samples,
+    f"{MONITOR} --json": json_lines,
+    f"{MONITOR} --csv run.csv": csv_complete,
+    f"{MONITOR} --mcap run.mcap": mcap_complete,
+    COMPARE: compare_text,
+    f"{COMPARE} --plot compare.png": compare_plot,
+    f"{COMPARE} --json": compare_json,
+}
+"""What a line must have printed or written, besides exiting as it should."""
 
 
 def rows() -> list[tuple[int, Row]]:
@@ -109,7 +214,8 @@ def row_robot(row: Row) -> str:
 def run_row(row: Row, where: str, folder: Path, kinds: Counter[str]) -> list[str]:
     """Run the lines of a row in ``folder`` on a board of their own (the row's robot);
     a command's variants after the first run in a copy of the folder, so that the rows
-    below see what a reader who ran the command as shown has."""
+    below see what a reader who ran the command as shown has, and the files a variant
+    made that the folder lacks (`monitor --csv run.csv`'s) join it."""
     problems: list[str] = []
     emulators = Emulators(robot=row_robot(row))
     try:
@@ -117,11 +223,13 @@ def run_row(row: Row, where: str, folder: Path, kinds: Counter[str]) -> list[str
             before = folder.with_name(f"{folder.name}-before")
             shutil.rmtree(before, ignore_errors=True)
             shutil.copytree(folder, before, symlinks=True)
+            for step in BEFORE.get(variants(command)[0], ()):
+                problems += run_line(Line(step, f"{where} (before)"), emulators)[1]
             for number, text in enumerate(variants(command)):
                 line = Line(text, where)
                 if text in DECLARED:
                     kinds[DECLARED[text][0]] += 1
-                elif line.kind != "run":
+                elif line.kind not in ("run", "until Ctrl-C"):
                     problems.append(f"{where}: `{text}` ({line.kind}): run it or declare it")
                 else:
                     here = folder
@@ -131,13 +239,27 @@ def run_row(row: Row, where: str, folder: Path, kinds: Counter[str]) -> list[str
                         shutil.copytree(before, here, symlinks=True)
                     os.chdir(here)
                     began = time.process_time()
-                    problems += run_line(line, emulators)
+                    problems += run_checked(line, here, emulators)
                     cpu[text] = time.process_time() - began
                     os.chdir(folder)
-                    kinds["run"] += 1
+                    for made in here.iterdir():
+                        if not (folder / made.name).exists():
+                            shutil.move(made, folder / made.name)
+                    kinds["run" if line.kind == "run" else "run, stopped with Ctrl-C"] += 1
     finally:
         emulators.close()
     return problems
+
+
+def run_checked(line: Line, here: Path, emulators: Emulators) -> list[str]:
+    """Run a line (Ctrl-C after CTRL_C_AFTER seconds if it runs until one), then its CHECKS."""
+    if line.kind == "until Ctrl-C":
+        result, problems = interrupt(line, emulators, CTRL_C_AFTER)
+    else:
+        result, problems = run_line(line, emulators)
+    if problems or result is None or line.text not in CHECKS:
+        return problems
+    return [f"{line.where}: `{line.text}`: {p}" for p in CHECKS[line.text](result, here)]
 
 
 cpu: dict[str, float] = {}
@@ -158,6 +280,7 @@ def test_the_commands_of_the_readme_table_run(tmp_path, monkeypatch):
     mentions = sum(len(row.mentions) for _, row in rows())
     summary = (
         f"README table: {kinds.pop('run')} lines run, "
+        f"{kinds.pop('run, stopped with Ctrl-C', 0)} run and stopped with Ctrl-C, "
         + ", ".join(f"{n} {kind}" for kind, n in sorted(kinds.items()))
         + f" (declared, not run); {mentions} mentions of a command's parts"
     )

@@ -93,9 +93,14 @@ def test_with_a_robot_an_angle_is_the_joints(tmp_path):
         "write", "10", "goal-position", "30deg", "--robot", str(robot), "--port", port, "--json"
     )
     assert result.exit_code == 0, result.output
-    assert json.loads(result.stdout)["value"] == 500 - round(
+    written = json.loads(result.stdout)
+    assert written["value"] == 500 - round(
         30 / AX12.register("Goal Position").scale.factor_in("deg")
     )
+    assert written["joint"] == "phi1" and written["joint_deg"] == 29.9  # the nearest tick's
+    text = bus("write", "10", "goal-position", "30deg", "--robot", str(robot), "--port", port)
+    # tick 398 is 33.4 deg from the servo's centre (512) but 29.9 from the joint's zero (500)
+    assert "-33.4 deg from the centre" in text.stdout and "; joint phi1 +29.9 deg" in text.stdout
     refused = bus("write", "10", "goal-position", "100deg", "--robot", str(robot), "--port", port)
     assert refused.exit_code == 2
     assert "outside joint phi1's limits (-90 to 90 deg)" in refused.stderr

@@ -117,6 +117,19 @@ def test_table_without_metadata_needs_a_robot():
     assert result.summary()["emulated"]["dx"] == 0.0  # a table that holds still
 
 
+def test_a_robot_that_does_not_load_is_said_to_be_the_gaits_only_when_it_is(tmp_path):
+    moved = str(tmp_path / "my.toml")  # the gait's robot file, since moved away
+    frames = np.full((4, 4), 512, dtype=np.uint16)
+    table = GaitTable(
+        FIVE_LINK.servo_ids, 20, True, FIVE_LINK.tick_limits, frames, {"robot_source": moved}
+    )
+    with pytest.raises(PredictError, match=f"the gait was made for robot '{moved}'"):
+        predict_gait(table)
+    with pytest.raises(PredictError, match="no robot 'snake4'") as asked:
+        predict_gait(table, "snake4")
+    assert "made for" not in str(asked.value) and asked.value.params == ("robot",)
+
+
 def test_cli_json_report(s5_file, s5_gait):
     out = CliRunner().invoke(main, ["sim", "predict", str(s5_file), "--ideal", "--json"])
     assert out.exit_code == 0, out.output

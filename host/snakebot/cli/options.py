@@ -37,6 +37,7 @@ from snakebot.cli.params import (
     OUTPUT_PATH,
     PLOT_PATH,
     POSE,
+    ROBOT,
     NumberType,
     OutputPathType,
     controller_port,
@@ -283,24 +284,18 @@ def robot_option(
     purpose: str, *, default: str | None = None, otherwise: str | None = None
 ) -> Decorator:
     """--robot, -r: ``purpose`` (what the robot is for), then what names one; without a
-    ``default``, ``otherwise`` says what the command does without it."""
+    ``default``, ``otherwise`` says what the command does without it. The robot is
+    checked while parsing (:data:`ROBOT`): a bad one is exit 2 even where this run has
+    no use for it."""
     tail = f" (default: {otherwise})" if otherwise else ""
     return click.option(
         "--robot",
         "-r",
+        type=ROBOT,
         default=default,
         show_default=default is not None,
         help=f"{purpose}: {robots_named()}{tail}.",
     )
-
-
-def check_unused_robot(robot: str | None) -> None:
-    """Load ``robot`` (a name or a file) where the command has no use for it this time
-    (--robot only serves another option): a bad one is still bad input, exit 2."""
-    if robot is not None:
-        from snakebot.model.robots import load_robot
-
-        load_robot(robot)
 
 
 def roster_option(func: F) -> F:

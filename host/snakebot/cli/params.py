@@ -1,5 +1,5 @@
 """Click parameter types shared by the commands: angles, lists of angles, finite numbers
-in a range, files to write, poses (X,Y,THETA) and table capacities. Every number on the
+in a range, files to write, poses (X,Y,THETA), table capacities and robots. Every number on the
 command line goes through one of them, so NaN, infinities and absurd magnitudes are
 refused while parsing, before anything is opened. The options built on them, each
 declared once, are in ``options``."""
@@ -17,7 +17,7 @@ from typing import Any, TypeVar
 
 import click
 
-from snakebot.errors import quoted
+from snakebot.errors import InputError, quoted
 from snakebot.extras import require
 from snakebot.facts.boards import TABLE_CAPACITY
 from snakebot.model.gait.limits import GaitLimitError
@@ -330,6 +330,27 @@ class CapacityType(click.ParamType):
 
 
 CAPACITY = CapacityType()
+
+
+class RobotType(click.ParamType):
+    """A built-in robot's name or a robot .toml file, loaded where it is given: a bad one
+    is refused while parsing (exit 2) by every command, also by one that uses it only
+    with another option (`bus play` and `monitor`: with --foxglove or --mcap). The
+    command gets the text as given."""
+
+    name = "robot"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> str:
+        from snakebot.model.robots import load_robot  # the robot loader: when first asked
+
+        try:
+            load_robot(value)
+        except InputError as exc:
+            self.fail(str(exc), param, ctx)
+        return str(value)
+
+
+ROBOT = RobotType()
 
 
 SERVO_BUS_SCHEME = "sim://"

@@ -183,7 +183,10 @@ def plan_command(
 
 
 def _print_program(s: dict[str, Any]) -> None:
-    kinds = ", ".join(f"{seg['kind']} ({seg['steps']} steps)" for seg in s["segments"])
+    kinds = ", ".join(
+        f"{seg['kind']} ({seg['steps']} step{'' if seg['steps'] == 1 else 's'})"
+        for seg in s["segments"]
+    )
     hubs = "; ".join(", ".join(f"{math.degrees(v):.1f}" for v in h) for h in s["hubs_rad"])
     click.echo(
         f"program for {s['robot']}: {s['loops']} {s['loop_kind']} loops through "

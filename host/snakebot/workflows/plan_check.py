@@ -20,7 +20,7 @@ import numpy as np
 
 from snakebot.model.plan import Plan
 from snakebot.model.plan.planner import pose_dict, pose_error
-from snakebot.model.plan.sensitivity import OPEN_LOOP, tolerance_ratios
+from snakebot.model.plan.sensitivity import open_loop_warning
 from snakebot.workflows.predict import predict_gait
 
 
@@ -40,23 +40,18 @@ def servo_check(plan: Plan) -> dict[str, Any]:
         "predicted_final": pose_dict(end),
         "error": error,
     }
-    warnings = []
-    if not error["within"]:
-        position, heading = tolerance_ratios(error)
-        warnings.append(
-            {
-                "kind": OPEN_LOOP,
-                "cause": "servos",
-                "position_ratio": position,
-                "heading_ratio": heading,
-                "message": (
-                    f"played on the modelled servos ({robot.servo_model}) the table ends "
-                    f"{error['position']:.3g} {robot.length_unit} from the target "
-                    f"({position:.1f}x the position tolerance) and "
-                    f"{abs(math.degrees(error['heading_rad'])):.2f} deg off its heading "
-                    f"({heading:.1f}x): the servos lag the table, so its end played open "
-                    "loop is not to be trusted; steer in closed loop (goto)"
-                ),
-            }
-        )
-    return {"servo_check": report, "warnings": warnings}
+    if error["within"]:
+        return {"servo_check": report, "warnings": []}
+    warning = open_loop_warning(
+        "servos",
+        error,
+        lambda position, heading: (
+            f"played on the modelled servos ({robot.servo_model}) the table ends "
+            f"{error['position']:.3g} {robot.length_unit} from the target "
+            f"({position:.1f}x the position tolerance) and "
+            f"{abs(math.degrees(error['heading_rad'])):.2f} deg off its heading "
+            f"({heading:.1f}x): the servos lag the table, so its end played open "
+            "loop is not to be trusted; steer in closed loop (goto)"
+        ),
+    )
+    return {"servo_check": report, "warnings": [warning]}

@@ -193,10 +193,12 @@ def resolve_robot(table: GaitTable, robot: str | Robot | None) -> Robot:
         try:
             chosen = load_robot(name)
         except RobotError as exc:
-            raise PredictError(
-                f"{exc} (the gait was made for robot {name!r}; name another description "
-                "to use that)"
-            ).about("robot") from exc
+            made_for = (
+                f" (the gait was made for robot {name!r}; name another description to use that)"
+                if robot is None  # the metadata's robot, not the one asked for
+                else ""
+            )
+            raise PredictError(f"{exc}{made_for}").about("robot") from exc
     if tuple(table.joint_ids) != chosen.servo_ids:
         raise PredictError(
             f"the table drives servos {list(table.joint_ids)} but {chosen.name} has servos "

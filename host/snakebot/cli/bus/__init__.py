@@ -103,6 +103,10 @@ def scan_command(
     """Find the servos on the bus: PING every ID, and report each one's model and
     firmware version as it is found.
 
+    \b
+        snakebot bus scan --port /dev/ttyUSB0
+        snakebot bus scan --port /dev/ttyUSB0 --ids 1-30 --bauds common
+
     An ID whose reply arrives damaged (noise, a corrupted echo on a one-wire adapter)
     is tried again; one that never answers cleanly is listed as garbled rather than
     stopping the scan. Ctrl-C stops early and still lists what was found (exit 130).
@@ -193,6 +197,10 @@ def ping_command(bus: BusLink, as_json: bool, ids: tuple[int, ...]) -> None:
     """PING servo IDS (one or more) and report model, firmware and error bits.
 
     Fails (exit status 1) if any of them does not answer.
+
+    \b
+        snakebot bus ping 1 --port /dev/ttyUSB0
+        snakebot bus ping 10 11 15 16 --port /dev/ttyUSB0
     """
     with _on_the_bus(bus) as client:
         results = {servo_id: bus_scan.identify(client, servo_id) for servo_id in ids}
@@ -347,6 +355,12 @@ def write_command(
     with _on_the_bus(bus) as client:
         back = bus_registers.write_register(client, servo_id, entry, number)
     decoded = register_values.decode(entry, number)
+    said = {}  # with --robot, the joint's angle the value stands for, as `bus read` says it
+    if joint is not None:
+        said = {
+            "joint": joint.name,
+            "joint_deg": round(math.degrees(joint.tick_to_angle(number)), 1),
+        }
     if as_json:
         click.echo(
             dumps(
@@ -355,12 +369,15 @@ def write_command(
                     "register": entry.name,
                     "address": entry.address,
                     "value": number,
+                    **said,
                     "read_back": back,
                 }
             )
         )
         return
     shown = register_values.describe_value(decoded)
+    if said:
+        shown += f"; joint {said['joint']} {said['joint_deg']:+g} deg"
     text = f"servo {servo_id}: {entry.name} ({entry.address}) = {shown}"
     if back is not None:
         text += ", reads back " + ("the same" if back == number else str(back))

@@ -14,7 +14,6 @@ from snakebot.cli.options import (
     FOXGLOVE_RATE_HZ,
     BusLink,
     bus_options,
-    check_unused_robot,
     foxglove_option,
     robot_option,
 )
@@ -77,8 +76,6 @@ def bus_play(
     """
     table = read_gait(gait)
     player = player_for(table, loop, gait)
-    if foxglove is None:
-        check_unused_robot(robot)
     total = tick_count(table, loop)
     bar = click.progressbar(
         length=total or 0, label="Playing", file=sys.stderr, hidden=as_json or total is None
@@ -110,7 +107,7 @@ def bus_play(
         how = "stopped by Ctrl-C" if played.stopped_at is not None else "finished"
         click.echo(
             f"Played {report['played_s']:.2f} s of {gait} ({how}); the servos hold at "
-            + ", ".join(f"{sid}: {pos}" for sid, pos in played.held.items())
+            + ", ".join(f"tick {pos} (servo {sid})" for sid, pos in played.held.items())
         )
         if played.caught_up:
             click.echo(

@@ -15,7 +15,6 @@ import click
 
 from snakebot.cli.options import (
     ControllerLink,
-    check_unused_robot,
     controller_options,
     foxglove_option,
     look_options,
@@ -93,8 +92,6 @@ def monitor(
     live = sys.stdout.isatty() and not as_json
     shown = 0
     view = SampleStream(robot) if foxglove is not None or mcap_path is not None else None
-    if view is None:
-        check_unused_robot(robot)
     # Only files this run creates may be removed again: a path that was there before
     # (a file of the user's, a device such as /dev/null) is never unlinked.
     created = [p for p in (csv_path, mcap_path) if p is not None and not os.path.lexists(p)]

@@ -54,6 +54,11 @@ def play(
     table at once and can be changed by running play again; a program runs at the speed
     (all its segments) and with the steering (its serpenoid segments only; `snakebot
     drive` changes both while it runs). `snakebot stop` stops.
+
+    \b
+        snakebot upload walk.gait --port /dev/ttyUSB0
+        snakebot play --port /dev/ttyUSB0 --loop --speed 0.5 --steer 10deg
+        snakebot stop --port /dev/ttyUSB0
     """
     with link.open() as ctl:
         status = playback.play(ctl, loop=loop, speed=speed, steer=steer)
@@ -80,7 +85,11 @@ def play(
 @controller_options
 @click.option("--clear", is_flag=True, help=CLEAR_HELP)
 def stop(link: ControllerLink, as_json: bool, clear: bool) -> None:
-    """Stop the controller's gait; the servos hold their last position."""
+    """Stop the controller's gait; the servos hold their last position.
+
+    \b
+        snakebot stop --port /dev/ttyUSB0
+    """
     with link.open() as ctl:
         status = playback.stop(ctl, clear=clear)
     flags = ", ".join(status["error_flags"]) or "none"

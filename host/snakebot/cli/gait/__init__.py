@@ -87,8 +87,6 @@ def _write(g: Gait, out: Path, as_json: bool, plot: Path | None = None) -> None:
         f"{table.size} bytes) and {sidecar_path(out)}"
     )
     _print_motion(summary)
-    if g.robot.length_legend:
-        click.echo(f"  ({g.robot.length_legend})")
     if plot is not None:
         click.echo(f"plot written to {summary['plot']}")
 
@@ -121,6 +119,8 @@ def _print_motion(meta: dict[str, Any]) -> None:
     ):
         if key in meta:
             line(label, meta[key])
+    if meta.get("length_legend"):
+        click.echo(f"  ({meta['length_legend']})")
     if "note" in meta["table"]:
         click.echo(f"  note: {meta['table']['note']}")
     for warning in meta.get("warnings", []):
@@ -297,6 +297,10 @@ def show(file: Path, plot: Path | None, as_json: bool) -> None:
     Two checksums are shown: the header CRC, stored in the table's header over the rest
     of the table, and the file CRC-32 of all its bytes, which is what `snakebot upload`
     and `snakebot monitor` call the table's CRC-32 (the controller's Table CRC).
+
+    \b
+        snakebot gait show walk.gait
+        snakebot gait show walk.gait --plot walk.png --json
     """
     from snakebot.formats.gaittable import describe_table, read_gait
 

@@ -239,6 +239,8 @@ METADATA_SCHEMA: dict[str, Any] = {
     "state_names": _texts,
     "warnings": _warnings,
     "frame": _text,
+    "length_unit": _text,
+    "length_legend": _text,
     "final_q": _numbers,
     "moved_q": _numbers,
 }

@@ -152,10 +152,13 @@ def csv_rows(s: Sample) -> list[dict[str, Any]]:
 
 
 HEADER = (
-    f"{'joint':>5} {'ID':>4} {'goal':>5} {'pos':>5} {'angle deg':>9} {'speed rpm':>10} "
-    f"{'load %':>7} "
+    f"{'joint':>5} {'ID':>4} {'goal':>5} {'pos':>5} {'angle':>9} {'speed':>10} {'load':>7} "
     f"{'volt':>5} {'temp':>5}  errors"
 )
+UNITS = (
+    f"{'':>5} {'':>4} {'tick':>5} {'tick':>5} {'deg':>9} {'rpm':>10} {'%':>7} {'V':>5} {'degC':>5}"
+)
+"""The servo table's column names, and their units on the line below."""
 
 
 def render(s: Sample) -> list[str]:
@@ -174,7 +177,7 @@ def render(s: Sample) -> list[str]:
             "no servos in the roster (upload a gait table, or start the serpenoid for a robot)"
         )
         return lines
-    lines.append(HEADER)
+    lines += [HEADER, UNITS]
     for j in s.servos:
         r = servo_record(j)
         errors = words.servo_error_words(j.error)

@@ -219,6 +219,8 @@ class Gait:
             "loop": self.loop,
             "duration_s": round(self.duration_s, 6),
             "frame": motion_frame(self.robot),
+            "length_unit": self.robot.length_unit,
+            "length_legend": self.robot.length_legend,
             "predicted": self.predicted,
             "table": self.table,
             "warnings": self.warnings,

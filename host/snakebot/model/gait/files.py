@@ -14,4 +14,4 @@ def save_gait(gait: Gait, path: Path) -> tuple[GaitTable, dict[str, Any]]:
     it was written (``file``, ``metadata_file``) and its size (``bytes``)."""
     table = gait.gait_table()
     summary = {**save_table(path, table), "bytes": table.size, **gait.summary()}
-    return table, {**summary, "length_unit": gait.robot.length_unit}
+    return table, summary

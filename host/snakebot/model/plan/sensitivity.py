@@ -11,10 +11,12 @@ not checked.
 
 Where an end leaves the tolerance the plan cannot know where its table ends on a real
 floor: :func:`friction_warning` says so, with the numbers (an ``open_loop`` warning,
-which the plan's report carries beside the others)."""
+which the plan's report carries beside the others; :func:`open_loop_warning` makes
+every warning of that kind)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
@@ -77,19 +79,34 @@ def friction_warning(rows: list[dict[str, Any]]) -> dict[str, Any] | None:
     if not outside:
         return None
     worst = max(outside, key=lambda row: max(tolerance_ratios(row["error"])))
-    position, heading = tolerance_ratios(worst["error"])
     factor = worst["rolling_factor"]
-    return {
-        "kind": OPEN_LOOP,
-        "cause": "friction",
-        "rolling_factor": factor,
-        "position_ratio": position,
-        "heading_ratio": heading,
-        "message": (
+    return open_loop_warning(
+        "friction",
+        worst["error"],
+        lambda position, heading: (
             f"with {factor:g}x the rolling resistance the table ends {position:.1f}x the "
             f"position tolerance and {heading:.1f}x the heading tolerance from the target: "
             "played open loop its end depends on the floor more than the tolerance allows, "
             "so it is not to be trusted; steer in closed loop (goto), or set the robot "
             "file's [friction] for the floor"
         ),
+        rolling_factor=factor,
+    )
+
+
+def open_loop_warning(
+    cause: str, error: dict[str, Any], says: Callable[[float, float], str], **details: Any
+) -> dict[str, Any]:
+    """An ``open_loop`` warning: played open loop, the table ends outside the plan's
+    tolerance (``error``, a tolerance report) because of ``cause``. It carries
+    ``details``, the position and heading errors as multiples of their tolerances, and
+    the message ``says`` words from those two multiples."""
+    position, heading = tolerance_ratios(error)
+    return {
+        "kind": OPEN_LOOP,
+        "cause": cause,
+        **details,
+        "position_ratio": position,
+        "heading_ratio": heading,
+        "message": says(position, heading),
     }

@@ -206,7 +206,7 @@ class Cpu:
         _add_hook(self._uch, kind, callback, None, begin, end)
 
     def _hook_counter(self) -> None:
-        self._native_hook(lib.mcu_count_instruction, 1, 0)
+        self._native_hook(lib.mcu_count_hook(), 1, 0)
 
     def _native_hook(self, function: object, begin: int, end: int) -> None:
         """Hook the C ``function`` (from ``snakebot._core``) on the instructions at

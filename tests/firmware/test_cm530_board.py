@@ -18,7 +18,7 @@ from controller_cli_support import SNAKE5_IDS, cli, save, wave_table
 from snakebot.facts.boards import WATCHDOG_MS
 from snakebot.firmware import image as firmware_image
 from snakebot.sim.mcu.board import Cm530, Leftovers
-from snakebot.sim.mcu.runner import McuFirmware
+from snakebot.sim.mcu.runner import STEP_S, McuFirmware
 from snakebot.sim.options import SimOptions
 
 pytest.importorskip("unicorn")
@@ -95,6 +95,29 @@ def test_stack_high_water_mark_stays_in_the_reserved_stack(image):
     assert board.mcu.cpu.lowest_sp >= deepest - 64  # the two measures agree
     assert used < 4096, f"the stack reached {used} bytes of the 4 KB cm530.ld reserves"
     assert reserved is None or deepest >= reserved
+
+
+def test_in_real_time_the_thread_runs_whole_steps_not_a_spin(image):
+    # between the PC's bytes the thread waits until a step's time is due: running at once
+    # for the time its last run took, it spins in steps as short as itself and takes a
+    # whole core however fast the board runs (tens of thousands of steps a second)
+    with McuFirmware(image) as fw:
+        time.sleep(0.2)
+        steps = []
+        board = fw.board
+        run_until = board.run_until
+        with fw.lock:
+
+            def counted(t: float) -> None:
+                steps.append(t)
+                run_until(t)
+
+            board.run_until = counted  # type: ignore[method-assign]
+        time.sleep(0.5)
+        with fw.lock:
+            board.run_until = run_until  # type: ignore[method-assign]
+    assert fw.error is None
+    assert 0 < len(steps) <= 1.5 * 0.5 / STEP_S
 
 
 @pytest.mark.slow

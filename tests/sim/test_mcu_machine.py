@@ -10,6 +10,7 @@ from snakebot.sim.mcu.machine import RAM_BASE, Stm32f103
 PAGE = 0x0800_0800
 MOVS_R0 = 0x2000  # movs r0, #imm8
 LOOP = b"\xfe\xe7"  # b .
+BX_LR = b"\x70\x47"
 
 
 def test_code_programmed_into_the_flash_runs_instead_of_what_was_there() -> None:
@@ -31,3 +32,37 @@ def test_code_programmed_into_the_flash_runs_instead_of_what_was_there() -> None
     m.cpu.boot(RAM_BASE + 0x1000, PAGE | 1)
     m.run_until(m.now() + 1e-5)
     assert m.cpu.reg(arm.UC_ARM_REG_R0) == 2  # not the code translated before
+
+
+def test_code_in_ram_runs_and_code_stored_over_it_runs_next() -> None:
+    # RAM is mapped without execute permission until the CPU first fetches from it; then
+    # the CPU's stores over code it ran drop that code's translation, as before
+    m = Stm32f103(hse_hz=8_000_000)
+    m.load(RAM_BASE + 0x100, (MOVS_R0 | 3).to_bytes(2, "little") + BX_LR)
+    calls_twice = bytes.fromhex(
+        "40f20011"  # movw r1, #0x0100
+        "c2f20001"  # movt r1, #0x2000
+        "4b1c"  # adds r3, r1, #1
+        "9847"  # blx r3: movs r0, #3 in RAM
+        "42f20402"  # movw r2, #0x2004 (movs r0, #4)
+        "0a80"  # strh r2, [r1]: over the movs r0, #3 just run
+        "9847"  # blx r3
+    )
+    m.load(PAGE, calls_twice + LOOP)
+    m.cpu.boot(RAM_BASE + 0x1000, PAGE | 1)
+    m.run_until(1e-5)
+    assert m.cpu.reg(arm.UC_ARM_REG_R0) == 4
+    assert m.cpu.pc == PAGE + len(calls_twice)
+
+
+def test_code_loaded_into_ram_over_code_already_run_runs_next() -> None:
+    m = Stm32f103(hse_hz=8_000_000)
+    code = RAM_BASE + 0x100
+    m.load(code, (MOVS_R0 | 3).to_bytes(2, "little") + LOOP)
+    m.cpu.boot(RAM_BASE + 0x1000, code | 1)
+    m.run_until(1e-5)
+    assert m.cpu.reg(arm.UC_ARM_REG_R0) == 3
+    m.load(code, (MOVS_R0 | 4).to_bytes(2, "little"))
+    m.cpu.boot(RAM_BASE + 0x1000, code | 1)
+    m.run_until(m.now() + 1e-5)
+    assert m.cpu.reg(arm.UC_ARM_REG_R0) == 4  # not the code translated before

@@ -118,6 +118,9 @@ int mcu_run(void *uc, mcu_exceptions *x, mcu_counter *c, uint64_t instructions);
 /* The code hook on every instruction: counts it, stops the CPU at the limit, and at a
  * watched site calls `on_wfi` or does what mcu_after_unmask does, in the sites' order. */
 void mcu_count_instruction(void *uc, uint64_t address, uint32_t size, void *counter);
+/* mcu_count_instruction's own address, for unicorn (cffi's lib.mcu_count_instruction is a
+ * wrapper that calls it, one call more on every instruction). */
+void *mcu_count_hook(void);
 void mcu_after_unmask(void *uc, uint64_t address, uint32_t size, void *counter);
 /* cffi:end */
 

@@ -35,12 +35,14 @@ from unicorn import (  # noqa: E402
     UC_ARCH_ARM,
     UC_HOOK_CODE,
     UC_HOOK_INTR,
+    UC_HOOK_MEM_FETCH_PROT,
     UC_HOOK_MEM_WRITE_PROT,
     UC_MODE_MCLASS,
     UC_MODE_THUMB,
     UC_PROT_ALL,
     UC_PROT_EXEC,
     UC_PROT_READ,
+    UC_PROT_WRITE,
     Uc,
     UcError,
 )
@@ -57,7 +59,7 @@ from snakebot.sim.mcu.errors import McuFault  # noqa: E402
 from snakebot.sim.mcu.nvic import Nvic  # noqa: E402
 
 __all__ = ["Cpu", "Uc", "unmasking_sites", "UC_HOOK_MEM_WRITE_PROT", "UC_PROT_ALL"]
-__all__ += ["UC_PROT_EXEC", "UC_PROT_READ"]
+__all__ += ["UC_PROT_EXEC", "UC_PROT_READ", "UC_PROT_WRITE", "UC_HOOK_MEM_FETCH_PROT"]
 
 EXCP_EXCEPTION_EXIT = 8  # unicorn's (QEMU's) interrupt number for a branch to EXC_RETURN
 EXC_RETURN_HANDLER = 0xFFFF_FFF1
@@ -204,7 +206,7 @@ class Cpu:
         _add_hook(self._uch, kind, callback, None, begin, end)
 
     def _hook_counter(self) -> None:
-        self._native_hook(lib.mcu_count_instruction, 1, 0)
+        self._native_hook(lib.mcu_count_hook(), 1, 0)
 
     def _native_hook(self, function: object, begin: int, end: int) -> None:
         """Hook the C ``function`` (from ``snakebot._core``) on the instructions at
@@ -376,10 +378,13 @@ class Cpu:
         # the return (and a tail-chained entry) done here: writing PC from a hook makes
         # unicorn go on from there without leaving emu_start, which costs far more
         self._exception_return()
-        exception = self.nvic.takeable(self.primask)
-        if exception is not None:
-            self._enter(exception)
-        self.note_pending()
+        nvic = self.nvic
+        exception = nvic.best_pending()
+        if exception is not None:  # PRIMASK read only for something to take
+            exception = nvic.takeable(self.primask, exception)
+            if exception is not None:
+                self._enter(exception)
+        self.counter.pending = 1 if nvic.pending else 0  # note_pending, inline
 
     def maybe_in_it_block(self) -> bool:
         """Whether the next instruction may sit in an IT block (see mcu_count.h)."""
@@ -449,7 +454,7 @@ class Cpu:
             if exception is not None:  # no register read for nothing to take
                 exception = nvic.takeable(self.primask, exception)
             if exception is None:
-                self.note_pending()
+                self.counter.pending = 1 if nvic.pending else 0  # note_pending, inline
                 return taken
             self._enter(exception)
             self.sleeping = False

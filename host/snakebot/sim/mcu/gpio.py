@@ -39,6 +39,7 @@ def is_alternate(nibble: int) -> bool:
     return is_output(nibble) and nibble & 0x8 != 0
 
 
+OUTPUT_MASKS_KEPT = 16  # configurations whose output pins are remembered (see _outputs)
 PinListener = Callable[[int, bool], None]
 """Called with (pin, level) when an output pin's level changes."""
 
@@ -52,6 +53,7 @@ class GpioPort(Peripheral):
         self.name = f"GPIO{letter}"
         self.clock_on = clock_on
         self._listeners: list[PinListener] = []
+        self._output_masks: dict[tuple[int, int], int] = {}  # _outputs' mask by CRL, CRH
         self.external: dict[int, bool] = {}  # pins driven from outside
         self.reset()
 
@@ -155,13 +157,20 @@ class GpioPort(Peripheral):
 
     def _outputs(self) -> tuple[int, int]:
         """(pins that are GPIO outputs, their levels) as bit masks."""
-        mask = 0
-        for half in (0, 1):
-            word = self.cr[half]
-            for n in range(8):
-                nibble = word >> (4 * n) & 0xF
-                if nibble & 0x3 and not nibble & 0x8:
-                    mask |= 1 << (8 * half + n)
+        cr = self.cr
+        key = (cr[0], cr[1])
+        mask = self._output_masks.get(key)
+        if mask is None:
+            mask = 0
+            for half in (0, 1):
+                word = cr[half]
+                for n in range(8):
+                    nibble = word >> (4 * n) & 0xF
+                    if nibble & 0x3 and not nibble & 0x8:
+                        mask |= 1 << (8 * half + n)
+            if len(self._output_masks) >= OUTPUT_MASKS_KEPT:
+                self._output_masks.clear()
+            self._output_masks[key] = mask
         return mask, self.odr & mask
 
 

@@ -18,16 +18,19 @@ bootloader's hand-over).
 from __future__ import annotations
 
 import ctypes
+import functools
 import math
 from collections.abc import Callable
 
 from snakebot.core import lib
 from snakebot.sim.mcu import rcc as rcc_mod
 from snakebot.sim.mcu.cpu import (
+    UC_HOOK_MEM_FETCH_PROT,
     UC_HOOK_MEM_WRITE_PROT,
     UC_PROT_ALL,
     UC_PROT_EXEC,
     UC_PROT_READ,
+    UC_PROT_WRITE,
     Cpu,
     Uc,
     unmasking_sites,
@@ -84,6 +87,9 @@ class Stm32f103:
         self._clock.t0 = 0.0
         self._clock.c0 = 0
         self._clock.hz = rcc_mod.HSI_HZ
+        self.now: Callable[[], float] = functools.partial(lib.mcu_now, self._clock)
+        """The chip's time (seconds since it was powered): the C function itself, no Python
+        frame (the peripherals read it at almost every access)."""
         uc = self.cpu.uc
         # the flash's bytes in memory of ours: programming writes them here, where unicorn's
         # uc_mem_write to a read-only region would lift and restore its protection, each
@@ -94,10 +100,23 @@ class Stm32f103:
         uc.mem_map_ptr(
             FLASH_BASE, FLASH_SIZE, UC_PROT_READ | UC_PROT_EXEC, ctypes.addressof(self._flash_bytes)
         )
-        uc.mem_map(RAM_BASE, RAM_SIZE, UC_PROT_ALL)
+        # RAM not executable until the CPU first fetches from it (_fetch_from_ram makes it so
+        # for good): unicorn 2.1 sends every store to memory that may hold translated code
+        # through its slow path, which also looks for that code to drop (about 1 in 5 of
+        # the firmware's instructions is a store)
+        uc.mem_map(RAM_BASE, RAM_SIZE, UC_PROT_READ | UC_PROT_WRITE)
+        uc.hook_add(
+            UC_HOOK_MEM_FETCH_PROT,
+            self._fetch_from_ram,
+            begin=RAM_BASE,
+            end=RAM_BASE + RAM_SIZE - 1,
+        )
 
         self.systick = SysTick(
-            self.scheduler, self.now, pend=lambda: self.nvic.pend(SYSTICK), strict=strict
+            self.scheduler,
+            self.now,
+            pend=functools.partial(self.nvic.pend, SYSTICK),
+            strict=strict,
         )
         self.nvic.systick = self.systick
         self.nvic.strict = strict
@@ -155,8 +174,13 @@ class Stm32f103:
             c = rcc.clocks()
             return c.pclk2 if bus == "apb2" else c.pclk1
 
-        def clock_on() -> bool:
-            return bool((rcc.apb2enr if bus == "apb2" else rcc.apb1enr) & bit)
+        def clock_on() -> bool:  # asked at every register access: the bus chosen once
+            return bool(rcc.apb2enr & bit)
+
+        if bus != "apb2":
+
+            def clock_on() -> bool:
+                return bool(rcc.apb1enr & bit)
 
         return Usart(
             name,
@@ -164,7 +188,7 @@ class Stm32f103:
             scheduler=self.scheduler,
             now=self.now,
             pclk=pclk,
-            irq=lambda level: self.nvic.set_line(irq, level),
+            irq=functools.partial(self.nvic.set_line, irq),
             clock_on=clock_on,
             strict=self.strict,
         )
@@ -200,10 +224,6 @@ class Stm32f103:
         """Instructions per second: the processor clock (HCLK)."""
         return self._clock.hz
 
-    def now(self) -> float:
-        """The chip's time (seconds since it was powered)."""
-        return lib.mcu_now(self._clock)
-
     def _rebase(self) -> None:
         c = self._clock
         c.t0 = self.now()
@@ -219,9 +239,14 @@ class Stm32f103:
         self.cpu.stop_soon()
 
     def _event_scheduled(self, t: float) -> None:
-        if self.cpu.running:
-            cycles = math.ceil((t - self.now()) * self.hz - 1e-6)
-            self.cpu.stop_soon(max(cycles, 0), until=t)
+        if self.cpu.running:  # cpu.stop_soon, inline: an event is scheduled at every byte
+            c = self._clock
+            cycles = math.ceil((t - lib.mcu_now(c)) * c.hz - 1e-6)
+            limit = c.count + (cycles if cycles > 0 else 0)
+            if limit < c.limit:
+                c.limit = limit
+            if t < c.stop_at:
+                c.stop_at = t
 
     def _exception_may_be_due(self) -> None:
         # stop and let run_until look (a stop costs less than reading PRIMASK here)
@@ -250,6 +275,7 @@ class Stm32f103:
             raise McuFault(f"{len(data)} bytes at 0x{address:08X} do not fit the flash or RAM")
         if in_ram:
             self.cpu.uc.mem_write(address, data)
+            self.cpu.uc.ctl_remove_cache(address, end)  # code run from there before
         if in_flash:
             self._write_flash(address, data)
             wfi, after = unmasking_sites(data, address)
@@ -262,6 +288,16 @@ class Stm32f103:
 
     def read(self, address: int, size: int) -> bytes:
         return bytes(self.cpu.uc.mem_read(address, size))
+
+    def _fetch_from_ram(
+        self, uc: Uc, access: int, address: int, size: int, value: int, _data: object
+    ) -> bool:
+        """The CPU runs code from RAM (as the chip can): RAM becomes executable and the
+        fetch is made again."""
+        if RAM_BASE <= address < RAM_BASE + RAM_SIZE:
+            uc.mem_protect(RAM_BASE, RAM_SIZE, UC_PROT_ALL)
+            return True
+        return False
 
     def _flash_write(
         self, uc: Uc, access: int, address: int, size: int, value: int, _data: object

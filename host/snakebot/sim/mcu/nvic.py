@@ -96,9 +96,15 @@ class Nvic(Peripheral):
         self._rerun()
 
     def _rerun(self) -> None:
-        """The execution priority, PRIMASK aside (after the active set or groups change)."""
+        """The execution priority, PRIMASK aside (after the active set or groups change),
+        with the one each nesting level had (``_levels``: what a return goes back to)."""
         groups = self._groups
-        self._running = min((groups[e] for e in self.active), default=NO_PRIORITY)
+        running = NO_PRIORITY
+        self._levels = [running]
+        for e in self.active:
+            running = min(running, groups[e])
+            self._levels.append(running)
+        self._running = running
 
     # -- exception state --------------------------------------------------------------------
 
@@ -176,11 +182,14 @@ class Nvic(Peripheral):
         group = self._groups[exception]
         if group < self._running:
             self._running = group
+        self._levels.append(self._running)
 
     def deactivate(self) -> int:
         """The CPU returns from the innermost handler; returns its exception number."""
         exception = self.active.pop()
-        self._rerun()
+        levels = self._levels
+        levels.pop()
+        self._running = levels[-1]
         irq = exception - SYSTEM_EXCEPTIONS
         if irq >= 0 and self.lines >> irq & 1:
             self.pend(exception)  # level-sensitive: still asserted

@@ -1,11 +1,12 @@
 """The emulated CM-530 running in real time on a background thread, its PC link on a
 pseudo-terminal (or a socket) that host tools open like the board's USB-serial port.
 
-The thread runs the board in steps of at most :data:`STEP_S` of emulated time and never
-ahead of the wall clock, so the PC's bytes arrive at the emulated time they are sent and
-the firmware's replies leave when it sends them. Between steps it waits for the PC's
-bytes. Bytes to the PC that the terminal has no room for are dropped and counted, as a
-USB adapter drops what the PC does not read. On a pseudo-terminal a client that set
+The thread runs the board in steps of :data:`STEP_S` of emulated time (fewer when the PC
+sends) and never ahead of the wall clock, so the PC's bytes arrive at the emulated time
+they are sent (the board first catches up with the wall clock) and the firmware's replies
+leave within a step of when it sends them. Between steps it waits for the PC's bytes.
+Bytes to the PC that the terminal has no room for are dropped and counted, as a USB
+adapter drops what the PC does not read. On a pseudo-terminal a client that set
 another baud rate than the one USART3 is programmed for is not understood: its bytes are
 dropped (counted in :attr:`McuFirmware.wrong_baud`), as a UART at the wrong rate would
 garble them.
@@ -34,7 +35,8 @@ from snakebot.sim.transports.base import RawPty
 from snakebot.sim.transports.pty import tty_baudrate
 
 STEP_S = 0.001
-"""The most emulated time the thread runs before it looks at the PC link again."""
+"""The emulated time the thread runs before it looks at the PC link again (less when the
+PC's bytes come first)."""
 
 MAX_LAG_S = 0.05
 """The most the emulated board falls behind the wall clock. A host too busy to run it in
@@ -112,6 +114,7 @@ class McuFirmware:
         wall0 = time.monotonic()
         cpu0 = time.thread_time()
         emu0 = board.now()
+        data = b""  # the PC's bytes read while the board waited, sent once it caught up
         while not self._stop:
             target = emu0 + (time.monotonic() - wall0) * self.speed
             behind = target - board.now()
@@ -124,38 +127,47 @@ class McuFirmware:
                 now = board.now()
                 if target > now:
                     board.run_until(min(target, now + STEP_S))
+                if data:
+                    self._send_input(data)
+                    data = b""
                 self._flush_out()
                 ahead = board.now() - (emu0 + (time.monotonic() - wall0) * self.speed)
             self.cpu_s = time.thread_time() - cpu0
-            wait = max(ahead / self.speed, 0.0)
+            # the next step when a whole STEP_S is due, or at once when the PC sends: run
+            # for the time that passed since the last, the loop would spin in steps as
+            # short as itself, using a whole core however fast the board runs
+            wait = max((ahead + STEP_S) / self.speed, 0.0)
             ready, _, _ = select.select([self._fd, self._wake_r], [], [], wait)
             if self._wake_r in ready:
                 return
             if self._fd in ready:
-                self._take_input()
+                data = self._take_input()
 
-    def _take_input(self) -> None:
+    def _take_input(self) -> bytes:
+        """The PC's bytes waiting on the link (none if it has none or hung up)."""
         try:
             data = os.read(self._fd, 4096)
         except BlockingIOError:
-            return
+            return b""
         except OSError as exc:
             if exc.errno in (errno.EIO, errno.EBADF):
                 time.sleep(STEP_S)  # no client has the terminal open
-                return
+                return b""
             raise
-        if not data:
-            if self._pty is None:
-                self._stop = True  # the socket's other end closed
-            return
-        with self.lock:
-            if self._pty is not None:
-                theirs = tty_baudrate(self._pty.slave)
-                ours = self.board.mcu.usart3.baud
-                if theirs and (not ours or abs(theirs - ours) > BAUD_TOLERANCE * ours):
-                    self.wrong_baud += len(data)
-                    return
-            self.board.pc_send(data)
+        if not data and self._pty is None:
+            self._stop = True  # the socket's other end closed
+        return data
+
+    def _send_input(self, data: bytes) -> None:
+        """The PC's ``data`` reaches USART3 now, unless the client's rate is not the
+        USART's."""
+        if self._pty is not None:
+            theirs = tty_baudrate(self._pty.slave)
+            ours = self.board.mcu.usart3.baud
+            if theirs and (not ours or abs(theirs - ours) > BAUD_TOLERANCE * ours):
+                self.wrong_baud += len(data)
+                return
+        self.board.pc_send(data)
 
     def _flush_out(self) -> None:
         out = self.board.pc_out

@@ -148,11 +148,12 @@ class Usart(Peripheral):
 
     def _start_shift(self, byte: int | None, t: float) -> None:
         """The shift register starts sending ``byte`` (None: an idle frame) at ``t``."""
-        end = t + self.frame_s()
+        baud = self.baud  # frame_s, with the rate worked out once
+        end = t + (BITS_PER_FRAME / baud if baud else float("inf"))
         if byte is not None:
             self.sent += 1
             if self.on_tx is not None:
-                self.on_tx(byte, t, end, self.baud)
+                self.on_tx(byte, t, end, baud)
         self._shift_end = self.scheduler.at(end, self._shift_done)
 
     def _shift_done(self, t: float) -> None:

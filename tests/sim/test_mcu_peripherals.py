@@ -256,6 +256,30 @@ def test_usart_receive_overrun_and_irq(clock: Clock) -> None:
     assert u.read(usart.DR, 4) == ord("b")
 
 
+def test_usart_bytes_before_a_rate_is_set_are_lost_and_later_ones_received(clock: Clock) -> None:
+    """The PC may send while the firmware is still starting (the flasher PINGs the new
+    firmware right after GO): those bytes are lost, and the bytes sent once the USART is
+    set up are received (they once waited forever behind an event at infinity)."""
+    u = usart.Usart(
+        "USART3",
+        0x40004800,
+        scheduler=clock.scheduler,
+        now=clock,
+        pclk=lambda: 36_000_000,
+        irq=lambda level: None,
+        clock_on=lambda: True,
+    )
+    u.feed(b"early")  # from reset: BRR 0, no rate
+    clock.advance(1.0)
+    assert u.lost == 5 and u.received == 0 and u.inbox == 0
+    u.write(usart.BRR, 4, 625)  # 57600 baud
+    u.write(usart.CR1, 4, usart.CR1_UE | usart.CR1_RE)
+    u.feed(b"ok")
+    clock.advance(2 * u.frame_s())
+    assert u.received == 2 and u.overruns == 1  # unread: the second overran the first
+    assert u.read(usart.DR, 4) == ord("o")
+
+
 def test_usart_unmodelled_modes_are_errors(clock: Clock) -> None:
     u = _usart(clock, [], [])
     with pytest.raises(UnmodelledAccess):

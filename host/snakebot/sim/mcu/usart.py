@@ -69,6 +69,7 @@ class Usart(Peripheral):
         self.sent = 0
         self.received = 0
         self.overruns = 0
+        self.lost = 0  # bytes the far end sent while no rate was programmed (BRR unset)
         self.fast = ffi.new("mcu_fast_io *")  # SR as the CPU reads it (in C, see mcu_count.h)
         self.fast.kind = lib.MCU_IO_USART_SR
         self.fast.second_offset = CR1  # read by the interrupt handler on every byte
@@ -127,17 +128,30 @@ class Usart(Peripheral):
 
     def feed(self, data: bytes) -> None:
         """The far end sends ``data`` back to back at the programmed rate, after whatever
-        it is still sending."""
+        it is still sending. Bytes that come while no rate is programmed (BRR unset, as
+        from reset until the firmware sets the USART up) are lost, as on the chip, whose
+        receiver cannot frame them: they are counted in :attr:`lost`."""
         self._inbox.extend(data)
-        if self._feeding is None and self._inbox:
-            self._feeding = self.scheduler.at(self.now() + self.frame_s(), self._feed_one)
+        if self._feeding is None:
+            self._feed_next(self.now())
+
+    def _feed_next(self, t: float) -> None:
+        """Schedule the next byte of the inbox one frame after ``t``, or lose the inbox
+        when there is no rate to time it by."""
+        if not self._inbox:
+            return
+        frame = self.frame_s()
+        if frame == float("inf"):
+            self.lost += len(self._inbox)
+            self._inbox.clear()
+            return
+        self._feeding = self.scheduler.at(t + frame, self._feed_one)
 
     def _feed_one(self, t: float) -> None:
         self._feeding = None
         if self._inbox:
             self.receive(self._inbox.popleft())
-        if self._inbox:
-            self._feeding = self.scheduler.at(t + self.frame_s(), self._feed_one)
+        self._feed_next(t)
 
     @property
     def inbox(self) -> int:

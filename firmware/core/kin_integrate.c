@@ -323,8 +323,9 @@ typedef struct {
     kin_stats stats;
 } knot_state;
 
-/* Knots recorded for a batch's first schedule (a plan's loops have ~100 frames). */
-#define BATCH_KNOTS 256
+/* Knots recorded for a batch's first schedule: a plan's loops have 25 rows (on the stack:
+ * a few kilobytes). */
+#define BATCH_KNOTS 64
 
 static int integrate_joints(const kin_robot *rb, const kin_schedule *s, const double *pose0,
                             double t0, double t1, int32_t n_out, const kin_options *opt,

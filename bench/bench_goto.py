@@ -9,10 +9,13 @@ CPU time. The goal is to end within twice the tolerance; a target that ends outs
 is printed as MISS and counted. `make test` plays one of these seeds per family
 (`tests/workflows/test_plan_goto.py`); this is the whole campaign. Reference, measured
 in the same run: the simulated time itself (CPU per simulated second).
+
+``--robot NAME`` and ``--seed N`` (each may repeat) play only those robots and seeds.
 """
 
 from __future__ import annotations
 
+import argparse
 import sys
 import time
 from pathlib import Path
@@ -25,14 +28,19 @@ from snakebot.model.robots import load_robot  # noqa: E402
 from snakebot.workflows.goto import goto  # noqa: E402
 
 SEEDS = range(31, 37)
+ROBOTS = ("trident", "snake3", "snake5")
 WITHIN = 2.0  # the goal: within twice the tolerance
 
 
 def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--robot", action="append", choices=ROBOTS, help="only this robot")
+    parser.add_argument("--seed", action="append", type=int, help="only this seed")
+    args = parser.parse_args()
     misses, total, cpu_total = 0, 0, 0.0
-    for name in ("trident", "snake3", "snake5"):
+    for name in args.robot or ROBOTS:
         robot = load_robot(name)
-        for seed in SEEDS:
+        for seed in args.seed or SEEDS:
             target = targets(name, seed, 1)[0]
             cpu0 = time.process_time()
             report = goto(robot, target, world="mujoco").summary()

@@ -18,6 +18,7 @@
 #include "kin_trig.h"
 
 #include <math.h>
+#include <string.h>
 
 #define TWO_PI 6.283185307179586
 /* Below this conditioning the direct solve is not trusted to ~1e-8: extrapolate. */
@@ -305,9 +306,31 @@ static void stats_start(kin_stats *st, double t0)
     st->t_fail = t0;
 }
 
-int kin_integrate_joints(const kin_robot *rb, const kin_schedule *s, const double *pose0,
-                         double t0, double t1, int32_t n_out, const kin_options *opt,
-                         double *out, double *slip, kin_stats *stats)
+/* The whole state of a table schedule's integration at a knot, where the integrator
+ * has just landed and is about to start the next segment afresh (kin_ode_reset): the
+ * pose, the ODE's step controller, the friction problem's warm start and the counters.
+ * A schedule whose rows agree with another's up to a knot's row continues from that
+ * knot exactly as it would have run from the start. */
+typedef struct {
+    int32_t valid;
+    double y[3];
+    double t;
+    double seg;
+    double h;
+    double log_err_prev;
+    int32_t budget;
+    int32_t active[3];
+    kin_stats stats;
+} knot_state;
+
+/* Knots recorded for a batch's first schedule: a plan's loops have 25 rows (on the stack:
+ * a few kilobytes). */
+#define BATCH_KNOTS 64
+
+static int integrate_joints(const kin_robot *rb, const kin_schedule *s, const double *pose0,
+                            double t0, double t1, int32_t n_out, const kin_options *opt,
+                            double *out, double *slip, kin_stats *stats, knot_state *record,
+                            int32_t record_n, const knot_state *resume)
 {
     kin_stats local;
     kin_stats *st = stats != NULL ? stats : &local;
@@ -346,8 +369,23 @@ int kin_integrate_joints(const kin_robot *rb, const kin_schedule *s, const doubl
     double t = t0;
     for (int32_t k = 0; k < n_out; k++) {
         const double tk = k == n_out - 1 ? t1 : t0 + (t1 - t0) * (double)k / (double)(n_out - 1);
+        if (k == 1 && resume != NULL) {
+            /* continue from the knot, as the run that recorded it did */
+            for (int32_t i = 0; i < 3; i++) {
+                y[i] = resume->y[i];
+                c.active[i] = resume->active[i];
+            }
+            t = resume->t;
+            c.seg = resume->seg;
+            ode.h = resume->h;
+            ode.log_err_prev = resume->log_err_prev;
+            ode.budget = resume->budget;
+            ode.have_k1 = 0;
+            *st = resume->stats;
+        }
         while (t < tk) {
             double seg = segment_of(s, t), end = tk;
+            int on_knot = 0;
             if (s->type == KIN_SCHED_TABLE) {
                 double knot = (seg + 1.0) * s->dt;
                 if (knot - t <= 1e-12 * s->dt) { /* t sits on a knot: rounding put it left */
@@ -356,6 +394,7 @@ int kin_integrate_joints(const kin_robot *rb, const kin_schedule *s, const doubl
                 }
                 if (knot < end) {
                     end = knot;
+                    on_knot = 1;
                 }
             }
             if (seg != c.seg) {
@@ -366,6 +405,21 @@ int kin_integrate_joints(const kin_robot *rb, const kin_schedule *s, const doubl
                 return rc;
             }
             t = end;
+            const double index = seg + 1.0;
+            if (on_knot && record != NULL && index >= 0.0 && index < (double)record_n) {
+                knot_state *r = record + (int32_t)index;
+                for (int32_t i = 0; i < 3; i++) {
+                    r->y[i] = y[i];
+                    r->active[i] = c.active[i];
+                }
+                r->t = t;
+                r->seg = c.seg;
+                r->h = ode.h;
+                r->log_err_prev = ode.log_err_prev;
+                r->budget = ode.budget;
+                r->stats = *st;
+                r->valid = 1;
+            }
         }
         double *row = out + (size_t)k * (size_t)width;
         double dphi[KIN_MAX_JOINTS], xi[3];
@@ -381,6 +435,52 @@ int kin_integrate_joints(const kin_robot *rb, const kin_schedule *s, const doubl
         }
     }
     return KIN_OK;
+}
+
+int kin_integrate_joints(const kin_robot *rb, const kin_schedule *s, const double *pose0,
+                         double t0, double t1, int32_t n_out, const kin_options *opt,
+                         double *out, double *slip, kin_stats *stats)
+{
+    return integrate_joints(rb, s, pose0, t0, t1, n_out, opt, out, slip, stats, NULL, 0, NULL);
+}
+
+/* Whether the batch's schedule k can continue from the first one's knots: both tables
+ * of the same shape, timing and ends, integrated start to end in one span. */
+static int shares_knots(const kin_schedule *first, const kin_schedule *k, int32_t n_out)
+{
+    return n_out == 2 && first->type == KIN_SCHED_TABLE && k->type == KIN_SCHED_TABLE
+           && !first->loop && !k->loop && first->rows == k->rows && first->joints == k->joints
+           && first->dt == k->dt && first->samples != NULL && k->samples != NULL;
+}
+
+/* The knot schedule k continues from: the last one before the first row it changes
+ * (the segment that ends on that row is the first to differ); NULL if none is recorded. */
+static const knot_state *resume_knot(const kin_schedule *first, const kin_schedule *k,
+                                     const knot_state *knots)
+{
+    const int32_t n = k->joints;
+    int32_t row = 0;
+    while (row < k->rows) {
+        const double *a = first->samples + (size_t)row * (size_t)n;
+        const double *b = k->samples + (size_t)row * (size_t)n;
+        int same = 1;
+        for (int32_t j = 0; j < n && same; j++) {
+            /* bit for bit: -0.0 and 0.0 differ in what they may produce downstream */
+            same = memcmp(&a[j], &b[j], sizeof(double)) == 0;
+        }
+        if (!same) {
+            break;
+        }
+        row++;
+    }
+    int32_t knot = row - 1; /* the knot at the start of the first segment that differs */
+    if (knot > k->rows - 2) {
+        knot = k->rows - 2; /* the same rows: the last knot before the end */
+    }
+    if (knot < 1 || knot >= BATCH_KNOTS || !knots[knot].valid) {
+        return NULL;
+    }
+    return knots + knot;
 }
 
 int kin_integrate_joints_batch(const kin_robot *rb, const kin_schedule *s, int32_t count,
@@ -400,11 +500,21 @@ int kin_integrate_joints_batch(const kin_robot *rb, const kin_schedule *s, int32
         return rc;
     }
     const size_t rows = (size_t)n_out * (size_t)(3 + joints);
+    /* Schedules that differ from the first only from some row on (a search's trials of
+     * one frame each) continue from the first one's state at the knot before that row:
+     * the same arithmetic as from the start, without integrating the same rows again. */
+    knot_state knots[BATCH_KNOTS];
+    for (int32_t i = 0; i < BATCH_KNOTS; i++) {
+        knots[i].valid = 0;
+    }
     int first = KIN_OK;
     for (int32_t k = 0; k < count; k++) {
-        status[k] = kin_integrate_joints(rb, s + k, pose0, t0, t1, n_out, opt,
-                                         out + (size_t)k * rows, NULL,
-                                         stats != NULL ? stats + k : NULL);
+        const int shared = k > 0 && shares_knots(s, s + k, n_out);
+        const knot_state *resume = shared ? resume_knot(s, s + k, knots) : NULL;
+        status[k] = integrate_joints(rb, s + k, pose0, t0, t1, n_out, opt,
+                                     out + (size_t)k * rows, NULL,
+                                     stats != NULL ? stats + k : NULL,
+                                     k == 0 ? knots : NULL, k == 0 ? BATCH_KNOTS : 0, resume);
         if (first == KIN_OK) {
             first = status[k];
         }

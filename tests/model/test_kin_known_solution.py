@@ -111,3 +111,33 @@ def test_a_failed_trajectory_does_not_stop_the_batch():
 def test_a_bad_shared_argument_is_refused():
     with pytest.raises(KinematicsError, match="invalid argument"):
         integrate_joints_batch(SNAKE3, [Sines.serpenoid(2, 0.5, 1.0, 1.0)], 1.0, t0=2.0)
+
+
+def test_tables_that_differ_from_a_row_on_are_bit_for_bit_their_own_calls():
+    """A batch of tables that agree with the first one up to some row (a tick search's
+    trials, one frame changed each) continues each from the first one's state at the
+    knot before that row: the same numbers and counters as one call per table."""
+    from snakebot.model.kinematics import Table
+    from snakebot.model.plan.loops import SOLVE_OPTIONS, loop_angles
+
+    hub = np.array([0.3, -0.2, 0.4, -0.1])
+    coefficients = np.tile([0.3, 0.1, -0.2, 0.05], 4)
+    base = loop_angles(hub, coefficients)
+    tables = [base.copy()]
+    trials = ((12, 0, 0.01), (1, 2, -0.02), (12, 3, 0.01), (23, 1, 0.003), (24, 2, 0.01))
+    for row, joint, step in (*trials, (7, 0, 0.0)):
+        changed = base.copy()
+        changed[row, joint] += step
+        tables.append(changed)
+    tables[0][10, 1] += 0.01  # the first differs from the rest from row 10 on
+    rows = float(len(base) - 1)
+    schedules = [Table(t, 1.0) for t in tables]
+    batch = integrate_joints_batch(SNAKE5, schedules, rows, options=SOLVE_OPTIONS)
+    assert (batch.status == lib.KIN_OK).all()
+    for k, schedule in enumerate(schedules):
+        single = integrate_joints(SNAKE5, schedule, rows, samples=2, options=SOLVE_OPTIONS)
+        np.testing.assert_array_equal(batch.q[k], single.q)
+        assert batch.evals[k] == single.stats["evals"]
+        assert batch.min_rcond[k] == single.stats["min_rcond"]
+    # and they are different motions: the continued ones did not copy the first's end
+    assert len({tuple(q[-1, :3]) for q in batch.q}) > 2

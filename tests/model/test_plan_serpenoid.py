@@ -18,7 +18,9 @@ from snakebot.model.plan.serpenoid_goto import (
     TWO_REVERSALS,
     CycleModel,
     Wave,
+    arc,
     end_of,
+    finishing_fraction,
     link1_from_middle,
     middle,
     plan_cycles,
@@ -146,3 +148,24 @@ def test_link1_table_interpolates_as_numpy_does():
     grid, columns = np.array(table.grid), np.array(table.rows).T
     for q in [*rng.uniform(-0.7, 0.7, 2000), *grid, 0.0, 5.0, -5.0]:
         assert table(q) == tuple(float(np.interp(q, grid, c)) for c in columns)
+
+
+@pytest.mark.parametrize("fraction", [0.37, -0.12])
+def test_a_fraction_that_ends_at_the_goal_by_the_model_is_found(fraction):
+    """The fraction of a cycle whose end the model puts at the goal is the one chosen
+    (the middle along the held offset's arc in proportion, link 1 placed by the shape at
+    the phase it leaves); a goal that no fraction at that offset reaches gives none."""
+    model = CycleModel.from_geometry(SNAKE5, 0.105)
+    wave = Wave(SNAKE5, offset=0.2)
+    lag = np.array([0.02, -0.01, 0.03, 0.0])
+    here = np.array([0.1, -0.2, 0.4])
+    moved = se2.compose(
+        here, arc(fraction * model.turn(0.2, 0.2), fraction * model.length(0.2, 0.2))
+    )
+    shape = wave.angles_at(2 * math.pi * fraction, 0.2) + lag
+    goal = se2.compose(moved, se2.inverse(middle(SNAKE5, shape)))
+    tol = Tolerance(0.004, math.radians(2))
+    found = finishing_fraction(model, wave, here, lag, goal, tol)
+    assert found is not None and found[0] == pytest.approx(fraction) and found[1] < 1e-6
+    aside = se2.compose(goal, np.array([0.0, 0.05, 0.0]))
+    assert finishing_fraction(model, wave, here, lag, aside, tol) is None

@@ -1,7 +1,8 @@
-"""`snakebot sim serve --foxglove`: the emulated robot (its firmware in QEMU) streamed to a
-real WebSocket client speaking the Foxglove protocol (issue #33); on the mujoco world, its
-bodies as Foxglove's own SceneUpdate too, decoded through the protobuf schema the server
-advertises and checked against the MuJoCo model's geoms, moving with the robot on /tf."""
+"""`snakebot sim serve --foxglove`: the emulated robot (the CM-530's image on the emulated
+STM32F103RE, the default board) streamed to a real WebSocket client speaking the Foxglove
+protocol (issue #33); on the mujoco world, its bodies as Foxglove's own SceneUpdate too,
+decoded through the protobuf schema the server advertises and checked against the MuJoCo
+model's geoms, moving with the robot on /tf."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ import time
 
 import numpy as np
 import pytest
-from firmware_support import QEMU_DIR, REPO_ROOT, build_firmware
+from firmware_support import REPO_ROOT, build_firmware
 from foxglove_client import SUBPROTOCOLS, advertised, decode, in_frame, subscribe
 
 from snakebot.link.controller.client import ControllerClient
@@ -42,8 +43,6 @@ def test_serve_streams_the_emulated_joints_to_foxglove(world):
             "snakebot",
             "sim",
             "serve",
-            "--firmware",
-            str(QEMU_DIR / "firmware.elf"),
             "--json",
             "--report",
             "0",

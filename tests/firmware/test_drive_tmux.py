@@ -1,7 +1,8 @@
 """`snakebot drive` on a real terminal (tmux) against `snakebot sim serve --robot snake5`,
-the firmware in QEMU: the screen shows the joint angles moving, arrow keys steer and
-change the speed on screen and in the controller's registers, space stops, q stops the
-robot and quits with the terminal restored."""
+the CM-530's image on the emulated STM32F103RE (the default board): the screen shows the
+joint angles moving, arrow keys steer and change the speed on screen and in the
+controller's registers, space stops, q stops the robot and quits with the terminal
+restored."""
 
 from __future__ import annotations
 

@@ -1,8 +1,9 @@
-"""The full loop on the real firmware in QEMU: a serpenoid table for snake5 uploaded and
-played through the `snakebot` commands on the firmware's PC link, the emulated servos
-following the firmware's bus master, and the emulated world's body advancing as the table
-predicts; and an overload injected in a servo putting the player in its safe state, which
-`snakebot monitor --json` reports.
+"""The full loop on the real firmware on the default board (the CM-530's image on the
+emulated STM32F103RE): a serpenoid table for snake5 uploaded and played through the
+`snakebot` commands on the firmware's PC link, the emulated servos following the
+firmware's bus master, and the emulated world's body advancing as the table predicts; and
+an overload injected in a servo putting the player in its safe state, which `snakebot
+monitor --json` reports.
 
 (Uploads cut off after the k-th chunk, corrupted chunks, garbage on the PC link and failed
 commits are tested in test_controller_cli_upload.py, test_controller_cli_qemu.py and
@@ -30,7 +31,7 @@ pytestmark = [pytest.mark.qemu, pytest.mark.slow]
 
 WARMUP_CYCLES = 1
 CYCLES = 2
-CONTROL_TICK_S = 0.010  # the firmware's control tick (firmware/boards/qemu/board.h)
+CONTROL_TICK_S = 0.010  # the firmware's control tick (firmware/boards/*/board.h)
 PLAY_TIMEOUT_S = 60.0
 OVERLOAD_TORQUE_NM = 5.0  # well above an AX-12A's 1.5 N m stall torque
 ALARM_TIMEOUT_S = 10.0

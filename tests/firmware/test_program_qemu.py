@@ -95,7 +95,7 @@ def program_done(ctl, duration_s: float, *more: str) -> dict:
 
 def test_a_program_reaches_the_servos_as_predicted():
     build_firmware()
-    with EmulatedRobot("snake5") as robot:
+    with EmulatedRobot("snake5", board="qemu") as robot:
         program = three_segments(robot)
         ids = program.joint_ids
         ctl = ControllerClient.open(robot.info.pc_link)
@@ -140,7 +140,7 @@ def test_a_planned_program_takes_the_robot_where_predicted(tmp_path):
     path = tmp_path / "go.prog"
     write_program(path, plan.program)
     predicted = predict_program(path).summary()
-    with EmulatedRobot("trident") as robot:
+    with EmulatedRobot("trident", board="qemu") as robot:
         ctl = ControllerClient.open(robot.info.pc_link)
         try:
             upload_gait(ctl, plan.program)

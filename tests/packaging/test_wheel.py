@@ -1,7 +1,7 @@
 """The package as a user gets it: `python -m build` makes the sdist and, from the sdist, the
-wheel; the wheel goes into a fresh venv outside the checkout with only the `physics`
-extra (the demo's default world is MuJoCo), and the main commands run there from a
-directory outside the checkout."""
+wheel; the wheel goes into a fresh venv outside the checkout with only the `physics` and
+`mcu` extras (the demo's default world is MuJoCo, its default board the emulated CM-530),
+and the main commands run there from a directory outside the checkout."""
 
 from __future__ import annotations
 
@@ -69,7 +69,7 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> Installed:
     # every dependency ahead of time, which Python does anyway for what it imports).
     _run(sys.executable, "-m", "venv", "--without-pip", venv, timeout=120)
     pip = (sys.executable, "-m", "pip", "--python", venv / "bin" / "python", "install", "-q")
-    _run(*pip, "--no-compile", f"{wheel}[physics]", timeout=600)
+    _run(*pip, "--no-compile", f"{wheel}[physics,mcu]", timeout=600)
     work = root / "work"
     work.mkdir()
     return Installed(sdist, wheel, venv, work)
@@ -148,8 +148,9 @@ def test_demo_runs_the_shipped_firmware(installed):
     )
     assert done.returncode == 0, done.stderr
     result = json.loads(done.stdout)
-    shipped = installed.venv.glob("lib/python3*/site-packages/snakebot/firmware/images/qemu")
-    assert Path(result["firmware"]).parent == next(shipped)
+    shipped = installed.venv.glob("lib/python3*/site-packages/snakebot/firmware/images/cm530")
+    assert result["board"] == "cm530"  # the shipped CM-530 image on the emulated STM32F103RE
+    assert Path(result["firmware"]) == next(shipped) / "firmware.bin"
     assert result["emulated"]["dx"] > 0.5 * result["predicted"]["dx"] > 0
     assert result["png"] is None  # no matplotlib without the `plot` extra
     assert (out / "demo.gait").is_file()

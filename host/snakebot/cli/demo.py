@@ -31,7 +31,7 @@ from snakebot.workflows.demo import DemoSettings, run_demo, summary_lines
 @click.option(
     "--cycles",
     type=click.IntRange(1, 20),
-    default=3,
+    default=DemoSettings.cycles,
     show_default=True,
     help="Gait cycles measured (after one cycle to settle).",
 )

@@ -131,7 +131,9 @@ class DemoSettings:
     delta: float = math.radians(90.0)
     rate_hz: float = 50.0
     warmup_cycles: int = 1
-    cycles: int = 3
+    cycles: int = 5
+    """Cycles measured: the table loops on the controller, so any number fits any board's
+    table; more make a longer path to compare, 2 s each."""
     out_dir: Path = Path("out")
     firmware: Path | None = None
     board: str = DEFAULT_BOARD

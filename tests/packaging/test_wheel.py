@@ -48,8 +48,11 @@ class Installed:
 
 
 def _run(*cmd: str | Path, timeout: float) -> None:
+    # Without PYTHONPATH: a checkout's host/ on it (its snakebot.egg-info, which the sdist
+    # build writes) made pip take snakebot as installed and leave it out of the venv.
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     done = subprocess.run(
-        [str(c) for c in cmd], capture_output=True, text=True, timeout=timeout, check=False
+        [str(c) for c in cmd], capture_output=True, text=True, timeout=timeout, check=False, env=env
     )
     assert done.returncode == 0, f"{cmd} failed:\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
 

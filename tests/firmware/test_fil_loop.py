@@ -6,7 +6,7 @@ an overload injected in a servo putting the player in its safe state, which `sna
 monitor --json` reports.
 
 (Uploads cut off after the k-th chunk, corrupted chunks, garbage on the PC link and failed
-commits are tested in test_controller_cli_upload.py, test_controller_cli_qemu.py and
+commits are tested in test_controller_cli_upload.py, test_controller_cli_fil.py and
 test_firmware_fil.py.)"""
 
 from __future__ import annotations

@@ -1,9 +1,10 @@
-"""The full loop on the real firmware on the default board (the CM-530's image on the
-emulated STM32F103RE): a serpenoid table for snake5 uploaded and played through the
-`snakebot` commands on the firmware's PC link, the emulated servos following the
-firmware's bus master, and the emulated world's body advancing as the table predicts; and
-an overload injected in a servo putting the player in its safe state, which `snakebot
-monitor --json` reports.
+"""The full loop on the real firmware in QEMU: a serpenoid table for snake5 uploaded and
+played through the `snakebot` commands on the firmware's PC link, the emulated servos
+following the firmware's bus master, and the emulated world's body advancing as the table
+predicts; and an overload injected in a servo putting the player in its safe state, which
+`snakebot monitor --json` reports. On QEMU, whose emulator costs the QEMU stage a third of
+the CPU the emulated CM-530 does: the same chain on the CM-530's image is the demo's test
+(tests/firmware/test_demo.py), upload and play on both boards test_controller_cli_fil.py.
 
 (Uploads cut off after the k-th chunk, corrupted chunks, garbage on the PC link and failed
 commits are tested in test_controller_cli_upload.py, test_controller_cli_fil.py and
@@ -46,7 +47,7 @@ def cli(*args: object) -> str:
 @pytest.fixture(scope="module")
 def robot():
     build_firmware()
-    with EmulatedRobot("snake5") as emulated:
+    with EmulatedRobot("snake5", board="qemu") as emulated:
         yield emulated
 
 

@@ -73,7 +73,8 @@ demo-packages:
 	$(call apt_install,$(DEMO_APT))
 
 # .venv in two layers: the runtime with what the demo uses (the `physics` extra for its
-# MuJoCo world, `plot` for its picture), then the dev extras (tests, lint, benchmarks).
+# MuJoCo world, `plot` for its picture, `mcu` for its board, the emulated CM-530), then the
+# dev extras (tests, lint, benchmarks).
 runtime-env: $(VENV)/.runtime $(CORE_LIB)
 python-env: $(VENV)/.dev $(CORE_LIB)
 
@@ -83,7 +84,7 @@ $(VENV)/.venv:
 	$(Q)touch $@
 
 $(VENV)/.runtime: pyproject.toml setup.py | $(VENV)/.venv
-	$(Q)$(PIP) install $(PIP_QUIET) --no-build-isolation -e '.[physics,plot]'
+	$(Q)$(PIP) install $(PIP_QUIET) --no-build-isolation -e '.[physics,plot,mcu]'
 	$(Q)touch $@
 
 $(VENV)/.dev: $(VENV)/.runtime

@@ -122,13 +122,16 @@ def observed_in_qemu(seconds: float = 2.0) -> tuple[int, float, float] | None:
     from snakebot.link.controller.upload import upload_gait
     from snakebot.model.gait import serpenoid
     from snakebot.model.robots import load_robot
-    from snakebot.sim.serve import DEFAULT_FIRMWARE, EmulatedRobot
+    from snakebot.sim.serve import QEMU_FIRMWARE, EmulatedRobot
 
-    if shutil.which("qemu-system-arm") is None or not DEFAULT_FIRMWARE.is_file():
+    if shutil.which("qemu-system-arm") is None or not QEMU_FIRMWARE.is_file():
         return None
     robot = load_robot("snake5")
     table = serpenoid(robot, 0.5, 3.14, 1.57, cycles=1, loop=True).gait_table()
-    with EmulatedRobot(robot) as emulated, ControllerClient.open(emulated.info.pc_link) as ctl:
+    with (
+        EmulatedRobot(robot, board="qemu") as emulated,
+        ControllerClient.open(emulated.info.pc_link) as ctl,
+    ):
         upload_gait(ctl, table, allow_new_servos=True)
         play(ctl, loop=True)
         time.sleep(0.3)

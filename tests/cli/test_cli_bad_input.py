@@ -17,11 +17,13 @@ from pathlib import Path
 import click
 import pytest
 from click.testing import CliRunner
+from flash_support import make_image
 
 from snakebot.cli import main
 from snakebot.cli.params import RobotType
 from snakebot.cli.troubleshooting import ERROR_LINE
 from snakebot.errors import LINE_LIMIT
+from snakebot.link.flash.image import identity_block
 from snakebot.model.robots import load_robot
 
 pytestmark = pytest.mark.timeout(60)
@@ -514,10 +516,30 @@ def test_a_toml_nested_5000_deep_is_exit_2(tmp_path: Path, nest: str) -> None:
     )
 
 
-def test_an_empty_firmware_for_the_emulator_is_one_line(tmp_path: Path) -> None:
+@pytest.mark.parametrize(("board", "says"), [("cm530", "is empty"), ("qemu", "neither an ELF")])
+def test_an_empty_firmware_for_the_emulator_is_one_line(tmp_path: Path, board, says) -> None:
     empty = tmp_path / "empty.bin"
     empty.write_bytes(b"")
-    assert_one_line_error(run("sim", "serve", "--firmware", empty), mentions="neither an ELF")
+    assert_one_line_error(run("sim", "serve", "--board", board, "--firmware", empty), mentions=says)
+
+
+@pytest.mark.parametrize(("board", "built_for"), [("cm530", "qemu"), ("qemu", "cm530")])
+def test_an_image_for_the_other_board_is_refused_before_it_runs(
+    tmp_path: Path, board: str, built_for: str
+) -> None:
+    image = tmp_path / "app.bin"
+    make_image(image, 4096)  # a plausible application image, its identity block the CM-530's
+    if built_for != "cm530":
+        data = bytearray(image.read_bytes())
+        block = identity_block("cm530", 1, len(data))
+        at = data.index(block)
+        data[at : at + len(block)] = identity_block(built_for, 1, len(data))
+        image.write_bytes(bytes(data))
+    for command in (["sim", "serve"], ["demo", "--out", tmp_path / "out"]):
+        result = run(*command, "--board", board, "--firmware", image)
+        line = assert_one_line_error(result, mentions=f"built for the {built_for} board")
+        assert line.startswith("error: --firmware: ")
+    assert not (tmp_path / "out").exists()  # the demo wrote no gait table
 
 
 @pytest.mark.parametrize(
@@ -560,7 +582,7 @@ def test_demo_with_a_missing_firmware_leaves_no_gait(tmp_path: Path, monkeypatch
 
 QEMU_COMMANDS = {
     "sim serve": ["sim", "serve", "--board", "qemu", "--robot", "snake3", "--report", "0"],
-    "demo": ["demo", "--world", "kinematic", "--cycles", "1"],
+    "demo": ["demo", "--board", "qemu", "--world", "kinematic", "--cycles", "1"],
 }
 
 

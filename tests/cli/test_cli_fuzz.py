@@ -60,7 +60,7 @@ from snakebot.cli.params import AngleListType, AngleType, NumberType, OutputPath
 from snakebot.cli.troubleshooting import ERROR_LINE
 from snakebot.errors import LINE_LIMIT
 from snakebot.settings import resolve_int
-from snakebot.sim.qemu import DEFAULT_IMAGE
+from snakebot.sim.serve import default_firmware
 
 EXAMPLES = resolve_int("SNAKEBOT_CLI_FUZZ_EXAMPLES")
 FUZZ = settings(
@@ -744,7 +744,7 @@ def test_hostile_input_to_a_server_is_refused_or_served_until_sigterm(case) -> N
 
 
 @pytest.mark.qemu
-@pytest.mark.skipif(not DEFAULT_IMAGE.is_file(), reason="needs `make firmware`")
+@pytest.mark.skipif(not default_firmware().is_file(), reason="needs `make firmware`")
 @settings(FUZZ, max_examples=max(2, SERVING_EXAMPLES // 2))
 @given(case=serving_cases((("sim", "serve"),)))
 def test_hostile_input_to_sim_serve_is_refused_or_served_until_sigterm(case) -> None:

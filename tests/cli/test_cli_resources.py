@@ -22,6 +22,7 @@ from snakebot.formats.protocol import sync_write
 from snakebot.model.robots import load_robot
 from snakebot.sim.options import SimOptions
 from snakebot.sim.qemu import DEFAULT_IMAGE
+from snakebot.sim.serve import default_firmware
 from snakebot.sim.workdirs import make_workdir, sweep_stale
 from snakebot.sim.world import World
 
@@ -179,7 +180,8 @@ def _workdirs(pid: int) -> list[Path]:
 
 def _serve() -> tuple[subprocess.Popen[str], dict]:
     proc = subprocess.Popen(
-        [sys.executable, "-m", "snakebot", "sim", "serve", "--robot", "snake3", "--json"],
+        [sys.executable, "-m", "snakebot", "sim", "serve", "--board", "qemu"]
+        + ["--robot", "snake3", "--json"],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -211,7 +213,7 @@ def test_sim_serve_leaves_no_work_directories(how):
 
 
 @pytest.mark.qemu
-@pytest.mark.skipif(not DEFAULT_IMAGE.is_file(), reason="needs `make firmware`")
+@pytest.mark.skipif(not default_firmware().is_file(), reason="needs `make firmware`")
 def test_a_served_robot_keeps_only_its_recent_history():
     import time
 

@@ -28,6 +28,8 @@ SEARCH += ["--param", "delta=30deg:150deg:2", "--param", "omega=360deg", "--work
         ("scipy", ["sim", "goto", "trident", "--to", "2,1,30deg"], "snakebot[plan]"),
         ("mujoco", ["sim", "friction", "GAIT"], "snakebot[physics]"),
         ("mujoco", ["demo"], "snakebot[physics]"),
+        ("unicorn", ["demo", "--world", "kinematic"], "snakebot[mcu]"),  # the default board
+        ("unicorn", ["sim", "serve"], "snakebot[mcu]"),
         *(
             ("foxglove", [*command, "--foxglove", "8765"], "snakebot[live]")
             for command in (

@@ -55,7 +55,8 @@ def assert_says_unreachable(result, out):
 def test_random_target_reached_as_planned_and_as_played(tmp_path, robot_name, target):
     out = tmp_path / "plan.gait"
     to = ",".join(f"{v:.6f}" for v in target)
-    result = run("plan", robot_name, "--to", to, "-o", out, "--json")
+    # the QEMU board's 2 KB: the targets are near, and a failing search stays short
+    result = run("plan", robot_name, "--to", to, "--capacity", "qemu", "-o", out, "--json")
     if tuple(target) in PLANNER_LIMIT:
         assert_says_unreachable(result, out)
         return
@@ -208,19 +209,19 @@ def test_a_plan_near_a_singular_configuration_is_warned_about(monkeypatch):
 
 
 def test_a_target_beyond_the_small_board_exits_1_naming_capacity(tmp_path):
-    """The same target: beyond what the QEMU board's table holds (the default; exit 1,
-    the message says --capacity, nothing written), within the CM-530's, whose plan is
+    """The same target: beyond what the QEMU board's table holds (exit 1, the message
+    says --capacity, nothing written), within the CM-530's, the default, whose plan is
     then larger than the QEMU board takes."""
     to = "-6.1,16.94,37deg"  # about three body lengths of snake3
     out = tmp_path / "far.gait"
-    small = run("plan", "snake3", "--to", to, "-o", out)
+    small = run("plan", "snake3", "--to", to, "--capacity", "qemu", "-o", out)
     assert small.exit_code == 1, small.output
     assert small.output.count("\n") == 1
     assert small.output.startswith("error: --to, --capacity: ")
     assert "a larger table (the cm530's" in small.output and "no file was written" in small.output
     assert not out.exists()
 
-    large = run("plan", "snake3", "--to", to, "--capacity", "cm530", "-o", out, "--json")
+    large = run("plan", "snake3", "--to", to, "-o", out, "--json")  # the CM-530's, unasked
     assert large.exit_code == 0, large.output
     report = json.loads(large.stdout)
     assert report["capacity_bytes"] == board_value("cm530", "BOARD_TABLE_CAPACITY")

@@ -1,7 +1,9 @@
-"""`snakebot sim serve`: the real firmware under QEMU on the emulated bus, started as a
-user would (a subprocess), reached through the pseudo-terminal it prints, and stopped
-with SIGTERM without leaving QEMU behind. Also: the flash image it builds from the
-application ELF is the one `make firmware` lays out, and a missing image is a clear error."""
+"""`snakebot sim serve --board qemu`: the real firmware under QEMU on the emulated bus,
+started as a user would (a subprocess), reached through the pseudo-terminal it prints, and
+stopped with SIGTERM without leaving QEMU behind (the default board's, the emulated
+CM-530's, is tests/firmware/test_cm530_cli.py). Also: the flash image it builds from the
+application ELF is the one `make firmware` lays out, and a missing image, one that is no
+firmware and one built for the other board are clear errors (exit 2) on either board."""
 
 from __future__ import annotations
 
@@ -16,7 +18,7 @@ import time
 
 import pytest
 from click.testing import CliRunner
-from firmware_support import CONTROLLER_ID, QEMU_DIR, build_firmware, client
+from firmware_support import BUILD, CONTROLLER_ID, QEMU_DIR, build_firmware, client
 
 from snakebot.cli import main
 from snakebot.formats.protocol import Packet
@@ -57,6 +59,8 @@ def test_serve_answers_on_its_pty_and_sigterm_leaves_no_qemu():
             "snakebot",
             "sim",
             "serve",
+            "--board",
+            "qemu",
             "--robot",
             "snake5",
             "--json",
@@ -92,20 +96,49 @@ def test_serve_answers_on_its_pty_and_sigterm_leaves_no_qemu():
                 os.kill(qemu_pid, signal.SIGKILL)
 
 
-def test_a_missing_firmware_image_says_to_build_it(tmp_path):
+BOARD_CHOICE = [[], ["--board", "qemu"]]  # the default board, the CM-530, and QEMU's
+
+
+@pytest.mark.parametrize("board", BOARD_CHOICE, ids=["default", "qemu"])
+def test_a_missing_firmware_image_says_to_build_it(tmp_path, board):
     missing = tmp_path / "firmware.elf"
-    result = CliRunner().invoke(main, ["sim", "serve", "--firmware", str(missing)])
+    result = CliRunner().invoke(main, ["sim", "serve", *board, "--firmware", str(missing)])
     assert result.exit_code == 2
     assert f"firmware image {missing} not found" in result.output
-    assert "`make firmware` builds build/qemu/firmware.elf" in result.output
+    built = "build/qemu/firmware.elf" if board else "build/cm530/firmware.bin"
+    assert f"`make firmware` builds {built}" in result.output
 
 
-def test_a_file_that_is_not_firmware_is_refused(tmp_path):
+@pytest.mark.parametrize(
+    ("board", "says"),
+    [([], "not a readable ELF"), (["--board", "qemu"], "32-bit little-endian")],
+    ids=["default", "qemu"],
+)
+def test_a_file_that_is_not_firmware_is_refused(tmp_path, board, says):
     bogus = tmp_path / "firmware.elf"
     bogus.write_bytes(b"\x7fELF" + bytes(60))
-    result = CliRunner().invoke(main, ["sim", "serve", "--firmware", str(bogus)])
+    result = CliRunner().invoke(main, ["sim", "serve", *board, "--firmware", str(bogus)])
     assert result.exit_code == 2
-    assert "32-bit little-endian" in result.output
+    assert says in result.output
+
+
+@pytest.mark.parametrize(
+    ("board", "image", "built_for"),
+    [
+        ("cm530", "qemu/firmware.elf", "qemu"),
+        ("qemu", "cm530/firmware.elf", "cm530"),
+        ("qemu", "cm530/firmware.bin", "cm530"),
+    ],
+)
+def test_the_other_boards_build_is_refused_at_once(board, image, built_for):
+    """What `make firmware` builds for one board, given to the other: exit 2 in one line
+    naming the board it was built for, before anything runs (not a boot that times out)."""
+    build_firmware()
+    path = BUILD / image
+    result = CliRunner().invoke(main, ["sim", "serve", "--board", board, "--firmware", str(path)])
+    assert result.exit_code == 2, result.output
+    assert result.stdout == "" and result.stderr.count("\n") == 1
+    assert f"{path} was built for the {built_for} board" in result.stderr
 
 
 def test_flash_image_from_the_elf_is_the_one_make_lays_out(tmp_path):

@@ -96,7 +96,7 @@ def program_done(ctl, duration_s: float, *more: str) -> dict:
 
 def test_a_program_reaches_the_servos_as_predicted():
     build_firmware()
-    with EmulatedRobot("snake5") as robot:
+    with EmulatedRobot("snake5", board="qemu") as robot:
         program = three_segments(robot)
         ids = program.joint_ids
         ctl = ControllerClient.open(robot.info.pc_link)
@@ -139,7 +139,7 @@ def _play_planned(program) -> tuple[np.ndarray, bool]:
     """Where the world's body ends after the firmware in QEMU plays ``program``, and
     whether the host kept QEMU's CPU waiting for much of the play (then the firmware's
     ticks came late and the body's end says nothing about the firmware)."""
-    with EmulatedRobot("trident") as robot:
+    with EmulatedRobot("trident", board="qemu") as robot:
         queue = HostQueue(robot.info.qemu_pid)
         ctl = ControllerClient.open(robot.info.pc_link)
         try:

@@ -47,7 +47,7 @@ def _record_goals(robot: EmulatedRobot) -> dict[int, list[tuple[float, int]]]:
 
 def test_a_large_phi0_step_reaches_the_servos_slewed():
     build_firmware()
-    with EmulatedRobot("snake5") as robot:
+    with EmulatedRobot("snake5", board="qemu") as robot:
         ctl = ControllerClient.open(robot.info.pc_link)
         try:
             wave = SerpenoidSettings(amplitude=math.radians(20), omega=OMEGA, delta=1.5)

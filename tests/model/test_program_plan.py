@@ -43,7 +43,8 @@ def run(*args: str):
 def test_program_plan_ends_at_the_target_on_ideal_servos(tmp_path: Path, robot: str) -> None:
     x, y, theta = seeded_target(robot)
     out = tmp_path / "go.prog"
-    result = run("plan", robot, "--to", f"{x},{y},{theta}", "-o", str(out), "--json")
+    to = f"{x},{y},{theta}"
+    result = run("plan", robot, "--to", to, "--capacity", "qemu", "-o", str(out), "--json")
     if robot == "snake5":
         # Since the kinematic world became quasi-static Coulomb (issue 31, open) the
         # serpenoid arcs' cycle model, fitted to the old smooth friction, no longer
@@ -57,7 +58,7 @@ def test_program_plan_ends_at_the_target_on_ideal_servos(tmp_path: Path, robot: 
     plan = json.loads(result.output)
     program = read_program(out)
     assert plan["program_bytes"] == len(out.read_bytes()) == len(program.encode())
-    # made for the smallest board unless told: it fits there
+    # made for the QEMU board's capacity, as asked: it fits there
     assert plan["program_bytes"] <= plan["capacity_bytes"] == QEMU_CAPACITY
     # far smaller than a table of the plan's steps (its loops would be frames)
     assert plan["program_bytes"] < 2 * program.joint_count * min(
@@ -88,7 +89,8 @@ def test_a_program_the_rounding_moves_out_of_tolerance_is_not_written(tmp_path: 
     # a tolerance finer than what goals rounded to ticks at every step can meet
     out = tmp_path / "tight.prog"
     tight = ("--tolerance", "1e-5", "--heading-tolerance", "1e-5")
-    result = run("plan", "trident", "--to", "0.5,0.2,0.1", *tight, "-o", str(out))
+    small = ("--capacity", "qemu")  # a short search: every route fails the same way
+    result = run("plan", "trident", "--to", "0.5,0.2,0.1", *tight, *small, "-o", str(out))
     assert result.exit_code == 1
     assert result.output.startswith("error: ") and len(result.output.strip().splitlines()) == 1
     assert "rounded" in result.output and "no file was written" in result.output

@@ -1,7 +1,7 @@
 """The package as a user gets it: `python -m build` makes the sdist and, from the sdist, the
-wheel; the wheel goes into a fresh venv outside the checkout with only the `physics`
-extra (the demo's default world is MuJoCo), and the main commands run there from a
-directory outside the checkout."""
+wheel; the wheel goes into a fresh venv outside the checkout with only the `physics` and
+`mcu` extras (the demo's default world is MuJoCo, its default board the emulated CM-530),
+and the main commands run there from a directory outside the checkout."""
 
 from __future__ import annotations
 
@@ -48,8 +48,11 @@ class Installed:
 
 
 def _run(*cmd: str | Path, timeout: float) -> None:
+    # Without PYTHONPATH: a checkout's host/ on it (its snakebot.egg-info, which the sdist
+    # build writes) made pip take snakebot as installed and leave it out of the venv.
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     done = subprocess.run(
-        [str(c) for c in cmd], capture_output=True, text=True, timeout=timeout, check=False
+        [str(c) for c in cmd], capture_output=True, text=True, timeout=timeout, check=False, env=env
     )
     assert done.returncode == 0, f"{cmd} failed:\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
 
@@ -69,7 +72,7 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> Installed:
     # every dependency ahead of time, which Python does anyway for what it imports).
     _run(sys.executable, "-m", "venv", "--without-pip", venv, timeout=120)
     pip = (sys.executable, "-m", "pip", "--python", venv / "bin" / "python", "install", "-q")
-    _run(*pip, "--no-compile", f"{wheel}[physics]", timeout=600)
+    _run(*pip, "--no-compile", f"{wheel}[physics,mcu]", timeout=600)
     work = root / "work"
     work.mkdir()
     return Installed(sdist, wheel, venv, work)
@@ -148,8 +151,9 @@ def test_demo_runs_the_shipped_firmware(installed):
     )
     assert done.returncode == 0, done.stderr
     result = json.loads(done.stdout)
-    shipped = installed.venv.glob("lib/python3*/site-packages/snakebot/firmware/images/qemu")
-    assert Path(result["firmware"]).parent == next(shipped)
+    shipped = installed.venv.glob("lib/python3*/site-packages/snakebot/firmware/images/cm530")
+    assert result["board"] == "cm530"  # the shipped CM-530 image on the emulated STM32F103RE
+    assert Path(result["firmware"]) == next(shipped) / "firmware.bin"
     assert result["emulated"]["dx"] > 0.5 * result["predicted"]["dx"] > 0
     assert result["png"] is None  # no matplotlib without the `plot` extra
     assert (out / "demo.gait").is_file()

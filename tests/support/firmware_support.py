@@ -177,6 +177,48 @@ def booted_qemu(
         yield fw.ports.pc_link
 
 
+BOARDS = ("cm530", "qemu")
+"""The boards the firmware-in-the-loop tests of board-dependent behaviour (the PC link,
+upload, play) run on: the CM-530's image on the emulated STM32F103RE, the default, and
+the qemu board's build under QEMU, a second, independent emulator of the same core."""
+
+
+CM530_MARGIN_MS = 3000
+"""The reply margin the clients get from the emulated CM-530 in the tests' own process
+(``SNAKEBOT_MARGIN_MS``; tests/firmware/test_cm530_cli.py's too)."""
+
+
+@contextlib.contextmanager
+def booted(
+    board: str, folder: Path, robot: str = "snake5", faults: FaultConfig | None = None
+) -> Iterator[str]:
+    """``board``'s firmware image running, its bus served by ``robot``'s emulated servos
+    (with ``faults`` on the wire, if given): yields the PC link's pty once the firmware
+    answers. ``folder`` holds QEMU's bus socket."""
+    if board == "qemu":
+        with booted_qemu(folder, robot, faults) as port:
+            yield port
+        return
+    pytest.importorskip("unicorn")
+    from snakebot.sim.mcu.runner import McuFirmware
+    from snakebot.sim.serve import board_image, default_firmware
+
+    build_firmware()
+    bus = SimOptions(robot=robot, faults=faults or FaultConfig()).build_bus()
+    with (
+        McuFirmware(board_image(default_firmware(board), board), bus=bus) as fw,
+        pytest.MonkeyPatch.context() as env,
+    ):
+        # The emulated chip runs in this process, in Python where it touches a
+        # peripheral, beside the in-process clients: on a loaded machine it may fall
+        # below real time while the bus is busy (it then slows its clock rather than pile
+        # up a backlog), so its replies get a wider margin than a board's.
+        env.setenv("SNAKEBOT_MARGIN_MS", str(CM530_MARGIN_MS))
+        wait_for_boot(fw.pc_link)
+        yield fw.pc_link
+        assert fw.error is None, fw.error
+
+
 HAL_DIR = REPO_ROOT / "firmware" / "hal"
 
 HAL_IO_CALLBACKS = """

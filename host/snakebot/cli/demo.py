@@ -8,6 +8,7 @@ from typing import Any
 import click
 
 from snakebot.cli.options import (
+    board_option,
     directory_option,
     firmware_option,
     json_option,
@@ -30,11 +31,12 @@ from snakebot.workflows.demo import DemoSettings, run_demo, summary_lines
 @click.option(
     "--cycles",
     type=click.IntRange(1, 20),
-    default=3,
+    default=DemoSettings.cycles,
     show_default=True,
     help="Gait cycles measured (after one cycle to settle).",
 )
 @directory_option("--out", default=Path("out"), what="the gait table and the PNG")
+@board_option
 @firmware_option
 @world_option(DemoSettings.world)
 @video_option("the emulated robot")
@@ -42,10 +44,11 @@ from snakebot.workflows.demo import DemoSettings, run_demo, summary_lines
 def demo(as_json: bool, **options: Any) -> None:
     """Run the whole chain on the emulated 5-link robot and report what it did.
 
-    It generates a serpenoid gait table, starts the emulated robot (the real controller
-    firmware under QEMU, its servo bus on emulated AX-12s, the world that moves the
-    body), uploads the table over the PC link, plays it while monitoring, and compares
-    how far and in which direction the body went with the prediction from the table.
+    It generates a serpenoid gait table, starts the emulated robot (the CM-530's own
+    firmware image on the emulated STM32F103RE, or with --board qemu the qemu board's
+    build under QEMU; its servo bus on emulated AX-12s; the world that moves the body),
+    uploads the table over the PC link, plays it while monitoring, and compares how far
+    and in which direction the body went with the prediction from the table.
     It writes OUT/demo.gait and OUT/demo.png (paths and joint angles) and leaves nothing
     running, also when interrupted. `make demo` builds everything first and runs this.
 
@@ -63,7 +66,8 @@ def demo(as_json: bool, **options: Any) -> None:
         result = draw_demo(run_demo(settings, say=say), say=say)
     except KeyboardInterrupt as exc:
         click.echo(
-            "interrupted: the emulated robot (QEMU, the bus) was stopped; nothing is left running",
+            "interrupted: the emulated robot (the board, the bus) was stopped; nothing is "
+            "left running",
             err=True,
         )
         raise SystemExit(interrupted_status(exc)) from None

@@ -41,8 +41,9 @@ MARKS = {"ok": "ok  ", "warn": "WARN", "fail": "FAIL", "skip": "skip"}
     type=click.Choice([checks.ANY_BOARD, *checks.board_names()]),
     default=checks.ANY_BOARD,
     show_default=True,
-    help="The board the controller should name: cm530 for the robot, qemu for `snakebot "
-    "sim serve`; any accepts either (and says which answered).",
+    help="The board the controller should name: cm530 for the robot and `snakebot sim "
+    "serve` (its default board), qemu for `sim serve --board qemu`; any accepts either (and "
+    "says which answered).",
 )
 @json_option()
 def doctor(

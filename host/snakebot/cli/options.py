@@ -10,7 +10,7 @@ one by one, so no signature restates them.
   (the controller's PC link), :func:`port_option` (any other port), :func:`controller_id_option`.
 * Robots: :func:`robot_argument` (ROBOT), :func:`robot_option` (--robot, -r).
 * Worlds and the emulator: :func:`world_option`, :func:`ideal_option`, :func:`mu_option`,
-  :func:`firmware_option`, :func:`link_option`.
+  :func:`board_option`, :func:`firmware_option`, :func:`link_option`.
 * Waves: :func:`wave_options` (-A, -w, -d), :func:`offset_option`, :func:`speed_option`,
   :func:`steer_option`, :func:`rate_option`, :func:`form_option`.
 * Plans: :func:`target_options` (--to, --from, --tolerance, --heading-tolerance).
@@ -343,13 +343,29 @@ mu_option: Decorator = click.option(
     help="With the mujoco world: the wheel-floor friction coefficient (default: the robot's).",
 )
 
+
+def board_option(f: F) -> F:
+    """``--board``: which emulated board runs the firmware (``board``), the CM-530 by default."""
+    from snakebot.sim.serve import BOARDS, DEFAULT_BOARD
+
+    return click.option(
+        "--board",
+        type=click.Choice(BOARDS),
+        default=DEFAULT_BOARD,
+        show_default=True,
+        help="cm530: the CM-530's own image on the emulated STM32F103RE (in this process); "
+        "qemu: the qemu board's build of the same firmware under qemu-system-arm.",
+    )(f)
+
+
 firmware_option: Decorator = click.option(
     "--firmware",
     type=INPUT_PATH,
     default=None,
-    help="Firmware for QEMU: the qemu board's application ELF (the boot stub beside it "
-    "goes in front) or a whole-flash .bin image. Default: build/qemu/firmware.elf from "
-    "`make firmware` in a checkout, else the image shipped with snakebot.",
+    help="Firmware to run. cm530: the CM-530 image (.bin, .hex or .elf). qemu: the qemu "
+    "board's application ELF (the boot stub beside it goes in front) or a whole-flash .bin. "
+    "Default: build/cm530/firmware.bin or build/qemu/firmware.elf from `make firmware` in a "
+    "checkout, else the image shipped with snakebot.",
 )
 
 link_option: Decorator = click.option(

@@ -26,7 +26,7 @@ from snakebot.cli.output import dumps
 from snakebot.cli.params import CAPACITY
 from snakebot.cli.troubleshooting import error_line
 from snakebot.extras import require
-from snakebot.facts.boards import TABLE_CAPACITY
+from snakebot.facts.boards import TABLE_CAPACITY, smallest_board
 from snakebot.model.plan import PlanRequest, Unreachable
 from snakebot.model.plan.planner import DEFAULT_BOARD, DEFAULT_CAPACITY
 
@@ -56,8 +56,9 @@ def unreachable(exc: Unreachable) -> None:
     type=CAPACITY,
     help="The largest table (or program) the plan may take, in bytes or as a board's "
     f"({', '.join(f'{b}: {n}' for b, n in sorted(TABLE_CAPACITY.items()))} bytes) "
-    f"[default: {DEFAULT_BOARD}'s {DEFAULT_CAPACITY}, the smallest board's, so that a "
-    "plan made without asking the controller plays on every board].",
+    f"[default: the controller's own with --port, else the {DEFAULT_BOARD}'s "
+    f"{DEFAULT_CAPACITY}, the robot's board's; a plan for a smaller board, e.g. "
+    f"--capacity {smallest_board()}, plays on every board].",
 )
 @port_option(
     CONTROLLER_PORT,
@@ -111,9 +112,11 @@ def plan_command(
     end played open loop is not to be trusted (--json: a warning of kind open_loop,
     with the numbers): steer in closed loop with `snakebot sim goto` instead.
 
-    The plan fits the table capacity it is made for: the smallest board's unless
-    --capacity names another (the CM-530 holds the largest tables, so a longer way goes
-    in one plan there) or --port asks the controller it is for. Routes of few loops are
+    The plan fits the table capacity it is made for: the controller's own when --port
+    asks the controller it is for, else --capacity (a board's or a number of bytes), else
+    the CM-530's, the robot's board (it holds the largest tables, so a longer way goes in
+    one plan there; --capacity qemu plans for the smaller QEMU board, whose table every
+    board takes). Routes of few loops are
     tried first (at every hub the nominal count, then twice as many, up to what the
     capacity holds). When no plan inside the limits and the capacity reaches the target,
     the command says so and exits with status 1; nothing is written.
@@ -122,7 +125,8 @@ def plan_command(
     Example:
       snakebot plan trident --to 2,1,30deg -o go.gait
       snakebot sim predict go.gait --ideal
-      snakebot plan snake3 --to 12,0,0 --capacity cm530 -o far.gait
+      snakebot plan snake3 --to 12,0,0 -o far.gait            # the CM-530's table
+      snakebot plan trident --to 2,1,30deg --capacity qemu -o small.gait
       snakebot plan snake3 --to 12,0,0 --port /dev/ttyUSB0 -o far.gait
       snakebot plan trident --to 1,0.5,30deg -o go.prog
       snakebot upload go.prog --port /dev/ttyUSB0 && snakebot play --port /dev/ttyUSB0

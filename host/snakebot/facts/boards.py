@@ -57,6 +57,15 @@ FLASH_PAGE_SIZE: dict[str, int] = _by_board("FLASH_PAGE_SIZE")
 """Bytes in one erasable flash page, by board (2 KB on the STM32F103RE)."""
 
 
+ROBOT_BOARD = "cm530"
+"""The board a robot carries, the CM-530: the image ``snakebot flash`` writes, the board
+``snakebot sim serve`` and the demo emulate unless told otherwise, and the one whose
+capacity a plan fits when no controller or board is named."""
+
+if ROBOT_BOARD not in TABLE_CAPACITY:  # pragma: no cover - a firmware/boards/ rename
+    raise ImportError(f"no firmware/boards/{ROBOT_BOARD}: the robot's board is gone")
+
+
 def smallest_board() -> str:
     """The board that holds the smallest table: what every board takes."""
     return min(TABLE_CAPACITY, key=lambda name: (TABLE_CAPACITY[name], name))

@@ -1,10 +1,11 @@
 """The emulated robot with its real firmware: the emulated CM-530 or QEMU, the emulated
 servo bus and the world.
 
-With ``board="cm530"`` the exact CM-530 image runs on the emulated STM32F103RE
+By default (``board="cm530"``) the exact CM-530 image runs on the emulated STM32F103RE
 (:mod:`snakebot.sim.mcu`) in this process, its USART1 driving the emulated bus directly on
-the chip's clock and its USART3 on a pseudo-terminal. With ``board="qemu"``
-:class:`EmulatedRobot` starts, in this order,
+the chip's clock and its USART3 on a pseudo-terminal. With ``board="qemu"``, a second and
+independent emulator of the same portable core, :class:`EmulatedRobot` starts, in this
+order,
 
 1. the robot's virtual AX-12s on an emulated bus (:mod:`snakebot.sim.bus.bus`), served on a Unix
    socket in a private work directory (:class:`~snakebot.sim.transports.unixsock.UnixSocketServer`,
@@ -23,15 +24,17 @@ started it, so even a killed host leaves no emulator behind.
 
 ::
 
-    with EmulatedRobot("snake5") as robot:          # build/qemu/firmware.elf
+    with EmulatedRobot("snake5") as robot:          # build/cm530/firmware.bin
         print(robot.info.pc_link)                   # /dev/pts/N, 57600 baud, ID 200
         ...                                         # snakebot upload/play/monitor --port
         print(robot.record().displacement())        # how far the body went
 
-The firmware may be given as the application ELF (``build/qemu/firmware.elf``, linked
-at 0x08003000: the boot stub from the same directory is put in front of it, as the
-CM-530's bootloader sits in front of the application) or as a whole-flash raw image
-(``build/qemu/flash.bin``).
+The CM-530 takes its image as ``make firmware`` builds it (``build/cm530/firmware.bin``,
+``.hex`` or ``.elf``). The qemu board takes the application ELF
+(``build/qemu/firmware.elf``, linked at 0x08003000: the boot stub from the same directory
+is put in front of it, as the CM-530's bootloader sits in front of the application) or a
+whole-flash raw image (``build/qemu/flash.bin``). An image built for the other board is
+refused at once, naming the board it was built for.
 """
 
 from __future__ import annotations
@@ -49,16 +52,18 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from snakebot.errors import quoted
-from snakebot.facts.boards import APP_BASE, PC_LINK_BAUD
+from snakebot.extras import require
+from snakebot.facts.boards import APP_BASE, PC_LINK_BAUD, ROBOT_BOARD, TABLE_CAPACITY
 from snakebot.facts.controller import load as load_controller
 from snakebot.firmware import image as firmware_image
 from snakebot.formats.protocol import DxlTimeout, ProtocolError
+from snakebot.link.flash.image import image_info
 from snakebot.link.transport import DxlClient
 from snakebot.model.robots import Robot, load_robot
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.errors import SimFailure, SimInputError, SimOptionError
 from snakebot.sim.history import History
-from snakebot.sim.mcu.errors import McuError
+from snakebot.sim.mcu.errors import ImageError
 from snakebot.sim.options import SimOptions
 from snakebot.sim.physics import PhysicsWorld
 from snakebot.sim.physics.select import DEFAULT_WORLD, check_world, make_world
@@ -72,20 +77,27 @@ from snakebot.userfiles import UnreadableInput, read_bounded
 if TYPE_CHECKING:
     from snakebot.sim.mcu.runner import McuFirmware
 
-DEFAULT_FIRMWARE = firmware_image("qemu", "firmware.elf")
-"""The qemu board's application image: ``make firmware``'s in a checkout, else the one
-shipped in the package (:mod:`snakebot.firmware`)."""
+BOARDS = tuple(sorted(TABLE_CAPACITY))
+"""Where the firmware runs: ``cm530``, the emulated STM32F103RE running the CM-530's own
+image, or ``qemu``, QEMU's stm32vldiscovery running the qemu board's build of the same
+portable core (a second, independent emulator of it)."""
 
-BOARDS = ("cm530", "qemu")
-"""Where the firmware runs: the emulated STM32F103RE (the CM-530's own image) or QEMU's
-stm32vldiscovery (the qemu board's build of the same firmware)."""
+DEFAULT_BOARD = ROBOT_BOARD
+"""The board emulated unless told otherwise: the robot's own, the CM-530."""
 
-DEFAULT_BOARD = "qemu"
+DEFAULT_IMAGES = {"cm530": "firmware.bin", "qemu": "firmware.elf"}
+"""The file each board runs unless told otherwise, as ``make firmware`` names it under
+``build/<board>/`` and a wheel ships it (:data:`snakebot.firmware.SHIPPED`)."""
 
 
-def default_firmware(board: str) -> Path:
-    """The image a board runs unless told otherwise (``make firmware`` builds both)."""
-    return firmware_image(board, "firmware.elf")
+def default_firmware(board: str = DEFAULT_BOARD) -> Path:
+    """The image ``board`` runs unless told otherwise: ``make firmware``'s in a checkout,
+    else the one shipped in the package (:mod:`snakebot.firmware`)."""
+    return firmware_image(board, DEFAULT_IMAGES[board])
+
+
+QEMU_FIRMWARE = default_firmware("qemu")
+"""The qemu board's application image (its boot stub, ``stub.elf``, lies beside it)."""
 
 
 FLASH_BASE = 0x08000000
@@ -118,6 +130,8 @@ class ServeInfo:
     robot: str
     servo_ids: tuple[int, ...]
     firmware: str
+    board: str = DEFAULT_BOARD
+    """Which board runs the firmware (:data:`BOARDS`)."""
     controller_id: int = CONTROLLER_ID
     baudrate: int = PC_LINK_BAUD
 
@@ -125,6 +139,13 @@ class ServeInfo:
         out = asdict(self)
         out["servo_ids"] = list(self.servo_ids)
         return out
+
+    def where(self) -> str:
+        """Where the firmware runs, in words: "on the emulated STM32F103RE" or "in QEMU
+        (pid N)"."""
+        if self.board == "qemu":
+            return f"in QEMU (pid {self.qemu_pid})"
+        return "on the emulated STM32F103RE"
 
 
 @dataclass(frozen=True)
@@ -213,20 +234,66 @@ def _elf_segments(path: Path, data: bytes | None = None) -> list[tuple[int, byte
     return segments
 
 
-def check_firmware(firmware: str | os.PathLike[str] | None) -> Path:
-    """The firmware image ``firmware`` names (None: the default), if it is a file;
-    ServeError with the fix otherwise. For callers that write something first (the demo's
-    gait table), so that a missing image leaves nothing behind."""
-    src = Path(firmware) if firmware is not None else DEFAULT_FIRMWARE
+def check_firmware(firmware: str | os.PathLike[str] | None, board: str = DEFAULT_BOARD) -> Path:
+    """The firmware image ``firmware`` names (None: ``board``'s default), if it is a file
+    that ``board`` can run (not empty, not another board's build); SimInputError with the
+    fix otherwise. For callers that write something first (the demo's gait table), so
+    that a bad image leaves nothing behind."""
+    src = _existing(firmware, board)
+    board_image(src, board)
+    return src
+
+
+def board_image(src: Path, board: str) -> bytes:
+    """What ``board`` loads from the firmware file ``src``: the CM-530's application bytes
+    (checked as the board would fail on them) or QEMU's whole-flash image."""
+    if board == "qemu":
+        return _qemu_flash(src)
+    from snakebot.sim.mcu.image import read_image
+
+    try:
+        return read_image(src)
+    except ImageError as exc:  # another board's, empty, truncated: bad input
+        raise SimInputError(str(exc)).about("firmware") from None
+
+
+def _existing(firmware: str | os.PathLike[str] | None, board: str) -> Path:
+    """The file ``firmware`` names (None: ``board``'s default image), if it exists."""
+    default = default_firmware(check_board(board))
+    src = Path(firmware) if firmware is not None else default
     if not src.is_file():
         hint = (
             "run `make firmware` to build it"
-            if src == DEFAULT_FIRMWARE
-            else "check the path; `make firmware` builds build/qemu/firmware.elf in a "
-            f"checkout (the default image: {DEFAULT_FIRMWARE})"
+            if src == default
+            else f"check the path; `make firmware` builds build/{board}/"
+            f"{DEFAULT_IMAGES[board]} in a checkout (the {board} board's default image: "
+            f"{default})"
         )
         raise SimInputError(f"firmware image {src} not found: {hint}").about("firmware")
     return src
+
+
+def check_board(board: str) -> str:
+    """``board`` if it is one of :data:`BOARDS` and this installation can run it (the
+    emulated CM-530 needs the ``mcu`` extra), else an error saying what to do."""
+    if board not in BOARDS:
+        raise SimOptionError(
+            f"unknown board {quoted(board)}: choose one of {', '.join(BOARDS)}"
+        ).about("board")
+    if board == "cm530":
+        require("unicorn", "the emulated CM-530", params=("board",))
+    return board
+
+
+def _check_qemu_build(src: Path, app: bytes) -> None:
+    """An image whose identity block names another board than qemu (``app``: its bytes
+    from the application base on) would not answer on QEMU: refused at once, naming it."""
+    info = image_info(app, APP_BASE)
+    if info is not None and info.board != "qemu":
+        raise SimInputError(
+            f"{src} was built for the {info.board} board, not the qemu board: run it on the "
+            f"{info.board} board, or give the qemu board's image (build/qemu/firmware.elf)"
+        ).about("firmware")
 
 
 def flash_image(firmware: str | os.PathLike[str], out: str | os.PathLike[str]) -> Path:
@@ -236,19 +303,24 @@ def flash_image(firmware: str | os.PathLike[str], out: str | os.PathLike[str]) -
     ELF. An ELF whose code starts at the application base (0x08003000) gets the boot stub
     (``stub.elf`` beside it, else the default build's) put in front, as ``make firmware``
     lays out ``flash.bin``; the gap is erased flash (0xFF)."""
-    src = check_firmware(firmware)
     dest = Path(out)
+    dest.write_bytes(_qemu_flash(_existing(firmware, "qemu")))
+    return dest
+
+
+def _qemu_flash(src: Path) -> bytes:
+    """The whole-flash image of :func:`flash_image` from the firmware file ``src``."""
     data = _read_firmware(src)
     if data[:4] != b"\x7fELF":
+        _check_qemu_build(src, data)  # an application image, as the CM-530's .bin is
         _check_raw_image(src, data)
-        dest.write_bytes(data)
-        return dest
+        return data
     segments = _elf_segments(src, data)
     if min(addr for addr, _ in segments) >= APP_BASE:
         stub = next(
             (
                 p
-                for p in (src.parent / "stub.elf", DEFAULT_FIRMWARE.parent / "stub.elf")
+                for p in (src.parent / "stub.elf", QEMU_FIRMWARE.parent / "stub.elf")
                 if p.is_file()
             ),
             None,
@@ -271,8 +343,8 @@ def flash_image(firmware: str | os.PathLike[str], out: str | os.PathLike[str]) -
             )
         image[start : start + len(blob)] = blob
         end = max(end, start + len(blob))
-    dest.write_bytes(bytes(image[:end]))
-    return dest
+    _check_qemu_build(src, bytes(image[APP_BASE - FLASH_BASE : end]))
+    return bytes(image[:end])
 
 
 class GoalLog:
@@ -308,16 +380,17 @@ class GoalLog:
 
 
 class EmulatedRobot:
-    """The robot's emulated servos and body, driven by the real firmware under QEMU.
+    """The robot's emulated servos and body, driven by the real firmware on an emulated
+    board.
 
     ``robot``: a built-in name or a robot TOML file (or a :class:`Robot`). ``firmware``:
-    the image to run (default ``build/qemu/firmware.elf``). ``sim_query``: extra emulator
+    the image to run (default: the board's, :func:`default_firmware`). ``sim_query``: extra emulator
     options as in a ``sim://`` URL (``corrupt=0.001&seed=3``; see ``snakebot sim bus
     --help``). ``world_period``: seconds of bus time between the world's samples;
     ``world``: "kinematic" or "mujoco" (the physics moves the servos).
     ``history_s``: how many seconds of the latest world samples and goals :meth:`record`
     and :meth:`goals` keep (None: all), so a robot served for hours needs bounded memory.
-    ``board``: "cm530" (the emulated STM32F103RE) or "qemu".
+    ``board``: "cm530" (the emulated STM32F103RE, the default) or "qemu".
     """
 
     def __init__(
@@ -331,9 +404,7 @@ class EmulatedRobot:
         history_s: float | None = None,
         board: str = DEFAULT_BOARD,
     ) -> None:
-        if board not in BOARDS:
-            raise ServeError(f"unknown board {quoted(board)}: choose one of {', '.join(BOARDS)}")
-        self.board = board
+        self.board = check_board(board)
         self.world_kind = check_world(world)
         self.robot = robot if isinstance(robot, Robot) else load_robot(robot)
         self.history = None if history_s is None else max(1, round(history_s / world_period))
@@ -352,7 +423,7 @@ class EmulatedRobot:
     # -- lifecycle ------------------------------------------------------------------------
 
     def start(self, boot_timeout: float = BOOT_TIMEOUT_S) -> ServeInfo:
-        """Start the bus, the world and QEMU; return once the firmware answers PING."""
+        """Start the bus, the world and the board; return once the firmware answers PING."""
         if self._info is not None:
             return self._info
         self._workdir = make_workdir("serve")
@@ -396,6 +467,7 @@ class EmulatedRobot:
                 robot=self.robot.name,
                 servo_ids=tuple(self.robot.servo_ids),
                 firmware=str(self.firmware),
+                board=self.board,
             )
         except BaseException:
             self.stop()
@@ -420,13 +492,9 @@ class EmulatedRobot:
         )
 
     def _start_cm530(self, boot_timeout: float) -> ServeInfo:
-        from snakebot.sim.mcu.image import read_image  # needs unicorn: the mcu extra
-        from snakebot.sim.mcu.runner import McuFirmware
+        from snakebot.sim.mcu.runner import McuFirmware  # needs unicorn: the mcu extra
 
-        try:
-            image = read_image(self.firmware)
-        except McuError as exc:
-            raise ServeError(str(exc)) from None
+        image = board_image(_existing(self.firmware, self.board), self.board)
         self._bus = self._build_bus()
         self._mcu = McuFirmware(image, bus=self._bus)
         with self._mcu.lock:
@@ -440,6 +508,7 @@ class EmulatedRobot:
             robot=self.robot.name,
             servo_ids=tuple(self.robot.servo_ids),
             firmware=str(self.firmware),
+            board=self.board,
         )
         return self._info
 
@@ -477,8 +546,8 @@ class EmulatedRobot:
                     )
 
     def stop(self) -> None:
-        """Stop QEMU, then the bus server and the world; remove the work directory.
-        Idempotent; also runs when ``start`` fails half-way."""
+        """Stop the board (QEMU or the emulated chip), then the bus server and the world;
+        remove the work directory. Idempotent; also runs when ``start`` fails half-way."""
         if self._qemu is not None:
             self._qemu.stop()
         if self._mcu is not None:

@@ -1,10 +1,11 @@
-"""The demo: the whole chain on the emulated 5-link robot, with the real firmware in QEMU.
+"""The demo: the whole chain on the emulated 5-link robot, with the real firmware on an
+emulated board (the CM-530's own image on the emulated STM32F103RE unless told otherwise).
 
 1. Generate a serpenoid gait table for the robot (:func:`snakebot.model.gait.serpenoid`) and
    write it under ``out/``.
 2. Start the emulated robot (:class:`snakebot.sim.serve.EmulatedRobot`): the firmware image
-   under ``qemu-system-arm``, its Dynamixel bus on the emulated AX-12s, its PC link on a
-   pseudo-terminal, and the world that moves the body from the servos' positions.
+   on the emulated board (the CM-530, or QEMU), its Dynamixel bus on the emulated AX-12s,
+   its PC link on a pseudo-terminal, and the world that moves the body from the servos' positions.
 3. Upload the table over the PC link (:func:`snakebot.link.controller.upload.upload_gait`),
    play it in a loop (:func:`snakebot.link.controller.playback.play`) for a warm-up cycle and
    then the measured cycles, printing monitor lines, and stop it.
@@ -15,10 +16,10 @@
 
 Times: the comparison runs on the firmware's own timeline. The goals the firmware sent
 (each servo's Goal Position, sampled with the world) say where in the table it was at
-each instant, so the measured cycles are whole cycles of what it played (QEMU's clock
-may run a little slow on a loaded machine, so wall time alone would not do). The body's
-motion per cycle depends on the joint path, not on how fast it is played, so the
-prediction holds at any playback rate.
+each instant, so the measured cycles are whole cycles of what it played (the emulated
+board's clock may run a little slow on a loaded machine, so wall time alone would not
+do). The body's motion per cycle depends on the joint path, not on how fast it is
+played, so the prediction holds at any playback rate.
 
 How the difference is explained (:class:`Comparison`): the measured joint angles are
 fitted as the commanded ones delayed by ``lag`` (least squares over the measured cycles),
@@ -29,7 +30,7 @@ radian of joint deviation, measured on the model with delayed joint paths), doub
 safety. ``tolerance = lag_effect + 2 * sensitivity * residual``: the emulated result is
 expected within it of the prediction.
 
-The pace (:class:`Pacing`): on a busy host QEMU is descheduled, the firmware's goals stand
+The pace (:class:`Pacing`): on a busy host the emulator is descheduled, the firmware's goals stand
 still and then leap ahead. Beyond the tolerance, a run whose pace was so disturbed is
 INVALID rather than a disagreement: the host's scheduling may be what moved the robot.
 """
@@ -58,7 +59,7 @@ from snakebot.model.gait import serpenoid
 from snakebot.model.gait.common import motion_frame, table_motion
 from snakebot.model.robots import Robot, load_robot
 from snakebot.sim.physics.select import record_extras, world_of
-from snakebot.sim.serve import EmulatedRobot, ServeInfo, check_firmware
+from snakebot.sim.serve import DEFAULT_BOARD, EmulatedRobot, ServeInfo, check_firmware
 from snakebot.sim.world import WorldRecord
 
 FRAME_POLL_S = 0.1
@@ -109,6 +110,10 @@ fit (several times their lag)."""
 MIN_STEADY_SAMPLES = 20
 """Fewer steady samples than this: the lag is measured on them all."""
 
+PACING = {"qemu": " (QEMU does not pace the PC link at its baud rate)"}
+"""What the upload's line adds on a board whose PC link is not paced at its baud rate
+(the emulated STM32F103RE's USART3 is)."""
+
 Say = Callable[[str], None]
 
 
@@ -126,9 +131,13 @@ class DemoSettings:
     delta: float = math.radians(90.0)
     rate_hz: float = 50.0
     warmup_cycles: int = 1
-    cycles: int = 3
+    cycles: int = 5
+    """Cycles measured: the table loops on the controller, so any number fits any board's
+    table; more make a longer path to compare, 2 s each."""
     out_dir: Path = Path("out")
     firmware: Path | None = None
+    board: str = DEFAULT_BOARD
+    """The emulated board that runs the firmware (``cm530`` or ``qemu``)."""
     world: str = "mujoco"
     """The emulated world: "mujoco" (the physics, so the prediction is checked against
     something other than itself) or "kinematic" (the model the prediction uses)."""
@@ -215,8 +224,8 @@ class Pacing:
     """How steadily the firmware's goals went through the table in the measured cycles,
     on the bus clock (wall time): the longest the goals stood still (s) and the most
     frames they advanced between two samples. The comparison assumes a steady pace: the
-    servos then follow the table's path, late by their lag. A host that deschedules QEMU
-    (or the emulator's threads) breaks that: the goals stop, the servos catch up and
+    servos then follow the table's path, late by their lag. A host that deschedules the
+    emulator (or its threads) breaks that: the goals stop, the servos catch up and
     stop, then the goals leap ahead and the servos cut across the path. The servos' lag
     and tracking error, hence the tolerance, are measured on the steady stretches
     (:func:`steady_samples`); a difference beyond the tolerance may then be the host's
@@ -274,7 +283,7 @@ class Pacing:
         if self.rate < RATE_FLOOR:
             found.append(
                 f"came at {self.rate:.2f}x wall-clock speed (at least {RATE_FLOOR:g}x on a "
-                "steady run: QEMU got too little CPU)"
+                "steady run: the emulator got too little CPU)"
             )
         return " and ".join(found)
 
@@ -464,7 +473,7 @@ def compare(
     em_pose = relative(pose_a, interp_rows(em_t, record.t, record.pose))
     emulated = motion(em_pose[-1])
 
-    # The table's own time runs at ``rate`` x world time (QEMU's clock may lag the wall).
+    # The table's own time runs at ``rate`` x world time (the board's clock may lag the wall).
     rate = (target_b - target_a) * period_s / (t_b - t_a)
     path = predicted_motion(robot, angles, period_s, cycles, samples=200 * cycles + 1)
     predicted = motion(path[-1])
@@ -585,6 +594,7 @@ class DemoResult:
         return {
             "robot": self.settings.robot,
             "world": self.settings.world,
+            "board": self.settings.board,
             "firmware": self.info["firmware"],
             "qemu_pid": self.info["qemu_pid"],
             "gait_file": str(self.gait_file),
@@ -618,7 +628,7 @@ def run_demo(settings: DemoSettings | None = None, say: Say = print) -> DemoResu
     settings = settings or DemoSettings()
     began = time.monotonic()
     robot = load_robot(settings.robot)
-    check_firmware(settings.firmware)  # a missing image leaves no gait table behind
+    check_firmware(settings.firmware, settings.board)  # a missing one leaves no table behind
     out_dir = Path(settings.out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
 
@@ -642,19 +652,19 @@ def run_demo(settings: DemoSettings | None = None, say: Say = print) -> DemoResu
         f"{table.frame_period_ms} ms ({cycle_s:.2f} s a cycle, looping) -> {gait_file}"
     )
 
-    emulated = EmulatedRobot(robot, settings.firmware, world=settings.world)
+    emulated = EmulatedRobot(robot, settings.firmware, world=settings.world, board=settings.board)
     try:
         info: ServeInfo = emulated.start()
         say(
-            f"2. emulated {robot.name} running: firmware {info.firmware} in QEMU (pid "
-            f"{info.qemu_pid}), servos {', '.join(map(str, info.servo_ids))} on the emulated "
+            f"2. emulated {robot.name} running: firmware {info.firmware} {info.where()}, "
+            f"servos {', '.join(map(str, info.servo_ids))} on the emulated "
             f"bus, PC link {info.pc_link}, the {settings.world} world"
         )
         with ControllerClient.open(info.pc_link) as ctl:
             report = upload_gait(ctl, table, allow_new_servos=True)
             say(
                 f"3. upload: {report.summary()}; the controller's CRC 0x{report.crc:08x} "
-                "matches the file (QEMU does not pace the PC link at its baud rate)"
+                f"matches the file{PACING.get(info.board, '')}"
             )
             total = settings.warmup_cycles + settings.cycles
             say(
@@ -827,8 +837,8 @@ def summary_lines(result: DemoResult) -> list[str]:
         f"{100 * c.tolerance_m:.1f} cm in all.",
         c.pace.line(),
         *_physics_lines(c),
-        f"   the firmware played at {c.playback_rate:.2f}x wall-clock speed (its clock in QEMU);"
-        " the motion per cycle does not depend on it while the pace is steady.",
+        f"   the firmware played at {c.playback_rate:.2f}x wall-clock speed (its clock in the "
+        "emulator); the motion per cycle does not depend on it while the pace is steady.",
         (
             f"6. wrote {result.png} (body path: emulated vs predicted; joint angles: commanded "
             f"vs measured){_video_words(result)} and {result.gait_file}"

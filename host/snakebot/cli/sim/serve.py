@@ -1,4 +1,4 @@
-"""`snakebot sim serve`: the emulated robot with its real firmware under QEMU."""
+"""`snakebot sim serve`: the emulated robot with its real firmware on an emulated board."""
 
 from __future__ import annotations
 
@@ -10,15 +10,17 @@ import click
 
 from snakebot.cli.options import (
     FOXGLOVE_RATE_HZ,
+    board_option,
+    firmware_option,
     foxglove_option,
     json_option,
     robot_option,
     world_option,
 )
 from snakebot.cli.output import dumps
-from snakebot.cli.params import INPUT_PATH, NumberType
+from snakebot.cli.params import NumberType
 from snakebot.cli.signals import StopRequest, serving
-from snakebot.sim.serve import BOARDS, DEFAULT_BOARD, BodyPose, EmulatedRobot
+from snakebot.sim.serve import BodyPose, EmulatedRobot
 
 HISTORY_S = 600.0
 """Seconds of the world's latest samples kept while serving: memory stays flat however
@@ -27,23 +29,8 @@ long it serves (the pose reports need only the latest)."""
 
 @click.command("serve")
 @robot_option("Robot to emulate, with its servo IDs, zero ticks and body", default="snake5")
-@click.option(
-    "--board",
-    type=click.Choice(BOARDS),
-    default=DEFAULT_BOARD,
-    show_default=True,
-    help="cm530: the CM-530's own image on the emulated STM32F103RE (in this process); "
-    "qemu: the qemu board's build under qemu-system-arm.",
-)
-@click.option(
-    "--firmware",
-    type=INPUT_PATH,
-    default=None,
-    help="Firmware to run. cm530: the CM-530 image (.elf, .bin or .hex). qemu: the qemu "
-    "board's application ELF (the boot stub beside it goes in front) or a whole-flash .bin. "
-    "Default: build/<board>/firmware.elf from `make firmware` in a checkout, else the image "
-    "shipped with snakebot.",
-)
+@board_option
+@firmware_option
 @click.option(
     "--sim-options",
     metavar="QUERY",
@@ -79,12 +66,14 @@ def serve(
 ) -> None:
     """Run the controller firmware on the emulated robot until Ctrl-C.
 
-    The firmware's Dynamixel bus (USART1) drives the robot's emulated AX-12s over a Unix
-    socket, and its PC link (USART3) is a pseudo-terminal, printed at the start: give it
-    as --port to any snakebot command, exactly as the CM-530's USB-serial port, e.g.
+    By default the CM-530's own image runs on the emulated STM32F103RE; --board qemu runs
+    the qemu board's build under QEMU instead. The firmware's Dynamixel bus (USART1) drives
+    the robot's emulated AX-12s, and its PC link (USART3) is a pseudo-terminal, printed at
+    the start: give it as --port to any snakebot command, exactly as the CM-530's
+    USB-serial port, e.g.
 
     \b
-        snakebot sim serve --robot snake5 --board cm530
+        snakebot sim serve --robot snake5
         snakebot upload walk.gait --port /dev/pts/N      # in another shell
         snakebot play --port /dev/pts/N --loop
         snakebot monitor --port /dev/pts/N
@@ -101,7 +90,7 @@ def serve(
     )
     with serving() as stop:
         try:
-            _serve(emulated, board, report, foxglove, as_json, stop)
+            _serve(emulated, report, foxglove, as_json, stop)
         finally:
             emulated.stop()
     stop.exit_by_signal()
@@ -109,7 +98,6 @@ def serve(
 
 def _serve(
     emulated: EmulatedRobot,
-    board: str,
     report: float,
     foxglove: tuple[str, int] | None,
     as_json: bool,
@@ -127,12 +115,7 @@ def _serve(
         if as_json:
             click.echo(dumps({"event": "serving", **info.as_dict(), **extra}))
         else:
-            where = (
-                "on the emulated STM32F103RE"
-                if board == "cm530"
-                else f"in QEMU (pid {info.qemu_pid})"
-            )
-            click.echo(f"emulated {info.robot}: firmware {info.firmware} {where}")
+            click.echo(f"emulated {info.robot}: firmware {info.firmware} {info.where()}")
             click.echo(
                 f"PC link (USART3): {info.pc_link}  ({info.baudrate} baud, controller "
                 f"ID {info.controller_id}): snakebot monitor --port {info.pc_link}"

@@ -23,8 +23,8 @@ rounding does not compound over the loops. The table is timed to the servos' spe
 (frame period a whole number of controller ticks), checked against the joint limits,
 and its motion as played (``gait.common.table_motion``) must end at the target within
 the tolerance; else the next route is tried. A target that no hub and no k reaches
-within the table's capacity (unless told, the smallest board's: ``DEFAULT_CAPACITY``)
-raises ``Unreachable``."""
+within the table's capacity (unless told, the robot's board's, the CM-530's:
+``DEFAULT_CAPACITY``) raises ``Unreachable``."""
 
 from __future__ import annotations
 
@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from snakebot.facts.boards import TABLE_CAPACITY, largest_board, smallest_board
+from snakebot.facts.boards import ROBOT_BOARD, TABLE_CAPACITY, largest_board
 from snakebot.formats.gaittable import MAX_TABLE_BYTES, max_frames, table_size
 from snakebot.model.gait.common import (
     NEAR_SINGULAR_RCOND,
@@ -82,10 +82,10 @@ REFINE_SHARE = 0.3
 #: failing they rarely save the plan.
 REFIT_FAILURES = 3
 
-DEFAULT_BOARD = smallest_board()
+DEFAULT_BOARD = ROBOT_BOARD
 DEFAULT_CAPACITY = TABLE_CAPACITY[DEFAULT_BOARD]
-"""The table capacity (bytes) a plan is made for unless told: the smallest board's, so
-that a plan made without asking the controller plays on every board."""
+"""The table capacity (bytes) a plan is made for unless told (by the controller it is
+for, or a board or a number): the robot's board's, the CM-530's."""
 
 
 class Unreachable(PlanError):

@@ -1,7 +1,8 @@
-"""The controller commands against the real firmware image under QEMU: its PC link
-(USART3) on a pseudo-terminal, its Dynamixel bus (USART1) on a Unix socket served by
-the emulated snake5 servos. Upload, play, monitor, serpenoid and stop, byte for byte
-through the code that runs on the CM-530."""
+"""The controller commands against the real firmware image on both emulated boards: the
+CM-530's image on the emulated STM32F103RE (its Dynamixel bus, USART1, on the chip's
+clock) and the qemu board's build under QEMU (USART1 on a Unix socket), each driving the
+emulated snake5 servos with its PC link (USART3) on a pseudo-terminal. Upload, play,
+monitor, serpenoid and stop, byte for byte through the code that runs on the CM-530."""
 
 from __future__ import annotations
 
@@ -11,16 +12,14 @@ import zlib
 
 import pytest
 from controller_cli_support import cli, cli_json, save, wave_table
-from firmware_support import assert_healthy_bus, served_firmware
+from firmware_support import BOARDS, assert_healthy_bus, booted
 
 pytestmark = pytest.mark.qemu
 
-# QEMU shares a loaded machine with other tests: allow for it being descheduled.
 
-
-@pytest.fixture(scope="module")
-def firmware(tmp_path_factory):
-    with served_firmware(tmp_path_factory.mktemp("bus")) as port:
+@pytest.fixture(scope="module", params=BOARDS)
+def firmware(request, tmp_path_factory):
+    with booted(request.param, tmp_path_factory.mktemp("bus")) as port:
         yield port
 
 

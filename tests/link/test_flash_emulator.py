@@ -57,6 +57,22 @@ def test_bytes_waiting_unread_are_not_a_silence():
     assert boot.image == image
 
 
+def test_a_silence_the_emulator_did_not_watch_does_not_end_the_image():
+    """The served bootloader's thread woke 0.4 s late (the whole process held up by a
+    busy host, the flasher in it too): that time is not silence on the line, so the image
+    ends only after a whole silence watched afterwards (it ended early, and the flash
+    reported a checksum mismatch)."""
+    boot = booted(silence_s=0.5)
+    boot.feed(b"#\nL\n", 0.0)
+    image = bytes(range(256)) * 2
+    boot.feed(image[:100], 1.0)
+    boot.held(0.4)
+    assert boot.poll(1.6) == b""  # 0.6 s after the last byte, 0.2 s of it watched
+    boot.feed(image[100:], 1.7)
+    assert f"Size: {len(image)}".encode() in boot.poll(2.3)
+    assert boot.image == image
+
+
 def test_an_emulator_held_up_mid_image_still_receives_all_of_it(tmp_path):
     """The served bootloader, kept from running for longer than its silence while the
     flasher's bytes wait in the terminal (what a busy host does to it), stores the

@@ -72,6 +72,10 @@ DEFAULT_SILENCE_S = 0.1
 """Silence after the last image byte that ends the image. The real bootloader's value is
 not documented; the host must simply never pause this long in the middle of an image."""
 
+HELD_S = 0.02
+"""How late past its deadline the served bootloader's thread must wake to count as held
+up by the host (:meth:`Bootloader.held`); the kernel wakes sleepers well within it."""
+
 LINE_MAX = 64
 """Longest command line kept (the rest is dropped)."""
 
@@ -206,6 +210,14 @@ class Bootloader:
         if self.state == "wait_hash" and self._window_end is not None and now >= self._window_end:
             self.state = "app"
         return b""
+
+    def held(self, seconds: float) -> None:
+        """The emulator was held up for ``seconds`` (its thread woke that late, the host
+        busy with other work): a silence it did not watch is not one the line had, as the
+        client, held up alike, could not write meanwhile. The image's silence counts on
+        from the end of the hold."""
+        if self.state == "receive":
+            self._last_rx += seconds
 
     def next_deadline(self) -> float | None:
         """When :meth:`poll` next has something to do (None: only on input)."""
@@ -476,6 +488,10 @@ class BootloaderPty(Server):
                 ready, _, _ = select.select(watch, [], [], wait)
             except (OSError, ValueError):
                 return
+            late = time.monotonic() - (now + wait)
+            if not ready and late > HELD_S:
+                with self._lock:
+                    boot.held(late)
             if self._wake_r in ready and b"x" in os.read(self._wake_r, 64):
                 return
             if self._app is not None and self._app in ready:

@@ -47,6 +47,15 @@ class HostQueue:
         ]
         return max(deltas, default=(0, 0))[1] / 1e9
 
+    def ran_s(self) -> float:
+        """Seconds the busiest thread (most CPU since :meth:`mark`) ran on a CPU: next to
+        its wait, it tells an emulator that was kept from running from one that was
+        blocked (in a write, say) or idle."""
+        deltas = [
+            ran - self._base.get(t, (ran, waited))[0] for t, (ran, waited) in self._stats().items()
+        ]
+        return max(deltas, default=0) / 1e9
+
     def starved(self, seconds: float) -> bool:
         """Whether the busiest thread waited more than :data:`STARVED_SHARE` of the last
         ``seconds``."""

@@ -59,8 +59,10 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
+from snakebot.facts.boards import PC_LINK_BAUD
 from snakebot.firmware import image as firmware_image
 from snakebot.settings import lookup_text
+from snakebot.sim.bus.clock import BITS_PER_BYTE
 from snakebot.sim.errors import SimFailure
 from snakebot.sim.transports.relay import PtyRelay
 from snakebot.sim.workdirs import make_workdir
@@ -413,7 +415,9 @@ class QemuFirmware:
             shutil.rmtree(self._workdir, ignore_errors=True)
             raise
         for label, (_theirs, ours) in self._pairs.items():
-            relay = PtyRelay(ours, self._ptys[label][0], f"snakebot.sim-qemu-{label}-relay")
+            # the PC link at its line's rate; the bus's rate is the firmware's to change
+            rate = PC_LINK_BAUD / BITS_PER_BYTE if label == "pc" else None
+            relay = PtyRelay(ours, self._ptys[label][0], f"snakebot.sim-qemu-{label}-relay", rate)
             self._relays[label] = relay.start()
         self._close_pairs()  # QEMU has its ends; the relays have ours
         self._finalizer = weakref.finalize(

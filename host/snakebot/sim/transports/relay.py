@@ -7,9 +7,12 @@ control loop with it, which no CM-530 does: its USART sends at the line rate whe
 not the PC reads, and the USB adapter drops what the PC does not take. Here QEMU gets one
 end of a socket pair; a thread reads it as fast as QEMU writes and hands the bytes to the
 pty master without waiting, dropping (and counting) what the terminal cannot take. The
-other way, bytes from the terminal are passed to QEMU as it accepts them; while QEMU is
-not accepting, the relay stops reading the terminal (the client's writes wait, as they
-would on a full adapter) but keeps draining QEMU's output.
+other way, bytes from the terminal are passed to QEMU as it accepts them, and no faster
+than the line's rate where one is given (QEMU's UART takes bytes as fast as they come: a
+client that writes without pause would otherwise reach the firmware many times faster
+than any wire carries, which no board sees); while QEMU is not accepting, the relay stops
+reading the terminal (the client's writes wait, as they would on a full adapter) but keeps
+draining QEMU's output.
 """
 
 from __future__ import annotations
@@ -35,13 +38,22 @@ emulated servos' threads need) busy; a pass a millisecond at most takes whatever
 accumulated, far below the 0.17 ms a byte takes at 57600 baud times the bytes of a reply."""
 
 
+BURST_S = 0.004
+"""At a line's rate, the most the relay hands QEMU at once: the bytes of this long on the
+wire (a pass may come late; what it missed is made up, up to this much)."""
+
+
 class PtyRelay:
     """Relays between ``sock`` (our end of QEMU's socket pair) and the pty ``master``
-    on a daemon thread, from :meth:`start` until :meth:`stop` or either side closes."""
+    on a daemon thread, from :meth:`start` until :meth:`stop` or either side closes.
+    ``rate``: the line's bytes a second towards QEMU (None: as fast as QEMU takes them)."""
 
-    def __init__(self, sock: socket.socket, master: int, name: str) -> None:
+    def __init__(
+        self, sock: socket.socket, master: int, name: str, rate: float | None = None
+    ) -> None:
         self.sock = sock
         self.master = master
+        self.rate = rate
         self.dropped = 0
         """Bytes from QEMU the terminal had no room for (lost, as on an adapter)."""
         self.relayed = 0
@@ -75,11 +87,17 @@ class PtyRelay:
         wake = self._thread.wake_fd
         to_qemu = b""
         last_pass = 0.0
+        rate = self.rate
+        burst = max(1.0, rate * BURST_S) if rate is not None else 0.0
+        credit = burst  # bytes the line could carry to QEMU by now
         while True:
             rest = last_pass + BATCH_S - time.monotonic()
             if rest > 0:
                 time.sleep(rest)
-            last_pass = time.monotonic()
+            now = time.monotonic()
+            if rate is not None:
+                credit = min(burst, credit + (now - last_pass) * rate)
+            last_pass = now
             readers = [self.sock, wake] + ([] if to_qemu else [self.master])
             writers = [self.sock] if to_qemu else []
             ready, writable, _ = select.select(readers, writers, [])
@@ -103,8 +121,10 @@ class PtyRelay:
                     if exc.errno != errno.EIO:  # EIO: no client has the terminal open
                         raise
             if to_qemu and (self.sock in writable or self.master in ready):
+                allowed = len(to_qemu) if rate is None else int(credit)
                 try:
-                    sent = self.sock.send(to_qemu)
+                    sent = self.sock.send(to_qemu[:allowed]) if allowed else 0
                 except BlockingIOError:
                     sent = 0
+                credit -= sent
                 to_qemu = to_qemu[sent:]

@@ -223,7 +223,7 @@ STAGE_DIST_serial := load
 
 # `make test` fuzzes each target TEST_FUZZ_SECONDS, a smoke pass within its 5-minute
 # budget; `make fuzz` is the longer pass (FUZZ_SECONDS, below).
-TEST_FUZZ_SECONDS ?= 20
+TEST_FUZZ_SECONDS ?= 10
 test-fuzz:
 	@mkdir -p build
 	$(Q)FUZZ_SECONDS=$(TEST_FUZZ_SECONDS) FUZZ_LAUNCH="$(LOW)" $(LOW) $(PY) -m pytest -q -p no:cacheprovider $(FUZZ_TESTS) \

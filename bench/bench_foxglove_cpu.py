@@ -77,7 +77,7 @@ def measure(world: str, image: str, foxglove: bool, seconds: float) -> tuple[flo
     """Percent of a core `sim serve`'s Python process and its QEMU take, and the messages
     a second the client got."""
     command = [sys.executable, "-m", "snakebot", "sim", "serve", "--world", world]
-    command += ["--firmware", image, "--report", "0", "--json"]
+    command += ["--board", "qemu", "--firmware", image, "--report", "0", "--json"]
     command += ["--foxglove", "0"] if foxglove else []
     server = subprocess.Popen(command, stdout=subprocess.PIPE, text=True)
     try:

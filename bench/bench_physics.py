@@ -66,7 +66,7 @@ def behind_firmware(table, robot) -> tuple[float, float]:  # noqa: ANN001
         spent[0] += time.perf_counter() - t0
 
     PhysicsWorld._tick = timed  # type: ignore[method-assign]
-    emulated = EmulatedRobot(robot, world="mujoco")
+    emulated = EmulatedRobot(robot, world="mujoco", board="qemu")
     try:
         info = emulated.start()
         with ControllerClient.open(info.pc_link) as ctl:

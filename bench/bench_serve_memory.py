@@ -77,7 +77,7 @@ def snakebot(*args: str) -> None:
 def start(world: str, image: str, gait: Path | None) -> subprocess.Popen[str]:
     """``sim serve`` on ``world``, playing ``gait`` in a loop if given."""
     command = [sys.executable, "-m", "snakebot", "sim", "serve", "--world", world]
-    command += ["--firmware", image, "--report", "0", "--json"]
+    command += ["--board", "qemu", "--firmware", image, "--report", "0", "--json"]
     server = subprocess.Popen(command, stdout=subprocess.PIPE, text=True)
     assert server.stdout is not None
     deadline = time.monotonic() + START_S

@@ -334,6 +334,39 @@ def test_reply_of_wrong_length_is_corrupt_not_a_value(servos, connect):
         bus.read(1, PRESENT_POSITION, 2)
 
 
+def test_the_late_answer_to_an_earlier_request_is_stale_not_misshapen(servos, connect):
+    """A servo (or a controller run late by a busy host) that answers a READ after the
+    client gave up on it: its reply, with that READ's length, comes while the client waits
+    for the next request's. It is skipped as stale: the next reply is taken, and without
+    one the error is the timeout it is, not a device that answers with the wrong length
+    (`make demo` beside heavy load once blamed the controller that way)."""
+    bus = connect(servos, latency_s=0.05, retries=0)
+    late: list[bytes] = []
+
+    def respond(packet: Packet) -> list[bytes]:
+        if packet.params[1] == 3:  # the first request: answered only later
+            late.append(protocol.status(packet.id, 0, b"\x01\x02\x03"))
+            return []
+        return [late.pop(), *servos.answer(packet)] if late else servos.answer(packet)
+
+    servos.respond = respond
+    with pytest.raises(DxlTimeout):
+        bus.read(1, PRESENT_POSITION, 3)
+    assert bus.read_u16(1, PRESENT_POSITION) == 0x1FF  # the late reply skipped
+
+    def only_late(packet: Packet) -> list[bytes]:
+        if packet.params[1] == 3:
+            late.append(protocol.status(packet.id, 0, b"\x01\x02\x03"))
+            return []
+        return [late.pop()] if late else []
+
+    servos.respond = only_late
+    with pytest.raises(DxlTimeout):
+        bus.read(1, PRESENT_POSITION, 3)
+    with pytest.raises(DxlTimeout):  # not CorruptPacket: "3 data bytes where 2 ..."
+        bus.read_u16(1, PRESENT_POSITION)
+
+
 def test_servo_error_raises_at_once_with_flags(servos, connect):
     bus = connect(servos)
     flags = ErrorFlags.OVERHEATING | ErrorFlags.OVERLOAD

@@ -16,6 +16,19 @@ RECENT_SENDS = 8
 """How many earlier instructions are remembered, so that their late echoes are recognised."""
 
 
+def asked_for(sent: bytes, reply: Packet) -> bool:
+    """Whether ``reply`` has the shape of the status packet the instruction ``sent`` asks
+    for (a READ's length of data; none for the rest): from a client that timed out on an
+    earlier request, a reply of another request's shape is its late answer, not a
+    misshapen reply to the one it waits for."""
+    instruction = next(iter(protocol.PacketParser().feed(sent)), None)
+    if not isinstance(instruction, Packet) or instruction.id != reply.id:
+        return False
+    if instruction.code == protocol.Instruction.READ:
+        return len(instruction.params) == 2 and instruction.params[1] == len(reply.params)
+    return not reply.params
+
+
 @dataclass
 class Attempt:
     """What one attempt heard besides the reply it was waiting for."""
@@ -104,7 +117,10 @@ class ReplyReader(ClientState):
                     seen.stale += 1
                     continue
                 if len(event.params) != expect_len:
-                    seen.wrong_shape.append(event)
+                    if any(asked_for(sent, event) for sent in self._recent):
+                        seen.stale += 1  # the late answer to an earlier request
+                    else:
+                        seen.wrong_shape.append(event)
                     continue
                 if echo is None:
                     self._echo = seen.echo_seen

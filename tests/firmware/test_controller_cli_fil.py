@@ -11,7 +11,7 @@ import time
 import zlib
 
 import pytest
-from controller_cli_support import cli, cli_json, save, wave_table
+from controller_cli_support import cli, cli_json, monitor_records, save, wave_table
 from firmware_support import BOARDS, assert_healthy_bus, booted
 
 pytestmark = pytest.mark.qemu
@@ -21,21 +21,6 @@ pytestmark = pytest.mark.qemu
 def firmware(request, tmp_path_factory):
     with booted(request.param, tmp_path_factory.mktemp("bus")) as port:
         yield port
-
-
-def records(port: str, duration: float, interval: float = 0.1) -> list[dict]:
-    result = cli(
-        "monitor",
-        "--port",
-        port,
-        "--json",
-        "--duration",
-        str(duration),
-        "--interval",
-        str(interval),
-    )
-    assert result.exit_code == 0, result.output
-    return [json.loads(line) for line in result.stdout.splitlines()]
 
 
 def test_upload_play_monitor_stop_on_the_firmware(firmware, tmp_path):
@@ -53,7 +38,7 @@ def test_upload_play_monitor_stop_on_the_firmware(firmware, tmp_path):
     assert played["table"]["crc"] == f"0x{crc:08x}"
 
     time.sleep(0.2)  # a telemetry round over the emulated bus
-    samples = records(firmware, duration=0.5)
+    samples = monitor_records(firmware, duration=0.5)
     assert len(samples) >= 3
     for sample in samples:
         c = sample["controller"]
@@ -88,7 +73,7 @@ def test_serpenoid_on_the_firmware(firmware, tmp_path):
         "90deg",
     )
     assert status["state"] == "SERPENOID" and status["joint_count"] == 4
-    samples = records(firmware, duration=0.4)
+    samples = monitor_records(firmware, duration=0.4)
     goals = [s["servos"][0]["goal"] for s in samples]
     assert len(set(goals)) > 1
     assert all(s["controller"]["state"] == "SERPENOID" for s in samples)

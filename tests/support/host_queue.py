@@ -36,8 +36,8 @@ class HostQueue:
         """Count from now."""
         self._base = self._stats()
 
-    def waited_s(self) -> float:
-        """Seconds the busiest thread (most CPU since :meth:`mark`) waited to run."""
+    def _busiest(self) -> tuple[int, int]:
+        """(ns on a CPU, ns waiting to run) since :meth:`mark` of the thread that ran most."""
         deltas = [
             (
                 ran - self._base.get(t, (ran, waited))[0],
@@ -45,16 +45,16 @@ class HostQueue:
             )
             for t, (ran, waited) in self._stats().items()
         ]
-        return max(deltas, default=(0, 0))[1] / 1e9
+        return max(deltas, default=(0, 0))
+
+    def waited_s(self) -> float:
+        """Seconds the busiest thread (most CPU since :meth:`mark`) waited to run."""
+        return self._busiest()[1] / 1e9
 
     def ran_s(self) -> float:
-        """Seconds the busiest thread (most CPU since :meth:`mark`) ran on a CPU: next to
-        its wait, it tells an emulator that was kept from running from one that was
-        blocked (in a write, say) or idle."""
-        deltas = [
-            ran - self._base.get(t, (ran, waited))[0] for t, (ran, waited) in self._stats().items()
-        ]
-        return max(deltas, default=0) / 1e9
+        """Seconds the busiest thread ran on a CPU: next to its wait, it tells an emulator
+        that was kept from running from one that was blocked (in a write, say) or idle."""
+        return self._busiest()[0] / 1e9
 
     def starved(self, seconds: float) -> bool:
         """Whether the busiest thread waited more than :data:`STARVED_SHARE` of the last

@@ -16,6 +16,7 @@ import pytest
 from controller_cli_support import cli
 
 from snakebot.formats.gaittable import GaitTable, read_gait
+from snakebot.link.controller.client import ControllerClient
 from snakebot.model.compare import table_angles
 from snakebot.model.robots import load_robot
 from snakebot.sim.controller_pty import ControllerPty
@@ -70,6 +71,38 @@ def recorded(tmp_path_factory):
     return tmp, gait
 
 
+@pytest.fixture(scope="module")
+def slow_between_reads(recorded):
+    """A run recorded as on a busy host: the monitor is held up 0.12 s between its READ of
+    the controller's registers (with the Play Frame) and its READ of the servo window
+    (goals and positions), so every frame in the run is older than its positions."""
+    tmp, gait = recorded
+    roster = ControllerClient.roster
+
+    def late_roster(self, *args, **kwargs):
+        time.sleep(0.12)
+        return roster(self, *args, **kwargs)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(ControllerClient, "roster", late_roster)
+        with ControllerPty(table=read_gait(gait).encode()) as server:
+            assert cli("play", "--port", server.device, "--loop").exit_code == 0
+            time.sleep(0.5)  # the servos reach the gait from where they stood
+            done = cli(
+                "monitor",
+                "--port",
+                server.device,
+                "--duration",
+                "3",
+                "--interval",
+                "0.05",
+                "--csv",
+                tmp / "slow.csv",
+            )
+            assert done.exit_code == 0, done.output
+    return tmp / "slow.csv", gait
+
+
 def compare_json(*args) -> dict:
     result = cli("compare", *args, "--json")
     assert result.exit_code == 0, result.output
@@ -92,6 +125,28 @@ def test_the_mcap_recording_gives_the_same_answer(recorded):
     from_mcap = compare_json(tmp / "run.mcap", gait)
     for key in ("samples", "start_in_gait_s", "joints"):
         assert from_mcap[key] == from_csv[key]
+
+
+def test_a_host_slow_between_reads_shifts_nothing(slow_between_reads, tmp_path):
+    """Lined up by the goals the controller sent (read with the positions), the slow run
+    follows its gait as closely as the prompt one; by its frames alone (the goal column
+    dropped) it would be off by the 0.12 s the host lost between the READs."""
+    run, gait = slow_between_reads
+    report = compare_json(run, gait)
+    assert report["aligned_by"] == "controller goals"
+    assert report["samples"] >= 10
+    assert all(j["rms_deg"] < 3 for j in report["joints"]), report["joints"]
+    with open(run) as f:
+        rows = list(csv.DictReader(f))
+    framed = tmp_path / "framed.csv"
+    with open(framed, "w", newline="") as f:
+        out = csv.DictWriter(f, [c for c in rows[0] if c != "goal"], extrasaction="ignore")
+        out.writeheader()
+        out.writerows(rows)
+    by_frame = compare_json(framed, gait)
+    assert by_frame["aligned_by"] == "controller frame"
+    worst = max(j["rms_deg"] for j in report["joints"])
+    assert min(j["rms_deg"] for j in by_frame["joints"]) > 2 * worst, by_frame["joints"]
 
 
 def write_run(path: Path, t: np.ndarray, ids, ticks: np.ndarray, pose=None) -> Path:

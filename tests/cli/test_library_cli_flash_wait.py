@@ -67,3 +67,24 @@ def test_list_during_a_store_says_so(flash):
     assert "the controller is storing a library slot" in listed.stdout
     state = cli_json("library", "list", "--port", port)["store"]
     assert state["state"] == "LIBRARY" and 0 <= state["percent"] < 100
+
+
+def test_a_backup_puts_every_slot_back_where_it_was(flash, tmp_path):
+    """Two different tables in slots 0 and 2, backed up, both slots emptied, restored: each
+    comes back in its own slot with its own bytes (the backup selects each slot before
+    reading its window; after a list the window showed the last slot)."""
+    port, store = flash
+    store.ticks_per_write = 2
+    tables = {0: save(wave_table(), tmp_path), 2: save(wave_table(frames=120), tmp_path, "b.gait")}
+    for slot, path in tables.items():
+        assert cli("library", "store", str(slot), str(path), "--port", port).exit_code == 0
+    before = cli_json("library", "list", "--port", port)["slots"]
+    saved = cli_json("library", "backup", str(tmp_path / "lib.json"), "--port", port)
+    assert saved == {"file": str(tmp_path / "lib.json"), "slots": 2}
+    for slot in tables:
+        assert cli("library", "delete", str(slot), "--port", port).exit_code == 0
+    assert not store.slots
+    restored = cli_json("library", "restore", str(tmp_path / "lib.json"), "--port", port)
+    assert sorted(s["slot"] for s in restored["restored"]) == [0, 2]
+    after = cli_json("library", "list", "--port", port)["slots"]
+    assert after == before and before[0]["crc"] != before[2]["crc"]

@@ -164,7 +164,7 @@ def mcap_complete(result: Result, here: Path) -> list[str]:
 def compare_text(result: Result, here: Path) -> list[str]:
     """The report lines the run up by the controller's frame and gives each joint's error."""
     out = result.stdout
-    want = ["lined up by the controller frame", *(f"{j}  RMS" for j in JOINTS)]
+    want = ["lined up by the controller goals", *(f"{j}  RMS" for j in JOINTS)]
     return [f"compare did not print {w!r}: {out}" for w in want if w not in out]
 
 

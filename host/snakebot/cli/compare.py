@@ -36,8 +36,11 @@ def compare_command(
         snakebot compare run.csv walk.gait --plot compare.png
 
     The prediction is the joint angles the table asks for (linear between frames, as the
-    controller plays them). The run's start within the gait is found by
-    cross-correlating the first joint; then each joint's RMS and largest error in
+    controller plays them). Each sample is placed in the gait by the controller's own
+    record: the frame it was playing, refined by the goals it had sent (the monitor
+    records both), so a host that stalled or was slow between two reads shifts nothing;
+    stalls and gaps are reported. A run without them is lined up by cross-correlating
+    its first joint with the prediction. Then each joint's RMS and largest error in
     degrees are reported. A run with an external pose (columns pose_x, pose_y in metres
     and pose_theta in radians, e.g. added from motion capture) is also compared with
     the body path the table's motion predicts.
@@ -64,7 +67,7 @@ def compare_command(
     ):
         for e in summary[kind]:
             click.echo(f"  {kind[:-1]}: {e['length_s']} s at {e['at_s']} s ({what})")
-    if summary["stalls"] and summary["aligned_by"] == "controller frame":
+    if summary["stalls"] and summary["aligned_by"].startswith("controller"):
         click.echo(
             "  (the comparison follows the controller's frames, so a stall does not shift it)"
         )

@@ -50,7 +50,11 @@ def demo(as_json: bool, **options: Any) -> None:
     uploads the table over the PC link, plays it while monitoring, and compares how far
     and in which direction the body went with the prediction from the table.
     It writes OUT/demo.gait and OUT/demo.png (paths and joint angles) and leaves nothing
-    running, also when interrupted. `make demo` builds everything first and runs this.
+    running, also when interrupted. `make demo` builds everything first and runs this
+    with its defaults; a quick look (one cycle of a faster wave, the kinematic world):
+
+    \b
+        snakebot demo -w 360deg --cycles 1 --world kinematic --out out/quick
 
     The verdict is AGREE or DISAGREE (exit 0), or INVALID (exit 1) when the difference
     is beyond the tolerance and the host did not give the emulator steady time (the

@@ -8,7 +8,10 @@ integrates to. Errors are reported per joint in degrees.
 A run that records the controller's frame (``monitor --csv`` column ``frame``, the MCAP
 records' ``controller.play_frame``) is lined up by it: each sample's moment in the gait is
 its frame's start, plus the host time since that frame was first seen (at most one frame
-period), so a host that stalled cannot shift the rest of the run. Without it the run's
+period), so a host that stalled cannot shift the rest of the run. When the run also
+records the goals the controller sent (column ``goal``), each moment is refined to where
+the table's goals equal them (:func:`goal_clock`): the goals are read with the positions,
+the frame a READ earlier. Without it the run's
 start is found by cross-correlating its first joint with the prediction and the host's
 clock is trusted. Gaps between samples (several intervals long) and stalls (the frame not
 advancing while the host's clock runs) are reported; a pose that is not a number is
@@ -53,6 +56,7 @@ class Run:
     ticks: np.ndarray  # (samples, servos)
     pose: np.ndarray | None  # (samples, 3): x, y (m), theta (rad)
     frames: np.ndarray | None = None  # the controller's Play Frame per sample, if recorded
+    goals: np.ndarray | None = None  # the goal ticks it last sent, per sample and servo
 
 
 def _read(path: Path) -> bytes:
@@ -138,6 +142,8 @@ def load_run(path: str | Path) -> Run:
         pose = np.full((len(times), 3), np.nan) if has_pose and rows else None
         has_frame = bool(rows) and all(r.get("frame") not in (None, "") for r in rows)
         frames = np.zeros(len(times)) if has_frame else None
+        has_goal = has_frame and all(r.get("goal") not in (None, "") for r in rows)
+        goals = np.full(ticks.shape, np.nan) if has_goal else None
         for r in rows:
             n = index[float(r["t"])]
             ticks[n, col[int(r["id"])]] = float(r["position"])
@@ -145,6 +151,8 @@ def load_run(path: str | Path) -> Run:
                 pose[n] = [float(r[c]) for c in POSE_COLUMNS]
             if frames is not None:
                 frames[n] = int(r["frame"])
+            if goals is not None:
+                goals[n, col[int(r["id"])]] = float(r["goal"])
     except (ValueError, KeyError, TypeError) as exc:
         raise CompareError(f"{path}: a row has a value that is not a number ({exc})") from None
     if pose is not None and not np.isfinite(pose).all():
@@ -162,6 +170,7 @@ def load_run(path: str | Path) -> Run:
         ticks[keep],
         None if pose is None else pose[keep],
         None if frames is None else frames[keep],
+        None if goals is None else goals[keep],
     )
 
 
@@ -191,6 +200,53 @@ def controller_clock(t: np.ndarray, frames: np.ndarray, table: GaitTable) -> np.
             seen = t[k]
         clock[k] = unwrapped[k] * period + min(t[k] - seen, period)
     return clock
+
+
+GOAL_MATCH_TICKS = 1.0
+"""The largest difference (ticks, any joint) between a sample's recorded goals and the
+table's at the moment found for it: the controller rounds its goals to whole ticks."""
+
+GOAL_STEP_S = 0.001
+"""The resolution of the moments tried when lining a sample up by its goals."""
+
+GOAL_WINDOW_S = 2.0
+"""The longest stretch of the gait searched for one sample's goals."""
+
+
+def goal_clock(
+    clock: np.ndarray, frames: np.ndarray, goals: np.ndarray, table: GaitTable
+) -> tuple[np.ndarray, int]:
+    """Each sample's moment in the gait refined by the goals the controller last sent,
+    and how many samples matched. The goals come in the same READ as the positions; the
+    frame comes in the READ before it, so on a busy host the frame is older than the
+    positions. A sample's moment lies between its frame's start and the end of the next
+    sample's frame (read after it), at most GOAL_WINDOW_S on; the one there whose table
+    goals (linear between frames, as played) equal the recorded goals within
+    GOAL_MATCH_TICKS, nearest the frame's moment, is taken. A sample whose goals match
+    nowhere (a steering offset, a speed scale) keeps the frame's moment."""
+    period = table.frame_period_ms / 1000.0
+    rows = table.frames.astype(float)
+    if table.loop:
+        rows = np.vstack([rows, rows[:1]])
+    grid = np.arange(len(rows)) * period
+    span = period * table.frame_count
+
+    def goals_at(tt: np.ndarray) -> np.ndarray:
+        tt = np.mod(tt, span) if table.loop else tt
+        return np.column_stack([np.interp(tt, grid, rows[:, j]) for j in range(rows.shape[1])])
+
+    starts = _unwrap(frames, table) * period
+    out = clock.copy()
+    matched = 0
+    for k in range(len(clock)):
+        end = starts[k + 1] + period if k + 1 < len(clock) else math.inf
+        tried = np.arange(starts[k], min(end, starts[k] + GOAL_WINDOW_S), GOAL_STEP_S)
+        fits = np.abs(goals_at(tried) - goals[k]).max(axis=1) <= GOAL_MATCH_TICKS
+        if fits.any():
+            near = tried[fits]
+            out[k] = float(near[np.argmin(np.abs(near - clock[k]))])
+            matched += 1
+    return out, matched
 
 
 def _unwrap(frames: np.ndarray, table: GaitTable) -> np.ndarray:
@@ -290,9 +346,17 @@ def compare(run: Run, table: GaitTable, robot: Robot) -> Comparison:
     if run.frames is not None and np.ptp(run.frames) > 0:
         clock = controller_clock(run.t, run.frames, table)
         stalls = tuple(find_stalls(run.t, run.frames, table))
+        aligned_by = "controller frame"
+        if run.goals is not None:
+            clock, matched = goal_clock(clock, run.frames, run.goals[:, cols], table)
+            if matched == len(clock):
+                aligned_by = "controller goals"
+            elif matched:
+                aligned_by = (
+                    f"controller goals ({matched} of {len(clock)} samples, the rest by frame)"
+                )
         lag = float(clock[0])
         gait_t = clock  # the moment in the gait of each sample, by the controller
-        aligned_by = "controller frame"
     else:
         lag = best_lag(t, measured[:, 0], lambda tt: table_angles(robot, table, tt)[:, 0], span)
         gait_t = t + lag

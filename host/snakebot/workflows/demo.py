@@ -51,7 +51,7 @@ from snakebot.extras import install_hint
 from snakebot.formats.gaittable import GaitTable, write_gait
 from snakebot.link.controller import load as load_controller
 from snakebot.link.controller.client import ControllerClient
-from snakebot.link.controller.monitor import Sample, render, sample
+from snakebot.link.controller.monitor import Sample, joint_of, render, sample
 from snakebot.link.controller.playback import play, stop
 from snakebot.link.controller.upload import UploadReport, upload_gait
 from snakebot.model.compare import JointTrack, interp_rows, joint_names, motion, relative
@@ -611,12 +611,15 @@ class DemoResult:
 
 def _monitor_line(s: Sample) -> str:
     c = s.controller_record()
-    servos = "  ".join(f"{j.id}:{j.position:4d}" for j in s.servos)
+    servos = "  ".join(
+        f"{j.id}:{math.degrees(joint_of(j).tick_to_angle(j.position)):+6.1f}" for j in s.servos
+    )
     load = load_controller().servo_field("Present Load")
     loads = max((abs(load.to_units(j.load)) for j in s.servos), default=0.0)
     errors = ",".join(c["error_flags"]) or "none"
     return (
-        f"  t={s.t:5.2f} s  {c['state']:<8} frame {c['play_frame']:3d}  positions {servos}"
+        f"  t={s.t:5.2f} s  {c['state']:<8} frame {c['play_frame']:3d}  "
+        f"joints (deg, by servo ID) {servos}"
         f"  max load {loads:4.1f} %  bus reads {c['bus_reads']}  "
         f"timeouts {c['bus_timeouts']}  errors {errors}"
     )

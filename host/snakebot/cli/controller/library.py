@@ -1,5 +1,5 @@
-"""`snakebot library list|store|play|delete`: the gait library kept in the controller's
-flash (protocol/library.md)."""
+"""`snakebot library list|store|play|delete|backup|restore`: the gait library kept in the
+controller's flash (protocol/library.md)."""
 
 from __future__ import annotations
 
@@ -11,10 +11,11 @@ import click
 
 from snakebot.cli.options import ControllerLink, controller_options
 from snakebot.cli.output import dumps
-from snakebot.cli.params import INPUT_PATH
+from snakebot.cli.params import INPUT_PATH, OUTPUT_PATH
 from snakebot.formats.gaittable import read_gait
 from snakebot.link.controller.library import (
     IN_RAM,
+    backup,
     delete_slot,
     library_memory,
     list_slots,
@@ -23,7 +24,7 @@ from snakebot.link.controller.library import (
     store_slot,
     store_state,
 )
-from snakebot.link.flash.library_backup import read_backup
+from snakebot.link.flash.library_backup import read_backup, write_backup
 
 SLOT = click.argument("slot", type=click.IntRange(0, 255), metavar="SLOT")
 
@@ -76,7 +77,9 @@ def library() -> None:
         snakebot library store 0 walk.gait --name "walk" --port /dev/ttyUSB0
         snakebot library list --port /dev/ttyUSB0
         snakebot library play 0 --port /dev/ttyUSB0
+        snakebot library backup my-library.json --port /dev/ttyUSB0
         snakebot library delete 0 --port /dev/ttyUSB0
+        snakebot library restore my-library.json --port /dev/ttyUSB0
 
     The CM-530 has 8 slots, written to flash a step per control tick while the robot
     keeps moving: store, delete and play wait for a write under way (the controller's
@@ -173,12 +176,30 @@ def delete_command(slot: int, link: ControllerLink, as_json: bool) -> None:
     click.echo(dumps({"slot": slot, "deleted": True}) if as_json else f"slot {slot} emptied")
 
 
+@library.command("backup")
+@click.argument("backup_file", metavar="FILE", type=OUTPUT_PATH)
+@controller_options
+def backup_command(backup_file: Path, link: ControllerLink, as_json: bool) -> None:
+    """Save every stored slot of the controller's library to FILE (JSON: each slot's
+    name, kind and bytes), for `snakebot library restore` on this controller or
+    another. `snakebot flash` makes one by itself before it flashes."""
+    with link.open() as ctl:
+        ctl.identify()
+        saved = backup(ctl)
+    write_backup(saved, backup_file)
+    stored = [s for s in saved["slots"] if "data" in s]
+    if as_json:
+        click.echo(dumps({"file": str(backup_file), "slots": len(stored)}))
+    else:
+        click.echo(f"saved {len(stored)} stored slot(s) to {backup_file}")
+
+
 @library.command("restore")
 @click.argument("backup_file", metavar="FILE", type=INPUT_PATH)
 @controller_options
 def restore_command(backup_file: Path, link: ControllerLink, as_json: bool) -> None:
-    """Write the slots saved in FILE (a backup `snakebot flash` made) back to the
-    controller, each where it is not already in place."""
+    """Write the slots saved in FILE (a backup `snakebot library backup` or `snakebot
+    flash` made) back to the controller, each where it is not already in place."""
     saved = read_backup(backup_file)  # a bad file fails here, before the port is opened
     with link.open() as ctl:
         ctl.identify()

@@ -142,8 +142,11 @@ def monitor(
                     click.echo("\n".join(lines) + "\n")
             taken += 1
             # Sample k is due at t0 + k * interval, counted on an integer grid: comparing
-            # accumulated float times would drop the last sample at random.
-            if duration is not None and taken > duration / interval + GRID_SLACK:
+            # accumulated float times would drop the last sample at random. A link slower
+            # than the interval ends on the clock all the same.
+            if duration is not None and (
+                taken > duration / interval + GRID_SLACK or time.monotonic() - t0 > duration
+            ):
                 break
             wait = t0 + taken * interval - time.monotonic()
             if wait > 0:

@@ -60,7 +60,10 @@ def thesis(
     snake are dimensionless; the physics world builds their physical twins from the
     [physics] tables of their robot files. Writes OUT/NAME.png: x, y, theta and the
     joints against t, both worlds overlaid, the model's ideal path dashed.
-    docs/thesis.md compares the results with what the thesis saw.
+    docs/thesis.md compares the results with what the thesis saw. Two of the runs:
+
+    \b
+        snakebot sim thesis --only h1 --only g1 -o out/thesis
     """
     require_world("mujoco")
     require("matplotlib", "`sim thesis` (its pictures)")

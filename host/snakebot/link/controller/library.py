@@ -305,6 +305,7 @@ def read_blob(ctl: ControllerClient, slot: Slot) -> bytes:
     """The bytes of an OK slot, read through the Slot Data window and checked against its
     CRC."""
     window = ctl.table.register("Slot Data")
+    ctl.write({"Library Slot": slot.slot})  # the window shows the selected slot
     out = b""
     for at in range(0, slot.length, window.size):
         ctl.write({"Slot Offset": at})
@@ -333,7 +334,10 @@ def restore(ctl: ControllerClient, saved: dict[str, Any]) -> list[Slot]:
     """Store every slot of a :func:`backup` that has bytes and is not already in place
     (same name, kind, length and CRC); returns the slots written."""
     if saved.get("format") != "snakebot-library-backup":
-        raise LibraryRefused("not a snakebot library backup: pass the file `snakebot flash` wrote")
+        raise LibraryRefused(
+            "not a snakebot library backup: pass a file `snakebot library backup` or "
+            "`snakebot flash` wrote"
+        )
     written = []
     for entry in saved.get("slots", []):
         if "data" not in entry:

@@ -75,8 +75,9 @@ def backup_library(port: str, say: Say, warn: Say) -> Path | None:
         return None
     folder = backup_dir()
     folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"library-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}.json"
-    write_atomic(path, json.dumps(saved, indent=1) + "\n")
+    path = write_backup(
+        saved, folder / f"library-{time.strftime('%Y%m%d-%H%M%S')}-{os.getpid()}.json"
+    )
     say(f"Backed up {len(stored)} gait-library slot(s) to {path}")
     return path
 
@@ -86,6 +87,12 @@ MAX_BACKUP_BYTES = 1 << 20
 its JSON fit."""
 
 
+def write_backup(saved: dict[str, Any], path: Path) -> Path:
+    """Write a backup (what :func:`snakebot.link.controller.library.backup` read) to
+    ``path``, atomically."""
+    return write_atomic(path, json.dumps(saved, indent=1) + "\n")
+
+
 def read_backup(path: Path) -> dict[str, Any]:
     """A backup file's contents; LibraryRefused naming the problem if it is not one."""
     try:
@@ -93,7 +100,10 @@ def read_backup(path: Path) -> dict[str, Any]:
     except (OSError, ValueError, RecursionError, UnreadableInput) as exc:
         raise LibraryRefused(f"cannot read the library backup {path}: {exc}") from exc
     if not isinstance(saved, dict):
-        raise LibraryRefused(f"{path} is not a snakebot library backup: pass a file flash wrote")
+        raise LibraryRefused(
+            f"{path} is not a snakebot library backup: pass a file `snakebot library backup` "
+            "or `snakebot flash` wrote"
+        )
     return saved
 
 

@@ -183,3 +183,39 @@ def test_a_run_the_host_disturbs_says_so_and_is_never_a_disagreement(tmp_path):
     else:
         assert proc.returncode == 0, report + err
         assert verdict.startswith("5. verdict: AGREE"), verdict
+
+
+def test_an_emulator_the_host_never_runs_again_is_blamed_on_the_host(tmp_path):
+    """QEMU stopped (SIGSTOP) for good once the firmware plays: the PC link goes silent as
+    a host overloaded far beyond the link's margins leaves it. The demo ends with one line
+    that names the host's load, not the board's power or cable (exit 1), and leaves
+    nothing running."""
+    build_firmware()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "snakebot", "demo", "--world", "kinematic", "--cycles", "1"]
+        + ["--board", "qemu", "--out", str(tmp_path)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    qemu_pid = None
+    try:
+        assert proc.stdout is not None
+        for line in proc.stdout:
+            if found := re.search(r"QEMU \(pid (\d+)\)", line):
+                qemu_pid = int(found.group(1))
+            if "monitoring" in line:
+                break
+        assert qemu_pid is not None
+        os.kill(qemu_pid, signal.SIGSTOP)
+        _, err = proc.communicate(timeout=DEMO_TIMEOUT_S)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 1, err
+    (line,) = err.strip().splitlines()
+    assert "the host did not run the emulator in time (load average" in line, line
+    assert "powered" not in line and "USB cable" not in line, line
+    with pytest.raises(ProcessLookupError):
+        os.kill(qemu_pid, 0)

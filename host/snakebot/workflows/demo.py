@@ -37,9 +37,11 @@ INVALID rather than a disagreement: the host's scheduling may be what moved the 
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -51,6 +53,7 @@ from snakebot.extras import install_hint
 from snakebot.formats.gaittable import GaitTable, write_gait
 from snakebot.link.controller import load as load_controller
 from snakebot.link.controller.client import ControllerClient
+from snakebot.link.controller.errors import ControllerLinkError
 from snakebot.link.controller.monitor import Sample, joint_of, render, sample
 from snakebot.link.controller.playback import play, stop
 from snakebot.link.controller.upload import UploadReport, upload_gait
@@ -663,7 +666,7 @@ def run_demo(settings: DemoSettings | None = None, say: Say = print) -> DemoResu
             f"servos {', '.join(map(str, info.servo_ids))} on the emulated "
             f"bus, PC link {info.pc_link}, the {settings.world} world"
         )
-        with ControllerClient.open(info.pc_link) as ctl:
+        with _host_blamed(), ControllerClient.open(info.pc_link) as ctl:
             report = upload_gait(ctl, table, allow_new_servos=True)
             say(
                 f"3. upload: {report.summary()}; the controller's CRC 0x{report.crc:08x} "
@@ -734,6 +737,23 @@ def _play(
                 "again when it is quieter"
             )
     return monitor
+
+
+@contextlib.contextmanager
+def _host_blamed() -> Iterator[None]:
+    """A PC link that stops answering here is the host's doing: the controller is
+    emulated on this machine, and answers at once whenever it is run, so the hint to
+    check the board's power and cable does not apply."""
+    try:
+        yield
+    except ControllerLinkError as exc:
+        what = str(exc).split(":")[0]
+        load = os.getloadavg()[0]
+        raise DemoError(
+            f"{what} (the emulated controller, on this host): the host did not run the "
+            f"emulator in time (load average {load:.1f} on {os.cpu_count()} cores); run the "
+            "demo again when the machine is quieter"
+        ) from None
 
 
 def _busy(s: Sample) -> str:

@@ -14,6 +14,7 @@ from enum import IntEnum
 from snakebot.formats.protocol.errors import PacketArgumentError
 
 HEADER = b"\xff\xff"
+BITS_PER_BYTE = 10  # 8N1 on every link (servo bus, PC link): start, 8 data bits, stop
 BROADCAST_ID = 0xFE
 MAX_ID = 0xFD  # highest addressable device ID (253)
 MAX_PACKET_LEN = 250  # whole packet, header to checksum: ROBOTIS's SDK cap

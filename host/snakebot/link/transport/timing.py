@@ -18,10 +18,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from snakebot.formats.protocol.instructions import BITS_PER_BYTE
 from snakebot.settings import default_float
-
-BITS_PER_BYTE = 10
-"""8N1: one start bit, eight data bits, one stop bit."""
 
 DEFAULT_BAUDRATE = 1_000_000
 """AX-12 factory setting (Baud Rate register = 1)."""

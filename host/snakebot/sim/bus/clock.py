@@ -12,8 +12,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
-BITS_PER_BYTE = 10
-"""8N1: a start bit, eight data bits and a stop bit."""
+from snakebot.formats.protocol.instructions import BITS_PER_BYTE
 
 
 def byte_time(baudrate: float) -> float:

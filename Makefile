@@ -12,15 +12,17 @@ Q           := $(if $(filter 1,$(V)),,@)
 PIP_QUIET   := $(if $(filter 1,$(V)),,-q)
 export V
 
-# The demo needs the C compiler and headers for snakebot._core, the ARM cross-compiler
-# and QEMU; the tests and the fuzzer add clang (libFuzzer and the sanitizers), zlib (the
-# PC-link fuzz target's CRC-32) and tmux (the `snakebot drive` terminal test).
+# The demo needs the C compiler and headers for snakebot._core and the ARM cross-compiler
+# (its board, the emulated CM-530, runs in Python); the tests add QEMU (the second,
+# independent emulator of the firmware: `--board qemu`), clang (libFuzzer and the
+# sanitizers), zlib (the PC-link fuzz target's CRC-32) and tmux (the `snakebot drive`
+# terminal test).
 # MuJoCo's offscreen renderer (--video) draws through EGL, or OSMesa where EGL is missing,
 # both on Mesa's software rasteriser: no display and no GPU needed. The tests add Xvfb
 # (`sim view`, MuJoCo's viewer on a virtual display).
 DEMO_APT    := gcc python3-dev python3-venv gcc-arm-none-eabi libnewlib-arm-none-eabi \
-               qemu-system-arm libegl1 libegl-mesa0 libgl1-mesa-dri libosmesa6
-TEST_APT    := $(DEMO_APT) clang libclang-rt-14-dev zlib1g-dev tmux xvfb
+               libegl1 libegl-mesa0 libgl1-mesa-dri libosmesa6
+TEST_APT    := $(DEMO_APT) qemu-system-arm clang libclang-rt-14-dev zlib1g-dev tmux xvfb
 export MUJOCO_GL ?= egl
 # Python caches compiled modules (and pytest its rewritten test modules) in __pycache__:
 # without the cache every test process and every `python -m snakebot` a test starts

@@ -22,6 +22,7 @@ from click.testing import CliRunner
 from firmware_support import build_firmware
 
 from snakebot.cli import main
+from snakebot.facts.boards import CONTROL_TICK_MS
 from snakebot.formats.gaittable import write_gait
 from snakebot.model.gait import serpenoid
 from snakebot.model.robots import load_robot
@@ -32,7 +33,7 @@ pytestmark = [pytest.mark.qemu, pytest.mark.slow]
 
 WARMUP_CYCLES = 1
 CYCLES = 2
-CONTROL_TICK_S = 0.010  # the firmware's control tick (firmware/boards/*/board.h)
+CONTROL_TICK_S = CONTROL_TICK_MS / 1000  # the firmware's control tick
 PLAY_TIMEOUT_S = 60.0
 OVERLOAD_TORQUE_NM = 5.0  # well above an AX-12A's 1.5 N m stall torque
 ALARM_TIMEOUT_S = 10.0
@@ -73,7 +74,7 @@ def test_upload_play_and_the_snake_advances_as_predicted(robot, gait, tmp_path):
     Why a tolerance, and how large: the world integrates the same kinematic model as the
     prediction, from the servos' positions instead of the table's angles, so every bit of
     difference comes from the joints not being exactly where the table says: servo lag.
-    The firmware sends a goal every 10 ms control tick with the speed that reaches it by
+    The firmware sends a goal every control tick with the speed that reaches it by
     the next tick, so a servo trails its goals by about one tick. The test measures that:
     the lag (the delay that best fits the measured joint angles to the goals the firmware
     sent, least squares over the measured cycles) and the residual tracking error left

@@ -14,7 +14,7 @@ import time
 import zlib
 
 import pytest
-from controller_cli_support import cli, cli_json, save, wave_table
+from controller_cli_support import cli, cli_json, monitor_records, save, wave_table
 from firmware_support import assert_healthy_bus
 
 from snakebot.firmware import image as firmware_image
@@ -48,19 +48,7 @@ def test_upload_play_monitor_stop_on_the_cm530_image(robot, tmp_path):
     played = cli_json("play", "--port", port, "--speed", "2", env=SLOW_HOST)
     assert played["state"] == "PLAYING"
     time.sleep(0.3)
-    result = cli(
-        "monitor",
-        "--port",
-        port,
-        "--json",
-        "--duration",
-        "0.6",
-        "--interval",
-        "0.1",
-        env=SLOW_HOST,
-    )
-    assert result.exit_code == 0, result.output
-    samples = [json.loads(line) for line in result.stdout.splitlines()]
+    samples = monitor_records(port, duration=1.0, env=SLOW_HOST)
     assert len(samples) >= 3
     frames = [s["controller"]["play_frame"] for s in samples]
     assert len(set(frames)) > 1  # the firmware plays through the table

@@ -60,7 +60,9 @@ def cli_json(*args: str, env: dict[str, str] | None = None) -> dict:
     return json.loads(result.stdout)
 
 
-def monitor_records(port: str, duration: float = 0.0, interval: float = 0.1) -> list[dict]:
+def monitor_records(
+    port: str, duration: float = 0.0, interval: float = 0.1, env: dict[str, str] | None = None
+) -> list[dict]:
     result = cli(
         "monitor",
         "--port",
@@ -70,6 +72,7 @@ def monitor_records(port: str, duration: float = 0.0, interval: float = 0.1) -> 
         str(duration),
         "--interval",
         str(interval),
+        env=env,
     )
     assert result.exit_code == 0, result.output
     return [json.loads(line) for line in result.stdout.splitlines()]

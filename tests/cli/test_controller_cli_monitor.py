@@ -54,8 +54,8 @@ def test_json_lines_have_the_controller_and_every_servo(controller_with_table):
     server = controller_with_table
     cli_json("play", "--port", server.device)
     time.sleep(0.1)  # telemetry reads one servo a tick: let every servo be read once
-    records = monitor_records(server.device, duration=0.3, interval=0.1)
-    assert len(records) >= 3
+    records = monitor_records(server.device, duration=0.5, interval=0.1)
+    assert len(records) >= 3  # 6 on time; --duration ends on the clock if the host is slow
     times = [r["t"] for r in records]
     assert times == sorted(times) and times[-1] >= 0.2
     for record in records:

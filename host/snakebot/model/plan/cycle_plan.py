@@ -14,6 +14,7 @@ the route, its table and the plan's report."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -70,15 +71,19 @@ def first_cycles(
     them; the nearest of up to ``HORIZON`` cycles when none does. The model knows a
     cycle of one length only: the shooting sets the length by ``delta``, so fewer cycles
     that miss by a few tolerances are a better start than more that reach it by the
-    model (more cycles, more of the world's differences to correct)."""
-
-    def fit(ways: tuple[float, ...], x0: np.ndarray) -> Cycles | None:
-        return fit_offsets(ways, x0, goal, tol, model, here, 0.0, link1)
+    model (more cycles, more of the world's differences to correct). When no cycles keep
+    to ``serpenoid_goto``'s limit on changes of offset, they are fitted without it."""
 
     def ways_for(n: int) -> list[tuple[float, ...]]:
         return ways_of(n)[: 2 * n]  # forwards, backwards and one reversal
 
-    return fewest_cycles(fit, model, here, goal, least, ROUTE_ACCEPT, ways_for)
+    def fit_with(limit: bool) -> Callable[[tuple[float, ...], np.ndarray], Cycles | None]:
+        return lambda ways, x0: fit_offsets(ways, x0, goal, tol, model, here, 0.0, link1, limit)
+
+    found = fewest_cycles(fit_with(True), model, here, goal, least, ROUTE_ACCEPT, ways_for)
+    if not found.ways:  # a table may change its offset faster than goto does
+        found = fewest_cycles(fit_with(False), model, here, goal, least, ROUTE_ACCEPT, ways_for)
+    return found
 
 
 @dataclass(frozen=True)

@@ -306,10 +306,12 @@ def fit_offsets(
     here: np.ndarray,
     offset: float,
     link1: Any,
+    limit_changes: bool = True,
 ) -> Plan | None:
     """The offsets of the cycles driven ``ways`` that end link 1 nearest ``goal`` by the
     model (least squares from ``x0``, changes of offset kept small), from the middle at
-    ``here`` and the offset now ``offset``; None when they break the limit on changes."""
+    ``here`` and the offset now ``offset``; None when they break the limit on changes
+    (unless ``limit_changes`` is false: then the changes are only kept small)."""
     from scipy.optimize import least_squares  # the planner's optional dependency
 
     coefficients = tuple(float(v) for v in model.coefficients)
@@ -333,7 +335,7 @@ def fit_offsets(
 
     sol = least_squares(residual, x0, bounds=(-MAX_OFFSET, MAX_OFFSET))
     r = residual(sol.x)
-    if np.any(r[3 : 3 + len(ways)] > 0.5):
+    if limit_changes and np.any(r[3 : 3 + len(ways)] > 0.5):
         return None  # breaks the limit on changes of offset
     miss = float(np.hypot(np.hypot(r[0], r[1]), r[2]))
     return Plan(ways, tuple(float(v) for v in sol.x), miss)

@@ -17,6 +17,7 @@ from plan_support import targets, within
 from snakebot.cli import main
 from snakebot.formats.gaittable import MAX_TABLE_BYTES, read_gait
 from snakebot.model.plan import body_length, se2
+from snakebot.model.plan.cycle_plan import MAX_PLAYS
 from snakebot.model.robots import load_robot
 
 
@@ -289,7 +290,7 @@ def test_a_mujoco_plan_ends_within_the_tolerance_where_sim_predict_plays_it(tmp_
     report = json.loads(result.stdout)
     assert report["world"] == "mujoco" and report["error"]["within"]
     assert report["cycles"] == len(report["ways"]) == len(report["offsets_rad"]) >= 1
-    assert 1 <= report["plays"] <= 36
+    assert 1 <= report["plays"] <= MAX_PLAYS
 
     mujoco = end_ratios(out, "--world", "mujoco")
     assert max(mujoco) <= 1, f"{mujoco} times the tolerance in MuJoCo, claimed within"

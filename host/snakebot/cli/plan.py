@@ -29,6 +29,7 @@ from snakebot.cli.troubleshooting import error_line
 from snakebot.extras import require
 from snakebot.facts.boards import TABLE_CAPACITY, smallest_board
 from snakebot.model.plan import PlanRequest, Unreachable
+from snakebot.model.plan.cycle_plan import MAX_PLAYS
 from snakebot.model.plan.planner import DEFAULT_BOARD, DEFAULT_CAPACITY
 from snakebot.sim.physics.select import require_world
 
@@ -74,8 +75,8 @@ def unreachable(exc: Unreachable) -> None:
     note="For plan: the world the table is made and checked in. The kinematic world's plan "
     "is the loop table above, checked in the quasi-static world. With mujoco (N-link "
     "snakes, a table only): whole serpenoid cycles, played open loop in MuJoCo and "
-    "corrected by the miss until they end within the tolerance there (up to 24 plays, "
-    "5..20 s of CPU where the loop plan takes a few).",
+    f"corrected by the miss until they end within the tolerance there (up to {MAX_PLAYS} "
+    "plays, 1..20 s of CPU where the loop plan takes a few).",
 )
 @json_option()
 def plan_command(

@@ -35,6 +35,7 @@ import numpy as np
 from snakebot.model.plan import PlanRequest, se2
 from snakebot.model.plan.cycle_plan import (
     DELTA_RANGE,
+    MAX_PLAYS,
     ROUTE_ACCEPT,
     CyclePlan,
     CycleRoute,
@@ -68,8 +69,6 @@ from snakebot.workflows.plan_check import end_warning
 from snakebot.workflows.predict import Prediction, predict_gait
 
 WORLD = "mujoco"
-#: The most plays of a table in MuJoCo (each about 0.1 s of CPU a cycle).
-MAX_PLAYS = 36
 #: Plays that teach the car model before shooting takes over.
 LEARN_PLAYS = 3
 #: The step in ``delta`` of the play that measures its column of the Jacobian (rad).

@@ -44,6 +44,9 @@ from snakebot.model.plan.serpenoid_goto import (
 from snakebot.model.plan.serpenoid_goto import Plan as Cycles
 from snakebot.model.robots import Robot
 
+#: The most plays of a plan's tables in the world it is made for (in MuJoCo each about
+#: 0.1 s of CPU a cycle).
+MAX_PLAYS = 36
 #: A route's largest miss by the car model, in tolerances, when it is chosen.
 ROUTE_ACCEPT = 3.0
 #: How far ``delta`` may move from the wave's own: the cycle's length changes by about a

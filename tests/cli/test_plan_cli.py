@@ -17,6 +17,7 @@ from plan_support import targets, within
 from snakebot.cli import main
 from snakebot.formats.gaittable import MAX_TABLE_BYTES, read_gait
 from snakebot.model.plan import body_length, se2
+from snakebot.model.plan.cycle_plan import MAX_PLAYS
 from snakebot.model.robots import load_robot
 
 
@@ -267,3 +268,67 @@ def test_a_plan_for_the_qemu_firmwares_capacity_fits_and_uploads(tmp_path):
         assert report["table_bytes"] == out.stat().st_size <= qemu
         uploaded = cli_json("upload", out, "--port", port)
         assert uploaded["bytes"] == out.stat().st_size
+
+
+needs_mujoco = pytest.mark.skipif(
+    importlib.util.find_spec("mujoco") is None, reason="the mujoco world needs the physics extra"
+)
+
+MUJOCO_TARGET = (-0.2, 0.0, 0.0)
+"""A snake5 target the MuJoCo plan reaches in a few plays (about a second of CPU)."""
+
+
+@needs_mujoco
+def test_a_mujoco_plan_ends_within_the_tolerance_where_sim_predict_plays_it(tmp_path):
+    """--world mujoco (issue #31): the table, played open loop in MuJoCo as `sim predict`
+    plays it, ends within the tolerance the plan claims; the plan says which world it was
+    made for, and where the quasi-static world puts the same table, warned when outside."""
+    out = tmp_path / "plan.gait"
+    to = ",".join(f"{v:g}" for v in MUJOCO_TARGET)
+    result = run("plan", "snake5", "--to", to, "--world", "mujoco", "-o", out, "--json")
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.stdout)
+    assert report["world"] == "mujoco" and report["error"]["within"]
+    assert report["cycles"] == len(report["ways"]) == len(report["offsets_rad"]) >= 1
+    assert 1 <= report["plays"] <= MAX_PLAYS
+
+    mujoco = end_ratios(out, "--world", "mujoco")
+    assert max(mujoco) <= 1, f"{mujoco} times the tolerance in MuJoCo, claimed within"
+    quasi_static = end_ratios(out, "--ideal")
+    warned = [w for w in report["warnings"] if w["kind"] == "open_loop"]
+    assert report["quasi_static"]["error"]["within"] == (max(quasi_static) <= 1)
+    if max(quasi_static) > 1:
+        assert [w["cause"] for w in warned] == ["world"]
+        # the plan integrates the table as the planner does, sim predict at its own rate
+        assert warned[0]["position_ratio"] == pytest.approx(quasi_static[0], rel=1e-4)
+        assert warned[0]["message"] in result.stderr
+    else:
+        assert not warned
+
+
+@needs_mujoco
+def test_a_mujoco_plan_that_does_not_converge_is_refused_and_names_its_miss():
+    """The shooting is bounded: out of plays, the plan says how near it came (exit 1 in
+    the CLI, Unreachable here) instead of handing out a table that misses."""
+    from snakebot.model.plan import PlanRequest, Unreachable
+    from snakebot.workflows.plan_mujoco import plan_in_mujoco
+
+    request = PlanRequest(load_robot("snake5"), MUJOCO_TARGET)
+    with pytest.raises(Unreachable, match=r"did not converge in MuJoCo: after 1 plays its"):
+        plan_in_mujoco(request, plays=1)
+
+
+@pytest.mark.parametrize(
+    ("robot_name", "output", "words"),
+    [
+        ("trident", "x.gait", "--world: a plan for the mujoco world drives serpenoid cycles"),
+        ("snake5", "x.prog", "--world mujoco plans a gait table"),
+    ],
+)
+def test_a_mujoco_plan_is_for_an_n_link_snakes_table_only(tmp_path, robot_name, output, words):
+    out = tmp_path / output
+    result = run("plan", robot_name, "--to", "0.3,0,0", "--world", "mujoco", "-o", out)
+    assert result.exit_code == 2, result.output
+    assert result.output.startswith("error: ") and result.output.count("\n") == 1
+    assert words in result.output
+    assert not out.exists()

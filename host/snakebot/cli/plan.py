@@ -21,6 +21,7 @@ from snakebot.cli.options import (
     port_option,
     robot_argument,
     target_options,
+    world_option,
 )
 from snakebot.cli.output import dumps
 from snakebot.cli.params import CAPACITY
@@ -28,7 +29,9 @@ from snakebot.cli.troubleshooting import error_line
 from snakebot.extras import require
 from snakebot.facts.boards import TABLE_CAPACITY, smallest_board
 from snakebot.model.plan import PlanRequest, Unreachable
+from snakebot.model.plan.cycle_plan import MAX_PLAYS
 from snakebot.model.plan.planner import DEFAULT_BOARD, DEFAULT_CAPACITY
+from snakebot.sim.physics.select import require_world
 
 #: Exit status when no plan reaches the target: a runtime failure, not bad input.
 EXIT_UNREACHABLE = 1
@@ -67,6 +70,14 @@ def unreachable(exc: Unreachable) -> None:
     required=False,
 )
 @controller_id_option
+@world_option(
+    "kinematic",
+    note="For plan: the world the table is made and checked in. The kinematic world's plan "
+    "is the loop table above, checked in the quasi-static world. With mujoco (N-link "
+    "snakes, a table only): whole serpenoid cycles, played open loop in MuJoCo and "
+    f"corrected by the miss until they end within the tolerance there (up to {MAX_PLAYS} "
+    "plays, 1..20 s of CPU where the loop plan takes a few).",
+)
 @json_option()
 def plan_command(
     robot: str,
@@ -76,6 +87,7 @@ def plan_command(
     capacity: int | None,
     port: str | None,
     controller_id: int,
+    world: str,
     as_json: bool,
 ) -> None:
     """Plan a gait table that takes ROBOT (snake3, trident, snake5 or a .toml) from rest
@@ -121,9 +133,24 @@ def plan_command(
     capacity holds). When no plan inside the limits and the capacity reaches the target,
     the command says so and exits with status 1; nothing is written.
 
+    With --world mujoco an N-link snake's plan is made for MuJoCo instead, where the
+    loops above end tens to hundreds of tolerances off: the joints move to a serpenoid
+    wave (the one `sim goto` drives), play whole cycles, each at its own steering offset,
+    forwards or backwards, and move back. The cycles are planned by a car model of one
+    cycle, the model learns each cycle's motion from the first plays of the table in
+    MuJoCo, and then the offsets and the wave's lag between joints (the length of a cycle)
+    are corrected by the end's miss (Broyden's method) until the table ends within the
+    tolerance in MuJoCo (--json: world, plays); a plan that does not converge is not
+    written (exit 1). `snakebot sim predict PLAN.gait --world mujoco` ends where the plan
+    says. The plan is for MuJoCo's body and floor: where the same table ends in the
+    quasi-static world is reported (--json: quasi_static), with an open_loop warning when
+    it is outside the tolerance.
+
     \b
     Example:
       snakebot plan trident --to 2,1,30deg -o go.gait
+      snakebot plan snake5 --to 0.3,0.1,20deg --world mujoco -o go5.gait
+      snakebot sim predict go5.gait --world mujoco
       snakebot sim predict go.gait --ideal
       snakebot plan snake3 --to 12,0,0 -o far.gait            # the CM-530's table
       snakebot plan trident --to 2,1,30deg --capacity qemu -o small.gait
@@ -132,6 +159,7 @@ def plan_command(
       snakebot upload go.prog --port /dev/ttyUSB0 && snakebot play --port /dev/ttyUSB0
     """
     require("scipy", "planning", extra="plan")
+    require_world(world)
     if plot is not None:
         require("matplotlib", "--plot")
     from snakebot.model.plan import Plan
@@ -146,6 +174,10 @@ def plan_command(
             "--plot draws a gait table: for a program, use "
             "`snakebot sim predict FILE.prog --plot PNG`"
         )
+    if world != "kinematic" and as_program:
+        raise click.UsageError(
+            f"--world {world} plans a gait table: write it to a .gait file, not a program"
+        )
     if capacity is not None and port is not None:
         raise click.UsageError(
             "--capacity and --port both set the capacity planned for: give one of them"
@@ -159,12 +191,21 @@ def plan_command(
     try:
         capacity = DEFAULT_CAPACITY if capacity is None else capacity
         request = PlanRequest(chosen, goal.target, capacity=capacity, **goal.settings())
-        plan = plan_for(output, request)
+        if world == "kinematic":
+            plan = plan_for(output, request)
+        else:
+            from snakebot.workflows.plan_mujoco import plan_in_mujoco
+
+            plan = plan_in_mujoco(request)
     except Unreachable as exc:
         unreachable(exc)
         return
     checks = None
-    if isinstance(plan, Plan):
+    if world != "kinematic":
+        from snakebot.workflows.plan_mujoco import world_check
+
+        checks = world_check(plan)
+    elif isinstance(plan, Plan):
         from snakebot.workflows.plan_check import servo_check
 
         checks = servo_check(plan)
@@ -182,6 +223,8 @@ def plan_command(
         click.echo(dumps(summary, indent=2))
     elif as_program:
         _print_program(summary)
+    elif "cycles" in summary:
+        _print_cycles(summary)
     else:
         _print(summary)
 
@@ -200,6 +243,34 @@ def _print_program(s: dict[str, Any]) -> None:
     )
     _print_pose(s, "the program's goals as the controller rounds them")
     click.echo(f"wrote {s['file']}")
+
+
+def _print_cycles(s: dict[str, Any]) -> None:
+    click.echo(
+        f"plan for {s['robot']} in the {s['world']} world: {s['cycles']} serpenoid cycles "
+        f"(lag {math.degrees(s['delta_rad']):.1f} deg between joints), {s['frames']} frames "
+        f"every {s['frame_period_ms']} ms ({s['duration_s']:.2f} s), {s['table_bytes']} bytes "
+        f"of the {s['capacity_bytes']} planned for; {s['plays']} plays in {s['world']}"
+    )
+    _print_pose(s, f"the table played open loop in {s['world']}")
+    _print_check("in the quasi-static world", s["quasi_static"]["error"], s["length_unit"])
+    _print_written(s)
+
+
+def _print_check(how: str, e: dict[str, Any], unit: str) -> None:
+    """One line: where the table ends played ``how``, beside the tolerance."""
+    verdict = "within the tolerance" if e["within"] else "OUTSIDE the tolerance"
+    click.echo(
+        f"  {how}: error {e['position']:.4g} {unit}, heading "
+        f"{math.degrees(e['heading_rad']):.3f} deg ({verdict})"
+    )
+
+
+def _print_written(s: dict[str, Any]) -> None:
+    if "file" in s:
+        click.echo(f"wrote {s['file']} and {s['metadata_file']}")
+    if "plot" in s:
+        click.echo(f"plot written to {s['plot']}")
 
 
 def _print_pose(s: dict[str, Any], how: str) -> None:
@@ -230,24 +301,10 @@ def _print(s: dict[str, Any]) -> None:
         f"{s['table_bytes']} bytes of the {s['capacity_bytes']} planned for"
     )
     _print_pose(s, "the table as the controller plays it")
-    rows = s.get("friction_sensitivity", ())
-    for row in rows:
-        e = row["error"]
-        verdict = "within the tolerance" if e["within"] else "OUTSIDE the tolerance"
-        click.echo(
-            f"  with {row['rolling_factor']:g}x the rolling resistance: error "
-            f"{e['position']:.4g} {s['length_unit']}, heading "
-            f"{math.degrees(e['heading_rad']):.3f} deg ({verdict})"
-        )
+    unit = s["length_unit"]
+    for row in s.get("friction_sensitivity", ()):
+        _print_check(f"with {row['rolling_factor']:g}x the rolling resistance", row["error"], unit)
     check = s.get("servo_check")
     if check is not None:
-        e = check["error"]
-        verdict = "within the tolerance" if e["within"] else "OUTSIDE the tolerance"
-        click.echo(
-            f"  on the modelled servos ({check['servos']}): error {e['position']:.4g} "
-            f"{s['length_unit']}, heading {math.degrees(e['heading_rad']):.3f} deg ({verdict})"
-        )
-    if "file" in s:
-        click.echo(f"wrote {s['file']} and {s['metadata_file']}")
-    if "plot" in s:
-        click.echo(f"plot written to {s['plot']}")
+        _print_check(f"on the modelled servos ({check['servos']})", check["error"], unit)
+    _print_written(s)

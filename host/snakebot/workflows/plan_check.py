@@ -21,6 +21,7 @@ import numpy as np
 from snakebot.model.plan import Plan
 from snakebot.model.plan.planner import pose_dict, pose_error
 from snakebot.model.plan.sensitivity import open_loop_warning
+from snakebot.model.robots import Robot
 from snakebot.workflows.predict import predict_gait
 
 
@@ -42,16 +43,28 @@ def servo_check(plan: Plan) -> dict[str, Any]:
     }
     if error["within"]:
         return {"servo_check": report, "warnings": []}
-    warning = open_loop_warning(
+    warning = end_warning(
         "servos",
         error,
-        lambda position, heading: (
-            f"played on the modelled servos ({robot.servo_model}) the table ends "
-            f"{error['position']:.3g} {robot.length_unit} from the target "
-            f"({position:.1f}x the position tolerance) and "
-            f"{abs(math.degrees(error['heading_rad'])):.2f} deg off its heading "
-            f"({heading:.1f}x): the servos lag the table, so its end played open "
-            "loop is not to be trusted; steer in closed loop (goto)"
-        ),
+        robot,
+        f"played on the modelled servos ({robot.servo_model})",
+        "the servos lag the table, so its end played open loop is not to be trusted",
     )
     return {"servo_check": report, "warnings": [warning]}
+
+
+def end_warning(
+    cause: str, error: dict[str, Any], robot: Robot, played: str, why: str
+) -> dict[str, Any]:
+    """The ``open_loop`` warning of a table that, ``played`` so, ends outside the
+    tolerance (``error``, a tolerance report), with the numbers and ``why`` it matters."""
+    return open_loop_warning(
+        cause,
+        error,
+        lambda position, heading: (
+            f"{played} the table ends {error['position']:.3g} {robot.length_unit} from the "
+            f"target ({position:.1f}x the position tolerance) and "
+            f"{abs(math.degrees(error['heading_rad'])):.2f} deg off its heading "
+            f"({heading:.1f}x): {why}; steer in closed loop (goto)"
+        ),
+    )

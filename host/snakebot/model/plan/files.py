@@ -8,6 +8,7 @@ from typing import Any
 
 from snakebot.formats.gaittable import GaitTable, save_table
 from snakebot.formats.program.files import write_program
+from snakebot.model.plan.cycle_plan import CyclePlan
 from snakebot.model.plan.planner import Plan, PlanRequest
 from snakebot.model.plan.program import ProgramPlan
 from snakebot.model.plan.sensitivity import (
@@ -25,7 +26,9 @@ def wants_program(output: Path | None) -> bool:
     return output is not None and output.suffix == PROGRAM_SUFFIX
 
 
-def plan_summary(plan: Plan | ProgramPlan, checks: dict[str, Any] | None = None) -> dict[str, Any]:
+def plan_summary(
+    plan: Plan | CyclePlan | ProgramPlan, checks: dict[str, Any] | None = None
+) -> dict[str, Any]:
     """``plan``'s summary with the robot's length unit and what it means in metres; for
     a table on a robot whose motion depends on friction, where it ends with half and
     twice the rolling resistance (``friction_sensitivity``), and a warning when that
@@ -50,7 +53,7 @@ def plan_summary(plan: Plan | ProgramPlan, checks: dict[str, Any] | None = None)
 
 
 def save_plan(
-    plan: Plan | ProgramPlan, output: Path, checks: dict[str, Any] | None = None
+    plan: Plan | CyclePlan | ProgramPlan, output: Path, checks: dict[str, Any] | None = None
 ) -> tuple[dict[str, Any], GaitTable | None]:
     """Write ``plan`` to ``output``: its summary (:func:`plan_summary`, with ``checks``)
     with ``file`` (and a table's ``metadata_file``, which keeps the summary's warnings

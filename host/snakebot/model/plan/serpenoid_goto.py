@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import bisect
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -296,25 +297,27 @@ def _end(
     return x + c * lx - s * ly, y + s * lx + c * ly, t + lt
 
 
-def plan_cycles(
+def fit_offsets(
+    ways: tuple[float, ...],
+    x0: np.ndarray,
+    goal: np.ndarray,
+    tol: Tolerance,
     model: CycleModel,
     here: np.ndarray,
     offset: float,
-    goal: np.ndarray,
-    tol: Tolerance,
     link1: Any,
-    last: Plan | None = None,
-) -> Plan:
-    """The plan with the fewest whole cycles that ends link 1 within ``ACCEPT`` of the
-    tolerance at ``goal`` by the model, from the middle at ``here`` and the offset now
-    ``offset``; if none within ``HORIZON`` cycles does, the nearest one found. The rest
-    of the ``last`` plan is tried first."""
+    limit_changes: bool = True,
+) -> Plan | None:
+    """The offsets of the cycles driven ``ways`` that end link 1 nearest ``goal`` by the
+    model (least squares from ``x0``, changes of offset kept small), from the middle at
+    ``here`` and the offset now ``offset``; None when they break the limit on changes
+    (unless ``limit_changes`` is false: then the changes are only kept small)."""
     from scipy.optimize import least_squares  # the planner's optional dependency
 
     coefficients = tuple(float(v) for v in model.coefficients)
     state = tuple(float(v) for v in here)
 
-    def residual(x: np.ndarray, ways: tuple[float, ...]) -> np.ndarray:
+    def residual(x: np.ndarray) -> np.ndarray:
         # plain floats: the solver calls this thousands of times a plan
         values = x.tolist()
         ex, ey, et = _end(coefficients, state, offset, ways, values, link1)
@@ -330,31 +333,64 @@ def plan_cycles(
             ]
         )
 
+    sol = least_squares(residual, x0, bounds=(-MAX_OFFSET, MAX_OFFSET))
+    r = residual(sol.x)
+    if limit_changes and np.any(r[3 : 3 + len(ways)] > 0.5):
+        return None  # breaks the limit on changes of offset
+    miss = float(np.hypot(np.hypot(r[0], r[1]), r[2]))
+    return Plan(ways, tuple(float(v) for v in sol.x), miss)
+
+
+def plan_cycles(
+    model: CycleModel,
+    here: np.ndarray,
+    offset: float,
+    goal: np.ndarray,
+    tol: Tolerance,
+    link1: Any,
+    last: Plan | None = None,
+) -> Plan:
+    """The plan with the fewest whole cycles that ends link 1 within ``ACCEPT`` of the
+    tolerance at ``goal`` by the model, from the middle at ``here`` and the offset now
+    ``offset``; if none within ``HORIZON`` cycles does, the nearest one found. The rest
+    of the ``last`` plan is tried first."""
+
     def fit(ways: tuple[float, ...], x0: np.ndarray) -> Plan | None:
-        sol = least_squares(residual, x0, args=(ways,), bounds=(-MAX_OFFSET, MAX_OFFSET))
-        r = residual(sol.x, ways)
-        if np.any(r[3 : 3 + len(ways)] > 0.5):
-            return None  # breaks the limit on changes of offset
-        miss = float(np.hypot(np.hypot(r[0], r[1]), r[2]))
-        return Plan(ways, tuple(float(v) for v in sol.x), miss)
+        return fit_offsets(ways, x0, goal, tol, model, here, offset, link1)
 
     if last is not None and len(last.ways) > 1:
         # the rest of the last plan, fitted again from the state read: usually still good
         plan = fit(last.ways[1:], np.array(last.offsets[1:]))
         if plan is not None and plan.miss <= CONTINUE:
             return plan
+    return fewest_cycles(fit, model, here, goal, 1, ACCEPT, ways_of)
+
+
+def fewest_cycles(
+    fit: Callable[[tuple[float, ...], np.ndarray], Plan | None],
+    model: CycleModel,
+    here: np.ndarray,
+    goal: np.ndarray,
+    least: int,
+    accept: float,
+    ways_for: Callable[[int], list[tuple[float, ...]]],
+) -> Plan:
+    """The plan of the fewest cycles, ``least`` or more (and no fewer than straight
+    cycles of the model would take less one), up to ``HORIZON``, that ``fit`` ends
+    within ``accept`` tolerances of ``goal`` driving one of ``ways_for(n)``, the
+    smallest offsets among them; if none does, the nearest one found."""
     straight = model.length(0.0, 0.0)
-    start = max(1, math.floor(float(np.hypot(*se2.relative(here, goal)[:2])) / straight) - 1)
+    near = math.floor(float(np.hypot(*se2.relative(here, goal)[:2])) / straight) - 1
     best = Plan((), (), math.inf)
-    for n in range(start, HORIZON + 1):
+    for n in range(max(1, least, near), HORIZON + 1):
         found = None
-        for ways in ways_of(n):
+        for ways in ways_for(n):
             plan = fit(ways, np.zeros(n))
             if plan is None:
                 continue
             if plan.miss < best.miss:
                 best = plan
-            if plan.miss <= ACCEPT and (
+            if plan.miss <= accept and (
                 found is None or sum(map(abs, plan.offsets)) < sum(map(abs, found.offsets))
             ):
                 found = plan

@@ -11,7 +11,9 @@ from click.testing import CliRunner
 from physics_support import snake5_serpenoid_file
 
 from snakebot.cli import main
+from snakebot.model.gait import serpenoid
 from snakebot.model.robots import load_robot
+from snakebot.workflows.friction import friction_study, repeated
 from snakebot.workflows.thesis import RUNS, thesis_table
 
 pytest.importorskip("mujoco")
@@ -87,3 +89,24 @@ def test_friction_refuses_bad_coefficients(tmp_path):
     result = invoke("sim", "friction", str(path), "--mu", "0.1,-2")
     assert result.exit_code == 2
     assert result.output.startswith("error: --mu: '0.1,-2': give friction coefficients more than 0")
+
+
+def test_friction_study_measures_the_steady_state_and_the_joints_it_played():
+    # A = 20 deg, delta = 60 deg: the sweep's worst first cycle (MuJoCo starts from rest)
+    robot = load_robot("snake5")
+    gait = serpenoid(robot, math.radians(20), math.pi, math.radians(60), cycles=1, rate_hz=50)
+    table = gait.gait_table()
+    assert repeated(table, 3).frame_count == 3 * table.frame_count
+    study = friction_study(table, robot, (robot.friction.lateral,))
+    assert study["passes"] == 3
+    (point,) = study["points"]
+    kinematic = study["kinematic"]["distance_per_cycle"]
+    # the first cycle from rest falls a fifth short; the third is within 10 % of the
+    # kinematic world, and within 2 % of the quasi-static model on MuJoCo's own joints
+    assert point["first_pass_distance_per_cycle"] < 0.85 * point["distance_per_cycle"]
+    assert point["distance_per_cycle"] == pytest.approx(kinematic, rel=0.1)
+    assert point["distance_per_cycle"] == pytest.approx(
+        point["kinematic_on_physics_joints_per_cycle"], rel=0.02
+    )
+    # the kinematic world has no transient: its last pass is its first
+    assert point["kinematic_distance_per_cycle"] == pytest.approx(kinematic, rel=0.01)

@@ -34,7 +34,8 @@ DEFAULT_MU = (0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0)
 MAX_MU = 1000.0
 """The largest friction coefficient tried: rubber on concrete is about 1."""
 MAX_MU_VALUES = 50
-"""The most friction values one study runs (each is a MuJoCo run of the whole gait)."""
+"""The most friction values one study runs (each is a MuJoCo run of the gait, played
+STEADY_PASSES times over if it loops)."""
 STEADY_PASSES = 3
 """How many times a looping table is played; the last pass is measured. The physics
 world's start from rest is over by the second: snake5's serpenoids go the same distance

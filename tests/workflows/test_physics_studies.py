@@ -6,12 +6,16 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 from physics_support import snake5_serpenoid_file
 
 from snakebot.cli import main
+from snakebot.model.gait import serpenoid
+from snakebot.model.gait.common import table_motion
 from snakebot.model.robots import load_robot
+from snakebot.workflows.friction import friction_study, repeated
 from snakebot.workflows.thesis import RUNS, thesis_table
 
 pytest.importorskip("mujoco")
@@ -87,3 +91,48 @@ def test_friction_refuses_bad_coefficients(tmp_path):
     result = invoke("sim", "friction", str(path), "--mu", "0.1,-2")
     assert result.exit_code == 2
     assert result.output.startswith("error: --mu: '0.1,-2': give friction coefficients more than 0")
+
+
+def test_friction_study_measures_the_steady_state_and_the_joints_it_played():
+    # A = 20 deg, delta = 60 deg: the sweep's worst first cycle (MuJoCo starts from rest)
+    robot = load_robot("snake5")
+    gait = serpenoid(robot, math.radians(20), math.pi, math.radians(60), cycles=1, rate_hz=50)
+    table = gait.gait_table()
+    assert repeated(table, 3).frame_count == 3 * table.frame_count
+    study = friction_study(table, robot, (robot.friction.lateral,))
+    assert study["passes"] == 3
+    (point,) = study["points"]
+    kinematic = study["kinematic"]["distance_per_cycle"]
+    # the first cycle from rest falls a fifth short; the third is within 10 % of the
+    # kinematic world, and within 2 % of the quasi-static model on MuJoCo's own joints
+    assert point["first_pass_distance_per_cycle"] < 0.85 * point["distance_per_cycle"]
+    assert point["distance_per_cycle"] == pytest.approx(kinematic, rel=0.1)
+    assert point["distance_per_cycle"] == pytest.approx(
+        point["kinematic_on_physics_joints_per_cycle"], rel=0.02
+    )
+    # the kinematic world has no transient: its last pass is its first
+    assert point["kinematic_distance_per_cycle"] == pytest.approx(kinematic, rel=0.01)
+
+
+def test_at_delta_150_deg_mujoco_follows_the_smooth_joints_not_the_rounded_ticks():
+    # A = 20 deg, delta = 150 deg: the quasi-static model on the table's ticks goes about
+    # 30 % less far than on the exact frames; MuJoCo's servos smooth the one-tick steps
+    robot = load_robot("snake5")
+    amplitude, omega, delta = math.radians(20), math.pi, math.radians(150)
+    table = serpenoid(robot, amplitude, omega, delta, cycles=1, rate_hz=50).gait_table()
+    period = table.frame_period_ms / 1000
+    t = period * np.arange(table.frame_count)[:, None]
+    exact = amplitude * np.sin(omega * t + delta * np.arange(robot.n_joints))
+
+    def per_cycle(angles):
+        q = table_motion(robot, angles, period, True).trajectory.q
+        return math.hypot(q[-1, 0] - q[0, 0], q[-1, 1] - q[0, 1])
+
+    smooth, ticks = per_cycle(exact), per_cycle(robot.ticks_to_angles(table.frames))
+    assert ticks < 0.8 * smooth
+    (point,) = friction_study(table, robot, (robot.friction.lateral,))["points"]
+    assert point["kinematic_distance_per_cycle"] == pytest.approx(ticks, rel=1e-3)
+    assert point["distance_per_cycle"] == pytest.approx(smooth, rel=0.1)
+    assert point["distance_per_cycle"] == pytest.approx(
+        point["kinematic_on_physics_joints_per_cycle"], rel=0.05
+    )

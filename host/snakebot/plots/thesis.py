@@ -105,7 +105,8 @@ def thesis_figure(result: ThesisResult) -> Figure:
 
 def plot_friction(study: dict[str, Any], out: str | Path) -> Path:
     """PNG: distance per cycle in the physics world against the friction coefficient,
-    with the kinematic world's as a line, and the wheels' sideways slide."""
+    with the kinematic world's (on the table's joints and on the physics world's) beside
+    it, and the wheels' sideways slide."""
     fig = Figure(figsize=(10, 4), layout="constrained")
     FigureCanvasAgg(fig)
     ax_d, ax_s = fig.subplots(1, 2)
@@ -116,6 +117,12 @@ def plot_friction(study: dict[str, Any], out: str | Path) -> Path:
         [p["kinematic_distance_per_cycle"] for p in study["points"]],
         "s--",
         label="kinematic (quasi-static), same mu",
+    )
+    ax_d.semilogx(
+        mu,
+        [p["kinematic_on_physics_joints_per_cycle"] for p in study["points"]],
+        "^:",
+        label="kinematic on MuJoCo's joint motion",
     )
     f = study["friction"]
     for key, label, style in (

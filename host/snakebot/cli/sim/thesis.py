@@ -156,7 +156,10 @@ def friction(gait_file: Path, robot: str | None, mu: str, plot: Path | None, as_
         return
     u = study["units"]
     kin, free = study["kinematic"], study["kinematic_free_wheels"]
-    click.echo(f"{gait_file} on {study['robot']}: distance per cycle ({u})")
+    click.echo(
+        f"{gait_file} on {study['robot']}: distance per cycle ({u}), the last of "
+        f"{study['passes']} passes"
+    )
     click.echo(
         f"  kinematic, mu = {study['friction']['lateral']:g}: {kin['distance_per_cycle']:.4f}"
     )
@@ -169,7 +172,8 @@ def friction(gait_file: Path, robot: str | None, mu: str, plot: Path | None, as_
         )
         click.echo(
             f"  MuJoCo, mu = {p['mu']:<6g}     {p['distance_per_cycle']:.4f} "
-            f"({100 * ratio:.0f} % of free wheels), slid {p['slip_distance_per_cycle']:.4f}"
+            f"({100 * ratio:.0f} % of free wheels), slid {p['slip_distance_per_cycle']:.4f}; "
+            f"kinematic on its joints {p['kinematic_on_physics_joints_per_cycle']:.4f}"
         )
     if plot is not None:
         click.echo(f"plot written to {study['plot']}")

@@ -1,4 +1,4 @@
-"""The world: joint angles from the virtual servos' present positions, the body moved
+"""The world: joint angles from the virtual servos' shaft angles, the body moved
 through the C kinematic core on the bus's clock, batching, and singular crossings."""
 
 from __future__ import annotations
@@ -12,7 +12,9 @@ from snakebot.formats.protocol import sync_write
 from snakebot.model.robots import TICKS_PER_RAD, load_robot
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.options import SimOptions
+from snakebot.sim.servo import motor
 from snakebot.sim.servo.fast import VirtualServo
+from snakebot.sim.servo.reference import ReferenceServo
 from snakebot.sim.world import World, WorldError
 
 GOAL = 30  # Goal Position, then Moving Speed
@@ -81,6 +83,29 @@ def test_joint_angles_come_from_present_positions_through_zero_and_sign(mirrored
     assert rec.phi[-1] == pytest.approx(expected, abs=1e-12)
     assert expected[0] < 0 and expected[1] < 0
     assert len(rec.t) == 6 and rec.t == pytest.approx(np.arange(6) * 0.01)
+
+
+@pytest.mark.parametrize("servo", [VirtualServo, ReferenceServo])
+def test_joint_angles_are_the_shafts_continuous_angles_not_whole_ticks(mirrored, servo):
+    """The body moves from where the shafts are, between ticks, while Present Position
+    (what a READ returns) stays whole: a slow move (Moving Speed 10, about 23 ticks/s)
+    crosses a tick every 4 to 5 samples, and the world sees it advance the same
+    fraction of a tick at every sample; with the emulator's servo and the reference
+    model alike."""
+    bus = Bus([servo(7, position=600.0), servo(3, position=450.0)])  # modelled AX-12As
+    world = World(bus, mirrored, period=0.01)
+    drive(bus, {7: 700, 3: 450}, speed=10)
+    bus.run_until(0.2)
+    rec = world.record()
+    ticks = 600 - rec.phi[:, 0] * TICKS_PER_RAD  # servo 7: zero tick 600, sign -1
+    servo = bus.servo(7)
+    assert ticks[-1] == pytest.approx(servo.pos, abs=1e-9)
+    assert servo.present_position == round(servo.pos) != servo.pos
+    speed = 10 * motor.SPEED_UNIT_RPM * motor.TICKS_PER_S_PER_RPM
+    steps = np.diff(ticks[1:])  # whole intervals of the move (the write lands after 0)
+    assert steps == pytest.approx(np.full(len(steps), speed * 0.01), abs=1e-9)
+    assert 0.2 < steps[0] < 0.3  # a fraction of a tick: no whole-tick staircase
+    assert np.abs(ticks[1:] - np.round(ticks[1:])).max() > 0.4
 
 
 def test_body_rests_while_the_servos_rest():

@@ -1,11 +1,12 @@
 """The world: the robot's body on the floor, moved by its virtual servos.
 
-The servos' present positions (ticks, through each joint's zero tick and sign) are the
-joint angles; the kinematic core's quasi-static friction model (``snakebot.model.kinematics``,
-in C)
-turns the joint motion into body motion. The world samples the positions every
-``period`` seconds of bus time (:meth:`snakebot.sim.bus.bus.Bus.every`), takes the joints as
-moving linearly between samples, and integrates the body over the samples in batches:
+The servos' shaft angles are the joint angles: each servo's continuous position in ticks
+(its motion model's ``pos``, through the joint's zero tick and sign), not the whole ticks
+its Present Position register reports to a READ. The kinematic core's quasi-static friction
+model (``snakebot.model.kinematics``, in C) turns the joint motion into body motion. The
+world samples the positions every ``period`` seconds of bus time
+(:meth:`snakebot.sim.bus.bus.Bus.every`), takes the joints as moving linearly between
+samples, and integrates the body over the samples in batches:
 one C call per batch of intervals (the core steps each interval separately, so the
 kinks between intervals cost no accuracy), never a Python loop per step.
 

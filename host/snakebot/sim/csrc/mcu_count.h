@@ -19,7 +19,6 @@ typedef struct {
     double t0;         /* the machine's time (s) when count was c0 */
     uint64_t c0;
     double hz;         /* instructions per second (HCLK) */
-    void *on_unmask;   /* int (*)(void): takes what is pending after an unmask (how many) */
     /* The image's sites, in the order they were watched: this one hook looks at them (a
      * unicorn hook per site would make unicorn walk every hook on every instruction). */
     const uint32_t *site_address;
@@ -32,6 +31,9 @@ typedef struct {
                         * a rounding; with nothing pending, the machine would then find nothing
                         * due, nothing to take, and run one instruction more: the hook runs it
                         * at once instead of stopping. */
+    uint32_t running;  /* mcu_run is under way (set there) */
+    void *nvic;        /* the mcu_nvic (mcu_nvic.h) that takes what is pending after an
+                        * unmask (NULL: the CPU stops there instead) */
 } mcu_counter;
 
 /* The machine's time (s) when the count is `count`: t0 + (count - c0) / hz. */
@@ -74,7 +76,7 @@ void mcu_io_write(void *uc, uint64_t offset, unsigned size, uint64_t value, void
 /* Exception entry and return (ARMv7-M B1.5.6, B1.5.8) on the main stack, done here with
  * unicorn's own functions (their addresses in `api`, register ids from unicorn's Python
  * constants): in Python the register and memory calls of one entry cost more than the
- * handler they start. The NVIC's decisions (which exception, priorities) stay in Python. */
+ * handler they start. Which exception, and when: mcu_nvic.h. */
 typedef struct {
     void *reg_read_batch;   /* uc_reg_read_batch */
     void *reg_write_batch;  /* uc_reg_write_batch */

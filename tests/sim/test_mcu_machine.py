@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import random
+
 import pytest
 from unicorn import arm_const as arm
 
+from snakebot.core import ffi, lib
 from snakebot.sim.mcu import flash as fl
-from snakebot.sim.mcu import nvic
+from snakebot.sim.mcu import nvic, rcc, usart
 from snakebot.sim.mcu.errors import McuFault
 from snakebot.sim.mcu.machine import RAM_BASE, Stm32f103
 
@@ -115,3 +118,47 @@ def test_a_vector_without_the_thumb_bit_and_a_return_to_the_process_stack_are_fa
     m.nvic.pend(nvic.SYSTICK)
     with pytest.raises(McuFault, match="EXC_RETURN 0xFFFFFFFD and 1 exception.s. active"):
         m.run_until(m.now() + 1e-5)
+
+
+def _usart_chip(c_side: bool) -> tuple[Stm32f103, list[tuple[int, float]]]:
+    m = Stm32f103(hse_hz=8_000_000)
+    m.rcc.write(rcc.APB2ENR, 4, 1 << 14)  # USART1's clock
+    if not c_side:
+        m.usart1.fast.nvic = ffi.NULL  # the Python model serves every access but SR/CR1 reads
+    sent: list[tuple[int, float]] = []
+    m.usart1.on_tx = lambda byte, start, end, baud: sent.append((byte, start))
+    m.usart1.write(usart.BRR, 4, 16)  # 500 kbps at 8 MHz: 20 us a frame
+    return m, sent
+
+
+def test_usart_registers_served_in_c_behave_as_the_model() -> None:
+    # the accesses go in where unicorn sends the CPU's (mcu_io_read/write): on one chip C
+    # serves DR and CR1 where it can, on the other the Python model serves them all
+    rng = random.Random(30)
+    chips = [_usart_chip(True), _usart_chip(False)]
+    cr1_bits = [usart.CR1_UE, usart.CR1_TE, usart.CR1_RE, usart.CR1_RXNEIE, usart.CR1_TCIE]
+    cr1_bits.append(usart.CR1_TXEIE)
+    for _ in range(3000):
+        op = rng.randrange(6)
+        value = rng.randrange(256)
+        cr1 = sum(bit for bit in cr1_bits if rng.random() < 0.8)
+        dt = rng.choice((0.0, 3e-6, 20e-6, 45e-6))
+        seen = []
+        for m, sent in chips:
+            fast = m.usart1.fast
+            if op == 0:
+                seen.append(lib.mcu_io_read(ffi.NULL, usart.SR, 4, fast))
+            elif op == 1:
+                seen.append(lib.mcu_io_read(ffi.NULL, usart.DR, 4, fast))
+            elif op == 2:
+                lib.mcu_io_write(ffi.NULL, usart.DR, 4, value, fast)
+            elif op == 3:
+                lib.mcu_io_write(ffi.NULL, usart.CR1, 4, cr1, fast)
+            elif op == 4:
+                m.usart1.receive(value)
+            m.stall(dt)
+            m.scheduler.run_due(m.now())
+            u = m.usart1
+            seen.append((u.sr, u.cr1, u.tdr, u.rdr, m.nvic.lines, m.nvic.pending, sent[-3:]))
+        assert seen[: len(seen) // 2] == seen[len(seen) // 2 :]
+    assert len(chips[0][1]) > 200 and chips[0][0].nvic.pending  # bytes sent, lines raised

@@ -1,6 +1,7 @@
 /* See mcu_count.h. */
 #include "mcu_count.h"
 #include "mcu_nvic.h"
+#include "mcu_usart.h"
 
 double mcu_time_at(const mcu_counter *c, uint64_t count)
 {
@@ -103,6 +104,10 @@ uint64_t mcu_io_read(void *uc, uint64_t offset, unsigned size, void *io)
     if (f->second_on && offset == f->second_offset && size == 4) {
         return f->second;
     }
+    uint64_t value;
+    if (f->kind == MCU_IO_USART_SR && mcu_usart_read(f, offset, size, &value)) {
+        return value;
+    }
     return ((mcu_read_fn)f->read_fallback)(uc, offset, size, 0);
 }
 
@@ -117,6 +122,9 @@ void mcu_io_write(void *uc, uint64_t offset, unsigned size, uint64_t value, void
         }
         f->last_feed = now;
         f->feeds++;
+        return;
+    }
+    if (f->kind == MCU_IO_USART_SR && mcu_usart_write(f, offset, size, value)) {
         return;
     }
     ((mcu_write_fn)f->write_fallback)(uc, offset, size, value, 0);

@@ -65,6 +65,17 @@ typedef struct {
     mcu_counter *counter;
     void *read_fallback;
     void *write_fallback;
+    /* A USART whose interrupt line is wired to the C NVIC (`nvic` set) has more served
+     * here, its state kept here for the model too (mcu_usart.h): DR read, DR written while
+     * the shift register is busy or the transmitter off, CR1 written with modelled bits
+     * that start no idle frame. `value` is SR, `second` CR1. */
+    uint32_t tdr;       /* the byte waiting in TDR ... */
+    uint32_t tdr_full;  /* ... if one is */
+    uint32_t shifting;  /* the shift register is sending (a byte or the idle frame) */
+    uint32_t rdr;       /* the byte last received */
+    uint32_t line;      /* the interrupt line's level */
+    int32_t irq;        /* its NVIC line */
+    void *nvic;         /* the mcu_nvic (NULL: the Python model serves all but SR and CR1 reads) */
 } mcu_fast_io;
 
 #define MCU_IO_USART_SR 1

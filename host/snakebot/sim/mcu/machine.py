@@ -191,6 +191,7 @@ class Stm32f103:
             irq=functools.partial(lib.mcu_nvic_set_line, self.nvic.c, irq),
             clock_on=clock_on,
             strict=self.strict,
+            nvic_line=(self.nvic.c, irq),
         )
 
     def _map(self, p: Peripheral) -> None:

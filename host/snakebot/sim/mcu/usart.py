@@ -154,6 +154,11 @@ class Usart(Peripheral):
     def transmitting(self) -> bool:
         return self._shift_end is not None
 
+    @property
+    def shift_end(self) -> float | None:
+        """When the shift register is done with what it sends (None: idle)."""
+        return None if self._shift_end is None else self._shift_end.time
+
     # -- the far end ------------------------------------------------------------------------
 
     def receive(self, byte: int) -> None:

@@ -13,12 +13,13 @@ import time
 from dataclasses import replace
 
 import pytest
+import serial
 from controller_cli_support import SNAKE5_IDS, cli, save, wave_table
 
-from snakebot.facts.boards import WATCHDOG_MS
+from snakebot.facts.boards import PC_LINK_BAUD, WATCHDOG_MS
 from snakebot.firmware import image as firmware_image
 from snakebot.sim.mcu.board import Cm530, Leftovers
-from snakebot.sim.mcu.runner import STEP_S, McuFirmware
+from snakebot.sim.mcu.runner import QUIET_AFTER_S, QUIET_STEP_S, STEP_S, McuFirmware
 from snakebot.sim.options import SimOptions
 
 pytest.importorskip("unicorn")
@@ -100,24 +101,34 @@ def test_stack_high_water_mark_stays_in_the_reserved_stack(image):
 def test_in_real_time_the_thread_runs_whole_steps_not_a_spin(image):
     # between the PC's bytes the thread waits until a step's time is due: running at once
     # for the time its last run took, it spins in steps as short as itself and takes a
-    # whole core however fast the board runs (tens of thousands of steps a second)
+    # whole core however fast the board runs (tens of thousands of steps a second); while
+    # the link is quiet the steps are longer (each wake-up costs the host more than the
+    # emulated millisecond), and once the PC sends they are short again
     with McuFirmware(image) as fw:
-        time.sleep(0.2)
-        steps = []
+        time.sleep(QUIET_AFTER_S + 0.1)
+        steps: list[tuple[float, float]] = []  # (emulated time, length of the run)
         board = fw.board
         run_until = board.run_until
         with fw.lock:
 
             def counted(t: float) -> None:
-                steps.append(t)
+                steps.append((t, t - board.now()))
                 run_until(t)
 
             board.run_until = counted  # type: ignore[method-assign]
         time.sleep(0.5)
-        with fw.lock:
-            board.run_until = run_until  # type: ignore[method-assign]
-    assert fw.error is None
-    assert 0 < len(steps) <= 1.5 * 0.5 / STEP_S
+        quiet = len(steps)
+        with serial.Serial(fw.pc_link, PC_LINK_BAUD, timeout=5.0) as link:
+            link.write(PING)
+            time.sleep(QUIET_AFTER_S / 2)  # short steps for QUIET_AFTER_S after the last byte
+            with fw.lock:
+                board.run_until = run_until  # type: ignore[method-assign]
+            answer = link.read(len(PONG))
+    assert fw.error is None and answer == PONG
+    assert 0 < quiet <= 1.5 * 0.5 / QUIET_STEP_S
+    assert sorted(length for _, length in steps[:quiet])[quiet // 2] > 2 * STEP_S
+    busy = sorted(length for _, length in steps[quiet:])  # a catch-up or two to the PING
+    assert len(busy) >= 10 and busy[len(busy) * 9 // 10] <= STEP_S + 1e-9
 
 
 @pytest.mark.slow

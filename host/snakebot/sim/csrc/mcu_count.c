@@ -1,5 +1,7 @@
 /* See mcu_count.h. */
 #include "mcu_count.h"
+#include "mcu_nvic.h"
+#include "mcu_usart.h"
 
 double mcu_time_at(const mcu_counter *c, uint64_t count)
 {
@@ -65,28 +67,25 @@ static void count_at_limit_or_site(void *uc, uint64_t address, uint32_t size, mc
     }
 }
 
-typedef int (*mcu_unmask_fn)(void);
-
 /* Hooked on the instruction after each `cpsie i` / `msr primask`: with an exception
- * pending, `on_unmask` (Python: the NVIC decides) takes it before this instruction, which
- * then runs on the return (the counter's hook, called first, has counted it: uncounted
- * here); without `on_unmask`, stop before it so the machine can take the exception. */
+ * pending, the NVIC (mcu_nvic_after_unmask) takes it before this instruction, which then
+ * runs on the return (the counter's hook, called first, has counted it: uncounted here);
+ * without an NVIC, stop before it so the machine can take the exception. */
 void mcu_after_unmask(void *uc, uint64_t address, uint32_t size, void *counter)
 {
-    (void)uc;
     (void)address;
     (void)size;
     mcu_counter *c = (mcu_counter *)counter;
     if (!c->pending || c->limit <= c->count) {
         return;
     }
-    if (c->on_unmask == 0) {
+    if (c->nvic == 0) {
         c->limit = c->count;
         c->stop_at = 0.0;
         return;
     }
     c->count--;
-    if (((mcu_unmask_fn)c->on_unmask)() == 0) {
+    if (mcu_nvic_after_unmask(uc, (mcu_nvic *)c->nvic) == 0) {
         c->count++; /* nothing taken: the instruction runs now */
     }
 }
@@ -105,6 +104,10 @@ uint64_t mcu_io_read(void *uc, uint64_t offset, unsigned size, void *io)
     if (f->second_on && offset == f->second_offset && size == 4) {
         return f->second;
     }
+    uint64_t value;
+    if (f->kind == MCU_IO_USART_SR && mcu_usart_read(f, offset, size, &value)) {
+        return value;
+    }
     return ((mcu_read_fn)f->read_fallback)(uc, offset, size, 0);
 }
 
@@ -119,6 +122,9 @@ void mcu_io_write(void *uc, uint64_t offset, unsigned size, uint64_t value, void
         }
         f->last_feed = now;
         f->feeds++;
+        return;
+    }
+    if (f->kind == MCU_IO_USART_SR && mcu_usart_write(f, offset, size, value)) {
         return;
     }
     ((mcu_write_fn)f->write_fallback)(uc, offset, size, value, 0);
@@ -255,7 +261,10 @@ int mcu_run(void *uc, mcu_exceptions *x, mcu_counter *c, uint64_t instructions)
 {
     c->limit = c->count + instructions;
     uint32_t pc = mcu_reg(uc, x, x->frame[FRAME_PC]) | 1u;
-    return ((mcu_start_fn)x->emu_start)(uc, pc, 0, 0, 0);
+    c->running = 1;
+    int status = ((mcu_start_fn)x->emu_start)(uc, pc, 0, 0, 0);
+    c->running = 0;
+    return status;
 }
 
 int mcu_maybe_in_it_block(void *uc, mcu_exceptions *x)

@@ -19,7 +19,6 @@ typedef struct {
     double t0;         /* the machine's time (s) when count was c0 */
     uint64_t c0;
     double hz;         /* instructions per second (HCLK) */
-    void *on_unmask;   /* int (*)(void): takes what is pending after an unmask (how many) */
     /* The image's sites, in the order they were watched: this one hook looks at them (a
      * unicorn hook per site would make unicorn walk every hook on every instruction). */
     const uint32_t *site_address;
@@ -32,6 +31,9 @@ typedef struct {
                         * a rounding; with nothing pending, the machine would then find nothing
                         * due, nothing to take, and run one instruction more: the hook runs it
                         * at once instead of stopping. */
+    uint32_t running;  /* mcu_run is under way (set there) */
+    void *nvic;        /* the mcu_nvic (mcu_nvic.h) that takes what is pending after an
+                        * unmask (NULL: the CPU stops there instead) */
 } mcu_counter;
 
 /* The machine's time (s) when the count is `count`: t0 + (count - c0) / hz. */
@@ -63,6 +65,17 @@ typedef struct {
     mcu_counter *counter;
     void *read_fallback;
     void *write_fallback;
+    /* A USART whose interrupt line is wired to the C NVIC (`nvic` set) has more served
+     * here, its state kept here for the model too (mcu_usart.h): DR read, DR written while
+     * the shift register is busy or the transmitter off, CR1 written with modelled bits
+     * that start no idle frame. `value` is SR, `second` CR1. */
+    uint32_t tdr;       /* the byte waiting in TDR ... */
+    uint32_t tdr_full;  /* ... if one is */
+    uint32_t shifting;  /* the shift register is sending (a byte or the idle frame) */
+    uint32_t rdr;       /* the byte last received */
+    uint32_t line;      /* the interrupt line's level */
+    int32_t irq;        /* its NVIC line */
+    void *nvic;         /* the mcu_nvic (NULL: the Python model serves all but SR and CR1 reads) */
 } mcu_fast_io;
 
 #define MCU_IO_USART_SR 1
@@ -74,7 +87,7 @@ void mcu_io_write(void *uc, uint64_t offset, unsigned size, uint64_t value, void
 /* Exception entry and return (ARMv7-M B1.5.6, B1.5.8) on the main stack, done here with
  * unicorn's own functions (their addresses in `api`, register ids from unicorn's Python
  * constants): in Python the register and memory calls of one entry cost more than the
- * handler they start. The NVIC's decisions (which exception, priorities) stay in Python. */
+ * handler they start. Which exception, and when: mcu_nvic.h. */
 typedef struct {
     void *reg_read_batch;   /* uc_reg_read_batch */
     void *reg_write_batch;  /* uc_reg_write_batch */

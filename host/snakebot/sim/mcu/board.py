@@ -178,17 +178,18 @@ class Cm530:
 
     def _bus_tx(self, byte: int, start: float, end: float, baud: float) -> None:
         bus = self.bus
-        if not self._buffer_drives():
+        drives = self._buffer_drives()
+        if not drives:
             self.bus_stats.blocked += 1
-            return
         if bus is None:
             return
         if start > bus.now:
-            bus.run_until(start)
-        if bus.baudrate != baud:
-            bus.baudrate = baud
-        bus.master_write(bytes((byte,)))
-        self.bus_stats.sent += 1
+            bus.run_until(start)  # also what a bus step due now would do (see _step_bus)
+        if drives:
+            if bus.baudrate != baud:
+                bus.baudrate = baud
+            bus.master_write(bytes((byte,)))
+            self.bus_stats.sent += 1
         self._plan_bus()
 
     def _plan_bus(self) -> None:
@@ -214,6 +215,9 @@ class Cm530:
     def _step_bus(self, t: float) -> None:
         self._bus_step = None
         assert self.bus is not None
+        u = self.mcu.usart1
+        if u.tdr is not None and u.shift_end == t and u.cr1 & usart.CR1_TE:
+            return  # a byte starts now (usart1's event, due at the same time): _bus_tx steps
         if t > self.bus.now:
             self.bus.run_until(t)
         self._plan_bus()

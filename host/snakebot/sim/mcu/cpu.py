@@ -7,7 +7,10 @@ address, xPSR) is pushed on the main stack, 8-byte aligned (bit 9 of the stacked
 records the padding), LR gets EXC_RETURN and PC the handler from the vector table at
 VTOR; a branch to EXC_RETURN (unicorn reports it as its exception-exit interrupt) pops the
 frame. Only the main stack is modelled (the firmware never uses the process stack: an
-EXC_RETURN asking for it is a fault).
+EXC_RETURN asking for it is a fault). Entry, return and the choice of what to take are C
+(``snakebot._core``'s mcu_nvic and mcu_exception_*): the return and a tail-chained entry
+run inside unicorn's interrupt hook, an entry after an unmask inside the counter's hook,
+without a Python call.
 
 Time: a native instruction counter (``snakebot._core``'s ``mcu_count_instruction``, a
 unicorn code hook) counts every executed instruction and stops the CPU at a limit, so
@@ -48,7 +51,6 @@ from unicorn import (  # noqa: E402
 )
 from unicorn import arm_const as arm  # noqa: E402
 from unicorn.unicorn_py3.unicorn import (  # noqa: E402
-    HOOK_INTR_CFUNC,
     MMIO_READ_CFUNC,
     MMIO_WRITE_CFUNC,
     uclib,
@@ -61,9 +63,6 @@ from snakebot.sim.mcu.nvic import Nvic  # noqa: E402
 __all__ = ["Cpu", "Uc", "unmasking_sites", "UC_HOOK_MEM_WRITE_PROT", "UC_PROT_ALL"]
 __all__ += ["UC_PROT_EXEC", "UC_PROT_READ", "UC_PROT_WRITE", "UC_HOOK_MEM_FETCH_PROT"]
 
-EXCP_EXCEPTION_EXIT = 8  # unicorn's (QEMU's) interrupt number for a branch to EXC_RETURN
-EXC_RETURN_HANDLER = 0xFFFF_FFF1
-EXC_RETURN_THREAD_MSP = 0xFFFF_FFF9
 FRAME_REGS = (
     arm.UC_ARM_REG_R0,
     arm.UC_ARM_REG_R1,
@@ -74,8 +73,6 @@ FRAME_REGS = (
     arm.UC_ARM_REG_PC,
     arm.UC_ARM_REG_XPSR,
 )
-XPSR_ALIGNED = 1 << 9
-XPSR_IPSR = 0x1FF
 WFI = b"\x30\xbf"
 CPSIE_I = b"\x62\xb6"
 
@@ -146,13 +143,9 @@ class Cpu:
         self.counter.limit = 0
         self._io_callbacks: list[tuple[object, object]] = []
         self._hook_counter()
-        unmask = ctypes.CFUNCTYPE(ctypes.c_int)(self._on_unmask)
-        self._io_callbacks.append((unmask, None))
-        self.counter.on_unmask = _native(unmask)
         uch = self.uc._uch
         self._uch = uch
         self._uch_c = ffi.cast("void *", uch.value)
-        self._hook_interrupts()
         wfi = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_uint64)(self._on_wfi)
         self._io_callbacks.append((wfi, None))
         self.counter.on_wfi = _native(wfi)
@@ -171,6 +164,14 @@ class Cpu:
             setattr(self._exc, field, _native(function))
         self._exc.frame = list(FRAME_REGS)
         self._exc.sp = arm.UC_ARM_REG_SP
+        # the exception state and decisions in C (mcu_nvic.h): the interrupt hook returns
+        # from handlers and tail-chains, the counter's hook takes what an unmask lets in
+        n = nvic.c
+        n.counter = self.counter
+        n.x = self._exc
+        n.primask_reg = arm.UC_ARM_REG_PRIMASK
+        self.counter.nvic = n
+        self._native_hook(UC_HOOK_INTR, lib.mcu_nvic_interrupt_hook(), n, 1, 0)
         self._sp = _Batch(uch, (arm.UC_ARM_REG_SP,))
         self._primask = _Batch(uch, (arm.UC_ARM_REG_PRIMASK,))
         self._word = ctypes.create_string_buffer(32)
@@ -184,7 +185,6 @@ class Cpu:
         """Called by a ``wfi`` that sleeps, inside the run: True if it let time pass up to
         an exception that wakes the CPU, within the run (the CPU goes on); False to stop
         and sleep as usual."""
-        self._fault: int | None = None
         self.lowest_sp = 0xFFFF_FFFF
 
     @property
@@ -196,24 +196,15 @@ class Cpu:
     def lowest_sp(self, value: int) -> None:
         self._exc.lowest_sp = value
 
-    def _hook_interrupts(self) -> None:
-        self._python_hook(UC_HOOK_INTR, HOOK_INTR_CFUNC(self._on_interrupt), 1, 0)
-
-    def _python_hook(self, kind: int, callback: object, begin: int, end: int) -> None:
-        """Hook the ctypes ``callback`` (kept alive as long as the CPU): ours rather than
-        Uc.hook_add's, three Python calls fewer on every exception return and WFI."""
-        self._io_callbacks.append((callback, None))
-        _add_hook(self._uch, kind, callback, None, begin, end)
-
     def _hook_counter(self) -> None:
-        self._native_hook(lib.mcu_count_hook(), 1, 0)
+        self._native_hook(UC_HOOK_CODE, lib.mcu_count_hook(), self.counter, 1, 0)
 
-    def _native_hook(self, function: object, begin: int, end: int) -> None:
-        """Hook the C ``function`` (from ``snakebot._core``) on the instructions at
-        ``begin``..``end``, with the counter as its data."""
+    def _native_hook(self, kind: int, function: object, data: object, begin: int, end: int) -> None:
+        """Hook the C ``function`` (from ``snakebot._core``) as a ``kind`` hook on the
+        addresses ``begin``..``end``, with the cffi pointer ``data`` as its data."""
         callback = ctypes.c_void_p(int(ffi.cast("uintptr_t", function)))
-        user = ctypes.c_void_p(int(ffi.cast("uintptr_t", self.counter)))
-        _add_hook(self.uc._uch, UC_HOOK_CODE, callback, user, begin, end)
+        user = ctypes.c_void_p(int(ffi.cast("uintptr_t", data)))
+        _add_hook(self.uc._uch, kind, callback, user, begin, end)
 
     def watch(self, wfi: Iterable[int], after_unmask: Iterable[int]) -> None:
         """Watch the image's ``wfi`` instructions and the instructions after each unmask
@@ -351,60 +342,25 @@ class Cpu:
         if uc._hook_exception is not None:
             exc, uc._hook_exception = uc._hook_exception, None
             raise exc
+        n = self.nvic.c
+        if n.error:
+            self._raise_exception_error()
         if status != 0:
             raise McuFault(
                 f"the CPU faulted at 0x{self.pc:08X}: {UcError(status)} "
                 f"(after {self.counter.count} instructions)"
             )
         self._stopped_by = None
-        if self._fault is not None:
-            intno, self._fault = self._fault, None
+        if n.fault:
+            intno, n.fault = n.fault, 0
             raise McuFault(
                 f"the CPU raised exception {intno} at 0x{self.pc:08X} (an undefined "
                 "instruction, SVC or breakpoint: none is used by the firmware)"
             )
 
-    def _on_interrupt(self, _uc: int, intno: int, _data: int) -> None:
-        try:
-            self._interrupt(intno)
-        except BaseException as exc:  # stops the CPU; run raises it
-            self.fail(exc)
-
-    def _interrupt(self, intno: int) -> None:
-        if intno != EXCP_EXCEPTION_EXIT:
-            self._fault = intno
-            uclib.uc_emu_stop(self._uch)
-            return
-        # the return (and a tail-chained entry) done here: writing PC from a hook makes
-        # unicorn go on from there without leaving emu_start, which costs far more
-        self._exception_return()
-        nvic = self.nvic
-        exception = nvic.best_pending()
-        if exception is not None:  # PRIMASK read only for something to take
-            exception = nvic.takeable(self.primask, exception)
-            if exception is not None:
-                self._enter(exception)
-        self.counter.pending = 1 if nvic.pending else 0  # note_pending, inline
-
     def maybe_in_it_block(self) -> bool:
         """Whether the next instruction may sit in an IT block (see mcu_count.h)."""
         return bool(lib.mcu_maybe_in_it_block(self._uch_c, self._exc))
-
-    def _on_unmask(self) -> int:
-        # an unmasking instruction ran with an exception pending: take it here, before the
-        # next instruction, without leaving emu_start (a stop costs a run of the machine);
-        # PC is written again alone, as unicorn needs it from a code hook
-        try:
-            if self.maybe_in_it_block():
-                self.stop_soon()  # taken when the CPU stops, with the IT state exact
-                return 0
-            taken = self.take_exceptions()
-            if taken:
-                lib.mcu_keep_pc(self._uch_c, self._exc)
-            return taken
-        except BaseException as exc:  # stops the CPU; run raises it
-            self.fail(exc)
-            return 0
 
     def _on_wfi(self, address: int) -> int:
         # the hook runs before the instruction: unicorn then halts after it (its WFI ends
@@ -431,11 +387,6 @@ class Cpu:
         if self.take_exceptions():
             lib.mcu_keep_pc(self._uch_c, self._exc)
 
-    def note_pending(self) -> None:
-        """Tell the native hooks whether an exception is pending (a stale yes only costs a
-        stop)."""
-        self.counter.pending = 1 if self.nvic.pending else 0
-
     def wake_if_due(self) -> bool:
         """WFI ends when an exception that could preempt (PRIMASK aside) is pending."""
         if self.sleeping and self.nvic.takeable(primask=False) is not None:
@@ -447,51 +398,39 @@ class Cpu:
     def take_exceptions(self) -> int:
         """Enter every exception that may preempt now (the last one entered runs first);
         returns how many."""
-        taken = 0
-        nvic = self.nvic
-        while True:
-            exception = nvic.best_pending()
-            if exception is not None:  # no register read for nothing to take
-                exception = nvic.takeable(self.primask, exception)
-            if exception is None:
-                self.counter.pending = 1 if nvic.pending else 0  # note_pending, inline
-                return taken
-            self._enter(exception)
+        taken = lib.mcu_nvic_take(self._uch_c, self.nvic.c)
+        if taken < 0:
+            self._raise_exception_error()
+        if taken:
             self.sleeping = False
-            taken += 1
+        return taken
 
-    def _enter(self, exception: int) -> None:
-        nvic = self.nvic
-        ipsr = nvic.active[-1] & XPSR_IPSR if nvic.active else 0
-        status = lib.mcu_exception_enter(self._uch_c, self._exc, exception, nvic.vtor, ipsr)
-        if status == lib.MCU_EXC_NOT_THUMB:
+    def _raise_exception_error(self) -> None:
+        """Raise what made an exception entry or return fail (mcu_nvic's error)."""
+        n = self.nvic.c
+        status, where, exception = n.error, n.error_in, n.error_exception
+        n.error = 0
+        vtor = self.nvic.vtor
+        if where == lib.MCU_NVIC_ENTRY and status == lib.MCU_EXC_NOT_THUMB:
             raise McuFault(
-                f"vector {exception} at 0x{nvic.vtor + 4 * exception:08X} holds "
+                f"vector {exception} at 0x{vtor + 4 * exception:08X} holds "
                 f"0x{self._exc.handler:08X}, not a Thumb address: is VTOR "
-                f"(0x{nvic.vtor:08X}) pointing at the image's vector table?"
+                f"(0x{vtor:08X}) pointing at the image's vector table?"
             )
-        if status != lib.MCU_EXC_OK:
+        if where == lib.MCU_NVIC_ENTRY:
             raise McuFault(
                 f"exception {exception}: the stack at 0x{self._sp.read_one():08X} "
                 "or the vector table is not in memory"
             )
-        nvic.activate(exception)
-
-    def _exception_return(self) -> None:
-        status = lib.MCU_EXC_BAD_RETURN
-        if self.nvic.active:
-            status = lib.mcu_exception_return(self._uch_c, self._exc)
         if status == lib.MCU_EXC_BAD_RETURN:
             raise McuFault(
-                f"exception return with EXC_RETURN 0x{self.pc | 1:08X} and "
-                f"{len(self.nvic.active)} exception(s) active: only returns on the main "
+                f"exception return with EXC_RETURN 0x{self._exc.exc_return | 1:08X} and "
+                f"{n.depth} exception(s) active: only returns on the main "
                 "stack are modelled"
             )
-        if status != lib.MCU_EXC_OK:
-            raise McuFault(
-                f"exception return: the stack at 0x{self._sp.read_one():08X} is not in memory"
-            )
-        self.nvic.deactivate()
+        raise McuFault(
+            f"exception return: the stack at 0x{self._sp.read_one():08X} is not in memory"
+        )
 
 
 def _add_hook(uch: object, kind: int, callback: object, user: object, begin: int, end: int) -> None:

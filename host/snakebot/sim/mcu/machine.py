@@ -79,7 +79,7 @@ class Stm32f103:
         self._reset_request: str | None = None
         self.stalled_s = 0.0
 
-        self.nvic = Nvic(on_change=self._exception_may_be_due, on_reset=self._software_reset)
+        self.nvic = Nvic(on_reset=self._software_reset)
         self.cpu = Cpu(self.nvic)
         self._t_end = 0.0  # where the current run_until ends
         self.cpu.on_sleep = self._sleep_in_run
@@ -115,7 +115,7 @@ class Stm32f103:
         self.systick = SysTick(
             self.scheduler,
             self.now,
-            pend=functools.partial(self.nvic.pend, SYSTICK),
+            pend=functools.partial(lib.mcu_nvic_pend, self.nvic.c, SYSTICK),
             strict=strict,
         )
         self.nvic.systick = self.systick
@@ -188,9 +188,10 @@ class Stm32f103:
             scheduler=self.scheduler,
             now=self.now,
             pclk=pclk,
-            irq=functools.partial(self.nvic.set_line, irq),
+            irq=functools.partial(lib.mcu_nvic_set_line, self.nvic.c, irq),
             clock_on=clock_on,
             strict=self.strict,
+            nvic_line=(self.nvic.c, irq),
         )
 
     def _map(self, p: Peripheral) -> None:
@@ -247,12 +248,6 @@ class Stm32f103:
                 c.limit = limit
             if t < c.stop_at:
                 c.stop_at = t
-
-    def _exception_may_be_due(self) -> None:
-        # stop and let run_until look (a stop costs less than reading PRIMASK here)
-        self.cpu.counter.pending = 1
-        if self.cpu.running and self.nvic.best_pending() is not None:
-            self.cpu.stop_soon()
 
     def _clock_gates_changed(self) -> None:
         self.usart1.clock_changed()
@@ -349,6 +344,7 @@ class Stm32f103:
         """Run the chip until its time reaches ``t_end`` (seconds)."""
         cpu = self.cpu
         scheduler = self.scheduler
+        any_pending = functools.partial(lib.mcu_nvic_any_pending, self.nvic.c)
         self._t_end = t_end
         while True:
             now = self.now()
@@ -359,7 +355,7 @@ class Stm32f103:
                 continue
             if now >= t_end:
                 return
-            if self.nvic.pending:
+            if any_pending():
                 cpu.take_exceptions()
             next_event = scheduler.next_time()
             stop = t_end if next_event is None or next_event > t_end else next_event

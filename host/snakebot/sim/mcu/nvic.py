@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from snakebot.core import ffi, lib
 from snakebot.sim.mcu.regs import Peripheral
 from snakebot.sim.mcu.systick import SysTick
 
@@ -47,6 +48,7 @@ ICSR_NMIPENDSET = 1 << 31
 VTOR_MASK = 0x3FFF_FF80
 CCR_RESET = 0x0000_0200  # STKALIGN: 8-byte aligned exception frames
 WORDS = (IRQ_COUNT + 31) // 32
+MASK64 = (1 << 64) - 1
 ALWAYS_ENABLED = sum(1 << e for e in (NMI, HARDFAULT, SVCALL, PENDSV, SYSTICK))
 """The system exceptions that have no enable bit here (their handlers are always on)."""
 
@@ -54,9 +56,10 @@ ALWAYS_ENABLED = sum(1 << e for e in (NMI, HARDFAULT, SVCALL, PENDSV, SYSTICK))
 class Nvic(Peripheral):
     """The system control space, SysTick included (``systick``, at 0xE000E010).
 
-    ``on_change()`` is called whenever an exception may have become takeable (pended,
-    enabled, its priority raised): the CPU then stops to look. ``on_reset()`` is called
-    for SYSRESETREQ."""
+    The exception state lives in :attr:`c` (an ``mcu_nvic``, see mcu_nvic.h), where the
+    CPU's hooks take and return from exceptions without a Python call; whenever an
+    exception may have become takeable (pended, enabled, its priority raised) the CPU
+    attached there stops to look. ``on_reset()`` is called for SYSRESETREQ."""
 
     name = "SCS"
     size = 0x1000
@@ -65,48 +68,81 @@ class Nvic(Peripheral):
         self,
         systick: SysTick | None = None,
         *,
-        on_change: Callable[[], None] | None = None,
         on_reset: Callable[[], None] | None = None,
         strict: bool = True,
     ) -> None:
         super().__init__(BASE, strict=strict)
         self.systick = systick
-        self.on_change = on_change or (lambda: None)
         self.on_reset = on_reset or (lambda: None)
+        self.c = ffi.new("mcu_nvic *")
+        self.c.always = ALWAYS_ENABLED
         self.reset()
 
     def reset(self) -> None:
-        self.enabled = 0  # bit per device interrupt
-        self.pending = 0  # bit per exception number
-        self.active: list[int] = []  # exception numbers, outermost first
-        self.lines = 0  # bit per device interrupt: its peripheral's line is high
+        c = self.c
+        c.pending = [0, 0]
+        c.enabled = 0
+        c.lines = 0
+        c.depth = 0
+        c.entries = 0
+        self.vtor = 0
         self.ipr = bytearray(IRQ_COUNT)
         self.shpr = bytearray(12)  # exceptions 4..15
         self.prigroup = 0
-        self.vtor = 0
         self.ccr = CCR_RESET
-        self.entries = 0  # exceptions taken
         self._regroup()
+
+    # -- exception state (in C) -------------------------------------------------------------
+
+    @property
+    def pending(self) -> int:
+        """Bit per exception number."""
+        words = self.c.pending
+        return int(words[0]) | int(words[1]) << 64
+
+    @pending.setter
+    def pending(self, bits: int) -> None:
+        self.c.pending = [bits & MASK64, bits >> 64 & MASK64]
+
+    @property
+    def enabled(self) -> int:
+        """Bit per device interrupt."""
+        return int(self.c.enabled)
+
+    @enabled.setter
+    def enabled(self, bits: int) -> None:
+        self.c.enabled = bits & MASK64
+
+    @property
+    def lines(self) -> int:
+        """Bit per device interrupt: its peripheral's line is high."""
+        return int(self.c.lines)
+
+    @property
+    def active(self) -> list[int]:
+        """Exception numbers, outermost first."""
+        return list(self.c.active[0 : self.c.depth])
+
+    @property
+    def vtor(self) -> int:
+        return int(self.c.vtor)
+
+    @vtor.setter
+    def vtor(self, value: int) -> None:
+        self.c.vtor = value
+
+    @property
+    def entries(self) -> int:
+        """Exceptions taken."""
+        return int(self.c.entries)
 
     def _regroup(self) -> None:
         """Work out every exception's priority and group again (after a write to them)."""
         exceptions = range(SYSTEM_EXCEPTIONS + IRQ_COUNT)
-        self._priorities = [self.priority(e) for e in exceptions]
-        self._groups = [self.group(p) for p in self._priorities]
-        self._rerun()
-
-    def _rerun(self) -> None:
-        """The execution priority, PRIMASK aside (after the active set or groups change),
-        with the one each nesting level had (``_levels``: what a return goes back to)."""
-        groups = self._groups
-        running = NO_PRIORITY
-        self._levels = [running]
-        for e in self.active:
-            running = min(running, groups[e])
-            self._levels.append(running)
-        self._running = running
-
-    # -- exception state --------------------------------------------------------------------
+        priorities = [self.priority(e) for e in exceptions]
+        self.c.priority = priorities
+        self.c.group = [self.group(p) for p in priorities]
+        lib.mcu_nvic_rerun(self.c)
 
     def priority(self, exception: int) -> int:
         if exception == 1:
@@ -126,73 +162,36 @@ class Nvic(Peripheral):
         return priority & ~((2 << self.prigroup) - 1) & 0xFF
 
     def execution_priority(self, primask: bool) -> int:
-        running = self._running
+        running = int(self.c.running)
         return min(running, 0) if primask else running
 
     def best_pending(self) -> int | None:
         """The pending, enabled exception that would be taken first, if any."""
-        bits = self.pending & (self.enabled << SYSTEM_EXCEPTIONS | ALWAYS_ENABLED)
-        if not bits:
-            return None
-        if not bits & (bits - 1):  # one: the usual case, no priorities to compare
-            return bits.bit_length() - 1
-        best = None
-        best_key = None
-        priorities = self._priorities
-        while bits:
-            low = bits & -bits
-            exception = low.bit_length() - 1
-            bits ^= low
-            key = (priorities[exception], exception)
-            if best_key is None or key < best_key:
-                best, best_key = exception, key
-        return best
+        best = lib.mcu_nvic_best(self.c)
+        return None if best < 0 else best
 
     def takeable(self, primask: bool, best: int | None = None) -> int | None:
         """The exception to take now, if one may preempt what runs (``best``: the
         :meth:`best_pending` the caller already has)."""
-        exception = self.best_pending() if best is None else best
-        if exception is None:
-            return None
-        running = self._running
-        if primask and running > 0:
-            running = 0
-        return exception if self._groups[exception] < running else None
+        exception = lib.mcu_nvic_takeable(self.c, primask, -1 if best is None else best)
+        return None if exception < 0 else exception
 
     def pend(self, exception: int) -> None:
-        self.pending |= 1 << exception
-        self.on_change()
+        lib.mcu_nvic_pend(self.c, exception)
 
     def set_line(self, irq: int, level: bool) -> None:
         """A peripheral's interrupt line: high pends the interrupt (unless it is active)."""
-        bit = 1 << irq
-        if level:
-            self.lines |= bit
-            exception = SYSTEM_EXCEPTIONS + irq
-            if exception not in self.active and not self.pending >> exception & 1:
-                self.pend(exception)
-        else:
-            self.lines &= ~bit
+        lib.mcu_nvic_set_line(self.c, irq, level)
 
     def activate(self, exception: int) -> None:
         """The CPU enters ``exception``'s handler."""
-        self.pending &= ~(1 << exception)
-        self.active.append(exception)
-        self.entries += 1
-        group = self._groups[exception]
-        if group < self._running:
-            self._running = group
-        self._levels.append(self._running)
+        lib.mcu_nvic_activate(self.c, exception)
 
     def deactivate(self) -> int:
         """The CPU returns from the innermost handler; returns its exception number."""
-        exception = self.active.pop()
-        levels = self._levels
-        levels.pop()
-        self._running = levels[-1]
-        irq = exception - SYSTEM_EXCEPTIONS
-        if irq >= 0 and self.lines >> irq & 1:
-            self.pend(exception)  # level-sensitive: still asserted
+        exception = lib.mcu_nvic_deactivate(self.c)
+        if exception < 0:
+            raise IndexError("no exception is active")
         return exception
 
     # -- registers ----------------------------------------------------------------------------
@@ -260,13 +259,13 @@ class Nvic(Peripheral):
                 if offset - IPR + i < IRQ_COUNT:
                     self.ipr[offset - IPR + i] = (value >> (8 * i)) & PRIO_MASK
             self._regroup()
-            self.on_change()
+            lib.mcu_nvic_changed(self.c)
             return
         if SHPR1 <= offset < SHPR1 + 12:
             for i in range(size):
                 self.shpr[offset - SHPR1 + i] = (value >> (8 * i)) & PRIO_MASK
             self._regroup()
-            self.on_change()
+            lib.mcu_nvic_changed(self.c)
             return
         if not self.word_only(offset, size, value):
             return
@@ -275,12 +274,12 @@ class Nvic(Peripheral):
         mask &= (1 << IRQ_COUNT) - 1
         if ISER <= offset < ISER + 32:
             self.enabled |= mask
-            self.on_change()
+            lib.mcu_nvic_changed(self.c)
         elif ICER <= offset < ICER + 32:
             self.enabled &= ~mask
         elif ISPR <= offset < ISPR + 32:
             self.pending |= mask << SYSTEM_EXCEPTIONS
-            self.on_change()
+            lib.mcu_nvic_changed(self.c)
         elif ICPR <= offset < ICPR + 32:
             self.pending &= ~(mask << SYSTEM_EXCEPTIONS)
         elif offset == ICSR:

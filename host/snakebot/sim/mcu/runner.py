@@ -4,7 +4,9 @@ pseudo-terminal (or a socket) that host tools open like the board's USB-serial p
 The thread runs the board in steps of :data:`STEP_S` of emulated time (fewer when the PC
 sends) and never ahead of the wall clock, so the PC's bytes arrive at the emulated time
 they are sent (the board first catches up with the wall clock) and the firmware's replies
-leave within a step of when it sends them. Between steps it waits for the PC's bytes.
+leave within a step of when it sends them. Between steps it waits for the PC's bytes. While
+the link is quiet (:data:`QUIET_AFTER_S` without a byte either way) the steps are
+:data:`QUIET_STEP_S`: the PC's first byte still wakes the thread at once.
 Bytes to the PC that the terminal has no room for are dropped and counted, as a USB
 adapter drops what the PC does not read. On a pseudo-terminal a client that set
 another baud rate than the one USART3 is programmed for is not understood: its bytes are
@@ -37,6 +39,15 @@ from snakebot.sim.transports.pty import tty_baudrate
 STEP_S = 0.001
 """The emulated time the thread runs before it looks at the PC link again (less when the
 PC's bytes come first)."""
+
+QUIET_STEP_S = 0.01
+"""The step while the PC link is quiet: a gait playing on its own needs no look at the link
+every millisecond, and each wake-up costs the host far more than the emulated millisecond
+(a third of the thread's time at real time went to waking up a thousand times a second)."""
+
+QUIET_AFTER_S = 0.1
+"""How long after the link's last byte (either way) the steps stay :data:`STEP_S`: a reply
+the firmware sends that long after a request leaves up to a quiet step late."""
 
 MAX_LAG_S = 0.05
 """The most the emulated board falls behind the wall clock. A host too busy to run it in
@@ -115,7 +126,9 @@ class McuFirmware:
         cpu0 = time.thread_time()
         emu0 = board.now()
         data = b""  # the PC's bytes read while the board waited, sent once it caught up
+        last_io = wall0  # the link's last byte, either way (wall clock)
         while not self._stop:
+            step = STEP_S if time.monotonic() - last_io < QUIET_AFTER_S else QUIET_STEP_S
             target = emu0 + (time.monotonic() - wall0) * self.speed
             behind = target - board.now()
             if behind > MAX_LAG_S * self.speed:
@@ -126,17 +139,19 @@ class McuFirmware:
             with self.lock:
                 now = board.now()
                 if target > now:
-                    board.run_until(min(target, now + STEP_S))
+                    board.run_until(min(target, now + step))
+                if data or board.pc_out:
+                    last_io = time.monotonic()
                 if data:
                     self._send_input(data)
                     data = b""
                 self._flush_out()
                 ahead = board.now() - (emu0 + (time.monotonic() - wall0) * self.speed)
             self.cpu_s = time.thread_time() - cpu0
-            # the next step when a whole STEP_S is due, or at once when the PC sends: run
+            # the next step when a whole step is due, or at once when the PC sends: run
             # for the time that passed since the last, the loop would spin in steps as
             # short as itself, using a whole core however fast the board runs
-            wait = max((ahead + STEP_S) / self.speed, 0.0)
+            wait = max((ahead + step) / self.speed, 0.0)
             ready, _, _ = select.select([self._fd, self._wake_r], [], [], wait)
             if self._wake_r in ready:
                 return

@@ -13,6 +13,11 @@ is still set is lost and sets ORE. The interrupt line is the OR of TXEIE&TXE, TC
 RXNEIE&(RXNE|ORE). Other modes (9 bits, parity, 2 stop bits, DMA, hardware flow control,
 half-duplex by HDSEL, LIN, smartcard, IrDA) are unmodelled, so an error in strict mode.
 
+On the chip (its line wired to the C NVIC) the registers the firmware's interrupt handlers
+reach for every byte are served in C from the state this model keeps in ``fast``
+(mcu_usart.h): SR, DR and CR1 reads, a DR write behind the byte being sent, a CR1 write that
+starts no idle frame; this model serves the rest (the shift register's timing, the far end).
+
 Bytes leave through ``on_tx(byte, start, end, baud)`` as their start bit goes out; bytes
 arrive through :meth:`Usart.receive` (one byte whose stop bit is in now) or
 :meth:`Usart.feed` (bytes the far end sends back to back at the programmed rate).
@@ -57,6 +62,7 @@ class Usart(Peripheral):
         clock_on: Callable[[], bool],
         on_tx: TxSink | None = None,
         strict: bool = True,
+        nvic_line: tuple[object, int] | None = None,
     ) -> None:
         super().__init__(base, strict=strict)
         self.name = name
@@ -73,6 +79,8 @@ class Usart(Peripheral):
         self.fast = ffi.new("mcu_fast_io *")  # SR as the CPU reads it (in C, see mcu_count.h)
         self.fast.kind = lib.MCU_IO_USART_SR
         self.fast.second_offset = CR1  # read by the interrupt handler on every byte
+        if nvic_line is not None:  # its line wired to the C NVIC: more served in C
+            self.fast.nvic, self.fast.irq = nvic_line
         self._inbox: deque[int] = deque()
         self._feeding: Event | None = None
         self._shift_end: Event | None = None
@@ -83,18 +91,53 @@ class Usart(Peripheral):
             if event is not None:
                 event.cancel()
         self._shift_end = self._feeding = None
+        self.fast.shifting = 0
         self._inbox.clear()
         self.sr = SR_RESET
         self.rdr = 0
-        self.tdr: int | None = None
+        self.tdr = None
         self.brr = 0
         self.cr1 = self.cr2 = self.cr3 = 0
         self.fast.armed = 0  # bit 0: a DR read clears the error flags; bit 1: a DR write TC
-        self.fast.value = self.sr
-        self.fast.second = 0
         self.fast.second_on = 0
-        self._line = False
+        self.fast.line = 0
         self.irq(False)
+
+    # -- the state, kept in ``fast`` (C serves some accesses from there) --------------------
+
+    @property
+    def sr(self) -> int:
+        return int(self.fast.value)
+
+    @sr.setter
+    def sr(self, value: int) -> None:
+        self.fast.value = value
+
+    @property
+    def cr1(self) -> int:
+        return int(self.fast.second)
+
+    @cr1.setter
+    def cr1(self, value: int) -> None:
+        self.fast.second = value
+
+    @property
+    def rdr(self) -> int:
+        return int(self.fast.rdr)
+
+    @rdr.setter
+    def rdr(self, value: int) -> None:
+        self.fast.rdr = value
+
+    @property
+    def tdr(self) -> int | None:
+        """The byte waiting in TDR, if one is."""
+        return int(self.fast.tdr) if self.fast.tdr_full else None
+
+    @tdr.setter
+    def tdr(self, value: int | None) -> None:
+        self.fast.tdr_full = value is not None
+        self.fast.tdr = value or 0
 
     # -- rates ----------------------------------------------------------------------------
 
@@ -110,6 +153,11 @@ class Usart(Peripheral):
     @property
     def transmitting(self) -> bool:
         return self._shift_end is not None
+
+    @property
+    def shift_end(self) -> float | None:
+        """When the shift register is done with what it sends (None: idle)."""
+        return None if self._shift_end is None else self._shift_end.time
 
     # -- the far end ------------------------------------------------------------------------
 
@@ -169,9 +217,11 @@ class Usart(Peripheral):
             if self.on_tx is not None:
                 self.on_tx(byte, t, end, baud)
         self._shift_end = self.scheduler.at(end, self._shift_done)
+        self.fast.shifting = 1
 
     def _shift_done(self, t: float) -> None:
         self._shift_end = None
+        self.fast.shifting = 0
         if self.tdr is not None and self.cr1 & CR1_TE:
             byte, self.tdr = self.tdr, None
             self.sr |= TXE
@@ -264,16 +314,17 @@ class Usart(Peripheral):
         self.fast.second_on = self.clock_on()
 
     def _update_irq(self) -> None:
-        cr1, sr = self.cr1, self.sr
         fast = self.fast
-        fast.value = sr
-        fast.second = cr1
         fast.second_on = self.clock_on()
+        if fast.nvic:
+            lib.mcu_usart_update_irq(fast)
+            return
+        cr1, sr = self.cr1, self.sr
         level = bool(
             (cr1 & CR1_TXEIE and sr & TXE)
             or (cr1 & CR1_TCIE and sr & TC)
             or (cr1 & CR1_RXNEIE and sr & (RXNE | ORE))
         )
-        if level != self._line or level:
-            self._line = level
+        if level != fast.line or level:
+            fast.line = level
             self.irq(level)

@@ -59,10 +59,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from snakebot.facts.boards import APP_BASE, PC_LINK_BAUD
+from snakebot.facts.memory import FLASH_BASE
 from snakebot.sim.transports.base import RawPty, Server
 from snakebot.sim.transports.pty import tty_baudrate
 
-FLASH_BASE = 0x08000000
 """Where the STM32's flash starts (the bootloader's own first byte)."""
 
 APP_AREA = 500 * 1024

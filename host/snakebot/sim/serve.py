@@ -55,6 +55,7 @@ from snakebot.errors import quoted
 from snakebot.extras import require
 from snakebot.facts.boards import APP_BASE, PC_LINK_BAUD, ROBOT_BOARD, TABLE_CAPACITY
 from snakebot.facts.controller import load as load_controller
+from snakebot.facts.memory import FLASH_BASE, QEMU_FLASH_SIZE, QEMU_RAM_SIZE, RAM_BASE
 from snakebot.firmware import image as firmware_image
 from snakebot.formats.protocol import DxlTimeout, ProtocolError
 from snakebot.link.flash.image import image_info
@@ -100,10 +101,8 @@ QEMU_FIRMWARE = default_firmware("qemu")
 """The qemu board's application image (its boot stub, ``stub.elf``, lies beside it)."""
 
 
-FLASH_BASE = 0x08000000
-FLASH_SIZE = 128 * 1024  # stm32vldiscovery (STM32F100RB)
-RAM_BASE = 0x20000000
-RAM_SIZE = 8 * 1024  # STM32F100RB
+FLASH_SIZE = QEMU_FLASH_SIZE
+RAM_SIZE = QEMU_RAM_SIZE
 CONTROLLER_ID = load_controller().default_id
 """The firmware's Protocol 1.0 ID on the PC link (factory default)."""
 

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from snakebot.facts.boards import APP_BASE
+from snakebot.facts.memory import CM530_FLASH_SIZE, CM530_RAM_SIZE, FLASH_BASE, RAM_BASE
 from snakebot.link.flash.errors import ImageError
 from snakebot.link.flash.formats import elf_chunks, flat_image, hex_chunks, kind_of
 from snakebot.paths import REPO_ROOT
@@ -47,10 +48,8 @@ INFO_MAGIC = b"SNKI"
 INFO_VERSION = 1
 _INFO = struct.Struct("<4sBBHI8s")  # hal_image_info_t (firmware/hal/hal_image.h)
 
-FLASH_BASE = 0x08000000
-"""Where STM32 flash is mapped; regions from here up to SRAM_BASE are flash."""
-
-SRAM_BASE = 0x20000000
+SRAM_BASE = RAM_BASE
+"""Regions from FLASH_BASE up to here are flash."""
 
 FILE_MAX = 32 * 1024 * 1024
 """The largest firmware file read: an ELF with its debugging information is many times
@@ -76,9 +75,9 @@ class BoardLayout:
 
 FALLBACK_LAYOUT = BoardLayout(
     app_base=APP_BASE,
-    flash_end=0x08080000,  # STM32F103RE: 512 KB of flash
+    flash_end=FLASH_BASE + CM530_FLASH_SIZE,
     ram_base=SRAM_BASE,
-    ram_end=SRAM_BASE + 64 * 1024,
+    ram_end=SRAM_BASE + CM530_RAM_SIZE,
     source="built-in CM-530 figures (cm530.ld not found)",
 )
 

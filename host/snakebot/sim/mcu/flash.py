@@ -17,11 +17,11 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from snakebot.facts.memory import FLASH_BASE
 from snakebot.sim.mcu.errors import McuFault
 from snakebot.sim.mcu.regs import Peripheral
 
 BASE = 0x40022000
-FLASH_BASE = 0x08000000
 
 ACR, KEYR, OPTKEYR, SR, CR, AR, RESERVED, OBR, WRPR = range(0, 0x24, 4)
 KEY1, KEY2 = 0x45670123, 0xCDEF89AB

@@ -14,13 +14,13 @@ from pathlib import Path
 
 from snakebot.errors import SnakebotError
 from snakebot.facts.boards import APP_BASE
+from snakebot.facts.memory import CM530_FLASH_SIZE, CM530_RAM_SIZE, FLASH_BASE, RAM_BASE
 from snakebot.link.flash.image import image_info, load_image
 from snakebot.sim.mcu.errors import ImageError
 
 BOARD = "cm530"
-RAM_BASE = 0x2000_0000
-RAM_END = RAM_BASE + 64 * 1024
-FLASH_END = 0x0808_0000
+RAM_END = RAM_BASE + CM530_RAM_SIZE
+FLASH_END = FLASH_BASE + CM530_FLASH_SIZE
 
 
 def check_image(data: bytes, source: str = "the image") -> bytes:
@@ -37,8 +37,8 @@ def check_image(data: bytes, source: str = "the image") -> bytes:
         )
     if info.board != BOARD:
         raise ImageError(
-            f"{source} was built for the {info.board} board, not the CM-530: flash "
-            "build/cm530/firmware.bin"
+            f"{source} was built for the {info.board} board, not the CM-530: give the "
+            "CM-530's image, build/cm530/firmware.bin from `make firmware`"
         )
     if len(data) < info.image_bytes:
         raise ImageError(

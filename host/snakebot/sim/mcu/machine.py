@@ -23,6 +23,9 @@ import math
 from collections.abc import Callable
 
 from snakebot.core import lib
+from snakebot.facts.memory import CM530_FLASH_SIZE as FLASH_SIZE
+from snakebot.facts.memory import CM530_RAM_SIZE as RAM_SIZE
+from snakebot.facts.memory import FLASH_BASE, RAM_BASE
 from snakebot.sim.mcu import rcc as rcc_mod
 from snakebot.sim.mcu.cpu import (
     UC_HOOK_MEM_FETCH_PROT,
@@ -36,7 +39,7 @@ from snakebot.sim.mcu.cpu import (
     unmasking_sites,
 )
 from snakebot.sim.mcu.errors import McuFault
-from snakebot.sim.mcu.flash import FLASH_BASE, FlashInterface
+from snakebot.sim.mcu.flash import FlashInterface
 from snakebot.sim.mcu.gpio import Afio, GpioPort
 from snakebot.sim.mcu.iwdg import Iwdg
 from snakebot.sim.mcu.nvic import SYSTEM_EXCEPTIONS, SYSTICK, Nvic
@@ -46,9 +49,6 @@ from snakebot.sim.mcu.schedule import Scheduler
 from snakebot.sim.mcu.systick import SysTick
 from snakebot.sim.mcu.usart import Usart
 
-FLASH_SIZE = 512 * 1024
-RAM_BASE = 0x2000_0000
-RAM_SIZE = 64 * 1024
 USART1_BASE, USART3_BASE = 0x40013800, 0x40004800
 USART1_IRQ, USART3_IRQ = 37, 39
 RCC_APB2_BITS = {"AFIO": 0, "A": 2, "B": 3, "C": 4, "D": 5, "USART1": 14}

@@ -27,5 +27,16 @@ void kin_geom_rows_unchecked(const kin_robot *rb, const double *q, const double 
  * friction force across (force[2i], along n_i) and along (force[2i+1], along t_i) it. */
 int kin_geom_solve(const kin_robot *rb, const kin_wheel_rows *w, int32_t *active, double *xi,
                    double *slip, double *force, double *rcond);
+/* The active set of that solve alone (active: the warm start, updated; *rcond its
+ * conditioning). Returns 1 when the minimum is a vertex with exactly those three rows
+ * through it, 0 when it is degenerate (its active set is one of several) or undetermined. */
+int kin_geom_active_set(const kin_robot *rb, const kin_wheel_rows *w, int32_t active[3],
+                        double *rcond);
+/* The power (the friction problem's objective) at the vertex of the active set s, the
+ * point where s's three rows vanish: two sets' powers are equal where the optimum passes
+ * from one to the other (a switch between sticking and slipping). Returns 0 when s's
+ * vertex is ill-conditioned. */
+int kin_geom_vertex_power(const kin_robot *rb, const kin_wheel_rows *w, const int32_t s[3],
+                          double *power);
 
 #endif

@@ -323,8 +323,8 @@ static int joint_rates_robust(joint_ctx *c, double t, const double *pose, double
  * shifts with the body), so along a schedule the switches lie at fixed times, found
  * without the trajectory: a step whose end (or, once it failed, one of whose stages) has
  * another active set than its start ends just before the first switch, located by
- * regula falsi (Illinois) on the difference of the two sets' powers (zero where the
- * optimum passes from one to the other), bracketed by the active sets themselves. */
+ * regula falsi (Illinois) on a function that crosses zero there (switch_value),
+ * bracketed by the active sets themselves. */
 
 /* Where a switch is known to this (times the schedule's time scale): the hair the step
  * after it starts past it, crossed with one velocity, costs far less than the tolerance. */
@@ -354,16 +354,51 @@ static int joint_set(joint_ctx *c, double t, const double *pose, kin_wheel_rows 
     return kin_geom_active_set(c->rb, w, set, &rcond) && rcond >= RCOND_FALLBACK;
 }
 
-/* Power at set a's vertex minus at set b's for rows w: < 0 where a is optimal, > 0
- * where b is; NAN when either vertex is ill-conditioned. */
-static double power_gap(const joint_ctx *c, const kin_wheel_rows *w, const int32_t a[3],
-                        const int32_t b[3])
+/* The row of b not in a when the two differ by one row; -1 otherwise. */
+static int32_t entering_row(const int32_t a[3], const int32_t b[3])
 {
-    double pa, pb;
-    if (!kin_geom_vertex_power(c->rb, w, a, &pa) || !kin_geom_vertex_power(c->rb, w, b, &pb)) {
+    int32_t row = -1, count = 0;
+    for (int32_t i = 0; i < 3; i++) {
+        if (b[i] != a[0] && b[i] != a[1] && b[i] != a[2]) {
+            row = b[i];
+            count++;
+        }
+    }
+    return count == 1 ? row : -1;
+}
+
+/* Whether the switch from sa (at a) to sb (at b) is a kink: the row that enters passes
+ * through sa's vertex on the way (or two rows change at once, as where every wheel can
+ * stick); otherwise a jump, where one of sa's multipliers reaches its limit. */
+static int switch_is_kink(const joint_ctx *c, const double *pose, double a, double b,
+                          const int32_t sa[3], const int32_t sb[3], kin_wheel_rows *w)
+{
+    const int32_t row = entering_row(sa, sb);
+    double va[3], vb[3];
+    if (row < 0) {
+        return 1;
+    }
+    joint_rows(c, a, pose, w);
+    const int ok = kin_geom_vertex_test(c->rb, w, sa, row, va);
+    joint_rows(c, b, pose, w);
+    return !(ok && kin_geom_vertex_test(c->rb, w, sa, row, vb)) || !(va[2] * vb[2] > 0.0);
+}
+
+/* A function of the rows w that is < 0 before the switch from sa to sb and > 0 after,
+ * smooth through it where it can be: a jump's, how far sa's certificate fails (exactly
+ * what a solve warm-started from sa tests); a kink's, sa's power less sb's. NAN when a
+ * vertex is ill-conditioned. */
+static double switch_value(const joint_ctx *c, const kin_wheel_rows *w, const int32_t sa[3],
+                           const int32_t sb[3], int kink)
+{
+    double va[3], vb[3];
+    if (!kin_geom_vertex_test(c->rb, w, sa, -1, va)) {
         return NAN;
     }
-    return pa - pb;
+    if (!kink) {
+        return va[1];
+    }
+    return kin_geom_vertex_test(c->rb, w, sb, -1, vb) ? va[0] - vb[0] : NAN;
 }
 
 /* The switch after a, where set sa holds, before b, where sb does: [a, b] narrowed to
@@ -373,10 +408,11 @@ static void locate_switch(joint_ctx *c, const double *pose, double tol, double *
                           kin_wheel_rows *w)
 {
     double a = *a_io, b = *b_io;
+    int kink = switch_is_kink(c, pose, a, b, sa, sb, w);
     joint_rows(c, a, pose, w);
-    double fa = power_gap(c, w, sa, sb);
+    double fa = switch_value(c, w, sa, sb, kink);
     joint_rows(c, b, pose, w);
-    double fb = power_gap(c, w, sa, sb);
+    double fb = switch_value(c, w, sa, sb, kink);
     int32_t side = 0;
     for (int32_t probe = 0; probe < SWITCH_MAX_PROBES && b - a > tol; probe++) {
         double m = 0.5 * (a + b);
@@ -396,20 +432,22 @@ static void locate_switch(joint_ctx *c, const double *pose, double tol, double *
         }
         if (same_set(sm, sa)) {
             a = m;
-            fa = power_gap(c, w, sa, sb);
+            fa = switch_value(c, w, sa, sb, kink);
             fb = side < 0 ? 0.5 * fb : fb; /* Illinois: the end that stays weighs less */
             side = -1;
         } else if (same_set(sm, sb)) {
             b = m;
-            fb = power_gap(c, w, sa, sb);
+            fb = switch_value(c, w, sa, sb, kink);
             fa = side > 0 ? 0.5 * fa : fa;
             side = 1;
         } else { /* another switch comes first: aim at that one */
             b = m;
             copy_set(sb, sm);
-            fb = power_gap(c, w, sa, sb);
+            kink = switch_is_kink(c, pose, a, b, sa, sb, w);
             joint_rows(c, a, pose, w);
-            fa = power_gap(c, w, sa, sb);
+            fa = switch_value(c, w, sa, sb, kink);
+            joint_rows(c, b, pose, w);
+            fb = switch_value(c, w, sa, sb, kink);
             side = 0;
         }
     }

@@ -502,8 +502,8 @@ int kin_geom_active_set(const kin_robot *rb, const kin_wheel_rows *w, int32_t ac
     return !degenerate;
 }
 
-int kin_geom_vertex_power(const kin_robot *rb, const kin_wheel_rows *w, const int32_t s[3],
-                          double *power)
+int kin_geom_vertex_test(const kin_robot *rb, const kin_wheel_rows *w, const int32_t s[3],
+                         int32_t row, double out[3])
 {
     qs_problem p;
     int at_rest;
@@ -513,12 +513,13 @@ int kin_geom_vertex_power(const kin_robot *rb, const kin_wheel_rows *w, const in
         || s[2] >= p.rows || inverse3(&p, s, m) < QS_RCOND_MIN) {
         return 0;
     }
-    double x[3];
-    for (int32_t i = 0; i < 3; i++) {
-        x[i] = m[i][0] * p.b[s[0]] + m[i][1] * p.b[s[1]] + m[i][2] * p.b[s[2]];
-    }
-    *power = objective(&p, x);
-    return isfinite(*power);
+    double x[3], r[QS_MAX_ROWS], y[QS_MAX_ROWS], tol;
+    int32_t worst, through;
+    const double most = vertex(&p, s, m, x, r, y, &tol, &worst, &through);
+    out[0] = objective(&p, x);
+    out[1] = most - (1.0 + QS_CERT_TOL);
+    out[2] = row >= 0 && row < p.rows ? r[row] : NAN;
+    return isfinite(out[0] + out[1]);
 }
 
 int kin_geom_solve(const kin_robot *rb, const kin_wheel_rows *w, int32_t *active, double *xi,

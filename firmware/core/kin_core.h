@@ -41,7 +41,7 @@
 /* Integration methods. */
 #define KIN_RK4 0
 #define KIN_DOPRI5 1
-#define KIN_DOP853 2 /* Dormand-Prince 8(5,3): fewer evaluations at tight tolerances */
+#define KIN_DOP853 2 /* Dormand-Prince 8(5,3): fewer evaluations; steps end at switches */
 
 /* Joint schedules (joint angles prescribed as functions of time). */
 #define KIN_SCHED_SINES 0  /* phi_j = offset_j + rate_j t + amp_j sin(omega t + phase_j) */
@@ -103,7 +103,7 @@ typedef struct {
 typedef struct {
     int32_t steps;     /* accepted steps */
     int32_t rejected;  /* rejected steps (adaptive methods) */
-    int32_t evals;     /* right-hand-side evaluations */
+    int32_t evals;     /* right-hand-side evaluations (DOP853: and probes for switches) */
     int32_t fallbacks; /* evaluations near a singular configuration done by extrapolation in time */
     double min_rcond;  /* smallest conditioning of the friction problem seen */
     double t_fail;     /* time reached when an error stopped the integration */

@@ -27,5 +27,21 @@ void kin_geom_rows_unchecked(const kin_robot *rb, const double *q, const double 
  * friction force across (force[2i], along n_i) and along (force[2i+1], along t_i) it. */
 int kin_geom_solve(const kin_robot *rb, const kin_wheel_rows *w, int32_t *active, double *xi,
                    double *slip, double *force, double *rcond);
+/* The active set of that solve alone (active: the warm start, updated; *rcond its
+ * conditioning). Returns 1 when the minimum is a vertex with exactly those three rows
+ * through it, 0 when it is degenerate (its active set is one of several) or undetermined. */
+int kin_geom_active_set(const kin_robot *rb, const kin_wheel_rows *w, int32_t active[3],
+                        double *rcond);
+/* The vertex of the active set s (the point where its three rows vanish) tested: out[0]
+ * the power there (the friction problem's objective), out[1] how far its certificate
+ * fails (the largest of its rows' friction multipliers, less 1 and the rounding allowed:
+ * <= 0 where s is optimal, as a solve warm-started from s finds), out[2] the residual of
+ * row `row` there (NAN for row -1). Along a schedule, where the optimum passes from s to
+ * another set, either a stuck wheel's force reaches its limit (out[1] crosses 0 smoothly;
+ * the velocity jumps) or another row passes through the vertex (out[2] crosses 0; the
+ * velocity has a kink, and the two sets' powers become equal). Returns 0 when s's vertex
+ * is ill-conditioned. */
+int kin_geom_vertex_test(const kin_robot *rb, const kin_wheel_rows *w, const int32_t s[3],
+                         int32_t row, double out[3]);
 
 #endif

@@ -181,7 +181,31 @@ typedef struct {
      * every joint (the addition theorem) instead of a pair per joint and evaluation. */
     double cos_phase[KIN_MAX_JOINTS], sin_phase[KIN_MAX_JOINTS];
     phase_table phase;
+    /* Switches (joint_smooth): the active set last found at time probe_t of segment
+     * probe_seg (probe_ok 0: none); the set at the start step_t of the step being tried
+     * and the earliest time other_t one of its stages found another (other_set); the
+     * warm start for a solve at warm_t, just past a switch. */
+    int32_t probe_ok, step_ok;
+    double probe_t, probe_seg, step_t, other_t, warm_t;
+    int32_t probe_set[3], step_set[3], other_set[3], warm_set[3];
 } joint_ctx;
+
+/* Whether two active sets hold the same rows (in any order). */
+static int same_set(const int32_t a[3], const int32_t b[3])
+{
+    int32_t found = 0;
+    for (int32_t i = 0; i < 3; i++) {
+        found += a[i] == b[0] || a[i] == b[1] || a[i] == b[2];
+    }
+    return found == 3;
+}
+
+static void copy_set(int32_t to[3], const int32_t from[3])
+{
+    to[0] = from[0];
+    to[1] = from[1];
+    to[2] = from[2];
+}
 
 static void joint_ctx_phases(joint_ctx *c)
 {
@@ -218,7 +242,14 @@ static int joint_rates(joint_ctx *c, double t, const double *pose, double *xi, d
     q[2] = pose[2];
     joint_schedule(c, t, q + 3, dphi);
     kin_geom_rows_unchecked(c->rb, q, dphi, &w);
+    if (t == c->warm_t) {
+        copy_set(c->active, c->warm_set);
+    }
     const int rc = kin_geom_solve(c->rb, &w, c->active, xi, slip, NULL, rcond);
+    if (c->step_ok && t > c->step_t && t < c->other_t && !same_set(c->active, c->step_set)) {
+        c->other_t = t; /* a stage of the step being tried met another set */
+        copy_set(c->other_set, c->active);
+    }
     if (*rcond < c->stats->min_rcond) {
         c->stats->min_rcond = *rcond;
     }
@@ -281,6 +312,202 @@ static int joint_rates_robust(joint_ctx *c, double t, const double *pose, double
     return KIN_ESINGULAR;
 }
 
+/* ---- switches: where wheels pass between sticking and slipping ----
+ *
+ * The body velocity is that of the friction problem's optimal vertex, the point where
+ * its three active rows (the wheel directions that stick) vanish: a smooth function of
+ * the joints' angles and speeds while the active set stays. Where it changes the velocity
+ * has a kink (another row passes through the vertex) or a jump (a stuck wheel's force
+ * reaches its limit: an edge of equal power, whose ends the velocity leaps between).
+ * Which set is optimal depends on the shape alone, not on the pose (the problem turns and
+ * shifts with the body), so along a schedule the switches lie at fixed times, found
+ * without the trajectory: a step whose end (or, once it failed, one of whose stages) has
+ * another active set than its start ends just before the first switch, located by
+ * regula falsi (Illinois) on a function that crosses zero there (switch_value),
+ * bracketed by the active sets themselves. */
+
+/* Where a switch is known to this (times the schedule's time scale): the hair the step
+ * after it starts past it, crossed with one velocity, costs far less than the tolerance. */
+#define SWITCH_TIME_TOL 1e-10
+#define SWITCH_MAX_PROBES 64
+
+/* The rows of the friction problem at time t (any pose will do: pose). */
+static void joint_rows(const joint_ctx *c, double t, const double *pose, kin_wheel_rows *w)
+{
+    double q[KIN_MAX_STATE], dphi[KIN_MAX_JOINTS];
+    q[0] = pose[0];
+    q[1] = pose[1];
+    q[2] = pose[2];
+    joint_schedule(c, t, q + 3, dphi);
+    kin_geom_rows_unchecked(c->rb, q, dphi, w);
+}
+
+/* The active set at t into set (warm-started from it), the rows in w; 0 where it is not
+ * one well-conditioned vertex (then no switch is looked for). Counted as an evaluation:
+ * it costs one. */
+static int joint_set(joint_ctx *c, double t, const double *pose, kin_wheel_rows *w,
+                     int32_t set[3])
+{
+    double rcond;
+    c->stats->evals++;
+    joint_rows(c, t, pose, w);
+    return kin_geom_active_set(c->rb, w, set, &rcond) && rcond >= RCOND_FALLBACK;
+}
+
+/* The row of b not in a when the two differ by one row; -1 otherwise. */
+static int32_t entering_row(const int32_t a[3], const int32_t b[3])
+{
+    int32_t row = -1, count = 0;
+    for (int32_t i = 0; i < 3; i++) {
+        if (b[i] != a[0] && b[i] != a[1] && b[i] != a[2]) {
+            row = b[i];
+            count++;
+        }
+    }
+    return count == 1 ? row : -1;
+}
+
+/* Whether the switch from sa (at a) to sb (at b) is a kink: the row that enters passes
+ * through sa's vertex on the way (or two rows change at once, as where every wheel can
+ * stick); otherwise a jump, where one of sa's multipliers reaches its limit. */
+static int switch_is_kink(const joint_ctx *c, const double *pose, double a, double b,
+                          const int32_t sa[3], const int32_t sb[3], kin_wheel_rows *w)
+{
+    const int32_t row = entering_row(sa, sb);
+    double va[3], vb[3];
+    if (row < 0) {
+        return 1;
+    }
+    joint_rows(c, a, pose, w);
+    const int ok = kin_geom_vertex_test(c->rb, w, sa, row, va);
+    joint_rows(c, b, pose, w);
+    return !(ok && kin_geom_vertex_test(c->rb, w, sa, row, vb)) || !(va[2] * vb[2] > 0.0);
+}
+
+/* A function of the rows w that is < 0 before the switch from sa to sb and > 0 after,
+ * smooth through it where it can be: a jump's, how far sa's certificate fails (exactly
+ * what a solve warm-started from sa tests); a kink's, sa's power less sb's. NAN when a
+ * vertex is ill-conditioned. */
+static double switch_value(const joint_ctx *c, const kin_wheel_rows *w, const int32_t sa[3],
+                           const int32_t sb[3], int kink)
+{
+    double va[3], vb[3];
+    if (!kin_geom_vertex_test(c->rb, w, sa, -1, va)) {
+        return NAN;
+    }
+    if (!kink) {
+        return va[1];
+    }
+    return kin_geom_vertex_test(c->rb, w, sb, -1, vb) ? va[0] - vb[0] : NAN;
+}
+
+/* The switch after a, where set sa holds, before b, where sb does: [a, b] narrowed to
+ * under tol (on return sb is the set just after the switch); w is scratch. */
+static void locate_switch(joint_ctx *c, const double *pose, double tol, double *a_io,
+                          double *b_io, const int32_t sa[3], int32_t sb[3],
+                          kin_wheel_rows *w)
+{
+    double a = *a_io, b = *b_io;
+    int kink = switch_is_kink(c, pose, a, b, sa, sb, w);
+    joint_rows(c, a, pose, w);
+    double fa = switch_value(c, w, sa, sb, kink);
+    joint_rows(c, b, pose, w);
+    double fb = switch_value(c, w, sa, sb, kink);
+    int32_t side = 0;
+    for (int32_t probe = 0; probe < SWITCH_MAX_PROBES && b - a > tol; probe++) {
+        double m = 0.5 * (a + b);
+        if (fa < 0.0 && fb > 0.0) { /* false position, nudged past the end that moved last */
+            m = b - fb * (b - a) / (fb - fa) + 0.5 * tol * (double)(-side);
+        }
+        m = fmin(fmax(m, a + 0.25 * tol), b - 0.25 * tol);
+        int32_t sm[3];
+        copy_set(sm, sa);
+        if (!joint_set(c, m, pose, w, sm)) {
+            /* A degenerate vertex: more rows than three through it, as at the switch
+             * itself (where all wheels can stick at once, the sets on either side
+             * differ by two rows): m is on it, to the vertex's tolerance. */
+            a = fmax(a, m - 0.5 * tol);
+            b = fmin(b, m + 0.5 * tol);
+            break;
+        }
+        if (same_set(sm, sa)) {
+            a = m;
+            fa = switch_value(c, w, sa, sb, kink);
+            fb = side < 0 ? 0.5 * fb : fb; /* Illinois: the end that stays weighs less */
+            side = -1;
+        } else if (same_set(sm, sb)) {
+            b = m;
+            fb = switch_value(c, w, sa, sb, kink);
+            fa = side > 0 ? 0.5 * fa : fa;
+            side = 1;
+        } else { /* another switch comes first: aim at that one */
+            b = m;
+            copy_set(sb, sm);
+            kink = switch_is_kink(c, pose, a, b, sa, sb, w);
+            joint_rows(c, a, pose, w);
+            fa = switch_value(c, w, sa, sb, kink);
+            joint_rows(c, b, pose, w);
+            fb = switch_value(c, w, sa, sb, kink);
+            side = 0;
+        }
+    }
+    *a_io = a;
+    *b_io = b;
+}
+
+static int joint_smooth(void *ctx, double t, const double *y, double t_end, double *t_piece,
+                        double *t_resume)
+{
+    joint_ctx *c = (joint_ctx *)ctx;
+    kin_wheel_rows w;
+    int32_t sa[3], sb[3];
+    *t_piece = *t_resume = t_end;
+    copy_set(sa, c->active);
+    const int known = c->probe_ok && c->probe_t == t && c->probe_seg == c->seg;
+    if (known) {
+        copy_set(sa, c->probe_set);
+    } else if (!joint_set(c, t, y, &w, sa)) {
+        c->step_ok = 0;
+        return KIN_OK;
+    }
+    /* Where the last try from t met another set (a stage): it failed across a switch
+     * that the sets at its ends did not show (one there and back). */
+    double b = t_end;
+    const int seen = c->step_ok && c->step_t == t && c->other_t > t && c->other_t < t_end;
+    if (seen) {
+        b = c->other_t;
+        copy_set(sb, c->other_set);
+    } else {
+        copy_set(sb, sa);
+        c->probe_ok = joint_set(c, t_end, y, &w, sb);
+        c->probe_t = t_end;
+        c->probe_seg = c->seg;
+        copy_set(c->probe_set, sb);
+    }
+    c->step_ok = 1;
+    c->step_t = t;
+    c->other_t = INFINITY;
+    copy_set(c->step_set, sa);
+    if ((!seen && !c->probe_ok) || same_set(sa, sb)) {
+        return KIN_OK;
+    }
+    double a = t;
+    locate_switch(c, y, SWITCH_TIME_TOL * c->tscale, &a, &b, sa, sb, &w);
+    if (!(a > t)) {
+        return KIN_OK;
+    }
+    *t_piece = a;
+    *t_resume = b;
+    copy_set(c->active, sa); /* the step's stages, up to a: warm start on sa's side */
+    c->warm_t = b;           /* and the first solve after the switch on sb's */
+    copy_set(c->warm_set, sb);
+    c->probe_ok = 1;
+    c->probe_t = b;
+    c->probe_seg = c->seg;
+    copy_set(c->probe_set, sb);
+    return KIN_OK;
+}
+
 static int joint_rhs(void *ctx, double t, const double *y, double *dy)
 {
     return joint_rates_robust((joint_ctx *)ctx, t, y, dy, NULL);
@@ -289,6 +516,17 @@ static int joint_rhs(void *ctx, double t, const double *y, double *dy)
 static void joint_times(void *ctx, const double *t, int32_t count)
 {
     phase_fill(&((joint_ctx *)ctx)->phase, t, count);
+}
+
+/* Whether the friction problem has more rows than the three of a vertex (else its active
+ * set never changes, and there are no kinks to look for). */
+static int switches(const kin_robot *rb)
+{
+    int32_t rows = 0;
+    for (int32_t i = 0; i < kin_wheel_count(rb); i++) {
+        rows += (rb->lateral[i] > 0.0) + (rb->rolling[i] > 0.0);
+    }
+    return rows > 3;
 }
 
 static int check_span(double t0, double t1, int32_t n_out, const double *out)
@@ -348,7 +586,8 @@ static int integrate_joints(const kin_robot *rb, const kin_schedule *s, const do
     }
     stats_start(st, t0);
     joint_ctx c = {rb, s, joints, segment_of(s, t0), 1.0, st, {-1, -1, -1},
-                   {0.0}, {0.0}, PHASE_ZERO};
+                   {0.0}, {0.0}, PHASE_ZERO, 0, 0, 0.0, 0.0, 0.0, INFINITY, NAN,
+                   {-1, -1, -1}, {-1, -1, -1}, {-1, -1, -1}, {-1, -1, -1}};
     joint_ctx_phases(&c);
     c.phase.omega = s->omega;
     if (s->type == KIN_SCHED_TABLE) {
@@ -362,6 +601,11 @@ static int integrate_joints(const kin_robot *rb, const kin_schedule *s, const do
     }
     if (s->type == KIN_SCHED_SINES) {
         ode.times = joint_times;
+    }
+    if (switches(rb) && opt->method == KIN_DOP853) {
+        /* DOPRI5 keeps stepping across the switches: the planners' and predictors'
+         * results, and what their tests hold them to, rest on its step sequence. */
+        ode.smooth = joint_smooth;
     }
     const int32_t width = 3 + joints;
     const int32_t wheels = kin_wheel_count(rb);

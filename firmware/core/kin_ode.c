@@ -54,6 +54,7 @@ int kin_ode_init(kin_ode *ode, int32_t n, kin_rhs_fn f, void *ctx, const kin_opt
     ode->n = n;
     ode->f = f;
     ode->times = NULL;
+    ode->smooth = NULL;
     ode->ctx = ctx;
     ode->opt = *opt;
     ode->stats = stats;
@@ -461,9 +462,24 @@ static int adaptive_advance(kin_ode *ode, const adaptive_method *m, double *y, d
         }
         double h = ode->h;
         int hits_end = 0;
+        double t_next = t + h, t_resume = t_next;
         if (t + 1.01 * h >= t_end) {
             h = t_end - t; /* land exactly on the end (and avoid a sliver step after it) */
             hits_end = 1;
+            t_next = t_resume = t_end;
+        }
+        if (ode->smooth != NULL) {
+            double t_piece = t_next;
+            if ((rc = ode->smooth(ode->ctx, t, y, t_next, &t_piece, &t_resume)) != KIN_OK) {
+                return rc;
+            }
+            if (t_piece > t && t_piece < t_next && t_resume >= t_piece && t_resume <= t_next) {
+                h = t_piece - t; /* land just before the switch, as on an end */
+                hits_end = 1;
+                t_next = t_piece;
+            } else {
+                t_resume = t_next;
+            }
         }
         if (h < h_min && !hits_end) {
             ode->stats->t_fail = t;
@@ -482,21 +498,34 @@ static int adaptive_advance(kin_ode *ode, const adaptive_method *m, double *y, d
         const double log_e = e > 0.0 ? log(e) : -INFINITY;
         if (e <= 1.0) {
             double fac = SAFETY * exp(m->beta * ode->log_err_prev - expo * log_e);
-            t = hits_end ? t_end : t + h;
+            t = t_next;
             for (int32_t i = 0; i < n; i++) {
                 y[i] = y1[i];
                 ode->k1[i] = k_end[i];
             }
             ode->stats->steps++;
+            if (t_resume > t) { /* across the switch, with the velocity just after it */
+                if ((rc = eval(ode, t_resume, y, k_end)) != KIN_OK) {
+                    return rc;
+                }
+                for (int32_t i = 0; i < n; i++) {
+                    y[i] += (t_resume - t) * k_end[i];
+                }
+                t = t_resume;
+                if ((rc = eval(ode, t, y, ode->k1)) != KIN_OK) {
+                    return rc;
+                }
+            }
             if (last_rejected && fac > 1.0) {
                 fac = 1.0;
             }
             last_rejected = 0;
             double h_next = h * fmin(FAC_MAX, fmax(FAC_MIN, fac));
             if (hits_end && h < ode->h) {
-                /* A step shortened to land on the end says little about the step the
-                 * controller proposed: never grow past it, and keep it outright when the
-                 * step was cut to under half (a sliver before an output time or knot). */
+                /* A step shortened to land on the end (or a switch) says little about
+                 * the step the controller proposed: never grow past it, and keep it
+                 * outright when the step was cut to under half (a sliver before an
+                 * output time, knot or switch). */
                 h_next = h < 0.5 * ode->h ? ode->h : fmin(h_next, ode->h);
             }
             ode->h = h_next;

@@ -12,6 +12,16 @@ typedef int (*kin_rhs_fn)(void *ctx, double t, const double *y, double *dy);
  * a right-hand side can then evaluate its parts that depend on time alone for all of
  * them in one go (the inputs' sines), and look them up by t. */
 typedef void (*kin_times_fn)(void *ctx, const double *t, int32_t count);
+/* Optional, adaptive methods: called before each step from (t, y) to t_end with where
+ * the right-hand side stops being smooth. If it finds a switch in between (wheels passing
+ * between sticking and slipping: a kink or a jump of the velocity), *t_piece is a point
+ * just before it and *t_resume one just after (t < *t_piece <= *t_resume <= t_end, the
+ * two a hair apart); otherwise both are t_end. The step then ends at *t_piece, its stages
+ * all on the one smooth piece, so that the method's order holds and its step-size
+ * controller does not reject step after step to get across; the hair to *t_resume is
+ * crossed with the velocity just after the switch, and the next step starts there. */
+typedef int (*kin_smooth_fn)(void *ctx, double t, const double *y, double t_end,
+                             double *t_piece, double *t_resume);
 
 /* Most distinct stage times of one step (Dormand-Prince 5(4): 5, 8(5,3): 11). */
 #define KIN_ODE_MAX_TIMES 11
@@ -20,6 +30,7 @@ typedef struct {
     int32_t n;            /* state dimension, <= KIN_MAX_STATE */
     kin_rhs_fn f;
     kin_times_fn times;   /* may be NULL; kin_ode_init sets NULL, set it after */
+    kin_smooth_fn smooth; /* may be NULL, as times */
     void *ctx;
     kin_options opt;      /* validated copy, defaults filled in */
     kin_stats *stats;     /* never NULL once initialised */

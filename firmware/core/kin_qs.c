@@ -363,10 +363,13 @@ static int seen(const int32_t visited[][3], int32_t count, const int32_t s[3])
 }
 
 /* Minimise; s holds the active set (a warm start if valid), x the answer, y each row's
- * multiplier, *rcond the vertex's conditioning. Returns 0 when the rows do not span
- * three dimensions (the motion is not determined). */
-static int qs_minimise(const qs_problem *p, int32_t s[3], double x[3], double *y, double *rcond)
+ * multiplier, *rcond the vertex's conditioning, *degenerate whether more than the three
+ * rows of s pass through the answer (its active set is then not the only one). Returns 0
+ * when the rows do not span three dimensions (the motion is not determined). */
+static int qs_minimise(const qs_problem *p, int32_t s[3], double x[3], double *y, double *rcond,
+                       int *degenerate)
 {
+    *degenerate = 0;
     double m[3][3], r[QS_MAX_ROWS], tol;
     int valid = s[0] >= 0 && s[1] >= 0 && s[2] >= 0 && s[0] < p->rows && s[1] < p->rows
                 && s[2] < p->rows && s[0] != s[1] && s[1] != s[2] && s[0] != s[2];
@@ -395,6 +398,7 @@ static int qs_minimise(const qs_problem *p, int32_t s[3], double x[3], double *y
         const double most = vertex(p, s, m, x, r, y, &tol, &j, &through);
         if (most <= 1.0 + QS_CERT_TOL) {
             if (through > 0) {
+                *degenerate = 1;
                 centre_of_minima(p, x);
             }
             return 1;
@@ -463,24 +467,67 @@ static int qs_minimise(const qs_problem *p, int32_t s[3], double x[3], double *y
     *rcond = inverse3(p, s, m);
     int32_t j = 0, through = 0;
     (void)vertex(p, s, m, x, r, y, &tol, &j, &through);
+    *degenerate = 1;
     centre_of_minima(p, x); /* pivoting cycled: the vertex is degenerate */
     return 1;
+}
+
+/* The problem for the rows w: the rotation column scaled by L, the farthest wheel's
+ * distance from the reference point (a speed like the others); returns L. */
+static double qs_setup(const kin_robot *rb, const kin_wheel_rows *w, qs_problem *p,
+                       int *at_rest)
+{
+    double len2 = rb->l * rb->l;
+    *at_rest = 1;
+    for (int32_t i = 0; i < w->count; i++) {
+        len2 = qs_max(len2, w->n_theta[i] * w->n_theta[i] + w->t_theta[i] * w->t_theta[i]);
+        *at_rest = *at_rest && w->n_joint[i] == 0.0 && w->t_joint[i] == 0.0;
+    }
+    const double len = sqrt(len2);
+    qs_rows(rb, w, len, p);
+    return len;
+}
+
+int kin_geom_active_set(const kin_robot *rb, const kin_wheel_rows *w, int32_t active[3],
+                        double *rcond)
+{
+    qs_problem p;
+    int at_rest, degenerate;
+    (void)qs_setup(rb, w, &p, &at_rest);
+    double x[3], y[QS_MAX_ROWS];
+    *rcond = 0.0;
+    if (!qs_minimise(&p, active, x, y, rcond, &degenerate) || !isfinite(x[0] + x[1] + x[2])) {
+        return 0;
+    }
+    return !degenerate;
+}
+
+int kin_geom_vertex_test(const kin_robot *rb, const kin_wheel_rows *w, const int32_t s[3],
+                         int32_t row, double out[3])
+{
+    qs_problem p;
+    int at_rest;
+    (void)qs_setup(rb, w, &p, &at_rest);
+    double m[3][3];
+    if (s[0] < 0 || s[1] < 0 || s[2] < 0 || s[0] >= p.rows || s[1] >= p.rows
+        || s[2] >= p.rows || inverse3(&p, s, m) < QS_RCOND_MIN) {
+        return 0;
+    }
+    double x[3], r[QS_MAX_ROWS], y[QS_MAX_ROWS], tol;
+    int32_t worst, through;
+    const double most = vertex(&p, s, m, x, r, y, &tol, &worst, &through);
+    out[0] = objective(&p, x);
+    out[1] = most - (1.0 + QS_CERT_TOL);
+    out[2] = row >= 0 && row < p.rows ? r[row] : NAN;
+    return isfinite(out[0] + out[1]);
 }
 
 int kin_geom_solve(const kin_robot *rb, const kin_wheel_rows *w, int32_t *active, double *xi,
                    double *slip, double *force, double *rcond)
 {
-    /* L, the farthest wheel's distance from the reference point, makes the rotation
-     * column a speed like the others. */
-    double len2 = rb->l * rb->l;
-    int at_rest = 1;
-    for (int32_t i = 0; i < w->count; i++) {
-        len2 = qs_max(len2, w->n_theta[i] * w->n_theta[i] + w->t_theta[i] * w->t_theta[i]);
-        at_rest = at_rest && w->n_joint[i] == 0.0 && w->t_joint[i] == 0.0;
-    }
-    const double len = sqrt(len2);
     qs_problem p;
-    qs_rows(rb, w, len, &p);
+    int at_rest, degenerate;
+    const double len = qs_setup(rb, w, &p, &at_rest);
     int32_t s[3] = {-1, -1, -1};
     if (active != NULL) {
         s[0] = active[0];
@@ -488,7 +535,7 @@ int kin_geom_solve(const kin_robot *rb, const kin_wheel_rows *w, int32_t *active
         s[2] = active[2];
     }
     double x[3], y[QS_MAX_ROWS], rc = 0.0;
-    const int ok = qs_minimise(&p, s, x, y, &rc);
+    const int ok = qs_minimise(&p, s, x, y, &rc, &degenerate);
     if (rcond != NULL) {
         *rcond = ok ? rc : 0.0;
     }

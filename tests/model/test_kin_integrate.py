@@ -61,6 +61,24 @@ def test_adaptive_agrees_with_fine_rk4_five_link_serpenoid():
     assert np.abs(finer.q - adaptive.q).max() < np.abs(rk4.q - adaptive.q).max()
 
 
+def test_dop853_ends_its_steps_at_the_switches_between_sticking_and_slipping():
+    # Five wheels: a few times a second the wheels that stick change, and the body
+    # velocity has a kink or a jump there. DOP853 ends a step just before each switch
+    # and starts the next just after, so its error stays at its tolerance; DOPRI5 steps
+    # across them (rejecting step after step) and misses its tolerance by far.
+    gait = Sines.serpenoid(4, 0.5, math.pi, math.pi / 2)
+    reference = integrate_joints(SNAKE5, gait, 4.0, options=FINE).q[-1, :3]
+    errors, stats = {}, {}
+    for method in ("dopri5", "dop853"):
+        run = integrate_joints(SNAKE5, gait, 4.0, options=Options(method, rtol=1e-8, atol=1e-10))
+        errors[method] = np.abs(run.q[-1, :3] - reference).max()
+        stats[method] = run.stats
+    assert errors["dop853"] < 1e-9 < 1e-7 < errors["dopri5"]
+    assert stats["dop853"]["rejected"] < stats["dop853"]["steps"] / 4
+    assert stats["dopri5"]["rejected"] > stats["dopri5"]["steps"] / 2
+    assert stats["dop853"]["evals"] < stats["dopri5"]["evals"]
+
+
 def test_rk4_converges_at_fourth_order():
     inputs = loop_inputs(0, 1, 0.5, 3.0)
     exact = integrate_fields(TRIDENT, inputs, 2.0, options=FINE).q[-1]

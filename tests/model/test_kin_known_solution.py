@@ -76,13 +76,14 @@ def test_the_eighth_order_method_needs_fewer_evaluations_for_the_same_error():
     assert high.stats["evals"] < 0.65 * low.stats["evals"]
 
 
-def test_batch_is_one_call_per_schedule_bit_for_bit():
+@pytest.mark.parametrize("method", ["dopri5", "dop853"])  # dop853 also stops at switches
+def test_batch_is_one_call_per_schedule_bit_for_bit(method):
     gaits = [
         Sines.serpenoid(4, amp, 2 * math.pi * 0.5, delta)
         for amp in (0.2, 0.5, 0.8)
         for delta in (0.3, 1.0, 2.0)
     ]
-    options = Options("dopri5", rtol=1e-8, atol=1e-10)
+    options = Options(method, rtol=1e-8, atol=1e-10)
     batch = integrate_joints_batch(SNAKE5, gaits, 5.0, samples=6, options=options)
     assert (batch.status == lib.KIN_OK).all()
     for k, gait in enumerate(gaits):
@@ -113,12 +114,18 @@ def test_a_bad_shared_argument_is_refused():
         integrate_joints_batch(SNAKE3, [Sines.serpenoid(2, 0.5, 1.0, 1.0)], 1.0, t0=2.0)
 
 
-def test_tables_that_differ_from_a_row_on_are_bit_for_bit_their_own_calls():
+@pytest.mark.parametrize("method", ["dopri5", "dop853"])
+def test_tables_that_differ_from_a_row_on_are_bit_for_bit_their_own_calls(method):
     """A batch of tables that agree with the first one up to some row (a tick search's
     trials, one frame changed each) continues each from the first one's state at the
-    knot before that row: the same numbers and counters as one call per table."""
+    knot before that row: the same numbers and counters as one call per table (dop853's
+    search for switches too starts afresh at each knot)."""
+    from dataclasses import replace
+
     from snakebot.model.kinematics import Table
     from snakebot.model.plan.loops import SOLVE_OPTIONS, loop_angles
+
+    options = replace(SOLVE_OPTIONS, method=method)
 
     hub = np.array([0.3, -0.2, 0.4, -0.1])
     coefficients = np.tile([0.3, 0.1, -0.2, 0.05], 4)
@@ -132,10 +139,10 @@ def test_tables_that_differ_from_a_row_on_are_bit_for_bit_their_own_calls():
     tables[0][10, 1] += 0.01  # the first differs from the rest from row 10 on
     rows = float(len(base) - 1)
     schedules = [Table(t, 1.0) for t in tables]
-    batch = integrate_joints_batch(SNAKE5, schedules, rows, options=SOLVE_OPTIONS)
+    batch = integrate_joints_batch(SNAKE5, schedules, rows, options=options)
     assert (batch.status == lib.KIN_OK).all()
     for k, schedule in enumerate(schedules):
-        single = integrate_joints(SNAKE5, schedule, rows, samples=2, options=SOLVE_OPTIONS)
+        single = integrate_joints(SNAKE5, schedule, rows, samples=2, options=options)
         np.testing.assert_array_equal(batch.q[k], single.q)
         assert batch.evals[k] == single.stats["evals"]
         assert batch.min_rcond[k] == single.stats["min_rcond"]

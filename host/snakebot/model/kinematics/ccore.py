@@ -145,8 +145,9 @@ def _c_robot(
 @dataclass(frozen=True)
 class Options:
     """Integrator settings: ``method`` "dopri5" or "dop853" (adaptive Dormand-Prince 5(4)
-    and 8(5,3), rtol/atol; the second needs fewer evaluations at tight tolerances) or
-    "rk4" (step h)."""
+    and 8(5,3), rtol/atol; the second needs fewer evaluations at tight tolerances, and
+    under a joint schedule ends its steps at the wheels' switches between sticking and
+    slipping instead of stepping across them) or "rk4" (step h)."""
 
     method: str = "dopri5"
     rtol: float = 1e-9

@@ -644,3 +644,11 @@ def test_a_register_address_int_cannot_read_is_bad_input(register: str) -> None:
         mentions="register starts at address",
     )
     assert len(line) <= LINE_LIMIT
+
+
+@pytest.mark.parametrize("board", ["cm530", "qemu"])
+def test_serve_refuses_servos_named_twice_as_bad_input(board: str) -> None:
+    """The robot names the servos: `ids=` in the emulator options is bad input (exit 2)
+    on either board, before anything starts (the CM-530 board said it with exit 1)."""
+    result = run("sim", "serve", "--board", board, "--robot", "snake3", "--sim-options", "ids=1,1")
+    assert_one_line_error(result, mentions="leave robot= and ids= out")

@@ -430,14 +430,7 @@ class EmulatedRobot:
             if self.board == "cm530":
                 return self._start_cm530(boot_timeout)
             image = flash_image(self.firmware, Path(self._workdir) / "flash.bin")
-            options = SimOptions.from_query(self.sim_query)
-            if options.robot or options.ids:
-                raise SimOptionError(
-                    "the robot's servos come from the robot given: leave robot= and ids= "
-                    "out of the emulator options"
-                ).about("robot")
-            source = self.robot.source or self.robot.name
-            self._bus = replace(options, robot=source).build_bus()
+            self._bus = self._build_bus()
             sock = Path(self._workdir) / "bus.sock"
             self._server = UnixSocketServer(self._bus, sock, private=True).start()
             with self._server.lock:  # type: ignore[attr-defined]
@@ -476,8 +469,8 @@ class EmulatedRobot:
     def _build_bus(self) -> Bus:
         options = SimOptions.from_query(self.sim_query)
         if options.robot or options.ids:
-            raise ServeError(
-                "the robot's servos come from the robot named apart: leave robot= and ids= "
+            raise SimOptionError(
+                "the robot's servos come from the robot given: leave robot= and ids= "
                 "out of the emulator options"
             ).about("robot")
         return replace(options, robot=self.robot.source or self.robot.name).build_bus()

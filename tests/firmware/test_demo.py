@@ -10,6 +10,7 @@ stop."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import re
@@ -18,6 +19,7 @@ import subprocess
 import sys
 import threading
 import zlib
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -95,35 +97,50 @@ def test_demo_json_reports_the_snake_advancing_and_writes_the_png(tmp_path, worl
             os.kill(result["qemu_pid"], 0)
 
 
-def test_ctrl_c_stops_the_demo_and_leaves_nothing_running(tmp_path):
+@contextlib.contextmanager
+def playing_qemu_demo(
+    tmp_path: Path, *options: str
+) -> Iterator[tuple[subprocess.Popen, int, list[str]]]:
+    """`snakebot demo --board qemu OPTIONS` in a process of its own, read until it plays:
+    (the process, QEMU's pid, the lines it printed so far); killed on the way out if it
+    is still running."""
     build_firmware()
     proc = subprocess.Popen(
-        [sys.executable, "-m", "snakebot", "demo", "--board", "qemu", "--out", str(tmp_path)],
+        [sys.executable, "-m", "snakebot", "demo", *options]
+        + ["--board", "qemu", "--out", str(tmp_path)],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
     )
-    qemu_pid = None
     try:
         assert proc.stdout is not None
+        printed, qemu_pid = [], None
         for line in proc.stdout:  # until it plays
-            found = re.search(r"QEMU \(pid (\d+)\)", line)
-            if found:
+            printed.append(line)
+            if found := re.search(r"QEMU \(pid (\d+)\)", line):
                 qemu_pid = int(found.group(1))
             if "monitoring" in line:
                 break
         assert qemu_pid is not None
+        yield proc, qemu_pid, printed
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+def test_ctrl_c_stops_the_demo_and_leaves_nothing_running(tmp_path):
+    with playing_qemu_demo(tmp_path) as (proc, qemu_pid, _):
         proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=30)
         assert proc.returncode == 130
         assert "nothing is left running" in err
         with pytest.raises(ProcessLookupError):
             os.kill(qemu_pid, 0)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
 
+
+QUICK = ("--world", "kinematic", "--cycles", "1")
+"""The demo's options for the runs the host disturbs: one measured cycle, no MuJoCo."""
 
 PAUSE_S = 0.4  # longer than a steady run's goals ever stand still (STILL_LIMIT_S)
 PAUSE_EVERY_S = 1.0
@@ -135,14 +152,6 @@ def test_a_run_the_host_disturbs_says_so_and_is_never_a_disagreement(tmp_path):
     verdict is AGREE (exit 0) if the tolerance took the disturbance in, else INVALID
     (exit 1, why, and to rerun on an idle machine), never DISAGREE
     (tests/workflows/test_demo_pace.py checks which one on made-up differences)."""
-    build_firmware()
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "snakebot", "demo", "--world", "kinematic", "--cycles", "1"]
-        + ["--board", "qemu", "--out", str(tmp_path)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
     done = threading.Event()
 
     def disturb(pid: int) -> None:
@@ -154,22 +163,12 @@ def test_a_run_the_host_disturbs_says_so_and_is_never_a_disagreement(tmp_path):
             except ProcessLookupError:
                 return
 
-    try:
-        assert proc.stdout is not None
-        printed = []
-        for line in proc.stdout:
-            printed.append(line)
-            if found := re.search(r"QEMU \(pid (\d+)\)", line):
-                qemu_pid = int(found.group(1))
-            if "monitoring" in line:
-                threading.Thread(target=disturb, args=(qemu_pid,), daemon=True).start()
-                break
-        out, err = proc.communicate(timeout=DEMO_TIMEOUT_S)
-    finally:
-        done.set()
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+    with playing_qemu_demo(tmp_path, *QUICK) as (proc, qemu_pid, printed):
+        threading.Thread(target=disturb, args=(qemu_pid,), daemon=True).start()
+        try:
+            out, err = proc.communicate(timeout=DEMO_TIMEOUT_S)
+        finally:
+            done.set()
     report = "".join(printed) + out
     lines = report.splitlines()
     verdict = next(line for line in lines if "verdict:" in line)
@@ -190,29 +189,9 @@ def test_an_emulator_the_host_never_runs_again_is_blamed_on_the_host(tmp_path):
     a host overloaded far beyond the link's margins leaves it. The demo ends with one line
     that names the host's load, not the board's power or cable (exit 1), and leaves
     nothing running."""
-    build_firmware()
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "snakebot", "demo", "--world", "kinematic", "--cycles", "1"]
-        + ["--board", "qemu", "--out", str(tmp_path)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    qemu_pid = None
-    try:
-        assert proc.stdout is not None
-        for line in proc.stdout:
-            if found := re.search(r"QEMU \(pid (\d+)\)", line):
-                qemu_pid = int(found.group(1))
-            if "monitoring" in line:
-                break
-        assert qemu_pid is not None
+    with playing_qemu_demo(tmp_path, *QUICK) as (proc, qemu_pid, _):
         os.kill(qemu_pid, signal.SIGSTOP)
         _, err = proc.communicate(timeout=DEMO_TIMEOUT_S)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
     assert proc.returncode == 1, err
     (line,) = err.strip().splitlines()
     assert "the host did not run the emulator in time (load average" in line, line

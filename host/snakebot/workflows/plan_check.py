@@ -14,12 +14,12 @@ loop is not to be trusted, with the numbers (an ``open_loop`` warning)."""
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from snakebot.model.plan import Plan
-from snakebot.model.plan.planner import pose_dict, pose_error
+from snakebot.model.plan.planner import Tolerance, pose_dict, pose_error
 from snakebot.model.plan.sensitivity import open_loop_warning
 from snakebot.model.robots import Robot
 from snakebot.workflows.predict import predict_gait
@@ -32,25 +32,37 @@ def servo_check(plan: Plan) -> dict[str, Any]:
     the tolerance), as :func:`snakebot.model.plan.files.plan_summary` takes them."""
     robot = plan.robot
     played = predict_gait(plan.gait.gait_table(), robot)
-    moved = played.emulated.displacement()
-    end = np.array([moved["dx"], moved["dy"], moved["dtheta"]])
-    error = plan.tolerance.report(pose_error(end, plan.target))
-    report = {
-        "servos": robot.servo_model,
-        "world": "kinematic",
-        "predicted_final": pose_dict(end),
-        "error": error,
-    }
-    if error["within"]:
-        return {"servo_check": report, "warnings": []}
-    warning = end_warning(
+    report, warnings = end_check(
+        plan,
+        played.emulated.displacement(),
         "servos",
-        error,
-        robot,
         f"played on the modelled servos ({robot.servo_model})",
         "the servos lag the table, so its end played open loop is not to be trusted",
     )
-    return {"servo_check": report, "warnings": [warning]}
+    return {"servo_check": {"servos": robot.servo_model, **report}, "warnings": warnings}
+
+
+class Planned(Protocol):
+    """What a check needs of a plan (:class:`Plan`, or a plan made for MuJoCo)."""
+
+    robot: Robot
+    target: np.ndarray
+    tolerance: Tolerance
+
+
+def end_check(
+    plan: Planned, moved: dict[str, float], cause: str, played: str, why: str
+) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """Where a table ``played`` so, which moved the body by ``moved`` (dx, dy, dtheta),
+    ends against ``plan``'s target in the quasi-static world: the report (world, predicted
+    end, its error beside the tolerance) and, when the end is outside the tolerance, the
+    ``open_loop`` warning of ``cause`` saying ``why`` it matters."""
+    end = np.array([moved["dx"], moved["dy"], moved["dtheta"]])
+    error = plan.tolerance.report(pose_error(end, plan.target))
+    report = {"world": "kinematic", "predicted_final": pose_dict(end), "error": error}
+    if error["within"]:
+        return report, []
+    return report, [end_warning(cause, error, plan.robot, played, why)]
 
 
 def end_warning(

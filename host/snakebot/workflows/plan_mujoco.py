@@ -49,7 +49,6 @@ from snakebot.model.plan.planner import (
     Tolerance,
     body_length,
     out_of_reach,
-    pose_dict,
     pose_error,
 )
 from snakebot.model.plan.serpenoid_goto import (
@@ -65,7 +64,7 @@ from snakebot.model.plan.serpenoid_goto import (
     middle,
 )
 from snakebot.model.robots import Robot
-from snakebot.workflows.plan_check import end_warning
+from snakebot.workflows.plan_check import end_check
 from snakebot.workflows.predict import Prediction, predict_gait
 
 WORLD = "mujoco"
@@ -302,19 +301,12 @@ def world_check(plan: CyclePlan) -> dict[str, Any]:
     """Where ``plan``'s table ends in the quasi-static world (``quasi_static``), and an
     ``open_loop`` warning when that is outside the tolerance: the plan is made and
     checked for MuJoCo's body and floor."""
-    robot = plan.robot
-    moved = plan.gait.predicted
-    final = np.array([moved["dx"], moved["dy"], moved["dtheta"]])
-    error = plan.tolerance.report(pose_error(final, plan.target))
-    report = {"world": "kinematic", "predicted_final": pose_dict(final), "error": error}
-    if error["within"]:
-        return {"quasi_static": report, "warnings": []}
-    warning = end_warning(
+    report, warnings = end_check(
+        plan,
+        plan.gait.predicted,
         "world",
-        error,
-        robot,
         "in the quasi-static world",
         f"it is made and checked for the {plan.world} world, so played open loop on another "
         "body or floor its end is not to be trusted",
     )
-    return {"quasi_static": report, "warnings": [warning]}
+    return {"quasi_static": report, "warnings": warnings}

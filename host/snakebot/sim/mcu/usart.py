@@ -18,7 +18,8 @@ reach for every byte are served in C from the state this model keeps in ``fast``
 (mcu_usart.h): SR, DR and CR1 reads, a DR write behind the byte being sent, a CR1 write that
 starts no idle frame; this model serves the rest (the shift register's timing, the far end).
 
-Bytes leave through ``on_tx(byte, start, end, baud)`` as their start bit goes out; bytes
+Bytes leave through ``on_tx(byte, start, end, baud)`` as their start bit goes out (and
+``on_idle(t)`` tells when the transmitter has nothing more to send: TC is set); bytes
 arrive through :meth:`Usart.receive` (one byte whose stop bit is in now) or
 :meth:`Usart.feed` (bytes the far end sends back to back at the programmed rate).
 """
@@ -72,6 +73,7 @@ class Usart(Peripheral):
         self.irq = irq
         self.clock_on = clock_on
         self.on_tx = on_tx
+        self.on_idle: Callable[[float], None] | None = None
         self.sent = 0
         self.received = 0
         self.overruns = 0
@@ -228,6 +230,8 @@ class Usart(Peripheral):
             self._start_shift(byte, t)
         else:
             self.sr |= TC
+            if self.on_idle is not None:
+                self.on_idle(t)
         self._update_irq()
 
     # -- registers ----------------------------------------------------------------------------

@@ -206,9 +206,9 @@ class Usart(Peripheral):
             on_tx = self.on_tx
             if on_tx is not None:
                 frame, baud = fast.frame_s, fast.baud
-                for i in range(n):
-                    start = fast.log_start[i]
-                    on_tx(fast.log_byte[i], start, start + frame, baud)
+                starts = ffi.unpack(fast.log_start, n)  # one call, not one per element
+                for byte, start in zip(ffi.unpack(fast.log_byte, n), starts, strict=True):
+                    on_tx(byte, start, start + frame, baud)
         if fast.idle:
             fast.idle = 0
             if self._on_idle is not None:

@@ -21,8 +21,9 @@ shift register's frames end in C too, at the instruction this model's event woul
 (TXE and the next byte, or TC), the bytes that start logged for :meth:`Usart.drain` to
 hand on. This model serves the rest (a shift register it starts, the far end).
 
-Bytes leave through ``on_tx(byte, start, end, baud)`` as their start bit goes out (and
-``on_idle(t)`` tells when the transmitter has nothing more to send: TC is set); bytes
+Bytes leave through ``on_tx(byte, start, end, baud)`` as their start bit goes out (a frame
+timed in C: when the model next runs, before anything else the machine does) and
+``on_idle(t)`` tells when the transmitter has nothing more to send (TC is set); bytes
 arrive through :meth:`Usart.receive` (one byte whose stop bit is in now) or
 :meth:`Usart.feed` (bytes the far end sends back to back at the programmed rate).
 """

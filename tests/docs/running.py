@@ -15,6 +15,8 @@ NOT_RUN = ("hardware", "video")
 """Kinds not run: a real board's line (marked in the text), a video (declared with its
 cost where it is shown)."""
 STOPPED = ("until Ctrl-C", "emulator")
+OVER_BUDGET = "CPU seconds measured here, over the suite's time budget"
+"""Why a line costlier than a test may be is not run (after its cost: `5.2 {OVER_BUDGET}`)."""
 
 
 def how(line: Line) -> str:

@@ -238,9 +238,7 @@ class WindowJob(Job):
             return len(np.unique(shot[::2, ::2].reshape(-1, 3), axis=0))
 
         live.found(r"the viewer is open", "word that the viewer is open")
-        began = time.monotonic()
         live.wait(lambda: colours() > 100, "picture on the display")
-        print("open->picture", time.monotonic() - began)
 
 
 def job_for(words: list[str], emulators: Emulators) -> Job:

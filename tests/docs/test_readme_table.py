@@ -27,7 +27,7 @@ from click.testing import Result
 from firmware_support import build_firmware
 from readme_table import Row, parse_rows, variants
 from runnable import Emulators, Line, program_spec, run_line
-from running import NOT_RUN, how, run_any
+from running import NOT_RUN, OVER_BUDGET, how, run_any
 from stopping import Timed, ctrl_c
 from sybil import Sybil
 from xvfb_support import display, xvfb
@@ -46,7 +46,8 @@ README = REPO_ROOT / "README.md"
 FIELDS = "snakebot model fields snake3 --at 0,0,0,pi/3,-pi/3"
 THESIS = "snakebot sim thesis -o out/thesis"
 COVERED_BY_THESIS = (
-    "minutes of MuJoCo: `--only h3` runs here, tests/workflows/test_physics_studies.py runs two"
+    "its 7 studies in both worlds: {} " + OVER_BUDGET + "; `--only h3` runs here, "
+    "tests/workflows/test_physics_studies.py runs two"
 )
 MONITOR = "snakebot monitor --port /dev/ttyUSB0"
 COMPARE = "snakebot compare run.csv s.gait"
@@ -55,15 +56,16 @@ VIEW_PORT = "snakebot sim view --port /dev/ttyUSB0 --robot snake5"
 DECLARED: dict[str, tuple[str, str]] = {
     f"{FIELDS} --symbolic": (
         "expensive",
-        "sympy simplifies snake3's fields for minutes; tests/cli/test_models_cli.py runs "
-        "--symbolic on trident and car",
+        "sympy simplifies snake3's fields: 54 CPU seconds measured; "
+        "tests/cli/test_models_cli.py runs --symbolic on trident and car",
     ),
     "snakebot sim predict s.gait --world mujoco --video s.gif": (
         "video",
-        "tens of CPU seconds of rendering; tests/plots/test_physics_video.py",
+        f"rendering: 3.9 {OVER_BUDGET} (the line without --video, which runs: 0.8); "
+        "tests/plots/test_physics_video.py",
     ),
-    THESIS: ("expensive", COVERED_BY_THESIS),
-    f"{THESIS} --json": ("expensive", COVERED_BY_THESIS),
+    THESIS: ("expensive", COVERED_BY_THESIS.format(5.2)),
+    f"{THESIS} --json": ("expensive", COVERED_BY_THESIS.format(5.3)),
 }
 """Lines not run here: (kind, the reason), by the line as it runs."""
 

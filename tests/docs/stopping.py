@@ -268,7 +268,7 @@ def ctrl_c(
     args, env = arguments(line.commands[0], emulators)
     the_job = (job or (lambda words: job_for(words, emulators)))(["snakebot", *args])
     problems: list[str] = []
-    ended = threading.Event()
+    ended, pressing = threading.Event(), threading.Lock()
     before = Running.now()
 
     def watch() -> None:
@@ -276,8 +276,9 @@ def ctrl_c(
             the_job.ready(runner)
         except Exception as exc:  # noqa: BLE001 - a failed check, reported with the line's
             problems.append(f"before Ctrl-C: {exc}")
-        if not ended.is_set():
-            signal.pthread_kill(threading.main_thread().ident, signal.SIGINT)
+        with pressing:  # Ctrl-C only while the command runs
+            if not ended.is_set():
+                signal.pthread_kill(threading.main_thread().ident, signal.SIGINT)
 
     runner = LiveRunner()
     the_job.start()
@@ -285,10 +286,11 @@ def ctrl_c(
     watcher.start()
     try:
         result: Result | None = runner.invoke(main, args, env=env, input=ANSWERS)
+        with pressing:
+            ended.set()
     except KeyboardInterrupt:  # the command had ended when Ctrl-C came
         result = None
         problems.append("it ended before Ctrl-C")
-    ended.set()
     watcher.join()
     if result is not None:
         problems += exit_problems(result, the_job.says_interrupted)

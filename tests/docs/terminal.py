@@ -52,8 +52,10 @@ def drive(line: Line, emulators: Emulators, folder: Path) -> list[str]:
         tmux.keys("Left")
         screen.wait(lambda: steered in tmux.screen(), steered)
         tmux.keys("q")
-        screen.wait(lambda: "EXIT=" in tmux.screen(), "the end")
-        exit_line = next(s for s in tmux.screen().splitlines() if s.startswith("EXIT="))
+        end = screen.wait(lambda: "EXIT=" in (s := tmux.screen()) and s, "the end")
+        exit_line = next(s for s in end.splitlines() if s.startswith("EXIT="))
+        if "Traceback" in end:
+            exit_line += " after a traceback"
     except AssertionError as exc:
         return [f"{line.where}: `{line.text}` in a terminal: {exc}"]
     finally:

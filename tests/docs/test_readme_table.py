@@ -70,8 +70,8 @@ DECLARED: dict[str, tuple[str, str]] = {
 """Lines not run here: (kind, the reason), by the line as it runs."""
 
 CTRL_C_AFTER = 2.0
-"""Seconds a line that runs until Ctrl-C runs before it gets one: four samples at
-`monitor`'s default interval (0.5 s), more than the three `compare` needs."""
+"""Seconds a `monitor` line (its CHECKS read what it recorded) runs before it gets Ctrl-C:
+four samples at its default interval (0.5 s), more than the three `compare` needs."""
 
 PLAYING = ("snakebot upload s.gait --port /dev/ttyUSB0", "snakebot play --port /dev/ttyUSB0 --loop")
 BEFORE: dict[str, tuple[str, ...]] = {

@@ -18,8 +18,9 @@ A command line is one of:
   emulators, as a reader's second shell would reach the line's;
 * **terminal**: ``drive`` reading the keyboard: run in a real terminal (tmux), driven
   by keys, ended with q (tests/docs/terminal.py);
-* **window**: a line that opens MuJoCo's viewer (``snakebot sim view``): run on an X
-  server of the test's (Xvfb), closed with Ctrl-C unless it closes by itself (``--once``);
+* **window**: a line that opens MuJoCo's viewer (``snakebot sim view``): run as a process
+  on an X server of the test's (Xvfb), closed with Ctrl-C unless it closes by itself
+  (``--once``; tests/docs/window.py);
 * **make**: ``make flash PORT=...``: run as written in the checkout against the emulated
   bootloader (tests/docs/make_flash.py);
 * **video**: a line that renders a video: tens of CPU seconds, declared where it is
@@ -39,6 +40,7 @@ import itertools
 import re
 import shlex
 import shutil
+import sys
 import tempfile
 import textwrap
 from collections.abc import Iterator
@@ -65,6 +67,8 @@ SNAKE5_IDS = "10,11,15,16"
 ANSWERS = "\n" + "y\n" * 20  # Enter, then yes to every question (robot calibrate)
 EXAMPLE = re.compile(r"^\s*(?:Example:\s*)?(snakebot\s.+)$")
 BUS_NAMES = itertools.count(1)  # a named sim:// bus lives as long as the process
+SNAKEBOT = str(Path(sys.executable).with_name("snakebot"))
+"""The `snakebot` command of the Python running the tests, as a reader's shell finds it."""
 
 
 @dataclass

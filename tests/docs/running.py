@@ -10,6 +10,7 @@ from make_flash import make_flash
 from runnable import Emulators, Line, run_line
 from stopping import ctrl_c
 from terminal import drive
+from window import window
 
 NOT_RUN = ("hardware", "video")
 """Kinds not run: a real board's line (marked in the text), a video (declared with its
@@ -41,10 +42,12 @@ def run_any(line: Line, emulators: Emulators) -> tuple[Result | None, list[str]]
     kind = line.kind
     if kind == "window" and not os.environ.get("DISPLAY"):
         return None, [f"{line.where}: `{line.text}` needs a display (the xvfb fixture)"]
-    if kind == "run" or (kind == "window" and "--once" in line.text):
+    if kind == "run":
         return run_line(line, emulators)
-    if kind in (*STOPPED, "window"):
+    if kind in STOPPED:
         return ctrl_c(line, emulators)
+    if kind == "window":
+        return None, window(line, emulators)
     if kind == "terminal":
         return None, drive(line, emulators, Path.cwd())
     if kind == "make":

@@ -10,18 +10,14 @@ from __future__ import annotations
 
 import math
 import shlex
-import sys
 from pathlib import Path
 
-from runnable import Emulators, Line, arguments
+from runnable import SNAKEBOT, Emulators, Line, arguments
 from stopping import Job, LiveRunner
 from tmux_support import Tmux, joints
 
 from snakebot.cli.options import ControllerLink
 from snakebot.link.controller.drive import STEER_STEP
-
-SNAKEBOT = str(Path(sys.executable).with_name("snakebot"))
-"""The `snakebot` command of the Python running the tests, as a reader's shell finds it."""
 
 
 class Screen(LiveRunner):

@@ -7,7 +7,8 @@ A command line is one of:
   replaced by an emulator's: ``sim://`` servos for the servo-bus commands, the
   controller's C device on a pseudo-terminal (:class:`ControllerPty`, what the firmware
   runs on its PC link) for the controller commands, the emulated ROBOTIS bootloader for
-  ``flash``;
+  ``flash``, the CM-530's image on the emulated chip for ``doctor --board cm530`` (the
+  one a flash started, if any);
 * **hardware**: marked ``# real hardware only`` in the text, not run;
 * **until Ctrl-C**: a command that runs until interrupted, as its help says (a looping
   ``bus play``, ``monitor`` without a duration): run until it has done its job, then
@@ -23,8 +24,8 @@ A command line is one of:
   (``--once``; tests/docs/window.py);
 * **make**: ``make flash PORT=...``: run as written in the checkout against the emulated
   bootloader (tests/docs/make_flash.py);
-* **video**: a line that renders a video: tens of CPU seconds, declared where it is
-  shown and not run (the videos have their own tests in tests/plots).
+* **video**: a line that renders a video: declared with its measured cost where it is
+  shown, and not run (the videos have their own tests in tests/plots).
 
 A fixed Foxglove port (``--foxglove 8765``) is replaced by a free one and a fixed link
 (``--link /tmp/ttyCM530``) by one in a folder of the test's, as a real-hardware port is

@@ -12,12 +12,12 @@ from stopping import ctrl_c
 from terminal import drive
 from window import window
 
-NOT_RUN = ("hardware", "video")
-"""Kinds not run: a real board's line (marked in the text), a video (declared with its
-cost where it is shown)."""
+NOT_RUN = ("hardware",)
+"""Kinds not run: a real board's line (marked in the text)."""
+VIDEO_FRAMES = 2
+"""Frames a `--video` line's file must hold at least, as ffmpeg decodes it (a still
+picture, or a file cut short, decodes to fewer or none)."""
 STOPPED = ("until Ctrl-C", "emulator")
-OVER_BUDGET = "CPU seconds measured here, over the suite's time budget"
-"""Why a line costlier than a test may be is not run (after its cost: `5.2 {OVER_BUDGET}`)."""
 
 
 def how(line: Line) -> str:
@@ -32,6 +32,7 @@ def how(line: Line) -> str:
         "emulator": "run, stopped with Ctrl-C",
         "terminal": "run in a terminal",
         "make": "run by make",
+        "video": "run, its video decoded",
     }.get(kind, kind)
 
 
@@ -52,4 +53,24 @@ def run_any(line: Line, emulators: Emulators) -> tuple[Result | None, list[str]]
         return None, drive(line, emulators, Path.cwd())
     if kind == "make":
         return None, make_flash(line, emulators)
+    if kind == "video":
+        result, problems = run_line(line, emulators)
+        return result, problems or video(line)
     return None, [f"{line.where}: `{line.text}` ({kind}) cannot run here"]
+
+
+def video(line: Line) -> list[str]:
+    """The video a `--video` line wrote decodes, as ffmpeg reads it, to VIDEO_FRAMES or
+    more frames."""
+    from imageio_ffmpeg import count_frames_and_secs
+
+    words = line.commands[-1]
+    path = Path(words[words.index("--video") + 1])
+    try:
+        frames, seconds = count_frames_and_secs(str(path))
+    except (OSError, RuntimeError) as error:
+        last = str(error).strip().splitlines()[-1]  # ffmpeg's own reason
+        return [f"{line.where}: `{line.text}`: ffmpeg cannot read {path}: {last}"]
+    if frames < VIDEO_FRAMES:
+        return [f"{line.where}: `{line.text}`: {path} holds {frames} frames ({seconds} s)"]
+    return []

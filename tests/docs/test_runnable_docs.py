@@ -29,7 +29,7 @@ from runnable import (
     program_spec,
     run_console,
 )
-from running import NOT_RUN, OVER_BUDGET, how, run_any
+from running import NOT_RUN, how, run_any
 from sybil import Document, Sybil
 from sybil.parsers.markdown import CodeBlockParser
 from sybil.parsers.markdown.lexers import FencedCodeBlockLexer
@@ -111,13 +111,8 @@ def workdir(tmp_path_factory) -> Path:
     return folder
 
 
-VIDEO = "renders a video: {} " + OVER_BUDGET
-NOT_RUN_HERE: dict[str, str] = {
-    "snakebot sim goto trident --to 2,1,30deg --video goto.mp4 --size 640x360": VIDEO.format(5.2),
-    "snakebot sim predict s.gait --plot s.png --video s.mp4": VIDEO.format(3.2),
-}
-"""Lines not run (but for real hardware's, marked in the text), with the reason; the
-videos have their own tests (tests/plots/test_physics_video.py, test_video3d.py)."""
+NOT_RUN_HERE: dict[str, str] = {}
+"""Lines not run (but for real hardware's, marked in the text), with the reason."""
 
 
 def check(lines: list[Line]) -> list[str]:

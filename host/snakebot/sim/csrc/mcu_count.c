@@ -1,6 +1,7 @@
 /* See mcu_count.h. */
 #include "mcu_count.h"
 #include "mcu_nvic.h"
+#include "mcu_systick.h"
 #include "mcu_usart.h"
 
 double mcu_time_at(const mcu_counter *c, uint64_t count)
@@ -112,6 +113,11 @@ uint64_t mcu_io_read(void *uc, uint64_t offset, unsigned size, void *io)
     }
     uint64_t value;
     if (f->kind == MCU_IO_USART_SR && mcu_usart_read(f, offset, size, &value)) {
+        return value;
+    }
+    if (f->kind == MCU_IO_SCS && f->systick != 0 && offset >= MCU_SCS_SYSTICK &&
+        mcu_systick_read((mcu_systick *)f->systick, mcu_now(f->counter),
+                         offset - MCU_SCS_SYSTICK, size, &value)) {
         return value;
     }
     return ((mcu_read_fn)f->read_fallback)(uc, offset, size, 0);

@@ -53,6 +53,8 @@ class GpioPort(Peripheral):
         self.name = f"GPIO{letter}"
         self.clock_on = clock_on
         self._listeners: list[PinListener] = []
+        self.on_write: Callable[[], None] | None = None
+        """Called after every write that reaches the port's registers."""
         self._output_masks: dict[tuple[int, int], int] = {}  # _outputs' mask by CRL, CRH
         self.external: dict[int, bool] = {}  # pins driven from outside
         self.reset()
@@ -144,6 +146,8 @@ class GpioPort(Peripheral):
         else:
             self.unknown(offset, size, value)
             return
+        if self.on_write is not None:
+            self.on_write()
         if not self._listeners:
             return
         mask, levels = self._outputs()

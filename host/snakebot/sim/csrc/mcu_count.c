@@ -47,6 +47,13 @@ static void count_at_limit_or_site(void *uc, uint64_t address, uint32_t size, mc
     if (c->count >= c->limit && c->pending == 0 && mcu_time_at(c, c->count) < c->stop_at) {
         c->limit = c->count + 1; /* short of stop_at by a rounding (see mcu_count.h) */
     }
+    if (c->take_next && c->count < c->limit) {
+        c->take_next = 0;
+        mcu_timed_plan(c); /* event_count back to the timed events' */
+        if (c->nvic != 0 && mcu_nvic_after_unmask(uc, (mcu_nvic *)c->nvic) > 0) {
+            return; /* this instruction runs on the handler's return */
+        }
+    }
     if (c->count >= c->limit) {
         /* the hook runs before the instruction: stopping here leaves it unexecuted */
         c->stops++;
@@ -272,6 +279,7 @@ int mcu_keep_pc(void *uc, mcu_exceptions *x)
 int mcu_run(void *uc, mcu_exceptions *x, mcu_counter *c, uint64_t instructions)
 {
     c->limit = c->count + instructions;
+    c->take_next = 0; /* the machine took what was due before this run */
     mcu_timed_plan(c);
     uint32_t pc = mcu_reg(uc, x, x->frame[FRAME_PC]) | 1u;
     c->running = 1;

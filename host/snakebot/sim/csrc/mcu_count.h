@@ -43,6 +43,8 @@ typedef struct {
     void *systick;         /* the mcu_systick timed here (mcu_systick.h), or NULL */
     uint32_t undrained;    /* a timed USART has something to tell its model (mcu_usart.h) */
     uint64_t sleeps;       /* wfi instructions that slept, here or in the model */
+    uint32_t take_next;    /* an exception became takeable during the run (mcu_nvic_changed):
+                            * the hook takes it before the next instruction */
 } mcu_counter;
 
 /* The machine's time (s) when the count is `count`: t0 + (count - c0) / hz. */

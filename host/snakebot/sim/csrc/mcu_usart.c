@@ -174,7 +174,7 @@ void mcu_timed_plan(mcu_counter *c)
 {
     double t = mcu_timed_next(c);
     if (t < 0.0) {
-        c->event_count = UINT64_MAX;
+        c->event_count = c->take_next ? c->count : UINT64_MAX;
         return;
     }
     uint64_t k = cycles_to(c, t);
@@ -182,6 +182,9 @@ void mcu_timed_plan(mcu_counter *c)
         k = 1; /* short by a rounding: look again after the next instruction */
     }
     c->event_count = c->count + k;
+    if (c->take_next) {
+        c->event_count = c->count; /* an exception to take first (mcu_nvic_changed) */
+    }
 }
 
 /* The shift register is done with its frame (at shift_end): TDR's byte moves in (TXE set,

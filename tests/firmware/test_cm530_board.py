@@ -18,7 +18,7 @@ from controller_cli_support import SNAKE5_IDS, cli, cli_json, save, wave_table
 
 from snakebot.facts.boards import PC_LINK_BAUD, WATCHDOG_MS
 from snakebot.firmware import image as firmware_image
-from snakebot.sim.mcu.board import Cm530, Leftovers
+from snakebot.sim.mcu.board import BUS_RX_ENABLE, Cm530, Leftovers
 from snakebot.sim.mcu.runner import QUIET_AFTER_S, QUIET_STEP_S, STEP_S, McuFirmware
 from snakebot.sim.options import SimOptions
 from snakebot.sim.serve import EmulatedRobot
@@ -142,16 +142,19 @@ def _pc_session(tmp_path) -> list[tuple[float, bytes]]:
 @pytest.mark.serial  # the session is recorded in real time on a pty
 def test_replies_and_ticks_timed_in_c_reach_the_firmware_as_the_models_events(image, tmp_path):
     # the servos' replies reach USART1's receiver in C (RXNE at each stop bit, PB5 looked
-    # at then) and SysTick steps to zero in C: the same session (a gait uploaded, played
-    # and stopped) must give the same bytes on the bus at the same times, the same
-    # instruction count, sleeps and exception entries as with the models' events
+    # at then), SysTick steps to zero in C and GPIOB's pin writes are served in C: the
+    # same session (a gait uploaded, played and stopped) must give the same bytes on the
+    # bus at the same times, the same instruction count, sleeps and exception entries as
+    # with the models' events and GPIOB's model (a listener takes every write there)
     sends = _pc_session(tmp_path)
     runs = []
     for in_c in (True, False):
         bus = replace(SimOptions.from_query(""), robot="snake5").build_bus()
         board = Cm530(image, bus=bus)
+        turns: list[tuple[int, bool]] = []
         if not in_c:
             board.mcu.time_events_in_python()
+            board.mcu.gpio["B"].listen(lambda pin, level, turns=turns: turns.append((pin, level)))
         out: list[tuple[int, float]] = []
         usart1 = board.mcu.usart1
         on_tx = usart1.on_tx
@@ -176,6 +179,7 @@ def test_replies_and_ticks_timed_in_c_reach_the_firmware_as_the_models_events(im
     in_c, python = runs
     stats = in_c[2]
     assert stats.sent > 500 and stats.received > 300 and stats.blocked == 0
+    assert turns.count((BUS_RX_ENABLE, True)) > 50  # the buffer turned for each reply
     assert in_c == python
 
 

@@ -1,5 +1,6 @@
 /* See mcu_count.h. */
 #include "mcu_count.h"
+#include "mcu_gpio.h"
 #include "mcu_nvic.h"
 #include "mcu_systick.h"
 #include "mcu_usart.h"
@@ -115,7 +116,7 @@ uint64_t mcu_io_read(void *uc, uint64_t offset, unsigned size, void *io)
         f->armed = 3;
         return f->value;
     }
-    if (f->second_on && offset == f->second_offset && size == 4) {
+    if (f->kind == MCU_IO_USART_SR && f->second_on && offset == f->second_offset && size == 4) {
         return f->second;
     }
     uint64_t value;
@@ -144,6 +145,9 @@ void mcu_io_write(void *uc, uint64_t offset, unsigned size, uint64_t value, void
         return;
     }
     if (f->kind == MCU_IO_USART_SR && mcu_usart_write(f, offset, size, value)) {
+        return;
+    }
+    if (f->kind == MCU_IO_GPIO && mcu_gpio_write(f, offset, size, value)) {
         return;
     }
     ((mcu_write_fn)f->write_fallback)(uc, offset, size, value, 0);

@@ -67,7 +67,7 @@ double mcu_now(const mcu_counter *c);
                           * looks of its model (a full log stops the CPU) */
 
 typedef struct {
-    uint32_t kind;           /* MCU_IO_USART_SR, MCU_IO_IWDG_KR or MCU_IO_SCS */
+    uint32_t kind;           /* MCU_IO_USART_SR, MCU_IO_IWDG_KR, MCU_IO_SCS or MCU_IO_GPIO */
     uint32_t value;          /* USART: SR, kept current by the model */
     uint32_t armed;          /* USART: bit 0 = error flags, bit 1 = TC (set by an SR read) */
     uint32_t second_offset;  /* a second register read here (a USART's CR1) ... */
@@ -118,11 +118,18 @@ typedef struct {
     uint64_t rx_heard;     /* taken while rx_listens */
     uint64_t rx_received;  /* heard with the receiver on (UE and RE): receive()'s count */
     uint64_t rx_overruns;  /* of those, lost to a full RDR (ORE) */
+    /* A GPIO port (mcu_gpio.h): `value` is ODR, `second_on` its clock */
+    uint32_t outputs;      /* the pins that are GPIO outputs (not alternate function) */
+    uint32_t python_only;  /* the model serves every write (something listens to the pins) */
+    void *rx_usart;        /* the mcu_fast_io whose rx_listens these pins set, or NULL: ... */
+    uint32_t listen_high;  /* ... while these pins are outputs driven high ... */
+    uint32_t listen_low;   /* ... and these outputs driven low */
 } mcu_fast_io;
 
 #define MCU_IO_USART_SR 1
 #define MCU_IO_IWDG_KR 2
 #define MCU_IO_SCS 3
+#define MCU_IO_GPIO 4
 #define MCU_SCS_SYSTICK 0x10 /* SysTick's registers from the system control space's base */
 
 uint64_t mcu_io_read(void *uc, uint64_t offset, unsigned size, void *io);

@@ -114,14 +114,14 @@ class Cm530:
         self._arrival: Event | None = None
         self._buffer_states: dict[tuple[int, int, int, int], tuple[bool, bool]] = {}
         self._rx_taken = self._rx_heard = 0  # of the replies' bytes USART1 took in C
-        self.mcu.gpio["B"].on_write = self._buffer_changed
+        # USART1's receiver in C hears the bus while PB5 listens (mcu_gpio.h)
+        self.mcu.gpio["B"].link_receive_enable(self.mcu.usart1.fast, BUS_RX_ENABLE, BUS_TX_ENABLE)
         self._apply_leftovers()
         self._start_application("power")
 
     # -- start-up ----------------------------------------------------------------------------
 
     def _start_application(self, kind: str) -> None:
-        self._buffer_changed()  # a reset leaves the pins floating
         self.mcu.boot(APP_BASE)
         left = self.leftovers
         if kind == "power" and (left.primask or left.usart3_pending or left.systick):
@@ -185,10 +185,6 @@ class Cm530:
             listens = port.output(BUS_RX_ENABLE) is True and port.output(BUS_TX_ENABLE) is False
             known = self._buffer_states[key] = (drives, listens)
         return known
-
-    def _buffer_changed(self) -> None:
-        """GPIOB was written: USART1's receiver in C hears the bus while PB5 listens."""
-        self.mcu.usart1.fast.rx_listens = self._receiver_listens()
 
     def _bus_tx(self, byte: int, start: float, end: float, baud: float) -> None:
         drives = self._buffer_drives()

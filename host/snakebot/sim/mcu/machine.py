@@ -294,6 +294,8 @@ class Stm32f103:
     def _clock_gates_changed(self) -> None:
         self.usart1.clock_changed()
         self.usart3.clock_changed()
+        for port in self.gpio.values():
+            port.clock_changed()
 
     def _clocks_changed(self, clocks: Clocks) -> None:
         self._rebase()

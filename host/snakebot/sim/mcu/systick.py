@@ -18,7 +18,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from snakebot.core import ffi, lib
-from snakebot.sim.mcu.regs import Clock, Peripheral
+from snakebot.sim.mcu.regs import Clock, Peripheral, kept_in
 from snakebot.sim.mcu.schedule import Event, Scheduler
 
 BASE = 0xE000E010
@@ -26,18 +26,6 @@ CSR, RVR, CVR, CALIB = 0x0, 0x4, 0x8, 0xC
 ENABLE, TICKINT, CLKSOURCE, COUNTFLAG = 1 << 0, 1 << 1, 1 << 2, 1 << 16
 CALIB_VALUE = 9000
 MAX = 0x00FF_FFFF
-
-
-def _kept_in_c(name: str) -> property:
-    """The field ``name`` of the model's ``mcu_systick`` as an attribute."""
-
-    def get(self: SysTick) -> int | float:
-        return getattr(self.c, name)
-
-    def put(self: SysTick, value: float) -> None:
-        setattr(self.c, name, value)
-
-    return property(get, put)
 
 
 class SysTick(Peripheral):
@@ -79,11 +67,11 @@ class SysTick(Peripheral):
 
     # -- the state, kept in ``c`` ---------------------------------------------------------
 
-    csr = _kept_in_c("csr")
-    rvr = _kept_in_c("rvr")
-    _value = _kept_in_c("value")
-    _anchor = _kept_in_c("anchor")
-    hclk_hz = _kept_in_c("hclk_hz")
+    csr = kept_in("c", "csr")
+    rvr = kept_in("c", "rvr")
+    _value = kept_in("c", "value")
+    _anchor = kept_in("c", "anchor")
+    hclk_hz = kept_in("c", "hclk_hz")
 
     @property
     def fired(self) -> int:

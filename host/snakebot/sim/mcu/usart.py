@@ -34,7 +34,7 @@ from collections import deque
 from collections.abc import Callable
 
 from snakebot.core import ffi, lib
-from snakebot.sim.mcu.regs import Clock, Peripheral
+from snakebot.sim.mcu.regs import Clock, Peripheral, kept_in
 from snakebot.sim.mcu.schedule import Event, Scheduler
 
 SR, DR, BRR, CR1, CR2, CR3, GTPR = range(0, 0x1C, 4)
@@ -112,29 +112,9 @@ class Usart(Peripheral):
 
     # -- the state, kept in ``fast`` (C serves some accesses from there) --------------------
 
-    @property
-    def sr(self) -> int:
-        return int(self.fast.value)
-
-    @sr.setter
-    def sr(self, value: int) -> None:
-        self.fast.value = value
-
-    @property
-    def cr1(self) -> int:
-        return int(self.fast.second)
-
-    @cr1.setter
-    def cr1(self, value: int) -> None:
-        self.fast.second = value
-
-    @property
-    def rdr(self) -> int:
-        return int(self.fast.rdr)
-
-    @rdr.setter
-    def rdr(self, value: int) -> None:
-        self.fast.rdr = value
+    sr = kept_in("fast", "value")
+    cr1 = kept_in("fast", "second")
+    rdr = kept_in("fast", "rdr")
 
     @property
     def tdr(self) -> int | None:

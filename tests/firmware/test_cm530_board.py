@@ -14,13 +14,14 @@ from dataclasses import replace
 
 import pytest
 import serial
-from controller_cli_support import SNAKE5_IDS, cli, save, wave_table
+from controller_cli_support import SNAKE5_IDS, cli, cli_json, save, wave_table
 
 from snakebot.facts.boards import PC_LINK_BAUD, WATCHDOG_MS
 from snakebot.firmware import image as firmware_image
-from snakebot.sim.mcu.board import Cm530, Leftovers
+from snakebot.sim.mcu.board import BUS_RX_ENABLE, Cm530, Leftovers
 from snakebot.sim.mcu.runner import QUIET_AFTER_S, QUIET_STEP_S, STEP_S, McuFirmware
 from snakebot.sim.options import SimOptions
+from snakebot.sim.serve import EmulatedRobot
 
 pytest.importorskip("unicorn")
 
@@ -29,6 +30,7 @@ LSI_FASTEST_HZ = 60_000  # the datasheet's range is 30..60 kHz
 STACK_PAINT = 0x5AC3A55A  # hal_startup.c paints free RAM with it
 PING = bytes([0xFF, 0xFF, 200, 2, 1, (~(200 + 2 + 1)) & 0xFF])
 PONG = bytes([0xFF, 0xFF, 200, 2, 0, (~(200 + 2)) & 0xFF])
+SLOW_HOST = {"SNAKEBOT_MARGIN_MS": "3000"}  # the emulated board shares a loaded machine
 
 
 @pytest.fixture(scope="module")
@@ -105,7 +107,7 @@ def test_frames_timed_in_c_leave_as_the_models_events_send_them(image):
     for in_c in (True, False):
         board = Cm530(image, leftovers=Leftovers(pll=True))
         if not in_c:
-            board.mcu.time_usarts_in_python()
+            board.mcu.time_events_in_python()
         out: list[tuple[int, float]] = []
         board.mcu.usart3.on_tx = lambda b, s, e, baud, out=out: out.append((b, s))
         board.run_until(0.05)
@@ -117,6 +119,68 @@ def test_frames_timed_in_c_leave_as_the_models_events_send_them(image):
     (out, count, sleeps, entries), python = runs
     assert len(out) == 20 * len(PONG) and bytes(b for b, _ in out) == 20 * PONG
     assert (out, count, sleeps, entries) == python
+
+
+def _pc_session(tmp_path) -> list[tuple[float, bytes]]:
+    """What the PC sent, and when on the board's clock, to upload a wave and play it on
+    `sim serve`'s cm530 board for a while."""
+    sends: list[tuple[float, bytes]] = []
+    with EmulatedRobot("snake5", board="cm530") as robot:
+        with robot.lock:
+            board = robot._mcu.board  # noqa: SLF001 - a tap on the PC link
+            pc_send = board.pc_send
+            board.pc_send = lambda data: (sends.append((board.now(), data)), pc_send(data))
+        port = robot.info.pc_link
+        cli_json("upload", save(wave_table(), tmp_path), "--port", port, env=SLOW_HOST)
+        assert cli_json("play", "--port", port, env=SLOW_HOST)["state"] == "PLAYING"
+        time.sleep(0.3)
+        assert cli_json("stop", "--port", port, env=SLOW_HOST)["state"] == "IDLE"
+    return sends
+
+
+@pytest.mark.slow
+@pytest.mark.serial  # the session is recorded in real time on a pty
+def test_replies_and_ticks_timed_in_c_reach_the_firmware_as_the_models_events(image, tmp_path):
+    # the servos' replies reach USART1's receiver in C (RXNE at each stop bit, PB5 looked
+    # at then), SysTick steps to zero in C and GPIOB's pin writes are served in C: the
+    # same session (a gait uploaded, played and stopped) must give the same bytes on the
+    # bus at the same times, the same instruction count, sleeps and exception entries as
+    # with the models' events and GPIOB's model (a listener takes every write there)
+    sends = _pc_session(tmp_path)
+    runs = []
+    for in_c in (True, False):
+        bus = replace(SimOptions.from_query(""), robot="snake5").build_bus()
+        board = Cm530(image, bus=bus)
+        turns: list[tuple[int, bool]] = []
+        if not in_c:
+            board.mcu.time_events_in_python()
+            board.mcu.gpio["B"].listen(lambda pin, level, turns=turns: turns.append((pin, level)))
+        out: list[tuple[int, float]] = []
+        usart1 = board.mcu.usart1
+        on_tx = usart1.on_tx
+        usart1.on_tx = lambda b, s, e, baud, out=out, on_tx=on_tx: (
+            out.append((b, s)),
+            on_tx(b, s, e, baud),
+        )
+        for t, data in sends:
+            board.run_until(t)
+            board.pc_send(data)
+        board.run_until(board.now() + 0.05)
+        m = board.mcu
+        runs.append(
+            (
+                out,
+                bytes(board.pc_out),
+                board.bus_stats,
+                (usart1.received, usart1.overruns, m.systick.fired),
+                (m.cpu.count, m.cpu.sleeps, m.nvic.c.entries),
+            )
+        )
+    in_c, python = runs
+    stats = in_c[2]
+    assert stats.sent > 500 and stats.received > 300 and stats.blocked == 0
+    assert turns.count((BUS_RX_ENABLE, True)) > 50  # the buffer turned for each reply
+    assert in_c == python
 
 
 def test_in_real_time_the_thread_runs_whole_steps_not_a_spin(image):
@@ -162,8 +226,7 @@ def test_the_watchdog_is_never_starved_by_a_32k_library_store(image, tmp_path):
     with McuFirmware(image, bus=bus) as fw:
         fw.board.mcu.iwdg.lsi_hz = LSI_FASTEST_HZ  # the shortest timeout the chip can have
         time.sleep(0.3)
-        env = {"SNAKEBOT_MARGIN_MS": "3000"}
-        result = cli("library", "store", "0", str(path), "--port", fw.pc_link, env=env)
+        result = cli("library", "store", "0", str(path), "--port", fw.pc_link, env=SLOW_HOST)
         assert result.exit_code == 0, result.output
         with fw.lock:
             m = fw.board.mcu

@@ -171,6 +171,27 @@ class MasterPort(BusState):
         times.sort()
         return times[min(count, len(times)) - 1]
 
+    def master_coming(self, before: float, limit: int) -> tuple[bytes, list[float], float | None]:
+        """What :meth:`master_read` will give byte by byte of the one stream on its way
+        to the master, as long as nothing else is put on the wire: its unread bytes that
+        are complete before ``before`` (at most ``limit``), when each is, and when the
+        next one after them is (None: no more). Nothing (and None) while several streams
+        are on their way (a collision, an echo: their bytes merge as they come)."""
+        streams = self._master_rx
+        if len(streams) != 1:
+            return b"", [], None
+        h = streams[0]
+        n = len(h.data)
+        end = h.pos
+        times = []
+        while end < n and end - h.pos < limit:
+            t = h.arrival(end)
+            if not t < before:
+                break
+            times.append(t)
+            end += 1
+        return bytes(h.data[h.pos : end]), times, (h.arrival(end) if end < n else None)
+
     def master_read(self, size: int) -> bytes:
         """Up to ``size`` bytes that have reached the master, oldest first."""
         streams = self._master_rx

@@ -1,6 +1,8 @@
 /* See mcu_count.h. */
 #include "mcu_count.h"
+#include "mcu_gpio.h"
 #include "mcu_nvic.h"
+#include "mcu_systick.h"
 #include "mcu_usart.h"
 
 double mcu_time_at(const mcu_counter *c, uint64_t count)
@@ -45,6 +47,13 @@ static void count_at_limit_or_site(void *uc, uint64_t address, uint32_t size, mc
     }
     if (c->count >= c->limit && c->pending == 0 && mcu_time_at(c, c->count) < c->stop_at) {
         c->limit = c->count + 1; /* short of stop_at by a rounding (see mcu_count.h) */
+    }
+    if (c->take_next && c->count < c->limit) {
+        c->take_next = 0;
+        mcu_timed_plan(c); /* event_count back to the timed events' */
+        if (c->nvic != 0 && mcu_nvic_after_unmask(uc, (mcu_nvic *)c->nvic) > 0) {
+            return; /* this instruction runs on the handler's return */
+        }
     }
     if (c->count >= c->limit) {
         /* the hook runs before the instruction: stopping here leaves it unexecuted */
@@ -107,11 +116,16 @@ uint64_t mcu_io_read(void *uc, uint64_t offset, unsigned size, void *io)
         f->armed = 3;
         return f->value;
     }
-    if (f->second_on && offset == f->second_offset && size == 4) {
+    if (f->kind == MCU_IO_USART_SR && f->second_on && offset == f->second_offset && size == 4) {
         return f->second;
     }
     uint64_t value;
     if (f->kind == MCU_IO_USART_SR && mcu_usart_read(f, offset, size, &value)) {
+        return value;
+    }
+    if (f->kind == MCU_IO_SCS && f->systick != 0 && offset >= MCU_SCS_SYSTICK &&
+        mcu_systick_read((mcu_systick *)f->systick, mcu_now(f->counter),
+                         offset - MCU_SCS_SYSTICK, size, &value)) {
         return value;
     }
     return ((mcu_read_fn)f->read_fallback)(uc, offset, size, 0);
@@ -131,6 +145,9 @@ void mcu_io_write(void *uc, uint64_t offset, unsigned size, uint64_t value, void
         return;
     }
     if (f->kind == MCU_IO_USART_SR && mcu_usart_write(f, offset, size, value)) {
+        return;
+    }
+    if (f->kind == MCU_IO_GPIO && mcu_gpio_write(f, offset, size, value)) {
         return;
     }
     ((mcu_write_fn)f->write_fallback)(uc, offset, size, value, 0);
@@ -266,6 +283,7 @@ int mcu_keep_pc(void *uc, mcu_exceptions *x)
 int mcu_run(void *uc, mcu_exceptions *x, mcu_counter *c, uint64_t instructions)
 {
     c->limit = c->count + instructions;
+    c->take_next = 0; /* the machine took what was due before this run */
     mcu_timed_plan(c);
     uint32_t pc = mcu_reg(uc, x, x->frame[FRAME_PC]) | 1u;
     c->running = 1;

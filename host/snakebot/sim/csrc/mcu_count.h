@@ -40,8 +40,11 @@ typedef struct {
     uint64_t event_count;  /* the count at which the earliest is due (UINT64_MAX: none) */
     void *timed[2];        /* the mcu_fast_io of each USART timed here */
     uint32_t n_timed;
+    void *systick;         /* the mcu_systick timed here (mcu_systick.h), or NULL */
     uint32_t undrained;    /* a timed USART has something to tell its model (mcu_usart.h) */
     uint64_t sleeps;       /* wfi instructions that slept, here or in the model */
+    uint32_t take_next;    /* an exception became takeable during the run (mcu_nvic_changed):
+                            * the hook takes it before the next instruction */
 } mcu_counter;
 
 /* The machine's time (s) when the count is `count`: t0 + (count - c0) / hz. */
@@ -59,11 +62,12 @@ double mcu_now(const mcu_counter *c);
  * time of the feed), on every pass of the firmware's main loop: in Python those accesses
  * would cost more than the rest of the emulation. A USART's CR1 is read here too (the
  * interrupt handler reads it on every byte). */
+#define MCU_USART_RXQ 64 /* bytes the far end sends that can wait for their time here */
 #define MCU_USART_LOG 64 /* bytes a USART's shift register timed in C starts between two
                           * looks of its model (a full log stops the CPU) */
 
 typedef struct {
-    uint32_t kind;           /* MCU_IO_USART_SR or MCU_IO_IWDG_KR */
+    uint32_t kind;           /* MCU_IO_USART_SR, MCU_IO_IWDG_KR, MCU_IO_SCS or MCU_IO_GPIO */
     uint32_t value;          /* USART: SR, kept current by the model */
     uint32_t armed;          /* USART: bit 0 = error flags, bit 1 = TC (set by an SR read) */
     uint32_t second_offset;  /* a second register read here (a USART's CR1) ... */
@@ -99,10 +103,34 @@ typedef struct {
     uint32_t logged;    /* bytes started here and not yet handed on by the model */
     uint8_t log_byte[MCU_USART_LOG];
     double log_start[MCU_USART_LOG];
+    void *systick;      /* SCS: the mcu_systick whose CSR and CVR reads are served here */
+    /* The far end's bytes whose stop bits are known to come at rx_at (a servo's reply on
+     * the bus), handed to the receiver here, in order, at those times (the counter's timed
+     * events): heard if rx_listens (the board's receive enable) is set then, as the
+     * model's receive(); the model reads the counts and the last one's time. */
+    uint32_t rx_listens;
+    uint32_t rx_head;   /* the next one's index in the ring */
+    uint32_t rx_count;  /* how many are still to come */
+    uint8_t rx_byte[MCU_USART_RXQ];
+    double rx_at[MCU_USART_RXQ];
+    uint64_t rx_taken;     /* bytes taken from the queue (heard or not) */
+    double rx_taken_at;    /* the last one's time */
+    uint64_t rx_heard;     /* taken while rx_listens */
+    uint64_t rx_received;  /* heard with the receiver on (UE and RE): receive()'s count */
+    uint64_t rx_overruns;  /* of those, lost to a full RDR (ORE) */
+    /* A GPIO port (mcu_gpio.h): `value` is ODR, `second_on` its clock */
+    uint32_t outputs;      /* the pins that are GPIO outputs (not alternate function) */
+    uint32_t python_only;  /* the model serves every write (something listens to the pins) */
+    void *rx_usart;        /* the mcu_fast_io whose rx_listens these pins set, or NULL: ... */
+    uint32_t listen_high;  /* ... while these pins are outputs driven high ... */
+    uint32_t listen_low;   /* ... and these outputs driven low */
 } mcu_fast_io;
 
 #define MCU_IO_USART_SR 1
 #define MCU_IO_IWDG_KR 2
+#define MCU_IO_SCS 3
+#define MCU_IO_GPIO 4
+#define MCU_SCS_SYSTICK 0x10 /* SysTick's registers from the system control space's base */
 
 uint64_t mcu_io_read(void *uc, uint64_t offset, unsigned size, void *io);
 void mcu_io_write(void *uc, uint64_t offset, unsigned size, uint64_t value, void *io);

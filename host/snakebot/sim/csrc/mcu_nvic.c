@@ -57,13 +57,10 @@ void mcu_nvic_changed(mcu_nvic *n)
     }
     c->pending = 1;
     if (c->running && mcu_nvic_best(n) >= 0) {
-        /* stop before the next instruction and let the machine look */
-        if (c->count < c->limit) {
-            c->limit = c->count;
-        }
-        if (c->stop_at > 0.0) {
-            c->stop_at = 0.0;
-        }
+        /* taken before the next instruction, from the counting hook, as after an unmask
+         * (mcu_count.c; the CPU stops there instead inside an IT block) */
+        c->take_next = 1;
+        c->event_count = c->count;
     }
 }
 

@@ -2,6 +2,7 @@
 #include "mcu_usart.h"
 
 #include "mcu_nvic.h"
+#include "mcu_systick.h"
 
 #define SR 0x0u
 #define DR 0x4u
@@ -95,6 +96,45 @@ static int timed_here(const mcu_fast_io *f)
     return f->nvic != 0 && f->shifting && f->frame_s > 0.0;
 }
 
+/* The next byte from the far end, when timed here (a negative number if none). */
+static double rx_next(const mcu_fast_io *f)
+{
+    return f->nvic != 0 && f->rx_count ? f->rx_at[f->rx_head] : -1.0;
+}
+
+/* Its stop bit is in: as usart.py's receive(), if the receiver listens. */
+static void rx_arrive(mcu_fast_io *f)
+{
+    uint8_t byte = f->rx_byte[f->rx_head];
+    f->rx_taken_at = f->rx_at[f->rx_head];
+    f->rx_head = (f->rx_head + 1u) % MCU_USART_RXQ;
+    f->rx_count--;
+    f->rx_taken++;
+    if (!f->rx_listens) {
+        return;
+    }
+    f->rx_heard++;
+    if (!((f->second & CR1_UE) && (f->second & CR1_RE))) {
+        return;
+    }
+    f->rx_received++;
+    if (f->value & RXNE) {
+        f->value |= ORE;
+        f->rx_overruns++;
+    } else {
+        f->rdr = byte;
+        f->value |= RXNE;
+    }
+    mcu_usart_update_irq(f);
+}
+
+/* SysTick's step to zero, when timed here (a negative number if not). */
+static double systick_next(const mcu_counter *c)
+{
+    const mcu_systick *s = (const mcu_systick *)c->systick;
+    return s != 0 && s->nvic != 0 && s->armed ? s->zero_at : -1.0;
+}
+
 double mcu_timed_next(const mcu_counter *c)
 {
     double next = -1.0;
@@ -103,6 +143,14 @@ double mcu_timed_next(const mcu_counter *c)
         if (timed_here(f) && (next < 0.0 || f->shift_end < next)) {
             next = f->shift_end;
         }
+        double rx = rx_next(f);
+        if (rx >= 0.0 && (next < 0.0 || rx < next)) {
+            next = rx;
+        }
+    }
+    double tick = systick_next(c);
+    if (tick >= 0.0 && (next < 0.0 || tick < next)) {
+        next = tick;
     }
     return next;
 }
@@ -126,7 +174,7 @@ void mcu_timed_plan(mcu_counter *c)
 {
     double t = mcu_timed_next(c);
     if (t < 0.0) {
-        c->event_count = UINT64_MAX;
+        c->event_count = c->take_next ? c->count : UINT64_MAX;
         return;
     }
     uint64_t k = cycles_to(c, t);
@@ -134,6 +182,9 @@ void mcu_timed_plan(mcu_counter *c)
         k = 1; /* short by a rounding: look again after the next instruction */
     }
     c->event_count = c->count + k;
+    if (c->take_next) {
+        c->event_count = c->count; /* an exception to take first (mcu_nvic_changed) */
+    }
 }
 
 /* The shift register is done with its frame (at shift_end): TDR's byte moves in (TXE set,
@@ -167,12 +218,31 @@ int mcu_timed_run(mcu_counter *c, double now)
 {
     int need = 0;
     for (;;) {
-        mcu_fast_io *due = 0;
+        mcu_fast_io *due = 0, *rx = 0;
+        double rx_at = 0.0;
         for (uint32_t i = 0; i < c->n_timed; i++) {
             mcu_fast_io *f = (mcu_fast_io *)c->timed[i];
             if (timed_here(f) && f->shift_end <= now && (due == 0 || f->shift_end < due->shift_end)) {
                 due = f;
             }
+            double t = rx_next(f);
+            if (t >= 0.0 && t <= now && (rx == 0 || t < rx_at)) {
+                rx = f;
+                rx_at = t;
+            }
+        }
+        if (rx != 0 && (due == 0 || rx_at < due->shift_end)) {
+            if (rx->logged && rx_at > rx->log_start[0]) {
+                need = 1; /* a byte started since: the model puts it on the wire first */
+                break;
+            }
+            rx_arrive(rx); /* ties: the frames first */
+            continue;
+        }
+        double tick = systick_next(c);
+        if (tick >= 0.0 && tick <= now && (due == 0 || tick < due->shift_end)) {
+            mcu_systick_zero((mcu_systick *)c->systick); /* ties: the frames first */
+            continue;
         }
         if (due == 0) {
             break;
@@ -236,8 +306,10 @@ int mcu_timed_sleep(void *uc, mcu_counter *c, uint64_t address)
         if (t > now) {
             c->t0 += t - now; /* asleep: time jumps to the event */
         }
+        double stop_at = c->stop_at;
         int need = mcu_timed_run(c, mcu_now(c));
-        uint64_t k = cycles_to(c, c->stop_at);
+        c->stop_at = stop_at; /* a line it raised stopped the CPU: taken here instead */
+        uint64_t k = cycles_to(c, stop_at);
         c->limit = c->count + (k > 0 ? k : 1);
         if (need) {
             return 0;

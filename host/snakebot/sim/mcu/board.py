@@ -19,9 +19,11 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from snakebot.core import lib
 from snakebot.facts.boards import APP_BASE, FLASH_PAGE_SIZE, HSE_HZ
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.mcu import gpio, rcc, systick, usart
@@ -111,6 +113,9 @@ class Cm530:
         self._bus_step: Event | None = None
         self._arrival: Event | None = None
         self._buffer_states: dict[tuple[int, int, int, int], tuple[bool, bool]] = {}
+        self._rx_taken = self._rx_heard = 0  # of the replies' bytes USART1 took in C
+        # USART1's receiver in C hears the bus while PB5 listens (mcu_gpio.h)
+        self.mcu.gpio["B"].link_receive_enable(self.mcu.usart1.fast, BUS_RX_ENABLE, BUS_TX_ENABLE)
         self._apply_leftovers()
         self._start_application("power")
 
@@ -216,6 +221,7 @@ class Cm530:
             return
         bus = self.bus
         assert bus is not None
+        self._settle_rx()  # the bytes heard so far are read before the wire changes
         bus.master_write(bytes(data))
         data.clear()
         self._plan_bus()
@@ -225,7 +231,9 @@ class Cm530:
         bus = self.bus
         assert bus is not None
         scheduler = self.mcu.scheduler
+        self._settle_rx()
         t = bus.next_event_time()
+        arrival = self._hand_rx(t) if self.mcu.usart1.timed_in_c else None
         if t is not None and t > bus.master_tx_done + REPLY_HORIZON_S:
             t = None  # nothing the firmware can hear: it runs later, in order
         if self._bus_step is not None and (t is None or self._bus_step.time != t):
@@ -233,12 +241,47 @@ class Cm530:
             self._bus_step = None
         if t is not None and self._bus_step is None:
             self._bus_step = scheduler.at(max(t, self.mcu.now()), self._step_bus)
-        arrival = bus.next_master_arrival(1) if bus.master_in_waiting() == 0 else bus.now
+        if not self.mcu.usart1.timed_in_c:
+            arrival = bus.next_master_arrival(1) if bus.master_in_waiting() == 0 else bus.now
         if self._arrival is not None and (arrival is None or self._arrival.time != arrival):
             self._arrival.cancel()
             self._arrival = None
         if arrival is not None and self._arrival is None:
             self._arrival = scheduler.at(max(arrival, self.mcu.now()), self._deliver)
+
+    def _hand_rx(self, bus_event: float | None) -> float | None:
+        """Hand USART1's receiver, in C, the bytes on their way from the servos that
+        nothing can change before they arrive: before the bus's next event
+        (``bus_event``) and before a master byte the bus has not been given (the first
+        one the firmware sends after them stops the CPU for the model, mcu_usart.c).
+        Returns when the first byte not handed arrives (None: none), for :meth:`_deliver`."""
+        bus, usart1 = self.bus, self.mcu.usart1
+        assert bus is not None
+        usart1.forget_expected()  # handed again from where the bus stands
+        before = math.inf if bus_event is None else bus_event
+        if self._tx_bytes and self._tx_start < before:
+            before = self._tx_start
+        data, times, after = bus.master_coming(before, lib.MCU_USART_RXQ)
+        if data:
+            usart1.expect(data, times)
+        return after
+
+    def _settle_rx(self) -> None:
+        """Read from the bus the bytes USART1 took in C since the last look, and count
+        them (each was heard, or arrived with PB5 low)."""
+        fast = self.mcu.usart1.fast
+        n = fast.rx_taken - self._rx_taken
+        if not n:
+            return
+        heard = fast.rx_heard - self._rx_heard
+        self._rx_taken, self._rx_heard = fast.rx_taken, fast.rx_heard
+        bus = self.bus
+        assert bus is not None
+        if fast.rx_taken_at > bus.now:
+            bus.run_until(fast.rx_taken_at)  # nothing of the bus's is due before (_hand_rx)
+        bus.master_read(n)
+        self.bus_stats.received += heard
+        self.bus_stats.deaf += n - heard
 
     def _run_bus(self, t: float) -> None:
         """Run the bus until ``t``, given the bytes USART1 has sent first if ``t`` is past
@@ -261,6 +304,7 @@ class Cm530:
         self._arrival = None
         bus = self.bus
         assert bus is not None
+        self._settle_rx()
         self._run_bus(t)
         data = bus.master_read(1)
         if data:

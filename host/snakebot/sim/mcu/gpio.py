@@ -18,8 +18,9 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from snakebot.core import ffi, lib
 from snakebot.sim.mcu.errors import UnmodelledAccess
-from snakebot.sim.mcu.regs import Peripheral
+from snakebot.sim.mcu.regs import Peripheral, kept_in
 
 GPIO_BASES = {"A": 0x40010800, "B": 0x40010C00, "C": 0x40011000, "D": 0x40011400}
 AFIO_BASE = 0x40010000
@@ -55,14 +56,35 @@ class GpioPort(Peripheral):
         self._listeners: list[PinListener] = []
         self._output_masks: dict[tuple[int, int], int] = {}  # _outputs' mask by CRL, CRH
         self.external: dict[int, bool] = {}  # pins driven from outside
+        self.fast = ffi.new("mcu_fast_io *")  # ODR, and its writes served in C (mcu_gpio.h)
+        self.fast.kind = lib.MCU_IO_GPIO
         self.reset()
 
     def reset(self) -> None:
         self.cr = [CR_RESET, CR_RESET]
         self.odr = 0
+        self._pins_changed()
+
+    odr = kept_in("fast", "value")  # C writes it too (mcu_gpio.h)
+
+    def link_receive_enable(self, usart_fast: object, high: int, low: int) -> None:
+        """Keep ``usart_fast.rx_listens`` (an ``mcu_fast_io`` of a USART) set while pin
+        ``high`` is an output driven high and pin ``low`` one driven low."""
+        fast = self.fast
+        fast.rx_usart, fast.listen_high, fast.listen_low = usart_fast, 1 << high, 1 << low
+        self._pins_changed()
+
+    def clock_changed(self) -> None:
+        """The RCC's enable bits were written: C serves writes only while the clock is on."""
+        self.fast.second_on = self.clock_on()
+
+    def _pins_changed(self) -> None:
+        self.fast.outputs = self._outputs()[0]
+        lib.mcu_gpio_changed(self.fast)
 
     def listen(self, listener: PinListener) -> None:
         self._listeners.append(listener)
+        self.fast.python_only = 1  # every write through write(), which tells the listeners
 
     def mode(self, pin: int) -> int:
         """The pin's four configuration bits (CNF:MODE)."""
@@ -144,6 +166,8 @@ class GpioPort(Peripheral):
         else:
             self.unknown(offset, size, value)
             return
+        self.clock_changed()
+        self._pins_changed()
         if not self._listeners:
             return
         mask, levels = self._outputs()

@@ -119,6 +119,8 @@ class Stm32f103:
             strict=strict,
         )
         self.nvic.systick = self.systick
+        self.systick.time_in_c(self._clock, self.nvic.c, SYSTICK)  # its step to zero in C
+        self.nvic.fast.systick = self.systick.c  # its CSR and CVR reads in C
         self.nvic.strict = strict
         self.rcc = Rcc(self.scheduler, self.now, hse_hz=hse_hz, strict=strict)
         self.flash = FlashInterface(
@@ -265,16 +267,17 @@ class Stm32f103:
         for u in self._usarts:
             u.drain()
 
-    def time_usarts_in_python(self) -> None:
-        """The USARTs' frames timed by their models' events rather than in C (a test
-        compares the two)."""
+    def time_events_in_python(self) -> None:
+        """The USARTs' frames and SysTick's steps to zero timed by their models' events
+        rather than in C (a test compares the two)."""
         self._clock.n_timed = 0
         for u in self._usarts:
             u.time_in_c(None)
+        self.systick.time_in_c(None, None, SYSTICK)
 
     def run_events(self, now: float) -> None:
-        """Run every event due by ``now``: the ones timed in C first (the USARTs' frames),
-        then the scheduler's."""
+        """Run every event due by ``now``: the ones timed in C first (the USARTs' frames,
+        SysTick's steps to zero), then the scheduler's."""
         clock = self._clock
         while lib.mcu_timed_run(clock, now):
             self._drain()
@@ -291,6 +294,8 @@ class Stm32f103:
     def _clock_gates_changed(self) -> None:
         self.usart1.clock_changed()
         self.usart3.clock_changed()
+        for port in self.gpio.values():
+            port.clock_changed()
 
     def _clocks_changed(self, clocks: Clocks) -> None:
         self._rebase()

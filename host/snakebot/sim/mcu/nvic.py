@@ -28,7 +28,8 @@ PRIO_MASK = (0xFF << (8 - PRIO_BITS)) & 0xFF
 NO_PRIORITY = 256  # thread mode with nothing active
 
 CPUID_VALUE = 0x411FC231  # Cortex-M3 r1p1, as in the STM32F103
-ICTR, SYST_FIRST, SYST_LAST = 0x004, 0x010, 0x01F
+ICTR, SYST_FIRST = 0x004, lib.MCU_SCS_SYSTICK
+SYST_LAST = SYST_FIRST + 0xF
 ISER, ICER, ISPR, ICPR, IABR = 0x100, 0x180, 0x200, 0x280, 0x300
 IPR = IABR + 0x100  # the priority bytes
 CPUID, ICSR, VTOR, AIRCR, SCR, CCR, SHPR1, SHCSR = (
@@ -76,6 +77,8 @@ class Nvic(Peripheral):
         self.on_reset = on_reset or (lambda: None)
         self.c = ffi.new("mcu_nvic *")
         self.c.always = ALWAYS_ENABLED
+        self.fast = ffi.new("mcu_fast_io *")  # SysTick's CSR and CVR read in C (mcu_count.h)
+        self.fast.kind = lib.MCU_IO_SCS
         self.reset()
 
     def reset(self) -> None:

@@ -14,6 +14,19 @@ Clock = Callable[[], float]
 """Returns the machine's time now (seconds)."""
 
 
+def kept_in(struct: str, field: str) -> property:
+    """An attribute that lives in ``field`` of the cffi struct the model holds as
+    ``struct``, where the C side reads and writes it too."""
+
+    def get(self: object) -> int | float:
+        return getattr(getattr(self, struct), field)
+
+    def put(self: object, value: float) -> None:
+        setattr(getattr(self, struct), field, value)
+
+    return property(get, put)
+
+
 class Peripheral:
     """A block of registers at ``base`` (``size`` bytes)."""
 

@@ -6,14 +6,19 @@ COUNTFLAG and, with TICKINT, pends the SysTick exception; the step after 0 reloa
 A write to CVR clears it (and COUNTFLAG) without an exception; reading CSR clears
 COUNTFLAG. The counter's value is worked out from the time, so it is exact at every read.
 CALIB reads as the STM32's value (9000 counts of HCLK/8 in 1 ms at 72 MHz).
+
+The state lives in ``c`` (an ``mcu_systick``, mcu_systick.h), where the formulas are: on
+the chip the CPU's CSR and CVR reads are served there, and once the machine times it
+there (:meth:`SysTick.time_in_c`) the step to zero runs there too, at the instruction a
+scheduled event would run at; otherwise this model schedules it.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 
-from snakebot.sim.mcu.regs import Clock, Peripheral
+from snakebot.core import ffi, lib
+from snakebot.sim.mcu.regs import Clock, Peripheral, kept_in
 from snakebot.sim.mcu.schedule import Event, Scheduler
 
 BASE = 0xE000E010
@@ -42,34 +47,53 @@ class SysTick(Peripheral):
         self.scheduler = scheduler
         self.now = now
         self.pend = pend
-        self.hclk_hz = hclk_hz
+        self.c = ffi.new("mcu_systick *")
+        self.c.hclk_hz = hclk_hz
+        self._counter: object = None  # the machine's mcu_counter once timed in C
         self._zero: Event | None = None
-        self.fired = 0
         self.reset()
 
     def reset(self) -> None:
         if self._zero is not None:
             self._zero.cancel()
         self._zero = None
+        self.c.armed = 0
         self.csr = 0
         self.rvr = 0
         self._value = 0  # the counter when stopped, or at _anchor while it runs
         self._anchor = 0.0
+        if self._counter is not None:
+            lib.mcu_timed_plan(self._counter)
+
+    # -- the state, kept in ``c`` ---------------------------------------------------------
+
+    csr = kept_in("c", "csr")
+    rvr = kept_in("c", "rvr")
+    _value = kept_in("c", "value")
+    _anchor = kept_in("c", "anchor")
+    hclk_hz = kept_in("c", "hclk_hz")
+
+    @property
+    def fired(self) -> int:
+        """Steps to zero so far."""
+        return int(self.c.fired)
+
+    def time_in_c(self, counter: object, nvic: object, exception: int) -> None:
+        """Let the machine's instruction counter ``counter`` time the step to zero, in C,
+        pending ``exception`` in the C NVIC ``nvic`` (None: this model times it)."""
+        self._counter = counter
+        self.c.nvic = ffi.NULL if counter is None else nvic
+        self.c.exception = exception
+        if counter is not None:
+            counter.systick = self.c
+        self._rearm()
 
     def tick_s(self) -> float:
-        hz = self.hclk_hz if self.csr & CLKSOURCE else self.hclk_hz / 8
-        return 1.0 / hz
+        return float(lib.mcu_systick_tick_s(self.c))
 
     def value(self) -> int:
         """The counter now."""
-        if not self.csr & ENABLE:
-            return self._value
-        steps = math.floor((self.now() - self._anchor) / self.tick_s() + 1e-6)
-        if steps <= self._value:
-            return self._value - steps
-        if self.rvr == 0:
-            return 0
-        return self.rvr - (steps - self._value - 1) % (self.rvr + 1)
+        return int(lib.mcu_systick_value(self.c, self.now()))
 
     def _freeze(self) -> None:
         """Take the running count as the new starting point."""
@@ -81,24 +105,19 @@ class SysTick(Peripheral):
         if self._zero is not None:
             self._zero.cancel()
             self._zero = None
-        if not self.csr & ENABLE:
-            return
-        if self._value:
-            steps = self._value
-        elif self.rvr:
-            steps = self.rvr + 1
-        else:
-            return  # RVR 0: the counter stays at 0, no exception
-        self._zero = self.scheduler.at(self._anchor + steps * self.tick_s(), self._reached_zero)
+        c = self.c
+        lib.mcu_systick_rearm(c)
+        if self._counter is not None:
+            lib.mcu_timed_plan(self._counter)
+        elif c.armed:
+            self._zero = self.scheduler.at(c.zero_at, self._reached_zero)
 
     def _reached_zero(self, t: float) -> None:
         self._zero = None
-        self.fired += 1
-        self.csr |= COUNTFLAG
-        if self.csr & TICKINT:
+        tickint = self.csr & TICKINT
+        lib.mcu_systick_zero(self.c)  # COUNTFLAG, reload (no NVIC here: no pend)
+        if tickint:
             self.pend()
-        self._anchor = t
-        self._value = 0
         self._rearm()
 
     def set_hclk(self, hz: int) -> None:

@@ -34,7 +34,7 @@ from collections import deque
 from collections.abc import Callable
 
 from snakebot.core import ffi, lib
-from snakebot.sim.mcu.regs import Clock, Peripheral
+from snakebot.sim.mcu.regs import Clock, Peripheral, kept_in
 from snakebot.sim.mcu.schedule import Event, Scheduler
 
 SR, DR, BRR, CR1, CR2, CR3, GTPR = range(0, 0x1C, 4)
@@ -80,8 +80,8 @@ class Usart(Peripheral):
         self._on_idle: Callable[[float], None] | None = None
         self._counter: object = None  # the machine's mcu_counter once timed in C
         self.sent = 0
-        self.received = 0
-        self.overruns = 0
+        self._received = 0  # by receive(); the rest by the bytes expected in C
+        self._overruns = 0
         self.lost = 0  # bytes the far end sent while no rate was programmed (BRR unset)
         self.fast = ffi.new("mcu_fast_io *")  # SR as the CPU reads it (in C, see mcu_count.h)
         self.fast.kind = lib.MCU_IO_USART_SR
@@ -98,7 +98,7 @@ class Usart(Peripheral):
             if event is not None:
                 event.cancel()
         self._shift_end = self._feeding = None
-        self.fast.shifting = self.fast.logged = self.fast.idle = 0
+        self.fast.shifting = self.fast.logged = self.fast.idle = self.fast.rx_count = 0
         self._inbox.clear()
         self.sr = SR_RESET
         self.rdr = 0
@@ -112,29 +112,9 @@ class Usart(Peripheral):
 
     # -- the state, kept in ``fast`` (C serves some accesses from there) --------------------
 
-    @property
-    def sr(self) -> int:
-        return int(self.fast.value)
-
-    @sr.setter
-    def sr(self, value: int) -> None:
-        self.fast.value = value
-
-    @property
-    def cr1(self) -> int:
-        return int(self.fast.second)
-
-    @cr1.setter
-    def cr1(self, value: int) -> None:
-        self.fast.second = value
-
-    @property
-    def rdr(self) -> int:
-        return int(self.fast.rdr)
-
-    @rdr.setter
-    def rdr(self, value: int) -> None:
-        self.fast.rdr = value
+    sr = kept_in("fast", "value")
+    cr1 = kept_in("fast", "second")
+    rdr = kept_in("fast", "rdr")
 
     @property
     def tdr(self) -> int | None:
@@ -177,9 +157,6 @@ class Usart(Peripheral):
         self._counter = counter
         self.rate_changed()
 
-    def _timed_in_c(self) -> bool:
-        return self._counter is not None and bool(self.fast.nvic)
-
     def rate_changed(self) -> None:
         """BRR or the bus clock changed: the frames timed in C take the new rate."""
         baud = self.baud
@@ -217,14 +194,50 @@ class Usart(Peripheral):
 
     # -- the far end ------------------------------------------------------------------------
 
+    @property
+    def received(self) -> int:
+        """Bytes the receiver took in (the receiver on)."""
+        return self._received + int(self.fast.rx_received)
+
+    @property
+    def overruns(self) -> int:
+        """Bytes lost to a full RDR (ORE)."""
+        return self._overruns + int(self.fast.rx_overruns)
+
+    @property
+    def timed_in_c(self) -> bool:
+        """The machine's counter times this USART's events (see :meth:`time_in_c`)."""
+        return self._counter is not None and bool(self.fast.nvic)
+
+    def expect(self, data: bytes, times: list[float]) -> int:
+        """The far end's ``data``, each byte's stop bit in at its time in ``times`` (in
+        order, after the ones expected already): the receiver takes them in C at those
+        times, heard as by :meth:`receive` while ``fast.rx_listens`` is set (only when
+        :attr:`timed_in_c`). Returns how many fitted (the queue holds MCU_USART_RXQ)."""
+        fast = self.fast
+        room = lib.MCU_USART_RXQ - fast.rx_count
+        n = min(len(data), room)
+        at = (fast.rx_head + fast.rx_count) % lib.MCU_USART_RXQ
+        for byte, t in zip(data[:n], times[:n], strict=True):
+            fast.rx_byte[at] = byte
+            fast.rx_at[at] = t
+            at = (at + 1) % lib.MCU_USART_RXQ
+        fast.rx_count += n
+        lib.mcu_timed_plan(self._counter)
+        return n
+
+    def forget_expected(self) -> None:
+        """Drop the expected bytes still to come (the far end's plans changed)."""
+        self.fast.rx_count = 0
+
     def receive(self, byte: int) -> None:
         """A byte's stop bit has arrived now."""
         if not (self.cr1 & CR1_UE and self.cr1 & CR1_RE):
             return
-        self.received += 1
+        self._received += 1
         if self.sr & RXNE:
             self.sr |= ORE
-            self.overruns += 1
+            self._overruns += 1
         else:
             self.rdr = byte
             self.sr |= RXNE
@@ -275,7 +288,7 @@ class Usart(Peripheral):
                 self.on_tx(byte, t, end, baud)
         fast = self.fast
         fast.shifting = 1
-        if self._timed_in_c():
+        if self.timed_in_c:
             fast.baud, fast.frame_s, fast.shift_end = baud, frame, end
             lib.mcu_timed_plan(self._counter)
         else:

@@ -76,7 +76,9 @@ def test_boots_and_answers_from_every_bootloader_leftover(image, left):
 def test_a_software_reset_boots_again_and_says_so(image):
     board = Cm530(image)
     board.run_for(0.05)
+    assert board.mcu.systick.csr & 1  # the firmware's millisecond tick runs
     board.mcu.reset("software")
+    assert board.mcu.systick.csr == 0  # a system reset stops it, as every peripheral
     board.run_for(0.05)
     board.pc_send(PING)
     board.run_for(0.02)

@@ -365,6 +365,7 @@ class Stm32f103:
         self.resets.append((self.now(), kind))
         for p in self.peripherals:
             p.reset()
+        self.systick.reset()  # in the NVIC's region (the SCS), stopped by a system reset too
         self.rcc.note_reset(
             {
                 RESET_SOFTWARE: rcc_mod.CSR_SFT,

@@ -59,10 +59,9 @@ def test_a_five_link_serpenoid_advances_on_modelled_servos_that_lag(s5_gait):
     predicted_dx = s5_gait.table["dx"]
     assert em["dx"] > 0.8 * predicted_dx > 0.2  # forward along the start heading
     assert abs(em["dy"]) < 0.5 * em["dx"]
-    # modelled servos lag their goals: a tracking error exists, and stays small, because
-    # each tick's write asks for the speed of the frame step (the controller's player;
-    # its mid-frame goals are rounded to whole ticks, 0.15 degrees)
-    assert 0 < diff["joint_max_rad"] < math.radians(1.5)
+    # modelled servos lag their goals under the body's load: their drive needs an error to
+    # give the torque the wheels' friction asks of the joints (4.6 deg here; MuJoCo's 6.0)
+    assert math.radians(2) < diff["joint_max_rad"] < math.radians(8)
     assert diff["joint_rms_rad"] > 0
     assert 0 < diff["path_max"] < 0.05 * predicted_dx
     assert em["samples"] == 201  # 100 Hz world for 50 Hz frames

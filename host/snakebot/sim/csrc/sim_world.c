@@ -154,3 +154,64 @@ void sim_world_couple(sim_world *w, double t) {
         w->moving[k] = gain != 0.0 || offset != 0.0;
     }
 }
+
+int sim_joints_period(sim_joints *j) {
+    sim_world *w = j->world;
+    int n = w->n, nbias = w->nbias;
+    double dt = w->dt, inertia = j->armature / dt, mass = inertia - w->brake, xi[3], xi1[3];
+    double *phi = j->q + 3;
+    double free[KIN_MAX_JOINTS], tried[KIN_MAX_JOINTS], load1[KIN_MAX_JOINTS];
+    for (int s = 0; s < j->steps; s++) {
+        int code = kin_quasi_static(j->rb, j->q, j->speed, xi, NULL, j->load);
+        if (code == KIN_OK && s == j->slip_step) {
+            double qdot[3 + KIN_MAX_JOINTS];
+            for (int i = 0; i < 3; i++) {
+                qdot[i] = xi[i];
+            }
+            for (int k = 0; k < n; k++) {
+                qdot[3 + k] = j->speed[k];
+            }
+            code = kin_wheel_speeds(j->rb, j->q, qdot, j->slip, NULL);
+        }
+        if (code != KIN_OK) {
+            return code;
+        }
+        for (int i = 0; i < 3; i++) {
+            j->q[i] += dt * xi[i];
+        }
+        for (int k = 0; k < n; k++) {
+            const double *bias = w->biasprm + k * nbias;
+            double drive = bias[0] + bias[1] * phi[k];
+            double high = w->forcerange[2 * k + 1], low = w->forcerange[2 * k];
+            drive = drive > high ? high : (drive < low ? low : drive);
+            j->force[k] = drive;
+            j->load[k] *= j->unit_m;
+            free[k] = (inertia * j->speed[k] + drive) / mass;
+            tried[k] = free[k] - j->load[k] / mass;
+        }
+        code = kin_quasi_static(j->rb, j->q, tried, xi1, NULL, load1);
+        if (code != KIN_OK) {
+            return code;
+        }
+        double dd = 0.0, db = 0.0;
+        for (int k = 0; k < n; k++) {
+            load1[k] *= j->unit_m;
+            double d = j->load[k] - load1[k];
+            dd += d * d;
+            db += d * (free[k] - load1[k] / mass);
+        }
+        if (dd > 0.0) { /* the speeds tried meet another piece's load: the prox of both */
+            double alpha = db > 0.0 ? mass * db / dd : 0.0;
+            alpha = alpha < 1.0 ? alpha : 1.0;
+            for (int k = 0; k < n; k++) {
+                j->load[k] = alpha * j->load[k] + (1.0 - alpha) * load1[k];
+            }
+        }
+        for (int k = 0; k < n; k++) {
+            j->speed[k] = free[k] - j->load[k] / mass;
+            phi[k] += dt * j->speed[k];
+        }
+        sim_world_account(w);
+    }
+    return KIN_OK;
+}

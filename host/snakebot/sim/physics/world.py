@@ -38,7 +38,7 @@ from snakebot.model.robots import TICKS_PER_RAD, Friction, Robot
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.history import History
 from snakebot.sim.physics.actuator import OVERLOAD_HOLD_S, Actuator
-from snakebot.sim.physics.coupling import Coupling
+from snakebot.sim.physics.coupling import Arrays, Coupling
 from snakebot.sim.physics.mjcf import (
     CONTROL_PERIOD_S,
     ROLLING_MODEL,
@@ -224,8 +224,7 @@ class PhysicsWorld:
         ]
         joints = zip(self._servos, signs, zeros, self._qadr, self._dadr, strict=True)
         self._coupling = Coupling(
-            m,
-            d,
+            Arrays.of(m, d),
             list(joints),
             self.actuator,
             hold=OVERLOAD_HOLD_S,

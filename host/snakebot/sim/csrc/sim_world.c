@@ -158,7 +158,8 @@ void sim_world_couple(sim_world *w, double t) {
 int sim_joints_period(sim_joints *j) {
     sim_world *w = j->world;
     int n = w->n, nbias = w->nbias;
-    double dt = w->dt, inertia = j->armature / dt, mass = inertia - w->brake, xi[3], xi1[3];
+    double dt = w->dt, inertia = j->armature / dt, xi[3], xi1[3];
+    double per_speed = inertia - w->brake; /* N m per rad/s of the step's end speed */
     double *phi = j->q + 3;
     double free[KIN_MAX_JOINTS], tried[KIN_MAX_JOINTS], load1[KIN_MAX_JOINTS];
     for (int s = 0; s < j->steps; s++) {
@@ -186,8 +187,8 @@ int sim_joints_period(sim_joints *j) {
             drive = drive > high ? high : (drive < low ? low : drive);
             j->force[k] = drive;
             j->load[k] *= j->unit_m;
-            free[k] = (inertia * j->speed[k] + drive) / mass;
-            tried[k] = free[k] - j->load[k] / mass;
+            free[k] = (inertia * j->speed[k] + drive) / per_speed;
+            tried[k] = free[k] - j->load[k] / per_speed;
         }
         code = kin_quasi_static(j->rb, j->q, tried, xi1, NULL, load1);
         if (code != KIN_OK) {
@@ -198,17 +199,17 @@ int sim_joints_period(sim_joints *j) {
             load1[k] *= j->unit_m;
             double d = j->load[k] - load1[k];
             dd += d * d;
-            db += d * (free[k] - load1[k] / mass);
+            db += d * (free[k] - load1[k] / per_speed);
         }
         if (dd > 0.0) { /* the speeds tried meet another piece's load: the prox of both */
-            double alpha = db > 0.0 ? mass * db / dd : 0.0;
+            double alpha = db > 0.0 ? per_speed * db / dd : 0.0;
             alpha = alpha < 1.0 ? alpha : 1.0;
             for (int k = 0; k < n; k++) {
                 j->load[k] = alpha * j->load[k] + (1.0 - alpha) * load1[k];
             }
         }
         for (int k = 0; k < n; k++) {
-            j->speed[k] = free[k] - j->load[k] / mass;
+            j->speed[k] = free[k] - j->load[k] / per_speed;
             phi[k] += dt * j->speed[k];
         }
         sim_world_account(w);

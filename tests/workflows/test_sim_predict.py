@@ -13,8 +13,15 @@ from click.testing import CliRunner
 from snakebot.cli import main
 from snakebot.formats.gaittable import GaitTable, write_gait
 from snakebot.model.gait import serpenoid
-from snakebot.model.robots import load_robot
-from snakebot.workflows.predict import PredictError, player_writes, predict_gait
+from snakebot.model.plan import PlanRequest, make_plan
+from snakebot.model.robots import TICKS_PER_RAD, load_robot
+from snakebot.workflows.predict import (
+    REST_MAX_S,
+    REST_TICKS,
+    PredictError,
+    player_writes,
+    predict_gait,
+)
 
 FIVE_LINK = load_robot("snake5")
 
@@ -65,7 +72,35 @@ def test_a_five_link_serpenoid_advances_on_modelled_servos_that_lag(s5_gait):
     assert diff["joint_rms_rad"] > 0
     assert 0 < diff["path_max"] < 0.05 * predicted_dx
     assert em["samples"] == 201  # 100 Hz world for 50 Hz frames
+    assert em["rest_s"] == 0  # a loop goes on into its next pass: no holding to rest
     assert em["slip_max"] > 0 and len(em["slip_distance"]) == 5
+
+
+def test_a_table_played_once_ends_where_the_loaded_servos_come_to_rest():
+    """A plan's table ends held at its last frame; the servos, lagging it under the
+    body's load, still move the body after the last goal, by more than the plan's
+    tolerance: the emulated end is where they stop, as a robot (or `sim serve`'s,
+    tests/firmware/test_program_qemu.py) stops."""
+    plan = make_plan(PlanRequest(load_robot("trident"), (0.5, 0.2, math.radians(10))))
+    table = plan.gait.gait_table()
+    result = predict_gait(table, plan.robot)
+    em, rest = result.emulated, result.rest_samples
+    assert result.summary()["emulated"]["rest_s"] == pytest.approx(rest * result.world_period_s)
+    assert 0 < rest * result.world_period_s < REST_MAX_S
+    at_table_end = em.pose[-1 - rest]
+    moved_after = np.hypot(*(em.pose[-1, :2] - at_table_end[:2]))
+    assert moved_after > plan.tolerance.position
+    # at rest: the last period moved the joints a hundredth of a tick at most, the body a
+    # thousandth of the tolerance
+    assert np.abs(em.phi[-1] - em.phi[-2]).max() * TICKS_PER_RAD <= REST_TICKS
+    last = em.pose[-1] - em.pose[-2]
+    assert np.hypot(*last[:2]) < 1e-3 * plan.tolerance.position
+    assert abs(last[2]) < 1e-3 * plan.tolerance.heading
+    # the prediction holds the table's last frame while they come to rest
+    held = result.predicted.q[-1 - rest :]
+    assert np.array_equal(held, np.repeat(held[:1], rest + 1, axis=0))
+    # ideal servos are on the last frame at once
+    assert predict_gait(table, plan.robot, ideal=True).rest_samples == 0
 
 
 def test_writes_are_the_controllers_player_tick_by_tick():

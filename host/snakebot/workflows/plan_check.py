@@ -3,13 +3,14 @@
 The planner makes its table end at the target as the controller plays it on servos that
 are where they are told at every frame. Real AX-12s lag a table timed to their speed,
 and a plan's loops move the body by the small difference of larger motions, so a lag
-that shrinks a loop changes where the plan ends: measured, the trident's plan to
-(0.5, 0.2, 10 deg) ends 3.2 times the tolerance off, the 3-link snake's to (2, 1,
-20 deg) 9 times, snake5's 7 to 209 times (``bench/bench_plan_targets.py``). The
-plan's table is therefore also played on the robot's modelled servos in the
-quasi-static world (the emulated robot ``snakebot sim predict`` plays it on, without
-the physics); where that end leaves the tolerance the plan says its end played open
-loop is not to be trusted, with the numbers (an ``open_loop`` warning)."""
+that shrinks a loop changes where the plan ends: measured, where the servos come to
+rest, the trident's plan to (0.5, 0.2, 10 deg) ends 8.8 times the tolerance off, the
+3-link snake's to (2, 1, 20 deg) 8.1 times, on servos under the body's load (3.3 and
+9.2 times on the servos' own model, which ignored the load). The plan's table is
+therefore also played on the robot's modelled servos in the quasi-static world (the
+world ``snakebot sim predict`` and ``sim serve`` play it in, without the physics);
+where that end leaves the tolerance the plan says its end played open loop is not to
+be trusted, with the numbers (an ``open_loop`` warning)."""
 
 from __future__ import annotations
 

@@ -21,18 +21,23 @@ import numpy as np
 
 from snakebot.model.plan import Plan
 from snakebot.model.plan.planner import Tolerance, pose_dict, pose_error
+from snakebot.model.plan.program import ProgramPlan
 from snakebot.model.plan.sensitivity import open_loop_warning
 from snakebot.model.robots import Robot
-from snakebot.workflows.predict import predict_gait
+from snakebot.workflows.predict import emulate_program, predict_gait
 
 
-def servo_check(plan: Plan) -> dict[str, Any]:
-    """``plan``'s table played on the robot's modelled servos in the quasi-static world:
+def servo_check(plan: Plan | ProgramPlan) -> dict[str, Any]:
+    """``plan``'s table (or program, run by the controller's player) played on the
+    robot's modelled servos in the quasi-static world:
     ``servo_check`` (the servo model, where the table ends and its error beside the
     plan's tolerance) and ``warnings`` (an ``open_loop`` one when the end is outside
     the tolerance), as :func:`snakebot.model.plan.files.plan_summary` takes them."""
     robot = plan.robot
-    played = predict_gait(plan.gait.gait_table(), robot)
+    if isinstance(plan, ProgramPlan):
+        played = emulate_program("<program>", plan.program, robot)
+    else:
+        played = predict_gait(plan.gait.gait_table(), robot)
     report, warnings = end_check(
         plan,
         played.emulated.displacement(),

@@ -39,6 +39,7 @@ import numpy as np
 
 from snakebot.facts import devices
 from snakebot.formats.gaittable import GaitTable, read_gait
+from snakebot.formats.program import Program
 from snakebot.formats.program.errors import ProgramError
 from snakebot.formats.program.files import is_program_file, read_program
 from snakebot.formats.protocol import sync_write
@@ -461,11 +462,16 @@ def predict_program(
     emulated robot (``options`` as there), beside the body path its reference goals
     predict (:mod:`snakebot.model.motion`)."""
     program = read_program(path)
-    chosen = program_robot(program, robot)
+    return emulate_program(str(path), program, program_robot(program, robot), **options)
+
+
+def emulate_program(name: str, program: Program, robot: Robot, **options: Any) -> Prediction:
+    """``program`` run by the controller's player on the emulated ``robot`` (``options``
+    as :func:`emulate`'s), beside the body path its reference goals predict."""
     if program.total_steps < 2:
         raise ProgramError("the program has a single step: nothing moves; give it two or more")
     return emulate(
-        str(path), chosen, ProgramFrames.of(program), program_player_writes(program), **options
+        name, robot, ProgramFrames.of(program), program_player_writes(program), **options
     )
 
 

@@ -187,7 +187,7 @@ int sim_joints_period(sim_joints *j) {
             drive = drive > high ? high : (drive < low ? low : drive);
             j->force[k] = drive;
             j->load[k] *= j->unit_m;
-            free[k] = (inertia * j->speed[k] + drive) / per_speed;
+            free[k] = (inertia * j->speed[k] + drive + j->external[k]) / per_speed;
             tried[k] = free[k] - j->load[k] / per_speed;
         }
         code = kin_quasi_static(j->rb, j->q, tried, xi1, NULL, load1);
@@ -211,6 +211,10 @@ int sim_joints_period(sim_joints *j) {
         for (int k = 0; k < n; k++) {
             j->speed[k] = free[k] - j->load[k] / per_speed;
             phi[k] += dt * j->speed[k];
+            if (phi[k] < j->lo[k] || phi[k] > j->hi[k]) { /* at its stop */
+                phi[k] = phi[k] < j->lo[k] ? j->lo[k] : j->hi[k];
+                j->speed[k] = 0.0;
+            }
         }
         sim_world_account(w);
     }

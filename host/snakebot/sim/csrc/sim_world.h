@@ -100,6 +100,10 @@ typedef struct {
     double *speed;        /* per joint, rad/s */
     double *force;        /* per joint: the drive's torque in the last step, N m */
     double *load;         /* per joint: the body's load in the last step, N m */
+    const double *external; /* per joint: a torque from outside (a hand pushing the horn;
+                             * the servos' set_external_torque), N m, on the joint's axis */
+    const double *lo, *hi; /* per joint: its stops (rad), as the physics world's joint
+                            * ranges: a joint pushed there stops (and stalls its motor) */
     int slip_step;        /* the step whose start is the middle of a sample's interval (-1:
                            * none in this period) */
     double *slip;         /* per wheel: its normal speed there */
@@ -110,8 +114,9 @@ typedef struct {
  * joints' motion (kin_quasi_static), whose body velocity moves the pose. Per step of dt,
  * the drive and the body velocity as at the step's start, the braking implicit (as MuJoCo
  * integrates damping):
- *     (armature / dt - brake) speed' = armature / dt speed + drive(phi) - load
+ *     (armature / dt - brake) speed' = armature / dt speed + drive(phi) + external - load
  *     phi' = phi + dt speed',  pose' = pose + dt xi(q, speed)
+ * (a joint that would pass its stop ends there, at rest),
  * The load is Coulomb friction's: piecewise constant in the joints' speeds (a subgradient
  * of the power the wheels dissipate, which is convex and piecewise linear in them), so it
  * is taken implicitly: the load at the start's speeds first; if the speeds that gives meet

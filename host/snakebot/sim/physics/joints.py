@@ -88,9 +88,10 @@ class LoadedWorld(World):
             np.zeros((n, 2)),
             self.control_period / steps,
         )
+        self._signs = np.array([float(j.sign) for j in robot.joints])
         joints = zip(
             self._servos,
-            [float(j.sign) for j in robot.joints],
+            self._signs.tolist(),
             [float(j.zero_tick) for j in robot.joints],
             range(n),
             range(n),
@@ -116,9 +117,22 @@ class LoadedWorld(World):
         c.steps = steps
         # the middle of a sample's interval: a step of one of its control periods
         self._slip_period, self._slip_step = divmod(self.steps_per_sample * steps // 2, steps)
-        c.q, c.speed, c.force, c.load, c.slip = (
+        self._external = np.zeros(n)
+        self._stops = (  # the joints' stops, the physics world's joint ranges
+            np.array([j.min_rad for j in robot.joints]),
+            np.array([j.max_rad for j in robot.joints]),
+        )
+        c.q, c.speed, c.force, c.load, c.slip, c.external, c.lo, c.hi = (
             ffi.from_buffer("double[]", a, require_writable=True)
-            for a in (self._state, arrays.qvel, arrays.force, self.load, self._slip)
+            for a in (
+                self._state,
+                arrays.qvel,
+                arrays.force,
+                self.load,
+                self._slip,
+                self._external,
+                *self._stops,
+            )
         )
 
     def _schedule_sampling(self) -> Any:
@@ -134,6 +148,9 @@ class LoadedWorld(World):
         if self._ticks:
             into = (self._ticks - 1) % self.steps_per_sample  # this period in its sample's
             self._c.slip_step = self._slip_step if into == self._slip_period else -1
+            # a push on a servo's horn (its set_external_torque) turns its joint too
+            self._external[:] = [s.external_torque for s in self._servos]
+            self._external *= self._signs
             code = lib.sim_joints_period(self._c)
             if code != lib.KIN_OK:
                 self.stop()

@@ -53,7 +53,9 @@ int sim_actuator_drive(const sim_actuator *a, const double *controller, double p
     out[1] = goal;
     out[2] = bias;
     out[3] = cap;
-    return wanted > limit_cap && limit_cap < speed_cap;
+    /* a cap cuts when the controller asks for more than the drive allowed: Torque Limit's
+     * or (speed_limit "drive") Moving Speed's, whichever binds; no supply, no cut */
+    return wanted > cap && no_load_ticks > 0;
 }
 
 double sim_actuator_power(const sim_actuator *a, double torque_nm, double speed_rad_s) {
@@ -150,7 +152,10 @@ void sim_world_couple(sim_world *w, double t) {
         double high = stall * cap;
         w->forcerange[2 * k] = -high;
         w->forcerange[2 * k + 1] = high;
-        w->stalled[k] = cut && fabs(speed) < w->stalled_speed ? w->stalled[k] + w->period : 0.0;
+        /* stalled: held by the load well below the speed the allowed drive gives unloaded */
+        double free_speed = a->no_load_rad_s * volts / a->nominal_v * cap;
+        _Bool stalled = fabs(speed) < w->stalled_fraction * free_speed;
+        w->stalled[k] = cut && stalled ? w->stalled[k] + w->period : 0.0;
         w->moving[k] = gain != 0.0 || offset != 0.0;
     }
 }

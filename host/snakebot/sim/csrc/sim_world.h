@@ -26,7 +26,8 @@ typedef struct {
 /* Actuator.drive: the drive of a motor whose servo's controller (sim_servo_controller)
  * is `controller`, at position pos_ticks, into out[4]: gain (1/tick), target (ticks),
  * bias, cap (duty = gain (target - position) + bias, limited to +-cap); returns whether
- * Torque Limit cuts the duty the controller asks for (1) or not (0). */
+ * the cap (Torque Limit's or Moving Speed's, whichever binds) cuts the duty the controller
+ * asks for (1) or not (0). */
 int sim_actuator_drive(const sim_actuator *a, const double *controller, double pos_ticks,
                        double *out);
 /* MotorSpec.electrical_power_w: the power (W) the motor draws to give torque_nm at
@@ -51,7 +52,8 @@ typedef struct {
     int nbias;                          /* biasprm's row length */
     const sim_actuator *actuator;
     double brake;                       /* minus the back-EMF damping, N m s/rad */
-    double stalled_speed;               /* slower than this (rad/s), a joint is stalled */
+    double stalled_fraction; /* a joint slower than this fraction of the speed its capped
+                              * drive turns the unloaded motor at is stalled */
     double hold;                        /* stalled and cut this long (s): overload */
     double period;                      /* the control period, s */
     double dt;                          /* the MuJoCo step, s */

@@ -107,7 +107,7 @@ class Coupling:
         c.nbias = arrays.biasprm.shape[1]
         c.actuator = self._held(actuator_struct(actuator))
         c.brake = -actuator.damping
-        c.stalled_speed = STALLED_FRACTION * actuator.no_load_rad_s
+        c.stalled_fraction = STALLED_FRACTION
         c.hold, c.period, c.dt = hold, period, arrays.timestep
         c.start, c.min_z = start, min_z
         pieces = [*pieces, (self.torque, range(n))]

@@ -193,6 +193,7 @@ class PhysicsWorld:
         self.actuator = Actuator.for_model(robot.servo_model)
         self._servos = [bus.servo(i) for i in ids]
         signs = [float(j.sign) for j in robot.joints]
+        self._signs = np.array(signs)
         zeros = [float(j.zero_tick) for j in robot.joints]
         m = self.model
         jid = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in names.joints]
@@ -257,6 +258,9 @@ class PhysicsWorld:
             return
         world = self._c
         if self._ticks:
+            # a push on a servo's horn (its set_external_torque) turns its joint too
+            pushes = [s.external_torque for s in self._servos]
+            self.data.qfrc_applied[self._dadr] = self._signs * pushes
             # energy: the motors' power (the drive in force during each step, the speed
             # at its end; the implicit integrator's own reading of the step)
             step, m, d, account = self._mj.mj_step, self.model, self.data, lib.sim_world_account

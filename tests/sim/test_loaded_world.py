@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+from snakebot.facts import devices
 from snakebot.link.transport import DxlClient
 from snakebot.model.gait import serpenoid
 from snakebot.model.robots import load_robot
@@ -22,8 +23,10 @@ from snakebot.workflows.predict import predict_gait, sim_url
 pytest.importorskip("mujoco")
 
 SNAKE5 = load_robot("snake5")
-GOAL_POSITION = 30
-PRESENT_LOAD = 40
+AX12 = devices.ax12()
+GOAL_POSITION, PRESENT_LOAD, TORQUE_ENABLE = (
+    AX12.register(name).address for name in ("Goal Position", "Present Load", "Torque Enable")
+)
 
 
 def last_pass(pose: np.ndarray, passes: int = 3) -> float:
@@ -111,3 +114,26 @@ def test_a_tenth_of_the_step_moves_the_body_little():
     assert distance > 0.005 and abs(fine[2]) > 0.1  # it moves and turns
     assert math.hypot(*(coarse[:2] - fine[:2])) < 0.02 * distance
     assert coarse[2] == pytest.approx(fine[2], rel=0.02)
+
+
+def test_a_joint_pushed_to_its_stop_leaves_the_rest_still_once_torque_is_off():
+    """The stop, not the body, takes a push that holds a joint there; and joints with no
+    drive come to rest rather than chatter and creep (the firmware's safe state)."""
+    client = DxlClient(sim_url(SNAKE5, False), echo=False)
+    try:
+        bus = client.port.bus
+        world = LoadedWorld(bus, SNAKE5)
+        victim = SNAKE5.servo_ids[1]
+        bus.servo(victim).set_external_torque(bus.now, 5.0)  # past stall: to its stop
+        bus.run_until(bus.now + 0.3)
+        for sid in SNAKE5.servo_ids:
+            client.write_u8(sid, TORQUE_ENABLE, 0)
+        bus.run_until(bus.now + 0.2)
+        still = bus.positions(SNAKE5.servo_ids)
+        joint = SNAKE5.joints[1]
+        assert world.record().q[-1, 4] in (joint.min_rad, joint.max_rad)  # at its stop
+        bus.run_until(bus.now + 1.0)
+        assert bus.positions(SNAKE5.servo_ids) == still
+        world.stop()
+    finally:
+        client.close()

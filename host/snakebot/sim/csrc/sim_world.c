@@ -167,6 +167,7 @@ int sim_joints_period(sim_joints *j) {
     double per_speed = inertia - w->brake; /* N m per rad/s of the step's end speed */
     double *phi = j->q + 3;
     double free[KIN_MAX_JOINTS], tried[KIN_MAX_JOINTS], load1[KIN_MAX_JOINTS];
+    _Bool held[KIN_MAX_JOINTS];
     for (int s = 0; s < j->steps; s++) {
         int code = kin_quasi_static(j->rb, j->q, j->speed, xi, NULL, j->load);
         if (code == KIN_OK && s == j->slip_step) {
@@ -194,6 +195,12 @@ int sim_joints_period(sim_joints *j) {
             j->load[k] *= j->unit_m;
             free[k] = (inertia * j->speed[k] + drive + j->external[k]) / per_speed;
             tried[k] = free[k] - j->load[k] / per_speed;
+            /* held at its stop: the stop, not the body, takes what pushes it there */
+            held[k] = (phi[k] <= j->lo[k] && tried[k] < 0.0) ||
+                      (phi[k] >= j->hi[k] && tried[k] > 0.0);
+            if (held[k]) {
+                tried[k] = 0.0;
+            }
         }
         code = kin_quasi_static(j->rb, j->q, tried, xi1, NULL, load1);
         if (code != KIN_OK) {
@@ -202,6 +209,9 @@ int sim_joints_period(sim_joints *j) {
         double dd = 0.0, db = 0.0;
         for (int k = 0; k < n; k++) {
             load1[k] *= j->unit_m;
+            if (held[k]) { /* its speed is the stop's: no part in the step's prox */
+                continue;
+            }
             double d = j->load[k] - load1[k];
             dd += d * d;
             db += d * (free[k] - load1[k] / per_speed);
@@ -213,8 +223,21 @@ int sim_joints_period(sim_joints *j) {
                 j->load[k] = alpha * j->load[k] + (1.0 - alpha) * load1[k];
             }
         }
+        /* The body only takes power from the joints (the wheels' friction): a load that
+         * drives them (two pieces' blend, near rest) would keep them chattering and, with
+         * nothing holding them, creeping. There the body holds them instead. */
+        double power = 0.0;
         for (int k = 0; k < n; k++) {
-            j->speed[k] = free[k] - j->load[k] / per_speed;
+            if (!held[k]) {
+                power += j->load[k] * (free[k] - j->load[k] / per_speed);
+            }
+        }
+        _Bool rest = power < 0.0;
+        for (int k = 0; k < n; k++) {
+            if (rest && !held[k]) { /* the body holds each joint with what it asked */
+                j->load[k] = per_speed * free[k];
+            }
+            j->speed[k] = held[k] || rest ? 0.0 : free[k] - j->load[k] / per_speed;
             phi[k] += dt * j->speed[k];
             if (phi[k] < j->lo[k] || phi[k] > j->hi[k]) { /* at its stop */
                 phi[k] = phi[k] < j->lo[k] ? j->lo[k] : j->hi[k];

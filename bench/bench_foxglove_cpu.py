@@ -107,7 +107,7 @@ def main() -> int:
     parser.add_argument("--seconds", type=float, default=20.0)
     parser.add_argument("--rounds", type=int, default=3)
     args = parser.parse_args()
-    image = firmware()
+    image = firmware("qemu")
     worst = 0.0
     for world in WORLDS:
         added = []

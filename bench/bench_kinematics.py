@@ -21,6 +21,16 @@ core's tolerances :data:`CURVE_RTOLS` (the same matching at each), and the batch
 throughput of the core over a grid of serpenoid gaits (what a gait search does):
 trajectories per second per core, against the same best Python side.
 
+Beside the goal, the core against compiled references at its error (rtol :data:`RTOL`),
+matched the same way, the ratio reported with no goal (compiled_reference.py): the same
+right-hand sides compiled by numba, under scipy's three methods (what compiling only the
+model buys: scipy's stepping stays in Python), and scipy's RK45 and DOP853 compiled end to
+end with them (no Python in the loop: an evaluation costs within a few times the core's;
+on snake5 the core's lead there is its own stepping, DOP853 ending its steps at the
+wheels' switches, with a tenth of the evaluations). The
+numba right-hand sides join the model check, the compiled DOP853 is checked to take
+scipy's steps, and compiling is timed apart (excluded from the per-trajectory figures).
+
     .venv/bin/python bench/bench_kinematics.py [--quick]
 """
 
@@ -33,8 +43,18 @@ import statistics
 import sys
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
+from compiled_reference import (
+    PAIRS,
+    Solve,
+    compile_seconds,
+    compiled_solver,
+    for_scipy,
+    snake_rhs,
+    trident_rhs,
+)
 from qs_reference import Snake, schedule
 from scipy.integrate import solve_ivp
 
@@ -43,6 +63,7 @@ from snakebot.model.kinematics import (
     Options,
     Sines,
     body_velocity,
+    field_velocity,
     integrate_fields,
     integrate_joints,
     integrate_joints_batch,
@@ -64,6 +85,8 @@ PRUNE = 3.0
 is not timed in rounds (it cannot be the fastest; the 5-link numpy side would take minutes)."""
 
 Rhs = Callable[[float, np.ndarray], object]
+Combos = dict[tuple[str, str], Solve]
+"""Each (right-hand side, method) combination's solver."""
 
 
 def best_time(fn: Callable[[], object], rounds: int) -> float:
@@ -119,6 +142,12 @@ def trident_c(rtol=RTOL, atol=ATOL):
     return trident_run(rtol, atol).q[-1]
 
 
+def trident_core_rhs(t, q):
+    """The C core's velocity at (t, q) under the same inputs, one call at a time: for the
+    model check."""
+    return field_velocity(TRIDENT, q, np.array(trident_inputs(t)))
+
+
 # ---- 5-link snake, serpenoid joints, minimum-slip body ----
 
 SNAKE5 = load_robot("snake5")
@@ -145,18 +174,27 @@ def snake5_core_rhs(t, pose):
 # ---- the comparison ----
 
 
-def scipy_run(rhs: Rhs, y0: np.ndarray, method: str, rtol: float, width: int) -> np.ndarray:
-    return scipy_solve(rhs, y0, method, rtol).y[:width, -1]
+def scipy_solver(rhs: Rhs, y0: np.ndarray, method: str) -> Solve:
+    """solve_ivp with ``method`` on ``rhs`` from ``y0`` over :data:`SPAN`."""
+
+    def solve(rtol: float) -> tuple[np.ndarray, int]:
+        sol = solve_ivp(rhs, (0, SPAN), y0, method=method, rtol=rtol, atol=rtol / 100)
+        return sol.y[:, -1], sol.nfev
+
+    return solve
 
 
-def scipy_solve(rhs: Rhs, y0: np.ndarray, method: str, rtol: float):
-    return solve_ivp(rhs, (0, SPAN), y0, method=method, rtol=rtol, atol=rtol / 100)
+def scipy_combos(rhss: dict[str, Rhs], y0: np.ndarray) -> Combos:
+    """Each right-hand side under each of scipy's :data:`METHODS`."""
+    return {
+        (name, method): scipy_solver(rhs, y0, method)
+        for name, rhs in rhss.items()
+        for method in METHODS
+    }
 
 
 def errors(
-    rhs: Rhs,
-    y0: np.ndarray,
-    method: str,
+    solve: Solve,
     width: int,
     reference: np.ndarray,
     floor: float,
@@ -169,10 +207,10 @@ def errors(
     points = []
     for rtol in grid:
         start = time.process_time()
-        sol = scipy_solve(rhs, y0, method, rtol)
+        end, nfev = solve(rtol)
         seconds = time.process_time() - start
-        err = float(np.abs(sol.y[:width, -1] - reference).max())
-        points.append((rtol, err, sol.nfev, seconds))
+        err = float(np.abs(end[:width] - reference).max())
+        points.append((rtol, err, nfev, seconds))
         if seconds > budget:
             break
         if err < floor / 10:
@@ -181,8 +219,7 @@ def errors(
 
 
 def all_curves(
-    rhss: dict[str, Rhs],
-    y0: np.ndarray,
+    combos: Combos,
     width: int,
     reference: np.ndarray,
     floor: float,
@@ -193,13 +230,12 @@ def all_curves(
     cannot be the fastest at any target)."""
     curves = {}
     budget = math.inf
-    for rhs_name, rhs in rhss.items():
-        for method in METHODS:
-            points = errors(rhs, y0, method, width, reference, floor, grid, budget)
-            curves[rhs_name, method] = points
-            reached = [seconds for _, err, _, seconds in points if err <= floor]
-            if reached:
-                budget = min(budget, PRUNE * reached[0])
+    for key, solve in combos.items():
+        points = errors(solve, width, reference, floor, grid, budget)
+        curves[key] = points
+        reached = [seconds for _, err, _, seconds in points if err <= floor]
+        if reached:
+            budget = min(budget, PRUNE * reached[0])
     return curves
 
 
@@ -220,14 +256,12 @@ def bracket(points, target: float) -> tuple[float, float, float, int, float] | N
 
 def matched(
     c_run: Callable[[], object],
-    rhss: dict[str, Rhs],
+    combos: Combos,
     curves: dict[tuple[str, str], list],
-    y0: np.ndarray,
-    width: int,
     target: float,
 ) -> tuple[float, float, str, int]:
-    """(C seconds, best Python seconds, its description, its evaluations) at error
-    ``target``: every Python combination's two bracketing runs and the C run timed in
+    """(C seconds, best other seconds, its description, its evaluations) at error
+    ``target``: every other combination's two bracketing runs and the C run timed in
     interleaved rounds (medians), each combination's time interpolated (log-log) to the
     target, the fastest taken (of those within :data:`PRUNE` of the fastest untimed run).
     Where no run on the grid reaches the target, each combination's most accurate run
@@ -247,9 +281,7 @@ def matched(
             continue
         plans[rhs_name, method] = found[:4]
         for rtol in found[:2]:
-            runs[rhs_name, method, rtol] = functools.partial(
-                scipy_run, rhss[rhs_name], y0, method, rtol, width
-            )
+            runs[rhs_name, method, rtol] = functools.partial(combos[rhs_name, method], rtol)
     c_times: list[float] = []
     py_times: dict[tuple[str, str, float], list[float]] = {key: [] for key in runs}
     for _ in range(PY_ROUNDS):  # alternate, so load from other processes hits all alike
@@ -327,6 +359,66 @@ def batch_throughput(amplitudes: int, lags: int) -> tuple[int, float]:
     return len(gaits), best_time(grid, max(1, C_ROUNDS // 4))
 
 
+@dataclass
+class Compiled:
+    """The compiled references on one robot's right-hand side: numba's ``rhs`` under
+    scipy's :data:`METHODS`, scipy's explicit pairs compiled end to end with it, and the
+    CPU seconds compiling them took (their first runs, less a second run: excluded from
+    the per-trajectory figures)."""
+
+    rhs: Callable[..., None]
+    under_scipy: Combos
+    end_to_end: Combos
+    compile_s: float
+
+    @classmethod
+    def of(cls, rhs: Callable[..., None], y0: np.ndarray) -> Compiled:
+        under_scipy = scipy_combos({"numba": for_scipy(rhs, len(y0))}, y0)
+        end_to_end = {
+            ("numba, all compiled", method): compiled_solver(rhs, y0, SPAN, method)
+            for method in PAIRS
+        }
+        first = [functools.partial(for_scipy(rhs, len(y0)), 0.0, y0)]
+        first += [functools.partial(solve, 1e-3) for solve in end_to_end.values()]
+        return cls(rhs, under_scipy, end_to_end, compile_seconds(*first))
+
+    def same_steps(self, strict: bool) -> str:
+        """scipy's DOP853 and its compiled copy at :data:`RTOL`: the same evaluations and
+        the same end (``strict``: to rounding, where the field is smooth; where wheels
+        switch between sticking and slipping the steps depend on rounding, and the two
+        part by about the run's own error)."""
+        (end_s, n_s) = self.under_scipy["numba", "DOP853"](RTOL)
+        (end_c, n_c) = self.end_to_end["numba, all compiled", "DOP853"](RTOL)
+        gap = float(np.abs(end_s - end_c).max())
+        if strict and (n_s != n_c or gap > 1e-9):
+            raise SystemExit(
+                f"the compiled DOP853 parts from scipy's: {n_c} evaluations to {n_s}, "
+                f"ends {gap:.0e} apart"
+            )
+        return f"compiled DOP853 {n_c} evaluations (scipy's {n_s}), ends {gap:.0e} from scipy's"
+
+    def line(
+        self,
+        c_func: Callable[..., np.ndarray],
+        width: int,
+        reference: np.ndarray,
+        target: float,
+        grid: tuple[float, ...],
+    ) -> str:
+        """The core against each reference at its error ``target`` (rtol :data:`RTOL`),
+        matched as the Python side is."""
+        parts = []
+        for title, combos in (("numba RHS", self.under_scipy), ("all compiled", self.end_to_end)):
+            curves = all_curves(combos, width, reference, target, grid)
+            c_at = functools.partial(c_func, RTOL, RTOL / 100)
+            t_c, t_ref, how, evals = matched(c_at, combos, curves, target)
+            parts.append(
+                f"{title} {t_ref * 1e3:.2f} ms ({how}, {evals} evaluations) to the core's "
+                f"{t_c * 1e3:.3f} ms in the same rounds: {t_ref / t_c:.1f}x"
+            )
+        return "; ".join(parts)
+
+
 def main() -> int:
     quick = "--quick" in sys.argv
     grid = SCIPY_RTOLS[:: PER_DECADE // 4] if quick else SCIPY_RTOLS  # quick: quarter decades
@@ -338,13 +430,14 @@ def main() -> int:
         "decade"
     )
     ratios, python_s = {}, {}
-    for name, c_func, c_run, rhss, others, y0, width in (
+    for name, c_func, c_run, rhss, others, compiled_rhs, y0, width in (
         (
             "trident periodic inputs (h1 loop)",
             trident_c,
             trident_run,
             {"numpy": trident_numpy, "math": trident_math},
-            {},
+            {"C core": trident_core_rhs},
+            functools.partial(trident_rhs, trident_inputs, TRIDENT.alphas, TRIDENT.r, TRIDENT.l),
             np.zeros(6),
             6,
         ),
@@ -354,22 +447,26 @@ def main() -> int:
             snake5_run,
             {"math": SNAKE5_PY.rhs_math_factory(), "numpy": SNAKE5_PY.rhs_numpy},
             {"C core": snake5_core_rhs, "HiGHS LP": SNAKE5_PY.lp_body_velocity},
+            functools.partial(snake_rhs, SNAKE5_PY),
             SNAKE5_PY.y0,
             3,
         ),
     ):
-        same = check_same_model(rhss, y0, others)
+        compiled = Compiled.of(compiled_rhs(), y0)
+        numba_rhs = for_scipy(compiled.rhs, len(y0))
+        same = check_same_model(rhss, y0, {**others, "numba": numba_rhs})
         reference = c_func(1e-13, 1e-14)
         rtols = (RTOL,) if quick else tuple(sorted({RTOL, *CURVE_RTOLS}, reverse=True))
         curve_c = {
             rtol: float(np.abs(c_func(rtol, rtol / 100) - reference).max()) for rtol in rtols
         }
-        curves = all_curves(rhss, y0, width, reference, min(curve_c.values()), grid)
+        python = scipy_combos(rhss, y0)
+        curves = all_curves(python, width, reference, min(curve_c.values()), grid)
         closest = min(err for points in curves.values() for _, err, _, _ in points)
         line = []
         for rtol, err_cr in curve_c.items():
             c_at = functools.partial(c_func, rtol, rtol / 100)
-            t_cr, t_pr, how_r, evals_r = matched(c_at, rhss, curves, y0, width, err_cr)
+            t_cr, t_pr, how_r, evals_r = matched(c_at, python, curves, err_cr)
             bound = " or more (no Python run as accurate)" if "lower bound" in how_r else ""
             line.append(f"rtol {rtol:.0e} (error {err_cr:.1e}): {t_pr / t_cr:.0f}x{bound}")
             if rtol == RTOL:
@@ -385,6 +482,12 @@ def main() -> int:
         )
         explain_ratio(t_c, int(c_run().stats["evals"]), t_py, evals_py, ratio)
         print("  ratio curve at matched accuracy: " + "; ".join(line))
+        print(
+            f"  vs compiled references (numba; compiling took {compiled.compile_s:.1f} s CPU, "
+            "excluded), C core at its error: "
+            + compiled.line(c_func, width, reference, err_c, grid)
+        )
+        print(f"  same stepping: {compiled.same_steps(strict=name.startswith('trident'))}")
         print(
             f"  same model: {same}; the closest Python trajectory ends {closest:.0e} from "
             "the core's at rtol 1e-13"

@@ -1,20 +1,25 @@
 """Benchmark: `snakebot sim serve`'s memory stays flat after its first minute, each world.
 
-Each world's server (`snakebot sim serve --world kinematic|mujoco`, the firmware in QEMU
-driving the emulated robot, which samples its world and the goals every 10 ms of bus
-time) runs in a process of its own, all at once, for ``--minutes`` (default 3; the issue
-asks for 30: ``--minutes 30 --world mujoco``). The resident set size of each server's
-Python process (``VmRSS`` in ``/proc/<pid>/status``) is read every ``--every`` seconds;
-its QEMU, a process of its own, is shown beside. The reference, measured in the same
-run, is the server's own size at the end of its first minute: the line gives the growth
-after it (MB in all, MB a minute) and the ratio of the last size to it. The goal: growth
-after the first minute under :data:`GOAL_MB` however long the run, which holds when the
-history (the latest 600 s of samples) lives in preallocated ring buffers. Each server
-plays a serpenoid gait in a loop (uploaded over its PC link, `snakebot play --loop`), so
-the firmware, the servos and the world all work as in use; ``--still`` leaves the robot
-standing (the world samples as often either way). ``--csv FILE`` keeps every sample.
+Each world's server (`snakebot sim serve --world kinematic|mujoco`, the firmware on the
+board sim serve emulates by default, ``--board cm530``: the CM-530's own image on the
+emulated STM32F103RE inside the server's Python process; ``--board qemu``: the qemu
+board's build in a QEMU of its own) drives the emulated robot, which samples its world
+and the goals every 10 ms of bus time. The servers run in processes of their own, all at
+once, for ``--minutes`` (default 3; the issue asks for 30: ``--minutes 30``). The
+resident set size of each server's Python process (``VmRSS`` in ``/proc/<pid>/status``)
+is read every ``--every`` seconds; on the cm530 board that is the whole server, on the
+qemu board its QEMU, a process of its own, is shown beside. The reference, measured in
+the same run, is the server's own size at the end of its first minute: the line gives
+the growth after it (MB in all, MB a minute) and the ratio of the last size to it. The
+goal: growth after the first minute under :data:`GOAL_MB` however long the run, which
+holds when the history (the latest 600 s of samples) lives in preallocated ring
+buffers. Each server plays a serpenoid gait in a loop (uploaded over its PC link,
+`snakebot play --loop`), so the firmware, the servos and the world all work as in use;
+``--still`` leaves the robot standing (the world samples as often either way).
+``--csv FILE`` keeps every sample.
 
     .venv/bin/python bench/bench_serve_memory.py [--minutes 30] [--every 10] [--world mujoco]
+        [--board cm530|qemu]
 """
 
 from __future__ import annotations
@@ -30,6 +35,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from snakebot.firmware import built_image
+from snakebot.paths import REPO_ROOT
+from snakebot.sim.serve import BOARDS, DEFAULT_BOARD, DEFAULT_IMAGES
+
 GOAL_MB = 5.0
 WARM_UP_S = 60.0
 WORLDS = ("kinematic", "mujoco")
@@ -38,11 +47,11 @@ GAIT = ["gait", "serpenoid", "snake5", "-A", "30deg", "-w", "180deg", "-d", "90d
 """The gait each server plays (sim serve's default robot is snake5)."""
 
 
-def firmware() -> str:
-    """The qemu board's firmware: this checkout's build, else ``make firmware``'s."""
-    built = Path(__file__).resolve().parent.parent / "build" / "qemu" / "firmware.elf"
+def firmware(board: str) -> str:
+    """``board``'s default image in this checkout, built by ``make firmware`` if missing."""
+    built = built_image(board, DEFAULT_IMAGES[board])
     if not built.exists():
-        subprocess.run(["make", "-s", "-C", str(built.parents[2]), "firmware"], check=True)
+        subprocess.run(["make", "-s", "-C", str(REPO_ROOT), "firmware"], check=True)
     return str(built)
 
 
@@ -59,7 +68,8 @@ def rss_mb(pid: int) -> float:
 
 
 def children_mb(pid: int) -> float:
-    """Resident set size of the direct children of ``pid`` (the server's QEMU), in MB."""
+    """Resident set size of the direct children of ``pid`` (on the qemu board the
+    server's QEMU; the cm530 board has none), in MB."""
     total = 0.0
     for task in Path(f"/proc/{pid}/task").glob("*"):
         try:
@@ -74,10 +84,10 @@ def snakebot(*args: str) -> None:
     subprocess.run([sys.executable, "-m", "snakebot", *args], check=True, stdout=subprocess.DEVNULL)
 
 
-def start(world: str, image: str, gait: Path | None) -> subprocess.Popen[str]:
-    """``sim serve`` on ``world``, playing ``gait`` in a loop if given."""
+def start(world: str, board: str, image: str, gait: Path | None) -> subprocess.Popen[str]:
+    """``sim serve`` on ``world`` and ``board``, playing ``gait`` in a loop if given."""
     command = [sys.executable, "-m", "snakebot", "sim", "serve", "--world", world]
-    command += ["--board", "qemu", "--firmware", image, "--report", "0", "--json"]
+    command += ["--board", board, "--firmware", image, "--report", "0", "--json"]
     server = subprocess.Popen(command, stdout=subprocess.PIPE, text=True)
     assert server.stdout is not None
     deadline = time.monotonic() + START_S
@@ -102,9 +112,10 @@ def travelled(server: subprocess.Popen[str]) -> float:
     return math.hypot(x, y)
 
 
-def summary(world: str, points: list[tuple[float, float, float]]) -> str:
+def summary(world: str, points: list[tuple[float, float, float]], board: str) -> str:
     """One line: the size at the start, after the first minute and at the end, the growth
-    after the first minute in all and a minute, its ratio and a coarse trace."""
+    after the first minute in all and a minute, its ratio and a coarse trace (and on the
+    qemu board the size of its QEMU)."""
     first, (end, last, qemu) = points[0][1], points[-1]
     trace = " ".join(f"{rss:.1f}" for _, rss, _ in points[:: max(1, len(points) // 12)])
     if end < WARM_UP_S:
@@ -117,7 +128,7 @@ def summary(world: str, points: list[tuple[float, float, float]]) -> str:
         f"   {world:<9}: start {first:.1f} MB, at {at / 60:.1f} min {warm:.1f} MB, at "
         f"{end / 60:.1f} min {last:.1f} MB: {growth:+.1f} MB after the first minute "
         f"({rate:+.3f} MB/min, {last / warm:.3f}x its size at 1 min; goal < {GOAL_MB:g} MB: "
-        f"{verdict}); its QEMU {qemu:.1f} MB; trace {trace}"
+        f"{verdict}){f'; its QEMU {qemu:.1f} MB' if board == 'qemu' else ''}; trace {trace}"
     )
 
 
@@ -126,15 +137,22 @@ def main() -> int:
     parser.add_argument("--minutes", type=float, default=3.0)
     parser.add_argument("--every", type=float, default=10.0)
     parser.add_argument("--world", choices=WORLDS, action="append", help="(default: both)")
-    parser.add_argument("--firmware", help="the firmware image (default: this checkout's)")
-    parser.add_argument("--csv", type=Path, help="keep every sample (seconds, world, MB)")
+    parser.add_argument(
+        "--board", choices=BOARDS, default=DEFAULT_BOARD, help="(default: %(default)s)"
+    )
+    parser.add_argument("--firmware", help="the board's image (default: this checkout's)")
+    parser.add_argument(
+        "--csv", type=Path, help="keep every sample (seconds, world, server MB, its QEMU MB)"
+    )
     parser.add_argument("--still", action="store_true", help="play no gait")
     args = parser.parse_args()
     worlds = tuple(args.world or WORLDS)
-    image = args.firmware or firmware()
+    image = args.firmware or firmware(args.board)
     doing = "standing still" if args.still else "playing a serpenoid gait in a loop"
     print(f"== machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}")
-    print(f"== sim serve, {', '.join(worlds)}, {doing}, for {args.minutes:g} min")
+    print(
+        f"== sim serve, {', '.join(worlds)}, {args.board} board, {doing}, for {args.minutes:g} min"
+    )
     print(f"   RSS every {args.every:g} s")
     gait = None
     if not args.still:
@@ -142,7 +160,7 @@ def main() -> int:
         snakebot(*GAIT, "--cycles", "1", "-o", str(gait))
     # terminated (as by a `make bench` stopped with kill), stop the servers on the way out
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
-    servers = {world: start(world, image, gait) for world in worlds}
+    servers = {world: start(world, args.board, image, gait) for world in worlds}
     began = time.monotonic()
     series: dict[str, list[tuple[float, float, float]]] = {world: [] for world in worlds}
     log = args.csv.open("w") if args.csv else None
@@ -167,7 +185,7 @@ def main() -> int:
         if log:
             log.close()
     for world in worlds:
-        print(summary(world, series[world]) + f"; the body went {went[world]:.1f} m")
+        print(summary(world, series[world], args.board) + f"; the body went {went[world]:.1f} m")
     return 0  # a benchmark reports; the verdicts are in the lines
 
 

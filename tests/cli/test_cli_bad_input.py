@@ -305,6 +305,16 @@ def test_a_pc_link_slower_than_any_dynamixel_rate_is_refused_at_once(command: li
     assert run("stop", "--port", "loop://", "--baud", "9600").exit_code == 1  # nominal 9600 ok
 
 
+@pytest.mark.parametrize("baud", ["2147483648", "9" * 300])
+def test_a_baud_beyond_any_dynamixel_rate_is_refused_at_once(pty_device: str, baud: str) -> None:
+    # The CLI fuzz found `bus ping --baud 99...9` (300 digits) ending in an internal error
+    # (OverflowError: the rate compared as a float); on a real port the PC link's --baud
+    # reached the operating system, which refused the number in the same way.
+    assert_one_line_error(run("bus", "ping", "1", "--port", pty_device, "--baud", baud))
+    result = run("monitor", "--port", pty_device, "--baud", baud, "--duration", "0.1")
+    assert_one_line_error(result, mentions="faster than any Dynamixel")
+
+
 @pytest.mark.parametrize(
     "args",
     [

@@ -7,18 +7,30 @@ A command line is one of:
   replaced by an emulator's: ``sim://`` servos for the servo-bus commands, the
   controller's C device on a pseudo-terminal (:class:`ControllerPty`, what the firmware
   runs on its PC link) for the controller commands, the emulated ROBOTIS bootloader for
-  ``flash``;
+  ``flash``, the CM-530's image on the emulated chip for ``doctor --board cm530`` (the
+  one a flash started, if any);
 * **hardware**: marked ``# real hardware only`` in the text, not run;
 * **until Ctrl-C**: a command that runs until interrupted, as its help says (a looping
-  ``bus play``, ``monitor`` without a duration, ``drive`` reading the keyboard); a test
-  that runs one presses Ctrl-C itself (:func:`interrupt`);
-* **video**: a line that renders a video (tens of CPU seconds; the videos have their own
-  tests in tests/plots);
-* **window**: a line that opens MuJoCo's viewer (``snakebot sim view``), which needs a
-  desktop (tests/plots/test_viewer.py runs it under Xvfb);
+  ``bus play``, ``monitor`` without a duration): run until it has done its job, then
+  given Ctrl-C (tests/docs/stopping.py);
 * **emulator**: a line that starts an emulator (``snakebot sim serve``, ``sim
-  bootloader``, ``sim bus --pty``), which serves until Ctrl-C: the test starts the same
-  emulator itself and gives its port to the lines that follow.
+  bootloader``, ``sim bus --pty``), which serves until Ctrl-C: run the same way (its
+  job: what it printed answers); the lines that follow it reach the test's own
+  emulators, as a reader's second shell would reach the line's;
+* **terminal**: ``drive`` reading the keyboard: run in a real terminal (tmux), driven
+  by keys, ended with q (tests/docs/terminal.py);
+* **window**: a line that opens MuJoCo's viewer (``snakebot sim view``): run as a process
+  on an X server of the test's (Xvfb), closed with Ctrl-C unless it closes by itself
+  (``--once``; tests/docs/window.py);
+* **make**: ``make flash PORT=...``: run as written in the checkout against the emulated
+  bootloader (tests/docs/make_flash.py);
+* **video**: a line that renders a video: declared with its measured cost where it is
+  shown, and not run (the videos have their own tests in tests/plots).
+
+A fixed Foxglove port (``--foxglove 8765``) is replaced by a free one and a fixed link
+(``--link /tmp/ttyCM530``) by one in a folder of the test's, as a real-hardware port is
+replaced by an emulator's: the same port may be busy on a user's machine, and is between
+tests that run side by side.
 
 Anything else (a ``make`` or ``pip`` line not marked) is an error: mark it or make it run.
 """
@@ -28,19 +40,23 @@ from __future__ import annotations
 import itertools
 import re
 import shlex
-import signal
+import shutil
+import sys
+import tempfile
 import textwrap
-import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
+from pathlib import Path
 
 import click
 from click.testing import CliRunner, Result
+from foxglove_client import free_port
 from py_library import FlashController, PyStore
 
 from snakebot.cli import main
 from snakebot.sim.bootloader import Bootloader, BootloaderPty
 from snakebot.sim.controller_pty import ControllerPty
+from snakebot.sim.serve import EmulatedRobot
 
 HARDWARE = "real hardware only"
 PORT = re.compile(r"^(?:/dev/tty\w+|/dev/pts/\w+|/tmp/ttyCM530|COM\d+)$")
@@ -52,6 +68,8 @@ SNAKE5_IDS = "10,11,15,16"
 ANSWERS = "\n" + "y\n" * 20  # Enter, then yes to every question (robot calibrate)
 EXAMPLE = re.compile(r"^\s*(?:Example:\s*)?(snakebot\s.+)$")
 BUS_NAMES = itertools.count(1)  # a named sim:// bus lives as long as the process
+SNAKEBOT = str(Path(sys.executable).with_name("snakebot"))
+"""The `snakebot` command of the Python running the tests, as a reader's shell finds it."""
 
 
 @dataclass
@@ -77,10 +95,14 @@ class Line:
         if HARDWARE in self.comment:
             return "hardware"
         words = [w for w in self.commands[0] if not ENV.match(w)]
+        if words[:2] == ["make", "flash"]:
+            return "make"
         if words[:1] != ["snakebot"]:
             return "unmarked"
         if tuple(words[1:3]) in EMULATORS:
             return "emulator"
+        if words[1:2] == ["drive"] and "--keys" not in words and "--script" not in words:
+            return "terminal"
         if any(until(c[1:]) for c in self.commands):
             return "until Ctrl-C"
         if "--video" in words:
@@ -92,13 +114,11 @@ class Line:
 
 def until(words: list[str]) -> bool:
     """Whether a command runs until Ctrl-C, as its help says: a looping `bus play`, a
-    `monitor` with no duration, a `drive` that reads the keyboard."""
+    `monitor` with no duration."""
     if words[:2] == ["bus", "play"]:
         return "--loop" in words
     if words[:1] == ["monitor"]:
         return "--duration" not in words
-    if words[:1] == ["drive"]:
-        return "--keys" not in words and "--script" not in words
     return False
 
 
@@ -143,9 +163,20 @@ class Emulators:
     controller: ControllerPty | None = None
     bootloader: BootloaderPty | None = None
     handover: object | None = None
+    board: EmulatedRobot | None = None
     buses: int = 0
     robot: str = "snake5"
     """The robot whose servos the controller's bus has."""
+    foxglove: int | None = None
+    """The free port that replaced the last line's Foxglove port."""
+    links: str | None = None
+    """The folder of the links (``--link``) that replace the lines' fixed ones."""
+
+    def link(self, fixed: str) -> str:
+        """A link in a folder of the emulators' in place of ``fixed``."""
+        if self.links is None:
+            self.links = tempfile.mkdtemp(prefix="snakebot-docs-")
+        return f"{self.links}/{Path(fixed).name}"
 
     def controller_port(self) -> str:
         """The controller's C logic with a gait library (a Python store that writes a
@@ -181,9 +212,23 @@ class Emulators:
         ids = "1" if words[:2] == ["bus", "set-id"] else f"1,{SNAKE5_IDS}"
         return f"sim://docs{self.buses}?ids={ids}"
 
+    def cm530_port(self) -> str:
+        """The CM-530's own image on the emulated chip (`snakebot sim serve --board
+        cm530`): the board a flash here started, or else one of its own."""
+        if self.handover is not None:
+            assert self.bootloader is not None
+            return self.bootloader.device  # after GO the line reaches the new firmware
+        if self.board is None:
+            self.close()
+            self.board = EmulatedRobot(self.robot, board="cm530")
+            self.board.start()
+        return self.board.info.pc_link
+
     def port_for(self, words: list[str]) -> str:
         if words[:1] == ["flash"] or (words[:1] == ["doctor"] and "--bootloader" in words):
             return self.bootloader_port()
+        if words[:1] == ["doctor"] and "cm530" in words:
+            return self.cm530_port()
         if any(tuple(words[: len(c)]) == c for c in BUS_COMMANDS):
             return self.bus_port(words)
         return self.controller_port()
@@ -195,19 +240,40 @@ class Emulators:
         close = getattr(self.handover, "close", None)
         if close is not None:
             close()
-        self.controller = self.bootloader = self.handover = None
+        if self.board is not None:
+            self.board.stop()
+        self.controller = self.bootloader = self.handover = self.board = None
+        if self.links is not None:
+            shutil.rmtree(self.links, ignore_errors=True)
+            self.links = None
 
 
-def invoke(words: list[str], emulators: Emulators) -> Result:
-    """Run ``snakebot WORDS`` in process: leading ``NAME=value`` words set the
-    environment, a real-hardware port is replaced by the emulator's."""
+def arguments(words: list[str], emulators: Emulators) -> tuple[list[str], dict[str, str]]:
+    """The arguments of ``snakebot WORDS`` and the environment its leading ``NAME=value``
+    words set, a real-hardware port replaced by the emulator's, a fixed Foxglove port by a
+    free one, a fixed link by one in the emulators' folder."""
     words = list(words)
     env = {}
     while words and ENV.match(words[0]):
         name, _, value = words.pop(0).partition("=")
         env[name] = value
     args = words[1:]
-    args = [emulators.port_for(args) if PORT.match(a) else a for a in args]
+    emulators.foxglove = free_port() if "--foxglove" in args else None
+    replaced = []
+    for before, word in zip(["", *args[:-1]], args, strict=True):
+        if before == "--foxglove":
+            word = str(emulators.foxglove)
+        elif before == "--link":
+            word = emulators.link(word)
+        elif PORT.match(word):
+            word = emulators.port_for(args)
+        replaced.append(word)
+    return replaced, env
+
+
+def invoke(words: list[str], emulators: Emulators) -> Result:
+    """Run ``snakebot WORDS`` in process, with :func:`arguments`."""
+    args, env = arguments(words, emulators)
     return CliRunner().invoke(main, args, env=env, input=ANSWERS)
 
 
@@ -221,33 +287,6 @@ def run_line(line: Line, emulators: Emulators) -> tuple[Result, list[str]]:
                 f"{line.where}: `{line.text}` exited {result.exit_code}: "
                 f"{(result.stderr or result.stdout).strip()[-600:]}"
             ]
-    return result, []
-
-
-def interrupt(line: Line, emulators: Emulators, after: float) -> tuple[Result | None, list[str]]:
-    """Run an ``until Ctrl-C`` line in process and press Ctrl-C after ``after`` seconds:
-    SIGINT to the main thread, where Python raises KeyboardInterrupt wherever the command
-    is, as in a terminal (the emulators' threads never see it). The result, and the
-    problems found: any exit status but 130 (the result is None if the command had
-    ended before Ctrl-C came)."""
-    timer = threading.Timer(
-        after, signal.pthread_kill, (threading.main_thread().ident, signal.SIGINT)
-    )
-    try:
-        timer.start()
-        result = invoke(line.commands[0], emulators)
-        timer.cancel()
-        timer.join()
-    except KeyboardInterrupt:  # the command had ended when Ctrl-C came
-        return None, [f"{line.where}: `{line.text}` ended before Ctrl-C, after {after} s"]
-    output = (result.stderr or result.stdout).strip()
-    if result.exit_code != 128 + signal.SIGINT or "Traceback" in result.output:
-        return result, [
-            f"{line.where}: `{line.text}` exited {result.exit_code} (Ctrl-C after {after} s, "
-            f"130 expected): {output[-600:]}"
-        ]
-    if not result.stderr.strip().endswith("interrupted"):
-        return result, [f"{line.where}: `{line.text}` did not end with `interrupted`: {output}"]
     return result, []
 
 

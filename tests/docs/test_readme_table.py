@@ -3,10 +3,13 @@ a reader runs them, in one folder (a row's files are there for the rows below it
 process against the emulators, as the fenced blocks do (tests/docs/runnable.py).
 
 Each command runs without its optional parts and with each of them (tests/docs/readme_table.py).
-A line that runs until Ctrl-C (`monitor`) gets one after a few seconds and must exit 130
-with what it recorded complete; some lines' output is checked too (CHECKS). A line that
-cannot run here is declared below with its reason; the test fails on a line that neither
-runs nor is declared, and on a declaration that no line matches any more."""
+A line runs as its kind does (tests/docs/running.py): one that runs until Ctrl-C gets one
+once it has done its job (an emulator answering on the port it printed, a bus played, a
+window drawn; a `monitor` after CTRL_C_AFTER seconds) and must exit 130 with what it
+recorded complete; `drive` runs in a terminal, `make flash` by make. Some lines' output
+is checked too (CHECKS). A line that cannot run here is declared below with its reason;
+the test fails on a line that neither runs nor is declared, and on a declaration that no
+line matches any more."""
 
 from __future__ import annotations
 
@@ -23,82 +26,56 @@ import pytest
 from click.testing import Result
 from firmware_support import build_firmware
 from readme_table import Row, parse_rows, variants
-from runnable import Emulators, Line, interrupt, program_spec, run_line
+from runnable import Emulators, Line, program_spec, run_line
+from running import NOT_RUN, how, run_any
+from stopping import Timed, ctrl_c
 from sybil import Sybil
+from xvfb_support import display, xvfb
 
 from snakebot.link.controller.monitor import CSV_COLUMNS
 from snakebot.model.robots import load_robot
 from snakebot.model.robots.loader import BUILTIN_ROBOTS
 from snakebot.paths import REPO_ROOT
+from snakebot.workflows.thesis import RUN_NAMES
 
 # the lines wait on the wall clock as the fenced blocks' REAL_TIME groups do (flash, bus play)
-pytestmark = [pytest.mark.timeout(180), pytest.mark.serial]
+pytestmark = pytest.mark.timeout(240)
+__all__ = ["display", "xvfb"]  # the X server of `sim view`'s window (fixtures)
 
 README = REPO_ROOT / "README.md"
+PNG = b"\x89PNG\r\n\x1a\n"
 
 FIELDS = "snakebot model fields snake3 --at 0,0,0,pi/3,-pi/3"
 THESIS = "snakebot sim thesis -o out/thesis"
-COVERED_BY_THESIS = (
-    "minutes of MuJoCo: `--only h3` runs here, tests/workflows/test_physics_studies.py runs two"
-)
 MONITOR = "snakebot monitor --port /dev/ttyUSB0"
 COMPARE = "snakebot compare run.csv s.gait"
-VIEWER = ("window", "MuJoCo's viewer needs a desktop; tests/plots/test_viewer.py")
-SIM_BUS = "snakebot sim bus --robot snake5 --pty"
-SERVES = "serves until Ctrl-C; the fenced blocks' test starts the same emulators for their lines"
+VIEW_PORT = "snakebot sim view --port /dev/ttyUSB0 --robot snake5"
+GAIT = "snakebot gait serpenoid snake5 -A 30deg -w 3 -d 60deg --cycles 2 -o s.gait"
 
-DECLARED: dict[str, tuple[str, str]] = {
-    f"{FIELDS} --symbolic": (
-        "expensive",
-        "sympy simplifies snake3's fields for minutes; tests/cli/test_models_cli.py runs "
-        "--symbolic on trident and car",
-    ),
-    "snakebot sim predict s.gait --world mujoco --video s.gif": (
-        "video",
-        "tens of CPU seconds of rendering; tests/plots/test_physics_video.py",
-    ),
-    "snakebot sim view s.gait": VIEWER,
-    "snakebot sim view --port /dev/ttyUSB0 --robot snake5": VIEWER,
-    THESIS: ("expensive", COVERED_BY_THESIS),
-    f"{THESIS} --json": ("expensive", COVERED_BY_THESIS),
-    SIM_BUS: ("until Ctrl-C", SERVES),
-    f"{SIM_BUS} --world mujoco": ("until Ctrl-C", SERVES),
-    "snakebot sim serve --world mujoco --foxglove 8765": (
-        "until Ctrl-C",
-        "serves until Ctrl-C; tests/cli/test_serve_foxglove.py",
-    ),
-    "snakebot bus play s.gait --port /dev/ttyUSB0 --loop": (
-        "until Ctrl-C",
-        "loops until Ctrl-C; the line without --loop runs, tests/cli/test_bus_play.py stops a loop",
-    ),
-    "snakebot drive --port /dev/ttyUSB0 --robot snake5": (
-        "until Ctrl-C",
-        "reads the keyboard until q; `snakebot drive --help`'s example runs with --keys",
-    ),
-    "make flash PORT=/dev/ttyUSB0": (
-        "real hardware",
-        "make builds, then runs `snakebot flash --port`, the row's next line, run here against "
-        "the emulated bootloader",
-    ),
-    "snakebot doctor --port /dev/ttyUSB0 --board cm530": (
-        "real hardware",
-        "checks that the controller is a CM-530; the emulated controller here is the host-run "
-        "logic, which names no board; tests/firmware/test_cm530_cli.py runs it on the "
-        "emulated chip",
-    ),
-}
+DECLARED: dict[str, tuple[str, str]] = {}
 """Lines not run here: (kind, the reason), by the line as it runs."""
 
-CTRL_C_AFTER = 2.0
-"""Seconds a line that runs until Ctrl-C runs before it gets one: four samples at
-`monitor`'s default interval (0.5 s), more than the three `compare` needs."""
+APART = {
+    f"{FIELDS} --symbolic": "sympy simplifies snake3's fields: about 17 CPU seconds",
+    "snakebot sim predict s.gait --world mujoco --video s.gif": "renders a video: about 4",
+    THESIS: "its 7 studies in both worlds: about 5",
+    f"{THESIS} --json": "the same studies: about 5",
+}
+"""Lines that cost many CPU seconds and need nothing of the rows above them but the
+README's s.gait (GAIT): they run in the suite's parallel stage
+(test_a_costly_line_of_the_readme_table_runs), not in the table's run, which waits on the
+wall clock and runs alone; with what each costs."""
 
+CTRL_C_AFTER = 2.0
+"""Seconds a `monitor` line (its CHECKS read what it recorded) runs before it gets Ctrl-C:
+four samples at its default interval (0.5 s), more than the three `compare` needs."""
+
+PLAYING = ("snakebot upload s.gait --port /dev/ttyUSB0", "snakebot play --port /dev/ttyUSB0 --loop")
 BEFORE: dict[str, tuple[str, ...]] = {
     # the monitor records a gait being played, as `snakebot compare --help` shows
-    MONITOR: (
-        "snakebot upload s.gait --port /dev/ttyUSB0",
-        "snakebot play --port /dev/ttyUSB0 --loop",
-    ),
+    MONITOR: PLAYING,
+    # the viewer mirrors a controller playing a gait, as `snakebot sim view --help` shows
+    VIEW_PORT: PLAYING,
 }
 """What a reader does on the row's controller before a command, by the command's first line."""
 
@@ -170,7 +147,7 @@ def compare_text(result: Result, here: Path) -> list[str]:
 
 def compare_plot(result: Result, here: Path) -> list[str]:
     picture = here / "compare.png"
-    if not picture.read_bytes().startswith(b"\x89PNG\r\n\x1a\n"):
+    if not picture.read_bytes().startswith(PNG):
         return ["compare.png is not a PNG"]
     return [] if "wrote compare.png" in result.stdout else [f"no `wrote`: {result.stdout}"]
 
@@ -229,7 +206,9 @@ def run_row(row: Row, where: str, folder: Path, kinds: Counter[str]) -> list[str
                 line = Line(text, where)
                 if text in DECLARED:
                     kinds[DECLARED[text][0]] += 1
-                elif line.kind not in ("run", "until Ctrl-C"):
+                elif text in APART:
+                    kinds["run apart (parallel stage)"] += 1
+                elif line.kind in NOT_RUN or line.kind == "unmarked":
                     problems.append(f"{where}: `{text}` ({line.kind}): run it or declare it")
                 else:
                     here = folder
@@ -238,34 +217,38 @@ def run_row(row: Row, where: str, folder: Path, kinds: Counter[str]) -> list[str
                         shutil.rmtree(here, ignore_errors=True)
                         shutil.copytree(before, here, symlinks=True)
                     os.chdir(here)
-                    began = time.process_time()
+                    began = time.process_time(), time.monotonic()
                     problems += run_checked(line, here, emulators)
-                    cpu[text] = time.process_time() - began
+                    cost[text] = time.process_time() - began[0], time.monotonic() - began[1]
                     os.chdir(folder)
                     for made in here.iterdir():
                         if not (folder / made.name).exists():
                             shutil.move(made, folder / made.name)
-                    kinds["run" if line.kind == "run" else "run, stopped with Ctrl-C"] += 1
+                    kinds[how(line)] += 1
     finally:
         emulators.close()
     return problems
 
 
 def run_checked(line: Line, here: Path, emulators: Emulators) -> list[str]:
-    """Run a line (Ctrl-C after CTRL_C_AFTER seconds if it runs until one), then its CHECKS."""
-    if line.kind == "until Ctrl-C":
-        result, problems = interrupt(line, emulators, CTRL_C_AFTER)
+    """Run a line as its kind runs (a `monitor`: Ctrl-C after CTRL_C_AFTER seconds), then
+    its CHECKS."""
+    if line.kind == "until Ctrl-C" and line.text in CHECKS:
+        result, problems = ctrl_c(line, emulators, lambda words: Timed(seconds=CTRL_C_AFTER))
     else:
-        result, problems = run_line(line, emulators)
+        result, problems = run_any(line, emulators)
     if problems or result is None or line.text not in CHECKS:
         return problems
     return [f"{line.where}: `{line.text}`: {p}" for p in CHECKS[line.text](result, here)]
 
 
-cpu: dict[str, float] = {}
+cost: dict[str, tuple[float, float]] = {}
+"""Each line's CPU seconds (this process's, its emulators' threads included) and wall
+seconds."""
 
 
-def test_the_commands_of_the_readme_table_run(tmp_path, monkeypatch):
+@pytest.mark.serial
+def test_the_commands_of_the_readme_table_run(tmp_path, monkeypatch, display):
     build_firmware()
     folder = tmp_path / "reader"
     folder.mkdir()
@@ -278,21 +261,72 @@ def test_the_commands_of_the_readme_table_run(tmp_path, monkeypatch):
     for number, row in rows():
         problems += run_row(row, f"README.md:{number}", folder, kinds)
     mentions = sum(len(row.mentions) for _, row in rows())
+    ran = {kind: n for kind, n in kinds.items() if kind.startswith("run")}
+    declared = {kind: n for kind, n in kinds.items() if kind not in ran}
     summary = (
-        f"README table: {kinds.pop('run')} lines run, "
-        f"{kinds.pop('run, stopped with Ctrl-C', 0)} run and stopped with Ctrl-C, "
-        + ", ".join(f"{n} {kind}" for kind, n in sorted(kinds.items()))
-        + f" (declared, not run); {mentions} mentions of a command's parts"
+        "README table: "
+        + ", ".join(f"{n} {kind}" for kind, n in sorted(ran.items()))
+        + "; not run: "
+        + (", ".join(f"{n} {kind}" for kind, n in sorted(declared.items())) or "none")
+        + f" (declared); {mentions} mentions of a command's parts"
     )
     print(summary)
-    for text, seconds in sorted(cpu.items(), key=lambda item: -item[1])[:5]:
-        print(f"  {seconds:5.2f} s CPU  {text}")
+    for text, (cpu, wall) in sorted(cost.items(), key=lambda item: -item[1][1])[:8]:
+        print(f"  {cpu:5.2f} s CPU {wall:5.2f} s wall  {text}")
     assert not problems, "\n".join([summary, *problems])
 
 
+def table_lines() -> set[str]:
+    return {text for _, row in rows() for c in row.commands for text in variants(c)}
+
+
 def test_every_declaration_is_a_line_of_the_table():
-    lines = {text for _, row in rows() for c in row.commands for text in variants(c)}
-    assert not set(DECLARED) - lines, set(DECLARED) - lines
+    lines = table_lines()
+    assert not (set(DECLARED) | set(APART) | {GAIT}) - lines, set(DECLARED) - lines
+
+
+def thesis_written(result: Result, here: Path) -> list[str]:
+    """`sim thesis -o out/thesis` wrote a picture per run (NAME.png), each a PNG."""
+    made = {p.stem: p.read_bytes()[:8] for p in (here / "out" / "thesis").glob("*.png")}
+    problems = [f"{name}.png is not a PNG" for name, head in made.items() if head != PNG]
+    return problems + ([] if set(made) == set(RUN_NAMES) else [f"pictures of {sorted(made)}"])
+
+
+def thesis_json(result: Result, here: Path) -> list[str]:
+    """One record per run, each run in both worlds."""
+    text = result.stdout
+    return [] if all(f'"{name}"' in text for name in RUN_NAMES) else [f"--json: {text[:300]}"]
+
+
+def symbolic_fields(result: Result, here: Path) -> list[str]:
+    """The simplified fields of every vector field, in the joints' angles."""
+    out = result.stdout
+    return [f"--symbolic did not print {w!r}" for w in ("g1", "h3", "phi1") if w not in out]
+
+
+APART_CHECKS: dict[str, Callable[[Result, Path], list[str]]] = {
+    THESIS: thesis_written,
+    f"{THESIS} --json": thesis_json,
+    f"{FIELDS} --symbolic": symbolic_fields,
+}
+"""What an APART line must have printed or written (a video line: its video decodes)."""
+
+
+@pytest.mark.parametrize("text", sorted(APART))
+def test_a_costly_line_of_the_readme_table_runs(text, tmp_path, monkeypatch):
+    """As a reader runs it, after the README's GAIT line made s.gait."""
+    monkeypatch.chdir(tmp_path)
+    emulators = Emulators()
+    try:
+        problems = run_line(Line(GAIT, "README.md (s.gait)"), emulators)[1]
+        line = Line(text, "README.md")
+        result, found = run_any(line, emulators)
+        problems += found
+        if not found and result is not None and text in APART_CHECKS:
+            problems += [f"`{text}`: {p}" for p in APART_CHECKS[text](result, tmp_path)]
+    finally:
+        emulators.close()
+    assert not problems, "\n".join(problems)
 
 
 def test_a_command_stands_for_each_of_its_optional_parts_once():

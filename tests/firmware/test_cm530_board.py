@@ -98,6 +98,27 @@ def test_stack_high_water_mark_stays_in_the_reserved_stack(image):
     assert reserved is None or deepest >= reserved
 
 
+def test_frames_timed_in_c_leave_as_the_models_events_send_them(image):
+    # the USARTs' frames end in C, inside the CPU's run and its sleeps: the firmware must
+    # see the same chip as with the model's scheduled events, to the instruction
+    runs = []
+    for in_c in (True, False):
+        board = Cm530(image, leftovers=Leftovers(pll=True))
+        if not in_c:
+            board.mcu.time_usarts_in_python()
+        out: list[tuple[int, float]] = []
+        board.mcu.usart3.on_tx = lambda b, s, e, baud, out=out: out.append((b, s))
+        board.run_until(0.05)
+        for k in range(20):  # PINGs, some while the answer before is still going out
+            board.pc_send(PING)
+            board.run_until(board.now() + (0.0004, 0.003)[k % 2])
+        board.run_until(board.now() + 0.01)
+        runs.append((out, board.mcu.cpu.count, board.mcu.cpu.sleeps, board.mcu.nvic.c.entries))
+    (out, count, sleeps, entries), python = runs
+    assert len(out) == 20 * len(PONG) and bytes(b for b, _ in out) == 20 * PONG
+    assert (out, count, sleeps, entries) == python
+
+
 def test_in_real_time_the_thread_runs_whole_steps_not_a_spin(image):
     # between the PC's bytes the thread waits until a step's time is due: running at once
     # for the time its last run took, it spins in steps as short as itself and takes a

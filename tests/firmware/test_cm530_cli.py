@@ -63,6 +63,42 @@ def test_upload_play_monitor_stop_on_the_cm530_image(robot, tmp_path):
     assert cli_json("stop", "--port", port, env=SLOW_HOST)["state"] == "IDLE"
 
 
+def test_the_bus_gets_each_packet_whole_at_its_first_bytes_start(robot, tmp_path):
+    # the board hands the bus what USART1 sent back to back in one write (the bus's work
+    # per packet, not per byte): the same bytes, from the first one's start bit, at the
+    # programmed rate, a whole Dynamixel packet a write while the firmware plays, also
+    # where a packet spans the end of the thread's step
+    port = robot.info.pc_link
+    cli_json("upload", save(wave_table(), tmp_path), "--port", port, env=SLOW_HOST)
+    assert cli_json("play", "--port", port, env=SLOW_HOST)["state"] == "PLAYING"
+    sent: list[tuple[int, float, float]] = []  # (byte, start, end) as USART1 sent them
+    writes: list[tuple[float, bytes]] = []  # (bus time, bytes) as the bus got them
+    with robot.lock:
+        board = robot._mcu.board  # noqa: SLF001 - taps on the board's two sides
+        usart1, bus = board.mcu.usart1, board.bus
+        on_tx, master_write = usart1.on_tx, bus.master_write
+        usart1.on_tx = lambda b, s, e, baud: (sent.append((b, s, e)), on_tx(b, s, e, baud))
+        bus.master_write = lambda data: (writes.append((bus.now, bytes(data))), master_write(data))
+    time.sleep(0.5)
+    with robot.lock:
+        usart1.on_tx, bus.master_write = on_tx, master_write
+        blocked = board.bus_stats.blocked
+    assert cli_json("stop", "--port", port, env=SLOW_HOST)["state"] == "IDLE"
+    assert blocked == 0 and len(writes) >= 20
+    writes = writes[1:]  # the first may hold bytes sent before the taps
+    sent = sent[[start for _, start, _ in sent].index(writes[0][0]) :]
+    given = b"".join(data for _, data in writes)
+    assert given == bytes(b for b, _, _ in sent[: len(given)])  # the same bytes, in order
+    first = whole = 0
+    for t, data in writes:
+        assert t == sent[first][1]  # the bus's clock at the first byte's start bit
+        for k in range(first + 1, first + len(data)):
+            assert sent[k][1] == sent[k - 1][2]  # back to back
+        whole += data[:2] == b"\xff\xff" and data[3] + 4 == len(data)
+        first += len(data)
+    assert whole >= 0.9 * len(writes)  # a packet in one write (a bus event inside one splits it)
+
+
 def test_sim_serve_board_cm530_answers_and_stops_on_sigterm():
     if not firmware_image("cm530", "firmware.elf").is_file():
         pytest.skip("build/cm530/firmware.elf is not built: make firmware")

@@ -7,20 +7,18 @@ server's process) fell behind and the screen did not follow in time."""
 
 from __future__ import annotations
 
-import contextlib
 import math
 import re
-import shutil
 import signal
 import subprocess
 import sys
 import time
-import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 from firmware_support import build_firmware
+from tmux_support import Tmux, joints
 
 from snakebot.link.controller.client import ControllerClient
 from snakebot.link.controller.drive import SPEED_STEP, STEER_STEP
@@ -28,8 +26,6 @@ from snakebot.link.controller.drive import SPEED_STEP, STEER_STEP
 pytestmark = [pytest.mark.qemu, pytest.mark.slow, pytest.mark.serial]
 
 SNAKEBOT = str(Path(sys.executable).with_name("snakebot"))
-SCREEN_TIMEOUT_S = 20.0
-ROW = re.compile(r"^\s*(phi\d)\s+(\d+)\s+([-+]\d+\.\d)\s+([-+]\d+\.\d)\s+([-+]\d+\.\d)\s+(\S.*)$")
 
 
 @pytest.fixture(scope="module")
@@ -59,47 +55,6 @@ def served() -> Iterator[str]:
         except subprocess.TimeoutExpired:
             server.kill()
             server.wait()
-
-
-class Tmux:
-    """One detached tmux session on a private server."""
-
-    def __init__(self, command: str) -> None:
-        if shutil.which("tmux") is None:
-            pytest.fail("tmux missing: run `make setup`")
-        self.socket = f"snakebot-drive-{uuid.uuid4().hex[:8]}"
-        self._tmux("new-session", "-d", "-s", "drive", "-x", "120", "-y", "30", command)
-
-    def _tmux(self, *args: str) -> str:
-        done = subprocess.run(
-            ["tmux", "-L", self.socket, *args], capture_output=True, text=True, check=True
-        )
-        return done.stdout
-
-    def keys(self, *keys: str) -> None:
-        self._tmux("send-keys", "-t", "drive", *keys)
-
-    def screen(self) -> str:
-        return self._tmux("capture-pane", "-p", "-t", "drive")
-
-    def wait_for(self, seen: Callable[[str], bool], what: str) -> str:
-        deadline = time.monotonic() + SCREEN_TIMEOUT_S
-        while time.monotonic() < deadline:
-            text = self.screen()
-            if seen(text):
-                return text
-            time.sleep(0.1)
-        pytest.fail(f"the screen never showed {what}:\n{self.screen()}")
-
-    def close(self) -> None:
-        with contextlib.suppress(subprocess.CalledProcessError):
-            self._tmux("kill-server")
-
-
-def joints(screen: str) -> dict[str, float]:
-    """Joint name -> the angle column (present position, degrees) on the screen."""
-    rows = (ROW.match(line) for line in screen.splitlines())
-    return {m.group(1): float(m.group(4)) for m in rows if m}
 
 
 def test_drive_on_a_terminal(served):

@@ -14,14 +14,10 @@ from other_user import OTHER as OTHER_USER
 from other_user import as_other_user, needs_root, other_uid
 
 from snakebot.link.transport.errors import PortError
-from snakebot.link.transport.portlock import LOCK_DIR_NAME, lock_path
+from snakebot.link.transport.portlock import LOCK_DIR_NAME, lock_name, lock_path
 from snakebot.link.transport.ports import open_port
 
 PRECIOUS = b"the victim's data\n"
-
-
-def _lock_name(device: str) -> str:
-    return os.path.realpath(device).strip("/").replace("/", "_") + ".lock"
 
 
 def _snakebot(args: list[str], tmpdir: Path, **env: str) -> subprocess.CompletedProcess[str]:
@@ -41,7 +37,7 @@ def test_a_lock_directory_planted_by_another_user_is_refused(shared_tmp, pty_dev
     victim = shared_tmp / "victim.txt"
     victim.write_bytes(PRECIOUS)
     planted = shared_tmp / f"{LOCK_DIR_NAME}-{os.geteuid()}"
-    as_other_user(f"mkdir -m 0777 {planted} && ln -s {victim} {planted}/{_lock_name(pty_device)}")
+    as_other_user(f"mkdir -m 0777 {planted} && ln -s {victim} {planted}/{lock_name(pty_device)}")
     result = _snakebot(["stop", "--port", pty_device], shared_tmp)
     assert result.returncode == 2, result.stderr
     assert victim.read_bytes() == PRECIOUS
@@ -59,7 +55,7 @@ def test_a_lock_directory_linked_by_another_user_to_a_directory_of_ours_is_refus
     # followed, the lock would empty that file.
     ours = shared_tmp / "ours"
     ours.mkdir(mode=0o700)
-    victim = ours / _lock_name(pty_device)
+    victim = ours / lock_name(pty_device)
     victim.write_bytes(PRECIOUS)
     planted = shared_tmp / f"{LOCK_DIR_NAME}-{os.geteuid()}"
     as_other_user(f"ln -s {ours} {planted}")
@@ -113,7 +109,7 @@ def test_the_lock_directory_is_made_private(tmp_path, monkeypatch, pty_device):
     tmp_path.chmod(0o700)
     open_port(pty_device, timeout=0).close()
     assert (tmp_path / LOCK_DIR_NAME).stat().st_mode & 0o777 == 0o700
-    assert (tmp_path / LOCK_DIR_NAME / _lock_name(pty_device)).stat().st_mode & 0o777 == 0o600
+    assert (tmp_path / LOCK_DIR_NAME / lock_name(pty_device)).stat().st_mode & 0o777 == 0o600
 
 
 @pytest.mark.parametrize("scheme", ["spy://", "alt://"])

@@ -4,9 +4,7 @@ state; the command on a gait and on a controller; no display, exit 2."""
 
 from __future__ import annotations
 
-import atexit
 import os
-import shutil
 import subprocess
 import sys
 import time
@@ -18,6 +16,7 @@ from click.testing import CliRunner
 from controller_cli_support import save, wave_table
 from PIL import ImageGrab
 from test_video3d import SNAKE5, orange, wave
+from xvfb_support import display, xvfb
 
 from snakebot.cli import main
 from snakebot.plots import render3d, viewer
@@ -26,36 +25,7 @@ from snakebot.sim.controller_pty import ControllerPty
 
 pytest.importorskip("mujoco")
 pytestmark = pytest.mark.serial  # a window drawn by its own thread, runs shown in real time
-if shutil.which("Xvfb") is None:  # pragma: no cover - the dev setup installs it
-    pytest.skip("Xvfb is not installed (apt-get install xvfb)", allow_module_level=True)
-
-
-@pytest.fixture(scope="session")
-def xvfb() -> str:
-    """A fresh X server (Xvfb) on a free display number: its DISPLAY. It stops when the
-    process exits, after GLFW lets go of it (atexit runs last what registered first; the
-    viewer registers GLFW's end when it first opens): an X server that goes away under
-    a connection makes Xlib end the process."""
-    read, write = os.pipe()
-    server = subprocess.Popen(
-        ["Xvfb", "-displayfd", str(write), "-screen", "0", "1280x720x24", "-nolisten", "tcp"],
-        pass_fds=(write,),
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    os.close(write)
-    with os.fdopen(read) as announced:
-        number = announced.readline().strip()  # written once the server accepts clients
-    atexit.register(server.wait, 10)
-    atexit.register(server.terminate)
-    assert number, "Xvfb did not start"
-    return f":{number}"
-
-
-@pytest.fixture
-def display(xvfb, monkeypatch) -> str:
-    monkeypatch.setenv("DISPLAY", xvfb)
-    return xvfb
+__all__ = ["display", "xvfb"]  # the X server the viewer draws on (fixtures)
 
 
 def red(frame: np.ndarray) -> np.ndarray:

@@ -68,3 +68,29 @@ def test_the_cli_names_the_holder(pty_device):
         result = CliRunner().invoke(main, ["bus", "ping", "1", "--port", pty_device])
     assert result.exit_code == 2
     assert result.stderr.startswith(f"error: serial port {pty_device} is in use by pid")
+
+
+def test_a_lock_belongs_to_the_device_file_not_only_its_name(tmp_path, monkeypatch):
+    """Another file under a held device's name (an adapter plugged in again, a pty of the
+    same number in another pty filesystem) is another device: its lock is free; the held
+    one stays held, through a symlink too."""
+    from snakebot.link.transport.portlock import PortLock
+
+    monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path))
+    tmp_path.chmod(0o700)
+    device = tmp_path / "ttyUSB0"
+    device.write_bytes(b"")
+    held = PortLock(str(device))
+    try:
+        link = tmp_path / "ttyDXL"
+        link.symlink_to(device)
+        with pytest.raises(PortError, match="is in use by pid"):
+            PortLock(str(link))
+        moved = tmp_path / "ttyUSB0.old"
+        device.rename(moved)  # the held file lives on under another name
+        device.write_bytes(b"")
+        PortLock(str(device)).release()
+        with pytest.raises(PortError, match="is in use by pid"):
+            PortLock(str(moved))
+    finally:
+        held.release()

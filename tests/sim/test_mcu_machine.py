@@ -157,7 +157,7 @@ def test_usart_registers_served_in_c_behave_as_the_model() -> None:
             elif op == 4:
                 m.usart1.receive(value)
             m.stall(dt)
-            m.scheduler.run_due(m.now())
+            m.run_events(m.now())
             u = m.usart1
             seen.append((u.sr, u.cr1, u.tdr, u.rdr, m.nvic.lines, m.nvic.pending, sent[-3:]))
         assert seen[: len(seen) // 2] == seen[len(seen) // 2 :]

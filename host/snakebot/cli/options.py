@@ -153,15 +153,18 @@ def _servo_baud(ctx: click.Context, param: click.Parameter, value: int) -> int:
 
 
 def _link_baud(ctx: click.Context, param: click.Parameter, value: int) -> int:
-    """--baud on the PC link: no slower than the slowest a Dynamixel device is tabulated
-    at, below which a reply's timeout (it scales with the byte time) runs to minutes."""
+    """--baud on the PC link: within the rates Dynamixel devices are tabulated at: below
+    the slowest a reply's timeout (it scales with the byte time) runs to minutes, above
+    the fastest no serial port goes (and the operating system refuses the number)."""
     from snakebot.formats import register_values
 
-    slowest = register_values.slowest_bps()
-    if value < slowest:
+    slowest, fastest = register_values.slowest_bps(), register_values.fastest_bps()
+    if not slowest <= value <= fastest:
+        side = f"slower than any Dynamixel device runs (the slowest: {slowest})"
+        if value > fastest:
+            side = f"faster than any Dynamixel device runs (the fastest: {fastest})"
         raise click.BadParameter(
-            f"{value} bit/s is slower than any Dynamixel device runs (the slowest: {slowest}); "
-            f"the firmware's PC link runs at {PC_LINK_BAUD}",
+            f"{value} bit/s is {side}; the firmware's PC link runs at {PC_LINK_BAUD}",
             ctx,
             param,
         )

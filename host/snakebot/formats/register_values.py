@@ -453,3 +453,9 @@ def slowest_bps() -> int:
     """The slowest bit rate a described device answers at: its slowest tabulated rate,
     less the clock error the device tolerates (so a nominal 9600 passes for 9615)."""
     return int(min(all_bauds()) * (1.0 - _baud().tolerance))
+
+
+def fastest_bps() -> int:
+    """The fastest bit rate a described device answers at: its fastest tabulated rate,
+    plus the clock error the device tolerates."""
+    return int(max(all_bauds()) * (1.0 + _baud().tolerance))

@@ -201,7 +201,8 @@ class FloorLines:
             return False
         geom = scene.geoms[scene.ngeom]
         mj.mjv_initGeom(geom, mj.mjtGeom.mjGEOM_LINE, self._zeros, self._zeros, self._eye, rgba)
-        mj.mjv_connector(geom, mj.mjtGeom.mjGEOM_LINE, self.width_px, [*a, LINE_Z], [*b, LINE_Z])
+        ends = (np.array([a[0], a[1], LINE_Z], float), np.array([b[0], b[1], LINE_Z], float))
+        mj.mjv_connector(geom, mj.mjtGeom.mjGEOM_LINE, float(self.width_px), *ends)
         scene.ngeom += 1
         return True
 

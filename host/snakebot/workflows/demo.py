@@ -747,10 +747,9 @@ def _host_blamed() -> Iterator[None]:
     try:
         yield
     except ControllerLinkError as exc:
-        what = str(exc).split(":")[0]
         load = os.getloadavg()[0]
         raise DemoError(
-            f"{what} (the emulated controller, on this host): the host did not run the "
+            f"{exc.problem} (the emulated controller, on this host): the host did not run the "
             f"emulator in time (load average {load:.1f} on {os.cpu_count()} cores); run the "
             "demo again when the machine is quieter"
         ) from None

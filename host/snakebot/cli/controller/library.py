@@ -23,6 +23,7 @@ from snakebot.link.controller.library import (
     restore,
     store_slot,
     store_state,
+    stored_slots,
 )
 from snakebot.link.flash.library_backup import read_backup, write_backup
 
@@ -187,7 +188,7 @@ def backup_command(backup_file: Path, link: ControllerLink, as_json: bool) -> No
         ctl.identify()
         saved = backup(ctl)
     write_backup(saved, backup_file)
-    stored = [s for s in saved["slots"] if "data" in s]
+    stored = stored_slots(saved)
     if as_json:
         click.echo(dumps({"file": str(backup_file), "slots": len(stored)}))
     else:

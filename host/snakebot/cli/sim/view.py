@@ -72,6 +72,8 @@ def view(
     Example:
       snakebot gait serpenoid snake5 -A 30deg -w 180deg -d 90deg --cycles 1 -o s.gait
       snakebot sim view s.gait --once
+      snakebot upload s.gait --port /dev/ttyUSB0
+      snakebot play --port /dev/ttyUSB0 --loop
       snakebot sim view --port /dev/ttyUSB0 --robot snake5
     """
     from snakebot.plots.viewer import LiveView, has_display, mirror, play

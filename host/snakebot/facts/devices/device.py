@@ -50,6 +50,10 @@ class Baud:
     def value_for(self, bps: float, tolerance: float | None = None) -> int | None:
         """The register value whose rate is within ``tolerance`` (a fraction; the
         device's own by default) of ``bps``, the nearest if several are; None if none is."""
+        try:
+            bps = float(bps)
+        except OverflowError:  # an integer beyond any float: beyond every device's rate
+            return None
         if bps <= 0:
             return None
         if tolerance is None:

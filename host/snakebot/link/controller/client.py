@@ -175,15 +175,17 @@ class ControllerClient:
             yield
         except DxlTimeout:
             raise ControllerLinkError(
-                f"{where} did not answer {what} at {self.baudrate} baud: check that the "
-                "CM-530 is powered and its USB cable connected, that it runs the snakebot "
-                "firmware (not the ROBOTIS bootloader; `snakebot flash` installs it), and that "
-                f"the baud rate ({self.baudrate}) and the controller ID ({self.id}) match it"
+                f"{where} did not answer {what} at {self.baudrate} baud",
+                "check that the CM-530 is powered and its USB cable connected, that it runs "
+                "the snakebot firmware (not the ROBOTIS bootloader; `snakebot flash` installs "
+                "it), and that "
+                f"the baud rate ({self.baudrate}) and the controller ID ({self.id}) match it",
             ).about("baud", "controller_id") from None
         except CorruptPacket as exc:
             raise ControllerLinkError(
-                f"{where} answered {what} with damaged packets ({exc}); check the USB cable "
-                f"and that the baud rate ({self.baudrate}) matches the controller"
+                f"{where} answered {what} with damaged packets ({exc})",
+                f"check the USB cable and that the baud rate ({self.baudrate}) matches the "
+                "controller",
             ).about("baud") from None
         except ServoError as exc:
             flags = ErrorFlags(exc.flags)

@@ -37,7 +37,14 @@ class ControllerRefused(ControllerError, InputError):
 
 
 class ControllerLinkError(ControllerError, RuntimeFailure):
-    """The controller did not answer on the PC link, or answered with damaged packets."""
+    """The controller did not answer on the PC link, or answered with damaged packets.
+    ``problem`` is what happened, without the hint that follows it in the message (a
+    caller that knows better, such as the demo with its emulated controller, gives its
+    own)."""
+
+    def __init__(self, problem: str, hint: str) -> None:
+        super().__init__(f"{problem}: {hint}")
+        self.problem = problem
 
 
 class NotAController(ControllerError, InputError):

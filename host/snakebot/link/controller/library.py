@@ -330,6 +330,11 @@ def backup(ctl: ControllerClient) -> dict[str, Any]:
     return {"format": "snakebot-library-backup", "version": 1, "slots": slots}
 
 
+def stored_slots(saved: dict[str, Any]) -> list[dict[str, Any]]:
+    """The slots of a :func:`backup` that hold bytes (the ones a restore writes)."""
+    return [entry for entry in saved.get("slots", []) if "data" in entry]
+
+
 def restore(ctl: ControllerClient, saved: dict[str, Any]) -> list[Slot]:
     """Store every slot of a :func:`backup` that has bytes and is not already in place
     (same name, kind, length and CRC); returns the slots written."""
@@ -339,9 +344,7 @@ def restore(ctl: ControllerClient, saved: dict[str, Any]) -> list[Slot]:
             "`snakebot flash` wrote"
         )
     written = []
-    for entry in saved.get("slots", []):
-        if "data" not in entry:
-            continue
+    for entry in stored_slots(saved):
         blob = base64.b64decode(entry["data"])
         now = read_slot(ctl, int(entry["slot"]))
         wanted = ("OK", entry["name"], entry["kind"], zlib.crc32(blob))

@@ -23,7 +23,7 @@ from snakebot.errors import SnakebotError
 from snakebot.formats.protocol.errors import ProtocolError
 from snakebot.link.controller.client import ControllerClient
 from snakebot.link.controller.errors import LibraryRefused
-from snakebot.link.controller.library import backup, restore
+from snakebot.link.controller.library import backup, restore, stored_slots
 from snakebot.settings import lookup_path
 from snakebot.userfiles import UnreadableInput, read_text_bounded, write_atomic
 
@@ -69,7 +69,7 @@ def backup_library(port: str, say: Say, warn: Say) -> Path | None:
     except (SnakebotError, OSError) as exc:
         warn(f"warning: the gait library could not be backed up ({exc}); flashing anyway")
         return None
-    stored = [s for s in saved["slots"] if "data" in s]
+    stored = stored_slots(saved)
     if not stored:
         say("The controller's gait library is empty: nothing to back up.")
         return None

@@ -25,15 +25,27 @@ _OPEN_FLAGS = os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | os.O_NONBL
 _OPEN_FLAGS |= getattr(os, "O_CLOEXEC", 0)
 
 
+def lock_name(device: str) -> str:
+    """The name of ``device``'s lock file: the device file's identity (its filesystem and
+    inode), so that a symlink (``sim bus --link /tmp/ttyDXL``) and its target share a
+    lock, and two ptys of one number in separate pty filesystems (containers sharing a
+    temporary folder) have one each; a device that does not exist (opening it fails with
+    its own message) by its real path."""
+    real = os.path.realpath(device)
+    try:
+        info = os.stat(real)
+    except OSError:
+        return (real.strip("/").replace("/", "_") or "root") + ".lock"
+    return f"dev{info.st_dev:x}-ino{info.st_ino}.lock"
+
+
 def lock_path(device: str) -> Path:
-    """The lock file of ``device``: named after its real path, so a symlink (``sim bus
-    --link /tmp/ttyDXL``) and its target share a lock."""
-    name = os.path.realpath(device).strip("/").replace("/", "_") or "root"
+    """The lock file of ``device`` (:func:`lock_name`) in the private directory."""
     try:
         where = private_dir(LOCK_DIR_NAME)
     except UnsafeDirectory as exc:
         raise PortError(device, f"cannot lock serial port {device}: {exc}") from None
-    return where / f"{name}.lock"
+    return where / lock_name(device)
 
 
 def _open_lock_file(device: str, path: Path) -> int:

@@ -25,7 +25,7 @@ void mcu_count_instruction(void *uc, uint64_t address, uint32_t size, void *coun
      * leaf of a few instructions (it runs for every instruction the CPU executes) */
     mcu_counter *c = (mcu_counter *)counter;
     uint64_t count = c->count;
-    if (__builtin_expect(count < c->limit, 1) &&
+    if (__builtin_expect(count < c->limit && count < c->event_count, 1) &&
         !(c->site_mask >> ((address >> 1) & 63u) & 1u)) {
         c->count = count + 1;
         return;
@@ -40,6 +40,9 @@ void *mcu_count_hook(void)
 
 static void count_at_limit_or_site(void *uc, uint64_t address, uint32_t size, mcu_counter *c)
 {
+    if (c->count >= c->event_count && mcu_timed_in_hook(uc, c)) {
+        return; /* an exception was entered: this instruction runs on its return */
+    }
     if (c->count >= c->limit && c->pending == 0 && mcu_time_at(c, c->count) < c->stop_at) {
         c->limit = c->count + 1; /* short of stop_at by a rounding (see mcu_count.h) */
     }
@@ -58,6 +61,9 @@ static void count_at_limit_or_site(void *uc, uint64_t address, uint32_t size, mc
             continue;
         }
         if (c->site_kind[i] == MCU_SITE_WFI) {
+            if (c->n_timed && mcu_timed_sleep(uc, c, address)) {
+                return; /* woken by a timed event, inside the run */
+            }
             if (((mcu_wfi_fn)c->on_wfi)(address) != 0) {
                 return; /* the CPU stops: no later site's hook runs, as in unicorn */
             }
@@ -260,6 +266,7 @@ int mcu_keep_pc(void *uc, mcu_exceptions *x)
 int mcu_run(void *uc, mcu_exceptions *x, mcu_counter *c, uint64_t instructions)
 {
     c->limit = c->count + instructions;
+    mcu_timed_plan(c);
     uint32_t pc = mcu_reg(uc, x, x->frame[FRAME_PC]) | 1u;
     c->running = 1;
     int status = ((mcu_start_fn)x->emu_start)(uc, pc, 0, 0, 0);

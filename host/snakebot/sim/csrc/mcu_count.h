@@ -34,6 +34,14 @@ typedef struct {
     uint32_t running;  /* mcu_run is under way (set there) */
     void *nvic;        /* the mcu_nvic (mcu_nvic.h) that takes what is pending after an
                         * unmask (NULL: the CPU stops there instead) */
+    /* Events timed here, in C (mcu_usart.h: a USART's shift register finishing a frame):
+     * the hook runs them at the instruction a scheduled event would run at, without
+     * stopping the CPU, and a sleeping CPU's wfi jumps to them. */
+    uint64_t event_count;  /* the count at which the earliest is due (UINT64_MAX: none) */
+    void *timed[2];        /* the mcu_fast_io of each USART timed here */
+    uint32_t n_timed;
+    uint32_t undrained;    /* a timed USART has something to tell its model (mcu_usart.h) */
+    uint64_t sleeps;       /* wfi instructions that slept, here or in the model */
 } mcu_counter;
 
 /* The machine's time (s) when the count is `count`: t0 + (count - c0) / hz. */
@@ -51,6 +59,9 @@ double mcu_now(const mcu_counter *c);
  * time of the feed), on every pass of the firmware's main loop: in Python those accesses
  * would cost more than the rest of the emulation. A USART's CR1 is read here too (the
  * interrupt handler reads it on every byte). */
+#define MCU_USART_LOG 64 /* bytes a USART's shift register timed in C starts between two
+                          * looks of its model (a full log stops the CPU) */
+
 typedef struct {
     uint32_t kind;           /* MCU_IO_USART_SR or MCU_IO_IWDG_KR */
     uint32_t value;          /* USART: SR, kept current by the model */
@@ -76,6 +87,18 @@ typedef struct {
     uint32_t line;      /* the interrupt line's level */
     int32_t irq;        /* its NVIC line */
     void *nvic;         /* the mcu_nvic (NULL: the Python model serves all but SR and CR1 reads) */
+    /* The shift register timed here (frame_s > 0; the counter's timed events): at the end
+     * of each frame TDR's byte moves in (TXE), or TC is set; the bytes that start are
+     * logged for the model, which hands them on (on_tx) when it next runs. */
+    double shift_end;   /* when the shift register is done with its frame (while shifting) */
+    double frame_s;     /* one frame at the programmed rate (s), kept by the model */
+    double baud;        /* the rate (bits/s), for the model's on_tx */
+    uint32_t stop_on_idle;  /* TC: stop the CPU so the model's on_idle runs at that time */
+    uint32_t idle;      /* TC was set here: the model's on_idle is due, at idle_at */
+    double idle_at;
+    uint32_t logged;    /* bytes started here and not yet handed on by the model */
+    uint8_t log_byte[MCU_USART_LOG];
+    double log_start[MCU_USART_LOG];
 } mcu_fast_io;
 
 #define MCU_IO_USART_SR 1

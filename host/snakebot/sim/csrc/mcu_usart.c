@@ -87,3 +87,174 @@ int mcu_usart_write(mcu_fast_io *f, uint64_t offset, unsigned size, uint64_t val
     }
     return 0;
 }
+
+/* -- the shift register, timed here ------------------------------------------------------- */
+
+static int timed_here(const mcu_fast_io *f)
+{
+    return f->nvic != 0 && f->shifting && f->frame_s > 0.0;
+}
+
+double mcu_timed_next(const mcu_counter *c)
+{
+    double next = -1.0;
+    for (uint32_t i = 0; i < c->n_timed; i++) {
+        const mcu_fast_io *f = (const mcu_fast_io *)c->timed[i];
+        if (timed_here(f) && (next < 0.0 || f->shift_end < next)) {
+            next = f->shift_end;
+        }
+    }
+    return next;
+}
+
+/* Instructions from now to time t, rounded up as the machine rounds a stop (a millionth
+ * of a cycle short counts as there). */
+static uint64_t cycles_to(const mcu_counter *c, double t)
+{
+    double x = (t - mcu_now(c)) * c->hz - 1e-6;
+    if (!(x > 0.0)) {
+        return 0;
+    }
+    if (x >= 1.8e19) {
+        return UINT64_MAX / 2;
+    }
+    uint64_t k = (uint64_t)x;
+    return (double)k < x ? k + 1 : k;
+}
+
+void mcu_timed_plan(mcu_counter *c)
+{
+    double t = mcu_timed_next(c);
+    if (t < 0.0) {
+        c->event_count = UINT64_MAX;
+        return;
+    }
+    uint64_t k = cycles_to(c, t);
+    if (k == 0 && t > mcu_now(c)) {
+        k = 1; /* short by a rounding: look again after the next instruction */
+    }
+    c->event_count = c->count + k;
+}
+
+/* The shift register is done with its frame (at shift_end): TDR's byte moves in (TXE set,
+ * the byte logged for the model), or nothing is waiting and TC is set; as usart.py's
+ * _shift_done and _start_shift. */
+static void shift_done(mcu_counter *c, mcu_fast_io *f)
+{
+    double t = f->shift_end;
+    if (f->tdr_full && (f->second & CR1_TE)) {
+        f->log_byte[f->logged] = (uint8_t)f->tdr;
+        f->log_start[f->logged] = t;
+        f->logged++;
+        c->undrained = 1;
+        f->tdr_full = 0;
+        f->tdr = 0;
+        f->value |= TXE;
+        f->shift_end = t + f->frame_s;
+    } else {
+        f->shifting = 0;
+        f->value |= TC;
+        if (f->stop_on_idle) {
+            f->idle = 1;
+            f->idle_at = t;
+            c->undrained = 1;
+        }
+    }
+    mcu_usart_update_irq(f);
+}
+
+int mcu_timed_run(mcu_counter *c, double now)
+{
+    int need = 0;
+    for (;;) {
+        mcu_fast_io *due = 0;
+        for (uint32_t i = 0; i < c->n_timed; i++) {
+            mcu_fast_io *f = (mcu_fast_io *)c->timed[i];
+            if (timed_here(f) && f->shift_end <= now && (due == 0 || f->shift_end < due->shift_end)) {
+                due = f;
+            }
+        }
+        if (due == 0) {
+            break;
+        }
+        if (due->logged >= MCU_USART_LOG || due->idle) {
+            need = 1; /* the model first hands on what it was told */
+            break;
+        }
+        shift_done(c, due);
+        if (due->idle || due->logged >= MCU_USART_LOG) {
+            need = 1;
+            break;
+        }
+    }
+    mcu_timed_plan(c);
+    return need;
+}
+
+static void stop_now(mcu_counter *c)
+{
+    if (c->count < c->limit) {
+        c->limit = c->count;
+    }
+    c->stop_at = 0.0;
+}
+
+int mcu_timed_in_hook(void *uc, mcu_counter *c)
+{
+    uint64_t limit = c->limit;
+    double stop_at = c->stop_at;
+    if (mcu_timed_run(c, mcu_now(c))) {
+        stop_now(c); /* the model looks before this instruction */
+        return 0;
+    }
+    mcu_nvic *n = (mcu_nvic *)c->nvic;
+    if (n == 0 || (c->limit == limit && c->stop_at == stop_at)) {
+        return 0;
+    }
+    /* a line the events raised stopped the CPU (mcu_nvic_changed): taken here instead, as
+     * after an unmask (or the CPU stops there, inside an IT block) */
+    c->limit = limit;
+    c->stop_at = stop_at;
+    return mcu_nvic_after_unmask(uc, n) > 0;
+}
+
+typedef int (*timed_reg_fn)(void *uc, int reg, void *value);
+
+int mcu_timed_sleep(void *uc, mcu_counter *c, uint64_t address)
+{
+    mcu_nvic *n = (mcu_nvic *)c->nvic;
+    if (n == 0 || c->stop_at <= 0.0 || mcu_nvic_takeable(n, 0, -1) >= 0 ||
+        mcu_maybe_in_it_block(uc, n->x)) {
+        return 0;
+    }
+    for (;;) {
+        double t = mcu_timed_next(c);
+        if (t < 0.0 || !(t < c->stop_at)) {
+            return 0; /* the machine's next event comes first: the model sleeps */
+        }
+        double now = mcu_now(c);
+        if (t > now) {
+            c->t0 += t - now; /* asleep: time jumps to the event */
+        }
+        int need = mcu_timed_run(c, mcu_now(c));
+        uint64_t k = cycles_to(c, c->stop_at);
+        c->limit = c->count + (k > 0 ? k : 1);
+        if (need) {
+            return 0;
+        }
+        if (mcu_nvic_takeable(n, 0, -1) >= 0) {
+            break;
+        }
+    }
+    /* woken: the wfi is done (counted, not executed) and what may preempt is taken */
+    c->sleeps++;
+    uint32_t pc = ((uint32_t)address + 2u) | 1u;
+    ((timed_reg_fn)n->x->reg_write)(uc, n->x->frame[6], &pc);
+    int taken = mcu_nvic_take(uc, n);
+    if (taken > 0) {
+        mcu_keep_pc(uc, n->x);
+    } else if (taken < 0) {
+        stop_now(c);
+    }
+    return 1;
+}

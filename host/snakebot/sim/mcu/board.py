@@ -102,7 +102,12 @@ class Cm530:
         self.mcu.usart3.on_tx = self._pc_tx
         self._on_pc_tx = on_pc_tx
         self.mcu.usart1.on_tx = self._bus_tx
+        self.mcu.usart1.on_idle = self._flush_bus_tx
         self.bus_stats = BusStats()
+        self._tx_bytes = bytearray()  # master bytes on the wire the bus has not been given
+        self._tx_start = 0.0  # when the first of them starts
+        self._tx_end = 0.0  # when the last of them ends
+        self._tx_baud = 0.0  # their rate
         self._bus_step: Event | None = None
         self._arrival: Event | None = None
         self._buffer_states: dict[tuple[int, int, int, int], tuple[bool, bool]] = {}
@@ -177,19 +182,42 @@ class Cm530:
         return known
 
     def _bus_tx(self, byte: int, start: float, end: float, baud: float) -> None:
-        bus = self.bus
         drives = self._buffer_drives()
         if not drives:
             self.bus_stats.blocked += 1
+        bus = self.bus
         if bus is None:
             return
+        if drives:
+            self.bus_stats.sent += 1
+            if start == self._tx_end and baud == self._tx_baud and self._tx_bytes:
+                self._tx_bytes.append(byte)  # right behind the one before: the same frame
+                self._tx_end = end
+                return
+        self._flush_bus_tx()
         if start > bus.now:
-            bus.run_until(start)  # also what a bus step due now would do (see _step_bus)
+            bus.run_until(start)  # the bus's events due by the byte's start run first
         if drives:
             if bus.baudrate != baud:
                 bus.baudrate = baud
-            bus.master_write(bytes((byte,)))
-            self.bus_stats.sent += 1
+            self._tx_bytes.append(byte)
+            self._tx_start, self._tx_end, self._tx_baud = start, end, baud
+        self._plan_bus()
+
+    def _flush_bus_tx(self, _t: float = 0.0) -> None:
+        """Give the bus the master's bytes USART1 has sent since it was last given some,
+        back to back from the first one's start (where the bus's clock stands): in one
+        write rather than a byte at a time, which is the same on the wire (the servos hear
+        a packet when its last byte is in) and spares the bus most of its work. Done
+        before the bus runs past the first one's start (:meth:`_run_bus`) and when USART1
+        has nothing more to send (``_t``: when)."""
+        data = self._tx_bytes
+        if not data:
+            return
+        bus = self.bus
+        assert bus is not None
+        bus.master_write(bytes(data))
+        data.clear()
         self._plan_bus()
 
     def _plan_bus(self) -> None:
@@ -212,22 +240,28 @@ class Cm530:
         if arrival is not None and self._arrival is None:
             self._arrival = scheduler.at(max(arrival, self.mcu.now()), self._deliver)
 
+    def _run_bus(self, t: float) -> None:
+        """Run the bus until ``t``, given the bytes USART1 has sent first if ``t`` is past
+        their start (a bus event due at their start, or before, leaves them be: given
+        then, the bytes of a packet still on its way would reach the bus a few at a
+        time)."""
+        bus = self.bus
+        assert bus is not None
+        if self._tx_bytes and t > self._tx_start:
+            self._flush_bus_tx()
+        if t > bus.now:
+            bus.run_until(t)
+
     def _step_bus(self, t: float) -> None:
         self._bus_step = None
-        assert self.bus is not None
-        u = self.mcu.usart1
-        if u.tdr is not None and u.shift_end == t and u.cr1 & usart.CR1_TE:
-            return  # a byte starts now (usart1's event, due at the same time): _bus_tx steps
-        if t > self.bus.now:
-            self.bus.run_until(t)
+        self._run_bus(t)
         self._plan_bus()
 
     def _deliver(self, t: float) -> None:
         self._arrival = None
         bus = self.bus
         assert bus is not None
-        if t > bus.now:
-            bus.run_until(t)
+        self._run_bus(t)
         data = bus.master_read(1)
         if data:
             if self._receiver_listens():
@@ -243,11 +277,11 @@ class Cm530:
         return self.mcu.now()
 
     def run_until(self, t: float) -> None:
-        """Run the board (chip and bus) until time ``t`` (seconds)."""
+        """Run the board (chip and bus) until time ``t`` (seconds). The bus stops at the
+        start of a packet USART1 is still sending (the rest of it follows it there)."""
         self.mcu.run_until(t)
         if self.bus is not None:
-            if t > self.bus.now:
-                self.bus.run_until(t)
+            self._run_bus(min(t, self._tx_start) if self._tx_bytes else t)
             self._plan_bus()
 
     def run_for(self, seconds: float) -> None:

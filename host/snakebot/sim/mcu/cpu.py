@@ -15,7 +15,9 @@ without a Python call.
 Time: a native instruction counter (``snakebot._core``'s ``mcu_count_instruction``, a
 unicorn code hook) counts every executed instruction and stops the CPU at a limit, so
 the machine knows the exact instruction count at every register access and runs the CPU
-exactly up to the next peripheral event. One instruction counts one cycle.
+exactly up to the next peripheral event. One instruction counts one cycle. Events timed
+in C (the USARTs' frames, mcu_usart.h) run from the same hook at their instruction, and a
+``wfi`` jumps to them, without stopping the CPU.
 
 Interrupts are looked at whenever the CPU stops: at an event, after a register write that
 pended or enabled one (the write lowers the limit so the CPU stops after it), and after
@@ -141,6 +143,7 @@ class Cpu:
         self.counter = ffi.new("mcu_counter *")
         self.counter.stop = _native(uclib.uc_emu_stop)
         self.counter.limit = 0
+        self.counter.event_count = 2**64 - 1  # nothing timed in C yet (mcu_usart.h)
         self._io_callbacks: list[tuple[object, object]] = []
         self._hook_counter()
         uch = self.uc._uch
@@ -177,7 +180,6 @@ class Cpu:
         self._word = ctypes.create_string_buffer(32)
         self.running = False
         self.sleeping = False
-        self.sleeps = 0
         self._exit_request = False
         self._stopped_by: str | None = None
         self._pc_next = ctypes.c_uint32()
@@ -186,6 +188,11 @@ class Cpu:
         an exception that wakes the CPU, within the run (the CPU goes on); False to stop
         and sleep as usual."""
         self.lowest_sp = 0xFFFF_FFFF
+
+    @property
+    def sleeps(self) -> int:
+        """The ``wfi`` instructions that slept (here or in the counter's timed events)."""
+        return int(self.counter.sleeps)
 
     @property
     def lowest_sp(self) -> int:
@@ -369,7 +376,7 @@ class Cpu:
         try:
             if self.nvic.takeable(primask=False) is None:
                 self.sleeping = True
-                self.sleeps += 1
+                self.counter.sleeps += 1
                 if self.on_sleep is not None and not self.maybe_in_it_block() and self.on_sleep():
                     self._wake_in_run(address)
             self._stopped_by = "wfi"

@@ -137,6 +137,11 @@ class Stm32f103:
         self.afio = Afio(self._apb2("AFIO"), strict=strict)
         self.usart1 = self._usart("USART1", USART1_BASE, USART1_IRQ, "apb2")
         self.usart3 = self._usart("USART3", USART3_BASE, USART3_IRQ, "apb1")
+        self._usarts = (self.usart1, self.usart3)
+        for i, u in enumerate(self._usarts):  # their frames end in C (mcu_usart.h)
+            self._clock.timed[i] = u.fast
+            u.time_in_c(self._clock)
+        self._clock.n_timed = len(self._usarts)
         self.rcc.on_gate = self._clock_gates_changed
         self.iwdg = Iwdg(
             self.scheduler,
@@ -199,9 +204,12 @@ class Stm32f103:
         # every register access, which the firmware's polling loops make by the thousand
         fail = self.cpu.fail
         peripheral_read, peripheral_write = p.read, p.write
+        clock, drain = self._clock, self._drain
 
         def read(_uc: int, offset: int, size: int, _data: int) -> int:
             try:
+                if clock.undrained:  # what the USARTs did in C comes first
+                    drain()
                 return peripheral_read(offset, size)
             except BaseException as exc:  # stops the CPU; cpu.run raises it
                 fail(exc)
@@ -209,6 +217,8 @@ class Stm32f103:
 
         def write(_uc: int, offset: int, size: int, value: int, _data: int) -> None:
             try:
+                if clock.undrained:
+                    drain()
                 peripheral_write(offset, size, value)
             except BaseException as exc:
                 fail(exc)
@@ -249,6 +259,35 @@ class Stm32f103:
             if t < c.stop_at:
                 c.stop_at = t
 
+    def _drain(self) -> None:
+        """The USARTs hand on what their shift registers did in C."""
+        self._clock.undrained = 0
+        for u in self._usarts:
+            u.drain()
+
+    def time_usarts_in_python(self) -> None:
+        """The USARTs' frames timed by their models' events rather than in C (a test
+        compares the two)."""
+        self._clock.n_timed = 0
+        for u in self._usarts:
+            u.time_in_c(None)
+
+    def run_events(self, now: float) -> None:
+        """Run every event due by ``now``: the ones timed in C first (the USARTs' frames),
+        then the scheduler's."""
+        clock = self._clock
+        while lib.mcu_timed_run(clock, now):
+            self._drain()
+        if clock.undrained:
+            self._drain()
+        self.scheduler.run_due(now)
+
+    def _next_event(self) -> float | None:
+        """When the next event is due, the ones timed in C included."""
+        t = self.scheduler.next_time()
+        timed = lib.mcu_timed_next(self._clock)
+        return timed if timed >= 0.0 and (t is None or timed <= t) else t
+
     def _clock_gates_changed(self) -> None:
         self.usart1.clock_changed()
         self.usart3.clock_changed()
@@ -258,6 +297,8 @@ class Stm32f103:
         self.flash.check_clock(clocks.sysclk)
         self._clock.hz = clocks.hclk
         self.systick.set_hclk(clocks.hclk)
+        for u in self._usarts:
+            u.rate_changed()
 
     # -- memory --------------------------------------------------------------------------------
 
@@ -348,7 +389,7 @@ class Stm32f103:
         self._t_end = t_end
         while True:
             now = self.now()
-            scheduler.run_due(now)
+            self.run_events(now)
             if self._reset_request is not None:
                 kind, self._reset_request = self._reset_request, None
                 self.reset(kind)
@@ -360,6 +401,9 @@ class Stm32f103:
             next_event = scheduler.next_time()
             stop = t_end if next_event is None or next_event > t_end else next_event
             if cpu.sleeping and not cpu.wake_if_due():
+                timed = lib.mcu_timed_next(self._clock)
+                if 0.0 <= timed < stop:
+                    stop = timed
                 self._skip(max(stop - now, 0.0))  # asleep: time jumps to the next event
                 continue
             cycles = math.ceil((stop - now) * self.hz - 1e-6)
@@ -371,14 +415,16 @@ class Stm32f103:
         limit is set to the next event. False (stop, and sleep in run_until) if no event
         before the run's end wakes it, or one asks for a reset."""
         cpu, scheduler, t_end = self.cpu, self.scheduler, self._t_end
+        if self._clock.undrained:  # a TC timed in C stopped the sleep in C: handed on now
+            self._drain()
         while True:
-            next_event = scheduler.next_time()
+            next_event = self._next_event()
             if next_event is None or next_event > t_end:
                 return False
             now = self.now()
             if next_event > now:
                 self._skip(next_event - now)
-            scheduler.run_due(self.now())
+            self.run_events(self.now())
             if self._reset_request is not None:
                 return False
             if cpu.wake_if_due():
@@ -388,6 +434,7 @@ class Stm32f103:
         stop = t_end if next_event is None or next_event > t_end else next_event
         cpu.counter.limit = cpu.counter.count + max(math.ceil((stop - now) * self.hz - 1e-6), 1)
         cpu.counter.stop_at = stop
+        lib.mcu_timed_plan(cpu.counter)
         return True
 
     def irq_pending(self, irq: int) -> bool:

@@ -142,6 +142,7 @@ class McuFirmware:
                     board.run_until(min(target, now + step))
                 if data or board.pc_out:
                     last_io = time.monotonic()
+                    step = STEP_S  # busy again: the answer is not left a quiet step behind
                 if data:
                     self._send_input(data)
                     data = b""

@@ -16,9 +16,14 @@ half-duplex by HDSEL, LIN, smartcard, IrDA) are unmodelled, so an error in stric
 On the chip (its line wired to the C NVIC) the registers the firmware's interrupt handlers
 reach for every byte are served in C from the state this model keeps in ``fast``
 (mcu_usart.h): SR, DR and CR1 reads, a DR write behind the byte being sent, a CR1 write that
-starts no idle frame; this model serves the rest (the shift register's timing, the far end).
+starts no idle frame; and once the machine times it there (:meth:`Usart.time_in_c`), the
+shift register's frames end in C too, at the instruction this model's event would run at
+(TXE and the next byte, or TC), the bytes that start logged for :meth:`Usart.drain` to
+hand on. This model serves the rest (a shift register it starts, the far end).
 
-Bytes leave through ``on_tx(byte, start, end, baud)`` as their start bit goes out; bytes
+Bytes leave through ``on_tx(byte, start, end, baud)`` as their start bit goes out (a frame
+timed in C: when the model next runs, before anything else the machine does) and
+``on_idle(t)`` tells when the transmitter has nothing more to send (TC is set); bytes
 arrive through :meth:`Usart.receive` (one byte whose stop bit is in now) or
 :meth:`Usart.feed` (bytes the far end sends back to back at the programmed rate).
 """
@@ -72,6 +77,8 @@ class Usart(Peripheral):
         self.irq = irq
         self.clock_on = clock_on
         self.on_tx = on_tx
+        self._on_idle: Callable[[float], None] | None = None
+        self._counter: object = None  # the machine's mcu_counter once timed in C
         self.sent = 0
         self.received = 0
         self.overruns = 0
@@ -91,7 +98,7 @@ class Usart(Peripheral):
             if event is not None:
                 event.cancel()
         self._shift_end = self._feeding = None
-        self.fast.shifting = 0
+        self.fast.shifting = self.fast.logged = self.fast.idle = 0
         self._inbox.clear()
         self.sr = SR_RESET
         self.rdr = 0
@@ -152,12 +159,61 @@ class Usart(Peripheral):
 
     @property
     def transmitting(self) -> bool:
-        return self._shift_end is not None
+        return bool(self.fast.shifting)
 
     @property
     def shift_end(self) -> float | None:
         """When the shift register is done with what it sends (None: idle)."""
-        return None if self._shift_end is None else self._shift_end.time
+        if not self.fast.shifting:
+            return None
+        return self.fast.shift_end if self._shift_end is None else self._shift_end.time
+
+    # -- timed in C -----------------------------------------------------------------------
+
+    def time_in_c(self, counter: object) -> None:
+        """Let the machine's instruction counter ``counter`` (an ``mcu_counter``) time the
+        shift register's frames, in C (the line must be wired to the C NVIC; None: this
+        model times the frames it starts from now on)."""
+        self._counter = counter
+        self.rate_changed()
+
+    def _timed_in_c(self) -> bool:
+        return self._counter is not None and bool(self.fast.nvic)
+
+    def rate_changed(self) -> None:
+        """BRR or the bus clock changed: the frames timed in C take the new rate."""
+        baud = self.baud
+        self.fast.baud = baud
+        self.fast.frame_s = BITS_PER_FRAME / baud if baud else float("inf")
+
+    @property
+    def on_idle(self) -> Callable[[float], None] | None:
+        """Called with the time when the transmitter has nothing more to send (TC)."""
+        return self._on_idle
+
+    @on_idle.setter
+    def on_idle(self, fn: Callable[[float], None] | None) -> None:
+        self._on_idle = fn
+        self.fast.stop_on_idle = fn is not None  # timed in C: the CPU stops for it
+
+    def drain(self) -> None:
+        """Hand on what the shift register timed in C did since the last drain: each byte
+        it started (``on_tx``, in order) and then its TC (``on_idle``)."""
+        fast = self.fast
+        n = fast.logged
+        if n:
+            fast.logged = 0
+            self.sent += n
+            on_tx = self.on_tx
+            if on_tx is not None:
+                frame, baud = fast.frame_s, fast.baud
+                starts = ffi.unpack(fast.log_start, n)  # one call, not one per element
+                for byte, start in zip(ffi.unpack(fast.log_byte, n), starts, strict=True):
+                    on_tx(byte, start, start + frame, baud)
+        if fast.idle:
+            fast.idle = 0
+            if self._on_idle is not None:
+                self._on_idle(fast.idle_at)
 
     # -- the far end ------------------------------------------------------------------------
 
@@ -211,13 +267,19 @@ class Usart(Peripheral):
     def _start_shift(self, byte: int | None, t: float) -> None:
         """The shift register starts sending ``byte`` (None: an idle frame) at ``t``."""
         baud = self.baud  # frame_s, with the rate worked out once
-        end = t + (BITS_PER_FRAME / baud if baud else float("inf"))
+        frame = BITS_PER_FRAME / baud if baud else float("inf")
+        end = t + frame
         if byte is not None:
             self.sent += 1
             if self.on_tx is not None:
                 self.on_tx(byte, t, end, baud)
-        self._shift_end = self.scheduler.at(end, self._shift_done)
-        self.fast.shifting = 1
+        fast = self.fast
+        fast.shifting = 1
+        if self._timed_in_c():
+            fast.baud, fast.frame_s, fast.shift_end = baud, frame, end
+            lib.mcu_timed_plan(self._counter)
+        else:
+            self._shift_end = self.scheduler.at(end, self._shift_done)
 
     def _shift_done(self, t: float) -> None:
         self._shift_end = None
@@ -228,6 +290,8 @@ class Usart(Peripheral):
             self._start_shift(byte, t)
         else:
             self.sr |= TC
+            if self._on_idle is not None:
+                self._on_idle(t)
         self._update_irq()
 
     # -- registers ----------------------------------------------------------------------------
@@ -272,6 +336,7 @@ class Usart(Peripheral):
             self._write_dr(value & 0x1FF, after_sr_read)
         elif offset == BRR:
             self.brr = value & 0xFFFF
+            self.rate_changed()
         elif offset == CR1:
             self._write_cr1(value)
         elif offset in (CR2, CR3):
@@ -291,7 +356,7 @@ class Usart(Peripheral):
         old = self.cr1
         self.cr1 = value & 0x3FFF
         if self.cr1 & CR1_UE and self.cr1 & CR1_TE and not (old & CR1_UE and old & CR1_TE):
-            if self._shift_end is None:
+            if not self.fast.shifting:
                 self._start_shift(None, self.now())  # TE set: an idle frame first
 
     def _write_dr(self, value: int, after_sr_read: bool) -> None:
@@ -299,7 +364,7 @@ class Usart(Peripheral):
             self.sr &= ~TC
         if not (self.cr1 & CR1_UE and self.cr1 & CR1_TE):
             return  # nothing is sent; the byte is lost
-        if self._shift_end is None:
+        if not self.fast.shifting:
             self._start_shift(value & 0xFF, self.now())
         elif self.tdr is None:
             self.tdr = value & 0xFF

@@ -15,6 +15,7 @@ from snakebot.formats.gaittable import GaitTable, write_gait
 from snakebot.model.gait import serpenoid
 from snakebot.model.plan import PlanRequest, make_plan
 from snakebot.model.robots import TICKS_PER_RAD, load_robot
+from snakebot.workflows import predict as predict_module
 from snakebot.workflows.predict import (
     REST_MAX_S,
     REST_TICKS,
@@ -101,6 +102,26 @@ def test_a_table_played_once_ends_where_the_loaded_servos_come_to_rest():
     assert np.array_equal(held, np.repeat(held[:1], rest + 1, axis=0))
     # ideal servos are on the last frame at once
     assert predict_gait(table, plan.robot, ideal=True).rest_samples == 0
+
+
+def test_a_play_the_rest_cap_ends_says_so(tmp_path, monkeypatch):
+    """Where REST_MAX_S ends a play before the servos stop, the end is not where the robot
+    stops: the prediction and `sim predict` say so (a cap of one world period here; the
+    trident's loaded servos take some 0.1 s to come to rest)."""
+    plan = make_plan(PlanRequest(load_robot("trident"), (0.5, 0.2, math.radians(10))))
+    table = plan.gait.gait_table()
+    assert predict_gait(table, plan.robot).summary()["warnings"] == []
+    monkeypatch.setattr(predict_module, "REST_MAX_S", 0.01)
+    result = predict_gait(table, plan.robot)
+    assert result.rest_samples == 1 and not result.rest.reached
+    assert result.rest.moving > REST_TICKS
+    (warning,) = result.summary()["warnings"]
+    assert warning["kind"] == "not_at_rest" and warning["moving_ticks"] == result.rest.moving
+    path = tmp_path / "plan.gait"
+    write_gait(path, table)
+    out = run("sim", "predict", path, "--robot", "trident")
+    assert out.exit_code == 0, out.output
+    assert "warning: the servos had not come to rest 0.01 s after the last goal" in out.stderr
 
 
 def test_writes_are_the_controllers_player_tick_by_tick():

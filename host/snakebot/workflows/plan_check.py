@@ -32,7 +32,8 @@ def servo_check(plan: Plan | ProgramPlan) -> dict[str, Any]:
     robot's modelled servos in the quasi-static world:
     ``servo_check`` (the servo model, where the table ends and its error beside the
     plan's tolerance) and ``warnings`` (an ``open_loop`` one when the end is outside
-    the tolerance), as :func:`snakebot.model.plan.files.plan_summary` takes them."""
+    the tolerance; a ``not_at_rest`` one when the servos had not stopped), as
+    :func:`snakebot.model.plan.files.plan_summary` takes them."""
     robot = plan.robot
     if isinstance(plan, ProgramPlan):
         played = emulate_program("<program>", plan.program, robot)
@@ -45,6 +46,7 @@ def servo_check(plan: Plan | ProgramPlan) -> dict[str, Any]:
         f"played on the modelled servos ({robot.servo_model})",
         "the servos lag the table, so its end played open loop is not to be trusted",
     )
+    warnings = [*played.rest_warnings, *warnings]
     return {"servo_check": {"servos": robot.servo_model, **report}, "warnings": warnings}
 
 

@@ -87,7 +87,24 @@ a hundredth of what Present Position reports) over a world period."""
 
 REST_MAX_S = 2.0
 """The longest a play goes on after its last goal for the servos to come to rest: loaded
-AX-12s catch up with a planned table's last goal in about 0.1 s (the trident's)."""
+AX-12s catch up with a planned table's last goal in about 0.1 s (the trident's). A play
+that reaches it says so (a ``not_at_rest`` warning, :attr:`Prediction.rest_warnings`)."""
+
+
+@dataclass(frozen=True)
+class Rest:
+    """How a play held at its last frame ended: ``periods`` world periods after the
+    table, when no servo had moved more than :data:`REST_TICKS` over the last, or
+    :data:`REST_MAX_S` had passed (``moving``: the most a servo moved over the last
+    period, ticks; more than REST_TICKS when the cap ended it)."""
+
+    periods: int = 0
+    moving: float = 0.0
+
+    @property
+    def reached(self) -> bool:
+        """Whether the servos came to rest (not ended by the cap)."""
+        return self.moving <= REST_TICKS
 
 
 class PredictError(PlayerError):
@@ -107,9 +124,32 @@ class Prediction:
     predicted: Trajectory
     played: TableMotion
     wall_s: float
-    rest_samples: int = 0
-    """The record's last samples that came after the play, the table's last frame held
-    while the servos came to rest on it."""
+    rest: Rest = Rest()
+    """How the play ended, held at the table's last frame: the record's last
+    ``rest.periods`` samples came after it, while the servos came to rest on it."""
+
+    @property
+    def rest_samples(self) -> int:
+        """The record's samples after the play (``rest.periods``)."""
+        return self.rest.periods
+
+    @property
+    def rest_warnings(self) -> list[dict[str, Any]]:
+        """A warning (JSON-able) if the REST_MAX_S cap ended the play with a servo still
+        moving, else none."""
+        if self.rest.reached:
+            return []
+        return [
+            {
+                "kind": "not_at_rest",
+                "after_s": REST_MAX_S,
+                "moving_ticks": self.rest.moving,
+                "message": f"the servos had not come to rest {REST_MAX_S:g} s after the last "
+                f"goal (one still moved {self.rest.moving:.2f} ticks over the last "
+                f"{self.world_period_s:g} s): the emulated end is where they were then, not "
+                "where they stop",
+            }
+        ]
 
     @property
     def duration_s(self) -> float:
@@ -184,7 +224,10 @@ class Prediction:
             },
             "realtime_factor": self.realtime_factor,
             "wall_s": self.wall_s,
-            "warnings": singularity_warnings({"prediction from the table": self.predicted}),
+            "warnings": [
+                *singularity_warnings({"prediction from the table": self.predicted}),
+                *self.rest_warnings,
+            ],
         }
         meta_table = self.table.metadata.get("table")
         if isinstance(meta_table, dict):
@@ -332,28 +375,30 @@ def play(
     # a table played once ends held at its last frame: the body ends where the servos
     # come to rest on it (ideal ones are there at once; a loop goes on into its next pass)
     settles = until_rest and not (ideal or table.loop)
-    rest = come_to_rest(bus, robot, world_period, before) if settles else 0
+    rest = come_to_rest(bus, robot, world_period, before) if settles else Rest()
     body.stop()
     record = body.record()
     wall = time.perf_counter() - wall0
-    expected = intervals * per_frame + 1 + rest
+    expected = intervals * per_frame + 1 + rest.periods
     if len(record.t) != expected:  # pragma: no cover - a clock bug, not a user error
         raise PredictError(f"the world took {len(record.t)} samples, expected {expected}")
     return record, world_period, wall, rest
 
 
-def come_to_rest(bus: Bus, robot: Robot, period: float, before: list[float]) -> int:
+def come_to_rest(bus: Bus, robot: Robot, period: float, before: list[float]) -> Rest:
     """Run ``bus`` a ``period`` at a time until ``robot``'s servos are at rest (none moved
     more than :data:`REST_TICKS` over a period; they were at ``before`` one period ago),
-    for at most :data:`REST_MAX_S`; returns the periods run."""
+    for at most :data:`REST_MAX_S`; returns the periods run and the last period's move."""
     periods = 0
     now = bus.positions(robot.servo_ids)
     most = math.ceil(REST_MAX_S / period - 1e-9)
-    while periods < most and max(abs(a - b) for a, b in zip(now, before, strict=True)) > REST_TICKS:
+    moving = max(abs(a - b) for a, b in zip(now, before, strict=True))
+    while periods < most and moving > REST_TICKS:
         bus.run_until(bus.now + period)
         periods += 1
         before, now = now, bus.positions(robot.servo_ids)
-    return periods
+        moving = max(abs(a - b) for a, b in zip(now, before, strict=True))
+    return Rest(periods, moving)
 
 
 def predict_table(
@@ -447,7 +492,7 @@ def emulate(
         )
     finally:
         client.close()
-    predicted, played = predict_table(robot, table, len(record.t), rest)
+    predicted, played = predict_table(robot, table, len(record.t), rest.periods)
     return Prediction(
         name, robot, table, ideal, world_period, record, predicted, played, wall, rest
     )

@@ -37,10 +37,13 @@ OVERLOAD_HOLD_S = 0.1
 Moving Speed's cap when it caps the drive), with the joint stalled, before the servo
 reports overload."""
 
-STALLED_FRACTION = 0.05
+STALLED_FRACTION = 0.01
 """A joint slower than this fraction of the speed its capped drive turns the unloaded
 motor at (Torque Limit's or Moving Speed's cap, at the supply voltage) counts as stalled:
-a slow Moving Speed under ``speed_limit = "drive"`` moves a joint slowly, not stalls it."""
+a slow Moving Speed under ``speed_limit = "drive"`` moves a joint slowly, not stalls it,
+and a joint that still moves its load, however slowly, holds it (`sim goto`'s snake5 to
+seed 34's target in MuJoCo ends its loops creeping to their goals at 4.8 % of that speed,
+the load taking 95 % of the drive; a joint pushed to its stop does not move at all)."""
 
 DUTY_FULL = float(motor.TORQUE_FULL)
 """Torque Limit, Punch and wheel-mode Moving Speed at full duty (1023)."""

@@ -223,16 +223,19 @@ int sim_joints_period(sim_joints *j) {
                 j->load[k] = alpha * j->load[k] + (1.0 - alpha) * load1[k];
             }
         }
-        /* The body only takes power from the joints (the wheels' friction): a load that
-         * drives them (two pieces' blend, near rest) would keep them chattering and, with
-         * nothing holding them, creeping. There the body holds them instead. */
+        /* The body only takes power from the joints (the wheels' friction): with nothing
+         * driving them (torque off, inside their margins, no push), a load that drives them
+         * (two pieces' blend, near rest) would keep them chattering and creeping. There the
+         * body holds them instead. */
         double power = 0.0;
+        _Bool passive = 1;
         for (int k = 0; k < n; k++) {
             if (!held[k]) {
                 power += j->load[k] * (free[k] - j->load[k] / per_speed);
+                passive = passive && j->force[k] == 0.0 && j->external[k] == 0.0;
             }
         }
-        _Bool rest = power < 0.0;
+        _Bool rest = passive && power < 0.0;
         for (int k = 0; k < n; k++) {
             if (rest && !held[k]) { /* the body holds each joint with what it asked */
                 j->load[k] = per_speed * free[k];

@@ -42,7 +42,7 @@ def in_process(table, robot, world: str) -> tuple[float, float]:  # noqa: ANN001
         bus = client.port.bus
         move_to_start(client, bus, robot, table.frames[0])
         cpu0 = time.process_time()
-        record, _, wall = play(client, bus, robot, table, ideal=False, world=world)
+        record, _, wall, _ = play(client, bus, robot, table, ideal=False, world=world)
         cpu = time.process_time() - cpu0
         emulated = float(record.t[-1])
         return emulated / wall, emulated / cpu if cpu > 0 else float("inf")

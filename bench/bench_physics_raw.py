@@ -145,7 +145,7 @@ def whole_play(robot, table) -> float:  # noqa: ANN001
         bus = client.port.bus
         move_to_start(client, bus, robot, table.frames[0])
         cpu = time.process_time()
-        record, _, _ = play(client, bus, robot, table, ideal=False, world="mujoco")
+        record, *_ = play(client, bus, robot, table, ideal=False, world="mujoco")
         return float(record.t[-1]) / (time.process_time() - cpu)
 
 

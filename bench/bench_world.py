@@ -4,7 +4,8 @@ The host is the bus master at a 100 Hz control loop, in process: a snake5 serpen
 table with 10 ms frames is played as `snakebot sim predict` plays it (the controller's
 player, one SYNC_WRITE of goal and speed per 10 ms control tick through DxlClient on
 sim://, modelled AX-12A servos) while the
-world samples the servos at 100 Hz and moves the body through the C kinematic core.
+world turns the servos' joints under the body's load every 10 ms (the physics world's
+actuators, snakebot.sim.physics.joints) and moves the body through the C kinematic core.
 Printed: emulated bus seconds per wall second (goal: at least 200x), and, measured in
 the same run as a reference, the same SYNC_WRITE stream with no world, so the world's
 own cost shows as the ratio of the two. Best of several rounds (the machine is shared).

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 from firmware_support import build_firmware
-from tmux_support import Tmux, joints
+from tmux_support import SCREEN_TIMEOUT_S, Tmux, joints
 
 from snakebot.link.controller.client import ControllerClient
 from snakebot.link.controller.drive import SPEED_STEP, STEER_STEP
@@ -26,6 +26,8 @@ from snakebot.link.controller.drive import SPEED_STEP, STEER_STEP
 pytestmark = [pytest.mark.qemu, pytest.mark.slow, pytest.mark.serial]
 
 SNAKEBOT = str(Path(sys.executable).with_name("snakebot"))
+HOLD_S = 0.6
+"""A stopped robot's joints show the same angles this long: they hold their goals."""
 
 
 @pytest.fixture(scope="module")
@@ -74,10 +76,17 @@ def test_drive_on_a_terminal(served):
         tmux.wait_for(lambda s: f"speed {1 + SPEED_STEP:.2f}x" in s, "the new speed")
         tmux.keys("Space")
         tmux.wait_for(lambda s: "State IDLE" in s and "(stopped)" in s, "stopped")
-        time.sleep(0.5)  # the servos finish the way to their last goal...
+        # the servos finish the way to their last goal (loaded ones, at the wave's last
+        # Moving Speed, take up to a second or two), and then hold it
+        deadline = time.monotonic() + SCREEN_TIMEOUT_S
         held = joints(tmux.screen())
-        time.sleep(0.6)  # ...and then hold it
-        assert joints(tmux.screen()) == held
+        while True:
+            time.sleep(HOLD_S)
+            now = joints(tmux.screen())
+            if now == held:
+                break
+            assert time.monotonic() < deadline, ("the joints never came to rest", held, now)
+            held = now
         tmux.keys("Space")
         tmux.wait_for(lambda s: "State SERPENOID" in s and "(started)" in s, "started again")
         tmux.keys("q")

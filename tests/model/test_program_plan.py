@@ -55,8 +55,15 @@ def test_program_plan_ends_at_the_target_on_ideal_servos(tmp_path: Path, robot: 
         assert "no file was written" in result.output and not out.exists()
         return
     assert result.exit_code == 0, result.output
-    plan = json.loads(result.output)
+    plan = json.loads(result.stdout)
     program = read_program(out)
+    # the program is also run on the modelled servos, and an end there outside the
+    # tolerance is warned about (on stderr too)
+    check = plan["servo_check"]
+    warned = [w for w in plan["warnings"] if w["kind"] == "open_loop" and w["cause"] == "servos"]
+    assert check["servos"] == load_robot(robot).servo_model
+    assert bool(warned) != check["error"]["within"]
+    assert bool(warned) == ("played on the modelled servos" in result.stderr)
     assert plan["program_bytes"] == len(out.read_bytes()) == len(program.encode())
     # made for the QEMU board's capacity, as asked: it fits there
     assert plan["program_bytes"] <= plan["capacity_bytes"] == QEMU_CAPACITY
@@ -105,7 +112,7 @@ def test_a_long_way_costs_a_program_no_more_bytes(tmp_path: Path) -> None:
         out = tmp_path / f"{name}.prog"
         result = run("plan", "trident", "--to", target, "-o", str(out), "--json")
         assert result.exit_code == 0, result.output
-        plan = json.loads(result.output)
+        plan = json.loads(result.stdout)
         assert plan["error"]["within"]
         sizes.append(plan["program_bytes"])
         loops.append(plan["loops"])

@@ -103,15 +103,16 @@ def test_friction_study_measures_the_steady_state_and_the_joints_it_played():
     assert study["passes"] == 3
     (point,) = study["points"]
     kinematic = study["kinematic"]["distance_per_cycle"]
-    # the first cycle from rest falls a fifth short; the third is within 10 % of the
-    # kinematic world, and within 2 % of the quasi-static model on MuJoCo's own joints
+    # the first cycle from rest falls a fifth short; the third is within 2 % of the
+    # quasi-static model on MuJoCo's own joints
     assert point["first_pass_distance_per_cycle"] < 0.85 * point["distance_per_cycle"]
-    assert point["distance_per_cycle"] == pytest.approx(kinematic, rel=0.1)
     assert point["distance_per_cycle"] == pytest.approx(
         point["kinematic_on_physics_joints_per_cycle"], rel=0.02
     )
-    # the kinematic world has no transient: its last pass is its first
-    assert point["kinematic_distance_per_cycle"] == pytest.approx(kinematic, rel=0.01)
+    # the kinematic world's servos carry the body's load as MuJoCo's do: the same steady
+    # state within 2 %, and 7 % short of the table's prediction (the servos' lag)
+    assert kinematic == pytest.approx(point["distance_per_cycle"], rel=0.02)
+    assert kinematic < 0.95 * point["kinematic_distance_per_cycle"]
 
 
 def test_at_delta_150_deg_mujoco_follows_the_smooth_joints_not_the_rounded_ticks():
@@ -130,9 +131,14 @@ def test_at_delta_150_deg_mujoco_follows_the_smooth_joints_not_the_rounded_ticks
 
     smooth, ticks = per_cycle(exact), per_cycle(robot.ticks_to_angles(table.frames))
     assert ticks < 0.8 * smooth
-    (point,) = friction_study(table, robot, (robot.friction.lateral,))["points"]
+    study = friction_study(table, robot, (robot.friction.lateral,))
+    (point,) = study["points"]
     assert point["kinematic_distance_per_cycle"] == pytest.approx(ticks, rel=1e-3)
     assert point["distance_per_cycle"] == pytest.approx(smooth, rel=0.1)
     assert point["distance_per_cycle"] == pytest.approx(
         point["kinematic_on_physics_joints_per_cycle"], rel=0.05
+    )
+    # and the kinematic world, its servos under the body's load, smooths them as MuJoCo does
+    assert study["kinematic"]["distance_per_cycle"] == pytest.approx(
+        point["distance_per_cycle"], rel=0.05
     )

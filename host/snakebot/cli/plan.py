@@ -116,13 +116,14 @@ def plan_command(
     few times, and a program still outside is not written (exit 1). --json reports its
     size in bytes.
 
-    The table is also played on the robot's modelled servos, which lag it (--json:
-    servo_check). A snake of more than three links has more wheels than its body has
-    freedoms: how far it goes depends on how the wheels share the slip, so the report
-    adds where the table ends with half and twice the rolling resistance (--json:
-    friction_sensitivity). Where either leaves the tolerance, the plan warns that its
-    end played open loop is not to be trusted (--json: a warning of kind open_loop,
-    with the numbers): steer in closed loop with `snakebot sim goto` instead.
+    The table (or program) is also played on the robot's modelled servos, which lag
+    it under the body's load, until they come to rest (--json: servo_check). A snake
+    of more than three links has more wheels than its body has freedoms: how far it
+    goes depends on how the wheels share the slip, so the report adds where the table
+    ends with half and twice the rolling resistance (--json: friction_sensitivity).
+    Where either leaves the tolerance, the plan warns that its end played open loop is
+    not to be trusted (--json: a warning of kind open_loop, with the numbers): steer in
+    closed loop with `snakebot sim goto` instead.
 
     The plan fits the table capacity it is made for: the controller's own when --port
     asks the controller it is for, else --capacity (a board's or a number of bytes), else
@@ -164,6 +165,7 @@ def plan_command(
         require("matplotlib", "--plot")
     from snakebot.model.plan import Plan
     from snakebot.model.plan.files import plan_for, plan_summary, save_plan, wants_program
+    from snakebot.model.plan.program import ProgramPlan
     from snakebot.model.robots import load_robot
 
     if plot is not None and output is None:
@@ -205,7 +207,7 @@ def plan_command(
         from snakebot.workflows.plan_mujoco import world_check
 
         checks = world_check(plan)
-    elif isinstance(plan, Plan):
+    elif isinstance(plan, (Plan, ProgramPlan)):
         from snakebot.workflows.plan_check import servo_check
 
         checks = servo_check(plan)
@@ -242,6 +244,7 @@ def _print_program(s: dict[str, Any]) -> None:
         f"{s['step_period_ms']} ms ({s['duration_s']:.2f} s): {kinds}"
     )
     _print_pose(s, "the program's goals as the controller rounds them")
+    _print_servo_check(s)
     click.echo(f"wrote {s['file']}")
 
 
@@ -304,7 +307,12 @@ def _print(s: dict[str, Any]) -> None:
     unit = s["length_unit"]
     for row in s.get("friction_sensitivity", ()):
         _print_check(f"with {row['rolling_factor']:g}x the rolling resistance", row["error"], unit)
+    _print_servo_check(s)
+    _print_written(s)
+
+
+def _print_servo_check(s: dict[str, Any]) -> None:
     check = s.get("servo_check")
     if check is not None:
-        _print_check(f"on the modelled servos ({check['servos']})", check["error"], unit)
-    _print_written(s)
+        label = f"on the modelled servos ({check['servos']})"
+        _print_check(label, check["error"], s["length_unit"])

@@ -105,8 +105,9 @@ def thesis_figure(result: ThesisResult) -> Figure:
 
 def plot_friction(study: dict[str, Any], out: str | Path) -> Path:
     """PNG: distance per cycle in the physics world against the friction coefficient,
-    with the kinematic world's (on the table's joints and on the physics world's) beside
-    it, and the wheels' sideways slide."""
+    with the quasi-static model's (on the table's joints and on the physics world's)
+    beside it, the kinematic world's at the robot's friction, and the wheels' sideways
+    slide."""
     fig = Figure(figsize=(10, 4), layout="constrained")
     FigureCanvasAgg(fig)
     ax_d, ax_s = fig.subplots(1, 2)
@@ -116,18 +117,18 @@ def plot_friction(study: dict[str, Any], out: str | Path) -> Path:
         mu,
         [p["kinematic_distance_per_cycle"] for p in study["points"]],
         "s--",
-        label="kinematic (quasi-static), same mu",
+        label="quasi-static on the table's joints, same mu",
     )
     ax_d.semilogx(
         mu,
         [p["kinematic_on_physics_joints_per_cycle"] for p in study["points"]],
         "^:",
-        label="kinematic on MuJoCo's joint motion",
+        label="quasi-static on MuJoCo's joint motion",
     )
     f = study["friction"]
     for key, label, style in (
-        ("kinematic", f"kinematic, robot's mu = {f['lateral']:g}", "--"),
-        ("kinematic_free_wheels", "kinematic, free-rolling wheels", ":"),
+        ("kinematic", f"kinematic world, robot's mu = {f['lateral']:g}", "--"),
+        ("kinematic_free_wheels", "quasi-static on the table's joints, free wheels", ":"),
     ):
         ax_d.axhline(study[key]["distance_per_cycle"], linestyle=style, color="gray", label=label)
     ax_d.set_xlabel("wheel-floor friction coefficient mu")

@@ -8,7 +8,10 @@ world samples the positions every ``period`` seconds of bus time
 (:meth:`snakebot.sim.bus.bus.Bus.every`), takes the joints as moving linearly between
 samples, and integrates the body over the samples in batches:
 one C call per batch of intervals (the core steps each interval separately, so the
-kinks between intervals cost no accuracy), never a Python loop per step.
+kinks between intervals cost no accuracy), never a Python loop per step. The servos
+move by their own model here (ideal ones: at once); modelled AX-12s get the world of
+:mod:`snakebot.sim.physics.joints` (``make_world``), which turns them under the body's
+load.
 
 Wheels: the robot's friction (``[friction]``: Coulomb across the wheels, rolling resistance
 along them), the same as the physics world's. The body moves as the friction forces
@@ -24,6 +27,7 @@ record holds each wheel's sideways (normal) speed at every sample.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -180,7 +184,12 @@ class World:
         # the record: per sample the state (pose, joints) and each wheel's slip
         self.keep = keep
         self._history = History(3 + robot.n_joints + robot.n_wheels, keep)
-        self._schedule = bus.every(self.period, self._sample, start=self.start_time)
+        self._schedule = self._schedule_sampling()
+
+    def _schedule_sampling(self) -> Any:
+        """Sample the servos every period from the start (a world that moves the joints
+        itself schedules its own steps)."""
+        return self.bus.every(self.period, self._sample, start=self.start_time)
 
     # -- sampling -------------------------------------------------------------------------
 

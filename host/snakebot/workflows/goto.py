@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from snakebot.errors import InputError, quoted
+from snakebot.extras import available
 from snakebot.formats.gaittable import GaitTable
 from snakebot.formats.protocol import sync_write
 from snakebot.link.transport import DxlClient
@@ -51,16 +52,17 @@ from snakebot.model.plan.planner import (
 from snakebot.model.robots import Robot
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.controller_pty import TABLE_CAPACITY, TICK_MS
-from snakebot.sim.world import World
+from snakebot.sim.physics.select import WORLDS
+from snakebot.sim.physics.select import make_world as world_named
 from snakebot.workflows.predict import (
     DEFAULT_WORLD_HZ,
     GOAL_POSITION_ADDR,
+    come_to_rest,
     move_to_start,
     player_writes,
     sim_url,
 )
 
-WORLDS = ("kinematic", "mujoco")
 #: The closed loop runs at most this many times the planned loops.
 LOOPS_FACTOR = 5
 #: How many times slower than the servos allow a physics world's loops are played:
@@ -98,20 +100,18 @@ class GotoError(InputError):
 
 
 def make_world(name: str, bus: Bus, robot: Robot, period: float, start: float) -> Any:
-    """The world that moves the body: the kinematic minimum-slip model, or MuJoCo's
-    physics when this build has it."""
-    if name == "kinematic":
-        return World(bus, robot, period=period, start=start)
-    if name != "mujoco":
+    """The world that moves the body, the one ``sim serve`` and ``sim predict`` run
+    (:func:`snakebot.sim.physics.select.make_world`): the kinematic minimum-slip model
+    (its modelled servos under the body's load), or MuJoCo's physics when this build
+    has it."""
+    if name not in WORLDS:
         raise GotoError(f"unknown world {quoted(name)}: use {' or '.join(WORLDS)}")
-    try:
-        from snakebot.sim.physics.select import make_world as physics_world
-    except ImportError:
+    if name == "mujoco" and not available("mujoco"):
         raise GotoError(
             "the mujoco world needs the physics world (snakebot.sim.physics) and MuJoCo: "
             "pip install 'snakebot[physics]', or use the kinematic world"
-        ).about("world") from None
-    return physics_world("mujoco", bus, robot, period=period, start=start)
+        ).about("world")
+    return world_named(name, bus, robot, period=period, start=start)
 
 
 @dataclass
@@ -157,7 +157,8 @@ class Runner:
 
     def play(self, angles: np.ndarray, period_ms: int) -> np.ndarray:
         """Play joint frames once, each at least ``period_ms`` and no faster than the
-        servos' speed allows (slowed down); the body pose the world reports at the end."""
+        servos' speed allows (slowed down); the body pose the world reports once the
+        servos are at rest on the last frame."""
         robot = self.robot
         period_ms = max(period_ms, frame_period_ms(robot, angles) * self.slowdown)
         table = GaitTable(
@@ -175,8 +176,14 @@ class Runner:
             if block:
                 self.bus.run_until(start + min(n * tick, duration))
                 self.client.send(sync_write(GOAL_POSITION_ADDR, 4, block))
-        # the world sees each write one tick later: let it see the last frame settle
-        self.bus.run_until(start + duration + 2 * tick)
+        # the world sees each write one tick later: let it see the last frame, and the
+        # servos come to rest on it (loaded ones lag it)
+        end = start + duration + 2 * tick
+        period = self.world.period
+        self.bus.run_until(end - period)
+        before = self.bus.positions(robot.servo_ids)
+        self.bus.run_until(end)
+        come_to_rest(self.bus, robot, period, before)
         return self.world.pose
 
 

@@ -16,7 +16,11 @@ servos then sit exactly on the frames (when the frame period is a whole number o
 so the emulated path is the table prediction (``gait.common.table_motion``, the same
 function the gait's ``table`` figure comes from) up to the integrator's tolerance. With
 modelled AX-12s it samples at least ``world_hz`` times a second and the servos' lag shows
-up as joint tracking error and as a different body path.
+up as joint tracking error and as a different body path. A table played once (a plan's,
+a program's) ends held at its last frame, as the controller holds it: the world goes on
+until the servos come to rest there, so the body ends where the robot stops (loaded
+servos lag the goals, and the trident's planned program moves the body 7 cm after its
+last goal); the prediction holds the table's last frame over those samples.
 
 Everything runs on the bus's virtual clock: as fast as the computer allows, and the
 result reports how many times faster than real time that was.
@@ -35,6 +39,7 @@ import numpy as np
 
 from snakebot.facts import devices
 from snakebot.formats.gaittable import GaitTable, read_gait
+from snakebot.formats.program import Program
 from snakebot.formats.program.errors import ProgramError
 from snakebot.formats.program.files import is_program_file, read_program
 from snakebot.formats.protocol import sync_write
@@ -76,6 +81,31 @@ MAX_WORLD_HZ = 10_000.0
 """The highest world sampling rate: 100 times the default, ten times the servos' own
 control loop; beyond it a prediction's time and memory grow with no gain."""
 
+REST_TICKS = 0.01
+"""The servos are at rest once none has moved more than this (position ticks, unrounded:
+a hundredth of what Present Position reports) over a world period."""
+
+REST_MAX_S = 2.0
+"""The longest a play goes on after its last goal for the servos to come to rest: loaded
+AX-12s catch up with a planned table's last goal in about 0.1 s (the trident's). A play
+that reaches it says so (a ``not_at_rest`` warning, :attr:`Prediction.rest_warnings`)."""
+
+
+@dataclass(frozen=True)
+class Rest:
+    """How a play held at its last frame ended: ``periods`` world periods after the
+    table, when no servo had moved more than :data:`REST_TICKS` over the last, or
+    :data:`REST_MAX_S` had passed (``moving``: the most a servo moved over the last
+    period, ticks; more than REST_TICKS when the cap ended it)."""
+
+    periods: int = 0
+    moving: float = 0.0
+
+    @property
+    def reached(self) -> bool:
+        """Whether the servos came to rest (not ended by the cap)."""
+        return self.moving <= REST_TICKS
+
 
 class PredictError(PlayerError):
     """A gait that cannot be played on the emulated robot as asked."""
@@ -94,6 +124,32 @@ class Prediction:
     predicted: Trajectory
     played: TableMotion
     wall_s: float
+    rest: Rest = Rest()
+    """How the play ended, held at the table's last frame: the record's last
+    ``rest.periods`` samples came after it, while the servos came to rest on it."""
+
+    @property
+    def rest_samples(self) -> int:
+        """The record's samples after the play (``rest.periods``)."""
+        return self.rest.periods
+
+    @property
+    def rest_warnings(self) -> list[dict[str, Any]]:
+        """A warning (JSON-able) if the REST_MAX_S cap ended the play with a servo still
+        moving, else none."""
+        if self.rest.reached:
+            return []
+        return [
+            {
+                "kind": "not_at_rest",
+                "after_s": REST_MAX_S,
+                "moving_ticks": self.rest.moving,
+                "message": f"the servos had not come to rest {REST_MAX_S:g} s after the last "
+                f"goal (one still moved {self.rest.moving:.2f} ticks over the last "
+                f"{self.world_period_s:g} s): the emulated end is where they were then, not "
+                "where they stop",
+            }
+        ]
 
     @property
     def duration_s(self) -> float:
@@ -145,6 +201,7 @@ class Prediction:
                 "slip_max": self.emulated.slip_max(),
                 "slip_distance": [float(v) for v in self.emulated.slip_distance()],
                 "samples": len(self.emulated.t),
+                "rest_s": round(self.rest_samples * self.world_period_s, 9),
                 **record_extras(self.emulated),
             },
             "predicted": {
@@ -167,7 +224,10 @@ class Prediction:
             },
             "realtime_factor": self.realtime_factor,
             "wall_s": self.wall_s,
-            "warnings": singularity_warnings({"prediction from the table": self.predicted}),
+            "warnings": [
+                *singularity_warnings({"prediction from the table": self.predicted}),
+                *self.rest_warnings,
+            ],
         }
         meta_table = self.table.metadata.get("table")
         if isinstance(meta_table, dict):
@@ -267,11 +327,14 @@ def play(
     world: str = DEFAULT_WORLD,
     mu: float | None = None,
     writes: tuple[float, list[dict[int, bytes]]] | None = None,
-) -> tuple[WorldRecord, float, float]:
+    until_rest: bool = True,
+) -> tuple[WorldRecord, float, float, int]:
     """Play ``table`` once from the servos' current state (``ideal``: they are ideal
     servos, so the world samples at the frame instants); returns the world's record,
-    its sampling period and the wall time the play took. ``writes``: the tick period
-    and blocks to send instead of the table player's (a program's, say)."""
+    its sampling period, the wall time the play took and how many of the record's last
+    samples came after the play, while the servos came to rest on a table played once.
+    ``writes``: the tick period and blocks to send instead of the table player's (a
+    program's, say); ``until_rest=False`` ends the play with the table even so."""
     if not 0 < world_hz <= MAX_WORLD_HZ:
         raise PredictError(
             f"the world's sampling rate must be more than 0 and at most {MAX_WORLD_HZ:g} Hz, "
@@ -305,24 +368,52 @@ def play(
     for n, packet in packets:
         bus.run_until(start + min(n * tick, duration))
         client.send(packet)  # SYNC_WRITE: no reply to wait for
-    bus.run_until(start + tick + duration + 0.5 * world_period)
+    end = start + tick + duration + 0.5 * world_period
+    bus.run_until(end - world_period)
+    before = bus.positions(robot.servo_ids)
+    bus.run_until(end)
+    # a table played once ends held at its last frame: the body ends where the servos
+    # come to rest on it (ideal ones are there at once; a loop goes on into its next pass)
+    settles = until_rest and not (ideal or table.loop)
+    rest = come_to_rest(bus, robot, world_period, before) if settles else Rest()
     body.stop()
     record = body.record()
     wall = time.perf_counter() - wall0
-    expected = intervals * per_frame + 1
+    expected = intervals * per_frame + 1 + rest.periods
     if len(record.t) != expected:  # pragma: no cover - a clock bug, not a user error
         raise PredictError(f"the world took {len(record.t)} samples, expected {expected}")
-    return record, world_period, wall
+    return record, world_period, wall, rest
 
 
-def predict_table(robot: Robot, table: GaitTable, samples: int) -> tuple[Trajectory, TableMotion]:
+def come_to_rest(bus: Bus, robot: Robot, period: float, before: list[float]) -> Rest:
+    """Run ``bus`` a ``period`` at a time until ``robot``'s servos are at rest (none moved
+    more than :data:`REST_TICKS` over a period; they were at ``before`` one period ago),
+    for at most :data:`REST_MAX_S`; returns the periods run and the last period's move."""
+    periods = 0
+    now = bus.positions(robot.servo_ids)
+    most = math.ceil(REST_MAX_S / period - 1e-9)
+    moving = max(abs(a - b) for a, b in zip(now, before, strict=True))
+    while periods < most and moving > REST_TICKS:
+        bus.run_until(bus.now + period)
+        periods += 1
+        before, now = now, bus.positions(robot.servo_ids)
+        moving = max(abs(a - b) for a, b in zip(now, before, strict=True))
+    return Rest(periods, moving)
+
+
+def predict_table(
+    robot: Robot, table: GaitTable, samples: int, rest: int = 0
+) -> tuple[Trajectory, TableMotion]:
     """The body path integrated straight from the table, as the gait's ``table`` figure
     is (``table_motion``: ticks to angles, linear in between, the robot's friction, as the
     world does), at ``samples`` evenly spaced times over one pass (slip: mid-interval, as the world
-    records it); returns the trajectory and the table motion it came from."""
+    records it), then held at the last frame for ``rest`` more samples (the play's
+    servos coming to rest, see ``play``); returns the trajectory and the table motion it
+    came from."""
+    samples -= rest
     intervals = table.frame_count if table.loop else table.frame_count - 1
-    per_sample, rest = divmod(samples - 1, intervals)
-    if rest or per_sample < 1:  # pragma: no cover - the world samples whole frames
+    per_sample, odd = divmod(samples - 1, intervals)
+    if odd or per_sample < 1:  # pragma: no cover - the world samples whole frames
         raise PredictError(f"{samples} samples do not divide the table's {intervals} intervals")
     try:
         played = table_motion(
@@ -336,8 +427,13 @@ def predict_table(robot: Robot, table: GaitTable, samples: int) -> tuple[Traject
         raise PredictError(f"cannot predict the table's motion: {exc}") from exc
     traj = played.trajectory
     assert traj.slip is not None
+    t, q = traj.t[::2], traj.q[::2]
     slip = np.vstack([np.zeros((1, traj.slip.shape[1])), traj.slip[1::2]])
-    return Trajectory(traj.t[::2], traj.q[::2], slip, traj.stats), played
+    if rest:
+        t = np.concatenate([t, t[-1] + (t[1] - t[0]) * np.arange(1, rest + 1)])
+        q = np.vstack([q, np.repeat(q[-1:], rest, axis=0)])
+        slip = np.vstack([slip, np.zeros((rest, slip.shape[1]))])
+    return Trajectory(t, q, slip, traj.stats), played
 
 
 def predict_gait(
@@ -364,14 +460,15 @@ def emulate(
     batch: int = DEFAULT_BATCH,
     world: str = DEFAULT_WORLD,
     mu: float | None = None,
+    until_rest: bool = True,
 ) -> Prediction:
     """Put the emulated robot at the table's first frame, play it (``writes``: the blocks
-    to send instead of the table player's, see ``play``) and compare with the table's
-    prediction. ``table`` is a GaitTable or anything with its frames, frame_period_ms,
-    frame_count, loop and metadata (a program's steps, ``model.motion``). ``ideal``:
-    ideal servos; ``batch``: samples the world integrates per C call (results do not
-    depend on it); ``world``: "kinematic" or "mujoco" (``mu``: its wheel-floor
-    friction)."""
+    to send instead of the table player's, and ``until_rest``, see ``play``) and compare
+    with the table's prediction. ``table`` is a GaitTable or anything with its frames,
+    frame_period_ms, frame_count, loop and metadata (a program's steps,
+    ``model.motion``). ``ideal``: ideal servos; ``batch``: samples the world integrates
+    per C call (results do not depend on it); ``world``: "kinematic" or "mujoco"
+    (``mu``: its wheel-floor friction)."""
     if ideal and world != "kinematic":
         raise PredictError(
             f"ideal servos have no torque: the {world} world needs servos that can fall short"
@@ -380,7 +477,7 @@ def emulate(
     try:
         bus: Bus = client.port.bus
         move_to_start(client, bus, robot, table.frames[0])
-        record, world_period, wall = play(
+        record, world_period, wall, rest = play(
             client,
             bus,
             robot,
@@ -391,11 +488,14 @@ def emulate(
             world=world,
             mu=mu,
             writes=writes,
+            until_rest=until_rest,
         )
     finally:
         client.close()
-    predicted, played = predict_table(robot, table, len(record.t))
-    return Prediction(name, robot, table, ideal, world_period, record, predicted, played, wall)
+    predicted, played = predict_table(robot, table, len(record.t), rest.periods)
+    return Prediction(
+        name, robot, table, ideal, world_period, record, predicted, played, wall, rest
+    )
 
 
 def predict_program(
@@ -407,11 +507,16 @@ def predict_program(
     emulated robot (``options`` as there), beside the body path its reference goals
     predict (:mod:`snakebot.model.motion`)."""
     program = read_program(path)
-    chosen = program_robot(program, robot)
+    return emulate_program(str(path), program, program_robot(program, robot), **options)
+
+
+def emulate_program(name: str, program: Program, robot: Robot, **options: Any) -> Prediction:
+    """``program`` run by the controller's player on the emulated ``robot`` (``options``
+    as :func:`emulate`'s), beside the body path its reference goals predict."""
     if program.total_steps < 2:
         raise ProgramError("the program has a single step: nothing moves; give it two or more")
     return emulate(
-        str(path), chosen, ProgramFrames.of(program), program_player_writes(program), **options
+        name, robot, ProgramFrames.of(program), program_player_writes(program), **options
     )
 
 

@@ -87,12 +87,14 @@ def predict(
     The report gives the body's displacement (in the start pose's frame: for a snake,
     +x along link 1 from the tail end (x, y) towards the head) emulated and
     predicted, their difference, the joints' tracking error and the wheels' slip.
-    Modelled AX-12s lag their goals a little; with --ideal the two paths agree to the
-    integrator's accuracy. Where ideal wheels are singular on a frame interval (a
-    rounded crossing of the 3-link snake's phi1 = phi2), that interval alone gets a
-    little rolling friction, in the prediction as in the emulator; a prediction passing
-    near a singular configuration (condition number above 100) is warned about, on
-    stderr and in the JSON "warnings".
+    Modelled AX-12s lag their goals (carrying the body's load, as in `sim serve`); a
+    table played once (a plan, a program) is held at its last frame until they come to
+    rest there, and the emulated end is where they stop ("rest_s": how long that took).
+    With --ideal the two paths agree to the integrator's accuracy. Where ideal wheels
+    are singular on a frame interval (a rounded crossing of the 3-link snake's phi1 =
+    phi2), that interval alone gets a little rolling friction, in the prediction as in
+    the emulator; a prediction passing near a singular configuration (condition number
+    above 100) is warned about, on stderr and in the JSON "warnings".
 
     \b
     Example:

@@ -161,9 +161,9 @@ def friction(gait_file: Path, robot: str | None, mu: str, plot: Path | None, as_
         f"{study['passes']} passes"
     )
     click.echo(
-        f"  kinematic, mu = {study['friction']['lateral']:g}: {kin['distance_per_cycle']:.4f}"
+        f"  kinematic world, mu = {study['friction']['lateral']:g}: {kin['distance_per_cycle']:.4f}"
     )
-    click.echo(f"  kinematic, free wheels:  {free['distance_per_cycle']:.4f}")
+    click.echo(f"  the table's joints, free wheels: {free['distance_per_cycle']:.4f}")
     for p in study["points"]:
         ratio = (
             p["distance_per_cycle"] / free["distance_per_cycle"]
@@ -173,7 +173,7 @@ def friction(gait_file: Path, robot: str | None, mu: str, plot: Path | None, as_
         click.echo(
             f"  MuJoCo, mu = {p['mu']:<6g}     {p['distance_per_cycle']:.4f} "
             f"({100 * ratio:.0f} % of free wheels), slid {p['slip_distance_per_cycle']:.4f}; "
-            f"kinematic on its joints {p['kinematic_on_physics_joints_per_cycle']:.4f}"
+            f"quasi-static on its joints {p['kinematic_on_physics_joints_per_cycle']:.4f}"
         )
     if plot is not None:
         click.echo(f"plot written to {study['plot']}")

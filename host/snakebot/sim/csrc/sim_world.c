@@ -53,7 +53,9 @@ int sim_actuator_drive(const sim_actuator *a, const double *controller, double p
     out[1] = goal;
     out[2] = bias;
     out[3] = cap;
-    return wanted > limit_cap && limit_cap < speed_cap;
+    /* a cap cuts when the controller asks for more than the drive allowed: Torque Limit's
+     * or (speed_limit "drive") Moving Speed's, whichever binds; no supply, no cut */
+    return wanted > cap && no_load_ticks > 0;
 }
 
 double sim_actuator_power(const sim_actuator *a, double torque_nm, double speed_rad_s) {
@@ -150,7 +152,102 @@ void sim_world_couple(sim_world *w, double t) {
         double high = stall * cap;
         w->forcerange[2 * k] = -high;
         w->forcerange[2 * k + 1] = high;
-        w->stalled[k] = cut && fabs(speed) < w->stalled_speed ? w->stalled[k] + w->period : 0.0;
+        /* stalled: held by the load well below the speed the allowed drive gives unloaded */
+        double free_speed = a->no_load_rad_s * volts / a->nominal_v * cap;
+        _Bool stalled = fabs(speed) < w->stalled_fraction * free_speed;
+        w->stalled[k] = cut && stalled ? w->stalled[k] + w->period : 0.0;
         w->moving[k] = gain != 0.0 || offset != 0.0;
     }
+}
+
+int sim_joints_period(sim_joints *j) {
+    sim_world *w = j->world;
+    int n = w->n, nbias = w->nbias;
+    double dt = w->dt, inertia = j->armature / dt, xi[3], xi1[3];
+    double per_speed = inertia - w->brake; /* N m per rad/s of the step's end speed */
+    double *phi = j->q + 3;
+    double free[KIN_MAX_JOINTS], tried[KIN_MAX_JOINTS], load1[KIN_MAX_JOINTS];
+    _Bool held[KIN_MAX_JOINTS];
+    for (int s = 0; s < j->steps; s++) {
+        int code = kin_quasi_static(j->rb, j->q, j->speed, xi, NULL, j->load);
+        if (code == KIN_OK && s == j->slip_step) {
+            double qdot[3 + KIN_MAX_JOINTS];
+            for (int i = 0; i < 3; i++) {
+                qdot[i] = xi[i];
+            }
+            for (int k = 0; k < n; k++) {
+                qdot[3 + k] = j->speed[k];
+            }
+            code = kin_wheel_speeds(j->rb, j->q, qdot, j->slip, NULL);
+        }
+        if (code != KIN_OK) {
+            return code;
+        }
+        for (int i = 0; i < 3; i++) {
+            j->q[i] += dt * xi[i];
+        }
+        for (int k = 0; k < n; k++) {
+            const double *bias = w->biasprm + k * nbias;
+            double drive = bias[0] + bias[1] * phi[k];
+            double high = w->forcerange[2 * k + 1], low = w->forcerange[2 * k];
+            drive = drive > high ? high : (drive < low ? low : drive);
+            j->force[k] = drive;
+            j->load[k] *= j->unit_m;
+            free[k] = (inertia * j->speed[k] + drive + j->external[k]) / per_speed;
+            tried[k] = free[k] - j->load[k] / per_speed;
+            /* held at its stop: the stop, not the body, takes what pushes it there */
+            held[k] = (phi[k] <= j->lo[k] && tried[k] < 0.0) ||
+                      (phi[k] >= j->hi[k] && tried[k] > 0.0);
+            if (held[k]) {
+                tried[k] = 0.0;
+            }
+        }
+        code = kin_quasi_static(j->rb, j->q, tried, xi1, NULL, load1);
+        if (code != KIN_OK) {
+            return code;
+        }
+        double dd = 0.0, db = 0.0;
+        for (int k = 0; k < n; k++) {
+            load1[k] *= j->unit_m;
+            if (held[k]) { /* its speed is the stop's: no part in the step's prox */
+                continue;
+            }
+            double d = j->load[k] - load1[k];
+            dd += d * d;
+            db += d * (free[k] - load1[k] / per_speed);
+        }
+        if (dd > 0.0) { /* the speeds tried meet another piece's load: the prox of both */
+            double alpha = db > 0.0 ? per_speed * db / dd : 0.0;
+            alpha = alpha < 1.0 ? alpha : 1.0;
+            for (int k = 0; k < n; k++) {
+                j->load[k] = alpha * j->load[k] + (1.0 - alpha) * load1[k];
+            }
+        }
+        /* The body only takes power from the joints (the wheels' friction): with nothing
+         * driving them (torque off, inside their margins, no push), a load that drives them
+         * (two pieces' blend, near rest) would keep them chattering and creeping. There the
+         * body holds them instead. */
+        double power = 0.0;
+        _Bool passive = 1;
+        for (int k = 0; k < n; k++) {
+            if (!held[k]) {
+                power += j->load[k] * (free[k] - j->load[k] / per_speed);
+                passive = passive && j->force[k] == 0.0 && j->external[k] == 0.0;
+            }
+        }
+        _Bool rest = passive && power < 0.0;
+        for (int k = 0; k < n; k++) {
+            if (rest && !held[k]) { /* the body holds each joint with what it asked */
+                j->load[k] = per_speed * free[k];
+            }
+            j->speed[k] = held[k] || rest ? 0.0 : free[k] - j->load[k] / per_speed;
+            phi[k] += dt * j->speed[k];
+            if (phi[k] < j->lo[k] || phi[k] > j->hi[k]) { /* at its stop */
+                phi[k] = phi[k] < j->lo[k] ? j->lo[k] : j->hi[k];
+                j->speed[k] = 0.0;
+            }
+        }
+        sim_world_account(w);
+    }
+    return KIN_OK;
 }

@@ -5,10 +5,12 @@
  * work on MuJoCo's own arrays (pointers to its mjData and mjModel buffers, which do not
  * move). Every step mirrors the Python it replaced, operation for operation, so the
  * world's trajectories stay the same to the last bit; tests/sim/test_physics_coupling.py
- * holds the drive and the power to the Python models. Host-side only. */
+ * holds the drive and the power to the Python models. The kinematic world's loaded servos
+ * (sim_joints below) use the same coupling on arrays of their own. Host-side only. */
 #ifndef SNAKEBOT_SIM_WORLD_H
 #define SNAKEBOT_SIM_WORLD_H
 
+#include "kin_core.h"
 #include "sim_servo.h"
 
 /* cffi:begin */
@@ -24,7 +26,8 @@ typedef struct {
 /* Actuator.drive: the drive of a motor whose servo's controller (sim_servo_controller)
  * is `controller`, at position pos_ticks, into out[4]: gain (1/tick), target (ticks),
  * bias, cap (duty = gain (target - position) + bias, limited to +-cap); returns whether
- * Torque Limit cuts the duty the controller asks for (1) or not (0). */
+ * the cap (Torque Limit's or Moving Speed's, whichever binds) cuts the duty the controller
+ * asks for (1) or not (0). */
 int sim_actuator_drive(const sim_actuator *a, const double *controller, double pos_ticks,
                        double *out);
 /* MotorSpec.electrical_power_w: the power (W) the motor draws to give torque_nm at
@@ -49,7 +52,8 @@ typedef struct {
     int nbias;                          /* biasprm's row length */
     const sim_actuator *actuator;
     double brake;                       /* minus the back-EMF damping, N m s/rad */
-    double stalled_speed;               /* slower than this (rad/s), a joint is stalled */
+    double stalled_fraction; /* a joint slower than this fraction of the speed its capped
+                              * drive turns the unloaded motor at is stalled */
     double hold;                        /* stalled and cut this long (s): overload */
     double period;                      /* the control period, s */
     double dt;                          /* the MuJoCo step, s */
@@ -84,6 +88,45 @@ int sim_world_sample(const sim_world *w, double t, double *row);
  * control period a tick (from where the joint is when its torque comes on), and Moving
  * Speed no longer caps the drive. */
 void sim_world_couple(sim_world *w, double t);
+
+/* The kinematic world with its servos under the body's load (snakebot.sim.physics.joints):
+ * the same drives, moving joints whose load is the quasi-static body's. world's qpos, qvel
+ * and force point at q + 3, speed and force here. */
+typedef struct {
+    sim_world *world;     /* the coupling: servos, drives, energy */
+    const kin_robot *rb;  /* the quasi-static model, with the world's friction */
+    double unit_m;        /* metres per robot length unit */
+    double armature;      /* the motor's inertia at the joint, kg m^2 */
+    int steps;            /* steps of world->dt per control period */
+    double *q;            /* the state: pose (x, y, theta; robot units) and joints (rad) */
+    double *speed;        /* per joint, rad/s */
+    double *force;        /* per joint: the drive's torque in the last step, N m */
+    double *load;         /* per joint: the body's load in the last step, N m */
+    const double *external; /* per joint: a torque from outside (a hand pushing the horn;
+                             * the servos' set_external_torque), N m, on the joint's axis */
+    const double *lo, *hi; /* per joint: its stops (rad), as the physics world's joint
+                            * ranges: a joint pushed there stops (and stalls its motor) */
+    int slip_step;        /* the step whose start is the middle of a sample's interval (-1:
+                           * none in this period) */
+    double *slip;         /* per wheel: its normal speed there */
+} sim_joints;
+/* One control period under the drives sim_world_couple set (MuJoCo's affine actuator: the
+ * torque bias[0] + bias[1] phi within the force range), the motors' back-EMF braking and
+ * armature, and the body's load: the joint torques the quasi-static model needs for the
+ * joints' motion (kin_quasi_static), whose body velocity moves the pose. Per step of dt,
+ * the drive and the body velocity as at the step's start, the braking implicit (as MuJoCo
+ * integrates damping):
+ *     (armature / dt - brake) speed' = armature / dt speed + drive(phi) + external - load
+ *     phi' = phi + dt speed',  pose' = pose + dt xi(q, speed)
+ * (a joint that would pass its stop ends there, at rest),
+ * The load is Coulomb friction's: piecewise constant in the joints' speeds (a subgradient
+ * of the power the wheels dissipate, which is convex and piecewise linear in them), so it
+ * is taken implicitly: the load at the start's speeds first; if the speeds that gives meet
+ * another piece's load, the step takes the speeds that minimise the motors' quadratic plus
+ * the larger of the two pieces (a proximal step): the new piece's load, or on the boundary
+ * between the pieces a mix of both. Each step is accounted (sim_world_account). KIN_OK,
+ * or the model's error. */
+int sim_joints_period(sim_joints *j);
 /* cffi:end */
 
 #endif

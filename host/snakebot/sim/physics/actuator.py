@@ -33,11 +33,17 @@ ARMATURE_KG_M2 = 0.002
 AX-12's 254:1 train makes its tiny rotor weigh on the joint like a heavy link)."""
 
 OVERLOAD_HOLD_S = 0.1
-"""How long the controller must demand more than Torque Limit allows, with the joint
-stalled, before the servo reports overload."""
+"""How long the controller must demand more drive than it is allowed (Torque Limit, or
+Moving Speed's cap when it caps the drive), with the joint stalled, before the servo
+reports overload."""
 
-STALLED_FRACTION = 0.05
-"""A joint slower than this fraction of its no-load speed counts as stalled."""
+STALLED_FRACTION = 0.01
+"""A joint slower than this fraction of the speed its capped drive turns the unloaded
+motor at (Torque Limit's or Moving Speed's cap, at the supply voltage) counts as stalled:
+a slow Moving Speed under ``speed_limit = "drive"`` moves a joint slowly, not stalls it,
+and a joint that still moves its load, however slowly, holds it (`sim goto`'s snake5 to
+seed 34's target in MuJoCo ends its loops creeping to their goals at 4.8 % of that speed,
+the load taking 95 % of the drive; a joint pushed to its stop does not move at all)."""
 
 DUTY_FULL = float(motor.TORQUE_FULL)
 """Torque Limit, Punch and wheel-mode Moving Speed at full duty (1023)."""
@@ -75,9 +81,9 @@ class Actuator:
         """The motor's drive as a linear law around the present state, from the servo's
         controller registers (``VirtualServo.controller()``) at position ``pos_ticks``:
         duty = ``gain`` * (``target`` - position) + ``bias`` (gain in 1/tick, target in
-        ticks), limited to +-``cap``; and whether Torque Limit cuts the duty the
-        controller asks for now. Inside the compliance margin the gain and bias are 0.
-        Positive duty turns toward larger ticks."""
+        ticks), limited to +-``cap``; and whether the cap cuts the duty the controller
+        asks for now (Torque Limit or Moving Speed, whichever binds). Inside the
+        compliance margin the gain and bias are 0. Positive duty turns toward larger ticks."""
         goal, speed, on, limit, cw_m, ccw_m, cw_s, ccw_s, punch, volts, wheel, raw = controller
         if not on:
             return 0.0, 0.0, 0.0, 0.0, False
@@ -102,4 +108,6 @@ class Actuator:
         no_load_ticks = self.no_load_rad_s * TICKS_PER_RAD * volts / self.nominal_v
         speed_cap = speed / no_load_ticks if no_load_ticks > 0 else 0.0
         cap = min(1.0, limit_cap, speed_cap)
-        return gain, goal, bias, cap, wanted > limit_cap and limit_cap < speed_cap
+        # a cap cuts when the controller asks for more than the drive allowed: Torque
+        # Limit's or (speed_limit "drive") Moving Speed's, whichever binds; no supply, no cut
+        return gain, goal, bias, cap, wanted > cap and no_load_ticks > 0

@@ -3,13 +3,14 @@
 state, made once per world, so a control tick is a MuJoCo step and a few C calls with no
 Python objects made per joint.
 
-    coupling = Coupling(model, data, joints, actuator, hold=..., period=..., ...)
+    coupling = Coupling(Arrays.of(model, data), joints, actuator, hold=..., period=..., ...)
     lib.sim_world_couple(coupling.c, t)     # every servo's registers to its drive
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -36,6 +37,35 @@ def actuator_struct(actuator: Actuator) -> Any:
     )
 
 
+@dataclass(frozen=True)
+class Arrays:
+    """What the coupling works on in place: the joints' angles and speeds (``qpos``,
+    ``qvel``, where the joints' indices point), each motor's torque (``force``), each
+    drive's row of bias parameters (``biasprm``: the torque bias[0] + bias[1] angle) and
+    its force range (``forcerange``, low and high), and the step the motors' energy is
+    accounted over (``timestep``, s). MuJoCo's own arrays (:meth:`of`), or a world's that
+    moves the joints itself."""
+
+    qpos: np.ndarray
+    qvel: np.ndarray
+    force: np.ndarray
+    biasprm: np.ndarray
+    forcerange: np.ndarray
+    timestep: float
+
+    @classmethod
+    def of(cls, model: Any, data: Any) -> Arrays:
+        """MuJoCo's: a compiled model's and its data's."""
+        return cls(
+            data.qpos,
+            data.qvel,
+            data.actuator_force,
+            model.actuator_biasprm,
+            model.actuator_forcerange,
+            model.opt.timestep,
+        )
+
+
 class Coupling:
     """The ``sim_world`` of one world (:attr:`c`) and everything it points to, kept alive
     here. ``joints``: per joint its servo, sign, tick at angle 0, qpos and qvel index.
@@ -47,8 +77,7 @@ class Coupling:
 
     def __init__(
         self,
-        model: Any,
-        data: Any,
+        arrays: Arrays,
         joints: Sequence[tuple[VirtualServo, float, float, int, int]],
         actuator: Actuator,
         *,
@@ -70,16 +99,16 @@ class Coupling:
         c.servos = self._new("sim_servo *[]", [s.c_struct for s in servos])
         c.sign, c.zero = self._doubles(sign), self._doubles(zero)
         c.qadr, c.dadr = self._ints(qadr), self._ints(dadr)
-        c.qpos, c.qvel = self._doubles(data.qpos), self._doubles(data.qvel)
-        c.force = self._doubles(data.actuator_force)
-        c.nq, c.nv = len(data.qpos), len(data.qvel)
-        c.biasprm = self._doubles(model.actuator_biasprm)
-        c.forcerange = self._doubles(model.actuator_forcerange)
-        c.nbias = model.actuator_biasprm.shape[1]
+        c.qpos, c.qvel = self._doubles(arrays.qpos), self._doubles(arrays.qvel)
+        c.force = self._doubles(arrays.force)
+        c.nq, c.nv = len(arrays.qpos), len(arrays.qvel)
+        c.biasprm = self._doubles(arrays.biasprm)
+        c.forcerange = self._doubles(arrays.forcerange)
+        c.nbias = arrays.biasprm.shape[1]
         c.actuator = self._held(actuator_struct(actuator))
         c.brake = -actuator.damping
-        c.stalled_speed = STALLED_FRACTION * actuator.no_load_rad_s
-        c.hold, c.period, c.dt = hold, period, model.opt.timestep
+        c.stalled_fraction = STALLED_FRACTION
+        c.hold, c.period, c.dt = hold, period, arrays.timestep
         c.start, c.min_z = start, min_z
         pieces = [*pieces, (self.torque, range(n))]
         gathers = c.gathers = self._new("sim_gather[]", len(pieces))

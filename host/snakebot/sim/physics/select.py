@@ -1,5 +1,6 @@
-"""Choosing a world by name: ``kinematic`` (the minimum-slip model, ``snakebot.sim.world``)
-or ``mujoco`` (this package). MuJoCo is imported only when its world is asked for."""
+"""Choosing a world by name: ``kinematic`` (the minimum-slip model, ``snakebot.sim.world``;
+with modelled servos, turned under the body's load, ``snakebot.sim.physics.joints``) or
+``mujoco`` (this package). MuJoCo is imported only when its world is asked for."""
 
 from __future__ import annotations
 
@@ -46,8 +47,11 @@ def make_world(
     ``batch`` tunes the kinematic world, ``mu`` the physics one (each ignores the
     other's); ``keep`` bounds the samples either keeps."""
     if check_world(name) == "kinematic":
+        from snakebot.sim.physics.joints import LoadedWorld, loads_its_servos
+
         extra = {} if batch is None else {"batch": batch}
-        return World(bus, robot, period=period, start=start, keep=keep, **extra)
+        kind = LoadedWorld if loads_its_servos(bus, robot) else World
+        return kind(bus, robot, period=period, start=start, keep=keep, **extra)
     require("mujoco", "the mujoco world")
     from snakebot.sim.physics.world import PhysicsWorld
 

@@ -38,7 +38,7 @@ from snakebot.model.robots import TICKS_PER_RAD, Friction, Robot
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.history import History
 from snakebot.sim.physics.actuator import OVERLOAD_HOLD_S, Actuator
-from snakebot.sim.physics.coupling import Coupling
+from snakebot.sim.physics.coupling import Arrays, Coupling
 from snakebot.sim.physics.mjcf import (
     CONTROL_PERIOD_S,
     ROLLING_MODEL,
@@ -193,6 +193,7 @@ class PhysicsWorld:
         self.actuator = Actuator.for_model(robot.servo_model)
         self._servos = [bus.servo(i) for i in ids]
         signs = [float(j.sign) for j in robot.joints]
+        self._signs = np.array(signs)
         zeros = [float(j.zero_tick) for j in robot.joints]
         m = self.model
         jid = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in names.joints]
@@ -224,8 +225,7 @@ class PhysicsWorld:
         ]
         joints = zip(self._servos, signs, zeros, self._qadr, self._dadr, strict=True)
         self._coupling = Coupling(
-            m,
-            d,
+            Arrays.of(m, d),
             list(joints),
             self.actuator,
             hold=OVERLOAD_HOLD_S,
@@ -258,6 +258,9 @@ class PhysicsWorld:
             return
         world = self._c
         if self._ticks:
+            # a push on a servo's horn (its set_external_torque) turns its joint too
+            pushes = [s.external_torque for s in self._servos]
+            self.data.qfrc_applied[self._dadr] = self._signs * pushes
             # energy: the motors' power (the drive in force during each step, the speed
             # at its end; the implicit integrator's own reading of the step)
             step, m, d, account = self._mj.mj_step, self.model, self.data, lib.sim_world_account

@@ -141,7 +141,7 @@ def _physics(robot: Robot, f: SerpenoidFrames, mu: float | None) -> dict[str, fl
     try:
         bus = client.port.bus
         move_to_start(client, bus, robot, table.frames[0])
-        record, _, _ = play(client, bus, robot, table, ideal=False, world="mujoco", mu=mu)
+        record, *_ = play(client, bus, robot, table, ideal=False, world="mujoco", mu=mu)
     finally:
         client.close()
     summary = record.physics_summary() if hasattr(record, "physics_summary") else {}

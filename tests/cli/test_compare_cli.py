@@ -46,28 +46,42 @@ def serpenoid(tmp_path: Path, name: str, amplitude: str) -> Path:
     return path
 
 
+RECORDINGS = 3
+"""Recordings made at most until one the host did not disturb (compare reports no gap
+between its samples and no stall of the controller): a host busy enough to hold up the
+in-process emulator in a recording moves the servos off the goals they chase, which is
+not what these tests are about (test_a_stalled_emulator_is_reported... is)."""
+
+
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory):
-    """A gait, and a run of it recorded from the controller (CSV and MCAP)."""
+    """A gait, and a run of it recorded from the controller (CSV and MCAP) that the host
+    did not disturb (RECORDINGS)."""
     tmp = tmp_path_factory.mktemp("compare")
     gait = serpenoid(tmp, "s.gait", "20deg")
-    with ControllerPty(table=read_gait(gait).encode()) as server:
-        assert cli("play", "--port", server.device, "--loop").exit_code == 0
-        time.sleep(0.5)
-        done = cli(
-            "monitor",
-            "--port",
-            server.device,
-            "--duration",
-            "2.5",
-            "--interval",
-            "0.02",
-            "--csv",
-            tmp / "run.csv",
-            "--mcap",
-            tmp / "run.mcap",
-        )
-        assert done.exit_code == 0, done.output
+    for _ in range(RECORDINGS):
+        with ControllerPty(table=read_gait(gait).encode()) as server:
+            assert cli("play", "--port", server.device, "--loop").exit_code == 0
+            time.sleep(0.5)
+            done = cli(
+                "monitor",
+                "--port",
+                server.device,
+                "--duration",
+                "2.5",
+                "--interval",
+                "0.02",
+                "--csv",
+                tmp / "run.csv",
+                "--mcap",
+                tmp / "run.mcap",
+            )
+            assert done.exit_code == 0, done.output
+        report = compare_json(tmp / "run.csv", gait)
+        if not report["gaps"] and not report["stalls"]:
+            break
+    else:
+        pytest.fail(f"the host disturbed all {RECORDINGS} recordings: {report}")
     return tmp, gait
 
 

@@ -6,17 +6,106 @@
 #ifndef SNAKEBOT_KIN_GEN_H
 #define SNAKEBOT_KIN_GEN_H
 
+#include "kin_trig.h"
+
+/* 3-link snake, half-link l, q = (x, y, theta, phi1, phi2): writes the velocity qdot = u[0] g1 + u[1] g2 (5 components) to out. The sines by `sincos`. */
+static inline void kin_gen_snake3_v_by(kin_sincos_fn sincos, double l, const double *q, const double *u, double *out)
+{
+    const double theta = q[2];
+    const double phi1 = q[3];
+    const double phi2 = q[4];
+    const double angle[KIN_TRIG_PADDED(3)] = {phi1, phi2, theta};
+    double sn[KIN_TRIG_PADDED(3)], cs[KIN_TRIG_PADDED(3)];
+    sincos(3, angle, sn, cs);
+    const double t0 = cs[0] + 1;
+    const double t1 = cs[0]*sn[1];
+    const double t2 = cs[1]*sn[0];
+    const double t3 = 2*cs[1] + 1;
+    const double t4 = sn[0]*t3 - t1 - t2;
+    const double t5 = -cs[0]*cs[1] + sn[0]*sn[1] + t0*t3 - t3;
+    const double t6 = 1.0/((-sn[0] + sn[1] + t1 - t2));
+    const double t7 = l*t6;
+    out[0] = t7*(u[0]*(cs[2]*t5 + sn[2]*t4) + u[1]*(cs[2]*t0 + sn[0]*sn[2]));  /* qdot[0] */
+    out[1] = -t7*(u[0]*(cs[2]*t4 - sn[2]*t5) + u[1]*(cs[2]*sn[0] - sn[2]*t0));  /* qdot[1] */
+    out[2] = t6*(sn[0]*u[1] + t4*u[0]);  /* qdot[2] */
+    out[3] = u[0];  /* qdot[3] */
+    out[4] = u[1];  /* qdot[4] */
+}
+
 /* 3-link snake, half-link l, q = (x, y, theta, phi1, phi2): writes the velocity qdot = u[0] g1 + u[1] g2 (5 components) to out. */
 void kin_gen_snake3_v(double l, const double *q, const double *u, double *out);
 
 /* 3-link snake, half-link l, q = (x, y, theta, phi1, phi2): writes g1, g2, h1, h2, h3 (5 components each) to out. */
 void kin_gen_snake3_all(double l, const double *q, double *out);
 
+/* Trident, body-velocity inputs, q = (x, y, theta, phi1..3), alpha = (alpha1..3, cos alpha1..3, sin alpha1..3): writes the velocity qdot = u[0] g1 + u[1] g2 + u[2] g3 to out. The sines by `sincos`. */
+static inline void kin_gen_trident_body_v_by(kin_sincos_fn sincos, double r, double l, const double *alpha, const double *q, const double *u, double *out)
+{
+    const double theta = q[2];
+    const double phi1 = q[3];
+    const double phi2 = q[4];
+    const double phi3 = q[5];
+    const double alpha1 = alpha[0];
+    const double alpha2 = alpha[1];
+    const double alpha3 = alpha[2];
+    const double cos_alpha1 = alpha[3];
+    const double cos_alpha2 = alpha[4];
+    const double cos_alpha3 = alpha[5];
+    const double sin_alpha1 = alpha[6];
+    const double sin_alpha2 = alpha[7];
+    const double sin_alpha3 = alpha[8];
+    const double angle[KIN_TRIG_PADDED(4)] = {theta, alpha1 + phi1, alpha2 + phi2, alpha3 + phi3};
+    double sn[KIN_TRIG_PADDED(4)], cs[KIN_TRIG_PADDED(4)];
+    sincos(4, angle, sn, cs);
+    const double t0 = 1.0/(l);
+    const double t1 = r*u[2];
+    const double t2 = -u[0];
+    const double t3 = -u[2];
+    const double w0 = -t0*(cos_alpha1*t1 + u[1]);
+    const double w1 = -t0*(sin_alpha1*t1 + t2);
+    const double w2 = -t0*(cos_alpha2*t1 + u[1]);
+    const double w3 = -t0*(sin_alpha2*t1 + t2);
+    const double w4 = -t0*(cos_alpha3*t1 + u[1]);
+    const double w5 = -t0*(sin_alpha3*t1 + t2);
+    out[0] = cs[0]*u[0] - sn[0]*u[1];  /* qdot[0] */
+    out[1] = cs[0]*u[1] + sn[0]*u[0];  /* qdot[1] */
+    out[2] = u[2];  /* qdot[2] */
+    out[3] = cs[1]*w0 + sn[1]*w1 + t3;  /* qdot[3] */
+    out[4] = cs[2]*w2 + sn[2]*w3 + t3;  /* qdot[4] */
+    out[5] = cs[3]*w4 + sn[3]*w5 + t3;  /* qdot[5] */
+}
+
 /* Trident, body-velocity inputs, q = (x, y, theta, phi1..3), alpha = (alpha1..3, cos alpha1..3, sin alpha1..3): writes the velocity qdot = u[0] g1 + u[1] g2 + u[2] g3 to out. */
 void kin_gen_trident_body_v(double r, double l, const double *alpha, const double *q, const double *u, double *out);
 
 /* Trident, body-velocity inputs, q = (x, y, theta, phi1..3), alpha = (alpha1..3, cos alpha1..3, sin alpha1..3): writes g1, g2, g3, h1, h2, h3 (6 components each) to out. */
 void kin_gen_trident_body_all(double r, double l, const double *alpha, const double *q, double *out);
+
+/* Trident, world-velocity inputs, q = (x, y, theta, phi1..3), alpha = (alpha1..3): writes the velocity qdot = u[0] g1 + u[1] g2 + u[2] g3 to out. The sines by `sincos`. */
+static inline void kin_gen_trident_world_v_by(kin_sincos_fn sincos, double r, double l, const double *alpha, const double *q, const double *u, double *out)
+{
+    const double theta = q[2];
+    const double phi1 = q[3];
+    const double phi2 = q[4];
+    const double phi3 = q[5];
+    const double alpha1 = alpha[0];
+    const double alpha2 = alpha[1];
+    const double alpha3 = alpha[2];
+    const double angle[KIN_TRIG_PADDED(6)] = {phi1, phi2, phi3, alpha1 + phi1 + theta, alpha2 + phi2 + theta, alpha3 + phi3 + theta};
+    double sn[KIN_TRIG_PADDED(6)], cs[KIN_TRIG_PADDED(6)];
+    sincos(6, angle, sn, cs);
+    const double t0 = 1.0/(l);
+    const double t1 = -u[2];
+    const double w0 = -r*t0*u[2];
+    const double w1 = -t0*u[1];
+    const double w2 = t0*u[0];
+    out[0] = u[0];  /* qdot[0] */
+    out[1] = u[1];  /* qdot[1] */
+    out[2] = u[2];  /* qdot[2] */
+    out[3] = cs[0]*w0 + cs[3]*w1 + sn[3]*w2 + t1;  /* qdot[3] */
+    out[4] = cs[1]*w0 + cs[4]*w1 + sn[4]*w2 + t1;  /* qdot[4] */
+    out[5] = cs[2]*w0 + cs[5]*w1 + sn[5]*w2 + t1;  /* qdot[5] */
+}
 
 /* Trident, world-velocity inputs, q = (x, y, theta, phi1..3), alpha = (alpha1..3): writes the velocity qdot = u[0] g1 + u[1] g2 + u[2] g3 to out. */
 void kin_gen_trident_world_v(double r, double l, const double *alpha, const double *q, const double *u, double *out);

@@ -26,11 +26,21 @@ typedef int (*kin_smooth_fn)(void *ctx, double t, const double *y, double t_end,
 /* Most distinct stage times of one step (Dormand-Prince 5(4): 5, 8(5,3): 11). */
 #define KIN_ODE_MAX_TIMES 11
 
-typedef struct {
+typedef struct kin_ode kin_ode;
+/* One attempted step of an embedded pair from (t, y), k1 = f(t, y) in ode->k1: writes
+ * the new state to y1, its scaled error norm to *e (accept when <= 1), and, when the step
+ * is accepted, f(t + h, y1) to k_end (first-same-as-last for the next step). */
+typedef int (*kin_step_fn)(kin_ode *ode, const double *y, double t, double h, double *y1,
+                           double *k_end, double *e);
+
+struct kin_ode {
     int32_t n;            /* state dimension, <= KIN_MAX_STATE */
     kin_rhs_fn f;
     kin_times_fn times;   /* may be NULL; kin_ode_init sets NULL, set it after */
     kin_smooth_fn smooth; /* may be NULL, as times */
+    /* DOP853 only, may be NULL (kin_ode_init sets NULL): the caller's own step, the same
+     * method with its right-hand side inlined (kin_dop853_step, kin_ode_dop853.h) */
+    kin_step_fn step;
     void *ctx;
     kin_options opt;      /* validated copy, defaults filled in */
     kin_stats *stats;     /* never NULL once initialised */
@@ -39,7 +49,7 @@ typedef struct {
     int32_t have_k1;      /* adaptive FSAL: k1 holds f(t, y) for the current (t, y) */
     double log_err_prev;  /* adaptive: log of the last accepted step's scaled error */
     double k1[KIN_MAX_STATE];
-} kin_ode;
+};
 
 /* Validate options and prepare; stats must not be NULL. span (t_end - t0 of the whole
  * call) sizes the default step budget of the adaptive methods. */

@@ -23,6 +23,10 @@ void kin_sincos(int32_t n, const double *restrict x, double *restrict sn,
                 double *restrict cs);
 /* cffi:end */
 
+/* kin_sincos's signature: what the generated velocities (kin_gen.h) take their sines by. */
+typedef void (*kin_sincos_fn)(int32_t n, const double *restrict x, double *restrict sn,
+                              double *restrict cs);
+
 /* Round a count up to whole blocks (the length of the arrays kin_sincos uses). */
 #define KIN_TRIG_PADDED(n) ((((n) + KIN_TRIG_BLOCK - 1) / KIN_TRIG_BLOCK) * KIN_TRIG_BLOCK)
 

@@ -54,11 +54,13 @@ def _trig_of_corners(
     return [e.subs(rewrite) for e in exprs], (*cos_a, *sin_a)
 
 
-def _batched_trig(exprs: list[sp.Expr]) -> tuple[list[sp.Expr], list[str], set[sp.Symbol]]:
+def _batched_trig(
+    exprs: list[sp.Expr], sincos: str = "kin_sincos"
+) -> tuple[list[sp.Expr], list[str], set[sp.Symbol]]:
     """Replace every sin(a) and cos(a) by an entry of the arrays ``sn`` and ``cs`` that one
-    ``kin_sincos`` call fills for all the angles a at once (the core evaluates a block of
-    angles in the time libm takes for about two). Also returns the C lines of that call
-    and the symbols the angles use."""
+    call of ``sincos`` (``kin_sincos``'s signature) fills for all the angles a at once (the
+    core evaluates a block of angles in the time libm takes for about two). Also returns
+    the C lines of that call and the symbols the angles use."""
     angles = sorted(
         {f.args[0] for e in exprs for f in e.atoms(sp.sin, sp.cos)}, key=sp.default_sort_key
     )
@@ -74,7 +76,7 @@ def _batched_trig(exprs: list[sp.Expr]) -> tuple[list[sp.Expr], list[str], set[s
     lines = [
         f"    const double angle[{size}] = {{{values}}};",
         f"    double sn[{size}], cs[{size}];",
-        f"    kin_sincos({len(angles)}, angle, sn, cs);",
+        f"    {sincos}({len(angles)}, angle, sn, cs);",
     ]
     return [e.xreplace(table) for e in exprs], lines, set().union(*(a.free_symbols for a in angles))
 
@@ -120,8 +122,12 @@ def _collected(exprs: list[sp.Expr]) -> tuple[list[sp.Expr], list[sp.Expr], list
 def _c_function(
     name: str, model: SymbolicModel, names: tuple[str, ...], velocity: bool = False
 ) -> tuple[str, str]:
-    """(prototype, definition) of a function writing the named fields of model at q, or
-    with ``velocity`` their combination sum_i u[i] field_i (one vector, no field stored)."""
+    """(what the header holds, definition) of a function writing the named fields of model
+    at q, or with ``velocity`` their combination sum_i u[i] field_i (one vector, no field
+    stored). The header holds a prototype; for a velocity, the whole of ``<name>_by``, an
+    inline function taking the sine routine as its first argument, and the definition is
+    that function called with ``kin_sincos``: an integrator's step compiled for a wider
+    instruction set then inlines the velocity with sines it can inline there too."""
     n = len(model.q)
     if velocity:
         inputs = [sp.Symbol(f"u[{i}]", real=True) for i in range(len(names))]
@@ -139,7 +145,8 @@ def _c_function(
         # sines and cosines of the angle sums from those of the joint angles (the
         # addition theorem): three angles to evaluate instead of five
         exprs = [sp.expand_trig(e) for e in exprs]
-    exprs, trig_lines, angle_symbols = _batched_trig(exprs)
+    sincos = "sincos" if velocity else "kin_sincos"
+    exprs, trig_lines, angle_symbols = _batched_trig(exprs, sincos)
     coefs: list[sp.Expr] = []
     weights: list[sp.Symbol] = []
     if velocity:
@@ -149,13 +156,16 @@ def _c_function(
     printer = _Printer()
     out_args = "const double *u, double *out" if velocity else "double *out"
     if model.name == "snake3":
-        signature = f"void {name}(double l, const double *q, {out_args})"
+        args, call = f"double l, const double *q, {out_args}", "l, q, u, out"
         bound = {params[0]: None}
     else:
-        signature = (
-            f"void {name}(double r, double l, const double *alpha, const double *q, {out_args})"
-        )
+        args = f"double r, double l, const double *alpha, const double *q, {out_args}"
+        call = "r, l, alpha, q, u, out"
         bound = {params[0]: None, params[1]: None}
+    signature = f"void {name}({args})"
+    if velocity:
+        wrapper = f"{signature}\n{{\n    {name}_by(kin_sincos, {call});\n}}"
+        signature = f"static inline void {name}_by(kin_sincos_fn sincos, {args})"
     used = set().union(
         *(e.free_symbols for _, e in temps), *(e.free_symbols for e in (*weight_values, *reduced))
     )
@@ -178,6 +188,8 @@ def _c_function(
         what = f"qdot[{comp}]" if velocity else f"{names[field]}[{comp}]"
         lines.append(f"    out[{k}] = {printer.doprint(expr)};  /* {what} */")
     lines.append("}")
+    if velocity:
+        return "\n".join(lines), wrapper
     return signature + ";", "\n".join(lines)
 
 
@@ -223,8 +235,13 @@ def generate() -> dict[str, str]:
     """The text of the generated header and source, by file name."""
     functions = _functions()
     header = [BANNER, "#ifndef SNAKEBOT_KIN_GEN_H", "#define SNAKEBOT_KIN_GEN_H", ""]
-    for doc, proto, _ in functions:
-        header += [f"/* {doc} */", proto, ""]
+    header += ['#include "kin_trig.h"', ""]
+    for doc, proto, body in functions:
+        if proto.startswith("static inline"):  # a velocity: the inline body, then its own
+            header += [f"/* {doc} The sines by `sincos`. */", proto, ""]
+            header += [f"/* {doc} */", body.split("\n", 1)[0] + ";", ""]
+        else:
+            header += [f"/* {doc} */", proto, ""]
     header += ["#endif", ""]
     source = [
         BANNER,

@@ -56,7 +56,7 @@ DECLARED: dict[str, tuple[str, str]] = {}
 """Lines not run here: (kind, the reason), by the line as it runs."""
 
 APART = {
-    f"{FIELDS} --symbolic": "sympy simplifies snake3's fields: about 17 CPU seconds",
+    f"{FIELDS} --symbolic": "sympy simplifies snake3's fields: about 5 CPU seconds",
     "snakebot sim predict s.gait --world mujoco --video s.gif": "renders a video: about 4",
     THESIS: "its 7 studies in both worlds: about 5",
     f"{THESIS} --json": "the same studies: about 5",

@@ -86,7 +86,7 @@ def _fmt(values: Any) -> str:
     "--symbolic",
     is_flag=True,
     help="print the fields as expressions (sympy) instead of values at q; "
-    "--at is then not needed (the 3-link snake takes about 20 s to simplify)",
+    "--at is then not needed (the 3-link snake takes about 5 s to simplify)",
 )
 def fields_command(
     robot: str,

@@ -46,7 +46,7 @@ def with_world(table, robot) -> tuple[float, float, float]:  # noqa: ANN001
         bus = client.port.bus
         move_to_start(client, bus, robot, table.frames[0])
         cpu0, wall0 = time.process_time(), time.perf_counter()
-        record, _, wall = play(client, bus, robot, table, ideal=False, world_hz=CONTROL_HZ)
+        record, _, wall, _ = play(client, bus, robot, table, ideal=False, world_hz=CONTROL_HZ)
         cpu, outer = time.process_time() - cpu0, time.perf_counter() - wall0
         emulated = float(record.t[-1])
         return emulated / wall, emulated / cpu if cpu > 0 else float("inf"), emulated / outer

@@ -245,12 +245,13 @@ def goto(
         move_to_start(client, bus, robot, robot.angles_to_ticks(phi0))
         tick = TICK_MS / 1000.0
         w = make_world(world, bus, robot, 1.0 / world_hz, bus.now + tick)
+        rest = world != "mujoco"  # see Runner.rest
         if waves:
             # the wave's frames are timed by its omega, within the servos' speed
-            runner = Runner(client, bus, robot, w, 1, rest=world != "mujoco")
+            runner = Runner(client, bus, robot, w, 1, rest=rest)
             pose = serpenoid_goto.follow(runner, phi0, goal, tol, segments, progress)
         else:
-            runner = Runner(client, bus, robot, w, slowdown, rest=world != "mujoco")
+            runner = Runner(client, bus, robot, w, slowdown, rest=rest)
             pose = np.zeros(3)
             if way is not None:
                 pose = _follow(runner, route, way, way_tol, keep_off, period_ms, segments, progress)

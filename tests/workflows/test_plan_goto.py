@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import math
 
 import pytest
 from click.testing import CliRunner
@@ -103,3 +104,40 @@ def test_unknown_world_physics_missing_is_one_line(tmp_path):
     assert result.exit_code == 2
     assert ERROR_LINE.match(result.output.strip().splitlines()[-1]), result.output
     assert "physics" in result.output
+
+
+def test_a_closed_loop_that_wanders_gives_up_and_says_why(monkeypatch):
+    """The leash (issue #31): snake3 at seed 31 on the kinematic world goes 1.16 body
+    lengths from its target on the way (it ends within the tolerance after 71 loops);
+    on a leash of one body length it gives up at the first pose read beyond it, exit 1,
+    and the report says why."""
+    import snakebot.workflows.goto as goto_module
+
+    monkeypatch.setattr(goto_module, "LEASH_FACTOR", 1.0)
+    target = targets("snake3", 31, 1)[0]
+    to = ",".join(f"{v:.6f}" for v in target)
+    result = run("sim", "goto", "snake3", "--to", to, "--json")
+    assert result.exit_code == 1, result.output
+    report = json.loads(result.output[result.output.index("{") :])
+    assert report["stopped"] == "wandered"
+    assert "beyond the leash" in report["why"]
+    reach = 6.0  # one body length: the target is nearer than that
+    far = [math.dist((s["pose"]["x"], s["pose"]["y"]), target[:2]) for s in report["segments"]]
+    assert far[-1] > reach and max(far[:-1]) <= reach
+    assert report["segments"][-1]["pose"] == report["final"]
+    # the same target on the ordinary leash: the report's verdict and no reason
+    text = run("sim", "goto", "trident", "--to", "2,1,30deg")
+    assert text.exit_code == 0 and "leash" not in text.output
+
+
+def test_the_leash_is_a_multiple_of_the_start_distance_or_of_the_body():
+    from snakebot.model.robots import load_robot
+    from snakebot.workflows.goto import LEASH_FACTOR, Leash
+
+    snake3 = load_robot("snake3")  # one body length: 6 units
+    far, near = Leash.around(snake3, (9.0, 12.0, 0.0)), Leash.around(snake3, (1.0, 0, 0))
+    assert far.reach == pytest.approx(LEASH_FACTOR * 15.0)
+    assert near.reach == pytest.approx(LEASH_FACTOR * 6.0)
+    assert near.hold((1.0 + LEASH_FACTOR * 6.0 - 1e-9, 0, 0))[0] > 0
+    with pytest.raises(Exception, match="leash"):
+        near.hold((1.0, LEASH_FACTOR * 6.0 + 1e-9, 0))

@@ -93,10 +93,45 @@ STEP_ACCURACY = 0.2
 WAYPOINT_SHARE = 0.5
 #: Bounds of the size factor between one loop and the next one's first guess.
 SHRINK_MIN, SHRINK_MAX = 0.2, 1.5
+#: The leash: the closed loop gives up once a pose it reads is farther from the target
+#: than this many times the start's distance from it, or as many body lengths if that
+#: is more (a near target). The farthest the 18 seeded targets of ``bench_goto.py`` went
+#: on MuJoCo and still ended within the tolerance: 2.24 body lengths (snake3, seed 35).
+LEASH_FACTOR = 3.0
 
 
 class GotoError(InputError):
     """The closed loop cannot run as asked."""
+
+
+class Wandered(Exception):
+    """A pose read was beyond the leash: the closed loop stops there."""
+
+    def __init__(self, pose: np.ndarray) -> None:
+        super().__init__("beyond the leash")
+        self.pose = pose
+
+
+@dataclass(frozen=True)
+class Leash:
+    """How far from the target the closed loop may go (``LEASH_FACTOR``)."""
+
+    goal: np.ndarray
+    reach: float
+
+    @classmethod
+    def around(cls, robot: Robot, goal: np.ndarray) -> Leash:
+        start = float(np.hypot(goal[0], goal[1]))
+        return cls(goal, LEASH_FACTOR * max(start, body_length(robot)))
+
+    def distance(self, pose: np.ndarray) -> float:
+        return float(np.hypot(pose[0] - self.goal[0], pose[1] - self.goal[1]))
+
+    def hold(self, pose: np.ndarray) -> np.ndarray:
+        """``pose`` if it is within reach of the target; else stop (``Wandered``)."""
+        if self.distance(pose) > self.reach:
+            raise Wandered(pose)
+        return pose
 
 
 def make_world(name: str, bus: Bus, robot: Robot, period: float, start: float) -> Any:
@@ -126,6 +161,8 @@ class GotoResult(EndsNearTarget):
     segments: list[dict[str, Any]]
     path: Trajectory
     wall_s: float
+    stopped: str = "reached"
+    why: str = ""
 
     @property
     def end(self) -> np.ndarray:
@@ -139,6 +176,8 @@ class GotoResult(EndsNearTarget):
             "final": pose_dict(self.final),
             "error": self.tolerance.report(self.error),
             "iterations": sum(1 for s in self.segments if s["kind"] in ITERATIONS),
+            "stopped": self.stopped,
+            "why": self.why,
             "segments": self.segments,
             "duration_s": float(self.path.t[-1]) if len(self.path.t) else 0.0,
             "wall_s": self.wall_s,
@@ -157,8 +196,10 @@ class Runner:
         world: Any,
         slowdown: int = 1,
         rest: bool = True,
+        leash: Leash | None = None,
     ) -> None:
         self.client, self.bus, self.robot, self.world = client, bus, robot, world
+        self.leash = leash
         # wait for the servos to rest after each table: the kinematic world's loaded
         # servos lag its last frame; on MuJoCo the closed loop reads the body as the
         # last frame ends (waiting there sent snake3's seed-35 target from 0.44x the
@@ -169,7 +210,8 @@ class Runner:
     def play(self, angles: np.ndarray, period_ms: int) -> np.ndarray:
         """Play joint frames once, each at least ``period_ms`` and no faster than the
         servos' speed allows (slowed down); the body pose the world reports once the
-        servos are at rest on the last frame (``rest``), else as it ends."""
+        servos are at rest on the last frame (``rest``), else as it ends. A pose beyond
+        the ``leash`` stops the closed loop (``Wandered``)."""
         robot = self.robot
         period_ms = max(period_ms, frame_period_ms(robot, angles) * self.slowdown)
         table = GaitTable(
@@ -196,7 +238,8 @@ class Runner:
         self.bus.run_until(end)
         if self.rest:
             come_to_rest(self.bus, robot, period, before)
-        return self.world.pose
+        pose = np.asarray(self.world.pose, dtype=float)
+        return pose if self.leash is None else self.leash.hold(pose)
 
 
 def goto(
@@ -240,31 +283,70 @@ def goto(
     client = DxlClient(sim_url(robot, ideal), echo=False)
     wall0 = time.perf_counter()
     segments: list[dict[str, Any]] = []
+    leash = Leash.around(robot, goal)
+    wandered = False
     try:
         bus: Bus = client.port.bus
         move_to_start(client, bus, robot, robot.angles_to_ticks(phi0))
         tick = TICK_MS / 1000.0
         w = make_world(world, bus, robot, 1.0 / world_hz, bus.now + tick)
         rest = world != "mujoco"  # see Runner.rest
-        if waves:
-            # the wave's frames are timed by its omega, within the servos' speed
-            runner = Runner(client, bus, robot, w, 1, rest=rest)
-            pose = serpenoid_goto.follow(runner, phi0, goal, tol, segments, progress)
-        else:
-            runner = Runner(client, bus, robot, w, slowdown, rest=rest)
-            pose = np.zeros(3)
-            if way is not None:
-                pose = _follow(runner, route, way, way_tol, keep_off, period_ms, segments, progress)
-                # on from wherever the first closed loop ended
-                remaining = se2.relative(pose, goal)
-                route, keep_off = _route(robot, phi0, remaining, tol, keep_off)
-            pose = _follow(runner, route, goal, tol, keep_off, period_ms, segments, progress, pose)
+        try:
+            if waves:
+                # the wave's frames are timed by its omega, within the servos' speed
+                runner = Runner(client, bus, robot, w, 1, rest=rest, leash=leash)
+                pose = serpenoid_goto.follow(runner, phi0, goal, tol, segments, progress)
+            else:
+                runner = Runner(client, bus, robot, w, slowdown, rest=rest, leash=leash)
+                pose = np.zeros(3)
+                if way is not None:
+                    pose = _follow(
+                        runner, route, way, way_tol, keep_off, period_ms, segments, progress
+                    )
+                    # on from wherever the first closed loop ended
+                    remaining = se2.relative(pose, goal)
+                    route, keep_off = _route(robot, phi0, remaining, tol, keep_off)
+                pose = _follow(
+                    runner, route, goal, tol, keep_off, period_ms, segments, progress, pose
+                )
+        except Wandered as exc:
+            pose, wandered = exc.pose, True
+            segments.append({"kind": "wandered", "frames": 0, "pose": pose_dict(pose)})
         w.stop()
         record = w.record()
     finally:
         client.close()
     path = Trajectory(record.t, record.q)
-    return GotoResult(robot, world, goal, tol, pose, segments, path, time.perf_counter() - wall0)
+    result = GotoResult(robot, world, goal, tol, pose, segments, path, time.perf_counter() - wall0)
+    result.stopped, result.why = _stop_reason(result, leash, wandered, waves)
+    return result
+
+
+def _stop_reason(result: GotoResult, leash: Leash, wandered: bool, waves: bool) -> tuple[str, str]:
+    """Why the closed loop stopped, as a word and a sentence (empty when it reached the
+    target)."""
+    played = sum(1 for s in result.segments if s["kind"] in ITERATIONS)
+    what = "cycles" if waves else "loops"
+    if wandered:
+        return "wandered", (
+            f"gave up after {played} {what}: a pose read was "
+            f"{leash.distance(result.final):.3g} from the target, beyond the leash of "
+            f"{leash.reach:.3g} ({LEASH_FACTOR:g} times the start's distance from it, or "
+            f"{LEASH_FACTOR:g} body lengths if that is more)"
+        )
+    if result.within:
+        return "reached", ""
+    if not waves:
+        return "missed", (
+            f"ended outside the tolerance after {played} loops (it plays at most "
+            f"{LOOPS_FACTOR} times the planned loops)"
+        )
+    if played < serpenoid_goto.MAX_CYCLES:
+        return "near", (
+            f"stopped within twice the tolerance after {played} cycles: a fresh plan "
+            "costs cycles that each miss by about a tolerance"
+        )
+    return "limit", f"gave up after {played} cycles, the most it plays"
 
 
 def uses_serpenoid(robot: Robot, world: str) -> bool:

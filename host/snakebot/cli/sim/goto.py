@@ -64,7 +64,9 @@ def goto(
     would on the real robot, and the next loop is fitted again to its share of what is
     left of the way, corrected by what the world made of the loops so far (a floor that
     slips moves the body shorter or askew); loops go on until the move back would end
-    within half the tolerance (five times the planned loops at most). On a physics world,
+    within half the tolerance (five times the planned loops at most), and it gives up,
+    saying why, once a pose read is farther from the target than its leash allows
+    (docs/goto.md). On a physics world,
     where no route's loops keep well off singular configurations, it goes by the
     half-way pose: one closed loop there, a second from there on. The report gives
     the final error, the loops played (iterations) and the path; the exit status is 1
@@ -154,6 +156,8 @@ def _print(s: dict[str, Any]) -> None:
         f"{math.degrees(e['heading_rad']):.3f} deg (tolerance "
         f"{math.degrees(e['heading_tolerance_rad']):.2f} deg): {verdict} the tolerance"
     )
+    if s["why"]:
+        click.echo(f"  {s['why']}")
     if s["length_legend"]:
         click.echo(f"  ({s['length_legend']})")
     if "plot" in s:

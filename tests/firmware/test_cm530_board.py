@@ -18,9 +18,11 @@ from controller_cli_support import SNAKE5_IDS, cli, cli_json, save, wave_table
 
 from snakebot.facts.boards import PC_LINK_BAUD, WATCHDOG_MS
 from snakebot.firmware import image as firmware_image
+from snakebot.model.robots import load_robot
 from snakebot.sim.mcu.board import BUS_RX_ENABLE, Cm530, Leftovers
 from snakebot.sim.mcu.runner import QUIET_AFTER_S, QUIET_STEP_S, STEP_S, McuFirmware
 from snakebot.sim.options import SimOptions
+from snakebot.sim.physics.select import make_world
 from snakebot.sim.serve import EmulatedRobot
 
 pytest.importorskip("unicorn")
@@ -31,6 +33,7 @@ STACK_PAINT = 0x5AC3A55A  # hal_startup.c paints free RAM with it
 PING = bytes([0xFF, 0xFF, 200, 2, 1, (~(200 + 2 + 1)) & 0xFF])
 PONG = bytes([0xFF, 0xFF, 200, 2, 0, (~(200 + 2)) & 0xFF])
 SLOW_HOST = {"SNAKEBOT_MARGIN_MS": "3000"}  # the emulated board shares a loaded machine
+WORLD_PERIOD_S = 0.01  # a world stepping every 10 ms
 
 
 @pytest.fixture(scope="module")
@@ -183,6 +186,76 @@ def test_replies_and_ticks_timed_in_c_reach_the_firmware_as_the_models_events(im
     assert stats.sent > 500 and stats.received > 300 and stats.blocked == 0
     assert turns.count((BUS_RX_ENABLE, True)) > 50  # the buffer turned for each reply
     assert in_c == python
+
+
+def _on_a_board(
+    image: bytes,
+    sends: list[tuple[float, bytes]],
+    *,
+    in_runs: bool = True,
+    world_steps_wait: bool = True,
+) -> tuple[list[int], tuple]:
+    """The PC's ``sends`` on a board with snake5's servos in a world: the sizes of the
+    runs USART1's drains handed on at once, and what the board did: the bytes on the bus
+    with their starts and ends, PC bytes, counts, servo positions, the world's samples,
+    instruction count, sleeps and exception entries. ``in_runs`` False: a drain hands its
+    bytes on one by one; ``world_steps_wait`` False: the board follows a world's steps."""
+    bus = replace(SimOptions.from_query(""), robot="snake5").build_bus()
+    world = make_world("kinematic", bus, load_robot("snake5"), period=WORLD_PERIOD_S)
+    board = Cm530(image, bus=bus)
+    board.world_steps_wait = world_steps_wait
+    usart1 = board.mcu.usart1
+    out: list[tuple[int, float, float]] = []
+    sizes: list[int] = []
+    on_tx, on_tx_run = usart1.on_tx, usart1.on_tx_run
+    assert on_tx is not None and on_tx_run is not None
+
+    def tap(b: int, s: float, e: float, baud: float) -> None:
+        out.append((b, s, e))
+        on_tx(b, s, e, baud)
+
+    def tap_run(data: list[int], starts: list[float], frame: float, baud: float) -> None:
+        sizes.append(len(data))
+        out.extend((b, s, s + frame) for b, s in zip(data, starts, strict=True))
+        on_tx_run(data, starts, frame, baud)
+
+    if in_runs:
+        usart1.hand_on_runs(tap, tap_run)
+    else:
+        usart1.on_tx = tap  # a drain hands its bytes on one by one
+    for t, data in sends:
+        board.run_until(t)
+        board.pc_send(data)
+    board.run_until(board.now() + 0.05)
+    m, record = board.mcu, world.record()
+    return sizes, (
+        out,
+        bytes(board.pc_out),
+        board.bus_stats,
+        bus.positions(),
+        (record.t.tolist(), record.q.tolist()),
+        (usart1.received, usart1.overruns, m.systick.fired),
+        (m.cpu.count, m.cpu.sleeps, m.nvic.c.entries),
+    )
+
+
+@pytest.mark.slow
+@pytest.mark.serial  # the session is recorded in real time on a pty
+def test_a_drains_bytes_at_once_and_a_worlds_steps_left_to_the_bus_change_nothing(image, tmp_path):
+    # the bytes USART1 started in C since the model last looked reach the board in one
+    # call (on_tx_run), and a world's steps, which send nothing, run in order at the
+    # bus's next run rather than stopping the CPU within the reply horizon: the same
+    # session (a gait uploaded, played and stopped) must give the same bytes on the bus
+    # at the same times, the same PC bytes, counts, servo positions, world samples,
+    # instruction count, sleeps and exception entries as one call a byte, and as
+    # following the world's steps
+    sends = _pc_session(tmp_path)
+    sizes, board = _on_a_board(image, sends)
+    assert board[2].sent > 500 and board[2].received > 300 and board[2].blocked == 0
+    assert sum(sizes) > 500 and max(sizes) > 4  # packets' bytes, many to a call
+    assert len(board[4][0]) > 50  # the world sampled throughout
+    assert board == _on_a_board(image, sends, in_runs=False)[1]
+    assert board == _on_a_board(image, sends, world_steps_wait=False)[1]
 
 
 def test_in_real_time_the_thread_runs_whole_steps_not_a_spin(image):

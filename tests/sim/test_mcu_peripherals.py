@@ -4,8 +4,11 @@ of what takes time. Each model runs alone on a scheduler with a hand-moved clock
 
 from __future__ import annotations
 
+import random
+
 import pytest
 
+from snakebot.core import ffi, lib
 from snakebot.sim.mcu import flash as fl
 from snakebot.sim.mcu import gpio, iwdg, nvic, rcc, systick, usart
 from snakebot.sim.mcu.errors import McuFault, UnmodelledAccess
@@ -177,6 +180,44 @@ def test_gpio_modes_bsrr_and_listeners() -> None:
     on[0] = False
     with pytest.raises(UnmodelledAccess, match="clock off"):
         port.write(gpio.BSRR, 4, 1)
+
+
+def test_gpio_idr_read_in_c_as_the_model_reads_it() -> None:
+    # the firmware polls its buttons' IDR every tick: C serves the read from what the
+    # model keeps there (ODR, the outputs, the pulled inputs) while the port's clock is
+    # on, no pin is driven from outside and no byte a USART started in C waits
+    on = [True]
+    port = gpio.GpioPort("C", lambda: on[0])
+    counter = ffi.new("mcu_counter *")
+    port.fast.counter = counter
+    value = ffi.new("uint64_t *")
+
+    def in_c() -> int | None:
+        return int(value[0]) if lib.mcu_gpio_read(port.fast, gpio.IDR, 4, value) else None
+
+    # every input and output configuration: analog, floating, pulled; push-pull and open
+    # drain, GPIO and alternate function, at each speed
+    nibbles = [gpio.INPUT_ANALOG, gpio.INPUT_FLOATING, gpio.INPUT_PULL]
+    nibbles += [cnf | speed for cnf in range(0, 16, 4) for speed in (1, 2, 3)]
+    rng = random.Random(30)
+    for _ in range(300):
+        for reg in (gpio.CRL, gpio.CRH):
+            port.write(reg, 4, sum(rng.choice(nibbles) << 4 * n for n in range(8)))
+        port.write(gpio.ODR, 4, rng.getrandbits(16))
+        assert in_c() == port.read(gpio.IDR, 4)
+    port.write(gpio.CRL, 4, gpio.CR_RESET & ~0xF | gpio.INPUT_PULL)  # PC0 pulled up
+    port.write(gpio.BSRR, 4, 1)
+    assert in_c() == port.read(gpio.IDR, 4) and in_c() & 1
+    port.drive(0, False)  # a button pulls it down: the model reads it
+    assert in_c() is None and not port.read(gpio.IDR, 4) & 1
+    port.drive(0, None)
+    assert in_c() == port.read(gpio.IDR, 4) and in_c() & 1
+    counter.undrained = 1  # a USART's bytes go first, through the model
+    assert in_c() is None
+    counter.undrained = 0
+    on[0] = False
+    port.clock_changed()
+    assert in_c() is None  # the model's (reads as zero, or an error when strict)
 
 
 def test_afio_remap_and_write_only_swj() -> None:

@@ -54,7 +54,8 @@ class EventScheduler(BusState):
     ) -> Schedule:
         """Call ``fn(t)`` at ``start`` (default: now) and every ``period`` seconds after,
         in time order with the bus's own events: how a world steps with the servos.
-        Returns the schedule, to :meth:`Schedule.cancel` it."""
+        ``fn`` puts nothing on the wire (see :meth:`next_sounding_time`). Returns the
+        schedule, to :meth:`Schedule.cancel` it."""
         if not period > 0:
             raise ValueError("period must be positive")
         schedule = Schedule(self, period, fn, self.now if start is None else start)
@@ -73,6 +74,18 @@ class EventScheduler(BusState):
         if self._held is not None:
             self._release()
         return self._events[0][0] if self._events else None
+
+    def next_sounding_time(self) -> float | None:
+        """When the next event that may put bytes on the wire happens (None if none):
+        any but a schedule's call (:meth:`every`: a world stepping moves the servos and
+        sends nothing; what a servo sends is made when a frame reaches it, an event of
+        its own). The calls before it run in their order all the same, whenever the
+        clock passes them."""
+        if self._held is not None:
+            self._release()
+        quiet = Schedule.tick
+        sounding = [e[0] for e in self._events if getattr(e[2], "__func__", None) is not quiet]
+        return min(sounding, default=None)
 
     def run_until(self, t: float) -> None:
         """Run every event up to bus time ``t`` and leave the clock at ``t``."""

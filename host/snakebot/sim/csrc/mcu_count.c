@@ -15,6 +15,20 @@ double mcu_now(const mcu_counter *c)
     return mcu_time_at(c, c->count);
 }
 
+#define SITE_BIT(address) (((address) >> 1) & (MCU_SITE_WORDS * 64u - 1u))
+
+static int maybe_site(const mcu_counter *c, uint64_t address)
+{
+    uint32_t bit = (uint32_t)SITE_BIT(address);
+    return (int)(c->site_bits[bit >> 6] >> (bit & 63u) & 1u);
+}
+
+void mcu_watch_site(mcu_counter *c, uint32_t address)
+{
+    uint32_t bit = SITE_BIT(address);
+    c->site_bits[bit >> 6] |= (uint64_t)1 << (bit & 63u);
+}
+
 typedef int (*mcu_stop_fn)(void *uc);
 typedef int (*mcu_wfi_fn)(uint64_t address);
 
@@ -27,8 +41,7 @@ void mcu_count_instruction(void *uc, uint64_t address, uint32_t size, void *coun
      * leaf of a few instructions (it runs for every instruction the CPU executes) */
     mcu_counter *c = (mcu_counter *)counter;
     uint64_t count = c->count;
-    if (__builtin_expect(count < c->limit && count < c->event_count, 1) &&
-        !(c->site_mask >> ((address >> 1) & 63u) & 1u)) {
+    if (__builtin_expect(count < c->limit && count < c->event_count, 1) && !maybe_site(c, address)) {
         c->count = count + 1;
         return;
     }
@@ -62,7 +75,7 @@ static void count_at_limit_or_site(void *uc, uint64_t address, uint32_t size, mc
         return;
     }
     c->count++;
-    if (!(c->site_mask >> ((address >> 1) & 63u) & 1u)) {
+    if (!maybe_site(c, address)) {
         return;
     }
     for (uint32_t i = 0; i < c->sites; i++) {
@@ -121,6 +134,9 @@ uint64_t mcu_io_read(void *uc, uint64_t offset, unsigned size, void *io)
     }
     uint64_t value;
     if (f->kind == MCU_IO_USART_SR && mcu_usart_read(f, offset, size, &value)) {
+        return value;
+    }
+    if (f->kind == MCU_IO_GPIO && mcu_gpio_read(f, offset, size, &value)) {
         return value;
     }
     if (f->kind == MCU_IO_SCS && f->systick != 0 && offset >= MCU_SCS_SYSTICK &&

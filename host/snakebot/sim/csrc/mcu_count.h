@@ -10,6 +10,8 @@
 #include <stdint.h>
 
 /* cffi:begin */
+#define MCU_SITE_WORDS 64 /* the sites' filter: 4096 bits, one per half-word address mod 8 KB */
+
 typedef struct {
     uint64_t count;    /* instructions executed since the machine was made */
     uint64_t limit;    /* stop before the instruction that would make count exceed this */
@@ -24,7 +26,8 @@ typedef struct {
     const uint32_t *site_address;
     const uint8_t *site_kind;  /* MCU_SITE_WFI or MCU_SITE_AFTER_UNMASK */
     uint32_t sites;
-    uint64_t site_mask;  /* bit (address / 2) % 64 set for each site: most addresses pass at once */
+    uint64_t site_bits[MCU_SITE_WORDS]; /* a bit for each site (mcu_watch_site): most
+                                         * addresses pass at once, the image's hot loops too */
     void *on_wfi;      /* int (*)(uint64_t address): a wfi is next; nonzero if it stopped the CPU */
     double stop_at;    /* the time the limit stands for (0: stop at the limit whatever the time).
                         * A limit worked out from a time can fall one instruction short of it by
@@ -124,6 +127,8 @@ typedef struct {
     void *rx_usart;        /* the mcu_fast_io whose rx_listens these pins set, or NULL: ... */
     uint32_t listen_high;  /* ... while these pins are outputs driven high ... */
     uint32_t listen_low;   /* ... and these outputs driven low */
+    uint32_t pulls;        /* the inputs with a pull-up or pull-down: IDR reads their ODR bit */
+    uint32_t driven;       /* the pins driven from outside: the model reads IDR while any is */
 } mcu_fast_io;
 
 #define MCU_IO_USART_SR 1
@@ -179,6 +184,8 @@ int mcu_maybe_in_it_block(void *uc, mcu_exceptions *x);
  * status. */
 int mcu_run(void *uc, mcu_exceptions *x, mcu_counter *c, uint64_t instructions);
 
+/* Set the filter's bit for a site at `address` (the image's wfi and after-unmask sites). */
+void mcu_watch_site(mcu_counter *c, uint32_t address);
 /* The code hook on every instruction: counts it, stops the CPU at the limit, and at a
  * watched site calls `on_wfi` or does what mcu_after_unmask does, in the sites' order. */
 void mcu_count_instruction(void *uc, uint64_t address, uint32_t size, void *counter);

@@ -37,8 +37,9 @@ BOARD = "cm530"
 REPLY_HORIZON_S = 0.003
 """How long after the master's last byte the board follows the bus event by event (a
 servo's reply starts within its return delay, at most 0.5 ms, and the firmware waits 1.5
-ms for it). Later bus events (the world's samples, servos moving) run in order when the
-master next writes or when a run of the board ends, without stopping the CPU for each."""
+ms for it). Later bus events (servos moving), and a world's steps at any time (they send
+nothing: :meth:`Bus.next_sounding_time`), run in order when the master next writes, a
+servo's byte arrives or a run of the board ends, without stopping the CPU for each."""
 BUS_TX_PIN, BUS_RX_PIN, BUS_TX_ENABLE, BUS_RX_ENABLE = 6, 7, 4, 5  # all on GPIOB
 BUFFER_STATES_KEPT = 64  # pin states whose buffer direction is remembered (see Cm530._buffer)
 
@@ -103,7 +104,7 @@ class Cm530:
         self.pc_out = bytearray()
         self.mcu.usart3.on_tx = self._pc_tx
         self._on_pc_tx = on_pc_tx
-        self.mcu.usart1.on_tx = self._bus_tx
+        self.mcu.usart1.hand_on_runs(self._bus_tx, self._bus_tx_run)
         self.mcu.usart1.on_idle = self._flush_bus_tx
         self.bus_stats = BusStats()
         self._tx_bytes = bytearray()  # master bytes on the wire the bus has not been given
@@ -114,6 +115,9 @@ class Cm530:
         self._arrival: Event | None = None
         self._buffer_states: dict[tuple[int, int, int, int], tuple[bool, bool]] = {}
         self._rx_taken = self._rx_heard = 0  # of the replies' bytes USART1 took in C
+        self.world_steps_wait = True
+        """A world's steps wait for the bus's next run (REPLY_HORIZON_S); False: the board
+        follows them as the bus's other events within the horizon (a test compares)."""
         # USART1's receiver in C hears the bus while PB5 listens (mcu_gpio.h)
         self.mcu.gpio["B"].link_receive_enable(self.mcu.usart1.fast, BUS_RX_ENABLE, BUS_TX_ENABLE)
         self._apply_leftovers()
@@ -187,7 +191,24 @@ class Cm530:
         return known
 
     def _bus_tx(self, byte: int, start: float, end: float, baud: float) -> None:
+        self._bus_byte(byte, start, end, baud, self._buffer_drives())
+
+    def _bus_tx_run(self, data: list[int], starts: list[float], frame: float, baud: float) -> None:
+        """USART1's ``on_tx_run``: the bytes it started in C since the model last looked,
+        as :meth:`_bus_tx` takes them one by one. The buffer's pins are the same for all:
+        a write that could change them stops the CPU for the model, which hands these on
+        first (mcu_gpio.h)."""
         drives = self._buffer_drives()
+        tx, stats = self._tx_bytes, self.bus_stats
+        for byte, start in zip(data, starts, strict=True):
+            if drives and tx and start == self._tx_end and baud == self._tx_baud:
+                tx.append(byte)  # right behind the one before (a bus is there: tx holds bytes)
+                self._tx_end = start + frame
+                stats.sent += 1
+            else:
+                self._bus_byte(byte, start, start + frame, baud, drives)
+
+    def _bus_byte(self, byte: int, start: float, end: float, baud: float, drives: bool) -> None:
         if not drives:
             self.bus_stats.blocked += 1
         bus = self.bus
@@ -232,7 +253,7 @@ class Cm530:
         assert bus is not None
         scheduler = self.mcu.scheduler
         self._settle_rx()
-        t = bus.next_event_time()
+        t = bus.next_sounding_time() if self.world_steps_wait else bus.next_event_time()
         arrival = self._hand_rx(t) if self.mcu.usart1.timed_in_c else None
         if t is not None and t > bus.master_tx_done + REPLY_HORIZON_S:
             t = None  # nothing the firmware can hear: it runs later, in order
@@ -251,9 +272,10 @@ class Cm530:
 
     def _hand_rx(self, bus_event: float | None) -> float | None:
         """Hand USART1's receiver, in C, the bytes on their way from the servos that
-        nothing can change before they arrive: before the bus's next event
-        (``bus_event``) and before a master byte the bus has not been given (the first
-        one the firmware sends after them stops the CPU for the model, mcu_usart.c).
+        nothing can change before they arrive: before the bus's next event that may put
+        bytes on the wire (``bus_event``) and before a master byte the bus has not been
+        given (the first one the firmware sends after them stops the CPU for the model,
+        mcu_usart.c).
         Returns when the first byte not handed arrives (None: none), for :meth:`_deliver`."""
         bus, usart1 = self.bus, self.mcu.usart1
         assert bus is not None
@@ -278,7 +300,7 @@ class Cm530:
         bus = self.bus
         assert bus is not None
         if fast.rx_taken_at > bus.now:
-            bus.run_until(fast.rx_taken_at)  # nothing of the bus's is due before (_hand_rx)
+            bus.run_until(fast.rx_taken_at)  # nothing sounding is due before (_hand_rx)
         bus.master_read(n)
         self.bus_stats.received += heard
         self.bus_stats.deaf += n - heard

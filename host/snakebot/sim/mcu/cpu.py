@@ -226,7 +226,8 @@ class Cpu:
         self._site_arrays = (addresses, kinds)
         c = self.counter
         c.site_address, c.site_kind, c.sites = addresses, kinds, len(self._sites)
-        c.site_mask = sum({1 << (address >> 1) % 64 for address, _ in self._sites})
+        for address, _ in self._sites:
+            lib.mcu_watch_site(c, address)
 
     def map_io(
         self,

@@ -40,7 +40,7 @@ def is_alternate(nibble: int) -> bool:
     return is_output(nibble) and nibble & 0x8 != 0
 
 
-OUTPUT_MASKS_KEPT = 16  # configurations whose output pins are remembered (see _outputs)
+OUTPUT_MASKS_KEPT = 16  # configurations whose output and pulled pins are remembered (_masks)
 PinListener = Callable[[int, bool], None]
 """Called with (pin, level) when an output pin's level changes."""
 
@@ -54,8 +54,8 @@ class GpioPort(Peripheral):
         self.name = f"GPIO{letter}"
         self.clock_on = clock_on
         self._listeners: list[PinListener] = []
-        self._output_masks: dict[tuple[int, int], int] = {}  # _outputs' mask by CRL, CRH
-        self.external: dict[int, bool] = {}  # pins driven from outside
+        self._output_masks: dict[tuple[int, int], tuple[int, int]] = {}  # _masks by CRL, CRH
+        self._external: dict[int, bool] = {}  # pins driven from outside (drive)
         self.fast = ffi.new("mcu_fast_io *")  # ODR, and its writes served in C (mcu_gpio.h)
         self.fast.kind = lib.MCU_IO_GPIO
         self.reset()
@@ -79,7 +79,7 @@ class GpioPort(Peripheral):
         self.fast.second_on = self.clock_on()
 
     def _pins_changed(self) -> None:
-        self.fast.outputs = self._outputs()[0]
+        self.fast.outputs, self.fast.pulls = self._masks()
         lib.mcu_gpio_changed(self.fast)
 
     def listen(self, listener: PinListener) -> None:
@@ -93,9 +93,10 @@ class GpioPort(Peripheral):
     def drive(self, pin: int, level: bool | None) -> None:
         """Something outside drives ``pin`` to ``level`` (None: lets go)."""
         if level is None:
-            self.external.pop(pin, None)
+            self._external.pop(pin, None)
         else:
-            self.external[pin] = level
+            self._external[pin] = level
+        self.fast.driven = sum(1 << p for p in self._external)  # C leaves IDR to idr()
 
     def output(self, pin: int) -> bool | None:
         """The level the port drives on ``pin`` as a GPIO output (None: not a GPIO output)."""
@@ -108,23 +109,19 @@ class GpioPort(Peripheral):
         nibble = self.mode(pin)
         if is_output(nibble) and not is_alternate(nibble):
             return bool(self.odr >> pin & 1)
-        if pin in self.external:
-            return self.external[pin]
+        if pin in self._external:
+            return self._external[pin]
         if nibble == INPUT_PULL:
             return bool(self.odr >> pin & 1)  # ODR picks pull-up (1) or pull-down (0)
         return False
 
     def idr(self) -> int:
-        outputs, levels = self._outputs()
-        value = levels
-        for pin in range(16):
+        outputs, pulls = self._masks()
+        value = self.odr & (outputs | pulls)  # what an output drives, the pull ODR picks
+        for pin, level in self._external.items():  # driven from outside, unless an output
             bit = 1 << pin
-            if outputs & bit:
-                continue
-            if pin in self.external:
-                value |= bit if self.external[pin] else 0
-            elif self.mode(pin) == INPUT_PULL:
-                value |= self.odr & bit
+            if not outputs & bit:
+                value = value | bit if level else value & ~bit
         return value
 
     def _gate(self, offset: int, value: int | None) -> bool:
@@ -181,21 +178,27 @@ class GpioPort(Peripheral):
 
     def _outputs(self) -> tuple[int, int]:
         """(pins that are GPIO outputs, their levels) as bit masks."""
+        mask = self._masks()[0]
+        return mask, self.odr & mask
+
+    def _masks(self) -> tuple[int, int]:
+        """(pins that are GPIO outputs, inputs with a pull) as bit masks, worked out once
+        for each configuration."""
         cr = self.cr
         key = (cr[0], cr[1])
-        mask = self._output_masks.get(key)
-        if mask is None:
-            mask = 0
-            for half in (0, 1):
-                word = cr[half]
-                for n in range(8):
-                    nibble = word >> (4 * n) & 0xF
-                    if nibble & 0x3 and not nibble & 0x8:
-                        mask |= 1 << (8 * half + n)
+        masks = self._output_masks.get(key)
+        if masks is None:
+            outputs = pulls = 0
+            for pin in range(16):
+                nibble = cr[pin // 8] >> (4 * (pin % 8)) & 0xF
+                if is_output(nibble) and not is_alternate(nibble):
+                    outputs |= 1 << pin
+                elif nibble == INPUT_PULL:
+                    pulls |= 1 << pin
             if len(self._output_masks) >= OUTPUT_MASKS_KEPT:
                 self._output_masks.clear()
-            self._output_masks[key] = mask
-        return mask, self.odr & mask
+            masks = self._output_masks[key] = (outputs, pulls)
+        return masks
 
 
 MAPR_USART1_REMAP = 1 << 2

@@ -49,6 +49,9 @@ CR1_MODELLED = CR1_RE | CR1_TE | CR1_RXNEIE | CR1_TCIE | CR1_TXEIE | CR1_UE
 BITS_PER_FRAME = 10
 
 TxSink = Callable[[int, float, float, float], None]
+TxRunSink = Callable[[list[int], list[float], float, float], None]
+"""Called with (bytes, their starts, one frame (s), baud): the bytes the shift register
+timed in C started since the model last looked, in order, handed on at once."""
 
 
 class Usart(Peripheral):
@@ -76,7 +79,8 @@ class Usart(Peripheral):
         self.pclk = pclk
         self.irq = irq
         self.clock_on = clock_on
-        self.on_tx = on_tx
+        self._on_tx = on_tx
+        self._on_tx_run: TxRunSink | None = None
         self._on_idle: Callable[[float], None] | None = None
         self._counter: object = None  # the machine's mcu_counter once timed in C
         self.sent = 0
@@ -164,6 +168,25 @@ class Usart(Peripheral):
         self.fast.frame_s = BITS_PER_FRAME / baud if baud else float("inf")
 
     @property
+    def on_tx(self) -> TxSink | None:
+        """Called with each byte as its start bit goes out."""
+        return self._on_tx
+
+    @on_tx.setter
+    def on_tx(self, fn: TxSink | None) -> None:
+        self._on_tx, self._on_tx_run = fn, None  # a run is handed on byte by byte to it
+
+    @property
+    def on_tx_run(self) -> TxRunSink | None:
+        """Takes the bytes a drain hands on, in one call (see :meth:`hand_on_runs`)."""
+        return self._on_tx_run
+
+    def hand_on_runs(self, on_tx: TxSink, on_tx_run: TxRunSink) -> None:
+        """``on_tx``, and ``on_tx_run`` that takes the bytes a drain hands on in one call
+        as ``on_tx`` would take them one by one (until ``on_tx`` is set again)."""
+        self._on_tx, self._on_tx_run = on_tx, on_tx_run
+
+    @property
     def on_idle(self) -> Callable[[float], None] | None:
         """Called with the time when the transmitter has nothing more to send (TC)."""
         return self._on_idle
@@ -175,15 +198,18 @@ class Usart(Peripheral):
 
     def drain(self) -> None:
         """Hand on what the shift register timed in C did since the last drain: each byte
-        it started (``on_tx``, in order) and then its TC (``on_idle``)."""
+        it started (``on_tx_run`` with them all, or ``on_tx`` for each, in order) and then
+        its TC (``on_idle``)."""
         fast = self.fast
         n = fast.logged
         if n:
             fast.logged = 0
             self.sent += n
-            on_tx = self.on_tx
-            if on_tx is not None:
-                frame, baud = fast.frame_s, fast.baud
+            frame, baud = fast.frame_s, fast.baud
+            on_tx, on_tx_run = self._on_tx, self._on_tx_run
+            if on_tx_run is not None:
+                on_tx_run(ffi.unpack(fast.log_byte, n), ffi.unpack(fast.log_start, n), frame, baud)
+            elif on_tx is not None:
                 starts = ffi.unpack(fast.log_start, n)  # one call, not one per element
                 for byte, start in zip(ffi.unpack(fast.log_byte, n), starts, strict=True):
                     on_tx(byte, start, start + frame, baud)
@@ -284,8 +310,8 @@ class Usart(Peripheral):
         end = t + frame
         if byte is not None:
             self.sent += 1
-            if self.on_tx is not None:
-                self.on_tx(byte, t, end, baud)
+            if self._on_tx is not None:
+                self._on_tx(byte, t, end, baud)
         fast = self.fast
         fast.shifting = 1
         if self.timed_in_c:

@@ -83,7 +83,8 @@ def unreachable(exc: Unreachable) -> None:
     f"end within the tolerance there (up to {MAX_PLAYS} plays, 1..20 s of CPU where the "
     "loop plan takes a few). both (N-link snakes, a table only): serpenoid cycles solved "
     "to end within the tolerance in the quasi-static world and within twice it in MuJoCo "
-    f"(up to {BOTH_PLAYS} MuJoCo plays, 10..40 s of CPU).",
+    f"(up to {BOTH_PLAYS} MuJoCo plays, 5..60 s of CPU; measured to meet both on "
+    "straight ways only, docs/goto.md).",
 )
 @json_option()
 def plan_command(

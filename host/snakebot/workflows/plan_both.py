@@ -159,7 +159,7 @@ class _Solver:
         columns = []
         for i in range(len(x)):
             moved = x.copy()
-            moved[i] += STEP if x[i] + STEP <= self._high(len(x))[i] else -STEP
+            moved[i] += STEP if x[i] + STEP <= self.high(len(x))[i] else -STEP
             other = self.quasi_static(table.route.with_values(moved[:-1], moved[-1]))
             if other is None:
                 return None
@@ -167,10 +167,10 @@ class _Solver:
             columns.append(d / (moved[i] - x[i]))
         return np.array(columns).T
 
-    def _low(self, n: int) -> np.ndarray:
+    def low(self, n: int) -> np.ndarray:
         return np.r_[[-MAX_OFFSET] * (n - 1), self.centre - DELTA_RANGE]
 
-    def _high(self, n: int) -> np.ndarray:
+    def high(self, n: int) -> np.ndarray:
         return np.r_[[MAX_OFFSET] * (n - 1), self.centre + DELTA_RANGE]
 
     def step(self, table: _Table, jac: np.ndarray, r: np.ndarray, trust: float) -> _Table | None:
@@ -180,7 +180,7 @@ class _Solver:
         step = -np.linalg.solve(jac.T @ jac + DAMPING * np.eye(len(x)), jac.T @ r)
         if np.abs(step).max() > trust:
             step *= trust / np.abs(step).max()
-        new = np.clip(x + step, self._low(len(x)), self._high(len(x)))
+        new = np.clip(x + step, self.low(len(x)), self.high(len(x)))
         if not np.abs(new - x).max() > 0:
             return None
         return self.quasi_static(table.route.with_values(new[:-1], new[-1]))
@@ -210,7 +210,7 @@ def _mujoco_jacobian(solver: _Solver, table: _Table) -> np.ndarray | None:
     ``MUJOCO_STEP`` (one play a column)."""
     assert table.mujoco is not None
     x = np.r_[table.route.offsets, table.route.delta]
-    high = solver._high(len(x))
+    high = solver.high(len(x))
     columns = []
     for i in range(len(x)):
         moved = x.copy()

@@ -18,8 +18,8 @@ and lag are solved for both ends at once:
 3. then both worlds: Levenberg-Marquardt on both ends' errors in tolerances, MuJoCo's
    weighed so that least squares shares the worlds' difference as the bounds do; the
    quasi-static Jacobian by differences at every step, MuJoCo's by differences (one play
-   a column), updated by Broyden's method after a step that came nearer and taken afresh
-   after one that did not;
+   a column), updated by Broyden's method after every step and taken afresh after a step
+   that came no nearer;
 4. a route whose steps shrink to nothing, or that has had ``ROUTE_PLAYS`` plays, gives
    way to the next.
 

@@ -234,9 +234,9 @@ def _difference(a: np.ndarray, b: np.ndarray, tol: Tolerance) -> np.ndarray:
 
 def _solve_both(solver: _Solver, table: _Table, plays: int) -> None:
     """Levenberg-Marquardt on both ends at once (the residual: the quasi-static end's
-    error in tolerances beside MuJoCo's in ``MUJOCO_BOUND`` tolerances), both Jacobians
-    by differences, MuJoCo's updated by Broyden's method after every step and taken
-    afresh after a step that failed, until ``plays`` MuJoCo plays are spent."""
+    error in tolerances beside MuJoCo's weighed by ``WEIGHT``, ``_Table.stacked``), both
+    Jacobians by differences, MuJoCo's updated by Broyden's method after every step and
+    taken afresh after a step that failed, until ``plays`` MuJoCo plays are spent."""
     stop = solver.plays + plays
     table = solver.mujoco(table)
     n = len(table.route.offsets) + 1

@@ -25,8 +25,9 @@ checked for MuJoCo, which claims its end within the tolerance there and says (an
 ``open_loop`` warning of cause ``world``) when the quasi-static world puts it outside.
 Such a plan counts as ``mujoco`` when its MuJoCo end is within the tolerance (its claim)
 and its quasi-static end is within it or warned about; a MuJoCo end outside the
-tolerance, or an unwarned quasi-static miss, is a MISS. ``--only 3,7`` plans for those
-of the 20 targets only.
+tolerance, or an unwarned quasi-static miss, is a MISS. With ``--world both`` step 1 is
+``snakebot plan ... --world both``, which claims both bounds: a table outside either is
+a MISS. ``--only 3,7`` plans for those of the 20 targets only.
 """
 
 from __future__ import annotations
@@ -108,6 +109,8 @@ def verdict(row: dict[str, Any]) -> str:
     qs, mj = row["quasi_static"], row["mujoco"]
     if max(qs) <= 1 and max(mj) <= WITHIN_MUJOCO:
         return "ok"
+    if row["world"] == "both":  # its claim: both bounds
+        return "MISS"
     if row["world"] == "mujoco":  # its claim: within the tolerance in MuJoCo
         said = max(qs) <= 1 or any(w["cause"] == "world" for w in row["warned"])
         return "mujoco" if max(mj) <= 1 and said else "MISS"
@@ -141,7 +144,7 @@ def line(i: int, row: dict[str, Any], said: str) -> str:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--world", choices=("kinematic", "mujoco"), default="kinematic")
+    parser.add_argument("--world", choices=("kinematic", "mujoco", "both"), default="kinematic")
     parser.add_argument("--only", help="comma-separated indices of the targets to plan for")
     args = parser.parse_args()
     only = None if args.only is None else {int(v) for v in args.only.split(",")}

@@ -41,10 +41,9 @@ from snakebot.model.plan.cycle_plan import (
     CycleRoute,
     cycle_gait,
     first_cycles,
-    is_serpentine,
+    require_serpentine,
     route_ticks,
 )
-from snakebot.model.plan.loops import PlanError
 from snakebot.model.plan.planner import (
     Tolerance,
     body_length,
@@ -81,7 +80,7 @@ MIN_TRUST = 0.01
 DAMPING = 0.1
 
 
-def _error(end: np.ndarray, goal: np.ndarray, tol: Tolerance) -> np.ndarray:
+def error_in_tolerances(end: np.ndarray, goal: np.ndarray, tol: Tolerance) -> np.ndarray:
     """The end's error in tolerances: x, y and heading."""
     h = (end[2] - goal[2] + math.pi) % (2 * math.pi) - math.pi
     return np.array(
@@ -89,7 +88,8 @@ def _error(end: np.ndarray, goal: np.ndarray, tol: Tolerance) -> np.ndarray:
     )
 
 
-def _miss(r: np.ndarray) -> float:
+def miss_in_tolerances(r: np.ndarray) -> float:
+    """The larger of the position and heading errors of ``r``, in tolerances."""
     return float(max(math.hypot(r[0], r[1]), abs(r[2])))
 
 
@@ -110,11 +110,11 @@ class _Shooter:
         self.plays += 1
         moved = played.emulated.displacement()
         end = np.array([moved["dx"], moved["dy"], moved["dtheta"]])
-        r = _error(end, self.goal, self.tol)
-        if self.best is None or _miss(r) < self.best[0]:
-            self.best = (_miss(r), route, end, r, gait)
+        r = error_in_tolerances(end, self.goal, self.tol)
+        if self.best is None or miss_in_tolerances(r) < self.best[0]:
+            self.best = (miss_in_tolerances(r), route, end, r, gait)
         known = self.nearest.get(route.ways)
-        if known is None or _miss(r) < _miss(known[1]):
+        if known is None or miss_in_tolerances(r) < miss_in_tolerances(known[1]):
             self.nearest[route.ways] = (route, r)
         return r, played
 
@@ -239,11 +239,7 @@ def plan_in_mujoco(
     friction ``mu``, default the robot's), ends within the tolerance; Unreachable when
     ``plays`` plays find none."""
     robot = request.robot
-    if not is_serpentine(robot):
-        raise PlanError(
-            f"a plan for the mujoco world drives serpenoid cycles, which {robot.name} has "
-            "none of: plan it in the kinematic world"
-        ).about("world")
+    require_serpentine(robot, "the mujoco world")
     goal, phi0, tol = request.checked()
     wave = Wave(robot)
     wave.check()

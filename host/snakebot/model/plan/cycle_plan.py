@@ -24,6 +24,7 @@ from snakebot.formats.gaittable import table_size
 from snakebot.model.gait.common import Gait, motion, motion_frame, path, table_motion
 from snakebot.model.gait.limits import check_ticks
 from snakebot.model.kinematics import Trajectory
+from snakebot.model.plan.loops import PlanError
 from snakebot.model.plan.planner import (
     EndsNearTarget,
     Tolerance,
@@ -47,6 +48,9 @@ from snakebot.model.robots import Robot
 #: The most plays of a plan's tables in the world it is made for (in MuJoCo each about
 #: 0.1 s of CPU a cycle).
 MAX_PLAYS = 36
+#: The most MuJoCo plays of a plan for both worlds (each with the quasi-static world's
+#: plays, a few milliseconds each, for its Jacobian).
+MAX_PLAYS_BOTH = 60
 #: A route's largest miss by the car model, in tolerances, when it is chosen.
 ROUTE_ACCEPT = 3.0
 #: How far ``delta`` may move from the wave's own: the cycle's length changes by about a
@@ -60,6 +64,16 @@ def is_serpentine(robot: Robot) -> bool:
     return robot.kind == "snake" and robot.n_joints > 2
 
 
+def require_serpentine(robot: Robot, world: str) -> None:
+    """A PlanError (about ``--world``) unless ``robot`` is an N-link snake: a plan for
+    ``world`` drives serpenoid cycles."""
+    if not is_serpentine(robot):
+        raise PlanError(
+            f"a plan for {world} drives serpenoid cycles, which {robot.name} has none of: "
+            "plan it in the kinematic world"
+        ).about("world")
+
+
 def first_cycles(
     model: CycleModel,
     here: np.ndarray,
@@ -67,6 +81,7 @@ def first_cycles(
     tol: Tolerance,
     link1: Any,
     least: int = 1,
+    reversals: int = 1,
 ) -> Cycles:
     """The fewest whole cycles, ``least`` or more (forwards, backwards, one reversal),
     that end link 1 within ``ROUTE_ACCEPT`` tolerances of ``goal`` by the car model
@@ -78,7 +93,7 @@ def first_cycles(
     to ``serpenoid_goto``'s limit on changes of offset, they are fitted without it."""
 
     def ways_for(n: int) -> list[tuple[float, ...]]:
-        return ways_of(n)[: 2 * n]  # forwards, backwards and one reversal
+        return ways_of(n)[: 2 * n if reversals else 2]  # forwards, backwards, one reversal
 
     def fit_with(limit: bool) -> Callable[[tuple[float, ...], np.ndarray], Cycles | None]:
         return lambda ways, x0: fit_offsets(ways, x0, goal, tol, model, here, 0.0, link1, limit)

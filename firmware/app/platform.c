@@ -88,6 +88,9 @@ static uint32_t pc_credit_ms;
 static void service_pc(void)
 {
     uint32_t now = hal_millis();
+    if (now == pc_credit_ms) {
+        return; /* no credit since the last pass: less than a byte is saved up */
+    }
     pc_credit += (now - pc_credit_ms) * PC_BYTES_PER_S;
     pc_credit_ms = now;
     if (pc_credit > BOARD_PC_TX_RING * 1000UL) {
@@ -116,11 +119,13 @@ void platform_idle(int idle)
     if (!idle) {
         return;
     }
+    /* Only received bytes keep the loop awake. A transmission in progress wakes it by
+     * itself: on the F103 each TXE and the final TC interrupt (the handler feeds the next
+     * byte, or turns the bus back to receive), on a board whose USART raises neither
+     * (QEMU) platform_service() has sent everything already, or the paced PC link waits
+     * for SysTick's next millisecond. */
     uint32_t primask = hal_irq_save();
-    /* A paced transmitter waits for time to pass anyway: the next SysTick wakes us. */
-    bool pc_tx_idle = BOARD_PACE_PC_TX || hal_usart_tx_done(&platform_pc);
-    if (hal_ring_count(&platform_pc.rx) == 0U && hal_ring_count(&platform_bus.rx) == 0U &&
-        pc_tx_idle && hal_usart_tx_done(&platform_bus)) {
+    if (hal_ring_count(&platform_pc.rx) == 0U && hal_ring_count(&platform_bus.rx) == 0U) {
         hal_wait_for_interrupt();
     }
     hal_irq_restore(primask);

@@ -32,8 +32,9 @@ const platform_info_t *platform_info(void);
 /* The main loop's share of the drivers' work; call every iteration. */
 void platform_service(void);
 
-/* Sleep until the next interrupt if `idle` (nothing buffered to process); always feeds
- * the watchdog. The SysTick interrupt bounds the sleep to 1 ms. */
+/* Sleep until the next interrupt if `idle` (nothing buffered to process; a transmission
+ * under way wakes it with its own interrupts); always feeds the watchdog. The SysTick
+ * interrupt bounds the sleep to 1 ms. */
 void platform_idle(int idle);
 
 #endif

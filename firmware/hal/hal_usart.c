@@ -155,6 +155,11 @@ static bool transmit_step(hal_usart_t *u, uint32_t sr)
 
 void hal_usart_service_bytes(hal_usart_t *u, uint32_t max)
 {
+    /* Only this (main-loop) side sets `transmitting`: seen clear, there is nothing to feed,
+     * and the critical section is skipped. */
+    if (max == 0U || !u->transmitting) {
+        return;
+    }
     uint32_t primask = hal_irq_save();
     /* Feed while the hardware takes bytes: one on a real USART, all of them in QEMU. The
      * ring bounds the loop. */

@@ -313,3 +313,27 @@ def test_the_watchdog_is_never_starved_by_a_32k_library_store(image, tmp_path):
     assert timeout < WATCHDOG_MS / 1000  # the fast LSI's timeout, shorter than nominal
     print(f"largest gap between watchdog feeds: {gap * 1000:.1f} ms of {timeout * 1000:.0f} ms")
     assert gap < 0.5 * timeout
+
+
+@pytest.mark.slow
+@pytest.mark.serial  # the gait is uploaded in real time on a pty
+def test_the_cpu_sleeps_between_the_bytes_of_a_packet(image, tmp_path):
+    # the bus's transmitter is interrupt driven (TXE feeds a byte, TC turns the line back),
+    # so the main loop waits for an interrupt while a packet goes out, as it does between
+    # packets: beyond SysTick's wake-ups it falls asleep again at least once for every
+    # byte sent. A loop that polls until TC sleeps only between packets, far fewer times
+    with EmulatedRobot("snake5", board="cm530") as robot:
+        port = robot.info.pc_link
+        cli_json("upload", save(wave_table(), tmp_path), "--port", port, env=SLOW_HOST)
+        assert cli_json("play", "--port", port, env=SLOW_HOST)["state"] == "PLAYING"
+        fw = robot._mcu  # noqa: SLF001 - the test drives the playing board itself
+        assert fw is not None
+        fw.stop()
+        board = fw.board
+        m = board.mcu
+        sent, sleeps, ticks = board.bus_stats.sent, m.cpu.sleeps, m.systick.fired
+        board.run_for(0.2)
+        sent, sleeps = board.bus_stats.sent - sent, m.cpu.sleeps - sleeps
+        ticks = m.systick.fired - ticks
+    assert sent > 300  # the gait's packets went out throughout
+    assert sleeps - ticks >= sent

@@ -112,8 +112,9 @@ def fastest(sides: dict[object, tuple[Callable[[], object], int]]) -> dict[objec
     (function, calls), the sides' windows interleaved round by round.
 
     On this shared virtual machine the CPU time of the same call swings by up to 1.8x for
-    a while (other guests on the host: the snake5 trajectory took 3.7 to 4.0 ms for half a
-    second, then 2.1 ms), and a median of a few short windows followed those swings: the
+    a while, from outside the guest (no steal time, no clock change it can see; a busy
+    loop on its other CPU changed nothing): the snake5 trajectory took 3.7 to 4.0 ms for
+    half a second, then 2.1 ms. A median of a few short windows followed those swings: the
     core's snake5 time varied 1.5x within one run. Other load only ever adds time to a
     fixed computation, so a side's fastest window is what it costs. For fairness every
     side has the same number of windows, interleaved, and the caller makes them about the

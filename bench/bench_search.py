@@ -47,11 +47,12 @@ def verdict(value: float, goal: float) -> str:
 def per_core(world: str, runs: int, rounds: int) -> float:
     """Runs per CPU second of this process (after one warm-up run): the fastest of
     ``rounds`` windows of ``runs`` runs each. On this shared virtual machine the same work
-    costs up to 1.8x the CPU time for seconds at a time (other guests on the host), and
-    one window of 1000 kinematic runs read 840/s where the next four read 1210 to 1290/s;
-    other load only ever adds time, so the fastest window is what a run costs. A slow
-    spell can outlast every window (the fastest of five read 1357/s and 1606/s in two
-    processes a few seconds apart): the figure is then low, never high."""
+    costs up to 1.8x the CPU time for seconds at a time (from outside the guest; see
+    bench_kinematics.fastest), and one window of 1000 kinematic runs read 840/s where the
+    next four read 1210 to 1290/s; other load only ever adds time, so the fastest window
+    is what a run costs. A slow spell can outlast every window (the fastest of five read
+    1357/s and 1606/s in two processes a few seconds apart, 984/s of seven at load 4 to
+    6): the figure is then low, never high."""
     settings = Settings("snake5", world, CYCLES, 50.0)
     evaluate_many(settings, [POINT])
     points = [

@@ -44,27 +44,32 @@ def verdict(value: float, goal: float) -> str:
     return f"ratio {value / goal:.2f}" + ("" if value >= goal else "  MISS")
 
 
-def per_core(world: str, runs: int, rounds: int) -> float:
-    """Runs per CPU second of this process (after one warm-up run): the fastest of
-    ``rounds`` windows of ``runs`` runs each. On this shared virtual machine the same work
-    costs up to 1.8x the CPU time for seconds at a time (from outside the guest; see
-    bench_kinematics.fastest), and one window of 1000 kinematic runs read 840/s where the
-    next four read 1210 to 1290/s; other load only ever adds time, so the fastest window
-    is what a run costs. A slow spell can outlast every window (the fastest of five read
-    1357/s and 1606/s in two processes a few seconds apart, 984/s of seven at load 4 to
-    6): the figure is then low, never high."""
-    settings = Settings("snake5", world, CYCLES, 50.0)
-    evaluate_many(settings, [POINT])
-    points = [
-        {**POINT, "amplitude": math.radians(20 + 20 * k / max(1, runs - 1))} for k in range(runs)
-    ]
-    best = math.inf
+def per_core(worlds: dict[str, int], rounds: int) -> dict[str, float]:
+    """Runs per CPU second of this process in each world (its name: the runs of a
+    window), after one warm-up run: the fastest of ``rounds`` windows, the worlds' windows
+    interleaved, so that each world's are spread over the whole measurement. On this
+    shared virtual machine the same work costs up to 1.8x the CPU time for seconds at a
+    time (from outside the guest; see bench_kinematics.fastest): one window of 1000
+    kinematic runs read 840/s where the next four read 1210 to 1290/s. Other load only
+    ever adds time, so the fastest window is what a run costs; but a slow spell can
+    outlast windows taken back to back (seven read 1001/s at load 0.2, then 1682/s and
+    1769/s in the next two processes), so they are spread out."""
+    settings = {world: Settings("snake5", world, CYCLES, 50.0) for world in worlds}
+    points = {}
+    for world, runs in worlds.items():
+        evaluate_many(settings[world], [POINT])
+        points[world] = [
+            {**POINT, "amplitude": math.radians(20 + 20 * k / max(1, runs - 1))}
+            for k in range(runs)
+        ]
+    best = dict.fromkeys(worlds, math.inf)
     for _ in range(rounds):
-        cpu0 = time.process_time()
-        rows = evaluate_many(settings, points)
-        best = min(best, time.process_time() - cpu0)
-        assert all(r["status"] == "ok" for r in rows), rows[0]["reason"]
-    return runs / best
+        for world in worlds:
+            cpu0 = time.process_time()
+            rows = evaluate_many(settings[world], points[world])
+            best[world] = min(best[world], time.process_time() - cpu0)
+            assert all(r["status"] == "ok" for r in rows), rows[0]["reason"]
+    return {world: worlds[world] / best[world] for world in worlds}
 
 
 def timed_search(runner: Runner, count: int) -> float:
@@ -115,11 +120,11 @@ def main() -> int:
     quick = "--quick" in sys.argv
     print(f"== machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}")
     rounds = 2 if quick else ROUNDS
-    kin = per_core("kinematic", 300 if quick else 1000, rounds)
-    phys = per_core("mujoco", 3 if quick else 10, rounds)
+    rates = per_core({"kinematic": 300 if quick else 1000, "mujoco": 3 if quick else 10}, rounds)
+    kin, phys = rates["kinematic"], rates["mujoco"]
     print(
         f"== one run: snake5 serpenoid, {CYCLES} cycles of 1 s at 50 Hz, per CPU second "
-        f"(the fastest of {rounds} windows)"
+        f"(the fastest of {rounds} windows, the two worlds' interleaved)"
     )
     print(
         f"   kinematic world: {kin:8.1f} runs/s/core "

@@ -15,7 +15,9 @@ of whole decades did that: scipy 5-8x more accurate, the ratio flattered by as m
 The fastest combination is the reference; the C core runs Dormand-Prince 8(5,3) at rtol
 1e-8, ending its steps at the wheels' switches between sticking and slipping (scipy steps
 across them). Where no Python run on the grid is as accurate as the core, each is timed at
-the closest error any reaches, and the ratio is printed as the lower bound it is.
+the closest error any reaches, and the ratio is printed as the lower bound it is. Every
+time is CPU time, each side's fastest of :data:`ROUNDS` interleaved windows of about the
+same length (:func:`fastest`: load from elsewhere only ever adds time).
 Prints the speed ratio per robot (goal: at least 100x), the ratio curve over the
 core's tolerances :data:`CURVE_RTOLS` (the same matching at each), and the batch
 throughput of the core over a grid of serpenoid gaits (what a gait search does):
@@ -39,7 +41,6 @@ from __future__ import annotations
 import functools
 import math
 import os
-import statistics
 import sys
 import time
 from collections.abc import Callable
@@ -75,7 +76,8 @@ METHOD = "dop853"  # the core's method; "dopri5" for Dormand-Prince 5(4)
 GOAL = 100.0
 SPAN = 10.0
 METHODS = ("RK45", "DOP853", "LSODA")
-C_ROUNDS, PY_ROUNDS = 9, 5  # the core's runs are short: the median of 9 in each round
+ROUNDS = 7
+"""Interleaved rounds of timed windows; each side's figure is its fastest window."""
 PER_DECADE = 8
 SCIPY_RTOLS = tuple(10.0 ** -(5 + k / PER_DECADE) for k in range(7 * PER_DECADE + 1))
 """rtol 1e-5 to 1e-12, loosest first; atol = rtol / 100."""
@@ -89,16 +91,40 @@ Combos = dict[tuple[str, str], Solve]
 """Each (right-hand side, method) combination's solver."""
 
 
-def best_time(fn: Callable[[], object], rounds: int) -> float:
-    """The median CPU time of ``rounds`` calls: CPU time, not wall time, so that other
-    processes on a shared machine slow neither side by making it wait for a core; the
-    median, so that neither side's figure is its luckiest run."""
-    times = []
-    for _ in range(rounds):
-        start = time.process_time()
+def window(fn: Callable[[], object], calls: int) -> float:
+    """CPU seconds per call of ``calls`` calls back to back (CPU time, not wall time, so
+    that other processes on a shared machine slow neither side by making it wait for a
+    core)."""
+    start = time.process_time()
+    for _ in range(calls):
         fn()
-        times.append(time.process_time() - start)
-    return statistics.median(times)
+    return (time.process_time() - start) / calls
+
+
+def calls_for(fn: Callable[[], object], seconds: float) -> int:
+    """How many calls of ``fn`` take about ``seconds`` of CPU (at least one)."""
+    once = min(window(fn, 1) for _ in range(3))
+    return max(1, round(seconds / once)) if once > 0 else 1
+
+
+def fastest(sides: dict[object, tuple[Callable[[], object], int]]) -> dict[object, float]:
+    """Each side's CPU seconds per call: its fastest of :data:`ROUNDS` windows of
+    (function, calls), the sides' windows interleaved round by round.
+
+    On this shared virtual machine the CPU time of the same call swings by up to 1.8x for
+    a while, from outside the guest (no steal time, no clock change it can see; a busy
+    loop on its other CPU changed nothing): the snake5 trajectory took 3.7 to 4.0 ms for
+    half a second, then 2.1 ms. A median of a few short windows followed those swings: the
+    core's snake5 time varied 1.5x within one run. Other load only ever adds time to a
+    fixed computation, so a side's fastest window is what it costs. For fairness every
+    side has the same number of windows, interleaved, and the caller makes them about the
+    same length (the short calls repeated to last as long as the long ones), so that none
+    has more or shorter chances of a quiet moment."""
+    best = {key: math.inf for key in sides}
+    for _ in range(ROUNDS):
+        for key, (fn, calls) in sides.items():
+            best[key] = min(best[key], window(fn, calls))
+    return best
 
 
 # ---- trident, body-velocity inputs, a loop in (u1, u2): motion along h1 = [g1, g2] ----
@@ -261,8 +287,9 @@ def matched(
     target: float,
 ) -> tuple[float, float, str, int]:
     """(C seconds, best other seconds, its description, its evaluations) at error
-    ``target``: every other combination's two bracketing runs and the C run timed in
-    interleaved rounds (medians), each combination's time interpolated (log-log) to the
+    ``target``: every other combination's two bracketing runs, one call a window, and the
+    C run, repeated to last about as long as the fastest of them, timed in interleaved
+    rounds (:func:`fastest`), each combination's time interpolated (log-log) to the
     target, the fastest taken (of those within :data:`PRUNE` of the fastest untimed run).
     Where no run on the grid reaches the target, each combination's most accurate run
     stands in for it: a lower bound of what reaching it would cost."""
@@ -282,16 +309,12 @@ def matched(
         plans[rhs_name, method] = found[:4]
         for rtol in found[:2]:
             runs[rhs_name, method, rtol] = functools.partial(combos[rhs_name, method], rtol)
-    c_times: list[float] = []
-    py_times: dict[tuple[str, str, float], list[float]] = {key: [] for key in runs}
-    for _ in range(PY_ROUNDS):  # alternate, so load from other processes hits all alike
-        c_times.append(best_time(c_run, C_ROUNDS))
-        for key, run in runs.items():
-            py_times[key].append(best_time(run, 1))
+    sides: dict[object, tuple[Callable[[], object], int]] = {"C": (c_run, calls_for(c_run, rough))}
+    sides.update({key: (run, 1) for key, run in runs.items()})
+    times = fastest(sides)
     best = (math.inf, "none reached the C core's accuracy", 0)
     for (rhs_name, method), (rtol_a, rtol_b, share, nfev) in plans.items():
-        t_a = statistics.median(py_times[rhs_name, method, rtol_a])
-        t_b = statistics.median(py_times[rhs_name, method, rtol_b])
+        t_a, t_b = times[rhs_name, method, rtol_a], times[rhs_name, method, rtol_b]
         seconds = t_a * (t_b / t_a) ** share
         if seconds < best[0]:
             rtol = rtol_a * (rtol_b / rtol_a) ** share
@@ -303,7 +326,7 @@ def matched(
                     f"{err:.1e}, {err / target:.1f}x the core's, so the ratio is a lower bound"
                 )
             best = (seconds, how, nfev)
-    return statistics.median(c_times), *best
+    return times["C"], *best
 
 
 def check_same_model(rhss: dict[str, Rhs], y0: np.ndarray, others: dict[str, Rhs]) -> str:
@@ -341,9 +364,11 @@ def explain_ratio(t_c: float, evals_c: int, t_py: float, evals_py: int, ratio: f
     )
 
 
-def batch_throughput(amplitudes: int, lags: int) -> tuple[int, float]:
-    """(trajectories, CPU seconds) for 10 s snake5 serpenoid runs over a grid, the whole
-    grid in one call into the core (integrate_joints_batch); the median of rounds."""
+def batch_throughput(amplitudes: int, lags: int) -> tuple[int, float, float]:
+    """(trajectories, CPU seconds of the grid, of one trajectory) for 10 s snake5
+    serpenoid runs over a grid, the whole grid in one call into the core
+    (integrate_joints_batch), and the benchmark's one trajectory a call, repeated to last
+    as long: each its fastest window of interleaved rounds (:func:`fastest`)."""
     gaits = [
         Sines.serpenoid(4, amp, 2 * math.pi * 0.5, delta)
         for amp in np.linspace(0.2, 0.8, amplitudes)
@@ -356,7 +381,9 @@ def batch_throughput(amplitudes: int, lags: int) -> tuple[int, float]:
         if batch.status.any():
             raise SystemExit(f"a grid trajectory failed: {batch.error(int(batch.status.argmax()))}")
 
-    return len(gaits), best_time(grid, max(1, C_ROUNDS // 4))
+    once = window(grid, 1)
+    times = fastest({"grid": (grid, 1), "one": (snake5_c, calls_for(snake5_c, once))})
+    return len(gaits), times["grid"], times["one"]
 
 
 @dataclass
@@ -492,10 +519,9 @@ def main() -> int:
             f"  same model: {same}; the closest Python trajectory ends {closest:.0e} from "
             "the core's at rtol 1e-13"
         )
-    n, cpu = batch_throughput(*((4, 4) if quick else (8, 8)))
+    n, cpu, one = batch_throughput(*((4, 4) if quick else (8, 8)))
     snake5_py = next(seconds for name, seconds in python_s.items() if name.startswith("snake5"))
     per_core = n / cpu
-    one = best_time(snake5_c, C_ROUNDS)
     print(
         f"batch: {n} snake5 serpenoid gaits (amplitude x phase lag grid), 10 s each, in one "
         f"call: {per_core:.0f} trajectories per second per core (CPU time); the core one "

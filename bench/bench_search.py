@@ -3,7 +3,8 @@
 1. Evaluations per second per core of one search run, in this process (CPU time, so
    other processes on the machine count less): the kinematic world (snake5, a 3-cycle
    serpenoid; goal 1000/s) and the physics world (the same 3-cycle run in MuJoCo on the
-   emulated bus; goal 5/s).
+   emulated bus; goal 5/s); each the fastest of a few windows of runs, since load from
+   elsewhere only adds time.
 2. Parallel efficiency from 1 to 2 workers (goal 80 %): the same kinematic grid on a
    local process pool and on a Dask LocalCluster (loopback), each with 1 then 2 workers;
    efficiency = T(1) / (2 T(2)), pools started and warmed before the clock starts.
@@ -28,6 +29,8 @@ from snakebot.workflows.search.runner import DaskRunner, Runner
 GOAL_KINEMATIC = 1000.0
 GOAL_PHYSICS = 5.0
 GOAL_EFFICIENCY = 0.80
+ROUNDS = 7
+"""Windows timed for the runs per CPU second; the fastest counts (per_core)."""
 CYCLES = 3
 POINT = {
     "amplitude": math.radians(30),
@@ -41,18 +44,32 @@ def verdict(value: float, goal: float) -> str:
     return f"ratio {value / goal:.2f}" + ("" if value >= goal else "  MISS")
 
 
-def per_core(world: str, runs: int) -> float:
-    """Runs per CPU second of this process (after one warm-up run)."""
-    settings = Settings("snake5", world, CYCLES, 50.0)
-    evaluate_many(settings, [POINT])
-    points = [
-        {**POINT, "amplitude": math.radians(20 + 20 * k / max(1, runs - 1))} for k in range(runs)
-    ]
-    cpu0 = time.process_time()
-    rows = evaluate_many(settings, points)
-    cpu = time.process_time() - cpu0
-    assert all(r["status"] == "ok" for r in rows), rows[0]["reason"]
-    return runs / cpu
+def per_core(worlds: dict[str, int], rounds: int) -> dict[str, float]:
+    """Runs per CPU second of this process in each world (its name: the runs of a
+    window), after one warm-up run: the fastest of ``rounds`` windows, the worlds' windows
+    interleaved, so that each world's are spread over the whole measurement. On this
+    shared virtual machine the same work costs up to 1.8x the CPU time for seconds at a
+    time (from outside the guest; see bench_kinematics.fastest): one window of 1000
+    kinematic runs read 840/s where the next four read 1210 to 1290/s. Other load only
+    ever adds time, so the fastest window is what a run costs; but a slow spell can
+    outlast windows taken back to back (seven read 1001/s at load 0.2, then 1682/s and
+    1769/s in the next two processes), so they are spread out."""
+    settings = {world: Settings("snake5", world, CYCLES, 50.0) for world in worlds}
+    points = {}
+    for world, runs in worlds.items():
+        evaluate_many(settings[world], [POINT])
+        points[world] = [
+            {**POINT, "amplitude": math.radians(20 + 20 * k / max(1, runs - 1))}
+            for k in range(runs)
+        ]
+    best = dict.fromkeys(worlds, math.inf)
+    for _ in range(rounds):
+        for world in worlds:
+            cpu0 = time.process_time()
+            rows = evaluate_many(settings[world], points[world])
+            best[world] = min(best[world], time.process_time() - cpu0)
+            assert all(r["status"] == "ok" for r in rows), rows[0]["reason"]
+    return {world: worlds[world] / best[world] for world in worlds}
 
 
 def timed_search(runner: Runner, count: int) -> float:
@@ -102,9 +119,13 @@ def dask_runner(workers: int) -> Runner:
 def main() -> int:
     quick = "--quick" in sys.argv
     print(f"== machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}")
-    kin = per_core("kinematic", 300 if quick else 1000)
-    phys = per_core("mujoco", 3 if quick else 10)
-    print(f"== one run: snake5 serpenoid, {CYCLES} cycles of 1 s at 50 Hz, per CPU second")
+    rounds = 2 if quick else ROUNDS
+    rates = per_core({"kinematic": 300 if quick else 1000, "mujoco": 3 if quick else 10}, rounds)
+    kin, phys = rates["kinematic"], rates["mujoco"]
+    print(
+        f"== one run: snake5 serpenoid, {CYCLES} cycles of 1 s at 50 Hz, per CPU second "
+        f"(the fastest of {rounds} windows, the two worlds' interleaved)"
+    )
     print(
         f"   kinematic world: {kin:8.1f} runs/s/core "
         f"(goal {GOAL_KINEMATIC:.0f}: {verdict(kin, GOAL_KINEMATIC)})"

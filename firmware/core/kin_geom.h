@@ -43,5 +43,14 @@ int kin_geom_active_set(const kin_robot *rb, const kin_wheel_rows *w, int32_t ac
  * is ill-conditioned. */
 int kin_geom_vertex_test(const kin_robot *rb, const kin_wheel_rows *w, const int32_t s[3],
                          int32_t row, double out[3]);
+/* kin_geom_vertex_test (row -1) of each of count sets into out[i], ok[i] its return, the
+ * problem built once; returns ok[0] (0 for no sets). */
+int kin_geom_vertex_tests(const kin_robot *rb, const kin_wheel_rows *w, int32_t count,
+                          int32_t (*sets)[3], double (*out)[3], int *ok);
+/* kin_geom_active_set and, where it returns 1, kin_geom_vertex_tests on the same
+ * problem (a switch's probe: which set holds there and how far from switching). */
+int kin_geom_active_set_tests(const kin_robot *rb, const kin_wheel_rows *w, int32_t active[3],
+                              double *rcond, int32_t count, int32_t (*sets)[3],
+                              double (*out)[3], int *ok);
 
 #endif

@@ -346,14 +346,23 @@ static void joint_rows(const joint_ctx *c, double t, const double *pose, kin_whe
 
 /* The active set at t into set (warm-started from it), the rows in w; 0 where it is not
  * one well-conditioned vertex (then no switch is looked for). Counted as an evaluation:
- * it costs one. */
-static int joint_set(joint_ctx *c, double t, const double *pose, kin_wheel_rows *w,
-                     int32_t set[3])
+ * it costs one. Where it is one, the count vertex tests of sets (kin_geom_vertex_tests)
+ * into out and ok, from the same problem. */
+static int joint_set_tests(joint_ctx *c, double t, const double *pose, kin_wheel_rows *w,
+                           int32_t set[3], int32_t count, int32_t (*sets)[3],
+                           double (*out)[3], int *ok)
 {
     double rcond;
     c->stats->evals++;
     joint_rows(c, t, pose, w);
-    return kin_geom_active_set(c->rb, w, set, &rcond) && rcond >= RCOND_FALLBACK;
+    return kin_geom_active_set_tests(c->rb, w, set, &rcond, count, sets, out, ok)
+           && rcond >= RCOND_FALLBACK;
+}
+
+static int joint_set(joint_ctx *c, double t, const double *pose, kin_wheel_rows *w,
+                     int32_t set[3])
+{
+    return joint_set_tests(c, t, pose, w, set, 0, NULL, NULL, NULL);
 }
 
 /* The row of b not in a when the two differ by one row; -1 otherwise. */
@@ -386,21 +395,42 @@ static int switch_is_kink(const joint_ctx *c, const double *pose, double a, doub
     return !(ok && kin_geom_vertex_test(c->rb, w, sa, row, vb)) || !(va[2] * vb[2] > 0.0);
 }
 
-/* A function of the rows w that is < 0 before the switch from sa to sb and > 0 after,
+/* A function of the rows that is < 0 before the switch from sa to sb and > 0 after,
  * smooth through it where it can be: a jump's, how far sa's certificate fails (exactly
- * what a solve warm-started from sa tests); a kink's, sa's power less sb's. NAN when a
- * vertex is ill-conditioned. */
-static double switch_value(const joint_ctx *c, const kin_wheel_rows *w, const int32_t sa[3],
-                           const int32_t sb[3], int kink)
+ * what a solve warm-started from sa tests); a kink's, sa's power less sb's. From the
+ * vertex tests of sa and (for a kink) sb there, v[0] and v[1] (kin_geom_vertex_tests);
+ * NAN when a vertex is ill-conditioned. */
+static double switch_of(double v[2][3], const int ok[2], int kink)
 {
-    double va[3], vb[3];
-    if (!kin_geom_vertex_test(c->rb, w, sa, -1, va)) {
+    if (!ok[0]) {
         return NAN;
     }
     if (!kink) {
-        return va[1];
+        return v[0][1];
     }
-    return kin_geom_vertex_test(c->rb, w, sb, -1, vb) ? va[0] - vb[0] : NAN;
+    return ok[1] ? v[0][0] - v[1][0] : NAN;
+}
+
+/* The sets whose vertex tests switch_of needs: sa and sb, in sets; how many (a jump's: sa
+ * alone). */
+static int32_t switch_sets(const int32_t sa[3], const int32_t sb[3], int kink,
+                           int32_t sets[2][3])
+{
+    copy_set(sets[0], sa);
+    copy_set(sets[1], sb);
+    return kink ? 2 : 1;
+}
+
+/* switch_of at the rows w. */
+static double switch_value(const joint_ctx *c, const kin_wheel_rows *w, const int32_t sa[3],
+                           const int32_t sb[3], int kink)
+{
+    int32_t sets[2][3];
+    double v[2][3];
+    int ok[2] = {0, 0};
+    const int32_t count = switch_sets(sa, sb, kink, sets);
+    (void)kin_geom_vertex_tests(c->rb, w, count, sets, v, ok);
+    return switch_of(v, ok, kink);
 }
 
 /* The switch after a, where set sa holds, before b, where sb does: [a, b] narrowed to
@@ -422,9 +452,12 @@ static void locate_switch(joint_ctx *c, const double *pose, double tol, double *
             m = b - fb * (b - a) / (fb - fa) + 0.5 * tol * (double)(-side);
         }
         m = fmin(fmax(m, a + 0.25 * tol), b - 0.25 * tol);
-        int32_t sm[3];
+        int32_t sm[3], sets[2][3];
+        double v[2][3];
+        int ok[2] = {0, 0};
+        const int32_t count = switch_sets(sa, sb, kink, sets);
         copy_set(sm, sa);
-        if (!joint_set(c, m, pose, w, sm)) {
+        if (!joint_set_tests(c, m, pose, w, sm, count, sets, v, ok)) {
             /* A degenerate vertex: more rows than three through it, as at the switch
              * itself (where all wheels can stick at once, the sets on either side
              * differ by two rows): m is on it, to the vertex's tolerance. */
@@ -434,12 +467,12 @@ static void locate_switch(joint_ctx *c, const double *pose, double tol, double *
         }
         if (same_set(sm, sa)) {
             a = m;
-            fa = switch_value(c, w, sa, sb, kink);
+            fa = switch_of(v, ok, kink);
             fb = side < 0 ? 0.5 * fb : fb; /* Illinois: the end that stays weighs less */
             side = -1;
         } else if (same_set(sm, sb)) {
             b = m;
-            fb = switch_value(c, w, sa, sb, kink);
+            fb = switch_of(v, ok, kink);
             fa = side > 0 ? 0.5 * fa : fa;
             side = 1;
         } else { /* another switch comes first: aim at that one */

@@ -44,6 +44,12 @@
 #define QS_CENTRE_TOL 1e-12
 #define QS_CENTRE_APART 1e-9
 #define QS_MAX_CENTRE 16
+/* sole_minimum: how many times the farthest a vertex within the slack may lie from x
+ * must fit into apart (2 would do: such vertices then lie within apart of one another;
+ * twice that, for rounding), and the rounding of the balance of forces allowed for
+ * (relative to its terms; at a conditioning of QS_CENTRE_RCOND it is some 1e-10). */
+#define QS_SOLE_MARGIN 4.0
+#define QS_SOLE_ROUNDING 1e-8
 /* Relative size below which a residual counts as zero (the row passes through x). */
 #define QS_ZERO_TOL 1e-12
 
@@ -100,8 +106,8 @@ static void qs_rows(const kin_robot *rb, const kin_wheel_rows *w, double len, qs
 
 /* Inverse of the 3x3 matrix whose rows are a[s[0]], a[s[1]], a[s[2]], into m (column j
  * of m is the direction moving row s[j]'s residual by 1 and the others' not at all);
- * returns its reciprocal 1-norm condition number (0 when singular). */
-static double inverse3(const qs_problem *p, const int32_t s[3], double m[3][3])
+ * returns 0 when singular. */
+static int inverse3_only(const qs_problem *p, const int32_t s[3], double m[3][3])
 {
     const double *r0 = p->a[s[0]], *r1 = p->a[s[1]], *r2 = p->a[s[2]];
     const double c00 = r1[1] * r2[2] - r1[2] * r2[1];
@@ -109,7 +115,7 @@ static double inverse3(const qs_problem *p, const int32_t s[3], double m[3][3])
     const double c02 = r1[0] * r2[1] - r1[1] * r2[0];
     const double det = r0[0] * c00 + r0[1] * c01 + r0[2] * c02;
     if (!(fabs(det) > 0.0) || !isfinite(det)) {
-        return 0.0;
+        return 0;
     }
     const double id = 1.0 / det;
     m[0][0] = c00 * id;
@@ -121,6 +127,13 @@ static double inverse3(const qs_problem *p, const int32_t s[3], double m[3][3])
     m[0][2] = (r0[1] * r1[2] - r0[2] * r1[1]) * id;
     m[1][2] = (r0[2] * r1[0] - r0[0] * r1[2]) * id;
     m[2][2] = (r0[0] * r1[1] - r0[1] * r1[0]) * id;
+    return 1;
+}
+
+/* The reciprocal 1-norm condition number of the rows s, m their inverse. */
+static double rcond3(const qs_problem *p, const int32_t s[3], double m[3][3])
+{
+    const double *r0 = p->a[s[0]], *r1 = p->a[s[1]], *r2 = p->a[s[2]];
     double norm_a = 0.0, norm_m = 0.0;
     for (int32_t j = 0; j < 3; j++) {
         norm_a = qs_max(norm_a, fabs(r0[j]) + fabs(r1[j]) + fabs(r2[j]));
@@ -129,13 +142,26 @@ static double inverse3(const qs_problem *p, const int32_t s[3], double m[3][3])
     return 1.0 / (norm_a * norm_m);
 }
 
-static double objective(const qs_problem *p, const double x[3])
+/* inverse3_only, returning the reciprocal condition number (0 when singular). */
+static double inverse3(const qs_problem *p, const int32_t s[3], double m[3][3])
+{
+    return inverse3_only(p, s, m) ? rcond3(p, s, m) : 0.0;
+}
+
+/* The power at x, summed row by row; once the sum passes limit the rest is left out
+ * (its terms are not negative, so the whole is above limit too). */
+static double objective_upto(const qs_problem *p, const double x[3], double limit)
 {
     double f = 0.0;
-    for (int32_t k = 0; k < p->rows; k++) {
+    for (int32_t k = 0; k < p->rows && !(f > limit); k++) {
         f += p->w[k] * fabs(p->a[k][0] * x[0] + p->a[k][1] * x[1] + p->a[k][2] * x[2] - p->b[k]);
     }
     return f;
+}
+
+static double objective(const qs_problem *p, const double x[3])
+{
+    return objective_upto(p, x, INFINITY);
 }
 
 /* The vertex of active set s: x, every row's residual r (exactly 0 on s), the zero
@@ -146,30 +172,38 @@ static double objective(const qs_problem *p, const double x[3])
 static double vertex(const qs_problem *p, const int32_t s[3], double m[3][3], double x[3],
                      double *r, double *y, double *tol, int32_t *worst, int32_t *through)
 {
+    /* In locals, and the rows of s as bits: r and y may alias nothing the loop reads,
+     * but the compiler cannot know it and would reload x and tol at every row. */
+    double v[3];
     for (int32_t i = 0; i < 3; i++) {
-        x[i] = m[i][0] * p->b[s[0]] + m[i][1] * p->b[s[1]] + m[i][2] * p->b[s[2]];
+        v[i] = m[i][0] * p->b[s[0]] + m[i][1] * p->b[s[1]] + m[i][2] * p->b[s[2]];
+        x[i] = v[i];
     }
+    const double size = absmax3(v);
     double scale = 0.0;
     for (int32_t k = 0; k < p->rows; k++) {
-        scale = qs_max(scale, fabs(p->b[k]) + p->amax[k] * absmax3(x));
+        scale = qs_max(scale, fabs(p->b[k]) + p->amax[k] * size);
     }
-    *tol = QS_ZERO_TOL * scale;
+    const double zero_tol = QS_ZERO_TOL * scale;
+    *tol = zero_tol;
+    const uint32_t on_s = (1u << s[0]) | (1u << s[1]) | (1u << s[2]);
     double g[3] = {0.0, 0.0, 0.0};
-    for (int32_t k = 0; k < p->rows; k++) {
-        r[k] = p->a[k][0] * x[0] + p->a[k][1] * x[1] + p->a[k][2] * x[2] - p->b[k];
-        y[k] = r[k] > *tol ? 1.0 : (r[k] < -*tol ? -1.0 : 0.0);
-    }
-    for (int32_t j = 0; j < 3; j++) {
-        r[s[j]] = 0.0;
-        y[s[j]] = 0.0;
-    }
     int32_t zero = -3; /* the rows of s */
     for (int32_t k = 0; k < p->rows; k++) {
-        const double f = p->w[k] * y[k];
-        g[0] += f * p->a[k][0];
-        g[1] += f * p->a[k][1];
-        g[2] += f * p->a[k][2];
-        zero += y[k] == 0.0;
+        const double *a = p->a[k];
+        double rk = a[0] * v[0] + a[1] * v[1] + a[2] * v[2] - p->b[k];
+        double yk = rk > zero_tol ? 1.0 : (rk < -zero_tol ? -1.0 : 0.0);
+        if (on_s & (1u << k)) {
+            rk = 0.0;
+            yk = 0.0;
+        }
+        r[k] = rk;
+        y[k] = yk;
+        const double f = p->w[k] * yk;
+        g[0] += f * a[0];
+        g[1] += f * a[1];
+        g[2] += f * a[2];
+        zero += yk == 0.0;
     }
     *through = zero;
     /* sum_{j in s} w_j y_j a_j = -g: (w y)_s = -M^T g */
@@ -223,24 +257,34 @@ static int first_set(const qs_problem *p, int32_t s[3])
     return 1;
 }
 
-/* Every vertex whose three rows are conditioned at least rcond_min, in order, handed to
- * visit with its rows and its point. */
-typedef void (*qs_visit)(void *ctx, const qs_problem *p, const int32_t t[3], const double x[3]);
+/* Every vertex whose three rows are conditioned at least rcond_min and whose power is
+ * at most limit(ctx), in order, handed to visit with its rows, its point and its power.
+ * A vertex of more power is passed over before its conditioning is computed and before
+ * the rest of its power is summed (a visitor does nothing with one). */
+typedef void (*qs_visit)(void *ctx, const qs_problem *p, const int32_t t[3], const double x[3],
+                         double f);
+typedef double (*qs_limit)(const void *ctx);
 
-static void each_vertex(const qs_problem *p, double rcond_min, qs_visit visit, void *ctx)
+static void each_vertex(const qs_problem *p, double rcond_min, qs_limit limit, qs_visit visit,
+                        void *ctx)
 {
     double m[3][3], x[3];
     for (int32_t i = 0; i < p->rows; i++) {
         for (int32_t j = i + 1; j < p->rows; j++) {
             for (int32_t k = j + 1; k < p->rows; k++) {
                 const int32_t t[3] = {i, j, k};
-                if (inverse3(p, t, m) < rcond_min) {
+                if (!inverse3_only(p, t, m)) {
                     continue;
                 }
                 for (int32_t c = 0; c < 3; c++) {
                     x[c] = m[c][0] * p->b[i] + m[c][1] * p->b[j] + m[c][2] * p->b[k];
                 }
-                visit(ctx, p, t, x);
+                const double most = limit(ctx);
+                const double f = objective_upto(p, x, most);
+                if (f > most || rcond3(p, t, m) < rcond_min) {
+                    continue;
+                }
+                visit(ctx, p, t, x, f);
             }
         }
     }
@@ -252,10 +296,17 @@ typedef struct {
     int found;
 } qs_best;
 
-static void keep_best(void *ctx, const qs_problem *p, const int32_t t[3], const double x[3])
+static double best_limit(const void *ctx)
+{
+    return ((const qs_best *)ctx)->best;
+}
+
+static void keep_best(void *ctx, const qs_problem *p, const int32_t t[3], const double x[3],
+                      double f)
 {
     qs_best *b = (qs_best *)ctx;
-    const double f = objective(p, x);
+    (void)p;
+    (void)x;
     if (f < b->best) {
         b->best = f;
         b->s[0] = t[0];
@@ -269,7 +320,7 @@ static void keep_best(void *ctx, const qs_problem *p, const int32_t t[3], const 
 static int enumerate(const qs_problem *p, int32_t s[3])
 {
     qs_best b = {INFINITY, {0, 0, 0}, 0};
-    each_vertex(p, QS_RCOND_MIN, keep_best, &b);
+    each_vertex(p, QS_RCOND_MIN, best_limit, keep_best, &b);
     if (b.found) {
         s[0] = b.s[0];
         s[1] = b.s[1];
@@ -285,11 +336,18 @@ typedef struct {
     double found[QS_MAX_CENTRE][3];
 } qs_minima;
 
-static void collect_minima(void *ctx, const qs_problem *p, const int32_t t[3], const double x[3])
+static double minima_limit(const void *ctx)
+{
+    const qs_minima *c = (const qs_minima *)ctx;
+    return c->f_min + c->slack;
+}
+
+static void collect_minima(void *ctx, const qs_problem *p, const int32_t t[3],
+                           const double x[3], double f)
 {
     qs_minima *c = (qs_minima *)ctx;
+    (void)p;
     (void)t;
-    const double f = objective(p, x);
     if (f < c->f_min) {
         c->f_min = f;
     }
@@ -309,6 +367,21 @@ static void collect_minima(void *ctx, const qs_problem *p, const int32_t t[3], c
     c->count++;
 }
 
+/* The power within which a vertex counts as a minimum of the problem at x, and how far
+ * apart two count as distinct (centre_of_minima): sizes of the speeds and of the power
+ * (its terms' at x = 0), so that a minimum near zero power (nearly compatible wheels) is
+ * judged on the problem's scale. */
+static void centre_sizes(const qs_problem *p, const double x[3], double *slack, double *apart)
+{
+    double scale = absmax3(x), power = 0.0;
+    for (int32_t k = 0; k < p->rows; k++) {
+        scale = qs_max(scale, fabs(p->b[k]));
+        power += p->w[k] * fabs(p->b[k]);
+    }
+    *slack = QS_CENTRE_TOL * power;
+    *apart = QS_CENTRE_APART * scale;
+}
+
 /* Where the minimum is not a point. On concurrent axles whose rolling resistances
  * balance (four wheels of equal rolling resistance on an arc, as a gait table whose joints
  * are equal in ticks makes them: a weighted median of an even count) every point of an
@@ -320,19 +393,11 @@ static void collect_minima(void *ctx, const qs_problem *p, const int32_t t[3], c
  * minimum is one point all its vertices coincide and x is left as it is. */
 static void centre_of_minima(const qs_problem *p, double x[3])
 {
-    /* Sizes: of the speeds, and of the power (its terms' at x = 0), so that a minimum near
-     * zero power (nearly compatible wheels) is judged on the problem's scale. */
-    double scale = absmax3(x), power = 0.0;
-    for (int32_t k = 0; k < p->rows; k++) {
-        scale = qs_max(scale, fabs(p->b[k]));
-        power += p->w[k] * fabs(p->b[k]);
-    }
     qs_minima c;
     c.f_min = objective(p, x);
-    c.slack = QS_CENTRE_TOL * power;
-    c.apart = QS_CENTRE_APART * scale;
+    centre_sizes(p, x, &c.slack, &c.apart);
     c.count = 0;
-    each_vertex(p, QS_CENTRE_RCOND, collect_minima, &c);
+    each_vertex(p, QS_CENTRE_RCOND, minima_limit, collect_minima, &c);
     /* A vertex kept before a lower minimum turned up is not a minimum: drop it. */
     double sum[3] = {0.0, 0.0, 0.0};
     int32_t kept = 0;
@@ -349,6 +414,41 @@ static void centre_of_minima(const qs_problem *p, double x[3])
         x[1] = sum[1] / kept;
         x[2] = sum[2] / kept;
     }
+}
+
+/* Whether x, the certified vertex of s (inverse m, conditioning rcond, multipliers y,
+ * zero tolerance tol), is provably the one minimum centre_of_minima would find, which then
+ * leaves x as it is: at most one distinct vertex within its slack. By weak duality with
+ * y, any point x' has at least sum_{j in s} w_j (1 - |y_j|) |r_j(x')| more power than x,
+ * less the tol sum(w) that rows through x within tol may hide, and |x' - x| is at most
+ * |M| max_j |r_j(x')|. So every vertex within slack of the least power lies within
+ * (slack + tol sum(w)) / slope of x, slope = min_j w_j (1 - |y_j|) / |M|; when that is
+ * under half of apart they all count as one (QS_SOLE_MARGIN asks for a quarter). The
+ * slope is taken less a hundred times the rounding the balance of forces can carry at
+ * this conditioning. */
+static int sole_minimum(const qs_problem *p, const int32_t s[3], double m[3][3], double rcond,
+                        const double *y, double tol, const double x[3])
+{
+    if (!(rcond >= QS_CENTRE_RCOND)) {
+        return 0;
+    }
+    double firm = INFINITY, norm_m = 0.0, weight = 0.0, amax = 0.0;
+    for (int32_t j = 0; j < 3; j++) {
+        const double margin = p->w[s[j]] * (1.0 - fabs(y[s[j]]));
+        if (!(margin > 0.0)) {
+            return 0;
+        }
+        firm = margin < firm ? margin : firm;
+        norm_m = qs_max(norm_m, fabs(m[j][0]) + fabs(m[j][1]) + fabs(m[j][2]));
+    }
+    for (int32_t k = 0; k < p->rows; k++) {
+        weight += p->w[k];
+        amax = qs_max(amax, p->amax[k]);
+    }
+    double slack, apart;
+    centre_sizes(p, x, &slack, &apart);
+    const double slope = firm / norm_m - QS_SOLE_ROUNDING * weight * amax;
+    return slope > 0.0 && QS_SOLE_MARGIN * (slack + tol * weight) < slope * apart;
 }
 
 /* Whether the active set s is one of the first count of visited. */
@@ -399,7 +499,9 @@ static int qs_minimise(const qs_problem *p, int32_t s[3], double x[3], double *y
         if (most <= 1.0 + QS_CERT_TOL) {
             if (through > 0) {
                 *degenerate = 1;
-                centre_of_minima(p, x);
+                if (!sole_minimum(p, s, m, *rcond, y, tol, x)) {
+                    centre_of_minima(p, x);
+                }
             }
             return 1;
         }
@@ -467,8 +569,10 @@ static int qs_minimise(const qs_problem *p, int32_t s[3], double x[3], double *y
     *rcond = inverse3(p, s, m);
     int32_t j = 0, through = 0;
     (void)vertex(p, s, m, x, r, y, &tol, &j, &through);
-    *degenerate = 1;
-    centre_of_minima(p, x); /* pivoting cycled: the vertex is degenerate */
+    *degenerate = 1; /* pivoting cycled: the vertex is degenerate */
+    if (!sole_minimum(p, s, m, *rcond, y, tol, x)) {
+        centre_of_minima(p, x);
+    }
     return 1;
 }
 
@@ -488,18 +592,62 @@ static double qs_setup(const kin_robot *rb, const kin_wheel_rows *w, qs_problem 
     return len;
 }
 
-int kin_geom_active_set(const kin_robot *rb, const kin_wheel_rows *w, int32_t active[3],
-                        double *rcond)
+/* kin_geom_vertex_test on the problem p. */
+static int vertex_test(const qs_problem *p, const int32_t s[3], int32_t row, double out[3])
+{
+    double m[3][3];
+    if (s[0] < 0 || s[1] < 0 || s[2] < 0 || s[0] >= p->rows || s[1] >= p->rows
+        || s[2] >= p->rows || inverse3(p, s, m) < QS_RCOND_MIN) {
+        return 0;
+    }
+    double x[3], r[QS_MAX_ROWS], y[QS_MAX_ROWS], tol;
+    int32_t worst, through;
+    const double most = vertex(p, s, m, x, r, y, &tol, &worst, &through);
+    out[0] = objective(p, x);
+    out[1] = most - (1.0 + QS_CERT_TOL);
+    out[2] = row >= 0 && row < p->rows ? r[row] : NAN;
+    return isfinite(out[0] + out[1]);
+}
+
+static void vertex_tests(const qs_problem *p, int32_t count, int32_t (*sets)[3],
+                         double (*out)[3], int *ok)
+{
+    for (int32_t i = 0; i < count; i++) {
+        ok[i] = vertex_test(p, sets[i], -1, out[i]);
+    }
+}
+
+int kin_geom_active_set_tests(const kin_robot *rb, const kin_wheel_rows *w, int32_t active[3],
+                              double *rcond, int32_t count, int32_t (*sets)[3],
+                              double (*out)[3], int *ok)
 {
     qs_problem p;
     int at_rest, degenerate;
     (void)qs_setup(rb, w, &p, &at_rest);
     double x[3], y[QS_MAX_ROWS];
     *rcond = 0.0;
-    if (!qs_minimise(&p, active, x, y, rcond, &degenerate) || !isfinite(x[0] + x[1] + x[2])) {
+    if (!qs_minimise(&p, active, x, y, rcond, &degenerate) || !isfinite(x[0] + x[1] + x[2])
+        || degenerate) {
         return 0;
     }
-    return !degenerate;
+    vertex_tests(&p, count, sets, out, ok);
+    return 1;
+}
+
+int kin_geom_active_set(const kin_robot *rb, const kin_wheel_rows *w, int32_t active[3],
+                        double *rcond)
+{
+    return kin_geom_active_set_tests(rb, w, active, rcond, 0, NULL, NULL, NULL);
+}
+
+int kin_geom_vertex_tests(const kin_robot *rb, const kin_wheel_rows *w, int32_t count,
+                          int32_t (*sets)[3], double (*out)[3], int *ok)
+{
+    qs_problem p;
+    int at_rest;
+    (void)qs_setup(rb, w, &p, &at_rest);
+    vertex_tests(&p, count, sets, out, ok);
+    return count > 0 && ok[0];
 }
 
 int kin_geom_vertex_test(const kin_robot *rb, const kin_wheel_rows *w, const int32_t s[3],
@@ -508,18 +656,7 @@ int kin_geom_vertex_test(const kin_robot *rb, const kin_wheel_rows *w, const int
     qs_problem p;
     int at_rest;
     (void)qs_setup(rb, w, &p, &at_rest);
-    double m[3][3];
-    if (s[0] < 0 || s[1] < 0 || s[2] < 0 || s[0] >= p.rows || s[1] >= p.rows
-        || s[2] >= p.rows || inverse3(&p, s, m) < QS_RCOND_MIN) {
-        return 0;
-    }
-    double x[3], r[QS_MAX_ROWS], y[QS_MAX_ROWS], tol;
-    int32_t worst, through;
-    const double most = vertex(&p, s, m, x, r, y, &tol, &worst, &through);
-    out[0] = objective(&p, x);
-    out[1] = most - (1.0 + QS_CERT_TOL);
-    out[2] = row >= 0 && row < p.rows ? r[row] : NAN;
-    return isfinite(out[0] + out[1]);
+    return vertex_test(&p, s, row, out);
 }
 
 int kin_geom_solve(const kin_robot *rb, const kin_wheel_rows *w, int32_t *active, double *xi,

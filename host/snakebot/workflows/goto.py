@@ -121,11 +121,12 @@ class Leash:
 
     @classmethod
     def around(cls, robot: Robot, goal: np.ndarray) -> Leash:
-        start = float(np.hypot(goal[0], goal[1]))
+        goal = np.asarray(goal, dtype=float)
+        start = pose_error(np.zeros(3), goal)[0]
         return cls(goal, LEASH_FACTOR * max(start, body_length(robot)))
 
     def distance(self, pose: np.ndarray) -> float:
-        return float(np.hypot(pose[0] - self.goal[0], pose[1] - self.goal[1]))
+        return pose_error(pose, self.goal)[0]
 
     def hold(self, pose: np.ndarray) -> np.ndarray:
         """``pose`` if it is within reach of the target; else stop (``Wandered``)."""
@@ -168,6 +169,11 @@ class GotoResult(EndsNearTarget):
     def end(self) -> np.ndarray:
         return self.final
 
+    @property
+    def iterations(self) -> int:
+        """The loops or cycles played, each planned from the pose read."""
+        return sum(1 for s in self.segments if s["kind"] in ITERATIONS)
+
     def summary(self) -> dict[str, Any]:
         return {
             "robot": self.robot.name,
@@ -175,7 +181,7 @@ class GotoResult(EndsNearTarget):
             "target": pose_dict(self.target),
             "final": pose_dict(self.final),
             "error": self.tolerance.report(self.error),
-            "iterations": sum(1 for s in self.segments if s["kind"] in ITERATIONS),
+            "iterations": self.iterations,
             "stopped": self.stopped,
             "why": self.why,
             "segments": self.segments,
@@ -325,7 +331,7 @@ def goto(
 def _stop_reason(result: GotoResult, leash: Leash, wandered: bool, waves: bool) -> tuple[str, str]:
     """Why the closed loop stopped, as a word and a sentence (empty when it reached the
     target)."""
-    played = sum(1 for s in result.segments if s["kind"] in ITERATIONS)
+    played = result.iterations
     what = "cycles" if waves else "loops"
     if wandered:
         return "wandered", (

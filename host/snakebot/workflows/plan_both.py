@@ -30,6 +30,7 @@ errors in both worlds."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -55,7 +56,11 @@ from snakebot.model.plan.serpenoid_goto import (
     link1_from_middle,
     middle,
 )
-from snakebot.workflows.plan_mujoco import error_in_tolerances, miss_in_tolerances
+from snakebot.workflows.plan_mujoco import (
+    displacement_array,
+    error_in_tolerances,
+    miss_in_tolerances,
+)
 from snakebot.workflows.predict import predict_gait
 
 WORLD = "both"
@@ -134,7 +139,7 @@ class _Solver:
             return None
         gait = cycle_gait(robot, route, ticks, period_ms)
         moved = gait.predicted
-        end = np.array([moved["dx"], moved["dy"], moved["dtheta"]])
+        end = displacement_array(moved)
         return _Table(route, gait, error_in_tolerances(end, self.goal, self.tol), end)
 
     def mujoco(self, table: _Table) -> _Table:
@@ -143,7 +148,7 @@ class _Solver:
         )
         self.plays += 1
         moved = played.emulated.displacement()
-        table.end_mj = np.array([moved["dx"], moved["dy"], moved["dtheta"]])
+        table.end_mj = displacement_array(moved)
         table.mujoco = error_in_tolerances(table.end_mj, self.goal, self.tol)
         if self.best is None or table.merit < self.best.merit:
             self.best = table
@@ -155,17 +160,7 @@ class _Solver:
 
     def jacobian(self, table: _Table) -> np.ndarray | None:
         """The quasi-static end against the offsets and the lag, by forward differences."""
-        x = np.r_[table.route.offsets, table.route.delta]
-        columns = []
-        for i in range(len(x)):
-            moved = x.copy()
-            moved[i] += STEP if x[i] + STEP <= self.high(len(x))[i] else -STEP
-            other = self.quasi_static(table.route.with_values(moved[:-1], moved[-1]))
-            if other is None:
-                return None
-            d = _difference(other.quasi_static, table.quasi_static, self.tol)
-            columns.append(d / (moved[i] - x[i]))
-        return np.array(columns).T
+        return _jacobian(self, table, table.quasi_static, STEP, lambda t: t.quasi_static)
 
     def low(self, n: int) -> np.ndarray:
         return np.r_[[-MAX_OFFSET] * (n - 1), self.centre - DELTA_RANGE]
@@ -176,7 +171,7 @@ class _Solver:
     def step(self, table: _Table, jac: np.ndarray, r: np.ndarray, trust: float) -> _Table | None:
         """The damped least-squares step from ``table`` for the residual ``r`` of
         Jacobian ``jac``, no longer than ``trust`` in any value, within the bounds."""
-        x = np.r_[table.route.offsets, table.route.delta]
+        x = table.route.values
         step = -np.linalg.solve(jac.T @ jac + DAMPING * np.eye(len(x)), jac.T @ r)
         if np.abs(step).max() > trust:
             step *= trust / np.abs(step).max()
@@ -209,18 +204,31 @@ def _mujoco_jacobian(solver: _Solver, table: _Table) -> np.ndarray | None:
     """MuJoCo's end against the offsets and the lag, by forward differences of
     ``MUJOCO_STEP`` (one play a column)."""
     assert table.mujoco is not None
-    x = np.r_[table.route.offsets, table.route.delta]
+    return _jacobian(solver, table, table.mujoco, MUJOCO_STEP, lambda t: solver.mujoco(t).mujoco)
+
+
+def _jacobian(
+    solver: _Solver,
+    table: _Table,
+    base: np.ndarray,
+    step: float,
+    residual: Callable[[_Table], np.ndarray | None],
+) -> np.ndarray | None:
+    """A residual (``base`` at ``table``) against the offsets and the lag, by forward
+    differences of ``step`` (backwards at the upper bound); None where a moved table
+    leaves the joints' limits."""
+    x = table.route.values
     high = solver.high(len(x))
     columns = []
     for i in range(len(x)):
         moved = x.copy()
-        moved[i] += MUJOCO_STEP if x[i] + MUJOCO_STEP <= high[i] else -MUJOCO_STEP
+        moved[i] += step if x[i] + step <= high[i] else -step
         other = solver.quasi_static(table.route.with_values(moved[:-1], moved[-1]))
         if other is None:
             return None
-        other = solver.mujoco(other)
-        assert other.mujoco is not None
-        columns.append(_difference(other.mujoco, table.mujoco, solver.tol) / (moved[i] - x[i]))
+        r = residual(other)
+        assert r is not None
+        columns.append(_difference(r, base, solver.tol) / (moved[i] - x[i]))
     return np.array(columns).T
 
 
@@ -258,10 +266,7 @@ def _solve_both(solver: _Solver, table: _Table, plays: int) -> None:
             return
         new = solver.mujoco(new)
         assert new.mujoco is not None and table.mujoco is not None
-        dx = (
-            np.r_[new.route.offsets, new.route.delta]
-            - np.r_[table.route.offsets, table.route.delta]
-        )
+        dx = new.route.values - table.route.values
         seen = _difference(new.mujoco, table.mujoco, solver.tol)
         jac_mj = jac_mj + np.outer(seen - jac_mj @ dx, dx) / (dx @ dx)
         if new.stacked() @ new.stacked() < table.stacked() @ table.stacked():

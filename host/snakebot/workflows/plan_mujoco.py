@@ -88,6 +88,11 @@ def error_in_tolerances(end: np.ndarray, goal: np.ndarray, tol: Tolerance) -> np
     )
 
 
+def displacement_array(moved: dict[str, float]) -> np.ndarray:
+    """A play's displacement (``dx``, ``dy``, ``dtheta``) as an array."""
+    return np.array([moved["dx"], moved["dy"], moved["dtheta"]])
+
+
 def miss_in_tolerances(r: np.ndarray) -> float:
     """The larger of the position and heading errors of ``r``, in tolerances."""
     return float(max(math.hypot(r[0], r[1]), abs(r[2])))
@@ -109,7 +114,7 @@ class _Shooter:
         played = predict_gait(gait.gait_table(), robot, world=WORLD, mu=self.mu)
         self.plays += 1
         moved = played.emulated.displacement()
-        end = np.array([moved["dx"], moved["dy"], moved["dtheta"]])
+        end = displacement_array(moved)
         r = error_in_tolerances(end, self.goal, self.tol)
         if self.best is None or miss_in_tolerances(r) < self.best[0]:
             self.best = (miss_in_tolerances(r), route, end, r, gait)
@@ -186,7 +191,7 @@ def _teach(shooter: _Shooter, car: _Car, route: CycleRoute, plays: int) -> Cycle
         _learn(car.model, robot, route, played)
         x = np.array(route.offsets)
         moved = played.emulated.displacement()
-        end = np.array([moved["dx"], moved["dy"], moved["dtheta"]])
+        end = displacement_array(moved)
         aim = se2.compose(goal, se2.inverse(se2.relative(car.end(route.ways, x), end)))
         fitted = fit_offsets(route.ways, x, aim, tol, car.model, car.here, 0.0, car.link1)
         if fitted is None or fitted.miss > ROUTE_ACCEPT:
@@ -203,7 +208,7 @@ def _shoot(shooter: _Shooter, car: _Car, route: CycleRoute, plays: int) -> None:
         return
     route, r = best
     tol = shooter.tol
-    x = np.r_[route.offsets, route.delta]
+    x = route.values
     jac = np.zeros((3, len(x)))
     jac[:, :-1] = car.jacobian(route.ways, x[:-1], tol)
     r_delta, _ = shooter.play(route.with_values(x[:-1], x[-1] + DELTA_STEP))
@@ -217,7 +222,7 @@ def _shoot(shooter: _Shooter, car: _Car, route: CycleRoute, plays: int) -> None:
         best = shooter.best_of(route.ways)
         assert best is not None
         route, r = best
-        x = np.r_[route.offsets, route.delta]
+        x = route.values
         step = -jac.T @ np.linalg.solve(jac @ jac.T + DAMPING * np.eye(3), r)
         if np.abs(step).max() > trust:
             step *= trust / np.abs(step).max()

@@ -132,6 +132,11 @@ class CycleRoute:
         first = len(ramp(np.asarray(self.start), self.wave(robot).angles_at(0.0, 0.0))) - 1
         return [first + k * FRAMES_PER_CYCLE for k in range(len(self.ways) + 1)]
 
+    @property
+    def values(self) -> np.ndarray:
+        """The offsets and the lag, as the solvers vary them (``with_values``)."""
+        return np.r_[self.offsets, self.delta]
+
     def with_values(self, offsets: np.ndarray, delta: float) -> CycleRoute:
         return CycleRoute(self.start, self.ways, tuple(float(v) for v in offsets), float(delta))
 

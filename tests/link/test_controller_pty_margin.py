@@ -20,21 +20,31 @@ STALL_S = 0.1
 """How long the emulated controller is descheduled before each answer: far beyond the
 host margin plus the wire time, well inside the pseudo-terminal margin."""
 
+LONG_STALL_S = 1.5
+"""The stall the host-margin half of the test uses: a reply that waits 0.1 s would still be
+taken if this test's own process were descheduled longer than that between its write and its
+first look for the reply (it happened on a loaded CI machine), so that half stalls far
+longer than any such pause."""
+
 
 @pytest.fixture(autouse=True)
 def no_margin_setting(monkeypatch):
     monkeypatch.delenv(settings.ENV_MARGIN_MS, raising=False)
 
 
+def stalling(seconds: float):
+    def stall(index: int, packet: bytes) -> bytes:
+        time.sleep(seconds)
+        return packet
+
+    return stall
+
+
 @pytest.fixture
 def stalling_controller():
     """The controller's device logic on a pty, answering every packet STALL_S late."""
 
-    def stall(index: int, packet: bytes) -> bytes:
-        time.sleep(STALL_S)
-        return packet
-
-    with ControllerPty(robot=None, line_filter=stall) as server:
+    with ControllerPty(robot=None, line_filter=stalling(STALL_S)) as server:
         yield server
         assert server.error is None, server.error
 
@@ -76,7 +86,9 @@ def test_a_descheduled_emulated_controller_still_answers_the_first_try(stalling_
     device = stalling_controller.device
     with ControllerClient.open(device, retries=0) as ctl:
         assert ctl.read("State")["State"] == ctl.table.enums["State"]["IDLE"]
-    # what the host margin alone would have made of the same stall
+    # what the host margin alone makes of a stall
+    with stalling_controller.lock:
+        stalling_controller.line_filter = stalling(LONG_STALL_S)
     with ControllerClient.open(device, retries=0, margin_s=timing.HOST_MARGIN_S) as ctl:
         with pytest.raises(ControllerLinkError, match="did not answer"):
             ctl.read("State")

@@ -39,7 +39,7 @@ QEMU_JOBS   ?= $(shell nproc)
 SERIAL_JOBS ?= $(shell echo $$(( $$(nproc) * 2 )))
 
 .PHONY: dist help setup system-packages demo-packages python-env runtime-env core firmware \
-        test test-summary test-collect test-parallel test-qemu test-serial test-fuzz-wheel test-fuzz test-wheel lint fuzz-targets bench demo flash flash-image clean fuzz docs
+        test test-summary test-collect test-parallel test-qemu test-serial test-fuzz test-wheel lint fuzz-targets bench demo flash flash-image clean fuzz docs
 
 help:
 	@echo "make demo      run the main job on the emulated robot (does its own set-up)"
@@ -114,15 +114,15 @@ firmware: demo-packages
 # - the two fuzzing passes one after the other, at a low priority (nice 10) on the cycles
 #   the tests leave (a pass lasts its fixed wall time whatever its priority, and still
 #   gets a share of the CPU beside busy processes; in the idle scheduling class it got
-#   none and timed out), then the package check (it builds the wheel, then runs the demo
-#   from it in QEMU);
+#   none and timed out);
 # - the tests that run the firmware in QEMU, on QEMU_JOBS workers, a test file whole in
 #   each (--dist loadfile), which keeps each QEMU pacing its links in real time, in the
 #   real-time class (FIRST, below); where that is not allowed, after the other two lanes.
-# Then, alone, those marked `serial` (fault campaigns whose counts need QEMU to keep
-# pace, real-time pty runs, dynamixel-sdk's fixed waits) on SERIAL_JOBS workers: beside
-# the other stages, even in the real-time class, the kernel's own tty work and the
-# third-party clients came late (5 of 92 failed).
+# Then those marked `serial` (fault campaigns whose counts need QEMU to keep pace,
+# real-time pty runs, dynamixel-sdk's fixed waits) on SERIAL_JOBS workers: beside the
+# other stages, even in the real-time class, the kernel's own tty work and the
+# third-party clients came late (5 of 92 failed). Only the package check (it builds the
+# wheel, then runs the demo from it in QEMU) runs beside them (test-wheel, below).
 # Every stage but the first writes a log, shown whole if it fails and as one line if not,
 # so that outputs do not mix; the first stage prints its progress.
 # A stage that fails does not stop the others: each records its result in TEST_STATUS,
@@ -165,13 +165,13 @@ test: system-packages python-env
 	-$(Q)$(MAKE) --no-print-directory -k -j$(TEST_JOBS) lint firmware fuzz-targets test-collect; \
 	    $(call record,checks,$$?)
 ifdef REALTIME
-	-$(Q)$(MAKE) --no-print-directory -k -j3 test-parallel test-fuzz-wheel test-qemu
+	-$(Q)$(MAKE) --no-print-directory -k -j3 test-parallel test-fuzz test-qemu
 else
-	-$(Q)$(MAKE) --no-print-directory -k -j2 test-parallel test-fuzz-wheel
+	-$(Q)$(MAKE) --no-print-directory -k -j2 test-parallel test-fuzz
 	-$(Q)$(MAKE) --no-print-directory test-qemu
 endif
-	-$(Q)if test -e $(BUSY); then $(MAKE) --no-print-directory test-wheel; fi
-	-$(Q)$(MAKE) --no-print-directory test-serial
+	-$(Q)if test -e $(BUSY); then $(MAKE) --no-print-directory test-wheel test-serial; \
+	  else $(MAKE) --no-print-directory -k -j2 test-serial test-wheel; fi
 	$(Q)$(MAKE) --no-print-directory test-summary
 
 test-summary:
@@ -180,12 +180,12 @@ test-summary:
 	  case $$r in 0) w=passed;; "not run") w="NOT RUN"; failed=1;; *) w="FAILED (exit $$r)"; failed=1;; esac; \
 	  printf "  %-9s %s\n" $$s "$$w"; done; exit $$failed
 
-# On a busy machine the package check runs after the QEMU stage, alone and at its
-# priority: beside the other lanes and two busy processes its demo's QEMU, at the default
-# priority, fell so far behind that the demo lost the controller.
-test-fuzz-wheel:
-	-$(Q)$(MAKE) --no-print-directory test-fuzz
-	-$(Q)test -e $(BUSY) || $(MAKE) --no-print-directory test-wheel
+# The package check runs after the QEMU stage. On an idle machine it runs beside the serial
+# stage, whose tests wait on the wall clock and leave half the CPU idle (measured: make test
+# 292 s with the check beside the parallel stage, 256..270 s beside the serial one, the
+# serial stage as long either way). On a busy machine it runs alone before the serial
+# stage, at its priority: beside the other lanes and two busy processes its demo's QEMU, at
+# the default priority, fell so far behind that the demo lost the controller.
 
 # Collecting the suite once beside the builds fills __pycache__ with the rewritten test
 # modules, which every pytest worker of the stages after it then reads instead of

@@ -180,13 +180,6 @@ test-summary:
 	  case $$r in 0) w=passed;; "not run") w="NOT RUN"; failed=1;; *) w="FAILED (exit $$r)"; failed=1;; esac; \
 	  printf "  %-9s %s\n" $$s "$$w"; done; exit $$failed
 
-# The package check runs after the QEMU stage. On an idle machine it runs beside the serial
-# stage, whose tests wait on the wall clock and leave half the CPU idle (measured: make test
-# 292 s with the check beside the parallel stage, 256..270 s beside the serial one, the
-# serial stage as long either way). On a busy machine it runs alone before the serial
-# stage, at its priority: beside the other lanes and two busy processes its demo's QEMU, at
-# the default priority, fell so far behind that the demo lost the controller.
-
 # Collecting the suite once beside the builds fills __pycache__ with the rewritten test
 # modules, which every pytest worker of the stages after it then reads instead of
 # rewriting them itself (a collection error shows in the stage that meets it).
@@ -233,6 +226,12 @@ test-fuzz:
 	    if [ $$s = 0 ]; then echo "fuzz tests: $$(tail -n1 build/test-fuzz.log)"; \
 	    else cat build/test-fuzz.log; fi; $(call record,fuzz,$$s)
 
+# The package check runs after the QEMU stage. On an idle machine it runs beside the serial
+# stage, whose tests wait on the wall clock and leave half the CPU idle (make test 292 s
+# with the check beside the parallel stage, 242..270 s in five runs beside the serial one,
+# the serial stage as long either way). On a busy machine it runs alone before the serial
+# stage, at its priority: beside the other lanes and two busy processes its demo's QEMU, at
+# the default priority, fell so far behind that the demo lost the controller.
 test-wheel:
 	@mkdir -p build
 	$(Q)prio=$$(test -e $(BUSY) && echo "$(FIRST)"); \

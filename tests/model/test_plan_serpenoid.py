@@ -13,6 +13,7 @@ from snakebot.model.plan.planner import Tolerance
 from snakebot.model.plan.serpenoid_goto import (
     ACCEPT,
     FRAMES_PER_CYCLE,
+    HORIZON,
     MAX_CHANGE,
     MAX_OFFSET,
     TWO_REVERSALS,
@@ -131,6 +132,19 @@ def test_the_planned_cycles_reach_the_pose_by_the_model(goal):
     assert np.all(np.abs(np.diff(offsets)) <= MAX_CHANGE + 0.05)
     # the fewest cycles: the straight way there takes at least this many
     assert len(plan.ways) >= math.hypot(goal[0], goal[1]) / model.length(0.0, 0.0) - 1
+
+
+@pytest.mark.parametrize("straight", [0.004, 0.0, -0.01])
+def test_a_model_that_learned_short_cycles_still_plans_the_nearest_it_can(straight):
+    """`sim goto snake5 --world mujoco` at seed 34 once learned a straight cycle so short
+    that the goal lay more than HORIZON cycles away: the search started past HORIZON,
+    found no plan at all, and goto stopped with an internal error."""
+    model = CycleModel(np.array([straight, 0.0, 0.0, 0.0, 0.0, 0.2, 0.2]))
+    start = se2.inverse(np.array(_link1(0.0)))
+    goal = np.array([-0.63, -0.02, -0.54])
+    plan = plan_cycles(model, start, 0.0, goal, Tolerance(0.01, math.radians(2)), _link1)
+    assert len(plan.ways) == HORIZON
+    assert math.isfinite(plan.miss)
 
 
 def test_only_n_link_snakes_on_a_physics_world_steer_waves():

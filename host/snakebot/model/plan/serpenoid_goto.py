@@ -380,7 +380,10 @@ def fewest_cycles(
     within ``accept`` tolerances of ``goal`` driving one of ``ways_for(n)``, the
     smallest offsets among them; if none does, the nearest one found."""
     straight = model.length(0.0, 0.0)
-    near = math.floor(float(np.hypot(*se2.relative(here, goal)[:2])) / straight) - 1
+    away = float(np.hypot(*se2.relative(here, goal)[:2]))
+    # a model that has learned a straight cycle far shorter than the way left still
+    # fits HORIZON cycles (the nearest it finds), never none
+    near = math.floor(away / straight) - 1 if straight * HORIZON > away else HORIZON
     best = Plan((), (), math.inf)
     for n in range(max(1, least, near), HORIZON + 1):
         found = None

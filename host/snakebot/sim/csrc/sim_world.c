@@ -94,8 +94,12 @@ int sim_world_sample(const sim_world *w, double t, double *row) {
     if (!isfinite(q + v)) {
         return SIM_WORLD_BLEW_UP;
     }
-    if (w->qpos[2] < w->min_z) { /* the robot stays level: every wheel sinks with the base */
-        return SIM_WORLD_SANK;
+    double z = 0.0; /* each link stays level: its wheel sinks with it */
+    for (int i = 0; i < w->nz; i++) {
+        z += w->qpos[w->zadr[i]];
+        if (z < w->min_z) {
+            return SIM_WORLD_SANK;
+        }
     }
     *row++ = t - w->start;
     for (int g = 0; g < w->ngathers; g++) {

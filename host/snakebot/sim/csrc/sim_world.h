@@ -58,7 +58,10 @@ typedef struct {
     double period;                      /* the control period, s */
     double dt;                          /* the MuJoCo step, s */
     double start;                       /* bus time of the world's start */
-    double min_z;                       /* the base's lowest height before it counts sunk */
+    double min_z;                       /* a link's lowest height before it counts sunk */
+    const int *zadr;                    /* the z slides in qpos from the root down the chain:
+                                         * a link's height is the sum up to its own */
+    int nz;
     const sim_gather *gathers;          /* a sample's row after its time, piece by piece */
     int ngathers;
     /* per joint, carried from tick to tick */

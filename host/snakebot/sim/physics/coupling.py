@@ -71,6 +71,8 @@ class Coupling:
     here. ``joints``: per joint its servo, sign, tick at angle 0, qpos and qvel index.
     ``pieces``: a sample's row after its time, each a MuJoCo array (any shape, read flat)
     and the flat indices to take from it; each joint's motor torque follows them.
+    ``z``: the qpos indices of the slides in z from the root down the chain, a link's
+    height their sum up to its own; a sample with any below ``min_z`` has sunk.
     :attr:`energy` and :attr:`electrical` are the motors' running totals (J). ``profile``:
     Moving Speed moves each drive's target instead of capping the drive (the robot's
     ``speed_limit``)."""
@@ -85,6 +87,7 @@ class Coupling:
         period: float,
         start: float,
         min_z: float,
+        z: Sequence[int] = (),
         pieces: Sequence[tuple[np.ndarray, Sequence[int]]],
         profile: bool = False,
     ) -> None:
@@ -110,6 +113,7 @@ class Coupling:
         c.stalled_fraction = STALLED_FRACTION
         c.hold, c.period, c.dt = hold, period, arrays.timestep
         c.start, c.min_z = start, min_z
+        c.zadr, c.nz = self._ints(z), len(z)
         pieces = [*pieces, (self.torque, range(n))]
         gathers = c.gathers = self._new("sim_gather[]", len(pieces))
         c.ngathers = len(pieces)

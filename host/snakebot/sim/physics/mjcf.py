@@ -2,11 +2,16 @@
 freely on their axles, a floor with friction, and a hinge for every servo.
 
 The robot moves in the plane: its first link (snake) or base (trident) slides in x, y
-and z and turns about z; every other degree of freedom is a joint of the chain or a
-wheel's spin. Leaving z free lets the weight settle on the wheels, which is what the
-floor's friction pushes against; pitch and roll are left out because the real robot's
-brackets keep its links level. Only wheels touch the floor, and nothing touches anything
-else (the joint limits keep the links apart).
+and z and turns about z; every other degree of freedom is a joint of the chain, a
+snake link's slide in z on its parent, or a wheel's spin. Leaving z free lets the weight
+settle on the wheels, which is what the floor's friction pushes against; pitch and roll
+are left out because the real robot's brackets keep its links level. A snake's links
+each slide in z so that each wheel carries its own link (`Robot.wheel_loads_n`, the
+loads the quasi-static model weighs its wheels by): on one z for the whole chain, how
+the weight spreads over more wheels than that z can tell apart is left to the contact
+solver's regularisation, which put 0.69 N on snake5's end wheels and 1.02 N on its
+middle one against 0.88 N each (docs/models.md). Only wheels touch the floor, and
+nothing touches anything else (the joint limits keep the links apart).
 
 Frames follow the kinematic model (docs/models.md): a snake's reference point (x, y) is
 the free end of link 1, link k runs 2 l along its heading, its wheel at its middle rolls
@@ -57,10 +62,13 @@ it; 0 (none) rather than a guess."""
 
 @dataclass(frozen=True)
 class Names:
-    """The MJCF names the world looks up: servo joints in robot order, and wheels."""
+    """The MJCF names the world looks up: servo joints in robot order, wheels, and the
+    slides in z from the root down the chain (a link's height is their sum up to its
+    own)."""
 
     joints: tuple[str, ...]
     wheels: tuple[str, ...]
+    heights: tuple[str, ...]
 
 
 def physics_of(robot: Robot) -> Physics:
@@ -222,6 +230,7 @@ def build_mjcf(
         ET.SubElement(base, "joint", name=name, type=kind, axis=axis)
     joints = tuple(j.name for j in robot.joints)
     wheels: list[str] = []
+    heights = ["z"]
     if robot.kind == "snake":
         length = 2 * robot.l * unit
         body = base
@@ -230,6 +239,8 @@ def build_mjcf(
                 body = ET.SubElement(body, "body", name=f"link{k + 1}", pos=_fmt(length, 0, 0))
                 j = robot.joints[k - 1]
                 _servo_joint(body, j.name, j.min_rad, j.max_rad, act)
+                heights.append(f"link{k + 1}_z")
+                ET.SubElement(body, "joint", name=heights[-1], type="slide", axis="0 0 1")
             _box(body, length, phys.link_mass_kg)
             wheels.append(f"wheel{k + 1}")
             _wheel(body, wheels[-1], length / 2, phys, wheel[k])
@@ -274,4 +285,4 @@ def build_mjcf(
             forcelimited="true",
             forcerange=_fmt(-act.stall_nm, act.stall_nm),
         )
-    return ET.tostring(root, encoding="unicode"), Names(joints, tuple(wheels))
+    return ET.tostring(root, encoding="unicode"), Names(joints, tuple(wheels), tuple(heights))

@@ -200,8 +200,11 @@ class PhysicsWorld:
         self._qadr = [int(m.jnt_qposadr[j]) for j in jid]
         self._dadr = [int(m.jnt_dofadr[j]) for j in jid]
         self._wheels = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, n) for n in names.wheels]
-        # the base slides in z from the wheels' resting height (their radius)
+        # the base slides in z from the wheels' resting height (their radius), each link
+        # of a snake in z on its parent
         self._min_z = (PENETRATION_LIMIT - 1.0) * phys.wheel_radius_m
+        heights = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in names.heights]
+        self._heights = [int(m.jnt_qposadr[j]) for j in heights]
         d = self.data
         d.qpos[0], d.qpos[1], d.qpos[3] = pose[0] * self.unit, pose[1] * self.unit, pose[2]
         for k, servo in enumerate(self._servos):
@@ -232,6 +235,7 @@ class PhysicsWorld:
             period=self.control_period,
             start=self.start_time,
             min_z=self._min_z,
+            z=self._heights,
             pieces=pieces,
             profile=robot.speed_limit == "profile",
         )

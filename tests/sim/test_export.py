@@ -32,7 +32,8 @@ def servo_ranges(model, robot):
 @pytest.mark.parametrize("name", ROBOTS)
 def test_mujoco_loads_both_with_the_worlds_masses_and_limits(name):
     robot = load_robot(name)
-    world = compiled(build_mjcf(robot)[0])
+    xml, names = build_mjcf(robot)
+    world = compiled(xml)
     mjcf, urdf = compiled(export_mjcf(robot)), compiled(export_urdf(robot))
     for model in (mjcf, urdf):
         assert model.body_mass.sum() == pytest.approx(world.body_mass.sum())
@@ -46,7 +47,7 @@ def test_mujoco_loads_both_with_the_worlds_masses_and_limits(name):
     # the URDF's root is the body (no joint to the world): the world's root joints go,
     # and so do a snake's links' slides in z on their parents (the world's, to give each
     # wheel its own link's weight; a URDF link has one joint)
-    slides = len(build_mjcf(robot)[1].heights) - 1
+    slides = len(names.heights) - 1
     assert urdf.njnt == world.njnt - 4 - slides
     np.testing.assert_allclose(
         np.sort(urdf.body("base").inertia), np.sort(world.body("base").inertia)

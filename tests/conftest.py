@@ -24,12 +24,22 @@ settings.load_profile("snakebot")
 
 # Fixtures shared by the CLI and link tests: an emulated controller on a pty, with or
 # without a table already uploaded (defined in support/controller_cli_support.py).
+import controller_cli_support  # noqa: E402
 from controller_cli_support import controller, controller_with_table, old_table  # noqa: E402
 
 # A directory like /tmp for the tests that play a second local user (support/other_user.py).
 from other_user import shared_tmp  # noqa: E402
 
 __all__ = ["controller", "controller_with_table", "old_table", "shared_tmp"]
+
+
+@pytest.fixture(autouse=True)
+def qemu_reply_margin(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The commands a ``qemu`` test runs in process wait longer for the firmware's replies
+    (``controller_cli_support.QEMU_MARGIN_MS``)."""
+    if request.node.get_closest_marker("qemu"):
+        margin = controller_cli_support.QEMU_MARGIN_MS
+        monkeypatch.setitem(controller_cli_support.BASE_ENV, "SNAKEBOT_MARGIN_MS", margin)
 
 
 @pytest.fixture

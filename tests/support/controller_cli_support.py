@@ -22,6 +22,12 @@ LIMITS = (200, 824)
 # device share one process here) so that no test counts on a retry it did not cause.
 BASE_ENV = {"SNAKEBOT_MARGIN_MS": "200"}
 
+QEMU_MARGIN_MS = "1000"
+"""The margin instead for the tests marked ``qemu`` (tests/conftest.py): the firmware runs
+in another process that QEMU paces in software, and one READ of a `limits set` went
+unanswered past 200 ms, three tries in a row, while the package check built a wheel beside
+the serial stage. None of those tests times a failure through :func:`cli`."""
+
 # Quick retries: a cut-off line must fail in a second or two.
 FAST_ENV = {"SNAKEBOT_UPLOAD_RETRIES": "1", "SNAKEBOT_RETRIES": "0"}
 

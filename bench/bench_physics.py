@@ -21,6 +21,7 @@ import os
 import sys
 import time
 
+import numpy as np
 from bench_physics_raw import raw_rollout  # the benches' folder is on the path
 
 import snakebot.link.transport.ports  # noqa: F401  (registers sim://)
@@ -115,8 +116,10 @@ def main() -> int:
         f"MuJoCo {best_cpu['mujoco']:.1f} x (wall figures fall when other processes "
         "share the cores)"
     )
-    # the limit: MuJoCo alone on the same model, step and motion (bench_physics_raw.py)
-    limit = max(raw_rollout(robot, seconds) for _ in range(rounds))
+    # the limit: MuJoCo alone on the same model, step and table (bench_physics_raw.py)
+    angles = robot.ticks_to_angles(np.asarray(table.frames))
+    motion = [(angles, table.frame_period_ms / 1000.0)]
+    limit = max(raw_rollout(robot, seconds, 1, motion) for _ in range(rounds))
     beyond = " the goal is above MuJoCo's own speed at this step" if limit < GOAL_REALTIME else ""
     print(
         f"   MuJoCo alone (its rollout of the same model, step and gait): {limit:.1f} x real "

@@ -20,8 +20,10 @@ time step (``PhysicsWorld.model``, the very model it steps):
 
 Goal: the physics world at least :data:`GOAL_WORLD` of raw MuJoCo's speed (the
 rollout). Then the search: ``gait search --world mujoco``'s evaluations per CPU second
-(one core, in process) against a batched ``mujoco.rollout`` of as many runs of the same
-length (one thread, so per core), goal :data:`GOAL_SEARCH` of it.
+(one core, in process) against a batched ``mujoco.rollout`` of the same runs (the very
+tables the search plays, each frame held for its period; one thread, so per core), goal
+:data:`GOAL_SEARCH` of it. The search's runs also move the robot to their first frame,
+which the rollout's do not: that time counts against the search.
 
     .venv/bin/python bench/bench_physics_raw.py [--quick]
 """
@@ -110,12 +112,24 @@ def serpenoid_controls(robot, model: mujoco.MjModel, seconds: float) -> np.ndarr
     return 0.5 * np.sin(phase)
 
 
-def raw_rollout(robot, seconds: float, runs: int = 1) -> float:  # noqa: ANN001
+def table_controls(model: mujoco.MjModel, angles: np.ndarray, period_s: float, seconds: float):  # noqa: ANN201
+    """Each step's joint targets from a table: its frames' joint angles, each held for
+    its frame period, the last to the end (as the controller plays it)."""
+    steps = round(seconds / model.opt.timestep)
+    frame = np.floor(np.arange(steps) * model.opt.timestep / period_s + 1e-9).astype(int)
+    return angles[np.minimum(frame, len(angles) - 1)]
+
+
+def raw_rollout(robot, seconds: float, runs: int = 1, tables=None) -> float:  # noqa: ANN001
     """Emulated seconds per CPU second of ``runs`` trajectories in one ``rollout`` (one
-    thread)."""
+    thread): each the world's serpenoid (:func:`goals_at`), or, given ``tables`` (one
+    (joint angles by frame, frame period in s) a run), those tables."""
     model, state, _ = raw_model(robot)
     data = mujoco.MjData(model)
-    control = np.tile(serpenoid_controls(robot, model, seconds), (runs, 1, 1))
+    if tables is None:
+        control = np.tile(serpenoid_controls(robot, model, seconds), (runs, 1, 1))
+    else:
+        control = np.stack([table_controls(model, a, p, seconds) for a, p in tables])
     initial = np.tile(state, (runs, 1))
     cpu = time.process_time()
     rollout.rollout(model, data, initial, control)
@@ -149,11 +163,13 @@ def whole_play(robot, table) -> float:  # noqa: ANN001
         return float(record.t[-1]) / (time.process_time() - cpu)
 
 
-def search_rate(runs: int) -> tuple[float, float]:
-    """(physics search evaluations per CPU second, seconds of emulated time per run) of
-    snake5 serpenoids of :data:`SEARCH_CYCLES` cycles at 50 Hz, as bench_search runs them."""
+def search_rate(runs: int) -> tuple[float, float, list[tuple[np.ndarray, float]]]:
+    """(physics search evaluations per CPU second, seconds of emulated time per run, the
+    runs' tables) of snake5 serpenoids of :data:`SEARCH_CYCLES` cycles at 50 Hz, as
+    bench_search runs them; each table as (joint angles by frame, frame period in s), the
+    very frames the search plays."""
     from snakebot.workflows.search import Settings
-    from snakebot.workflows.search.evaluate import evaluate_many
+    from snakebot.workflows.search.evaluate import _frames, evaluate_many
 
     settings = Settings("snake5", "mujoco", SEARCH_CYCLES, 50.0)
     point = {"amplitude": math.radians(30), "omega": math.radians(360)}
@@ -161,11 +177,14 @@ def search_rate(runs: int) -> tuple[float, float]:
     points = [
         dict(point, amplitude=math.radians(20 + 20 * k / max(1, runs - 1))) for k in range(runs)
     ]
+    robot = load_robot("snake5")
+    frames = [_frames(robot, settings, p) for p in points]
+    tables = [(f.angles, f.period_ms / 1000.0) for f in frames]
     cpu = time.process_time()
     rows = evaluate_many(settings, points)
     spent = time.process_time() - cpu
     assert all(r["status"] == "ok" for r in rows), rows[0]["reason"]
-    return runs / spent, SEARCH_CYCLES * 2 * math.pi / point["omega"]
+    return runs / spent, frames[0].duration_s, tables
 
 
 def median_of(rounds: int, ways: dict[str, Callable[[], float]]) -> dict[str, float]:
@@ -216,9 +235,9 @@ def main() -> int:
     batched = []
     run_s = 0.0
     for _ in range(rounds):
-        rate, run_s = search_rate(runs)
+        rate, run_s, tables = search_rate(runs)
         searched.append(rate)
-        batched.append(raw_rollout(robot, run_s, runs) / run_s)
+        batched.append(raw_rollout(robot, run_s, runs, tables) / run_s)
     search, batch = statistics.median(searched), statistics.median(batched)
     met = "met" if search / batch >= GOAL_SEARCH else "MISS"
     print(

@@ -16,6 +16,10 @@ from hypothesis import HealthCheck, settings
 if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
+# Every emulated CM-530 the tests start, in process or in a command they run, stops at the
+# first access to a register no model knows, instead of reading it as zero (issue #30).
+os.environ.setdefault("SNAKEBOT_MCU_STRICT", "1")
+
 # CI machines are shared and slow: no deadlines, but a fixed, generous example budget.
 settings.register_profile(
     "snakebot", deadline=None, suppress_health_check=[HealthCheck.too_slow], max_examples=200

@@ -358,6 +358,13 @@ _TABLE = (
         default_note="unset",
         group="debug",
     ),
+    Setting(
+        "SNAKEBOT_MCU_STRICT",
+        "flag",
+        "the emulated CM-530 stops at the first access to a register it does not model",
+        default_note="unset",
+        group="debug",
+    ),
     # -- read by the test suite only --
     Setting(
         "SNAKEBOT_RELIABILITY_EXAMPLES",

@@ -30,6 +30,7 @@ import threading
 import time
 from types import TracebackType
 
+from snakebot.settings import is_set
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.mcu.board import Cm530, Leftovers
 from snakebot.sim.mcu.errors import McuMisuse
@@ -59,11 +60,17 @@ BAUD_TOLERANCE = 0.03
 """How far (relative) the client's rate may be from USART3's and still be understood."""
 
 
+STRICT_ENV = "SNAKEBOT_MCU_STRICT"
+"""Set: unmodelled register accesses stop the board (the test suite sets it)."""
+
+
 class McuFirmware:
     """The board on a thread. ``pc_socket``: serve the PC link on this connected socket
     instead of a new pseudo-terminal (the bootloader hands its line over that way).
     ``link``: a symlink to the pseudo-terminal. ``speed``: emulated seconds per wall
-    second."""
+    second. ``strict``: an access to a register no model knows stops the board with
+    :class:`~snakebot.sim.mcu.errors.UnmodelledAccess` (kept in :attr:`error`) instead of
+    reading as zero, counted; by default as :data:`STRICT_ENV` says."""
 
     def __init__(
         self,
@@ -72,10 +79,11 @@ class McuFirmware:
         bus: Bus | None = None,
         pc_socket: socket.socket | None = None,
         link: str | None = None,
-        strict: bool = False,
+        strict: bool | None = None,
         leftovers: Leftovers | None = None,
         speed: float = 1.0,
     ) -> None:
+        strict = is_set(STRICT_ENV) if strict is None else strict
         self.board = Cm530(image, bus=bus, strict=strict, leftovers=leftovers)
         self._socket = pc_socket
         self._pty = None if pc_socket is not None else RawPty(link)

@@ -15,6 +15,7 @@ from dataclasses import replace
 import pytest
 import serial
 from controller_cli_support import SNAKE5_IDS, cli, cli_json, save, wave_table
+from firmware_support import cm530_image
 
 from snakebot.facts.boards import PC_LINK_BAUD, WATCHDOG_MS
 from snakebot.firmware import image as firmware_image
@@ -38,10 +39,7 @@ WORLD_PERIOD_S = 0.01  # a world stepping every 10 ms
 
 @pytest.fixture(scope="module")
 def image() -> bytes:
-    path = firmware_image("cm530", "firmware.bin")
-    if not path.is_file():
-        pytest.skip("build/cm530/firmware.bin is not built: make firmware")
-    return path.read_bytes()
+    return cm530_image()
 
 
 def symbols() -> dict[str, int]:

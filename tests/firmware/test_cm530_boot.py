@@ -5,23 +5,19 @@ own controller client; and what the boot leaves in the chip's registers."""
 from __future__ import annotations
 
 import pytest
+from firmware_support import cm530_image
 
 from snakebot.facts.boards import APP_BASE, PC_LINK_BAUD, TABLE_CAPACITY
-from snakebot.firmware import image as firmware_image
 from snakebot.link.controller.client import ControllerClient
 from snakebot.sim.mcu.board import Cm530
 from snakebot.sim.mcu.runner import McuFirmware
 
 pytest.importorskip("unicorn")
 
-IMAGE = firmware_image("cm530", "firmware.bin")
-
 
 @pytest.fixture(scope="module")
 def image() -> bytes:
-    if not IMAGE.is_file():
-        pytest.skip("build/cm530/firmware.bin is not built: make firmware")
-    return IMAGE.read_bytes()
+    return cm530_image()
 
 
 def test_cold_boot_sets_up_the_chip_as_the_cm530_needs(image: bytes) -> None:

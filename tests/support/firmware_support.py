@@ -23,6 +23,7 @@ from snakebot.facts import devices
 from snakebot.facts.boards import APP_BASE as APP_BASE  # re-exported for the firmware tests
 from snakebot.facts.boards import PC_LINK_BAUD
 from snakebot.facts.controller import load as load_controller
+from snakebot.firmware import image as firmware_image
 from snakebot.formats.protocol import DxlTimeout
 from snakebot.link.transport import DxlClient
 from snakebot.link.transport.timing import PROGRAM_MARGIN_S
@@ -52,6 +53,15 @@ def board_value(board: str, name: str) -> int:
     expression of literals and the board's other numbers), evaluated as the docs'
     generator evaluates it."""
     return board_figures().board_value(board, name)
+
+
+def cm530_image() -> bytes:
+    """The CM-530 image `make flash` sends (build/cm530/firmware.bin), for the emulated
+    board's tests; the test is skipped while it is not built."""
+    path = firmware_image("cm530", "firmware.bin")
+    if not path.is_file():
+        pytest.skip("build/cm530/firmware.bin is not built: make firmware")
+    return path.read_bytes()
 
 
 QEMU_DIR = BUILD / "qemu"

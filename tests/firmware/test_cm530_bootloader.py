@@ -2,11 +2,14 @@
 emulated bootloader receives build/cm530/firmware.bin from `snakebot flash`, and after GO
 hands its line to that image running on the emulated STM32F103RE, so the flasher's own
 verification (PING at the controller's ID, the image's CRC-32 read back) passes. An image
-the board cannot start ends the emulated bootloader with one line and exit status 2."""
+the board cannot start leaves the line open and silent, as on a board: the flasher's PING
+after GO fails, and the emulated bootloader, having said why in one line, ends with exit
+status 2 once the flasher has let go of the line."""
 
 from __future__ import annotations
 
 import json
+import select
 import subprocess
 import sys
 from pathlib import Path
@@ -62,25 +65,49 @@ def test_flash_to_the_emulated_bootloader_ends_verified(tmp_path):
     assert "Traceback" not in err
 
 
-def test_another_boards_image_stops_the_bootloader_with_one_line_and_status_2(tmp_path):
-    image = _image("qemu")
+def _flash_unstartable(image: Path, tmp_path: Path) -> str:
+    """Flash ``image`` (--force: past the flasher's own checks) to an emulated bootloader,
+    verifying with a short wait for PING, check that both sides fail as with a board, and
+    return the one stderr line the bootloader printed."""
     link = tmp_path / "ttyCM530"
     server = _bootloader(link)
+    assert server.stderr is not None
     try:
         result = CliRunner().invoke(
             main,
-            ["flash", str(image), "--port", str(link), "--force", "--no-verify"],
+            ["flash", str(image), "--port", str(link), "--force", "--no-library-backup"],
+            env={"SNAKEBOT_FLASH_BOOT_TIMEOUT_S": "2"},
         )
-        # sent, checked and started: the emulated board refuses to run it and its line goes
-        # away, which the flasher reports as a runtime failure
+        # sent, checked by the bootloader and started: nothing answers after GO, as on a board
         assert result.exit_code == 1, result.output
-        assert "internal error" not in result.output
-        _, err = server.communicate(timeout=20)
+        assert "did not answer PING at ID 200 within 2 s of GO" in result.output
+        assert "another board" in result.output and "build/cm530/firmware.bin" in result.output
+        assert "internal error" not in result.output and "Traceback" not in result.output
+        # the line stayed all along, and the bootloader said what is wrong when it happened
+        assert link.exists() and server.poll() is None, "the bootloader ended too early"
+        assert select.select([server.stderr], [], [], 1.0)[0], "nothing said at GO"
+        line = server.stderr.readline()
+        server.wait(timeout=5)  # the flasher let go of the line: it ends by itself
+        rest = server.stderr.read()
     finally:
         if server.poll() is None:
             server.kill()
             server.wait()
-    assert server.returncode == 2
-    lines = [line for line in err.splitlines() if line.strip()]
-    assert len(lines) == 1 and "built for the qemu board, not the CM-530" in lines[0], err
+    assert server.returncode == 2, line + rest
+    assert not rest.strip(), rest  # one line in all
     assert not link.exists()
+    return line.strip()
+
+
+def test_another_boards_image_does_not_answer_and_the_flasher_says_so(tmp_path):
+    line = _flash_unstartable(_image("qemu"), tmp_path)
+    assert line.startswith("error: ") and "built for the qemu board, not the CM-530" in line
+    assert "build/cm530/firmware.bin" in line
+
+
+def test_a_truncated_image_does_not_answer_and_the_flasher_says_so(tmp_path):
+    # without --force the flasher refuses it itself (tests/link/test_flash_image.py)
+    cut = tmp_path / "cut.bin"
+    cut.write_bytes(_image("cm530").read_bytes()[:4096])
+    line = _flash_unstartable(cut, tmp_path)
+    assert line.startswith("error: ") and "is truncated" in line, line

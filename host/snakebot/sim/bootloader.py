@@ -58,6 +58,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from snakebot.errors import InputError
 from snakebot.facts.boards import APP_BASE, PC_LINK_BAUD
 from snakebot.facts.memory import FLASH_BASE
 from snakebot.sim.transports.base import RawPty, Server
@@ -81,6 +82,11 @@ LINE_MAX = 64
 
 IDLE_WAKE_S = 0.05
 """Longest the server thread sleeps when nothing is due."""
+
+HANGUP_S = 1.0
+"""After an image the board could not start: how long the PC side of the line must stay
+closed before the client counts as gone. The flasher closes the port after GO and opens it
+again at once to check the new firmware; that gap is far shorter."""
 
 PACE_BLOCK = 32
 """With wire pacing, bytes are taken from the client in blocks of about this many (a
@@ -329,7 +335,8 @@ class Bootloader:
 
 Handover = Callable[[bytes], socket.socket]
 """Starts the application the bootloader stored (its bytes as received) and returns a
-connected socket to its PC link."""
+connected socket to its PC link; raises :class:`~snakebot.errors.InputError` for an image
+the board could not start (the message says why and how to fix it)."""
 
 
 class QemuHandover:
@@ -377,6 +384,12 @@ class BootloaderPty(Server):
     come, for quick tests). ``link``: also make a symlink at this path to the device.
     ``on_go``: after GO, start the stored image with this :data:`Handover` and relay the
     line to it from then on (until a reset).
+
+    An image ``on_go`` refuses (one the board could not start) leaves the board as a CM-530
+    whose application does not run: :attr:`not_started` holds the refusal, the line stays,
+    and what comes on it is read and dropped, nothing answers (a reset is not modelled
+    then). The server ends by itself once the client has let go of the line (the device
+    closed for :data:`HANGUP_S`).
     """
 
     def __init__(
@@ -399,6 +412,7 @@ class BootloaderPty(Server):
         self.device = ""
         self.dropped = 0  # bytes received at a wrong baud rate
         self.error: BaseException | None = None
+        self.not_started: InputError | None = None  # why the board could not start the image
         self._wake_r = self._wake_w = -1
         self._thread: threading.Thread | None = None
         self._lock = threading.Lock()
@@ -522,9 +536,41 @@ class BootloaderPty(Server):
                 jumped = self.on_go is not None and len(boot.started) > self._handed
                 self._handed = len(boot.started)
                 image = boot.image
-            if jumped and image is not None:
-                assert self.on_go is not None
-                self._app = self.on_go(image)
+            if jumped and image is not None and not self._hand_over(image):
+                self._drop_until_let_go()
+                return
+
+    def _hand_over(self, image: bytes) -> bool:
+        """Start ``image`` with ``on_go`` and relay the line to it; False when the board
+        could not start it (:attr:`not_started` says why)."""
+        assert self.on_go is not None
+        try:
+            self._app = self.on_go(image)
+        except InputError as exc:
+            self.not_started = exc
+            return False
+        return True
+
+    def _drop_until_let_go(self) -> None:
+        """The board's application does not run: read and drop what comes, answer nothing,
+        until the client has closed the device for :data:`HANGUP_S` (or :meth:`close`)."""
+        self._pty.release_slave()  # so the master sees the client let go
+        gone_since: float | None = None
+        while True:
+            watch = [self._wake_r] if gone_since is not None else [self._wake_r, self._pty.master]
+            try:
+                ready, _, _ = select.select(watch, [], [], IDLE_WAKE_S)
+            except (OSError, ValueError):
+                return
+            if self._wake_r in ready and b"x" in os.read(self._wake_r, 64):
+                return
+            now = time.monotonic()
+            if _read_and_drop(self._pty.master):
+                gone_since = None
+            elif gone_since is None:
+                gone_since = now
+            elif now - gone_since >= HANGUP_S:
+                return
 
     def _reset_if_due(self, now: float) -> None:
         """Apply a reset pressed (:meth:`press_reset`) or scheduled; under the lock."""
@@ -565,6 +611,21 @@ class BootloaderPty(Server):
             if fd >= 0:
                 os.close(fd)
         self._wake_r = self._wake_w = -1
+
+
+def _read_and_drop(fd: int) -> bool:
+    """Read what waits on the pty master ``fd`` and drop it; False when no client has the
+    device open (the read fails with EIO, or returns nothing)."""
+    try:
+        while os.read(fd, 4096):
+            pass
+    except BlockingIOError:
+        return True
+    except OSError as exc:
+        if exc.errno in (errno.EIO, errno.EBADF):
+            return False
+        raise
+    return False
 
 
 def _bytes_waiting(fd: int) -> bool:

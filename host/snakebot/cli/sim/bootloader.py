@@ -7,11 +7,13 @@ from typing import TYPE_CHECKING
 
 import click
 
+from snakebot.cli.errors import EXIT_BAD_INPUT, message
 from snakebot.cli.options import json_option, link_option
 from snakebot.cli.output import dumps
 from snakebot.cli.params import NumberType
 from snakebot.cli.signals import StopRequest, serving
-from snakebot.errors import SnakebotError
+from snakebot.cli.troubleshooting import error_line
+from snakebot.errors import InputError, SnakebotError
 from snakebot.sim.bootloader import (
     CHECKSUM_FORMATS,
     DEFAULT_SILENCE_S,
@@ -123,8 +125,11 @@ def bootloader(
     After GO the image it received starts on the emulated CM-530 (the STM32F103RE of
     `snakebot sim serve --board cm530`) and the line is passed to it, so the flasher's
     check of the new firmware runs against the image it sent. An image the board could not
-    start (another board's, empty, cut short, a reset vector outside it) ends the server
-    with an error. On exit it lists the images it received, with their sizes and checksums.
+    start (another board's, empty, cut short, a reset vector outside it) behaves as on the
+    board: nothing answers on the line any more, so the flasher's check fails. The server
+    prints at once one line saying what is wrong with the image, keeps the line open
+    (dropping what comes), and exits with status 2 once the flasher has closed the line.
+    On exit it lists the images it received, with their sizes and checksums.
     """
     boot = Bootloader(
         faults=BootloaderFaults(
@@ -149,17 +154,49 @@ def bootloader(
     )
     with serving() as stop:
         try:
-            _serve(server, link, as_json, stop)
+            not_started = _serve(server, link, as_json, stop)
         finally:
             server.close()
             handover.close()
     _list_images(server, checksum_format, sum_excludes_last, as_json)
     stop.exit_by_signal()
+    if not_started is not None:  # told already, when it happened: only the status is left
+        click.get_current_context().exit(EXIT_BAD_INPUT)
 
 
-def _serve(server: BootloaderPty, link: str | None, as_json: bool, stop: StopRequest) -> None:
-    """Start ``server``, say where it serves, and serve until ``stop``."""
+def _serve(
+    server: BootloaderPty, link: str | None, as_json: bool, stop: StopRequest
+) -> InputError | None:
+    """Start ``server``, say where it serves, and serve until ``stop``, or until the client
+    lets go of a board that could not start the image it received; returns why it could
+    not (said on stderr as soon as it happened), or None."""
     server.start()
+    _say_where(server, link, as_json)
+    told = False
+    while not stop.wait(0.2):
+        told = told or _tell_not_started(server)
+        if not server.running:
+            if server.not_started is not None:
+                break
+            if isinstance(server.error, SnakebotError):
+                raise server.error
+            raise click.ClickException(f"the bootloader server stopped: {server.error}")
+    if not told:
+        _tell_not_started(server)
+    return server.not_started
+
+
+def _tell_not_started(server: BootloaderPty) -> bool:
+    """Print, as the CLI prints an error, why the board could not start the image it
+    received; whether there was something to tell."""
+    if server.not_started is None:
+        return False
+    click.echo(error_line(message(server.not_started)), err=True)
+    return True
+
+
+def _say_where(server: BootloaderPty, link: str | None, as_json: bool) -> None:
+    """The device (and link) the bootloader serves on, and how to stop it."""
     if as_json:
         click.echo(dumps({"device": server.device, "link": link, "baud": PC_LINK_BAUD}))
     else:
@@ -169,11 +206,6 @@ def _serve(server: BootloaderPty, link: str | None, as_json: bool, stop: StopReq
             + f", {PC_LINK_BAUD} baud"
         )
         click.echo("Ctrl-C stops.")
-    while not stop.wait(0.2):
-        if not server.running:
-            if isinstance(server.error, SnakebotError):
-                raise server.error  # an image the board cannot start: bad input
-            raise click.ClickException(f"the bootloader server stopped: {server.error}")
 
 
 def _list_images(

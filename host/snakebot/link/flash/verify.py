@@ -43,6 +43,17 @@ class Verified:
     boot_seconds: float  # from the start of the wait until the first answer to PING
 
 
+def _no_answer(controller_id: int, boot_s: float) -> str:
+    """Why the started firmware may not answer PING, and what to do, in one line."""
+    return (
+        f"the new firmware did not answer PING at ID {controller_id} within {boot_s:g} s of "
+        "GO: it may not run (an image for another board, damaged, or stopping at start-up) "
+        "or the board may have lost power; flash the CM-530's image build/cm530/firmware.bin "
+        f"({RESET_HINT} when asked) and check the board's power, or raise "
+        "SNAKEBOT_FLASH_BOOT_TIMEOUT_S on a slow machine"
+    )
+
+
 def _wait_for_ping(ctl: ControllerClient, timeouts: FlashTimeouts, waited: Waited) -> float:
     start = time.monotonic()
     while True:
@@ -52,12 +63,7 @@ def _wait_for_ping(ctl: ControllerClient, timeouts: FlashTimeouts, waited: Waite
         except (DxlTimeout, SnakebotError):
             elapsed = time.monotonic() - start
             if elapsed >= timeouts.boot:
-                raise FlashFailed(
-                    f"the new firmware did not answer PING at ID {ctl.id} within "
-                    f"{timeouts.boot:g} s of GO: it may not have started (the bootloader did "
-                    f"not jump, or the image faults at start-up); {REFLASH}, or raise "
-                    "SNAKEBOT_FLASH_BOOT_TIMEOUT_S if the machine is slow"
-                ) from None
+                raise FlashFailed(_no_answer(ctl.id, timeouts.boot)) from None
             waited(elapsed)
             time.sleep(PING_EVERY_S)
 

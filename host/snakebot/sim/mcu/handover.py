@@ -2,7 +2,8 @@
 starts on the emulated STM32F103RE, and the bootloader's serial line is handed to its
 USART3, as on the board, where bootloader and application share the PC link. An image the
 board could not start (:func:`snakebot.sim.mcu.image.check_image`) is refused with
-:class:`~snakebot.sim.mcu.errors.ImageError` before anything runs."""
+:class:`~snakebot.sim.mcu.errors.ImageError` before anything runs; the bootloader's server
+then leaves the line silent, as a board whose application does not run."""
 
 from __future__ import annotations
 

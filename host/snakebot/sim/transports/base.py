@@ -59,6 +59,13 @@ class RawPty:
             self._make_link(claim)
         return self.device
 
+    def release_slave(self) -> None:
+        """Stop holding the device open: from now on, once every client has closed it,
+        reading the master fails (EIO on Linux) until a client opens it again."""
+        if self.slave >= 0:
+            os.close(self.slave)
+            self.slave = -1
+
     def close(self) -> None:
         """Close both ends and remove the link (if it is still the one made)."""
         for fd in (self.master, self.slave):

@@ -19,6 +19,7 @@ from click.testing import CliRunner
 
 from snakebot.cli import main
 from snakebot.firmware import image as firmware_image
+from snakebot.sim.bootloader import HANGUP_S
 
 pytest.importorskip("unicorn")
 pytestmark = [pytest.mark.slow, pytest.mark.serial, pytest.mark.timeout(120)]  # real time
@@ -87,7 +88,7 @@ def _flash_unstartable(image: Path, tmp_path: Path) -> str:
         assert link.exists() and server.poll() is None, "the bootloader ended too early"
         assert select.select([server.stderr], [], [], 1.0)[0], "nothing said at GO"
         line = server.stderr.readline()
-        server.wait(timeout=5)  # the flasher let go of the line: it ends by itself
+        server.wait(timeout=HANGUP_S + 5)  # the flasher let go of the line: it ends by itself
         rest = server.stderr.read()
     finally:
         if server.poll() is None:

@@ -83,10 +83,11 @@ LINE_MAX = 64
 IDLE_WAKE_S = 0.05
 """Longest the server thread sleeps when nothing is due."""
 
-HANGUP_S = 1.0
+HANGUP_S = 3.0
 """After an image the board could not start: how long the PC side of the line must stay
 closed before the client counts as gone. The flasher closes the port after GO and opens it
-again at once to check the new firmware; that gap is far shorter."""
+again at once to check the new firmware; that gap is far shorter, even on a machine so
+loaded that the flasher is descheduled for a second."""
 
 PACE_BLOCK = 32
 """With wire pacing, bytes are taken from the client in blocks of about this many (a

@@ -24,6 +24,7 @@ from snakebot.facts import devices
 from snakebot.facts.boards import APP_BASE as APP_BASE  # re-exported for the firmware tests
 from snakebot.facts.boards import PC_LINK_BAUD
 from snakebot.facts.controller import load as load_controller
+from snakebot.facts.memory import CM530_FLASH_SIZE, FLASH_BASE
 from snakebot.formats.protocol import DxlTimeout
 from snakebot.link.transport import DxlClient
 from snakebot.link.transport.timing import PROGRAM_MARGIN_S
@@ -238,6 +239,13 @@ class Running:
         fw = self.firmware
         return fw.wrong_baud + fw.board.mcu.usart3.lost
 
+    def flash(self) -> bytes:
+        """The emulated CM-530's flash from the application's base to its end, all a power
+        cycle keeps (start the board again with it as ``image``)."""
+        assert self.board == "cm530", "QEMU's flash is not read here"
+        with self.lock:
+            return self.firmware.board.mcu.read(APP_BASE, FLASH_BASE + CM530_FLASH_SIZE - APP_BASE)
+
     def host_queue(self) -> HostQueue:
         """How long the host keeps the emulator's CPU waiting to run: QEMU's process, or
         the emulated CM-530's thread in this process."""
@@ -255,14 +263,17 @@ def running(
     robot: str = "snake5",
     faults: FaultConfig | None = None,
     bus: Bus | None = None,
+    image: bytes | None = None,
 ) -> Iterator[Running]:
     """``board``'s firmware image running, its bus ``bus`` or else served by ``robot``'s
     emulated servos (with ``faults`` on the wire, if given): yields it once the firmware
-    answers on its PC link. ``folder`` holds QEMU's bus socket."""
+    answers on its PC link. ``folder`` holds QEMU's bus socket. ``image``: the CM-530's
+    flash from the application's base (:meth:`Running.flash`), instead of its build."""
     build_firmware()
     if bus is None:
         bus = SimOptions(robot=robot, faults=faults or FaultConfig()).build_bus()
     if board == "qemu":
+        assert image is None, "QEMU runs the qemu board's build"
         sock = folder / "bus.sock"
         with (
             UnixSocketServer(bus, sock) as server,
@@ -276,8 +287,10 @@ def running(
     from snakebot.sim.mcu.runner import McuFirmware
     from snakebot.sim.serve import board_image, default_firmware
 
+    if image is None:
+        image = board_image(default_firmware(board), board)
     with (
-        McuFirmware(board_image(default_firmware(board), board), bus=bus) as fw,
+        McuFirmware(image, bus=bus) as fw,
         pytest.MonkeyPatch.context() as env,
     ):
         # The emulated chip runs in this process, in Python where it touches a

@@ -1,7 +1,8 @@
-"""Firmware in the loop: the qemu image with USART1 on the emulated servo bus (snakebot.sim)
-and USART3 on a pseudo-terminal. A table uploaded through ordinary WRITE packets is
-committed, played, and the virtual servos follow it; garbage on the PC link does not
-disturb playback or the answers; STOP stops the servos.
+"""Firmware in the loop, on both emulated boards (the CM-530's image on the emulated
+STM32F103RE, the qemu board's build under QEMU): the firmware's Dynamixel bus on emulated
+servos (snakebot.sim), its PC link on a pseudo-terminal. A table uploaded through ordinary
+WRITE packets is committed, played, and the virtual servos follow it; garbage on the PC
+link does not disturb playback or the answers; STOP stops the servos.
 
 Nothing here is timed: the machine may be slow. What is checked is where the servos went
 (each reaches every extreme the table asks of it, and never leaves the table's limits),
@@ -16,11 +17,13 @@ import zlib
 import numpy as np
 import pytest
 from firmware_support import (
+    BOARDS,
     CONTROLLER_ID,
     QEMU_DIR,
+    Running,
     assert_healthy_bus,
-    build_firmware,
     client,
+    running,
     sections,
     symbols,
 )
@@ -29,9 +32,7 @@ from snakebot.formats.gaittable import GaitTable
 from snakebot.formats.protocol import Packet
 from snakebot.link.controller import Command, ControllerErrors, State, UploadResult, load
 from snakebot.sim.bus.bus import Bus
-from snakebot.sim.qemu import Endpoint, QemuFirmware
 from snakebot.sim.servo.fast import VirtualServo
-from snakebot.sim.transports.unixsock import UnixSocketServer
 
 pytestmark = [pytest.mark.qemu, pytest.mark.slow]
 
@@ -49,24 +50,17 @@ def reg(name: str) -> int:
     return CTL.register(name).address
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="module", params=BOARDS)
 def rig(request, tmp_path_factory):
-    """Emulated servos on a Unix socket, QEMU connected to it; both always stopped."""
-    build_firmware()
+    """The board's firmware on three emulated servos; stopped after the module's tests."""
     bus = Bus([VirtualServo(i) for i in IDS])
-    path = tmp_path_factory.mktemp("fil") / "bus.sock"
-    server = UnixSocketServer(bus, path).start()
-    request.addfinalizer(server.close)
-    fw = QemuFirmware(QEMU_DIR / "flash.bin", bus=Endpoint.unix_client(path))
-    request.addfinalizer(fw.stop)
-    fw.start()
-    return bus, server, fw
+    with running(request.param, tmp_path_factory.mktemp("fil"), bus=bus) as fw:
+        yield fw
 
 
-def positions(rig) -> list[float]:
-    bus, server, _ = rig
-    with server.lock:
-        return bus.positions(IDS)
+def positions(rig: Running) -> list[float]:
+    with rig.lock:
+        return rig.bus.positions(IDS)
 
 
 def upload(c, blob: bytes) -> None:
@@ -96,10 +90,9 @@ def wait_until(predicate, deadline_s: float, step_s: float = 0.05):
 
 
 def test_plays_an_uploaded_table_and_the_virtual_servos_follow(rig):
-    _, _, fw = rig
     table = GaitTable(IDS, PERIOD_MS, True, LIMITS, FRAMES, {})
     blob = table.encode()
-    with client(fw.ports.pc_link) as c:
+    with client(rig.pc_link) as c:
         assert wait_until(lambda: _answers(c), 10)
         upload(c, blob)
         assert c.read_u8(CONTROLLER_ID, reg("Upload Result")) == UploadResult.OK
@@ -177,10 +170,9 @@ def _at_rest(rig) -> bool:
 
 
 def test_a_failed_upload_leaves_the_old_table_active(rig):
-    _, _, fw = rig
     good = GaitTable(IDS, PERIOD_MS, True, LIMITS, FRAMES, {}).encode()
     other = GaitTable(IDS, PERIOD_MS, False, LIMITS, FRAMES[::-1].copy(), {}).encode()
-    with client(fw.ports.pc_link) as c:
+    with client(rig.pc_link) as c:
         assert wait_until(lambda: _answers(c), 10)
         upload(c, good)
         assert c.read_u8(CONTROLLER_ID, reg("Upload Result")) == UploadResult.OK
@@ -200,10 +192,12 @@ STACK_PAINT = 0x5AC3A55A
 RAM_END = 0x20002000
 
 
+@pytest.mark.parametrize("rig", ["qemu"], indirect=True)
 def test_stack_stays_within_its_reserve(rig):
     """Run after the playing test: the start-up code painted the free RAM; the deepest
-    the stack has reached is where the paint ends."""
-    _, _, fw = rig
+    the stack has reached is where the paint ends. The qemu build's symbols and QEMU's
+    monitor: the CM-530's own is tests/firmware/test_cm530_board.py's."""
+    fw = rig.firmware
     syms = symbols(QEMU_DIR / "firmware.elf")
     bottom = syms["_ebss"]
     words = (RAM_END - bottom) // 4

@@ -4,7 +4,9 @@ set from the host, writing the servo's EEPROM only where it differs and reading 
 refuses tables that reach beyond those limits; and will not move while a servo has not
 taken them. Under bus corruption no servo accepts a goal outside them (the campaigns
 ``servo-limits-*``, run here for a few seconds; ``python -m tests.reliability.rig.campaigns
---only servo-limits-5pct --seconds 120`` for the long run)."""
+--only servo-limits-5pct --seconds 120`` for the long run). The limits kept in flash come
+back after a power cycle of the CM-530's image on the emulated chip (the qemu board keeps
+them in RAM only)."""
 
 from __future__ import annotations
 
@@ -17,12 +19,20 @@ import numpy as np
 import pytest
 from controller_cli_support import cli, cli_json, save, wave_table
 from ctl_support import CTL, CTL_ID, Device, ffi, lib
-from firmware_support import QEMU_DIR, build_firmware, wait_for_boot
+from firmware_support import (
+    APP_BASE,
+    QEMU_DIR,
+    board_value,
+    build_firmware,
+    running,
+    wait_for_boot,
+)
 
 from snakebot.formats.gaittable import GaitTable
 from snakebot.formats.protocol import read, status, write
 from snakebot.formats.upload_writes import chunk_writes, commit_write
 from snakebot.link.controller import Command, ControllerErrors, LimitsState, State, UploadResult
+from snakebot.link.controller.client import ControllerClient
 from snakebot.link.controller.limits import (
     LimitsError,
     encode_limits,
@@ -32,9 +42,11 @@ from snakebot.link.controller.limits import (
 )
 from snakebot.model.robots import load_robot
 from snakebot.model.robots.model import TORQUE_LIMIT
+from snakebot.sim.bus.bus import Bus
 from snakebot.sim.bus.faults import FaultConfig
 from snakebot.sim.options import SimOptions
 from snakebot.sim.qemu import Endpoint, QemuFirmware
+from snakebot.sim.servo.fast import VirtualServo
 from snakebot.sim.transports.unixsock import UnixSocketServer
 from tests.reliability.rig.campaigns import FRAMES, IDS, LIMITS, PERIOD_MS, Rig, gait_table
 
@@ -282,6 +294,57 @@ def test_the_limits_kept_in_flash_come_back_as_they_were_set():
     )
     assert after_reset.upload(gait_table()) == UploadResult.OK
     assert not lib.ctl_load_limits(Device().d, kept[:-1], len(kept) - 1)
+
+
+def _upload(ctl: ControllerClient, blob: bytes) -> int:
+    """The upload sequence through ``ctl``; returns Upload Result."""
+    for address, data in chunk_writes(blob, controller=CTL):
+        ctl.write_block(address, data)
+    ctl.write_block(*commit_write(blob, CTL))
+    return ctl.read("Upload Result")["Upload Result"]
+
+
+def _servos_as_shipped() -> Bus:
+    return Bus([VirtualServo(i) for i in IDS])
+
+
+def test_the_limits_kept_in_flash_come_back_after_a_power_cycle_of_the_cm530(tmp_path):
+    """The same on the CM-530's image on the emulated chip (the qemu board keeps its limits
+    in RAM only): limits set over the PC link are in its flash as they were sent; powered
+    off and on (a new chip with that flash), it has them again, puts them into servos
+    that lost them (swapped while it was off), refuses a table beyond them and takes one
+    within; a damaged record in the flash is not loaded."""
+    blob = encode_limits(ROBOT)
+    with running("cm530", tmp_path, bus=_servos_as_shipped()) as fw:
+        with ControllerClient.open(fw.pc_link) as ctl:
+            assert set_limits(ctl, ROBOT).state == "VERIFIED"
+            assert limits_state(ctl) == ("VERIFIED", len(ROBOT))
+        flash = fw.flash()
+    store = board_value("cm530", "BOARD_LIMITS_STORE_BASE") - APP_BASE
+    size = board_value("cm530", "BOARD_LIMITS_STORE_SIZE")
+    at = flash.find(blob, store, store + size)
+    assert at >= 0, "the limits sent are not in the limits' store"
+
+    bus = _servos_as_shipped()
+    with running("cm530", tmp_path, bus=bus, image=flash) as fw:
+        with ControllerClient.open(fw.pc_link) as ctl:
+            assert wait_settled(ctl, 20.0) == ("VERIFIED", len(ROBOT))
+            with fw.lock:
+                held = [
+                    (s.regs.get("CW Angle Limit"), s.regs.get("CCW Angle Limit"))
+                    for s in bus.servos
+                ]
+            assert held == list(LIMITS)
+            wide = tuple((lo - 1, hi) for lo, hi in LIMITS)
+            table = GaitTable(IDS, PERIOD_MS, True, wide, FRAMES, {}).encode()
+            assert _upload(ctl, table) == UploadResult.OUTSIDE_ROBOT_LIMITS
+            assert _upload(ctl, gait_table()) == UploadResult.OK
+
+    damaged = bytearray(flash)
+    damaged[at + 2] ^= 0x01  # a servo's limit, one bit
+    with running("cm530", tmp_path, bus=_servos_as_shipped(), image=bytes(damaged)) as fw:
+        with ControllerClient.open(fw.pc_link) as ctl:
+            assert limits_state(ctl) == ("NONE", 0)
 
 
 def _bus_with_limits(ids: list[int], mins: list[int], maxs: list[int]):

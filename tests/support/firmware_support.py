@@ -18,16 +18,19 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 import pytest
+from host_queue import HostQueue
 
 from snakebot.facts import devices
 from snakebot.facts.boards import APP_BASE as APP_BASE  # re-exported for the firmware tests
 from snakebot.facts.boards import PC_LINK_BAUD
 from snakebot.facts.controller import load as load_controller
+from snakebot.facts.memory import CM530_FLASH_SIZE, FLASH_BASE
 from snakebot.firmware import image as firmware_image
 from snakebot.formats.protocol import DxlTimeout
 from snakebot.link.transport import DxlClient
 from snakebot.link.transport.timing import PROGRAM_MARGIN_S
 from snakebot.paths import REPO_ROOT
+from snakebot.sim.bus.bus import Bus
 from snakebot.sim.bus.faults import FaultConfig
 from snakebot.sim.options import SimOptions
 from snakebot.sim.qemu import Endpoint, QemuFirmware
@@ -176,15 +179,8 @@ def booted_qemu(
     """The firmware image under QEMU, its bus served by ``robot``'s emulated servos on a
     Unix socket in ``folder`` (with ``faults`` on the wire, if given): yields the PC
     link's pty once the firmware answers."""
-    build_firmware()
-    sock = folder / "bus.sock"
-    options = SimOptions(robot=robot, faults=faults or FaultConfig())
-    with (
-        UnixSocketServer(options.build_bus(), sock),
-        QemuFirmware(QEMU_DIR / "flash.bin", bus=Endpoint.unix_client(sock)) as fw,
-    ):
-        wait_for_boot(fw.ports.pc_link)
-        yield fw.ports.pc_link
+    with running("qemu", folder, robot, faults) as fw:
+        yield fw.pc_link
 
 
 BOARDS = ("cm530", "qemu")
@@ -198,25 +194,113 @@ CM530_MARGIN_MS = 3000
 (``SNAKEBOT_MARGIN_MS``; tests/firmware/test_cm530_cli.py's too)."""
 
 
+class Running:
+    """A board's firmware image running on emulated servos, as the tests look at it on
+    either board: its PC link's pty, its servo bus (read it holding :attr:`lock`) and what
+    the emulator counts of the PC link's traffic."""
+
+    def __init__(
+        self,
+        board: str,
+        pc_link: str,
+        bus: Bus,
+        lock: contextlib.AbstractContextManager[Any],
+        firmware: Any,
+    ) -> None:
+        self.board = board
+        self.pc_link = pc_link
+        self.bus = bus
+        self.lock = lock
+        self.firmware = firmware  # QemuFirmware or McuFirmware
+
+    def bus_now(self) -> float:
+        """The servo bus's clock (seconds of emulated time)."""
+        with self.lock:
+            return self.bus.now
+
+    def dropped(self) -> int:
+        """Bytes the firmware sent the PC that the terminal had no room for (nobody read
+        them), which the emulator dropped."""
+        fw = self.firmware
+        return fw.dropped("pc") if self.board == "qemu" else fw.dropped
+
+    def pc_out(self) -> int:
+        """Bytes the firmware's PC link has sent so far (taken by the terminal or dropped)."""
+        fw = self.firmware
+        if self.board == "qemu":
+            relay = fw._relays["pc"]  # noqa: SLF001 - QEMU's relay counts what it took
+            return relay.relayed + relay.dropped
+        return fw.board.mcu.usart3.sent
+
+    def backlog(self) -> int:
+        """Bytes the PC wrote that the firmware's UART has still to receive. QEMU takes
+        the PC's bytes only as its UART does, so a writer waits on the terminal (0 here);
+        the emulated CM-530 reads the terminal at once and has them arrive at the link's
+        rate, however many the PC writes."""
+        return 0 if self.board == "qemu" else self.firmware.board.mcu.usart3.inbox
+
+    def unheard(self) -> int:
+        """Bytes the PC sent that the firmware's UART never received: sent at another
+        baud rate than USART3's, or before the firmware set it up (as the PINGs that wait
+        for its boot). The emulated CM-530 counts them; QEMU has no baud rate on its pty
+        and takes bytes only once its UART does (0)."""
+        if self.board == "qemu":
+            return 0
+        fw = self.firmware
+        return fw.wrong_baud + fw.board.mcu.usart3.lost
+
+    def flash(self) -> bytes:
+        """The emulated CM-530's flash from the application's base to its end, all a power
+        cycle keeps (start the board again with it as ``image``)."""
+        assert self.board == "cm530", "QEMU's flash is not read here"
+        with self.lock:
+            return self.firmware.board.mcu.read(APP_BASE, FLASH_BASE + CM530_FLASH_SIZE - APP_BASE)
+
+    def host_queue(self) -> HostQueue:
+        """How long the host keeps the emulator's CPU waiting to run: QEMU's process, or
+        the emulated CM-530's thread in this process."""
+        fw = self.firmware
+        if self.board == "qemu":
+            return HostQueue(fw.pid)
+        thread = fw._thread  # noqa: SLF001 - the thread the board runs on
+        return HostQueue(os.getpid(), thread.native_id)
+
+
 @contextlib.contextmanager
-def booted(
-    board: str, folder: Path, robot: str = "snake5", faults: FaultConfig | None = None
-) -> Iterator[str]:
-    """``board``'s firmware image running, its bus served by ``robot``'s emulated servos
-    (with ``faults`` on the wire, if given): yields the PC link's pty once the firmware
-    answers. ``folder`` holds QEMU's bus socket."""
+def running(
+    board: str,
+    folder: Path,
+    robot: str = "snake5",
+    faults: FaultConfig | None = None,
+    bus: Bus | None = None,
+    image: bytes | None = None,
+) -> Iterator[Running]:
+    """``board``'s firmware image running, its bus ``bus`` or else served by ``robot``'s
+    emulated servos (with ``faults`` on the wire, if given): yields it once the firmware
+    answers on its PC link. ``folder`` holds QEMU's bus socket. ``image``: the CM-530's
+    flash from the application's base (:meth:`Running.flash`), instead of its build."""
+    build_firmware()
+    if bus is None:
+        bus = SimOptions(robot=robot, faults=faults or FaultConfig()).build_bus()
     if board == "qemu":
-        with booted_qemu(folder, robot, faults) as port:
-            yield port
+        assert image is None, "QEMU runs the qemu board's build"
+        sock = folder / "bus.sock"
+        with (
+            UnixSocketServer(bus, sock) as server,
+            QemuFirmware(QEMU_DIR / "flash.bin", bus=Endpoint.unix_client(sock)) as fw,
+        ):
+            wait_for_boot(fw.ports.pc_link)
+            yield Running(board, fw.ports.pc_link, bus, server.lock, fw)
+            assert server.running
         return
     pytest.importorskip("unicorn")
     from snakebot.sim.mcu.runner import McuFirmware
     from snakebot.sim.serve import board_image, default_firmware
 
-    build_firmware()
-    bus = SimOptions(robot=robot, faults=faults or FaultConfig()).build_bus()
+    if image is None:
+        image = board_image(default_firmware(board), board)
     with (
-        McuFirmware(board_image(default_firmware(board), board), bus=bus) as fw,
+        McuFirmware(image, bus=bus) as fw,
         pytest.MonkeyPatch.context() as env,
     ):
         # The emulated chip runs in this process, in Python where it touches a
@@ -225,8 +309,19 @@ def booted(
         # up a backlog), so its replies get a wider margin than a board's.
         env.setenv("SNAKEBOT_MARGIN_MS", str(CM530_MARGIN_MS))
         wait_for_boot(fw.pc_link)
-        yield fw.pc_link
+        yield Running(board, fw.pc_link, bus, fw.lock, fw)
         assert fw.error is None, fw.error
+
+
+@contextlib.contextmanager
+def booted(
+    board: str, folder: Path, robot: str = "snake5", faults: FaultConfig | None = None
+) -> Iterator[str]:
+    """``board``'s firmware image running, its bus served by ``robot``'s emulated servos
+    (with ``faults`` on the wire, if given): yields the PC link's pty once the firmware
+    answers. ``folder`` holds QEMU's bus socket."""
+    with running(board, folder, robot, faults) as fw:
+        yield fw.pc_link
 
 
 HAL_DIR = REPO_ROOT / "firmware" / "hal"

@@ -17,16 +17,18 @@ nothing about the firmware's timing: it is measured again."""
 
 class HostQueue:
     """How long the host's scheduler kept process ``pid``'s busiest thread (QEMU's emulated
-    CPU) waiting to run since :meth:`mark`, from ``/proc/PID/task/*/schedstat``
-    (nanoseconds on the CPU, then runnable but not running)."""
+    CPU), or its thread ``tid`` (an emulator's thread in this process), waiting to run
+    since :meth:`mark`, from ``/proc/PID/task/*/schedstat`` (nanoseconds on the CPU, then
+    runnable but not running)."""
 
-    def __init__(self, pid: int) -> None:
+    def __init__(self, pid: int, tid: int | None = None) -> None:
         self._pid = pid
+        self._task = "*" if tid is None else str(tid)  # None: the busiest of its threads
         self._base = self._stats()
 
     def _stats(self) -> dict[str, tuple[int, int]]:
         out = {}
-        for stat in glob.glob(f"/proc/{self._pid}/task/*/schedstat"):
+        for stat in glob.glob(f"/proc/{self._pid}/task/{self._task}/schedstat"):
             with contextlib.suppress(OSError, IndexError, ValueError):
                 ran, waited = open(stat).read().split()[:2]
                 out[stat] = (int(ran), int(waited))

@@ -50,6 +50,12 @@ QUIET_AFTER_S = 0.1
 """How long after the link's last byte (either way) the steps stay :data:`STEP_S`: a reply
 the firmware sends that long after a request leaves up to a quiet step late."""
 
+PC_BACKLOG = 256
+"""The most of the PC's bytes taken off the link ahead of USART3's receiver (44 ms of the
+57600 baud line). More stays in the terminal, whose writer then waits, as behind a USB
+adapter that passes bytes on at the line's rate: a client that floods the link costs the
+emulator no memory."""
+
 MAX_LAG_S = 0.05
 """The most the emulated board falls behind the wall clock. A host too busy to run it in
 real time slows its time down instead (counted in :attr:`McuFirmware.slowed_s`): the
@@ -155,22 +161,25 @@ class McuFirmware:
                     self._send_input(data)
                     data = b""
                 self._flush_out()
+                room = PC_BACKLOG - board.mcu.usart3.inbox
                 ahead = board.now() - (emu0 + (time.monotonic() - wall0) * self.speed)
             self.cpu_s = time.thread_time() - cpu0
             # the next step when a whole step is due, or at once when the PC sends: run
             # for the time that passed since the last, the loop would spin in steps as
             # short as itself, using a whole core however fast the board runs
             wait = max((ahead + step) / self.speed, 0.0)
-            ready, _, _ = select.select([self._fd, self._wake_r], [], [], wait)
+            watch = [self._fd, self._wake_r] if room > 0 else [self._wake_r]
+            ready, _, _ = select.select(watch, [], [], wait)
             if self._wake_r in ready:
                 return
             if self._fd in ready:
-                data = self._take_input()
+                data = self._take_input(room)
 
-    def _take_input(self) -> bytes:
-        """The PC's bytes waiting on the link (none if it has none or hung up)."""
+    def _take_input(self, most: int) -> bytes:
+        """Up to ``most`` of the PC's bytes waiting on the link (none if it has none or
+        hung up)."""
         try:
-            data = os.read(self._fd, 4096)
+            data = os.read(self._fd, most)
         except BlockingIOError:
             return b""
         except OSError as exc:

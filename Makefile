@@ -39,7 +39,7 @@ QEMU_JOBS   ?= $(shell nproc)
 SERIAL_JOBS ?= $(shell echo $$(( $$(nproc) * 2 )))
 
 .PHONY: dist help setup system-packages demo-packages python-env runtime-env core firmware \
-        test test-summary test-collect test-parallel test-qemu test-serial test-fuzz test-wheel lint fuzz-targets bench demo flash flash-image clean fuzz docs
+        test test-summary test-collect test-parallel test-late test-qemu test-serial test-fuzz test-wheel lint fuzz-targets bench demo flash flash-image clean fuzz docs
 
 help:
 	@echo "make demo      run the main job on the emulated robot (does its own set-up)"
@@ -154,7 +154,7 @@ TEST_STATUS := build/test-status
 # its QEMU stopped answering, and the demo lost the controller).
 BUSY        := build/test-busy
 BUSY_CORES  := 0.5
-TEST_STAGES := checks parallel qemu serial fuzz wheel
+TEST_STAGES := checks parallel late qemu serial fuzz wheel
 # $(call record,STAGE,STATUS): note STAGE's exit status and pass it on.
 record = s=$(2); mkdir -p $(TEST_STATUS); echo $$s > $(TEST_STATUS)/$(1); exit $$s
 test: system-packages python-env
@@ -170,8 +170,9 @@ else
 	-$(Q)$(MAKE) --no-print-directory -k -j2 test-parallel test-fuzz
 	-$(Q)$(MAKE) --no-print-directory test-qemu
 endif
-	-$(Q)if test -e $(BUSY); then $(MAKE) --no-print-directory test-wheel test-serial; \
-	  else $(MAKE) --no-print-directory -k -j2 test-serial test-wheel; fi
+	-$(Q)if test -e $(BUSY); then $(MAKE) --no-print-directory test-wheel; \
+	  $(MAKE) --no-print-directory -k -j2 test-serial test-late; \
+	  else $(MAKE) --no-print-directory -k -j3 test-serial test-wheel test-late; fi
 	$(Q)$(MAKE) --no-print-directory test-summary
 
 test-summary:
@@ -195,8 +196,20 @@ test-collect:
 stage_files = $$( (cat $(STAGE_FILES)/stage-$(1) 2>/dev/null || echo tests) | grep -v -x -F $(2))
 
 test-parallel:
-	$(Q)$(PY) -m pytest -n $(TEST_JOBS) --dist worksteal -m "not serial and not qemu" \
+	$(Q)$(PY) -m pytest -n $(TEST_JOBS) --dist worksteal -m "not serial and not qemu and not late" \
 	    --ignore=$(FUZZ_TESTS) $(call stage_files,parallel,$(FUZZ_TESTS)); $(call record,parallel,$$?)
+
+# The tests marked `late` (long, CPU-bound, not timing-sensitive: the API reference's build,
+# the symbolic fields, the transport under faults) run beside the serial stage and the
+# package check at a low priority, on the CPU those leave (the serial tests wait on the
+# wall clock): at the default priority the emulated bootloader of a serial test once
+# missed its deadline.
+test-late:
+	@mkdir -p build
+	$(Q)$(LOW) $(PY) -m pytest -q -p no:cacheprovider -m "late and not serial and not qemu" \
+	    --ignore=$(FUZZ_TESTS) $(call stage_files,late,$(FUZZ_TESTS)) > build/test-late.log 2>&1; \
+	    s=$$?; if [ $$s = 0 ]; then echo "late tests: $$(tail -n1 build/test-late.log)"; \
+	    else cat build/test-late.log; fi; $(call record,late,$$s)
 
 test-qemu test-serial: test-%:
 	@mkdir -p build

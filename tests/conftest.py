@@ -64,7 +64,9 @@ line), so that each stage's workers import only those files, not all two hundred
 
 def stage_of(item: pytest.Item) -> str:
     marks = {m.name for m in item.iter_markers()}
-    return "serial" if "serial" in marks else "qemu" if "qemu" in marks else "parallel"
+    if "serial" in marks or "qemu" in marks:
+        return "serial" if "serial" in marks else "qemu"
+    return "late" if "late" in marks else "parallel"
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:
@@ -72,7 +74,7 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     if not out:
         return
     root = session.config.rootpath
-    stages: dict[str, set[str]] = {"parallel": set(), "qemu": set(), "serial": set()}
+    stages: dict[str, set[str]] = {"parallel": set(), "late": set(), "qemu": set(), "serial": set()}
     for item in session.items:
         stages[stage_of(item)].add(str(item.path.relative_to(root)))
     os.makedirs(out, exist_ok=True)

@@ -55,6 +55,7 @@ def tracked_text_files() -> dict[str, str]:
     return files
 
 
+@pytest.mark.late
 def test_make_docs_builds_the_api_reference(tmp_path: Path):
     out = tmp_path / "api"
     # -o python-env: the environment running this test is already set up.

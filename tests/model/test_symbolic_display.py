@@ -16,7 +16,7 @@ sp = pytest.importorskip("sympy")
 from snakebot.model.robots import load_robot  # noqa: E402
 from snakebot.model.symbolic.display import field_expressions  # noqa: E402
 
-pytestmark = pytest.mark.timeout(120)
+pytestmark = [pytest.mark.timeout(120), pytest.mark.late]
 
 
 def test_the_snake3_expressions_equal_its_fields_over_a_power_of_the_determinant():

@@ -497,4 +497,4 @@ TransportUnderFaults.TestCase.settings = settings(
     stateful_step_count=12,
     deadline=None,
 )
-test_transport_under_faults = pytest.mark.slow(TransportUnderFaults.TestCase)
+test_transport_under_faults = pytest.mark.late(pytest.mark.slow(TransportUnderFaults.TestCase))

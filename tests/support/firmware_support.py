@@ -232,13 +232,6 @@ class Running:
             return relay.relayed + relay.dropped
         return fw.board.mcu.usart3.sent
 
-    def backlog(self) -> int:
-        """Bytes the PC wrote that the firmware's UART has still to receive. QEMU takes
-        the PC's bytes only as its UART does, so a writer waits on the terminal (0 here);
-        the emulated CM-530 reads the terminal at once and has them arrive at the link's
-        rate, however many the PC writes."""
-        return 0 if self.board == "qemu" else self.firmware.board.mcu.usart3.inbox
-
     def unheard(self) -> int:
         """Bytes the PC sent that the firmware's UART never received: sent at another
         baud rate than USART3's, or before the firmware set it up (as the PINGs that wait

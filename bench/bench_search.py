@@ -105,9 +105,12 @@ def efficiency(make, count: int, rounds: int) -> tuple[float, float, float]:  # 
 
 
 def dask_runner(workers: int) -> Runner:
+    import logging
+
     from distributed import LocalCluster
 
     cluster = LocalCluster(
+        silence_logs=logging.ERROR,
         n_workers=workers,
         threads_per_worker=1,
         processes=True,
@@ -146,8 +149,9 @@ def main() -> int:
     # about 3 s on one worker (a kinematic run takes about 0.7 ms; a grid of 2000, what it
     # was when a run took 12 ms, timed the pools' dispatch more than the search), in
     # several short rounds rather than a few long ones: this machine's slow spells last
-    # seconds, and each side counts its fastest round
-    count, rounds = (60, 2) if quick else (400, 6)
+    # seconds, and each side counts its fastest round. Ten: with six, one make bench read
+    # Dask's two workers at 2.59 s where six runs outside it read 1.84 to 2.21 s
+    count, rounds = (60, 2) if quick else (400, 10)
     print(
         f"== parallel efficiency, 1 -> 2 workers: a kinematic grid of {count * 10} runs, "
         f"best of {rounds} rounds, 1 and 2 workers in turn"

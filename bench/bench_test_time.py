@@ -39,6 +39,24 @@ def board_tests() -> dict[str, int]:
     return {board: sum(1 for i in ids if board in i.lower()) for board in BOARDS}
 
 
+STAGE_LOGS = ("qemu", "serial", "late", "fuzz", "wheel")
+"""The stages whose output `make test` keeps in build/test-NAME.log (the parallel stage
+prints its own)."""
+
+
+def stage_summaries(stdout: str) -> dict[str, str]:
+    """Each stage's pytest summary line (its counts and time): the parallel stage's from
+    ``stdout``, the others' from their logs."""
+    out = {}
+    if found := re.search(r"=+ (\d+ passed[^=]*?) =+\s*$", stdout, re.MULTILINE):
+        out["parallel"] = found.group(1)
+    for name in STAGE_LOGS:
+        path = ROOT / "build" / f"test-{name}.log"
+        tail = path.read_text(errors="replace").strip().splitlines()[-1:] if path.exists() else []
+        out[name] = tail[0].strip(" =") if tail else "no log"
+    return out
+
+
 def main() -> int:
     print(f"== machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}")
     env = {k: v for k, v in os.environ.items() if k not in ("MAKEFLAGS", "MFLAGS", "MAKELEVEL")}
@@ -54,11 +72,8 @@ def main() -> int:
     wall = time.monotonic() - t0
     lines = run.stdout.splitlines()
     busy = any("other work keeps" in line for line in lines)
-    # each stage's pytest summary (the dots of the lanes beside it may share its line)
-    stage = re.compile(r"((qemu|serial|fuzz|late) tests:|package check:|=+ \d+ passed).*")
-    for line in lines:
-        if found := stage.search(line):
-            print(f"   {found.group(0).strip(' =')}")
+    for name, summary in stage_summaries(run.stdout).items():
+        print(f"   {name:9} {summary}")
     counts = board_tests()
     verdict = "met" if wall <= GOAL_S and run.returncode == 0 else "MISS"
     print(

@@ -10,6 +10,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
+from firmware_support import build_firmware
 from test_cm530_boot import assert_boots_as_the_cm530_needs
 
 from snakebot.paths import REPO_ROOT
@@ -38,19 +39,28 @@ MUTANTS = {
 
 
 def build_mutant(tmp: Path, name: str) -> bytes:
+    """The CM-530 image with the mutant's edit, built by `make` as after editing a
+    checkout: beside a copy of the checkout's up-to-date build (sources and objects
+    keep their times, and the objects' recorded header dependencies name the build
+    directory as `../build`, as here), so that only what the edit touches is rebuilt."""
     if shutil.which("arm-none-eabi-gcc") is None:
         pytest.skip("arm-none-eabi-gcc is not installed: make setup")
-    src = tmp / "firmware"
+    build_firmware()
+    src, build = tmp / "firmware", tmp / "build"
     shutil.copytree(REPO_ROOT / "firmware", src)
+    for part in ("core", "cm530"):
+        shutil.copytree(REPO_ROOT / "build" / part, build / part)
     path, old, new = MUTANTS[name]
     text = (src / path).read_text()
     assert old in text, f"{path} no longer has {old!r}: update the mutant"
     (src / path).write_text(text.replace(old, new))
-    build = tmp / "build"
-    subprocess.run(
-        ["make", "-C", str(src), "cm530", f"BUILD={build}"], check=True, capture_output=True
+    done = subprocess.run(
+        ["make", "-C", str(src), "cm530"], check=True, capture_output=True, text=True
     )
-    return (build / "cm530" / "firmware.bin").read_bytes()
+    image = (build / "cm530" / "firmware.bin").read_bytes()
+    # the edit was compiled in (else the check below would judge the real image)
+    assert image != (REPO_ROOT / "build" / "cm530" / "firmware.bin").read_bytes(), done.stdout
+    return image
 
 
 @pytest.mark.parametrize("name", sorted(MUTANTS))

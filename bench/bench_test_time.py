@@ -44,23 +44,26 @@ STAGE_LOGS = ("qemu", "serial", "late", "fuzz", "wheel")
 prints its own)."""
 
 
-def stage_summaries(stdout: str) -> dict[str, str]:
+def stage_summaries(stdout: str, since: float) -> dict[str, str]:
     """Each stage's pytest summary line (its counts and time): the parallel stage's from
-    ``stdout``, the others' from their logs."""
+    ``stdout``, the others' from their logs written after ``since`` (a wall-clock time;
+    an older log is an earlier run's)."""
     out = {}
-    if found := re.search(r"=+ (\d+ passed[^=]*?) =+\s*$", stdout, re.MULTILINE):
+    summary = r"=+ (\d+ (?:passed|failed|errors?|skipped)[^=]*?) =+\s*$"
+    if found := re.search(summary, stdout, re.MULTILINE):
         out["parallel"] = found.group(1)
     for name in STAGE_LOGS:
         path = ROOT / "build" / f"test-{name}.log"
-        tail = path.read_text(errors="replace").strip().splitlines()[-1:] if path.exists() else []
-        out[name] = tail[0].strip(" =") if tail else "no log"
+        fresh = path.exists() and path.stat().st_mtime >= since
+        tail = path.read_text(errors="replace").strip().splitlines()[-1:] if fresh else []
+        out[name] = tail[0].strip(" =") if tail else "not run"
     return out
 
 
 def main() -> int:
     print(f"== machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}")
     env = {k: v for k, v in os.environ.items() if k not in ("MAKEFLAGS", "MFLAGS", "MAKELEVEL")}
-    t0 = time.monotonic()
+    t0, began = time.monotonic(), time.time()
     run = subprocess.run(
         ["make", "--no-print-directory", "test"],
         cwd=ROOT,
@@ -72,7 +75,7 @@ def main() -> int:
     wall = time.monotonic() - t0
     lines = run.stdout.splitlines()
     busy = any("other work keeps" in line for line in lines)
-    for name, summary in stage_summaries(run.stdout).items():
+    for name, summary in stage_summaries(run.stdout, began).items():
         print(f"   {name:9} {summary}")
     counts = board_tests()
     verdict = "met" if wall <= GOAL_S and run.returncode == 0 else "MISS"

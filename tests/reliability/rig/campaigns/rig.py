@@ -44,6 +44,8 @@ PC_RETRIES = 3
 """The PC-link client's tries after the first: with the library's allowance for a program
 on this host (``timing.PROGRAM_MARGIN_S``) the controller counts as lost only after two
 seconds of silence, which a busy host's scheduling does not make."""
+QUIET_WAIT_S = 5.0
+"""How long a stopped controller may take to stop using the bus on a busy host."""
 
 
 @dataclass
@@ -364,9 +366,21 @@ class Rig:
         self.command(Command.STOP)
         self.polling = False
         self.write({"Joint Count": 0})
-        time.sleep(0.15)  # past the last reply window (30 ms) and a few ticks
+        # A READ already in flight finishes in the firmware's time, which a busy host
+        # stretches: wait until no packet has come for a while (past the last reply
+        # window, 30 ms, and a few ticks), so the tap and the registers count the same.
+        deadline = time.monotonic() + QUIET_WAIT_S
         with self.server.lock:
-            self.tap.quiet()
+            seen = self.tap.packets
+        while True:
+            time.sleep(0.15)
+            with self.server.lock:
+                if self.tap.packets == seen:
+                    self.tap.quiet()
+                    break
+                seen = self.tap.packets
+            if time.monotonic() > deadline:
+                raise CampaignFailed(f"the bus did not go quiet within {QUIET_WAIT_S} s of STOP")
         self.check_alive()
         return self.look()
 

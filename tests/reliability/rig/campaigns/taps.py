@@ -36,6 +36,7 @@ class Tap:
     goals_outside: int = 0
     torque_on: int = 0
     torque_off: int = 0
+    packets: int = 0  # every packet the firmware put on the bus
     reads_sent: int = 0
     reads_answered: int = 0  # an intact reply of the right shape reached the firmware
     reads_damaged: int = 0  # a damaged reply from the addressed servo reached it
@@ -83,6 +84,7 @@ class Tap:
         for event in self._sent.feed(data):
             if not isinstance(event, Packet):
                 continue
+            self.packets += 1
             self._close_read()
             prelude = bytes(self._prelude)
             self._prelude.clear()

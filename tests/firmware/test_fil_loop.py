@@ -1,10 +1,11 @@
-"""The full loop on the real firmware in QEMU: a serpenoid table for snake5 uploaded and
-played through the `snakebot` commands on the firmware's PC link, the emulated servos
-following the firmware's bus master, and the emulated world's body advancing as the table
-predicts; and an overload injected in a servo putting the player in its safe state, which
-`snakebot monitor --json` reports. On QEMU, whose emulator costs the QEMU stage a third of
-the CPU the emulated CM-530 does: the same chain on the CM-530's image is the demo's test
-(tests/firmware/test_demo.py), upload and play on both boards test_controller_cli_fil.py.
+"""The full loop on the real firmware: a serpenoid table for snake5 uploaded and played
+through the `snakebot` commands on the firmware's PC link, the emulated servos following
+the firmware's bus master, and the emulated world's body advancing as the table predicts
+(in QEMU, whose emulator costs the QEMU stage a third of the CPU the emulated CM-530
+does: the same chain on the CM-530's image is the demo's test, tests/firmware/test_demo.py,
+upload and play on both boards test_controller_cli_fil.py); and an overload injected in a
+servo putting the player in its safe state, which `snakebot monitor --json` reports, on
+both boards.
 
 (Uploads cut off after the k-th chunk, corrupted chunks, garbage on the PC link and failed
 commits are tested in test_controller_cli_upload.py, test_controller_cli_fil.py and
@@ -19,7 +20,7 @@ import time
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from firmware_support import build_firmware
+from firmware_support import BOARDS, build_firmware, widen_margin
 
 from snakebot.cli import main
 from snakebot.facts.boards import CONTROL_TICK_MS
@@ -50,6 +51,18 @@ def robot():
     build_firmware()
     with EmulatedRobot("snake5", board="qemu") as emulated:
         yield emulated
+
+
+@pytest.fixture(params=BOARDS)
+def any_board(request, robot):
+    """The emulated robot on each board (the module's QEMU one for the qemu board)."""
+    if request.param == "qemu":
+        yield robot
+        return
+    with pytest.MonkeyPatch.context() as env:
+        widen_margin(request.param, env)
+        with EmulatedRobot("snake5", board=request.param) as emulated:
+            yield emulated
 
 
 @pytest.fixture(scope="module")
@@ -127,11 +140,14 @@ def test_upload_play_and_the_snake_advances_as_predicted(robot, gait, tmp_path):
     assert c.verdict != "DISAGREE", c.as_dict()
 
 
-def test_an_overload_puts_the_player_in_its_safe_state_and_monitor_shows_it(robot, gait, tmp_path):
+def test_an_overload_puts_the_player_in_its_safe_state_and_monitor_shows_it(
+    any_board, gait, tmp_path
+):
     """A servo pushed harder than it can hold reports OVERLOAD, its alarm shutdown cuts its
     torque; the firmware's next telemetry read of it sees the error bit (in its default
     Servo Error Mask), stops the gait, enters SAFE and switches every servo's torque off
     (Safe Action TORQUE_OFF)."""
+    robot = any_board
     path = tmp_path / "walk.gait"
     write_gait(path, gait.gait_table())
     port = robot.info.pc_link

@@ -189,9 +189,25 @@ upload, play) run on: the CM-530's image on the emulated STM32F103RE, the defaul
 the qemu board's build under QEMU, a second, independent emulator of the same core."""
 
 
+def kept_capacity(board: str) -> int:
+    """The most bytes a table on ``board`` may take and still never give way to an upload
+    staged while it is active: the arena less the staging area (Table Capacity), or the
+    capacity where the arena holds both whole (protocol/controller.md, "Where a table is
+    staged")."""
+    capacity = board_value(board, "BOARD_TABLE_CAPACITY")
+    return min(capacity, board_value(board, "BOARD_TABLE_ARENA") - capacity)
+
+
 CM530_MARGIN_MS = 3000
 """The reply margin the clients get from the emulated CM-530 in the tests' own process
 (``SNAKEBOT_MARGIN_MS``; tests/firmware/test_cm530_cli.py's too)."""
+
+
+def widen_margin(board: str, env: pytest.MonkeyPatch) -> None:
+    """Give the clients in this process :data:`CM530_MARGIN_MS` when ``board`` is the
+    emulated CM-530, which runs in this process (as :func:`running` does)."""
+    if board == "cm530":
+        env.setenv("SNAKEBOT_MARGIN_MS", str(CM530_MARGIN_MS))
 
 
 class Running:
@@ -300,7 +316,7 @@ def running(
         # peripheral, beside the in-process clients: on a loaded machine it may fall
         # below real time while the bus is busy (it then slows its clock rather than pile
         # up a backlog), so its replies get a wider margin than a board's.
-        env.setenv("SNAKEBOT_MARGIN_MS", str(CM530_MARGIN_MS))
+        widen_margin(board, env)
         wait_for_boot(fw.pc_link)
         yield Running(board, fw.pc_link, bus, fw.lock, fw)
         assert fw.error is None, fw.error

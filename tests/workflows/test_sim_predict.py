@@ -81,7 +81,7 @@ def test_a_table_played_once_ends_where_the_loaded_servos_come_to_rest():
     """A plan's table ends held at its last frame; the servos, lagging it under the
     body's load, still move the body after the last goal, by more than the plan's
     tolerance: the emulated end is where they stop, as a robot (or `sim serve`'s,
-    tests/firmware/test_program_qemu.py) stops."""
+    tests/firmware/test_program_fil.py) stops."""
     plan = make_plan(PlanRequest(load_robot("trident"), (0.5, 0.2, math.radians(10))))
     table = plan.gait.gait_table()
     result = predict_gait(table, plan.robot)

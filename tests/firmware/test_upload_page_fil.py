@@ -1,6 +1,7 @@
 """Long upload chunks (Upload Data and window page Upload Data 2 in one WRITE) on the real
-firmware image under QEMU, its servo bus corrupted as in the fault campaigns (1 % of the
-bytes get a flipped bit): the largest table goes in long chunks and lands whole, a long
+firmware image on both boards (the CM-530's on the emulated STM32F103RE, the qemu board's
+under QEMU), its servo bus corrupted as in the fault campaigns (1 % of the
+bytes get a flipped bit): the board's largest table goes in long chunks and lands whole, a long
 chunk damaged on the PC link is dropped and the commit says so, and a long chunk that
 would pass the staging area is refused whole."""
 
@@ -10,7 +11,7 @@ import zlib
 
 import pytest
 from controller_cli_support import SNAKE5_IDS, cli_json, constant_table, save, wave_table
-from firmware_support import CONTROLLER_ID, board_value, booted_qemu, client
+from firmware_support import BOARDS, CONTROLLER_ID, board_value, booted, client, kept_capacity
 
 from snakebot.formats.gaittable import max_frames
 from snakebot.formats.protocol import ErrorFlags, ServoError, write
@@ -23,18 +24,20 @@ pytestmark = [pytest.mark.qemu, pytest.mark.timeout(300)]
 CTL = load()
 LONG = chunk_limit(CTL, long_chunks=True)
 CORRUPT = 0.01  # the fault campaigns' corrupt-1pct
-CAPACITY = board_value("qemu", "BOARD_TABLE_CAPACITY")  # the QEMU board's Table Capacity
 
 
-@pytest.fixture(scope="module")
-def firmware(tmp_path_factory):
+@pytest.fixture(scope="module", params=BOARDS)
+def firmware(request, tmp_path_factory):
+    """The board's PC link, and its Table Capacity."""
     faults = FaultConfig(seed=7, corrupt=CORRUPT)
-    with booted_qemu(tmp_path_factory.mktemp("bus"), faults=faults) as port:
-        yield port
+    with booted(request.param, tmp_path_factory.mktemp("bus"), faults=faults) as port:
+        yield request.param, port
 
 
 def test_the_largest_table_uploads_in_long_chunks_on_the_firmware(firmware, tmp_path):
-    path = save(wave_table(frames=max_frames(4, CAPACITY)), tmp_path)
+    board, firmware = firmware
+    capacity = board_value(board, "BOARD_TABLE_CAPACITY")
+    path = save(wave_table(frames=max_frames(4, capacity)), tmp_path)
     crc = zlib.crc32(path.read_bytes())
     for _ in range(2):  # the second replaces the first the same way
         report = cli_json("upload", path, "--port", firmware)
@@ -44,8 +47,16 @@ def test_the_largest_table_uploads_in_long_chunks_on_the_firmware(firmware, tmp_
 
 
 def test_a_damaged_long_chunk_is_dropped_and_a_refused_one_stages_nothing(firmware, tmp_path):
-    # not the table the staging area holds from the test before: a lost chunk must show
-    data = constant_table(600, frames=max_frames(len(SNAKE5_IDS), CAPACITY)).encode()
+    board, firmware = firmware
+    # an active table no upload displaces (the CM-530's largest give way to the chunks)
+    kept = save(wave_table(frames=max_frames(4, kept_capacity(board))), tmp_path, "kept.gait")
+    assert (
+        cli_json("upload", kept, "--port", firmware)["crc"]
+        == f"0x{zlib.crc32(kept.read_bytes()):08x}"
+    )
+    capacity = board_value(board, "BOARD_TABLE_CAPACITY")
+    # not the table the staging area holds from before: a lost chunk must show
+    data = constant_table(600, frames=max_frames(len(SNAKE5_IDS), capacity)).encode()
     writes = chunk_writes(data, controller=CTL, long_chunks=True)
     length = CTL.register("Upload Length").address
     with client(firmware) as c:

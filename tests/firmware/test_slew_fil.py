@@ -1,4 +1,5 @@
-"""Live steering on the real firmware in QEMU: a large step in Serp Phi0 written while the
+"""Live steering on the real firmware, on both boards (the CM-530's image on the emulated
+STM32F103RE, the qemu board's build in QEMU): a large step in Serp Phi0 written while the
 serpenoid runs reaches the emulated servos as a slew, every goal they receive within what
 the servo covers at its top speed in the time since the previous one (the bound the
 firmware derives from ax12_table.h, checked against the description in
@@ -11,7 +12,7 @@ import time
 
 import numpy as np
 import pytest
-from firmware_support import build_firmware
+from firmware_support import BOARDS, board_value, build_firmware, widen_margin
 
 from snakebot.core import lib
 from snakebot.link.controller.client import ControllerClient
@@ -20,7 +21,6 @@ from snakebot.sim.serve import EmulatedRobot
 
 pytestmark = [pytest.mark.qemu, pytest.mark.slow, pytest.mark.serial]
 
-CONTROL_TICK_MS = 10  # firmware/boards/qemu/board.h: a goal may come one tick late
 PHI0_STEP = math.radians(50)  # about eight ticks' worth of the servo's top speed
 OMEGA = math.pi
 PERIOD_S = 2 * math.pi / OMEGA
@@ -45,9 +45,12 @@ def _record_goals(robot: EmulatedRobot) -> dict[int, list[tuple[float, int]]]:
     return received
 
 
-def test_a_large_phi0_step_reaches_the_servos_slewed():
+@pytest.mark.parametrize("board", BOARDS)
+def test_a_large_phi0_step_reaches_the_servos_slewed(board: str, monkeypatch):
     build_firmware()
-    with EmulatedRobot("snake5", board="qemu") as robot:
+    widen_margin(board, monkeypatch)
+    tick_ms = board_value(board, "BOARD_CONTROL_TICK_MS")  # a goal may come one tick late
+    with EmulatedRobot("snake5", board=board) as robot:
         ctl = ControllerClient.open(robot.info.pc_link)
         try:
             wave = SerpenoidSettings(amplitude=math.radians(20), omega=OMEGA, delta=1.5)
@@ -70,7 +73,7 @@ def test_a_large_phi0_step_reaches_the_servos_slewed():
         t, goals = (np.array(v) for v in zip(*logs[joint.servo_id], strict=True))
         assert len(goals) > 200  # goals kept coming at the control tick
         dt_ms = np.diff(t) * 1000
-        bounds = [lib.play_slew_step_bound(int(math.ceil(d)) + CONTROL_TICK_MS) for d in dt_ms]
+        bounds = [lib.play_slew_step_bound(int(math.ceil(d)) + tick_ms) for d in dt_ms]
         steps = np.abs(np.diff(goals))
         worst = np.argmax(steps - bounds)
         assert np.all(steps <= bounds), (joint.name, steps[worst], bounds[worst], dt_ms[worst])

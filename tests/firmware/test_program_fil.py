@@ -1,4 +1,5 @@
-"""Programs on the real firmware in QEMU, through `sim serve`'s emulated robot: a
+"""Programs on the real firmware on both boards (the CM-530's image on the emulated
+STM32F103RE, the qemu board's build in QEMU), through `sim serve`'s emulated robot: a
 three-segment program (periodic input, serpenoid, table) uploaded with the host's
 uploader (Upload Commit PROGRAM) and started as `snakebot play` starts it (PROGRAM_RUN)
 reaches the emulated servos as the host predicts, every goal within one tick, in order,
@@ -12,7 +13,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from firmware_support import build_firmware
+from firmware_support import BOARDS, build_firmware, widen_margin
 from host_queue import HostQueue
 
 from snakebot.facts.devices import ax12
@@ -81,8 +82,8 @@ def _record_goals(robot: EmulatedRobot, ids: tuple[int, ...]) -> list[list[int]]
 
 
 DONE_WAIT = 4.0
-"""How many times a program's own duration the tests wait for it to end: QEMU runs in
-real time, and a busy host may deschedule it for a while."""
+"""How many times a program's own duration the tests wait for it to end: the emulators
+run in real time, and a busy host may deschedule them for a while."""
 
 
 def program_done(ctl, duration_s: float, *more: str) -> dict:
@@ -97,9 +98,11 @@ def program_done(ctl, duration_s: float, *more: str) -> dict:
         time.sleep(0.1)
 
 
-def test_a_program_reaches_the_servos_as_predicted():
+@pytest.mark.parametrize("board", BOARDS)
+def test_a_program_reaches_the_servos_as_predicted(board: str, monkeypatch):
     build_firmware()
-    with EmulatedRobot("snake5", board="qemu") as robot:
+    widen_margin(board, monkeypatch)
+    with EmulatedRobot("snake5", board=board) as robot:
         program = three_segments(robot)
         ids = program.joint_ids
         ctl = ControllerClient.open(robot.info.pc_link)
@@ -122,7 +125,7 @@ def test_a_program_reaches_the_servos_as_predicted():
     # Each control tick's goals match the prediction within one tick at some step, the
     # steps never going back (the bus delivers a tick's goals whole and in order; the
     # 10 ms control tick samples the 20 ms steps, so a step may be seen twice or missed
-    # when QEMU runs late).
+    # when the emulator runs late).
     step = 0
     seen = []
     for goals in received:
@@ -135,7 +138,8 @@ def test_a_program_reaches_the_servos_as_predicted():
 
 
 ATTEMPTS = 3
-"""Plays of the planned program tried: one in which the host let QEMU run is judged."""
+"""Plays of the planned program tried: one in which the host let the emulator run is
+judged."""
 
 REST_WAIT_S = 5.0
 """How long the servos may take to come to rest after the program is DONE (in process
@@ -166,8 +170,9 @@ def _at_rest(robot: EmulatedRobot) -> dict[str, float]:
 PACE_SLACK = 0.01
 """A play whose goals changed over this much longer than the program's steps take (in
 the world's time; two of the goal log's samples) ran the firmware slower than the bus
-clock: QEMU runs it in real time, so a host that keeps QEMU's CPU waiting (outside the
-real-time class, beside other work: 2 to 36 % slow) loses it control ticks. The loaded
+clock: the emulators run it in real time, so a host that keeps the emulator's CPU
+waiting (outside the real-time class, beside other work: 2 to 36 % slow in QEMU) loses
+it control ticks. The loaded
 servos' lag depends on the pace (in process, goals 2 % slower end the body 5 mm further,
 6.6 % slower 15 mm; the tolerance is 8.5 mm), so such a play is judged against the
 prediction at the pace it was played at."""
@@ -197,12 +202,13 @@ def _predicted(program: Program, pace: float) -> np.ndarray:
     return np.array([moved["dx"], moved["dy"], moved["dtheta"]])
 
 
-def _play_planned(program: Program) -> tuple[np.ndarray, bool, float]:
-    """Where the world's body ends after the firmware in QEMU plays ``program``, whether
-    the host kept QEMU's CPU waiting for much of the play (then the firmware's ticks came
-    late and bunched: a uniform pace does not describe them) and the pace it played at."""
-    with EmulatedRobot("trident", board="qemu") as robot:
-        queue = HostQueue(robot.info.qemu_pid)
+def _play_planned(program: Program, board: str) -> tuple[np.ndarray, bool, float]:
+    """Where the world's body ends after the firmware on ``board`` plays ``program``,
+    whether the host kept the emulator's CPU waiting for much of the play (then the
+    firmware's ticks came late and bunched: a uniform pace does not describe them) and the
+    pace it played at."""
+    with EmulatedRobot("trident", board=board) as robot:
+        queue = HostQueue(robot.info.qemu_pid)  # QEMU, or this process for the CM-530
         ctl = ControllerClient.open(robot.info.pc_link)
         try:
             upload_gait(ctl, program)
@@ -218,26 +224,28 @@ def _play_planned(program: Program) -> tuple[np.ndarray, bool, float]:
     return np.array([moved["dx"], moved["dy"], moved["dtheta"]]), starved, pace
 
 
-def test_a_planned_program_takes_the_robot_where_predicted(tmp_path):
-    """`snakebot plan trident --to ... -o go.prog`, uploaded to the firmware in QEMU and
+@pytest.mark.parametrize("board", BOARDS)
+def test_a_planned_program_takes_the_robot_where_predicted(board: str, tmp_path, monkeypatch):
+    """`snakebot plan trident --to ... -o go.prog`, uploaded to the firmware on the board and
     run there: the world's body ends where `sim predict go.prog` says, on the same
     modelled servos (the controller's player in process), both where the servos come
     to rest; and the program's reference goals end near the plan's target.
-    A play in which the host kept QEMU waiting is tried again (QEMU runs in real time);
+    A play in which the host kept the emulator waiting is tried again (it runs in real time);
     one the firmware played slower than its steps is judged at the pace it played at."""
     build_firmware()
+    widen_margin(board, monkeypatch)
     target = (0.4, 0.15, 0.25)
     plan = plan_program(PlanRequest(load_robot("trident"), target))
     path = tmp_path / "go.prog"
     write_program(path, plan.program)
     predicted = predict_program(path).summary()
-    emulated = predicted["emulated"]  # modelled AX-12s, as in QEMU's world
+    emulated = predicted["emulated"]  # modelled AX-12s, as in the board's world
     expected = np.array([emulated["dx"], emulated["dy"], emulated["dtheta"]])
     tolerance = plan.tolerance
 
     late = []
     for _ in range(ATTEMPTS):
-        end, starved, pace = _play_planned(plan.program)
+        end, starved, pace = _play_planned(plan.program, board)
         # never faster than its steps: the firmware's clock is the bus clock's
         assert pace > 1 - PACE_SLACK, pace
         at_pace = expected if pace <= 1 + PACE_SLACK else _predicted(plan.program, pace)
@@ -247,7 +255,7 @@ def test_a_planned_program_takes_the_robot_where_predicted(tmp_path):
             break
         late.append(f"{off * 1000:.1f} mm off at {pace:.3f}x")
     assert len(late) < ATTEMPTS, (
-        "the host kept QEMU's CPU waiting through every play, so where the body ended says "
+        "the host kept the emulator's CPU waiting through every play, so where the body ended says "
         f"nothing about the firmware ({'; '.join(late)}): run it with less beside it"
     )
     assert off <= tolerance.position, (end, at_pace, pace, f"plays lost to the host: {late}")

@@ -249,23 +249,25 @@ def test_a_plan_fits_the_capacity_it_is_made_for(tmp_path, board, capacity):
 
 @pytest.mark.qemu
 @pytest.mark.timeout(300)
-def test_a_plan_for_the_qemu_firmwares_capacity_fits_and_uploads(tmp_path):
-    """--port asks the firmware under QEMU for its Table Capacity: the plan is made for
-    it, fits it and the firmware takes it. (A snake5 target whose plan outgrows the QEMU
-    board, one body length ahead, is among the planner's open cases, PLANNER_LIMIT.)"""
+@pytest.mark.parametrize("board", ["cm530", "qemu"])
+def test_a_plan_for_the_firmwares_capacity_fits_and_uploads(board, tmp_path):
+    """--port asks the firmware on each emulated board for its Table Capacity: the plan
+    is made for it, fits it and the firmware takes it. (A snake5 target whose plan
+    outgrows the QEMU board, one body length ahead, is among the planner's open cases,
+    PLANNER_LIMIT.)"""
     from controller_cli_support import cli_json
-    from firmware_support import booted_qemu
+    from firmware_support import booted
 
     target = ",".join(f"{v:.6f}" for v in SNAKE5_REACHED)
-    qemu = board_value("qemu", "BOARD_TABLE_CAPACITY")
+    capacity = board_value(board, "BOARD_TABLE_CAPACITY")
 
     out = tmp_path / "plan.gait"
-    with booted_qemu(tmp_path, "snake5") as port:
+    with booted(board, tmp_path, "snake5") as port:
         result = run("plan", "snake5", "--to", target, "--port", port, "-o", out, "--json")
         assert result.exit_code == 0, result.output
         report = json.loads(result.stdout)
-        assert report["capacity_bytes"] == qemu
-        assert report["table_bytes"] == out.stat().st_size <= qemu
+        assert report["capacity_bytes"] == capacity
+        assert report["table_bytes"] == out.stat().st_size <= capacity
         uploaded = cli_json("upload", out, "--port", port)
         assert uploaded["bytes"] == out.stat().st_size
 

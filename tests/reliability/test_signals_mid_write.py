@@ -151,11 +151,12 @@ def _relay(device: str, hold_after: int) -> Iterator[tuple[str, threading.Event]
             os.close(fd)
 
 
-@pytest.fixture(scope="module")
-def firmware(tmp_path_factory):
-    from firmware_support import served_firmware
+@pytest.fixture(scope="module", params=["cm530", "qemu"])
+def firmware(request, tmp_path_factory):
+    """Each board's firmware: the CM-530 keeps its library in flash, QEMU's in RAM."""
+    from firmware_support import booted
 
-    with served_firmware(tmp_path_factory.mktemp("bus")) as port:
+    with booted(request.param, tmp_path_factory.mktemp("bus")) as port:
         yield port
 
 

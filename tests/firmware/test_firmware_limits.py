@@ -1,4 +1,5 @@
-"""The servos enforce the robot's limits (issue #17): the firmware in QEMU, on an emulated
+"""The servos enforce the robot's limits (issue #17): the firmware on either board (the
+CM-530's image on the emulated chip, the qemu board's build under QEMU), on an emulated
 bus of three AX-12s, makes each servo's CW/CCW Angle Limit equal to the robot's limits
 set from the host, writing the servo's EEPROM only where it differs and reading it back;
 refuses tables that reach beyond those limits; and will not move while a servo has not
@@ -10,10 +11,8 @@ them in RAM only)."""
 
 from __future__ import annotations
 
-import tempfile
 import time
 from collections.abc import Iterator
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,11 +20,11 @@ from controller_cli_support import cli, cli_json, save, wave_table
 from ctl_support import CTL, CTL_ID, Device, ffi, lib
 from firmware_support import (
     APP_BASE,
-    QEMU_DIR,
+    BOARDS,
+    Running,
     board_value,
     build_firmware,
     running,
-    wait_for_boot,
 )
 
 from snakebot.formats.gaittable import GaitTable
@@ -44,15 +43,14 @@ from snakebot.model.robots import load_robot
 from snakebot.model.robots.model import TORQUE_LIMIT
 from snakebot.sim.bus.bus import Bus
 from snakebot.sim.bus.faults import FaultConfig
-from snakebot.sim.options import SimOptions
-from snakebot.sim.qemu import Endpoint, QemuFirmware
 from snakebot.sim.servo.fast import VirtualServo
-from snakebot.sim.transports.unixsock import UnixSocketServer
-from tests.reliability.rig.campaigns import FRAMES, IDS, LIMITS, PERIOD_MS, Rig, gait_table
+from tests.reliability.rig.campaigns import FRAMES, IDS, LIMITS, PERIOD_MS, gait_table
+from tests.reliability.rig.campaigns.rig import PC_RETRIES
+from tests.reliability.rig.campaigns.taps import AuditedServo
 
-# QEMU paces the PC link at 57600 baud in software: beside a CPU-bound suite on a 2-core
-# machine its replies can miss the client's deadline, so these are `serial` (run apart
-# from the rest of the suite).
+# QEMU paces the PC link at 57600 baud in software, and the emulated CM-530 runs in the
+# tests' own process: beside a CPU-bound suite on a 2-core machine their replies can miss
+# the client's deadline, so these are `serial` (run apart from the rest of the suite).
 pytestmark = [pytest.mark.qemu, pytest.mark.serial]
 
 ROBOT = dict(zip(IDS, LIMITS, strict=True))
@@ -64,28 +62,57 @@ def firmware() -> None:
     build_firmware()
 
 
-@pytest.fixture
-def rig() -> Iterator[Rig]:
-    with tempfile.TemporaryDirectory(prefix="snakebot-limits-") as tmp:
-        with Rig(FaultConfig(seed=1), Path(tmp)) as r:
-            yield r
+class Rig:
+    """What these tests use of the reliability campaigns' rig (tests/reliability/rig), on
+    either board: the firmware running on a bus of three audited AX-12s (each counts the
+    WRITEs that reached its angle limits), a controller client on its PC link, and the
+    upload sequence. Read the bus holding :attr:`lock`."""
+
+    def __init__(self, fw: Running, servos: list[AuditedServo], ctl: ControllerClient) -> None:
+        self.board = fw.board
+        self.bus = fw.bus
+        self.lock = fw.lock
+        self.servos = servos
+        self.ctl = ctl
+
+    def write(self, values: dict[str, int]) -> None:
+        self.ctl.write(values)
+
+    def command(self, cmd: Command) -> None:
+        self.ctl.write({"Command": int(cmd)})
+
+    def upload(self, blob: bytes) -> int:
+        """The upload sequence; returns Upload Result."""
+        return _upload(self.ctl, blob)
+
+
+@pytest.fixture(params=BOARDS)
+def rig(request, tmp_path) -> Iterator[Rig]:
+    servos = [AuditedServo(i, lim) for i, lim in zip(IDS, LIMITS, strict=True)]
+    bus = Bus(servos, faults=FaultConfig(seed=1))
+    with (
+        running(request.param, tmp_path, bus=bus) as fw,
+        # The campaigns' retries: a busy host may delay a reply past the margin.
+        ControllerClient.open(fw.pc_link, retries=PC_RETRIES) as ctl,
+    ):
+        yield Rig(fw, servos, ctl)
 
 
 def preset(rig: Rig, servo_id: int, limits: tuple[int, int]) -> None:
     """Give a servo these angle limits in its EEPROM, as a previous run would have."""
-    with rig.server.lock:
+    with rig.lock:
         servo = rig.bus.servo(servo_id)
         servo.set_register("CW Angle Limit", limits[0])
         servo.set_register("CCW Angle Limit", limits[1])
 
 
 def held(rig: Rig) -> list[tuple[int, int]]:
-    with rig.server.lock:
+    with rig.lock:
         return [s.angle_limits() for s in rig.servos]
 
 
 def writes(rig: Rig) -> list[int]:
-    with rig.server.lock:
+    with rig.lock:
         return [s.angle_limit_writes for s in rig.servos]
 
 
@@ -130,14 +157,14 @@ def test_servos_take_the_robot_limits_written_only_where_they_differ(rig):
 
 
 def torques(rig: Rig) -> list[int]:
-    with rig.server.lock:
+    with rig.lock:
         return [s.regs.get("Torque Limit") for s in rig.servos]
 
 
 def test_servos_take_the_robot_torque_limit_and_get_it_back_after_a_power_cycle(rig):
     torque = TORQUE_LIMIT.from_units(60.0)  # 60 % of stall torque
     full = TORQUE_LIMIT.value_range()[1]
-    with rig.server.lock:
+    with rig.lock:
         rig.servos[0].set_register("Torque Limit", torque)  # servo 1 holds it already
     assert torques(rig) == [torque, full, full]
 
@@ -153,7 +180,7 @@ def test_servos_take_the_robot_torque_limit_and_get_it_back_after_a_power_cycle(
     rig.command(Command.PLAY)
     assert rig.ctl.read("State")["State"] == State.PLAYING
     eeprom_writes = writes(rig)
-    with rig.server.lock:
+    with rig.lock:
         servo = rig.servos[2]
         servo.power_off(servo.t)
         servo.power_on(servo.t)
@@ -199,7 +226,7 @@ def test_malformed_robot_limits_are_refused(rig):
 
 def test_a_servo_that_will_not_take_them_stops_the_controller_from_moving(rig):
     assert rig.upload(gait_table()) == UploadResult.OK
-    with rig.server.lock:
+    with rig.lock:
         rig.bus.servo(2).set_register("Lock", 1)  # EEPROM writes refused until power-off
     with pytest.raises(LimitsError, match="FAILED"):
         set_limits(rig.ctl, ROBOT, timeout_s=20.0)
@@ -210,7 +237,7 @@ def test_a_servo_that_will_not_take_them_stops_the_controller_from_moving(rig):
     r = rig.ctl.read("State", "Error Flags")
     assert r["State"] == State.IDLE and r["Error Flags"] & ControllerErrors.REFUSED
     # unlocked (power-cycled), CLEAR checks again, and it may move
-    with rig.server.lock:
+    with rig.lock:
         rig.bus.servo(2).set_register("Lock", 0)
     rig.command(Command.CLEAR)
     assert settled(rig, 20.0) == "VERIFIED"
@@ -219,20 +246,15 @@ def test_a_servo_that_will_not_take_them_stops_the_controller_from_moving(rig):
     assert rig.ctl.read("State")["State"] == State.PLAYING
 
 
-def test_limits_set_from_the_robot_file_then_a_wider_table_is_refused(tmp_path):
+@pytest.mark.parametrize("board", BOARDS)
+def test_limits_set_from_the_robot_file_then_a_wider_table_is_refused(board, tmp_path):
     """`snakebot limits set snake5`, then a table made for +-145 degree joints on the same
     servo IDs: refused by the controller with the reason and the fix; snake5's own
     table is taken."""
     robot = load_robot("snake5")
     wanted = [tuple(lim) for lim in robot.tick_limits]
-    sock = tmp_path / "bus.sock"
-    bus = SimOptions(robot="snake5").build_bus()
-    with (
-        UnixSocketServer(bus, sock) as server,
-        QemuFirmware(QEMU_DIR / "flash.bin", bus=Endpoint.unix_client(sock)) as fw,
-    ):
-        port = fw.ports.pc_link
-        wait_for_boot(port)
+    with running(board, tmp_path) as fw:
+        port, bus = fw.pc_link, fw.bus
         assert cli_json("limits", "show", "--port", port) == {
             "state": "NONE",
             "count": 0,
@@ -241,7 +263,7 @@ def test_limits_set_from_the_robot_file_then_a_wider_table_is_refused(tmp_path):
         }
         report = cli_json("limits", "set", "snake5", "--port", port)
         assert (report["state"], report["count"]) == ("VERIFIED", len(wanted))
-        with server.lock:
+        with fw.lock:
             held = [
                 (bus.servo(i).regs.get("CW Angle Limit"), bus.servo(i).regs.get("CCW Angle Limit"))
                 for i in robot.servo_ids

@@ -231,7 +231,7 @@ def test_a_planned_program_takes_the_robot_where_predicted(board: str, tmp_path,
     modelled servos (the controller's player in process), both where the servos come
     to rest; and the program's reference goals end near the plan's target.
     A play in which the host kept the emulator waiting is tried again (it runs in real time);
-    one the firmware played slower than its steps is judged at the pace it played at."""
+    one played slower than its steps is tried again too, the last judged at its pace."""
     build_firmware()
     widen_margin(board, monkeypatch)
     target = (0.4, 0.15, 0.25)
@@ -243,18 +243,22 @@ def test_a_planned_program_takes_the_robot_where_predicted(board: str, tmp_path,
     expected = np.array([emulated["dx"], emulated["dy"], emulated["dtheta"]])
     tolerance = plan.tolerance
 
-    late = []
+    late, starved_plays = [], 0
     for _ in range(ATTEMPTS):
         end, starved, pace = _play_planned(plan.program, board)
         # never faster than its steps: the firmware's clock is the bus clock's
         assert pace > 1 - PACE_SLACK, pace
-        at_pace = expected if pace <= 1 + PACE_SLACK else _predicted(plan.program, pace)
+        slow = pace > 1 + PACE_SLACK
+        at_pace = _predicted(plan.program, pace) if slow else expected
         off = np.hypot(*(end[:2] - at_pace[:2]))
         within = off <= tolerance.position and abs(end[2] - at_pace[2]) <= tolerance.heading
-        if within or not starved:
+        # a play the host slowed (the pace is a uniform model of late ticks) is tried
+        # again, and the last one judged at its pace unless the host starved them all
+        if within or not (starved or slow):
             break
+        starved_plays += starved
         late.append(f"{off * 1000:.1f} mm off at {pace:.3f}x")
-    assert len(late) < ATTEMPTS, (
+    assert starved_plays < ATTEMPTS, (
         "the host kept the emulator's CPU waiting through every play, so where the body ended says "
         f"nothing about the firmware ({'; '.join(late)}): run it with less beside it"
     )

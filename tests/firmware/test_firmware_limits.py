@@ -4,8 +4,9 @@ bus of three AX-12s, makes each servo's CW/CCW Angle Limit equal to the robot's 
 set from the host, writing the servo's EEPROM only where it differs and reading it back;
 refuses tables that reach beyond those limits; and will not move while a servo has not
 taken them. Under bus corruption no servo accepts a goal outside them (the campaigns
-``servo-limits-*``, run here for a few seconds; ``python -m tests.reliability.rig.campaigns
---only servo-limits-5pct --seconds 120`` for the long run). The limits kept in flash come
+``servo-limits-*`` in tests/reliability/test_reliability_campaigns.py, on QEMU;
+``python -m tests.reliability.rig.campaigns --only servo-limits-5pct --seconds 120`` for
+the long run). The limits kept in flash come
 back after a power cycle of the CM-530's image on the emulated chip (the qemu board keeps
 them in RAM only)."""
 

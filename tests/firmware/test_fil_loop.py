@@ -20,7 +20,7 @@ import time
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from firmware_support import BOARDS, build_firmware, widen_margin
+from firmware_support import BOARDS, build_firmware, give_way, widen_margin
 
 from snakebot.cli import main
 from snakebot.facts.boards import CONTROL_TICK_MS
@@ -62,6 +62,7 @@ def any_board(request, robot):
     with pytest.MonkeyPatch.context() as env:
         widen_margin(request.param, env)
         with EmulatedRobot("snake5", board=request.param) as emulated:
+            give_way(emulated)
             yield emulated
 
 

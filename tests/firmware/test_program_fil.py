@@ -13,7 +13,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from firmware_support import BOARDS, build_firmware, widen_margin
+from firmware_support import BOARDS, build_firmware, give_way, widen_margin
 from host_queue import HostQueue
 
 from snakebot.facts.devices import ax12
@@ -103,6 +103,7 @@ def test_a_program_reaches_the_servos_as_predicted(board: str, monkeypatch):
     build_firmware()
     widen_margin(board, monkeypatch)
     with EmulatedRobot("snake5", board=board) as robot:
+        give_way(robot)
         program = three_segments(robot)
         ids = program.joint_ids
         ctl = ControllerClient.open(robot.info.pc_link)
@@ -208,6 +209,7 @@ def _play_planned(program: Program, board: str) -> tuple[np.ndarray, bool, float
     firmware's ticks came late and bunched: a uniform pace does not describe them) and the
     pace it played at."""
     with EmulatedRobot("trident", board=board) as robot:
+        give_way(robot)
         queue = HostQueue(robot.info.qemu_pid)  # QEMU, or this process for the CM-530
         ctl = ControllerClient.open(robot.info.pc_link)
         try:

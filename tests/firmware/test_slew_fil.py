@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 import pytest
-from firmware_support import BOARDS, board_value, build_firmware, widen_margin
+from firmware_support import BOARDS, board_value, build_firmware, give_way, widen_margin
 
 from snakebot.core import lib
 from snakebot.link.controller.client import ControllerClient
@@ -51,6 +51,7 @@ def test_a_large_phi0_step_reaches_the_servos_slewed(board: str, monkeypatch):
     widen_margin(board, monkeypatch)
     tick_ms = board_value(board, "BOARD_CONTROL_TICK_MS")  # a goal may come one tick late
     with EmulatedRobot("snake5", board=board) as robot:
+        give_way(robot)
         ctl = ControllerClient.open(robot.info.pc_link)
         try:
             wave = SerpenoidSettings(amplitude=math.radians(20), omega=OMEGA, delta=1.5)

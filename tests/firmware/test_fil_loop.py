@@ -20,7 +20,7 @@ import time
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from firmware_support import BOARDS, build_firmware, give_way, widen_margin
+from firmware_support import BOARDS, build_firmware, emulated_robot
 
 from snakebot.cli import main
 from snakebot.facts.boards import CONTROL_TICK_MS
@@ -59,11 +59,8 @@ def any_board(request, robot):
     if request.param == "qemu":
         yield robot
         return
-    with pytest.MonkeyPatch.context() as env:
-        widen_margin(request.param, env)
-        with EmulatedRobot("snake5", board=request.param) as emulated:
-            give_way(emulated)
-            yield emulated
+    with emulated_robot("snake5", request.param) as emulated:
+        yield emulated
 
 
 @pytest.fixture(scope="module")

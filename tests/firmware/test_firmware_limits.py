@@ -70,7 +70,6 @@ class Rig:
     upload sequence. Read the bus holding :attr:`lock`."""
 
     def __init__(self, fw: Running, servos: list[AuditedServo], ctl: ControllerClient) -> None:
-        self.board = fw.board
         self.bus = fw.bus
         self.lock = fw.lock
         self.servos = servos
@@ -80,7 +79,7 @@ class Rig:
         self.ctl.write(values)
 
     def command(self, cmd: Command) -> None:
-        self.ctl.write({"Command": int(cmd)})
+        self.ctl.command(cmd.name)
 
     def upload(self, blob: bytes) -> int:
         """The upload sequence; returns Upload Result."""

@@ -13,7 +13,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from firmware_support import BOARDS, build_firmware, give_way, widen_margin
+from firmware_support import BOARDS, build_firmware, emulated_robot
 from host_queue import HostQueue
 
 from snakebot.facts.devices import ax12
@@ -99,11 +99,9 @@ def program_done(ctl, duration_s: float, *more: str) -> dict:
 
 
 @pytest.mark.parametrize("board", BOARDS)
-def test_a_program_reaches_the_servos_as_predicted(board: str, monkeypatch):
+def test_a_program_reaches_the_servos_as_predicted(board: str):
     build_firmware()
-    widen_margin(board, monkeypatch)
-    with EmulatedRobot("snake5", board=board) as robot:
-        give_way(robot)
+    with emulated_robot("snake5", board) as robot:
         program = three_segments(robot)
         ids = program.joint_ids
         ctl = ControllerClient.open(robot.info.pc_link)
@@ -208,8 +206,7 @@ def _play_planned(program: Program, board: str) -> tuple[np.ndarray, bool, float
     whether the host kept the emulator's CPU waiting for much of the play (then the
     firmware's ticks came late and bunched: a uniform pace does not describe them) and the
     pace it played at."""
-    with EmulatedRobot("trident", board=board) as robot:
-        give_way(robot)
+    with emulated_robot("trident", board) as robot:
         queue = HostQueue(robot.info.qemu_pid)  # QEMU, or this process for the CM-530
         ctl = ControllerClient.open(robot.info.pc_link)
         try:
@@ -227,7 +224,7 @@ def _play_planned(program: Program, board: str) -> tuple[np.ndarray, bool, float
 
 
 @pytest.mark.parametrize("board", BOARDS)
-def test_a_planned_program_takes_the_robot_where_predicted(board: str, tmp_path, monkeypatch):
+def test_a_planned_program_takes_the_robot_where_predicted(board: str, tmp_path):
     """`snakebot plan trident --to ... -o go.prog`, uploaded to the firmware on the board and
     run there: the world's body ends where `sim predict go.prog` says, on the same
     modelled servos (the controller's player in process), both where the servos come
@@ -235,7 +232,6 @@ def test_a_planned_program_takes_the_robot_where_predicted(board: str, tmp_path,
     A play in which the host kept the emulator waiting is tried again (it runs in real time);
     one played slower than its steps is tried again too, the last judged at its pace."""
     build_firmware()
-    widen_margin(board, monkeypatch)
     target = (0.4, 0.15, 0.25)
     plan = plan_program(PlanRequest(load_robot("trident"), target))
     path = tmp_path / "go.prog"

@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 import pytest
-from firmware_support import BOARDS, board_value, build_firmware, give_way, widen_margin
+from firmware_support import BOARDS, board_value, build_firmware, emulated_robot
 
 from snakebot.core import lib
 from snakebot.link.controller.client import ControllerClient
@@ -62,12 +62,10 @@ def _bus_wait(robot: EmulatedRobot, seconds: float) -> None:
 
 
 @pytest.mark.parametrize("board", BOARDS)
-def test_a_large_phi0_step_reaches_the_servos_slewed(board: str, monkeypatch):
+def test_a_large_phi0_step_reaches_the_servos_slewed(board: str):
     build_firmware()
-    widen_margin(board, monkeypatch)
     tick_ms = board_value(board, "BOARD_CONTROL_TICK_MS")  # a goal may come one tick late
-    with EmulatedRobot("snake5", board=board) as robot:
-        give_way(robot)
+    with emulated_robot("snake5", board) as robot:
         ctl = ControllerClient.open(robot.info.pc_link)
         try:
             wave = SerpenoidSettings(amplitude=math.radians(20), omega=OMEGA, delta=1.5)

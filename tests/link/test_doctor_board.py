@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 from controller_cli_support import cli
-from firmware_support import served_firmware
+from firmware_support import booted
 
 from snakebot.core import lib
 from snakebot.link.bus.doctor import board, board_names, on_hardware
@@ -97,7 +97,7 @@ def test_urls_are_never_hardware(tmp_path):
 @pytest.mark.qemu
 @pytest.mark.serial
 def test_the_qemu_image_names_its_board(tmp_path):
-    with served_firmware(tmp_path) as port:
+    with booted("qemu", tmp_path) as port:
         code, report = doctor(port, "--board", "qemu")
         wrong, strict = doctor(port, "--board", "cm530")
     assert code == 0, report

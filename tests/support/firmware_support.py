@@ -27,7 +27,7 @@ from snakebot.facts.controller import load as load_controller
 from snakebot.facts.memory import CM530_FLASH_SIZE, FLASH_BASE
 from snakebot.firmware import image as firmware_image
 from snakebot.formats.protocol import DxlTimeout
-from snakebot.link.transport import DxlClient
+from snakebot.link.transport import DxlClient, settings
 from snakebot.link.transport.timing import PROGRAM_MARGIN_S
 from snakebot.paths import REPO_ROOT
 from snakebot.sim.bus.bus import Bus
@@ -87,24 +87,6 @@ def build_firmware() -> str:
     if done.returncode != 0:
         pytest.fail(f"firmware build failed:\n{done.stdout}\n{done.stderr}")
     return done.stdout
-
-
-@contextlib.contextmanager
-def served_firmware(sock_dir: Path, robot: str = "snake5") -> Iterator[str]:
-    """The QEMU image with its Dynamixel bus on a Unix socket served by ``robot``'s
-    emulated servos (as `snakebot sim serve` runs it); yields its PC link's port once the
-    firmware answers there."""
-    build_firmware()
-    sock = sock_dir / "bus.sock"
-    bus = SimOptions(robot=robot).build_bus()
-    with (
-        UnixSocketServer(bus, sock) as server,
-        QemuFirmware(QEMU_DIR / "flash.bin", bus=Endpoint.unix_client(sock)) as fw,
-    ):
-        port = fw.ports.pc_link
-        wait_for_boot(port)
-        yield port
-        assert server.running
 
 
 def symbols(elf: Path) -> dict[str, int]:
@@ -172,17 +154,6 @@ def wait_for_boot(port: str, timeout: float = 20.0) -> None:
                     raise
 
 
-@contextlib.contextmanager
-def booted_qemu(
-    folder: Path, robot: str = "snake5", faults: FaultConfig | None = None
-) -> Iterator[str]:
-    """The firmware image under QEMU, its bus served by ``robot``'s emulated servos on a
-    Unix socket in ``folder`` (with ``faults`` on the wire, if given): yields the PC
-    link's pty once the firmware answers."""
-    with running("qemu", folder, robot, faults) as fw:
-        yield fw.pc_link
-
-
 BOARDS = ("cm530", "qemu")
 """The boards the firmware-in-the-loop tests of board-dependent behaviour (the PC link,
 upload, play) run on: the CM-530's image on the emulated STM32F103RE, the default, and
@@ -226,7 +197,21 @@ def widen_margin(board: str, env: pytest.MonkeyPatch) -> None:
     """Give the clients in this process :data:`CM530_MARGIN_MS` when ``board`` is the
     emulated CM-530, which runs in this process (as :func:`running` does)."""
     if board == "cm530":
-        env.setenv("SNAKEBOT_MARGIN_MS", str(CM530_MARGIN_MS))
+        env.setenv(settings.ENV_MARGIN_MS, str(CM530_MARGIN_MS))
+
+
+@contextlib.contextmanager
+def emulated_robot(robot: str, board: str) -> Iterator[Any]:
+    """`sim serve`'s emulated robot (``EmulatedRobot``) on ``board``, as the tests run
+    it: on the emulated CM-530, the clients in this process get the wider margin
+    (:func:`widen_margin`) and the chip's thread gives way (:func:`give_way`)."""
+    from snakebot.sim.serve import EmulatedRobot
+
+    with pytest.MonkeyPatch.context() as env:
+        widen_margin(board, env)
+        with EmulatedRobot(robot, board=board) as emulated:
+            give_way(emulated)
+            yield emulated
 
 
 class Running:

@@ -31,13 +31,15 @@ export MUJOCO_GL ?= egl
 unexport PYTHONDONTWRITEBYTECODE
 
 # pytest workers for the stages of `make test` (see there): twice the cores for most of
-# the suite, one per core for the tests that run QEMU, one more than the cores for the
-# serial tests (they mostly wait on ptys and the wall clock: on 2 cores, 4 workers took
+# the suite, one per core for the tests that run QEMU and for the `late` tests (the
+# planner's among them: one worker at nice 10 made that lane outlast the serial stage,
+# 131 s against 122 s), one more than the cores for the serial tests (they mostly wait on ptys and the wall clock: on 2 cores, 4 workers took
 # 69-75 s where 3 took 84-88 s; but with the emulated CM-530's tests among them, 4 at
 # nice -10 kept QEMU's fault campaigns from their pace: a PING unanswered in 2 of 5 runs).
 TEST_JOBS   ?= $(shell echo $$(( $$(nproc) * 2 )))
 QEMU_JOBS   ?= $(shell nproc)
 SERIAL_JOBS ?= $(shell echo $$(( $$(nproc) + 1 )))
+LATE_JOBS   ?= $(shell nproc)
 
 .PHONY: dist help setup system-packages demo-packages python-env runtime-env core firmware \
         test test-summary test-collect test-parallel test-late test-qemu test-serial test-fuzz test-wheel lint fuzz-targets bench demo flash flash-image clean fuzz docs
@@ -201,7 +203,8 @@ test-parallel:
 	    --ignore=$(FUZZ_TESTS) $(call stage_files,parallel,$(FUZZ_TESTS)); $(call record,parallel,$$?)
 
 # The tests marked `late` (long, CPU-bound, not timing-sensitive: the API reference's build,
-# the symbolic fields, the transport under faults) run beside the serial stage and the
+# the symbolic fields, the transport under faults, the planner's closed loops and
+# programs; the serial stage leaves a quarter of the CPU idle) run beside it and the
 # package check at a low priority, on the CPU those leave (the serial tests wait on the
 # wall clock): at the default priority the emulated bootloader of a serial test once
 # missed its deadline. On a busy machine at the default one: the serial stage is in the
@@ -210,7 +213,7 @@ test-parallel:
 test-late:
 	@mkdir -p build
 	$(Q)prio=$$(test -e $(BUSY) || echo "$(LOW)"); \
-	  $$prio $(PY) -m pytest -q -p no:cacheprovider -m "late and not serial and not qemu" \
+	  $$prio $(PY) -m pytest -q -p no:cacheprovider -n $(LATE_JOBS) -m "late and not serial and not qemu" \
 	    --ignore=$(FUZZ_TESTS) $(call stage_files,late,$(FUZZ_TESTS)) > build/test-late.log 2>&1; \
 	    s=$$?; if [ $$s = 0 ]; then echo "late tests: $$(tail -n1 build/test-late.log)"; \
 	    else cat build/test-late.log; fi; $(call record,late,$$s)

@@ -21,6 +21,10 @@ from snakebot.model.plan.loops import FRAMES
 from snakebot.model.plan.planner import body_length
 from snakebot.model.robots import load_robot
 
+# Planning and playing on the controller's player, all computation: beside the serial
+# stage (`late`).
+pytestmark = pytest.mark.late
+
 QEMU_CAPACITY = board_value("qemu", "BOARD_TABLE_CAPACITY")
 
 # Targets drawn once per robot from a seeded generator (a few tenths of a body length,

@@ -15,6 +15,9 @@ from plan_support import targets, within
 from snakebot.cli import main
 from snakebot.cli.troubleshooting import ERROR_LINE
 
+# Long planning and closed loops, all computation: beside the serial stage (`late`).
+pytestmark = pytest.mark.late
+
 
 def run(*args):
     return CliRunner().invoke(main, [str(a) for a in args])

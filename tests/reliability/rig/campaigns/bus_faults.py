@@ -99,6 +99,7 @@ def common_checks(rig: Rig, out: Outcome, last: Sample) -> None:
     out.check(
         "alive", ram["bus_refused"] == 0 and ram["pc_tx_dropped"] == 0, f"buffers overflowed: {ram}"
     )
+    watchdog_checks(rig, out)
     out.check("table", not h.table_failures, "; ".join(h.table_failures[:3]))
     out.check("table", h.table_checks > 0, "the table was never checked")
     accounted = r["Bus Reads"] + r["Bus Timeouts"]
@@ -139,6 +140,29 @@ def common_checks(rig: Rig, out: Outcome, last: Sample) -> None:
         )
 
 
+def watchdog_checks(rig: Rig, out: Outcome) -> None:
+    """Where the machine models the independent watchdog (the emulated CM-530; QEMU does
+    not), it was fed and never reset the chip; the longest time between two feeds and
+    the timeout are counted."""
+    dog = rig.target.watchdog()
+    if dog is None:
+        return
+    out.counts.update(
+        watchdog_feeds=dog.feeds,
+        watchdog_resets=len(dog.resets),
+        watchdog_largest_gap_ms=round(dog.largest_gap_s * 1000, 1),
+        watchdog_timeout_ms=round(dog.timeout_s * 1000, 1),
+    )
+    out.check("alive", dog.feeds > 0, "the firmware never started or fed the watchdog")
+    out.check(
+        "alive",
+        not dog.resets,
+        f"the watchdog reset the chip (at {', '.join(f'{t:.3f}' for t in dog.resets[:5])} s "
+        f"of its time; since then the longest time between feeds was "
+        f"{dog.largest_gap_s * 1000:.1f} ms of {dog.timeout_s * 1000:.0f} ms)",
+    )
+
+
 def play_under(seconds: float, recover: bool = True) -> Callable[[Rig, Outcome], None]:
     """A campaign body: play for ``seconds`` with the fault on, an operator recovering
     from SAFE."""
@@ -158,7 +182,7 @@ def servo_limits(seconds: float) -> Callable[[Rig, Outcome], None]:
     def body(rig: Rig, out: Outcome) -> None:
         state = rig.set_robot_limits(dict(zip(IDS, LIMITS, strict=True)))
         out.check("servo-limits", state == "VERIFIED", f"Limits State {state} after setting")
-        with rig.server.lock:
+        with rig.lock:
             held = [s.angle_limits() for s in rig.servos]
         out.check(
             "servo-limits",
@@ -235,7 +259,7 @@ def brownout(duration_s: float) -> Callable[[Rig, Outcome], None]:
         rng = random.Random(f"{out.seed}/brownout")
         start = 0.1 + rng.uniform(0.0, 0.2)
         victim = rig.bus.servo(2)
-        with rig.server.lock:
+        with rig.lock:
             t0 = rig.bus.now + start
             rig.bus.at(t0, victim.power_off)
             rig.bus.at(t0 + duration_s, victim.power_on)
@@ -243,7 +267,7 @@ def brownout(duration_s: float) -> Callable[[Rig, Outcome], None]:
         out.counts["brownout_ms"] = round(duration_s * 1000)
         recover_wait = start + duration_s + 0.2  # the operator waits for the servo to be back
         rig.watch(start + duration_s + 1.5, rig.operator(recover_wait))
-        with rig.server.lock:
+        with rig.lock:
             out.counts["servo2_reads_unanswered"] = rig.tap.unanswered[2] - before
             unanswered_total = rig.tap.unanswered[2]
             position = rig.bus.positions([2])[0]
@@ -259,7 +283,7 @@ def brownout(duration_s: float) -> Callable[[Rig, Outcome], None]:
         seen = [position]
         for _ in range(int(len(FRAMES) * PERIOD_MS / 50) + 2):
             time.sleep(0.05)
-            with rig.server.lock:
+            with rig.lock:
                 seen.append(rig.bus.positions([2])[0])
         sweep = max(seen) - min(seen)
         out.counts["servo2_sweep_after_ticks"] = round(sweep)

@@ -172,6 +172,17 @@ def test_a_starved_watchdog_fails_the_alive_check(board: str, ram: RamMap, workd
     assert problem.startswith("alive: the watchdog reset the chip (at ")
 
 
+@pytest.mark.parametrize("board", ["cm530"], indirect=True)  # the rig's own logic: one board
+def test_bytes_the_firmware_never_heard_are_the_rig_failing(
+    board: str, ram: RamMap, workdir: Path, monkeypatch: pytest.MonkeyPatch
+):
+    # as when the emulated CM-530 stopped reading its bus (two replies on their way at once)
+    with rig(board, workdir, ram) as r:
+        monkeypatch.setattr(r.bus, "master_in_waiting", lambda: 7)
+        with pytest.raises(CampaignFailed, match="7 bytes the servos sent never reached"):
+            r.freeze()
+
+
 def test_the_command_line_says_the_view_is_wrong_and_exits_2(
     board: str,
     ram: RamMap,

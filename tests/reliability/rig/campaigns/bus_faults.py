@@ -32,7 +32,9 @@ def start_steered(rig: Rig, out: Outcome) -> None:
     waits while the controller checks the servos' limits (Limits State APPLYING: after
     the roster is set, and whenever an audit READ finds a limit changed, as a damaged
     packet can make it); one refused for a runtime reason (that, or the safe state a
-    fault can cause before PLAY) is sent again after a CLEAR, as an operator does."""
+    fault can cause before PLAY), or taken and then ended by the safe state before the
+    State is read back (a read that waits out a lost reply gives a fault the time), is
+    sent again after a CLEAR, as an operator does."""
     result = rig.upload(gait_table())
     if result != UploadResult.OK:
         raise CampaignFailed(f"the campaign's own table was refused: Upload Result {result}")
@@ -41,11 +43,17 @@ def start_steered(rig: Rig, out: Outcome) -> None:
     for tries in range(1, PLAY_TRIES + 1):
         wait_settled(rig.ctl)
         rig.command(Command.PLAY)
-        if rig.ctl.read("State")["State"] == State.PLAYING:
+        state = rig.ctl.read("State")["State"]
+        if state == State.PLAYING:
             break
         name, _ = refusal_reason(rig.ctl)
-        if name not in RUNTIME_REFUSALS or tries == PLAY_TRIES:
-            raise CampaignFailed(f"the campaign's table did not play: Refusal Reason {name}")
+        tripped = name == "NONE" and state == State.SAFE  # played, then went SAFE
+        if not (name in RUNTIME_REFUSALS or tripped) or tries == PLAY_TRIES:
+            raise CampaignFailed(
+                f"the campaign's table did not play after {tries} tries: State "
+                f"{State(state).name}, Refusal Reason {name} (protocol/controller.md says "
+                "what it means); run the campaign again"
+            )
         rig.command(Command.CLEAR)  # as the operator does; the next refusal shows anew
     out.counts["play_tries"] = tries
     rig.check_table("after commit")

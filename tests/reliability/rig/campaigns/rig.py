@@ -375,7 +375,9 @@ class Rig:
         return act
 
     def freeze(self) -> Sample:
-        """Stop and empty the roster so the bus goes quiet; the last look."""
+        """Stop and empty the roster so the bus goes quiet; the last look. Once it is
+        quiet, every byte the servos sent must have reached the firmware's UART, or the
+        machine's wiring to the bus failed (:class:`CampaignFailed`)."""
         self.command(Command.STOP)
         self.polling = False
         self.write({"Joint Count": 0})
@@ -390,10 +392,18 @@ class Rig:
             with self.lock:
                 if self.tap.packets == seen:
                     self.tap.quiet()
+                    unread = self.bus.master_in_waiting()
                     break
                 seen = self.tap.packets
             if time.monotonic() > deadline:
                 raise CampaignFailed(f"the bus did not go quiet within {QUIET_WAIT_S} s of STOP")
+        if unread:
+            raise CampaignFailed(
+                f"{unread} bytes the servos sent never reached the firmware's UART: "
+                f"{self.target.label}'s wiring to the emulated bus stopped passing them on "
+                "(the counts would say the bus went deaf); report it with the campaign's "
+                "command"
+            )
         self.check_alive()
         return self.look()
 

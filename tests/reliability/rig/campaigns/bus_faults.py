@@ -273,12 +273,14 @@ def brownout(duration_s: float) -> Callable[[Rig, Outcome], None]:
             rig.bus.at(t0 + duration_s, victim.power_on)
             before = rig.tap.unanswered[2]
         out.counts["brownout_ms"] = round(duration_s * 1000)
-        recover_wait = start + duration_s + 0.2  # the operator waits for the servo to be back
-        rig.watch(start + duration_s + 1.5, rig.operator(recover_wait))
+        # on the bus's clock, which the brown-out runs on: the operator waits for the
+        # servo to be back; the watch lasts until well after
+        recover_wait = start + duration_s + 0.2
+        operator = rig.operator(recover_wait, rig.bus_now)
+        rig.watch(start + duration_s + 1.5, operator, rig.bus_now)
         with rig.lock:
             out.counts["servo2_reads_unanswered"] = rig.tap.unanswered[2] - before
             unanswered_total = rig.tap.unanswered[2]
-            position = rig.bus.positions([2])[0]
         s = rig.look()
         counted = next(j.timeout_count for j in s.servos if j.id == 2)
         out.counts["servo2_timeout_count"] = counted
@@ -287,19 +289,26 @@ def brownout(duration_s: float) -> Callable[[Rig, Outcome], None]:
             counted >= min(unanswered_total, 255),
             f"servo 2 missed {unanswered_total} READs, its Timeout Count says {counted}",
         )
-        # over one whole cycle of the gait, servo 2 sweeps its range again
-        seen = [position]
-        for _ in range(int(len(FRAMES) * PERIOD_MS / 50) + 2):
-            time.sleep(0.05)
-            with rig.lock:
-                seen.append(rig.bus.positions([2])[0])
-        sweep = max(seen) - min(seen)
+        sweep = _sweep(rig, len(FRAMES) * PERIOD_MS / 1000 + 0.1)
         out.counts["servo2_sweep_after_ticks"] = round(sweep)
         out.check(
             "recovered", sweep > 50, f"servo 2 swept only {sweep:.0f} ticks after it came back"
         )
 
     return body
+
+
+def _sweep(rig: Rig, seconds: float) -> float:
+    """How far servo 2 moves (ticks, largest less smallest position) over ``seconds`` of
+    the bus's clock, looked at every 50 ms: over a whole cycle of the gait, its range."""
+    over = rig.lasting(seconds, rig.bus_now)
+    seen: list[float] = []
+    while True:
+        with rig.lock:
+            seen.append(rig.bus.positions([2])[0])
+        if over():
+            return max(seen) - min(seen)
+        time.sleep(0.05)
 
 
 def after_brownout(long: bool) -> Callable[[Rig, Outcome, Sample], None]:

@@ -46,6 +46,9 @@ after two seconds of silence, which a busy host's scheduling does not make; the 
 CM-530, in the client's own process, gets a wider margin still (:class:`.Cm530Target`)."""
 BOOT_WAIT_S = 10.0
 """How long the firmware may take to answer its first PING."""
+MACHINE_SLOWEST = 10.0
+"""How many times slower than the wall clock a machine's clock may run before a wait on it
+gives up (the emulated CM-530 slows its clock rather than fall behind)."""
 QUIET_WAIT_S = 5.0
 """How long a stopped controller may take to stop using the bus on a busy host."""
 
@@ -342,22 +345,44 @@ class Rig:
             h.servo_goals_outside += not lo <= goal <= hi
         return s
 
-    def watch(self, seconds: float, on_look: Callable[[Sample], None] | None = None) -> None:
-        """Look, check life and the table, and let ``on_look`` act, for ``seconds``."""
-        end = time.monotonic() + seconds
+    def bus_now(self) -> float:
+        """The bus's clock, which what is scheduled on the bus (a brown-out) runs on:
+        under QEMU it follows the wall clock; the emulated CM-530's bus runs on the
+        chip's, which falls behind when the host keeps the chip waiting."""
+        with self.lock:
+            return self.bus.now
+
+    def lasting(self, seconds: float, clock: Callable[[], float]) -> Callable[[], bool]:
+        """Whether ``seconds`` on ``clock`` (the wall clock, or :meth:`bus_now`) have
+        passed since this call; on the bus's clock, at most :data:`MACHINE_SLOWEST`
+        times as long on the wall clock."""
+        end, wall_end = clock() + seconds, time.monotonic() + seconds * MACHINE_SLOWEST
+        return lambda: clock() >= end or time.monotonic() >= wall_end
+
+    def watch(
+        self,
+        seconds: float,
+        on_look: Callable[[Sample], None] | None = None,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        """Look, check life and the table, and let ``on_look`` act, for ``seconds`` on
+        ``clock`` (:meth:`lasting`)."""
+        over = self.lasting(seconds, clock)
         while True:
             self.check_alive()
             s = self.look()
             if on_look is not None:
                 on_look(s)
-            if time.monotonic() >= end:
+            if over():
                 break
             time.sleep(SAMPLE_S)
         self.check_table("while playing")
 
-    def operator(self, recover_after_s: float = 0.3) -> Callable[[Sample], None]:
+    def operator(
+        self, recover_after_s: float = 0.3, clock: Callable[[], float] = time.monotonic
+    ) -> Callable[[Sample], None]:
         """What a person at ``snakebot monitor`` would do: when the controller has gone
-        SAFE, wait a little, CLEAR and PLAY again."""
+        SAFE, wait a little (``recover_after_s`` on ``clock``), CLEAR and PLAY again."""
         since: list[float] = []
 
         def act(s: Sample) -> None:
@@ -365,8 +390,8 @@ class Rig:
                 since.clear()
                 return
             if not since:
-                since.append(time.monotonic())
-            elif time.monotonic() - since[0] >= recover_after_s:
+                since.append(clock())
+            elif clock() - since[0] >= recover_after_s:
                 self.command(Command.CLEAR)
                 self.command(Command.PLAY)
                 self.health.recoveries += 1

@@ -3,6 +3,8 @@ echo, the 100 ms gap rule, seeded faults, brownouts, and a world stepping on the
 
 from __future__ import annotations
 
+import math
+
 import pytest
 from sim_support import exchange, make_bus, reply
 
@@ -230,3 +232,23 @@ def test_a_tapped_bus_hands_every_packet_to_the_python_handlers(monkeypatch):
         exchange(bus, P.sync_write(30, 2, goals))
         assert [s.regs.get("Goal Position") for s in bus.servos] == [400, 600]
         assert heard == ([1, 2] if tapped else [])
+
+
+def test_replies_on_their_way_back_to_back_are_coming_as_they_will_be_read():
+    # Two PINGs in one write: servo 1's answer ends 10 us before servo 2's begins, two
+    # streams on their way to the master at once (no collision). The emulated CM-530
+    # hands USART1 what master_coming says is coming; with nothing said while several
+    # streams came, it heard nothing more from then on (the fault campaigns' damaged
+    # packets made servos answer so).
+    bus = make_bus(1, 2)
+    bus.servo(2).set_register("Return Delay Time", 255)  # 510 us to servo 1's 500
+    bus.master_write(P.ping(1) + P.ping(2))
+    bus.run_until(bus.now + 12 * 10e-6 + 1e-9)  # both PINGs heard, both answers on the way
+    data, times, after = bus.master_coming(math.inf, 64)
+    assert [(p.id, p.params) for p in PacketParser().feed(data)] == [(1, b""), (2, b"")]
+    assert times == sorted(times) and after is None
+    first, _, next_t = bus.master_coming(times[3], 64)  # the bytes complete before then
+    assert first == data[:3] and next_t == times[3]
+    assert bus.master_coming(math.inf, 5)[:2] == (data[:5], times[:5])
+    bus.run_until(times[-1])
+    assert bus.master_read(64) == data  # what master_read takes, in that order

@@ -1,4 +1,5 @@
-"""The reliability rig: the fault campaigns on the firmware in QEMU (``campaigns``) and
+"""The reliability rig: the fault campaigns on the firmware on both emulated boards (the
+CM-530's image on the emulated STM32F103RE, the qemu build under QEMU: ``campaigns``) and
 the measurement of wrong values through a damaged wire (``wrong_values``).
 
 Both are test rigs, not part of the package: the tests in ``tests/reliability`` and

@@ -172,13 +172,15 @@ class MasterPort(BusState):
         return times[min(count, len(times)) - 1]
 
     def master_coming(self, before: float, limit: int) -> tuple[bytes, list[float], float | None]:
-        """What :meth:`master_read` will give byte by byte of the one stream on its way
-        to the master, as long as nothing else is put on the wire: its unread bytes that
+        """What :meth:`master_read` will give byte by byte of the streams on their way to
+        the master, as long as nothing else is put on the wire: their unread bytes that
         are complete before ``before`` (at most ``limit``), when each is, and when the
-        next one after them is (None: no more). Nothing (and None) while several streams
-        are on their way (a collision, an echo: their bytes merge as they come)."""
+        next one after them is (None: no more). Several streams (two replies back to
+        back, a collision, an echo) merge by arrival, as :meth:`master_read` merges them."""
         streams = self._master_rx
-        if len(streams) != 1:
+        if len(streams) > 1:
+            return self._coming_merged(before, limit)
+        if not streams:
             return b"", [], None
         h = streams[0]
         n = len(h.data)
@@ -191,6 +193,19 @@ class MasterPort(BusState):
             times.append(t)
             end += 1
         return bytes(h.data[h.pos : end]), times, (h.arrival(end) if end < n else None)
+
+    def _coming_merged(self, before: float, limit: int) -> tuple[bytes, list[float], float | None]:
+        """:meth:`master_coming` of several streams: their unread bytes in the order
+        :meth:`master_read` takes them (by arrival, then stream, then place)."""
+        streams = self._master_rx
+        coming = sorted(
+            (h.arrival(i), n, i) for n, h in enumerate(streams) for i in range(h.pos, len(h.data))
+        )
+        k = 0
+        while k < len(coming) and k < limit and coming[k][0] < before:
+            k += 1
+        data = bytes(streams[n].data[i] for _, n, i in coming[:k])
+        return data, [t for t, _, _ in coming[:k]], (coming[k][0] if k < len(coming) else None)
 
     def master_read(self, size: int) -> bytes:
         """Up to ``size`` bytes that have reached the master, oldest first."""

@@ -32,7 +32,9 @@ def start_steered(rig: Rig, out: Outcome) -> None:
     waits while the controller checks the servos' limits (Limits State APPLYING: after
     the roster is set, and whenever an audit READ finds a limit changed, as a damaged
     packet can make it); one refused for a runtime reason (that, or the safe state a
-    fault can cause before PLAY) is sent again after a CLEAR, as an operator does."""
+    fault can cause before PLAY), or taken and then ended by the safe state before the
+    State is read back (a read that waits out a lost reply gives a fault the time), is
+    sent again after a CLEAR, as an operator does."""
     result = rig.upload(gait_table())
     if result != UploadResult.OK:
         raise CampaignFailed(f"the campaign's own table was refused: Upload Result {result}")
@@ -41,11 +43,17 @@ def start_steered(rig: Rig, out: Outcome) -> None:
     for tries in range(1, PLAY_TRIES + 1):
         wait_settled(rig.ctl)
         rig.command(Command.PLAY)
-        if rig.ctl.read("State")["State"] == State.PLAYING:
+        state = rig.ctl.read("State")["State"]
+        if state == State.PLAYING:
             break
         name, _ = refusal_reason(rig.ctl)
-        if name not in RUNTIME_REFUSALS or tries == PLAY_TRIES:
-            raise CampaignFailed(f"the campaign's table did not play: Refusal Reason {name}")
+        tripped = name == "NONE" and state == State.SAFE  # played, then went SAFE
+        if not (name in RUNTIME_REFUSALS or tripped) or tries == PLAY_TRIES:
+            raise CampaignFailed(
+                f"the campaign's table did not play after {tries} tries: State "
+                f"{State(state).name}, Refusal Reason {name} (protocol/controller.md says "
+                "what it means); run the campaign again"
+            )
         rig.command(Command.CLEAR)  # as the operator does; the next refusal shows anew
     out.counts["play_tries"] = tries
     rig.check_table("after commit")
@@ -99,6 +107,7 @@ def common_checks(rig: Rig, out: Outcome, last: Sample) -> None:
     out.check(
         "alive", ram["bus_refused"] == 0 and ram["pc_tx_dropped"] == 0, f"buffers overflowed: {ram}"
     )
+    watchdog_checks(rig, out)
     out.check("table", not h.table_failures, "; ".join(h.table_failures[:3]))
     out.check("table", h.table_checks > 0, "the table was never checked")
     accounted = r["Bus Reads"] + r["Bus Timeouts"]
@@ -139,6 +148,29 @@ def common_checks(rig: Rig, out: Outcome, last: Sample) -> None:
         )
 
 
+def watchdog_checks(rig: Rig, out: Outcome) -> None:
+    """Where the machine models the independent watchdog (the emulated CM-530; QEMU does
+    not), it was fed and never reset the chip; the longest time between two feeds and
+    the timeout are counted."""
+    dog = rig.target.watchdog()
+    if dog is None:
+        return
+    out.counts.update(
+        watchdog_feeds=dog.feeds,
+        watchdog_resets=len(dog.resets),
+        watchdog_largest_gap_ms=round(dog.largest_gap_s * 1000, 1),
+        watchdog_timeout_ms=round(dog.timeout_s * 1000, 1),
+    )
+    out.check("alive", dog.feeds > 0, "the firmware never started or fed the watchdog")
+    out.check(
+        "alive",
+        not dog.resets,
+        f"the watchdog reset the chip (at {', '.join(f'{t:.3f}' for t in dog.resets[:5])} s "
+        f"of its time; since then the longest time between feeds was "
+        f"{dog.largest_gap_s * 1000:.1f} ms of {dog.timeout_s * 1000:.0f} ms)",
+    )
+
+
 def play_under(seconds: float, recover: bool = True) -> Callable[[Rig, Outcome], None]:
     """A campaign body: play for ``seconds`` with the fault on, an operator recovering
     from SAFE."""
@@ -158,7 +190,7 @@ def servo_limits(seconds: float) -> Callable[[Rig, Outcome], None]:
     def body(rig: Rig, out: Outcome) -> None:
         state = rig.set_robot_limits(dict(zip(IDS, LIMITS, strict=True)))
         out.check("servo-limits", state == "VERIFIED", f"Limits State {state} after setting")
-        with rig.server.lock:
+        with rig.lock:
             held = [s.angle_limits() for s in rig.servos]
         out.check(
             "servo-limits",
@@ -235,18 +267,20 @@ def brownout(duration_s: float) -> Callable[[Rig, Outcome], None]:
         rng = random.Random(f"{out.seed}/brownout")
         start = 0.1 + rng.uniform(0.0, 0.2)
         victim = rig.bus.servo(2)
-        with rig.server.lock:
+        with rig.lock:
             t0 = rig.bus.now + start
             rig.bus.at(t0, victim.power_off)
             rig.bus.at(t0 + duration_s, victim.power_on)
             before = rig.tap.unanswered[2]
         out.counts["brownout_ms"] = round(duration_s * 1000)
-        recover_wait = start + duration_s + 0.2  # the operator waits for the servo to be back
-        rig.watch(start + duration_s + 1.5, rig.operator(recover_wait))
-        with rig.server.lock:
+        # on the bus's clock, which the brown-out runs on: the operator waits for the
+        # servo to be back; the watch lasts until well after
+        recover_wait = start + duration_s + 0.2
+        operator = rig.operator(recover_wait, rig.bus_now)
+        rig.watch(start + duration_s + 1.5, operator, rig.bus_now)
+        with rig.lock:
             out.counts["servo2_reads_unanswered"] = rig.tap.unanswered[2] - before
             unanswered_total = rig.tap.unanswered[2]
-            position = rig.bus.positions([2])[0]
         s = rig.look()
         counted = next(j.timeout_count for j in s.servos if j.id == 2)
         out.counts["servo2_timeout_count"] = counted
@@ -255,19 +289,26 @@ def brownout(duration_s: float) -> Callable[[Rig, Outcome], None]:
             counted >= min(unanswered_total, 255),
             f"servo 2 missed {unanswered_total} READs, its Timeout Count says {counted}",
         )
-        # over one whole cycle of the gait, servo 2 sweeps its range again
-        seen = [position]
-        for _ in range(int(len(FRAMES) * PERIOD_MS / 50) + 2):
-            time.sleep(0.05)
-            with rig.server.lock:
-                seen.append(rig.bus.positions([2])[0])
-        sweep = max(seen) - min(seen)
+        sweep = _sweep(rig, len(FRAMES) * PERIOD_MS / 1000 + 0.1)
         out.counts["servo2_sweep_after_ticks"] = round(sweep)
         out.check(
             "recovered", sweep > 50, f"servo 2 swept only {sweep:.0f} ticks after it came back"
         )
 
     return body
+
+
+def _sweep(rig: Rig, seconds: float) -> float:
+    """How far servo 2 moves (ticks, largest less smallest position) over ``seconds`` of
+    the bus's clock, looked at every 50 ms: over a whole cycle of the gait, its range."""
+    over = rig.lasting(seconds, rig.bus_now)
+    seen: list[float] = []
+    while True:
+        with rig.lock:
+            seen.append(rig.bus.positions([2])[0])
+        if over():
+            return max(seen) - min(seen)
+        time.sleep(0.05)
 
 
 def after_brownout(long: bool) -> Callable[[Rig, Outcome, Sample], None]:

@@ -27,7 +27,8 @@ from tests.reliability.rig.campaigns.library import LIBRARY_CUT, library_power_c
 from tests.reliability.rig.campaigns.outcome import Outcome
 from tests.reliability.rig.campaigns.pc_link import pc_noise, upload_cut
 from tests.reliability.rig.campaigns.rig import Rig
-from tests.reliability.rig.campaigns.testbed import IMAGE, CampaignFailed
+from tests.reliability.rig.campaigns.targets import DEFAULT_BOARD, TARGETS
+from tests.reliability.rig.campaigns.testbed import CampaignFailed
 
 
 @dataclass(frozen=True)
@@ -131,9 +132,12 @@ CAMPAIGNS: dict[str, Campaign] = {
 }
 
 
-def run(name: str, seed: int = 1, seconds: float | None = None) -> Outcome:
-    """Run one campaign; its Outcome says what was counted and which checks held.
-    ``seconds``: how long the campaigns that play a table play (default: their own)."""
+def run(
+    name: str, seed: int = 1, seconds: float | None = None, board: str = DEFAULT_BOARD
+) -> Outcome:
+    """Run one campaign on ``board`` (the library's runs on the host, whatever the board);
+    its Outcome says what was counted and which checks held. ``seconds``: how long the
+    campaigns that play a table play (default: their own)."""
     if name == LIBRARY_CUT:
         t0 = time.monotonic()
         out = library_power_cut(seed)
@@ -145,12 +149,15 @@ def run(name: str, seed: int = 1, seconds: float | None = None) -> Outcome:
         raise CampaignFailed(
             f"no campaign {name!r}: choose one of {', '.join(CAMPAIGNS)}"
         ) from None
-    if not IMAGE.is_file():
-        raise CampaignFailed(f"{IMAGE} not found: build the firmware with `make firmware`")
-    out = Outcome(name, seed, campaign.description)
+    if board not in TARGETS:
+        raise CampaignFailed(f"no board {board!r}: choose one of {', '.join(TARGETS)}")
+    image = TARGETS[board].image
+    if not image.is_file():
+        raise CampaignFailed(f"{image} not found: build the firmware with `make firmware`")
+    out = Outcome(name, seed, campaign.description, board)
     t0 = time.monotonic()
     with tempfile.TemporaryDirectory(prefix="snakebot.sim-campaign-") as tmp:
-        with Rig(campaign.faults(seed), Path(tmp), seconds) as rig:
+        with Rig(board, campaign.faults(seed), Path(tmp), seconds) as rig:
             try:
                 campaign.body(rig, out)
                 last = rig.freeze()

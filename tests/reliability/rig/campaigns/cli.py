@@ -5,14 +5,17 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from typing import NoReturn
 
 from snakebot.sim.errors import SimError
 from tests.reliability.rig.campaigns.catalogue import CAMPAIGNS, run
 from tests.reliability.rig.campaigns.library import LIBRARY_CUT
 from tests.reliability.rig.campaigns.outcome import Outcome
+from tests.reliability.rig.campaigns.targets import DEFAULT_BOARD, TARGETS
 
 _COLUMNS = (
     ("campaign", lambda o: o.name),
+    ("board", lambda o: o.board or "host"),
     (
         "goals (out of limits)",
         lambda o: f"{o.counts.get('goals', 0)} ({o.counts.get('goals_outside_limits', 0)})",
@@ -45,13 +48,29 @@ def render(outcomes: list[Outcome]) -> str:
     )
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
+class _Parser(argparse.ArgumentParser):
+    """Says what is wrong with the command line in one line (exit 2)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message}; see --help\n")
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = _Parser(
         prog="python -m tests.reliability.rig.campaigns",
-        description="Fault campaigns: the controller firmware under QEMU drives three "
-        "emulated AX-12s while faults are injected from a seed; checks that goals stay "
-        "within the joint limits, the controller keeps answering, the committed table "
-        "survives, and every fault is counted. Needs `make firmware` first.",
+        description="Fault campaigns: the controller firmware on an emulated board (the "
+        "CM-530's image on the emulated STM32F103RE, or the qemu board's build under "
+        "QEMU) drives three emulated AX-12s while faults are injected from a seed; checks "
+        "that goals stay within the joint limits, the controller keeps answering (and, on "
+        "the CM-530, its watchdog never fires), the committed table survives, and every "
+        "fault is counted. Needs `make firmware` first.",
+    )
+    parser.add_argument(
+        "--board",
+        action="append",
+        choices=list(TARGETS),
+        help=f"run the campaigns on this board (repeatable: each board in turn); default "
+        f"{DEFAULT_BOARD}, the one users flash (library-power-cut runs on the host)",
     )
     parser.add_argument(
         "--only",
@@ -70,11 +89,23 @@ def main(argv: list[str] | None = None) -> int:
         "their own few seconds; e.g. 120 for the figures in docs/reliability.md)",
     )
     parser.add_argument("--json", action="store_true", help="one JSON record per campaign")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def planned_runs(names: list[str], boards: list[str]) -> list[tuple[str, str]]:
+    """(campaign, board) in the order they run: every board's campaigns, board by board;
+    the library's once, on the host."""
+    on_boards = [(n, b) for b in dict.fromkeys(boards) for n in names if n != LIBRARY_CUT]
+    return on_boards + [(LIBRARY_CUT, boards[0])] * (LIBRARY_CUT in names)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
     outcomes = []
-    for name in args.only or [*CAMPAIGNS, LIBRARY_CUT]:
+    names, boards = args.only or [*CAMPAIGNS, LIBRARY_CUT], args.board or [DEFAULT_BOARD]
+    for name, board in planned_runs(names, boards):
         try:
-            outcome = run(name, args.seed, args.seconds)
+            outcome = run(name, args.seed, args.seconds, board)
         except SimError as exc:
             print(f"error: {exc}", file=sys.stderr)
             return 2
@@ -83,7 +114,8 @@ def main(argv: list[str] | None = None) -> int:
             print(json.dumps(outcome.as_record()), flush=True)
         else:
             print(
-                f"{name}: {'ok' if outcome.ok else 'FAILED'} ({outcome.seconds:.1f} s)",
+                f"{name} ({outcome.board or 'host'}): {'ok' if outcome.ok else 'FAILED'} "
+                f"({outcome.seconds:.1f} s)",
                 file=sys.stderr,
                 flush=True,
             )

@@ -4,13 +4,12 @@ model)."""
 from __future__ import annotations
 
 import random
-import sys
 import tempfile
 from collections import Counter
 from pathlib import Path
 
-from snakebot.paths import REPO_ROOT
 from tests.reliability.rig.campaigns.outcome import Outcome
+from tests.reliability.rig.campaigns.testbed import support
 
 LIBRARY_CUT = "library-power-cut"
 LIBRARY_CUT_DESCRIPTION = (
@@ -24,8 +23,7 @@ def library_power_cut(seed: int, operations: int = 40) -> Outcome:
     """The library campaign: after every operation, cut or not, a fresh start must find
     every other slot as it was and the slot written as it was or as it was to become
     ("library"), and an uncut operation must have done what it said ("done")."""
-    sys.path.insert(0, str(REPO_ROOT / "tests" / "support"))
-    import library_flash as lf  # the test support's build of the store and flash model
+    lf = support("library_flash")  # the test support's build of the store and flash model
 
     out = Outcome(LIBRARY_CUT, seed, LIBRARY_CUT_DESCRIPTION)
     rng = random.Random(seed)

@@ -13,6 +13,7 @@ class Outcome:
     name: str
     seed: int
     description: str
+    board: str | None = None  # the emulated board it ran on (None: on the host)
     seconds: float = 0.0
     counts: dict[str, int | float] = field(default_factory=dict)
     checks: dict[str, bool] = field(default_factory=dict)
@@ -24,7 +25,8 @@ class Outcome:
 
     @property
     def command(self) -> str:
-        return f"python -m tests.reliability.rig.campaigns --only {self.name} --seed {self.seed}"
+        command = f"python -m tests.reliability.rig.campaigns --only {self.name} --seed {self.seed}"
+        return f"{command} --board {self.board}" if self.board else command
 
     def check(self, name: str, held: bool, why: str = "") -> None:
         self.checks[name] = self.checks.get(name, True) and bool(held)
@@ -34,6 +36,7 @@ class Outcome:
     def as_record(self) -> dict[str, Any]:
         return {
             "name": self.name,
+            "board": self.board,
             "seed": self.seed,
             "description": self.description,
             "command": self.command,

@@ -102,9 +102,9 @@ def pc_noise(rig: Rig, out: Outcome) -> None:
     Each burst is judged on its own: the counters before and after it against what the
     parser rule predicts. The firmware counts the partial packets it drops after its
     100 ms gap (``pc_gap_resets``, read from RAM), so a burst whose bytes the host let
-    sit for 100 ms (a busy machine stalled QEMU or the client mid-burst) shows as one
-    drop more than the burst asks for; such a burst says nothing about the parser and
-    is counted as disturbed, not judged. Where a burst asks for a drop, it waits until
+    sit for 100 ms (a busy machine stalled the emulator or the client mid-burst) shows as
+    one drop more than the burst asks for; such a burst says nothing about the parser
+    and is counted as disturbed, not judged. Where a burst asks for a drop, it waits until
     the firmware has made it, however late."""
     start_steered(rig, out)
     rng = random.Random(f"{out.seed}/pc-noise")

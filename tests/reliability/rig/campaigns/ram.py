@@ -1,8 +1,9 @@
-"""The firmware's RAM, read through QEMU's monitor at the addresses of the build's ELF
-symbols, and the checks that this view is the running firmware's."""
+"""Where the firmware keeps what the campaigns read back from its RAM: the addresses of the
+board's ELF symbols, and the layout of ``ctl_device`` (the same core on every board)."""
 
 from __future__ import annotations
 
+import functools
 import subprocess
 import tempfile
 from dataclasses import dataclass
@@ -13,17 +14,17 @@ from elftools.common.exceptions import ELFError
 from elftools.elf.elffile import ELFFile
 
 from snakebot.sim.errors import SimFailure
-from snakebot.sim.qemu import QemuFirmware
-from tests.reliability.rig.campaigns.testbed import CORE_DIR, ELF_FILE, REBUILD, CampaignFailed
+from tests.reliability.rig.campaigns.testbed import CORE_DIR, REBUILD, CampaignFailed
 
 
 @dataclass(frozen=True)
 class RamMap:
     """Where the firmware keeps what the campaigns read back: from the symbol table of the
-    ELF the flash image was made from (``build/qemu/firmware.elf``), and a probe compiled
-    for the Cortex-M3 for the layout of ``ctl_device``. ``flash`` holds what that ELF
-    loads into flash (address, bytes), so a rig can check that QEMU booted this very build
-    before it trusts an address (:meth:`Rig.check_view`)."""
+    ELF the board's image was made from (``build/qemu/firmware.elf``,
+    ``build/cm530/firmware.elf``), and a probe compiled for the Cortex-M3 for the layout
+    of ``ctl_device``. ``flash`` holds what that ELF loads into flash (address, bytes), so
+    a rig can check that the machine runs this very build before it trusts an address
+    (:meth:`Rig.check_view`)."""
 
     ticks_ms: int
     busport_stats: int
@@ -36,7 +37,7 @@ class RamMap:
     source: str = ""
 
     @classmethod
-    def from_build(cls, elf_file: Path = ELF_FILE) -> RamMap:
+    def from_build(cls, elf_file: Path) -> RamMap:
         try:
             with elf_file.open("rb") as f:
                 elf = ELFFile(f)
@@ -95,9 +96,11 @@ def _objects(elf: ELFFile) -> dict[tuple[str, str], tuple[int, int]]:
     return found
 
 
+@functools.cache
 def _ctl_layout() -> tuple[int, int, int]:
     """offsetof(ctl_device, active), offsetof(..., active_len), sizeof(ctl_device) on the
-    Cortex-M3, from a probe compiled with the firmware's compiler."""
+    Cortex-M3, from a probe compiled with the firmware's compiler (once a process: the
+    same core on every board)."""
     source = (
         '#include <stddef.h>\n#include "ctl_device.h"\n'
         "const unsigned int snakebot_probe[3] = {offsetof(ctl_device, active), "
@@ -136,18 +139,3 @@ def _ctl_layout() -> tuple[int, int, int]:
             ) from exc
         words = np.frombuffer(b.read_bytes()[:12], "<u4")
         return int(words[0]), int(words[1]), int(words[2])
-
-
-def read_ram(fw: QemuFirmware, address: int, length: int) -> bytes:
-    """``length`` bytes of the emulated machine's memory (whole words are read)."""
-    first = address & ~3
-    words = (address + length - first + 3) // 4
-    text = fw.monitor(f"xp /{words}wx {first:#x}")
-    values = [
-        int(v, 16)
-        for line in text.splitlines()
-        if ":" in line
-        for v in line.split(":", 1)[1].split()
-    ]
-    raw = b"".join(v.to_bytes(4, "little") for v in values)
-    return raw[address - first : address - first + length]

@@ -1,15 +1,16 @@
-"""One campaign's rig: QEMU running the firmware, the emulated bus with its taps, the PC-
-link client, and the watch over the controller's promises."""
+"""One campaign's rig: a board's machine running the firmware (:mod:`.targets`), the
+emulated bus with its taps, the PC-link client, and the watch over the controller's
+promises."""
 
 from __future__ import annotations
 
-import os
-import re
 import time
 import zlib
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from snakebot.facts.boards import PC_LINK_BAUD as PC_BAUD
 from snakebot.formats.protocol import (
@@ -21,29 +22,33 @@ from snakebot.link.controller.client import ControllerClient
 from snakebot.link.controller.limits import LimitsError, limits_state, set_limits
 from snakebot.link.controller.monitor import Sample, sample
 from snakebot.sim.bus.faults import FaultConfig
-from snakebot.sim.qemu import Endpoint, QemuFirmware
-from snakebot.sim.transports.unixsock import UnixSocketServer
-from tests.reliability.rig.campaigns.ram import RamMap, read_ram
+from tests.reliability.rig.campaigns.ram import RamMap
 from tests.reliability.rig.campaigns.taps import AuditedServo, Tap, TappedBus
+from tests.reliability.rig.campaigns.targets import TARGETS, Target
 from tests.reliability.rig.campaigns.testbed import (
     CONTROLLER_ID,
     CTL,
     IDS,
-    IMAGE,
     LIMITS,
-    LOG_TAIL,
     REBUILD,
     SAMPLE_S,
     STALL_MS,
     UPTIME_SLACK_MS,
     UPTIME_STILL_S,
     CampaignFailed,
+    support,
 )
 
 PC_RETRIES = 3
 """The PC-link client's tries after the first: with the library's allowance for a program
-on this host (``timing.PROGRAM_MARGIN_S``) the controller counts as lost only after two
-seconds of silence, which a busy host's scheduling does not make."""
+on this host (``timing.PROGRAM_MARGIN_S``) the controller under QEMU counts as lost only
+after two seconds of silence, which a busy host's scheduling does not make; the emulated
+CM-530, in the client's own process, gets a wider margin still (:class:`.Cm530Target`)."""
+BOOT_WAIT_S = 10.0
+"""How long the firmware may take to answer its first PING."""
+MACHINE_SLOWEST = 10.0
+"""How many times slower than the wall clock a machine's clock may run before a wait on it
+gives up (the emulated CM-530 slows its clock rather than fall behind)."""
 QUIET_WAIT_S = 5.0
 """How long a stopped controller may take to stop using the bus on a busy host."""
 
@@ -63,15 +68,17 @@ class Health:
     servo_goals_outside: int = 0  # sampled servo goals outside the limits
     table_checks: int = 0
     table_failures: list[str] = field(default_factory=list)
-    reboot_details: list[str] = field(default_factory=list)  # registers and QEMU's log
+    reboot_details: list[str] = field(default_factory=list)  # registers and the machine's log
 
 
 class Rig:
-    """QEMU running the firmware, wired to a tapped emulated bus; a controller client on
-    the PC link; the firmware's RAM within reach. Use as a context manager."""
+    """``board``'s machine running the firmware, wired to a tapped emulated bus; a
+    controller client on the PC link; the firmware's RAM within reach. Use as a context
+    manager."""
 
     def __init__(
         self,
+        board: str,
         faults: FaultConfig,
         workdir: Path,
         play_s: float | None = None,
@@ -81,38 +88,38 @@ class Rig:
         self.servos = [AuditedServo(i, lim) for i, lim in zip(IDS, LIMITS, strict=True)]
         self.bus = TappedBus(self.tap, self.servos, faults=faults)
         self.play_s = play_s  # overrides how long the campaigns that play, play
-        self.server = UnixSocketServer(self.bus, workdir / "bus.sock")
-        # A name only this QEMU has: the monitor must be this machine's (check_view).
-        self.name = f"snakebot-campaign-{os.getpid()}-{workdir.name}"
-        self.fw = QemuFirmware(
-            IMAGE, bus=Endpoint.unix_client(workdir / "bus.sock"), extra_args=["-name", self.name]
-        )
-        self.ram = ram if ram is not None else RamMap.from_build()
+        self.target: Target = TARGETS[board](self.bus, workdir)
+        self.ram = ram if ram is not None else RamMap.from_build(self.target.elf)
         self.health = Health()
-        self._started = 0.0  # time.monotonic() when QEMU started
+        self._started = 0.0  # time.monotonic() when the machine started
         self._table_view_checked = False
         self.ctl: ControllerClient | None = None
         self.committed: tuple[int, int] | None = None  # (size, CRC) of the table on board
         self._uptime = -1
+        self._resets = 0  # the resets the machine counted (the emulated CM-530 does)
         self._progress: tuple[int, int] | None = None  # (bus packets, uptime) at last change
         self.polling = False  # the roster is polled: the bus must keep moving
         self.last_polled: Sample | None = None  # the last look with the roster in place
         self.last_polled_s = 0.0  # how long that look took, registers to servo window
         self._last_state = State.IDLE
 
+    @property
+    def lock(self) -> AbstractContextManager[Any]:
+        """Hold it to touch the bus (the machine runs it from another thread)."""
+        return self.target.lock
+
     def __enter__(self) -> Rig:
-        self.server.start()
         try:
             self._started = time.monotonic()
-            self.fw.start()
+            self.target.start()
+            self._wait_for_boot()
             self.ctl = ControllerClient.open(
-                self.fw.ports.pc_link, PC_BAUD, CONTROLLER_ID, retries=PC_RETRIES
+                self.target.pc_link,
+                PC_BAUD,
+                CONTROLLER_ID,
+                retries=PC_RETRIES,
+                margin_s=self.target.margin_s,
             )
-            deadline = time.monotonic() + 10
-            while not self._answers():
-                if time.monotonic() > deadline:
-                    raise CampaignFailed(f"the firmware never answered PING: {self.fw.log()}")
-                time.sleep(0.05)
             self.check_view()
         except BaseException:
             self.__exit__(None, None, None)
@@ -122,38 +129,40 @@ class Rig:
     def __exit__(self, *exc: object) -> None:
         if self.ctl is not None:
             self.ctl.close()
-        self.fw.stop()
-        self.server.close()
+        self.target.stop()
 
-    def _answers(self) -> bool:
+    def _wait_for_boot(self) -> None:
+        """Until the firmware answers PING, on a client of its own with the pseudo-
+        terminal's usual margin: each PING sent before the firmware listens costs that
+        margin, and the emulated CM-530's client has a far wider one."""
         try:
-            self.ctl.link.ping(CONTROLLER_ID, retries=0)
-            return True
+            support("firmware_support").wait_for_boot(self.target.pc_link, BOOT_WAIT_S)
         except ProtocolError:
-            return False
+            raise CampaignFailed(
+                f"the firmware never answered PING in {BOOT_WAIT_S:.0f} s "
+                f"({self.target.label}'s log: {self.target.log()}); {REBUILD}"
+            ) from None
 
     # -- the rig's own view of the machine ----------------------------------------------------
 
     def check_view(self) -> None:
-        """Make sure that what this rig reads through QEMU's monitor is the running
-        firmware's RAM where the RAM map says, before any of it counts as a result: the
-        monitor answers for this rig's QEMU (its name), the flash holds what the ELF the
-        map comes from loads there (QEMU booted that very build), and the uptime counter
-        advances, never faster than the wall clock since QEMU started. A mismatch is
-        :class:`CampaignFailed` naming it, not a broken promise of the firmware."""
-        named = self.fw.monitor("info name").strip()
-        if named != self.name:
-            raise CampaignFailed(
-                f"asked for its name, QEMU's monitor answered {named!r}, not this rig's "
-                f"{self.name!r}: another QEMU's monitor, or answers out of step with the "
-                "questions; stop stray qemu-system-arm processes and run again"
-            )
+        """Make sure that what this rig reads of the machine is the running firmware's RAM
+        where the RAM map says, before any of it counts as a result: the machine is this
+        rig's (:meth:`Target.check_identity`: QEMU's monitor answers with this rig's
+        name; the emulated CM-530's thread runs), the flash holds what the ELF the map
+        comes from loads there (the machine booted that very build), and the uptime
+        counter advances, never faster than the wall clock since the machine started. A
+        mismatch is :class:`CampaignFailed` naming it, not a broken promise of the
+        firmware."""
+        target = self.target
+        target.check_identity()
         for address, data in self.ram.flash:
-            held = read_ram(self.fw, address, len(data))
+            held = target.read(address, len(data))
             if held != data:
                 at = next(i for i in range(len(data)) if i >= len(held) or held[i] != data[i])
                 raise CampaignFailed(
-                    f"QEMU booted {IMAGE}, but its flash at {address + at:#x} differs from "
+                    f"{target.label} booted {target.image}, but its flash at "
+                    f"{address + at:#x} differs from "
                     f"{self.ram.source}, where the RAM map comes from: two different builds "
                     f"(was the firmware rebuilt after the image was made?); {REBUILD}"
                 )
@@ -174,15 +183,16 @@ class Rig:
 
     def _ticks(self) -> int:
         return self._plausible_uptime(
-            int.from_bytes(read_ram(self.fw, self.ram.ticks_ms, 4), "little")
+            int.from_bytes(self.target.read(self.ram.ticks_ms, 4), "little")
         )
 
     def _plausible_uptime(self, ticks: int) -> int:
-        """``ticks``, if the firmware can have counted that far since QEMU started."""
+        """``ticks``, if the firmware can have counted that far since the machine started."""
         ran_ms = (time.monotonic() - self._started) * 1000
         if ticks > ran_ms + UPTIME_SLACK_MS:
             raise CampaignFailed(
-                f"ticks_ms at {self.ram.ticks_ms:#x} reads {ticks} ms, but QEMU started "
+                f"ticks_ms at {self.ram.ticks_ms:#x} reads {ticks} ms, but "
+                f"{self.target.label} started "
                 f"{ran_ms:.0f} ms ago: the RAM map ({self.ram.source}) does not describe the "
                 f"running firmware; {REBUILD}"
             )
@@ -209,15 +219,10 @@ class Rig:
             )
 
     def machine_state(self) -> str:
-        """The CPU's PC and SP, and what QEMU logged, for a problem report."""
-        regs = dict(re.findall(r"(R1[35]|XPSR)=([0-9a-f]+)", self.fw.monitor("info registers")))
-        cpu = ", ".join(
-            f"{name} {regs[key]}"
-            for name, key in (("PC", "R15"), ("SP", "R13"), ("xPSR", "XPSR"))
-            if key in regs
-        )
-        log = self.fw.log().strip()[-LOG_TAIL:] or "nothing"
-        return f"CPU: {cpu or 'no registers'}; QEMU log: {log}"
+        """The CPU's PC, SP and xPSR, and what the machine logged, for a problem report."""
+        target = self.target
+        cpu = ", ".join(f"{name} {value:08x}" for name, value in target.cpu().items())
+        return f"CPU: {cpu or 'no registers'}; {target.label}'s log: {target.log()}"
 
     # -- the PC link ------------------------------------------------------------------------
 
@@ -252,8 +257,8 @@ class Rig:
 
     def ram_probe(self) -> dict[str, int]:
         ticks = self._ticks()
-        bp = read_ram(self.fw, self.ram.busport_stats, 6)
-        pc = read_ram(self.fw, self.ram.pclink_stats, 4)
+        bp = self.target.read(self.ram.busport_stats, 6)
+        pc = self.target.read(self.ram.pclink_stats, 4)
         return {
             "uptime_ms": ticks,
             "bus_packets": int.from_bytes(bp[0:2], "little"),
@@ -265,9 +270,9 @@ class Rig:
 
     def active_table(self) -> bytes:
         base = self.ram.ctl
-        n = int.from_bytes(read_ram(self.fw, base + self.ram.active_len_offset, 2), "little")
+        n = int.from_bytes(self.target.read(base + self.ram.active_len_offset, 2), "little")
         n = min(n, self.ram.ctl_size - self.ram.active_offset)  # no further than the arena
-        return read_ram(self.fw, base + self.ram.active_offset, n) if n else b""
+        return self.target.read(base + self.ram.active_offset, n) if n else b""
 
     def check_table(self, where: str) -> None:
         """The committed table, as the registers describe it and as RAM holds it."""
@@ -297,18 +302,29 @@ class Rig:
             h.ping_failures += 1
         probe = self.ram_probe()
         packets, uptime = probe["bus_packets"], probe["uptime_ms"]
-        if uptime < self._uptime:
-            h.reboots += 1
-            h.reboot_details.append(
-                f"uptime went from {self._uptime} to {uptime} ms; {self.machine_state()}"
-            )
-            self.check_view()  # a real reboot, not the rig's view of the machine failing
-        self._uptime = uptime
+        self._check_reboot(uptime)
         if not self.polling or self._progress is None or packets != self._progress[0]:
             self._progress = (packets, uptime)
         elif uptime - self._progress[1] >= STALL_MS:
             h.stalls += 1  # ticks due, and not one bus packet
             self._progress = (packets, uptime)
+
+    def _check_reboot(self, uptime: int) -> None:
+        """Count a reboot since the last look: the uptime went back or, where the machine
+        counts its resets (the emulated CM-530), one came, however long ago (a look that
+        waited out lost replies may find a fresh uptime already past the last one)."""
+        resets = self.target.resets()
+        if uptime >= self._uptime and resets in (None, self._resets):
+            self._uptime = uptime
+            return
+        came = 1 if resets is None else max(resets - self._resets, 1)
+        self.health.reboots += came
+        self.health.reboot_details.append(
+            f"the firmware started again (uptime {self._uptime} ms, then {uptime} ms); "
+            f"{self.machine_state()}"
+        )
+        self._uptime, self._resets = uptime, resets or 0
+        self.check_view()  # a real reboot, not the rig's view of the machine failing
 
     def look(self) -> Sample:
         """One look as ``snakebot monitor`` takes it, plus the servos' own goals."""
@@ -323,28 +339,50 @@ class Rig:
         if state == State.SAFE and self._last_state != State.SAFE:
             h.safe_entries += 1
         self._last_state = state
-        with self.server.lock:
+        with self.lock:
             goals = [self.bus.servo(i).regs.get("Goal Position") for i in IDS]
         for goal, (lo, hi) in zip(goals, LIMITS, strict=True):
             h.servo_goals_outside += not lo <= goal <= hi
         return s
 
-    def watch(self, seconds: float, on_look: Callable[[Sample], None] | None = None) -> None:
-        """Look, check life and the table, and let ``on_look`` act, for ``seconds``."""
-        end = time.monotonic() + seconds
+    def bus_now(self) -> float:
+        """The bus's clock, which what is scheduled on the bus (a brown-out) runs on:
+        under QEMU it follows the wall clock; the emulated CM-530's bus runs on the
+        chip's, which falls behind when the host keeps the chip waiting."""
+        with self.lock:
+            return self.bus.now
+
+    def lasting(self, seconds: float, clock: Callable[[], float]) -> Callable[[], bool]:
+        """Whether ``seconds`` on ``clock`` (the wall clock, or :meth:`bus_now`) have
+        passed since this call; on the bus's clock, at most :data:`MACHINE_SLOWEST`
+        times as long on the wall clock."""
+        end, wall_end = clock() + seconds, time.monotonic() + seconds * MACHINE_SLOWEST
+        return lambda: clock() >= end or time.monotonic() >= wall_end
+
+    def watch(
+        self,
+        seconds: float,
+        on_look: Callable[[Sample], None] | None = None,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        """Look, check life and the table, and let ``on_look`` act, for ``seconds`` on
+        ``clock`` (:meth:`lasting`)."""
+        over = self.lasting(seconds, clock)
         while True:
             self.check_alive()
             s = self.look()
             if on_look is not None:
                 on_look(s)
-            if time.monotonic() >= end:
+            if over():
                 break
             time.sleep(SAMPLE_S)
         self.check_table("while playing")
 
-    def operator(self, recover_after_s: float = 0.3) -> Callable[[Sample], None]:
+    def operator(
+        self, recover_after_s: float = 0.3, clock: Callable[[], float] = time.monotonic
+    ) -> Callable[[Sample], None]:
         """What a person at ``snakebot monitor`` would do: when the controller has gone
-        SAFE, wait a little, CLEAR and PLAY again."""
+        SAFE, wait a little (``recover_after_s`` on ``clock``), CLEAR and PLAY again."""
         since: list[float] = []
 
         def act(s: Sample) -> None:
@@ -352,8 +390,8 @@ class Rig:
                 since.clear()
                 return
             if not since:
-                since.append(time.monotonic())
-            elif time.monotonic() - since[0] >= recover_after_s:
+                since.append(clock())
+            elif clock() - since[0] >= recover_after_s:
                 self.command(Command.CLEAR)
                 self.command(Command.PLAY)
                 self.health.recoveries += 1
@@ -362,7 +400,9 @@ class Rig:
         return act
 
     def freeze(self) -> Sample:
-        """Stop and empty the roster so the bus goes quiet; the last look."""
+        """Stop and empty the roster so the bus goes quiet; the last look. Once it is
+        quiet, every byte the servos sent must have reached the firmware's UART, or the
+        machine's wiring to the bus failed (:class:`CampaignFailed`)."""
         self.command(Command.STOP)
         self.polling = False
         self.write({"Joint Count": 0})
@@ -370,22 +410,30 @@ class Rig:
         # stretches: wait until no packet has come for a while (past the last reply
         # window, 30 ms, and a few ticks), so the tap and the registers count the same.
         deadline = time.monotonic() + QUIET_WAIT_S
-        with self.server.lock:
+        with self.lock:
             seen = self.tap.packets
         while True:
             time.sleep(0.15)
-            with self.server.lock:
+            with self.lock:
                 if self.tap.packets == seen:
                     self.tap.quiet()
+                    unread = self.bus.master_in_waiting()
                     break
                 seen = self.tap.packets
             if time.monotonic() > deadline:
                 raise CampaignFailed(f"the bus did not go quiet within {QUIET_WAIT_S} s of STOP")
+        if unread:
+            raise CampaignFailed(
+                f"{unread} bytes the servos sent never reached the firmware's UART: "
+                f"{self.target.label}'s wiring to the emulated bus stopped passing them on "
+                "(the counts would say the bus went deaf); report it with the campaign's "
+                "command"
+            )
         self.check_alive()
         return self.look()
 
     def started_polling(self) -> None:
         """The roster is set: from now on the bus must carry a READ every tick."""
-        with self.server.lock:
+        with self.lock:
             self.tap.restart_gaps()
         self.polling = True

@@ -1,8 +1,12 @@
-"""What every campaign runs on: the QEMU build, the three servos, the table on their
-limits, the timing allowances, the registers the checks read, and the failure of the rig
-itself."""
+"""What every campaign runs on, on either board: the builds, the three servos, the table on
+their limits, the timing allowances, the registers the checks read, and the failure of the
+rig itself."""
 
 from __future__ import annotations
+
+import importlib
+import sys
+from types import ModuleType
 
 import numpy as np
 
@@ -15,9 +19,7 @@ from snakebot.link.controller import load
 from snakebot.paths import REPO_ROOT
 from snakebot.sim.errors import SimFailure
 
-BUILD = REPO_ROOT / "build" / "qemu"
-IMAGE = BUILD / "flash.bin"
-ELF_FILE = BUILD / "firmware.elf"
+BUILD = REPO_ROOT / "build"  # each board's image and ELF below it (`make firmware`)
 CORE_DIR = REPO_ROOT / "firmware" / "core"
 
 IDS = (1, 2, 3)
@@ -28,9 +30,9 @@ STEERING = 150  # ticks added to every goal: half the goals would leave the limi
 CONTROLLER_ID = load().default_id
 SAMPLE_S = 0.1  # how often the watch loop looks
 STALL_MS = 100  # ten control ticks without a bus packet while the roster is polled
-UPTIME_SLACK_MS = 500  # SysTick counts QEMU's virtual time, which never runs ahead of ours
+UPTIME_SLACK_MS = 500  # SysTick counts the emulator's time, which never runs ahead of ours
 UPTIME_STILL_S = 2.0  # how long the uptime counter may seem to stand still at the start
-LOG_TAIL = 2000  # characters of QEMU's log in a problem report
+LOG_TAIL = 2000  # characters of the machine's log in a problem report
 REBUILD = "rebuild the firmware with `make firmware` and run again"
 CTL = load()
 MAX_LEN_FIELD = MAX_PACKET_LEN - 4  # the largest LEN byte a packet can carry
@@ -46,6 +48,14 @@ TELEMETRY_ADDRESS = AX12.register("Present Position").address
 
 def _reg(name: str) -> int:
     return CTL.register(name).address
+
+
+def support(name: str) -> ModuleType:
+    """The test support module ``name`` (tests/support/, which pytest puts on the path)."""
+    folder = str(REPO_ROOT / "tests" / "support")
+    if folder not in sys.path:
+        sys.path.insert(0, folder)
+    return importlib.import_module(name)
 
 
 class CampaignFailed(SimFailure):

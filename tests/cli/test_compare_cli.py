@@ -53,35 +53,40 @@ in-process emulator in a recording moves the servos off the goals they chase, wh
 not what these tests are about (test_a_stalled_emulator_is_reported... is)."""
 
 
+def record_undisturbed(gait: Path, *monitor_args: str | Path) -> dict:
+    """A run of ``gait`` recorded by `snakebot monitor` with ``monitor_args`` (its output
+    files among them) from a controller playing it, again until compare finds neither
+    gaps nor stalls in it (RECORDINGS); compare's report of the first undisturbed run."""
+    csv = Path(monitor_args[monitor_args.index("--csv") + 1])
+    for _ in range(RECORDINGS):
+        with ControllerPty(table=read_gait(gait).encode()) as server:
+            assert cli("play", "--port", server.device, "--loop").exit_code == 0
+            time.sleep(0.5)  # the servos reach the gait from where they stood
+            done = cli("monitor", "--port", server.device, *monitor_args)
+            assert done.exit_code == 0, done.output
+        report = compare_json(csv, gait)
+        if not report["gaps"] and not report["stalls"]:
+            return report
+    pytest.fail(f"the host disturbed all {RECORDINGS} recordings: {report}")
+
+
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory):
     """A gait, and a run of it recorded from the controller (CSV and MCAP) that the host
     did not disturb (RECORDINGS)."""
     tmp = tmp_path_factory.mktemp("compare")
     gait = serpenoid(tmp, "s.gait", "20deg")
-    for _ in range(RECORDINGS):
-        with ControllerPty(table=read_gait(gait).encode()) as server:
-            assert cli("play", "--port", server.device, "--loop").exit_code == 0
-            time.sleep(0.5)
-            done = cli(
-                "monitor",
-                "--port",
-                server.device,
-                "--duration",
-                "2.5",
-                "--interval",
-                "0.02",
-                "--csv",
-                tmp / "run.csv",
-                "--mcap",
-                tmp / "run.mcap",
-            )
-            assert done.exit_code == 0, done.output
-        report = compare_json(tmp / "run.csv", gait)
-        if not report["gaps"] and not report["stalls"]:
-            break
-    else:
-        pytest.fail(f"the host disturbed all {RECORDINGS} recordings: {report}")
+    record_undisturbed(
+        gait,
+        "--duration",
+        "2.5",
+        "--interval",
+        "0.02",
+        "--csv",
+        tmp / "run.csv",
+        "--mcap",
+        tmp / "run.mcap",
+    )
     return tmp, gait
 
 
@@ -89,7 +94,8 @@ def recorded(tmp_path_factory):
 def slow_between_reads(recorded):
     """A run recorded as on a busy host: the monitor is held up 0.12 s between its READ of
     the controller's registers (with the Play Frame) and its READ of the servo window
-    (goals and positions), so every frame in the run is older than its positions."""
+    (goals and positions), so every frame in the run is older than its positions. The
+    host's own delays are not wanted here either (RECORDINGS)."""
     tmp, gait = recorded
     roster = ControllerClient.roster
 
@@ -99,21 +105,7 @@ def slow_between_reads(recorded):
 
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(ControllerClient, "roster", late_roster)
-        with ControllerPty(table=read_gait(gait).encode()) as server:
-            assert cli("play", "--port", server.device, "--loop").exit_code == 0
-            time.sleep(0.5)  # the servos reach the gait from where they stood
-            done = cli(
-                "monitor",
-                "--port",
-                server.device,
-                "--duration",
-                "3",
-                "--interval",
-                "0.05",
-                "--csv",
-                tmp / "slow.csv",
-            )
-            assert done.exit_code == 0, done.output
+        record_undisturbed(gait, "--duration", "3", "--interval", "0.05", "--csv", tmp / "slow.csv")
     return tmp / "slow.csv", gait
 
 

@@ -209,6 +209,7 @@ def test_a_plan_near_a_singular_configuration_is_warned_about(monkeypatch):
     assert "plan as written" in loud.stderr and "condition number" in loud.stderr
 
 
+@pytest.mark.late  # plans the same target twice
 def test_a_target_beyond_the_small_board_exits_1_naming_capacity(tmp_path):
     """The same target: beyond what the QEMU board's table holds (exit 1, the message
     says --capacity, nothing written), within the CM-530's, the default, whose plan is
@@ -291,6 +292,7 @@ MUJOCO_TARGET = (-0.2, 0.0, 0.0)
 
 
 @needs_mujoco
+@pytest.mark.late  # plays in MuJoCo: CPU-bound, beside the serial stage
 def test_a_mujoco_plan_ends_within_the_tolerance_where_sim_predict_plays_it(tmp_path):
     """--world mujoco (issue #31): the table, played open loop in MuJoCo as `sim predict`
     plays it, ends within the tolerance the plan claims; the plan says which world it was
@@ -334,6 +336,7 @@ none (docs/goto.md)."""
 
 
 @needs_mujoco
+@pytest.mark.late
 @pytest.mark.parametrize("target", BOTH_TARGETS)
 def test_a_plan_for_both_worlds_ends_within_both_bounds(tmp_path, target):
     """--world both (issue #31): the table ends within the tolerance in the quasi-static
@@ -357,6 +360,7 @@ def test_a_plan_for_both_worlds_ends_within_both_bounds(tmp_path, target):
 
 
 @needs_mujoco
+@pytest.mark.late
 def test_a_plan_for_both_worlds_that_meets_neither_says_so_with_both_ends():
     """Out of plays, the plan names its nearest table's error in each world (exit 1 in the
     CLI, Unreachable here) instead of handing out a table outside a bound."""

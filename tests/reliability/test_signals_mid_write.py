@@ -173,7 +173,8 @@ def _slot0(port: str) -> dict:
     return json.loads(listed.stdout)["slots"][0]
 
 
-@pytest.mark.qemu  # both boards behind a pty: the QEMU stage's real-time class keeps them in time
+@pytest.mark.qemu
+@pytest.mark.serial  # QEMU behind a pty: its replies come late beside another worker
 @pytest.mark.parametrize("signum", SIGNALS, ids=IDS)
 def test_library_store_stopped_mid_slot_leaves_the_slot_as_it_was(firmware, tmp_path, signum):
     first = save(constant_table(400), tmp_path, "first.gait")

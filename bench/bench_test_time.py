@@ -77,6 +77,9 @@ def main() -> int:
     busy = any("other work keeps" in line for line in lines)
     for name, summary in stage_summaries(run.stdout, began).items():
         print(f"   {name:9} {summary}")
+    for line in lines:  # each failed test, by name (a failed stage prints its log whole)
+        if line.startswith(("FAILED ", "ERROR ")):
+            print(f"     {line}")
     counts = board_tests()
     verdict = "met" if wall <= GOAL_S and run.returncode == 0 else "MISS"
     print(

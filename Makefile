@@ -234,7 +234,8 @@ STAGE_MARK_qemu   := qemu and not serial
 STAGE_DIST_qemu   := loadfile
 STAGE_JOBS_serial  = $(SERIAL_JOBS)
 STAGE_MARK_serial := serial
-STAGE_DIST_serial := load
+# loadgroup: tests as workers free up, but a group (the fault campaigns) to one worker, in turn
+STAGE_DIST_serial := loadgroup
 
 # `make test` fuzzes each target TEST_FUZZ_SECONDS, a smoke pass within its 5-minute
 # budget; `make fuzz` is the longer pass (FUZZ_SECONDS, below).

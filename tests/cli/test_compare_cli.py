@@ -22,11 +22,7 @@ from snakebot.model.robots import load_robot
 from snakebot.sim.controller_pty import ControllerPty
 from snakebot.workflows.predict import predict_table
 
-# The runs are recorded in real time from the controller's logic in this process, whose
-# servos lag their goals when the host holds the thread up: in the parallel stage, beside
-# the QEMU stage's real-time class, the slow-host run came out 3-7 degrees off in three
-# runs of ten (3 asked) without a gap or stall that compare could see. `serial`.
-pytestmark = [pytest.mark.timeout(120), pytest.mark.serial]
+pytestmark = pytest.mark.timeout(120)
 
 
 def serpenoid(tmp_path: Path, name: str, amplitude: str) -> Path:

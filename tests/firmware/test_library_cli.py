@@ -24,9 +24,9 @@ from snakebot.link.controller.library import (
 )
 from snakebot.link.flash.library_backup import backup_library, restore_library
 
-# QEMU behind a pty, the emulated CM-530 in the tests' own process: `make test` runs them
-# in its QEMU stage, whose real-time class keeps their replies in time beside the rest.
-pytestmark = pytest.mark.qemu
+# QEMU behind a pty, the emulated CM-530 in the tests' own process: their replies come
+# late when another worker loads the machine
+pytestmark = [pytest.mark.qemu, pytest.mark.serial]
 
 CTL = load()
 SLOTS = {"cm530": lib.CTL_MAX_LIBRARY_SLOTS, "qemu": 1}  # app/store_lib.h, app/store_play.c

@@ -32,7 +32,7 @@ from snakebot.model.robots import load_robot
 from snakebot.sim.serve import EmulatedRobot
 from snakebot.workflows.predict import REST_TICKS, emulate, predict_program
 
-pytestmark = [pytest.mark.qemu, pytest.mark.slow]
+pytestmark = [pytest.mark.qemu, pytest.mark.slow, pytest.mark.serial]
 
 GOAL_ADDRESS = ax12().register("Goal Position").address
 

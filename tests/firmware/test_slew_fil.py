@@ -19,7 +19,7 @@ from snakebot.link.controller.client import ControllerClient
 from snakebot.link.controller.playback import SerpenoidSettings, roster_from_robot, serpenoid
 from snakebot.sim.serve import EmulatedRobot
 
-pytestmark = [pytest.mark.qemu, pytest.mark.slow]
+pytestmark = [pytest.mark.qemu, pytest.mark.slow, pytest.mark.serial]
 
 PHI0_STEP = math.radians(50)  # about eight ticks' worth of the servo's top speed
 OMEGA = math.pi

@@ -34,16 +34,17 @@ unexport PYTHONDONTWRITEBYTECODE
 # the suite, one per core for the tests that run QEMU, one for the `late` tests (two
 # ended that lane sooner, but their load beside the serial stage made its emulated
 # controllers miss replies in fresh clones' CI runs), one more than the cores for the
-# serial tests (they mostly wait on ptys and the wall clock: on 2 cores, 4 workers took
-# 69-75 s where 3 took 84-88 s; but with the emulated CM-530's tests among them, 4 at
-# nice -10 kept QEMU's fault campaigns from their pace: a PING unanswered in 2 of 5 runs).
+# serial tests (they mostly wait on ptys and the wall clock: with the fault campaigns in
+# a lane of their own beside them, on 2 cores 3 workers took 102 s where 2 took 148 s;
+# 4 at nice -10 with the campaigns among them kept QEMU's campaigns from their pace, a
+# PING unanswered in 2 of 5 runs).
 TEST_JOBS   ?= $(shell echo $$(( $$(nproc) * 2 )))
 QEMU_JOBS   ?= $(shell nproc)
 SERIAL_JOBS ?= $(shell echo $$(( $$(nproc) + 1 )))
 LATE_JOBS   ?= 1
 
 .PHONY: dist help setup system-packages demo-packages python-env runtime-env core firmware \
-        test test-summary test-collect test-parallel test-late test-qemu test-serial test-fuzz test-wheel lint fuzz-targets bench demo flash flash-image clean fuzz docs
+        test test-summary test-collect test-parallel test-late test-qemu test-serial test-campaigns test-fuzz test-wheel lint fuzz-targets bench demo flash flash-image clean fuzz docs
 
 help:
 	@echo "make demo      run the main job on the emulated robot (does its own set-up)"
@@ -122,17 +123,20 @@ firmware: demo-packages
 # - the tests that run the firmware in QEMU, on QEMU_JOBS workers, a test file whole in
 #   each (--dist loadfile), which keeps each QEMU pacing its links in real time, in the
 #   real-time class (FIRST, below); where that is not allowed, after the other two lanes.
-# Then those marked `serial` (fault campaigns whose counts need QEMU to keep pace,
-# real-time pty runs, dynamixel-sdk's fixed waits) on SERIAL_JOBS workers: beside the
-# other stages, even in the real-time class, the kernel's own tty work and the
-# third-party clients came late (5 of 92 failed). Only the package check (it builds the
-# wheel, then runs the demo from it in QEMU) runs beside them (test-wheel, below).
+# Then those marked `serial` (real-time pty runs, dynamixel-sdk's fixed waits) on
+# SERIAL_JOBS workers: beside the other stages, even in the real-time class, the
+# kernel's own tty work and the third-party clients came late (5 of 92 failed). Beside
+# them run the fault campaigns, one at a time in a process of their own (test-campaigns:
+# their counts need the emulated board to keep pace, and a QEMU campaign lost a PING with
+# another board's campaign running beside it), the package check (it builds the wheel,
+# then runs the demo from it in QEMU; test-wheel) and the late lane (test-late).
 # Every stage but the first writes a log, shown whole if it fails and as one line if not,
 # so that outputs do not mix; the first stage prints its progress.
 # A stage that fails does not stop the others: each records its result in TEST_STATUS,
 # every stage runs, and `make test` ends with the table of results, failing if any did.
 FUZZ_TESTS  := tests/reliability/test_fuzz_targets.py
 WHEEL_TESTS := tests/packaging/test_wheel.py
+CAMPAIGN_TESTS := tests/reliability/test_reliability_campaigns.py
 LOW         := nice -n 10
 # The QEMU and serial stages emulate hardware in real time, and what they check (the
 # firmware's reply windows, its 100 ms PC-link gap, a servo's return delay) is timing:
@@ -158,7 +162,7 @@ TEST_STATUS := build/test-status
 # its QEMU stopped answering, and the demo lost the controller).
 BUSY        := build/test-busy
 BUSY_CORES  := 0.5
-TEST_STAGES := checks parallel late qemu serial fuzz wheel
+TEST_STAGES := checks parallel late qemu serial campaigns fuzz wheel
 # $(call record,STAGE,STATUS): note STAGE's exit status and pass it on.
 record = s=$(2); mkdir -p $(TEST_STATUS); echo $$s > $(TEST_STATUS)/$(1); exit $$s
 test: system-packages python-env
@@ -176,7 +180,8 @@ else
 endif
 	-$(Q)if test -e $(BUSY); then $(MAKE) --no-print-directory test-wheel; \
 	  $(MAKE) --no-print-directory -k -j2 test-serial test-late; \
-	  else $(MAKE) --no-print-directory -k -j3 test-serial test-wheel test-late; fi
+	  $(MAKE) --no-print-directory test-campaigns; \
+	  else $(MAKE) --no-print-directory -k -j4 test-serial test-campaigns test-wheel test-late; fi
 	$(Q)$(MAKE) --no-print-directory test-summary
 
 test-summary:
@@ -195,17 +200,17 @@ STAGE_FILES := build/stages
 test-collect:
 	-$(Q)rm -rf $(STAGE_FILES); MAKE_TEST_STAGE_FILES=$(STAGE_FILES) \
 	    $(PY) -m pytest --collect-only -q -p no:cacheprovider > /dev/null 2>&1
-# $(call stage_files,STAGE,LEFT OUT): STAGE's test files, but LEFT OUT (run by a lane of its
-# own); all of tests/ if the collection did not write them.
-stage_files = $$( (cat $(STAGE_FILES)/stage-$(1) 2>/dev/null || echo tests) | grep -v -x -F $(2))
+# $(call stage_files,STAGE,LEFT OUT): STAGE's test files, but those in LEFT OUT (run by lanes
+# of their own); all of tests/ if the collection did not write them.
+stage_files = $$( (cat $(STAGE_FILES)/stage-$(1) 2>/dev/null || echo tests) | \
+  grep -v -x -F $(foreach f,$(2),-e $(f)))
 
 test-parallel:
 	$(Q)$(PY) -m pytest -n $(TEST_JOBS) --dist worksteal -m "not serial and not qemu and not late" \
 	    --ignore=$(FUZZ_TESTS) $(call stage_files,parallel,$(FUZZ_TESTS)); $(call record,parallel,$$?)
 
 # The tests marked `late` (long, CPU-bound, not timing-sensitive: the API reference's build,
-# the symbolic fields, the transport under faults, the planner's closed loops and
-# programs; the serial stage leaves a quarter of the CPU idle) run beside it and the
+# the symbolic fields, the planner's closed loops and programs; the serial stage leaves a quarter of the CPU idle) run beside it and the
 # package check at a low priority, on the CPU those leave (the serial tests wait on the
 # wall clock): at the default priority the emulated bootloader of a serial test once
 # missed its deadline. On a busy machine at the default one: the serial stage is in the
@@ -224,7 +229,7 @@ test-qemu test-serial: test-%:
 	$(Q)if test -e $(BUSY); then jobs=1; prio="$(FIRST)"; \
 	  else jobs=$(STAGE_JOBS_$*); prio="$(STAGE_PRIO_$*)"; fi; \
 	  $$prio $(PY) -m pytest -q -p no:cacheprovider -n $$jobs --dist $(STAGE_DIST_$*) \
-	    -m "$(STAGE_MARK_$*)" --ignore=$(WHEEL_TESTS) $(call stage_files,$*,$(WHEEL_TESTS)) \
+	    -m "$(STAGE_MARK_$*)" $(addprefix --ignore=,$(LANES)) $(call stage_files,$*,$(LANES)) \
 	    > build/test-$*.log 2>&1; s=$$?; \
 	    if [ $$s = 0 ]; then echo "$* tests: $$(tail -n1 build/test-$*.log)"; \
 	    else cat build/test-$*.log; fi; $(call record,$*,$$s)
@@ -235,8 +240,18 @@ STAGE_MARK_qemu   := qemu and not serial
 STAGE_DIST_qemu   := loadfile
 STAGE_JOBS_serial  = $(SERIAL_JOBS)
 STAGE_MARK_serial := serial
-# loadgroup: tests as workers free up, but a group (the fault campaigns) to one worker, in turn
-STAGE_DIST_serial := loadgroup
+STAGE_DIST_serial := load
+# the files that lanes of their own run, left out of the QEMU and serial stages
+LANES := $(WHEEL_TESTS) $(CAMPAIGN_TESTS)
+
+# The fault campaigns, one after another (not pytest-xdist's `loadgroup`, which stopped
+# grouping with pytest 9.2: pytest-xdist issue #1386).
+test-campaigns:
+	@mkdir -p build
+	$(Q)prio=$$(test -e $(BUSY) && echo "$(FIRST)" || echo "$(HIGH)"); \
+	  $$prio $(PY) -m pytest -q -p no:cacheprovider $(CAMPAIGN_TESTS) > build/test-campaigns.log 2>&1; \
+	    s=$$?; if [ $$s = 0 ]; then echo "fault campaigns: $$(tail -n1 build/test-campaigns.log)"; \
+	    else cat build/test-campaigns.log; fi; $(call record,campaigns,$$s)
 
 # `make test` fuzzes each target TEST_FUZZ_SECONDS, a smoke pass within its 5-minute
 # budget; `make fuzz` is the longer pass (FUZZ_SECONDS, below).

@@ -19,15 +19,10 @@ from firmware_support import BOARDS, build_firmware
 from snakebot.settings import resolve_int
 from tests.reliability.rig.campaigns import CAMPAIGNS, run
 
-# One campaign at a time (`make test`'s serial stage hands a group to one worker): two at
-# once, an emulated CM-530 in one worker's process beside QEMU in another's, a QEMU
-# campaign lost a PING (a fresh clone's CI run).
-pytestmark = [
-    pytest.mark.qemu,
-    pytest.mark.slow,
-    pytest.mark.serial,
-    pytest.mark.xdist_group("campaigns"),
-]
+# One campaign at a time: `make test` runs this file in a process of its own beside the
+# serial stage (test-campaigns); two at once, an emulated CM-530 in one worker's process
+# beside QEMU in another's, a QEMU campaign lost a PING (a fresh clone's CI run).
+pytestmark = [pytest.mark.qemu, pytest.mark.slow, pytest.mark.serial]
 
 SEED = resolve_int("SNAKEBOT_CAMPAIGN_SEED")
 

@@ -39,7 +39,7 @@ def board_tests() -> dict[str, int]:
     return {board: sum(1 for i in ids if board in i.lower()) for board in BOARDS}
 
 
-STAGE_LOGS = ("qemu", "serial", "late", "fuzz", "wheel")
+STAGE_LOGS = ("qemu", "serial", "campaigns", "late", "fuzz", "wheel")
 """The stages whose output `make test` keeps in build/test-NAME.log (the parallel stage
 prints its own)."""
 

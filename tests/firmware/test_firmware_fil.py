@@ -200,9 +200,8 @@ def test_stack_stays_within_its_reserve(rig):
     fw = rig.firmware
     syms = symbols(QEMU_DIR / "firmware.elf")
     bottom = syms["_ebss"]
-    words = (RAM_END - bottom) // 4
-    text = fw.monitor(f"xp /{words}wx {bottom:#x}")
-    values = [int(v, 16) for line in text.splitlines() for v in line.split(":")[1].split()]
+    raw = fw.read(bottom, RAM_END - bottom)
+    values = [int.from_bytes(raw[i : i + 4], "little") for i in range(0, len(raw), 4)]
     untouched = next((i for i, v in enumerate(values) if v != STACK_PAINT), len(values))
     used = RAM_END - (bottom + 4 * untouched)
     reserve = sections(QEMU_DIR / "firmware.elf")[".stack"][1]

@@ -34,3 +34,10 @@ def test_a_refused_command_is_an_error_and_the_next_one_is_answered(image: bytes
         with pytest.raises(Exception, match="QEMU refused human-monitor-command"):
             fw._qmp_box[0].execute("human-monitor-command", {"no-such-argument": 1})
         assert fw.monitor("info name").strip() == "refused"
+
+
+def test_a_read_across_words_gives_exactly_the_bytes_asked(image: bytes):
+    """Unaligned start and end, several monitor lines (xp prints four words a line)."""
+    with QemuFirmware(QEMU_DIR / "flash.bin", extra_args=["-name", "bytes"]) as fw:
+        assert fw.read(APP_BASE + 3, 37) == image[3:40]
+        assert fw.read(APP_BASE, 4096) == image[:4096]

@@ -497,11 +497,27 @@ class QemuFirmware:
 
     def read_word(self, address: int) -> int:
         """One 32-bit word of the machine's physical memory (flash, RAM, registers)."""
-        text = self.monitor(f"xp /1wx {address:#x}")
+        return int.from_bytes(self.read(address & ~3, 4), "little")
+
+    def read(self, address: int, length: int) -> bytes:
+        """``length`` bytes of the machine's physical memory from ``address``, read as the
+        whole words around them through the monitor's ``xp``."""
+        first = address & ~3
+        words = (address + length - first + 3) // 4
+        text = self.monitor(f"xp /{words}wx {first:#x}")
         try:
-            return int(text.rsplit(":", 1)[1].split()[0], 16)
-        except (IndexError, ValueError) as exc:
-            raise QemuError(f"unexpected monitor answer to xp: {text!r}") from exc
+            values = [
+                int(v, 16)
+                for line in text.splitlines()
+                if ":" in line
+                for v in line.split(":", 1)[1].split()
+            ]
+        except ValueError as exc:
+            raise QemuError(f"unexpected monitor answer to xp: {text[:200]!r}") from exc
+        if len(values) != words:
+            raise QemuError(f"the monitor gave {len(values)} words of {words}: {text[:200]!r}")
+        raw = b"".join(v.to_bytes(4, "little") for v in values)
+        return raw[address - first : address - first + length]
 
     def __enter__(self) -> QemuFirmware:
         if self._proc is None:

@@ -129,17 +129,7 @@ class QemuTarget(Target):
 
     def read(self, address: int, length: int) -> bytes:
         """Through the monitor's ``xp``, whole words."""
-        first = address & ~3
-        words = (address + length - first + 3) // 4
-        text = self.fw.monitor(f"xp /{words}wx {first:#x}")
-        values = [
-            int(v, 16)
-            for line in text.splitlines()
-            if ":" in line
-            for v in line.split(":", 1)[1].split()
-        ]
-        raw = b"".join(v.to_bytes(4, "little") for v in values)
-        return raw[address - first : address - first + length]
+        return self.fw.read(address, length)
 
     def check_identity(self) -> None:
         """The monitor answers for this rig's QEMU (its name)."""

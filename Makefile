@@ -123,7 +123,8 @@ firmware: demo-packages
 # - the tests that run the firmware in QEMU, on QEMU_JOBS workers, a test file whole in
 #   each (--dist loadfile), which keeps each QEMU pacing its links in real time, in the
 #   real-time class (FIRST, below); where that is not allowed, after the other two lanes.
-# Then those marked `serial` (real-time pty runs, dynamixel-sdk's fixed waits) on
+# Then those marked `serial` (real-time pty runs, the transport under faults,
+# dynamixel-sdk's fixed waits) on
 # SERIAL_JOBS workers: beside the other stages, even in the real-time class, the
 # kernel's own tty work and the third-party clients came late (5 of 92 failed). Beside
 # them run the fault campaigns, one at a time in a process of their own (test-campaigns:

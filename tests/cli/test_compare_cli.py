@@ -46,17 +46,25 @@ def serpenoid(tmp_path: Path, name: str, amplitude: str) -> Path:
     return path
 
 
-RECORDINGS = 3
+RECORDINGS = 4
 """Recordings made at most until one the host did not disturb (compare reports no gap
-between its samples and no stall of the controller): a host busy enough to hold up the
-in-process emulator in a recording moves the servos off the goals they chase, which is
-not what these tests are about (test_a_stalled_emulator_is_reported... is)."""
+between its samples and no stall of the controller, and the emulator kept its ticks):
+a host busy enough to hold up the in-process emulator in a recording moves the servos
+off the goals they chase, which is not what these tests are about
+(test_a_stalled_emulator_is_reported... is)."""
+
+HELD_UP_S = 0.05
+"""The longest time between two of the emulated controller's 10 ms ticks in a recording
+the host did not disturb. Compare's own checks do not see a held-up emulator: its
+servos lag their goals (in the parallel stage of `make test` a recording passed them
+and its joints were 6-7 degrees RMS off, where an undisturbed one is within 3)."""
 
 
 def record_undisturbed(gait: Path, *monitor_args: str | Path) -> dict:
     """A run of ``gait`` recorded by `snakebot monitor` with ``monitor_args`` (its output
     files among them) from a controller playing it, again until compare finds neither
-    gaps nor stalls in it (RECORDINGS); compare's report of the first undisturbed run."""
+    gaps nor stalls in it and the emulator kept its ticks (RECORDINGS); compare's report
+    of the first undisturbed run."""
     csv = Path(monitor_args[monitor_args.index("--csv") + 1])
     for _ in range(RECORDINGS):
         with ControllerPty(table=read_gait(gait).encode()) as server:
@@ -65,9 +73,13 @@ def record_undisturbed(gait: Path, *monitor_args: str | Path) -> dict:
             done = cli("monitor", "--port", server.device, *monitor_args)
             assert done.exit_code == 0, done.output
         report = compare_json(csv, gait)
-        if not report["gaps"] and not report["stalls"]:
+        held_up = server.longest_tick_gap_s
+        if not report["gaps"] and not report["stalls"] and held_up < HELD_UP_S:
             return report
-    pytest.fail(f"the host disturbed all {RECORDINGS} recordings: {report}")
+    pytest.fail(
+        f"the host disturbed all {RECORDINGS} recordings (the last held the emulator up "
+        f"{held_up:.3f} s): {report}"
+    )
 
 
 @pytest.fixture(scope="module")

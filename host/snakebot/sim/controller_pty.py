@@ -311,6 +311,10 @@ class ControllerPty(ThreadedServer):
         self.tick_ms = tick_ms
         self.host_packets: list[bytes] = []
         """Every packet the host sent, as it sent it (before the line filter)."""
+        self.longest_tick_gap_s = 0.0
+        """The longest time between two control ticks so far: ``tick_ms`` when the host
+        kept the emulator on time, more when it held the serving thread up (ticks it
+        could not run on time are skipped, as the servos then chase older goals)."""
         self.device = ""
         self._pty = RawPty()
         self._thread: ServerThread | None = None
@@ -356,6 +360,7 @@ class ControllerPty(ThreadedServer):
         to_host = PacedWire(self.baudrate)
         pending_out = bytearray()
         next_tick = 0.0
+        last_tick: float | None = None
         while not self._stopped:
             now = time.monotonic() - t0
             now_ms = int(now * 1000) & 0xFFFFFFFF
@@ -383,6 +388,11 @@ class ControllerPty(ThreadedServer):
                     to_host.put(self.device_logic.feed(arrived, now_ms), now)
                 if now >= next_tick:
                     self.device_logic.tick(now_ms)
+                    ticked = time.monotonic()  # `now` may be older: the lock was waited for
+                    if last_tick is not None:
+                        gap = ticked - last_tick
+                        self.longest_tick_gap_s = max(self.longest_tick_gap_s, gap)
+                    last_tick = ticked
                     next_tick += self.tick_ms / 1000.0
                     if next_tick <= now:
                         next_tick = now + self.tick_ms / 1000.0

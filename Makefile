@@ -124,13 +124,13 @@ firmware: demo-packages
 #   each (--dist loadfile), which keeps each QEMU pacing its links in real time, in the
 #   real-time class (FIRST, below); where that is not allowed, after the other two lanes.
 # Then those marked `serial` (real-time pty runs, the transport under faults,
-# dynamixel-sdk's fixed waits) on
-# SERIAL_JOBS workers: beside the other stages, even in the real-time class, the
-# kernel's own tty work and the third-party clients came late (5 of 92 failed). Beside
-# them run the fault campaigns, one at a time in a process of their own (test-campaigns:
-# their counts need the emulated board to keep pace, and a QEMU campaign lost a PING with
-# another board's campaign running beside it), the package check (it builds the wheel,
-# then runs the demo from it in QEMU; test-wheel) and the late lane (test-late).
+# dynamixel-sdk's fixed waits) on SERIAL_JOBS workers: beside the other stages, even in
+# the real-time class, the kernel's own tty work and the third-party clients came late
+# (5 of 92 failed). Beside them run the fault campaigns, one at a time in a process of
+# their own (test-campaigns: their counts need the emulated board to keep pace, and a
+# QEMU campaign lost a PING with another board's campaign running beside it), the
+# package check (it builds the wheel, then runs the demo from it in QEMU; test-wheel)
+# and the late lane (test-late).
 # Every stage but the first writes a log, shown whole if it fails and as one line if not,
 # so that outputs do not mix; the first stage prints its progress.
 # A stage that fails does not stop the others: each records its result in TEST_STATUS,
@@ -166,6 +166,10 @@ BUSY_CORES  := 0.5
 TEST_STAGES := checks parallel late qemu serial campaigns fuzz wheel
 # $(call record,STAGE,STATUS): note STAGE's exit status and pass it on.
 record = s=$(2); mkdir -p $(TEST_STATUS); echo $$s > $(TEST_STATUS)/$(1); exit $$s
+# $(call logged,STAGE,LABEL), after a command that wrote build/test-STAGE.log: that log
+# whole if the command failed, else LABEL and the log's last line; then record its status.
+logged = s=$$?; if [ $$s = 0 ]; then echo "$(2): $$(tail -n1 build/test-$(1).log)"; \
+  else cat build/test-$(1).log; fi; $(call record,$(1),$$s)
 test: system-packages python-env
 	@rm -rf $(TEST_STATUS) $(BUSY); mkdir -p build
 	@busy=$$($(PY) tests/support/busy_cores.py); \
@@ -210,20 +214,19 @@ test-parallel:
 	$(Q)$(PY) -m pytest -n $(TEST_JOBS) --dist worksteal -m "not serial and not qemu and not late" \
 	    --ignore=$(FUZZ_TESTS) $(call stage_files,parallel,$(FUZZ_TESTS)); $(call record,parallel,$$?)
 
-# The tests marked `late` (long, CPU-bound, not timing-sensitive: the API reference's build,
-# the symbolic fields, the planner's closed loops and programs; the serial stage leaves a quarter of the CPU idle) run beside it and the
-# package check at a low priority, on the CPU those leave (the serial tests wait on the
-# wall clock): at the default priority the emulated bootloader of a serial test once
-# missed its deadline. On a busy machine at the default one: the serial stage is in the
-# real-time class there, and at nice 10 beside two busy processes the lane got 11 s of
-# CPU in 6 minutes.
+# The tests marked `late` (long, CPU-bound, not timing-sensitive: the API reference's
+# build, the symbolic fields, the planner's closed loops and programs; the serial stage
+# leaves a quarter of the CPU idle) run beside it and the package check at a low
+# priority, on the CPU those leave (the serial tests wait on the wall clock): at the
+# default priority the emulated bootloader of a serial test once missed its deadline. On
+# a busy machine at the default one: the serial stage is in the real-time class there,
+# and at nice 10 beside two busy processes the lane got 11 s of CPU in 6 minutes.
 test-late:
 	@mkdir -p build
 	$(Q)prio=$$(test -e $(BUSY) || echo "$(LOW)"); \
 	  $$prio $(PY) -m pytest -q -p no:cacheprovider -n $(LATE_JOBS) -m "late and not serial and not qemu" \
 	    --ignore=$(FUZZ_TESTS) $(call stage_files,late,$(FUZZ_TESTS)) > build/test-late.log 2>&1; \
-	    s=$$?; if [ $$s = 0 ]; then echo "late tests: $$(tail -n1 build/test-late.log)"; \
-	    else cat build/test-late.log; fi; $(call record,late,$$s)
+	    $(call logged,late,late tests)
 
 test-qemu test-serial: test-%:
 	@mkdir -p build
@@ -231,9 +234,7 @@ test-qemu test-serial: test-%:
 	  else jobs=$(STAGE_JOBS_$*); prio="$(STAGE_PRIO_$*)"; fi; \
 	  $$prio $(PY) -m pytest -q -p no:cacheprovider -n $$jobs --dist $(STAGE_DIST_$*) \
 	    -m "$(STAGE_MARK_$*)" $(addprefix --ignore=,$(LANES)) $(call stage_files,$*,$(LANES)) \
-	    > build/test-$*.log 2>&1; s=$$?; \
-	    if [ $$s = 0 ]; then echo "$* tests: $$(tail -n1 build/test-$*.log)"; \
-	    else cat build/test-$*.log; fi; $(call record,$*,$$s)
+	    > build/test-$*.log 2>&1; $(call logged,$*,$* tests)
 STAGE_JOBS_qemu    = $(QEMU_JOBS)
 STAGE_PRIO_qemu    = $(FIRST)
 STAGE_PRIO_serial  = $(HIGH)
@@ -251,8 +252,7 @@ test-campaigns:
 	@mkdir -p build
 	$(Q)prio=$$(test -e $(BUSY) && echo "$(FIRST)" || echo "$(HIGH)"); \
 	  $$prio $(PY) -m pytest -q -p no:cacheprovider $(CAMPAIGN_TESTS) > build/test-campaigns.log 2>&1; \
-	    s=$$?; if [ $$s = 0 ]; then echo "fault campaigns: $$(tail -n1 build/test-campaigns.log)"; \
-	    else cat build/test-campaigns.log; fi; $(call record,campaigns,$$s)
+	    $(call logged,campaigns,fault campaigns)
 
 # `make test` fuzzes each target TEST_FUZZ_SECONDS, a smoke pass within its 5-minute
 # budget; `make fuzz` is the longer pass (FUZZ_SECONDS, below).
@@ -260,9 +260,7 @@ TEST_FUZZ_SECONDS ?= 10
 test-fuzz:
 	@mkdir -p build
 	$(Q)FUZZ_SECONDS=$(TEST_FUZZ_SECONDS) FUZZ_LAUNCH="$(LOW)" $(LOW) $(PY) -m pytest -q -p no:cacheprovider $(FUZZ_TESTS) \
-	    > build/test-fuzz.log 2>&1; s=$$?; \
-	    if [ $$s = 0 ]; then echo "fuzz tests: $$(tail -n1 build/test-fuzz.log)"; \
-	    else cat build/test-fuzz.log; fi; $(call record,fuzz,$$s)
+	    > build/test-fuzz.log 2>&1; $(call logged,fuzz,fuzz tests)
 
 # The package check runs after the QEMU stage. On an idle machine it runs beside the serial
 # stage, whose tests wait on the wall clock and leave half the CPU idle (make test 292 s
@@ -274,8 +272,7 @@ test-wheel:
 	@mkdir -p build
 	$(Q)prio=$$(test -e $(BUSY) && echo "$(FIRST)"); \
 	  $$prio $(PY) -m pytest -q -p no:cacheprovider $(WHEEL_TESTS) > build/test-wheel.log 2>&1; \
-	    s=$$?; if [ $$s = 0 ]; then echo "package check: $$(tail -n1 build/test-wheel.log)"; \
-	    else cat build/test-wheel.log; fi; $(call record,wheel,$$s)
+	    $(call logged,wheel,package check)
 
 fuzz-targets:
 	$(Q)$(MAKE) --no-print-directory -C fuzz all

@@ -497,7 +497,7 @@ class QemuFirmware:
 
     def read_word(self, address: int) -> int:
         """One 32-bit word of the machine's physical memory (flash, RAM, registers)."""
-        return int.from_bytes(self.read(address & ~3, 4), "little")
+        return int.from_bytes(self.read(address, 4), "little")
 
     def read(self, address: int, length: int) -> bytes:
         """``length`` bytes of the machine's physical memory from ``address``, read as the
